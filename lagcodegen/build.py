@@ -1,0 +1,302 @@
+"""Compile generated code into an importable cffi module, cached by content hash.
+
+The cache key covers the sources, the compiler (path and version), the flags, the
+lagcodegen version and the SUNDIALS libraries linked. A build runs in a private temporary
+folder that is renamed into the cache when complete, so a cached module is never seen half
+written, and two processes building the same model at once both succeed (the second
+rename loses the race and that process uses the winner's files).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.machinery
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import cffi
+import numpy as np
+
+from . import __version__
+from .codegen import GeneratedCode, environment
+from .errors import CompileError, LagcodegenError
+
+DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
+
+
+def cache_dir() -> Path:
+    """Cache root: $LAGCODEGEN_CACHE, else ~/.cache/lagcodegen."""
+    root = os.environ.get("LAGCODEGEN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "lagcodegen")
+    path = Path(root)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+@dataclass(frozen=True)
+class Sundials:
+    """The SUNDIALS shared libraries bundled in the scikit-sundae wheel."""
+
+    libdir: Path
+    libs: dict  # short name ("cvode", "ida", "core") -> file name
+    sunindextype: str
+    version: str
+
+    def link_args(self, names=("cvode", "core")) -> list[str]:
+        args = [f"-L{self.libdir}"]
+        args += [f"-l:{self.libs[n]}" for n in names]
+        args += [f"-Wl,-rpath,{self.libdir}"]
+        return args
+
+
+@functools.lru_cache(maxsize=1)
+def find_sundials() -> Sundials:
+    """Locate the SUNDIALS libraries of the installed scikit-sundae wheel."""
+    try:
+        import sksundae
+    except ImportError as exc:  # pragma: no cover - dependency
+        raise LagcodegenError("scikit-sundae is not installed: pip install scikit-sundae") from exc
+    pkg = Path(sksundae.__file__).resolve().parent
+    libdir = pkg.parent / "scikit_sundae.libs"
+    libs = {}
+    for short in ("cvode", "ida", "core"):
+        found = sorted(libdir.glob(f"libsundials_{short}-*.so*")) if libdir.is_dir() else []
+        if found:
+            libs[short] = found[0].name
+    if "cvode" not in libs or "core" not in libs:
+        raise LagcodegenError(f"SUNDIALS libraries not found in {libdir}: the native backend needs the "
+                              "scikit-sundae wheel's bundled libraries")
+    index = "int"
+    cfg = pkg / "c_config.pxi"
+    if cfg.is_file():
+        m = re.search(r"ctypedef\s+([\w ]+?)\s+sunindextype", cfg.read_text())
+        if m:
+            index = {"int": "int", "long": "long", "long long": "long long",
+                     "int64_t": "long long", "int32_t": "int"}.get(m.group(1).strip(), "int")
+    ver = re.search(r"\.so\.(\d+\.\d+\.\d+)$", libs["cvode"])
+    return Sundials(libdir, libs, index, ver.group(1) if ver else "7")
+
+
+@functools.lru_cache(maxsize=4)
+def compiler_id(cc: str) -> str:
+    """Compiler path and version text, part of the cache key."""
+    path = shutil.which(cc) or cc
+    try:
+        ver = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30).stdout
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise CompileError(f"C compiler {cc!r} cannot be run", [cc, "--version"], str(exc)) from None
+    return f"{path}\n{ver}"
+
+
+def _cdef(code: GeneratedCode, native: bool) -> str:
+    p = code.prefix
+    lines = [f"int {p}_rhs(double t, const double *y, const double *p, double *ydot);"]
+    if code.jacobian:
+        lines.append(f"int {p}_jac(double t, const double *y, const double *ydot, const double *p, double *jac);")
+    if code.nout:
+        lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
+    if native:
+        lines.append(f"""
+typedef struct {{
+    int method; int jacobian; double rtol; double atol; const double *atol_vec;
+    long max_steps; double first_step; double max_step; double min_step; int max_order;
+}} {p}_options;
+typedef struct {{
+    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
+    double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512];
+}} {p}_stats;
+int {p}_cvode_solve(const double *p, const double *y0, int nt, const double *tout,
+                    double *yout, double *out, const {p}_options *opt, {p}_stats *st);""")
+    return "\n".join(lines)
+
+
+def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
+    """The native CVODE driver files of ``code`` (header, source, SUNDIALS declarations)."""
+    env = environment()
+    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
+               jacobian=code.jacobian, outputs=bool(code.nout),
+               sunindextype=sundials.sunindextype, sundials_version=sundials.version)
+    return {
+        "sundials_api.h": env.get_template("c/sundials_api.h.j2").render(**ctx),
+        f"{code.prefix}_cvode.h": env.get_template("c/cvode_driver.h.j2").render(**ctx),
+        f"{code.prefix}_cvode.c": env.get_template("c/cvode_driver.c.j2").render(**ctx),
+    }
+
+
+class CompiledModel:
+    """A compiled scene: the cffi module plus the layout of its arrays.
+
+    Call :meth:`rhs`, :meth:`jac`, :meth:`outputs` from Python, or :meth:`simulate`.
+    """
+
+    def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool):
+        self.code = code
+        self.module = module
+        self.ffi = module.ffi
+        self.lib = module.lib
+        self.path = path
+        self.native = native
+        self.cached = cached
+        p = code.prefix
+        self._rhs = getattr(self.lib, f"{p}_rhs")
+        self._jac = getattr(self.lib, f"{p}_jac", None)
+        self._out = getattr(self.lib, f"{p}_outputs", None)
+
+    # layout
+    @property
+    def n(self) -> int:
+        return self.code.n
+
+    @property
+    def ny(self) -> int:
+        return self.code.ny
+
+    @property
+    def state_names(self) -> list[str]:
+        return self.code.state_names
+
+    @property
+    def param_names(self) -> list[str]:
+        return self.code.param_names
+
+    @property
+    def output_names(self) -> list[str]:
+        return self.code.output_names
+
+    def parameter_vector(self, params: dict | None = None) -> np.ndarray:
+        """Run-time parameter array: defaults overridden by ``params`` (name -> value)."""
+        from .model import check_finite
+        vals = dict(zip(self.code.param_names, self.code.param_defaults))
+        for k, v in (params or {}).items():
+            if k not in vals:
+                raise LagcodegenError(f"{k!r} is not a run-time parameter of this scene "
+                                      f"(run-time parameters: {', '.join(vals) or 'none'})")
+            vals[k] = check_finite(v, f"parameter {k!r}")
+        return np.array([vals[k] for k in self.code.param_names], dtype=float)
+
+    def _ptr(self, arr):
+        return self.ffi.from_buffer("double[]", arr) if arr.size else self.ffi.NULL
+
+    def rhs(self, t: float, y, p=None) -> np.ndarray:
+        """f(t, y, p) evaluated by the compiled code."""
+        y = np.ascontiguousarray(y, dtype=float)
+        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
+        out = np.empty(self.ny)
+        rc = self._rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        _check_rc(rc, t, "right-hand side")
+        return out
+
+    def jac(self, t: float, y, p=None) -> np.ndarray:
+        """df/dy (ny x ny) evaluated by the compiled code."""
+        if self._jac is None:
+            raise LagcodegenError("this scene has no Jacobian (Scene(jacobian=False))")
+        ydot = self.rhs(t, y, p)
+        y = np.ascontiguousarray(y, dtype=float)
+        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
+        J = np.empty((self.ny, self.ny), order="F")
+        rc = self._jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
+        _check_rc(rc, t, "Jacobian")
+        return J
+
+    def outputs(self, t: float, y, p=None) -> np.ndarray:
+        """The scene's outputs at (t, y)."""
+        if self._out is None:
+            return np.empty(0)
+        y = np.ascontiguousarray(y, dtype=float)
+        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
+        out = np.empty(self.code.nout)
+        rc = self._out(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        _check_rc(rc, t, "outputs")
+        return out
+
+    def simulate(self, t, **kwargs):
+        """Integrate; see :func:`lagcodegen.solve.simulate`."""
+        from .solve import simulate
+        return simulate(self, t, **kwargs)
+
+
+def _check_rc(rc: int, t: float, what: str) -> None:
+    from .errors import SingularMassMatrixError, SolverError
+    if rc == 1:
+        raise SingularMassMatrixError(f"{what}: the mass matrix is singular", t=float(t))
+    if rc == 2:
+        raise SolverError(f"{what}: a computed value is not finite", t=float(t))
+
+
+def _load(name: str, path: Path):
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    sys.modules[name] = module
+    return module
+
+
+def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
+          cflags: tuple[str, ...] = DEFAULT_CFLAGS, verbose: bool = False) -> CompiledModel:
+    """Compile ``code`` (and the native CVODE driver) into a cffi module; cached by content hash."""
+    cc = cc or os.environ.get("CC") or "cc"
+    sundials = find_sundials() if native else None
+    sources = dict(code.files)
+    if native:
+        sources.update(driver_sources(code, sundials))
+    cdef = _cdef(code, native)
+    link = sundials.link_args() if native else []
+    ext = importlib.machinery.EXTENSION_SUFFIXES[0]
+    h = hashlib.sha256()
+    for part in [__version__, compiler_id(cc), " ".join(cflags), " ".join(link), ext, cdef,
+                 sys.version, *sorted(f"{k}\0{v}" for k, v in sources.items())]:
+        h.update(part.encode())
+        h.update(b"\0")
+    key = h.hexdigest()[:24]
+    modname = f"_lcg_{code.prefix}_{key}"
+    root = cache_dir()
+    final = root / key
+    sofile = final / f"{modname}{ext}"
+    if sofile.is_file():
+        return CompiledModel(code, _load(modname, sofile), sofile, native, cached=True)
+
+    tmp = Path(tempfile.mkdtemp(prefix=f".build-{key}-", dir=root))
+    try:
+        for name, text in sources.items():
+            (tmp / name).write_text(text)
+        ffi = cffi.FFI()
+        ffi.cdef(cdef)
+        includes = f'#include "{code.header_name}"\n'
+        if native:
+            includes += f'#include "{code.prefix}_cvode.h"\n'
+        ffi.set_source(modname, includes)
+        ffi.emit_c_code(str(tmp / f"{modname}.c"))
+        c_files = [f"{modname}.c", code.source_name] + ([f"{code.prefix}_cvode.c"] if native else [])
+        cmd = [cc, *cflags, "-shared", f"-I{tmp}", f"-I{sysconfig.get_paths()['include']}",
+               *c_files, "-o", f"{modname}{ext}", *link, "-lm"]
+        if verbose:
+            print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
+        try:
+            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=1800)
+        except OSError as exc:
+            raise CompileError(f"cannot run the C compiler {cc!r}", cmd, str(exc)) from None
+        if proc.returncode != 0:
+            raise CompileError(f"compiling model {code.model_name!r} failed (exit {proc.returncode})",
+                               cmd, proc.stdout + proc.stderr)
+        try:
+            os.rename(tmp, final)  # atomic publish of the complete folder
+        except OSError:
+            if not sofile.is_file():  # not a lost race: something else is wrong
+                raise
+        else:
+            tmp = None
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return CompiledModel(code, _load(modname, sofile), sofile, native, cached=False)

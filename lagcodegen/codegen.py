@@ -1,0 +1,193 @@
+"""C code generation: a :class:`~lagcodegen.scene.Scene` rendered through the jinja2 templates.
+
+Expressions are reduced by common-subexpression elimination (symengine's ``cse``, which
+matches sympy's) and printed by sympy's C99 printer. The symbols of the model are renamed
+to array elements before elimination: q_i -> y[i], q_i' -> y[n+i], run-time parameter k ->
+p[k]; folded parameters become numbers (printed with 17 significant digits, exact doubles).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import jinja2
+import symengine as se
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+
+from . import __version__
+from .scene import Scene
+
+_INDENT = "    "
+
+
+def templates_dir() -> Path:
+    """Folder holding the jinja2 templates (installed package data, or the source tree)."""
+    here = Path(__file__).resolve().parent
+    for cand in (here / "templates", here.parent / "templates"):
+        if (cand / "c" / "model.c.j2").is_file():
+            return cand
+    raise FileNotFoundError(f"lagcodegen templates not found next to {here}")
+
+
+def environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+        undefined=jinja2.StrictUndefined)
+
+
+class _Printer(C99CodePrinter):
+    """sympy's C99 printer; symbols named like ``y[3]`` print verbatim."""
+
+
+def _print(expr, printer: _Printer) -> str:
+    return printer.doprint(sp.sympify(expr))
+
+
+def emit_block(targets: list[str], exprs: list, indent: int = 1) -> str:
+    """C statements assigning ``exprs`` to ``targets`` after common-subexpression elimination."""
+    printer = _Printer()
+    pad = _INDENT * indent
+    if not exprs:
+        return ""
+    repl, reduced = se.cse(list(exprs))
+    lines = [f"{pad}const double {sym} = {_print(e, printer)};" for sym, e in repl]
+    lines += [f"{pad}{tgt} = {_print(e, printer)};" for tgt, e in zip(targets, reduced)]
+    return "\n".join(lines)
+
+
+@dataclass
+class GeneratedCode:
+    """Generated C sources of one scene: ``files`` maps file name -> text."""
+
+    prefix: str
+    model_name: str
+    n: int
+    state_names: list[str]
+    param_names: list[str]
+    param_defaults: list[float]
+    output_names: list[str]
+    jacobian: bool
+    files: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def ny(self) -> int:
+        return 2 * self.n
+
+    @property
+    def np(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def nout(self) -> int:
+        return len(self.output_names)
+
+    @property
+    def header_name(self) -> str:
+        return f"{self.prefix}.h"
+
+    @property
+    def source_name(self) -> str:
+        return f"{self.prefix}.c"
+
+    def write(self, directory: str | os.PathLike) -> list[Path]:
+        """Write the files into ``directory``, each atomically (temp file + rename)."""
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for name, text in self.files.items():
+            written.append(atomic_write(out / name, text))
+        return written
+
+
+def atomic_write(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _symbol_map(scene: Scene) -> dict:
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    sub = {}
+    for i, q in enumerate(model.coords):
+        sub[se.Symbol(q.name)] = se.Symbol(f"y[{i}]")
+    for i, v in enumerate(model.speeds):
+        sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
+    for k, name in enumerate(scene.runtime_parameters):
+        sub[se.Symbol(name)] = se.Symbol(f"p[{k}]")
+    sub.update(scene.substitutions())
+    return sub
+
+
+def generate_c(scene: Scene) -> GeneratedCode:
+    """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    sub = _symbol_map(scene)
+
+    def c(e):
+        return se.sympify(e).xreplace(sub) if sub else se.sympify(e)
+
+    # Right-hand side: upper triangle of M (mirrored) and F.
+    targets, exprs = [], []
+    for i in range(n):
+        for j in range(i, n):
+            targets.append(f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]")
+            exprs.append(c(eom.M_se[i][j]))
+    for i in range(n):
+        targets.append(f"F[{i}]")
+        exprs.append(c(eom.F_se[i]))
+    rhs = emit_block(targets, exprs)
+
+    jac = ""
+    if scene.jacobian:
+        a = [se.Symbol(f"a[{i}]") for i in range(n)]
+        q = [se.Symbol(s.name) for s in model.coords]
+        v = [se.Symbol(s.name) for s in model.speeds]
+        acc = [se.Symbol(f"__acc{i}") for i in range(n)]
+        r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
+        asub = dict(zip(acc, a))
+        targets, exprs = [], []
+        for i in range(n):
+            for j in range(i, n):
+                targets.append(f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]")
+                exprs.append(c(eom.M_se[i][j]))
+        for j, var in enumerate(q + v):
+            for i in range(n):
+                targets.append(f"G[{j}][{i}]")
+                exprs.append(c(se.diff(r[i], var).xreplace(asub)))
+        jac = emit_block(targets, exprs)
+
+    outputs = scene.output_list()
+    out = emit_block([f"out[{k}]" for k in range(len(outputs))], [c(o.expr) for o in outputs])
+
+    code = GeneratedCode(
+        prefix=scene.prefix, model_name=model.name, n=n,
+        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds],
+        param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
+        output_names=[o.name for o in outputs], jacobian=scene.jacobian)
+    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=model.name,
+               n=n, ny=code.ny, np=code.np, nout=code.nout, state_names=code.state_names,
+               param_names=code.param_names, folded=sorted(scene.folded.items()),
+               outputs=code.output_names, jacobian=scene.jacobian, rhs=rhs, jac=jac, out=out)
+    env = environment()
+    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
+    code.files[code.source_name] = env.get_template("c/model.c.j2").render(**ctx)
+    return code

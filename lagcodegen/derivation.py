@@ -1,0 +1,258 @@
+"""Lagrange's equations M(q, q', t) q'' = F(q, q', t) from a :class:`~lagcodegen.model.Model`.
+
+The derivation runs on symengine (fast), and every result is offered as sympy objects:
+
+* T from the bodies (eq. 2.2) plus any T given directly, V (eq. 2.7), L = T - V (sec. 3.2),
+* generalized momenta p_i = dL/dq_i' (eq. 2.3),
+* generalized forces Q_i from Cartesian forces (eq. 2.6) and Q* (eq. 3.16),
+* Rayleigh dissipation D (eq. 3.15) entering as -dD/dq_i' (eq. 3.14),
+* the equations (3.16) written as M q'' = F with
+      M_ij = d^2 L / dq_i' dq_j'
+      F_i  = dL/dq_i - sum_j (d^2 L / dq_i' dq_j) q_j' - d^2 L / dq_i' dt - dD/dq_i' + Q_i.
+
+M is never inverted symbolically: generated code solves M q'' = F numerically.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import symengine as se
+import sympy as sp
+
+from .errors import DerivationError, ModelError
+from .model import Model, Particle, PlanarBody, RigidBody
+
+
+def to_se(expr, what: str = "expression"):
+    """sympy -> symengine, with a clear error for constructs symengine lacks."""
+    try:
+        return se.sympify(expr)
+    except Exception as exc:  # symengine raises several types here
+        raise ModelError(f"{what} cannot be handled by the derivation engine: {expr} ({exc})") from None
+
+
+def to_sp(expr):
+    """symengine -> sympy."""
+    return sp.sympify(expr)
+
+
+def _sp_matrix(rows) -> sp.Matrix:
+    return sp.Matrix([[to_sp(e) for e in row] for row in rows])
+
+
+@dataclass
+class EquationsOfMotion:
+    """Derived equations of a model. Symbolic fields come as sympy objects (converted lazily).
+
+    ``M`` is the mass matrix and ``F`` the generalized force vector of M q'' = F (eq. 3.16).
+    """
+
+    model: Model
+    T_se: object
+    V_se: object
+    D_se: object
+    Q_se: list  # generalized forces (Cartesian mapped + Q*), not including -dD/dq'
+    p_se: list  # momenta dL/dq'
+    M_se: list  # n x n (list of rows)
+    F_se: list  # n
+    derivation_seconds: float = 0.0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    # ------------------------------------------------------------ symbols
+    @property
+    def q(self) -> list[sp.Symbol]:
+        return list(self.model.coords)
+
+    @property
+    def qd(self) -> list[sp.Symbol]:
+        return list(self.model.speeds)
+
+    @property
+    def t(self) -> sp.Symbol:
+        return self.model.t
+
+    @property
+    def n(self) -> int:
+        return self.model.n
+
+    @property
+    def parameters(self) -> dict:
+        """Parameter symbols and their default values."""
+        return dict(self.model.params)
+
+    # ------------------------------------------------------------ sympy views
+    @cached_property
+    def T(self) -> sp.Expr:
+        """Kinetic energy T(q, q', t) (eq. 2.2)."""
+        return to_sp(self.T_se)
+
+    @cached_property
+    def V(self) -> sp.Expr:
+        """Potential energy V (eq. 2.7)."""
+        return to_sp(self.V_se)
+
+    @cached_property
+    def L(self) -> sp.Expr:
+        """Lagrangian L = T - V (sec. 3.2)."""
+        return self.T - self.V
+
+    @cached_property
+    def D(self) -> sp.Expr:
+        """Rayleigh dissipation function (eq. 3.15)."""
+        return to_sp(self.D_se)
+
+    @cached_property
+    def Q(self) -> sp.Matrix:
+        """Generalized forces from Cartesian forces (eq. 2.6) and Q* (eq. 3.16)."""
+        return sp.Matrix([to_sp(e) for e in self.Q_se])
+
+    @cached_property
+    def momenta(self) -> sp.Matrix:
+        """Generalized momenta p_i = dL/dq_i' (eq. 2.3)."""
+        return sp.Matrix([to_sp(e) for e in self.p_se])
+
+    @cached_property
+    def M(self) -> sp.Matrix:
+        """Mass matrix (symmetric), M_ij = d^2 L / dq_i' dq_j'."""
+        return _sp_matrix(self.M_se)
+
+    @cached_property
+    def F(self) -> sp.Matrix:
+        """Right side of M q'' = F (eq. 3.16)."""
+        return sp.Matrix([to_sp(e) for e in self.F_se])
+
+    @property
+    def energy(self) -> sp.Expr:
+        """Mechanical energy T + V."""
+        return self.T + self.V
+
+    def accelerations(self) -> sp.Matrix:
+        """Symbols q_i'' used by :meth:`equations`."""
+        return sp.Matrix([sp.Symbol(f"{q.name}_ddot") for q in self.q])
+
+    def equations(self) -> sp.Matrix:
+        """Lagrange's equations as residuals M q'' - F (each = 0)."""
+        return self.M * self.accelerations() - self.F
+
+
+# ---------------------------------------------------------------------- helpers
+class _Engine:
+    """symengine views of the model's symbols plus time differentiation."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.q = [se.Symbol(s.name) for s in model.coords]
+        self.qd = [se.Symbol(s.name) for s in model.speeds]
+        self.t = se.Symbol(model.t.name)
+
+    def ddt(self, e):
+        """Total time derivative of an expression in (q, t)."""
+        out = se.diff(e, self.t)
+        for q, v in zip(self.q, self.qd):
+            out = out + se.diff(e, q) * v
+        return out
+
+    def vec(self, m, what):
+        return [to_se(c, what) for c in m]
+
+
+def _kinetic_energy(model: Model, eng: _Engine):
+    T = se.Integer(0)
+    for body in model.bodies:
+        m = to_se(body.mass, f"mass of {body.name!r}")
+        x = eng.vec(body.point.position, f"position of {body.name!r}")
+        v = [eng.ddt(c) for c in x]
+        T = T + m / 2 * sum((c * c for c in v), se.Integer(0))
+        if isinstance(body, PlanarBody):
+            w = eng.ddt(to_se(body.angle, f"angle of {body.name!r}"))
+            T = T + to_se(body.inertia, f"inertia of {body.name!r}") / 2 * w * w
+        elif isinstance(body, RigidBody):
+            R = se.Matrix(3, 3, [to_se(c, f"orientation of {body.name!r}") for c in body.orientation])
+            Rdot = R.applyfunc(eng.ddt)
+            W = R.T * Rdot  # [w]x in body axes
+            w = se.Matrix([W[2, 1], W[0, 2], W[1, 0]])
+            I = se.Matrix(3, 3, [to_se(c, f"inertia of {body.name!r}") for c in body.inertia])
+            T = T + (w.T * I * w)[0, 0] / 2
+        elif not isinstance(body, Particle):  # pragma: no cover - guarded by Model
+            raise ModelError(f"unknown body type {type(body).__name__}")
+    for label, Tk in model.kinetic_terms:
+        T = T + to_se(Tk, f"kinetic energy {label!r}")
+    return T
+
+
+def _potential_energy(model: Model, eng: _Engine):
+    V = se.Integer(0)
+    for label, Vk in model.potential_terms:
+        V = V + to_se(Vk, f"potential {label!r}")
+    if model.gravity_spec is not None:
+        g, up = model.gravity_spec
+        g = to_se(g, "gravity")
+        for body in model.bodies:
+            x = eng.vec(body.point.position, f"position of {body.name!r}")
+            if up is None:
+                height = x[-1]
+            else:
+                if len(up) != len(x):
+                    raise ModelError(f"gravity 'up' has {len(up)} components, {body.name!r} has {len(x)}")
+                u = eng.vec(up, "gravity up")
+                height = sum((a * b for a, b in zip(x, u)), se.Integer(0))
+            V = V + to_se(body.mass, f"mass of {body.name!r}") * g * height
+    return V
+
+
+def _generalized_forces(model: Model, eng: _Engine):
+    Q = [se.Integer(0)] * model.n
+    for label, pt, F in model.cartesian_forces:
+        x = eng.vec(pt.position, f"position of {pt.name!r}")
+        f = eng.vec(F, label)
+        for i, q in enumerate(eng.q):  # eq. 2.6
+            Q[i] = Q[i] + sum((fk * se.diff(xk, q) for fk, xk in zip(f, x)), se.Integer(0))
+    for label, i, Qs in model.generalized_forces:
+        Q[i] = Q[i] + to_se(Qs, label)
+    return Q
+
+
+def derive(model: Model) -> EquationsOfMotion:
+    """Derive Lagrange's equations (eq. 3.16) of ``model`` as M q'' = F."""
+    start = time.perf_counter()
+    model.validate()
+    eng = _Engine(model)
+    T = _kinetic_energy(model, eng)
+    V = _potential_energy(model, eng)
+    D = se.Integer(0)
+    for label, Dk in model.dissipation_terms:
+        D = D + to_se(Dk, f"dissipation {label!r}")
+    Q = _generalized_forces(model, eng)
+    L = T - V
+    n = model.n
+
+    used = L.free_symbols | D.free_symbols
+    for Qi in Q:
+        used |= Qi.free_symbols
+    for q, qd in zip(eng.q, eng.qd):
+        if q not in used and qd not in used:
+            raise ModelError(f"coordinate {q.name!r} appears nowhere in T, V, D or the forces")
+
+    p = [se.diff(L, v) for v in eng.qd]  # eq. 2.3
+    M = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            M[i][j] = M[j][i] = se.diff(p[i], eng.qd[j])
+    F = []
+    for i in range(n):
+        Fi = se.diff(L, eng.q[i]) - se.diff(p[i], eng.t) - se.diff(D, eng.qd[i]) + Q[i]
+        for j in range(n):
+            Fi = Fi - se.diff(p[i], eng.q[j]) * eng.qd[j]
+        F.append(Fi)
+    if all(M[i][j] == 0 for i in range(n) for j in range(n)):
+        raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
+    for i in range(n):
+        if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
+            raise DerivationError(
+                f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
+                f"{model.speeds[i].name!r}")
+    return EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
+                             derivation_seconds=time.perf_counter() - start)

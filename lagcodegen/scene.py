@@ -1,0 +1,144 @@
+"""What one simulation needs: the functions to emit, the run-time parameters, the outputs.
+
+Code generation emits exactly what a :class:`Scene` asks for and nothing more: no Jacobian
+unless ``jacobian`` is set, only the requested outputs, and every parameter not listed in
+``runtime_parameters`` folded into the code as a constant.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import symengine as se
+
+from .derivation import EquationsOfMotion, to_se
+from .errors import ModelError
+from .model import check_finite
+
+#: Output groups a scene may name besides single outputs.
+OUTPUT_GROUPS = ("energy", "kinetic_energy", "potential_energy", "momenta", "positions", "dissipation")
+
+
+@dataclass(frozen=True)
+class Output:
+    """One scalar output: its name and symengine expression in (q, q', t, p)."""
+
+    name: str
+    expr: object
+
+
+@dataclass
+class Scene:
+    """What to emit for one simulation.
+
+    Parameters
+    ----------
+    eom:
+        The derived equations.
+    jacobian:
+        Emit the dense Jacobian df/dy (needed by CVODE's Newton iteration unless it uses
+        difference quotients).
+    outputs:
+        Names of outputs: groups ``energy`` (T+V), ``kinetic_energy``, ``potential_energy``,
+        ``dissipation`` (D), ``momenta`` (p_<q>, eq. 2.3), ``positions`` (<point>_x/_y/_z of
+        every point), single names from those groups (``p_theta``, ``bob_x``), or user outputs
+        declared with :meth:`Model.output`.
+    runtime_parameters:
+        Parameters that stay adjustable at run time (passed in the ``p`` array, in this
+        order). ``None`` keeps them all adjustable; the others are folded as constants.
+    values:
+        Values for folded parameters, overriding the model's defaults.
+    prefix:
+        C identifier prefix of the emitted functions (default: the model's name).
+    """
+
+    eom: EquationsOfMotion
+    jacobian: bool = True
+    outputs: Sequence[str] = ()
+    runtime_parameters: Sequence[str] | None = None
+    values: Mapping[str, float] = field(default_factory=dict)
+    prefix: str | None = None
+
+    def __post_init__(self):
+        model = self.eom.model
+        self.prefix = self.prefix or model.name
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", self.prefix):
+            raise ModelError(f"scene prefix {self.prefix!r} is not a C identifier")
+        names = [s.name for s in model.params]
+        if self.runtime_parameters is None:
+            self.runtime_parameters = list(names)
+        else:
+            self.runtime_parameters = list(self.runtime_parameters)
+            for name in self.runtime_parameters:
+                if name not in names:
+                    raise ModelError(f"scene: runtime parameter {name!r} is not a parameter of the model "
+                                     f"(parameters: {', '.join(names) or 'none'})")
+        for name, value in self.values.items():
+            if name not in names:
+                raise ModelError(f"scene: value given for unknown parameter {name!r}")
+            check_finite(value, f"scene value of parameter {name!r}")
+        self.outputs = list(self.outputs)
+        self.output_list()  # validate names early
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def folded(self) -> dict[str, float]:
+        """Parameters folded into the code as constants, with their values."""
+        model = self.eom.model
+        vals = {s.name: v for s, v in model.params.items() if s.name not in self.runtime_parameters}
+        vals.update({k: float(v) for k, v in self.values.items() if k in vals})
+        return vals
+
+    def default_parameters(self) -> list[float]:
+        """Default values of the run-time parameters, in ``p`` order."""
+        d = {s.name: v for s, v in self.eom.model.params.items()}
+        return [float(self.values.get(name, d[name])) for name in self.runtime_parameters]
+
+    def available_outputs(self) -> dict[str, object]:
+        """Every output a scene can ask for, by name, as symengine expressions."""
+        eom = self.eom
+        model = eom.model
+        out: dict[str, object] = {
+            "energy": eom.T_se + eom.V_se,
+            "kinetic_energy": eom.T_se,
+            "potential_energy": eom.V_se,
+            "dissipation": eom.D_se,
+        }
+        for q, p in zip(model.coords, eom.p_se):
+            out[f"p_{q.name}"] = p
+        for pt in model.points.values():
+            for axis, c in zip("xyz", pt.position):
+                out[f"{pt.name}_{axis}"] = to_se(c, f"position of {pt.name!r}")
+        for name, expr in model.outputs.items():
+            out[name] = to_se(expr, f"output {name!r}")
+        return out
+
+    def output_list(self) -> list[Output]:
+        """The outputs this scene emits, groups expanded, in order."""
+        avail = self.available_outputs()
+        model = self.eom.model
+        names: list[str] = []
+        for item in self.outputs:
+            if item == "momenta":
+                names += [f"p_{q.name}" for q in model.coords]
+            elif item == "positions":
+                names += [f"{pt.name}_{a}" for pt in model.points.values() for a in "xyz"[:pt.dim]]
+            elif item in avail:
+                names.append(item)
+            else:
+                raise ModelError(f"scene: unknown output {item!r} (known: {', '.join(OUTPUT_GROUPS)}, "
+                                 f"{', '.join(k for k in avail if k not in OUTPUT_GROUPS)})")
+        seen = []
+        for n in names:
+            if n not in seen:
+                seen.append(n)
+        return [Output(n, avail[n]) for n in seen]
+
+    def substitutions(self) -> dict:
+        """symengine substitution folding constant parameters into numbers."""
+        def number(v: float):
+            # Integral values fold exactly, so that symbolic simplification can use them.
+            return se.Integer(int(v)) if v.is_integer() and abs(v) < 2**53 else se.RealDouble(v)
+        return {se.Symbol(k): number(v) for k, v in self.folded.items()}
