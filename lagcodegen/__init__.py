@@ -1,7 +1,19 @@
 """lagcodegen: Lagrangian mechanics -> standalone C code -> SUNDIALS integration.
 
-Pipeline: model -> derivation -> scene -> codegen (templates) -> build (cffi) -> solve -> result.
+Pipeline, one module per stage:
+    model (Model) -> derivation (derive) -> scene (Scene) -> codegen (generate_c)
+    -> build (cffi module, cache) -> solve (simulate) -> result (Result)
+
+Quick start::
+
+    import lagcodegen as lcg
+    model = lcg.systems.pendulum()
+    sim = lcg.compile_model(model, outputs=["energy"])
+    res = sim.simulate([0, 10], q0=[1.0])
+    res["theta"], res["energy"]
 """
+
+from __future__ import annotations
 
 __version__ = "0.1.0"
 
@@ -9,3 +21,18 @@ from .errors import (CompileError, DerivationError, LagcodegenError, ModelError,
                      SingularMassMatrixError, SolverError)
 from .model import Model  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
+from .scene import Scene  # noqa: F401
+from .codegen import GeneratedCode, generate_c  # noqa: F401
+from .build import CompiledModel, build  # noqa: F401
+from .solve import simulate  # noqa: F401
+from .result import Result  # noqa: F401
+from . import systems  # noqa: F401
+
+
+def compile_model(model: Model, *, jacobian: bool = True, outputs=(), runtime_parameters=None,
+                  values=None, prefix: str | None = None, native: bool = True,
+                  verbose: bool = False) -> CompiledModel:
+    """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options)."""
+    scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
+                  values=values or {}, prefix=prefix)
+    return build(generate_c(scene), native=native, verbose=verbose)

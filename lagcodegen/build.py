@@ -9,7 +9,9 @@ rename loses the race and that process uses the winner's files).
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import io
 import hashlib
 import importlib.machinery
 import importlib.util
@@ -276,7 +278,8 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         if native:
             includes += f'#include "{code.prefix}_cvode.h"\n'
         ffi.set_source(modname, includes)
-        ffi.emit_c_code(str(tmp / f"{modname}.c"))
+        with contextlib.redirect_stdout(io.StringIO()):  # cffi announces the file it writes
+            ffi.emit_c_code(str(tmp / f"{modname}.c"))
         c_files = [f"{modname}.c", code.source_name] + ([f"{code.prefix}_cvode.c"] if native else [])
         cmd = [cc, *cflags, "-shared", f"-I{tmp}", f"-I{sysconfig.get_paths()['include']}",
                *c_files, "-o", f"{modname}{ext}", *link, "-lm"]

@@ -220,7 +220,8 @@ def _solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first
         except LagcodegenError:
             break
     status = int(getattr(soln, "status", 0))
-    stats = dict(steps=int(getattr(soln, "nsteps", -1) or -1), rhs_evals=int(getattr(soln, "nfev", -1)),
+    # scikit-sundae reports no step count, and nfev omits difference-quotient Jacobian calls.
+    stats = dict(steps=None, rhs_evals=int(getattr(soln, "nfev", -1)),
                  jac_evals=int(getattr(soln, "njev", -1)), t_reached=float(soln.t[-1]) if done else float(t[0]),
                  model_error=state["model_error"])
     message = str(getattr(soln, "message", ""))
