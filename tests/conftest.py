@@ -1,0 +1,20 @@
+"""Shared fixtures: a fresh build cache per test session, compilers, helpers."""
+
+import os
+import shutil
+import tempfile
+
+import pytest
+
+# One private cache per session: builds are reused between tests, never from an earlier run.
+os.environ.setdefault("LAGCODEGEN_CACHE", tempfile.mkdtemp(prefix="lagcodegen-test-cache-"))
+
+STRICT_CFLAGS = ["-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic"]
+
+
+@pytest.fixture(scope="session")
+def cc():
+    compiler = os.environ.get("CC", "cc")
+    if shutil.which(compiler) is None:
+        pytest.fail(f"C compiler {compiler!r} not found: install gcc")
+    return compiler
