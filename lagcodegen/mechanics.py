@@ -285,10 +285,11 @@ class _Importer:
         repl.update(self.coords)
         repl[self.time] = self.model.t
         expr = expr.xreplace(repl)
-        stray = sorted({_fname(f) for f in expr.atoms(AppliedUndef)})
+        stray = sorted(expr.atoms(AppliedUndef), key=str)
         if stray:
-            raise ModelError(f"{what} contains {', '.join(map(repr, stray))}: not generalized "
-                             f"coordinate(s); add them to q or substitute them")
+            listed = ", ".join(f"{_fname(f)!r} (as {f})" for f in stray)
+            raise ModelError(f"{what} contains {listed}: not a generalized coordinate; add it to q "
+                             f"or substitute it")
         return expr
 
     def declare_parameters(self, exprs: Iterable[sp.Expr], values: ParameterValues | None) -> dict:
@@ -303,8 +304,8 @@ class _Importer:
             for s in sorted(e.free_symbols - known, key=lambda s: s.name):
                 other = by_name.setdefault(s.name, s)
                 if other != s:
-                    raise ModelError(f"two different symbols are named {s.name!r} ({other!r} with "
-                                     f"assumptions {other.assumptions0}, and {s!r} with {s.assumptions0})")
+                    raise ModelError(f"two different symbols are named {s.name!r} (with different "
+                                     f"assumptions); use one symbol per parameter")
         given: dict[str, float] = {}
         for key, value in (values or {}).items():
             key_name = key if isinstance(key, str) else getattr(key, "name", None)
@@ -316,7 +317,7 @@ class _Importer:
         missing = sorted(set(by_name) - set(given))
         if missing:
             raise ModelError(f"no value given for parameter(s) {', '.join(missing)} "
-                             f"(pass parameters={{{missing[0]}: ...}})")
+                             f"(pass parameters={{{missing[0]!r}: <value>, ...}})")
         unused = [k for k in given if k not in by_name]
         if unused:
             raise ModelError(f"value given for unknown parameter(s) {', '.join(unused)}: the model "
