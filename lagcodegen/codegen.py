@@ -72,11 +72,12 @@ class GeneratedCode:
     param_defaults: list[float]
     output_names: list[str]
     jacobian: bool
+    nz: int = 0  # quadrature states appended after (q, q'), e.g. reconstructed ignorable coordinates
     files: dict[str, str] = field(default_factory=dict)
 
     @property
     def ny(self) -> int:
-        return 2 * self.n
+        return 2 * self.n + self.nz
 
     @property
     def np(self) -> int:
@@ -129,6 +130,8 @@ def _symbol_map(scene: Scene) -> dict:
         sub[se.Symbol(q.name)] = se.Symbol(f"y[{i}]")
     for i, v in enumerate(model.speeds):
         sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
+    for k, (name, _) in enumerate(eom.quadratures):
+        sub[se.Symbol(name)] = se.Symbol(f"y[{2 * n + k}]")
     for k, name in enumerate(scene.runtime_parameters):
         sub[se.Symbol(name)] = se.Symbol(f"p[{k}]")
     sub.update(scene.substitutions())
@@ -154,6 +157,9 @@ def generate_c(scene: Scene) -> GeneratedCode:
     for i in range(n):
         targets.append(f"F[{i}]")
         exprs.append(c(eom.F_se[i]))
+    for k, (_, rate) in enumerate(eom.quadratures):
+        targets.append(f"ydot[{2 * n + k}]")
+        exprs.append(c(rate))
     rhs = emit_block(targets, exprs)
 
     jac = ""
@@ -173,6 +179,10 @@ def generate_c(scene: Scene) -> GeneratedCode:
             for i in range(n):
                 targets.append(f"G[{j}][{i}]")
                 exprs.append(c(se.diff(r[i], var).xreplace(asub)))
+        for k, (_, rate) in enumerate(eom.quadratures):
+            for j, var in enumerate(q + v):
+                targets.append(f"Z[{k}][{j}]")
+                exprs.append(c(se.diff(rate, var)))
         jac = emit_block(targets, exprs)
 
     outputs = scene.output_list()
@@ -180,11 +190,12 @@ def generate_c(scene: Scene) -> GeneratedCode:
 
     code = GeneratedCode(
         prefix=scene.prefix, model_name=model.name, n=n,
-        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds],
+        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds]
+        + [name for name, _ in eom.quadratures],
         param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
-        output_names=[o.name for o in outputs], jacobian=scene.jacobian)
+        output_names=[o.name for o in outputs], jacobian=scene.jacobian, nz=len(eom.quadratures))
     ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=model.name,
-               n=n, ny=code.ny, np=code.np, nout=code.nout, state_names=code.state_names,
+               n=n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout, state_names=code.state_names,
                param_names=code.param_names, folded=sorted(scene.folded.items()),
                outputs=code.output_names, jacobian=scene.jacobian, rhs=rhs, jac=jac, out=out)
     env = environment()

@@ -58,6 +58,9 @@ class EquationsOfMotion:
     p_se: list  # momenta dL/dq'
     M_se: list  # n x n (list of rows)
     F_se: list  # n
+    h_se: object = None  # Jacobi energy function (eq. 3.5)
+    dhdt_se: object = None  # dh/dt along solutions (eq. 3.6 with non-potential forces)
+    quadratures: list = field(default_factory=list)  # (state name, symengine rate): extra states z' = rate
     derivation_seconds: float = 0.0
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -124,6 +127,19 @@ class EquationsOfMotion:
         """Right side of M q'' = F (eq. 3.16)."""
         return sp.Matrix([to_sp(e) for e in self.F_se])
 
+    @cached_property
+    def h(self) -> sp.Expr:
+        """Jacobi energy function h = sum_i q_i' dL/dq_i' - L (eq. 3.5)."""
+        return to_sp(self.h_se)
+
+    @cached_property
+    def dhdt(self) -> sp.Expr:
+        """dh/dt along solutions: -dL/dt + sum_i q_i' (Q_i - dD/dq_i') (eq. 3.6 plus eq. 3.16's forces).
+
+        For D homogeneous quadratic in the velocities, sum_i q_i' dD/dq_i' = 2 D.
+        """
+        return to_sp(self.dhdt_se)
+
     @property
     def energy(self) -> sp.Expr:
         """Mechanical energy T + V."""
@@ -187,6 +203,8 @@ def _potential_energy(model: Model, eng: _Engine):
     V = se.Integer(0)
     for label, Vk in model.potential_terms:
         V = V + to_se(Vk, f"potential {label!r}")
+    for label, Uk in model.generalized_potential_terms:
+        V = V + to_se(Uk, f"generalized potential {label!r}")
     if model.gravity_spec is not None:
         g, up = model.gravity_spec
         g = to_se(g, "gravity")
@@ -254,5 +272,7 @@ def derive(model: Model) -> EquationsOfMotion:
             raise DerivationError(
                 f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
                 f"{model.speeds[i].name!r}")
+    h = sum((v * pi for v, pi in zip(eng.qd, p)), se.Integer(0)) - L  # eq. 3.5
+    dhdt = -se.diff(L, eng.t) + sum((v * (Qi - se.diff(D, v)) for v, Qi in zip(eng.qd, Q)), se.Integer(0))
     return EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
-                             derivation_seconds=time.perf_counter() - start)
+                             h_se=h, dhdt_se=dhdt, derivation_seconds=time.perf_counter() - start)

@@ -122,6 +122,7 @@ class Model:
     bodies: list = field(default_factory=list)
     kinetic_terms: list = field(default_factory=list)  # (label, T) given directly
     potential_terms: list = field(default_factory=list)  # (label, V)
+    generalized_potential_terms: list = field(default_factory=list)  # (label, U(q, q', t))
     dissipation_terms: list = field(default_factory=list)  # (label, D)
     cartesian_forces: list = field(default_factory=list)  # (label, Point, F vector)
     generalized_forces: list = field(default_factory=list)  # (label, index, Q*)
@@ -260,6 +261,14 @@ class Model:
         """Add a potential V(q, t) (eq. 2.7)."""
         self.potential_terms.append((label, _as_expr(V, f"potential {label!r}")))
 
+    def generalized_potential(self, U, label: str = "U") -> None:
+        """Add a velocity-dependent (generalized) potential U(q, q', t) (eq. 3.4).
+
+        It enters L = T - U; its generalized force is Q_i = d/dt(dU/dq_i') - dU/dq_i.
+        Example: a charge e in fields phi, A: U = e (phi - v . A).
+        """
+        self.generalized_potential_terms.append((label, _as_expr(U, f"generalized potential {label!r}")))
+
     def gravity(self, g, up: Sequence | None = None) -> None:
         """Uniform gravity on every massive body: V = sum m g (x . up).
 
@@ -348,6 +357,8 @@ class Model:
             self.check_symbols(T, f"kinetic energy {label!r}")
         for label, V in self.potential_terms:
             self.check_symbols(V, f"potential {label!r}", allow_speeds=False)
+        for label, U in self.generalized_potential_terms:
+            self.check_symbols(U, f"generalized potential {label!r}")
         for label, D in self.dissipation_terms:
             self.check_symbols(D, f"dissipation {label!r}")
         for label, _, F in self.cartesian_forces:

@@ -165,6 +165,7 @@ class ModelFile:
     model: Model
     simulation: SimulationSettings
     path: Path
+    source: str = field(default="", repr=False, compare=False)  # the TOML text, for error lines
 
     def initial_state(self) -> tuple[list[float], list[float]]:
         """Initial coordinates and velocities from ``simulation.initial`` (missing entries 0.0)."""
@@ -186,8 +187,7 @@ class ModelFile:
         except ModelFileError:
             raise
         except ModelError as exc:
-            text = self.path.read_text(encoding="utf-8") if self.path.is_file() else ""
-            raise _Locator(text, str(self.path)).error(("model", "coordinates"), str(exc)) from None
+            raise _Locator(self.source, str(self.path)).error(("model", "coordinates"), str(exc)) from None
 
     def compile(self, **options: Any) -> CompiledModel:
         """:func:`lagcodegen.compile_model` with this file's scene settings (``options`` override)."""
@@ -602,8 +602,10 @@ class _Loader:
             if not math.isfinite(value):
                 raise self.error(path, f"must be finite, got {value}", token=str(value))
             return sp.Float(value)
+        symbols = self.symbols if velocities else {
+            name: sym for name, sym in self.symbols.items() if name not in self.velocities}
         try:
-            return parse_expression(value, self.symbols, None if velocities else self.velocities)
+            return parse_expression(value, symbols, None if velocities else self.velocities)
         except ExpressionError as exc:
             raise self.error(path, str(exc), token=exc.token, needle=value) from None
 
@@ -682,7 +684,7 @@ class _Loader:
         with self.at(["model"]):
             self.model.validate()
         simulation = self.load_simulation(self.table(["simulation"], data.get("simulation", {})))
-        return ModelFile(model=self.model, simulation=simulation, path=self.path)
+        return ModelFile(model=self.model, simulation=simulation, path=self.path, source=self.text)
 
     def load_model_table(self, table: dict) -> None:
         self.fields(["model"], table, required=["coordinates"], optional=["name"])

@@ -29,6 +29,7 @@ class Result:
     backend: str = "native"
     method: str = ""
     parameters: dict = field(default_factory=dict)
+    n_coordinates: int | None = None  # n: y = (q_1..q_n, q_1'..q_n', z...) with z quadrature states
 
     @property
     def success(self) -> bool:
@@ -36,12 +37,13 @@ class Result:
 
     @property
     def n(self) -> int:
-        return len(self.state_names) // 2
+        return self.n_coordinates if self.n_coordinates is not None else len(self.state_names) // 2
 
     @property
     def q(self) -> dict[str, np.ndarray]:
-        """Coordinates by name."""
-        return {name: self.y[:, i] for i, name in enumerate(self.state_names[: self.n])}
+        """Coordinates by name (including quadrature states such as reconstructed ignorable coordinates)."""
+        idx = list(range(self.n)) + list(range(2 * self.n, len(self.state_names)))
+        return {self.state_names[i]: self.y[:, i] for i in idx}
 
     @property
     def v(self) -> dict[str, np.ndarray]:
@@ -63,6 +65,11 @@ class Result:
         cols.update({name: self.y[:, i] for i, name in enumerate(self.state_names)})
         cols.update(self.outputs)
         return cols
+
+    def drifts(self) -> dict[str, float]:
+        """Drift of every invariant among the outputs (energy, Jacobi h, integrals of motion C_*)."""
+        keys = [k for k in self.outputs if k in ("energy", "jacobi_h") or k.startswith("C_")]
+        return {k: self.drift(k) for k in keys}
 
     def drift(self, name: str) -> float:
         """max |x(t) - x(t0)| of an output (e.g. energy), relative to max(1, |x(t0)|)."""

@@ -18,7 +18,8 @@ from .errors import ModelError
 from .model import check_finite
 
 #: Output groups a scene may name besides single outputs.
-OUTPUT_GROUPS = ("energy", "kinetic_energy", "potential_energy", "momenta", "positions", "dissipation")
+OUTPUT_GROUPS = ("energy", "kinetic_energy", "potential_energy", "momenta", "positions", "dissipation",
+                 "jacobi_h", "dh_dt")
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,8 @@ class Scene:
         difference quotients).
     outputs:
         Names of outputs: groups ``energy`` (T+V), ``kinetic_energy``, ``potential_energy``,
-        ``dissipation`` (D), ``momenta`` (p_<q>, eq. 2.3), ``positions`` (<point>_x/_y/_z of
+        ``dissipation`` (D), ``jacobi_h`` (h, eq. 3.5), ``dh_dt`` (its rate, eq. 3.6 with the
+        non-potential forces: -2D for homogeneous quadratic dissipation), ``momenta`` (p_<q>, eq. 2.3), ``positions`` (<point>_x/_y/_z of
         every point), single names from those groups (``p_theta``, ``bob_x``), or user outputs
         declared with :meth:`Model.output`.
     runtime_parameters:
@@ -105,6 +107,8 @@ class Scene:
             "kinetic_energy": eom.T_se,
             "potential_energy": eom.V_se,
             "dissipation": eom.D_se,
+            "jacobi_h": eom.h_se,
+            "dh_dt": eom.dhdt_se,
         }
         for q, p in zip(model.coords, eom.p_se):
             out[f"p_{q.name}"] = p

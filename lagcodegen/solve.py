@@ -19,34 +19,34 @@ from .result import Result
 METHODS = {"adams": 1, "bdf": 2}
 
 
-def _initial_state(cm: CompiledModel, q0, v0, y0) -> np.ndarray:
-    n = cm.n
+def _initial_state(cm: CompiledModel, q0, v0, y0, z0=None) -> np.ndarray:
+    n, nz = cm.n, cm.code.nz
     if y0 is not None:
-        if q0 is not None or v0 is not None:
+        if q0 is not None or v0 is not None or z0 is not None:
             raise LagcodegenError("give either y0 or q0/v0, not both")
         y = np.array(y0, dtype=float).ravel()
-        if y.size != 2 * n:
-            raise LagcodegenError(f"y0 has {y.size} values, the state has {2 * n}: {', '.join(cm.state_names)}")
+        if y.size != cm.ny:
+            raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
 
-    def vec(val, what):
+    def vec(val, what, names):
         if val is None:
-            return np.zeros(n)
+            return np.zeros(len(names))
         if isinstance(val, dict):
-            names = cm.state_names[:n]
             unknown = set(val) - set(names)
             if unknown:
                 raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
             return np.array([float(val.get(k, 0.0)) for k in names])
         arr = np.array(val, dtype=float).ravel()
-        if arr.size != n:
-            raise LagcodegenError(f"{what} has {arr.size} values, the model has {n} coordinates")
+        if arr.size != len(names):
+            raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
         return arr
 
-    return np.concatenate([vec(q0, "q0"), vec(v0, "v0")])
+    names = cm.state_names
+    return np.concatenate([vec(q0, "q0", names[:n]), vec(v0, "v0", names[:n]), vec(z0, "z0", names[2 * n:])])
 
 
-def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, params: dict | None = None,
+def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = None,
              method: str = "adams", rtol: float = 1e-8, atol=1e-10, jacobian: bool | None = None,
              backend: str = "native", max_steps: int = 1_000_000, first_step: float = 0.0,
              max_step: float = 0.0, min_step: float = 0.0, max_order: int = 0,
@@ -60,7 +60,8 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, params: dict | Non
         gives 1001 evenly spaced output times.
     q0, v0 / y0:
         Initial coordinates and velocities (arrays, or dicts by coordinate name), or the
-        whole state.
+        whole state. ``z0``: initial quadrature states (e.g. ignorable coordinates of a
+        Routhian-reduced model), zeros by default.
     params:
         Run-time parameter values by name (defaults from the model).
     method:
@@ -79,7 +80,7 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, params: dict | Non
         t = np.linspace(t[0], t[1], 1001)
     if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise LagcodegenError("t must be at least two finite, strictly increasing times")
-    y = _initial_state(cm, q0, v0, y0)
+    y = _initial_state(cm, q0, v0, y0, z0)
     if not np.all(np.isfinite(y)):
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
@@ -113,6 +114,7 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, params: dict | Non
     else:
         raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
     res.parameters = dict(zip(cm.param_names, p))
+    res.n_coordinates = cm.n
     if raise_on_error and not res.success:
         cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
         raise cls(res.message, t=res.stats.get("t_reached", res.t[-1]), flag=res.status, result=res)
