@@ -33,6 +33,7 @@ from .codegen import GeneratedCode, environment
 from .errors import CompileError, LagcodegenError
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
+DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008")
 
 
 def cache_dir() -> Path:
@@ -54,8 +55,11 @@ class Sundials:
     version: str
 
     def link_args(self, names=("cvode", "core")) -> list[str]:
+        missing = [n for n in names if n not in self.libs]
+        if missing:
+            raise LagcodegenError(f"SUNDIALS libraries {', '.join(missing)} not found in {self.libdir}")
         args = [f"-L{self.libdir}"]
-        args += [f"-l:{self.libs[n]}" for n in names]
+        args += [f"-l:{self.libs[n]}" for n in dict.fromkeys(names)]
         args += [f"-Wl,-rpath,{self.libdir}"]
         return args
 
@@ -244,20 +248,44 @@ def _load(name: str, path: Path):
     return module
 
 
+def _run(cmd: list[str], cwd: Path, what: str, code: GeneratedCode) -> None:
+    try:
+        proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800)
+    except OSError as exc:
+        raise CompileError(f"cannot run the {what} {cmd[0]!r}", cmd, str(exc)) from None
+    if proc.returncode != 0:
+        raise CompileError(f"compiling model {code.model_name!r} failed ({what}, exit {proc.returncode})",
+                           cmd, proc.stdout + proc.stderr)
+
+
 def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
-          cflags: tuple[str, ...] = DEFAULT_CFLAGS, verbose: bool = False) -> CompiledModel:
-    """Compile ``code`` (and the native CVODE driver) into a cffi module; cached by content hash."""
+          cflags: tuple[str, ...] = DEFAULT_CFLAGS, verbose: bool = False,
+          fc: str | None = None, fflags: tuple[str, ...] = DEFAULT_FFLAGS) -> CompiledModel:
+    """Compile ``code`` (and the native CVODE driver) into a cffi module; cached by content hash.
+
+    Every ``.c`` file of ``code.files`` is compiled with ``cc``, every ``.f90`` file with ``fc``
+    (gfortran; its objects are linked in). ``code.cdef_extra`` adds declarations to the cffi
+    interface, ``code.cffi_headers`` the headers the module includes, ``code.sundials_libs``
+    the SUNDIALS libraries linked besides CVODE (e.g. "ida").
+    """
     cc = cc or os.environ.get("CC") or "cc"
+    fc = fc or os.environ.get("FC") or "gfortran"
     sundials = find_sundials() if native else None
     sources = dict(code.files)
+    headers = [code.header_name, *code.cffi_headers]
     if native:
         sources.update(driver_sources(code, sundials))
-    cdef = _cdef(code, native)
-    link = sundials.link_args() if native else []
+        headers.append(f"{code.prefix}_cvode.h")
+    fortran = sorted(name for name in sources if name.endswith(".f90"))
+    cdef = _cdef(code, native) + "\n" + code.cdef_extra
+    link = sundials.link_args(("cvode", *code.sundials_libs, "core")) if native else []
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
     h = hashlib.sha256()
-    for part in [__version__, compiler_id(cc), " ".join(cflags), " ".join(link), ext, cdef,
-                 sys.version, *sorted(f"{k}\0{v}" for k, v in sources.items())]:
+    parts = [__version__, compiler_id(cc), " ".join(cflags), " ".join(link), ext, cdef, sys.version,
+             *headers, *sorted(f"{k}\0{v}" for k, v in sources.items())]
+    if fortran:
+        parts += [compiler_id(fc), " ".join(fflags)]
+    for part in parts:
         h.update(part.encode())
         h.update(b"\0")
     key = h.hexdigest()[:24]
@@ -274,24 +302,22 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
             (tmp / name).write_text(text)
         ffi = cffi.FFI()
         ffi.cdef(cdef)
-        includes = f'#include "{code.header_name}"\n'
-        if native:
-            includes += f'#include "{code.prefix}_cvode.h"\n'
-        ffi.set_source(modname, includes)
+        ffi.set_source(modname, "".join(f'#include "{h}"\n' for h in headers))
         with contextlib.redirect_stdout(io.StringIO()):  # cffi announces the file it writes
             ffi.emit_c_code(str(tmp / f"{modname}.c"))
-        c_files = [f"{modname}.c", code.source_name] + ([f"{code.prefix}_cvode.c"] if native else [])
-        cmd = [cc, *cflags, "-shared", f"-I{tmp}", f"-I{sysconfig.get_paths()['include']}",
-               *c_files, "-o", f"{modname}{ext}", *link, "-lm"]
         if verbose:
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
-        try:
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=1800)
-        except OSError as exc:
-            raise CompileError(f"cannot run the C compiler {cc!r}", cmd, str(exc)) from None
-        if proc.returncode != 0:
-            raise CompileError(f"compiling model {code.model_name!r} failed (exit {proc.returncode})",
-                               cmd, proc.stdout + proc.stderr)
+        objects = []
+        for name in fortran:  # modules first: sorted names put dependencies in the caller's hands
+            obj = name[:-4] + ".o"
+            _run([fc, *fflags, "-c", name, "-o", obj], tmp, "Fortran compiler", code)
+            objects.append(obj)
+        c_files = [f"{modname}.c"] + sorted(n for n in sources if n.endswith(".c"))
+        cmd = [cc, *cflags, "-shared", f"-I{tmp}", f"-I{sysconfig.get_paths()['include']}",
+               *c_files, *objects, "-o", f"{modname}{ext}", *link, "-lm"]
+        if fortran:
+            cmd.append("-lgfortran")
+        _run(cmd, tmp, "C compiler", code)
         try:
             os.rename(tmp, final)  # atomic publish of the complete folder
         except OSError:

@@ -74,6 +74,11 @@ class GeneratedCode:
     jacobian: bool
     nz: int = 0  # quadrature states appended after (q, q'), e.g. reconstructed ignorable coordinates
     files: dict[str, str] = field(default_factory=dict)
+    # For build(): extra cffi declarations, extra headers the cffi module includes, and
+    # SUNDIALS libraries besides CVODE (e.g. ("ida",)) needed by extra drivers in ``files``.
+    cdef_extra: str = ""
+    cffi_headers: list[str] = field(default_factory=list)
+    sundials_libs: tuple[str, ...] = ()
 
     @property
     def ny(self) -> int:

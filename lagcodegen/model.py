@@ -272,9 +272,15 @@ class Model:
     def gravity(self, g, up: Sequence | None = None) -> None:
         """Uniform gravity on every massive body: V = sum m g (x . up).
 
-        ``up`` defaults to the last axis (y in 2-D, z in 3-D).
+        ``up`` defaults to the last axis (y in 2-D, z in 3-D); it is normalized.
         """
-        self.gravity_spec = (_as_expr(g, "gravity"), None if up is None else _as_vector(up, "gravity up"))
+        if up is not None:
+            up = _as_vector(up, "gravity up")
+            norm = sp.sqrt(sum(c**2 for c in up))
+            if norm == 0:
+                raise ModelError("gravity 'up' vector is zero")
+            up = up / norm
+        self.gravity_spec = (_as_expr(g, "gravity"), up)
 
     def spring(self, a, b, k, rest_length=0, label: str | None = None) -> None:
         """A linear spring between points a and b: V = k/2 (|x_a - x_b| - L0)^2."""
@@ -327,15 +333,26 @@ class Model:
 
     def check_symbols(self, expr, what: str, allow_speeds: bool = True) -> None:
         """Raise ModelError if ``expr`` uses a symbol the model does not declare."""
+        expr = sp.sympify(expr)
         allowed = self.known_symbols()
+        speeds = {s.name for s in self.speeds}
         if not allow_speeds:
             allowed -= set(self.speeds)
-        free = sp.sympify(expr).free_symbols
-        unknown = sorted((s.name for s in free - allowed))
-        if unknown:
-            kind = "unknown symbol" if not (set(unknown) & {s.name for s in self.speeds}) else "velocity not allowed"
-            raise ModelError(f"{what} uses {kind}(s): {', '.join(unknown)}")
-        funcs = sp.sympify(expr).atoms(sp.core.function.AppliedUndef)
+        bad = expr.free_symbols - allowed
+        velocities = sorted(s.name for s in bad if s.name in speeds and not allow_speeds)
+        if velocities:
+            raise ModelError(f"{what} uses velocity not allowed here: {', '.join(velocities)}")
+        if bad:
+            names = {s.name for s in self.known_symbols()}
+            msgs = []
+            for s in sorted(bad, key=lambda s: s.name):
+                if s.name in names:  # same name, other assumptions (e.g. Symbol('m', positive=True))
+                    msgs.append(f"{s.name} (a symbol with assumptions {s.assumptions0}; use the plain "
+                                f"symbol returned by Model.parameters/coordinates)")
+                else:
+                    msgs.append(s.name)
+            raise ModelError(f"{what} uses unknown symbol(s): {', '.join(msgs)}")
+        funcs = expr.atoms(sp.core.function.AppliedUndef)
         if funcs:
             raise ModelError(f"{what} uses undefined function(s): {', '.join(sorted(map(str, funcs)))}")
 
@@ -367,6 +384,9 @@ class Model:
             self.check_symbols(Q, label)
         if self.gravity_spec is not None:
             self.check_symbols(self.gravity_spec[0], "gravity", allow_speeds=False)
+            if not self.bodies:
+                raise ModelError("gravity() acts on the model's bodies, but it has none (T was given "
+                                 "directly): add the gravitational potential with potential_energy()")
         for name, expr in self.outputs.items():
             self.check_symbols(expr, f"output {name!r}")
         if not self.bodies and not self.kinetic_terms:
