@@ -54,10 +54,9 @@ def _load(path: str, quiet: bool):
 
 
 def _scene(mf, args, quiet: bool):
-    from .derivation import derive
     from .scene import Scene
     t0 = time.perf_counter()
-    eom = derive(mf.model)
+    eom = mf.derive()  # derivation errors carry the file and line
     _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
     sim = mf.simulation
     outputs = _csv(args.outputs) if getattr(args, "outputs", None) is not None else list(sim.outputs)
@@ -134,9 +133,8 @@ def cmd_simulate(args) -> int:
 
 def cmd_info(args) -> int:
     import sympy as sp
-    from .derivation import derive
     mf = _load(args.model, True)
-    eom = derive(mf.model)
+    eom = mf.derive()
     model = mf.model
     show = sp.latex if args.latex else (lambda e: sp.pretty(e, use_unicode=False))
     print(f"model {model.name}: {model.n} coordinates")
@@ -150,7 +148,8 @@ def cmd_info(args) -> int:
                  ("force vector F", eom.F)]
     for title, expr in sections:
         print(f"\n{title}:")
-        print(show(sp.simplify(expr) if args.simplify else expr))
+        simplify = args.simplify if args.simplify is not None else model.n <= 3
+        print(show(sp.simplify(expr) if simplify else expr))
     return EXIT_OK
 
 
@@ -192,7 +191,8 @@ def parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="print the derived equations")
     i.add_argument("model")
     i.add_argument("--latex", action="store_true", help="LaTeX instead of pretty text")
-    i.add_argument("--simplify", action="store_true", help="simplify before printing (slow for big models)")
+    i.add_argument("--simplify", action=argparse.BooleanOptionalAction, default=None,
+                   help="simplify before printing (default: only for up to 3 coordinates)")
     i.set_defaults(func=cmd_info)
     return ap
 

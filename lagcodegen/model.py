@@ -57,6 +57,20 @@ def _as_vector(value, what: str) -> sp.Matrix:
     return sp.Matrix([_as_expr(c, f"{what}[{i}]") for i, c in enumerate(comps)])
 
 
+def _as_matrix3(value, what: str, allow_diagonal: bool = False) -> sp.Matrix:
+    """A 3x3 matrix of expressions (strings are refused, as everywhere in the model)."""
+    rows = value.tolist() if isinstance(value, sp.MatrixBase) else value
+    try:
+        rows = [list(r) if not isinstance(r, (str, sp.Basic, int, float)) else r for r in rows]
+    except TypeError:
+        raise ModelError(f"{what} must be a 3x3 matrix") from None
+    if allow_diagonal and len(rows) == 3 and all(not isinstance(r, list) for r in rows):
+        return sp.diag(*[_as_expr(r, f"{what}[{i}]") for i, r in enumerate(rows)])
+    if len(rows) != 3 or any(not isinstance(r, list) or len(r) != 3 for r in rows):
+        raise ModelError(f"{what} must be a 3x3 matrix" + (" or 3 principal moments" if allow_diagonal else ""))
+    return sp.Matrix([[_as_expr(c, f"{what}[{i}][{j}]") for j, c in enumerate(r)] for i, r in enumerate(rows)])
+
+
 @dataclass(frozen=True)
 class Point:
     """A named point with Cartesian position x(q, t) (2-D or 3-D)."""
@@ -240,14 +254,8 @@ class Model:
         pt = self.point(name, position)
         if pt.dim != 3:
             raise ModelError(f"rigid body {name!r} needs a 3-D position")
-        inertia = sp.Matrix(inertia)
-        if inertia.shape == (3, 1) or inertia.shape == (1, 3):
-            inertia = sp.diag(*inertia)
-        if inertia.shape != (3, 3):
-            raise ModelError(f"inertia of {name!r} must be 3x3 or 3 principal moments")
-        R = sp.Matrix(orientation)
-        if R.shape != (3, 3):
-            raise ModelError(f"orientation of {name!r} must be a 3x3 rotation matrix")
+        inertia = _as_matrix3(inertia, f"inertia of {name!r}", allow_diagonal=True)
+        R = _as_matrix3(orientation, f"orientation of {name!r}")
         body = RigidBody(name, _as_expr(mass, f"mass of {name!r}"), inertia, pt, R)
         self.bodies.append(body)
         return body
@@ -384,6 +392,8 @@ class Model:
             self.check_symbols(Q, label)
         if self.gravity_spec is not None:
             self.check_symbols(self.gravity_spec[0], "gravity", allow_speeds=False)
+            if self.gravity_spec[1] is not None:
+                self.check_symbols(self.gravity_spec[1], "gravity 'up' vector", allow_speeds=False)
             if not self.bodies:
                 raise ModelError("gravity() acts on the model's bodies, but it has none (T was given "
                                  "directly): add the gravitational potential with potential_energy()")

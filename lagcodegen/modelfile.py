@@ -100,8 +100,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .derivation import EquationsOfMotion
     from .result import Result
 
-__all__ = ["ModelFile", "ModelFileError", "SimulationSettings", "load_model", "loads_model",
-           "parse_expression", "FUNCTIONS"]
+__all__ = ["ExpressionError", "FUNCTIONS", "ModelFile", "ModelFileError", "SimulationSettings", "load_model",
+           "loads_model", "parse_expression"]
 
 #: Functions an expression may call: name -> (sympy function, number of arguments).
 FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
@@ -632,7 +632,10 @@ class _Loader:
             except ExpressionError as exc:
                 raise self.error(path, f"{exc} (a constant is expected here)", token=exc.token,
                                  needle=value) from None
-            value = float(expr.evalf())
+            number = float(expr.evalf())
+            if not math.isfinite(number):
+                raise self.error(path, f"must be a finite number, {value!r} is {number}", token=value)
+            return number
         if not math.isfinite(value):
             raise self.error(path, f"must be a finite number, got {value}", token=str(value))
         return float(value)

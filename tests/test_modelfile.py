@@ -323,6 +323,16 @@ def test_malicious_file_executes_nothing(tmp_path, place, edit):
     assert not marker.exists()
 
 
+def test_import_os_system_is_rejected_and_not_run():
+    pwned = Path("/tmp/pwned")
+    existed = pwned.exists()
+    err = load_error(BASE.replace('mass = "m"', """mass = "__import__('os').system('touch /tmp/pwned')\""""))
+    assert_error(err, line=MASS_LINE, key="particles[0].mass", token="__import__")
+    assert pwned.exists() == existed
+    if not existed:
+        assert not pwned.exists()
+
+
 # ============================================================================ errors
 def test_toml_syntax_error_names_file_and_line():
     err = load_error(BASE + "x = \n")
@@ -400,10 +410,13 @@ def test_missing_required_keys():
         loads_model("[parameters]\nk = 1\n")
 
 
-@pytest.mark.parametrize("value", ["nan", "inf", "-inf", '"1/0"', "true", '"x"'])
-def test_non_finite_or_non_numeric_parameter(value):
+@pytest.mark.parametrize("value, token", [
+    ("nan", "got nan"), ("inf", "got inf"), ("-inf", "got -inf"), ('"1/0"', "division by zero"),
+    ('"exp(1000)"', "exp(1000)"), ("true", "boolean"), ('"x"', "unknown name 'x'"),
+])
+def test_non_finite_or_non_numeric_parameter(value, token):
     err = load_error(BASE.replace("g = 9.81", f"g = {value}"))
-    assert_error(err, line=7, key="parameters.g", token="")
+    assert_error(err, line=7, key="parameters.g", token=token)
 
 
 def test_unused_coordinate_is_reported_by_derive():
