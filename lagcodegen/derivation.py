@@ -59,6 +59,7 @@ class EquationsOfMotion:
     M_se: list  # n x n (list of rows)
     F_se: list  # n
     h_se: object = None  # Jacobi energy function (eq. 3.5)
+    Uv_se: object = 0  # velocity-dependent part of the generalized potentials (eq. 3.4)
     dhdt_se: object = None  # dh/dt along solutions (eq. 3.6 with non-potential forces)
     quadratures: list = field(default_factory=list)  # (state name, symengine rate): extra states z' = rate
     derivation_seconds: float = 0.0
@@ -94,13 +95,18 @@ class EquationsOfMotion:
 
     @cached_property
     def V(self) -> sp.Expr:
-        """Potential energy V (eq. 2.7)."""
+        """Potential energy V(q, t) (eq. 2.7), including the velocity-free part of generalized potentials."""
         return to_sp(self.V_se)
 
     @cached_property
+    def U_velocity(self) -> sp.Expr:
+        """Velocity-dependent part of the generalized potentials (eq. 3.4), e.g. -e v . A."""
+        return to_sp(self.Uv_se)
+
+    @cached_property
     def L(self) -> sp.Expr:
-        """Lagrangian L = T - V (sec. 3.2)."""
-        return self.T - self.V
+        """Lagrangian L = T - V - U_velocity (secs. 3.2, 3.3)."""
+        return self.T - self.V - self.U_velocity
 
     @cached_property
     def D(self) -> sp.Expr:
@@ -114,7 +120,8 @@ class EquationsOfMotion:
 
     @cached_property
     def momenta(self) -> sp.Matrix:
-        """Generalized momenta p_i = dL/dq_i' (eq. 2.3)."""
+        """Generalized (canonical) momenta p_i = dL/dq_i'; equal to dT/dq_i' (eq. 2.3) unless a
+        generalized potential depends on the velocities (then e.g. m v + e A)."""
         return sp.Matrix([to_sp(e) for e in self.p_se])
 
     @cached_property
@@ -203,8 +210,6 @@ def _potential_energy(model: Model, eng: _Engine):
     V = se.Integer(0)
     for label, Vk in model.potential_terms:
         V = V + to_se(Vk, f"potential {label!r}")
-    for label, Uk in model.generalized_potential_terms:
-        V = V + to_se(Uk, f"generalized potential {label!r}")
     if model.gravity_spec is not None:
         g, up = model.gravity_spec
         g = to_se(g, "gravity")
@@ -244,7 +249,15 @@ def derive(model: Model) -> EquationsOfMotion:
     for label, Dk in model.dissipation_terms:
         D = D + to_se(Dk, f"dissipation {label!r}")
     Q = _generalized_forces(model, eng)
-    L = T - V
+    # Generalized potentials U(q, q', t) (eq. 3.4): the velocity-free part U(q, 0, t) counts as
+    # potential energy (e phi for a charge), the rest (-e v . A) only enters L.
+    U = se.Integer(0)
+    for label, Uk in model.generalized_potential_terms:
+        U = U + to_se(Uk, f"generalized potential {label!r}")
+    U0 = U.xreplace({v: se.Integer(0) for v in eng.qd}) if U != 0 else U
+    V = V + U0
+    Uv = U - U0
+    L = T - V - Uv
     n = model.n
 
     used = L.free_symbols | D.free_symbols
@@ -275,4 +288,4 @@ def derive(model: Model) -> EquationsOfMotion:
     h = sum((v * pi for v, pi in zip(eng.qd, p)), se.Integer(0)) - L  # eq. 3.5
     dhdt = -se.diff(L, eng.t) + sum((v * (Qi - se.diff(D, v)) for v, Qi in zip(eng.qd, Q)), se.Integer(0))
     return EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
-                             h_se=h, dhdt_se=dhdt, derivation_seconds=time.perf_counter() - start)
+                             h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start)
