@@ -14,7 +14,7 @@ import sympy as sp
 
 import lagcodegen as lcg
 from lagcodegen.forces import generalized_force_from_generalized_potential
-from lagcodegen.systems_energy import charged_particle
+from lagcodegen.systems import charged_particle
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

@@ -182,13 +182,33 @@ class _Engine:
         return [to_se(c, what) for c in m]
 
 
+PYTHAGORAS_MAX_COORDS = 3
+
+
+def pythagoras(expr):
+    """Expand and replace sin(a)^2 by 1 - cos(a)^2 so that sin^2 + cos^2 terms cancel.
+
+    Keeps T free of identities like l^2 (sin^2 q + cos^2 q) q'^2 that would otherwise hide
+    that a coordinate is ignorable and cost flops in the generated code.
+    """
+    expr = se.expand(expr)
+    sines = [a for a in expr.atoms(se.sin)]
+    if not sines:
+        return expr
+    return se.expand(expr.xreplace({s**2: 1 - se.cos(s.args[0]) ** 2 for s in sines}))
+
+
 def _kinetic_energy(model: Model, eng: _Engine):
     T = se.Integer(0)
     for body in model.bodies:
         m = to_se(body.mass, f"mass of {body.name!r}")
         x = eng.vec(body.point.position, f"position of {body.name!r}")
         v = [eng.ddt(c) for c in x]
-        T = T + m / 2 * sum((c * c for c in v), se.Integer(0))
+        vv = sum((c * c for c in v), se.Integer(0))
+        # Expanding pays for bodies moved by few coordinates; for long chains it would square
+        # the number of terms (the n-link pendulum's last bob depends on all n angles).
+        few = len(set(eng.q) & set().union(*(c.free_symbols for c in x))) <= PYTHAGORAS_MAX_COORDS
+        T = T + m / 2 * (pythagoras(vv) if few else vv)
         if isinstance(body, PlanarBody):
             w = eng.ddt(to_se(body.angle, f"angle of {body.name!r}"))
             T = T + to_se(body.inertia, f"inertia of {body.name!r}") / 2 * w * w
@@ -238,8 +258,12 @@ def _generalized_forces(model: Model, eng: _Engine):
     return Q
 
 
-def derive(model: Model) -> EquationsOfMotion:
-    """Derive Lagrange's equations (eq. 3.16) of ``model`` as M q'' = F."""
+def derive(model: Model, check: bool = True) -> EquationsOfMotion:
+    """Derive Lagrange's equations (eq. 3.16) of ``model`` as M q'' = F.
+
+    ``check=False`` skips the test for an identically singular mass matrix (for callers that
+    only want the energies and momenta, e.g. to explain why a reduction is impossible).
+    """
     start = time.perf_counter()
     model.validate()
     eng = _Engine(model)
@@ -278,9 +302,9 @@ def derive(model: Model) -> EquationsOfMotion:
         for j in range(n):
             Fi = Fi - se.diff(p[i], eng.q[j]) * eng.qd[j]
         F.append(Fi)
-    if all(M[i][j] == 0 for i in range(n) for j in range(n)):
+    if check and all(M[i][j] == 0 for i in range(n) for j in range(n)):
         raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
-    for i in range(n):
+    for i in range(n if check else 0):
         if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
             raise DerivationError(
                 f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "

@@ -12,7 +12,7 @@ from scipy.integrate import cumulative_trapezoid
 import lagcodegen as lcg
 from lagcodegen import DerivationError, Model, derive, systems
 from lagcodegen.energy import check_jacobi, is_natural, is_zero, jacobi_h, kinetic_split
-from lagcodegen.systems_energy import charged_particle, damped_pendulum, rotating_frame_particle
+from lagcodegen.systems import charged_particle, damped_pendulum, rotating_frame_particle
 
 
 def spinning_hoop() -> Model:

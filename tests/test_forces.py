@@ -13,7 +13,7 @@ from lagcodegen.energy import check_jacobi, is_zero
 from lagcodegen.forces import (accelerations, dissipative_force, generalized_force_from_cartesian,
                                generalized_force_from_generalized_potential, generalized_force_from_potential,
                                total_time_derivative)
-from lagcodegen.systems_energy import charged_particle
+from lagcodegen.systems import charged_particle
 
 t = sp.Symbol("t")
 e, B, E, m = sp.symbols("e B Ex m")
