@@ -114,7 +114,15 @@ def compiler_version(cc: str) -> str:
     return out.splitlines()[0] if out else cc
 
 
-def header_lines(settings: Settings) -> list[str]:
+def load_average() -> str:
+    """1-minute load average, to judge how busy the machine was."""
+    try:
+        return f"{os.getloadavg()[0]:.2f}"
+    except OSError:
+        return "n/a"
+
+
+def header_lines(settings: Settings, load: tuple[str, str]) -> list[str]:
     versions = {
         "lagcodegen": lagcodegen.__version__,
         "sympy": importlib.metadata.version("sympy"),
@@ -125,6 +133,7 @@ def header_lines(settings: Settings) -> list[str]:
     return [
         f"lagcodegen pipeline benchmark, {datetime.datetime.now().isoformat(timespec='seconds')}",
         f"machine:  {cpu_model()}, os.cpu_count() = {os.cpu_count()}, {platform.platform()}",
+        f"load:     1-minute load average {load[0]} at start, {load[1]} at end",
         f"python:   {platform.python_version()}; " + ", ".join(f"{k} {v}" for k, v in versions.items())
         + f"; SUNDIALS {find_sundials().version}",
         f"compiler: {compiler_version(c_compiler())}",
@@ -252,18 +261,17 @@ static long calibrate(double (*run)(long), double target)
     return calls > 0 ? calls : 1;
 }
 
-static void measure(const char *name, double (*run)(long), double target, int repeats)
+static void measure(const char *name, double (*run)(long), double target)
 {
     long calls = calibrate(run, target);
-    int r;
-    for (r = 0; r < repeats; ++r)
-        printf("%s %ld %.6e\n", name, calls, 1e9 * run(calls) / (double)calls);
+    printf("%s %ld %.6e\n", name, calls, 1e9 * run(calls) / (double)calls);
 }
 
+/* One measurement of each function, about `target` (argv[1], seconds) long. */
 int main(int argc, char **argv)
 {
     double target = argc > 1 ? atof(argv[1]) : 0.2;
-    int repeats = argc > 2 ? atoi(argv[2]) : 5, i;
+    int i;
 
     for (i = 0; i < NQ; ++i) {
         y0[i] = ${q0};
@@ -274,8 +282,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "${prefix}_rhs fails at the initial state\n");
         return 1;
     }
-    measure("rhs", run_rhs, target, repeats);
-    measure("jac", run_jac, target, repeats);
+    measure("rhs", run_rhs, target);
+    measure("jac", run_jac, target);
     if (failures) {
         fprintf(stderr, "%ld calls returned an error\n", failures);
         return 1;
@@ -303,16 +311,20 @@ def compile_harness(code, folder: Path) -> Path:
 
 
 def c_call_costs(code, folder: Path, settings: Settings) -> dict[str, float]:
-    """Median ns per call of rhs and jac, measured by the compiled harness."""
+    """Median ns per call of rhs and jac over ``settings.repeats`` runs of the harness.
+
+    Each repeat is a separate process, so that a short burst of machine noise (common on
+    virtual machines) spoils one sample rather than all of them.
+    """
     exe = compile_harness(code, folder)
-    proc = subprocess.run([str(exe), repr(settings.c_target), str(settings.repeats)],
-                          capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"the timing harness failed: {proc.stderr.strip()}")
     samples: dict[str, list[float]] = {}
-    for line in proc.stdout.splitlines():
-        name, _calls, ns = line.split()
-        samples.setdefault(name, []).append(float(ns))
+    for _ in range(settings.repeats):
+        proc = subprocess.run([str(exe), repr(settings.c_target)], capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"the timing harness failed: {proc.stderr.strip()}")
+        for line in proc.stdout.splitlines():
+            name, _calls, ns = line.split()
+            samples.setdefault(name, []).append(float(ns))
     return {name: statistics.median(values) for name, values in samples.items()}
 
 
@@ -355,6 +367,14 @@ def solver_variants(label: str, cm, settings: Settings) -> list[dict]:
 
 
 # --------------------------------------------------------------------------- rows
+def warm_up(scratch: Path) -> None:
+    """One untimed build of the simple pendulum, so that the first measured row does not pay
+    for one-time costs (compiler version probe, SUNDIALS lookup, compiler binaries not yet in
+    the page cache)."""
+    progress("warm-up build (not timed)")
+    time_build(derive(systems.pendulum()), scratch)
+
+
 def measure_system(label: str, model, settings: Settings, scratch: Path):
     """One full row of the systems table, and the compiled model."""
     n = model.n
@@ -370,14 +390,6 @@ def measure_system(label: str, model, settings: Settings, scratch: Path):
                rhs_ns=costs["rhs"], jac_ns=costs["jac"])
     row.update(compare_backends(cm, settings))
     return row, cm
-
-
-def warm_up(scratch: Path) -> None:
-    """One untimed build of the simple pendulum, so that the first measured row does not pay
-    for one-time costs (compiler version probe, SUNDIALS lookup, compiler binaries not yet in
-    the page cache)."""
-    progress("warm-up build (not timed)")
-    time_build(derive(systems.pendulum()), scratch)
 
 
 def measure_derivation(label: str, model, settings: Settings) -> dict:
@@ -423,11 +435,12 @@ def format_table(columns, rows) -> str:
     cells = [[fmt.format(row[key]) if row.get(key) is not None else "-" for key, _, fmt in columns]
              for row in rows]
     headings = [heading for _, heading, _ in columns]
-    widths = [max(len(h), *(len(r[i]) for r in cells)) for i, h in enumerate(headings)]
+    widths = [max([len(h)] + [len(r[i]) for r in cells]) for i, h in enumerate(headings)]
     left = [all(isinstance(row.get(key), str) for row in rows) for key, _, _ in columns]
 
     def line(values):
-        return "  ".join(v.ljust(w) if lft else v.rjust(w) for v, w, lft in zip(values, widths, left)).rstrip()
+        padded = (v.ljust(w) if lft else v.rjust(w) for v, w, lft in zip(values, widths, left))
+        return "  ".join(padded).rstrip()
 
     rule = "  ".join("-" * w for w in widths)
     return "\n".join([line(headings), rule, *(line(r) for r in cells)])
@@ -435,13 +448,16 @@ def format_table(columns, rows) -> str:
 
 LEGEND = [
     "gen+compile: generate_c + build (cffi module with the native CVODE driver); C: size of <prefix>.c",
-    "sks/native: sksundae time / native time; max |dy(10)|: largest |native - sksundae| over the state at t = 10",
+    "sksundae: includes its Python-side evaluation of the outputs at the 1001 output times "
+    "(native: in C)",
+    "sks/native: sksundae time / native time",
+    "max |dy(10)|: largest |native - sksundae| over the state at t = 10",
     "rows with '-': derivation only",
 ]
 
 
-def report(settings: Settings, system_rows, solver_rows) -> str:
-    parts = header_lines(settings)
+def report(settings: Settings, load: tuple[str, str], system_rows, solver_rows) -> str:
+    parts = header_lines(settings, load)
     parts += ["", "Systems", "", format_table(SYSTEM_COLUMNS, system_rows), "", *LEGEND]
     if solver_rows:
         parts += ["", f"double pendulum, rtol {TOLERANCES['rtol']:g}, BDF vs Adams, analytic vs "
@@ -469,32 +485,28 @@ def write_outputs(folder: Path, text: str, rows) -> None:
 
 
 # --------------------------------------------------------------------------- main
-def systems_to_measure(settings: Settings):
-    """(label, model) of every full row, double pendulum first."""
-    yield "double pendulum", systems.double_pendulum()
-    for n in settings.links:
-        yield "n-link pendulum", systems.n_link_pendulum(n)
-
-
 def main(argv=None) -> int:
     args = parse_args(argv)
     settings = settings_from(args)
     if shutil.which(c_compiler()) is None:
         print(f"pipeline: C compiler {c_compiler()!r} not found (set CC)", file=sys.stderr)
         return 2
-    start = time.perf_counter()
-    system_rows, solver_rows = [], []
+    start, load_start = time.perf_counter(), load_average()
+    system_rows = []
     with tempfile.TemporaryDirectory(prefix="lagcodegen-bench-") as tmp:
-        warm_up(Path(tmp) / "warm-up")
-        for k, (label, model) in enumerate(systems_to_measure(settings)):
-            row, cm = measure_system(label, model, settings, Path(tmp) / f"{k:02d}-{model.name}")
+        scratch = Path(tmp)
+        warm_up(scratch / "warm-up")
+        row, cm = measure_system("double pendulum", systems.double_pendulum(), settings, scratch / "double")
+        system_rows.append(row)
+        progress("double pendulum: BDF vs Adams, analytic vs difference-quotient Jacobian")
+        solver_rows = solver_variants("double pendulum", cm, settings)
+        for n in settings.links:
+            row, _ = measure_system("n-link pendulum", systems.n_link_pendulum(n), settings,
+                                    scratch / f"links{n}")
             system_rows.append(row)
-            if model.name == "double_pendulum":
-                progress("double pendulum: BDF vs Adams, analytic vs difference-quotient Jacobian")
-                solver_rows = solver_variants(label, cm, settings)
     for n in settings.derive_only:
         system_rows.append(measure_derivation("n-link pendulum", systems.n_link_pendulum(n), settings))
-    text = report(settings, system_rows, solver_rows)
+    text = report(settings, (load_start, load_average()), system_rows, solver_rows)
     print(text, end="")
     if args.out is not None:
         write_outputs(args.out, text, system_rows + solver_rows)

@@ -30,7 +30,7 @@ import numpy as np
 
 from . import __version__
 from .codegen import GeneratedCode, environment
-from .errors import CompileError, LagcodegenError
+from .errors import CompileError, LagcodegenError, SingularMassMatrixError, SolverError
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008")
@@ -111,6 +111,9 @@ def _cdef(code: GeneratedCode, native: bool) -> str:
     if code.nout:
         lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
     if native:
+        if code.nout:
+            lines.append(f"int {p}_outputs_batch(int nt, const double *t, const double *y, const double *p, "
+                         f"double *out);")
         lines.append(f"""
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;
@@ -231,7 +234,6 @@ class CompiledModel:
 
 
 def _check_rc(rc: int, t: float, what: str) -> None:
-    from .errors import SingularMassMatrixError, SolverError
     if rc == 1:
         raise SingularMassMatrixError(f"{what}: the mass matrix is singular", t=float(t))
     if rc == 2:

@@ -216,11 +216,19 @@ def _solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first
     done = len(soln.t)
     y = np.asarray(soln.y, dtype=float).reshape(done, ny)
     outs = np.full((done, cm.code.nout), np.nan)
-    for k in range(done):
-        try:
-            outs[k] = cm.outputs(soln.t[k], y[k], p)
-        except LagcodegenError:
-            break
+    if cm.code.nout and done:
+        tt = np.ascontiguousarray(soln.t, dtype=float)
+        yy = np.ascontiguousarray(y)
+        batch = getattr(cm.lib, f"{cm.code.prefix}_outputs_batch", None)
+        if batch is not None:  # one C call for all rows
+            batch(done, ffi.from_buffer("double[]", tt), ffi.from_buffer("double[]", yy), pp,
+                  ffi.from_buffer("double[]", outs))
+        else:
+            for k in range(done):
+                try:
+                    outs[k] = cm.outputs(tt[k], yy[k], p)
+                except LagcodegenError:
+                    break
     status = int(getattr(soln, "status", 0))
     # scikit-sundae reports no step count, and nfev omits difference-quotient Jacobian calls.
     stats = dict(steps=None, rhs_evals=int(getattr(soln, "nfev", -1)),
