@@ -23,7 +23,9 @@ from .model import Model  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
 from .scene import Scene  # noqa: F401
 from .codegen import GeneratedCode, generate_c  # noqa: F401
+from .fortran import generate_fortran  # noqa: F401
 from .build import CompiledModel, build  # noqa: F401
+from .bundle import render_bundle, write_bundle  # noqa: F401
 from .solve import simulate  # noqa: F401
 from .result import Result  # noqa: F401
 from . import systems  # noqa: F401
@@ -31,8 +33,10 @@ from . import systems  # noqa: F401
 
 def compile_model(model: Model, *, jacobian: bool = True, outputs=(), runtime_parameters=None,
                   values=None, prefix: str | None = None, native: bool = True,
-                  verbose: bool = False) -> CompiledModel:
-    """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options)."""
+                  verbose: bool = False, lang: str = "c") -> CompiledModel:
+    """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options;
+    ``lang``: "c" or "fortran", the language of the generated model code)."""
+    from .bundle import generate_code
     scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
                   values=values or {}, prefix=prefix)
-    return build(generate_c(scene), native=native, verbose=verbose)
+    return build(generate_code(scene, lang), native=native, verbose=verbose)

@@ -33,7 +33,7 @@ from .codegen import GeneratedCode, environment
 from .errors import CompileError, LagcodegenError, SingularMassMatrixError, SolverError
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
-DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008")
+DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
 
 
 def cache_dir() -> Path:

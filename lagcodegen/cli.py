@@ -75,21 +75,29 @@ def _scene(mf, args, quiet: bool):
 
 
 def cmd_generate(args) -> int:
-    from .codegen import generate_c
+    from .bundle import generate_code, render_bundle, stale_files, write_files
     mf = _load(args.model, args.quiet)
-    scene, _ = _scene(mf, args, args.quiet)
-    code = generate_c(scene)
+    scene, runtime_values = _scene(mf, args, args.quiet)
+    code = generate_code(scene, args.lang)
+    files = dict(code.files)
+    if args.bundle:
+        q0, v0 = mf.initial_state()
+        sim = mf.simulation
+        files = render_bundle(scene, args.lang, y0=q0 + v0, params=runtime_values, t_start=sim.t_start,
+                              t_end=sim.t_end, code=code)
     out = Path(args.output)
     if args.check:
-        stale = [name for name, text in code.files.items()
-                 if not (out / name).is_file() or (out / name).read_text() != text]
+        stale = stale_files(out, files)
         if stale:
             print(f"lagcodegen: {out} is out of date: {', '.join(stale)}", file=sys.stderr)
             return EXIT_OUTDATED
         _progress(f"{out} is up to date", args.quiet)
         return EXIT_OK
-    for path in code.write(out):
+    written = write_files(out, files)
+    for path in written:
         _progress(f"wrote {path}", args.quiet)
+    if len(written) < len(files):
+        _progress(f"{len(files) - len(written)} file(s) in {out} already up to date", args.quiet)
     return EXIT_OK
 
 
@@ -167,11 +175,17 @@ def parser() -> argparse.ArgumentParser:
         p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
         p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
-    g = sub.add_parser("generate", help="model file -> C sources in a folder")
+    g = sub.add_parser("generate", help="model file -> C or Fortran sources in a folder")
     g.add_argument("model")
     g.add_argument("-o", "--output", required=True, help="output folder")
     g.add_argument("--prefix", help="C identifier prefix (default: the model name)")
-    g.add_argument("--check", action="store_true", help="exit 5 if the folder is out of date, write nothing")
+    g.add_argument("--lang", choices=["c", "fortran"], default="c",
+                   help="language of the model code: C99 (<prefix>.c) or Fortran 2008 (<prefix>.f90); "
+                        "the C header <prefix>.h comes with both")
+    g.add_argument("--bundle", action="store_true",
+                   help="also write Makefile, CMakeLists.txt, rk4_example.c, cvode_example.c and README.md")
+    g.add_argument("--check", action="store_true",
+                   help="exit 5 if any file to be written is missing or differs, write nothing")
     scene_options(g)
     g.set_defaults(func=cmd_generate)
 

@@ -1,0 +1,173 @@
+"""Embeddable bundles: the generated model code plus build files, examples and a README.
+
+:func:`write_bundle` writes, into one folder, everything a C or Fortran project needs to use
+a :class:`~lagcodegen.scene.Scene` without lagcodegen:
+
+* the model: ``<prefix>.h`` and ``<prefix>.c`` (C99) or ``<prefix>.f90`` (Fortran 2008
+  module ``<prefix>_mod`` with C bindings, see :mod:`lagcodegen.fortran`);
+* ``Makefile``: the static library ``lib<prefix>.a``, ``make rk4``, ``make check`` (runs the
+  RK4 example), ``make cvode`` (the SUNDIALS example, on request);
+* ``CMakeLists.txt``: the same library and RK4 example; the SUNDIALS example only if
+  ``find_package(SUNDIALS CONFIG)`` succeeds (linking ``SUNDIALS::cvode``);
+* ``rk4_example.c``: a fixed-step RK4 integration that needs nothing but a C compiler;
+* ``cvode_example.c`` (``sundials_example=True``): the same with SUNDIALS CVODE;
+* ``README.md``: how to call each function, array layouts, return codes.
+
+Everything is rendered in memory first; then each file whose content changed is replaced
+atomically, and unchanged files are not touched (their modification times stay, so ``make``
+rebuilds nothing). The output depends on the scene and the options only (no timestamps,
+fixed order): regenerating gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+from . import __version__
+from .codegen import GeneratedCode, atomic_write, environment, generate_c
+from .errors import ModelError
+from .fortran import generate_fortran
+from .model import check_finite
+from .scene import Scene
+
+#: Languages of the generated model code.
+LANGUAGES = ("c", "fortran")
+#: Default initial coordinates of the examples when none are given (velocities and z: 0).
+DEFAULT_Q0 = 0.5
+
+
+def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
+    """The model code of ``scene`` in ``lang`` ("c": :func:`generate_c`, "fortran":
+    :func:`~lagcodegen.fortran.generate_fortran`)."""
+    if lang == "c":
+        return generate_c(scene)
+    if lang == "fortran":
+        return generate_fortran(scene)
+    raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+
+
+def _c_double(value: float) -> str:
+    """A C double literal that reads back as exactly ``value``."""
+    text = repr(float(value))
+    return text if "." in text or "e" in text else text + ".0"
+
+
+def _initial_state(code: GeneratedCode, y0) -> list[float]:
+    if y0 is None:
+        return [DEFAULT_Q0] * code.n + [0.0] * (code.n + code.nz)
+    values = [check_finite(v, "bundle initial state") for v in y0]
+    if len(values) == 2 * code.n:
+        values += [0.0] * code.nz
+    if len(values) != code.ny:
+        raise ModelError(f"bundle initial state: expected {code.ny} values ({', '.join(code.state_names)}), "
+                         f"got {len(values)}")
+    return values
+
+
+def _parameters(code: GeneratedCode, params: Mapping[str, float] | None) -> list[float]:
+    values = dict(zip(code.param_names, code.param_defaults))
+    for name, value in (params or {}).items():
+        if name not in values:
+            raise ModelError(f"bundle: {name!r} is not a run-time parameter of this scene "
+                             f"(run-time parameters: {', '.join(values) or 'none'})")
+        values[name] = check_finite(value, f"bundle parameter {name!r}")
+    return [values[name] for name in code.param_names]
+
+
+def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, *,
+                  y0: Sequence[float] | None = None, params: Mapping[str, float] | None = None,
+                  t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
+                  code: GeneratedCode | None = None) -> dict[str, str]:
+    """The files of the bundle of ``scene`` (name -> text), rendered in memory.
+
+    ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
+    name), ``t_start``, ``t_end`` and ``steps`` are the examples' defaults (the examples take
+    others on their command line): by default q = 0.5, q' = 0, the parameters' defaults, t
+    from 0 to 10 and RK4 steps of at most 1e-3. ``code``: the model code, if already generated
+    for this scene and language.
+    """
+    if code is None:
+        code = generate_code(scene, lang)
+    elif lang not in LANGUAGES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    fortran = lang == "fortran"
+    t_start = check_finite(t_start, "bundle t_start")
+    t_end = check_finite(t_end, "bundle t_end")
+    if not t_end > t_start:
+        raise ModelError(f"bundle: t_end ({t_end:g}) must be greater than t_start ({t_start:g})")
+    if steps is None:
+        steps = max(1000, math.ceil(1000 * (t_end - t_start)))
+    if int(steps) != steps or steps < 1:
+        raise ModelError(f"bundle: steps must be a positive integer, got {steps!r}")
+    steps = int(steps)
+    source = f"{code.prefix}.f90" if fortran else code.source_name
+    names = [code.header_name, source]
+    missing = [name for name in names if name not in code.files]
+    if missing:
+        raise ModelError(f"bundle: the generated code has no {', '.join(missing)} (language {lang!r}?)")
+
+    folded = sorted(scene.folded.items())
+    table = [(code.header_name, "C header: sizes, array layouts, return codes, function prototypes"),
+             (source, (f"Fortran 2008 module `{code.prefix}_mod`, functions bound to the C names" if fortran
+                       else "C99 source of the functions (libm only)")),
+             ("Makefile", f"`make`: lib{code.prefix}.a and rk4_example; `make check` runs it"),
+             ("CMakeLists.txt", "the same with CMake"),
+             ("rk4_example.c", "fixed-step RK4 integration, CSV on stdout; needs only a C compiler")]
+    if sundials_example:
+        table.append(("cvode_example.c", "the same with SUNDIALS CVODE (built by CMake when SUNDIALS is found)"))
+    table.append(("README.md", "this file"))
+    y_values = _initial_state(code, y0)
+    ctx = dict(
+        version=__version__, prefix=code.prefix, PREFIX=code.prefix.upper(), model_name=code.model_name,
+        lang=lang, fortran=fortran, lang_name="Fortran 2008" if fortran else "C99",
+        header=code.header_name, source=source, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
+        nout=code.nout, state_names=code.state_names, param_names=code.param_names,
+        param_values=[_c_double(v) for v in _parameters(code, params)], output_names=code.output_names,
+        jacobian=code.jacobian, folded=folded,
+        folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
+        y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
+        steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table)
+    env = environment()
+    files = {name: code.files[name] for name in names}
+    files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
+    files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
+    files["rk4_example.c"] = env.get_template("bundle/rk4_example.c.j2").render(**ctx)
+    if sundials_example:
+        files["cvode_example.c"] = env.get_template("bundle/cvode_example.c.j2").render(**ctx)
+    files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
+    return files
+
+
+def stale_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[str]:
+    """Names of ``files`` missing from ``directory`` or with other content there."""
+    out = Path(directory)
+    stale = []
+    for name, text in files.items():
+        path = out / name
+        try:
+            same = path.is_file() and path.read_bytes() == text.encode("utf-8")
+        except OSError:
+            same = False
+        if not same:
+            stale.append(name)
+    return stale
+
+
+def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[Path]:
+    """Write ``files`` (name -> text) into ``directory``: each changed file atomically, unchanged
+    files not at all. Returns the paths written."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    return [atomic_write(out / name, files[name]) for name in sorted(stale_files(out, files))]
+
+
+def write_bundle(scene: Scene, directory: str | os.PathLike, lang: str = "c", sundials_example: bool = True,
+                 **options) -> list[Path]:
+    """Render the bundle of ``scene`` (see :func:`render_bundle` for ``options``) and write it into
+    ``directory``. Returns the paths of all bundle files, in name order."""
+    files = render_bundle(scene, lang, sundials_example, **options)
+    write_files(directory, files)
+    return [Path(directory) / name for name in sorted(files)]
