@@ -51,6 +51,7 @@ from .events import Event, EventRecord, event_list, records
 from .model import Model, check_finite
 from .result import Result
 from .scene import Scene
+from .solve import CVODE_FLAG_TEXT, output_times, state_vector
 
 FORMULATIONS = ("index1", "ggl", "minimal")
 #: Output groups of constrained systems, besides the model's (energy, positions, momenta...).
@@ -379,39 +380,8 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     return ConstrainedSimulation(system, formulation, cm, info, (alpha, beta), bool(projection))
 
 
-def _vector(val, names: list[str], what: str) -> np.ndarray:
-    if val is None:
-        return np.zeros(len(names))
-    if isinstance(val, Mapping):
-        unknown = set(val) - set(names)
-        if unknown:
-            raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-        return np.array([float(val.get(k, 0.0)) for k in names])
-    arr = np.array(val, dtype=float).ravel()
-    if arr.size != len(names):
-        raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-    if not np.all(np.isfinite(arr)):
-        raise LagcodegenError(f"{what} has non-finite values")
-    return arr
-
-
-def _times(t) -> np.ndarray:
-    t = np.asarray(t, dtype=float).ravel()
-    if t.size == 2:
-        t = np.linspace(t[0], t[1], 1001)
-    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise LagcodegenError("t must be at least two finite, strictly increasing times")
-    return t
-
-
 _CV_TEXT = {
-    -1: "too many steps (max_steps reached); raise max_steps or loosen the tolerances",
-    -2: "tolerance too tight for machine precision",
-    -3: "error test failed repeatedly or with |h| = hmin",
-    -4: "corrector convergence failed repeatedly",
-    -8: "the right-hand side failed unrecoverably",
-    -9: "the right-hand side failed at the first call",
-    -10: "the right-hand side failed repeatedly with recoverable errors (non-finite values)",
+    **CVODE_FLAG_TEXT,
     -12: "a root (event) function failed",
     -30: "the projection onto the constraints failed unrecoverably",
     -31: "the projection onto the constraints failed repeatedly",
@@ -583,8 +553,8 @@ class ConstrainedSimulation(_Base):
         fails; ``"none"`` takes the state as it is.
         """
         names = [q.name for q in self.system.model.coords]
-        q = _vector(q0, names, "q0")
-        v = _vector(v0, names, "v0")
+        q = state_vector(q0, names, "q0")
+        v = state_vector(v0, names, "v0")
         p = self._p(params)
         vals = self._effective_params(self.info.folded, self.param_names, p)
         y = np.concatenate([q, v])
@@ -636,7 +606,7 @@ class ConstrainedSimulation(_Base):
         constraints to the Newton tolerance). ``atol`` may be a scalar, one value per
         (q, q') or, for GGL, one per (q, q', lambda, mu). ``events``: enable root finding.
         """
-        t = _times(t)
+        t = output_times(t)
         if q0 is None:
             raise LagcodegenError("q0 is required")
         p = self.parameter_vector(params)
@@ -1258,11 +1228,11 @@ class MinimalSimulation(_Base):
         """
         for key in ("baumgarte", "projection", "suppress_alg", "events"):
             kwargs.pop(key, None)
-        t = _times(t)
+        t = output_times(t)
         model = self.system.model
         names = [q.name for q in model.coords]
-        q = _vector(q0, names, "q0")
-        v = _vector(v0, names, "v0")
+        q = state_vector(q0, names, "q0")
+        v = state_vector(v0, names, "v0")
         defaults = {s.name: v_ for s, v_ in model.params.items()}
         vals = {**defaults, **self._values}
         for k, val in (params or {}).items():

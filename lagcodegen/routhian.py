@@ -38,6 +38,7 @@ from .errors import DerivationError, LagcodegenError, ModelError
 from .model import Model, check_finite
 from .result import Result
 from .scene import Scene
+from .solve import state_vector
 
 __all__ = ["RouthReduction", "ignorable_coordinates", "reduce", "is_zero", "tidy"]
 
@@ -219,8 +220,8 @@ class RouthReduction:
 
         ``q0``, ``v0``: arrays in the full model's coordinate order, or dicts by name.
         """
-        qv = _full_vector(q0, self.full.q, "q0")
-        vv = _full_vector(v0, self.full.q, "v0")
+        qv = state_vector(q0, [q.name for q in self.full.q], "q0")
+        vv = state_vector(v0, [q.name for q in self.full.q], "v0")
         values = self.parameter_values(params)
         sub = {q: sp.Float(x, 20) for q, x in zip(self.full.q, qv)}
         sub.update({v: sp.Float(x, 20) for v, x in zip(self.full.qd, vv)})
@@ -275,8 +276,8 @@ class RouthReduction:
         C = self.integrals_at(q0, v0, t0, full_values)
         run = {k: values[k] for k in cm.param_names if k not in integral_names}
         run.update(C)
-        qv = _full_vector(q0, self.full.q, "q0")
-        vv = _full_vector(v0, self.full.q, "v0")
+        qv = state_vector(q0, [q.name for q in self.full.q], "q0")
+        vv = state_vector(v0, [q.name for q in self.full.q], "v0")
         index = {q: i for i, q in enumerate(self.full.q)}
         red = [index[q] for q in self.coordinates]
         ign = [index[q] for q in self.ignorable]
@@ -297,21 +298,6 @@ class RouthReduction:
         times = np.asarray(t, dtype=float).ravel()
         y0, run = self.initial_state(cm, q0, v0, float(times[0]) if times.size else 0.0, params)
         return simulate(cm, t, y0=y0, params=run, **options)
-
-
-def _full_vector(val, coords: Sequence[sp.Symbol], what: str) -> np.ndarray:
-    names = [q.name for q in coords]
-    if val is None:
-        return np.zeros(len(names))
-    if isinstance(val, Mapping):
-        unknown = set(val) - set(names)
-        if unknown:
-            raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-        return np.array([float(val.get(k, 0.0)) for k in names])
-    arr = np.array(val, dtype=float).ravel()
-    if arr.size != len(names):
-        raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-    return arr
 
 
 def _resolve_ignorable(eom: EquationsOfMotion, ignorable: Sequence[str] | None) -> list[sp.Symbol]:

@@ -17,6 +17,34 @@ from .model import check_finite
 from .result import Result
 
 METHODS = {"adams": 1, "bdf": 2}
+LINEAR_SOLVERS = ("dense", "band")
+
+
+def output_times(t) -> np.ndarray:
+    """Output times as an array: ``t`` itself, or 1001 evenly spaced times for a pair (t0, t1)."""
+    t = np.asarray(t, dtype=float).ravel()
+    if t.size == 2:
+        t = np.linspace(t[0], t[1], 1001)
+    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise LagcodegenError("t must be at least two finite, strictly increasing times")
+    return t
+
+
+def state_vector(val, names: list[str], what: str) -> np.ndarray:
+    """Values for ``names`` from None (zeros), a dict by name (missing: 0) or a sequence."""
+    if val is None:
+        return np.zeros(len(names))
+    if isinstance(val, dict):
+        unknown = set(val) - set(names)
+        if unknown:
+            raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
+        return np.array([float(val.get(k, 0.0)) for k in names])
+    arr = np.array(val, dtype=float).ravel()
+    if arr.size != len(names):
+        raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
+    if not np.all(np.isfinite(arr)):
+        raise LagcodegenError(f"{what} has non-finite values")
+    return arr
 
 
 def _initial_state(cm: CompiledModel, q0, v0, y0, z0=None) -> np.ndarray:
@@ -29,27 +57,16 @@ def _initial_state(cm: CompiledModel, q0, v0, y0, z0=None) -> np.ndarray:
             raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
 
-    def vec(val, what, names):
-        if val is None:
-            return np.zeros(len(names))
-        if isinstance(val, dict):
-            unknown = set(val) - set(names)
-            if unknown:
-                raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-            return np.array([float(val.get(k, 0.0)) for k in names])
-        arr = np.array(val, dtype=float).ravel()
-        if arr.size != len(names):
-            raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-        return arr
-
     names = cm.state_names
-    return np.concatenate([vec(q0, "q0", names[:n]), vec(v0, "v0", names[:n]), vec(z0, "z0", names[2 * n:])])
+    return np.concatenate([state_vector(q0, names[:n], "q0"), state_vector(v0, names[:n], "v0"),
+                           state_vector(z0, names[2 * n:], "z0")])
 
 
 def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = None,
              method: str = "adams", rtol: float = 1e-8, atol=1e-10, jacobian: bool | None = None,
              backend: str = "native", max_steps: int = 1_000_000, first_step: float = 0.0,
              max_step: float = 0.0, min_step: float = 0.0, max_order: int = 0,
+             linear_solver: str = "dense", bandwidths: tuple[int, int] | None = None,
              raise_on_error: bool = True) -> Result:
     """Integrate the compiled scene ``cm`` and return the trajectory at the times ``t``.
 
@@ -69,17 +86,21 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     jacobian:
         Use the generated Jacobian (default when the scene has one) or CVODE's difference
         quotients (``False``).
+    linear_solver:
+        ``"dense"`` (default) or ``"band"`` (native backend): CVODE's band solver on the
+        interleaved state (q_1, q_1', q_2, q_2', ..., z) with the bandwidths of the scene's
+        Jacobian pattern (:meth:`Scene.jacobian_pattern`) in that order, or ``bandwidths``
+        = (upper, lower) if given. The Jacobian is the sparse one
+        (``Scene(sparse_jacobian=True)``) when the scene has it, else the dense one, else
+        CVODE's band difference quotients (mu + ml + 1 RHS calls per Jacobian). Pays off for
+        chains with nearest-neighbour coupling and a (block-)diagonal mass matrix.
     max_steps:
         Step budget over the whole run.
     raise_on_error:
         Raise :class:`SolverError` on failure (default); otherwise return the partial result
         with a negative ``status``.
     """
-    t = np.asarray(t, dtype=float).ravel()
-    if t.size == 2:
-        t = np.linspace(t[0], t[1], 1001)
-    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise LagcodegenError("t must be at least two finite, strictly increasing times")
+    t = output_times(t)
     y = _initial_state(cm, q0, v0, y0, z0)
     if not np.all(np.isfinite(y)):
         raise LagcodegenError("the initial state has non-finite values")
@@ -87,9 +108,15 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     rtol = check_finite(rtol, "rtol")
     if method not in METHODS:
         raise LagcodegenError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if linear_solver not in LINEAR_SOLVERS:
+        raise LagcodegenError(f"linear_solver must be one of {', '.join(LINEAR_SOLVERS)}, got {linear_solver!r}")
+    band = linear_solver == "band"
+    if band and backend != "native":
+        raise LagcodegenError("linear_solver='band' needs backend='native'")
+    has_jac = cm.code.jacobian or (bool(getattr(cm.code, "sparse_jacobian", False)) and backend == "native")
     if jacobian is None:
-        jacobian = cm.code.jacobian
-    if jacobian and not cm.code.jacobian:
+        jacobian = has_jac
+    if jacobian and not has_jac:
         raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
     atol_arr = np.broadcast_to(np.asarray(atol, dtype=float), (cm.ny,)).copy()
     if not np.all(np.isfinite(atol_arr)) or np.any(atol_arr < 0) or rtol < 0:
@@ -105,6 +132,8 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
 
     opts = dict(method=method, rtol=rtol, atol=atol_arr, jacobian=bool(jacobian), max_steps=int(max_steps),
                 first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order)
+    if band:
+        opts["band"] = band_widths(cm, bandwidths, y, p)
     if backend == "native":
         if not cm.native:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
@@ -121,7 +150,7 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     return res
 
 
-_FLAG_TEXT = {
+CVODE_FLAG_TEXT = {
     -1: "too many steps (max_steps reached); raise max_steps or loosen the tolerances",
     -2: "tolerance too tight for machine precision",
     -3: "error test failed repeatedly or with |h| = hmin",
@@ -139,12 +168,48 @@ def _message(flag: int, model_error: int, detail: str) -> str:
         return "the mass matrix is singular"
     if model_error == 2:
         return "a computed value is not finite"
-    text = _FLAG_TEXT.get(flag, f"CVODE failed with flag {flag}")
+    text = CVODE_FLAG_TEXT.get(flag, f"CVODE failed with flag {flag}")
     return f"{text}: {detail}" if detail else text
 
 
+def band_widths(cm: CompiledModel, bandwidths=None, y=None, p=None) -> tuple[int, int]:
+    """(upper, lower) bandwidths of the band solver for ``cm``: ``bandwidths`` if given, else
+    from the scene's Jacobian pattern in the interleaved order (:func:`scene.band_order`); a
+    module without a recorded pattern (e.g. Fortran) is probed numerically at ``y``."""
+    from .scene import band_order, bandwidths as widths
+    if bandwidths is not None:
+        mu, ml = (int(b) for b in bandwidths)
+        if not (0 <= mu < cm.ny and 0 <= ml < cm.ny):
+            raise LagcodegenError(f"bandwidths must lie in [0, {cm.ny - 1}], got {bandwidths!r}")
+        return mu, ml
+    pattern = getattr(cm.code, "jac_pattern", None)
+    if pattern is None:
+        pattern = _probe_pattern(cm, y, p)
+    return widths(pattern, band_order(cm.n, cm.code.nz))
+
+
+def _probe_pattern(cm: CompiledModel, y, p) -> np.ndarray:
+    """Nonzero pattern of df/dy from forward differences at y and at two perturbed states."""
+    rng = np.random.default_rng(12345)
+    y = np.zeros(cm.ny) if y is None else np.asarray(y, dtype=float)
+    pattern = np.zeros((cm.ny, cm.ny), dtype=bool)
+    for yy in (y, y + 0.1 * rng.standard_normal(cm.ny), y + 0.1 * rng.standard_normal(cm.ny)):
+        try:
+            f0 = cm.rhs(0.0, yy, p)
+        except LagcodegenError:
+            continue
+        for j in range(cm.ny):
+            y1 = yy.copy()
+            y1[j] += 1e-6 * max(1.0, abs(yy[j]))
+            try:
+                pattern[:, j] |= cm.rhs(0.0, y1, p) != f0
+            except LagcodegenError:
+                pattern[:, j] = True
+    return pattern
+
+
 def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                  min_step, max_order) -> Result:
+                  min_step, max_order, band=None) -> Result:
     ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
     nt = t.size
     yout = np.full((nt, cm.ny), np.nan)
@@ -162,6 +227,8 @@ def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_s
     opt.max_step = max_step
     opt.min_step = min_step
     opt.max_order = max_order
+    opt.linear_solver = 1 if band else 0
+    opt.mupper, opt.mlower = band if band else (0, 0)
     pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
     flag = getattr(lib, f"{pre}_cvode_solve")(pp, ffi.from_buffer("double[]", y0), nt,
                                               ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
