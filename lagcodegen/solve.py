@@ -48,7 +48,7 @@ def state_vector(val, names: list[str], what: str) -> np.ndarray:
 
 
 def _initial_state(cm: CompiledModel, q0, v0, y0, z0=None) -> np.ndarray:
-    n, nz = cm.n, cm.code.nz
+    n = cm.n
     if y0 is not None:
         if q0 is not None or v0 is not None or z0 is not None:
             raise LagcodegenError("give either y0 or q0/v0, not both")
@@ -253,7 +253,6 @@ def _solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first
     crhs, cjac = cm._rhs, cm._jac
     pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
     state = {"model_error": 0, "t": float(t[0])}
-    fbuf = np.empty(ny)
     jbuf = np.empty((ny, ny), order="F")
 
     def rhsfn(tt, y, yp):

@@ -1,11 +1,9 @@
 """Generated C: strict warnings, sanitizers, what the scene asks for and nothing more."""
 
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
-import sympy as sp
 
 import lagcodegen as lcg
 from lagcodegen import Scene, derive, generate_c, systems
