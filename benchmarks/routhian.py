@@ -19,7 +19,7 @@ numpy right-hand side of the full equations
 
 Reported per run: wall time (median of 5, 3 with --quick) of ``simulate``, steps and RHS
 evaluations, the error in (theta, phi) at T and the max over the 2001-point output grid.
-RHS/Jac cost per call is measured in C by the harness of benchmarks/pipeline.py (no Python,
+RHS/Jac cost per call is measured in C by the harness of benchmarks/_harness.py (no Python,
 cc -O2). The time ratio full/reduced at matched error interpolates log(time) against
 log(max error) of each model.
 
@@ -48,7 +48,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import pipeline  # noqa: E402  (the C timing harness)
+import _harness  # noqa: E402  (the C timing harness)
 
 import lagcodegen as lcg  # noqa: E402
 from lagcodegen import Scene, build, generate_c  # noqa: E402
@@ -129,7 +129,7 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     rtols = [1e-6, 1e-8, 1e-10] if args.quick else [10.0**-k for k in range(6, 13)]
     repeats = 3 if args.quick else 5
-    # c_call_costs reads only .repeats and .c_target of pipeline.Settings.
+    # c_call_costs reads only .repeats and .c_target of its settings.
     settings = SimpleNamespace(repeats=repeats, c_target=0.05 if args.quick else 0.2)
     t = np.linspace(0.0, T_END, N_GRID)
 
@@ -154,7 +154,7 @@ def main(argv=None) -> int:
     costs = {}
     with tempfile.TemporaryDirectory(prefix="lcg-routh-bench-") as tmp:
         for label, cm in (("full", full), ("reduced", reduced)):
-            costs[label] = pipeline.c_call_costs(cm.code, Path(tmp) / label, settings)
+            costs[label] = _harness.c_call_costs(cm.code, Path(tmp) / label, settings)
 
     rows = []
     for rtol in rtols:
@@ -164,8 +164,8 @@ def main(argv=None) -> int:
 
     lines = [
         f"lagcodegen Routhian benchmark (spherical pendulum), {datetime.datetime.now().isoformat(timespec='seconds')}",
-        f"machine:  {pipeline.cpu_model()}, os.cpu_count() = {os.cpu_count()}, {platform.platform()}",
-        f"compiler: {pipeline.compiler_version(pipeline.c_compiler())}; lagcodegen {lcg.__version__}",
+        f"machine:  {_harness.cpu_model()}, os.cpu_count() = {os.cpu_count()}, {platform.platform()}",
+        f"compiler: {_harness.compiler_version(_harness.c_compiler())}; lagcodegen {lcg.__version__}",
         f"run:      theta0 = {Q0[0]}, phi0 = {Q0[1]}, theta0' = {V0[0]}, phi0' = {V0[1]} (C_phi = {C:.6f}), "
         f"t in [0, {T_END:g}], {N_GRID} output times, native CVODE Adams, analytic Jacobian, atol = rtol/100",
         f"          wall: median of {repeats} simulate() calls; error: |(theta, phi) - reference|, reference DOP853 "

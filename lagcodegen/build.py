@@ -110,6 +110,9 @@ def _cdef(code: GeneratedCode, native: bool) -> str:
         lines.append(f"int {p}_jac(double t, const double *y, const double *ydot, const double *p, double *jac);")
     if code.nout:
         lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
+    if getattr(code, "sparse_jacobian", False):
+        lines.append(f"int {p}_jac_sparse(double t, const double *y, const double *ydot, const double *p, "
+                     f"double *vals);")
     if native:
         if code.nout:
             lines.append(f"int {p}_outputs_batch(int nt, const double *t, const double *y, const double *p, "
@@ -118,6 +121,7 @@ def _cdef(code: GeneratedCode, native: bool) -> str:
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;
     long max_steps; double first_step; double max_step; double min_step; int max_order;
+    int linear_solver; long mupper; long mlower;
 }} {p}_options;
 typedef struct {{
     long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
@@ -132,7 +136,7 @@ def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
     """The native CVODE driver files of ``code`` (header, source, SUNDIALS declarations)."""
     env = environment()
     ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
-               jacobian=code.jacobian, outputs=bool(code.nout),
+               jacobian=code.jacobian, outputs=bool(code.nout), sparse=bool(getattr(code, "sparse_jacobian", False)),
                sunindextype=sundials.sunindextype, sundials_version=sundials.version)
     return {
         "sundials_api.h": env.get_template("c/sundials_api.h.j2").render(**ctx),

@@ -97,6 +97,11 @@ class GeneratedCode:
     cdef_extra: str = ""
     cffi_headers: list[str] = field(default_factory=list)
     sundials_libs: tuple[str, ...] = ()
+    # Structural nonzero pattern of df/dy (ny x ny booleans, Scene.jacobian_pattern), or None
+    # when unknown (then the band solver probes it numerically); sparse_jacobian: the files
+    # <prefix>_sparse.[ch] with <prefix>_jac_sparse are in ``files``.
+    jac_pattern: object = None
+    sparse_jacobian: bool = False
 
     @property
     def ny(self) -> int:
@@ -224,4 +229,76 @@ def generate_c(scene: Scene) -> GeneratedCode:
     env = environment()
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     code.files[code.source_name] = env.get_template("c/model.c.j2").render(**ctx)
+    code.jac_pattern = scene.jacobian_pattern()
+    if scene.sparse_jacobian:
+        _add_sparse_jacobian(scene, code, c, env)
     return code
+
+
+def _int_rows(values: list[int], per_line: int = 16) -> str:
+    rows = [", ".join(str(v) for v in values[k:k + per_line]) for k in range(0, len(values), per_line)]
+    return ",\n".join(_INDENT + r for r in rows)
+
+
+def _add_sparse_jacobian(scene: Scene, code: GeneratedCode, c, env) -> None:
+    """Files <prefix>_sparse.h/.c: <prefix>_jac_sparse, the structurally nonzero entries of df/dy
+    in compressed-column order (Scene.jacobian_pattern), and the pattern itself.
+
+    When M is structurally diagonal each entry is one expression, -(dr_i/dy_j)/M_ii with
+    r = M a - F; otherwise M is factored once and only the columns of dr/dy that have a
+    nonzero entry are solved for."""
+    eom = scene.eom
+    model = eom.model
+    n, ny = model.n, code.ny
+    pattern = code.jac_pattern
+    q = [se.Symbol(s.name) for s in model.coords]
+    v = [se.Symbol(s.name) for s in model.speeds]
+    a = [se.Symbol(f"a[{i}]") for i in range(n)]
+    acc = [se.Symbol(f"__acc{i}") for i in range(n)]
+    asub = dict(zip(acc, a))
+    r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
+    M = [[c(eom.M_se[i][j]) for j in range(n)] for i in range(n)]
+    diagonal = all(M[i][j] == 0 for i in range(n) for j in range(n) if i != j)
+    entries = [(i, j) for j in range(ny) for i in range(ny) if pattern[i, j]]
+    colptr = [0]
+    for j in range(ny):
+        colptr.append(colptr[-1] + int(pattern[:, j].sum()))
+    targets, exprs, after = [], [], []
+    if diagonal:
+        for i in range(n):
+            targets.append(f"Md[{i}]")
+            exprs.append(M[i][i])
+    else:
+        for i in range(n):
+            for j in range(i, n):
+                targets.append(f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]")
+                exprs.append(M[i][j])
+    solve_cols = []
+    for k, (i, j) in enumerate(entries):
+        if i < n:  # dq'_i/dq'_i
+            targets.append(f"vals[{k}]")
+            exprs.append(se.Integer(1))
+        elif i < 2 * n:
+            ii = i - n
+            d = c(se.diff(r[ii], (q + v)[j]).xreplace(asub)) if j < 2 * n else se.Integer(0)
+            if diagonal:
+                targets.append(f"vals[{k}]")
+                exprs.append(-d / M[ii][ii])
+            else:
+                if d != 0:
+                    targets.append(f"G[{j}][{ii}]")
+                    exprs.append(d)
+                if j not in solve_cols:
+                    solve_cols.append(j)
+                after.append(f"{_INDENT}vals[{k}] = -G[{j}][{ii}];")
+        else:  # quadrature rates
+            targets.append(f"vals[{k}]")
+            exprs.append(c(se.diff(eom.quadratures[i - 2 * n][1], (q + v)[j])) if j < 2 * n else se.Integer(0))
+    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=model.name,
+               nnz=len(entries), colptr=_int_rows(colptr), rowind=_int_rows([i for i, _ in entries]),
+               diagonal=diagonal, block=emit_block(targets, exprs), after="\n".join(after),
+               solve_cols=_int_rows(solve_cols), nsolve=len(solve_cols))
+    code.files[f"{code.prefix}_sparse.h"] = env.get_template("c/jac_sparse.h.j2").render(**ctx)
+    code.files[f"{code.prefix}_sparse.c"] = env.get_template("c/jac_sparse.c.j2").render(**ctx)
+    code.cffi_headers.append(f"{code.prefix}_sparse.h")
+    code.sparse_jacobian = True
