@@ -13,6 +13,14 @@ a :class:`~lagcodegen.scene.Scene` without lagcodegen:
 * ``cvode_example.c`` (``sundials_example=True``): the same with SUNDIALS CVODE;
 * ``README.md``: how to call each function, array layouts, return codes.
 
+Constrained systems (:class:`~lagcodegen.constraints.ConstrainedSystem`, index-1 formulation):
+:func:`render_constrained_bundle`, or :func:`write_bundle` given the system instead of a scene,
+bundles ``<prefix>_dae.h`` with ``<prefix>_dae.c`` or ``<prefix>_dae.f90`` (augmented-system
+solve, index-1 right-hand side, residuals, projection, outputs; optionally events and the GGL
+residual), the same Makefile and CMakeLists.txt, an RK4 example of the index-1 ODE (initial
+state projected onto the constraints; Baumgarte parameters and per-step projection as options)
+and a README describing the constrained functions. No SUNDIALS example.
+
 Everything is rendered in memory first; then each file whose content changed is replaced
 atomically, and unchanged files are not touched (their modification times stay, so ``make``
 rebuilds nothing). The output depends on the scene and the options only (no timestamps,
@@ -89,20 +97,16 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     from 0 to 10 and RK4 steps of at most 1e-3. ``code``: the model code, if already generated
     for this scene and language.
     """
+    from .constraints import ConstrainedSystem
+    if isinstance(scene, ConstrainedSystem):
+        raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
+                         "or write_bundle")
     if code is None:
         code = generate_code(scene, lang)
     elif lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     fortran = lang == "fortran"
-    t_start = check_finite(t_start, "bundle t_start")
-    t_end = check_finite(t_end, "bundle t_end")
-    if not t_end > t_start:
-        raise ModelError(f"bundle: t_end ({t_end:g}) must be greater than t_start ({t_start:g})")
-    if steps is None:
-        steps = max(1000, math.ceil(1000 * (t_end - t_start)))
-    if int(steps) != steps or steps < 1:
-        raise ModelError(f"bundle: steps must be a positive integer, got {steps!r}")
-    steps = int(steps)
+    t_start, t_end, steps = _checked_span(t_start, t_end, steps)
     source = f"{code.prefix}.f90" if fortran else code.source_name
     names = [code.header_name, source]
     missing = [name for name in names if name not in code.files]
@@ -123,7 +127,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     ctx = dict(
         version=__version__, prefix=code.prefix, PREFIX=code.prefix.upper(), model_name=code.model_name,
         lang=lang, fortran=fortran, lang_name="Fortran 2008" if fortran else "C99",
-        header=code.header_name, source=source, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
+        header=code.header_name, source=source, stem=code.prefix, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
         nout=code.nout, state_names=code.state_names, param_names=code.param_names,
         param_values=[_c_double(v) for v in _parameters(code, params)], output_names=code.output_names,
         jacobian=code.jacobian, folded=folded,
@@ -139,6 +143,104 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         files["cvode_example.c"] = env.get_template("bundle/cvode_example.c.j2").render(**ctx)
     files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
     return files
+
+
+def _checked_span(t_start, t_end, steps) -> tuple[float, float, int]:
+    t_start = check_finite(t_start, "bundle t_start")
+    t_end = check_finite(t_end, "bundle t_end")
+    if not t_end > t_start:
+        raise ModelError(f"bundle: t_end ({t_end:g}) must be greater than t_start ({t_start:g})")
+    if steps is None:
+        steps = max(1000, math.ceil(1000 * (t_end - t_start)))
+    if int(steps) != steps or steps < 1:
+        raise ModelError(f"bundle: steps must be a positive integer, got {steps!r}")
+    return t_start, t_end, int(steps)
+
+
+def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str] | None = None,
+                              events=(), runtime_parameters=None, values: Mapping[str, float] | None = None,
+                              prefix: str | None = None, ggl: bool = False,
+                              baumgarte: tuple[float, float] = (0.0, 0.0), y0: Sequence[float] | None = None,
+                              params: Mapping[str, float] | None = None, t_start: float = 0.0,
+                              t_end: float = 10.0, steps: int | None = None) -> dict[str, str]:
+    """The files of the bundle of a :class:`~lagcodegen.constraints.ConstrainedSystem` in the
+    index-1 formulation (name -> text), rendered in memory.
+
+    The library is ``<prefix>_dae.h`` with ``<prefix>_dae.c`` (C99) or ``<prefix>_dae.f90``
+    (Fortran 2008 module ``<prefix>_dae_mod``, functions bound to the C names): the augmented
+    system solve ``<prefix>_kkt``, the index-1 right-hand side ``<prefix>_crhs``, residuals,
+    projection, outputs, root functions for ``events``, and with ``ggl`` the GGL residual and
+    its Jacobian. The Makefile, CMakeLists.txt and README.md are those of :func:`render_bundle`;
+    ``rk4_example.c`` integrates the index-1 ODE with fixed-step RK4 (initial state projected
+    onto the constraints; Baumgarte parameters ``baumgarte`` = (alpha, beta) by default, others
+    and per-step projection on its command line). There is no SUNDIALS example (the native
+    drivers of :mod:`lagcodegen.dae` are written against lagcodegen's own SUNDIALS declarations).
+
+    ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
+    :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
+    ``y0`` (q and q', projected onto the constraints by the example; default q = 0.5, q' = 0),
+    ``params``, ``t_start``, ``t_end``, ``steps``: the example's defaults, as for
+    :func:`render_bundle`.
+    """
+    from .constrained_codegen import DEFAULT_OUTPUTS, generate_constrained_c
+    from .constraints import ConstrainedSystem
+    if not isinstance(system, ConstrainedSystem):
+        raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
+    if lang not in LANGUAGES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    alpha, beta = (check_finite(x, "bundle baumgarte parameter") for x in baumgarte)
+    t_start, t_end, steps = _checked_span(t_start, t_end, steps)
+    code, info = generate_constrained_c(system, ggl=ggl, outputs=DEFAULT_OUTPUTS if outputs is None else outputs,
+                                        events=events, runtime_parameters=runtime_parameters, values=values,
+                                        prefix=prefix, lang=lang, drivers=False)
+    fortran = lang == "fortran"
+    pre = code.prefix
+    header = f"{pre}_dae.h"
+    source = f"{pre}_dae.{'f90' if fortran else 'c'}"
+    y_values = _initial_state(code, y0)
+    folded = sorted(info.folded.items())
+    table = [(header, "C header: sizes, array layouts, return codes, function prototypes"),
+             (source, (f"Fortran 2008 module `{pre}_dae_mod`, functions bound to the C names" if fortran
+                       else "C99 source of the functions (libm only)")),
+             ("Makefile", f"`make`: lib{pre}.a and rk4_example; `make check` runs it"),
+             ("CMakeLists.txt", "the same with CMake"),
+             ("rk4_example.c", "fixed-step RK4 integration of the index-1 equations, CSV on stdout; "
+                               "needs only a C compiler"),
+             ("README.md", "this file")]
+    ctx = dict(
+        version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
+        fortran=fortran, lang_name="Fortran 2008" if fortran else "C99", header=header, source=source,
+        stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
+        nout=len(info.output_names), nroot=len(info.events), state_names=code.state_names,
+        param_names=code.param_names, param_values=[_c_double(v) for v in _parameters(code, params)],
+        output_names=info.output_names, roots=[f"{ev.name}: {ev.expr}" for ev in info.events], ggl=ggl,
+        ggl_jac=info.ggl_jac, folded=folded,
+        folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
+        y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
+        alpha=_c_double(alpha), beta=_c_double(beta), steps=steps, every=max(1, steps // 100),
+        sundials_example=False, file_table=table, holonomic=[str(f) for f in system.holonomic],
+        nonholonomic=[str(r) for r in _nonholonomic_text(system)])
+    env = environment()
+    files = {header: code.files[header], source: code.files[source]}
+    files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
+    files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
+    files["rk4_example.c"] = env.get_template("bundle/rk4_constrained.c.j2").render(**ctx)
+    files["README.md"] = env.get_template("bundle/README_constrained.md.j2").render(**ctx)
+    return files
+
+
+def _nonholonomic_text(system) -> list[str]:
+    """The nonholonomic rows as text: A . q' + A0 = 0."""
+    out = []
+    speeds = [v.name for v in system.model.speeds]
+    for row in system.rows():
+        if row.holonomic:
+            continue
+        terms = [f"({a})*{v}" for a, v in zip(row.A, speeds) if a != 0]
+        if row.A0 != 0:
+            terms.append(f"({row.A0})")
+        out.append(" + ".join(terms) or "0")
+    return out
 
 
 def stale_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[str]:
@@ -164,10 +266,19 @@ def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[
     return [atomic_write(out / name, files[name]) for name in sorted(stale_files(out, files))]
 
 
-def write_bundle(scene: Scene, directory: str | os.PathLike, lang: str = "c", sundials_example: bool = True,
+def write_bundle(scene, directory: str | os.PathLike, lang: str = "c", sundials_example: bool | None = None,
                  **options) -> list[Path]:
-    """Render the bundle of ``scene`` (see :func:`render_bundle` for ``options``) and write it into
-    ``directory``. Returns the paths of all bundle files, in name order."""
-    files = render_bundle(scene, lang, sundials_example, **options)
+    """Render the bundle of ``scene`` (see :func:`render_bundle` for ``options``), or of a
+    :class:`~lagcodegen.constraints.ConstrainedSystem` in the index-1 formulation (see
+    :func:`render_constrained_bundle`), and write it into ``directory``. Returns the paths of
+    all bundle files, in name order. ``sundials_example``: default True for a scene; constrained
+    bundles have none."""
+    from .constraints import ConstrainedSystem
+    if isinstance(scene, ConstrainedSystem):
+        if sundials_example:
+            raise ModelError("bundles of constrained systems have no SUNDIALS example (sundials_example=True)")
+        files = render_constrained_bundle(scene, lang, **options)
+    else:
+        files = render_bundle(scene, lang, True if sundials_example is None else sundials_example, **options)
     write_files(directory, files)
     return [Path(directory) / name for name in sorted(files)]

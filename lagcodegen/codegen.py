@@ -166,6 +166,12 @@ def _symbol_map(scene: Scene) -> dict:
     return sub
 
 
+def mass_matrix_is_diagonal(eom) -> bool:
+    """True if every off-diagonal entry of M is structurally zero (the generated solve divides)."""
+    n = eom.n
+    return n > 1 and all(eom.M_se[i][j] == 0 for i in range(n) for j in range(n) if i != j)
+
+
 def generate_c(scene: Scene) -> GeneratedCode:
     """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
     eom = scene.eom
@@ -225,7 +231,8 @@ def generate_c(scene: Scene) -> GeneratedCode:
     ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=model.name,
                n=n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout, state_names=code.state_names,
                param_names=code.param_names, folded=sorted(scene.folded.items()),
-               outputs=code.output_names, jacobian=scene.jacobian, rhs=rhs, jac=jac, out=out)
+               outputs=code.output_names, jacobian=scene.jacobian, rhs=rhs, jac=jac, out=out,
+               diagonal=mass_matrix_is_diagonal(eom))
     env = environment()
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     code.files[code.source_name] = env.get_template("c/model.c.j2").render(**ctx)

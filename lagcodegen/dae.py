@@ -1,4 +1,4 @@
-"""Constrained dynamics in generated C: index-1 on CVODE, GGL on IDA, minimal coordinates.
+"""Constrained dynamics in generated C or Fortran: index-1 on CVODE, GGL on IDA, minimal coordinates.
 
 :func:`compile_constrained` turns a :class:`~lagcodegen.constraints.ConstrainedSystem` into
 compiled code with one of three formulations of the equations with multipliers (eq. 4.5)
@@ -28,6 +28,10 @@ All return a :class:`~lagcodegen.result.Result` with y = (q, q') (minimal: the r
 coordinates; the eliminated ones are outputs), outputs ``lambda_<j>``, ``g_<j>`` (f_j(q, t),
 holonomic j), ``gdot_<j>`` (A_j q' + A0_j), ``energy`` (T + V), and on request the
 constraint forces ``R_<j>_<coordinate>`` = lambda_j A_j (sec. 4.3), and ``events``.
+
+``lang="fortran"`` (index1, ggl) generates the model functions as Fortran 2008 modules bound
+to the C names (:mod:`lagcodegen.fortran`); the native drivers stay C and call them through
+the same header, so results and solver statistics are the C version's.
 """
 
 from __future__ import annotations
@@ -41,8 +45,10 @@ from .build import CompiledModel, build
 from .constrained_codegen import (  # noqa: F401
     CONSTRAINT_OUTPUT_GROUPS,
     DEFAULT_OUTPUTS,
+    LANGUAGES,
     ConstrainedCodeInfo,
     generate_constrained_c,
+    generate_constrained_fortran,
 )
 from .constraints import ConstrainedSystem
 from .errors import LagcodegenError, ModelError, SingularMassMatrixError, SolverError
@@ -70,7 +76,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
                         baumgarte: tuple[float, float] = (0.0, 0.0), projection: bool = False,
                         events: Iterable = (), runtime_parameters=None, values: Mapping | None = None,
                         prefix: str | None = None, jacobian: bool = True, eliminate: Sequence | None = None,
-                        verbose: bool = False):
+                        verbose: bool = False, lang: str = "c"):
     """Generate and compile a constrained system (eq. 4.5) in one formulation.
 
     Parameters
@@ -95,13 +101,24 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     eliminate:
         Minimal: coordinates to eliminate (default: the first subset sympy can solve for,
         trying the last coordinates first).
+    lang:
+        Language of the generated model functions: ``"c"`` or ``"fortran"`` (Fortran 2008
+        modules bound to the same C names, evaluating the same operations, so the results are
+        the C version's to the last bit where neither compiler contracts multiply-adds; the
+        native CVODE/IDA drivers are C in both cases and call them through the same header).
+        The minimal formulation is C only.
     """
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
     if formulation not in FORMULATIONS:
         raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
     alpha, beta = (check_finite(x, "baumgarte parameter") for x in baumgarte)
+    if lang not in LANGUAGES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     if formulation == "minimal":
+        if lang != "c":
+            raise ModelError("the minimal formulation generates C only (lang='c'); index1 and ggl also "
+                             "generate Fortran")
         from .minimal import MinimalSimulation
         return MinimalSimulation(system, outputs=outputs, events=events, runtime_parameters=runtime_parameters,
                                  values=values, prefix=prefix, eliminate=eliminate, verbose=verbose)
@@ -109,7 +126,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         outputs = DEFAULT_OUTPUTS
     code, info = generate_constrained_c(system, ggl=formulation == "ggl", ggl_jacobian=jacobian, outputs=outputs,
                                         events=events, runtime_parameters=runtime_parameters, values=values,
-                                        prefix=prefix)
+                                        prefix=prefix, lang=lang)
     cm = build(code, native=True, verbose=verbose)
     return ConstrainedSimulation(system, formulation, cm, info, (alpha, beta), bool(projection))
 

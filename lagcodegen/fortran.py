@@ -22,6 +22,17 @@ fallback; singular -> 1, non-finite -> 2) and the Jacobian reusing one factoriza
 written out in the template as in the C one. With gcc and gfortran at the same optimization
 level the results are bit-identical to the C backend's where neither compiler contracts
 a*b + c into fused multiply-adds (x86-64 without -march; elsewhere use -ffp-contract=off).
+
+Constrained systems: :func:`generate_constrained_fortran_source` renders ``<prefix>_dae.f90``
+(module ``<prefix>_dae_mod``, templates/fortran/dae.f90.j2), every function of the C
+backend's ``<prefix>_dae.c`` (augmented-system solve with its dense LU, index-1 right-hand
+side, residuals, projection, outputs, roots, GGL residual and Jacobian) with the C
+signatures and return codes, from the expression blocks the C path prints
+(:func:`lagcodegen.constrained_codegen.constrained_blocks`) and with the loops of the C
+template written out in the same order. Arguments C callers may pass as NULL (``lam``,
+``err``) or that may alias (``y`` and ``ynew`` of ``_project``) are ``type(c_ptr)`` values.
+:func:`lagcodegen.compile_constrained` (``lang="fortran"``) builds them behind the same
+native CVODE and IDA drivers.
 """
 
 from __future__ import annotations
@@ -33,7 +44,7 @@ from dataclasses import dataclass
 import symengine as se
 
 from . import __version__
-from .codegen import GeneratedCode, _symbol_map, c_expr, environment
+from .codegen import mass_matrix_is_diagonal, GeneratedCode, _symbol_map, c_expr, environment
 from .errors import ModelError
 from .scene import Scene
 
@@ -359,7 +370,7 @@ class FortranBlock:
 
 def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple[str, ...] = (),
                        optional: tuple[str, ...] = (), renames: dict[str, tuple[str, int]] | None = None,
-                       indent: int = 2, what: str = "expression") -> FortranBlock:
+                       indent: int = 2, what: str = "expression", scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
     """Fortran statements assigning ``exprs`` to ``targets`` after common-subexpression elimination.
 
     ``exprs`` are in the C backend's symbols (``y[i]``, ``p[k]``, ``t``); the elimination and
@@ -367,7 +378,8 @@ def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple
     ``after``: statements appended verbatim (e.g. mirrored mass-matrix entries).
     ``dummies``: the dummy arguments the statements may reference (any other free symbol is
     an error); those of ``optional`` they do not reference are listed in ``unused`` for a
-    no-op ``associate`` (gfortran -Wunused-dummy-argument).
+    no-op ``associate`` (gfortran -Wunused-dummy-argument). ``scalars``: the dummies that are
+    scalars (referenced by name, e.g. ``t``, ``cj``) rather than arrays.
     """
     pad = _INDENT * indent
     used: set[str] = set()
@@ -378,7 +390,7 @@ def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple
         repl, reduced = se.cse(list(exprs))
         temps = [str(sym) for sym, _ in repl]
         local = set(temps)
-        writer = _FortranWriter(local | {"t"}, renames)
+        writer = _FortranWriter(local | set(scalars), renames)
         pairs = [(str(sym), e) for sym, e in repl] + list(zip(targets, reduced))
         for target, expr in pairs:
             for s in se.sympify(expr).free_symbols:
@@ -400,16 +412,18 @@ def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple
         libm = writer.libm
     lines += [pad + line for line in after]
     decls = [f"{pad}real(c_double) :: {', '.join(temps[k:k + 10])}" for k in range(0, len(temps), 10)]
-    unused = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+    unused = ", ".join(f"unused_{d} => {d}" if d in scalars else f"unused_{d} => {d}(1:0)"
                        for d in optional if d not in used)
     return FortranBlock("\n".join(decls), "\n".join(lines), unused, tuple(sorted(libm)))
 
 
-def check_prefix(prefix: str) -> None:
-    """Fortran names start with a letter and have at most 63 characters."""
-    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", prefix) or len(prefix) > MAX_PREFIX:
+def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
+    """Fortran names start with a letter and have at most 63 characters (``suffix``: the longest
+    public name's, after the prefix)."""
+    longest = 63 - len(suffix)
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", prefix) or len(prefix) > longest:
         raise ModelError(f"prefix {prefix!r} cannot name a Fortran module: it must start with a letter and have "
-                         f"at most {MAX_PREFIX} characters (letters, digits, underscores)")
+                         f"at most {longest} characters (letters, digits, underscores)")
 
 
 def header_context(scene: Scene, code: GeneratedCode) -> dict:
@@ -496,5 +510,71 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     libm = sorted(set(rhs.libm) | set(jac.libm if jac else ()) | set(out.libm))
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm])
+        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm],
+        diagonal=mass_matrix_is_diagonal(scene.eom))
     return code
+
+
+# ----------------------------------------------------------------------------- constrained systems
+#: Longest public name of the constrained module, after the prefix.
+DAE_SUFFIX = "_dae_err_projection"
+
+
+def _fortran_target(target: tuple) -> tuple[str, str | None]:
+    """The Fortran spelling of a target of :class:`lagcodegen.constrained_codegen.ExpressionBlock`
+    (0-based C indices -> 1-based; ``jac`` is (row, column)), and the mirrored assignment of
+    an off-diagonal mass-matrix entry."""
+    name, *ix = target
+    text = f"{name}({', '.join(str(k + 1) for k in ix)})"
+    if name == "M" and ix[0] != ix[1]:
+        return text, f"M({ix[1] + 1}, {ix[0] + 1}) = {text}"
+    return text, None
+
+
+def _constrained_block(block, what: str, dummies: tuple[str, ...], optional: tuple[str, ...] = (),
+                       renames: dict | None = None, scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
+    targets, mirror = [], []
+    for target in block.targets:
+        text, after = _fortran_target(target)
+        targets.append(text)
+        if after:
+            mirror.append(after)
+    return emit_fortran_block(targets, block.exprs, mirror, dummies=dummies, optional=optional, renames=renames,
+                              what=what, scalars=scalars)
+
+
+def generate_constrained_fortran_source(cb, ctx: dict) -> str:
+    """``<prefix>_dae.f90`` (module ``<prefix>_dae_mod``): the functions of ``c/dae.c.j2`` for
+    the expression blocks ``cb`` (:func:`lagcodegen.constrained_codegen.constrained_blocks`),
+    bound to the same C names and signatures and evaluating the same operations.
+
+    ``ctx``: the template context of ``c/dae.h.j2`` (sizes, names, flags).
+    """
+    prefix = ctx["prefix"]
+    check_prefix(prefix, DAE_SUFFIX)
+    b = cb.blocks
+    plain = ("t", "y", "p")
+    blocks = dict(
+        mf=_constrained_block(b["mf"], f"{prefix} mass matrix and forces", plain, plain),
+        con=_constrained_block(b["con"], f"{prefix} constraints", plain, plain),
+        gam=_constrained_block(b["gam"], f"{prefix} gamma", plain, plain),
+        out=_constrained_block(b["out"], f"{prefix}_coutputs", (*plain, "lamv"), plain,
+                               renames={"lam": ("lamv", 0)}),
+        roots=_constrained_block(b["roots"], f"{prefix}_roots", (*plain, "lamv"), plain,
+                                 renames={"lam": ("lamv", 0)}),
+        ggl_res=_constrained_block(b["ggl_res"], f"{prefix}_ggl_res", ("t", "yy", "yp", "p"),
+                                   ("t", "yy", "yp", "p"), renames={"y": ("yy", 0)}),
+        ggl_jac=_constrained_block(b["ggl_jac"], f"{prefix}_ggl_jac", ("t", "cj", "yy", "yp", "p"),
+                                   ("t", "cj", "yy", "yp", "p"), renames={"y": ("yy", 0)}, scalars=("t", "cj")),
+    )
+    libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
+    text = environment().get_template("fortran/dae.f90.j2").render(
+        **ctx, blk=blocks, libm=[(name, _LIBM[name]) for name in libm])
+    lines = []
+    for line in text.split("\n"):  # long associate lists of unused arguments
+        stripped = line.lstrip()
+        if len(line) > _LINE and "!" not in line:
+            lines += _wrap(stripped, line[:len(line) - len(stripped)])
+        else:
+            lines.append(line)
+    return "\n".join(lines)

@@ -122,13 +122,8 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     if not np.all(np.isfinite(atol_arr)) or np.any(atol_arr < 0) or rtol < 0:
         raise LagcodegenError("tolerances must be finite and non-negative")
 
-    # A singular mass matrix at the initial state is reported before integrating.
-    try:
-        cm.rhs(t[0], y, p)
-    except SingularMassMatrixError as exc:
-        raise SingularMassMatrixError(
-            "the mass matrix is singular at the initial state "
-            f"({', '.join(f'{k}={v:g}' for k, v in zip(cm.state_names, y))})", t=float(t[0])) from exc
+    if backend != "native":  # the native driver reports this itself, from its first RHS call
+        _check_initial_mass_matrix(cm, t[0], y, p)
 
     opts = dict(method=method, rtol=rtol, atol=atol_arr, jacobian=bool(jacobian), max_steps=int(max_steps),
                 first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order)
@@ -144,6 +139,8 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
         raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
     res.parameters = dict(zip(cm.param_names, p))
     res.n_coordinates = cm.n
+    if res.stats.get("model_error") == 1 and res.stats.get("t_reached") == t[0]:
+        _check_initial_mass_matrix(cm, t[0], y, p)
     if raise_on_error and not res.success:
         cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
         raise cls(res.message, t=res.stats.get("t_reached", res.t[-1]), flag=res.status, result=res)
@@ -208,6 +205,16 @@ def _probe_pattern(cm: CompiledModel, y, p) -> np.ndarray:
     return pattern
 
 
+def _check_initial_mass_matrix(cm: CompiledModel, t0: float, y: np.ndarray, p: np.ndarray) -> None:
+    """Raise SingularMassMatrixError naming the state if M is singular at (t0, y)."""
+    try:
+        cm.rhs(t0, y, p)
+    except SingularMassMatrixError as exc:
+        raise SingularMassMatrixError(
+            "the mass matrix is singular at the initial state "
+            f"({', '.join(f'{k}={v:g}' for k, v in zip(cm.state_names, y))})", t=float(t0)) from exc
+
+
 def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                   min_step, max_order, band=None) -> Result:
     ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
@@ -238,9 +245,11 @@ def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_s
                  lin_setups=st.nlinsetups, err_test_fails=st.netfails, nonlin_iters=st.nniters,
                  nonlin_conv_fails=st.nncfails, t_reached=st.t_reached, h_last=st.h_last,
                  model_error=st.model_error)
-    detail = ffi.string(st.message).decode(errors="replace")
-    return Result(t=t[:done].copy(), y=yout[:done].copy(), state_names=list(cm.state_names),
-                  outputs={k: out[:done, i].copy() for i, k in enumerate(cm.output_names)},
+    detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
+    if done < nt:
+        t, yout, out = t[:done].copy(), yout[:done].copy(), out[:done].copy()
+    return Result(t=t, y=yout, state_names=list(cm.state_names),
+                  outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
                   stats=stats, status=int(flag), message=_message(flag, st.model_error, detail),
                   backend="native", method=method)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import sympy as sp
 
 from .model import Model
@@ -147,4 +149,31 @@ def damped_pendulum(name: str = "damped_pendulum") -> Model:
     m = pendulum(name)
     c, = m.parameters(c=0.3)
     m.damper("bob", c)
+    return m
+
+
+def spring_chain(n: int = 20, ratio: float = 1e6, zeta: float = 1.0, name: str | None = None):
+    """N unit masses in a line between two walls: soft springs k = 1 (walls, and between
+    dimers) alternating with stiff springs ratio * k inside each dimer (masses 1-2, 3-4, ...),
+    each stiff spring with a parallel damper c = zeta * 2 sqrt(ratio k m / 2) (zeta = 1:
+    critically damped relative motion of a dimer). Coordinates x_i: displacements.
+
+    Stiffness: the dimers' internal modes have rates ~ sqrt(2 ratio) (undamped) or ~ c
+    (damped), the chain's slow modes ~ 0.1..1: a stiff system for large ratios; the
+    Jacobian is banded (bandwidths 2, 3 in the interleaved order) and M is diagonal.
+    """
+    m = Model(name or f"chain{n}")
+    xs = m.coordinates([f"x{i}" for i in range(1, n + 1)])
+    c_value = zeta * 2.0 * math.sqrt(ratio * 0.5)
+    k, r, c, mass = m.parameters(k=1.0, ratio=float(ratio), c=c_value, m=1.0)
+    for i, x in enumerate(xs, start=1):
+        m.particle(f"m{i}", mass, (x, 0))
+    m.spring("m1", (0, 0), k)
+    for i in range(1, n):
+        if i % 2 == 1:
+            m.spring(f"m{i}", f"m{i + 1}", k * r)
+            m.damper(f"m{i}", c, f"m{i + 1}")
+        else:
+            m.spring(f"m{i}", f"m{i + 1}", k)
+    m.spring(f"m{n}", (0, 0), k)
     return m

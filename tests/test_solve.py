@@ -171,3 +171,18 @@ def test_bad_arguments(double_pendulum):
         double_pendulum.simulate([1, 0])
     with pytest.raises(LagcodegenError, match="method"):
         double_pendulum.simulate([0, 1], method="rk4")
+
+
+def test_diagonal_mass_matrix_solve_and_its_singularity():
+    # Polar coordinates: M = diag(m, m r^2) is structurally diagonal, so the generated solve
+    # divides instead of factoring; at r = 0 it is singular.
+    from lagcodegen.codegen import mass_matrix_is_diagonal
+    model = systems.central_potential()
+    assert mass_matrix_is_diagonal(lcg.derive(model))
+    cm = lcg.compile_model(model)
+    y = np.array([1.3, 0.4, 0.2, 0.7])  # r, phi, r', phi'
+    r, _, rd, phid = y
+    expected = [r * phid**2 - 1 / r**2, -2 * rd * phid / r]  # m = k = 1
+    np.testing.assert_allclose(cm.rhs(0.0, y)[2:], expected, rtol=1e-15)
+    with pytest.raises(SingularMassMatrixError, match="initial state"):
+        cm.simulate([0, 1], q0=[0.0, 0.0], v0=[1.0, 0.0])
