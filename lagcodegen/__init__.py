@@ -22,7 +22,7 @@ from .errors import (CompileError, DerivationError, LagcodegenError, ModelError,
 from .model import Model  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
 from .scene import Scene  # noqa: F401
-from .codegen import GeneratedCode, generate_c  # noqa: F401
+from .codegen import GeneratedCode, generate_c, generate_code  # noqa: F401
 from .fortran import generate_fortran  # noqa: F401
 from .build import CompiledModel, build  # noqa: F401
 from .bundle import render_bundle, write_bundle  # noqa: F401
@@ -52,7 +52,6 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``jacobian=None`` emits the analytic Jacobian for models with at most
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.
     """
-    from .bundle import generate_code
     if jacobian is None:
         jacobian = model.n <= AUTO_JACOBIAN_MAX_N
     scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,

@@ -35,26 +35,14 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from . import __version__
-from .codegen import GeneratedCode, atomic_write, environment, generate_c
+from .codegen import LANGUAGES, generate_code, GeneratedCode, atomic_write, environment
 from .errors import ModelError
-from .fortran import generate_fortran
 from .model import check_finite
 from .scene import Scene
 
 #: Languages of the generated model code.
-LANGUAGES = ("c", "fortran")
 #: Default initial coordinates of the examples when none are given (velocities and z: 0).
 DEFAULT_Q0 = 0.5
-
-
-def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
-    """The model code of ``scene`` in ``lang`` ("c": :func:`generate_c`, "fortran":
-    :func:`~lagcodegen.fortran.generate_fortran`)."""
-    if lang == "c":
-        return generate_c(scene)
-    if lang == "fortran":
-        return generate_fortran(scene)
-    raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
 
 
 def _c_double(value: float) -> str:

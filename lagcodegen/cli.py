@@ -75,7 +75,8 @@ def _scene(mf, args, quiet: bool):
 
 
 def cmd_generate(args) -> int:
-    from .bundle import generate_code, render_bundle, stale_files, write_files
+    from .bundle import render_bundle, stale_files, write_files
+    from .codegen import generate_code
     mf = _load(args.model, args.quiet)
     scene, runtime_values = _scene(mf, args, args.quiet)
     code = generate_code(scene, args.lang)

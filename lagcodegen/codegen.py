@@ -20,6 +20,7 @@ import jinja2
 import symengine as se
 
 from . import __version__
+from .errors import ModelError
 from .scene import Scene
 
 _INDENT = "    "
@@ -309,3 +310,18 @@ def _add_sparse_jacobian(scene: Scene, code: GeneratedCode, c, env) -> None:
     code.files[f"{code.prefix}_sparse.c"] = env.get_template("c/jac_sparse.c.j2").render(**ctx)
     code.cffi_headers.append(f"{code.prefix}_sparse.h")
     code.sparse_jacobian = True
+
+
+#: Languages the model code can be generated in.
+LANGUAGES = ("c", "fortran")
+
+
+def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
+    """The model code of ``scene`` in ``lang``: "c" (:func:`generate_c`) or "fortran"
+    (:func:`lagcodegen.fortran.generate_fortran`, same functions and header)."""
+    if lang == "c":
+        return generate_c(scene)
+    if lang == "fortran":
+        from .fortran import generate_fortran  # fortran.py builds on this module
+        return generate_fortran(scene)
+    raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")

@@ -18,7 +18,7 @@ from typing import Iterable, Sequence
 import symengine as se
 
 from . import __version__
-from .codegen import _symbol_map, emit_block, environment, generate_c
+from .codegen import LANGUAGES, _symbol_map, emit_block, environment, generate_c
 from .constraints import ConstrainedSystem
 from .derivation import derive, to_se
 from .errors import ModelError
@@ -257,7 +257,6 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
 
 
 #: Languages of the generated constrained code (the native drivers are C in both cases).
-LANGUAGES = ("c", "fortran")
 
 
 def generate_constrained_c(system: ConstrainedSystem, *, ggl: bool = False, ggl_jacobian: bool = True,

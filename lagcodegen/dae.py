@@ -116,12 +116,9 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     if formulation == "minimal":
-        if lang != "c":
-            raise ModelError("the minimal formulation generates C only (lang='c'); index1 and ggl also "
-                             "generate Fortran")
         from .minimal import MinimalSimulation
         return MinimalSimulation(system, outputs=outputs, events=events, runtime_parameters=runtime_parameters,
-                                 values=values, prefix=prefix, eliminate=eliminate, verbose=verbose)
+                                 values=values, prefix=prefix, eliminate=eliminate, verbose=verbose, lang=lang)
     if outputs is None:
         outputs = DEFAULT_OUTPUTS
     code, info = generate_constrained_c(system, ggl=formulation == "ggl", ggl_jacobian=jacobian, outputs=outputs,

@@ -16,7 +16,7 @@ import numpy as np
 import sympy as sp
 
 from .build import CompiledModel, build
-from .codegen import generate_c
+from .codegen import generate_code
 from .constraints import ConstrainedSystem
 from .dae import _Base
 from .derivation import derive
@@ -150,8 +150,9 @@ class MinimalSimulation(_Base):
     formulation = "minimal"
 
     def __init__(self, system: ConstrainedSystem, outputs=None, events=(), runtime_parameters=None, values=None,
-                 prefix=None, eliminate=None, verbose=False):
+                 prefix=None, eliminate=None, verbose=False, lang: str = "c"):
         self.system = system
+        self.lang = lang
         if list(events) or system.inequalities:
             raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' "
                              "or 'ggl' (the plain CVODE driver has no root finding)")
@@ -207,7 +208,7 @@ class MinimalSimulation(_Base):
                           runtime_parameters=self._runtime_parameters, values=self._values,
                           prefix=self._prefix and f"{self._prefix}_b{b}")
             self._reduced[b] = red
-            self._compiled[b] = build(generate_c(scene), native=True, verbose=self._verbose)
+            self._compiled[b] = build(generate_code(scene, self.lang), native=True, verbose=self._verbose)
         return self._compiled[b]
 
     def _branch_for(self, q: np.ndarray, t0: float, vals: dict, tol: float) -> int:

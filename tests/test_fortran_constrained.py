@@ -176,12 +176,19 @@ def test_fortran_error_codes_match_the_c_functions(fc):  # noqa: F811
             noreal.kkt(0.0, [0.3, 0.4, np.inf, 0.0])  # gamma = -inf
 
 
+def test_minimal_coordinates_in_fortran_equal_c():
+    cs = cartesian_pendulum("fmin")
+    t = np.linspace(0, 3, 31)
+    runs = [compile_constrained(cs, "minimal", lang=lang).simulate(t, q0=[0.6, -0.8], rtol=1e-10, atol=1e-12)
+            for lang in ("c", "fortran")]
+    np.testing.assert_allclose(runs[1].y, runs[0].y, rtol=1e-12, atol=1e-14)
+    assert runs[0].stats["steps"] == runs[1].stats["steps"]
+
+
 def test_language_option_errors():
     cs = cartesian_pendulum("flang")
     with pytest.raises(ModelError, match="cobol"):
         compile_constrained(cs, "index1", lang="cobol")
-    with pytest.raises(ModelError, match="minimal formulation generates C only"):
-        compile_constrained(cs, "minimal", lang="fortran")
     with pytest.raises(ModelError, match="Fortran"):
         generate_constrained_fortran(cs, prefix="_bad")
     with pytest.raises(ModelError, match="at most 44 characters"):
