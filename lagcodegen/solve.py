@@ -17,7 +17,7 @@ from .model import check_finite
 from .result import Result
 
 METHODS = {"adams": 1, "bdf": 2}
-LINEAR_SOLVERS = ("dense", "band")
+LINEAR_SOLVERS = ("dense", "band", "fixedpoint")
 
 
 def output_times(t) -> np.ndarray:
@@ -87,7 +87,9 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
         Use the generated Jacobian (default when the scene has one) or CVODE's difference
         quotients (``False``).
     linear_solver:
-        ``"dense"`` (default) or ``"band"`` (native backend): CVODE's band solver on the
+        ``"dense"`` (default), ``"fixedpoint"`` (native backend: no linear solver, CVODE's
+        fixed-point nonlinear iteration; for nonstiff problems with Adams, no Jacobian at all)
+        or ``"band"`` (native backend): CVODE's band solver on the
         interleaved state (q_1, q_1', q_2, q_2', ..., z) with the bandwidths of the scene's
         Jacobian pattern (:meth:`Scene.jacobian_pattern`) in that order, or ``bandwidths``
         = (upper, lower) if given. The Jacobian is the sparse one
@@ -111,8 +113,10 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     if linear_solver not in LINEAR_SOLVERS:
         raise LagcodegenError(f"linear_solver must be one of {', '.join(LINEAR_SOLVERS)}, got {linear_solver!r}")
     band = linear_solver == "band"
-    if band and backend != "native":
-        raise LagcodegenError("linear_solver='band' needs backend='native'")
+    if linear_solver != "dense" and backend != "native":
+        raise LagcodegenError(f"linear_solver={linear_solver!r} needs backend='native'")
+    if linear_solver == "fixedpoint":
+        jacobian = False  # functional iteration uses no Jacobian
     has_jac = cm.code.jacobian or (bool(getattr(cm.code, "sparse_jacobian", False)) and backend == "native")
     if jacobian is None:
         jacobian = has_jac
@@ -129,6 +133,8 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
                 first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order)
     if band:
         opts["band"] = band_widths(cm, bandwidths, y, p)
+    elif linear_solver == "fixedpoint":
+        opts["fixedpoint"] = True
     if backend == "native":
         if not cm.native:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
@@ -216,7 +222,7 @@ def _check_initial_mass_matrix(cm: CompiledModel, t0: float, y: np.ndarray, p: n
 
 
 def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                  min_step, max_order, band=None) -> Result:
+                  min_step, max_order, band=None, fixedpoint=False) -> Result:
     ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
     nt = t.size
     yout = np.full((nt, cm.ny), np.nan)
@@ -234,7 +240,7 @@ def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_s
     opt.max_step = max_step
     opt.min_step = min_step
     opt.max_order = max_order
-    opt.linear_solver = 1 if band else 0
+    opt.linear_solver = 1 if band else 2 if fixedpoint else 0
     opt.mupper, opt.mlower = band if band else (0, 0)
     pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
     flag = getattr(lib, f"{pre}_cvode_solve")(pp, ffi.from_buffer("double[]", y0), nt,

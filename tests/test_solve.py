@@ -186,3 +186,13 @@ def test_diagonal_mass_matrix_solve_and_its_singularity():
     np.testing.assert_allclose(cm.rhs(0.0, y)[2:], expected, rtol=1e-15)
     with pytest.raises(SingularMassMatrixError, match="initial state"):
         cm.simulate([0, 1], q0=[0.0, 0.0], v0=[1.0, 0.0])
+
+
+def test_fixed_point_iteration_needs_no_jacobian(double_pendulum):
+    t = np.linspace(0, 5, 51)
+    newton = double_pendulum.simulate(t, q0=[1.0, 0.5], rtol=1e-10, atol=1e-12)
+    fixed = double_pendulum.simulate(t, q0=[1.0, 0.5], rtol=1e-10, atol=1e-12, linear_solver="fixedpoint")
+    assert fixed.stats["jac_evals"] == 0 and fixed.stats["lin_setups"] == 0 and fixed.stats["rhs_evals_dq"] == 0
+    assert np.max(np.abs(fixed.y - newton.y)) < 1e-7
+    with pytest.raises(LagcodegenError, match="needs backend='native'"):
+        double_pendulum.simulate(t, q0=[1.0, 0.5], linear_solver="fixedpoint", backend="sksundae")
