@@ -173,31 +173,31 @@ def mass_matrix_is_diagonal(eom) -> bool:
     return n > 1 and all(eom.M_se[i][j] == 0 for i in range(n) for j in range(n) if i != j)
 
 
-def generate_c(scene: Scene) -> GeneratedCode:
-    """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
-    eom = scene.eom
-    model = eom.model
-    n = model.n
+def substituter(scene: Scene):
+    """f(expr) renaming the model's symbols to array elements (q_i -> y[i], ...) and folding constants."""
     sub = _symbol_map(scene)
 
     def c(e):
         return se.sympify(e).xreplace(sub) if sub else se.sympify(e)
+    return c
 
-    # Right-hand side: upper triangle of M (mirrored) and F.
-    targets, exprs = [], []
-    for i in range(n):
-        for j in range(i, n):
-            targets.append(f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]")
-            exprs.append(c(eom.M_se[i][j]))
-    for i in range(n):
-        targets.append(f"F[{i}]")
-        exprs.append(c(eom.F_se[i]))
-    for k, (_, rate) in enumerate(eom.quadratures):
-        targets.append(f"ydot[{2 * n + k}]")
-        exprs.append(c(rate))
-    rhs = emit_block(targets, exprs)
 
-    jac = ""
+def model_blocks(scene: Scene) -> dict[str, list[tuple[tuple, object]]]:
+    """The expressions of each emitted function, language-neutral, in emission order.
+
+    Keys ``rhs``, ``jac`` (if the scene asks for it) and ``out``; each a list of
+    (target, symengine expression) with targets ("M", i, j) for the upper triangle of M (the
+    code mirrors it), ("F", i), ("ydot", k) (quadrature rates), ("G", i, j) = d r_i / d y_j for
+    r = M a - F with a = q'' (the symbols ``a[i]``), ("Z", k, j) = d z'_k / d y_j and ("out", k).
+    The C and Fortran backends print the same blocks, so they compute the same numbers.
+    """
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    c = substituter(scene)
+    mass = [(("M", i, j), c(eom.M_se[i][j])) for i in range(n) for j in range(i, n)]
+    blocks = {"rhs": mass + [(("F", i), c(eom.F_se[i])) for i in range(n)]
+              + [(("ydot", 2 * n + k), c(rate)) for k, (_, rate) in enumerate(eom.quadratures)]}
     if scene.jacobian:
         a = [se.Symbol(f"a[{i}]") for i in range(n)]
         q = [se.Symbol(s.name) for s in model.coords]
@@ -205,41 +205,65 @@ def generate_c(scene: Scene) -> GeneratedCode:
         acc = [se.Symbol(f"__acc{i}") for i in range(n)]
         r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
         asub = dict(zip(acc, a))
-        targets, exprs = [], []
-        for i in range(n):
-            for j in range(i, n):
-                targets.append(f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]")
-                exprs.append(c(eom.M_se[i][j]))
-        for j, var in enumerate(q + v):
-            for i in range(n):
-                targets.append(f"G[{j}][{i}]")
-                exprs.append(c(se.diff(r[i], var).xreplace(asub)))
-        for k, (_, rate) in enumerate(eom.quadratures):
-            for j, var in enumerate(q + v):
-                targets.append(f"Z[{k}][{j}]")
-                exprs.append(c(se.diff(rate, var)))
-        jac = emit_block(targets, exprs)
+        jac = list(mass)
+        jac += [(("G", i, j), c(se.diff(r[i], var).xreplace(asub)))
+                for j, var in enumerate(q + v) for i in range(n)]
+        jac += [(("Z", k, j), c(se.diff(rate, var)))
+                for k, (_, rate) in enumerate(eom.quadratures) for j, var in enumerate(q + v)]
+        blocks["jac"] = jac
+    blocks["out"] = [(("out", k), c(o.expr)) for k, o in enumerate(scene.output_list())]
+    return blocks
 
-    outputs = scene.output_list()
-    out = emit_block([f"out[{k}]" for k in range(len(outputs))], [c(o.expr) for o in outputs])
 
-    code = GeneratedCode(
-        prefix=scene.prefix, model_name=model.name, n=n,
+def _c_target(target: tuple) -> str:
+    kind, *idx = target
+    if kind == "M":
+        i, j = idx
+        return f"M[{i}][{j}]" if i == j else f"M[{i}][{j}] = M[{j}][{i}]"
+    if kind == "G":  # stored by columns: G[j] is the column d r / d y_j, solved in place
+        i, j = idx
+        return f"G[{j}][{i}]"
+    return kind + "".join(f"[{k}]" for k in idx)
+
+
+def new_code(scene: Scene) -> GeneratedCode:
+    """The GeneratedCode record of ``scene``: layout and names, no files yet."""
+    eom = scene.eom
+    model = eom.model
+    return GeneratedCode(
+        prefix=scene.prefix, model_name=model.name, n=model.n,
         state_names=[s.name for s in model.coords] + [s.name for s in model.speeds]
         + [name for name, _ in eom.quadratures],
         param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
-        output_names=[o.name for o in outputs], jacobian=scene.jacobian, nz=len(eom.quadratures))
-    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=model.name,
-               n=n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout, state_names=code.state_names,
-               param_names=code.param_names, folded=sorted(scene.folded.items()),
-               outputs=code.output_names, jacobian=scene.jacobian, rhs=rhs, jac=jac, out=out,
-               diagonal=mass_matrix_is_diagonal(eom))
+        output_names=[o.name for o in scene.output_list()], jacobian=scene.jacobian, nz=len(eom.quadratures))
+
+
+def header_context(scene: Scene, code: GeneratedCode) -> dict:
+    """The template context shared by ``c/model.h.j2``, ``c/model.c.j2`` and the Fortran module."""
+    return dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
+                model_name=code.model_name, n=code.n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout,
+                state_names=code.state_names, param_names=code.param_names,
+                folded=sorted(scene.folded.items()), outputs=code.output_names, jacobian=code.jacobian,
+                diagonal=mass_matrix_is_diagonal(scene.eom))
+
+
+def generate_c(scene: Scene) -> GeneratedCode:
+    """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
+    blocks = model_blocks(scene)
+
+    def emit(name: str) -> str:
+        pairs = blocks.get(name, [])
+        return emit_block([_c_target(t) for t, _ in pairs], [e for _, e in pairs])
+
+    code = new_code(scene)
+    ctx = header_context(scene, code)
     env = environment()
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
-    code.files[code.source_name] = env.get_template("c/model.c.j2").render(**ctx)
+    code.files[code.source_name] = env.get_template("c/model.c.j2").render(
+        **ctx, rhs=emit("rhs"), jac=emit("jac"), out=emit("out"))
     code.jac_pattern = scene.jacobian_pattern()
     if scene.sparse_jacobian:
-        _add_sparse_jacobian(scene, code, c, env)
+        _add_sparse_jacobian(scene, code, substituter(scene), env)
     return code
 
 

@@ -43,8 +43,7 @@ from dataclasses import dataclass
 
 import symengine as se
 
-from . import __version__
-from .codegen import mass_matrix_is_diagonal, GeneratedCode, _symbol_map, c_expr, environment
+from .codegen import GeneratedCode, c_expr, environment, header_context, model_blocks, new_code
 from .errors import ModelError
 from .scene import Scene
 
@@ -426,92 +425,36 @@ def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
                          f"at most {longest} characters (letters, digits, underscores)")
 
 
-def header_context(scene: Scene, code: GeneratedCode) -> dict:
-    """The template context of ``c/model.h.j2`` (the same values :func:`generate_c` uses)."""
-    return dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
-                model_name=code.model_name, n=code.n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout,
-                state_names=code.state_names, param_names=code.param_names,
-                folded=sorted(scene.folded.items()), outputs=code.output_names, jacobian=code.jacobian)
-
-
 def generate_fortran(scene: Scene) -> GeneratedCode:
     """Render ``<prefix>.f90`` (module ``<prefix>_mod``) and the C header ``<prefix>.h`` of ``scene``.
 
     The functions are those of :func:`lagcodegen.generate_c` (rhs; jac if the scene asks for
-    the Jacobian; outputs if it has any), bound to the same C names and signatures.
+    the Jacobian; outputs if it has any), bound to the same C names and signatures, computed
+    from the same expression blocks (:func:`lagcodegen.codegen.model_blocks`).
     """
     check_prefix(scene.prefix)
-    eom = scene.eom
-    model = eom.model
-    n = model.n
-    sub = _symbol_map(scene)
+    n = scene.eom.n
+    blocks = model_blocks(scene)
 
-    def c(e):
-        return se.sympify(e).xreplace(sub) if sub else se.sympify(e)
+    def emit(name: str, **kw):
+        pairs = [(_fortran_target(t), e) for t, e in blocks[name]]
+        mirror = [m for (_, m), _ in pairs if m is not None]
+        return emit_fortran_block([tgt for (tgt, _), _ in pairs], [e for _, e in pairs], mirror, **kw)
 
-    # Right-hand side: upper triangle of M (mirrored below the diagonal), F, quadrature rates.
-    targets, exprs, mirror = [], [], []
-    for i in range(n):
-        for j in range(i, n):
-            targets.append(f"M({i + 1}, {j + 1})")
-            exprs.append(c(eom.M_se[i][j]))
-            if i != j:
-                mirror.append(f"M({j + 1}, {i + 1}) = M({i + 1}, {j + 1})")
-    for i in range(n):
-        targets.append(f"F({i + 1})")
-        exprs.append(c(eom.F_se[i]))
-    for k, (_, rate) in enumerate(eom.quadratures):
-        targets.append(f"ydot({2 * n + k + 1})")
-        exprs.append(c(rate))
-    rhs = emit_fortran_block(targets, exprs, mirror, dummies=("t", "y", "p"), optional=("t", "p"),
-                             what=f"{scene.prefix}_rhs")
-
+    rhs = emit("rhs", dummies=("t", "y", "p"), optional=("t", "p"), what=f"{scene.prefix}_rhs")
     jac = None
-    if scene.jacobian:
-        # Accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N).
-        a = [se.Symbol(f"a[{i}]") for i in range(n)]
-        q = [se.Symbol(s.name) for s in model.coords]
-        v = [se.Symbol(s.name) for s in model.speeds]
-        acc = [se.Symbol(f"__acc{i}") for i in range(n)]
-        r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
-        asub = dict(zip(acc, a))
-        targets, exprs, mirror = [], [], []
-        for i in range(n):
-            for j in range(i, n):
-                targets.append(f"M({i + 1}, {j + 1})")
-                exprs.append(c(eom.M_se[i][j]))
-                if i != j:
-                    mirror.append(f"M({j + 1}, {i + 1}) = M({i + 1}, {j + 1})")
-        for j, var in enumerate(q + v):
-            for i in range(n):
-                targets.append(f"G({i + 1}, {j + 1})")
-                exprs.append(c(se.diff(r[i], var).xreplace(asub)))
-        for k, (_, rate) in enumerate(eom.quadratures):
-            for j, var in enumerate(q + v):
-                targets.append(f"Z({k + 1}, {j + 1})")
-                exprs.append(c(se.diff(rate, var)))
-        jac = emit_fortran_block(targets, exprs, mirror, dummies=("t", "y", "ydot", "p"),
-                                 optional=("t", "y", "ydot", "p"), renames={"a": ("ydot", n)},
-                                 what=f"{scene.prefix}_jac")
+    if scene.jacobian:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
+        jac = emit("jac", dummies=("t", "y", "ydot", "p"), optional=("t", "y", "ydot", "p"),
+                   renames={"a": ("ydot", n)}, what=f"{scene.prefix}_jac")
+    out = emit("out", dummies=("t", "y", "p"), optional=("t", "y", "p"), what=f"{scene.prefix}_outputs")
 
-    outputs = scene.output_list()
-    out = emit_fortran_block([f"out({k + 1})" for k in range(len(outputs))], [c(o.expr) for o in outputs],
-                             dummies=("t", "y", "p"), optional=("t", "y", "p"),
-                             what=f"{scene.prefix}_outputs")
-
-    code = GeneratedCode(
-        prefix=scene.prefix, model_name=model.name, n=n,
-        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds]
-        + [name for name, _ in eom.quadratures],
-        param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
-        output_names=[o.name for o in outputs], jacobian=scene.jacobian, nz=len(eom.quadratures))
+    code = new_code(scene)
     ctx = header_context(scene, code)
     env = environment()
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     libm = sorted(set(rhs.libm) | set(jac.libm if jac else ()) | set(out.libm))
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm],
-        diagonal=mass_matrix_is_diagonal(scene.eom))
+        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm])
     return code
 
 
