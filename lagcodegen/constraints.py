@@ -35,6 +35,7 @@ import sympy as sp
 
 from .errors import ModelError
 from .model import Model, check_finite
+from .solve import state_vector
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
 INTEGRABLE_POLICIES = ("error", "allow")
@@ -363,8 +364,8 @@ class ConstrainedSystem:
     # ------------------------------------------------------------------ numbers
     def _numeric_values(self, q0, v0, params, t0):
         model = self.model
-        q = _vector(q0, [s.name for s in model.coords], "q0")
-        v = np.zeros(self.n) if v0 is None else _vector(v0, [s.name for s in model.coords], "v0")
+        q = state_vector(q0, [s.name for s in model.coords], "q0")
+        v = np.zeros(self.n) if v0 is None else state_vector(v0, [s.name for s in model.coords], "v0")
         pvals = {s: float(val) for s, val in model.params.items()}
         names = {s.name: s for s in model.params}
         for key, val in (params or {}).items():
@@ -441,20 +442,6 @@ class ConstrainedSystem:
 
 def _is_row(x) -> bool:
     return isinstance(x, (list, tuple, sp.MatrixBase, Mapping, np.ndarray))
-
-
-def _vector(val, names: list[str], what: str) -> np.ndarray:
-    if isinstance(val, Mapping):
-        unknown = set(val) - set(names)
-        if unknown:
-            raise ModelError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-        return np.array([float(val.get(k, 0.0)) for k in names])
-    arr = np.array(val, dtype=float).ravel()
-    if arr.size != len(names):
-        raise ModelError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-    if not np.all(np.isfinite(arr)):
-        raise ModelError(f"{what} has non-finite values")
-    return arr
 
 
 def _rank_tol(A: np.ndarray) -> float:

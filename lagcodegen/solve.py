@@ -9,10 +9,12 @@ Two backends give the same :class:`~lagcodegen.result.Result`:
 
 from __future__ import annotations
 
+from typing import Mapping
+
 import numpy as np
 
 from .build import CompiledModel
-from .errors import LagcodegenError, SingularMassMatrixError, SolverError
+from .errors import LagcodegenError, ModelError, SingularMassMatrixError, SolverError
 from .model import check_finite
 from .result import Result
 
@@ -31,19 +33,19 @@ def output_times(t) -> np.ndarray:
 
 
 def state_vector(val, names: list[str], what: str) -> np.ndarray:
-    """Values for ``names`` from None (zeros), a dict by name (missing: 0) or a sequence."""
+    """Values for ``names`` from None (zeros), a mapping by name (missing: 0) or a sequence."""
     if val is None:
         return np.zeros(len(names))
-    if isinstance(val, dict):
+    if isinstance(val, Mapping):
         unknown = set(val) - set(names)
         if unknown:
-            raise LagcodegenError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
+            raise ModelError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
         return np.array([float(val.get(k, 0.0)) for k in names])
     arr = np.array(val, dtype=float).ravel()
     if arr.size != len(names):
-        raise LagcodegenError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
+        raise ModelError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
     if not np.all(np.isfinite(arr)):
-        raise LagcodegenError(f"{what} has non-finite values")
+        raise ModelError(f"{what} has non-finite values")
     return arr
 
 
@@ -179,7 +181,8 @@ def band_widths(cm: CompiledModel, bandwidths=None, y=None, p=None) -> tuple[int
     """(upper, lower) bandwidths of the band solver for ``cm``: ``bandwidths`` if given, else
     from the scene's Jacobian pattern in the interleaved order (:func:`scene.band_order`); a
     module without a recorded pattern (e.g. Fortran) is probed numerically at ``y``."""
-    from .scene import band_order, bandwidths as widths
+    from .scene import band_order
+    from .scene import bandwidths as widths
     if bandwidths is not None:
         mu, ml = (int(b) for b in bandwidths)
         if not (0 <= mu < cm.ny and 0 <= ml < cm.ny):
