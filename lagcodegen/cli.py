@@ -1,5 +1,12 @@
 """The ``lagcodegen`` command: generate, simulate, info.
 
+Model files with a [constraints] table are constrained systems (notes, sec. 4): ``simulate``
+integrates them in the file's formulation (``--formulation`` overrides) and reports the events
+found; ``generate`` writes ``<prefix>_dae.h`` and ``<prefix>_dae.c`` (or ``.f90``; ``--bundle``:
+with Makefile, CMakeLists.txt, RK4 example and README), in minimal coordinates the reduced
+model's sources; ``info`` also prints the constraints, their differential form (eq. 4.2) and
+the equations with multipliers (eq. 4.5).
+
 Exit codes:
     0  success
     1  bad model or input (the message names the file, key and token)
@@ -74,18 +81,141 @@ def _scene(mf, args, quiet: bool):
     return scene, runtime_values
 
 
+def _formulation(mf, args, quiet: bool) -> tuple[str, tuple[float, float], bool]:
+    """(formulation, baumgarte, projection) of a constrained file, ``--formulation`` overriding."""
+    sim = mf.simulation
+    formulation = getattr(args, "formulation", None) or sim.formulation or "index1"
+    baumgarte, projection = sim.baumgarte, sim.projection
+    if formulation != "index1":
+        dropped = [name for name, used in (("baumgarte", baumgarte != (0.0, 0.0)), ("projection", projection))
+                   if used]
+        if dropped:
+            _progress(f"formulation {formulation}: ignoring the file's {' and '.join(dropped)} (index1 only)", quiet)
+        baumgarte, projection = (0.0, 0.0), False
+    return formulation, baumgarte, projection
+
+
+def _constrained(mf, args, quiet: bool) -> tuple[dict, dict, str]:
+    """compile_constrained options of a constrained file (with the scene options of the command
+    line), all parameter values by name, and the formulation."""
+    from .modelfile import constrained_outputs
+    t0 = time.perf_counter()
+    mf.derive()  # derivation errors carry the file and line
+    _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
+    system, sim = mf.constrained, mf.simulation
+    formulation, baumgarte, projection = _formulation(mf, args, quiet)
+    requested = _csv(args.outputs) if getattr(args, "outputs", None) is not None else list(sim.outputs)
+    runtime = sim.runtime_parameters
+    if getattr(args, "fold_all", False):
+        runtime = []
+    elif getattr(args, "runtime_parameters", None) is not None:
+        runtime = _csv(args.runtime_parameters)
+    values = dict(sim.parameters)
+    values.update(_assignments(getattr(args, "set", None)))
+    folded_values = {k: v for k, v in values.items() if runtime is not None and k not in runtime}
+    options = dict(formulation=formulation, outputs=constrained_outputs(system, requested, formulation),
+                   events=list(mf.events), runtime_parameters=runtime, values=folded_values,
+                   prefix=getattr(args, "prefix", None),
+                   jacobian=not getattr(args, "no_jacobian", False) and sim.jacobian)
+    if formulation == "index1":
+        options.update(baumgarte=baumgarte, projection=projection)
+    _progress(f"{system.J} equality constraint(s), {len(system.inequalities)} inequality constraint(s), "
+              f"{len(mf.events)} event(s); formulation {formulation}", quiet)
+    return options, {**{p.name: v for p, v in system.model.params.items()}, **values}, formulation
+
+
+def _runtime_values(options: dict, values: dict) -> dict:
+    runtime = options["runtime_parameters"]
+    return {k: v for k, v in values.items() if runtime is None or k in runtime}
+
+
+def _minimal_scene(mf, options: dict, values: dict, quiet: bool):
+    """The Scene of the reduced model (minimal coordinates) on the branch of the file's initial state."""
+    import sympy as sp
+    from .derivation import derive
+    from .errors import ModelError
+    from .minimal import reduced_model, solve_constraints
+    from .scene import Scene
+    system = mf.constrained
+    model = system.model
+    if options["events"] or system.inequalities:
+        raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' or 'ggl'")
+    eliminated, branches = solve_constraints(system)
+    q0, _ = mf.initial_state()
+    subs = {**dict(zip(model.coords, q0)), model.t: mf.simulation.t_start,
+            **{p: values[p.name] for p in model.params}}
+    errors = []
+    for sol in branches:
+        try:
+            errors.append(max(abs(complex(sp.sympify(sol[qe]).xreplace(subs).evalf()) - q0[model.index(qe)])
+                              for qe in eliminated))
+        except (TypeError, ValueError):
+            errors.append(float("inf"))
+    b = min(range(len(branches)), key=errors.__getitem__)
+    if not errors[b] <= 1e-8 * (1 + max(map(abs, q0))):
+        raise ModelError(f"minimal coordinates: no solution branch of the constraints matches the initial state "
+                         f"(closest differs by {errors[b]:.3g})")
+    _progress(f"minimal coordinates: {', '.join(q.name for q in eliminated)} eliminated (branch {b}: "
+              + ", ".join(f"{q.name} = {branches[b][q]}" for q in eliminated) + ")", quiet)
+    red = reduced_model(system, branches[b], name=model.name)
+    python_side = ("residuals", "inequalities")
+    outputs = [o for o in options["outputs"] if o not in python_side and not o.startswith(("g_", "gdot_"))]
+    outputs += [q.name for q in eliminated] + [f"{q.name}_dot" for q in eliminated]
+    return Scene(derive(red), jacobian=options["jacobian"], outputs=outputs,
+                 runtime_parameters=options["runtime_parameters"], values=options["values"],
+                 prefix=options["prefix"]), eliminated
+
+
+def _constrained_files(mf, args) -> dict[str, str]:
+    """Files of ``generate`` for a constrained model file."""
+    from .bundle import render_bundle, render_constrained_bundle
+    from .codegen import generate_code
+    from .constrained_codegen import generate_constrained_c
+    options, values, formulation = _constrained(mf, args, args.quiet)
+    sim = mf.simulation
+    q0, v0 = mf.initial_state()
+    runtime_values = _runtime_values(options, values)
+    if formulation == "minimal":
+        scene, eliminated = _minimal_scene(mf, options, values, args.quiet)
+        code = generate_code(scene, args.lang)
+        if not args.bundle:
+            return dict(code.files)
+        keep = [i for i, q in enumerate(mf.constrained.model.coords) if q not in eliminated]
+        return render_bundle(scene, args.lang, y0=[q0[i] for i in keep] + [v0[i] for i in keep],
+                             params={k: v for k, v in runtime_values.items() if k in scene.runtime_parameters},
+                             t_start=sim.t_start, t_end=sim.t_end, code=code)
+    ggl = formulation == "ggl"
+    if args.bundle:
+        return render_constrained_bundle(mf.constrained, args.lang, outputs=options["outputs"],
+                                         events=options["events"], runtime_parameters=options["runtime_parameters"],
+                                         values=options["values"], prefix=options["prefix"], ggl=ggl,
+                                         baumgarte=options.get("baumgarte", (0.0, 0.0)), y0=q0 + v0,
+                                         params=runtime_values, t_start=sim.t_start, t_end=sim.t_end)
+    code, _ = generate_constrained_c(mf.constrained, ggl=ggl, ggl_jacobian=options["jacobian"],
+                                     outputs=options["outputs"], events=options["events"],
+                                     runtime_parameters=options["runtime_parameters"], values=options["values"],
+                                     prefix=options["prefix"], lang=args.lang, drivers=False)
+    dae = [name for name in code.files if name.startswith(f"{code.prefix}_dae.")]
+    return {name: code.files[name] for name in dae}
+
+
 def cmd_generate(args) -> int:
     from .bundle import render_bundle, stale_files, write_files
     from .codegen import generate_code
     mf = _load(args.model, args.quiet)
-    scene, runtime_values = _scene(mf, args, args.quiet)
-    code = generate_code(scene, args.lang)
-    files = dict(code.files)
-    if args.bundle:
-        q0, v0 = mf.initial_state()
-        sim = mf.simulation
-        files = render_bundle(scene, args.lang, y0=q0 + v0, params=runtime_values, t_start=sim.t_start,
-                              t_end=sim.t_end, code=code)
+    if mf.constrained is not None:
+        files = _constrained_files(mf, args)
+    else:
+        if args.formulation:
+            _progress("--formulation ignored: the file has no [constraints]", args.quiet)
+        scene, runtime_values = _scene(mf, args, args.quiet)
+        code = generate_code(scene, args.lang)
+        files = dict(code.files)
+        if args.bundle:
+            q0, v0 = mf.initial_state()
+            sim = mf.simulation
+            files = render_bundle(scene, args.lang, y0=q0 + v0, params=runtime_values, t_start=sim.t_start,
+                                  t_end=sim.t_end, code=code)
     out = Path(args.output)
     if args.check:
         stale = stale_files(out, files)
@@ -102,11 +232,53 @@ def cmd_generate(args) -> int:
     return EXIT_OK
 
 
+def _simulate_constrained(mf, args):
+    """Compile and integrate a constrained model file; returns the Result."""
+    import numpy as np
+    from .dae import compile_constrained
+    from .modelfile import constrained_method
+    options, values, formulation = _constrained(mf, args, args.quiet)
+    t0 = time.perf_counter()
+    sim = compile_constrained(mf.constrained, verbose=not args.quiet, **options)
+    _progress(f"generated and compiled ({formulation}) in {time.perf_counter() - t0:.3f} s", args.quiet)
+    s = mf.simulation
+    t_end = args.t_end if args.t_end is not None else s.t_end
+    n_out = args.n_out if args.n_out is not None else s.n_out
+    times = np.linspace(s.t_start, t_end, n_out)
+    q0, v0 = mf.initial_state()
+    method = args.method or constrained_method(formulation, options.get("projection", False), s.method)
+    t0 = time.perf_counter()
+    res = sim.simulate(times, q0=q0, v0=v0, params={k: v for k, v in values.items() if k in sim.param_names},
+                       method=method, rtol=args.rtol if args.rtol is not None else s.rtol,
+                       atol=args.atol if args.atol is not None else s.atol, backend=args.backend,
+                       initial="project" if args.project_initial else "check")
+    _progress(f"integrated t = {res.t[0]:g}..{res.t[-1]:g} ({formulation}, {res.method}) in "
+              f"{time.perf_counter() - t0:.4f} s: {res.stats.get('steps')} steps, "
+              f"{res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
+    for ev in res.events:
+        state = ", ".join(f"{k} = {v:.10g}" for k, v in ev.q.items())
+        _progress(f"event {ev.name} at t = {ev.t:.12g} (direction {ev.direction:+d}"
+                  f"{', terminal: run stopped' if ev.terminal else ''}): {state}", args.quiet)
+    residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
+    if residuals:
+        worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
+        _progress(f"largest constraint residual: max |{worst}| = {float(np.max(np.abs(res[worst]))):.3e}",
+                  args.quiet)
+    return res
+
+
 def cmd_simulate(args) -> int:
     import numpy as np
     from .build import build
     from .codegen import generate_c
     mf = _load(args.model, args.quiet)
+    if mf.constrained is not None:
+        res = _simulate_constrained(mf, args)
+        coords = [q.name for q in mf.model.coords]  # minimal: the eliminated ones are outputs
+        plotted = [c for c in coords if c in res.state_names or c in res.outputs]
+        return _write_result(res, args, plotted + [k for k in res.outputs if k.startswith("lambda_")])
+    if args.formulation:
+        _progress("--formulation ignored: the file has no [constraints]", args.quiet)
     scene, runtime_values = _scene(mf, args, args.quiet)
     t0 = time.perf_counter()
     code = generate_c(scene)
@@ -125,6 +297,11 @@ def cmd_simulate(args) -> int:
                       backend=args.backend, jacobian=scene.jacobian)
     _progress(f"integrated t = {times[0]:g}..{times[-1]:g} in {time.perf_counter() - t0:.4f} s: "
               f"{res.stats.get('steps')} steps, {res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
+    return _write_result(res, args)
+
+
+def _write_result(res, args, plotted: list[str] | None = None) -> int:
+    """Save the result (CSV/NPZ), the plot if asked, and report the drift of the energy."""
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
     res.save(out)
@@ -132,7 +309,7 @@ def cmd_simulate(args) -> int:
     if args.plot:
         plot = Path(args.plot)
         plot.parent.mkdir(parents=True, exist_ok=True)
-        res.plot(plot)
+        res.plot(plot, plotted)
         _progress(f"wrote {plot}", args.quiet)
     for name in res.outputs:
         if name in ("energy",):
@@ -155,18 +332,72 @@ def cmd_info(args) -> int:
     sections += [("generalized momenta p = dL/dq' (eq. 2.3)", eom.momenta),
                  ("mass matrix M (eq. 3.16: M q'' = F)", eom.M),
                  ("force vector F", eom.F)]
+    simplify = args.simplify if args.simplify is not None else model.n <= 3
     for title, expr in sections:
         print(f"\n{title}:")
-        simplify = args.simplify if args.simplify is not None else model.n <= 3
         print(show(sp.simplify(expr) if simplify else expr))
+    if mf.constrained is not None:
+        _info_constrained(mf, eom, show, simplify)
     return EXIT_OK
 
 
+def _info_constrained(mf, eom, show, simplify: bool) -> None:
+    """The constraints, their differential form (eq. 4.2) and the equations with multipliers (eq. 4.5)."""
+    import sympy as sp
+    system = mf.constrained
+    model = system.model
+    simp = sp.simplify if simplify else (lambda e: e)
+    sim = mf.simulation
+    lam = ", ".join(m.name for m in system.multipliers) or "none"
+    print(f"\nconstraints: {system.n_holonomic} holonomic, {system.n_nonholonomic} nonholonomic, "
+          f"{len(system.inequalities)} inequalities; degrees of freedom n - J = {system.dof}; multipliers: {lam}; "
+          f"formulation {sim.formulation}")
+    for j, f in enumerate(system.holonomic):
+        print(f"\nholonomic constraint {j} (eq. 4.1): f_{j}(q, t) = 0 (output g_{j}) with f_{j} =")
+        print(show(simp(f)))
+    for k, row in enumerate(r for r in system.rows() if not r.holonomic):
+        rep = system.is_integrable(k)
+        kind = "integrable (kept as a Pfaffian row)" if rep.integrable else "not integrable (Frobenius)"
+        print(f"\nnonholonomic constraint {k} (eq. 4.3; row {row.index}), {kind}: A . q' + A0 = 0 with "
+              "A . q' + A0 =")
+        expr = sum((a * v for a, v in zip(row.A, model.speeds)), sp.Integer(0)) + row.A0
+        print(show(simp(expr)))
+    for k, g in enumerate(system.inequalities):
+        print(f"\ninequality constraint {k} (eq. 4.3): ineq_{k}(q, t) >= 0 (terminal event ineq_{k}, "
+              f"decreasing) with ineq_{k} =")
+        print(show(simp(g)))
+    if system.J:
+        coords = ", ".join(q.name for q in model.coords)
+        print(f"\ndifferential form (eq. 4.2): A dq + A0 dt = 0, A = (df/dq; Pfaffian rows) over ({coords}):")
+        print(show(system.A.applyfunc(simp)))
+        print("\nA0 (df/dt; Pfaffian A0):")
+        print(show(system.A0.applyfunc(simp)))
+        dyn, acc = system.equations(eom)
+        print("\nequations with multipliers (eq. 4.5): M q'' - F - A^T lambda = 0:")
+        print(show(dyn.applyfunc(simp)))
+        print("\nand the constraints at acceleration level, A q'' - gamma = 0 (gamma = -(d/dt)(A q' + A0) "
+              "without q''):")
+        print(show(acc.applyfunc(simp)))
+    for ev in mf.events:
+        direction = {-1: "decreasing", 0: "either direction", 1: "increasing"}[ev.direction]
+        print(f"\nevent {ev.name} ({direction}{', terminal' if ev.terminal else ''}): zero of")
+        print(show(ev.expr))
+
+
 def parser() -> argparse.ArgumentParser:
+    from .modelfile import FORMULATIONS
     ap = argparse.ArgumentParser(prog="lagcodegen", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--version", action="version", version=f"lagcodegen {__import__('lagcodegen').__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
+
+    def formulation_option(p):
+        p.add_argument("--formulation", choices=list(FORMULATIONS),
+                       help="constrained files: override the file's formulation (index1, ggl, minimal)")
+        if p.prog.endswith("simulate"):
+            p.add_argument("--project-initial", action="store_true",
+                           help="constrained files: project the initial state onto the constraints "
+                                "instead of requiring it to satisfy them")
 
     def scene_options(p):
         p.add_argument("--outputs", help="comma-separated outputs (energy, momenta, positions, ...)")
@@ -187,6 +418,7 @@ def parser() -> argparse.ArgumentParser:
                    help="also write Makefile, CMakeLists.txt, rk4_example.c, cvode_example.c and README.md")
     g.add_argument("--check", action="store_true",
                    help="exit 5 if any file to be written is missing or differs, write nothing")
+    formulation_option(g)
     scene_options(g)
     g.set_defaults(func=cmd_generate)
 
@@ -200,6 +432,7 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--rtol", type=float)
     s.add_argument("--atol", type=float)
     s.add_argument("--backend", choices=["native", "sksundae"], default="native")
+    formulation_option(s)
     scene_options(s)
     s.set_defaults(func=cmd_simulate)
 

@@ -431,7 +431,7 @@ class ConstrainedSystem:
                 for k, g in enumerate(self.inequalities) if not vals["inequalities"][k] >= -tol]
         if bad:
             raise ModelError("inconsistent initial conditions (tolerance %.3g): %s; project them with "
-                             "initial='project' or fix q0/v0" % (tol, "; ".join(bad)))
+                             "initial='project' (CLI: --project-initial) or fix q0/v0" % (tol, "; ".join(bad)))
         vals["rank"] = rank
         return vals
 

@@ -38,6 +38,21 @@ A build step can describe a model without writing Python::
     [energy]                              # kinetic, potential, dissipation (each optional)
     [outputs]                             # name = "expression" (user outputs)
 
+    [constraints]                         # optional (notes, sec. 4); every key optional
+    holonomic = ["x**2 + y**2 - l**2"]    # f(q, t) = 0 (eq. 4.1)
+    nonholonomic = [                      # A . q' + A0 = 0 (eq. 4.3); A0 optional (default 0)
+        { A = ["sin(th)", "-cos(th)", 0], A0 = 0 },      # one coefficient per coordinate, or
+        { coefficients = { x = 1, phi = "-R" } },        # by coordinate name (missing ones 0)
+    ]
+    inequalities = ["y + 2*l"]            # g(q, t) >= 0: monitored (terminal event ineq_<k>)
+    integrable = "error"                  # or "allow" (keep an integrable Pfaffian row)
+
+    [[events]]                            # constrained files: root functions
+    name = "leave"
+    expr = "lambda_0"                     # q, <coord>_dot, t, parameters, multipliers lambda_<j>
+    direction = -1                        # -1 decreasing, 0 both, 1 increasing (default 0)
+    terminal = true                       # default true
+
     [simulation]                          # every key optional
     t_start = 0.0
     t_end = 20.0
@@ -50,6 +65,9 @@ A build step can describe a model without writing Python::
     runtime_parameters = ["g"]            # default: every parameter stays adjustable
     parameters = { g = 1.62 }             # overrides of the parameter defaults
     jacobian = true
+    formulation = "index1"                # constrained files: "index1" (default), "ggl", "minimal"
+    baumgarte = [5.0, 5.0]                # index1: (alpha, beta); default none
+    projection = false                    # index1: project after each step (needs method "bdf")
 
 Each table maps onto one :class:`~lagcodegen.model.Model` call (``particle``, ``point``,
 ``planar_body``, ``rigid_body``, ``gravity``, ``spring``, ``damper``, ``force``,
@@ -61,10 +79,18 @@ Expressions are TOML numbers or strings such as ``"-l1*cos(theta1)"``. A string 
 by :func:`ast.parse` and converted by walking a whitelist of node types: numbers, names,
 ``+ - * / **``, unary ``-``/``+`` and calls of ``sin cos tan asin acos atan atan2 sinh
 cosh tanh exp log sqrt abs sign``. Names are the coordinates, their velocities
-``<coord>_dot`` (only in forces, kinetic energy, dissipation and outputs), the parameters,
+``<coord>_dot`` (only in forces, kinetic energy, dissipation, outputs and events), the parameters,
 ``t`` and ``pi``. Nothing is ever evaluated: no ``eval``, no ``sympify`` of raw text.
 Parameter values, ``initial`` values and ``t_start``/``t_end``/``rtol``/``atol`` may be
 constant expressions too (``"pi/2"``).
+
+With a ``[constraints]`` table, :attr:`ModelFile.constrained` is the
+:class:`~lagcodegen.constraints.ConstrainedSystem` (constraint j, holonomic ones first, has the
+multiplier ``lambda_<j>``, counted from 0), :attr:`ModelFile.events` the ``[[events]]`` as
+:class:`~lagcodegen.events.Event` items, and :meth:`ModelFile.compile`/:meth:`ModelFile.simulate`
+go through :func:`lagcodegen.dae.compile_constrained`. Constrained runs output the requested
+outputs (default: energy) plus ``lambda`` (not in minimal coordinates), ``residuals`` and, with
+inequality constraints, ``inequalities``.
 
 Every problem raises :class:`ModelFileError` (a :class:`~lagcodegen.errors.ModelError`)
 naming the file, the line when it can be found, the key path (``particles[1].position[0]``)
@@ -87,7 +113,9 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence, Un
 import numpy as np
 import sympy as sp
 
+from .constraints import ConstrainedSystem
 from .errors import ModelError
+from .events import DIRECTIONS, Event
 from .model import Model
 
 if sys.version_info >= (3, 11):
@@ -100,8 +128,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .derivation import EquationsOfMotion
     from .result import Result
 
-__all__ = ["ExpressionError", "FUNCTIONS", "ModelFile", "ModelFileError", "SimulationSettings", "load_model",
-           "loads_model", "parse_expression"]
+__all__ = ["FORMULATIONS", "FUNCTIONS", "ExpressionError", "ModelFile", "ModelFileError", "SimulationSettings",
+           "constrained_method", "constrained_outputs", "load_model", "loads_model", "parse_expression"]
 
 #: Functions an expression may call: name -> (sympy function, number of arguments).
 FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
@@ -113,6 +141,10 @@ FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
 }
 
 METHODS = ("adams", "bdf")
+#: Formulations of constrained models (:func:`lagcodegen.dae.compile_constrained`).
+FORMULATIONS = ("index1", "ggl", "minimal")
+#: What [constraints] integrable = ... may say (see ConstrainedSystem).
+_INTEGRABLE = ("error", "allow")
 
 _BINARY_OPS: dict[type, Callable[[sp.Expr, sp.Expr], sp.Expr]] = {
     ast.Add: lambda a, b: a + b,
@@ -156,6 +188,9 @@ class SimulationSettings:
     runtime_parameters: list[str] | None = None
     parameters: dict[str, float] = field(default_factory=dict)
     jacobian: bool = True
+    formulation: str | None = None  # constrained files: "index1" (default), "ggl" or "minimal"
+    baumgarte: tuple[float, float] = (0.0, 0.0)  # index1: (alpha, beta); (0, 0) is none
+    projection: bool = False  # index1: project onto the constraints after each step (BDF)
 
 
 @dataclass
@@ -166,6 +201,10 @@ class ModelFile:
     simulation: SimulationSettings
     path: Path
     source: str = field(default="", repr=False, compare=False)  # the TOML text, for error lines
+    #: The model with the file's [constraints] (a ConstrainedSystem), or None without constraints.
+    constrained: ConstrainedSystem | None = field(default=None, repr=False, compare=False)
+    #: The file's [[events]] (Event items; the inequality constraints' events ineq_<k> come on top).
+    events: list[Event] = field(default_factory=list, compare=False)
 
     def initial_state(self) -> tuple[list[float], list[float]]:
         """Initial coordinates and velocities from ``simulation.initial`` (missing entries 0.0)."""
@@ -189,10 +228,26 @@ class ModelFile:
         except ModelError as exc:
             raise _Locator(self.source, str(self.path)).error(("model", "coordinates"), str(exc)) from None
 
-    def compile(self, **options: Any) -> CompiledModel:
-        """:func:`lagcodegen.compile_model` with this file's scene settings (``options`` override)."""
-        from . import compile_model
+    def compile(self, **options: Any) -> Any:
+        """:func:`lagcodegen.compile_model` with this file's scene settings (``options`` override).
+
+        With constraints: :func:`lagcodegen.dae.compile_constrained` with the file's formulation,
+        Baumgarte parameters, projection, events and outputs (see :func:`constrained_outputs`);
+        ``options`` (``formulation=...``, ``lang=...``, ``outputs=...``) override.
+        """
         s = self.simulation
+        if self.constrained is not None:
+            from .dae import compile_constrained
+            formulation = options.pop("formulation", s.formulation or "index1")
+            copts: dict[str, Any] = dict(
+                formulation=formulation, outputs=constrained_outputs(self.constrained, s.outputs, formulation),
+                events=list(self.events), runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
+                jacobian=s.jacobian)
+            if formulation == "index1":
+                copts.update(baumgarte=s.baumgarte, projection=s.projection)
+            copts.update(options)
+            return compile_constrained(self.constrained, **copts)
+        from . import compile_model
         kwargs: dict[str, Any] = dict(jacobian=s.jacobian, outputs=list(s.outputs),
                                       runtime_parameters=s.runtime_parameters, values=dict(s.parameters))
         kwargs.update(options)
@@ -202,16 +257,42 @@ class ModelFile:
         """Run the simulation the file describes (compiling first unless ``compiled`` is given).
 
         A given ``compiled`` model should come from :meth:`compile`: parameter overrides are
-        passed for its run-time parameters only.
+        passed for its run-time parameters only. Constrained files integrate with BDF where the
+        formulation needs it (``ggl``, index-1 with projection), else with ``method``; the
+        result has the events found in ``Result.events``.
         """
         cm = compiled if compiled is not None else self.compile()
         s = self.simulation
         q0, v0 = self.initial_state()
+        method = s.method
+        if self.constrained is not None:
+            method = constrained_method(getattr(cm, "formulation", s.formulation), getattr(cm, "projection", False),
+                                        s.method)
         kwargs: dict[str, Any] = dict(
-            q0=q0, v0=v0, method=s.method, rtol=s.rtol, atol=s.atol,
+            q0=q0, v0=v0, method=method, rtol=s.rtol, atol=s.atol,
             params={k: v for k, v in s.parameters.items() if k in cm.param_names})
         kwargs.update(options)
         return cm.simulate(self.times(), **kwargs)
+
+
+def constrained_outputs(system: ConstrainedSystem, requested: Sequence[str], formulation: str | None) -> list[str]:
+    """Outputs of a constrained run: ``requested`` (default: energy) plus the multipliers
+    (``lambda``, except in minimal coordinates, which have none), the constraint residuals
+    (``residuals``) and, when there are inequality constraints, their values (``inequalities``)."""
+    out = list(requested) if requested else ["energy"]
+    extra = ["lambda"] if formulation != "minimal" and system.J else []
+    extra.append("residuals")
+    if system.inequalities:
+        extra.append("inequalities")
+    return out + [name for name in extra if name not in out]
+
+
+def constrained_method(formulation: str | None, projection: bool, method: str) -> str:
+    """The integration method of a constrained run: GGL (IDA) and index-1 with projection
+    (CVODE projects with BDF only) use ``"bdf"``; otherwise ``method``."""
+    if formulation == "ggl" or (formulation in (None, "index1") and projection):
+        return "bdf"
+    return method
 
 
 class ModelFileError(ModelError):
@@ -446,11 +527,13 @@ class _Locator:
         """(first line, end line, keys left) of the table that holds ``path``."""
         if not path:
             return None
-        if len(path) > 1 and isinstance(path[1], int) and isinstance(path[0], str):
-            found = [i for i, is_array, name in self.headers if is_array and name == path[0]]
-            if path[1] >= len(found):
+        # An array of tables ([[particles]], [[constraints.nonholonomic]]): its k-th header.
+        k = next((i for i, part in enumerate(path) if not isinstance(part, str)), len(path))
+        arrays = [i for i, is_array, name in self.headers if is_array and name == ".".join(map(str, path[:k]))]
+        if 0 < k < len(path) and arrays:
+            if path[k] >= len(arrays):
                 return None
-            start, rest = found[path[1]], path[2:]
+            start, rest = arrays[path[k]], path[k + 1:]
         else:
             names = []
             for part in path:
@@ -467,7 +550,7 @@ class _Locator:
             if start is None:
                 return None
         end = next((i for i, _, _ in self.headers if i > start), len(self.lines))
-        return start, end, [p for p in rest if isinstance(p, str)]
+        return start, end, list(rest)
 
     def line(self, path: Sequence[_Key], needle: str | None = None) -> int | None:
         """1-based line number of ``path`` (and of ``needle`` within its value), or None."""
@@ -476,18 +559,36 @@ class _Locator:
             return self._find(needle, 0, len(self.lines)) if needle else None
         start, end, keys = section
         pos = start
-        for key in keys:
-            pattern = re.compile(r"(?:^|[\s{,.])[\"']?" + re.escape(key) + r"[\"']?\s*=")
+        k = 0
+        while k < len(keys):
+            key = keys[k]
+            if isinstance(key, int):
+                # Element `key` of an inline array of tables: the (key+1)-th line with the next key.
+                if k + 1 >= len(keys) or not isinstance(keys[k + 1], str):
+                    break
+                pattern = self._key_pattern(keys[k + 1])
+                hits = [i for i in range(pos, end) if pattern.search(self.lines[i])]
+                if key >= len(hits):
+                    break
+                pos = hits[key]
+                k += 2
+                continue
+            pattern = self._key_pattern(key)
             hit = next((i for i in range(pos, end) if pattern.search(self.lines[i])), None)
             if hit is None:
                 break
             pos = hit
+            k += 1
         if needle:
             stop = next((i for i in range(pos + 1, end) if _ASSIGNMENT.match(self.lines[i])), end)
             hit = self._find(needle, pos, stop)
             if hit is not None:
                 return hit
         return pos + 1
+
+    @staticmethod
+    def _key_pattern(key: str) -> re.Pattern:
+        return re.compile(r"(?:^|[\s{,.])[\"']?" + re.escape(key) + r"[\"']?\s*=")
 
     def _find(self, needle: str, start: int, stop: int) -> int | None:
         for candidate in (f'"{needle}"', f"'{needle}'", needle):
@@ -499,10 +600,13 @@ class _Locator:
 
 # ============================================================================ loading
 _TOP_LEVEL = ("model", "parameters", "points", "particles", "planar_bodies", "rigid_bodies", "gravity",
-              "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "simulation")
+              "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints", "events",
+              "simulation")
 _SIMULATION_KEYS = ("t_start", "t_end", "n_out", "method", "rtol", "atol", "initial", "outputs",
-                    "runtime_parameters", "parameters", "jacobian")
-_POSITION_ONLY = "velocities are allowed only in forces, kinetic energy, dissipation and outputs"
+                    "runtime_parameters", "parameters", "jacobian", "formulation", "baumgarte", "projection")
+_CONSTRAINT_KEYS = ("holonomic", "nonholonomic", "inequalities", "integrable")
+_CONSTRAINT_PATH = re.compile(r"\b(nonholonomic|holonomic|inequality) constraint (\d+)")
+_POSITION_ONLY = "velocities are allowed only in forces, kinetic energy, dissipation, outputs and events"
 
 
 def load_model(path: str | Path) -> ModelFile:
@@ -538,6 +642,8 @@ class _Loader:
         self.model: Model | None = None
         self.symbols: dict[str, sp.Basic] = {}
         self.velocities: dict[str, str] = {}
+        self.system: ConstrainedSystem | None = None
+        self.events: list[Event] = []
 
     # ------------------------------------------------------------------ errors
     def error(self, path: Sequence[_Key], message: str, token: str | None = None,
@@ -591,8 +697,10 @@ class _Loader:
         return [self.string([*path, i], v) for i, v in enumerate(value)]
 
     # ------------------------------------------------------------------ values
-    def expr(self, path: Sequence[_Key], value: object, velocities: bool = False) -> sp.Expr:
-        """An expression: a TOML number or a string parsed by :func:`parse_expression`."""
+    def expr(self, path: Sequence[_Key], value: object, velocities: bool = False,
+             extra: Mapping[str, sp.Basic] | None = None) -> sp.Expr:
+        """An expression: a TOML number or a string parsed by :func:`parse_expression`
+        (``extra``: more names allowed here, e.g. the multipliers in events)."""
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise self.error(path, f"must be a number or an expression string, got {_type_name(value)}",
                              token=repr(value))
@@ -604,6 +712,8 @@ class _Loader:
             return sp.Float(value)
         symbols = self.symbols if velocities else {
             name: sym for name, sym in self.symbols.items() if name not in self.velocities}
+        if extra:
+            symbols = {**symbols, **extra}
         try:
             return parse_expression(value, symbols, None if velocities else self.velocities)
         except ExpressionError as exc:
@@ -686,8 +796,18 @@ class _Loader:
         assert self.model is not None
         with self.at(["model"]):
             self.model.validate()
+        if "constraints" in data:
+            self.load_constraints(self.table(["constraints"], data["constraints"]))
+        events = self.tables(["events"], data.get("events", []))
+        if events and self.system is None:
+            raise self.error(["events", 0], "events need a [constraints] table: they are located by the "
+                             "constrained solvers (give the constraints, or inequalities = [...] only)",
+                             token="events", needle="events")
+        for i, entry in enumerate(events):
+            self.events.append(self.load_event(["events", i], entry))
         simulation = self.load_simulation(self.table(["simulation"], data.get("simulation", {})))
-        return ModelFile(model=self.model, simulation=simulation, path=self.path, source=self.text)
+        return ModelFile(model=self.model, simulation=simulation, path=self.path, source=self.text,
+                         constrained=self.system, events=list(self.events))
 
     def load_model_table(self, table: dict) -> None:
         self.fields(["model"], table, required=["coordinates"], optional=["name"])
@@ -851,6 +971,119 @@ class _Loader:
             with self.at(path, needle=name):
                 self.model.output(name, expr)
 
+    def load_constraints(self, table: dict) -> None:
+        """[constraints]: holonomic f(q, t) = 0, nonholonomic A . q' + A0 = 0, inequalities g >= 0."""
+        assert self.model is not None
+        path = ["constraints"]
+        self.fields(path, table, optional=_CONSTRAINT_KEYS)
+        coords = set(self.model.coords)
+        holonomic = []
+        for i, value in enumerate(self.array([*path, "holonomic"], table.get("holonomic", []))):
+            f = self.expr([*path, "holonomic", i], value)
+            if not f.free_symbols & coords:
+                raise self.error([*path, "holonomic", i], f"holonomic constraint {f} = 0 involves no coordinate "
+                                 f"({', '.join(q.name for q in self.model.coords)})", token=str(value),
+                                 needle=str(value))
+            holonomic.append(f)
+        nonholonomic = [self.load_pfaffian([*path, "nonholonomic", i], entry) for i, entry in
+                        enumerate(self.tables([*path, "nonholonomic"], table.get("nonholonomic", [])))]
+        inequalities = [self.expr([*path, "inequalities", i], value) for i, value in
+                        enumerate(self.array([*path, "inequalities"], table.get("inequalities", [])))]
+        integrable = "error"
+        if "integrable" in table:
+            integrable = self.string([*path, "integrable"], table["integrable"])
+            if integrable not in _INTEGRABLE:
+                raise self.error([*path, "integrable"], f"must be one of {', '.join(map(repr, _INTEGRABLE))}, got "
+                                 f"{integrable!r}", token=integrable)
+        if not (holonomic or nonholonomic or inequalities):
+            raise self.error(path, "the [constraints] table gives no constraint (holonomic, nonholonomic or "
+                             "inequalities)", token="constraints", needle="")
+        n, J = self.model.n, len(holonomic) + len(nonholonomic)
+        if J > n:
+            raise self.error(path, f"{J} equality constraints ({len(holonomic)} holonomic, {len(nonholonomic)} "
+                             f"nonholonomic) but only {n} coordinates: at most {n} are possible",
+                             token="constraints", needle="")
+        params = {p.name for p in self.model.params}
+        for j in range(J):
+            name = f"lambda_{j}"
+            if name in params:
+                raise self.error(["parameters", name], f"the name {name!r} is reserved for the Lagrange multiplier "
+                                 f"of constraint {j}: rename the parameter", token=name, needle=name)
+            if name in self.symbols:
+                raise self.error(["model", "coordinates"], f"the name {name!r} is reserved for the Lagrange "
+                                 f"multiplier of constraint {j}: rename the coordinate", token=name, needle=name)
+        try:
+            self.system = ConstrainedSystem(self.model, holonomic, nonholonomic, inequalities, integrable=integrable)
+        except ModelError as exc:
+            m = _CONSTRAINT_PATH.search(str(exc))
+            where: list[_Key] = path
+            if m:
+                kind = "inequalities" if m.group(1) == "inequality" else m.group(1)
+                where = [*path, kind, int(m.group(2))]
+            message = str(exc).replace("pass integrable='allow'", 'set integrable = "allow" in [constraints]')
+            raise self.error(where, message, token=_format_key(where)) from None
+
+    def load_pfaffian(self, path: list[_Key], entry: dict) -> tuple[tuple, sp.Expr]:
+        """A nonholonomic constraint: ``{A = [...], A0 = ...}`` or ``{coefficients = {q = ...}, A0 = ...}``."""
+        assert self.model is not None
+        self.fields(path, entry, optional=["A", "coefficients", "A0"])
+        names = [q.name for q in self.model.coords]
+        if ("A" in entry) == ("coefficients" in entry):
+            what = "both 'A' and 'coefficients' given" if "A" in entry else "missing key 'A' or 'coefficients'"
+            raise self.error(path, f"{what}: give one (A: an array of one coefficient per coordinate, "
+                             f"{', '.join(names)}; coefficients: a table by coordinate name, missing ones 0)",
+                             token="A" if "A" in entry else "coefficients", needle="")
+        if "A" in entry:
+            raw = entry["A"]
+            if not isinstance(raw, list) or len(raw) != len(names):
+                got = f"{len(raw)} coefficients" if isinstance(raw, list) else _type_name(raw)
+                raise self.error([*path, "A"], f"must be an array of {len(names)} expressions, one per coordinate "
+                                 f"({', '.join(names)}), got {got}", token=repr(raw))
+            A = [self.expr([*path, "A", i], v) for i, v in enumerate(raw)]
+        else:
+            A = [sp.Integer(0)] * len(names)
+            for name, value in self.table([*path, "coefficients"], entry["coefficients"]).items():
+                if name not in names:
+                    close = difflib.get_close_matches(name, names, n=1)
+                    hint = f"; did you mean {close[0]!r}?" if close else ""
+                    raise self.error([*path, "coefficients", name], f"{name!r} is not a coordinate{hint} "
+                                     f"(coordinates: {', '.join(names)})", token=name, needle=name)
+                A[names.index(name)] = self.expr([*path, "coefficients", name], value)
+        A0 = self.expr([*path, "A0"], entry["A0"]) if "A0" in entry else sp.Integer(0)
+        if all(a == 0 for a in A):
+            raise self.error(path, "every coefficient is zero: not a constraint on the velocities",
+                             token="A" if "A" in entry else "coefficients", needle="")
+        return tuple(A), A0
+
+    def array(self, path: Sequence[_Key], value: object) -> list:
+        if not isinstance(value, list):
+            raise self.error(path, f"must be an array of expressions, got {_type_name(value)}", token=repr(value))
+        return value
+
+    def load_event(self, path: list[_Key], entry: dict) -> Event:
+        """[[events]]: name, expr (q, q', t, parameters, lambda_<j>), direction, terminal."""
+        assert self.system is not None
+        self.fields(path, entry, required=["name", "expr"], optional=["direction", "terminal"])
+        name = self.string([*path, "name"], entry["name"])
+        if not name.isidentifier():
+            raise self.error([*path, "name"], f"event name {name!r} must be an identifier", token=name)
+        taken = [f"ineq_{k}" for k in range(len(self.system.inequalities))] + [e.name for e in self.events]
+        if name in taken:
+            what = "is used twice" if name in (e.name for e in self.events) else \
+                "is taken by the event of an inequality constraint"
+            raise self.error([*path, "name"], f"event name {name!r} {what}", token=name)
+        multipliers = {lam.name: lam for lam in self.system.multipliers}
+        expr = self.expr([*path, "expr"], entry["expr"], velocities=True, extra=multipliers)
+        direction = entry.get("direction", 0)
+        if isinstance(direction, bool) or direction not in DIRECTIONS:
+            raise self.error([*path, "direction"], f"must be -1 (decreasing), 0 (both) or 1 (increasing), got "
+                             f"{direction!r}", token=repr(direction))
+        terminal = entry.get("terminal", True)
+        if not isinstance(terminal, bool):
+            raise self.error([*path, "terminal"], f"must be true or false, got {terminal!r}", token=repr(terminal))
+        with self.at(path):
+            return Event(name, expr, int(direction), terminal)
+
     def load_simulation(self, table: dict) -> SimulationSettings:
         assert self.model is not None
         self.fields(["simulation"], table, optional=_SIMULATION_KEYS)
@@ -880,11 +1113,12 @@ class _Loader:
                 if value < 0:
                     raise self.error([*sim, key], f"must not be negative, got {value:g}", token=key)
                 setattr(s, key, value)
+        for key in ("jacobian", "projection"):
+            if key in table and not isinstance(table[key], bool):
+                raise self.error([*sim, key], f"must be true or false, got {table[key]!r}", token=key)
         if "jacobian" in table:
-            if not isinstance(table["jacobian"], bool):
-                raise self.error([*sim, "jacobian"], f"must be true or false, got {table['jacobian']!r}",
-                                 token="jacobian")
             s.jacobian = table["jacobian"]
+        self.load_formulation(table, s)
         s.initial = self.load_initial(self.table([*sim, "initial"], table.get("initial", {})))
         params = [p.name for p in self.model.params]
         if "parameters" in table:
@@ -905,8 +1139,12 @@ class _Loader:
             s.runtime_parameters = runtime
         if "outputs" in table:
             path = [*sim, "outputs"]
-            known = self.builtin_outputs() + list(self.model.outputs)
+            known = self.builtin_outputs() + list(self.model.outputs) + self.constraint_outputs()
             for i, name in enumerate(self.strings(path, table["outputs"])):
+                if s.formulation == "minimal" and (name in ("lambda", "constraint_forces") or
+                                                   name.startswith(("lambda_", "R_"))):
+                    raise self.error([*path, i], f"output {name!r}: minimal coordinates have no Lagrange "
+                                     "multipliers (use formulation 'index1' or 'ggl')", token=name)
                 if name not in known:
                     close = difflib.get_close_matches(name, known, n=1)
                     hint = f"; did you mean {close[0]!r}?" if close else ""
@@ -914,6 +1152,65 @@ class _Loader:
                                      token=name)
                 s.outputs.append(name)
         return s
+
+    def constraint_outputs(self) -> list[str]:
+        """Output names a constrained system adds (groups and single names), none without constraints."""
+        if self.system is None:
+            return []
+        from .constrained_codegen import CONSTRAINT_OUTPUT_GROUPS
+        system = self.system
+        names = list(CONSTRAINT_OUTPUT_GROUPS)
+        names += [f"lambda_{j}" for j in range(system.J)]
+        names += [f"R_{j}_{q.name}" for j in range(system.J) for q in system.model.coords]
+        names += [f"g_{j}" for j in range(system.n_holonomic)] + [f"gdot_{j}" for j in range(system.J)]
+        names += [f"ineq_{k}" for k in range(len(system.inequalities))]
+        return names
+
+    def load_formulation(self, table: dict, s: SimulationSettings) -> None:
+        """formulation, baumgarte and projection (constrained files only)."""
+        sim = ["simulation"]
+        if self.system is None:
+            for key in ("formulation", "baumgarte", "projection"):
+                if key in table:
+                    raise self.error([*sim, key], f"{key!r} applies to constrained models only (this file has no "
+                                     "[constraints] table)", token=key)
+            return
+        s.formulation = "index1"
+        if "formulation" in table:
+            formulation = self.string([*sim, "formulation"], table["formulation"])
+            if formulation not in FORMULATIONS:
+                close = difflib.get_close_matches(formulation, FORMULATIONS, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise self.error([*sim, "formulation"], f"unknown formulation {formulation!r}{hint} (use one of: "
+                                 f"{', '.join(FORMULATIONS)})", token=formulation)
+            s.formulation = formulation
+        if "baumgarte" in table:
+            path = [*sim, "baumgarte"]
+            raw = table["baumgarte"]
+            if not isinstance(raw, list) or len(raw) != 2:
+                raise self.error(path, f"must be an array [alpha, beta] of two numbers, got {raw!r}",
+                                 token=repr(raw))
+            values = tuple(self.constant([*path, i], v) for i, v in enumerate(raw))
+            for i, value in enumerate(values):
+                if value < 0:
+                    raise self.error([*path, i], f"must not be negative, got {value:g}", token=repr(raw[i]))
+            s.baumgarte = (values[0], values[1])
+        if "projection" in table:
+            s.projection = table["projection"]
+        for key, used in (("baumgarte", s.baumgarte != (0.0, 0.0)), ("projection", s.projection)):
+            if used and s.formulation != "index1":
+                raise self.error([*sim, key], f"{key!r} applies to formulation 'index1' only (the formulation is "
+                                 f"{s.formulation!r})", token=key)
+        if "method" in table and s.method != "bdf":
+            if s.formulation == "ggl":
+                raise self.error([*sim, "method"], f"formulation 'ggl' integrates with IDA, BDF only: method "
+                                 f"{s.method!r} is not possible (use \"bdf\" or leave method out)", token=s.method)
+            if s.projection:
+                raise self.error([*sim, "method"], f"projection onto the constraints needs method \"bdf\" (CVODE "
+                                 f"projects with BDF only), got {s.method!r}", token=s.method)
+        if s.formulation == "minimal" and (self.events or self.system.inequalities):
+            raise self.error([*sim, "formulation"], "formulation 'minimal' has no events or inequality constraints "
+                             "(the plain CVODE driver has no root finding): use 'index1' or 'ggl'", token="minimal")
 
     def load_initial(self, table: dict) -> dict[str, float]:
         assert self.model is not None

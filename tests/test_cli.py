@@ -79,3 +79,151 @@ def test_bad_model_file_exit_code_and_message(tmp_path):
 
 def test_usage_error_exit_code():
     assert run("simulate").returncode == 2
+
+
+# ---------------------------------------------------------------------- constrained model files
+def read_csv(path):
+    header = path.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {name: data[:, i] for i, name in enumerate(header)}
+
+
+@pytest.fixture(scope="module")
+def angle_pendulum():
+    """lagcodegen.systems.pendulum from theta = 1 at rest (the Cartesian example's initial state)."""
+    import lagcodegen as lcg
+    sim = lcg.compile_model(lcg.systems.pendulum(), outputs=["positions"])
+    return lambda t: sim.simulate(t, q0=[1.0], rtol=1e-12, atol=1e-14)
+
+
+def test_simulate_constrained_pendulum_matches_the_angle_model(tmp_path, angle_pendulum):
+    proc = run("simulate", EXAMPLES / "cartesian_pendulum.toml", "-o", tmp_path / "cp.csv", "--plot",
+               tmp_path / "cp.png")
+    assert proc.returncode == 0, proc.stderr
+    assert "formulation index1" in proc.stderr and "largest constraint residual" in proc.stderr
+    cols = read_csv(tmp_path / "cp.csv")
+    assert list(cols)[:5] == ["t", "x", "y", "x_dot", "y_dot"]
+    assert {"energy", "tension", "bob_x", "lambda_0", "g_0", "gdot_0"} <= set(cols)
+    ref = angle_pendulum(cols["t"])
+    theta = np.arctan2(cols["x"], -cols["y"])
+    assert np.max(np.abs(theta - ref["theta"])) < 1e-6
+    # Rod tension from the multiplier: f = x^2 + y^2 - l^2, so T = -2 l lambda = m (g cos(theta) + l theta'^2).
+    l, m, g = 1.0, 1.0, 9.81
+    tension = -2 * l * cols["lambda_0"]
+    assert np.max(np.abs(tension - m * (g * np.cos(ref["theta"]) + l * ref["theta_dot"] ** 2))) < 1e-6
+    assert np.max(np.abs(tension - cols["tension"])) < 1e-6  # the file's own output, from the state
+    assert np.max(np.abs(cols["g_0"])) < 1e-8 and np.ptp(cols["energy"]) < 1e-7
+    assert (tmp_path / "cp.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("formulation", ["ggl", "minimal"])
+def test_simulate_constrained_formulation_override(tmp_path, angle_pendulum, formulation):
+    proc = run("simulate", EXAMPLES / "cartesian_pendulum.toml", "-o", tmp_path / "cp.npz", "--t-end", "2",
+               "--n-out", "101", "--formulation", formulation)
+    assert proc.returncode == 0, proc.stderr
+    assert f"formulation {formulation}" in proc.stderr and "ignoring the file's baumgarte" in proc.stderr
+    data = np.load(tmp_path / "cp.npz")
+    ref = angle_pendulum(data["t"])
+    assert data["t"][-1] == 2.0
+    assert np.max(np.abs(np.arctan2(data["x"], -data["y"]) - ref["theta"])) < 1e-6
+    assert ("lambda_0" in data.files) == (formulation != "minimal") and "g_0" in data.files
+
+
+def test_simulate_reports_the_terminal_event(tmp_path):
+    proc = run("simulate", EXAMPLES / "sliding_off_sphere.toml", "-o", tmp_path / "s.csv")
+    assert proc.returncode == 0, proc.stderr
+    line = next(ln for ln in proc.stderr.splitlines() if "event leave" in ln)
+    t_event = float(line.split("t = ")[1].split()[0])
+    assert "terminal" in line
+    cols = read_csv(tmp_path / "s.csv")
+    assert cols["t"][-1] == pytest.approx(t_event, abs=1e-9) and t_event < 3.2  # the run stops there
+    cos_theta = cols["y"][-1] / 1.0  # R = 1
+    v0, g = 1e-3, 9.81
+    assert cos_theta == pytest.approx((2 + v0 ** 2 / g) / 3, abs=1e-8)
+    assert cos_theta == pytest.approx(2 / 3, abs=1e-6)
+    assert abs(cols["lambda_0"][-1]) < 1e-6 and np.all(cols["lambda_0"][:-1] > 0)
+    quiet = run("simulate", EXAMPLES / "sliding_off_sphere.toml", "-o", tmp_path / "s2.csv", "-q")
+    assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_generate_constrained_sources_and_check(tmp_path):
+    out = tmp_path / "gen"
+    proc = run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["cartesian_pendulum_dae.c", "cartesian_pendulum_dae.h"]
+    header = (out / "cartesian_pendulum_dae.h").read_text()
+    assert "cartesian_pendulum_kkt" in header and "cartesian_pendulum_crhs" in header
+    assert run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--check", "-q").returncode == 0
+    # other options, other code: the folder is out of date
+    proc = run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--check", "--formulation", "ggl")
+    assert proc.returncode == 5 and "cartesian_pendulum_dae.c" in proc.stderr
+    (out / "cartesian_pendulum_dae.h").write_text(header + "\n")
+    proc = run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--check")
+    assert proc.returncode == 5 and "out of date" in proc.stderr
+    # events become root functions; Fortran
+    sphere = tmp_path / "sphere"
+    assert run("generate", EXAMPLES / "sliding_off_sphere.toml", "-o", sphere, "--lang", "fortran", "-q") \
+        .returncode == 0
+    assert sorted(p.name for p in sphere.iterdir()) == ["sliding_off_sphere_dae.f90", "sliding_off_sphere_dae.h"]
+    assert "leave: lambda_0" in (sphere / "sliding_off_sphere_dae.h").read_text()
+
+
+def test_generate_constrained_bundle_builds_and_runs(tmp_path, angle_pendulum):
+    import shutil
+    if shutil.which("make") is None:
+        pytest.fail("the bundle test needs make")
+    out = tmp_path / "bundle"
+    proc = run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--bundle", "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["CMakeLists.txt", "Makefile", "README.md", "rk4_example.c", "cartesian_pendulum_dae.c",
+         "cartesian_pendulum_dae.h"])
+    build = subprocess.run(["make", "check"], cwd=out, capture_output=True, text=True, timeout=300, check=False)
+    assert build.returncode == 0, build.stdout + build.stderr
+    cols = read_csv(out / "rk4_example.csv")  # the file's t_end, initial state and Baumgarte (5, 5)
+    assert {"lambda_0", "g_0", "tension"} <= set(cols) and cols["t"][-1] == 10.0
+    ref = angle_pendulum([0.0, 10.0])
+    assert cols["x"][-1] == pytest.approx(ref["bob_x"][-1], abs=1e-6)
+    assert cols["y"][-1] == pytest.approx(ref["bob_y"][-1], abs=1e-6)
+    assert run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--bundle", "--check", "-q") \
+        .returncode == 0
+
+
+def test_info_prints_constraints_and_multiplier_equations():
+    proc = run("info", EXAMPLES / "cartesian_pendulum.toml")
+    assert proc.returncode == 0, proc.stderr
+    text = proc.stdout
+    assert "1 holonomic, 0 nonholonomic" in text and "multipliers: lambda_0" in text
+    assert "differential form (eq. 4.2)" in text and "[2*x  2*y]" in text
+    assert "equations with multipliers (eq. 4.5)" in text
+    assert "-2*lambda_0*x + m*x_ddot" in text and "g*m - 2*lambda_0*y + m*y_ddot" in text
+    sphere = run("info", EXAMPLES / "sliding_off_sphere.toml", "--latex")
+    assert sphere.returncode == 0 and "event leave (decreasing, terminal)" in sphere.stdout
+    assert "\\lambda_{0}" in sphere.stdout
+
+
+def test_constrained_file_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((EXAMPLES / "cartesian_pendulum.toml").read_text().replace('"index1"', '"index2"'))
+    proc = run("simulate", bad, "-o", tmp_path / "o.csv")
+    assert proc.returncode == 1
+    assert "bad.toml" in proc.stderr and "simulation.formulation" in proc.stderr and "'index2'" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    proc = run("simulate", EXAMPLES / "cartesian_pendulum.toml", "-o", tmp_path / "o.csv", "--formulation", "dae")
+    assert proc.returncode == 2
+    # inconsistent initial state: the solver's check, exit 1
+    bad.write_text((EXAMPLES / "cartesian_pendulum.toml").read_text().replace('x = "sin(1)"', 'x = 0.5'))
+    proc = run("simulate", bad, "-o", tmp_path / "o.csv", "-q")
+    assert proc.returncode == 1 and "inconsistent initial conditions" in proc.stderr
+
+
+def test_project_initial_state_onto_the_constraints(tmp_path):
+    base = ["simulate", EXAMPLES / "cartesian_pendulum.toml", "-o", tmp_path / "cp.csv", "--set", "l=1.5",
+            "--t-end", "1", "-q"]
+    refused = run(*base)
+    assert refused.returncode == 1 and "--project-initial" in refused.stderr
+    assert run(*base, "--project-initial").returncode == 0
+    header = (tmp_path / "cp.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(tmp_path / "cp.csv", delimiter=",", skiprows=1)
+    x, y = data[:, header.index("x")], data[:, header.index("y")]
+    assert np.max(np.abs(np.hypot(x, y) - 1.5)) < 1e-6

@@ -8,8 +8,10 @@ import sympy as sp
 
 import lagcodegen
 from lagcodegen import Model, ModelError, derive, systems
-from lagcodegen.modelfile import (ModelFile, ModelFileError, SimulationSettings, load_model, loads_model,
-                                  parse_expression)
+from lagcodegen.constraints import ConstrainedSystem
+from lagcodegen.events import Event
+from lagcodegen.modelfile import (FORMULATIONS, ModelFile, ModelFileError, SimulationSettings, constrained_method,
+                                  constrained_outputs, load_model, loads_model, parse_expression)
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -512,3 +514,268 @@ def test_model_file_simulate_uses_its_settings():
     assert res.parameters == {"g": 1.62}
     omega = np.sqrt(1.62 / 1.0)  # small oscillation: theta ~ 0.1 cos(omega t)
     assert res["theta"][-1] == pytest.approx(0.1 * np.cos(omega * res.t[-1]), abs=2e-3)
+
+
+# ============================================================================ constraints and events
+# A valid constrained file (Cartesian pendulum); error cases edit it. Lines below refer to it.
+CBASE = """\
+[model]
+name = "cp"
+coordinates = ["x", "y"]
+
+[parameters]
+l = 1.0
+g = 9.81
+m = 1.0
+
+[[particles]]
+name = "bob"
+mass = "m"
+position = ["x", "y"]
+
+[gravity]
+g = "g"
+
+[constraints]
+holonomic = ["x**2 + y**2 - l**2"]
+"""
+HOLONOMIC_LINE = 19
+N_CBASE = len(CBASE.splitlines())
+
+# Knife edge on an incline: three coordinates, one nonholonomic constraint.
+KNIFE = """\
+[model]
+coordinates = ["x", "y", "theta"]
+
+[parameters]
+m = 1.0
+Iz = 0.1
+g = 9.81
+alpha = 0.3
+
+[energy]
+kinetic = "m/2*(x_dot**2 + y_dot**2) + Iz/2*theta_dot**2"
+potential = "-m*g*sin(alpha)*x"
+"""
+N_KNIFE = len(KNIFE.splitlines())
+
+
+def python_cartesian_pendulum():
+    """The Cartesian pendulum of examples/cartesian_pendulum.py."""
+    m = Model("cartesian_pendulum")
+    x, y = m.coordinates("x y")
+    l, g, mass = m.parameters(l=1.0, g=9.81, m=1.0)
+    m.particle("bob", mass, (x, y))
+    m.gravity(g)
+    return ConstrainedSystem(m, holonomic=[x ** 2 + y ** 2 - l ** 2])
+
+
+def same_matrix(a, b) -> bool:
+    return a.shape == b.shape and all(is_zero(e) for e in a - b)
+
+
+def test_formulations_are_those_of_compile_constrained():
+    from lagcodegen.dae import FORMULATIONS as DAE_FORMULATIONS
+    assert FORMULATIONS == DAE_FORMULATIONS
+
+
+def test_cartesian_pendulum_file_is_the_python_system():
+    mf = load_model(EXAMPLES / "cartesian_pendulum.toml")
+    cs, ref = mf.constrained, python_cartesian_pendulum()
+    assert isinstance(cs, ConstrainedSystem) and mf.events == []
+    assert (cs.n_holonomic, cs.n_nonholonomic, len(cs.inequalities), cs.dof) == (1, 0, 0, 1)
+    assert [s.name for s in cs.multipliers] == ["lambda_0"]
+    assert is_zero(cs.holonomic[0] - ref.holonomic[0])
+    assert same_matrix(cs.A, ref.A) and same_matrix(cs.A0, ref.A0)
+    x, y = sp.symbols("x y")
+    assert same_matrix(cs.A, sp.Matrix([[2 * x, 2 * y]]))
+    assert same_matrix(cs.acceleration_rhs(), ref.acceleration_rhs())
+    for mine, theirs in zip(cs.equations(), ref.equations()):
+        assert same_matrix(mine, theirs)
+    s = mf.simulation
+    assert (s.formulation, s.baumgarte, s.projection, s.method) == ("index1", (5.0, 5.0), False, "adams")
+    q0, v0 = mf.initial_state()
+    assert q0 == pytest.approx([np.sin(1.0), -np.cos(1.0)]) and v0 == [0.0, 0.0]
+    ref.check_initial(q0, v0)  # consistent with the constraint
+
+
+def test_sliding_off_sphere_file_has_its_event():
+    mf = load_model(EXAMPLES / "sliding_off_sphere.toml")
+    lam = mf.constrained.multipliers[0]
+    assert mf.events == [Event("leave", lam, -1, True)]
+    assert mf.events[0].expr is lam  # the multiplier symbol of the ConstrainedSystem
+
+
+def test_unconstrained_files_have_no_constrained_system():
+    mf = loads_model(BASE, "p.toml")
+    assert mf.constrained is None and mf.events == [] and mf.simulation.formulation is None
+    mf = loads_model(CBASE, "cp.toml")  # constrained, no [simulation]: index1 by default
+    assert mf.simulation.formulation == "index1" and mf.simulation.baumgarte == (0.0, 0.0)
+
+
+def test_nonholonomic_forms_agree():
+    from test_dae import knife_edge
+    ref = knife_edge()
+    by_row = loads_model(KNIFE + '[constraints]\nnonholonomic = [{ A = ["sin(theta)", "-cos(theta)", 0], A0 = 0 }]\n')
+    by_name = loads_model(KNIFE + '[constraints]\nnonholonomic = [{ coefficients = { x = "sin(theta)", '
+                          'y = "-cos(theta)" } }]\n')
+    by_header = loads_model(KNIFE + '[[constraints.nonholonomic]]\ncoefficients = { y = "-cos(theta)", '
+                            'x = "sin(theta)" }\nA0 = "0"\n')
+    for mf in (by_row, by_name, by_header):
+        cs = mf.constrained
+        assert (cs.n_holonomic, cs.n_nonholonomic) == (0, 1)
+        assert same_matrix(cs.A, ref.A) and same_matrix(cs.A0, ref.A0)
+        assert not cs.is_integrable(0)
+
+
+def test_constraints_with_time_inequalities_and_integrable_rows():
+    mf = loads_model(KNIFE + """
+[constraints]
+holonomic = ["x - t**2/2"]
+nonholonomic = [{ coefficients = { y = 1, theta = "-2" }, A0 = "-cos(t)" }]
+inequalities = ["2 - y", "theta + pi"]
+integrable = "allow"
+
+[[events]]
+name = "fast"
+expr = "theta_dot - 3 + 0*lambda_1"
+direction = 1
+terminal = false
+""")
+    cs = mf.constrained
+    t = sp.Symbol("t")
+    assert same_matrix(cs.A, sp.Matrix([[1, 0, 0], [0, 1, -2]]))
+    assert same_matrix(cs.A0, sp.Matrix([-t, -sp.cos(t)]))
+    assert [str(g) for g in cs.inequalities] == ["2 - y", "theta + pi"]
+    assert cs.is_integrable(0)  # y - 2 theta - sin(t) = const: kept because integrable = "allow"
+    assert mf.events == [Event("fast", sp.Symbol("theta_dot") - 3, 1, False)]
+    assert mf.simulation.formulation == "index1"
+    assert constrained_outputs(cs, [], "index1") == ["energy", "lambda", "residuals", "inequalities"]
+    assert constrained_outputs(cs, ["lambda_0", "residuals"], "ggl") == ["lambda_0", "residuals", "lambda",
+                                                                       "inequalities"]
+    assert constrained_outputs(python_cartesian_pendulum(), ["positions"], "minimal") == ["positions", "residuals"]
+    assert [constrained_method(f, p, "adams") for f, p in
+            [("index1", False), ("index1", True), ("ggl", False), ("minimal", False)]] == \
+        ["adams", "bdf", "bdf", "adams"]
+
+
+def test_simulation_keys_of_constrained_files():
+    mf = loads_model(CBASE + """
+[simulation]
+formulation = "index1"
+baumgarte = ["pi", 2]
+projection = true
+outputs = ["energy", "constraint_forces", "R_0_x", "g_0", "lambda_0"]
+""")
+    s = mf.simulation
+    assert (s.formulation, s.baumgarte, s.projection) == ("index1", (pytest.approx(np.pi), 2.0), True)
+    assert s.outputs == ["energy", "constraint_forces", "R_0_x", "g_0", "lambda_0"]
+    assert loads_model(CBASE + '\n[simulation]\nformulation = "ggl"\nmethod = "bdf"\n').simulation.method == "bdf"
+    assert loads_model(CBASE + '\n[simulation]\nformulation = "minimal"\n').simulation.formulation == "minimal"
+
+
+def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
+    mf = load_model(EXAMPLES / "sliding_off_sphere.toml")
+    res = mf.simulate()
+    assert res.success and res.formulation == "index1"
+    (ev,) = res.events
+    v0, g, R = mf.simulation.initial["x_dot"], 9.81, 1.0
+    assert ev.name == "leave" and ev.terminal and ev.direction == -1
+    assert ev.q["y"] / R == pytest.approx((2 + v0 ** 2 / (g * R)) / 3, abs=1e-8)
+    assert ev.q["y"] / R == pytest.approx(2 / 3, abs=1e-6)
+    assert res.t[-1] == ev.t < mf.simulation.t_end  # the terminal event's row ends the result
+    assert abs(res["lambda_0"][-1]) < 1e-6
+
+
+@pytest.mark.parametrize("text, line, key, token", [
+    # an unknown symbol in a constraint
+    (CBASE.replace("- l**2", "- L**2"), HOLONOMIC_LINE, "constraints.holonomic[0]", "'L'"),
+    # a velocity in a holonomic constraint, one without a coordinate, too many constraints
+    (CBASE.replace("- l**2", "- x_dot"), HOLONOMIC_LINE, "constraints.holonomic[0]", "'x_dot'"),
+    (CBASE.replace('"x**2 + y**2 - l**2"', '"l - 1"'), HOLONOMIC_LINE, "constraints.holonomic[0]",
+     "involves no coordinate"),
+    (CBASE.replace('"x**2 + y**2 - l**2"', '"x", "y", "x + y"'), N_CBASE - 1, "constraints", "at most 2"),
+    (CBASE.replace("holonomic = ", "holonomc = "), HOLONOMIC_LINE, "constraints.holonomc", "'holonomc'"),
+    (CBASE.replace('holonomic = ["x**2 + y**2 - l**2"]', ""), N_CBASE - 1, "constraints", "no constraint"),
+    (CBASE.replace("holonomic = [", "holonomic = 1 #"), HOLONOMIC_LINE, "constraints.holonomic", "integer"),
+    (CBASE + 'inequalities = ["y_dot"]\n', N_CBASE + 1, "constraints.inequalities[0]", "'y_dot'"),
+    (CBASE + 'integrable = "maybe"\n', N_CBASE + 1, "constraints.integrable", "'maybe'"),
+    # nonholonomic constraints: a coefficient of an unknown coordinate (inline and [[...]] forms)
+    (KNIFE + '[constraints]\nnonholonomic = [\n  { A = [1, 0, 0] },\n  { coefficients = { x = 1, thet = "-2" } },\n]\n',
+     N_KNIFE + 4, "constraints.nonholonomic[1].coefficients.thet", "'thet'"),
+    (KNIFE + '[[constraints.nonholonomic]]\nA = [1, 0, 0]\n\n[[constraints.nonholonomic]]\n'
+     'coefficients = { x = 1, thet = "-2" }\n', N_KNIFE + 5, "constraints.nonholonomic[1].coefficients.thet",
+     "'thet'"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [1, 0] }]\n', N_KNIFE + 2, "constraints.nonholonomic[0].A",
+     "2 coefficients"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [1, 0, 0], coefficients = { x = 1 } }]\n', N_KNIFE + 2,
+     "constraints.nonholonomic[0]", "'A'"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A0 = 1 }]\n', N_KNIFE + 2, "constraints.nonholonomic[0]",
+     "'coefficients'"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [0, 0, 0], A0 = 1 }]\n', N_KNIFE + 2,
+     "constraints.nonholonomic[0]", "every coefficient is zero"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [1, 0, 0], A0 = "x_dot" }]\n', N_KNIFE + 2,
+     "constraints.nonholonomic[0].A0", "'x_dot'"),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [1, 0, "-theta"] }]\n', N_KNIFE + 2,
+     "constraints.nonholonomic[0]", 'integrable = "allow"'),
+    (KNIFE + '[constraints]\nnonholonomic = [{ A = [1, 0, 0], B = 1 }]\n', N_KNIFE + 2,
+     "constraints.nonholonomic[0].B", "'B'"),
+    # events: a call of a function not on the whitelist, unknown multipliers, bad values, no constraints
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "__import__(\'os\').system(\'true\')"\n', N_CBASE + 4,
+     "events[0].expr", "__import__"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "gamma(lambda_0)"\n', N_CBASE + 4, "events[0].expr", "'gamma'"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "lambda_1"\n', N_CBASE + 4, "events[0].expr", "'lambda_1'"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\ndirection = 2\n', N_CBASE + 5, "events[0].direction", "2"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\ndirection = true\n', N_CBASE + 5, "events[0].direction",
+     "True"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\nterminal = 1\n', N_CBASE + 5, "events[0].terminal", "1"),
+    (CBASE + '\n[[events]]\nname = "e f"\nexpr = "y"\n', N_CBASE + 3, "events[0].name", "'e f'"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\n\n[[events]]\nname = "e"\nexpr = "x"\n', N_CBASE + 7,
+     "events[1].name", "used twice"),
+    (CBASE + 'inequalities = ["y + 2"]\n\n[[events]]\nname = "ineq_0"\nexpr = "x"\n', N_CBASE + 4,
+     "events[0].name", "inequality"),
+    (CBASE + '\n[[events]]\nexpr = "y"\n', N_CBASE + 2, "events[0]", "'name'"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\ndir = 1\n', N_CBASE + 5, "events[0].dir", "'dir'"),
+    (BASE + '\n[[events]]\nname = "e"\nexpr = "theta"\n', N_BASE + 2, "events[0]", "[constraints]"),
+    # [simulation]: formulation and its options
+    (CBASE + '\n[simulation]\nformulation = "index2"\n', N_CBASE + 3, "simulation.formulation", "'index2'"),
+    (CBASE + '\n[simulation]\nformulation = 1\n', N_CBASE + 3, "simulation.formulation", "integer"),
+    (BASE + '\n[simulation]\nformulation = "ggl"\n', N_BASE + 3, "simulation.formulation", "[constraints]"),
+    (BASE + '\n[simulation]\nprojection = true\n', N_BASE + 3, "simulation.projection", "[constraints]"),
+    (CBASE + '\n[simulation]\nformulation = "ggl"\nmethod = "adams"\n', N_CBASE + 4, "simulation.method",
+     "'adams'"),
+    (CBASE + '\n[simulation]\nprojection = true\nmethod = "adams"\n', N_CBASE + 4, "simulation.method", "bdf"),
+    (CBASE + '\n[simulation]\nformulation = "ggl"\nbaumgarte = [1, 1]\n', N_CBASE + 4, "simulation.baumgarte",
+     "index1"),
+    (CBASE + '\n[simulation]\nformulation = "minimal"\nprojection = true\n', N_CBASE + 4, "simulation.projection",
+     "index1"),
+    (CBASE + '\n[simulation]\nbaumgarte = [1]\n', N_CBASE + 3, "simulation.baumgarte", "[1]"),
+    (CBASE + '\n[simulation]\nbaumgarte = [1, "-2"]\n', N_CBASE + 3, "simulation.baumgarte[1]", "negative"),
+    (CBASE + '\n[simulation]\nprojection = "yes"\n', N_CBASE + 3, "simulation.projection", "'yes'"),
+    (CBASE + '\n[simulation]\nformulation = "minimal"\noutputs = ["energy", "lambda"]\n', N_CBASE + 4,
+     "simulation.outputs[1]", "'lambda'"),
+    (CBASE + '\n[simulation]\noutputs = ["lambda_1"]\n', N_CBASE + 3, "simulation.outputs[0]", "'lambda_1'"),
+    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\n\n[simulation]\nformulation = "minimal"\n', N_CBASE + 7,
+     "simulation.formulation", "minimal"),
+    # the multipliers' names are reserved
+    (CBASE.replace("m = 1.0", "m = 1.0\nlambda_0 = 2"), 9, "parameters.lambda_0", "'lambda_0'"),
+])
+def test_constraint_and_event_mistakes_are_located(text, line, key, token):
+    assert_error(load_error(text), line=line, key=key, token=token)
+
+
+def test_constraint_error_in_a_file_names_the_file(tmp_path):
+    path = tmp_path / "typo.toml"
+    path.write_text(CBASE.replace("- l**2", "- L**2"))
+    with pytest.raises(ModelFileError) as info:
+        load_model(path)
+    assert_error(info.value, filename=str(path), line=HOLONOMIC_LINE, key="constraints.holonomic[0]", token="'L'")
+    assert "known names: x, y, t, pi, l, g, m" in str(info.value)
+
+
+def test_malicious_event_executes_nothing(tmp_path):
+    pwned = tmp_path / "pwned"
+    text = CBASE + f'\n[[events]]\nname = "e"\nexpr = "__import__(\'os\').system(\'touch {pwned}\')"\n'
+    err = load_error(text)
+    assert_error(err, line=N_CBASE + 4, key="events[0].expr", token="__import__")
+    assert not pwned.exists()
