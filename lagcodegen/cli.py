@@ -60,13 +60,9 @@ def _load(path: str, quiet: bool):
     return mf
 
 
-def _scene(mf, args, quiet: bool):
-    from .scene import Scene
-    t0 = time.perf_counter()
-    eom = mf.derive()  # derivation errors carry the file and line
-    _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
-    sim = mf.simulation
-    outputs = _csv(args.outputs) if getattr(args, "outputs", None) is not None else list(sim.outputs)
+def _parameters(sim, args) -> tuple[list[str] | None, dict[str, float], dict[str, float]]:
+    """(run-time parameter names or None for all, every value given by the file or --set, the
+    values of the folded ones) from the file's settings and the command line."""
     runtime = sim.runtime_parameters
     if getattr(args, "fold_all", False):
         runtime = []
@@ -75,6 +71,17 @@ def _scene(mf, args, quiet: bool):
     values = dict(sim.parameters)
     values.update(_assignments(getattr(args, "set", None)))
     folded_values = {k: v for k, v in values.items() if runtime is not None and k not in runtime}
+    return runtime, values, folded_values
+
+
+def _scene(mf, args, quiet: bool):
+    from .scene import Scene
+    t0 = time.perf_counter()
+    eom = mf.derive()  # derivation errors carry the file and line
+    _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
+    sim = mf.simulation
+    outputs = _csv(args.outputs) if getattr(args, "outputs", None) is not None else list(sim.outputs)
+    runtime, values, folded_values = _parameters(sim, args)
     scene = Scene(eom, jacobian=not getattr(args, "no_jacobian", False) and sim.jacobian, outputs=outputs,
                   runtime_parameters=runtime, values=folded_values, prefix=getattr(args, "prefix", None))
     runtime_values = {k: v for k, v in values.items() if k in scene.runtime_parameters}
@@ -105,14 +112,7 @@ def _constrained(mf, args, quiet: bool) -> tuple[dict, dict, str]:
     system, sim = mf.constrained, mf.simulation
     formulation, baumgarte, projection = _formulation(mf, args, quiet)
     requested = _csv(args.outputs) if getattr(args, "outputs", None) is not None else list(sim.outputs)
-    runtime = sim.runtime_parameters
-    if getattr(args, "fold_all", False):
-        runtime = []
-    elif getattr(args, "runtime_parameters", None) is not None:
-        runtime = _csv(args.runtime_parameters)
-    values = dict(sim.parameters)
-    values.update(_assignments(getattr(args, "set", None)))
-    folded_values = {k: v for k, v in values.items() if runtime is not None and k not in runtime}
+    runtime, values, folded_values = _parameters(sim, args)
     options = dict(formulation=formulation, outputs=constrained_outputs(system, requested, formulation),
                    events=list(mf.events), runtime_parameters=runtime, values=folded_values,
                    prefix=getattr(args, "prefix", None),
