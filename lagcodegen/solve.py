@@ -27,7 +27,7 @@ def output_times(t) -> np.ndarray:
     t = np.asarray(t, dtype=float).ravel()
     if t.size == 2:
         t = np.linspace(t[0], t[1], 1001)
-    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+    if t.size < 2 or not np.isfinite(t).all() or not (t[1:] > t[:-1]).all():
         raise LagcodegenError("t must be at least two finite, strictly increasing times")
     return t
 
@@ -44,7 +44,7 @@ def state_vector(val, names: list[str], what: str) -> np.ndarray:
     arr = np.array(val, dtype=float).ravel()
     if arr.size != len(names):
         raise ModelError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ModelError(f"{what} has non-finite values")
     return arr
 
@@ -106,7 +106,7 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     """
     t = output_times(t)
     y = _initial_state(cm, q0, v0, y0, z0)
-    if not np.all(np.isfinite(y)):
+    if not np.isfinite(y).all():
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
     rtol = check_finite(rtol, "rtol")
@@ -125,7 +125,7 @@ def simulate(cm: CompiledModel, t, q0=None, v0=None, y0=None, z0=None, params: d
     if jacobian and not has_jac:
         raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
     atol_arr = np.broadcast_to(np.asarray(atol, dtype=float), (cm.ny,)).copy()
-    if not np.all(np.isfinite(atol_arr)) or np.any(atol_arr < 0) or rtol < 0:
+    if not np.isfinite(atol_arr).all() or (atol_arr < 0).any() or rtol < 0:
         raise LagcodegenError("tolerances must be finite and non-negative")
 
     if backend != "native":  # the native driver reports this itself, from its first RHS call
@@ -228,15 +228,15 @@ def _solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_s
                   min_step, max_order, band=None, fixedpoint=False) -> Result:
     ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
     nt = t.size
-    yout = np.full((nt, cm.ny), np.nan)
-    out = np.full((nt, max(cm.code.nout, 1)), np.nan)
+    yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
+    out = np.empty((nt, max(cm.code.nout, 1)))
     opt = ffi.new(f"{pre}_options *")
     st = ffi.new(f"{pre}_stats *")
     opt.method = METHODS[method]
     opt.jacobian = int(jacobian)
     opt.rtol = rtol
     opt.atol = float(atol[0])
-    atol_c = ffi.from_buffer("double[]", atol) if np.any(atol != atol[0]) else ffi.NULL
+    atol_c = ffi.from_buffer("double[]", atol) if (atol != atol[0]).any() else ffi.NULL
     opt.atol_vec = atol_c
     opt.max_steps = max_steps
     opt.first_step = first_step
@@ -289,7 +289,7 @@ def _solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first
         JJ[:, :] = jbuf
 
     options = dict(method="Adams" if method == "adams" else "BDF", rtol=rtol,
-                   atol=atol if np.any(atol != atol[0]) else float(atol[0]),
+                   atol=atol if (atol != atol[0]).any() else float(atol[0]),
                    max_num_steps=max_steps, first_step=first_step, max_step=max_step, min_step=min_step)
     if max_order:
         options["max_order"] = max_order
