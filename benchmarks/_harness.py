@@ -385,6 +385,14 @@ def format_table(columns, rows) -> str:
     return "\n".join([line(headings), rule, *(line(r) for r in cells)])
 
 
+def write_report(out: Path, name: str, text: str, rows=None) -> None:
+    """``out/name.txt`` (the printed table) and, given rows, ``out/name.csv``; creates ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.txt").write_text(text if text.endswith("\n") else text + "\n")
+    if rows is not None:
+        write_csv(out / f"{name}.csv", rows)
+
+
 def write_csv(path: Path, rows) -> None:
     keys = []
     for row in rows:

@@ -21,7 +21,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import csv
 import datetime
 import os
 import platform
@@ -35,6 +34,8 @@ from pathlib import Path
 
 import lagcodegen
 from lagcodegen import Scene, derive, generate_c, generate_fortran, systems
+
+import _harness  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 Q0 = 0.5  # initial angle of every link [rad]; velocities 0.1
 
@@ -291,12 +292,7 @@ def main(argv=None) -> int:
     lines = header + [""] + table(rows)
     print("\n".join(lines))
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "c_vs_fortran.txt").write_text("\n".join(lines) + "\n")
-        with open(args.out / "c_vs_fortran.csv", "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        _harness.write_report(args.out, "c_vs_fortran", "\n".join(lines), rows)
         progress(f"wrote {args.out / 'c_vs_fortran.txt'} and {args.out / 'c_vs_fortran.csv'}")
     return 0
 

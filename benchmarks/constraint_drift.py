@@ -25,7 +25,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import csv
 import statistics
 import sys
 import time
@@ -36,6 +35,8 @@ import numpy as np
 import lagcodegen as lcg
 from lagcodegen.constraints import ConstrainedSystem
 from lagcodegen.dae import compile_constrained
+
+import _harness  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 
 TOL = dict(rtol=1e-10, atol=1e-12)
 THETA0 = 1.0
@@ -108,12 +109,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print(text)
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "constraint_drift.txt").write_text(text + "\n")
-        with open(args.out / "constraint_drift.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        _harness.write_report(args.out, "constraint_drift", text, rows)
         print(f"wrote {args.out / 'constraint_drift.txt'}, {args.out / 'constraint_drift.csv'}")
     return 0
 

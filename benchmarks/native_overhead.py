@@ -189,9 +189,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "native_overhead.txt").write_text(text)
-        H.write_csv(args.out / "native_overhead.csv", rows)
+        H.write_report(args.out, "native_overhead", text, rows)
         progress(f"wrote {args.out}/native_overhead.txt and .csv")
     progress(f"done in {time.perf_counter() - start:.1f} s")
     return 0

@@ -468,9 +468,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "peers.txt").write_text(text)
-        H.write_csv(args.out / "peers.csv", [{k: v for k, v in r.items() if k != "points"} for r in rows])
+        H.write_report(args.out, "peers", text, [{k: v for k, v in r.items() if k != "points"} for r in rows])
         biggest = max((r["n"] for r in rows if r.get("points")), default=None)
         if biggest is not None:
             curves = {r["peer"]: r["points"] for r in rows if r["n"] == biggest and r.get("points")}

@@ -252,9 +252,7 @@ def main(argv=None) -> int:
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "pruning.txt").write_text(text)
-        H.write_csv(args.out / "pruning.csv", rows)
+        H.write_report(args.out, "pruning", text, rows)
         progress(f"wrote {args.out}/pruning.txt and pruning.csv")
     progress(f"done in {time.perf_counter() - start:.1f} s")
     return 0

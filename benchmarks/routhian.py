@@ -189,8 +189,7 @@ def main(argv=None) -> int:
     print(text)
 
     if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "routhian.txt").write_text(text + "\n")
+        _harness.write_report(args.out, "routhian", text)
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt

@@ -492,9 +492,7 @@ def main(argv=None) -> int:
     text = report(rows, limits, chaos, (load_start, H.load_average()))
     print(text, end="")
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "stress.txt").write_text(text)
-        H.write_csv(args.out / "stress.csv", rows)
+        H.write_report(args.out, "stress", text, rows)
         if any(r["section"] == "D" for r in rows):
             chaos_plot(args.out / "stress_chaos.png", rows)
         progress(f"wrote {args.out}/stress.txt, stress.csv, stress_chaos.png")

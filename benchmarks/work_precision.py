@@ -599,9 +599,7 @@ def main(argv=None) -> int:
     text = report(settings, (load_start, H.load_average()), results)
     print(text, end="")
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "work_precision.txt").write_text(text)
-        H.write_csv(args.out / "work_precision.csv", [r for _, rows in results for r in rows])
+        H.write_report(args.out, "work_precision", text, [r for _, rows in results for r in rows])
         for scene, rows in results:
             H.work_precision_plot(args.out / f"wp_{scene.key}.png", scene.title, curves(rows),
                                   f"max relative error over the grid ({scene.compared})", scene.ref_unc)
