@@ -18,3 +18,11 @@ def cc():
     if shutil.which(compiler) is None:
         pytest.fail(f"C compiler {compiler!r} not found: install gcc")
     return compiler
+
+
+@pytest.fixture(scope="session")
+def tools():
+    """make, cmake, gcc and gfortran, which the bundle tests build with."""
+    missing = [tool for tool in ("make", "cmake", "gcc", "gfortran") if shutil.which(tool) is None]
+    if missing:
+        pytest.fail(f"bundle tests need {', '.join(missing)}")

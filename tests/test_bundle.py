@@ -3,7 +3,6 @@ lagcodegen's own CVODE integration, sanitizers, byte-stable regeneration, genera
 
 import csv
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -26,13 +25,6 @@ SETUPS = {
                        y0=[1.0, 0.0], params={"w": 1.3}, t_end=10.0, other={"w": 1.7}),
 }
 CASES = [(name, lang) for name in SETUPS for lang in ("c", "fortran")]
-
-
-@pytest.fixture(scope="module")
-def tools():
-    missing = [tool for tool in ("make", "cmake", "gcc", "gfortran") if shutil.which(tool) is None]
-    if missing:
-        pytest.fail(f"bundle tests need {', '.join(missing)}")
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ projection), sanitizers, byte-stable regeneration."""
 
 import csv
 import os
-import shutil
 import subprocess
 
 import numpy as np
@@ -21,13 +20,6 @@ T_END = 10.0
 Y0 = [float(v) for v in pendulum_q0()] + [0.0, 0.0]
 OUTPUTS = ["energy", "lambda", "residuals"]
 BAUMGARTE = (5.0, 5.0)
-
-
-@pytest.fixture(scope="module")
-def tools():
-    missing = [tool for tool in ("make", "cmake", "gcc", "gfortran") if shutil.which(tool) is None]
-    if missing:
-        pytest.fail(f"bundle tests need {', '.join(missing)}")
 
 
 @pytest.fixture(scope="module")
