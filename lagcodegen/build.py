@@ -26,11 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cffi
-import numpy as np
 
-from . import __version__
-from .codegen import GeneratedCode, environment
-from .errors import CompileError, LagcodegenError, SingularMassMatrixError, SolverError
+from .codegen.cffi_decl import model_cdef
+from .codegen.record import GeneratedCode
+from .codegen.templates import environment
+from .errors import CompileError, LagcodegenError
+from .version import __version__
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
@@ -103,35 +104,6 @@ def compiler_id(cc: str) -> str:
     return f"{path}\n{ver}"
 
 
-def _cdef(code: GeneratedCode, native: bool) -> str:
-    p = code.prefix
-    lines = [f"int {p}_rhs(double t, const double *y, const double *p, double *ydot);"]
-    if code.jacobian:
-        lines.append(f"int {p}_jac(double t, const double *y, const double *ydot, const double *p, double *jac);")
-    if code.nout:
-        lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
-    if getattr(code, "sparse_jacobian", False):
-        lines.append(f"int {p}_jac_sparse(double t, const double *y, const double *ydot, const double *p, "
-                     f"double *vals);")
-    if native:
-        if code.nout:
-            lines.append(f"int {p}_outputs_batch(int nt, const double *t, const double *y, const double *p, "
-                         f"double *out);")
-        lines.append(f"""
-typedef struct {{
-    int method; int jacobian; double rtol; double atol; const double *atol_vec;
-    long max_steps; double first_step; double max_step; double min_step; int max_order;
-    int linear_solver; long mupper; long mlower;
-}} {p}_options;
-typedef struct {{
-    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
-    double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512];
-}} {p}_stats;
-int {p}_cvode_solve(const double *p, const double *y0, int nt, const double *tout,
-                    double *yout, double *out, const {p}_options *opt, {p}_stats *st);""")
-    return "\n".join(lines)
-
-
 def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
     """The native CVODE driver files of ``code`` (header, source, SUNDIALS declarations)."""
     env = environment()
@@ -145,103 +117,16 @@ def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
     }
 
 
-class CompiledModel:
-    """A compiled scene: the cffi module plus the layout of its arrays.
+@dataclass(frozen=True)
+class BuiltModule:
+    """A compiled, loaded cffi module: the code it was built from, where it lives, whether it
+    came from the cache. :class:`lagcodegen.solvers.compiled.CompiledModel` wraps it."""
 
-    Call :meth:`rhs`, :meth:`jac`, :meth:`outputs` from Python, or :meth:`simulate`.
-    """
-
-    def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool):
-        self.code = code
-        self.module = module
-        self.ffi = module.ffi
-        self.lib = module.lib
-        self.path = path
-        self.native = native
-        self.cached = cached
-        p = code.prefix
-        self._rhs = getattr(self.lib, f"{p}_rhs")
-        self._jac = getattr(self.lib, f"{p}_jac", None)
-        self._out = getattr(self.lib, f"{p}_outputs", None)
-
-    # layout
-    @property
-    def n(self) -> int:
-        return self.code.n
-
-    @property
-    def ny(self) -> int:
-        return self.code.ny
-
-    @property
-    def state_names(self) -> list[str]:
-        return self.code.state_names
-
-    @property
-    def param_names(self) -> list[str]:
-        return self.code.param_names
-
-    @property
-    def output_names(self) -> list[str]:
-        return self.code.output_names
-
-    def parameter_vector(self, params: dict | None = None) -> np.ndarray:
-        """Run-time parameter array: defaults overridden by ``params`` (name -> value)."""
-        from .model import check_finite
-        vals = dict(zip(self.code.param_names, self.code.param_defaults))
-        for k, v in (params or {}).items():
-            if k not in vals:
-                raise LagcodegenError(f"{k!r} is not a run-time parameter of this scene "
-                                      f"(run-time parameters: {', '.join(vals) or 'none'})")
-            vals[k] = check_finite(v, f"parameter {k!r}")
-        return np.array([vals[k] for k in self.code.param_names], dtype=float)
-
-    def _ptr(self, arr):
-        return self.ffi.from_buffer("double[]", arr) if arr.size else self.ffi.NULL
-
-    def rhs(self, t: float, y, p=None) -> np.ndarray:
-        """f(t, y, p) evaluated by the compiled code."""
-        y = np.ascontiguousarray(y, dtype=float)
-        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
-        out = np.empty(self.ny)
-        rc = self._rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
-        _check_rc(rc, t, "right-hand side")
-        return out
-
-    def jac(self, t: float, y, p=None) -> np.ndarray:
-        """df/dy (ny x ny) evaluated by the compiled code."""
-        if self._jac is None:
-            raise LagcodegenError("this scene has no Jacobian (Scene(jacobian=False))")
-        ydot = self.rhs(t, y, p)
-        y = np.ascontiguousarray(y, dtype=float)
-        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
-        J = np.empty((self.ny, self.ny), order="F")
-        rc = self._jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
-        _check_rc(rc, t, "Jacobian")
-        return J
-
-    def outputs(self, t: float, y, p=None) -> np.ndarray:
-        """The scene's outputs at (t, y)."""
-        if self._out is None:
-            return np.empty(0)
-        y = np.ascontiguousarray(y, dtype=float)
-        p = self.parameter_vector() if p is None else np.ascontiguousarray(p, dtype=float)
-        out = np.empty(self.code.nout)
-        rc = self._out(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
-        _check_rc(rc, t, "outputs")
-        return out
-
-    def simulate(self, t, **kwargs):
-        """Integrate; see :func:`lagcodegen.solve.simulate`."""
-        from .solve import simulate
-        return simulate(self, t, **kwargs)
-
-
-def _check_rc(rc: int, t: float, what: str) -> None:
-    if rc == 1:
-        raise SingularMassMatrixError(f"{what}: the mass matrix is singular", t=float(t))
-    if rc == 2:
-        raise SolverError(f"{what}: a computed value is not finite", t=float(t))
+    code: GeneratedCode
+    module: object
+    path: Path
+    native: bool
+    cached: bool
 
 
 def _load(name: str, path: Path):
@@ -266,7 +151,7 @@ def _run(cmd: list[str], cwd: Path, what: str, code: GeneratedCode) -> None:
 
 def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
           cflags: tuple[str, ...] = DEFAULT_CFLAGS, verbose: bool = False,
-          fc: str | None = None, fflags: tuple[str, ...] = DEFAULT_FFLAGS) -> CompiledModel:
+          fc: str | None = None, fflags: tuple[str, ...] = DEFAULT_FFLAGS) -> BuiltModule:
     """Compile ``code`` (and the native CVODE driver) into a cffi module; cached by content hash.
 
     Every ``.c`` file of ``code.files`` is compiled with ``cc``, every ``.f90`` file with ``fc``
@@ -283,7 +168,7 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         sources.update(driver_sources(code, sundials))
         headers.append(f"{code.prefix}_cvode.h")
     fortran = sorted(name for name in sources if name.endswith(".f90"))
-    cdef = _cdef(code, native) + "\n" + code.cdef_extra
+    cdef = model_cdef(code, native) + "\n" + code.cdef_extra
     link = sundials.link_args(("cvode", *code.sundials_libs, "core")) if native else []
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
     h = hashlib.sha256()
@@ -300,7 +185,7 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
     final = root / key
     sofile = final / f"{modname}{ext}"
     if sofile.is_file():
-        return CompiledModel(code, _load(modname, sofile), sofile, native, cached=True)
+        return BuiltModule(code, _load(modname, sofile), sofile, native, cached=True)
 
     tmp = Path(tempfile.mkdtemp(prefix=f".build-{key}-", dir=root))
     try:
@@ -334,4 +219,4 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
-    return CompiledModel(code, _load(modname, sofile), sofile, native, cached=False)
+    return BuiltModule(code, _load(modname, sofile), sofile, native, cached=False)

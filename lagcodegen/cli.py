@@ -23,7 +23,19 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+import sympy as sp
+
+from .api import build, compile_constrained
+from .codegen.bundle import render_bundle, render_constrained_bundle, stale_files, write_files
+from .codegen.c import generate_c
+from .codegen.constrained import generate_constrained
+from .codegen.languages import generate_code
+from .derivation import derive
 from .errors import CompileError, LagcodegenError, ModelError, SolverError
+from .formulation.scene import Scene
+from .modelfile import FORMULATIONS, constrained_method, constrained_outputs, load_model
+from .theory.minimal import reduced_model, solve_constraints
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
 
@@ -53,7 +65,6 @@ def _assignments(items: list[str]) -> dict[str, float]:
 
 
 def _load(path: str, quiet: bool):
-    from .modelfile import load_model
     t0 = time.perf_counter()
     mf = load_model(path)
     _progress(f"loaded {path} ({mf.model.n} coordinates) in {time.perf_counter() - t0:.3f} s", quiet)
@@ -75,7 +86,6 @@ def _parameters(sim, args) -> tuple[list[str] | None, dict[str, float], dict[str
 
 
 def _scene(mf, args, quiet: bool):
-    from .scene import Scene
     t0 = time.perf_counter()
     eom = mf.derive()  # derivation errors carry the file and line
     _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
@@ -105,7 +115,6 @@ def _formulation(mf, args, quiet: bool) -> tuple[str, tuple[float, float], bool]
 def _constrained(mf, args, quiet: bool) -> tuple[dict, dict, str]:
     """compile_constrained options of a constrained file (with the scene options of the command
     line), all parameter values by name, and the formulation."""
-    from .modelfile import constrained_outputs
     t0 = time.perf_counter()
     mf.derive()  # derivation errors carry the file and line
     _progress(f"derived Lagrange's equations in {time.perf_counter() - t0:.3f} s", quiet)
@@ -131,11 +140,6 @@ def _runtime_values(options: dict, values: dict) -> dict:
 
 def _minimal_scene(mf, options: dict, values: dict, quiet: bool):
     """The Scene of the reduced model (minimal coordinates) on the branch of the file's initial state."""
-    import sympy as sp
-    from .derivation import derive
-    from .errors import ModelError
-    from .minimal import reduced_model, solve_constraints
-    from .scene import Scene
     system = mf.constrained
     model = system.model
     if options["events"] or system.inequalities:
@@ -168,9 +172,6 @@ def _minimal_scene(mf, options: dict, values: dict, quiet: bool):
 
 def _constrained_files(mf, args) -> dict[str, str]:
     """Files of ``generate`` for a constrained model file."""
-    from .bundle import render_bundle, render_constrained_bundle
-    from .codegen import generate_code
-    from .constrained_codegen import generate_constrained_c
     options, values, formulation = _constrained(mf, args, args.quiet)
     sim = mf.simulation
     q0, v0 = mf.initial_state()
@@ -191,7 +192,7 @@ def _constrained_files(mf, args) -> dict[str, str]:
                                          values=options["values"], prefix=options["prefix"], ggl=ggl,
                                          baumgarte=options.get("baumgarte", (0.0, 0.0)), y0=q0 + v0,
                                          params=runtime_values, t_start=sim.t_start, t_end=sim.t_end)
-    code, _ = generate_constrained_c(mf.constrained, ggl=ggl, ggl_jacobian=options["jacobian"],
+    code, _ = generate_constrained(mf.constrained, ggl=ggl, ggl_jacobian=options["jacobian"],
                                      outputs=options["outputs"], events=options["events"],
                                      runtime_parameters=options["runtime_parameters"], values=options["values"],
                                      prefix=options["prefix"], lang=args.lang, drivers=False)
@@ -200,8 +201,6 @@ def _constrained_files(mf, args) -> dict[str, str]:
 
 
 def cmd_generate(args) -> int:
-    from .bundle import render_bundle, stale_files, write_files
-    from .codegen import generate_code
     mf = _load(args.model, args.quiet)
     if mf.constrained is not None:
         files = _constrained_files(mf, args)
@@ -234,9 +233,6 @@ def cmd_generate(args) -> int:
 
 def _simulate_constrained(mf, args):
     """Compile and integrate a constrained model file; returns the Result."""
-    import numpy as np
-    from .dae import compile_constrained
-    from .modelfile import constrained_method
     options, values, formulation = _constrained(mf, args, args.quiet)
     t0 = time.perf_counter()
     sim = compile_constrained(mf.constrained, verbose=not args.quiet, **options)
@@ -268,9 +264,6 @@ def _simulate_constrained(mf, args):
 
 
 def cmd_simulate(args) -> int:
-    import numpy as np
-    from .build import build
-    from .codegen import generate_c
     mf = _load(args.model, args.quiet)
     if mf.constrained is not None:
         res = _simulate_constrained(mf, args)
@@ -318,7 +311,6 @@ def _write_result(res, args, plotted: list[str] | None = None) -> int:
 
 
 def cmd_info(args) -> int:
-    import sympy as sp
     mf = _load(args.model, True)
     eom = mf.derive()
     model = mf.model
@@ -343,7 +335,6 @@ def cmd_info(args) -> int:
 
 def _info_constrained(mf, eom, show, simplify: bool) -> None:
     """The constraints, their differential form (eq. 4.2) and the equations with multipliers (eq. 4.5)."""
-    import sympy as sp
     system = mf.constrained
     model = system.model
     simp = sp.simplify if simplify else (lambda e: e)
@@ -385,7 +376,6 @@ def _info_constrained(mf, eom, show, simplify: bool) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
-    from .modelfile import FORMULATIONS
     ap = argparse.ArgumentParser(prog="lagcodegen", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--version", action="version", version=f"lagcodegen {__import__('lagcodegen').__version__}")

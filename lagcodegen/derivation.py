@@ -23,7 +23,7 @@ import symengine as se
 import sympy as sp
 
 from .errors import DerivationError, ModelError
-from .model import Model, Particle, PlanarBody, RigidBody
+from .model.model import Model, Particle, PlanarBody, RigidBody
 
 
 def to_se(expr, what: str = "expression"):

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .util import atomic_write
+
 
 @dataclass
 class Result:
@@ -81,7 +83,7 @@ class Result:
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
         """Write CSV (``.csv``) or NPZ (``.npz``), atomically."""
-        from .codegen import atomic_write
+
         path = Path(path)
         cols = self.columns()
         if path.suffix == ".npz":

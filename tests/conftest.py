@@ -9,8 +9,6 @@ import pytest
 # One private cache per session: builds are reused between tests, never from an earlier run.
 os.environ.setdefault("LAGCODEGEN_CACHE", tempfile.mkdtemp(prefix="lagcodegen-test-cache-"))
 
-STRICT_CFLAGS = ["-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic"]
-
 
 @pytest.fixture(scope="session")
 def cc():
@@ -26,3 +24,10 @@ def tools():
     missing = [tool for tool in ("make", "cmake", "gcc", "gfortran") if shutil.which(tool) is None]
     if missing:
         pytest.fail(f"bundle tests need {', '.join(missing)}")
+
+
+@pytest.fixture(scope="session")
+def fc():
+    if shutil.which("gfortran") is None:
+        pytest.fail("gfortran not found: apt-get install gfortran")
+    return "gfortran"

@@ -1,0 +1,13 @@
+"""Code generation: the language-neutral kernels of :mod:`lagcodegen.formulation` printed as C99
+(:mod:`.c`) or Fortran 2008 (:mod:`.fortran`) through the jinja2 templates, the cffi
+declarations (:mod:`.cffi_decl`) and the bundles for other projects' builds (:mod:`.bundle`).
+
+A language is a module with ``generate(scene)``, ``check_prefix(prefix, suffix)`` and
+``constrained_source(blocks, ctx)``, registered in :mod:`.languages`; callers name a language
+and never test for one.
+"""
+
+from .c import generate_c  # noqa: F401
+from .fortran import generate_fortran  # noqa: F401
+from .languages import LANGUAGES, check_language, generate_code  # noqa: F401
+from .record import GeneratedCode  # noqa: F401

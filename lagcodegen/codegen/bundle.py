@@ -1,0 +1,273 @@
+"""Embeddable bundles: the generated model code plus build files, examples and a README.
+
+:func:`write_bundle` writes, into one folder, everything a C or Fortran project needs to use
+a :class:`~lagcodegen.scene.Scene` without lagcodegen:
+
+* the model: ``<prefix>.h`` and ``<prefix>.c`` (C99) or ``<prefix>.f90`` (Fortran 2008
+  module ``<prefix>_mod`` with C bindings, see :mod:`lagcodegen.fortran`);
+* ``Makefile``: the static library ``lib<prefix>.a``, ``make rk4``, ``make check`` (runs the
+  RK4 example), ``make cvode`` (the SUNDIALS example, on request);
+* ``CMakeLists.txt``: the same library and RK4 example; the SUNDIALS example only if
+  ``find_package(SUNDIALS CONFIG)`` succeeds (linking ``SUNDIALS::cvode``);
+* ``rk4_example.c``: a fixed-step RK4 integration that needs nothing but a C compiler;
+* ``cvode_example.c`` (``sundials_example=True``): the same with SUNDIALS CVODE;
+* ``README.md``: how to call each function, array layouts, return codes.
+
+Constrained systems (:class:`~lagcodegen.constraints.ConstrainedSystem`, index-1 formulation):
+:func:`render_constrained_bundle`, or :func:`write_bundle` given the system instead of a scene,
+bundles ``<prefix>_dae.h`` with ``<prefix>_dae.c`` or ``<prefix>_dae.f90`` (augmented-system
+solve, index-1 right-hand side, residuals, projection, outputs; optionally events and the GGL
+residual), the same Makefile and CMakeLists.txt, an RK4 example of the index-1 ODE (initial
+state projected onto the constraints; Baumgarte parameters and per-step projection as options)
+and a README describing the constrained functions. No SUNDIALS example.
+
+Everything is rendered in memory first; then each file whose content changed is replaced
+atomically, and unchanged files are not touched (their modification times stay, so ``make``
+rebuilds nothing). The output depends on the scene and the options only (no timestamps,
+fixed order): regenerating gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+from ..errors import ModelError
+from ..formulation.scene import Scene
+from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
+from ..theory.constraints import ConstrainedSystem
+from ..util import atomic_write, check_finite
+from ..version import __version__
+from .constrained import generate_constrained
+from .languages import LANGUAGES, generate_code
+from .record import GeneratedCode
+from .templates import environment
+
+#: Languages of the generated model code.
+#: Default initial coordinates of the examples when none are given (velocities and z: 0).
+DEFAULT_Q0 = 0.5
+
+
+def _c_double(value: float) -> str:
+    """A C double literal that reads back as exactly ``value``."""
+    text = repr(float(value))
+    return text if "." in text or "e" in text else text + ".0"
+
+
+def _initial_state(code: GeneratedCode, y0) -> list[float]:
+    if y0 is None:
+        return [DEFAULT_Q0] * code.n + [0.0] * (code.n + code.nz)
+    values = [check_finite(v, "bundle initial state") for v in y0]
+    if len(values) == 2 * code.n:
+        values += [0.0] * code.nz
+    if len(values) != code.ny:
+        raise ModelError(f"bundle initial state: expected {code.ny} values ({', '.join(code.state_names)}), "
+                         f"got {len(values)}")
+    return values
+
+
+def _parameters(code: GeneratedCode, params: Mapping[str, float] | None) -> list[float]:
+    values = dict(zip(code.param_names, code.param_defaults))
+    for name, value in (params or {}).items():
+        if name not in values:
+            raise ModelError(f"bundle: {name!r} is not a run-time parameter of this scene "
+                             f"(run-time parameters: {', '.join(values) or 'none'})")
+        values[name] = check_finite(value, f"bundle parameter {name!r}")
+    return [values[name] for name in code.param_names]
+
+
+def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, *,
+                  y0: Sequence[float] | None = None, params: Mapping[str, float] | None = None,
+                  t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
+                  code: GeneratedCode | None = None) -> dict[str, str]:
+    """The files of the bundle of ``scene`` (name -> text), rendered in memory.
+
+    ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
+    name), ``t_start``, ``t_end`` and ``steps`` are the examples' defaults (the examples take
+    others on their command line): by default q = 0.5, q' = 0, the parameters' defaults, t
+    from 0 to 10 and RK4 steps of at most 1e-3. ``code``: the model code, if already generated
+    for this scene and language.
+    """
+    if isinstance(scene, ConstrainedSystem):
+        raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
+                         "or write_bundle")
+    if code is None:
+        code = generate_code(scene, lang)
+    elif lang not in LANGUAGES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    fortran = lang == "fortran"
+    t_start, t_end, steps = _checked_span(t_start, t_end, steps)
+    source = f"{code.prefix}.f90" if fortran else code.source_name
+    names = [code.header_name, source]
+    missing = [name for name in names if name not in code.files]
+    if missing:
+        raise ModelError(f"bundle: the generated code has no {', '.join(missing)} (language {lang!r}?)")
+
+    folded = sorted(scene.folded.items())
+    table = [(code.header_name, "C header: sizes, array layouts, return codes, function prototypes"),
+             (source, (f"Fortran 2008 module `{code.prefix}_mod`, functions bound to the C names" if fortran
+                       else "C99 source of the functions (libm only)")),
+             ("Makefile", f"`make`: lib{code.prefix}.a and rk4_example; `make check` runs it"),
+             ("CMakeLists.txt", "the same with CMake"),
+             ("rk4_example.c", "fixed-step RK4 integration, CSV on stdout; needs only a C compiler")]
+    if sundials_example:
+        table.append(("cvode_example.c", "the same with SUNDIALS CVODE (built by CMake when SUNDIALS is found)"))
+    table.append(("README.md", "this file"))
+    y_values = _initial_state(code, y0)
+    ctx = dict(
+        version=__version__, prefix=code.prefix, PREFIX=code.prefix.upper(), model_name=code.model_name,
+        lang=lang, fortran=fortran, lang_name="Fortran 2008" if fortran else "C99",
+        header=code.header_name, source=source, stem=code.prefix, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
+        nout=code.nout, state_names=code.state_names, param_names=code.param_names,
+        param_values=[_c_double(v) for v in _parameters(code, params)], output_names=code.output_names,
+        jacobian=code.jacobian, folded=folded,
+        folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
+        y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
+        steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table)
+    env = environment()
+    files = {name: code.files[name] for name in names}
+    files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
+    files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
+    files["rk4_example.c"] = env.get_template("bundle/rk4_example.c.j2").render(**ctx)
+    if sundials_example:
+        files["cvode_example.c"] = env.get_template("bundle/cvode_example.c.j2").render(**ctx)
+    files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
+    return files
+
+
+def _checked_span(t_start, t_end, steps) -> tuple[float, float, int]:
+    t_start = check_finite(t_start, "bundle t_start")
+    t_end = check_finite(t_end, "bundle t_end")
+    if not t_end > t_start:
+        raise ModelError(f"bundle: t_end ({t_end:g}) must be greater than t_start ({t_start:g})")
+    if steps is None:
+        steps = max(1000, math.ceil(1000 * (t_end - t_start)))
+    if int(steps) != steps or steps < 1:
+        raise ModelError(f"bundle: steps must be a positive integer, got {steps!r}")
+    return t_start, t_end, int(steps)
+
+
+def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str] | None = None,
+                              events=(), runtime_parameters=None, values: Mapping[str, float] | None = None,
+                              prefix: str | None = None, ggl: bool = False,
+                              baumgarte: tuple[float, float] = (0.0, 0.0), y0: Sequence[float] | None = None,
+                              params: Mapping[str, float] | None = None, t_start: float = 0.0,
+                              t_end: float = 10.0, steps: int | None = None) -> dict[str, str]:
+    """The files of the bundle of a :class:`~lagcodegen.constraints.ConstrainedSystem` in the
+    index-1 formulation (name -> text), rendered in memory.
+
+    The library is ``<prefix>_dae.h`` with ``<prefix>_dae.c`` (C99) or ``<prefix>_dae.f90``
+    (Fortran 2008 module ``<prefix>_dae_mod``, functions bound to the C names): the augmented
+    system solve ``<prefix>_kkt``, the index-1 right-hand side ``<prefix>_crhs``, residuals,
+    projection, outputs, root functions for ``events``, and with ``ggl`` the GGL residual and
+    its Jacobian. The Makefile, CMakeLists.txt and README.md are those of :func:`render_bundle`;
+    ``rk4_example.c`` integrates the index-1 ODE with fixed-step RK4 (initial state projected
+    onto the constraints; Baumgarte parameters ``baumgarte`` = (alpha, beta) by default, others
+    and per-step projection on its command line). There is no SUNDIALS example (the native
+    drivers of :mod:`lagcodegen.dae` are written against lagcodegen's own SUNDIALS declarations).
+
+    ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
+    :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
+    ``y0`` (q and q', projected onto the constraints by the example; default q = 0.5, q' = 0),
+    ``params``, ``t_start``, ``t_end``, ``steps``: the example's defaults, as for
+    :func:`render_bundle`.
+    """
+    if not isinstance(system, ConstrainedSystem):
+        raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
+    if lang not in LANGUAGES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    alpha, beta = (check_finite(x, "bundle baumgarte parameter") for x in baumgarte)
+    t_start, t_end, steps = _checked_span(t_start, t_end, steps)
+    code, info = generate_constrained(system, ggl=ggl, outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else outputs,
+                                        events=events, runtime_parameters=runtime_parameters, values=values,
+                                        prefix=prefix, lang=lang, drivers=False)
+    fortran = lang == "fortran"
+    pre = code.prefix
+    header = f"{pre}_dae.h"
+    source = f"{pre}_dae.{'f90' if fortran else 'c'}"
+    y_values = _initial_state(code, y0)
+    folded = sorted(info.folded.items())
+    table = [(header, "C header: sizes, array layouts, return codes, function prototypes"),
+             (source, (f"Fortran 2008 module `{pre}_dae_mod`, functions bound to the C names" if fortran
+                       else "C99 source of the functions (libm only)")),
+             ("Makefile", f"`make`: lib{pre}.a and rk4_example; `make check` runs it"),
+             ("CMakeLists.txt", "the same with CMake"),
+             ("rk4_example.c", "fixed-step RK4 integration of the index-1 equations, CSV on stdout; "
+                               "needs only a C compiler"),
+             ("README.md", "this file")]
+    ctx = dict(
+        version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
+        fortran=fortran, lang_name="Fortran 2008" if fortran else "C99", header=header, source=source,
+        stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
+        nout=len(info.output_names), nroot=len(info.events), state_names=code.state_names,
+        param_names=code.param_names, param_values=[_c_double(v) for v in _parameters(code, params)],
+        output_names=info.output_names, roots=[f"{ev.name}: {ev.expr}" for ev in info.events], ggl=ggl,
+        ggl_jac=info.ggl_jac, folded=folded,
+        folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
+        y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
+        alpha=_c_double(alpha), beta=_c_double(beta), steps=steps, every=max(1, steps // 100),
+        sundials_example=False, file_table=table, holonomic=[str(f) for f in system.holonomic],
+        nonholonomic=[str(r) for r in _nonholonomic_text(system)])
+    env = environment()
+    files = {header: code.files[header], source: code.files[source]}
+    files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
+    files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
+    files["rk4_example.c"] = env.get_template("bundle/rk4_constrained.c.j2").render(**ctx)
+    files["README.md"] = env.get_template("bundle/README_constrained.md.j2").render(**ctx)
+    return files
+
+
+def _nonholonomic_text(system) -> list[str]:
+    """The nonholonomic rows as text: A . q' + A0 = 0."""
+    out = []
+    speeds = [v.name for v in system.model.speeds]
+    for row in system.rows():
+        if row.holonomic:
+            continue
+        terms = [f"({a})*{v}" for a, v in zip(row.A, speeds) if a != 0]
+        if row.A0 != 0:
+            terms.append(f"({row.A0})")
+        out.append(" + ".join(terms) or "0")
+    return out
+
+
+def stale_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[str]:
+    """Names of ``files`` missing from ``directory`` or with other content there."""
+    out = Path(directory)
+    stale = []
+    for name, text in files.items():
+        path = out / name
+        try:
+            same = path.is_file() and path.read_bytes() == text.encode("utf-8")
+        except OSError:
+            same = False
+        if not same:
+            stale.append(name)
+    return stale
+
+
+def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[Path]:
+    """Write ``files`` (name -> text) into ``directory``: each changed file atomically, unchanged
+    files not at all. Returns the paths written."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    return [atomic_write(out / name, files[name]) for name in sorted(stale_files(out, files))]
+
+
+def write_bundle(scene, directory: str | os.PathLike, lang: str = "c", sundials_example: bool | None = None,
+                 **options) -> list[Path]:
+    """Render the bundle of ``scene`` (see :func:`render_bundle` for ``options``), or of a
+    :class:`~lagcodegen.constraints.ConstrainedSystem` in the index-1 formulation (see
+    :func:`render_constrained_bundle`), and write it into ``directory``. Returns the paths of
+    all bundle files, in name order. ``sundials_example``: default True for a scene; constrained
+    bundles have none."""
+    if isinstance(scene, ConstrainedSystem):
+        if sundials_example:
+            raise ModelError("bundles of constrained systems have no SUNDIALS example (sundials_example=True)")
+        files = render_constrained_bundle(scene, lang, **options)
+    else:
+        files = render_bundle(scene, lang, True if sundials_example is None else sundials_example, **options)
+    write_files(directory, files)
+    return [Path(directory) / name for name in sorted(files)]

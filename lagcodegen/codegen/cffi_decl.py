@@ -1,0 +1,85 @@
+"""cffi declarations of the generated functions and drivers (API mode: struct layouts come
+from the headers through ``...;``), one function per kind of generated code."""
+
+from __future__ import annotations
+
+from .record import GeneratedCode
+
+
+def model_cdef(code: GeneratedCode, native: bool) -> str:
+    p = code.prefix
+    lines = [f"int {p}_rhs(double t, const double *y, const double *p, double *ydot);"]
+    if code.jacobian:
+        lines.append(f"int {p}_jac(double t, const double *y, const double *ydot, const double *p, double *jac);")
+    if code.nout:
+        lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
+    if getattr(code, "sparse_jacobian", False):
+        lines.append(f"int {p}_jac_sparse(double t, const double *y, const double *ydot, const double *p, "
+                     f"double *vals);")
+    if native:
+        if code.nout:
+            lines.append(f"int {p}_outputs_batch(int nt, const double *t, const double *y, const double *p, "
+                         f"double *out);")
+        lines.append(f"""
+typedef struct {{
+    int method; int jacobian; double rtol; double atol; const double *atol_vec;
+    long max_steps; double first_step; double max_step; double min_step; int max_order;
+    int linear_solver; long mupper; long mlower;
+}} {p}_options;
+typedef struct {{
+    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
+    double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512];
+}} {p}_stats;
+int {p}_cvode_solve(const double *p, const double *y0, int nt, const double *tout,
+                    double *yout, double *out, const {p}_options *opt, {p}_stats *st);""")
+    return "\n".join(lines)
+
+
+def constrained_cdef(p: str, roots: bool, ggl: bool, ggl_jac: bool, drivers: bool = True) -> str:
+    """cffi declarations (API mode: the struct layouts come from the headers via '...;')."""
+    lines = [f"""
+typedef struct {{
+    int max_events; int n_events; double *t; double *y; int *which; int *direction;
+    const int *rootdir; const int *terminal; int terminated; ...;
+}} {p}_events;
+int {p}_kkt(double t, const double *y, const double *p, double alpha, double beta, double *acc, double *lam);
+int {p}_crhs(double t, const double *y, const double *p, double alpha, double beta, double *ydot);
+int {p}_residuals(double t, const double *y, const double *p, double *g, double *s);
+int {p}_project(double t, const double *y, const double *p, double tol, int maxit, double *ynew, double *err);
+int {p}_coutputs(double t, const double *y, const double *lam, const double *p, double *out);"""]
+    if drivers:
+        lines.append(f"""typedef struct {{
+    int method; double rtol; double atol; const double *atol_vec; long max_steps; double first_step;
+    double max_step; double min_step; int max_order; double alpha; double beta; int projection;
+    double proj_tol; int proj_maxit; int proj_err; int roots; ...;
+}} {p}_cvc_options;
+typedef struct {{
+    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails, nproj, nprojfails, ngevals;
+    double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512]; ...;
+}} {p}_cvc_stats;
+int {p}_cvc_solve(const double *p, const double *y0, int nt, const double *tout, double *yout, double *out,
+                  const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);""")
+    if roots:
+        lines.append(f"int {p}_roots(double t, const double *y, const double *lam, const double *p, double *gout);")
+    if ggl:
+        lines.append(f"""
+int {p}_ggl_res(double t, const double *yy, const double *yp, const double *p, double *rr);""")
+        if drivers:
+            lines[-1] += f"""
+typedef struct {{
+    double rtol; double atol; const double *atol_vec; long max_steps; double first_step; double max_step;
+    double min_step; int max_order; int suppress_alg; int jacobian; int calc_ic; double ic_alg_atol; int roots;
+    int stop_at_outputs; ...;
+}} {p}_ida_options;
+typedef struct {{
+    long nsteps, nres, nres_dq, njac, nlinsetups, netfails, nniters, nncfails, nbacktracks, ngevals;
+    double t_reached; double h_last; int flag; int ic_flag; int model_error; int nt_done; char message[512]; ...;
+}} {p}_ida_stats;
+int {p}_ida_solve(const double *p, const double *yy0, const double *yp0, int nt, const double *tout,
+                  double *yout, double *out, const {p}_ida_options *opt, {p}_ida_stats *st, {p}_events *ev);"""
+        if ggl_jac:
+            lines.append(f"int {p}_ggl_jac(double t, double cj, const double *yy, const double *yp, "
+                         f"const double *p, double *jac);")
+    return "\n".join(lines)
+
+

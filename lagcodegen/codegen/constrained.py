@@ -1,0 +1,97 @@
+"""C (or Fortran) files of a constrained system (eq. 4.5): the augmented index-1 system and the
+GGL residual, from the kernels of :mod:`lagcodegen.formulation.constrained`.
+
+:func:`generate_constrained` renders templates/c/dae.c.j2 (accelerations and multipliers from
+[M A^T; A 0][q''; -lambda] = [F; gamma], constraint residuals, projection, outputs, events) and,
+for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + cj dF/dy' for
+IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
+to the same C names, evaluating the same operations). The native drivers are
+templates/c/cvode_constrained_driver.c.j2 and ida_driver.c.j2 (C in both cases).
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+from ..derivation import derive
+from ..errors import ModelError
+from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, constrained_blocks
+from ..formulation.scene import Scene
+from ..theory.constraints import ConstrainedSystem
+from ..version import __version__
+from .languages import LANGUAGE_MODULES
+from .cffi_decl import constrained_cdef
+from .templates import environment
+
+
+
+def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_jacobian: bool = True,
+                           outputs: Sequence[str] = DEFAULT_OUTPUTS, events: Iterable = (),
+                           runtime_parameters=None, values=None, prefix: str | None = None, lang: str = "c",
+                           drivers: bool = True):
+    """Generated code of a constrained system: the model's own files plus ``<prefix>_dae.h`` and
+    its implementation (augmented-system solve, projection, outputs, roots, GGL residual and
+    Jacobian) and, with ``drivers``, the native drivers ``<prefix>_cvc.[ch]`` (CVODE) and, with
+    ``ggl``, ``<prefix>_ida.[ch]`` (IDA).
+
+    ``lang``: ``"c"`` (``<prefix>.c``, ``<prefix>_dae.c``, C99) or ``"fortran"`` (``<prefix>.f90``
+    and ``<prefix>_dae.f90``, Fortran 2008 modules whose functions are bound to the same C
+    names and signatures, see :func:`lagcodegen.fortran.generate_constrained_fortran_source`);
+    the headers and the drivers are the same C files in both cases.
+
+    Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
+    """
+    if lang not in LANGUAGE_MODULES:
+        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGE_MODULES)})")
+    language = LANGUAGE_MODULES[lang]
+    model = system.model
+    eom = derive(model)
+    if eom.quadratures:
+        raise ModelError("constrained systems with quadrature states are not supported")
+    scene = Scene(eom, jacobian=False, outputs=(), runtime_parameters=runtime_parameters,
+                  values=dict(values or {}), prefix=prefix)
+    language.check_prefix(scene.prefix, suffix="_dae_err_projection")
+    code = language.generate(scene)
+    cb = constrained_blocks(system, scene, ggl=ggl, ggl_jacobian=ggl_jacobian, outputs=outputs, events=events)
+    n, J, JH, ng = cb.n, cb.J, cb.JH, cb.ng
+    outs, evs = cb.outputs, cb.events
+
+    pre = code.prefix
+    ctx = dict(prefix=pre, PREFIX=pre.upper(), version=__version__, model_name=model.name, n=n, nj=J, njh=JH,
+               ng=ng, np=len(scene.runtime_parameters), nout=len(outs), nroot=len(evs),
+               state_names=code.state_names, param_names=list(scene.runtime_parameters),
+               outputs=[name for name, _ in outs], roots=[f"{ev.name}: {ev.expr}" for ev in evs],
+               ggl=ggl, ggl_jac=bool(ggl and ggl_jacobian), outputs_use_lam=cb.outputs_use_lam,
+               roots_use_lam=cb.roots_use_lam)
+    env = environment()
+    files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
+    files.update(language.constrained_source(cb, ctx))
+    headers = [f"{pre}_dae.h"]
+    if drivers:
+        files[f"{pre}_cvc.h"] = env.get_template("c/cvode_constrained_driver.h.j2").render(**ctx)
+        files[f"{pre}_cvc.c"] = env.get_template("c/cvode_constrained_driver.c.j2").render(**ctx)
+        headers.append(f"{pre}_cvc.h")
+        if ggl:
+            files[f"{pre}_ida.h"] = env.get_template("c/ida_driver.h.j2").render(**ctx)
+            files[f"{pre}_ida.c"] = env.get_template("c/ida_driver.c.j2").render(**ctx)
+            headers.append(f"{pre}_ida.h")
+            code.sundials_libs = tuple(dict.fromkeys((*code.sundials_libs, "ida")))
+    code.files.update(files)
+    code.cffi_headers = list(dict.fromkeys([*code.cffi_headers, *headers]))
+    code.cdef_extra = (code.cdef_extra + "\n" + constrained_cdef(pre, bool(evs), ggl, bool(ggl and ggl_jacobian),
+                                                       drivers)).strip()
+    info = ConstrainedCodeInfo(pre, n, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
+                               dict(scene.folded), lang)
+    return code, info
+
+
+def generate_constrained_c(system: ConstrainedSystem, **options):
+    """:func:`generate_constrained` (the name of earlier versions; ``lang`` chooses the language)."""
+    return generate_constrained(system, **options)
+
+
+def generate_constrained_fortran(system: ConstrainedSystem, **options):
+    """:func:`generate_constrained` with ``lang="fortran"``."""
+    return generate_constrained(system, lang="fortran", **options)
+
+

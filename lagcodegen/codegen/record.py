@@ -1,0 +1,97 @@
+"""The record of one scene's generated files (:class:`GeneratedCode`) and the layout shared by
+every language's header (:func:`header_context`)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..formulation.kernels import mass_matrix_is_diagonal
+from ..formulation.scene import Scene
+from ..util import atomic_write
+from ..version import __version__
+
+
+@dataclass
+class GeneratedCode:
+    """Generated C sources of one scene: ``files`` maps file name -> text."""
+
+    prefix: str
+    model_name: str
+    n: int
+    state_names: list[str]
+    param_names: list[str]
+    param_defaults: list[float]
+    output_names: list[str]
+    jacobian: bool
+    nz: int = 0  # quadrature states appended after (q, q'), e.g. reconstructed ignorable coordinates
+    files: dict[str, str] = field(default_factory=dict)
+    # For build(): extra cffi declarations, extra headers the cffi module includes, and
+    # SUNDIALS libraries besides CVODE (e.g. ("ida",)) needed by extra drivers in ``files``.
+    cdef_extra: str = ""
+    cffi_headers: list[str] = field(default_factory=list)
+    sundials_libs: tuple[str, ...] = ()
+    # Structural nonzero pattern of df/dy (ny x ny booleans, Scene.jacobian_pattern), or None
+    # when unknown (then the band solver probes it numerically); sparse_jacobian: the files
+    # <prefix>_sparse.[ch] with <prefix>_jac_sparse are in ``files``.
+    jac_pattern: object = None
+    sparse_jacobian: bool = False
+    # Parameters folded into the code as constants, with their values.
+    folded: dict = field(default_factory=dict)
+    # The scene the code was generated from (for further code of the same scene, e.g. the
+    # Taylor integrator), or None for code assembled by hand.
+    scene: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def ny(self) -> int:
+        return 2 * self.n + self.nz
+
+    @property
+    def np(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def nout(self) -> int:
+        return len(self.output_names)
+
+    @property
+    def header_name(self) -> str:
+        return f"{self.prefix}.h"
+
+    @property
+    def source_name(self) -> str:
+        return f"{self.prefix}.c"
+
+    def write(self, directory: str | os.PathLike) -> list[Path]:
+        """Write the files into ``directory``, each atomically (temp file + rename)."""
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for name, text in self.files.items():
+            written.append(atomic_write(out / name, text))
+        return written
+
+
+def new_code(scene: Scene) -> GeneratedCode:
+    """The GeneratedCode record of ``scene``: layout and names, no files yet."""
+    eom = scene.eom
+    model = eom.model
+    return GeneratedCode(
+        prefix=scene.prefix, model_name=model.name, n=model.n,
+        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds]
+        + [name for name, _ in eom.quadratures],
+        param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
+        output_names=[o.name for o in scene.output_list()], jacobian=scene.jacobian, nz=len(eom.quadratures),
+        folded=dict(scene.folded), scene=scene)
+
+
+def header_context(scene: Scene, code: GeneratedCode) -> dict:
+    """The template context shared by ``c/model.h.j2``, ``c/model.c.j2`` and the Fortran module."""
+    return dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
+                model_name=code.model_name, n=code.n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout,
+                state_names=code.state_names, param_names=code.param_names,
+                folded=sorted(scene.folded.items()), outputs=code.output_names, jacobian=code.jacobian,
+                diagonal=mass_matrix_is_diagonal(scene.eom))
+
+

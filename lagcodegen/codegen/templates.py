@@ -1,0 +1,25 @@
+"""The jinja2 environment of every generated file: templates by language and purpose."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jinja2
+
+
+def templates_dir() -> Path:
+    """Folder holding the jinja2 templates (installed package data, or the source tree)."""
+    here = Path(__file__).resolve().parents[1]  # the lagcodegen package
+    for cand in (here / "templates", here.parent / "templates"):
+        if (cand / "c" / "model.c.j2").is_file():
+            return cand
+    raise FileNotFoundError(f"lagcodegen templates not found next to {here}")
+
+
+def environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+        undefined=jinja2.StrictUndefined)
+
+

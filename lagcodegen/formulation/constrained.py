@@ -1,0 +1,229 @@
+"""Generated code for constrained systems (eq. 4.5): the augmented index-1 system, the GGL residual.
+
+:func:`generate_constrained_c` renders templates/c/dae.c.j2 (accelerations and multipliers from
+[M A^T; A 0][q''; -lambda] = [F; gamma], constraint residuals, projection, outputs, events) and,
+for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + cj dF/dy' for
+IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
+to the same C names, evaluating the same operations: :func:`constrained_blocks` builds the
+expression blocks once for both languages). The native drivers are
+templates/c/cvode_constrained_driver.c.j2 and ida_driver.c.j2 (C in both cases);
+:mod:`lagcodegen.dae` compiles and runs them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import symengine as se
+
+from ..derivation import to_se
+from ..errors import ModelError
+from ..model.events import event_list
+from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS
+from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS as DEFAULT_OUTPUTS
+from ..theory.constraints import ConstrainedSystem
+from .kernels import Block, symbol_map
+from .scene import Scene
+
+
+# ---------------------------------------------------------------------- symbolic pieces
+class ConstrainedSymbols:
+    """symengine pieces of a constrained system: M, F, A, A0, s = A q' + A0, gamma, f."""
+
+    def __init__(self, system: ConstrainedSystem, eom):
+        model = system.model
+        self.system = system
+        self.eom = eom
+        self.n = model.n
+        self.q = [se.Symbol(s.name) for s in model.coords]
+        self.v = [se.Symbol(s.name) for s in model.speeds]
+        self.t = se.Symbol(model.t.name)
+        rows = system.rows()
+        self.A = [[to_se(a, f"constraint {r.index}") for a in r.A] for r in rows]
+        self.A0 = [to_se(r.A0, f"constraint {r.index}") for r in rows]
+        self.f = [to_se(f, f"holonomic constraint {j}") for j, f in enumerate(system.holonomic)]
+        self.s = [sum((a * v for a, v in zip(row, self.v)), se.Integer(0)) + a0 for row, a0 in zip(self.A, self.A0)]
+        self.gamma = []
+        for s in self.s:  # gamma = -d/dt (A q' + A0) with q'' excluded
+            d = se.diff(s, self.t)
+            for q, v in zip(self.q, self.v):
+                d = d + se.diff(s, q) * v
+            self.gamma.append(-d)
+        self.lam = [se.Symbol(m.name) for m in system.multipliers]
+        self.J = len(rows)
+        self.JH = len(self.f)
+        self.M = eom.M_se
+        self.F = eom.F_se
+
+
+def _constrained_outputs(system: ConstrainedSystem, sym: ConstrainedSymbols, scene: Scene,
+                         names: Sequence[str]) -> list[tuple[str, object]]:
+    """(name, symengine expression) of the requested outputs, groups expanded."""
+    model = system.model
+    avail = dict(scene.available_outputs())
+    coord_names = [q.name for q in model.coords]
+    lam_names, force_names, resid_names, ineq_names = [], [], [], []
+    for j in range(sym.J):
+        avail[f"lambda_{j}"] = sym.lam[j]
+        lam_names.append(f"lambda_{j}")
+        for i, c in enumerate(coord_names):
+            avail[f"R_{j}_{c}"] = sym.lam[j] * sym.A[j][i]
+            force_names.append(f"R_{j}_{c}")
+    for j in range(sym.JH):
+        avail[f"g_{j}"] = sym.f[j]
+        resid_names.append(f"g_{j}")
+    for j in range(sym.J):
+        avail[f"gdot_{j}"] = sym.s[j]
+        resid_names.append(f"gdot_{j}")
+    for k, g in enumerate(system.inequalities):
+        avail[f"ineq_{k}"] = to_se(g, f"inequality constraint {k}")
+        ineq_names.append(f"ineq_{k}")
+    groups = {"lambda": lam_names, "constraint_forces": force_names, "residuals": resid_names,
+              "inequalities": ineq_names,
+              "momenta": [f"p_{c}" for c in coord_names],
+              "positions": [f"{pt.name}_{a}" for pt in model.points.values() for a in "xyz"[:pt.dim]]}
+    out: list[str] = []
+    for item in names:
+        if item in groups:
+            out += groups[item]
+        elif item in avail:
+            out.append(item)
+        else:
+            raise ModelError(f"unknown output {item!r} (groups: {', '.join(CONSTRAINT_OUTPUT_GROUPS)}, "
+                             f"energy, momenta, positions, ...; single outputs: "
+                             f"{', '.join(k for k in avail if k not in ('momenta', 'positions'))})")
+    seen: list[str] = []
+    for nme in out:
+        if nme not in seen:
+            seen.append(nme)
+    return [(nme, avail[nme]) for nme in seen]
+
+
+def _uses(exprs, symbols) -> bool:
+    symbols = set(symbols)
+    return any(se.sympify(e).free_symbols & symbols for e in exprs)
+
+
+# ---------------------------------------------------------------------- code generation
+@dataclass
+class ConstrainedCodeInfo:
+    """Layout of the generated constrained code."""
+
+    prefix: str
+    n: int
+    J: int
+    JH: int
+    ng: int
+    output_names: list
+    events: list
+    ggl: bool
+    ggl_jac: bool
+    folded: dict = field(default_factory=dict)  # parameters folded into the code, with their values
+    lang: str = "c"  # language of the model functions ("c" or "fortran"); the drivers are C
+
+
+@dataclass
+class ConstrainedBlocks:
+    """Everything the constrained templates need besides the sizes: the expression blocks
+    (mf: M, F; con: A, s, g; gam; out; roots; ggl_res; ggl_jac) and the output and event lists."""
+
+    scene: Scene
+    n: int
+    J: int
+    JH: int
+    ng: int
+    blocks: dict
+    outputs: list  # (name, symengine expression)
+    events: list
+    outputs_use_lam: bool
+    roots_use_lam: bool
+
+
+def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = False, ggl_jacobian: bool = True,
+                       outputs: Sequence[str] = DEFAULT_OUTPUTS, events: Iterable = ()) -> ConstrainedBlocks:
+    """The expression blocks of the constrained code of ``system`` (symbols renamed as in ``scene``)."""
+    sym = ConstrainedSymbols(system, scene.eom)
+    n, J, JH = sym.n, sym.J, sym.JH
+    ng = 2 * n + J + JH
+    base = symbol_map(scene)
+
+    def c(e, sub=base):
+        return se.sympify(e).xreplace(sub)
+
+    blocks = {}
+    # M, F
+    targets, exprs = [], []
+    for i in range(n):
+        for j in range(i, n):
+            targets.append(("M", i, j))
+            exprs.append(c(sym.M[i][j]))
+    for i in range(n):
+        targets.append(("F", i))
+        exprs.append(c(sym.F[i]))
+    blocks["mf"] = Block(targets, exprs)
+    # A, s, g
+    targets, exprs = [], []
+    for r in range(J):
+        for i in range(n):
+            targets.append(("A", r, i))
+            exprs.append(c(sym.A[r][i]))
+        targets.append(("s", r))
+        exprs.append(c(sym.s[r]))
+    for k in range(JH):
+        targets.append(("g", k))
+        exprs.append(c(sym.f[k]))
+    blocks["con"] = Block(targets, exprs)
+    blocks["gam"] = Block([("gam", r) for r in range(J)], [c(e) for e in sym.gamma])
+
+    # outputs and roots: the multipliers are the array lam[]
+    out_sub = dict(base)
+    out_sub.update({lam: se.Symbol(f"lam[{j}]") for j, lam in enumerate(sym.lam)})
+    outs = _constrained_outputs(system, sym, scene, list(outputs))
+    blocks["out"] = Block([("out", k) for k in range(len(outs))], [c(e, out_sub) for _, e in outs])
+    evs = event_list(system, events)
+    root_exprs = [to_se(ev.expr, f"event {ev.name!r}") for ev in evs]
+    blocks["roots"] = Block([("gout", k) for k in range(len(evs))], [c(e, out_sub) for e in root_exprs])
+
+    # GGL residual and Jacobian
+    blocks["ggl_res"] = blocks["ggl_jac"] = Block([], [])
+    if ggl:
+        qp = [se.Symbol(f"__qp{i}") for i in range(n)]
+        vp = [se.Symbol(f"__vp{i}") for i in range(n)]
+        mu = [se.Symbol(f"__mu{k}") for k in range(JH)]
+        cj = se.Symbol("cj")
+        res = []
+        for i in range(n):
+            res.append(qp[i] - sym.v[i] - sum((sym.A[k][i] * mu[k] for k in range(JH)), se.Integer(0)))
+        for i in range(n):
+            res.append(sum((sym.M[i][j] * vp[j] for j in range(n)), se.Integer(0)) - sym.F[i]
+                       - sum((sym.A[r][i] * sym.lam[r] for r in range(J)), se.Integer(0)))
+        res += list(sym.f)
+        res += list(sym.s)
+        gsub = dict(base)
+        gsub.update({lam: se.Symbol(f"y[{2 * n + j}]") for j, lam in enumerate(sym.lam)})
+        gsub.update({m: se.Symbol(f"y[{2 * n + J + k}]") for k, m in enumerate(mu)})
+        gsub.update({x: se.Symbol(f"yp[{i}]") for i, x in enumerate(qp)})
+        gsub.update({x: se.Symbol(f"yp[{n + i}]") for i, x in enumerate(vp)})
+        blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], [c(e, gsub) for e in res])
+        if ggl_jacobian:
+            yvars = sym.q + sym.v + sym.lam + mu
+            ypvars = qp + vp
+            targets, exprs = [], []
+            for col, var in enumerate(yvars):
+                for row, r in enumerate(res):
+                    d = se.diff(r, var)
+                    if col < 2 * n:
+                        d = d + cj * se.diff(r, ypvars[col])
+                    if d != 0:
+                        targets.append(("jac", row, col))
+                        exprs.append(c(d, gsub))
+            blocks["ggl_jac"] = Block(targets, exprs)
+    return ConstrainedBlocks(scene, n, J, JH, ng, blocks, outs, evs, _uses([e for _, e in outs], sym.lam),
+                             _uses(root_exprs, sym.lam))
+
+
+#: Languages of the generated constrained code (the native drivers are C in both cases).
+
+
+# ---------------------------------------------------------------------- public API

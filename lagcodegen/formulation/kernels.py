@@ -1,0 +1,182 @@
+"""Language-neutral kernels: the expressions of each generated function as :class:`Block` s.
+
+Symbols are renamed to array elements (q_i -> y[i], q_i' -> y[n+i], z_k -> y[2n+k], run-time
+parameter k -> p[k]) and folded parameters replaced by numbers. Targets are tuples (array
+name, 0-based indices...). Every formulation (ODE, Routhian, minimal coordinates, index-1,
+GGL) produces Blocks; every language backend (:mod:`lagcodegen.codegen.c`,
+:mod:`lagcodegen.codegen.fortran`) prints the same Blocks after the same common-subexpression
+elimination, so C and Fortran evaluate the same operations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import symengine as se
+
+from .scene import Scene
+
+
+@dataclass
+class Block:
+    """One common-subexpression-eliminated block of generated code: ``targets`` (tuples such as
+    ("M", i, j), ("F", i), ("out", k)) and ``exprs`` (symengine, in the array symbols ``y[i]``,
+    ``p[k]``, ``lam[j]``, ``yp[i]``, ``a[i]``, ``t``, ``cj``)."""
+
+    targets: list = field(default_factory=list)
+    exprs: list = field(default_factory=list)
+
+    def __bool__(self) -> bool:
+        return bool(self.exprs)
+
+    def add(self, target: tuple, expr) -> None:
+        self.targets.append(target)
+        self.exprs.append(expr)
+
+    def __add__(self, other: "Block") -> "Block":
+        return Block(self.targets + other.targets, self.exprs + other.exprs)
+
+
+def symbol_map(scene: Scene) -> dict:
+    """symengine substitution: model symbols -> array elements, folded parameters -> numbers."""
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    sub = {}
+    for i, q in enumerate(model.coords):
+        sub[se.Symbol(q.name)] = se.Symbol(f"y[{i}]")
+    for i, v in enumerate(model.speeds):
+        sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
+    for k, (name, _) in enumerate(eom.quadratures):
+        sub[se.Symbol(name)] = se.Symbol(f"y[{2 * n + k}]")
+    for k, name in enumerate(scene.runtime_parameters):
+        sub[se.Symbol(name)] = se.Symbol(f"p[{k}]")
+    sub.update(scene.substitutions())
+    return sub
+
+
+def mass_matrix_is_diagonal(eom) -> bool:
+    """True if every off-diagonal entry of M is structurally zero (the generated solve divides)."""
+    n = eom.n
+    return n > 1 and all(eom.M_se[i][j] == 0 for i in range(n) for j in range(n) if i != j)
+
+
+def substituter(scene: Scene):
+    """f(expr) renaming the model's symbols to array elements (q_i -> y[i], ...) and folding constants."""
+    sub = symbol_map(scene)
+
+    def c(e):
+        return se.sympify(e).xreplace(sub) if sub else se.sympify(e)
+    return c
+
+
+def residual_derivatives(eom):
+    """d r_i / d y_j for r = M a - F (eq. 3.16 as a residual), y = (q, q'), with the
+    accelerations a as the symbols ``a[i]``: a function (i, j) -> symengine expression in the
+    model's symbols. The dense and the sparse Jacobian are both built from it."""
+    model = eom.model
+    n = model.n
+    a = [se.Symbol(f"a[{i}]") for i in range(n)]
+    acc = [se.Symbol(f"__acc{i}") for i in range(n)]
+    y = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
+    r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
+    asub = dict(zip(acc, a))
+
+    def d(i: int, j: int):
+        return se.diff(r[i], y[j]).xreplace(asub)
+    return d
+
+
+def model_blocks(scene: Scene) -> dict[str, Block]:
+    """The kernels of the ODE M(q, t) q'' = F(q, q', t) (eq. 3.16) with quadratures z' = rate.
+
+    Keys ``rhs``, ``jac`` (if the scene asks for it) and ``out``; targets ("M", i, j) for the
+    upper triangle of M (the code mirrors it), ("F", i), ("ydot", k) (quadrature rates),
+    ("G", i, j) = d r_i / d y_j for r = M a - F with a = q'' (the symbols ``a[i]``),
+    ("Z", k, j) = d z'_k / d y_j and ("out", k).
+    """
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    c = substituter(scene)
+    mass = Block([("M", i, j) for i in range(n) for j in range(i, n)],
+                 [c(eom.M_se[i][j]) for i in range(n) for j in range(i, n)])
+    rhs = mass + Block([("F", i) for i in range(n)], [c(eom.F_se[i]) for i in range(n)])
+    for k, (_, rate) in enumerate(eom.quadratures):
+        rhs.add(("ydot", 2 * n + k), c(rate))
+    blocks = {"rhs": rhs}
+    if scene.jacobian:
+        y = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
+        dr = residual_derivatives(eom)
+        jac = mass + Block()
+        for j in range(2 * n):
+            for i in range(n):
+                jac.add(("G", i, j), c(dr(i, j)))
+        for k, (_, rate) in enumerate(eom.quadratures):
+            for j, var in enumerate(y):
+                jac.add(("Z", k, j), c(se.diff(rate, var)))
+        blocks["jac"] = jac
+    blocks["out"] = Block([("out", k) for k in range(len(scene.output_list()))],
+                          [c(o.expr) for o in scene.output_list()])
+    return blocks
+
+
+@dataclass
+class SparseJacobian:
+    """Kernel of the sparse Jacobian: the structurally nonzero entries of df/dy (``pattern``)
+    in compressed-column order. ``block`` computes M (``Md`` when diagonal) and either the
+    entries ``vals`` directly or the columns ``G`` of dr/dy to be solved with M; ``copies``
+    lists (k, j, i): vals[k] = -G[j][i] after the solve; ``solve_cols`` the columns solved."""
+
+    block: Block
+    diagonal: bool
+    entries: list
+    colptr: list
+    copies: list
+    solve_cols: list
+
+
+def sparse_jacobian(scene: Scene, pattern) -> SparseJacobian:
+    """The sparse Jacobian's kernel. With M structurally diagonal each entry is one expression,
+    -(dr_i/dy_j)/M_ii with r = M a - F; otherwise M is factored once and only the columns of
+    dr/dy with a nonzero entry are solved for."""
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    ny = pattern.shape[0]
+    c = substituter(scene)
+    y = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
+    dr = residual_derivatives(eom)
+    M = [[c(eom.M_se[i][j]) for j in range(n)] for i in range(n)]
+    diagonal = all(M[i][j] == 0 for i in range(n) for j in range(n) if i != j)
+    entries = [(i, j) for j in range(ny) for i in range(ny) if pattern[i, j]]
+    colptr = [0]
+    for j in range(ny):
+        colptr.append(colptr[-1] + int(pattern[:, j].sum()))
+    block = Block()
+    if diagonal:
+        for i in range(n):
+            block.add(("Md", i), M[i][i])
+    else:
+        for i in range(n):
+            for j in range(i, n):
+                block.add(("M", i, j), M[i][j])
+    copies, solve_cols = [], []
+    for k, (i, j) in enumerate(entries):
+        if i < n:  # dq'_i/dq'_i
+            block.add(("vals", k), se.Integer(1))
+        elif i < 2 * n:
+            ii = i - n
+            d = c(dr(ii, j)) if j < 2 * n else se.Integer(0)
+            if diagonal:
+                block.add(("vals", k), -d / M[ii][ii])
+            else:
+                if d != 0:
+                    block.add(("G", ii, j), d)
+                if j not in solve_cols:
+                    solve_cols.append(j)
+                copies.append((k, j, ii))
+        else:  # quadrature rates
+            rate = eom.quadratures[i - 2 * n][1]
+            block.add(("vals", k), c(se.diff(rate, y[j])) if j < 2 * n else se.Integer(0))
+    return SparseJacobian(block, diagonal, entries, colptr, copies, solve_cols)

@@ -1,0 +1,236 @@
+"""What one simulation needs: the functions to emit, the run-time parameters, the outputs.
+
+Code generation emits exactly what a :class:`Scene` asks for and nothing more: no Jacobian
+unless ``jacobian`` is set, only the requested outputs, and every parameter not listed in
+``runtime_parameters`` folded into the code as a constant.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+import symengine as se
+
+from ..derivation import EquationsOfMotion, to_se
+from ..errors import ModelError
+from ..model.outputs import OUTPUT_GROUPS
+from ..util import check_finite
+
+
+
+@dataclass(frozen=True)
+class Output:
+    """One scalar output: its name and symengine expression in (q, q', t, p)."""
+
+    name: str
+    expr: object
+
+
+@dataclass
+class Scene:
+    """What to emit for one simulation.
+
+    Parameters
+    ----------
+    eom:
+        The derived equations.
+    jacobian:
+        Emit the dense Jacobian df/dy (needed by CVODE's Newton iteration unless it uses
+        difference quotients).
+    outputs:
+        Names of outputs: groups ``energy`` (T+V), ``kinetic_energy``, ``potential_energy``,
+        ``dissipation`` (D), ``jacobi_h`` (h, eq. 3.5), ``dh_dt`` (its rate, eq. 3.6 with the
+        non-potential forces: -2D for homogeneous quadratic dissipation), ``momenta`` (p_<q>, eq. 2.3), ``positions`` (<point>_x/_y/_z of
+        every point), single names from those groups (``p_theta``, ``bob_x``), or user outputs
+        declared with :meth:`Model.output`.
+    runtime_parameters:
+        Parameters that stay adjustable at run time (passed in the ``p`` array, in this
+        order). ``None`` keeps them all adjustable; the others are folded as constants.
+    values:
+        Values for folded parameters, overriding the model's defaults.
+    prefix:
+        C identifier prefix of the emitted functions (default: the model's name).
+    sparse_jacobian:
+        Also emit ``<prefix>_jac_sparse`` (files ``<prefix>_sparse.h``/``.c``): only the
+        structurally nonzero entries of df/dy (:meth:`jacobian_pattern`), in compressed-column
+        order; structurally zero entries are never computed. The native driver uses it with
+        ``linear_solver="band"``.
+    """
+
+    eom: EquationsOfMotion
+    jacobian: bool = True
+    outputs: Sequence[str] = ()
+    runtime_parameters: Sequence[str] | None = None
+    values: Mapping[str, float] = field(default_factory=dict)
+    prefix: str | None = None
+    sparse_jacobian: bool = False
+
+    def __post_init__(self):
+        model = self.eom.model
+        self.prefix = self.prefix or model.name
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", self.prefix):
+            raise ModelError(f"scene prefix {self.prefix!r} is not a C identifier")
+        names = [s.name for s in model.params]
+        if self.runtime_parameters is None:
+            self.runtime_parameters = list(names)
+        else:
+            self.runtime_parameters = list(self.runtime_parameters)
+            for name in self.runtime_parameters:
+                if name not in names:
+                    raise ModelError(f"scene: runtime parameter {name!r} is not a parameter of the model "
+                                     f"(parameters: {', '.join(names) or 'none'})")
+        for name, value in self.values.items():
+            if name not in names:
+                raise ModelError(f"scene: value given for unknown parameter {name!r}")
+            check_finite(value, f"scene value of parameter {name!r}")
+        self.outputs = list(self.outputs)
+        self.output_list()  # validate names early
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def folded(self) -> dict[str, float]:
+        """Parameters folded into the code as constants, with their values."""
+        model = self.eom.model
+        vals = {s.name: v for s, v in model.params.items() if s.name not in self.runtime_parameters}
+        vals.update({k: float(v) for k, v in self.values.items() if k in vals})
+        return vals
+
+    def default_parameters(self) -> list[float]:
+        """Default values of the run-time parameters, in ``p`` order."""
+        d = {s.name: v for s, v in self.eom.model.params.items()}
+        return [float(self.values.get(name, d[name])) for name in self.runtime_parameters]
+
+    def available_outputs(self) -> dict[str, object]:
+        """Every output a scene can ask for, by name, as symengine expressions."""
+        eom = self.eom
+        model = eom.model
+        out: dict[str, object] = {
+            "energy": eom.T_se + eom.V_se,
+            "kinetic_energy": eom.T_se,
+            "potential_energy": eom.V_se,
+            "dissipation": eom.D_se,
+            "jacobi_h": eom.h_se,
+            "dh_dt": eom.dhdt_se,
+        }
+        for q, p in zip(model.coords, eom.p_se):
+            out[f"p_{q.name}"] = p
+        for pt in model.points.values():
+            for axis, c in zip("xyz", pt.position):
+                out[f"{pt.name}_{axis}"] = to_se(c, f"position of {pt.name!r}")
+        for name, expr in model.outputs.items():
+            out[name] = to_se(expr, f"output {name!r}")
+        return out
+
+    def output_list(self) -> list[Output]:
+        """The outputs this scene emits, groups expanded, in order."""
+        avail = self.available_outputs()
+        model = self.eom.model
+        names: list[str] = []
+        for item in self.outputs:
+            if item == "momenta":
+                names += [f"p_{q.name}" for q in model.coords]
+            elif item == "positions":
+                names += [f"{pt.name}_{a}" for pt in model.points.values() for a in "xyz"[:pt.dim]]
+            elif item in avail:
+                names.append(item)
+            else:
+                raise ModelError(f"scene: unknown output {item!r} (known: {', '.join(OUTPUT_GROUPS)}, "
+                                 f"{', '.join(k for k in avail if k not in OUTPUT_GROUPS)})")
+        seen = []
+        for n in names:
+            if n not in seen:
+                seen.append(n)
+        return [Output(n, avail[n]) for n in seen]
+
+    def substitutions(self) -> dict:
+        """symengine substitution folding constant parameters into numbers."""
+        def number(v: float):
+            # Integral values fold exactly, so that symbolic simplification can use them.
+            return se.Integer(int(v)) if v.is_integer() and abs(v) < 2**53 else se.RealDouble(v)
+        return {se.Symbol(k): number(v) for k, v in self.folded.items()}
+
+    def jacobian_pattern(self) -> np.ndarray:
+        """Structural nonzero pattern of df/dy (ny x ny booleans), with folded parameters applied.
+
+        With y = (q, q', z): dq'/dq' = I; the accelerations a = M^-1 F depend on y_j if F or a
+        row of M coupled to them (through the connected components of M's nonzero graph, which
+        M^-1 fills in) depends on y_j; quadrature rates z' on what they contain. The pattern
+        is exact up to numerical cancellation (a structurally nonzero entry may be zero).
+        """
+        eom = self.eom
+        model = eom.model
+        n, nz = model.n, len(eom.quadratures)
+        ny = 2 * n + nz
+        sub = self.substitutions()
+        state = ([se.Symbol(q.name) for q in model.coords] + [se.Symbol(v.name) for v in model.speeds]
+                 + [se.Symbol(name) for name, _ in eom.quadratures])
+        index = {s: j for j, s in enumerate(state)}
+
+        def expr(e):
+            e = se.sympify(e)
+            return e.xreplace(sub) if sub else e
+
+        def deps(e) -> set[int]:
+            return {index[s] for s in e.free_symbols if s in index}
+
+        M = [[expr(eom.M_se[i][j]) for j in range(n)] for i in range(n)]
+        nonzero = [[M[i][j] != 0 for j in range(n)] for i in range(n)]
+        # dr_i/dy_j with r = M a - F (a generic): F_i and the nonzero entries of row i of M.
+        dr = []
+        for i in range(n):
+            d = deps(expr(eom.F_se[i]))
+            for k in range(n):
+                if nonzero[i][k]:
+                    d |= deps(M[i][k])
+            dr.append(d)
+        # M^-1 couples every pair of coordinates in one connected component of M's graph.
+        comp = list(range(n))
+
+        def find(i):
+            while comp[i] != i:
+                comp[i] = comp[comp[i]]
+                i = comp[i]
+            return i
+        for i in range(n):
+            for j in range(i + 1, n):
+                if nonzero[i][j] or nonzero[j][i]:
+                    comp[find(i)] = find(j)
+        reach: dict[int, set[int]] = {}
+        for i in range(n):
+            reach.setdefault(find(i), set()).update(dr[i])
+        pattern = np.zeros((ny, ny), dtype=bool)
+        for i in range(n):
+            pattern[i, n + i] = True
+            for j in reach[find(i)]:
+                pattern[n + i, j] = True
+        for k, (_, rate) in enumerate(eom.quadratures):
+            for j in deps(expr(rate)):
+                pattern[2 * n + k, j] = True
+        return pattern
+
+
+def band_order(n: int, nz: int = 0) -> list[int]:
+    """State order of the band solver: (q_1, q_1', q_2, q_2', ..., z): element k of the solver's
+    vector is y[order[k]]. Interleaving keeps a chain's couplings near the diagonal (in the
+    order (q, q') the identity block alone puts n entries above it)."""
+    order = []
+    for i in range(n):
+        order += [i, n + i]
+    return order + list(range(2 * n, 2 * n + nz))
+
+
+def bandwidths(pattern, order: Sequence[int] | None = None) -> tuple[int, int]:
+    """(upper, lower) bandwidth of a square nonzero ``pattern`` with rows and columns taken in
+    ``order`` (default: as they are)."""
+    pattern = np.asarray(pattern, dtype=bool)
+    ny = pattern.shape[0]
+    inv = np.empty(ny, dtype=int)
+    inv[np.asarray(order if order is not None else range(ny), dtype=int)] = np.arange(ny)
+    rows, cols = np.nonzero(pattern)
+    if rows.size == 0:
+        return 0, 0
+    d = inv[cols] - inv[rows]
+    return int(max(0, d.max())), int(max(0, -d.min()))

@@ -1,0 +1,360 @@
+"""Import models written with :mod:`sympy.physics.mechanics` as lagcodegen :class:`Model` s.
+
+Users of sympy's mechanics package can bring their models as they are:
+
+* :func:`from_lagrangian` takes a Lagrangian L(q(t), q'(t), t), for example built by
+  ``sympy.physics.mechanics.Lagrangian(N, *bodies)`` or written by hand;
+* :func:`from_bodies` takes the inertial frame and the bodies themselves, and keeps the
+  kinetic and potential energies apart (so energy outputs are exact).
+
+Supported sympy.physics.mechanics objects:
+
+* coordinates: ``dynamicsymbols`` q(t) (functions of ``dynamicsymbols._t`` or of ``time``);
+  q'(t) may appear, higher derivatives may not;
+* bodies: ``Particle`` and ``RigidBody`` (also the deprecated ``Body``), whose velocities
+  follow from ``Point.set_vel`` / ``v2pt_theory`` / ``set_pos`` and ``ReferenceFrame``
+  orientations, and whose ``potential_energy`` is set as usual;
+* loads, in the ``forcelist`` format of ``LagrangesMethod``: ``(Point, Vector)`` and
+  ``(ReferenceFrame, Vector)`` tuples, ``Force`` and ``Torque`` objects, and actuators
+  (``ForceActuator``, ``LinearSpring``, ``TorqueActuator``, ... via ``to_loads()``). A force F
+  at point P gives Q_i = F . dv_P/dq_i' (partial velocities in the inertial frame, eq. 2.6);
+  a torque on frame B gives Q_i = T . dw_B/dq_i', the same as ``LagrangesMethod``;
+* a Rayleigh dissipation function in q'(t) (eq. 3.15).
+
+Not supported: constraint equations (``hol_coneqs``/``nonhol_coneqs``), generalized speeds
+u(t) other than q'(t) (``KanesMethod`` style), and ``JointsMethod``/``System`` objects (pass
+their bodies and coordinates instead).
+
+Conversion: q_i(t) becomes the plain symbol named like q_i, q_i'(t) the symbol
+``<name>_dot`` (:meth:`Model.dot`), time the model's ``t``. Every other free symbol is a
+parameter whose default value must be given in ``parameters`` (by symbol or name); symbols
+with assumptions (``symbols('m', positive=True)``) become plain parameter symbols of the
+same name. Anything left that is a function of time (a dynamicsymbol that is not a
+coordinate) is an error, as is a parameter without a value.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Mapping, Sequence
+
+import sympy as sp
+from sympy.core.function import AppliedUndef
+from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
+from sympy.physics.vector import Point, ReferenceFrame, Vector, partial_velocity
+
+from ..errors import ModelError
+from .model import Model
+
+try:  # actuators exist from sympy 1.13 on
+    from sympy.physics.mechanics.actuator import ActuatorBase
+except ImportError:  # pragma: no cover - older sympy
+    ActuatorBase = None
+
+__all__ = ["from_lagrangian", "from_bodies"]
+
+#: A value given for a parameter: by symbol or by name.
+ParameterValues = Mapping[sp.Symbol | str, float]
+
+
+def from_lagrangian(L, q: Sequence, *, parameters: ParameterValues | None = None, forces=None,
+                    frame: ReferenceFrame | None = None, dissipation=None, name: str = "model",
+                    time: sp.Symbol | None = None) -> Model:
+    """A :class:`Model` from a Lagrangian in sympy.physics.mechanics form.
+
+    Parameters
+    ----------
+    L:
+        The Lagrangian, a sympy expression in the dynamicsymbols ``q`` (functions of time),
+        their first derivatives, time and parameters, e.g. ``Lagrangian(N, P1, P2)``.
+    q:
+        The generalized coordinates, dynamicsymbols such as ``dynamicsymbols('theta1 theta2')``.
+    parameters:
+        Default value of every other free symbol of L (and of the forces and dissipation),
+        keyed by symbol or name, in the order the model declares them.
+    forces:
+        Non-conservative loads in ``LagrangesMethod``'s ``forcelist`` format (see the module
+        docstring); needs ``frame``.
+    frame:
+        The inertial frame, in which point velocities and angular velocities are taken.
+    dissipation:
+        A Rayleigh dissipation function D(q, q', t) (eq. 3.15).
+    name:
+        Name of the model (an identifier; it prefixes the generated C functions).
+    time:
+        The time symbol of the dynamicsymbols (default ``dynamicsymbols._t``).
+
+    The Lagrangian is split as V = -L(q, 0, t) and T = L + V. For natural systems (T
+    quadratic in q') these are the kinetic and potential energies, so energy outputs are
+    right; terms of L linear in q' (moving frames, gyroscopic terms) end up in T. The
+    equations of motion depend on L only and are exact in every case.
+    """
+    imp = _Importer(q, time=time, name=name)
+    L_conv = imp.convert(L, "the Lagrangian")
+    D_conv = None if dissipation is None else imp.convert(dissipation, "the dissipation function")
+    Q_conv = imp.generalized_forces(forces, frame)
+
+    exprs = [L_conv, *([] if D_conv is None else [D_conv]), *(Q for _, _, Q in Q_conv)]
+    subs = imp.declare_parameters(exprs, parameters)
+    T, V = _split_lagrangian(L_conv.xreplace(subs), imp.model.speeds)
+    model = imp.model
+    model.kinetic_energy(T, label="T (from L)")
+    if V != 0:
+        model.potential_energy(V, label="V (from L)")
+    imp.add_loads(Q_conv, subs)
+    if D_conv is not None:
+        model.dissipation(D_conv.xreplace(subs), label="D")
+    model.validate()
+    return model
+
+
+def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
+                parameters: ParameterValues | None = None, forces=None, dissipation=None,
+                name: str = "model", time: sp.Symbol | None = None,
+                origin: Point | None = None) -> Model:
+    """A :class:`Model` from sympy.physics.mechanics ``Particle`` / ``RigidBody`` objects.
+
+    T = sum of ``body.kinetic_energy(frame)`` and V = sum of ``body.potential_energy``, each
+    body's terms added separately (labelled ``T[<body>]``, ``V[<body>]``), so energy outputs
+    use the true kinetic and potential energies.
+
+    Parameters
+    ----------
+    frame:
+        The inertial frame.
+    bodies:
+        ``Particle`` and ``RigidBody`` objects with velocities defined in (or computable for)
+        ``frame`` and ``potential_energy`` set where there is one.
+    q, parameters, forces, dissipation, name, time:
+        As in :func:`from_lagrangian`.
+    origin:
+        Optional fixed point: each body's mass centre, located relative to it and written in
+        ``frame``'s axes, is declared as a model point named like the body (so the
+        ``positions`` outputs ``<body>_x/_y/_z`` exist).
+    """
+    if not isinstance(frame, ReferenceFrame):
+        raise ModelError(f"from_bodies: frame must be a sympy ReferenceFrame, got {frame!r}")
+    bodies = list(bodies)
+    if not bodies:
+        raise ModelError("from_bodies: no bodies given")
+    imp = _Importer(q, time=time, name=name)
+
+    energies: list[tuple[str, sp.Expr, sp.Expr]] = []
+    for body in bodies:
+        if not isinstance(body, (Particle, RigidBody)):
+            raise ModelError(f"from_bodies: {body!r} is not a sympy.physics.mechanics Particle or RigidBody")
+        try:
+            T = body.kinetic_energy(frame)
+        except ValueError as exc:
+            raise ModelError(f"kinetic energy of body {body.name!r} in frame {frame.name}: {exc}") from None
+        T = imp.convert(T, f"kinetic energy of body {body.name!r}")
+        V = imp.convert(body.potential_energy, f"potential energy of body {body.name!r}")
+        energies.append((body.name, T, V))
+
+    positions: list[tuple[str, sp.Matrix]] = []
+    if origin is not None:
+        for body in bodies:
+            try:
+                r = body.masscenter.pos_from(origin).to_matrix(frame)
+            except ValueError as exc:
+                raise ModelError(f"position of body {body.name!r} from {origin.name}: {exc}") from None
+            positions.append((body.name, r.applyfunc(lambda c, b=body: imp.convert(
+                c, f"position of body {b.name!r}"))))
+
+    D_conv = None if dissipation is None else imp.convert(dissipation, "the dissipation function")
+    Q_conv = imp.generalized_forces(forces, frame)
+
+    exprs = [e for _, T, V in energies for e in (T, V)]
+    exprs += [c for _, r in positions for c in r]
+    exprs += ([] if D_conv is None else [D_conv]) + [Q for _, _, Q in Q_conv]
+    subs = imp.declare_parameters(exprs, parameters)
+    model = imp.model
+    for body_name, T, V in energies:
+        if T != 0:
+            model.kinetic_energy(T.xreplace(subs), label=f"T[{body_name}]")
+        if V != 0:
+            model.potential_energy(V.xreplace(subs), label=f"V[{body_name}]")
+    for body_name, r in positions:
+        model.point(body_name, r.xreplace(subs))
+    imp.add_loads(Q_conv, subs)
+    if D_conv is not None:
+        model.dissipation(D_conv.xreplace(subs), label="D")
+    model.validate()
+    return model
+
+
+# ---------------------------------------------------------------------- helpers
+def _fname(f: AppliedUndef) -> str:
+    """The name of an undefined function such as the dynamicsymbol theta(t)."""
+    return f.func.__name__
+
+
+def _split_lagrangian(L: sp.Expr, speeds: Sequence[sp.Symbol]) -> tuple[sp.Expr, sp.Expr]:
+    """(T, V) with T - V = L and V = -L(q, q' = 0, t)."""
+    at_rest = dict.fromkeys(speeds, 0)
+    static, moving = L.as_independent(*speeds, as_Add=True)
+    if moving.subs(at_rest) == 0:  # the usual case: the terms in q' vanish at rest
+        return moving, -static
+    L0 = L.subs(at_rest)
+    if L0.has(sp.nan, sp.zoo, sp.oo, -sp.oo):  # L singular at rest: keep it whole
+        return L, sp.Integer(0)
+    return L - L0, -L0
+
+
+def _loads(forces) -> list[tuple[object, Vector]]:
+    """Flatten a forcelist into (Point | ReferenceFrame, Vector) pairs."""
+    if forces is None:
+        return []
+    try:
+        items = list(forces)
+    except TypeError:
+        raise ModelError(f"forces must be a list of (Point, Vector) / (ReferenceFrame, Vector) "
+                         f"pairs, got {forces!r}") from None
+    out = []
+    for item in items:
+        if ActuatorBase is not None and isinstance(item, ActuatorBase):
+            out += _loads(item.to_loads())
+            continue
+        if not isinstance(item, tuple) or len(item) != 2:
+            raise ModelError(f"load {item!r} is not a (Point, Vector) or (ReferenceFrame, Vector) pair")
+        location, vector = item
+        if not isinstance(location, (Point, ReferenceFrame)):
+            raise ModelError(f"load {item!r}: the location must be a Point (force) or a ReferenceFrame "
+                             f"(torque); for a body use Force(body, F) or Torque(body, T)")
+        if not isinstance(vector, Vector):
+            if vector == 0:
+                continue
+            raise ModelError(f"load on {location.name}: {vector!r} is not a sympy.physics.vector Vector")
+        out.append((location, vector))
+    return out
+
+
+class _Importer:
+    """Converts sympy.physics.mechanics expressions into the symbols of a new Model."""
+
+    def __init__(self, q: Sequence, *, time: sp.Symbol | None, name: str):
+        self.time = dynamicsymbols._t if time is None else time
+        if not isinstance(self.time, sp.Symbol):
+            raise ModelError(f"time must be a sympy Symbol, got {self.time!r}")
+        if isinstance(q, sp.Basic) or isinstance(q, (str, bytes)):
+            q = [q]
+        q = list(q)
+        if not q:
+            raise ModelError("no generalized coordinates given")
+        self.model = Model(name)
+        self.functions: list[AppliedUndef] = []
+        for qi in q:
+            if not (isinstance(qi, AppliedUndef) and qi.args == (self.time,)):
+                raise ModelError(f"coordinate {qi!r} is not a dynamicsymbol q({self.time}) "
+                                 f"(make it with dynamicsymbols('{qi}'))")
+            if qi in self.functions:
+                raise ModelError(f"coordinate {_fname(qi)!r} is given twice")
+            self.functions.append(qi)
+        coords = self.model.coordinates([_fname(f) for f in self.functions])
+        self.coords = dict(zip(self.functions, coords))
+        self.velocities = {sp.Derivative(f, self.time): self.model.dot(c) for f, c in self.coords.items()}
+        self.taken = {s.name for s in self.model.coords} | {s.name for s in self.model.speeds}
+
+    # -------------------------------------------------------------- expressions
+    def convert(self, expr, what: str) -> sp.Expr:
+        """Replace q(t), q'(t) and time by model symbols; reject anything else of time."""
+        if isinstance(expr, Vector):
+            raise ModelError(f"{what} is a Vector, expected a scalar expression")
+        try:
+            expr = sp.sympify(expr, strict=True)
+        except (sp.SympifyError, TypeError) as exc:
+            raise ModelError(f"{what} is not a sympy expression: {expr!r}") from exc
+        clash = sorted(s.name for s in expr.free_symbols - {self.time} if s.name in self.taken)
+        if clash:
+            raise ModelError(f"{what} uses symbol(s) {', '.join(clash)} whose names are taken by the "
+                             f"coordinates or their velocities")
+        repl: dict = {}
+        for d in expr.atoms(sp.Derivative):
+            f = d.expr
+            if isinstance(f, AppliedUndef) and f not in self.coords:
+                raise ModelError(f"{what} contains {_fname(f)!r} (as {d}), a dynamicsymbol that is not "
+                                 f"a generalized coordinate")
+            if f in self.coords and all(v == self.time for v in d.variables):
+                order = len(d.variables)
+                if order > 1:
+                    raise ModelError(f"{what} contains a derivative of order {order} of {_fname(f)!r} "
+                                     f"({d}); only q and q' may appear")
+                repl[d] = self.velocities[d]
+            else:
+                raise ModelError(f"{what} contains the derivative {d}: only first time derivatives of "
+                                 f"the coordinates may appear")
+        repl.update(self.coords)
+        repl[self.time] = self.model.t
+        expr = expr.xreplace(repl)
+        stray = sorted(expr.atoms(AppliedUndef), key=str)
+        if stray:
+            listed = ", ".join(f"{_fname(f)!r} (as {f})" for f in stray)
+            raise ModelError(f"{what} contains {listed}: not a generalized coordinate; add it to q "
+                             f"or substitute it")
+        return expr
+
+    def declare_parameters(self, exprs: Iterable[sp.Expr], values: ParameterValues | None) -> dict:
+        """Declare every free symbol of ``exprs`` that is not q, q' or t as a parameter.
+
+        Parameters are declared in the order of ``values``. Returns the substitution taking
+        the user's symbols to the model's parameter symbols.
+        """
+        known = self.model.known_symbols()
+        by_name: dict[str, sp.Symbol] = {}
+        for e in exprs:
+            for s in sorted(e.free_symbols - known, key=lambda s: s.name):
+                other = by_name.setdefault(s.name, s)
+                if other != s:
+                    raise ModelError(f"two different symbols are named {s.name!r} (with different "
+                                     f"assumptions); use one symbol per parameter")
+        given: dict[str, float] = {}
+        for key, value in (values or {}).items():
+            key_name = key if isinstance(key, str) else getattr(key, "name", None)
+            if key_name is None:
+                raise ModelError(f"parameter key {key!r} must be a Symbol or a name")
+            if key_name in given:
+                raise ModelError(f"parameter {key_name!r} is given twice")
+            given[key_name] = value
+        missing = sorted(set(by_name) - set(given))
+        if missing:
+            raise ModelError(f"no value given for parameter(s) {', '.join(missing)} "
+                             f"(pass parameters={{{missing[0]!r}: <value>, ...}})")
+        unused = [k for k in given if k not in by_name]
+        if unused:
+            raise ModelError(f"value given for unknown parameter(s) {', '.join(unused)}: the model "
+                             f"uses {', '.join(sorted(by_name)) or 'no parameters'}")
+        subs = {}
+        for key_name, value in given.items():
+            subs[by_name[key_name]] = self.model.parameter(key_name, value)
+        return subs
+
+    # -------------------------------------------------------------- loads
+    def generalized_forces(self, forces, frame: ReferenceFrame | None) -> list[tuple[str, int, sp.Expr]]:
+        """(label, coordinate index, Q_i) of every load: Q_i = F . dv/dq_i' (eq. 2.6)."""
+        loads = _loads(forces)
+        if not loads:
+            return []
+        if not isinstance(frame, ReferenceFrame):
+            raise ModelError("forces need the inertial frame: pass frame=<ReferenceFrame>")
+        qdots = list(self.velocities)
+        out = []
+        for location, vector in loads:
+            if isinstance(location, Point):
+                what = f"force at point {location.name}"
+                get_vel = location.vel
+            else:
+                what = f"torque on frame {location.name}"
+                get_vel = location.ang_vel_in
+            try:
+                partials = partial_velocity([get_vel(frame)], qdots, frame)[0]
+                Qs = [vector.dot(v) for v in partials]
+            except ValueError as exc:
+                raise ModelError(f"{what}: {exc}") from None
+            for i, (f, Qi) in enumerate(zip(self.functions, Qs)):
+                Qi = self.convert(Qi, f"{what} (generalized force on {_fname(f)!r})")
+                if Qi != 0:
+                    out.append((f"{what} on {_fname(f)}", i, Qi))
+        return out
+
+    def add_loads(self, loads: list[tuple[str, int, sp.Expr]], subs: dict) -> None:
+        for label, i, Q in loads:
+            self.model.generalized_force(self.model.coords[i], Q.xreplace(subs), label=label)

@@ -1,0 +1,405 @@
+"""The mechanical model: coordinates, parameters, bodies, energies and forces.
+
+A :class:`Model` holds what the user states about a system, in sympy terms:
+
+* generalized coordinates q_i (and their velocities q_i', plain symbols named ``<q>_dot``),
+* parameters with default values,
+* either points/bodies whose Cartesian positions x(q, t) are given (T then follows
+  from eq. 2.2 of the notes) or the kinetic energy T directly,
+* potentials V(q, t) (gravity, springs, or given directly; eq. 2.7),
+* Cartesian forces at points, mapped to generalized forces by eq. 2.6,
+* Rayleigh dissipation D (eq. 3.15) and non-potential generalized forces Q* (eq. 3.16).
+
+Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equations.
+"""
+
+from __future__ import annotations
+
+import keyword
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import sympy as sp
+
+from ..errors import ModelError
+from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.check_finite)
+
+#: Names a coordinate or parameter may not take (they name other things).
+RESERVED_NAMES = frozenset({"t", "pi", "E", "I", "oo", "nan", "zoo"})
+
+
+def _check_name(name: str, what: str) -> str:
+    if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
+        raise ModelError(f"{what} name {name!r} is not a valid identifier")
+    if name in RESERVED_NAMES:
+        raise ModelError(f"{what} name {name!r} is reserved")
+    return name
+
+
+def _as_expr(value, what: str) -> sp.Expr:
+    try:
+        expr = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError) as exc:
+        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+    return expr
+
+
+def _as_vector(value, what: str) -> sp.Matrix:
+    if isinstance(value, sp.MatrixBase):
+        comps = list(value)
+    else:
+        try:
+            comps = list(value)
+        except TypeError:
+            raise ModelError(f"{what} must be a 2- or 3-component vector, got {value!r}") from None
+    if len(comps) not in (2, 3):
+        raise ModelError(f"{what} must have 2 or 3 components, got {len(comps)}")
+    return sp.Matrix([_as_expr(c, f"{what}[{i}]") for i, c in enumerate(comps)])
+
+
+def _as_matrix3(value, what: str, allow_diagonal: bool = False) -> sp.Matrix:
+    """A 3x3 matrix of expressions (strings are refused, as everywhere in the model)."""
+    rows = value.tolist() if isinstance(value, sp.MatrixBase) else value
+    try:
+        rows = [list(r) if not isinstance(r, (str, sp.Basic, int, float)) else r for r in rows]
+    except TypeError:
+        raise ModelError(f"{what} must be a 3x3 matrix") from None
+    if allow_diagonal and len(rows) == 3 and all(not isinstance(r, list) for r in rows):
+        return sp.diag(*[_as_expr(r, f"{what}[{i}]") for i, r in enumerate(rows)])
+    if len(rows) != 3 or any(not isinstance(r, list) or len(r) != 3 for r in rows):
+        raise ModelError(f"{what} must be a 3x3 matrix" + (" or 3 principal moments" if allow_diagonal else ""))
+    return sp.Matrix([[_as_expr(c, f"{what}[{i}][{j}]") for j, c in enumerate(r)] for i, r in enumerate(rows)])
+
+
+@dataclass(frozen=True)
+class Point:
+    """A named point with Cartesian position x(q, t) (2-D or 3-D)."""
+
+    name: str
+    position: sp.Matrix
+
+    @property
+    def dim(self) -> int:
+        return self.position.shape[0]
+
+
+@dataclass(frozen=True)
+class Particle:
+    """A point mass."""
+
+    name: str
+    mass: sp.Expr
+    point: Point
+
+
+@dataclass(frozen=True)
+class PlanarBody:
+    """A rigid body moving in a plane: centre of mass position, rotation angle, inertia about G."""
+
+    name: str
+    mass: sp.Expr
+    inertia: sp.Expr
+    point: Point
+    angle: sp.Expr
+
+
+@dataclass(frozen=True)
+class RigidBody:
+    """A 3-D rigid body: centre of mass, orientation R(q, t) (body to world), inertia about G in body axes."""
+
+    name: str
+    mass: sp.Expr
+    inertia: sp.Matrix
+    point: Point
+    orientation: sp.Matrix
+
+
+@dataclass
+class Model:
+    """A mechanical system stated in generalized coordinates.
+
+    Example (simple pendulum)::
+
+        m = Model("pendulum")
+        th, = m.coordinates("theta")
+        l, g, mass = m.parameters(l=1.0, g=9.81, m=1.0)
+        m.particle("bob", mass, (l*sp.sin(th), -l*sp.cos(th)))
+        m.gravity(g)
+    """
+
+    name: str = "model"
+    t: sp.Symbol = field(default_factory=lambda: sp.Symbol("t"))
+    coords: list = field(default_factory=list)
+    speeds: list = field(default_factory=list)
+    params: dict = field(default_factory=dict)  # Symbol -> default value (float)
+    points: dict = field(default_factory=dict)  # name -> Point
+    bodies: list = field(default_factory=list)
+    kinetic_terms: list = field(default_factory=list)  # (label, T) given directly
+    potential_terms: list = field(default_factory=list)  # (label, V)
+    generalized_potential_terms: list = field(default_factory=list)  # (label, U(q, q', t))
+    dissipation_terms: list = field(default_factory=list)  # (label, D)
+    cartesian_forces: list = field(default_factory=list)  # (label, Point, F vector)
+    generalized_forces: list = field(default_factory=list)  # (label, index, Q*)
+    gravity_spec: tuple | None = None  # (g, unit "up" vector)
+    outputs: dict = field(default_factory=dict)  # name -> expression (user outputs)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ModelError(f"model name {self.name!r} must be an identifier")
+
+    # ------------------------------------------------------------------ symbols
+    def coordinates(self, names: str | Iterable[str]) -> tuple[sp.Symbol, ...]:
+        """Declare generalized coordinates q_i (eq. 1.1); return their symbols."""
+        if isinstance(names, str):
+            names = names.replace(",", " ").split()
+        out = []
+        for name in names:
+            _check_name(name, "coordinate")
+            self._check_free(name)
+            q = sp.Symbol(name)
+            self.coords.append(q)
+            self.speeds.append(sp.Symbol(f"{name}_dot"))
+            out.append(q)
+        return tuple(out)
+
+    def coordinate(self, name: str) -> sp.Symbol:
+        """Declare one generalized coordinate and return its symbol."""
+        return self.coordinates([name])[0]
+
+    def parameters(self, **defaults: float) -> tuple[sp.Symbol, ...]:
+        """Declare parameters with default values (kept adjustable or folded per scene)."""
+        return tuple(self.parameter(k, v) for k, v in defaults.items())
+
+    def parameter(self, name: str, default: float) -> sp.Symbol:
+        """Declare one parameter with its default value."""
+        _check_name(name, "parameter")
+        self._check_free(name)
+        value = check_finite(default, f"parameter {name!r}")
+        sym = sp.Symbol(name)
+        self.params[sym] = value
+        return sym
+
+    def _check_free(self, name: str) -> None:
+        taken = {s.name for s in self.coords} | {s.name for s in self.speeds}
+        taken |= {s.name for s in self.params}
+        if name in taken:
+            raise ModelError(f"name {name!r} is declared twice")
+
+    def dot(self, q: sp.Symbol) -> sp.Symbol:
+        """The generalized velocity q' of coordinate q (eq. 2.1)."""
+        return self.speeds[self.index(q)]
+
+    def index(self, q) -> int:
+        """Index of a coordinate given by symbol or name."""
+        name = q if isinstance(q, str) else getattr(q, "name", None)
+        for i, c in enumerate(self.coords):
+            if c.name == name:
+                return i
+        raise ModelError(f"{q!r} is not a coordinate of model {self.name!r}")
+
+    @property
+    def n(self) -> int:
+        """Number of generalized coordinates."""
+        return len(self.coords)
+
+    def time_derivative(self, expr) -> sp.Expr:
+        """d/dt of an expression in (q, t): sum_i dx/dq_i q_i' + dx/dt."""
+        expr = sp.sympify(expr)
+        return sum((sp.diff(expr, q) * v for q, v in zip(self.coords, self.speeds)),
+                   sp.diff(expr, self.t))
+
+    # ------------------------------------------------------------------ bodies
+    def point(self, name: str, position) -> Point:
+        """Declare a named point with position x(q, t); used by forces, springs, outputs."""
+        _check_name(name, "point")
+        if name in self.points:
+            raise ModelError(f"point {name!r} is declared twice")
+        pt = Point(name, _as_vector(position, f"position of point {name!r}"))
+        self.points[name] = pt
+        return pt
+
+    def _resolve_point(self, p, what: str) -> Point:
+        if isinstance(p, Point):
+            return p
+        if isinstance(p, str):
+            if p not in self.points:
+                raise ModelError(f"{what}: no point named {p!r}")
+            return self.points[p]
+        return Point(f"<{what}>", _as_vector(p, what))
+
+    def particle(self, name: str, mass, position) -> Particle:
+        """A point mass at x(q, t); contributes m/2 |x'|^2 to T (eq. 2.2)."""
+        body = Particle(name, _as_expr(mass, f"mass of {name!r}"), self.point(name, position))
+        self.bodies.append(body)
+        return body
+
+    def planar_body(self, name: str, mass, inertia, position, angle) -> PlanarBody:
+        """A planar rigid body: T = m/2 |x_G'|^2 + I_G/2 angle'^2."""
+        pt = self.point(name, position)
+        if pt.dim != 2:
+            raise ModelError(f"planar body {name!r} needs a 2-D position")
+        body = PlanarBody(name, _as_expr(mass, f"mass of {name!r}"),
+                          _as_expr(inertia, f"inertia of {name!r}"), pt,
+                          _as_expr(angle, f"angle of {name!r}"))
+        self.bodies.append(body)
+        return body
+
+    def rigid_body(self, name: str, mass, inertia, position, orientation) -> RigidBody:
+        """A 3-D rigid body.
+
+        ``orientation`` is the rotation matrix R(q, t) taking body axes to world axes;
+        ``inertia`` the inertia tensor about the centre of mass in body axes (3x3, or the
+        three principal moments). T = m/2 |x_G'|^2 + 1/2 w^T I w with [w]x = R^T R'.
+        """
+        pt = self.point(name, position)
+        if pt.dim != 3:
+            raise ModelError(f"rigid body {name!r} needs a 3-D position")
+        inertia = _as_matrix3(inertia, f"inertia of {name!r}", allow_diagonal=True)
+        R = _as_matrix3(orientation, f"orientation of {name!r}")
+        body = RigidBody(name, _as_expr(mass, f"mass of {name!r}"), inertia, pt, R)
+        self.bodies.append(body)
+        return body
+
+    # ------------------------------------------------------------------ energies
+    def kinetic_energy(self, T, label: str = "T") -> None:
+        """Add kinetic energy given directly in (q, q', t)."""
+        self.kinetic_terms.append((label, _as_expr(T, f"kinetic energy {label!r}")))
+
+    def potential_energy(self, V, label: str = "V") -> None:
+        """Add a potential V(q, t) (eq. 2.7)."""
+        self.potential_terms.append((label, _as_expr(V, f"potential {label!r}")))
+
+    def generalized_potential(self, U, label: str = "U") -> None:
+        """Add a velocity-dependent (generalized) potential U(q, q', t) (eq. 3.4).
+
+        It enters L = T - U; its generalized force is Q_i = d/dt(dU/dq_i') - dU/dq_i.
+        Example: a charge e in fields phi, A: U = e (phi - v . A).
+        """
+        self.generalized_potential_terms.append((label, _as_expr(U, f"generalized potential {label!r}")))
+
+    def gravity(self, g, up: Sequence | None = None) -> None:
+        """Uniform gravity on every massive body: V = sum m g (x . up).
+
+        ``up`` defaults to the last axis (y in 2-D, z in 3-D); it is normalized.
+        """
+        if up is not None:
+            up = _as_vector(up, "gravity up")
+            norm = sp.sqrt(sum(c**2 for c in up))
+            if norm == 0:
+                raise ModelError("gravity 'up' vector is zero")
+            up = up / norm
+        self.gravity_spec = (_as_expr(g, "gravity"), up)
+
+    def spring(self, a, b, k, rest_length=0, label: str | None = None) -> None:
+        """A linear spring between points a and b: V = k/2 (|x_a - x_b| - L0)^2."""
+        pa, pb = self._resolve_point(a, "spring end a"), self._resolve_point(b, "spring end b")
+        if pa.dim != pb.dim:
+            raise ModelError("spring ends have different dimensions")
+        d = pa.position - pb.position
+        k = _as_expr(k, "spring stiffness")
+        L0 = _as_expr(rest_length, "spring rest length")
+        sq = (d.T * d)[0]
+        V = k / 2 * sq if L0 == 0 else k / 2 * (sp.sqrt(sq) - L0) ** 2
+        self.potential_terms.append((label or f"spring {pa.name}-{pb.name}", V))
+
+    def force(self, point, vector, label: str | None = None) -> None:
+        """A Cartesian force F(q, q', t) applied at a point; mapped by eq. 2.6."""
+        pt = self._resolve_point(point, "force point")
+        F = _as_vector(vector, f"force at {pt.name!r}")
+        if F.shape != pt.position.shape:
+            raise ModelError(f"force at {pt.name!r} has {F.shape[0]} components, point has {pt.dim}")
+        self.cartesian_forces.append((label or f"force at {pt.name}", pt, F))
+
+    def generalized_force(self, coordinate, expr, label: str | None = None) -> None:
+        """A non-potential generalized force Q*_i(q, q', t) on one coordinate (eq. 3.16)."""
+        i = self.index(coordinate)
+        self.generalized_forces.append(
+            (label or f"Q*[{self.coords[i].name}]", i, _as_expr(expr, f"generalized force on {self.coords[i].name!r}")))
+
+    def dissipation(self, D, label: str = "D") -> None:
+        """Add a Rayleigh dissipation function D(q, q', t) in generalized velocities (eq. 3.15)."""
+        self.dissipation_terms.append((label, _as_expr(D, f"dissipation {label!r}")))
+
+    def damper(self, a, c, b=None, label: str | None = None) -> None:
+        """A linear viscous damper on a point's velocity (or relative to point b): D = c/2 |v_a - v_b|^2."""
+        pa = self._resolve_point(a, "damper point")
+        v = pa.position.applyfunc(self.time_derivative)
+        if b is not None:
+            pb = self._resolve_point(b, "damper point b")
+            v = v - pb.position.applyfunc(self.time_derivative)
+        c = _as_expr(c, "damping coefficient")
+        self.dissipation_terms.append((label or f"damper {pa.name}", c / 2 * (v.T * v)[0]))
+
+    def output(self, name: str, expr) -> None:
+        """A named output expression in (q, q', t), emitted when a scene asks for it."""
+        _check_name(name, "output")
+        self.outputs[name] = _as_expr(expr, f"output {name!r}")
+
+    # ------------------------------------------------------------------ checks
+    def known_symbols(self) -> set:
+        return set(self.coords) | set(self.speeds) | set(self.params) | {self.t}
+
+    def check_symbols(self, expr, what: str, allow_speeds: bool = True) -> None:
+        """Raise ModelError if ``expr`` uses a symbol the model does not declare."""
+        expr = sp.sympify(expr)
+        allowed = self.known_symbols()
+        speeds = {s.name for s in self.speeds}
+        if not allow_speeds:
+            allowed -= set(self.speeds)
+        bad = expr.free_symbols - allowed
+        velocities = sorted(s.name for s in bad if s.name in speeds and not allow_speeds)
+        if velocities:
+            raise ModelError(f"{what} uses velocity not allowed here: {', '.join(velocities)}")
+        if bad:
+            names = {s.name for s in self.known_symbols()}
+            msgs = []
+            for s in sorted(bad, key=lambda s: s.name):
+                if s.name in names:  # same name, other assumptions (e.g. Symbol('m', positive=True))
+                    msgs.append(f"{s.name} (a symbol with assumptions {s.assumptions0}; use the plain "
+                                f"symbol returned by Model.parameters/coordinates)")
+                else:
+                    msgs.append(s.name)
+            raise ModelError(f"{what} uses unknown symbol(s): {', '.join(msgs)}")
+        funcs = expr.atoms(sp.core.function.AppliedUndef)
+        if funcs:
+            raise ModelError(f"{what} uses undefined function(s): {', '.join(sorted(map(str, funcs)))}")
+
+    def validate(self) -> None:
+        """Check every expression uses declared symbols only; called by the derivation."""
+        if not self.coords:
+            raise ModelError(f"model {self.name!r} has no coordinates")
+        for pt in self.points.values():
+            self.check_symbols(pt.position, f"position of point {pt.name!r}", allow_speeds=False)
+        for body in self.bodies:
+            self.check_symbols(body.mass, f"mass of {body.name!r}", allow_speeds=False)
+            if isinstance(body, PlanarBody):
+                self.check_symbols(body.inertia, f"inertia of {body.name!r}", allow_speeds=False)
+                self.check_symbols(body.angle, f"angle of {body.name!r}", allow_speeds=False)
+            if isinstance(body, RigidBody):
+                self.check_symbols(body.inertia, f"inertia of {body.name!r}", allow_speeds=False)
+                self.check_symbols(body.orientation, f"orientation of {body.name!r}", allow_speeds=False)
+        for label, T in self.kinetic_terms:
+            self.check_symbols(T, f"kinetic energy {label!r}")
+        for label, V in self.potential_terms:
+            self.check_symbols(V, f"potential {label!r}", allow_speeds=False)
+        for label, U in self.generalized_potential_terms:
+            self.check_symbols(U, f"generalized potential {label!r}")
+        for label, D in self.dissipation_terms:
+            self.check_symbols(D, f"dissipation {label!r}")
+        for label, _, F in self.cartesian_forces:
+            self.check_symbols(F, label)
+        for label, _, Q in self.generalized_forces:
+            self.check_symbols(Q, label)
+        if self.gravity_spec is not None:
+            self.check_symbols(self.gravity_spec[0], "gravity", allow_speeds=False)
+            if self.gravity_spec[1] is not None:
+                self.check_symbols(self.gravity_spec[1], "gravity 'up' vector", allow_speeds=False)
+            if not self.bodies:
+                raise ModelError("gravity() acts on the model's bodies, but it has none (T was given "
+                                 "directly): add the gravitational potential with potential_energy()")
+        for name, expr in self.outputs.items():
+            self.check_symbols(expr, f"output {name!r}")
+        if not self.bodies and not self.kinetic_terms:
+            raise ModelError(f"model {self.name!r} has no kinetic energy: add bodies or kinetic_energy()")
+
+

@@ -1,0 +1,124 @@
+"""A compiled scene as Python sees it: the functions of the generated code, checked, and
+:meth:`CompiledModel.simulate`, which runs any registered solver family on them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..build import BuiltModule
+from ..codegen.record import GeneratedCode
+from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
+from ..util import c_vector, check_finite
+from .ode import simulate
+
+
+def check_rc(rc: int, t: float, what: str) -> None:
+    """Raise the error a generated model function's return code stands for (1: singular mass
+    matrix, 2: a non-finite value)."""
+    if rc == 1:
+        raise SingularMassMatrixError(f"{what}: the mass matrix is singular", t=float(t))
+    if rc == 2:
+        raise SolverError(f"{what}: a computed value is not finite", t=float(t))
+
+
+class CompiledModel:
+    """A compiled scene: the cffi module plus the layout of its arrays.
+
+    Call :meth:`rhs`, :meth:`jac`, :meth:`outputs` from Python, or :meth:`simulate`. Every
+    array handed to C is checked first (length, dtype): a wrong one raises LagcodegenError.
+    """
+
+    def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool):
+        self.code = code
+        self.module = module
+        self.ffi = module.ffi
+        self.lib = module.lib
+        self.path = path
+        self.native = native
+        self.cached = cached
+        p = code.prefix
+        self._rhs = getattr(self.lib, f"{p}_rhs")
+        self._jac = getattr(self.lib, f"{p}_jac", None)
+        self._out = getattr(self.lib, f"{p}_outputs", None)
+        self._defaults = np.array(code.param_defaults, dtype=float)
+        self._solvers: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
+
+    @classmethod
+    def from_built(cls, built: BuiltModule) -> "CompiledModel":
+        return cls(built.code, built.module, built.path, built.native, built.cached)
+
+    # layout
+    @property
+    def n(self) -> int:
+        return self.code.n
+
+    @property
+    def ny(self) -> int:
+        return self.code.ny
+
+    @property
+    def state_names(self) -> list[str]:
+        return self.code.state_names
+
+    @property
+    def param_names(self) -> list[str]:
+        return self.code.param_names
+
+    @property
+    def output_names(self) -> list[str]:
+        return self.code.output_names
+
+    def parameter_vector(self, params: dict | None = None) -> np.ndarray:
+        """Run-time parameter array: defaults overridden by ``params`` (name -> value)."""
+        if not params:
+            return self._defaults.copy()
+        vals = dict(zip(self.code.param_names, self.code.param_defaults))
+        for k, v in params.items():
+            if k not in vals:
+                raise LagcodegenError(f"{k!r} is not a run-time parameter of this scene "
+                                      f"(run-time parameters: {', '.join(vals) or 'none'})")
+            vals[k] = check_finite(v, f"parameter {k!r}")
+        return np.array([vals[k] for k in self.code.param_names], dtype=float)
+
+    def _ptr(self, arr):
+        return self.ffi.from_buffer("double[]", arr) if arr.size else self.ffi.NULL
+
+    def _args(self, y, p):
+        y = c_vector(y, self.ny, "y", self.state_names)
+        p = self._defaults if p is None else c_vector(p, self.code.np, "p", self.param_names)
+        return y, p
+
+    def rhs(self, t: float, y, p=None) -> np.ndarray:
+        """f(t, y, p) evaluated by the compiled code."""
+        y, p = self._args(y, p)
+        out = np.empty(self.ny)
+        rc = self._rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        check_rc(rc, t, "right-hand side")
+        return out
+
+    def jac(self, t: float, y, p=None) -> np.ndarray:
+        """df/dy (ny x ny) evaluated by the compiled code."""
+        if self._jac is None:
+            raise LagcodegenError("this scene has no Jacobian (Scene(jacobian=False))")
+        y, p = self._args(y, p)
+        ydot = self.rhs(t, y, p)
+        J = np.empty((self.ny, self.ny), order="F")
+        rc = self._jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
+        check_rc(rc, t, "Jacobian")
+        return J
+
+    def outputs(self, t: float, y, p=None) -> np.ndarray:
+        """The scene's outputs at (t, y)."""
+        y, p = self._args(y, p)
+        if self._out is None:
+            return np.empty(0)
+        out = np.empty(self.code.nout)
+        rc = self._out(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        check_rc(rc, t, "outputs")
+        return out
+
+    def simulate(self, t, **options):
+        """Integrate; see :func:`lagcodegen.solvers.simulate` for the options."""
+        return simulate(self, t, **options)

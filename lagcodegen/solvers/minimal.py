@@ -1,0 +1,189 @@
+"""Minimal coordinates run: a constrained system whose holonomic constraints were solved
+symbolically (:mod:`lagcodegen.theory.minimal`) integrated as the unconstrained model of the
+branch its initial state lies on, with the eliminated coordinates and the constraint residuals
+reported."""
+
+from __future__ import annotations
+
+import time
+from typing import Mapping
+
+import numpy as np
+import sympy as sp
+
+from ..build import build
+from ..codegen.languages import generate_code
+from ..derivation import derive
+from ..errors import LagcodegenError, ModelError
+from ..formulation.scene import Scene
+from ..model.model import Model
+from ..result import Result
+from ..theory.constraints import ConstrainedSystem
+from ..theory.minimal import reduced_model, solve_constraints
+from ..util import check_finite, output_times, state_vector
+from .compiled import CompiledModel
+from .constrained import _Base
+
+
+class MinimalSimulation(_Base):
+    """Constrained system integrated in minimal coordinates (holonomic constraints eliminated).
+
+    The solution branch (e.g. y = -sqrt(l^2 - x^2) or +sqrt) is chosen at simulate time from q0;
+    each branch is compiled once. Multipliers are not available in this formulation.
+    """
+
+    formulation = "minimal"
+
+    def __init__(self, system: ConstrainedSystem, outputs=None, events=(), runtime_parameters=None, values=None,
+                 prefix=None, eliminate=None, verbose=False, lang: str = "c"):
+        self.system = system
+        self.lang = lang
+        if list(events) or system.inequalities:
+            raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' "
+                             "or 'ggl' (the plain CVODE driver has no root finding)")
+        self.eliminated, self.branches = solve_constraints(system, eliminate)
+        self.remaining = [q for q in system.model.coords if q not in self.eliminated]
+        outputs = ("energy", "residuals") if outputs is None else tuple(outputs)
+        self._requested = outputs
+        names = []
+        self._python_outputs = []
+        for item in outputs:
+            if item in ("lambda", "constraint_forces") or item.startswith("lambda_") or item.startswith("R_"):
+                raise ModelError(f"output {item!r}: minimal coordinates have no Lagrange multipliers "
+                                 "(use formulation 'index1' or 'ggl')")
+            if item in ("residuals", "inequalities") or item.startswith("g_") or item.startswith("gdot_"):
+                self._python_outputs.append(item)
+            else:
+                names.append(item)
+        self._model_outputs = names
+        self._runtime_parameters = runtime_parameters
+        self._values = dict(values or {})
+        self._prefix = prefix
+        self._verbose = verbose
+        self._compiled: dict[int, CompiledModel] = {}
+        self._reduced: dict[int, Model] = {}
+        model = system.model
+        folded_names = [s.name for s in model.params]
+        if runtime_parameters is not None:
+            folded_names = [nm for nm in folded_names if nm not in set(runtime_parameters)]
+        else:
+            folded_names = []
+        defaults = {s.name: v for s, v in model.params.items()}
+        self._folded = {nm: float(self._values.get(nm, defaults[nm])) for nm in folded_names}
+        # numerical constraint residuals for the outputs g_j, gdot_j (from the reconstructed full state)
+        args = list(model.coords) + list(model.speeds) + [model.t] + list(model.params)
+        self._args = args
+        self._g_fn = sp.lambdify(args, list(system.holonomic), modules="numpy")
+        self._s_fn = sp.lambdify(args, list(system.velocity_residuals()), modules="numpy")
+
+    @property
+    def state_names(self) -> list[str]:
+        return [q.name for q in self.remaining] + [f"{q.name}_dot" for q in self.remaining]
+
+    @property
+    def param_names(self) -> list[str]:
+        names = [s.name for s in self.system.model.params]
+        return names if self._runtime_parameters is None else list(self._runtime_parameters)
+
+    def compiled_branch(self, b: int) -> CompiledModel:
+        if b not in self._compiled:
+            red = reduced_model(self.system, self.branches[b], name=f"{self.system.model.name}_min{b}")
+            scene = Scene(derive(red), outputs=[*self._model_outputs, *[f"{q.name}" for q in self.eliminated],
+                                                 *[f"{q.name}_dot" for q in self.eliminated]],
+                          runtime_parameters=self._runtime_parameters, values=self._values,
+                          prefix=self._prefix and f"{self._prefix}_b{b}")
+            self._reduced[b] = red
+            self._compiled[b] = CompiledModel.from_built(build(generate_code(scene, self.lang), native=True,
+                                                                      verbose=self._verbose))
+        return self._compiled[b]
+
+    def _branch_for(self, q: np.ndarray, t0: float, vals: dict, tol: float) -> int:
+        model = self.system.model
+        subs = {**{s: q[i] for i, s in enumerate(model.coords)}, model.t: t0,
+                **{s: vals[s.name] for s in model.params}}
+        best, err = None, np.inf
+        for b, sol in enumerate(self.branches):
+            try:
+                e = max(abs(complex(sp.sympify(sol[qe]).xreplace(subs).evalf()) - q[model.index(qe)])
+                        for qe in self.eliminated)
+            except (TypeError, ValueError):
+                continue
+            if e < err:
+                best, err = b, e
+        if best is None or err > tol * (1 + float(np.max(np.abs(q)))):
+            raise ModelError(f"minimal coordinates: no solution branch of the constraints matches q0 "
+                             f"(closest differs by {err:.3g}); inconsistent initial conditions")
+        return best
+
+    def simulate(self, t, q0=None, v0=None, params: Mapping | None = None, rtol: float = 1e-8, atol=1e-10,
+                 backend: str = "native", method: str | None = None, initial: str = "check", ic_tol: float = 1e-8,
+                 raise_on_error: bool = True, **kwargs) -> Result:
+        """Integrate in the remaining coordinates; q0/v0 are given for all n coordinates.
+
+        ``initial="check"`` requires them to satisfy the constraints (within ``ic_tol``);
+        ``"project"`` keeps the remaining coordinates and velocities and recomputes the
+        eliminated ones. Other keyword arguments go to :func:`lagcodegen.solve.simulate`.
+        """
+        for key in ("baumgarte", "projection", "suppress_alg", "events"):
+            kwargs.pop(key, None)
+        t = output_times(t)
+        model = self.system.model
+        names = [q.name for q in model.coords]
+        q = state_vector(q0, names, "q0")
+        v = state_vector(v0, names, "v0")
+        defaults = {s.name: v_ for s, v_ in model.params.items()}
+        vals = {**defaults, **self._values}
+        for k, val in (params or {}).items():
+            if k not in self.param_names:
+                raise LagcodegenError(f"{k!r} is not a run-time parameter (run-time parameters: "
+                                      f"{', '.join(self.param_names) or 'none'})")
+            vals[k] = check_finite(val, f"parameter {k!r}")
+        if initial == "check":
+            self.system.check_initial(q, v, vals, t0=float(t[0]), tol=ic_tol)
+        elif initial not in ("project", "none"):
+            raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
+        tol = ic_tol if initial == "check" else np.inf
+        b = self._branch_for(q, float(t[0]), vals, tol)
+        cm = self.compiled_branch(b)
+        idx = [model.index(qr) for qr in self.remaining]
+        run_params = {k: vals[k] for k in cm.param_names}
+        start = time.perf_counter()
+        res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, rtol=rtol, atol=atol, backend=backend,
+                          method=method or "adams", raise_on_error=raise_on_error, **kwargs)
+        res.stats["wall_time"] = time.perf_counter() - start
+        res.stats["branch"] = b
+        self._add_residuals(res, vals)
+        res.formulation = "minimal"
+        res.events = []
+        return res
+
+    def full_state(self, res: Result) -> tuple[np.ndarray, np.ndarray]:
+        """(q, q') of all n coordinates along a result (eliminated ones from the outputs)."""
+        model = self.system.model
+        q = np.column_stack([res[c.name] for c in model.coords])
+        v = np.column_stack([res[f"{c.name}_dot"] for c in model.coords])
+        return q, v
+
+    def _add_residuals(self, res: Result, vals: dict) -> None:
+        want = self._python_outputs
+        if not want:
+            return
+        model = self.system.model
+        q, v = self.full_state(res)
+        args = [q[:, i] for i in range(model.n)] + [v[:, i] for i in range(model.n)] + [res.t]
+        args += [np.full_like(res.t, vals[s.name]) for s in model.params]
+        JH, J = self.system.n_holonomic, self.system.J
+        g = np.atleast_2d(np.array([np.broadcast_to(x, res.t.shape) for x in self._g_fn(*args)], dtype=float))
+        s = np.atleast_2d(np.array([np.broadcast_to(x, res.t.shape) for x in self._s_fn(*args)], dtype=float))
+        extra = {}
+        for j in range(JH):
+            extra[f"g_{j}"] = g[j]
+        for j in range(J):
+            extra[f"gdot_{j}"] = s[j]
+        for item in want:
+            if item == "residuals":
+                res.outputs.update(extra)
+            elif item in extra:
+                res.outputs[item] = extra[item]
+
+

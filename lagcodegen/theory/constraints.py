@@ -1,0 +1,474 @@
+"""Constrained systems: holonomic, nonholonomic (Pfaffian) and inequality constraints (notes, sec. 4).
+
+A :class:`ConstrainedSystem` adds constraints to a :class:`~lagcodegen.model.Model`:
+
+* holonomic constraints f_j(q, t) = 0 (eq. 4.1), used in their differential form
+  df_j = sum_i (df_j/dq_i) dq_i + (df_j/dt) dt = 0 (eq. 4.2), i.e. the row A_j = df_j/dq and
+  A0_j = df_j/dt;
+* nonholonomic (Pfaffian) constraints A_j . q' + A0_j = 0, the nonintegrable differential form
+  of eq. 4.3 divided by dt;
+* inequality constraints g_k(q, t) >= 0 (eq. 4.3, left), which are *monitored* (their crossing
+  of zero is a root-finding event, see :mod:`lagcodegen.events`), not enforced.
+
+Every equality constraint j contributes a constraint force R_j = lambda_j A_j (sec. 4.3) and
+the equations of motion become (eq. 4.5)
+
+    M q'' = F + A^T lambda,        A q'' = gamma,
+
+where gamma = -(d/dt)(A q' + A0) with q'' excluded: gamma_j = -(sum_i d(A_j q' + A0_j)/dq_i q_i'
++ d(A_j q' + A0_j)/dt). Sign convention: lambda_j A_j is the generalized force the constraint
+exerts; for a pendulum written as f = x^2 + y^2 - l^2 (A = (2x, 2y), pointing away from the
+pivot) the rod tension is T = -2 l lambda = -lambda |A|.
+
+The system is only described here; :mod:`lagcodegen.dae` generates and integrates the code.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from ..derivation import derive
+from ..errors import ModelError
+from ..model.model import Model
+from ..util import check_finite, state_vector
+
+#: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
+INTEGRABLE_POLICIES = ("error", "allow")
+
+
+#: Formulations of constrained dynamics lagcodegen integrates (eqs. 4.1-4.5): augmented index 1
+#: on CVODE, stabilized index 2 (Gear-Gupta-Leimkuhler) on IDA, minimal coordinates.
+FORMULATIONS = ("index1", "ggl", "minimal")
+
+
+def _expr(value, what: str) -> sp.Expr:
+    if isinstance(value, sp.Equality):
+        value = value.lhs - value.rhs
+    try:
+        expr = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError) as exc:
+        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+    if not isinstance(expr, sp.Expr):
+        raise ModelError(f"{what} is not a scalar expression: {value!r}")
+    return expr
+
+
+@dataclass(frozen=True)
+class PfaffianRow:
+    """One equality constraint in Pfaffian form A . q' + A0 = 0 (eq. 4.2 / eq. 4.3).
+
+    ``f`` is the holonomic constraint f(q, t) = 0 the row comes from (eq. 4.2), or None for a
+    nonholonomic constraint.
+    """
+
+    index: int
+    A: tuple
+    A0: sp.Expr
+    f: sp.Expr | None = None
+
+    @property
+    def holonomic(self) -> bool:
+        return self.f is not None
+
+
+@dataclass(frozen=True)
+class IntegrabilityReport:
+    """Result of the Frobenius test w ^ dw = 0 for one Pfaffian form w = A . dq + A0 dt."""
+
+    integrable: bool
+    obstruction: dict  # (var_i, var_j, var_k) names -> sympy expression not identically zero
+    proven: bool  # True: decided symbolically; False: decided from numerical samples
+
+    def __bool__(self) -> bool:
+        return self.integrable
+
+
+def frobenius_terms(A: Sequence, A0, coords: Sequence[sp.Symbol], t: sp.Symbol) -> dict:
+    """The components of w ^ dw for w = sum_i A_i dq_i + A0 dt, one per triple of variables.
+
+    With the variables x = (q_1..q_n, t) and coefficients a = (A_1..A_n, A0), the component
+    on dx_i ^ dx_j ^ dx_k (i < j < k) is
+
+        a_i (d_j a_k - d_k a_j) + a_j (d_k a_i - d_i a_k) + a_k (d_i a_j - d_j a_i).
+
+    A single 1-form is integrable (has an integrating factor, so that the constraint is
+    holonomic, eq. 4.1) exactly when all of them vanish (Frobenius).
+    """
+    xs = list(coords) + [t]
+    a = [sp.sympify(c) for c in A] + [sp.sympify(A0)]
+    out = {}
+    for i, j, k in itertools.combinations(range(len(xs)), 3):
+        xi, xj, xk = xs[i], xs[j], xs[k]
+        term = (a[i] * (sp.diff(a[k], xj) - sp.diff(a[j], xk))
+                + a[j] * (sp.diff(a[i], xk) - sp.diff(a[k], xi))
+                + a[k] * (sp.diff(a[j], xi) - sp.diff(a[i], xj)))
+        out[(xi.name, xj.name, xk.name)] = term
+    return out
+
+
+def _is_zero(expr: sp.Expr, symbols: list, rng: np.random.Generator) -> tuple[bool, bool]:
+    """(is zero, proven): evaluation at random points (every symbol, parameters included, gets a
+    random value in [0.3, 1.7]: integrability must hold for generic parameters), then symbolic
+    simplification."""
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True, True
+    # Numerical evaluation first: a clearly nonzero sample decides "not zero" for certain.
+    fn = sp.lambdify(symbols, expr, modules=["math"])
+    nonzero = 0
+    zero = 0
+    for _ in range(12):
+        point = [rng.uniform(0.3, 1.7) for _ in symbols]
+        try:
+            val = complex(fn(*point))
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            continue
+        if not (math.isfinite(val.real) and math.isfinite(val.imag)):
+            continue
+        if abs(val) > 1e-9:
+            nonzero += 1
+        else:
+            zero += 1
+    if nonzero:
+        return False, True
+    try:
+        simplified = sp.simplify(expr)
+    except Exception:  # pragma: no cover - simplify failures are sympy's
+        simplified = expr
+    if simplified == 0:
+        return True, True
+    return zero > 0, False
+
+
+def integrability(A: Sequence, A0, coords: Sequence[sp.Symbol], t: sp.Symbol, seed: int = 0) -> IntegrabilityReport:
+    """Frobenius test (w ^ dw = 0, time included) for the Pfaffian form A . dq + A0 dt (eq. 4.3).
+
+    Each component of w ^ dw is decided by evaluation at random points (a nonzero value proves
+    non-integrability) and, when those vanish, by symbolic simplification (``proven`` is False
+    if sympy could not reduce it to 0 and the decision rests on the samples).
+    """
+    terms = frobenius_terms(A, A0, coords, t)
+    rng = np.random.default_rng(seed)
+    obstruction = {}
+    proven = True
+    for key, term in terms.items():
+        symbols = sorted(term.free_symbols, key=lambda s: s.name)
+        zero, sure = _is_zero(term, symbols, rng)
+        proven = proven and sure
+        if not zero:
+            obstruction[key] = term
+    return IntegrabilityReport(integrable=not obstruction, obstruction=obstruction, proven=proven)
+
+
+class ConstrainedSystem:
+    """A model plus constraints (notes, sec. 4).
+
+    Parameters
+    ----------
+    model:
+        The unconstrained :class:`~lagcodegen.model.Model` (coordinates q_1..q_n).
+    holonomic:
+        Expressions f_j(q, t) meaning f_j = 0 (eq. 4.1); sympy ``Eq(lhs, rhs)`` is accepted.
+    nonholonomic:
+        Pfaffian constraints A . q' + A0 = 0 (eq. 4.3): each item a pair ``(A, A0)`` with ``A``
+        a list/Matrix of n coefficients (or a dict coordinate -> coefficient) in (q, t), or
+        just ``A`` (then A0 = 0).
+    inequalities:
+        Expressions g_k(q, t) meaning g_k >= 0 (eq. 4.3). They are monitored through
+        root-finding events (event ``ineq_<k>``, terminal, direction -1), not enforced.
+    integrable:
+        ``"error"`` (default): a nonholonomic constraint that passes the Frobenius test is
+        rejected ("integrable: it is holonomic"); ``"allow"``: keep it as a Pfaffian
+        constraint (the equations are still correct, the constraint is just not
+        nonholonomic).
+
+    Constraint j (holonomic ones first, then the nonholonomic ones) has the multiplier
+    ``lambda_<j>`` (symbols in :attr:`multipliers`).
+    """
+
+    def __init__(self, model: Model, holonomic: Iterable = (), nonholonomic: Iterable = (),
+                 inequalities: Iterable = (), *, integrable: str = "error"):
+        if not isinstance(model, Model):
+            raise ModelError(f"ConstrainedSystem needs a lagcodegen Model, got {type(model).__name__}")
+        if integrable not in INTEGRABLE_POLICIES:
+            raise ModelError(f"integrable must be one of {', '.join(INTEGRABLE_POLICIES)}, got {integrable!r}")
+        self.model = model
+        n = model.n
+        if n == 0:
+            raise ModelError(f"model {model.name!r} has no coordinates")
+        t = model.t
+
+        self.holonomic: list[sp.Expr] = []
+        for j, f in enumerate(holonomic):
+            what = f"holonomic constraint {j}"
+            f = _expr(f, what)
+            model.check_symbols(f, what, allow_speeds=False)
+            if not (f.free_symbols & set(model.coords)):
+                raise ModelError(f"{what} ({f} = 0) involves no coordinate of model {model.name!r}")
+            self.holonomic.append(f)
+
+        self.nonholonomic: list[tuple[tuple, sp.Expr]] = []
+        for j, item in enumerate(nonholonomic):
+            what = f"nonholonomic constraint {j}"
+            A, A0 = self._split_pfaffian(item, what)
+            for i, a in enumerate(A):
+                model.check_symbols(a, f"{what}, coefficient of {model.coords[i].name}'", allow_speeds=False)
+            model.check_symbols(A0, f"{what}, A0", allow_speeds=False)
+            if all(a == 0 for a in A):
+                raise ModelError(f"{what}: every coefficient A_i is zero (A0 = {A0}): not a constraint on the "
+                                 "velocities")
+            self.nonholonomic.append((A, A0))
+
+        self.inequalities: list[sp.Expr] = []
+        for k, g in enumerate(inequalities):
+            what = f"inequality constraint {k}"
+            g = _expr(g, what)
+            model.check_symbols(g, what, allow_speeds=False)
+            self.inequalities.append(g)
+
+        J = len(self.holonomic) + len(self.nonholonomic)
+        if J > n:
+            raise ModelError(f"{J} equality constraints ({len(self.holonomic)} holonomic, "
+                             f"{len(self.nonholonomic)} nonholonomic) but only {n} coordinates "
+                             f"({', '.join(q.name for q in model.coords)}): at most {n} are possible")
+        if J == 0 and not self.inequalities:
+            raise ModelError("no constraints given")
+
+        taken = {s.name for s in model.known_symbols()}
+        self.multipliers = [sp.Symbol(f"lambda_{j}") for j in range(J)]
+        clash = [s.name for s in self.multipliers if s.name in taken]
+        if clash:
+            raise ModelError(f"the model declares {', '.join(clash)}, names reserved for Lagrange multipliers")
+
+        self.integrability_reports: dict[int, IntegrabilityReport] = {}
+        for j, (A, A0) in enumerate(self.nonholonomic):
+            rep = integrability(A, A0, model.coords, t)
+            self.integrability_reports[j] = rep
+            if rep.integrable and integrable == "error":
+                form = " + ".join(f"({a})*d{q.name}" for a, q in zip(A, model.coords) if a != 0)
+                if A0 != 0:
+                    form += f" + ({A0})*dt"
+                how = "" if rep.proven else " (numerically, at random points)"
+                raise ModelError(
+                    f"nonholonomic constraint {j} ({form} = 0) is integrable: it is holonomic (the Frobenius "
+                    f"condition w ^ dw = 0 holds{how}); give it as a holonomic constraint f(q, t) = 0, or pass "
+                    "integrable='allow' to keep the Pfaffian form")
+
+    # ------------------------------------------------------------------ input
+    def _split_pfaffian(self, item, what: str) -> tuple[tuple, sp.Expr]:
+        model = self.model
+        n = model.n
+        if isinstance(item, tuple) and len(item) == 2 and _is_row(item[0]):
+            A, A0 = item
+        else:
+            A, A0 = item, 0
+        if isinstance(A, Mapping):
+            coeffs = [sp.Integer(0)] * n
+            for key, val in A.items():
+                coeffs[model.index(key)] = _expr(val, f"{what}, coefficient of {key}")
+            A = coeffs
+        elif isinstance(A, sp.MatrixBase):
+            A = list(A)
+        else:
+            try:
+                A = list(A)
+            except TypeError:
+                raise ModelError(f"{what}: A must be a row of {n} coefficients, got {A!r}") from None
+        if len(A) != n:
+            raise ModelError(f"{what}: A has {len(A)} coefficients, the model has {n} coordinates "
+                             f"({', '.join(q.name for q in model.coords)})")
+        A = tuple(_expr(a, f"{what}, coefficient {i}") for i, a in enumerate(A))
+        return A, _expr(A0, f"{what}, A0")
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n(self) -> int:
+        """Number of coordinates."""
+        return self.model.n
+
+    @property
+    def n_holonomic(self) -> int:
+        return len(self.holonomic)
+
+    @property
+    def n_nonholonomic(self) -> int:
+        return len(self.nonholonomic)
+
+    @property
+    def J(self) -> int:
+        """Number of equality constraints (holonomic + nonholonomic)."""
+        return self.n_holonomic + self.n_nonholonomic
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom n - J (sec. 4.1)."""
+        return self.n - self.J
+
+    # ------------------------------------------------------------------ forms
+    def rows(self) -> list[PfaffianRow]:
+        """Every equality constraint in Pfaffian form; holonomic rows from eq. 4.2."""
+        model = self.model
+        out = []
+        for j, f in enumerate(self.holonomic):
+            out.append(PfaffianRow(j, tuple(sp.diff(f, q) for q in model.coords), sp.diff(f, model.t), f))
+        for k, (A, A0) in enumerate(self.nonholonomic):
+            out.append(PfaffianRow(self.n_holonomic + k, A, A0, None))
+        return out
+
+    @property
+    def A(self) -> sp.Matrix:
+        """Constraint matrix (J x n): rows df_j/dq (eq. 4.2) then the Pfaffian rows (eq. 4.3)."""
+        return sp.Matrix([list(r.A) for r in self.rows()]) if self.J else sp.zeros(0, self.n)
+
+    @property
+    def A0(self) -> sp.Matrix:
+        """The dt coefficients (J): df_j/dt, then A0 of the Pfaffian rows."""
+        return sp.Matrix([r.A0 for r in self.rows()]) if self.J else sp.zeros(0, 1)
+
+    def velocity_residuals(self) -> sp.Matrix:
+        """A q' + A0 (= 0 on the constraint manifold), in (q, q', t)."""
+        v = sp.Matrix(self.model.speeds)
+        return self.A * v + self.A0
+
+    def acceleration_rhs(self) -> sp.Matrix:
+        """gamma with A q'' = gamma: gamma = -d/dt (A q' + A0) with the q'' terms excluded."""
+        model = self.model
+        s = self.velocity_residuals()
+        out = []
+        for sj in s:
+            d = sp.diff(sj, model.t) + sum((sp.diff(sj, q) * v for q, v in zip(model.coords, model.speeds)),
+                                           sp.Integer(0))
+            out.append(-d)
+        return sp.Matrix(out)
+
+    def equations(self, eom=None) -> tuple[sp.Matrix, sp.Matrix]:
+        """Residuals of eq. 4.5 with the multipliers: (M q'' - F - A^T lambda, A q'' - gamma).
+
+        Symbols of q'' are those of :meth:`EquationsOfMotion.accelerations`.
+        """
+        eom = eom or derive(self.model)
+        a = eom.accelerations()
+        lam = sp.Matrix(self.multipliers)
+        dyn = eom.M * a - eom.F - self.A.T * lam
+        return dyn, self.A * a - self.acceleration_rhs()
+
+    def constraint_forces(self) -> list[sp.Matrix]:
+        """R_j = lambda_j A_j (sec. 4.3), one generalized-force vector per constraint."""
+        return [self.multipliers[r.index] * sp.Matrix(r.A) for r in self.rows()]
+
+    def is_integrable(self, j: int) -> IntegrabilityReport:
+        """Frobenius test of nonholonomic constraint ``j`` (index among the nonholonomic ones)."""
+        return self.integrability_reports[j]
+
+    # ------------------------------------------------------------------ numbers
+    def _numeric_values(self, q0, v0, params, t0):
+        model = self.model
+        q = state_vector(q0, [s.name for s in model.coords], "q0")
+        v = np.zeros(self.n) if v0 is None else state_vector(v0, [s.name for s in model.coords], "v0")
+        pvals = {s: float(val) for s, val in model.params.items()}
+        names = {s.name: s for s in model.params}
+        for key, val in (params or {}).items():
+            if key not in names:
+                raise ModelError(f"{key!r} is not a parameter of model {model.name!r}")
+            pvals[names[key]] = check_finite(val, f"parameter {key!r}")
+        subs = {**dict(zip(model.coords, q)), **dict(zip(model.speeds, v)), **pvals,
+                model.t: check_finite(t0, "t0")}
+        subs = {k: sp.Float(float(val), 17) for k, val in subs.items()}
+        return q, v, subs
+
+    def evaluate(self, q0, v0=None, params: Mapping | None = None, t0: float = 0.0) -> dict:
+        """Numbers at a state: A (J x n), A0, g = f(q, t) (holonomic), gdot = A q' + A0."""
+        _, _, subs = self._numeric_values(q0, v0, params, t0)
+
+        def num(e, what):
+            val = sp.sympify(e).xreplace(subs).evalf()
+            try:
+                x = float(val)
+            except TypeError:
+                raise ModelError(f"{what} is not a real number at this state: {val}") from None
+            return x
+
+        rows = self.rows()
+        A = np.array([[num(a, f"constraint {r.index}, A") for a in r.A] for r in rows]).reshape(self.J, self.n)
+        A0 = np.array([num(r.A0, f"constraint {r.index}, A0") for r in rows])
+        g = np.array([num(f, f"holonomic constraint {j}") for j, f in enumerate(self.holonomic)])
+        v = np.array([float(subs[s]) for s in self.model.speeds], dtype=float)
+        gdot = A @ v + A0 if self.J else np.zeros(0)
+        ineq = np.array([num(gk, f"inequality constraint {k}") for k, gk in enumerate(self.inequalities)])
+        return {"A": A, "A0": A0, "g": g, "gdot": gdot, "inequalities": ineq}
+
+    def check_initial(self, q0, v0=None, params: Mapping | None = None, t0: float = 0.0,
+                      tol: float = 1e-8) -> dict:
+        """Check an initial state against the constraints; raise ModelError naming what is wrong.
+
+        * the constraint Jacobian A (J x n) must have full rank J at q0 (otherwise constraints
+          are redundant, or inconsistent, there);
+        * every holonomic constraint must hold: |f_j(q0, t0)| <= tol (eq. 4.1);
+        * every velocity constraint must hold: |A_j q0' + A0_j| <= tol (eqs. 4.2, 4.3);
+        * inequality constraints must hold: g_k(q0, t0) >= -tol.
+
+        Returns the numbers of :meth:`evaluate` plus ``rank``.
+        """
+        vals = self.evaluate(q0, v0, params, t0)
+        A = vals["A"]
+        J = self.J
+        rank = J
+        if J:
+            if not np.all(np.isfinite(A)):
+                raise ModelError("the constraint Jacobian A is not finite at the initial state")
+            rank = int(np.linalg.matrix_rank(A, tol=rank_tolerance(A)))
+            if rank < J:
+                detail = dependent_rows(A)
+                raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{self.n}) has rank "
+                                 f"{rank} < {J} constraints; {detail} (redundant or inconsistent constraints, "
+                                 "or a singular configuration)")
+        bad = [f"holonomic constraint {j} (g_{j} = {f}) has residual {vals['g'][j]:.3g}"
+               for j, f in enumerate(self.holonomic) if not abs(vals["g"][j]) <= tol]
+        bad += [f"velocity constraint {j} (gdot_{j} = A_{j} q' + A0_{j}) has residual {vals['gdot'][j]:.3g}"
+                for j in range(J) if not abs(vals["gdot"][j]) <= tol]
+        bad += [f"inequality constraint {k} ({g} >= 0) is violated: {vals['inequalities'][k]:.3g}"
+                for k, g in enumerate(self.inequalities) if not vals["inequalities"][k] >= -tol]
+        if bad:
+            raise ModelError("inconsistent initial conditions (tolerance %.3g): %s; project them with "
+                             "initial='project' (CLI: --project-initial) or fix q0/v0" % (tol, "; ".join(bad)))
+        vals["rank"] = rank
+        return vals
+
+    def __repr__(self) -> str:
+        return (f"ConstrainedSystem({self.model.name!r}, {self.n_holonomic} holonomic, {self.n_nonholonomic} "
+                f"nonholonomic, {len(self.inequalities)} inequalities)")
+
+
+def _is_row(x) -> bool:
+    return isinstance(x, (list, tuple, sp.MatrixBase, Mapping, np.ndarray))
+
+
+def rank_tolerance(A: np.ndarray) -> float:
+    if A.size == 0:
+        return 0.0
+    s = np.linalg.svd(A, compute_uv=False)
+    return max(A.shape) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 0.0)
+
+
+def dependent_rows(A: np.ndarray) -> str:
+    """Name the rows of A that add nothing to the rank of the rows before them."""
+    tol = rank_tolerance(A)
+    parts = []
+    kept: list[int] = []
+    for j in range(A.shape[0]):
+        if not np.any(np.abs(A[j]) > tol):
+            parts.append(f"constraint {j} has a zero gradient A_{j} there")
+            continue
+        trial = kept + [j]
+        if np.linalg.matrix_rank(A[trial], tol=tol) < len(trial):
+            others = ", ".join(str(k) for k in kept)
+            parts.append(f"constraint {j} is linearly dependent on constraint(s) {others}")
+        else:
+            kept.append(j)
+    return "; ".join(parts) or "rank deficient"

@@ -1,0 +1,132 @@
+"""Minimal coordinates: holonomic constraints solved symbolically and eliminated (formulation "minimal").
+
+:func:`solve_constraints` solves f(q, t) = 0 (eq. 4.1) for some coordinates with sympy (every
+branch), :func:`reduced_model` substitutes a branch into the model's positions and energies,
+and :class:`lagcodegen.solvers.minimal.MinimalSimulation` compiles the unconstrained model of
+the branch the initial state lies on. Symbolic only: nothing here compiles.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Mapping, Sequence
+
+import sympy as sp
+
+from ..errors import ModelError
+from ..model.model import Model, Particle, PlanarBody, RigidBody
+from .constraints import ConstrainedSystem
+
+
+def solve_constraints(system: ConstrainedSystem, eliminate: Sequence | None = None):
+    """Solve the holonomic constraints symbolically for J coordinates (sympy).
+
+    Returns (eliminated coordinate symbols, list of solution branches {q_e: expr in the
+    remaining q, t}). Tries ``eliminate`` if given, else every subset of J coordinates, the
+    last coordinates first. Raises ModelError when sympy solves none.
+    """
+    model = system.model
+    if system.nonholonomic:
+        raise ModelError("minimal coordinates need holonomic constraints only: nonholonomic constraints "
+                         f"({system.n_nonholonomic}) cannot be eliminated; use formulation 'index1' or 'ggl'")
+    J = system.n_holonomic
+    if J == 0:
+        raise ModelError("minimal coordinates: there are no holonomic constraints to eliminate")
+    if eliminate is not None:
+        subset = tuple(model.coords[model.index(q)] for q in eliminate)
+        if len(subset) != J:
+            raise ModelError(f"eliminate: {len(subset)} coordinate(s) given, but there are {J} holonomic constraints")
+        candidates = [subset]
+    else:
+        candidates = list(itertools.combinations(list(reversed(model.coords)), J))
+    tried = []
+    for subset in candidates:
+        tried.append("(" + ", ".join(q.name for q in subset) + ")")
+        try:
+            sols = sp.solve(list(system.holonomic), list(subset), dict=True)
+        except (NotImplementedError, ValueError, TypeError):
+            continue
+        good = []
+        for sol in sols:
+            if set(sol) != set(subset):
+                continue
+            if any(expr.free_symbols & set(subset) for expr in sol.values()):
+                continue
+            good.append({q: sp.sympify(sol[q]) for q in subset})
+        if good:
+            return list(subset), good
+    raise ModelError("minimal coordinates: sympy cannot solve the holonomic constraints "
+                     f"{', '.join(f'{f} = 0' for f in system.holonomic)} for any set of {J} coordinate(s) "
+                     f"(tried {', '.join(tried)}); use formulation 'index1' or 'ggl'")
+
+
+def reduced_model(system: ConstrainedSystem, solution: Mapping, name: str | None = None) -> Model:
+    """A new Model in the remaining coordinates, with the solved ones substituted everywhere.
+
+    Eliminated velocities become d/dt of their solutions; a generalized force Q*_e on an
+    eliminated coordinate is mapped by virtual work (Q*_r += Q*_e dq_e/dq_r). The eliminated
+    coordinates and velocities are added as outputs ``<q_e>`` and ``<q_e>_dot``.
+    """
+    old = system.model
+    new = Model(name or f"{old.name}_min")
+    keep = [q for q in old.coords if q not in solution]
+    new.coordinates([q.name for q in keep])
+    for sym_, val in old.params.items():
+        new.parameter(sym_.name, val)
+    sub = dict(solution)
+    for qe, expr in solution.items():
+        vel = sp.diff(expr, old.t) + sum((sp.diff(expr, q) * old.dot(q) for q in keep), sp.Integer(0))
+        sub[old.dot(qe)] = vel
+
+    def S(e):
+        return sp.sympify(e).xreplace(sub)
+
+    def V(vec):
+        return [S(c) for c in vec]
+
+    body_points = set()
+    for body in old.bodies:
+        body_points.add(body.point.name)
+        if isinstance(body, Particle):
+            new.particle(body.name, S(body.mass), V(body.point.position))
+        elif isinstance(body, PlanarBody):
+            new.planar_body(body.name, S(body.mass), S(body.inertia), V(body.point.position), S(body.angle))
+        elif isinstance(body, RigidBody):
+            new.rigid_body(body.name, S(body.mass), body.inertia.applyfunc(S), V(body.point.position),
+                           body.orientation.applyfunc(S))
+    for pname, pt in old.points.items():
+        if pname not in body_points:
+            new.point(pname, V(pt.position))
+    for label, T in old.kinetic_terms:
+        new.kinetic_energy(S(T), label)
+    for label, Vt in old.potential_terms:
+        new.potential_energy(S(Vt), label)
+    for label, U in old.generalized_potential_terms:
+        new.generalized_potential(S(U), label)
+    for label, D in old.dissipation_terms:
+        new.dissipation(S(D), label)
+    for label, pt, F in old.cartesian_forces:
+        target = pt.name if pt.name in new.points else V(pt.position)
+        new.force(target, V(F), label)
+    for label, i, Q in old.generalized_forces:
+        qi = old.coords[i]
+        if qi in solution:
+            for qr in keep:
+                factor = sp.diff(solution[qi], qr)
+                if factor != 0:
+                    new.generalized_force(qr, S(Q) * factor, f"{label} (via {qi.name})")
+        else:
+            new.generalized_force(qi, S(Q), label)
+    if old.gravity_spec is not None:
+        g, up = old.gravity_spec
+        new.gravity_spec = (S(g), up)
+    for oname, expr in old.outputs.items():
+        new.output(oname, S(expr))
+    for qe, expr in solution.items():
+        if qe.name not in new.outputs:
+            new.output(qe.name, expr)
+        if f"{qe.name}_dot" not in new.outputs:
+            new.output(f"{qe.name}_dot", sub[old.dot(qe)])
+    return new
+
+

@@ -1,0 +1,89 @@
+"""Small shared helpers under the whole pipeline: input checks and atomic file writes.
+
+Every stage may import this module; it imports nothing of lagcodegen except the errors.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .errors import LagcodegenError, ModelError
+
+
+def check_finite(value, what: str) -> float:
+    """Return ``value`` as a float, or raise ModelError if it is not a finite real number."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{what} must be a real number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ModelError(f"{what} must be finite, got {x}")
+    return x
+
+
+def atomic_write(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def output_times(t) -> np.ndarray:
+    """Output times as an array: ``t`` itself, or 1001 evenly spaced times for a pair (t0, t1)."""
+    t = np.asarray(t, dtype=float).ravel()
+    if t.size == 2:
+        t = np.linspace(t[0], t[1], 1001)
+    if t.size < 2 or not np.isfinite(t).all() or not (t[1:] > t[:-1]).all():
+        raise LagcodegenError("t must be at least two finite, strictly increasing times")
+    return t
+
+
+def state_vector(val, names: list[str], what: str) -> np.ndarray:
+    """Values for ``names`` from None (zeros), a mapping by name (missing: 0) or a sequence."""
+    if val is None:
+        return np.zeros(len(names))
+    if isinstance(val, Mapping):
+        unknown = set(val) - set(names)
+        if unknown:
+            raise ModelError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
+        return np.array([float(val.get(k, 0.0)) for k in names])
+    arr = np.array(val, dtype=float).ravel()
+    if arr.size != len(names):
+        raise ModelError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
+    if not np.isfinite(arr).all():
+        raise ModelError(f"{what} has non-finite values")
+    return arr
+
+
+def c_vector(value, size: int, what: str, names=None) -> np.ndarray:
+    """``value`` as a contiguous float64 array of exactly ``size`` finite-or-not doubles, ready
+    to hand to C; anything else (None, wrong length, non-numeric, complex) raises
+    LagcodegenError naming ``what``, the expected length and the ``names`` of the entries.
+    Integer arrays are converted, never reinterpreted."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or value is None or np.iscomplexobj(value):
+        raise LagcodegenError(f"{what} must be an array of {size} real numbers"
+                              + (f" ({', '.join(names)})" if names else "") + f", got {value!r:.80}")
+    arr = np.ascontiguousarray(arr).ravel()
+    if arr.size != size:
+        raise LagcodegenError(f"{what} has {arr.size} values, expected {size}"
+                              + (f" ({', '.join(names)})" if names else ""))
+    return arr

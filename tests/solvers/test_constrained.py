@@ -1,0 +1,361 @@
+"""Constrained dynamics (eq. 4.5) in generated C: index-1 on CVODE (Baumgarte, projection),
+GGL on IDA (native and scikit-sundae), minimal coordinates; checked against independent facts."""
+
+import subprocess
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import lagcodegen as lcg
+from lagcodegen import ModelError, SolverError
+from lagcodegen.build import driver_sources, find_sundials
+from lagcodegen.theory.constraints import ConstrainedSystem
+from lagcodegen.api import compile_constrained
+from lagcodegen.codegen.constrained import generate_constrained_c
+from lagcodegen.model.events import Event
+
+from helpers import G, STRICT_CFLAGS, TH0, atwood, cartesian_pendulum, knife_edge, mixed_system, pendulum_q0
+
+
+def disc_on_incline(pfaffian: bool, name="disc"):
+    """Uniform disc (I = m R^2/2) rolling down a slope alpha: x' = R phi'."""
+    m = lcg.Model(name)
+    x, phi = m.coordinates("x phi")
+    mass, R, g, al = m.parameters(m=2.0, R=0.5, g=G, alpha=0.4)
+    m.kinetic_energy(mass / 2 * m.dot(x) ** 2 + mass * R ** 2 / 4 * m.dot(phi) ** 2)
+    m.potential_energy(-mass * g * sp.sin(al) * x)
+    if pfaffian:
+        return ConstrainedSystem(m, nonholonomic=[([1, -R], 0)], integrable="allow")
+    return ConstrainedSystem(m, holonomic=[x - R * phi])
+
+
+@pytest.fixture(scope="module")
+def cpend():
+    cs = cartesian_pendulum()
+    out = ["energy", "lambda", "residuals", "constraint_forces"]
+    return {"system": cs,
+            "index1": compile_constrained(cs, "index1", outputs=out),
+            "ggl": compile_constrained(cs, "ggl", outputs=out),
+            "minimal": compile_constrained(cs, "minimal")}
+
+
+@pytest.fixture(scope="module")
+def angle_run():
+    sim = lcg.compile_model(lcg.systems.pendulum(), outputs=["positions"])
+    return sim.simulate(np.linspace(0, 10, 201), q0=[TH0], rtol=1e-12, atol=1e-14)
+
+
+CASES = [("index1", "native", {}), ("index1", "sksundae", {}), ("index1", "native", {"projection": True}),
+         ("index1", "native", {"baumgarte": (5.0, 5.0)}), ("ggl", "native", {}), ("ggl", "sksundae", {}),
+         ("ggl", "native", {"jacobian": False}), ("ggl", "native", {"suppress_alg": False}),
+         ("minimal", "native", {})]
+
+
+# ---------------------------------------------------------------------- pendulum
+@pytest.mark.parametrize("formulation,backend,opts", CASES)
+def test_cartesian_pendulum_matches_angle_model(cpend, angle_run, formulation, backend, opts):
+    res = cpend[formulation].simulate(angle_run.t, q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12,
+                                      backend=backend, **opts)
+    assert res.success and res.formulation == formulation
+    assert np.max(np.abs(res["x"] - angle_run["bob_x"])) < 2e-6
+    assert np.max(np.abs(res["y"] - angle_run["bob_y"])) < 2e-6
+    assert np.max(np.abs(res["g_0"])) < 1e-6
+    assert res.drift("energy") < 1e-6
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_rod_tension_is_the_multiplier(cpend, angle_run, formulation):
+    """T = m (g cos(theta) + l theta'^2); with f = x^2 + y^2 - l^2, R = lambda A = lambda (2x, 2y)
+    points away from the pivot for lambda > 0, so the tension is T = -lambda |A| = -2 l lambda."""
+    res = cpend[formulation].simulate(angle_run.t, q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12)
+    th, thd = angle_run["theta"], angle_run["theta_dot"]
+    tension = 1.0 * (G * np.cos(th) + 1.0 * thd ** 2)
+    assert np.max(np.abs(-2.0 * res["lambda_0"] - tension)) < 1e-5 * np.max(tension)
+    force = np.hypot(res["R_0_x"], res["R_0_y"])  # |R_j| (sec. 4.3)
+    assert np.max(np.abs(force - tension)) < 1e-5 * np.max(tension)
+
+
+def test_minimal_coordinates_eliminate_y_and_have_no_multipliers(cpend):
+    sim = cpend["minimal"]
+    assert [q.name for q in sim.eliminated] == ["y"]
+    assert sim.state_names == ["x", "x_dot"]
+    assert len(sim.branches) == 2  # y = +-sqrt(l^2 - x^2), chosen from q0
+    res = sim.simulate([0, 1], q0=pendulum_q0(), v0=[0, 0])
+    assert res["y"][0] < 0 and res.stats["branch"] in (0, 1)
+    with pytest.raises(ModelError, match="no Lagrange multipliers"):
+        compile_constrained(cpend["system"], "minimal", outputs=["lambda"])
+
+
+def test_minimal_coordinates_errors():
+    with pytest.raises(ModelError, match="nonholonomic constraints .* cannot be eliminated"):
+        compile_constrained(knife_edge(), "minimal")
+    m = lcg.Model("hard")
+    x, y = m.coordinates("x y")
+    m.particle("p", 1, (x, y))
+    cs = ConstrainedSystem(m, holonomic=[x * y + sp.cos(x) + sp.cos(y)])
+    with pytest.raises(ModelError, match="sympy cannot solve the holonomic constraints"):
+        compile_constrained(cs, "minimal")
+
+
+# ---------------------------------------------------------------------- textbook systems
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_atwood_machine_acceleration_and_tension(formulation):
+    sim = compile_constrained(atwood(), formulation)
+    m1, m2 = 3.0, 1.0
+    a_exact = (m1 - m2) * G / (m1 + m2)
+    tension = 2 * m1 * m2 * G / (m1 + m2)
+    t = np.linspace(0, 1, 11)
+    res = sim.simulate(t, q0=[0.5, 1.5], v0=[0, 0], rtol=1e-10, atol=1e-12)
+    assert np.allclose(res["x1"], 0.5 + a_exact * t ** 2 / 2, atol=1e-8)
+    assert np.allclose(res["x2"], 1.5 - a_exact * t ** 2 / 2, atol=1e-8)
+    # m1 x1'' = m1 g + lambda (A = (1, 1)): the tension pulls up, T = -lambda
+    assert np.allclose(-res["lambda_0"], tension, rtol=1e-7)
+    acc, lam = sim.kkt(0.0, [0.5, 1.5, 0, 0])
+    assert np.allclose(acc, [a_exact, -a_exact], rtol=1e-12) and np.isclose(-lam[0], tension, rtol=1e-12)
+
+
+@pytest.mark.parametrize("pfaffian", [False, True], ids=["holonomic", "pfaffian"])
+def test_disc_rolling_down_an_incline(pfaffian):
+    """x'' = 2 g sin(alpha)/3 and the friction force lambda = -m g sin(alpha)/3 on x."""
+    sim = compile_constrained(disc_on_incline(pfaffian, name=f"disc{int(pfaffian)}"), "index1")
+    al, mass = 0.4, 2.0
+    a_exact = 2 * G * np.sin(al) / 3
+    t = np.linspace(0, 2, 21)
+    res = sim.simulate(t, q0=[0, 0], v0=[0, 0], rtol=1e-10, atol=1e-12)
+    assert np.allclose(res["x"], a_exact * t ** 2 / 2, atol=1e-8)
+    assert np.allclose(res["phi"], a_exact * t ** 2 / 2 / 0.5, atol=1e-8)
+    assert np.allclose(res["lambda_0"], -mass * G * np.sin(al) / 3, rtol=1e-7)
+
+
+def test_disc_in_minimal_coordinates_agrees():
+    sim = compile_constrained(disc_on_incline(False, name="discmin"), "minimal")
+    t = np.linspace(0, 2, 21)
+    res = sim.simulate(t, q0=[0, 0], v0=[0, 0], rtol=1e-10, atol=1e-12)
+    assert np.allclose(res["x"], 2 * G * np.sin(0.4) / 3 * t ** 2 / 2, atol=1e-8)
+
+
+@pytest.mark.parametrize("formulation,opts", [("index1", {}), ("index1", {"baumgarte": (5.0, 0.0)}),
+                                              ("index1", {"projection": True}), ("ggl", {})])
+def test_knife_edge_keeps_energy_and_its_nonholonomic_constraint(formulation, opts):
+    sim = compile_constrained(knife_edge(name=f"knife_{formulation}"), formulation)
+    res = sim.simulate(np.linspace(0, 30, 301), q0=[0, 0, 0], v0=[0, 0, 1.5], rtol=1e-10, atol=1e-12, **opts)
+    assert res.drift("energy") < 1e-6  # ideal, scleronomic constraint: no work
+    assert np.max(np.abs(res["gdot_0"])) < 1e-7
+    assert np.ptp(res["y"]) > 0.1  # it does move across the slope (not a trivial run)
+    if opts.get("projection") or formulation == "ggl":
+        assert np.max(np.abs(res["gdot_0"])) < 1e-9
+
+
+def test_index1_without_constraints_is_the_plain_model():
+    """Only an inequality: J = 0, the augmented system is M q'' = F (code paths with empty arrays)."""
+    m = lcg.Model("ball")
+    x, y = m.coordinates("x y")
+    m.particle("b", 1.0, (x, y))
+    m.gravity(G)
+    cs = ConstrainedSystem(m, inequalities=[y])
+    sim = compile_constrained(cs, "index1", outputs=["energy", "inequalities"])
+    res = sim.simulate(np.linspace(0, 1, 11), q0=[0, 1], v0=[1, 0], rtol=1e-10, atol=1e-12)
+    t_hit = np.sqrt(2 / G)
+    assert res.events and res.events[0].name == "ineq_0" and abs(res.events[0].t - t_hit) < 1e-8
+    assert res.t[-1] == res.events[0].t and abs(res["y"][-1]) < 1e-8
+
+
+# ---------------------------------------------------------------------- drift over long runs
+def test_long_cartesian_pendulum_runs_drift(cpend, capsys):
+    """t = 100 under every formulation: max |f(q)|, max |A q'|, energy drift."""
+    t = np.linspace(0, 100, 2001)
+    q0, rows = pendulum_q0(), {}
+    runs = {"index1": ("index1", {}), "index1+baumgarte": ("index1", {"baumgarte": (10.0, 10.0)}),
+            "index1+projection": ("index1", {"projection": True}), "ggl native": ("ggl", {}),
+            "ggl sksundae": ("ggl", {"backend": "sksundae"}), "minimal": ("minimal", {})}
+    for name, (form, opts) in runs.items():
+        res = cpend[form].simulate(t, q0=q0, v0=[0, 0], rtol=1e-10, atol=1e-12, **opts)
+        rows[name] = (np.max(np.abs(res["g_0"])), np.max(np.abs(res["gdot_0"])), res.drift("energy"))
+    with capsys.disabled():
+        print("\n%-20s %10s %10s %10s" % ("t = 100", "max|f|", "max|Aq'|", "dE"))
+        for name, (g, s, e) in rows.items():
+            print("%-20s %10.2e %10.2e %10.2e" % (name, g, s, e))
+    assert rows["ggl native"][0] <= 1e-10
+    assert rows["index1+projection"][0] <= 1e-10 and rows["index1+projection"][1] <= 1e-9
+    assert rows["minimal"][0] <= 1e-13
+    assert rows["index1+baumgarte"][0] < rows["index1"][0] / 100  # stabilization works
+    assert all(e < 1e-4 for _, _, e in rows.values())
+
+
+# ---------------------------------------------------------------------- bad input
+def test_inconsistent_initial_conditions_are_rejected_or_projected(cpend):
+    sim = cpend["index1"]
+    with pytest.raises(ModelError, match=r"inconsistent initial conditions.*g_0 .* residual 0.44"):
+        sim.simulate([0, 1], q0=[1.2, 0.0], v0=[0, 0])
+    with pytest.raises(ModelError, match="velocity constraint 0"):
+        cpend["ggl"].simulate([0, 1], q0=[1.0, 0.0], v0=[1.0, 0.3])
+    res = sim.simulate([0, 1], q0=[1.2, 0.0], v0=[0.5, 0.3], initial="project")
+    assert abs(res["g_0"][0]) < 1e-12 and abs(res["gdot_0"][0]) < 1e-12
+    assert res["x"][0] == pytest.approx(1.0) and res["x_dot"][0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_projection_that_cannot_succeed_reports_residual_norms():
+    m = lcg.Model("noreal")
+    x, y = m.coordinates("x y")
+    l, = m.parameters(l=1.0)
+    m.particle("p", 1.0, (x, y))
+    cs = ConstrainedSystem(m, holonomic=[x ** 2 + y ** 2 + l ** 2])  # no real solution
+    sim = compile_constrained(cs, "index1")
+    with pytest.raises(ModelError, match=r"cannot project the initial state .* \|f\(q\)\| = "):
+        sim.simulate([0, 1], q0=[0.3, 0.4], v0=[0, 0], initial="project")
+
+
+def test_singular_constraint_jacobian_at_the_initial_state_is_rejected(cpend):
+    m = cpend["system"].model
+    x, y = m.coords
+    l = sp.Symbol("l")
+    cs = ConstrainedSystem(m, holonomic=[x ** 2 + y ** 2 - l ** 2, x - l])  # tangent at (l, 0)
+    sim = compile_constrained(cs, "index1", prefix="tangent")
+    for initial in ("check", "project"):
+        with pytest.raises(ModelError, match="singular constraint Jacobian at the initial state"):
+            sim.simulate([0, 1], q0=[1.0, 0.0], v0=[0, 0], initial=initial)
+
+
+def test_option_errors(cpend):
+    with pytest.raises(lcg.LagcodegenError, match="needs method='bdf'"):
+        cpend["index1"].simulate([0, 1], q0=pendulum_q0(), projection=True, method="adams")
+    with pytest.raises(lcg.LagcodegenError, match="no projection"):
+        cpend["index1"].simulate([0, 1], q0=pendulum_q0(), projection=True, backend="sksundae")
+    with pytest.raises(ModelError, match="formulation must be one of"):
+        compile_constrained(cpend["system"], "index3")
+    with pytest.raises(ModelError, match="unknown output 'tension'"):
+        compile_constrained(cpend["system"], "index1", outputs=["tension"])
+
+
+def test_solver_failure_is_reported(cpend):
+    with pytest.raises(SolverError, match="max_steps"):
+        cpend["ggl"].simulate([0, 10], q0=pendulum_q0(), v0=[0, 0], max_steps=50)
+
+
+# ---------------------------------------------------------------------- generated code
+def test_ggl_jacobian_matches_central_differences(cpend):
+    sim = compile_constrained(knife_edge(name="knife_jac"), "ggl")
+    rng = np.random.default_rng(1)
+    for s in (sim, cpend["ggl"]):
+        ng = s.info.ng
+        yy, yp, cj = rng.normal(size=ng), rng.normal(size=ng), 37.0
+        J = s.ggl_jacobian(0.3, cj, yy, yp)
+        eps = 1e-6
+        Jn = np.empty((ng, ng))
+        for j in range(ng):
+            d = np.zeros(ng)
+            d[j] = eps
+            Jn[:, j] = (s.ggl_residual(0.3, yy + d, yp) - s.ggl_residual(0.3, yy - d, yp)) / (2 * eps)
+            Jn[:, j] += cj * (s.ggl_residual(0.3, yy, yp + d) - s.ggl_residual(0.3, yy, yp - d)) / (2 * eps)
+        assert np.max(np.abs(J - Jn)) < 1e-6 * max(1.0, np.max(np.abs(J)))
+
+
+@pytest.mark.parametrize("which", ["pendulum", "knife", "mixed", "free"])
+def test_generated_constrained_code_compiles_with_strict_warnings(tmp_path, cc, which):
+    if which == "free":
+        m = lcg.Model("free")
+        x, = m.coordinates("x")
+        m.particle("p", 1.0, (x, 0))
+        cs = ConstrainedSystem(m, inequalities=[x])
+    else:
+        cs = {"pendulum": cartesian_pendulum, "knife": knife_edge, "mixed": mixed_system}[which]()
+    events = [Event("lam", cs.multipliers[0], -1, False)] if cs.J else []
+    code, info = generate_constrained_c(cs, ggl=True, events=events,
+                                        outputs=["energy", "lambda", "residuals", "constraint_forces"])
+    code.write(tmp_path)
+    for fname, text in driver_sources(code, find_sundials()).items():
+        (tmp_path / fname).write_text(text)
+    for src in sorted(f for f in code.files if f.endswith(".c")):
+        proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", "x.o"], cwd=tmp_path, capture_output=True,
+                              text=True)
+        assert proc.returncode == 0, src + "\n" + proc.stderr
+
+
+SANITIZER_MAIN = r"""
+#include <math.h>
+#include <stdio.h>
+#include "P_dae.h"
+#include "P_cvc.h"
+#include "P_ida.h"
+
+int main(void)
+{
+    double p[U_DAE_NP + 1], y[U_DAE_NY], yn[U_DAE_NY], err[U_DAE_NY], acc[U_DAE_NQ], lam[U_DAE_NJ];
+    double yd[U_DAE_NY], g[U_DAE_NJH], s[U_DAE_NJ], out[U_DAE_NOUT], gout[U_DAE_NROOT];
+    double yy[U_DAE_NG], yp[U_DAE_NG], rr[U_DAE_NG], jac[U_DAE_NG * U_DAE_NG];
+    double tout[41], yout[41 * U_DAE_NG], outs[41 * U_DAE_NOUT], evt[8], evy[8 * U_DAE_NG], atol[U_DAE_NG];
+    int which[8], dir[8], rootdir[U_DAE_NROOT], terminal[U_DAE_NROOT];
+    P_events ev = {8, 0, evt, evy, which, dir, rootdir, terminal, 0};
+    P_cvc_options co = {2, 1e-8, 1e-10, NULL, 100000, 0.0, 0.0, 0.0, 0, 1.0, 1.0, 1, 1e-12, 10, 1, 1};
+    P_ida_options io = {1e-8, 1e-10, atol, 100000, 0.0, 0.0, 0.0, 0, 1, 1, 1, 1e8, 1, 1};
+    P_cvc_stats cs;
+    P_ida_stats is;
+    int i, rc = 0;
+
+    for (i = 0; i < U_DAE_NP; ++i)
+        p[i] = PARAMS[i];
+    for (i = 0; i < U_DAE_NG; ++i)
+        atol[i] = i < U_DAE_NY ? 1e-10 : 1e8; /* lambda, mu: see ALGEBRAIC_ATOL in dae.py */
+    for (i = 0; i < U_DAE_NROOT; ++i) {
+        rootdir[i] = 0;
+        terminal[i] = 0;
+    }
+    y[0] = sin(1.0); y[1] = -cos(1.0); y[2] = 0.1; y[3] = 0.2;
+    rc |= P_kkt(0.1, y, p, 1.0, 2.0, acc, lam);
+    rc |= P_crhs(0.1, y, p, 0.0, 0.0, yd);
+    rc |= P_residuals(0.1, y, p, g, s);
+    for (i = 0; i < U_DAE_NY; ++i)
+        err[i] = 1e-3 * (i + 1);
+    rc |= P_project(0.1, y, p, 1e-14, 20, yn, err);
+    rc |= P_coutputs(0.1, yn, NULL, p, out);
+    rc |= P_roots(0.1, yn, lam, p, gout);
+    rc |= P_kkt(0.0, yn, p, 0.0, 0.0, acc, lam);
+    for (i = 0; i < U_DAE_NG; ++i)
+        yy[i] = yp[i] = 0.0;
+    for (i = 0; i < U_DAE_NY; ++i)
+        yy[i] = yn[i];
+    for (i = 0; i < U_DAE_NQ; ++i) {
+        yp[i] = yn[U_DAE_NQ + i];
+        yp[U_DAE_NQ + i] = acc[i];
+    }
+    for (i = 0; i < U_DAE_NJ; ++i)
+        yy[U_DAE_NY + i] = lam[i];
+    rc |= P_ggl_res(0.0, yy, yp, p, rr);
+    rc |= P_ggl_jac(0.0, 10.0, yy, yp, p, jac);
+    for (i = 0; i < 41; ++i)
+        tout[i] = 0.05 * i;
+    rc |= P_cvc_solve(p, yn, 41, tout, yout, outs, &co, &cs, &ev);
+    printf("cvc rc=%d steps=%ld proj=%ld events=%d g_end=%.3g\n", rc, cs.nsteps, cs.nproj, ev.n_events,
+           outs[40 * U_DAE_NOUT + 2]);
+    rc |= P_ida_solve(p, yy, yp, 41, tout, yout, outs, &io, &is, &ev);
+    printf("ida rc=%d steps=%ld events=%d g_end=%.3g\n", rc, is.nsteps, ev.n_events, outs[40 * U_DAE_NOUT + 2]);
+    return rc != 0 || cs.nt_done != 41 || is.nt_done != 41;
+}
+"""
+
+
+def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
+    cs = cartesian_pendulum(name="san")
+    code, info = generate_constrained_c(cs, ggl=True, events=[Event("lam", cs.multipliers[0], 0, False)],
+                                        outputs=["energy", "lambda", "residuals"])
+    code.write(tmp_path)
+    sundials = find_sundials()
+    for fname, text in driver_sources(code, sundials).items():
+        (tmp_path / fname).write_text(text)
+    params = ", ".join(repr(float(v)) for v in code.param_defaults) or "0.0"
+    main = SANITIZER_MAIN.replace("P_", "san_").replace("U_", "SAN_").replace("PARAMS", f"((double[]){{{params}}})")
+    (tmp_path / "main.c").write_text(main)
+    srcs = ["main.c", "san_dae.c", "san_cvc.c", "san_ida.c"]
+    cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", *srcs,
+           "-o", "main", *sundials.link_args(("cvode", "ida", "core")), "-lm"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
+                         env={"ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr
+    lines = dict(line.split(" ", 1) for line in run.stdout.splitlines())
+    fields = {k: dict(kv.split("=") for kv in v.split()) for k, v in lines.items()}
+    assert abs(float(fields["cvc"]["g_end"])) < 1e-9 and int(fields["cvc"]["proj"]) > 0
+    assert abs(float(fields["ida"]["g_end"])) < 1e-7

@@ -1,0 +1,199 @@
+"""Integration against independent facts: analytic solutions, conserved energy, a second backend."""
+
+import math
+
+import numpy as np
+import sympy as sp
+import pytest
+from scipy.special import ellipk
+
+import lagcodegen as lcg
+from lagcodegen import LagcodegenError, SingularMassMatrixError, SolverError, systems
+
+
+@pytest.fixture(scope="module")
+def oscillator():
+    return lcg.compile_model(systems.damped_driven_oscillator(), outputs=["energy", "dissipation"])
+
+
+@pytest.fixture(scope="module")
+def double_pendulum():
+    return lcg.compile_model(systems.double_pendulum(), outputs=["energy"])
+
+
+def oscillator_exact(t, m, k, c, F0, w, x0, v0):
+    """m x'' + c x' + k x = F0 cos(w t), underdamped: homogeneous + particular solution."""
+    D = (k - m * w**2) ** 2 + (c * w) ** 2
+    A, B = F0 * (k - m * w**2) / D, F0 * c * w / D
+    gam = c / (2 * m)
+    wd = math.sqrt(k / m - gam**2)
+    C1 = x0 - A
+    C2 = (v0 - B * w + gam * C1) / wd
+    return np.exp(-gam * t) * (C1 * np.cos(wd * t) + C2 * np.sin(wd * t)) + A * np.cos(w * t) + B * np.sin(w * t)
+
+
+@pytest.mark.parametrize("backend", ["native", "sksundae"])
+@pytest.mark.parametrize("method", ["adams", "bdf"])
+def test_damped_driven_oscillator_matches_analytic_solution(oscillator, backend, method):
+    t = np.linspace(0, 30, 601)
+    res = oscillator.simulate(t, q0=[0.5], v0=[-0.2], rtol=1e-10, atol=1e-12, method=method,
+                              backend=backend, max_steps=10**6)
+    p = res.parameters
+    exact = oscillator_exact(t, p["m"], p["k"], p["c"], p["F0"], p["w"], 0.5, -0.2)
+    err = np.max(np.abs(res["x"] - exact))
+    print(f"{backend}/{method}: max |x - exact| = {err:.2e}")
+    assert err < 1e-7
+
+
+def test_runtime_parameters_change_the_solution(oscillator):
+    t = np.linspace(0, 10, 201)
+    params = dict(m=2.0, k=3.0, c=0.1, F0=0.0, w=1.0)
+    res = oscillator.simulate(t, q0=[1.0], params=params, rtol=1e-10, atol=1e-12)
+    exact = oscillator_exact(t, *params.values(), 1.0, 0.0)
+    assert np.max(np.abs(res["x"] - exact)) < 1e-7
+
+
+def test_pendulum_large_amplitude_period_is_the_elliptic_integral():
+    cm = lcg.compile_model(systems.pendulum())
+    theta0, l, g = 2.5, 1.0, 9.81
+    period = 4 * math.sqrt(l / g) * ellipk(math.sin(theta0 / 2) ** 2)
+    # Starting at rest at theta0, the pendulum is back at theta0, at rest, after one period.
+    res = cm.simulate([0, period / 2, period], q0=[theta0], rtol=1e-11, atol=1e-12)
+    assert abs(res["theta"][1] + theta0) < 1e-7
+    assert abs(res["theta"][2] - theta0) < 1e-7 and abs(res["theta_dot"][2]) < 1e-6
+
+
+@pytest.mark.parametrize("system,q0,v0,period", [
+    ("pendulum", [1.0], [0.0], 2 * math.pi / math.sqrt(9.81)),
+    ("double_pendulum", [0.6, -0.4], [0.0, 0.0], 2.0),
+    ("central_potential", [1.0, 0.0], [0.0, 1.2], 2 * math.pi * (1 / (2 - 1.2**2)) ** 1.5),
+])
+def test_energy_is_conserved_over_100_periods(system, q0, v0, period):
+    cm = lcg.compile_model(getattr(systems, system)(), outputs=["energy"])
+    t = np.linspace(0, 100 * period, 2001)
+    res = cm.simulate(t, q0=q0, v0=v0, rtol=1e-10, atol=1e-12)
+    drift = res.drift("energy")
+    print(f"{system}: T+V relative drift over 100 periods = {drift:.2e} ({res.stats['steps']} steps)")
+    assert drift < 1e-6
+
+
+def test_kepler_orbit_period():
+    # Elliptic orbit with k = m = 1: a = 1/(2/r0 - v0^2), period 2 pi a^(3/2); r returns to r0.
+    cm = lcg.compile_model(systems.central_potential())
+    r0, vphi = 1.0, 1.2
+    a = 1 / (2 / r0 - vphi**2)
+    period = 2 * math.pi * a**1.5
+    res = cm.simulate([0, period], q0=[r0, 0.0], v0=[0.0, vphi / r0], rtol=1e-11, atol=1e-12)
+    assert abs(res["r"][-1] - r0) < 1e-7
+    assert abs(res["phi"][-1] - 2 * math.pi) < 1e-7
+
+
+def test_backends_agree_to_the_tolerance(double_pendulum):
+    t = np.linspace(0, 5, 51)
+    kw = dict(q0=[1.0, 0.5], rtol=1e-9, atol=1e-11)
+    a = double_pendulum.simulate(t, backend="native", **kw)
+    b = double_pendulum.simulate(t, backend="sksundae", **kw)
+    assert a.stats["rhs_evals"] == b.stats["rhs_evals"]  # same solver, same work
+    np.testing.assert_allclose(a.y, b.y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a["energy"], b["energy"], atol=1e-12)
+
+
+def test_difference_quotient_jacobian_gives_the_same_trajectory(double_pendulum):
+    t = np.linspace(0, 5, 51)
+    a = double_pendulum.simulate(t, q0=[1.0, 0.5], method="bdf", rtol=1e-10, atol=1e-12, jacobian=True)
+    b = double_pendulum.simulate(t, q0=[1.0, 0.5], method="bdf", rtol=1e-10, atol=1e-12, jacobian=False)
+    assert a.stats["jac_evals"] > 0 and a.stats["rhs_evals_dq"] == 0 and b.stats["rhs_evals_dq"] > 0
+    assert np.max(np.abs(a.y - b.y)) < 1e-6
+
+
+def test_result_access_by_name(double_pendulum):
+    res = double_pendulum.simulate([0, 1], q0={"theta1": 0.3}, v0={"theta2": 0.1})
+    assert res["theta1"][0] == 0.3 and res["theta2_dot"][0] == 0.1
+    assert set(res.q) == {"theta1", "theta2"} and res.v["theta2"][0] == 0.1
+    assert res.success and res.status == 0 and res.message == "success"
+    with pytest.raises(KeyError, match="nope"):
+        res["nope"]
+
+
+# ---------------------------------------------------------------------------- failures
+def test_too_many_steps_reports_time_reached(double_pendulum):
+    with pytest.raises(SolverError, match="too many steps") as info:
+        double_pendulum.simulate([0, 100], q0=[1.0, 0.5], max_steps=50)
+    assert 0 < info.value.t < 100
+    assert info.value.result.t[-1] <= info.value.t
+
+
+def test_partial_result_without_raising(double_pendulum):
+    res = double_pendulum.simulate([0, 100], q0=[1.0, 0.5], max_steps=50, raise_on_error=False)
+    assert not res.success and res.status == -1 and len(res.t) < 1001
+
+
+def test_tolerance_too_tight(double_pendulum):
+    with pytest.raises(SolverError) as info:
+        double_pendulum.simulate([0, 1], q0=[1.0, 0.5], rtol=1e-30, atol=1e-30)
+    assert "tolerance" in str(info.value).lower() or "accuracy" in str(info.value).lower()
+
+
+def singular_model():
+    # T = (sin x)^2 x'^2 / 2: M vanishes at x = 0.
+    model = lcg.Model("singular")
+    x, = model.coordinates("x")
+    model.kinetic_energy(sp.sin(x) ** 2 * model.dot(x) ** 2 / 2)
+    model.potential_energy(-x)
+    return model
+
+
+def test_singular_mass_matrix_at_initial_state():
+    cm = lcg.compile_model(singular_model())
+    with pytest.raises(SingularMassMatrixError, match="singular at the initial state") as info:
+        cm.simulate([0, 1], q0=[0.0])
+    assert info.value.t == 0.0
+
+
+@pytest.mark.parametrize("backend", ["native", "sksundae"])
+def test_singular_mass_matrix_during_integration(backend):
+    # Released at x = -1 with force pushing toward x = 0 where M = 0 (finite-time arrival).
+    cm = lcg.compile_model(singular_model())
+    with pytest.raises(SolverError) as info:
+        cm.simulate([0, 5], q0=[-1.0], backend=backend)
+    assert 0 < info.value.t < 5
+
+
+def test_bad_arguments(double_pendulum):
+    with pytest.raises(LagcodegenError, match="y0 has 3 values"):
+        double_pendulum.simulate([0, 1], y0=[1, 2, 3])
+    with pytest.raises(LagcodegenError, match="unknown coordinate"):
+        double_pendulum.simulate([0, 1], q0={"phi": 1.0})
+    with pytest.raises(LagcodegenError, match="not a run-time parameter"):
+        double_pendulum.simulate([0, 1], params={"mass": 1.0})
+    with pytest.raises(lcg.ModelError, match="finite"):
+        double_pendulum.simulate([0, 1], params={"g": float("nan")})
+    with pytest.raises(LagcodegenError, match="increasing"):
+        double_pendulum.simulate([1, 0])
+    with pytest.raises(LagcodegenError, match="method"):
+        double_pendulum.simulate([0, 1], method="rk4")
+
+
+def test_diagonal_mass_matrix_solve_and_its_singularity():
+    # Polar coordinates: M = diag(m, m r^2) is structurally diagonal, so the generated solve
+    # divides instead of factoring; at r = 0 it is singular.
+    from lagcodegen.formulation.kernels import mass_matrix_is_diagonal
+    model = systems.central_potential()
+    assert mass_matrix_is_diagonal(lcg.derive(model))
+    cm = lcg.compile_model(model)
+    y = np.array([1.3, 0.4, 0.2, 0.7])  # r, phi, r', phi'
+    r, _, rd, phid = y
+    expected = [r * phid**2 - 1 / r**2, -2 * rd * phid / r]  # m = k = 1
+    np.testing.assert_allclose(cm.rhs(0.0, y)[2:], expected, rtol=1e-15)
+    with pytest.raises(SingularMassMatrixError, match="initial state"):
+        cm.simulate([0, 1], q0=[0.0, 0.0], v0=[1.0, 0.0])
+
+
+def test_fixed_point_iteration_needs_no_jacobian(double_pendulum):
+    t = np.linspace(0, 5, 51)
+    newton = double_pendulum.simulate(t, q0=[1.0, 0.5], rtol=1e-10, atol=1e-12)
+    fixed = double_pendulum.simulate(t, q0=[1.0, 0.5], rtol=1e-10, atol=1e-12, linear_solver="fixedpoint")
+    assert fixed.stats["jac_evals"] == 0 and fixed.stats["lin_setups"] == 0 and fixed.stats["rhs_evals_dq"] == 0
+    assert np.max(np.abs(fixed.y - newton.y)) < 1e-7
+    with pytest.raises(LagcodegenError, match="needs backend='native'"):
+        double_pendulum.simulate(t, q0=[1.0, 0.5], linear_solver="fixedpoint", backend="sksundae")
