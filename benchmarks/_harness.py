@@ -272,7 +272,7 @@ def c_call_costs(code, folder: Path, settings, q0: float = Q0) -> dict[str, floa
 
 
 # --------------------------------------------------------------------------- models
-from lagcodegen.systems import spring_chain  # noqa: E402,F401  (re-exported for the scripts)
+from lagcodegen.model.systems import spring_chain  # noqa: E402,F401  (re-exported for the scripts)
 
 
 def chain_initial(n: int) -> tuple[list[float], list[float]]:
@@ -285,7 +285,7 @@ def chain_initial(n: int) -> tuple[list[float], list[float]]:
 def cartesian_pendulum():
     """The bob at (x, y) with x^2 + y^2 = l^2 (eq. 4.1), l = 1, g = 9.81, m = 1."""
     import lagcodegen as lcg
-    from lagcodegen.constraints import ConstrainedSystem
+    from lagcodegen.theory.constraints import ConstrainedSystem
     m = lcg.Model("cart_pendulum")
     x, y = m.coordinates("x y")
     l, g, mass = m.parameters(l=1.0, g=9.81, m=1.0)

@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 import lagcodegen as lcg
-from lagcodegen.constraints import ConstrainedSystem
-from lagcodegen.dae import compile_constrained
+from lagcodegen.theory.constraints import ConstrainedSystem
+from lagcodegen.api import compile_constrained
 
 import _harness  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
 

@@ -108,7 +108,7 @@ def variants(quick: bool) -> list[Variant]:
         Variant("sparse", "chain 20, no Jacobian, dense solver (DQ)", chain, dict(jacobian=False),
                 dict(method="bdf", jacobian=False, **tol), cq0, cv0),
     ]
-    from lagcodegen.routhian import reduce
+    from lagcodegen.theory.routhian import reduce
     sph = systems.spherical_pendulum("pr_sph")
     red = reduce(sph)
     stol = dict(rtol=1e-10, atol=1e-12)

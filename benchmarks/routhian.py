@@ -52,8 +52,8 @@ import _harness  # noqa: E402  (the C timing harness)
 
 import lagcodegen as lcg  # noqa: E402
 from lagcodegen import Scene, build, generate_c  # noqa: E402
-from lagcodegen.routhian import reduce  # noqa: E402
-from lagcodegen.systems import spherical_pendulum  # noqa: E402
+from lagcodegen.theory.routhian import reduce  # noqa: E402
+from lagcodegen.model.systems import spherical_pendulum  # noqa: E402
 
 Q0 = (0.8, 0.0)
 V0 = (0.3, 2.0)

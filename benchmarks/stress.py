@@ -130,7 +130,7 @@ def long_cases(quick: bool):
                       ["energy", "p_phi", "jacobi_h"], [("energy", "energy"), ("C = p_phi", "p_phi"),
                                                         ("jacobi h", "jacobi_h")]), 50.0 / 35.0, 1e5 * scale))
 
-    from lagcodegen.routhian import reduce
+    from lagcodegen.theory.routhian import reduce
     red = reduce(systems.spherical_pendulum("st_sph"))
     cmr = red.compile(outputs=("jacobi_h",), prefix="st_sph_routh")
 
@@ -143,7 +143,7 @@ def long_cases(quick: bool):
                                                  ["jacobi_h"], [("jacobi h", "jacobi_h")]),
                   2 * math.pi / (w * math.sqrt(1 - (9.81 / w**2) ** 2)), 1e5 * scale))
 
-    from lagcodegen.dae import compile_constrained
+    from lagcodegen.api import compile_constrained
     system = H.cartesian_pendulum()
     q0, v0 = [math.sin(1.0), -math.cos(1.0)], [0.0, 0.0]
     for label, form, opts in (("index-1", "index1", {}), ("index-1 + Baumgarte(10,10)", "index1",
@@ -203,7 +203,7 @@ def turning_theta(theta0: float, C: float, g: float = 9.81) -> float:
 
 
 def section_b(quick: bool, limits: list) -> list[dict]:
-    from lagcodegen.routhian import reduce
+    from lagcodegen.theory.routhian import reduce
     rows = []
     full = compiled(systems.spherical_pendulum("st_sphn"), "st_sphn", ["energy", "p_phi"])
     red = reduce(systems.spherical_pendulum("st_sphn"))

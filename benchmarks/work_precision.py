@@ -335,7 +335,7 @@ def scene_spherical(settings):
 
 
 def scene_spherical_routh(settings):
-    from lagcodegen.routhian import reduce
+    from lagcodegen.theory.routhian import reduce
     t = np.linspace(0.0, SPH_T, N_GRID)
     ref, unc, _ = spherical_reference(settings, t)
     red = reduce(systems.spherical_pendulum("wp_sph"))
@@ -366,7 +366,7 @@ def scene_spherical_routh(settings):
 
 
 def scene_constrained(settings):
-    from lagcodegen.dae import compile_constrained
+    from lagcodegen.api import compile_constrained
     theta0, T = 1.0, 10.0
     t = np.linspace(0.0, T, N_GRID)
     pend = compiled(derive(systems.pendulum("wp_cpend_ref")), "wp_cpend_ref")

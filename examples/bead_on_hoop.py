@@ -12,7 +12,7 @@ import numpy as np
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.energy import check_jacobi, kinetic_split
+from lagcodegen.theory.energy import check_jacobi, kinetic_split
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

@@ -12,8 +12,8 @@ import numpy as np
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.constraints import ConstrainedSystem
-from lagcodegen.dae import compile_constrained
+from lagcodegen.theory.constraints import ConstrainedSystem
+from lagcodegen.api import compile_constrained
 
 out = Path("out")
 out.mkdir(exist_ok=True)

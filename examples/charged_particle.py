@@ -13,8 +13,8 @@ import numpy as np
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.forces import generalized_force_from_generalized_potential
-from lagcodegen.systems import charged_particle
+from lagcodegen.theory.forces import generalized_force_from_generalized_potential
+from lagcodegen.model.systems import charged_particle
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

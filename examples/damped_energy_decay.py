@@ -12,7 +12,7 @@ import sympy as sp
 from scipy.integrate import cumulative_trapezoid
 
 import lagcodegen as lcg
-from lagcodegen.systems import damped_pendulum
+from lagcodegen.model.systems import damped_pendulum
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from lagcodegen import systems
-from lagcodegen.routhian import reduce
-from lagcodegen.steady import steady_motions
+from lagcodegen.theory.routhian import reduce
+from lagcodegen.theory.steady import steady_motions
 
 out = Path("out")
 out.mkdir(exist_ok=True)

@@ -11,8 +11,8 @@ import numpy as np
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.constraints import ConstrainedSystem, integrability
-from lagcodegen.dae import compile_constrained
+from lagcodegen.theory.constraints import ConstrainedSystem, integrability
+from lagcodegen.api import compile_constrained
 
 m = lcg.Model("rolling_disc")
 x, y, th, phi = m.coordinates("x y theta phi")

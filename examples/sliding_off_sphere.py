@@ -10,9 +10,10 @@ import numpy as np
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.constraints import ConstrainedSystem
-from lagcodegen.dae import compile_constrained
-from lagcodegen.events import Event, simulate_with_switch
+from lagcodegen.theory.constraints import ConstrainedSystem
+from lagcodegen.api import compile_constrained
+from lagcodegen.model.events import Event
+from lagcodegen.solvers.hybrid import simulate_with_switch
 
 
 def particle(name):

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 import lagcodegen as lcg
-from lagcodegen.routhian import reduce
-from lagcodegen.steady import steady_motions
-from lagcodegen.systems import spherical_pendulum
+from lagcodegen.theory.routhian import reduce
+from lagcodegen.theory.steady import steady_motions
+from lagcodegen.model.systems import spherical_pendulum
 
 out = Path("out")
 out.mkdir(exist_ok=True)

@@ -42,6 +42,7 @@ from .result import Result  # noqa: F401
 from .solvers.compiled import CompiledModel  # noqa: F401
 from .solvers.hybrid import simulate_with_switch  # noqa: F401
 from .solvers.ode import simulate  # noqa: F401
+from .solvers.options import CVODE, IDA, Taylor  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
                   compile_reduction)
 from . import modelfile  # noqa: F401

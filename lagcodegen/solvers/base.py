@@ -1,55 +1,156 @@
-"""What every solver family shares: the methods, the options check, the table of flag
-messages, the initial state."""
+"""What every solver family shares: the methods, one tolerance check, one table of flag
+messages, one statistics record of the native drivers, the option structs they take, and the
+initial state of an ODE run."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError
-from ..util import state_vector
+from ..model.events import records
+from ..util import check_finite, state_vector
 
-
+#: Linear multistep methods of CVODE (the values of CV_ADAMS, CV_BDF).
 METHODS = {"adams": 1, "bdf": 2}
-
-
 LINEAR_SOLVERS = ("dense", "band", "fixedpoint")
+#: Error codes the generated model functions return (every language, every formulation).
+ERR_SINGULAR, ERR_NONFINITE, ERR_PROJECTION = 1, 2, 3
+
+_COMMON_TEXT = {
+    -1: "too many steps (max_steps reached); raise max_steps or loosen the tolerances",
+    -2: "tolerance too tight for machine precision",
+    -3: "error test failed repeatedly or with |h| = hmin",
+}
+#: What a negative return flag of each solver family means.
+FLAG_TEXT = {
+    "CVODE": {
+        **_COMMON_TEXT,
+        -4: "corrector convergence failed repeatedly",
+        -8: "the right-hand side failed unrecoverably",
+        -9: "the right-hand side failed at the first call",
+        -10: "the right-hand side failed repeatedly with recoverable errors (non-finite values)",
+        -12: "a root (event) function failed",
+        -30: "the projection onto the constraints failed unrecoverably",
+        -31: "the projection onto the constraints failed repeatedly",
+    },
+    "IDA": {
+        **_COMMON_TEXT,
+        -4: "Newton iteration failed to converge repeatedly",
+        -6: "the linear solver setup failed (singular iteration matrix?)",
+        -7: "the linear solve failed",
+        -8: "the residual failed unrecoverably",
+        -9: "the residual failed repeatedly with recoverable errors (non-finite values)",
+        -10: "a root (event) function failed",
+        -12: "the residual failed at the first call",
+        -13: "IDACalcIC: line search failed (no consistent lambda and y' found)",
+        -14: "IDACalcIC: the residual failed; no consistent initial values",
+    },
+}
+FLAG_TEXT["scikit-sundae"] = FLAG_TEXT["CVODE"]
+#: Kept under its earlier name.
+CVODE_FLAG_TEXT = FLAG_TEXT["CVODE"]
+SINGULAR_MASS = "the mass matrix is singular"
+SINGULAR_AUGMENTED = ("the augmented matrix [M A^T; A 0] is singular (M singular or the constraint Jacobian A "
+                      "rank deficient)")
+
+
+def message(flag: int, model_error: int, detail: str, solver: str = "CVODE", singular: str = SINGULAR_MASS) -> str:
+    """The message of a run that ended with ``flag``: success, the model's own error (singular
+    matrix, non-finite value) or the solver's, with the solver's ``detail`` text."""
+    if flag >= 0:
+        return "success"
+    if model_error == ERR_SINGULAR:
+        return singular
+    if model_error == ERR_NONFINITE:
+        return "a computed value is not finite"
+    text = FLAG_TEXT.get(solver, {}).get(flag, f"{solver} failed with flag {flag}")
+    return f"{text}: {detail}" if detail else text
+
+
+def tolerances(rtol, atol, size: int, n_diff: int | None = None) -> tuple[float, np.ndarray]:
+    """(rtol, atol as one value per state): ``atol`` a scalar, one value per state, or one per
+    differential state (``n_diff``; the algebraic ones get the smallest). Both finite, >= 0."""
+    rtol = check_finite(rtol, "rtol")
+    try:
+        arr = np.asarray(atol, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise LagcodegenError(f"atol must be a number or an array of numbers, got {atol!r:.60}") from None
+    if arr.size == 1:
+        out = np.full(size, float(arr[0]))
+    elif n_diff is not None and arr.size == n_diff and n_diff != size:
+        out = np.concatenate([arr, np.full(size - n_diff, float(np.min(arr)))])
+    elif arr.size == size:
+        out = arr.copy()
+    else:
+        raise LagcodegenError(f"atol has {arr.size} values, expected 1 or {n_diff or size}")
+    if not np.all(np.isfinite(out)) or np.any(out < 0) or rtol < 0:
+        raise LagcodegenError("tolerances must be finite and non-negative")
+    return rtol, out
+
+
+#: Fields of the native drivers' statistics structs -> keys of Result.stats.
+STAT_NAMES = {
+    "nsteps": "steps", "njac": "jac_evals", "nlinsetups": "lin_setups", "netfails": "err_test_fails",
+    "nniters": "nonlin_iters", "nncfails": "nonlin_conv_fails", "nproj": "projections",
+    "nprojfails": "projection_fails", "ngevals": "root_evals", "nbacktracks": "backtracks",
+    "t_reached": "t_reached", "h_last": "h_last", "model_error": "model_error", "ic_flag": "ic_flag",
+}
+
+
+_FIELDS: dict = {}
+
+
+def native_stats(ffi, st) -> dict:
+    """Result.stats from a native driver's statistics struct (CVODE, index-1 CVODE, IDA): every
+    counter it has, by the names of :data:`STAT_NAMES`, and the right-hand-side (or residual)
+    evaluations including those of difference-quotient Jacobians."""
+    ctype = ffi.typeof(st)
+    fields = _FIELDS.get(ctype)
+    if fields is None:
+        fields = _FIELDS[ctype] = frozenset(name for name, _ in ctype.item.fields)
+    stats = {key: getattr(st, name) for name, key in STAT_NAMES.items() if name in fields}
+    if "nrhs" in fields:
+        stats["rhs_evals"] = st.nrhs + st.nrhs_dq
+        stats["rhs_evals_dq"] = st.nrhs_dq
+    if "nres" in fields:
+        stats["rhs_evals"] = st.nres + st.nres_dq
+        stats["res_evals"] = st.nres
+        stats["res_evals_dq"] = st.nres_dq
+    return stats
+
+
+def native_options(ffi, typename: str, atol: np.ndarray, keep: list, **values):
+    """A native driver's options struct: every field from ``values``; ``atol`` as the scalar
+    ``atol`` when all entries are equal, else also as ``atol_vec`` (its buffer appended to
+    ``keep`` so that it outlives the call)."""
+    opt = ffi.new(f"{typename} *")
+    opt.atol = float(atol[0])
+    if np.any(atol != atol[0]):
+        keep.append(atol)
+        opt.atol_vec = ffi.from_buffer("double[]", atol)
+    else:
+        opt.atol_vec = ffi.NULL
+    for name, value in values.items():
+        setattr(opt, name, value)
+    return opt
 
 
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
+    """The state y = (q, q', z) of an ODE run from q0/v0 (and z0) or the whole y0."""
     n = cm.n
     if y0 is not None:
         if q0 is not None or v0 is not None or z0 is not None:
             raise LagcodegenError("give either y0 or q0/v0, not both")
-        y = np.array(y0, dtype=float).ravel()
+        try:
+            y = np.array(y0, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise LagcodegenError(f"y0 must be an array of {cm.ny} numbers, got {y0!r:.60}") from None
         if y.size != cm.ny:
             raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
-
     names = cm.state_names
     return np.concatenate([state_vector(q0, names[:n], "q0"), state_vector(v0, names[:n], "v0"),
                            state_vector(z0, names[2 * n:], "z0")])
-
-
-CVODE_FLAG_TEXT = {
-    -1: "too many steps (max_steps reached); raise max_steps or loosen the tolerances",
-    -2: "tolerance too tight for machine precision",
-    -3: "error test failed repeatedly or with |h| = hmin",
-    -4: "corrector convergence failed repeatedly",
-    -8: "the right-hand side failed unrecoverably",
-    -9: "the right-hand side failed at the first call",
-    -10: "the right-hand side failed repeatedly with recoverable errors (non-finite values)",
-}
-
-
-def message(flag: int, model_error: int, detail: str) -> str:
-    if flag >= 0:
-        return "success"
-    if model_error == 1:
-        return "the mass matrix is singular"
-    if model_error == 2:
-        return "a computed value is not finite"
-    text = CVODE_FLAG_TEXT.get(flag, f"CVODE failed with flag {flag}")
-    return f"{text}: {detail}" if detail else text
 
 
 def check_initial_mass_matrix(cm, t0: float, y: np.ndarray, p: np.ndarray) -> None:
@@ -62,3 +163,37 @@ def check_initial_mass_matrix(cm, t0: float, y: np.ndarray, p: np.ndarray) -> No
             f"({', '.join(f'{k}={v:g}' for k, v in zip(cm.state_names, y))})", t=float(t0)) from exc
 
 
+class NativeEvents:
+    """The events struct a native driver with root finding fills (``<prefix>_events``), its
+    buffers, and the :class:`EventRecord` s made from it."""
+
+    def __init__(self, ffi, prefix: str, events: list, ny: int, max_events: int):
+        self.events = events
+        self.ny = ny
+        self.t = np.full(max_events, np.nan)
+        self.y = np.full((max_events, ny), np.nan)
+        self.which = np.zeros(max_events, dtype=np.intc)
+        self.direction = np.zeros(max_events, dtype=np.intc)
+        self.rootdir = np.array([e.direction for e in events], dtype=np.intc)
+        self.terminal = np.array([1 if e.terminal else 0 for e in events], dtype=np.intc)
+        ev = self.struct = ffi.new(f"{prefix}_events *")
+        ev.max_events = max_events
+        ev.t = ffi.from_buffer("double[]", self.t)
+        ev.y = ffi.from_buffer("double[]", self.y)
+        ev.which = ffi.from_buffer("int[]", self.which)
+        ev.direction = ffi.from_buffer("int[]", self.direction)
+        ev.rootdir = ffi.from_buffer("int[]", self.rootdir)
+        ev.terminal = ffi.from_buffer("int[]", self.terminal)
+
+    @property
+    def count(self) -> int:
+        return min(int(self.struct.n_events), len(self.t))
+
+    @property
+    def terminated(self) -> bool:
+        return bool(self.struct.terminated)
+
+    def records(self, state_names: list, n_state: int) -> list:
+        k = self.count
+        return records(self.events, self.t[:k], self.y[:k], self.which[:k], self.direction[:k], state_names,
+                       n_state)

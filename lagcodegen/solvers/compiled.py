@@ -39,11 +39,14 @@ class CompiledModel:
         self.native = native
         self.cached = cached
         p = code.prefix
-        self._rhs = getattr(self.lib, f"{p}_rhs")
-        self._jac = getattr(self.lib, f"{p}_jac", None)
-        self._out = getattr(self.lib, f"{p}_outputs", None)
+        # the generated functions, called by the runners of each solver family
+        self.c_rhs = getattr(self.lib, f"{p}_rhs")
+        self.c_jac = getattr(self.lib, f"{p}_jac", None)
+        self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
+        self.c_outputs_batch = getattr(self.lib, f"{p}_outputs_batch", None)
+        self.native_solve = getattr(self.lib, f"{p}_cvode_solve", None)
         self._defaults = np.array(code.param_defaults, dtype=float)
-        self._solvers: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
+        self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
 
     @classmethod
     def from_built(cls, built: BuiltModule) -> "CompiledModel":
@@ -85,6 +88,10 @@ class CompiledModel:
     def _ptr(self, arr):
         return self.ffi.from_buffer("double[]", arr) if arr.size else self.ffi.NULL
 
+    def c_params(self, p: np.ndarray):
+        """``p`` as the C pointer the generated drivers take (NULL without run-time parameters)."""
+        return self._ptr(p)
+
     def _args(self, y, p):
         y = c_vector(y, self.ny, "y", self.state_names)
         p = self._defaults if p is None else c_vector(p, self.code.np, "p", self.param_names)
@@ -94,28 +101,28 @@ class CompiledModel:
         """f(t, y, p) evaluated by the compiled code."""
         y, p = self._args(y, p)
         out = np.empty(self.ny)
-        rc = self._rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        rc = self.c_rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
         check_rc(rc, t, "right-hand side")
         return out
 
     def jac(self, t: float, y, p=None) -> np.ndarray:
         """df/dy (ny x ny) evaluated by the compiled code."""
-        if self._jac is None:
+        if self.c_jac is None:
             raise LagcodegenError("this scene has no Jacobian (Scene(jacobian=False))")
         y, p = self._args(y, p)
         ydot = self.rhs(t, y, p)
         J = np.empty((self.ny, self.ny), order="F")
-        rc = self._jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
+        rc = self.c_jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
         check_rc(rc, t, "Jacobian")
         return J
 
     def outputs(self, t: float, y, p=None) -> np.ndarray:
         """The scene's outputs at (t, y)."""
         y, p = self._args(y, p)
-        if self._out is None:
+        if self.c_outputs is None:
             return np.empty(0)
         out = np.empty(self.code.nout)
-        rc = self._out(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
+        rc = self.c_outputs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
         check_rc(rc, t, "outputs")
         return out
 

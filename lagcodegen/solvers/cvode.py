@@ -1,7 +1,11 @@
-"""The native CVODE runner of compiled scenes: the generated C driver ``<prefix>_cvode_solve``
-calls CVODE with no Python in the solver loop; one call integrates over all output times."""
+"""The native CVODE family: the generated C drivers call CVODE with no Python in the solver
+loop, one call over all output times: ``<prefix>_cvode_solve`` for the ODE of a scene (plain,
+Routhian, minimal coordinates; dense, band or fixed-point iteration) and ``<prefix>_cvc_solve``
+for the index-1 form of a constrained system (Baumgarte, projection, events)."""
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
@@ -9,7 +13,7 @@ from ..errors import LagcodegenError
 from ..formulation.scene import band_order
 from ..formulation.scene import bandwidths as widths
 from ..result import Result
-from .base import METHODS, message
+from .base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats
 
 
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:
@@ -48,41 +52,75 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                  min_step, max_order, band=None, fixedpoint=False) -> Result:
-    ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
+                 min_step, max_order, band=None, fixedpoint=False) -> Result:
+    """An ODE run of a compiled scene: one call of ``<prefix>_cvode_solve`` over all output times."""
+    ffi, pre = cm.ffi, cm.code.prefix
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, max(cm.code.nout, 1)))
-    opt = ffi.new(f"{pre}_options *")
+    keep: list = []
+    opt = native_options(ffi, f"{pre}_options", atol, keep, method=METHODS[method], jacobian=int(jacobian),
+                         rtol=rtol, max_steps=max_steps, first_step=first_step, max_step=max_step,
+                         min_step=min_step, max_order=max_order,
+                         linear_solver=1 if band else 2 if fixedpoint else 0,
+                         mupper=band[0] if band else 0, mlower=band[1] if band else 0)
     st = ffi.new(f"{pre}_stats *")
-    opt.method = METHODS[method]
-    opt.jacobian = int(jacobian)
-    opt.rtol = rtol
-    opt.atol = float(atol[0])
-    atol_c = ffi.from_buffer("double[]", atol) if (atol != atol[0]).any() else ffi.NULL
-    opt.atol_vec = atol_c
-    opt.max_steps = max_steps
-    opt.first_step = first_step
-    opt.max_step = max_step
-    opt.min_step = min_step
-    opt.max_order = max_order
-    opt.linear_solver = 1 if band else 2 if fixedpoint else 0
-    opt.mupper, opt.mlower = band if band else (0, 0)
-    pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
-    flag = getattr(lib, f"{pre}_cvode_solve")(pp, ffi.from_buffer("double[]", y0), nt,
-                                              ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
-                                              ffi.from_buffer("double[]", out), opt, st)
+    flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
+                           ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
     done = st.nt_done
-    stats = dict(steps=st.nsteps, rhs_evals=st.nrhs + st.nrhs_dq, rhs_evals_dq=st.nrhs_dq, jac_evals=st.njac,
-                 lin_setups=st.nlinsetups, err_test_fails=st.netfails, nonlin_iters=st.nniters,
-                 nonlin_conv_fails=st.nncfails, t_reached=st.t_reached, h_last=st.h_last,
-                 model_error=st.model_error)
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     if done < nt:
         t, yout, out = t[:done].copy(), yout[:done].copy(), out[:done].copy()
     return Result(t=t, y=yout, state_names=list(cm.state_names),
                   outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
-                  stats=stats, status=int(flag), message=message(flag, st.model_error, detail),
+                  stats=native_stats(ffi, st), status=int(flag), message=message(flag, st.model_error, detail),
                   backend="native", method=method)
 
 
+def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,
+                 max_events, max_steps, first_step, max_step, min_step, max_order) -> Result:
+    """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
+    and/or CVODE's projection): one call of ``<prefix>_cvc_solve``."""
+    ffi, pre = sim.ffi, sim.info.prefix
+    ny, nt, nout = 2 * sim.n, t.size, len(sim.info.output_names)
+    yout = np.full((nt, ny), np.nan)
+    out = np.full((nt, max(nout, 1)), np.nan)
+    keep: list = []
+    opt = native_options(ffi, f"{pre}_cvc_options", atol, keep, method=METHODS[method], rtol=rtol,
+                         max_steps=int(max_steps), first_step=first_step, max_step=max_step, min_step=min_step,
+                         max_order=max_order, alpha=alpha, beta=beta, projection=int(projection),
+                         proj_tol=proj_tol, proj_maxit=proj_maxit, proj_err=1, roots=int(roots))
+    st = ffi.new(f"{pre}_cvc_stats *")
+    events = NativeEvents(ffi, pre, sim.info.events, ny, max_events) if roots else None
+    start = time.perf_counter()
+    flag = getattr(sim.lib, f"{pre}_cvc_solve")(sim.c_params(p), ffi.from_buffer("double[]", y0), nt,
+                                                ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
+                                                ffi.from_buffer("double[]", out), opt, st,
+                                                events.struct if events else ffi.NULL)
+    wall = time.perf_counter() - start
+    recs = events.records(sim.state_names, ny) if events else []
+    tt, yy, oo = t[:st.nt_done].copy(), yout[:st.nt_done].copy(), out[:st.nt_done].copy()
+    if events and events.terminated and recs:
+        tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, recs[-1].y, p)
+    stats = native_stats(ffi, st)
+    stats["wall_time"] = wall
+    detail = ffi.string(st.message).decode(errors="replace")
+    res = Result(t=tt, y=yy, state_names=list(sim.state_names),
+                 outputs={k: oo[:, i].copy() for i, k in enumerate(sim.info.output_names)}, stats=stats,
+                 status=int(flag), message=message(flag, st.model_error, detail, "CVODE", SINGULAR_AUGMENTED),
+                 backend="native", method=method)
+    res.events = recs
+    return res
+
+
+def append_event_row(sim, tt, yy, oo, t_event: float, y_event, p, lam=None):
+    """The arrays of a run that a terminal event ended, with the event's own row appended (its
+    outputs from the compiled functions; NaN where they fail)."""
+    if tt.size and t_event <= tt[-1]:
+        return tt, yy, oo
+    try:
+        o = sim.outputs(t_event, y_event[: 2 * sim.n], p, lam=lam)
+    except LagcodegenError:
+        o = np.full(oo.shape[1], np.nan)
+    return (np.append(tt, t_event), np.vstack([yy, np.asarray(y_event)[None, :]]),
+            np.vstack([oo, np.resize(o, (1, oo.shape[1]))]))

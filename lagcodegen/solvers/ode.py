@@ -4,27 +4,33 @@ choice of the solver family.
 * ``backend="native"``: the generated C driver calls CVODE directly (no Python in the solver
   loop), :mod:`.cvode`;
 * ``backend="sksundae"``: scikit-sundae's Python API calls the same compiled functions through
-  cffi (one Python callback per right-hand-side evaluation), :mod:`.sksundae`.
+  cffi (one Python callback per right-hand-side evaluation), :mod:`.sksundae`;
+* ``method="taylor"``: the generated Taylor-series integrator (no SUNDIALS), :mod:`.taylor`;
+* ``method="auto"``: Taylor or Adams by the measured rule of :func:`choose_method`.
 """
 
 from __future__ import annotations
+
+import inspect
 
 import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..result import Result
-from ..util import check_finite, output_times
-from .base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, initial_state
+from ..util import output_times
+from .base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, initial_state, tolerances
 from .cvode import band_widths, solve_native
+from .options import merge
 from .sksundae import solve_sksundae
+from .taylor.run import run_taylor
 
 
-def simulate(cm, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = None,
+def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
              method: str = "adams", rtol: float = 1e-8, atol=1e-10, jacobian: bool | None = None,
              backend: str = "native", max_steps: int = 1_000_000, first_step: float = 0.0,
              max_step: float = 0.0, min_step: float = 0.0, max_order: int = 0,
              linear_solver: str = "dense", bandwidths: tuple[int, int] | None = None,
-             raise_on_error: bool = True) -> Result:
+             events=(), order: int | None = None, raise_on_error: bool = True) -> Result:
     """Integrate the compiled scene ``cm`` and return the trajectory at the times ``t``.
 
     Parameters
@@ -38,8 +44,13 @@ def simulate(cm, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = No
         Routhian-reduced model), zeros by default.
     params:
         Run-time parameter values by name (defaults from the model).
+    solver:
+        An option object of one solver family (:class:`~lagcodegen.solvers.options.CVODE`,
+        :class:`~lagcodegen.solvers.options.Taylor`) instead of the keywords below.
     method:
-        ``"adams"`` (nonstiff) or ``"bdf"`` (stiff).
+        ``"adams"`` (nonstiff), ``"bdf"`` (stiff), ``"taylor"`` (the generated Taylor-series
+        integrator: high order, no SUNDIALS; built on first use) or ``"auto"``
+        (:func:`choose_method`).
     jacobian:
         Use the generated Jacobian (default when the scene has one) or CVODE's difference
         quotients (``False``).
@@ -54,19 +65,61 @@ def simulate(cm, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = No
         CVODE's band difference quotients (mu + ml + 1 RHS calls per Jacobian). Pays off for
         chains with nearest-neighbour coupling and a (block-)diagonal mass matrix.
     max_steps:
-        Step budget over the whole run.
+        Step budget over the whole run. ``max_step``: largest step (0: none).
+    events:
+        ``method="taylor"`` only: :class:`~lagcodegen.model.events.Event` items (expressions in
+        q, q', t and the parameters) located by root finding on each step's polynomial.
+    order:
+        ``method="taylor"``: order of the series (default from ``rtol``).
     raise_on_error:
         Raise :class:`SolverError` on failure (default); otherwise return the partial result
         with a negative ``status``.
     """
+    if solver is not None:
+        given = dict(method=method, jacobian=jacobian, backend=backend, max_order=max_order,
+                     linear_solver=linear_solver, bandwidths=bandwidths, order=order)
+        chosen = merge(solver, given, _DEFAULTS)
+        method, jacobian, backend, max_order = chosen["method"], chosen["jacobian"], chosen["backend"], \
+            chosen["max_order"]
+        linear_solver, bandwidths, order = chosen["linear_solver"], chosen["bandwidths"], chosen["order"]
     t = output_times(t)
     y = initial_state(cm, q0, v0, y0, z0)
     if not np.isfinite(y).all():
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
-    rtol = check_finite(rtol, "rtol")
-    if method not in METHODS:
-        raise LagcodegenError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
+    if method == "auto":
+        method = choose_method(cm.n, rtol)
+    if method == "taylor":
+        res = run_taylor(cm, t, y, p, rtol=rtol, atol=atol_arr, max_step=max_step, max_steps=int(max_steps),
+                         order=order, events=events)
+    else:
+        if method not in METHODS:
+            raise LagcodegenError(f"method must be one of {', '.join([*METHODS, 'taylor', 'auto'])}, "
+                                  f"got {method!r}")
+        if events:
+            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
+                                  "a plain scene has no root finding; constrained systems have events on CVODE "
+                                  "and IDA)")
+        res = _cvode(cm, t, y, p, method, rtol, atol_arr, jacobian, backend, int(max_steps), first_step, max_step,
+                     min_step, max_order, linear_solver, bandwidths)
+    res.parameters = dict(zip(cm.param_names, p))
+    res.n_coordinates = cm.n
+    if res.stats.get("model_error") == 1 and res.stats.get("t_reached") == t[0]:
+        check_initial_mass_matrix(cm, t[0], y, p)
+    if raise_on_error and not res.success:
+        cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
+        raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]), flag=res.status,
+                  result=res)
+    return res
+
+
+_DEFAULTS = {name: prm.default for name, prm in inspect.signature(simulate).parameters.items()}
+
+
+def _cvode(cm, t, y, p, method, rtol, atol, jacobian, backend, max_steps, first_step, max_step, min_step,
+           max_order, linear_solver, bandwidths) -> Result:
+    """The CVODE family on an ODE: options checked, then the native or the scikit-sundae runner."""
     if linear_solver not in LINEAR_SOLVERS:
         raise LagcodegenError(f"linear_solver must be one of {', '.join(LINEAR_SOLVERS)}, got {linear_solver!r}")
     band = linear_solver == "band"
@@ -79,14 +132,9 @@ def simulate(cm, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = No
         jacobian = has_jac
     if jacobian and not has_jac:
         raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
-    atol_arr = np.broadcast_to(np.asarray(atol, dtype=float), (cm.ny,)).copy()
-    if not np.isfinite(atol_arr).all() or (atol_arr < 0).any() or rtol < 0:
-        raise LagcodegenError("tolerances must be finite and non-negative")
-
     if backend != "native":  # the native driver reports this itself, from its first RHS call
         check_initial_mass_matrix(cm, t[0], y, p)
-
-    opts = dict(method=method, rtol=rtol, atol=atol_arr, jacobian=bool(jacobian), max_steps=int(max_steps),
+    opts = dict(method=method, rtol=rtol, atol=atol, jacobian=bool(jacobian), max_steps=max_steps,
                 first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order)
     if band:
         opts["band"] = band_widths(cm, bandwidths, y, p)
@@ -95,18 +143,17 @@ def simulate(cm, t, q0=None, v0=None, y0=None, z0=None, params: dict | None = No
     if backend == "native":
         if not cm.native:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
-        res = solve_native(cm, t, y, p, **opts)
-    elif backend == "sksundae":
-        res = solve_sksundae(cm, t, y, p, **opts)
-    else:
-        raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
-    res.parameters = dict(zip(cm.param_names, p))
-    res.n_coordinates = cm.n
-    if res.stats.get("model_error") == 1 and res.stats.get("t_reached") == t[0]:
-        check_initial_mass_matrix(cm, t[0], y, p)
-    if raise_on_error and not res.success:
-        cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
-        raise cls(res.message, t=res.stats.get("t_reached", res.t[-1]), flag=res.status, result=res)
-    return res
+        return solve_native(cm, t, y, p, **opts)
+    if backend == "sksundae":
+        return solve_sksundae(cm, t, y, p, **opts)
+    raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
 
 
+def choose_method(n: int, rtol: float) -> str:
+    """The method ``method="auto"`` picks: see :data:`AUTO_TAYLOR_MAX_N`."""
+    return "taylor" if n <= AUTO_TAYLOR_MAX_N else "adams"
+
+
+#: ``method="auto"`` integrates models with at most this many coordinates by the Taylor method,
+#: larger ones by Adams (benchmarks/work_precision.py measures where each wins).
+AUTO_TAYLOR_MAX_N = 5

@@ -1,13 +1,18 @@
-"""scikit-sundae's Python API on the compiled functions (one Python callback per right-hand
-side evaluation, about 5 us each): the second method that checks the native drivers."""
+"""The scikit-sundae family: scikit-sundae's Python API (CVODE, IDA) on the same compiled
+functions as the native drivers (one Python callback per right-hand-side evaluation, about 5 us
+each): the second method that checks them. ODE runs, index-1 and GGL constrained runs."""
 
 from __future__ import annotations
 
 import numpy as np
 
+import time
+
 from ..errors import LagcodegenError
+from ..model.events import EventRecord
 from ..result import Result
-from .base import message
+from .base import ERR_SINGULAR, SINGULAR_AUGMENTED, message
+from .ida import ALGEBRAIC_ATOL
 
 
 def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
@@ -15,7 +20,7 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
     from sksundae.cvode import CVODE
 
     ffi, ny = cm.ffi, cm.ny
-    crhs, cjac = cm._rhs, cm._jac
+    crhs, cjac = cm.c_rhs, cm.c_jac
     pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
     state = {"model_error": 0, "t": float(t[0])}
     jbuf = np.empty((ny, ny), order="F")
@@ -50,7 +55,7 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
     if cm.code.nout and done:
         tt = np.ascontiguousarray(soln.t, dtype=float)
         yy = np.ascontiguousarray(y)
-        batch = getattr(cm.lib, f"{cm.code.prefix}_outputs_batch", None)
+        batch = cm.c_outputs_batch
         if batch is not None:  # one C call for all rows
             batch(done, ffi.from_buffer("double[]", tt), ffi.from_buffer("double[]", yy), pp,
                   ffi.from_buffer("double[]", outs))
@@ -77,3 +82,146 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
                   backend="sksundae", method=method)
 
 
+
+
+def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, roots, max_steps, first_step,
+                 max_step, min_step, max_order) -> Result:
+    """An index-1 constrained run on scikit-sundae's CVODE (no projection: scikit-sundae does
+    not expose CVodeSetProjFn)."""
+    from sksundae.cvode import CVODE
+
+    ffi, ny = sim.ffi, 2 * sim.n
+    pp = sim.c_params(p)
+    crhs = sim.c_crhs
+    state = {"model_error": 0, "t": float(t[0])}
+
+    def rhsfn(tt, y, yp):
+        rc = crhs(tt, ffi.from_buffer("double[]", y), pp, alpha, beta,
+                  ffi.from_buffer("double[]", yp, require_writable=True))
+        if rc:
+            if rc == ERR_SINGULAR:
+                state["model_error"], state["t"] = rc, tt
+            yp[:] = np.nan
+
+    options = dict(method="Adams" if method == "adams" else "BDF", rtol=rtol,
+                   atol=atol if np.any(atol != atol[0]) else float(atol[0]), max_num_steps=max_steps,
+                   first_step=first_step, max_step=max_step, min_step=min_step)
+    if max_order:
+        options["max_order"] = max_order
+    if roots:
+        options.update(_events(sim, lambda tt, y: (y, None), p))
+    start = time.perf_counter()
+    soln = CVODE(rhsfn, **options).solve(t, y0)
+    wall = time.perf_counter() - start
+    return _constrained_result(sim, soln, t, ny, p, state, wall, method, "scikit-sundae")
+
+
+def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, jacobian, roots, max_steps, first_step, max_step,
+              min_step, max_order) -> Result:
+    """A GGL constrained run on scikit-sundae's IDA (a huge atol keeps lambda, mu out of the
+    error test: scikit-sundae never calls IDASetSuppressAlg)."""
+    from sksundae.ida import IDA
+
+    ffi, n, ng, J = sim.ffi, sim.n, sim.info.ng, sim.info.J
+    pp = sim.c_params(p)
+    cres, cjac = sim.c_ggl_res, sim.c_ggl_jac
+    state = {"model_error": 0, "t": float(t[0])}
+    jbuf = np.empty((ng, ng), order="F")
+
+    def resfn(tt, y, yp, res):
+        rc = cres(tt, ffi.from_buffer("double[]", y), ffi.from_buffer("double[]", yp), pp,
+                  ffi.from_buffer("double[]", res, require_writable=True))
+        if rc:
+            res[:] = np.nan
+
+    def jacfn(tt, y, yp, res, cj, JJ):
+        rc = cjac(tt, cj, ffi.from_buffer("double[]", y), ffi.from_buffer("double[]", yp), pp,
+                  ffi.from_buffer("double[]", jbuf.T))
+        if rc:
+            jbuf[:] = np.nan
+        JJ[:, :] = jbuf
+
+    atol = atol.copy()
+    atol[2 * n:] = np.maximum(atol[2 * n:], ALGEBRAIC_ATOL)
+    options = dict(rtol=rtol, atol=atol, algebraic_idx=list(range(2 * n, ng)), calc_initcond="yp0",
+                   calc_init_dt=float(t[1] - t[0]), max_num_steps=max_steps, first_step=first_step,
+                   max_step=max_step, min_step=min_step)
+    if max_order:
+        options["max_order"] = max_order
+    if jacobian:
+        options["jacfn"] = jacfn
+    if roots:
+        options.update(_events(sim, lambda tt, y: (np.ascontiguousarray(y[: 2 * n]),
+                                                   np.ascontiguousarray(y[2 * n: 2 * n + J])), p, dae=True))
+    start = time.perf_counter()
+    soln = IDA(resfn, **options).solve(t, yy0, yp0)
+    wall = time.perf_counter() - start
+    res = _constrained_result(sim, soln, t, 2 * n, p, state, wall, "bdf", "IDA", lam_slice=slice(2 * n, 2 * n + J))
+    yfull = np.asarray(soln.y, dtype=float).reshape(len(soln.t), -1)
+    res.outputs.update(sim.ggl_multiplier_outputs(yfull))
+    res.stats["algebraic_atol"] = ALGEBRAIC_ATOL
+    return res
+
+
+def _events(sim, split, p, dae: bool = False) -> dict:
+    """scikit-sundae's ``eventsfn`` on the compiled root functions of ``sim``."""
+    roots_c, ffi = sim.c_roots, sim.ffi
+    pp = sim.c_params(p)
+    evs = sim.info.events
+
+    def fill(tt, y, ev_out):
+        yv, lam = split(tt, y)
+        lp = ffi.NULL if lam is None else ffi.from_buffer("double[]", lam)
+        rc = roots_c(tt, ffi.from_buffer("double[]", yv), lp, pp,
+                     ffi.from_buffer("double[]", ev_out, require_writable=True))
+        if rc:
+            ev_out[:] = np.nan
+
+    if dae:
+        def eventsfn(tt, y, yp, events):
+            fill(tt, y, events)
+    else:
+        def eventsfn(tt, y, events):
+            fill(tt, y, events)
+
+    eventsfn.terminal = [bool(e.terminal) for e in evs]
+    eventsfn.direction = [int(e.direction) for e in evs]
+    return {"eventsfn": eventsfn, "num_events": len(evs)}
+
+
+def _constrained_result(sim, soln, t, ny, p, state, wall, method, solver, lam_slice=None) -> Result:
+    done = len(soln.t)
+    y = np.asarray(soln.y, dtype=float).reshape(done, -1)
+    nout = len(sim.info.output_names)
+    outs = np.full((done, nout), np.nan)
+    for k in range(done):
+        lam = None if lam_slice is None else y[k, lam_slice]
+        try:
+            outs[k] = sim.outputs(soln.t[k], y[k, :ny], p, lam=lam)
+        except LagcodegenError:
+            break
+    recs = []
+    if getattr(soln, "t_events", None) is not None:
+        for k, te in enumerate(np.atleast_1d(soln.t_events)):
+            info = np.atleast_2d(soln.i_events)[k]
+            yk = np.atleast_2d(soln.y_events)[k]
+            for i in np.flatnonzero(info):
+                ev = sim.info.events[i]
+                recs.append(EventRecord(ev.name, int(i), float(te), np.array(yk[:ny], dtype=float),
+                                        int(np.sign(info[i])), ev.terminal, list(sim.state_names)))
+    status = int(getattr(soln, "status", 0))
+    stats = dict(steps=None, rhs_evals=int(getattr(soln, "nfev", -1)), jac_evals=int(getattr(soln, "njev", -1)),
+                 t_reached=float(soln.t[-1]) if done else float(t[0]), model_error=state["model_error"],
+                 wall_time=wall)
+    text = str(getattr(soln, "message", ""))
+    if status < 0 or not getattr(soln, "success", True):
+        status = status if status < 0 else -3
+        text = message(status, state["model_error"], text, solver, SINGULAR_AUGMENTED)
+        if state["model_error"]:
+            stats["t_reached"] = state["t"]
+    res = Result(t=np.asarray(soln.t, dtype=float), y=y[:, :ny].copy(), state_names=list(sim.state_names),
+                 outputs={k: outs[:, i] for i, k in enumerate(sim.info.output_names)}, stats=stats,
+                 status=status if status < 0 else 0, message=text if status < 0 else "success",
+                 backend="sksundae", method=method)
+    res.events = recs
+    return res

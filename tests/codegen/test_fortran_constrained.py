@@ -107,7 +107,7 @@ def same(a, b, what):
 
 def crhs(sim, t, y, alpha, beta):
     ydot, p = np.empty(y.size), sim.parameter_vector()
-    assert sim._crhs(t, sim._ptr(y), sim._ptr(p), alpha, beta, sim._ptr(ydot)) == 0
+    assert sim.c_crhs(t, sim._ptr(y), sim._ptr(p), alpha, beta, sim._ptr(ydot)) == 0
     return ydot
 
 

@@ -1,0 +1,32 @@
+"""``simulate(method="taylor")`` on a compiled scene: the Taylor integrator of the scene is built
+on first use (per set of events) and kept with the compiled model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import LagcodegenError
+from ...result import Result
+from .runner import build_taylor
+
+
+def taylor_module(cm, events=()):
+    """The compiled Taylor integrator of ``cm``'s scene with ``events`` (built once, then reused)."""
+    key = ("taylor", tuple(events))
+    module = cm.solver_state.get(key)
+    if module is None:
+        scene = cm.code.scene
+        if scene is None:
+            raise LagcodegenError("method='taylor' needs the scene of the compiled model (this one was assembled "
+                                  "by hand); compile it with lagcodegen.compile_model or build(generate_c(scene))")
+        module = cm.solver_state[key] = build_taylor(scene, events=events)
+    return module
+
+
+def run_taylor(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, *, rtol: float, atol: np.ndarray,
+               max_step: float, max_steps: int, order: int | None, events=()) -> Result:
+    """Integrate with the Taylor method; the inputs were checked by the caller."""
+    module = taylor_module(cm, events)
+    uniform = float(atol[0]) if not np.any(atol != atol[0]) else atol
+    return module.simulate(t, y, p, rtol=rtol, atol=uniform, max_step=float(max_step), max_steps=max_steps,
+                           order=order)
