@@ -44,30 +44,56 @@ def atomic_write(path: Path, text: str) -> Path:
 
 
 def output_times(t) -> np.ndarray:
-    """Output times as an array: ``t`` itself, or 1001 evenly spaced times for a pair (t0, t1)."""
-    t = np.asarray(t, dtype=float).ravel()
+    """Output times as an array: ``t`` itself, or 1001 evenly spaced times for a pair (t0, t1).
+
+    Cheap on the common input (a contiguous float64 array): one comparison pass; strictly
+    increasing with finite ends implies every time finite (NaN never compares greater)."""
+    if type(t) is not np.ndarray or t.dtype != np.float64 or t.ndim != 1 or not t.flags.c_contiguous:
+        try:
+            t = np.ascontiguousarray(t, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise LagcodegenError(f"t must be an array of times, got {t!r:.60}") from None
     if t.size == 2:
         t = np.linspace(t[0], t[1], 1001)
-    if t.size < 2 or not np.isfinite(t).all() or not (t[1:] > t[:-1]).all():
+    if t.size < 2 or not (math.isfinite(t[0]) and math.isfinite(t[-1])) or not (t[1:] > t[:-1]).all():
         raise LagcodegenError("t must be at least two finite, strictly increasing times")
     return t
 
 
-def state_vector(val, names: list[str], what: str) -> np.ndarray:
-    """Values for ``names`` from None (zeros), a mapping by name (missing: 0) or a sequence."""
+def state_values(val, names: list[str], what: str) -> list[float]:
+    """Values for ``names`` from None (zeros), a mapping by name (missing: 0) or a sequence, as
+    a list of finite floats; ModelError names what is wrong (unknown names, length, values)."""
     if val is None:
-        return np.zeros(len(names))
+        return [0.0] * len(names)
     if isinstance(val, Mapping):
         unknown = set(val) - set(names)
         if unknown:
             raise ModelError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-        return np.array([float(val.get(k, 0.0)) for k in names])
-    arr = np.array(val, dtype=float).ravel()
-    if arr.size != len(names):
-        raise ModelError(f"{what} has {arr.size} values, expected {len(names)} ({', '.join(names)})")
-    if not np.isfinite(arr).all():
-        raise ModelError(f"{what} has non-finite values")
-    return arr
+        out = [val.get(k, 0.0) for k in names]
+    else:
+        if isinstance(val, (str, bytes)):
+            raise ModelError(f"{what} must be numbers, got {val!r:.60}")
+        if not isinstance(val, (list, tuple)):
+            try:
+                val = np.asarray(val, dtype=float).ravel().tolist()
+            except (TypeError, ValueError):
+                raise ModelError(f"{what} must be numbers, got {val!r:.60}") from None
+        out = val
+        if len(out) != len(names):
+            raise ModelError(f"{what} has {len(out)} values, expected {len(names)} ({', '.join(names)})")
+    try:
+        out = [float(x) for x in out]
+    except (TypeError, ValueError):
+        raise ModelError(f"{what} must be numbers, got {val!r:.60}") from None
+    for x in out:
+        if not math.isfinite(x):
+            raise ModelError(f"{what} has non-finite values")
+    return out
+
+
+def state_vector(val, names: list[str], what: str) -> np.ndarray:
+    """:func:`state_values` as an array."""
+    return np.array(state_values(val, names, what), dtype=float)
 
 
 def c_vector(value, size: int, what: str, names=None) -> np.ndarray:

@@ -4,11 +4,13 @@ initial state of an ODE run."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError
 from ..model.events import records
-from ..util import check_finite, state_vector
+from ..util import check_finite, state_values
 
 #: Linear multistep methods of CVODE (the values of CV_ADAMS, CV_BDF).
 METHODS = {"adams": 1, "bdf": 2}
@@ -71,6 +73,10 @@ def tolerances(rtol, atol, size: int, n_diff: int | None = None) -> tuple[float,
     """(rtol, atol as one value per state): ``atol`` a scalar, one value per state, or one per
     differential state (``n_diff``; the algebraic ones get the smallest). Both finite, >= 0."""
     rtol = check_finite(rtol, "rtol")
+    if type(atol) is float or type(atol) is int:  # the common case, without numpy reductions
+        if not (math.isfinite(atol) and atol >= 0 and rtol >= 0):
+            raise LagcodegenError("tolerances must be finite and non-negative")
+        return rtol, np.full(size, float(atol))
     try:
         arr = np.asarray(atol, dtype=float).ravel()
     except (TypeError, ValueError):
@@ -149,8 +155,8 @@ def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
             raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
     names = cm.state_names
-    return np.concatenate([state_vector(q0, names[:n], "q0"), state_vector(v0, names[:n], "v0"),
-                           state_vector(z0, names[2 * n:], "z0")])
+    return np.array(state_values(q0, names[:n], "q0") + state_values(v0, names[:n], "v0")
+                    + state_values(z0, names[2 * n:], "z0"), dtype=float)
 
 
 def check_initial_mass_matrix(cm, t0: float, y: np.ndarray, p: np.ndarray) -> None:
