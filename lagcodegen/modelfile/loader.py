@@ -1,587 +1,46 @@
-"""Declarative model files: a mechanical model and its simulation settings in TOML.
+"""Loading a model file: the TOML document, section by section, into a Model.
 
-A build step can describe a model without writing Python::
-
-    [model]
-    name = "double_pendulum"              # optional; default: the file's stem (or "model")
-    coordinates = ["theta1", "theta2"]
-
-    [parameters]                          # name = default value (finite number)
-    l1 = 1.0
-    g = 9.81
-
-    [[points]]                            # optional named points (anchors, attachment points)
-    name = "anchor"
-    position = [0, 0]
-
-    [[particles]]                         # name, mass, position (2 or 3 components)
-    name = "bob1"
-    mass = "m1"
-    position = ["l1*sin(theta1)", "-l1*cos(theta1)"]
-
-    [[planar_bodies]]                     # name, mass, inertia, position (2), angle
-    [[rigid_bodies]]                      # name, mass, inertia, position (3), orientation
-                                          # inertia: 3 principal moments or a 3x3 array;
-                                          # orientation: 3x3 array (body -> world rotation)
-    [gravity]                             # g; up optional (default: last axis)
-    g = "g"
-    up = [0, 1]
-
-    [[springs]]                           # a, b: point names or positions; k; rest_length, label optional
-    a = "bob1"
-    b = "anchor"
-    k = "k"
-
-    [[dampers]]                           # point, c; b (second point), label optional
-    [[forces]]                            # point, vector; label optional
-    [[generalized_forces]]                # coordinate, expr; label optional
-    [energy]                              # kinetic, potential, dissipation (each optional)
-    [outputs]                             # name = "expression" (user outputs)
-
-    [constraints]                         # optional (notes, sec. 4); every key optional
-    holonomic = ["x**2 + y**2 - l**2"]    # f(q, t) = 0 (eq. 4.1)
-    nonholonomic = [                      # A . q' + A0 = 0 (eq. 4.3); A0 optional (default 0)
-        { A = ["sin(th)", "-cos(th)", 0], A0 = 0 },      # one coefficient per coordinate, or
-        { coefficients = { x = 1, phi = "-R" } },        # by coordinate name (missing ones 0)
-    ]
-    inequalities = ["y + 2*l"]            # g(q, t) >= 0: monitored (terminal event ineq_<k>)
-    integrable = "error"                  # or "allow" (keep an integrable Pfaffian row)
-
-    [[events]]                            # constrained files: root functions
-    name = "leave"
-    expr = "lambda_0"                     # q, <coord>_dot, t, parameters, multipliers lambda_<j>
-    direction = -1                        # -1 decreasing, 0 both, 1 increasing (default 0)
-    terminal = true                       # default true
-
-    [simulation]                          # every key optional
-    t_start = 0.0
-    t_end = 20.0
-    n_out = 1001
-    method = "adams"                      # or "bdf"
-    rtol = 1e-8
-    atol = 1e-10
-    initial = { theta1 = 1.0, theta2 = 0.5, theta1_dot = 0.0 }
-    outputs = ["energy", "positions"]     # scene outputs (see lagcodegen.scene.Scene)
-    runtime_parameters = ["g"]            # default: every parameter stays adjustable
-    parameters = { g = 1.62 }             # overrides of the parameter defaults
-    jacobian = true
-    formulation = "index1"                # constrained files: "index1" (default), "ggl", "minimal"
-    baumgarte = [5.0, 5.0]                # index1: (alpha, beta); default none
-    projection = false                    # index1: project after each step (needs method "bdf")
-
-Each table maps onto one :class:`~lagcodegen.model.Model` call (``particle``, ``point``,
-``planar_body``, ``rigid_body``, ``gravity``, ``spring``, ``damper``, ``force``,
-``generalized_force``, ``kinetic_energy``, ``potential_energy``, ``dissipation``,
-``output``). Where a point is expected (``a``, ``b``, ``point``), a string names a point
-(``[[points]]`` or a body) and an array gives a position.
-
-Expressions are TOML numbers or strings such as ``"-l1*cos(theta1)"``. A string is parsed
-by :func:`ast.parse` and converted by walking a whitelist of node types: numbers, names,
-``+ - * / **``, unary ``-``/``+`` and calls of ``sin cos tan asin acos atan atan2 sinh
-cosh tanh exp log sqrt abs sign``. Names are the coordinates, their velocities
-``<coord>_dot`` (only in forces, kinetic energy, dissipation, outputs and events), the parameters,
-``t`` and ``pi``. Nothing is ever evaluated: no ``eval``, no ``sympify`` of raw text.
-Parameter values, ``initial`` values and ``t_start``/``t_end``/``rtol``/``atol`` may be
-constant expressions too (``"pi/2"``).
-
-With a ``[constraints]`` table, :attr:`ModelFile.constrained` is the
-:class:`~lagcodegen.constraints.ConstrainedSystem` (constraint j, holonomic ones first, has the
-multiplier ``lambda_<j>``, counted from 0), :attr:`ModelFile.events` the ``[[events]]`` as
-:class:`~lagcodegen.events.Event` items, and :meth:`ModelFile.compile`/:meth:`ModelFile.simulate`
-go through :func:`lagcodegen.dae.compile_constrained`. Constrained runs output the requested
-outputs (default: energy) plus ``lambda`` (not in minimal coordinates), ``residuals`` and, with
-inequality constraints, ``inequalities``.
-
-Every problem raises :class:`ModelFileError` (a :class:`~lagcodegen.errors.ModelError`)
-naming the file, the line when it can be found, the key path (``particles[1].position[0]``)
-and the offending token.
+One job: :class:`_Loader` reads each table (the format: see :mod:`lagcodegen.modelfile`) into
+:class:`~lagcodegen.model.Model` calls, the [constraints] into a
+:class:`~lagcodegen.theory.constraints.ConstrainedSystem`, the [[events]] into
+:class:`~lagcodegen.model.events.Event` items and the [simulation] table into
+:class:`~.document.SimulationSettings`, checking names and combinations as it goes;
+:func:`load_model` and :func:`loads_model` are its entry points.
 """
 
 from __future__ import annotations
 
-import ast
 import difflib
-import json
-import math
 import re
 import sys
-from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping, Sequence, Union
+from typing import Sequence
 
-import numpy as np
 import sympy as sp
 
-from .. import hooks
-from ..derivation import derive
 from ..errors import ModelError
 from ..model.events import DIRECTIONS, Event
 from ..model.model import Model
 from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS, OUTPUT_GROUPS
 from ..theory.constraints import FORMULATIONS, ConstrainedSystem
+from .document import ModelFile, SimulationSettings, constrained_method, constrained_outputs
+from .expressions import FUNCTIONS, ExpressionError, parse_expression
+from .locate import ModelFileError, _format_key, _Key
+from .values import _Reader, _type_name
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-if TYPE_CHECKING:  # pragma: no cover
-    from ..derivation import EquationsOfMotion
-    from ..result import Result
-
+# The names the package exported from here before it was split (lagcodegen.api imports
+# constrained_outputs from this module).
 __all__ = ["FORMULATIONS", "FUNCTIONS", "ExpressionError", "ModelFile", "ModelFileError", "SimulationSettings",
            "constrained_method", "constrained_outputs", "load_model", "loads_model", "parse_expression"]
-
-#: Functions an expression may call: name -> (sympy function, number of arguments).
-FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
-    "sin": (sp.sin, 1), "cos": (sp.cos, 1), "tan": (sp.tan, 1),
-    "asin": (sp.asin, 1), "acos": (sp.acos, 1), "atan": (sp.atan, 1), "atan2": (sp.atan2, 2),
-    "sinh": (sp.sinh, 1), "cosh": (sp.cosh, 1), "tanh": (sp.tanh, 1),
-    "exp": (sp.exp, 1), "log": (sp.log, 1), "sqrt": (sp.sqrt, 1),
-    "abs": (sp.Abs, 1), "sign": (sp.sign, 1),
-}
 
 METHODS = ("adams", "bdf")
 #: What [constraints] integrable = ... may say (see ConstrainedSystem).
 _INTEGRABLE = ("error", "allow")
-
-_BINARY_OPS: dict[type, Callable[[sp.Expr, sp.Expr], sp.Expr]] = {
-    ast.Add: lambda a, b: a + b,
-    ast.Sub: lambda a, b: a - b,
-    ast.Mult: lambda a, b: a * b,
-    ast.Div: lambda a, b: a / b,
-    ast.Pow: lambda a, b: a ** b,
-}
-_OPERATOR_TEXT = {ast.FloorDiv: "//", ast.Mod: "%", ast.MatMult: "@", ast.LShift: "<<",
-                  ast.RShift: ">>", ast.BitOr: "|", ast.BitXor: "^", ast.BitAnd: "&",
-                  ast.Invert: "~", ast.Not: "not"}
-_CONSTRUCT_TEXT = {
-    ast.Attribute: "attribute access", ast.Subscript: "subscript", ast.Lambda: "lambda",
-    ast.ListComp: "comprehension", ast.SetComp: "comprehension", ast.DictComp: "comprehension",
-    ast.GeneratorExp: "generator expression", ast.Compare: "comparison",
-    ast.BoolOp: "boolean operator", ast.IfExp: "conditional expression",
-    ast.NamedExpr: "assignment expression", ast.Starred: "starred argument",
-    ast.List: "list", ast.Tuple: "tuple", ast.Set: "set", ast.Dict: "dict",
-    ast.JoinedStr: "f-string", ast.Await: "await", ast.Yield: "yield", ast.YieldFrom: "yield",
-    ast.Slice: "slice",
-}
-#: Largest integer/rational size (bits) and power size an expression may build exactly.
-_MAX_BITS = 4096
-_MAX_TEXT = 20_000
-_NON_FINITE = (sp.zoo, sp.oo, -sp.oo, sp.nan)
-
-
-# ============================================================================ results
-@dataclass
-class SimulationSettings:
-    """The ``[simulation]`` table: how a build step should run the model."""
-
-    t_start: float = 0.0
-    t_end: float = 10.0
-    n_out: int = 1001
-    method: str = "adams"
-    rtol: float = 1e-8
-    atol: float = 1e-10
-    initial: dict[str, float] = field(default_factory=dict)
-    outputs: list[str] = field(default_factory=list)
-    runtime_parameters: list[str] | None = None
-    parameters: dict[str, float] = field(default_factory=dict)
-    jacobian: bool = True
-    formulation: str | None = None  # constrained files: "index1" (default), "ggl" or "minimal"
-    baumgarte: tuple[float, float] = (0.0, 0.0)  # index1: (alpha, beta); (0, 0) is none
-    projection: bool = False  # index1: project onto the constraints after each step (BDF)
-
-
-@dataclass
-class ModelFile:
-    """A loaded model file: the model, its simulation settings and where it came from."""
-
-    model: Model
-    simulation: SimulationSettings
-    path: Path
-    source: str = field(default="", repr=False, compare=False)  # the TOML text, for error lines
-    #: The model with the file's [constraints] (a ConstrainedSystem), or None without constraints.
-    constrained: ConstrainedSystem | None = field(default=None, repr=False, compare=False)
-    #: The file's [[events]] (Event items; the inequality constraints' events ineq_<k> come on top).
-    events: list[Event] = field(default_factory=list, compare=False)
-
-    def initial_state(self) -> tuple[list[float], list[float]]:
-        """Initial coordinates and velocities from ``simulation.initial`` (missing entries 0.0)."""
-        init = self.simulation.initial
-        q0 = [float(init.get(q.name, 0.0)) for q in self.model.coords]
-        v0 = [float(init.get(v.name, 0.0)) for v in self.model.speeds]
-        return q0, v0
-
-    def times(self) -> np.ndarray:
-        """Output times: ``n_out`` points evenly spaced from ``t_start`` to ``t_end``."""
-        s = self.simulation
-        return np.linspace(s.t_start, s.t_end, s.n_out)
-
-    def derive(self) -> EquationsOfMotion:
-        """:func:`lagcodegen.derive` of the model, with model errors located in this file."""
-        try:
-            return derive(self.model)
-        except ModelFileError:
-            raise
-        except ModelError as exc:
-            raise _Locator(self.source, str(self.path)).error(("model", "coordinates"), str(exc)) from None
-
-    def compile(self, **options: Any) -> Any:
-        """:func:`lagcodegen.compile_model` with this file's scene settings (``options`` override).
-
-        With constraints: :func:`lagcodegen.dae.compile_constrained` with the file's formulation,
-        Baumgarte parameters, projection, events and outputs (see :func:`constrained_outputs`);
-        ``options`` (``formulation=...``, ``lang=...``, ``outputs=...``) override.
-        """
-        return hooks.call("compile_file", self, **options)
-
-    def simulate(self, compiled: Any = None, **options: Any) -> Result:
-        """Run the simulation the file describes (compiling first unless ``compiled`` is given).
-
-        A given ``compiled`` model should come from :meth:`compile`: parameter overrides are
-        passed for its run-time parameters only. Constrained files integrate with BDF where the
-        formulation needs it (``ggl``, index-1 with projection), else with ``method``; the
-        result has the events found in ``Result.events``.
-        """
-        cm = compiled if compiled is not None else self.compile()
-        s = self.simulation
-        q0, v0 = self.initial_state()
-        method = s.method
-        if self.constrained is not None:
-            method = constrained_method(getattr(cm, "formulation", s.formulation), getattr(cm, "projection", False),
-                                        s.method)
-        kwargs: dict[str, Any] = dict(
-            q0=q0, v0=v0, method=method, rtol=s.rtol, atol=s.atol,
-            params={k: v for k, v in s.parameters.items() if k in cm.param_names})
-        kwargs.update(options)
-        return cm.simulate(self.times(), **kwargs)
-
-
-def constrained_outputs(system: ConstrainedSystem, requested: Sequence[str], formulation: str | None) -> list[str]:
-    """Outputs of a constrained run: ``requested`` (default: energy) plus the multipliers
-    (``lambda``, except in minimal coordinates, which have none), the constraint residuals
-    (``residuals``) and, when there are inequality constraints, their values (``inequalities``)."""
-    out = list(requested) if requested else ["energy"]
-    extra = ["lambda"] if formulation != "minimal" and system.J else []
-    extra.append("residuals")
-    if system.inequalities:
-        extra.append("inequalities")
-    return out + [name for name in extra if name not in out]
-
-
-def constrained_method(formulation: str | None, projection: bool, method: str) -> str:
-    """The integration method of a constrained run: GGL (IDA) and index-1 with projection
-    (CVODE projects with BDF only) use ``"bdf"``; otherwise ``method``."""
-    if formulation == "ggl" or (formulation in (None, "index1") and projection):
-        return "bdf"
-    return method
-
-
-class ModelFileError(ModelError):
-    """A problem in a model file. ``filename``, ``line`` (or None), ``key`` and ``token`` say where."""
-
-    def __init__(self, message: str, filename: str, line: int | None, key: str, token: str | None):
-        self.filename = filename
-        self.line = line
-        self.key = key
-        self.token = token
-        where = f"{filename}:{line}" if line else filename
-        super().__init__(message, location=f"{where}: {key}" if key else where)
-
-
-class ExpressionError(ModelError):
-    """An expression string is not allowed; ``token`` is the offending name or construct."""
-
-    def __init__(self, message: str, token: str):
-        self.token = token
-        super().__init__(message)
-
-
-# ============================================================================ expressions
-def parse_expression(text: str, symbols: Mapping[str, sp.Basic],
-                     forbidden: Mapping[str, str] | None = None) -> sp.Expr:
-    """Convert an expression string to sympy without evaluating any code.
-
-    ``symbols`` maps the allowed names to sympy objects; ``forbidden`` maps names that exist
-    but are not allowed here (e.g. velocities in a position) to the reason. Raises
-    :class:`ExpressionError` naming the offending token.
-    """
-    if len(text) > _MAX_TEXT:
-        raise ExpressionError(f"expression is too long ({len(text)} characters)", token=text[:40] + "...")
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError as exc:
-        raise ExpressionError(f"invalid expression syntax ({exc.msg}) in {text!r}", token=text) from None
-    except (ValueError, RecursionError, MemoryError):
-        raise ExpressionError(f"expression cannot be parsed: {text!r}", token=text) from None
-    try:
-        expr = _Converter(text.strip(), symbols, forbidden or {}).convert(tree)
-    except RecursionError:
-        raise ExpressionError(f"expression is nested too deeply: {text!r}", token=text) from None
-    if not isinstance(expr, sp.Expr):  # pragma: no cover - every converted node is an Expr
-        raise ExpressionError(f"not an expression: {text!r}", token=text)
-    if expr.has(*_NON_FINITE):
-        raise ExpressionError(f"expression {text!r} is not finite", token=text)
-    if expr.has(sp.I):
-        raise ExpressionError(f"expression {text!r} has a complex value", token=text)
-    return expr
-
-
-class _Converter:
-    """Walks a whitelist of ast nodes and builds the sympy expression directly."""
-
-    def __init__(self, text: str, symbols: Mapping[str, sp.Basic], forbidden: Mapping[str, str]):
-        self.text = text
-        self.symbols = symbols
-        self.forbidden = forbidden
-
-    def source(self, node: ast.AST) -> str:
-        return ast.get_source_segment(self.text, node) or type(node).__name__
-
-    def reject(self, node: ast.AST, what: str) -> ExpressionError:
-        token = self.source(node)
-        return ExpressionError(f"{what} {token!r} is not allowed in {self.text!r}", token=token)
-
-    def convert(self, node: ast.AST) -> sp.Expr:
-        if isinstance(node, ast.Expression):
-            return self.convert(node.body)
-        if isinstance(node, ast.Constant):
-            return self.constant(node)
-        if isinstance(node, ast.Name):
-            return self.name(node)
-        if isinstance(node, ast.BinOp):
-            return self.binary(node)
-        if isinstance(node, ast.UnaryOp):
-            return self.unary(node)
-        if isinstance(node, ast.Call):
-            return self.call(node)
-        what = _CONSTRUCT_TEXT.get(type(node), f"Python construct {type(node).__name__}")
-        if isinstance(node, ast.Attribute):
-            raise ExpressionError(f"attribute access {self.source(node)!r} (attribute {node.attr!r}) is not "
-                                  f"allowed in {self.text!r}", token=self.source(node))
-        raise self.reject(node, what)
-
-    def constant(self, node: ast.Constant) -> sp.Expr:
-        value = node.value
-        if type(value) is int:
-            if value.bit_length() > _MAX_BITS:
-                raise self.reject(node, "number too large:")
-            return sp.Integer(value)
-        if type(value) is float:
-            if not math.isfinite(value):
-                raise self.reject(node, "non-finite number")
-            return sp.Float(value)
-        kind = {str: "string literal", bytes: "bytes literal", bool: "boolean", complex: "complex number",
-                type(None): "None", type(...): "Ellipsis"}.get(type(value), "constant")
-        raise self.reject(node, kind)
-
-    def name(self, node: ast.Name) -> sp.Expr:
-        name = node.id
-        if name in self.symbols:
-            return self.symbols[name]
-        if name in self.forbidden:
-            raise ExpressionError(f"{name!r} is not allowed here ({self.forbidden[name]}) in {self.text!r}",
-                                  token=name)
-        if name in FUNCTIONS:
-            raise ExpressionError(f"function {name!r} must be called, as {name}(...), in {self.text!r}",
-                                  token=name)
-        close = difflib.get_close_matches(name, list(self.symbols), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        known = ", ".join(self.symbols) or "none"
-        raise ExpressionError(f"unknown name {name!r} in {self.text!r}{hint} (known names: {known})", token=name)
-
-    def binary(self, node: ast.BinOp) -> sp.Expr:
-        # Long sums and products nest to the left: walk that spine without recursion.
-        chain = [node]
-        while isinstance(chain[-1].left, ast.BinOp):
-            chain.append(chain[-1].left)
-        value = self.convert(chain[-1].left)
-        for link in reversed(chain):
-            value = self.apply(link, value, self.convert(link.right))
-        return value
-
-    def apply(self, node: ast.BinOp, left: sp.Expr, right: sp.Expr) -> sp.Expr:
-        op = _BINARY_OPS.get(type(node.op))
-        if op is None:
-            sym = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
-            hint = " (use ** for powers)" if isinstance(node.op, ast.BitXor) else ""
-            raise ExpressionError(f"operator {sym!r} is not allowed in {self.text!r}{hint}", token=sym)
-        if isinstance(node.op, ast.Div) and right == 0:
-            raise self.reject(node, "division by zero:")
-        if isinstance(node.op, ast.Pow) and left.is_Number and right.is_Number:
-            self.check_power(node, left, right)
-        return self.checked(node, op(left, right))
-
-    def unary(self, node: ast.UnaryOp) -> sp.Expr:
-        if isinstance(node.op, ast.USub):
-            return -self.convert(node.operand)
-        if isinstance(node.op, ast.UAdd):
-            return self.convert(node.operand)
-        sym = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
-        raise ExpressionError(f"operator {sym!r} is not allowed in {self.text!r}", token=sym)
-
-    def call(self, node: ast.Call) -> sp.Expr:
-        if not isinstance(node.func, ast.Name):
-            token = self.source(node.func)
-            raise ExpressionError(f"call of {token!r} is not allowed in {self.text!r}; only the functions "
-                                  f"{', '.join(FUNCTIONS)} may be called", token=token)
-        name = node.func.id
-        if name not in FUNCTIONS:
-            raise ExpressionError(f"function {name!r} is not allowed in {self.text!r}; allowed functions: "
-                                  f"{', '.join(FUNCTIONS)}", token=name)
-        if node.keywords:
-            kw = node.keywords[0]
-            token = f"{kw.arg}=" if kw.arg else "**"
-            raise ExpressionError(f"keyword argument {token!r} in call of {name!r} is not allowed in "
-                                  f"{self.text!r}", token=token)
-        for arg in node.args:
-            if isinstance(arg, ast.Starred):
-                raise self.reject(arg, "starred argument")
-        func, arity = FUNCTIONS[name]
-        if len(node.args) != arity:
-            plural = "s" if arity != 1 else ""
-            raise ExpressionError(f"function {name!r} takes {arity} argument{plural}, got {len(node.args)} in "
-                                  f"{self.text!r}", token=name)
-        return self.checked(node, func(*(self.convert(a) for a in node.args)))
-
-    def check_power(self, node: ast.BinOp, base: sp.Expr, exponent: sp.Expr) -> None:
-        """Refuse numeric powers whose exact value would be huge (e.g. ``9**9**9``)."""
-        if base.is_Rational:
-            size = max(abs(int(base.p)).bit_length(), int(base.q).bit_length())
-        else:
-            magnitude = abs(float(base))
-            size = abs(math.log2(magnitude)) + 1 if magnitude else 0
-        if abs(float(exponent)) * size > _MAX_BITS:
-            raise self.reject(node, "numeric power too large:")
-
-    def checked(self, node: ast.AST, value: sp.Expr) -> sp.Expr:
-        """Refuse non-finite or oversized numeric results (``0**-1``, ``log(0)``, ``10.0**400``)."""
-        if value in _NON_FINITE:
-            raise self.reject(node, "non-finite value:")
-        if value.is_Number:
-            if value.is_Rational and max(abs(int(value.p)).bit_length(), int(value.q).bit_length()) > _MAX_BITS:
-                raise self.reject(node, "number too large:")
-            try:
-                finite = math.isfinite(float(value))
-            except OverflowError:
-                finite = False
-            if not finite:
-                raise self.reject(node, "number outside double precision range:")
-        return value
-
-
-# ============================================================================ locating errors
-_Key = Union[str, int]
-_HEADER = re.compile(r"^\s*(\[\[?)\s*([A-Za-z_][\w.\s-]*?)\s*\]\]?\s*(#.*)?$")
-_ASSIGNMENT = re.compile(r"^\s*[\w\"'.-]+\s*=")
-
-
-def _format_key(path: Sequence[_Key]) -> str:
-    out = ""
-    for part in path:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            text = part if re.fullmatch(r"[A-Za-z0-9_-]+", part) else json.dumps(part)
-            out += f".{text}" if out else text
-    return out
-
-
-class _Locator:
-    """Finds the line of a key path (and a value in it) in the raw TOML text, best effort."""
-
-    def __init__(self, text: str, filename: str):
-        self.filename = filename
-        self.lines = text.splitlines()
-        self.headers: list[tuple[int, bool, str]] = []  # (line index, array of tables?, name)
-        for i, line in enumerate(self.lines):
-            m = _HEADER.match(line)
-            if m:
-                self.headers.append((i, m.group(1) == "[[", re.sub(r"\s+", "", m.group(2))))
-
-    def error(self, path: Sequence[_Key], message: str, needle: str | None = None,
-              token: str | None = None) -> ModelFileError:
-        """A located error: ``needle`` is text to look for (default ``token``)."""
-        line = self.line(path, needle if needle is not None else token)
-        return ModelFileError(message, self.filename, line, _format_key(path), token)
-
-    def _section(self, path: Sequence[_Key]) -> tuple[int, int, list[str]] | None:
-        """(first line, end line, keys left) of the table that holds ``path``."""
-        if not path:
-            return None
-        # An array of tables ([[particles]], [[constraints.nonholonomic]]): its k-th header.
-        k = next((i for i, part in enumerate(path) if not isinstance(part, str)), len(path))
-        arrays = [i for i, is_array, name in self.headers if is_array and name == ".".join(map(str, path[:k]))]
-        if 0 < k < len(path) and arrays:
-            if path[k] >= len(arrays):
-                return None
-            start, rest = arrays[path[k]], path[k + 1:]
-        else:
-            names = []
-            for part in path:
-                if not isinstance(part, str):
-                    break
-                names.append(part)
-            start = None
-            for k in range(len(names), 0, -1):
-                dotted = ".".join(names[:k])
-                found = [i for i, is_array, name in self.headers if not is_array and name == dotted]
-                if found:
-                    start, rest = found[0], path[k:]
-                    break
-            if start is None:
-                return None
-        end = next((i for i, _, _ in self.headers if i > start), len(self.lines))
-        return start, end, list(rest)
-
-    def line(self, path: Sequence[_Key], needle: str | None = None) -> int | None:
-        """1-based line number of ``path`` (and of ``needle`` within its value), or None."""
-        section = self._section(path)
-        if section is None:
-            return self._find(needle, 0, len(self.lines)) if needle else None
-        start, end, keys = section
-        pos = start
-        k = 0
-        while k < len(keys):
-            key = keys[k]
-            if isinstance(key, int):
-                # Element `key` of an inline array of tables: the (key+1)-th line with the next key.
-                if k + 1 >= len(keys) or not isinstance(keys[k + 1], str):
-                    break
-                pattern = self._key_pattern(keys[k + 1])
-                hits = [i for i in range(pos, end) if pattern.search(self.lines[i])]
-                if key >= len(hits):
-                    break
-                pos = hits[key]
-                k += 2
-                continue
-            pattern = self._key_pattern(key)
-            hit = next((i for i in range(pos, end) if pattern.search(self.lines[i])), None)
-            if hit is None:
-                break
-            pos = hit
-            k += 1
-        if needle:
-            stop = next((i for i in range(pos + 1, end) if _ASSIGNMENT.match(self.lines[i])), end)
-            hit = self._find(needle, pos, stop)
-            if hit is not None:
-                return hit
-        return pos + 1
-
-    @staticmethod
-    def _key_pattern(key: str) -> re.Pattern:
-        return re.compile(r"(?:^|[\s{,.])[\"']?" + re.escape(key) + r"[\"']?\s*=")
-
-    def _find(self, needle: str, start: int, stop: int) -> int | None:
-        for candidate in (f'"{needle}"', f"'{needle}'", needle):
-            for i in range(start, stop):
-                if candidate in self.lines[i]:
-                    return i + 1
-        return None
-
-
-# ============================================================================ loading
 _TOP_LEVEL = ("model", "parameters", "points", "particles", "planar_bodies", "rigid_bodies", "gravity",
               "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints", "events",
               "simulation")
@@ -593,7 +52,7 @@ _POSITION_ONLY = "velocities are allowed only in forces, kinetic energy, dissipa
 
 
 def load_model(path: str | Path) -> ModelFile:
-    """Load a TOML model file (see the module docstring for the format)."""
+    """Load a TOML model file (see :mod:`lagcodegen.modelfile` for the format)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -607,132 +66,17 @@ def loads_model(text: str, filename: str = "<string>") -> ModelFile:
     return _Loader(text, filename, Path(filename)).load()
 
 
-def _type_name(value: object) -> str:
-    if isinstance(value, bool):
-        return "a boolean"
-    return {int: "an integer", float: "a float", str: "a string", list: "an array",
-            dict: "a table"}.get(type(value), f"a {type(value).__name__}")
-
-
-class _Loader:
+class _Loader(_Reader):
     """Reads one TOML document into a Model and SimulationSettings."""
 
     def __init__(self, text: str, filename: str, path: Path):
-        self.text = text
-        self.filename = filename
+        super().__init__(text, filename)
         self.path = path
-        self.locate = _Locator(text, filename)
         self.model: Model | None = None
-        self.symbols: dict[str, sp.Basic] = {}
-        self.velocities: dict[str, str] = {}
         self.system: ConstrainedSystem | None = None
         self.events: list[Event] = []
 
-    # ------------------------------------------------------------------ errors
-    def error(self, path: Sequence[_Key], message: str, token: str | None = None,
-              needle: str | None = None) -> ModelFileError:
-        return self.locate.error(path, message, needle=needle, token=token)
-
-    @contextmanager
-    def at(self, path: Sequence[_Key], needle: str | None = None) -> Iterator[None]:
-        """Locate ModelErrors raised by the Model API at ``path``."""
-        try:
-            yield
-        except ModelFileError:
-            raise
-        except ModelError as exc:
-            raise self.error(path, str(exc), needle=needle) from None
-
-    # ------------------------------------------------------------------ structure
-    def fields(self, path: Sequence[_Key], table: dict, required: Sequence[str] = (),
-               optional: Sequence[str] = ()) -> None:
-        """Refuse unknown keys (typos) and report missing required keys."""
-        allowed = list(required) + list(optional)
-        for key in table:
-            if key not in allowed:
-                close = difflib.get_close_matches(key, allowed, n=1)
-                hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise self.error([*path, key], f"unknown key {key!r}{hint} (allowed: {', '.join(allowed)})",
-                                 token=key)
-        for key in required:
-            if key not in table:
-                raise self.error(path, f"missing required key {key!r}", token=key, needle="")
-
-    def table(self, path: Sequence[_Key], value: object) -> dict:
-        if not isinstance(value, dict):
-            raise self.error(path, f"must be a table, got {_type_name(value)}", token=_format_key(path))
-        return value
-
-    def tables(self, path: Sequence[_Key], value: object) -> list[dict]:
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.error(path, f"must be an array of tables ([[{_format_key(path)}]])",
-                             token=_format_key(path))
-        return value
-
-    def string(self, path: Sequence[_Key], value: object) -> str:
-        if not isinstance(value, str):
-            raise self.error(path, f"must be a string, got {_type_name(value)}", token=repr(value))
-        return value
-
-    def strings(self, path: Sequence[_Key], value: object) -> list[str]:
-        if not isinstance(value, list):
-            raise self.error(path, f"must be an array of strings, got {_type_name(value)}", token=repr(value))
-        return [self.string([*path, i], v) for i, v in enumerate(value)]
-
     # ------------------------------------------------------------------ values
-    def expr(self, path: Sequence[_Key], value: object, velocities: bool = False,
-             extra: Mapping[str, sp.Basic] | None = None) -> sp.Expr:
-        """An expression: a TOML number or a string parsed by :func:`parse_expression`
-        (``extra``: more names allowed here, e.g. the multipliers in events)."""
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise self.error(path, f"must be a number or an expression string, got {_type_name(value)}",
-                             token=repr(value))
-        if isinstance(value, int):
-            return sp.Integer(value)
-        if isinstance(value, float):
-            if not math.isfinite(value):
-                raise self.error(path, f"must be finite, got {value}", token=str(value))
-            return sp.Float(value)
-        symbols = self.symbols if velocities else {
-            name: sym for name, sym in self.symbols.items() if name not in self.velocities}
-        if extra:
-            symbols = {**symbols, **extra}
-        try:
-            return parse_expression(value, symbols, None if velocities else self.velocities)
-        except ExpressionError as exc:
-            raise self.error(path, str(exc), token=exc.token, needle=value) from None
-
-    def vector(self, path: Sequence[_Key], value: object, velocities: bool = False,
-               sizes: Sequence[int] = (2, 3)) -> list[sp.Expr]:
-        if not isinstance(value, list) or len(value) not in sizes:
-            got = f"{len(value)} components" if isinstance(value, list) else _type_name(value)
-            want = " or ".join(map(str, sizes))
-            raise self.error(path, f"must be an array of {want} expressions, got {got}", token=repr(value))
-        return [self.expr([*path, i], v, velocities) for i, v in enumerate(value)]
-
-    def matrix3(self, path: Sequence[_Key], value: object) -> sp.Matrix:
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.error(path, "must be a 3x3 array of expressions", token=repr(value))
-        return sp.Matrix([self.vector([*path, i], row, sizes=(3,)) for i, row in enumerate(value)])
-
-    def constant(self, path: Sequence[_Key], value: object) -> float:
-        """A finite real number: a TOML number or a constant expression such as ``"pi/2"``."""
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise self.error(path, f"must be a number, got {_type_name(value)}", token=repr(value))
-        if isinstance(value, str):
-            try:
-                expr = parse_expression(value, {"pi": sp.pi})
-            except ExpressionError as exc:
-                raise self.error(path, f"{exc} (a constant is expected here)", token=exc.token,
-                                 needle=value) from None
-            number = float(expr.evalf())
-            if not math.isfinite(number):
-                raise self.error(path, f"must be a finite number, {value!r} is {number}", token=value)
-            return number
-        if not math.isfinite(value):
-            raise self.error(path, f"must be a finite number, got {value}", token=str(value))
-        return float(value)
-
     def point_ref(self, path: Sequence[_Key], value: object) -> str | list[sp.Expr]:
         """A point: the name of a declared point, or a position array."""
         assert self.model is not None
@@ -1036,11 +380,6 @@ class _Loader:
             raise self.error(path, "every coefficient is zero: not a constraint on the velocities",
                              token="A" if "A" in entry else "coefficients", needle="")
         return tuple(A), A0
-
-    def array(self, path: Sequence[_Key], value: object) -> list:
-        if not isinstance(value, list):
-            raise self.error(path, f"must be an array of expressions, got {_type_name(value)}", token=repr(value))
-        return value
 
     def load_event(self, path: list[_Key], entry: dict) -> Event:
         """[[events]]: name, expr (q, q', t, parameters, lambda_<j>), direction, terminal."""
