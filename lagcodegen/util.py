@@ -101,6 +101,9 @@ def c_vector(value, size: int, what: str, names=None) -> np.ndarray:
     to hand to C; anything else (None, wrong length, non-numeric, complex) raises
     LagcodegenError naming ``what``, the expected length and the ``names`` of the entries.
     Integer arrays are converted, never reinterpreted."""
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1 and value.size == size
+            and value.flags.c_contiguous):
+        return value
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):

@@ -63,7 +63,8 @@ class _Base:
 
     @property
     def n(self) -> int:
-        return self.system.n
+        """Number of coordinates."""
+        return self.system.model.n
 
     def _effective_params(self, scene_defaults: dict, p_names: list, p: np.ndarray) -> dict:
         vals = dict(scene_defaults)
@@ -211,28 +212,53 @@ class ConstrainedSimulation(_Base):
         q = state_vector(q0, names, "q0")
         v = state_vector(v0, names, "v0")
         p = self._p(params)
-        vals = self._effective_params(self.info.folded, self.param_names, p)
         y = np.concatenate([q, v])
         if initial == "none":
             return y
         if initial not in ("check", "project"):
             raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
         if initial == "check":
-            self.system.check_initial(q, v, vals, t0=t0, tol=ic_tol)
+            if not self._consistent(t0, y, p, ic_tol):
+                # the symbolic check names what is wrong (rank, which constraint, by how much)
+                self.system.check_initial(q, v, self._values(p), t0=t0, tol=ic_tol)
             return self.project(t0, y, p)
-        # project: rank first (clear message), then Gauss-Newton, then verify
-        ev = self.system.evaluate(q, v, vals, t0)
-        if self.system.J:
-            A = ev["A"]
-            if np.linalg.matrix_rank(A, tol=rank_tolerance(A)) < self.system.J:
-                raise ModelError("singular constraint Jacobian at the initial state: cannot project; "
-                                 + dependent_rows(A))
-        yp = self.project(t0, y, p)
+        # project: Gauss-Newton, then verify; a failure is explained by the symbolic rank test
+        try:
+            yp = self.project(t0, y, p)
+        except ModelError:
+            self._explain_rank(q, v, p, t0)
+            raise
         g, s = self.residuals(t0, yp, p)
         if _norm(g) > ic_tol or _norm(s) > ic_tol:
             raise ModelError(f"cannot make the initial state consistent: after projection |f(q)| = {_norm(g):.3g}, "
                              f"|A q' + A0| = {_norm(s):.3g} (tolerance {ic_tol:.3g})")
         return yp
+
+    def _values(self, p: np.ndarray) -> dict:
+        return self._effective_params(self.info.folded, self.param_names, p)
+
+    def _consistent(self, t0: float, y: np.ndarray, p: np.ndarray, tol: float) -> bool:
+        """The initial-state check on the compiled functions (no sympy in the call): constraint
+        residuals within ``tol``, inequalities not violated, the augmented matrix regular."""
+        try:
+            g, s = self.residuals(t0, y, p)
+            if any(not abs(x) <= tol for x in g) or any(not abs(x) <= tol for x in s):
+                return False
+            n_ineq = len(self.system.inequalities)
+            if n_ineq and any(not x >= -tol for x in self.roots(t0, y, p)[:n_ineq]):
+                return False
+            self.kkt(t0, y, p)
+        except (SolverError, SingularMassMatrixError):
+            return False
+        return True
+
+    def _explain_rank(self, q, v, p, t0: float) -> None:
+        """Raise ModelError naming the dependent constraint rows if A is rank deficient at q."""
+        if self.system.J:
+            A = self.system.evaluate(q, v, self._values(p), t0)["A"]
+            if np.linalg.matrix_rank(A, tol=rank_tolerance(A)) < self.system.J:
+                raise ModelError("singular constraint Jacobian at the initial state: cannot project; "
+                                 + dependent_rows(A))
 
     # ------------------------------------------------------------------ simulate
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
@@ -241,7 +267,7 @@ class ConstrainedSimulation(_Base):
                  max_steps: int = 1_000_000, first_step: float = 0.0, max_step: float = 0.0,
                  min_step: float = 0.0, max_order: int = 0, events: bool = True, max_events: int = 10_000,
                  suppress_alg: bool = True, alg_atol: float | None = None, jacobian: bool | None = None,
-                 stop_at_outputs: bool = True, proj_tol: float = 1e-12,
+                 stop_at_outputs: bool = False, proj_tol: float = 1e-12,
                  proj_maxit: int = 10, raise_on_error: bool = True) -> Result:
         """Integrate from t[0] and return the trajectory at the times ``t``.
 

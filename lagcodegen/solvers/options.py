@@ -51,7 +51,7 @@ class IDA:
     suppress_alg: bool = True
     jacobian: bool | None = None
     alg_atol: float | None = None
-    stop_at_outputs: bool = True
+    stop_at_outputs: bool = False
     backend: str = "native"
 
     def __post_init__(self):
