@@ -90,12 +90,13 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
     rtol, atol_arr = tolerances(rtol, atol, cm.ny)
     if method == "auto":
         method = choose_method(cm.n, rtol)
-    if method == "taylor":
-        res = run_taylor(cm, t, y, p, rtol=rtol, atol=atol_arr, max_step=max_step, max_steps=int(max_steps),
-                         order=order, events=events)
+    runner = FAMILIES.get(method)
+    if runner is not None:
+        res = runner(cm, t, y, p, rtol=rtol, atol=atol_arr, max_step=max_step, max_steps=int(max_steps),
+                     order=order, events=events)
     else:
         if method not in METHODS:
-            raise LagcodegenError(f"method must be one of {', '.join([*METHODS, 'taylor', 'auto'])}, "
+            raise LagcodegenError(f"method must be one of {', '.join([*METHODS, *FAMILIES, 'auto'])}, "
                                   f"got {method!r}")
         if events:
             raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
@@ -113,6 +114,11 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
                   result=res)
     return res
 
+
+#: Solver families other than CVODE, by method name: each runs (cm, t, y, p, *, rtol, atol,
+#: max_step, max_steps, order, events) -> Result on inputs checked by :func:`simulate`. A new
+#: family is a folder under solvers/ plus one entry here.
+FAMILIES = {"taylor": run_taylor}
 
 _DEFAULTS = {name: prm.default for name, prm in inspect.signature(simulate).parameters.items()}
 
