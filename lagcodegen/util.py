@@ -55,7 +55,13 @@ def output_times(t) -> np.ndarray:
             raise LagcodegenError(f"t must be an array of times, got {t!r:.60}") from None
     if t.size == 2:
         t = np.linspace(t[0], t[1], 1001)
-    if t.size < 2 or not (math.isfinite(t[0]) and math.isfinite(t[-1])) or not (t[1:] > t[:-1]).all():
+    if t.size <= 64:  # a Python pass is cheaper than numpy's on a few values
+        times = t.tolist()
+        ok = len(times) >= 2 and math.isfinite(times[0]) and math.isfinite(times[-1]) \
+            and all(a < b for a, b in zip(times, times[1:]))
+    else:
+        ok = math.isfinite(t[0]) and math.isfinite(t[-1]) and bool((t[1:] > t[:-1]).all())
+    if not ok:
         raise LagcodegenError("t must be at least two finite, strictly increasing times")
     return t
 

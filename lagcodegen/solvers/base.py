@@ -69,14 +69,15 @@ def message(flag: int, model_error: int, detail: str, solver: str = "CVODE", sin
     return f"{text}: {detail}" if detail else text
 
 
-def tolerances(rtol, atol, size: int, n_diff: int | None = None) -> tuple[float, np.ndarray]:
+def tolerances(rtol, atol, size: int, n_diff: int | None = None, scalar: bool = False):
     """(rtol, atol as one value per state): ``atol`` a scalar, one value per state, or one per
-    differential state (``n_diff``; the algebraic ones get the smallest). Both finite, >= 0."""
+    differential state (``n_diff``; the algebraic ones get the smallest). Both finite, >= 0.
+    With ``scalar``, a scalar ``atol`` is returned as a float (the runners take either)."""
     rtol = check_finite(rtol, "rtol")
     if type(atol) is float or type(atol) is int:  # the common case, without numpy reductions
         if not (math.isfinite(atol) and atol >= 0 and rtol >= 0):
             raise LagcodegenError("tolerances must be finite and non-negative")
-        return rtol, np.full(size, float(atol))
+        return rtol, (float(atol) if scalar else np.full(size, float(atol)))
     try:
         arr = np.asarray(atol, dtype=float).ravel()
     except (TypeError, ValueError):
@@ -126,15 +127,19 @@ def native_stats(ffi, st) -> dict:
 
 
 def native_options(ffi, typename: str, atol: np.ndarray, keep: list, **values):
-    """A native driver's options struct: every field from ``values``; ``atol`` as the scalar
-    ``atol`` when all entries are equal, else also as ``atol_vec`` (its buffer appended to
-    ``keep`` so that it outlives the call)."""
+    """A native driver's options struct: every field from ``values``; ``atol`` (a float, or an
+    array) as the scalar ``atol`` when all entries are equal, else also as ``atol_vec`` (its
+    buffer appended to ``keep`` so that it outlives the call)."""
     opt = ffi.new(f"{typename} *")
-    opt.atol = float(atol[0])
-    if np.any(atol != atol[0]):
+    if type(atol) is float:
+        opt.atol = atol
+        opt.atol_vec = ffi.NULL
+    elif np.any(atol != atol[0]):
+        opt.atol = float(atol[0])
         keep.append(atol)
         opt.atol_vec = ffi.from_buffer("double[]", atol)
     else:
+        opt.atol = float(atol[0])
         opt.atol_vec = ffi.NULL
     for name, value in values.items():
         setattr(opt, name, value)

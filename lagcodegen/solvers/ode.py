@@ -12,8 +12,8 @@ choice of the solver family.
 from __future__ import annotations
 
 import inspect
+import math
 
-import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..result import Result
@@ -84,10 +84,10 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
         linear_solver, bandwidths, order = chosen["linear_solver"], chosen["bandwidths"], chosen["order"]
     t = output_times(t)
     y = initial_state(cm, q0, v0, y0, z0)
-    if not np.isfinite(y).all():
+    if not all(map(math.isfinite, y.tolist())):
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
-    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
+    rtol, atol_arr = tolerances(rtol, atol, cm.ny, scalar=True)
     if method == "auto":
         method = choose_method(cm.n, rtol)
     runner = FAMILIES.get(method)

@@ -41,7 +41,7 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
         JJ[:, :] = jbuf
 
     options = dict(method="Adams" if method == "adams" else "BDF", rtol=rtol,
-                   atol=atol if (atol != atol[0]).any() else float(atol[0]),
+                   atol=atol if type(atol) is float or (atol != atol[0]).any() else float(atol[0]),
                    max_num_steps=max_steps, first_step=first_step, max_step=max_step, min_step=min_step)
     if max_order:
         options["max_order"] = max_order

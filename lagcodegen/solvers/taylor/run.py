@@ -27,6 +27,5 @@ def run_taylor(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, *, rtol: float, 
                max_step: float, max_steps: int, order: int | None, events=()) -> Result:
     """Integrate with the Taylor method; the inputs were checked by the caller."""
     module = taylor_module(cm, events)
-    uniform = float(atol[0]) if not np.any(atol != atol[0]) else atol
-    return module.simulate(t, y, p, rtol=rtol, atol=uniform, max_step=float(max_step), max_steps=max_steps,
+    return module.simulate(t, y, p, rtol=rtol, atol=atol, max_step=float(max_step), max_steps=max_steps,
                            order=order)
