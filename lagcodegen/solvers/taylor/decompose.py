@@ -1,0 +1,492 @@
+"""The equations of a scene as a list of elementary operations for Taylor-series (automatic
+differentiation) recurrences: language-neutral, in topological order, shared subexpressions
+computed once.
+
+A Taylor method needs the normalized derivatives x_[k] = x^(k)(t)/k! of every quantity in the
+right-hand side. They follow from recurrences on *elementary* operations (sum, product,
+quotient, sin/cos as a pair, exp, log, power, tan, ...), so the expressions of
+M(q, t) q'' = F(q, q', t), the quadrature rates z' = g(q, q', t) and the event functions are
+decomposed into such operations. Each operation writes one or two *rows* of the jet (the
+coefficients of one variable at every order); the state (q, q', z), the time t and the
+accelerations q'' own the first rows.
+
+Constant subexpressions (numbers and run-time parameters only) are not series: they are
+evaluated once per run into ``c[k]`` (:attr:`Decomposition.consts`) and enter the operations
+as coefficients, so that ``g/l*sin(q)`` costs one sin/cos recurrence and one scaling.
+
+Two forms of the expressions are decomposed and the cheaper kept (:func:`decompose`): as
+derived, and expanded with products of sines and cosines turned into sums (``sin(a)cos(b) ->
+(sin(a + b) + sin(a - b))/2``) and terms grouped by their transcendental factor. The second
+turns the ``sin(q1)sin(q2) + cos(q1)cos(q2)`` of a derivation into one ``cos(q1 - q2)`` of the
+difference variable ``q1 - q2``: one recurrence instead of four.
+
+Expressions a Taylor method cannot expand (``Abs``, ``sign``, ``Piecewise``, ``Max``/``Min``,
+``floor``, ``Heaviside``, ...) raise :class:`~lagcodegen.errors.ModelError` naming them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import symengine as se
+
+# --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...errors import ModelError
+from ...formulation.kernels import mass_matrix_is_diagonal, symbol_map  # noqa: F401
+from ...formulation.scene import Scene
+# ------------------------------------------------------------------------------------------
+
+#: Functions that are not analytic everywhere: their Taylor series does not exist at the
+#: switching points, and a Taylor step across one is silently wrong.
+NON_ANALYTIC = ("Abs", "sign", "Piecewise", "Max", "Min", "floor", "ceiling", "Heaviside", "DiracDelta",
+                "Mod", "KroneckerDelta", "frac", "re", "im", "arg", "conjugate")
+
+#: Relative cost per order of each operation kind (a convolution of length k counts 1),
+#: used to choose between the forms of the expressions.
+COST = {"cst": 0.0, "lin": 0.1, "mul": 1.0, "sqr": 0.5, "div": 1.0, "cdiv": 1.0, "sincos": 2.0,
+        "sinhcosh": 2.0, "exp": 1.0, "log": 1.0, "pow": 2.0, "sqrt": 0.5, "tan": 1.0}
+
+#: Integer powers up to this exponent become products (no division by the base); higher ones
+#: use the general power recurrence.
+MAX_PRODUCT_POWER = 16
+
+
+@dataclass(frozen=True)
+class Const:
+    """Reference to the run constant ``c[index]`` (:attr:`Decomposition.consts`)."""
+
+    index: int
+
+
+@dataclass(frozen=True)
+class Op:
+    """One elementary operation: writes rows ``out`` from rows ``args``.
+
+    Kinds and their meaning (x, y: rows; c: constant, a symengine number or :class:`Const`):
+
+    ``cst``       out = const (order 0 only)
+    ``lin``       out = sum coefs[i] * args[i] + const
+    ``mul``       out = x * y                 ``sqr``   out = x^2
+    ``div``       out = x / y                 ``cdiv``  out = const / y
+    ``sincos``    out = (sin x, cos x)        ``sinhcosh`` out = (sinh x, cosh x)
+    ``exp``       out = exp x                 ``log``   out = log x
+    ``pow``       out = x^const (const not a small integer or half-integer)
+    ``sqrt``      out = sqrt x                ``tan``   out = (tan x, tan^2 x)
+    """
+
+    kind: str
+    out: tuple
+    args: tuple = ()
+    coefs: tuple = ()
+    const: object = None
+    expr: object = None
+
+
+@dataclass
+class Decomposition:
+    """The elementary operations of a scene's equations.
+
+    Rows: ``0..n-1`` q, ``n..2n-1`` q', ``2n..2n+nz-1`` z (the state y), then the
+    accelerations q'' (``acc_rows``), the time (``time_row``, or None when t does not occur)
+    and the rows of the operations. ``M[i][j]``, ``F[i]``, ``rates[k]``, ``events[e]``: a row,
+    a :class:`Const`, or a symengine number (zero entries of M are ``se.Integer(0)``).
+    """
+
+    n: int
+    nz: int
+    nrows: int
+    ops: list
+    consts: list  # symengine expressions in p[k] and numbers, in evaluation order
+    M: list
+    F: list
+    rates: list
+    events: list
+    time_row: int | None
+    form: str  # "derived" or "trig-linearized"
+    cost: float
+    labels: dict = field(default_factory=dict)  # row -> short text of the expression
+
+    @property
+    def ny(self) -> int:
+        return 2 * self.n + self.nz
+
+    @property
+    def acc_rows(self) -> list[int]:
+        return list(range(self.ny, self.ny + self.n))
+
+    @property
+    def constant_mass(self) -> bool:
+        """Every entry of M is a constant: M is factored once per run."""
+        return all(not isinstance(e, int) for row in self.M for e in row)
+
+    @property
+    def diagonal_mass(self) -> bool:
+        n = self.n
+        return all(_is_zero(self.M[i][j]) for i in range(n) for j in range(n) if i != j)
+
+
+def _is_zero(entry) -> bool:
+    return not isinstance(entry, (int, Const)) and entry == 0
+
+
+def _short(expr, width: int = 60) -> str:
+    text = str(expr).replace("*/", "* /")
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def _refuse(expr, where: str):
+    name = type(expr).__name__
+    if name in NON_ANALYTIC:
+        raise ModelError(f"method='taylor' cannot integrate {where}: it contains {_short(expr, 120)}, which "
+                         f"is not analytic ({name} has no Taylor series at its switching points); use "
+                         "an adaptive method (adams/bdf) or events at the switching points")
+    raise ModelError(f"method='taylor' cannot integrate {where}: {_short(expr, 120)} has no Taylor "
+                     f"recurrence here ({name} is not among +, -, *, /, powers, sin, cos, tan, exp, log, "
+                     "sinh, cosh)")
+
+
+class _Decomposer:
+    """Hash-consed decomposition: every distinct subexpression becomes one row."""
+
+    def __init__(self, state: dict, time_symbol, n: int, nz: int):
+        self.state = state  # symbol -> row
+        self.time_symbol = time_symbol
+        self.varsyms = set(state) | {time_symbol}
+        self.nrows = 3 * n + nz  # y rows then the accelerations
+        self.time_row = None
+        self.ops: list[Op] = []
+        self.consts: list = []
+        self.const_memo: dict = {}
+        self.memo: dict = {}
+        self.op_memo: dict = {}
+        self.labels: dict = {}
+        self.where = ""
+
+    # -------------------------------------------------------------- rows and constants
+    def is_const(self, e) -> bool:
+        return not (e.free_symbols & self.varsyms)
+
+    def constant(self, e):
+        """A constant subexpression: a symengine number, or a Const for the run constants."""
+        if not e.free_symbols:
+            if e.is_Number:
+                return e
+            try:
+                value = float(e)
+            except (RuntimeError, TypeError, ValueError):
+                return self._const_entry(e)
+            return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
+        return self._const_entry(e)
+
+    def _const_entry(self, e):
+        if e not in self.const_memo:
+            self.const_memo[e] = Const(len(self.consts))
+            self.consts.append(e)
+        return self.const_memo[e]
+
+    def emit(self, kind: str, args=(), coefs=(), const=None, expr=None, nout: int = 1):
+        key = (kind, tuple(args), tuple(coefs), const)
+        if key in self.op_memo:
+            out = self.op_memo[key]
+        else:
+            out = tuple(range(self.nrows, self.nrows + nout))
+            self.nrows += nout
+            self.ops.append(Op(kind, out, tuple(args), tuple(coefs), const, expr))
+            self.op_memo[key] = out
+            if expr is not None:
+                self.labels[out[0]] = _short(expr)
+        return out if nout > 1 else out[0]
+
+    def row(self, e) -> int:
+        """A row holding e (a constant gets a ``cst`` row)."""
+        node = self.node(e)
+        if isinstance(node, int):
+            return node
+        return self.emit("cst", const=node, expr=e)
+
+    # -------------------------------------------------------------- decomposition
+    def node(self, e):
+        """Row (int), Const or number standing for e."""
+        if e in self.memo:
+            return self.memo[e]
+        if self.is_const(e):
+            result = self.constant(e)
+        elif isinstance(e, se.Symbol):
+            if e == self.time_symbol:
+                if self.time_row is None:
+                    self.time_row = self.nrows
+                    self.nrows += 1
+                    self.labels[self.time_row] = "t"
+                result = self.time_row
+            else:
+                result = self.state[e]
+        elif isinstance(e, se.Add):
+            result = self.add(e)
+        elif isinstance(e, se.Mul):
+            result = self.mul(e)
+        elif isinstance(e, se.Pow):
+            result = self.power(e)
+        elif isinstance(e, (se.sin, se.cos)):
+            s, c = self.emit("sincos", (self.row(e.args[0]),), expr=se.sin(e.args[0]), nout=2)
+            self.memo[se.sin(e.args[0])], self.memo[se.cos(e.args[0])] = s, c
+            result = s if isinstance(e, se.sin) else c
+        elif isinstance(e, (se.sinh, se.cosh)):
+            s, c = self.emit("sinhcosh", (self.row(e.args[0]),), expr=se.sinh(e.args[0]), nout=2)
+            self.memo[se.sinh(e.args[0])], self.memo[se.cosh(e.args[0])] = s, c
+            result = s if isinstance(e, se.sinh) else c
+        elif isinstance(e, se.tan):
+            result = self.emit("tan", (self.row(e.args[0]),), expr=e, nout=2)[0]
+        elif isinstance(e, se.log) and len(e.args) == 1:
+            result = self.emit("log", (self.row(e.args[0]),), expr=e)
+        else:
+            _refuse(e, self.where)
+        self.memo[e] = result
+        return result
+
+    def linear(self, terms: list, c0, expr):
+        """Row of sum coef*row + c0 (terms: (coef, row), rows merged)."""
+        merged: dict[int, object] = {}
+        for coef, r in terms:
+            merged[r] = merged.get(r, se.Integer(0)) + coef
+        items = [(coef, r) for r, coef in merged.items() if coef != 0]
+        if not items:
+            return self.constant(c0)
+        if len(items) == 1 and items[0][0] == 1 and c0 == 0:
+            return items[0][1]
+        items.sort(key=lambda it: it[1])
+        coefs = tuple(self.constant(c) for c, _ in items)
+        const = None if c0 == 0 else self.constant(c0)
+        return self.emit("lin", [r for _, r in items], coefs, const, expr=expr)
+
+    def add(self, e):
+        c0 = se.Integer(0)
+        terms = []
+        for term in e.args:
+            if self.is_const(term):
+                c0 += term
+                continue
+            coef, rest = self.split_coefficient(term)
+            terms.append((coef, self.row(rest)))
+        return self.linear(terms, c0, e)
+
+    def split_coefficient(self, term):
+        """(constant factor, variable factor) of a product."""
+        if isinstance(term, se.Mul):
+            cs = [f for f in term.args if self.is_const(f)]
+            if cs:
+                vs = [f for f in term.args if not self.is_const(f)]
+                return se.Mul(*cs), se.Mul(*vs)
+        return se.Integer(1), term
+
+    def mul(self, e):
+        coef, rest = self.split_coefficient(e)
+        factors = rest.args if isinstance(rest, se.Mul) else (rest,)
+        num, den = [], []
+        for f in factors:
+            if isinstance(f, se.Pow) and f.args[1].is_Number and f.args[1] < 0 and f.args[0] != se.E:
+                den.append(f.args[0] ** (-f.args[1]))
+            else:
+                num.append(f)
+        if den:
+            d = self.product([self.row(f) for f in den])
+            if num:
+                r = self.emit("div", (self.product([self.row(f) for f in num]), d), expr=e)
+            else:
+                r = self.emit("cdiv", (d,), const=self.constant(coef), expr=e)
+                coef = se.Integer(1)
+        else:
+            r = self.product([self.row(f) for f in num])
+        if coef == 1:
+            return r
+        return self.linear([(coef, r)], se.Integer(0), e)
+
+    def product(self, rows: list[int]) -> int:
+        rows = sorted(rows)
+        acc = rows[0]
+        for r in rows[1:]:
+            acc = self.emit("sqr", (acc,)) if r == acc else self.emit("mul", (acc, r))
+        return acc
+
+    def integer_power(self, base, k: int) -> int:
+        b = self.row(base)
+        if k == 1:
+            return b
+        if k > MAX_PRODUCT_POWER:
+            return self.emit("pow", (b,), const=se.Integer(k), expr=base**k)
+        half = self.integer_power(base, k // 2)
+        sq = self.emit("sqr", (half,), expr=base ** (2 * (k // 2)))
+        return sq if k % 2 == 0 else self.emit("mul", (sq, b), expr=base**k)
+
+    def power(self, e):
+        base, ex = e.args
+        if base == se.E:
+            return self.emit("exp", (self.row(ex),), expr=e)
+        if not self.is_const(ex):  # b^x = exp(x log b)
+            return self.node(se.exp(ex * se.log(base)))
+        if ex.is_Number and isinstance(ex, (se.Integer, se.Rational)):
+            two = 2 * ex
+            if isinstance(ex, se.Integer) or (isinstance(two, se.Integer) and abs(int(two)) <= 2 * MAX_PRODUCT_POWER):
+                m = int(two)  # e = m/2
+                r = self.half_power(base, abs(m))
+                if m < 0:
+                    return self.emit("cdiv", (r,), const=se.Integer(1), expr=e)
+                return r
+        return self.emit("pow", (self.row(base),), const=self.constant(ex), expr=e)
+
+    def half_power(self, base, m: int) -> int:
+        """Row of base^(m/2), m > 0, by products and one square root."""
+        if m % 2 == 0:
+            return self.integer_power(base, m // 2)
+        root = self.emit("sqrt", (self.row(base),), expr=se.sqrt(base))
+        if m == 1:
+            return root
+        return self.emit("mul", (self.integer_power(base, m // 2), root), expr=base ** se.Rational(m, 2))
+
+
+# ------------------------------------------------------------------ trigonometric linearization
+def _product_to_sum(k1: str, a, k2: str, b) -> list:
+    """sin/cos(a) * sin/cos(b) as [(coefficient, kind, argument)]."""
+    half = se.Rational(1, 2)
+    if k1 == "sin" and k2 == "sin":
+        return [(half, "cos", a - b), (-half, "cos", a + b)]
+    if k1 == "cos" and k2 == "cos":
+        return [(half, "cos", a - b), (half, "cos", a + b)]
+    if k1 == "sin":  # sin a cos b
+        return [(half, "sin", a + b), (half, "sin", a - b)]
+    return [(half, "sin", a + b), (-half, "sin", a - b)]  # cos a sin b
+
+
+def _trig(kind: str, arg):
+    return se.sin(arg) if kind == "sin" else se.cos(arg)
+
+
+def linearize_trig(expr):
+    """Expand ``expr`` and turn every product of sines and cosines (each to the first power)
+    into a sum of sines and cosines of sums and differences of their arguments."""
+    e = se.expand(expr)
+    terms = e.args if isinstance(e, se.Add) else (e,)
+    out = []
+    for term in terms:
+        factors = term.args if isinstance(term, se.Mul) else (term,)
+        trig = [f for f in factors if isinstance(f, (se.sin, se.cos))]
+        if len(trig) < 2:
+            out.append(term)
+            continue
+        rest = [f for f in factors if not isinstance(f, (se.sin, se.cos))]
+        acc = [(se.Integer(1), "sin" if isinstance(trig[0], se.sin) else "cos", trig[0].args[0])]
+        for f in trig[1:]:
+            kind = "sin" if isinstance(f, se.sin) else "cos"
+            acc = [(c * c2, k2, a2) for c, k, a in acc for c2, k2, a2 in _product_to_sum(k, a, kind, f.args[0])]
+        out.append(se.Mul(*rest) * se.Add(*[c * _trig(k, a) for c, k, a in acc]))
+    return se.expand(se.Add(*out))
+
+
+def group_by_atoms(expr, varsyms):
+    """Sum of (transcendental factor) * (polynomial in the variables): terms of an expanded
+    sum grouped by their non-polynomial factors, so each such factor is multiplied once."""
+    if not isinstance(expr, se.Add):
+        return expr
+    groups: dict = {}
+    for term in expr.args:
+        factors = term.args if isinstance(term, se.Mul) else (term,)
+        key, poly = [], []
+        for f in factors:
+            base = f.args[0] if isinstance(f, se.Pow) else f
+            polynomial = not (f.free_symbols & varsyms) or (
+                base in varsyms and (not isinstance(f, se.Pow) or (isinstance(f.args[1], se.Integer) and f.args[1] > 0)))
+            (poly if polynomial else key).append(f)
+        groups.setdefault(se.Mul(*key), []).append(se.Mul(*poly))
+    return se.Add(*[k * se.Add(*v) for k, v in groups.items()])
+
+
+# ------------------------------------------------------------------ the scene
+def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
+    """(expressions by location, time symbol, state symbol -> row) of ``scene`` with model
+    symbols renamed to y[i], p[k] and folded parameters as numbers. Locations: ("M", i, j)
+    for the upper triangle, ("F", i), ("rate", k), ("event", e)."""
+    eom = scene.eom
+    model = eom.model
+    n = model.n
+    sub = symbol_map(scene)
+    time_symbol = se.Symbol(model.t.name)
+
+    def c(e):
+        e = se.sympify(e)
+        return e.xreplace(sub) if sub else e
+
+    exprs = {}
+    for i in range(n):
+        for j in range(i, n):
+            exprs[("M", i, j)] = c(eom.M_se[i][j])
+    for i in range(n):
+        exprs[("F", i)] = c(eom.F_se[i])
+    for k, (_, rate) in enumerate(eom.quadratures):
+        exprs[("rate", k)] = c(rate)
+    for e, ev in enumerate(events):
+        exprs[("event", e)] = c(ev.expr)
+    ny = 2 * n + len(eom.quadratures)
+    state = {se.Symbol(f"y[{i}]"): i for i in range(ny)}
+    return exprs, time_symbol, state
+
+
+def _where(scene: Scene, loc: tuple, events) -> str:
+    eom = scene.eom
+    names = [q.name for q in eom.model.coords]
+    if loc[0] == "M":
+        return f"the mass matrix entry M[{names[loc[1]]}, {names[loc[2]]}]"
+    if loc[0] == "F":
+        return f"the force F[{names[loc[1]]}]"
+    if loc[0] == "rate":
+        return f"the quadrature rate of {eom.quadratures[loc[1]][0]}"
+    return f"event {events[loc[1]].name!r}"
+
+
+def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: int, form: str,
+                    where) -> Decomposition:
+    d = _Decomposer(state, time_symbol, n, nz)
+    varsyms = d.varsyms
+    entries = {}
+    for loc, e in exprs.items():
+        d.where = where(loc)
+        if form == "trig-linearized" and not d.is_const(e):
+            e = group_by_atoms(linearize_trig(e), varsyms)
+        entries[loc] = d.row(e) if loc[0] == "event" else d.node(e)
+    M = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            M[i][j] = M[j][i] = entries[("M", i, j)]
+    decomposition = Decomposition(
+        n=n, nz=nz, nrows=d.nrows, ops=d.ops, consts=d.consts, M=M,
+        F=[entries[("F", i)] for i in range(n)], rates=[entries[("rate", k)] for k in range(nz)],
+        events=[entries[("event", e)] for e in range(ne)],
+        time_row=d.time_row, form=form, cost=0.0, labels=d.labels)
+    decomposition.cost = cost(decomposition)
+    return decomposition
+
+
+def cost(d: Decomposition) -> float:
+    """Work per order, in convolutions: the operations plus the mass-matrix convolution
+    sum_j M_[j] a_[k-j] (none for constant entries)."""
+    total = sum(COST[op.kind] * (len(op.args) if op.kind == "lin" else 1) for op in d.ops)
+    total += sum(1.0 for row in d.M for entry in row if isinstance(entry, int))
+    return total
+
+
+def decompose(scene: Scene, events=(), form: str | None = None) -> Decomposition:
+    """The elementary operations of ``scene`` (M, F, quadrature rates) and of the ``events``
+    (objects with ``name`` and ``expr``), in the cheaper of the two forms (``form``:
+    "derived" or "trig-linearized" to force one)."""
+    eom = scene.eom
+    n, nz = eom.model.n, len(eom.quadratures)
+    exprs, time_symbol, state = scene_expressions(scene, events)
+
+    def where(loc):
+        return _where(scene, loc, events)
+
+    forms = (form,) if form else ("derived", "trig-linearized")
+    best = None
+    for f in forms:
+        d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where)
+        if best is None or d.cost < best.cost:
+            best = d
+    return best

@@ -1,0 +1,128 @@
+"""C text of the Taylor integrator of a scene: the jet (one straight-line body over the
+elementary operations inside a C loop over the orders), the step-size rule, dense output,
+event root finding and the driver ``<prefix>_taylor_solve``, rendered from the jinja2
+templates in ``templates/taylor``.
+
+Files: ``<prefix>_taylor.h`` (stands alone: no other header needed to call the driver) and
+``<prefix>_taylor.c`` (C99 + libm; includes ``<prefix>.h`` for the outputs function when the
+scene has outputs). The model files ``<prefix>.h``/``.c`` come from the ordinary C generator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import symengine as se
+
+# --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...codegen.c import c_expr
+from ...codegen.templates import environment
+from ...formulation.scene import Scene
+from ...model.events import Event
+from ...version import __version__
+# ------------------------------------------------------------------------------------------
+from .decompose import Const, Decomposition, decompose
+
+#: Highest Taylor order the generated code supports (the jet's storage is sized at run time
+#: for the order used).
+P_MAX = 40
+
+
+@dataclass(frozen=True)
+class _EventInfo:
+    row: int
+    direction: int
+    terminal: int
+
+
+def _coef(value) -> str:
+    """C text of a coefficient: ``c[k]`` for a run constant, else the exact number."""
+    if isinstance(value, Const):
+        return f"c[{value.index}]"
+    text = c_expr(se.sympify(value))
+    if "." not in text and "e" not in text and "/" not in text:
+        text += ".0"
+    if text.startswith("-"):
+        text = f"({text})"
+    return text
+
+
+def _jinja():
+    env = environment()
+    env.tests["row"] = lambda e: isinstance(e, int) and not isinstance(e, bool)
+    env.tests["zero"] = lambda e: not isinstance(e, (int, Const)) and e == 0
+    env.globals["coef"] = _coef
+    return env
+
+
+def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
+    """The template context of ``taylor.h.j2``/``taylor.c.j2``."""
+    eom = scene.eom
+    n = d.n
+    conv = [(i, d.M[i][j], j) for i in range(n) for j in range(n) if isinstance(d.M[i][j], int)]
+    const_lines = [f"c[{k}] = {c_expr(e)};" for k, e in enumerate(d.consts)]
+    kinds = {op.kind for op in d.ops}
+    return dict(
+        prefix=scene.prefix, PREFIX=scene.prefix.upper(), version=__version__, model_name=eom.model.name,
+        n=n, nz=d.nz, ny=d.ny, nout=len(scene.output_list()), ne=len(events), nrows=d.nrows, p_max=P_MAX,
+        ops=d.ops, kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
+        M=d.M, F=d.F, rates=d.rates, conv=conv, time_row=d.time_row,
+        mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
+        events=[_EventInfo(row, int(ev.direction), int(bool(ev.terminal))) for row, ev in zip(d.events, events)])
+
+
+def check_events(scene: Scene, events=()) -> list[Event]:
+    """``events`` as :class:`Event` s with symengine-convertible expressions in the model's
+    symbols (coordinates, velocities, parameters, t); unknown symbols raise ModelError."""
+    import sympy as sp
+
+    from ...errors import ModelError
+    model = scene.eom.model
+    allowed = set(model.known_symbols())
+    out, names = [], set()
+    for k, item in enumerate(events):
+        ev = item if isinstance(item, Event) else (Event(**item) if isinstance(item, dict) else Event(*item))
+        if ev.name in names:
+            raise ModelError(f"event name {ev.name!r} is used twice")
+        names.add(ev.name)
+        try:
+            expr = sp.sympify(ev.expr, strict=True)
+        except (sp.SympifyError, TypeError) as exc:
+            raise ModelError(f"event {ev.name!r}: not a symbolic expression: {ev.expr!r}") from exc
+        bad = expr.free_symbols - allowed
+        if bad:
+            raise ModelError(f"event {ev.name!r} uses unknown symbol(s): {', '.join(sorted(s.name for s in bad))}")
+        out.append(Event(ev.name, expr, ev.direction, bool(ev.terminal)))
+    return out
+
+
+def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None) -> dict[str, str]:
+    """``{"<prefix>_taylor.h": ..., "<prefix>_taylor.c": ...}`` for ``scene`` with ``events``
+    compiled in (they need the model files ``<prefix>.h``/``.c`` beside them)."""
+    events = check_events(scene, events)
+    d = decomposition or decompose(scene, events)
+    ctx = taylor_context(scene, d, events)
+    env = _jinja()
+    return {f"{scene.prefix}_taylor.h": env.get_template("taylor/taylor.h.j2").render(**ctx),
+            f"{scene.prefix}_taylor.c": env.get_template("taylor/taylor.c.j2").render(**ctx)}
+
+
+def taylor_cdef(prefix: str) -> str:
+    """cffi declarations of the Taylor driver (API mode: struct layouts from the header)."""
+    p = prefix
+    return f"""
+typedef struct {{
+    double rtol; double atol; const double *atol_vec; long max_steps; double max_step; int order; ...;
+}} {p}_taylor_options;
+typedef struct {{
+    long nsteps; long njet; long nroot; int order; double t_reached; double h_last; double h_min;
+    double h_max; int flag; int model_error; int nt_done; char message[512]; ...;
+}} {p}_taylor_stats;
+typedef struct {{
+    int max_events; int n_events; double *t; double *y; int *which; int *direction; int terminated; ...;
+}} {p}_taylor_events;
+int {p}_taylor_solve(const double *p, const double *y0, int nt, const double *tout, double *yout,
+                     double *out, const {p}_taylor_options *opt, {p}_taylor_stats *st,
+                     {p}_taylor_events *ev);
+int {p}_taylor_jet(double t, const double *y, const double *p, int order, double *jet);
+"""

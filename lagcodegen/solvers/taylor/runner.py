@@ -1,0 +1,191 @@
+"""Compile the Taylor integrator of a scene and run it: :func:`build_taylor` ->
+:class:`TaylorModule`, whose :meth:`~TaylorModule.simulate` calls the C driver
+``<prefix>_taylor_solve`` once for all output times and returns a :class:`Result`.
+
+The per-call Python is kept lean (the options and statistics structs are allocated once per
+module, arrays are handed to C without copies, nothing is validated twice): callers such as
+``simulate(method="taylor")`` check the user's input once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+# --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...build import build
+from ...codegen.c import generate_c
+from ...codegen.record import GeneratedCode
+from ...errors import LagcodegenError
+from ...formulation.scene import Scene
+from ...model.events import EventRecord
+from ...result import Result
+from ..base import CVODE_FLAG_TEXT
+# ------------------------------------------------------------------------------------------
+from .decompose import Decomposition, decompose
+from .emit import P_MAX, check_events, taylor_cdef, taylor_sources
+
+#: Messages of the driver's flags (model errors: the texts of every other solver).
+TAYLOR_FLAG_TEXT = {
+    -1: CVODE_FLAG_TEXT[-1],
+    -3: "the step size fell below the resolution of t (is the solution singular there?)",
+    -20: "out of memory",
+    -22: "bad options",
+}
+
+
+def message(flag: int, model_error: int, detail: str) -> str:
+    """The text of a driver flag, in the words of :func:`lagcodegen.solvers.base.message`."""
+    if flag >= 0:
+        return "success"
+    if model_error == 1:
+        return "the mass matrix is singular"
+    if model_error == 2:
+        return "a computed value is not finite"
+    text = TAYLOR_FLAG_TEXT.get(flag, f"the Taylor integrator failed with flag {flag}")
+    return f"{text}: {detail}" if detail else text
+
+
+def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
+    """The model code of ``scene`` (no Jacobian: the Taylor method needs none) with the Taylor
+    files added, ready for :func:`lagcodegen.build.build` (``native=False``: no SUNDIALS)."""
+    events = check_events(scene, events)
+    d = decompose(scene, events)
+    plain = dataclasses.replace(scene, jacobian=False, sparse_jacobian=False)
+    code = generate_c(plain)
+    code.scene = scene
+    code.files.update(taylor_sources(scene, events, d))
+    code.cdef_extra += taylor_cdef(scene.prefix)
+    code.cffi_headers.append(f"{scene.prefix}_taylor.h")
+    return code, d, events
+
+
+def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: bool = False) -> "TaylorModule":
+    """Generate and compile the Taylor integrator of ``scene`` (cached like every build)."""
+    code, d, events = taylor_code(scene, events)
+    built = build(code, native=False, cc=cc, verbose=verbose)
+    return TaylorModule(code, built.module, d, events, built.path)
+
+
+class TaylorModule:
+    """A compiled Taylor integrator. Not reentrant: one call at a time per module (the options
+    and statistics structs are reused)."""
+
+    def __init__(self, code: GeneratedCode, module, decomposition: Decomposition, events, path=None):
+        self.code = code
+        self.decomposition = decomposition
+        self.events = list(events)
+        self.path = path
+        self.ffi = ffi = module.ffi
+        self.lib = module.lib
+        pre = code.prefix
+        self.n, self.ny, self.nout = code.n, code.ny, code.nout
+        self.state_names = list(code.state_names)
+        self.output_names = list(code.output_names)
+        self.param_names = list(code.param_names)
+        self._solve = getattr(self.lib, f"{pre}_taylor_solve")
+        self._jet = getattr(self.lib, f"{pre}_taylor_jet")
+        self._out = getattr(self.lib, f"{pre}_outputs", None)
+        self._opt = ffi.new(f"{pre}_taylor_options *")
+        self._st = ffi.new(f"{pre}_taylor_stats *")
+        self._ev = ffi.NULL
+        self._buf = ffi.from_buffer
+        self._empty = np.zeros(1)
+        self.p_max = P_MAX
+
+    # ------------------------------------------------------------------ helpers
+    def jet(self, t: float, y, p, order: int) -> np.ndarray:
+        """Normalized Taylor coefficients (ny x (order+1)) of the state at (t, y)."""
+        y = np.ascontiguousarray(y, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        out = np.empty((self.ny, order + 1))
+        rc = self._jet(float(t), self._buf("double[]", y), self._buf("double[]", p) if p.size else self.ffi.NULL,
+                       int(order), self._buf("double[]", out))
+        if rc:
+            raise LagcodegenError(f"Taylor jet failed: {message(-100 - rc if rc > 0 else rc, rc, '')}")
+        return out
+
+    def _outputs_at(self, t: float, y, p) -> np.ndarray:
+        out = np.full(max(self.nout, 1), np.nan)
+        if self._out is not None:
+            self._out(float(t), self._buf("double[]", np.ascontiguousarray(y)),
+                      self._buf("double[]", p) if p.size else self.ffi.NULL, self._buf("double[]", out))
+        return out
+
+    # ------------------------------------------------------------------ run
+    def simulate(self, t_out: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float = 1e-8,
+                 atol=1e-10, max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
+                 max_events: int = 10_000) -> Result:
+        """Integrate from ``t_out[0]`` with y(t_out[0]) = ``y0`` (float64 arrays, contiguous;
+        not checked again) and return the trajectory at ``t_out``.
+
+        Tolerances (per step, per component i): the step keeps the last two terms of the
+        Taylor polynomial below w_i = atol_i + rtol |y_i| (Jorba & Zou); the order is
+        ceil(-ln(rtol)/2 + 1) unless ``order`` is given. ``atol``: a scalar or ny values.
+        """
+        ffi, buf = self.ffi, self._buf
+        nt = t_out.shape[0]
+        ny = self.ny
+        yout = np.empty((nt, ny))
+        out = np.empty((nt, self.nout)) if self.nout else self._empty
+        opt, st = self._opt, self._st
+        opt.rtol = rtol
+        if isinstance(atol, float):
+            opt.atol = atol
+            opt.atol_vec = ffi.NULL
+            atol_keep = None
+        else:
+            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ny,)))
+            opt.atol = float(atol_keep.min())
+            opt.atol_vec = buf("double[]", atol_keep)
+        opt.max_steps = max_steps
+        opt.max_step = max_step
+        opt.order = order or 0
+        ev = self._ev
+        keep = None
+        if self.events:
+            keep = (np.empty(max_events), np.empty((max_events, ny)), np.empty(max_events, dtype=np.intc),
+                    np.empty(max_events, dtype=np.intc))
+            ev = ffi.new(f"{self.code.prefix}_taylor_events *")
+            ev.max_events = max_events
+            ev.t = buf("double[]", keep[0])
+            ev.y = buf("double[]", keep[1])
+            ev.which = buf("int[]", keep[2])
+            ev.direction = buf("int[]", keep[3])
+        flag = self._solve(buf("double[]", p) if p.size else ffi.NULL, buf("double[]", y0), nt,
+                           buf("double[]", t_out), buf("double[]", yout), buf("double[]", out), opt, st, ev)
+        done = st.nt_done
+        stats = {"steps": st.nsteps, "rhs_evals": st.njet, "jet_evals": st.njet, "order": st.order,
+                 "root_searches": st.nroot, "t_reached": st.t_reached, "h_last": st.h_last, "h_min": st.h_min,
+                 "h_max": st.h_max, "model_error": st.model_error}
+        t = t_out
+        if done < nt:
+            t, yout, out = t_out[:done].copy(), yout[:done], out[:done]
+        outputs = {name: out[:, i] for i, name in enumerate(self.output_names)}
+        res = Result(t=t, y=yout, state_names=self.state_names, outputs=outputs, stats=stats, status=flag,
+                     message="success" if flag == 0 else message(flag, st.model_error,
+                                                                  ffi.string(st.message).decode(errors="replace")),
+                     backend="native", method="taylor")
+        res.n_coordinates = self.n
+        if keep is not None:
+            self._events_into(res, ev, keep, p)
+        del atol_keep
+        return res
+
+    def _events_into(self, res: Result, ev, keep, p) -> None:
+        count = min(int(ev.n_events), keep[0].shape[0])
+        recs = []
+        for k in range(count):
+            i = int(keep[2][k])
+            e = self.events[i]
+            recs.append(EventRecord(e.name, i, float(keep[0][k]), keep[1][k].copy(), int(keep[3][k]), e.terminal,
+                                    self.state_names))
+        res.events = recs
+        res.stats["events"] = int(ev.n_events)
+        if ev.terminated and recs and recs[-1].t > res.t[-1]:
+            rec = recs[-1]
+            res.t = np.append(res.t, rec.t)
+            res.y = np.vstack([res.y, rec.y[None, :]])
+            o = self._outputs_at(rec.t, rec.y, p)
+            res.outputs = {name: np.append(v, o[i]) for i, (name, v) in enumerate(res.outputs.items())}
