@@ -134,8 +134,9 @@ def _short(expr, width: int = 60) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
-def _refuse(expr, where: str):
+def _refuse(expr, where: str, names: dict):
     name = type(expr).__name__
+    expr = expr.xreplace(names)
     if name in NON_ANALYTIC:
         raise ModelError(f"method='taylor' cannot integrate {where}: it contains {_short(expr, 120)}, which "
                          f"is not analytic ({name} has no Taylor series at its switching points); use "
@@ -161,6 +162,7 @@ class _Decomposer:
         self.op_memo: dict = {}
         self.labels: dict = {}
         self.where = ""
+        self.names: dict = {}  # array symbols -> model symbols, for messages
 
     # -------------------------------------------------------------- rows and constants
     def is_const(self, e) -> bool:
@@ -239,7 +241,7 @@ class _Decomposer:
         elif isinstance(e, se.log) and len(e.args) == 1:
             result = self.emit("log", (self.row(e.args[0]),), expr=e)
         else:
-            _refuse(e, self.where)
+            _refuse(e, self.where, self.names)
         self.memo[e] = result
         return result
 
@@ -442,8 +444,9 @@ def _where(scene: Scene, loc: tuple, events) -> str:
 
 
 def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: int, form: str,
-                    where) -> Decomposition:
+                    where, names: dict) -> Decomposition:
     d = _Decomposer(state, time_symbol, n, nz)
+    d.names = names
     varsyms = d.varsyms
     entries = {}
     for loc, e in exprs.items():
@@ -479,6 +482,7 @@ def decompose(scene: Scene, events=(), form: str | None = None) -> Decomposition
     eom = scene.eom
     n, nz = eom.model.n, len(eom.quadratures)
     exprs, time_symbol, state = scene_expressions(scene, events)
+    names = {v: se.Symbol(str(k)) for k, v in symbol_map(scene).items() if isinstance(v, se.Symbol)}
 
     def where(loc):
         return _where(scene, loc, events)
@@ -486,7 +490,7 @@ def decompose(scene: Scene, events=(), form: str | None = None) -> Decomposition
     forms = (form,) if form else ("derived", "trig-linearized")
     best = None
     for f in forms:
-        d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where)
+        d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where, names)
         if best is None or d.cost < best.cost:
             best = d
     return best

@@ -1,0 +1,305 @@
+"""The Taylor-series integrator emitted as C (lagcodegen.solvers.taylor), checked against
+closed-form solutions, independently computed Taylor coefficients and the compiler."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.special import ellipj, ellipk
+
+import lagcodegen as lcg
+from lagcodegen.derivation import derive
+from lagcodegen.errors import ModelError
+from lagcodegen.formulation.scene import Scene
+from lagcodegen.model.events import Event
+from lagcodegen.solvers.taylor import build_taylor, decompose, taylor_code
+from lagcodegen.theory.routhian import reduce as routh_reduce
+
+
+def module(model_or_eom, outputs=(), events=(), **scene):
+    eom = derive(model_or_eom) if isinstance(model_or_eom, lcg.Model) else model_or_eom
+    sc = Scene(eom, jacobian=False, outputs=outputs, **scene)
+    return build_taylor(sc, events=events), np.array(sc.default_parameters(), dtype=float)
+
+
+def falling_ball(name="ball"):
+    m = lcg.Model(name)
+    x, y = m.coordinates("x y")
+    g, mass = m.parameters(g=9.81, m=2.0)
+    m.particle("ball", mass, (x, y))
+    m.gravity(g)
+    return m
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    return module(lcg.systems.pendulum(), outputs=["energy"],
+                  events=[Event("down", sp.Symbol("theta"), 0, False), Event("up", sp.Symbol("theta"), 1, False)])
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return module(falling_ball(), events=[Event("ground", sp.Symbol("y"), -1, True)])
+
+
+def exact_pendulum(t, theta0, w):
+    """theta(t) of theta'' = -w^2 sin(theta), theta(0) = theta0, theta'(0) = 0:
+    sin(theta/2) = k sn(K - w t | k^2), k = sin(theta0/2)."""
+    k = math.sin(theta0 / 2)
+    m = k * k
+    K = ellipk(m)
+    u = np.mod(K - w * t, 4 * K)  # sn has period 4K: keep the argument small
+    sn, cn, dn, _ = ellipj(u, m)
+    theta = 2 * np.arcsin(k * sn)
+    # theta' = 2 k cn dn * (-w) / cos(theta/2)
+    return theta, -2 * k * w * cn * dn / np.sqrt(1 - (k * sn) ** 2)
+
+
+def test_large_amplitude_pendulum_against_elliptic_functions(pendulum):
+    tm, p = pendulum
+    theta0, w = 3.0, math.sqrt(9.81)
+    t = np.linspace(0.0, 100.0, 2001)
+    res = tm.simulate(t, np.array([theta0, 0.0]), p, rtol=1e-12, atol=1e-12)
+    assert res.success, res.message
+    theta, omega = exact_pendulum(t, theta0, w)
+    # Near the separatrix (theta0 = 3.0 of pi) the period depends strongly on the energy, so
+    # local errors of 1e-12 grow into a phase error of a few 1e-8 over 30 swings.
+    assert np.abs(res["theta"] - theta).max() < 1e-7
+    assert np.abs(res["theta_dot"] - omega).max() < 1e-6
+    assert abs(res["energy"] - res["energy"][0]).max() < 1e-10 * abs(res["energy"][0])
+    assert res.stats["order"] == 15 and res.stats["steps"] < 3000
+    # a looser tolerance is looser: the error tracks the tolerance
+    loose = tm.simulate(t, np.array([theta0, 0.0]), p, rtol=1e-6, atol=1e-6)
+    err = np.abs(loose["theta"] - theta).max()
+    assert 1e3 * np.abs(res["theta"] - theta).max() < err < 0.1
+
+
+def test_pendulum_events_against_quarter_periods(pendulum):
+    """theta = 0 at t = K/w (decreasing), 3K/w (increasing), 5K/w, ...; 'up' keeps only the
+    increasing ones. Neither is terminal: the run goes on to the end."""
+    tm, p = pendulum
+    theta0, w = 2.0, math.sqrt(9.81)
+    K = ellipk(math.sin(theta0 / 2) ** 2)
+    t = np.linspace(0.0, 20.0, 5)
+    res = tm.simulate(t, np.array([theta0, 0.0]), p, rtol=1e-12, atol=1e-12)
+    assert res.success and res.t[-1] == 20.0 and len(res.t) == 5
+    down = [e for e in res.events if e.name == "down"]
+    up = [e for e in res.events if e.name == "up"]
+    expect = (2 * np.arange(len(down)) + 1) * K / w
+    assert len(down) == int((20.0 * w / K + 1) // 2) > 5
+    assert np.abs(np.array([e.t for e in down]) - expect).max() < 1e-9
+    assert [e.direction for e in down] == [-1 if j % 2 == 0 else 1 for j in range(len(down))]
+    assert [e.t for e in up] == [e.t for e in down if e.direction == 1]
+    assert all(abs(e.y[0]) < 1e-9 for e in res.events)
+
+
+def test_terminal_event_and_free_fall_is_exact(ball):
+    """y(t) = y0 + vy0 t - g t^2/2 is a polynomial: the Taylor series ends, steps are long, the
+    hit of the ground at t* = (vy0 + sqrt(vy0^2 + 2 g y0))/g ends the run."""
+    tm, p = ball
+    g, y0, vx, vy = 9.81, 10.0, 1.5, 2.0
+    t = np.linspace(0.0, 5.0, 11)
+    res = tm.simulate(t, np.array([0.0, y0, vx, vy]), p, rtol=1e-10, atol=1e-10)
+    assert res.success and res.stats["steps"] <= 3
+    hit = (vy + math.sqrt(vy**2 + 2 * g * y0)) / g
+    [ev] = res.events
+    assert ev.name == "ground" and ev.direction == -1 and abs(ev.t - hit) < 1e-13
+    assert res.t[-1] == ev.t and res.t[-2] <= hit < res.t[-2] + 0.5
+    assert abs(res["x"][-1] - vx * hit) < 1e-12 and abs(res["y"][-1]) < 1e-12
+    tt = res.t[:-1]
+    assert np.abs(res["y"][:-1] - (y0 + vy * tt - g * tt**2 / 2)).max() < 1e-12
+    assert np.abs(res["y_dot"][:-1] - (vy - g * tt)).max() < 1e-12
+
+
+def test_uniform_motion_and_free_fall_take_few_steps(ball):
+    """With the ground far below no event fires; with g = 0 every coefficient beyond the first
+    vanishes: one step over t = 1e3, exact, at any tolerance."""
+    tm, p = ball
+    t = np.linspace(0.0, 1e3, 7)
+    for g in (0.0, 9.81):
+        q = p.copy()
+        q[0] = g
+        for tol in (1e-6, 1e-12):
+            res = tm.simulate(t, np.array([1.0, 1e7, -3.0, 0.5]), q, rtol=tol, atol=tol)
+            assert res.success and res.stats["steps"] <= 2 and not res.events
+            assert np.allclose(res["x"], 1.0 - 3.0 * t, rtol=1e-15, atol=1e-12)
+            assert np.allclose(res["y"], 1e7 + 0.5 * t - g * t**2 / 2, rtol=1e-15, atol=1e-8)
+
+
+def test_damped_oscillator_against_exponential_solution():
+    tm, p = module(lcg.systems.damped_driven_oscillator(), values={"F0": 0.0}, runtime_parameters=[])
+    t = np.linspace(0.0, 30.0, 301)
+    res = tm.simulate(t, np.array([1.0, 0.0]), p, rtol=1e-12, atol=1e-14)
+    gam, wd = 0.2, math.sqrt(4.0 - 0.04)  # c/(2m), sqrt(k/m - gam^2)
+    x = np.exp(-gam * t) * (np.cos(wd * t) + gam / wd * np.sin(wd * t))
+    assert res.success and np.abs(res["x"] - x).max() < 1e-11
+
+
+def test_kepler_ellipse_returns_after_three_periods():
+    tm, p = module(lcg.systems.central_potential(), outputs=["energy"], values={"m": 2.0, "k": 3.0},
+                   runtime_parameters=[])
+    r0, w0, m, k = 1.0, 1.6, 2.0, 3.0
+    a = 1.0 / (2.0 / r0 - m * (r0 * w0) ** 2 / k)
+    period = 2 * math.pi * a**1.5 * math.sqrt(m / k)
+    res = tm.simulate(np.array([0.0, period, 3 * period]), np.array([r0, 0.0, 0.0, w0]), p,
+                      rtol=1e-13, atol=1e-13)
+    assert res.success
+    assert abs(res["r"][-1] - r0) < 1e-10 and abs(res["r_dot"][-1]) < 1e-9
+    assert abs(res["phi"][-1] - 6 * math.pi) < 1e-9 and abs(res["phi_dot"][-1] - w0) < 1e-9
+    assert abs(res["energy"][-1] - res["energy"][0]) < 1e-12
+
+
+def test_quadrature_state_of_a_routhian_reduction():
+    """Kepler reduced by its ignorable angle: phi is a quadrature state z' = C/(m r^2); it
+    must follow the full model's phi."""
+    red = routh_reduce(lcg.systems.central_potential())
+    tm_red, _ = module(red.eom, runtime_parameters=None)
+    tm_full, p_full = module(lcg.systems.central_potential())
+    assert tm_red.code.nz == 1 and tm_red.state_names[-1] == "phi"
+    r0, w0 = 1.0, 1.3
+    t = np.linspace(0.0, 20.0, 41)
+    full = tm_full.simulate(t, np.array([r0, 0.0, 0.0, w0]), p_full, rtol=1e-12, atol=1e-12)
+    params = dict(zip(tm_red.param_names, [1.0] * len(tm_red.param_names)))
+    params["C_phi"] = r0**2 * w0  # m r^2 phi' with m = 1
+    p_red = np.array([params[k] for k in tm_red.param_names])
+    res = tm_red.simulate(t, np.array([r0, 0.0, 0.0]), p_red, rtol=1e-12, atol=1e-12)
+    assert res.success
+    assert np.abs(res["r"] - full["r"]).max() < 1e-9
+    assert np.abs(res["phi"] - full["phi"]).max() < 1e-9
+
+
+def all_operations_model():
+    m = lcg.Model("allops")
+    x, = m.coordinates("x")
+    v = m.dot(x)
+    k, = m.parameters(k=1.3)
+    t = m.t
+    m.kinetic_energy((1 + sp.Rational(1, 10) * x**2) * v**2 / 2)
+    m.generalized_force(x, -k * x + sp.exp(-v) / 10 + sp.log(2 + x) / 20 + sp.tan(3 * x / 10) / 50
+                        + sp.sqrt(3 + x) / 100 + (2 + x) ** sp.Float(1.7) / 100 + sp.sinh(x / 5) / 100
+                        + sp.cosh(v / 10) / 100 + 3 * sp.cos(t) / (2 + x**2) / 100
+                        + (2 + x) ** sp.Rational(-3, 2) / 100 + x**3 / 100 + (1 + x**2) ** k / 100 + 2**x / 100)
+    return m
+
+
+def test_every_recurrence_against_series_coefficients():
+    """Normalized Taylor coefficients x_[2..8] at t = 0.7, x = 0.3, x' = -0.4 of a model using
+    every operation kind; reference values from sympy series in 30 digits (order by order)."""
+    tm, p = module(all_operations_model())
+    kinds = {op.kind for op in tm.decomposition.ops}
+    assert {"mul", "sqr", "div", "cdiv", "sincos", "sinhcosh", "exp", "log", "pow", "sqrt", "tan"} <= kinds
+    ref = [0.3, -0.4, -0.04686657238087328, 0.08188876274720655, 0.0033666767926870496,
+           -0.005741180512428886, -0.0003421140497075111, 0.00040147483794182565, 5.684598823569504e-05]
+    jet = tm.jet(0.7, np.array([0.3, -0.4]), p, 8)
+    assert np.abs(jet[0] - ref).max() < 1e-16
+    assert np.abs(jet[1, :8] - np.arange(1, 9) * np.array(ref[1:])).max() < 1e-15
+
+
+def test_difference_variables_replace_products_of_sines():
+    """The double pendulum's cos(q1)cos(q2) + sin(q1)sin(q2) becomes cos(q1 - q2)."""
+    d = decompose(Scene(derive(lcg.systems.n_link_pendulum(3)), jacobian=False))
+    assert d.form == "trig-linearized"
+    sincos_args = [d.labels[op.args[0]] for op in d.ops if op.kind == "sincos" and op.args[0] in d.labels]
+    assert "y[0] - y[1]" in sincos_args and "y[1] - y[2]" in sincos_args
+    assert sum(op.kind == "sincos" for op in d.ops) == 6  # 3 angles + 3 differences
+    assert sum(op.kind == "mul" for op in d.ops) <= 6
+
+
+@pytest.mark.parametrize("expr, name", [(sp.Abs, "Abs"), (lambda x: sp.Piecewise((x, x > 0), (0, True)), "Piecewise"),
+                                        (sp.sign, "sign")])
+def test_non_analytic_expressions_are_refused(expr, name):
+    m = lcg.Model("kink")
+    x, = m.coordinates("x")
+    m.particle("b", 1, (x, 0))
+    m.generalized_force(x, -expr(x))
+    with pytest.raises(ModelError, match=rf"(?i)F\[x\]: it contains .*{name}\(\(?x.*not analytic"):
+        taylor_code(Scene(derive(m), jacobian=False))
+    with pytest.raises(ModelError, match=r"event 'e': it contains abs\(theta\)"):  # and in events
+        taylor_code(Scene(derive(lcg.systems.pendulum()), jacobian=False),
+                    events=[Event("e", sp.Abs(sp.Symbol("theta")) - 1)])
+
+
+def test_singular_mass_matrix_and_max_steps_are_reported(pendulum):
+    tm, p = module(lcg.systems.central_potential())
+    res = tm.simulate(np.array([0.0, 1.0]), np.array([0.0, 0.0, 0.0, 1.0]), p, rtol=1e-8, atol=1e-8)
+    assert res.status == -101 and res.message == "the mass matrix is singular" and res.stats["model_error"] == 1
+    tm, p = pendulum
+    res = tm.simulate(np.linspace(0, 10, 3), np.array([1.0, 0.0]), p, rtol=1e-8, atol=1e-8, max_steps=5)
+    assert res.status == -1 and "max_steps = 5" in res.message and res.stats["steps"] == 5
+    assert len(res.t) == 1 and res.stats["t_reached"] > 0
+
+
+def test_non_finite_values_are_reported():
+    m = lcg.Model("blowup")
+    x, = m.coordinates("x")
+    m.particle("b", 1, (x, 0))
+    m.generalized_force(x, -sp.sqrt(x))  # x reaches 0 and goes negative: sqrt of a negative
+    tm, p = module(m)
+    res = tm.simulate(np.array([0.0, 10.0]), np.array([1.0, -1.0]), p, rtol=1e-8, atol=1e-8)
+    assert res.status == -102 and res.message == "a computed value is not finite"
+
+
+def generated_sources(tmp_path):
+    m = all_operations_model()
+    code, _, _ = taylor_code(Scene(derive(m), jacobian=False, outputs=["energy"]),
+                             events=[Event("zero", sp.Symbol("x"), 0, False), Event("stop", sp.Symbol("t") - 3, 1, True)])
+    code.write(tmp_path)
+    red = routh_reduce(lcg.systems.central_potential())
+    code2, _, _ = taylor_code(Scene(red.eom, jacobian=False, outputs=["jacobi_h"]))
+    code2.write(tmp_path)
+    code3, _, _ = taylor_code(Scene(derive(lcg.systems.n_link_pendulum(3)), jacobian=False))
+    code3.write(tmp_path)
+    return [code.prefix, code2.prefix, code3.prefix]
+
+
+def test_generated_c_compiles_without_warnings(tmp_path, cc):
+    for prefix in generated_sources(tmp_path):
+        proc = subprocess.run([cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "-c",
+                               f"{prefix}_taylor.c", "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    # the header stands alone
+    (tmp_path / "h.c").write_text(f'#include "{prefix}_taylor.h"\nint main(void) {{ return 0; }}\n')
+    proc = subprocess.run([cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "h.c", "-o", "h"],
+                          cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+SANITIZE_MAIN = r"""
+#include <stdio.h>
+#include "allops_taylor.h"
+
+int main(void)
+{
+    double p[1] = {1.3}, y0[2] = {0.3, -0.4}, t[5] = {0.0, 0.5, 1.0, 2.0, 5.0}, yout[10], out[5];
+    double et[4], ey[8];
+    int which[4], dir[4];
+    allops_taylor_options opt = {1e-10, 1e-10, 0, 100000, 0.0, 0};
+    allops_taylor_stats st;
+    allops_taylor_events ev = {4, 0, et, ey, which, dir, 0};
+    int flag = allops_taylor_solve(p, y0, 5, t, yout, out, &opt, &st, &ev);
+    printf("%d %ld %d %d %.17g %d\n", flag, st.nsteps, ev.n_events, ev.terminated, st.t_reached, st.nt_done);
+    return flag;
+}
+"""
+
+
+def test_sanitizers_run_clean(tmp_path, cc):
+    if shutil.which(cc) is None:
+        pytest.skip("no compiler")
+    generated_sources(tmp_path)
+    (tmp_path / "main.c").write_text(SANITIZE_MAIN)
+    proc = subprocess.run([cc, "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
+                           "main.c", "allops_taylor.c", "allops.c", "-o", "run", "-lm"],
+                          cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True,
+                         env={"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    flag, steps, nev, terminated, t_reached, done = run.stdout.split()
+    # the terminal event t = 3 ends the run after the output at t = 2
+    assert int(terminated) == 1 and abs(float(t_reached) - 3.0) < 1e-12 and int(done) == 4 and int(nev) >= 2
