@@ -27,6 +27,9 @@ import numpy as np
 import sympy as sp
 
 from .api import build, compile_constrained
+from .buildstep import (cmake_dir, generator_record, input_record, load_source, manifest_matches, manifest_name,
+                        manifest_outdated, manifest_text, read_manifest, split_python_spec, stale_by_manifest,
+                        touch_stamp, write_depfile)
 from .codegen.bundle import render_bundle, render_constrained_bundle, stale_files, write_files
 from .codegen.c import generate_c
 from .codegen.constrained import generate_constrained
@@ -34,8 +37,9 @@ from .codegen.languages import generate_code
 from .derivation import derive
 from .errors import CompileError, LagcodegenError, ModelError, SolverError
 from .formulation.scene import Scene
-from .modelfile import FORMULATIONS, constrained_method, constrained_outputs, load_model
+from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .theory.minimal import reduced_model, solve_constraints
+from .version import __version__
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
 
@@ -65,10 +69,8 @@ def _assignments(items: list[str]) -> dict[str, float]:
 
 
 def _load(path: str, quiet: bool):
-    t0 = time.perf_counter()
-    mf = load_model(path)
-    _progress(f"loaded {path} ({mf.model.n} coordinates) in {time.perf_counter() - t0:.3f} s", quiet)
-    return mf
+    """The ModelFile of a TOML model file or of FILE.py:FUNCTION (executes FILE.py)."""
+    return _load_source(path, quiet).model_file
 
 
 def _parameters(sim, args) -> tuple[list[str] | None, dict[str, float], dict[str, float]]:
@@ -200,24 +202,84 @@ def _constrained_files(mf, args) -> dict[str, str]:
     return {name: code.files[name] for name in dae}
 
 
-def cmd_generate(args) -> int:
-    mf = _load(args.model, args.quiet)
+def _generated_files(mf, args) -> dict[str, str]:
+    """The files ``generate`` writes for the loaded model (derives the model)."""
     if mf.constrained is not None:
-        files = _constrained_files(mf, args)
-    else:
-        if args.formulation:
-            _progress("--formulation ignored: the file has no [constraints]", args.quiet)
-        scene, runtime_values = _scene(mf, args, args.quiet)
-        code = generate_code(scene, args.lang)
-        files = dict(code.files)
-        if args.bundle:
-            q0, v0 = mf.initial_state()
-            sim = mf.simulation
-            files = render_bundle(scene, args.lang, y0=q0 + v0, params=runtime_values, t_start=sim.t_start,
-                                  t_end=sim.t_end, code=code)
+        return _constrained_files(mf, args)
+    if args.formulation:
+        _progress("--formulation ignored: the file has no [constraints]", args.quiet)
+    scene, runtime_values = _scene(mf, args, args.quiet)
+    code = generate_code(scene, args.lang)
+    if not args.bundle:
+        return dict(code.files)
+    q0, v0 = mf.initial_state()
+    sim = mf.simulation
+    return render_bundle(scene, args.lang, y0=q0 + v0, params=runtime_values, t_start=sim.t_start,
+                         t_end=sim.t_end, code=code, method=args.method or "bdf")
+
+
+def _generate_options(args) -> dict:
+    """The command-line options that shape the generated files (recorded in the manifest)."""
+    return {"lang": args.lang, "prefix": args.prefix, "bundle": args.bundle, "outputs": args.outputs,
+            "runtime_parameters": args.runtime_parameters, "fold_all": args.fold_all, "set": args.set or [],
+            "no_jacobian": args.no_jacobian, "formulation": args.formulation, "method": args.method}
+
+
+def _load_source(spec: str, quiet: bool):
+    t0 = time.perf_counter()
+    source = load_source(spec)
+    kind = "executed" if split_python_spec(spec) else "loaded"
+    _progress(f"{kind} {spec} ({source.model_file.model.n} coordinates) in {time.perf_counter() - t0:.3f} s",
+              quiet)
+    return source
+
+
+def _finish_build_step(args, out: Path, names, manifest: str, source) -> None:
+    """Depfile and stamp of a successful run (or of a run that found everything up to date).
+    The stamp lists the files of the folder as --list-outputs prints them."""
+    if args.depfile:
+        write_depfile(args.depfile, [args.stamp or str(out / manifest)], source.inputs)
+    if args.stamp:
+        touch_stamp(args.stamp, _listing(out, names))
+
+
+def _listing(out: Path, names) -> str:
+    return "".join(f"{out / name}\n" for name in sorted(names))
+
+
+def cmd_generate(args) -> int:
+    if args.check and args.list_outputs:
+        print("lagcodegen generate: --check and --list-outputs exclude each other", file=sys.stderr)
+        return EXIT_USAGE
+    source = _load_source(args.model, args.quiet)
+    mf = source.model_file
     out = Path(args.output)
+    manifest = manifest_name(args.prefix or mf.model.name)
+    inputs, options, generator = input_record(source), _generate_options(args), generator_record()
+    record = read_manifest(out, args.prefix or mf.model.name)
+    if manifest_matches(record, inputs, options, generator):
+        # the folder was generated from these inputs with these options: no derivation needed
+        if args.list_outputs:
+            print(_listing(out, [*record["files"], manifest]), end="")
+            return EXIT_OK
+        stale = stale_by_manifest(out, record)
+        if not stale:
+            _progress(f"{out} is up to date (manifest {manifest})", args.quiet)
+            if not args.check:
+                _finish_build_step(args, out, [*record["files"], manifest], manifest, source)
+            return EXIT_OK
+        if args.check:
+            print(f"lagcodegen: {out} is out of date: {', '.join(stale)}", file=sys.stderr)
+            return EXIT_OUTDATED
+    files = _generated_files(mf, args)
+    files[manifest] = manifest_text(inputs, options, generator, files)
+    if args.list_outputs:
+        print(_listing(out, files), end="")
+        return EXIT_OK
     if args.check:
-        stale = stale_files(out, files)
+        stale = stale_files(out, {name: text for name, text in files.items() if name != manifest})
+        if manifest_outdated(out, args.prefix or mf.model.name, files[manifest]):
+            stale.append(manifest)
         if stale:
             print(f"lagcodegen: {out} is out of date: {', '.join(stale)}", file=sys.stderr)
             return EXIT_OUTDATED
@@ -228,6 +290,7 @@ def cmd_generate(args) -> int:
         _progress(f"wrote {path}", args.quiet)
     if len(written) < len(files):
         _progress(f"{len(files) - len(written)} file(s) in {out} already up to date", args.quiet)
+    _finish_build_step(args, out, files, manifest, source)
     return EXIT_OK
 
 
@@ -375,10 +438,31 @@ def _info_constrained(mf, eom, show, simplify: bool) -> None:
         print(show(ev.expr))
 
 
+GENERATE_HELP = """Write the model's C or Fortran sources into a folder, with the manifest
+<prefix>.lagcodegen.json (input digests, options, versions of lagcodegen, sympy and symengine).
+Files whose content is unchanged are not rewritten. When the manifest matches the inputs and
+options, generate, --check and --list-outputs answer without deriving the model.
+
+A Python model, FILE.py:FUNCTION, is executed: FILE.py runs as Python code (with its folder on
+sys.path) and FUNCTION() must return a Model, a ConstrainedSystem or a ModelFile. Name only
+files you trust; TOML model files are parsed, never executed.
+
+As a build step: --depfile FILE and --stamp FILE for Ninja, Make, Meson and CMake's DEPFILE;
+--list-outputs to learn the file names at configure time."""
+
+
+class _CMakeDir(argparse.Action):
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(cmake_dir())
+        parser.exit()
+
+
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="lagcodegen", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--version", action="version", version=f"lagcodegen {__import__('lagcodegen').__version__}")
+    ap.add_argument("--version", action="version", version=f"lagcodegen {__version__}")
+    ap.add_argument("--cmake-dir", action=_CMakeDir, nargs=0,
+                    help="print the folder of lagcodegen's CMake package (for lagcodegen_DIR) and exit")
     sub = ap.add_subparsers(dest="command", required=True)
 
     def formulation_option(p):
@@ -397,8 +481,10 @@ def parser() -> argparse.ArgumentParser:
         p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
         p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
-    g = sub.add_parser("generate", help="model file -> C or Fortran sources in a folder")
-    g.add_argument("model")
+    g = sub.add_parser("generate", help="model file -> C or Fortran sources in a folder",
+                       description=GENERATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    g.add_argument("model", help="TOML model file, or FILE.py:FUNCTION (executes FILE.py; FUNCTION() returns "
+                                 "a Model or ConstrainedSystem)")
     g.add_argument("-o", "--output", required=True, help="output folder")
     g.add_argument("--prefix", help="C identifier prefix (default: the model name)")
     g.add_argument("--lang", choices=["c", "fortran"], default="c",
@@ -408,6 +494,14 @@ def parser() -> argparse.ArgumentParser:
                    help="also write Makefile, CMakeLists.txt, rk4_example.c, cvode_example.c and README.md")
     g.add_argument("--check", action="store_true",
                    help="exit 5 if any file to be written is missing or differs, write nothing")
+    g.add_argument("--list-outputs", action="store_true",
+                   help="print the paths of the files it would write (one a line), write nothing")
+    g.add_argument("--depfile", metavar="FILE",
+                   help="write a Make-syntax depfile: the stamp (or the manifest) depends on the model's "
+                        "input files and on lagcodegen's own files")
+    g.add_argument("--stamp", metavar="FILE", help="touch FILE after every successful run")
+    g.add_argument("--method", choices=["bdf", "adams"],
+                   help="--bundle: the CVODE example's method (default bdf); the model code is the same")
     formulation_option(g)
     scene_options(g)
     g.set_defaults(func=cmd_generate)
@@ -448,6 +542,9 @@ def main(argv: list[str] | None = None) -> int:
     except (LagcodegenError, OSError) as exc:
         print(f"lagcodegen: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: runs stop within about a second; results are written only when complete
+        print("lagcodegen: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

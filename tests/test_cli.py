@@ -150,7 +150,8 @@ def test_generate_constrained_sources_and_check(tmp_path):
     out = tmp_path / "gen"
     proc = run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "-q")
     assert proc.returncode == 0, proc.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["cartesian_pendulum_dae.c", "cartesian_pendulum_dae.h"]
+    assert sorted(p.name for p in out.iterdir()) == ["cartesian_pendulum.lagcodegen.json", "cartesian_pendulum_dae.c",
+                                                     "cartesian_pendulum_dae.h"]  # with the manifest
     header = (out / "cartesian_pendulum_dae.h").read_text()
     assert "cartesian_pendulum_kkt" in header and "cartesian_pendulum_crhs" in header
     assert run("generate", EXAMPLES / "cartesian_pendulum.toml", "-o", out, "--check", "-q").returncode == 0
@@ -164,7 +165,8 @@ def test_generate_constrained_sources_and_check(tmp_path):
     sphere = tmp_path / "sphere"
     assert run("generate", EXAMPLES / "sliding_off_sphere.toml", "-o", sphere, "--lang", "fortran", "-q") \
         .returncode == 0
-    assert sorted(p.name for p in sphere.iterdir()) == ["sliding_off_sphere_dae.f90", "sliding_off_sphere_dae.h"]
+    assert sorted(p.name for p in sphere.iterdir()) == ["sliding_off_sphere.lagcodegen.json",
+                                                        "sliding_off_sphere_dae.f90", "sliding_off_sphere_dae.h"]
     assert "leave: lambda_0" in (sphere / "sliding_off_sphere_dae.h").read_text()
 
 
@@ -177,7 +179,7 @@ def test_generate_constrained_bundle_builds_and_runs(tmp_path, angle_pendulum):
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["CMakeLists.txt", "Makefile", "README.md", "rk4_example.c", "cartesian_pendulum_dae.c",
-         "cartesian_pendulum_dae.h"])
+         "cartesian_pendulum_dae.h", "cartesian_pendulum.lagcodegen.json"])
     build = subprocess.run(["make", "check"], cwd=out, capture_output=True, text=True, timeout=300, check=False)
     assert build.returncode == 0, build.stdout + build.stderr
     cols = read_csv(out / "rk4_example.csv")  # the file's t_end, initial state and Baumgarte (5, 5)

@@ -21,6 +21,7 @@ STAGES = [
     ("modelfile",),
     ("formulation",),
     ("codegen",),
+    ("buildstep",),
     ("build",),
     ("solvers",),
     ("api",),

@@ -45,7 +45,8 @@ from .languages import LANGUAGES, generate_code
 from .record import GeneratedCode
 from .templates import environment
 
-#: Languages of the generated model code.
+#: The CVODE example's methods: name -> (CVODE constant, text).
+CVODE_METHODS = {"bdf": ("CV_BDF", "BDF"), "adams": ("CV_ADAMS", "Adams")}
 #: Default initial coordinates of the examples when none are given (velocities and z: 0).
 DEFAULT_Q0 = 0.5
 
@@ -81,14 +82,15 @@ def _parameters(code: GeneratedCode, params: Mapping[str, float] | None) -> list
 def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, *,
                   y0: Sequence[float] | None = None, params: Mapping[str, float] | None = None,
                   t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
-                  code: GeneratedCode | None = None) -> dict[str, str]:
+                  code: GeneratedCode | None = None, method: str = "bdf") -> dict[str, str]:
     """The files of the bundle of ``scene`` (name -> text), rendered in memory.
 
     ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
     name), ``t_start``, ``t_end`` and ``steps`` are the examples' defaults (the examples take
     others on their command line): by default q = 0.5, q' = 0, the parameters' defaults, t
     from 0 to 10 and RK4 steps of at most 1e-3. ``code``: the model code, if already generated
-    for this scene and language.
+    for this scene and language. ``method``: the linear multistep method of the CVODE example,
+    "bdf" or "adams" (the model code is the same for both).
     """
     if isinstance(scene, ConstrainedSystem):
         raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
@@ -97,6 +99,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         code = generate_code(scene, lang)
     elif lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    if method not in CVODE_METHODS:
+        raise ModelError(f"bundle: unknown CVODE method {method!r} (choose from {', '.join(CVODE_METHODS)})")
     fortran = lang == "fortran"
     t_start, t_end, steps = _checked_span(t_start, t_end, steps)
     source = f"{code.prefix}.f90" if fortran else code.source_name
@@ -125,7 +129,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         jacobian=code.jacobian, folded=folded,
         folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
         y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
-        steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table)
+        steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table,
+        cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1])
     env = environment()
     files = {name: code.files[name] for name in names}
     files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)

@@ -1,0 +1,245 @@
+"""lagcodegen as a step of another project's build (CMake, Meson, Make, Ninja).
+
+* Model sources: a TOML model file (parsed, never executed), or a function in a Python file,
+  ``path/to/models.py:double_pendulum``, returning a :class:`~lagcodegen.model.Model`, a
+  :class:`~lagcodegen.theory.constraints.ConstrainedSystem` or a
+  :class:`~lagcodegen.modelfile.ModelFile`. A Python model file is **executed** (as the user's
+  own code, with its folder on ``sys.path`` while it runs): only name files you trust.
+* The manifest ``<prefix>.lagcodegen.json`` in the output folder records the digest of the
+  inputs (the model file and, for Python models, the modules it imported from its own folder),
+  the options, the versions of lagcodegen, sympy and symengine, a digest of lagcodegen's own
+  sources and templates, and the digest of every file written. When it matches, ``generate``,
+  ``generate --check`` and ``generate --list-outputs`` answer without deriving the model.
+  When it does not, ``--check`` derives and compares; a manifest that differs only in the
+  generator record (same files from another lagcodegen, sympy or symengine) is not stale.
+* The depfile (Make syntax, for Ninja, Make, CMake's ``DEPFILE`` and Meson's ``depfile:``) names
+  the model's inputs and lagcodegen's own files; the stamp file is touched on every successful
+  run, so that a build tool sees the step done even when no generated file changed (unchanged
+  files are never rewritten).
+* :func:`cmake_dir`: the folder of the CMake package (``find_package(lagcodegen CONFIG)``,
+  ``lagcodegen_generate()``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+from .errors import ModelError
+from .model import Model
+from .modelfile import ModelFile, SimulationSettings, load_model
+from .theory.constraints import ConstrainedSystem
+from .util import atomic_write
+from .version import __version__
+
+#: Version of the manifest's layout.
+MANIFEST_FORMAT = 1
+PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+def cmake_dir() -> Path:
+    """Folder holding ``lagcodegenConfig.cmake`` (pass it as ``lagcodegen_DIR``)."""
+    return PACKAGE_DIR / "cmake"
+
+
+@dataclass
+class ModelSource:
+    """A loaded model source: the ModelFile, the name used for the manifest and every input
+    file the generated code depends on (the file itself first)."""
+
+    model_file: ModelFile
+    spec: str
+    inputs: list[Path] = field(default_factory=list)
+
+
+def split_python_spec(spec: str) -> tuple[str, str] | None:
+    """(file, function) of ``file.py:function``, or None for any other model argument."""
+    path, sep, func = str(spec).rpartition(":")
+    if sep and path.endswith(".py") and func.isidentifier():
+        return path, func
+    if str(spec).endswith(".py"):
+        raise ModelError(f"{spec}: name the function returning the model, as in {spec}:my_model")
+    return None
+
+
+def load_source(spec: str) -> ModelSource:
+    """The model named by ``spec``: a TOML model file, or ``file.py:function`` (executes the file)."""
+    python = split_python_spec(spec)
+    if python is None:
+        path = Path(spec)
+        return ModelSource(load_model(path), path.name, [path.resolve()])
+    return load_python_model(*python)
+
+
+def load_python_model(path: str | os.PathLike, function: str) -> ModelSource:
+    """Execute the Python file ``path`` and call ``function()`` (no arguments) for the model.
+
+    The file's folder is on ``sys.path`` while it runs, so it may import its neighbours; those
+    modules are inputs too (their digests enter the manifest, their paths the depfile)."""
+    file = Path(path).resolve()
+    if not file.is_file():
+        raise ModelError(f"{path}: no such Python model file")
+    folder = file.parent
+    before = set(sys.modules)
+    name = f"_lagcodegen_model_{hashlib.sha256(str(file).encode()).hexdigest()[:12]}"
+    spec = importlib.util.spec_from_file_location(name, file)
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(folder))
+    try:
+        spec.loader.exec_module(module)
+        func = getattr(module, function, None)
+        if not callable(func):
+            raise ModelError(f"{path}: defines no function {function!r}")
+        value = func()
+    except ModelError:
+        raise
+    except Exception as exc:  # the user's code: report it as bad input, with its type
+        raise ModelError(f"{path}:{function}: {type(exc).__name__}: {exc}") from exc
+    finally:
+        sys.path.remove(str(folder))
+        # The modules the file imported from its folder are inputs; they leave sys.modules again,
+        # so that loading the model a second time in one process reads them anew.
+        inputs = [file]
+        for mod in sorted(set(sys.modules) - before):
+            origin = getattr(sys.modules[mod], "__file__", None)
+            if origin and Path(origin).resolve().is_relative_to(folder):
+                if Path(origin).resolve() != file:
+                    inputs.append(Path(origin).resolve())
+                del sys.modules[mod]
+    return ModelSource(_model_file(value, file, f"{path}:{function}"), f"{file.name}:{function}", inputs)
+
+
+def _model_file(value, file: Path, what: str) -> ModelFile:
+    if isinstance(value, ModelFile):
+        return value
+    if isinstance(value, ConstrainedSystem):
+        return ModelFile(model=value.model, simulation=SimulationSettings(), path=file, constrained=value)
+    if isinstance(value, Model):
+        return ModelFile(model=value, simulation=SimulationSettings(), path=file)
+    raise ModelError(f"{what} returned {type(value).__name__}, not a Model, ConstrainedSystem or ModelFile")
+
+
+# --------------------------------------------------------------------------- manifest
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def own_files() -> list[Path]:
+    """lagcodegen's sources, templates and CMake files: a change to any of them regenerates."""
+    roots = [PACKAGE_DIR]
+    templates = PACKAGE_DIR / "templates"
+    if not templates.is_dir():
+        templates = PACKAGE_DIR.parent / "templates"  # the source tree of an editable install
+    roots.append(templates)
+    files = []
+    for root in roots:
+        for path in sorted(root.rglob("*")):
+            if path.is_file() and path.suffix in (".py", ".j2", ".h", ".c", ".cmake") and \
+                    "__pycache__" not in path.parts:
+                files.append(path)
+    return sorted(set(files))
+
+
+def generator_record() -> dict:
+    """Versions of lagcodegen, sympy and symengine, and a digest of lagcodegen's own files."""
+    import symengine
+    import sympy
+
+    h = hashlib.sha256()
+    for path in own_files():
+        h.update(path.relative_to(PACKAGE_DIR.parent).as_posix().encode() + b"\0")
+        h.update(path.read_bytes())
+    return {"lagcodegen": __version__, "sympy": sympy.__version__, "symengine": symengine.__version__,
+            "sources": h.hexdigest()}
+
+
+def input_record(source: ModelSource) -> dict:
+    """The model's name and the digests of its input files (names relative to the first's folder)."""
+    base = source.inputs[0].parent
+    files = {}
+    for path in source.inputs:
+        rel = os.path.relpath(path, base).replace(os.sep, "/")
+        files[rel] = _digest(path.read_bytes())
+    return {"model": source.spec, "files": files}
+
+
+def manifest_name(prefix: str) -> str:
+    return f"{prefix}.lagcodegen.json"
+
+
+def manifest_text(inputs: dict, options: Mapping, generator: dict, files: Mapping[str, str]) -> str:
+    """The manifest (deterministic JSON) of ``files`` (name -> text) generated from ``inputs``."""
+    record = {"format": MANIFEST_FORMAT, "generator": generator, "inputs": inputs, "options": dict(options),
+              "files": {name: _digest(text.encode("utf-8")) for name, text in sorted(files.items())}}
+    return json.dumps(record, indent=2, sort_keys=True) + "\n"
+
+
+def read_manifest(directory: Path, prefix: str) -> dict | None:
+    try:
+        record = json.loads((Path(directory) / manifest_name(prefix)).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and record.get("format") == MANIFEST_FORMAT else None
+
+
+def manifest_matches(record: dict | None, inputs: dict, options: Mapping, generator: dict) -> bool:
+    """The manifest was written for these inputs, options and generator."""
+    return (record is not None and record.get("inputs") == inputs and record.get("options") == dict(options)
+            and record.get("generator") == generator and isinstance(record.get("files"), dict))
+
+
+def manifest_outdated(directory: Path, prefix: str, text: str) -> bool:
+    """The manifest in ``directory`` records other inputs, options or files than ``text`` (a new
+    manifest). Another generator alone (a lagcodegen, sympy or symengine that writes the same
+    files) does not make a folder out of date."""
+    record = read_manifest(directory, prefix)
+    new = json.loads(text)
+    return record is None or {k: v for k, v in record.items() if k != "generator"} != \
+        {k: v for k, v in new.items() if k != "generator"}
+
+
+def stale_by_manifest(directory: Path, record: dict) -> list[str]:
+    """Files the manifest lists that are missing or differ from their recorded digest."""
+    stale = []
+    for name, digest in sorted(record["files"].items()):
+        try:
+            same = _digest((Path(directory) / name).read_bytes()) == digest
+        except OSError:
+            same = False
+        if not same:
+            stale.append(name)
+    return stale
+
+
+# --------------------------------------------------------------------------- depfile and stamp
+def _make_escape(path: str) -> str:
+    out = path.replace("\\", "/") if os.sep == "\\" else path
+    return out.replace("$", "$$").replace("#", "\\#").replace(" ", "\\ ")
+
+
+def write_depfile(depfile: str | os.PathLike, targets: list[str], inputs: list[Path]) -> None:
+    """Write a Make-syntax depfile: ``targets`` (as given: a build tool compares the first with
+    its own output path) depend on the model's inputs and on lagcodegen's own files."""
+    deps = [str(p) for p in inputs] + [str(p) for p in own_files()]
+    lines = [" ".join(_make_escape(t) for t in targets) + ": \\"]
+    lines += [f"  {_make_escape(d)} \\" for d in deps[:-1]] + [f"  {_make_escape(deps[-1])}"]
+    path = Path(depfile)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = "\n".join(lines) + "\n"
+    if not (path.is_file() and path.read_text(encoding="utf-8") == text):
+        atomic_write(path, text)
+
+
+def touch_stamp(stamp: str | os.PathLike, text: str) -> None:
+    """Write the stamp file and set its modification time to now (even when its text is the same)."""
+    path = Path(stamp)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not (path.is_file() and path.read_text(encoding="utf-8") == text):
+        atomic_write(path, text)
+    os.utime(path, None)
