@@ -5,6 +5,29 @@ from __future__ import annotations
 
 from .record import GeneratedCode
 
+#: The run-control fields at the end of every native driver's options struct
+#: (templates/c/_control.j2, option_fields).
+CONTROL_FIELDS = ("int *cancel; int (*poll)(void *data, long done, long total); void *poll_data; "
+                  "double poll_every; double max_wall;")
+#: The Python function the drivers call back while a run is long (progress, Ctrl-C): one per module.
+POLL_CDEF = 'extern "Python" int lcg_poll(void *data, long done, long total);'
+
+
+def ensemble_cdef(name: str, options: str, fn: str, yp0: bool = False, events: bool = False) -> str:
+    """The ensemble struct ``name`` of a driver and its solve-many function ``fn``
+    (templates/c/_control.j2, ensemble_struct and pool)."""
+    extra = "const double *yp0; long yp0_stride;" if yp0 else ""
+    ev = "int max_events; const int *rootdir; const int *terminal;" if events else ""
+    return f"""
+typedef struct {{
+    long nmem; int nthreads; const double *p; long p_stride; const double *y0; long y0_stride; {extra}
+    int nt; const double *tout; double *final; double *traj; int ncol; const int *col; int *flag; int *nt_done;
+    double *t_reached; double *wall; long *counts; char *messages; long max_messages; long *message_member;
+    long n_messages; {ev} int (*poll)(void *data, long done, long total); void *poll_data; double poll_every;
+    int cancel; long done; long next; ...;
+}} {name};
+int {fn}({name} *e, const {options} *opt);"""
+
 
 def model_cdef(code: GeneratedCode, native: bool) -> str:
     p = code.prefix
@@ -24,7 +47,7 @@ def model_cdef(code: GeneratedCode, native: bool) -> str:
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;
     long max_steps; double first_step; double max_step; double min_step; int max_order;
-    int linear_solver; long mupper; long mlower;
+    int linear_solver; long mupper; long mlower; {CONTROL_FIELDS}
 }} {p}_options;
 typedef struct {{
     long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
@@ -32,6 +55,8 @@ typedef struct {{
 }} {p}_stats;
 int {p}_cvode_solve(const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const {p}_options *opt, {p}_stats *st);""")
+        lines.append(ensemble_cdef(f"{p}_cvode_ensemble", f"{p}_options", f"{p}_cvode_solve_many"))
+        lines.append(POLL_CDEF)
     return "\n".join(lines)
 
 
@@ -51,7 +76,7 @@ int {p}_coutputs(double t, const double *y, const double *lam, const double *p, 
         lines.append(f"""typedef struct {{
     int method; double rtol; double atol; const double *atol_vec; long max_steps; double first_step;
     double max_step; double min_step; int max_order; double alpha; double beta; int projection;
-    double proj_tol; int proj_maxit; int proj_err; int roots; ...;
+    double proj_tol; int proj_maxit; int proj_err; int roots; {CONTROL_FIELDS} ...;
 }} {p}_cvc_options;
 typedef struct {{
     long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails, nproj, nprojfails, ngevals;
@@ -59,6 +84,7 @@ typedef struct {{
 }} {p}_cvc_stats;
 int {p}_cvc_solve(const double *p, const double *y0, int nt, const double *tout, double *yout, double *out,
                   const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);""")
+        lines.append(ensemble_cdef(f"{p}_cvc_ensemble", f"{p}_cvc_options", f"{p}_cvc_solve_many", events=True))
     if roots:
         lines.append(f"int {p}_roots(double t, const double *y, const double *lam, const double *p, double *gout);")
     if ggl:
@@ -69,7 +95,7 @@ int {p}_ggl_res(double t, const double *yy, const double *yp, const double *p, d
 typedef struct {{
     double rtol; double atol; const double *atol_vec; long max_steps; double first_step; double max_step;
     double min_step; int max_order; int suppress_alg; int jacobian; int calc_ic; double ic_alg_atol; int roots;
-    int stop_at_outputs; ...;
+    int stop_at_outputs; {CONTROL_FIELDS} ...;
 }} {p}_ida_options;
 typedef struct {{
     long nsteps, nres, nres_dq, njac, nlinsetups, netfails, nniters, nncfails, nbacktracks, ngevals;
@@ -77,6 +103,8 @@ typedef struct {{
 }} {p}_ida_stats;
 int {p}_ida_solve(const double *p, const double *yy0, const double *yp0, int nt, const double *tout,
                   double *yout, double *out, const {p}_ida_options *opt, {p}_ida_stats *st, {p}_events *ev);"""
+            lines[-1] += ensemble_cdef(f"{p}_ida_ensemble", f"{p}_ida_options", f"{p}_ida_solve_many", yp0=True,
+                                       events=True)
         if ggl_jac:
             lines.append(f"int {p}_ggl_jac(double t, double cj, const double *yy, const double *yp, "
                          f"const double *p, double *jac);")

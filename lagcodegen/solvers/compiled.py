@@ -7,10 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..build import BuiltModule
+from ..build import BuiltModule, build
 from ..codegen.record import GeneratedCode
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..util import c_vector, check_finite
+from . import control
 from .ode import simulate
 
 
@@ -45,6 +46,8 @@ class CompiledModel:
         self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
         self.c_outputs_batch = getattr(self.lib, f"{p}_outputs_batch", None)
         self.native_solve = getattr(self.lib, f"{p}_cvode_solve", None)
+        self.native_solve_many = getattr(self.lib, f"{p}_cvode_solve_many", None)
+        self.poll = control.install(module)  # the drivers' poll callback (Ctrl-C, progress)
         self._defaults = np.array(code.param_defaults, dtype=float)
         self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
 
@@ -129,3 +132,55 @@ class CompiledModel:
     def simulate(self, t, **options):
         """Integrate; see :func:`lagcodegen.solvers.simulate` for the options."""
         return simulate(self, t, **options)
+
+    def ensemble(self, t, q0=None, v0=None, *, y0=None, z0=None, params=None, threads=None, save="final",
+                 executor=None, progress=None, max_wall: float = 0.0, chunk_size=None, **options):
+        """N runs in one call into the generated C, spread over ``threads`` threads (default: the
+        cores), bit-identical to running each member alone with :meth:`simulate`.
+
+        ``q0``, ``v0`` (N, n) (or (n,) shared, or dicts by name), or ``y0`` (N, ny); ``params``
+        {name: (N,) array or scalar} or an (N, np) array; ``save``: "final" (states and outputs at
+        the last time reached), "trajectory" (every state and output at every time) or a list of
+        names (their trajectories); ``max_wall``: wall-clock limit of each member in seconds;
+        ``progress``: True/False, or None (a progress line on stderr once the run lasts 2 s);
+        ``executor``: a concurrent.futures executor or a dask.distributed Client, which runs chunks
+        of ``chunk_size`` members each. Other keywords as :meth:`simulate` (method, rtol, atol,
+        max_steps, ...; ``method="taylor"``: the Taylor integrator). Returns
+        :class:`~lagcodegen.solvers.ensemble.EnsembleResult`; Ctrl-C raises
+        :class:`~lagcodegen.solvers.ensemble.EnsembleInterrupted` (a KeyboardInterrupt) holding
+        what finished.
+        """
+        from .ensemble import ensemble_ode
+        return ensemble_ode(self, t, q0, v0, y0=y0, z0=z0, params=params, threads=threads, save=save,
+                            executor=executor, progress=progress, max_wall=max_wall, chunk_size=chunk_size,
+                            **options)
+
+    def __reduce__(self):
+        """Pickled by its generated sources (never the .so, which links SUNDIALS by an absolute
+        path): unpickling rebuilds from the receiving process's cache (memoized per process)."""
+        return rebuild_compiled, (pickle_code(self.code), bool(self.native))
+
+
+def pickle_code(code: GeneratedCode) -> GeneratedCode:
+    """``code`` without the scene when the scene does not pickle (the Taylor method then needs
+    it to be rebuilt where the scene is)."""
+    import pickle
+    try:
+        pickle.dumps(code.scene)
+        return code
+    except Exception:  # noqa: BLE001 - sympy objects with closures, lambdas, ...
+        import dataclasses
+        return dataclasses.replace(code, scene=None)
+
+
+_REBUILT: dict = {}
+
+
+def rebuild_compiled(code, native: bool):
+    """A CompiledModel from its generated code: built into (or loaded from) this process's cache
+    once per process (the cache's atomic publish makes concurrent builds by several workers safe)."""
+    key = (code.prefix, tuple(sorted(code.files.items())), code.cdef_extra, native)
+    cm = _REBUILT.get(key)
+    if cm is None:
+        cm = _REBUILT[key] = CompiledModel.from_built(build(code, native=native))
+    return cm

@@ -365,6 +365,22 @@ class ConstrainedSimulation(_Base):
             raise cls(res.message, t=t_end, flag=res.status, result=res)
         return res
 
+    def ensemble(self, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
+                 progress=None, max_wall: float = 0.0, chunk_size=None, **options):
+        """N runs in one call into the generated C (index-1: CVODE, GGL: IDA) over a thread pool,
+        bit-identical to :meth:`simulate` member by member; see
+        :meth:`lagcodegen.solvers.compiled.CompiledModel.ensemble` for the arguments, and
+        :meth:`simulate` for ``options``. Members whose initial state is rejected get status -84."""
+        from .ensemble import ensemble_constrained
+        return ensemble_constrained(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
+                                    progress=progress, max_wall=max_wall, chunk_size=chunk_size, **options)
+
+    def __reduce__(self):
+        """Pickled by the system and the generated code (the compiled module is rebuilt from the
+        receiving process's cache)."""
+        return ConstrainedSimulation, (self.system, self.formulation, self.compiled, self.info, self.baumgarte,
+                                       self.projection)
+
     # ------------------------------------------------------------------ GGL
     def _ggl_initial(self, t0, y0, p):
         """yy0 = (q, v, lambda, mu = 0), yp0 = (v, q'', 0, 0) from the augmented system."""

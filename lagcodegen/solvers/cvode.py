@@ -14,6 +14,7 @@ from ..formulation.scene import band_order
 from ..formulation.scene import bandwidths as widths
 from ..result import Result
 from .base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats
+from .control import CANCELLED, POLL_EVERY, raise_pending
 
 
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:
@@ -52,7 +53,7 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                 min_step, max_order, band=None, fixedpoint=False) -> Result:
+                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0) -> Result:
     """An ODE run of a compiled scene: one call of ``<prefix>_cvode_solve`` over all output times."""
     ffi, pre = cm.ffi, cm.code.prefix
     nt = t.size
@@ -64,9 +65,14 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
                          min_step=min_step, max_order=max_order,
                          linear_solver=1 if band else 2 if fixedpoint else 0,
                          mupper=band[0] if band else 0, mlower=band[1] if band else 0)
+    opt.poll = cm.poll
+    opt.poll_every = POLL_EVERY
+    opt.max_wall = max_wall
     st = ffi.new(f"{pre}_stats *")
     flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
                            ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
+    if flag == CANCELLED:
+        raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     if done < nt:
@@ -78,7 +84,7 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
 
 
 def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,
-                 max_events, max_steps, first_step, max_step, min_step, max_order) -> Result:
+                 max_events, max_steps, first_step, max_step, min_step, max_order, max_wall=0.0) -> Result:
     """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
     and/or CVODE's projection): one call of ``<prefix>_cvc_solve``."""
     ffi, pre = sim.ffi, sim.info.prefix
@@ -89,7 +95,8 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
     opt = native_options(ffi, f"{pre}_cvc_options", atol, keep, method=METHODS[method], rtol=rtol,
                          max_steps=int(max_steps), first_step=first_step, max_step=max_step, min_step=min_step,
                          max_order=max_order, alpha=alpha, beta=beta, projection=int(projection),
-                         proj_tol=proj_tol, proj_maxit=proj_maxit, proj_err=1, roots=int(roots))
+                         proj_tol=proj_tol, proj_maxit=proj_maxit, proj_err=1, roots=int(roots),
+                         poll=sim.compiled.poll, poll_every=POLL_EVERY, max_wall=max_wall)
     st = ffi.new(f"{pre}_cvc_stats *")
     events = NativeEvents(ffi, pre, sim.info.events, ny, max_events) if roots else None
     start = time.perf_counter()
@@ -98,6 +105,8 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
                                                 ffi.from_buffer("double[]", out), opt, st,
                                                 events.struct if events else ffi.NULL)
     wall = time.perf_counter() - start
+    if flag == CANCELLED:
+        raise_pending()
     recs = events.records(sim.state_names, ny) if events else []
     tt, yy, oo = t[:st.nt_done].copy(), yout[:st.nt_done].copy(), out[:st.nt_done].copy()
     if events and events.terminated and recs:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..result import Result
 from .base import SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats
+from .control import CANCELLED, POLL_EVERY, raise_pending
 from .cvode import append_event_row
 
 #: Default absolute tolerance of the algebraic GGL unknowns lambda, mu. scikit-sundae never
@@ -24,7 +25,7 @@ ALGEBRAIC_ATOL = 1e8
 
 
 def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, max_events, max_steps,
-              first_step, max_step, min_step, max_order, stop_at_outputs) -> Result:
+              first_step, max_step, min_step, max_order, stop_at_outputs, max_wall=0.0) -> Result:
     ffi, pre = sim.ffi, sim.info.prefix
     ng, nt, nout, n = sim.info.ng, t.size, len(sim.info.output_names), sim.n
     yout = np.full((nt, ng), np.nan)
@@ -33,7 +34,8 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, ma
     opt = native_options(ffi, f"{pre}_ida_options", atol, keep, rtol=rtol, max_steps=int(max_steps),
                          first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order,
                          suppress_alg=int(suppress_alg), jacobian=int(jacobian), calc_ic=1,
-                         ic_alg_atol=ALGEBRAIC_ATOL, roots=int(roots), stop_at_outputs=int(stop_at_outputs))
+                         ic_alg_atol=ALGEBRAIC_ATOL, roots=int(roots), stop_at_outputs=int(stop_at_outputs),
+                         poll=sim.compiled.poll, poll_every=POLL_EVERY, max_wall=max_wall)
     st = ffi.new(f"{pre}_ida_stats *")
     events = NativeEvents(ffi, pre, sim.info.events, ng, max_events) if roots else None
     start = time.perf_counter()
@@ -42,6 +44,8 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, ma
                                                 ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out),
                                                 opt, st, events.struct if events else ffi.NULL)
     wall = time.perf_counter() - start
+    if flag == CANCELLED:
+        raise_pending()
     recs = events.records(sim.state_names, 2 * n) if events else []
     done = st.nt_done
     tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()

@@ -38,6 +38,8 @@ class MinimalSimulation(_Base):
                  prefix=None, eliminate=None, verbose=False, lang: str = "c"):
         self.system = system
         self.lang = lang
+        self._init_args = (system, outputs, tuple(events), runtime_parameters, values, prefix, eliminate, verbose,
+                           lang)
         if list(events) or system.inequalities:
             raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' "
                              "or 'ggl' (the plain CVODE driver has no root finding)")
@@ -156,6 +158,19 @@ class MinimalSimulation(_Base):
         res.formulation = "minimal"
         res.events = []
         return res
+
+    def ensemble(self, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
+                 progress=None, max_wall: float = 0.0, chunk_size=None, **options):
+        """N runs in one call per solution branch into the generated C (see
+        :meth:`lagcodegen.solvers.compiled.CompiledModel.ensemble`); q0/v0 (N, n) for all n
+        coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``)."""
+        from .ensemble import ensemble_minimal
+        return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
+                                progress=progress, max_wall=max_wall, chunk_size=chunk_size, **options)
+
+    def __reduce__(self):
+        """Pickled by its constructor's arguments (the branches are compiled again, from the cache)."""
+        return MinimalSimulation, self._init_args
 
     def full_state(self, res: Result) -> tuple[np.ndarray, np.ndarray]:
         """(q, q') of all n coordinates along a result (eliminated ones from the outputs)."""

@@ -1,0 +1,196 @@
+"""The result of an ensemble (:class:`EnsembleResult`: arrays by member) and the flags of members
+that did not run to the end."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import LagcodegenError
+from ..result import Result
+from .control import FLAG_TEXT as CONTROL_TEXT
+from .control import NOT_RUN
+
+#: Columns of the per-member counts the drivers fill.
+COUNT_NAMES = ("steps", "rhs_evals", "jac_evals", "err_test_fails", "nonlin_conv_fails", "model_error", "events",
+               "terminated")
+#: Messages kept verbatim (the first failures); later failed members get the text of their flag.
+MAX_MESSAGES = 1000
+#: A member whose initial state the Python checks reject (constrained systems): never run.
+REJECTED = -84
+FLAG_TEXT = {**CONTROL_TEXT, REJECTED: "the initial state was rejected"}
+
+
+
+
+class EnsembleInterrupted(KeyboardInterrupt):
+    """Ctrl-C during an ensemble: ``.result`` holds what finished (the others have status -80 or -82)."""
+
+    def __init__(self, result: "EnsembleResult"):
+        super().__init__("ensemble interrupted")
+        self.result = result
+
+
+@dataclass
+class EnsembleResult:
+    """The members of an ensemble, as arrays by member.
+
+    ``status`` (N,) the flag of each member (0 success; negative: the solver's flag, -80 cancelled,
+    -81 wall-clock limit, -82 never started, -83 its chunk failed, -84 initial state rejected,
+    -100 - e a model error e); ``t_reached`` (N,); ``y`` (N, ny) the state at the last time reached
+    (NaN for members never run); ``outputs`` name -> (N,) outputs there; ``trajectories`` name ->
+    (N, nt) for the columns kept with ``save=`` ("trajectory": every state and output; a list: those
+    names); ``stats`` name -> (N,) counters and ``wall`` seconds; ``messages`` {member: text} for
+    the failed members only. ``member(i)`` is member i as a :class:`Result`.
+    """
+
+    t: np.ndarray
+    state_names: list
+    output_names: list
+    status: np.ndarray
+    t_reached: np.ndarray
+    nt_done: np.ndarray
+    final: np.ndarray            # (N, nrow + nout): state row (solver layout) and outputs
+    nrow: int                    # state row size of the driver (GGL: q, v, lambda, mu)
+    stats: dict
+    messages: dict
+    columns: list = field(default_factory=list)  # names of the trajectory columns
+    traj: np.ndarray | None = None               # (N, nt, ncol)
+    params: np.ndarray | None = None             # (N, np) or (np,)
+    param_names: list = field(default_factory=list)
+    extra_outputs: dict = field(default_factory=dict)  # name -> column of the state row (GGL mu_k)
+    method: str = ""
+    formulation: str = ""
+    n_coordinates: int | None = None
+
+    # ------------------------------------------------------------------ arrays
+    def __len__(self) -> int:
+        return int(self.status.shape[0])
+
+    @property
+    def success(self) -> np.ndarray:
+        return self.status >= 0
+
+    @property
+    def n_failed(self) -> int:
+        return int(np.count_nonzero(self.status < 0))
+
+    @property
+    def y(self) -> np.ndarray:
+        """(N, ny) states at the last time reached."""
+        return self.final[:, : len(self.state_names)]
+
+    @property
+    def outputs(self) -> dict:
+        out = {name: self.final[:, self.nrow + i] for i, name in enumerate(self.output_names)}
+        out.update({name: self.final[:, col] for name, col in self.extra_outputs.items()})
+        return out
+
+    @property
+    def trajectories(self) -> dict:
+        if self.traj is None:
+            return {}
+        return {name: self.traj[:, :, j] for j, name in enumerate(self.columns)}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """The trajectory (N, nt) of a saved column, else the final value (N,) of a state or output."""
+        if self.traj is not None and name in self.columns:
+            return self.traj[:, :, self.columns.index(name)]
+        if name in self.state_names:
+            return self.y[:, self.state_names.index(name)]
+        outs = self.outputs
+        if name in outs:
+            return outs[name]
+        raise KeyError(f"{name!r}: not a state ({', '.join(self.state_names)}) nor an output "
+                       f"({', '.join(outs) or 'none'})")
+
+    def member(self, i: int) -> Result:
+        """Member ``i`` as a :class:`Result`: its trajectory if every state was saved (rows up to the
+        last output time reached), else one row at ``t_reached``."""
+        i = int(i)
+        names = self.state_names
+        full = self.traj is not None and all(n in self.columns for n in names)
+        if full:
+            rows = int(self.nt_done[i])
+            idx = [self.columns.index(n) for n in names]
+            t = self.t[:rows].copy()
+            y = self.traj[i, :rows][:, idx].copy()
+            outputs = {n: self.traj[i, :rows, self.columns.index(n)].copy() for n in self.outputs
+                       if n in self.columns}
+        else:
+            t = np.array([self.t_reached[i]])
+            y = self.y[i][None, :].copy()
+            outputs = {n: np.array([v[i]]) for n, v in self.outputs.items()}
+        stats = {k: (v[i].item() if hasattr(v[i], "item") else v[i]) for k, v in self.stats.items()}
+        stats["t_reached"] = float(self.t_reached[i])
+        status = int(self.status[i])
+        res = Result(t=t, y=y, state_names=list(names), outputs=outputs, stats=stats, status=status,
+                     message=self.messages.get(i, "success" if status >= 0 else FLAG_TEXT.get(status, "")),
+                     backend="native", method=self.method)
+        if self.params is not None and self.param_names:
+            p = self.params if self.params.ndim == 1 else self.params[i]
+            res.parameters = dict(zip(self.param_names, (float(x) for x in p)))
+        res.n_coordinates = self.n_coordinates
+        res.formulation = self.formulation
+        return res
+
+    # ------------------------------------------------------------------ files
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write NPZ (atomically): t, status, t_reached, nt_done, y (final states), final_<output>,
+        stats_<name>, params, trajectories (traj, columns) and the messages of failed members."""
+        import tempfile
+        path = Path(path)
+        if path.suffix != ".npz":
+            raise LagcodegenError(f"{path}: ensembles are written as .npz")
+        data = dict(t=self.t, status=self.status, t_reached=self.t_reached, nt_done=self.nt_done, y=self.y,
+                    state_names=np.array(self.state_names), output_names=np.array(list(self.outputs)),
+                    param_names=np.array(self.param_names),
+                    message_members=np.array(sorted(self.messages), dtype=np.int64),
+                    message_texts=np.array([self.messages[k] for k in sorted(self.messages)], dtype=str))
+        data.update({f"final_{k}": v for k, v in self.outputs.items()})
+        data.update({f"stats_{k}": v for k, v in self.stats.items()})
+        if self.params is not None:
+            data["params"] = self.params
+        if self.traj is not None:
+            data["traj"] = self.traj
+            data["columns"] = np.array(self.columns)
+        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".npz")
+        os.close(fd)
+        try:
+            np.savez(tmp, **data)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        return path
+
+    # ------------------------------------------------------------------ assembly
+    @classmethod
+    def assemble(cls, n: int, parts: list, like: "EnsembleResult", params=None) -> "EnsembleResult":
+        """One result of ``n`` members from ``parts`` [(member indices, EnsembleResult)], laid out
+        like ``like``; members in no part are NOT_RUN."""
+        ncolf = like.final.shape[1]
+        out = cls(t=like.t, state_names=like.state_names, output_names=like.output_names,
+                  status=np.full(n, NOT_RUN, dtype=np.intc), t_reached=np.full(n, np.nan),
+                  nt_done=np.zeros(n, dtype=np.intc), final=np.full((n, ncolf), np.nan), nrow=like.nrow,
+                  stats={k: np.zeros(n, dtype=v.dtype) for k, v in like.stats.items()}, messages={},
+                  columns=like.columns,
+                  traj=None if like.traj is None else np.full((n, like.traj.shape[1], like.traj.shape[2]), np.nan),
+                  params=params, param_names=like.param_names, extra_outputs=like.extra_outputs,
+                  method=like.method, formulation=like.formulation, n_coordinates=like.n_coordinates)
+        for idx, part in parts:
+            idx = np.asarray(idx)
+            out.status[idx] = part.status
+            out.t_reached[idx] = part.t_reached
+            out.nt_done[idx] = part.nt_done
+            out.final[idx] = part.final
+            for k in out.stats:
+                if k in part.stats:
+                    out.stats[k][idx] = part.stats[k]
+            if out.traj is not None and part.traj is not None:
+                out.traj[idx] = part.traj
+            out.messages.update({int(idx[j]): text for j, text in part.messages.items()})
+        return out
