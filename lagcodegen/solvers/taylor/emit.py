@@ -3,9 +3,9 @@ elementary operations inside a C loop over the orders), the step-size rule, dens
 event root finding and the driver ``<prefix>_taylor_solve``, rendered from the jinja2
 templates in ``templates/taylor``.
 
-Files: ``<prefix>_taylor.h`` (stands alone: no other header needed to call the driver) and
-``<prefix>_taylor.c`` (C99 + libm; includes ``<prefix>.h`` for the outputs function when the
-scene has outputs). The model files ``<prefix>.h``/``.c`` come from the ordinary C generator.
+Files: ``<prefix>_taylor.h`` and ``<prefix>_taylor.c``, C99 + libm, standalone: they compute the
+equations, the outputs (``<prefix>_taylor_outputs``) and the events themselves and need no
+other generated file.
 """
 
 from __future__ import annotations
@@ -15,21 +15,27 @@ from dataclasses import dataclass
 import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
-from ...codegen.c import c_expr
+from ...codegen.c import c_expr, print_block
+from ...codegen.record import header_context, new_code
 from ...codegen.templates import environment
+from ...formulation.kernels import Block, substituter
 from ...formulation.scene import Scene
 from ...model.events import Event
-from ...version import __version__
 # ------------------------------------------------------------------------------------------
 from .decompose import Const, Decomposition, decompose
 
+#: Operations per C function of the jet (one function when they all fit): gcc's time on one
+#: straight-line function grows faster than its length.
+CHUNK = 64
+
 #: Highest Taylor order the generated code supports (the jet's storage is sized at run time
 #: for the order used).
-P_MAX = 40
+P_MAX = 30
 
 
 @dataclass(frozen=True)
 class _EventInfo:
+    name: str
     row: int
     direction: int
     terminal: int
@@ -57,18 +63,22 @@ def _jinja():
 
 def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
     """The template context of ``taylor.h.j2``/``taylor.c.j2``."""
-    eom = scene.eom
     n = d.n
     conv = [(i, d.M[i][j], j) for i in range(n) for j in range(n) if isinstance(d.M[i][j], int)]
     const_lines = [f"c[{k}] = {c_expr(e)};" for k, e in enumerate(d.consts)]
     kinds = {op.kind for op in d.ops}
-    return dict(
-        prefix=scene.prefix, PREFIX=scene.prefix.upper(), version=__version__, model_name=eom.model.name,
-        n=n, nz=d.nz, ny=d.ny, nout=len(scene.output_list()), ne=len(events), nrows=d.nrows, p_max=P_MAX,
-        ops=d.ops, kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
+    c = substituter(scene)
+    outs = scene.output_list()
+    ctx = header_context(scene, new_code(scene))
+    ctx.update(
+        n=n, nz=d.nz, ny=d.ny, nout=len(outs), ne=len(events), nrows=d.nrows, p_max=P_MAX,
+        outputs_block=print_block(Block([("out", k) for k in range(len(outs))], [c(o.expr) for o in outs])),
+        ops=d.ops, chunks=[d.ops[k:k + CHUNK] for k in range(0, len(d.ops), CHUNK)] or [[]], chunk_size=CHUNK,
+        kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
         M=d.M, F=d.F, rates=d.rates, conv=conv, time_row=d.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
-        events=[_EventInfo(row, int(ev.direction), int(bool(ev.terminal))) for row, ev in zip(d.events, events)])
+        events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal))) for row, ev in zip(d.events, events)])
+    return ctx
 
 
 def check_events(scene: Scene, events=()) -> list[Event]:
@@ -98,7 +108,7 @@ def check_events(scene: Scene, events=()) -> list[Event]:
 
 def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None) -> dict[str, str]:
     """``{"<prefix>_taylor.h": ..., "<prefix>_taylor.c": ...}`` for ``scene`` with ``events``
-    compiled in (they need the model files ``<prefix>.h``/``.c`` beside them)."""
+    compiled in: standalone C99 + libm."""
     events = check_events(scene, events)
     d = decomposition or decompose(scene, events)
     ctx = taylor_context(scene, d, events)
@@ -125,4 +135,5 @@ int {p}_taylor_solve(const double *p, const double *y0, int nt, const double *to
                      double *out, const {p}_taylor_options *opt, {p}_taylor_stats *st,
                      {p}_taylor_events *ev);
 int {p}_taylor_jet(double t, const double *y, const double *p, int order, double *jet);
+int {p}_taylor_outputs(double t, const double *y, const double *p, double *out);
 """
