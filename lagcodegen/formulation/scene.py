@@ -21,6 +21,16 @@ from ..util import check_finite
 
 
 
+#: Prefixes whose files (<prefix>.h, <prefix>.c) would be the files lagcodegen writes beside
+#: them under a fixed name. (Names of system headers, math, stdlib, Python..., are fine: the
+#: generated files include each other with quotes, never through -I on their folder.)
+RESERVED_PREFIXES = {
+    "sundials_api": "sundials_api.h is the SUNDIALS declarations of the native drivers",
+    "rk4_example": "rk4_example.c is the example program of the bundles",
+    "cvode_example": "cvode_example.c is the CVODE example program of the bundles",
+}
+
+
 @dataclass(frozen=True)
 class Output:
     """One scalar output: its name and symengine expression in (q, q', t, p)."""
@@ -73,6 +83,9 @@ class Scene:
         self.prefix = self.prefix or model.name
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", self.prefix):
             raise ModelError(f"scene prefix {self.prefix!r} is not a C identifier")
+        if self.prefix in RESERVED_PREFIXES:
+            raise ModelError(f"scene prefix {self.prefix!r} is reserved: {RESERVED_PREFIXES[self.prefix]} "
+                             f"(give the model another name, or Scene(prefix=...))")
         names = [s.name for s in model.params]
         if self.runtime_parameters is None:
             self.runtime_parameters = list(names)
