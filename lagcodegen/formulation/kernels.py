@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
+from ..model.model import RESERVED_PREFIX
 from .scene import Scene
 
 
@@ -77,7 +78,10 @@ def residual_derivatives(eom):
     model = eom.model
     n = model.n
     a = [se.Symbol(f"a[{i}]") for i in range(n)]
-    acc = [se.Symbol(f"__acc{i}") for i in range(n)]
+    # "__" opens no model name (model.RESERVED_PREFIX), so "__acc<i>" is no user symbol; the
+    # name is kept (rather than "a[i]" directly) because symengine orders terms by name hashes
+    # and the generated C stays byte for byte what it was.
+    acc = [se.Symbol(f"{RESERVED_PREFIX}acc{i}") for i in range(n)]
     y = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
     r = [sum((eom.M_se[i][j] * acc[j] for j in range(n)), se.Integer(0)) - eom.F_se[i] for i in range(n)]
     asub = dict(zip(acc, a))

@@ -16,6 +16,7 @@ Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equatio
 from __future__ import annotations
 
 import keyword
+import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
@@ -26,6 +27,13 @@ from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.ch
 
 #: Names a coordinate or parameter may not take (they name other things).
 RESERVED_NAMES = frozenset({"t", "pi", "E", "I", "oo", "nan", "zoo"})
+#: No model name starts with this: the symbols lagcodegen invents while it derives and
+#: generates (e.g. the accelerations ``__acc<i>`` of the analytic Jacobian) use it, so that
+#: they can never be a user's coordinate or parameter.
+RESERVED_PREFIX = "__"
+#: Suffixes of the symbols every coordinate q brings along: its velocity ``<q>_dot`` and its
+#: acceleration ``<q>_ddot`` (:meth:`EquationsOfMotion.accelerations`).
+DERIVED_SUFFIXES = ("_dot", "_ddot")
 
 
 def _check_name(name: str, what: str) -> str:
@@ -33,6 +41,9 @@ def _check_name(name: str, what: str) -> str:
         raise ModelError(f"{what} name {name!r} is not a valid identifier")
     if name in RESERVED_NAMES:
         raise ModelError(f"{what} name {name!r} is reserved")
+    if name.startswith(RESERVED_PREFIX):
+        raise ModelError(f"{what} name {name!r} starts with {RESERVED_PREFIX!r}, which is reserved for the "
+                         "symbols lagcodegen generates")
     return name
 
 
@@ -41,6 +52,21 @@ def _as_expr(value, what: str) -> sp.Expr:
         expr = sp.sympify(value, strict=True)
     except (sp.SympifyError, TypeError) as exc:
         raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+    return expr
+
+
+_NON_FINITE = (sp.nan, sp.oo, -sp.oo, sp.zoo)
+
+
+def _as_mass(value, body: str, what: str = "mass") -> sp.Expr:
+    """A body's mass (or inertia) as an expression: NaN or an infinity anywhere in it is a
+    ModelError naming the body; a negative number warns (a negative mass integrates, but is
+    rarely meant)."""
+    expr = _as_expr(value, f"{what} of {body!r}")
+    if isinstance(expr, sp.Basic) and expr.has(*_NON_FINITE):
+        raise ModelError(f"{what} of body {body!r} is not finite: {expr}")
+    if what == "mass" and expr.is_number and expr.is_extended_real and expr < 0:
+        warnings.warn(f"mass of body {body!r} is negative ({expr})", stacklevel=3)
     return expr
 
 
@@ -156,6 +182,11 @@ class Model:
         for name in names:
             _check_name(name, "coordinate")
             self._check_free(name)
+            for suffix in DERIVED_SUFFIXES:
+                if name + suffix in self._names():
+                    raise ModelError(f"coordinate {name!r}: {name + suffix!r} (its "
+                                     f"{'velocity' if suffix == '_dot' else 'acceleration'}) is already "
+                                     "the name of a coordinate or parameter")
             q = sp.Symbol(name)
             self.coords.append(q)
             self.speeds.append(sp.Symbol(f"{name}_dot"))
@@ -179,10 +210,15 @@ class Model:
         self.params[sym] = value
         return sym
 
+    def _names(self) -> set[str]:
+        return {s.name for s in self.coords} | {s.name for s in self.speeds} | {s.name for s in self.params}
+
     def _check_free(self, name: str) -> None:
-        taken = {s.name for s in self.coords} | {s.name for s in self.speeds}
-        taken |= {s.name for s in self.params}
-        if name in taken:
+        for q in self.coords:  # the velocity and acceleration symbols each coordinate brings
+            for suffix, what in zip(DERIVED_SUFFIXES, ("velocity", "acceleration")):
+                if name == q.name + suffix:
+                    raise ModelError(f"name {name!r} is taken by the {what} of coordinate {q.name!r}")
+        if name in self._names():
             raise ModelError(f"name {name!r} is declared twice")
 
     def dot(self, q: sp.Symbol) -> sp.Symbol:
@@ -229,18 +265,18 @@ class Model:
 
     def particle(self, name: str, mass, position) -> Particle:
         """A point mass at x(q, t); contributes m/2 |x'|^2 to T (eq. 2.2)."""
-        body = Particle(name, _as_expr(mass, f"mass of {name!r}"), self.point(name, position))
+        mass = _as_mass(mass, name)
+        body = Particle(name, mass, self.point(name, position))
         self.bodies.append(body)
         return body
 
     def planar_body(self, name: str, mass, inertia, position, angle) -> PlanarBody:
         """A planar rigid body: T = m/2 |x_G'|^2 + I_G/2 angle'^2."""
+        mass, inertia = _as_mass(mass, name), _as_mass(inertia, name, "inertia")
         pt = self.point(name, position)
         if pt.dim != 2:
             raise ModelError(f"planar body {name!r} needs a 2-D position")
-        body = PlanarBody(name, _as_expr(mass, f"mass of {name!r}"),
-                          _as_expr(inertia, f"inertia of {name!r}"), pt,
-                          _as_expr(angle, f"angle of {name!r}"))
+        body = PlanarBody(name, mass, inertia, pt, _as_expr(angle, f"angle of {name!r}"))
         self.bodies.append(body)
         return body
 
@@ -251,12 +287,15 @@ class Model:
         ``inertia`` the inertia tensor about the centre of mass in body axes (3x3, or the
         three principal moments). T = m/2 |x_G'|^2 + 1/2 w^T I w with [w]x = R^T R'.
         """
+        mass = _as_mass(mass, name)
+        inertia = _as_matrix3(inertia, f"inertia of {name!r}", allow_diagonal=True)
+        if inertia.has(*_NON_FINITE):
+            raise ModelError(f"inertia of body {name!r} is not finite: {inertia.tolist()}")
         pt = self.point(name, position)
         if pt.dim != 3:
             raise ModelError(f"rigid body {name!r} needs a 3-D position")
-        inertia = _as_matrix3(inertia, f"inertia of {name!r}", allow_diagonal=True)
         R = _as_matrix3(orientation, f"orientation of {name!r}")
-        body = RigidBody(name, _as_expr(mass, f"mass of {name!r}"), inertia, pt, R)
+        body = RigidBody(name, mass, inertia, pt, R)
         self.bodies.append(body)
         return body
 
@@ -372,6 +411,12 @@ class Model:
             self.check_symbols(pt.position, f"position of point {pt.name!r}", allow_speeds=False)
         for body in self.bodies:
             self.check_symbols(body.mass, f"mass of {body.name!r}", allow_speeds=False)
+            syms = body.mass.free_symbols
+            if syms and syms <= set(self.params):  # a literal negative mass warned when declared
+                value = body.mass.subs(self.params)
+                if value.is_number and value.is_extended_real and value < 0:
+                    warnings.warn(f"mass of body {body.name!r} is negative ({body.mass} = {value} with the "
+                                  "parameters' default values)", stacklevel=3)
             if isinstance(body, PlanarBody):
                 self.check_symbols(body.inertia, f"inertia of {body.name!r}", allow_speeds=False)
                 self.check_symbols(body.angle, f"angle of {body.name!r}", allow_speeds=False)
