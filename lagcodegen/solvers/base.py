@@ -69,6 +69,10 @@ def message(flag: int, model_error: int, detail: str, solver: str = "CVODE", sin
     return f"{text}: {detail}" if detail else text
 
 
+_ZERO_TOLERANCES = ("rtol and atol are both 0: no error tolerance at all (the solver's error weights "
+                    "1/(rtol |y| + atol) would divide by zero); give rtol > 0 or atol > 0")
+
+
 def tolerances(rtol, atol, size: int, n_diff: int | None = None, scalar: bool = False):
     """(rtol, atol as one value per state): ``atol`` a scalar, one value per state, or one per
     differential state (``n_diff``; the algebraic ones get the smallest). Both finite, >= 0.
@@ -77,6 +81,8 @@ def tolerances(rtol, atol, size: int, n_diff: int | None = None, scalar: bool = 
     if type(atol) is float or type(atol) is int:  # the common case, without numpy reductions
         if not (math.isfinite(atol) and atol >= 0 and rtol >= 0):
             raise LagcodegenError("tolerances must be finite and non-negative")
+        if rtol == 0 and atol == 0:
+            raise LagcodegenError(_ZERO_TOLERANCES)
         return rtol, (float(atol) if scalar else np.full(size, float(atol)))
     try:
         arr = np.asarray(atol, dtype=float).ravel()
@@ -92,6 +98,10 @@ def tolerances(rtol, atol, size: int, n_diff: int | None = None, scalar: bool = 
         raise LagcodegenError(f"atol has {arr.size} values, expected 1 or {n_diff or size}")
     if not np.all(np.isfinite(out)) or np.any(out < 0) or rtol < 0:
         raise LagcodegenError("tolerances must be finite and non-negative")
+    if rtol == 0 and not np.all(out > 0):
+        zero = np.flatnonzero(out == 0)
+        raise LagcodegenError(_ZERO_TOLERANCES + f" (atol is 0 for state {', '.join(map(str, zero[:8]))}"
+                              + (", ..." if zero.size > 8 else "") + ")")
     return rtol, out
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import inspect
 import math
 
+import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..result import Result
@@ -88,6 +89,7 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
     rtol, atol_arr = tolerances(rtol, atol, cm.ny, scalar=True)
+    check_initial_outputs(cm, t[0], y, p)
     if method == "auto":
         method = choose_method(cm.n, rtol)
     runner = FAMILIES.get(method)
@@ -113,6 +115,23 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
         raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]), flag=res.status,
                   result=res)
     return res
+
+
+def check_initial_outputs(cm, t0: float, y: np.ndarray, p: np.ndarray) -> None:
+    """Raise SolverError naming every output that is not finite at the initial state (each
+    family would stop there anyway, with nothing to say which value it was)."""
+    nout = cm.code.nout
+    if not nout or cm.c_outputs is None:
+        return
+    out = np.empty(nout)
+    cm.c_outputs(float(t0), cm.ffi.from_buffer("double[]", y), cm.c_params(p), cm.ffi.from_buffer("double[]", out))
+    values = out.tolist()
+    if all(map(math.isfinite, values)):
+        return
+    bad = [f"{name} = {v}" for name, v in zip(cm.output_names, values) if not math.isfinite(v)]
+    more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+    raise SolverError(f"output{'s' if len(bad) > 1 else ''} not finite at the initial state: "
+                      f"{', '.join(bad[:5])}{more}", t=float(t0))
 
 
 #: Solver families other than CVODE, by method name: each runs (cm, t, y, p, *, rtol, atol,

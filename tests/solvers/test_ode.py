@@ -197,3 +197,39 @@ def test_fixed_point_iteration_needs_no_jacobian(double_pendulum):
     assert np.max(np.abs(fixed.y - newton.y)) < 1e-7
     with pytest.raises(LagcodegenError, match="needs backend='native'"):
         double_pendulum.simulate(t, q0=[1.0, 0.5], linear_solver="fixedpoint", backend="sksundae")
+
+
+# ---------------------------------------------------------------------- inputs refused before the solver
+@pytest.fixture(scope="module")
+def log_output():
+    """A harmonic oscillator with the outputs log(x) and sqrt(x): not finite at x <= 0."""
+    m = lcg.Model("logout")
+    x, = m.coordinates("x")
+    k, = m.parameters(k=1.0)
+    m.particle("b", 1.0, (x, 0))
+    m.potential_energy(k * x**2 / 2)
+    m.output("log_x", sp.log(x))
+    m.output("sqrt_x", sp.sqrt(x))
+    return lcg.compile_model(m, outputs=["energy", "log_x", "sqrt_x"])
+
+
+@pytest.mark.parametrize("options", [dict(), dict(backend="sksundae"), dict(method="bdf"), dict(method="taylor")])
+def test_zero_tolerances_are_refused_before_the_solver(oscillator, options):
+    with pytest.raises(LagcodegenError, match="rtol and atol are both 0") as info:
+        oscillator.simulate([0, 1], q0=[0.5], rtol=0, atol=0, **options)
+    assert not isinstance(info.value, SolverError)  # never reached CVODE (flag -22)
+    with pytest.raises(LagcodegenError, match="rtol and atol are both 0.*state 1"):
+        oscillator.simulate([0, 1], q0=[0.5], rtol=0, atol=[1e-8, 0.0])
+    assert oscillator.simulate([0, 1], q0=[0.5], rtol=0, atol=1e-9).success  # either alone is fine
+    assert oscillator.simulate([0, 1], q0=[0.5], v0=[0.1], rtol=1e-8, atol=0).success
+
+
+@pytest.mark.parametrize("options", [dict(), dict(backend="sksundae"), dict(method="taylor")])
+def test_output_not_finite_at_the_initial_state_names_it(log_output, options):
+    with pytest.raises(SolverError, match=r"output not finite at the initial state: log_x = -inf") as info:
+        log_output.simulate([0, 1], q0=[0.0], v0=[1.0], **options)
+    assert info.value.t == 0.0
+    with pytest.raises(SolverError, match=r"outputs not finite .*log_x = nan, sqrt_x = nan"):
+        log_output.simulate([2.0, 3.0], q0=[-1.0], v0=[1.0], **options)
+    res = log_output.simulate([0, 0.5], q0=[1.0], **options)
+    assert res.success and np.isfinite(res["log_x"]).all()
