@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .util import atomic_write
+from .util import atomic_binary, atomic_write
 
 
 @dataclass
@@ -120,8 +120,9 @@ class Result:
         fig.suptitle(f"{self.backend} {self.method}".strip())
         fig.tight_layout()
         path = Path(path)
-        tmp = path.with_name(f".{path.name}.tmp.png")
-        fig.savefig(tmp, dpi=100)
-        plt.close(fig)
-        os.replace(tmp, path)
+        try:
+            with atomic_binary(path) as fh:  # a unique temporary file, never a predictable name
+                fig.savefig(fh, dpi=100, format="png")
+        finally:
+            plt.close(fig)
         return path

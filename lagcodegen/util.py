@@ -5,6 +5,7 @@ Every stage may import this module; it imports nothing of lagcodegen except the 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import tempfile
@@ -41,6 +42,24 @@ def atomic_write(path: Path, text: str) -> Path:
             os.unlink(tmp)
         raise
     return path
+
+
+@contextlib.contextmanager
+def atomic_binary(path: Path):
+    """A binary file object whose contents replace ``path`` when the ``with`` block ends without
+    error: a unique temporary file beside ``path`` (created exclusively, so that nothing planted
+    there is followed), removed on failure."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            yield fh
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
 
 
 def output_times(t) -> np.ndarray:
