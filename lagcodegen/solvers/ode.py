@@ -89,7 +89,6 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
         raise LagcodegenError("the initial state has non-finite values")
     p = cm.parameter_vector(params)
     rtol, atol_arr = tolerances(rtol, atol, cm.ny, scalar=True)
-    check_initial_outputs(cm, t[0], y, p)
     if method == "auto":
         method = choose_method(cm.n, rtol)
     runner = FAMILIES.get(method)
@@ -108,8 +107,10 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
                      min_step, max_order, linear_solver, bandwidths)
     res.parameters = dict(zip(cm.param_names, p))
     res.n_coordinates = cm.n
-    if res.stats.get("model_error") == 1 and res.stats.get("t_reached") == t[0]:
-        check_initial_mass_matrix(cm, t[0], y, p)
+    if not res.success and res.t.size <= 1:  # failed at the start: say which value it was
+        check_initial_outputs(cm, t[0], y, p)
+        if res.stats.get("model_error") == 1:
+            check_initial_mass_matrix(cm, t[0], y, p)
     if raise_on_error and not res.success:
         cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
         raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]), flag=res.status,
@@ -170,7 +171,11 @@ def _cvode(cm, t, y, p, method, rtol, atol, jacobian, backend, max_steps, first_
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         return solve_native(cm, t, y, p, **opts)
     if backend == "sksundae":
-        return solve_sksundae(cm, t, y, p, **opts)
+        res = solve_sksundae(cm, t, y, p, **opts)
+        # its outputs are evaluated after the run, where nothing fails: check the first row
+        if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
+            check_initial_outputs(cm, t[0], y, p)
+        return res
     raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
 
 
