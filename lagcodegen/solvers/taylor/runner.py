@@ -96,9 +96,11 @@ class TaylorModule:
         self._out = getattr(self.lib, f"{pre}_taylor_outputs")
         self._opt = ffi.new(f"{pre}_taylor_options *")
         self._st = ffi.new(f"{pre}_taylor_stats *")
-        self._ev = ffi.NULL
         self._buf = ffi.from_buffer
         self._empty = np.zeros(1)
+        self._ptrs = [None, None, None]
+        self._opt_key = None
+        self._atol = None
         self.p_max = P_MAX
 
     # ------------------------------------------------------------------ helpers
@@ -121,6 +123,16 @@ class TaylorModule:
         return out
 
     # ------------------------------------------------------------------ run
+    def _ptr(self, arr, slot: int):
+        """cdata of ``arr``, reused while the same array object comes back (the cdata holds a
+        reference, so the object cannot be replaced by another at the same address)."""
+        cached = self._ptrs[slot]
+        if cached is not None and cached[0] is arr:
+            return cached[1]
+        ptr = self._buf("double[]", arr) if arr.size else self.ffi.NULL
+        self._ptrs[slot] = (arr, ptr)
+        return ptr
+
     def simulate(self, t_out: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float = 1e-8,
                  atol=1e-10, max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
                  max_events: int = 10_000) -> Result:
@@ -133,52 +145,61 @@ class TaylorModule:
         """
         ffi, buf = self.ffi, self._buf
         nt = t_out.shape[0]
-        ny = self.ny
-        yout = np.empty((nt, ny))
+        yout = np.empty((nt, self.ny))
         out = np.empty((nt, self.nout)) if self.nout else self._empty
         opt, st = self._opt, self._st
-        opt.rtol = rtol
-        if isinstance(atol, float):
-            opt.atol = atol
-            opt.atol_vec = ffi.NULL
-            atol_keep = None
-        else:
-            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ny,)))
-            opt.atol = float(atol_keep.min())
-            opt.atol_vec = buf("double[]", atol_keep)
-        opt.max_steps = max_steps
-        opt.max_step = max_step
-        opt.order = order or 0
-        ev = self._ev
+        key = (rtol, atol, max_step, max_steps, order)
+        if key != self._opt_key:
+            self._set_options(*key)
+            self._opt_key = key if isinstance(atol, float) else None
+        ev = ffi.NULL
         keep = None
         if self.events:
-            keep = (np.empty(max_events), np.empty((max_events, ny)), np.empty(max_events, dtype=np.intc),
-                    np.empty(max_events, dtype=np.intc))
-            ev = ffi.new(f"{self.code.prefix}_taylor_events *")
-            ev.max_events = max_events
-            ev.t = buf("double[]", keep[0])
-            ev.y = buf("double[]", keep[1])
-            ev.which = buf("int[]", keep[2])
-            ev.direction = buf("int[]", keep[3])
-        flag = self._solve(buf("double[]", p) if p.size else ffi.NULL, buf("double[]", y0), nt,
-                           buf("double[]", t_out), buf("double[]", yout), buf("double[]", out), opt, st, ev)
-        done = st.nt_done
-        stats = {"steps": st.nsteps, "rhs_evals": st.njet, "jet_evals": st.njet, "order": st.order,
+            ev, keep = self._events_struct(max_events)
+        flag = self._solve(self._ptr(p, 0), self._ptr(y0, 1), nt, self._ptr(t_out, 2), buf("double[]", yout),
+                           buf("double[]", out), opt, st, ev)
+        njet = st.njet
+        stats = {"steps": st.nsteps, "rhs_evals": njet, "jet_evals": njet, "order": st.order,
                  "root_searches": st.nroot, "t_reached": st.t_reached, "h_last": st.h_last, "h_min": st.h_min,
                  "h_max": st.h_max, "model_error": st.model_error}
+        done = st.nt_done
         t = t_out
         if done < nt:
             t, yout, out = t_out[:done].copy(), yout[:done], out[:done]
-        outputs = {name: out[:, i] for i, name in enumerate(self.output_names)}
-        res = Result(t=t, y=yout, state_names=self.state_names, outputs=outputs, stats=stats, status=flag,
-                     message="success" if flag == 0 else message(flag, st.model_error,
-                                                                  ffi.string(st.message).decode(errors="replace")),
-                     backend="native", method="taylor")
-        res.n_coordinates = self.n
+        res = Result(t=t, y=yout, state_names=self.state_names,
+                     outputs={name: out[:, i] for i, name in enumerate(self.output_names)}, stats=stats,
+                     status=flag, message="success" if flag == 0 else message(
+                         flag, st.model_error, ffi.string(st.message).decode(errors="replace")),
+                     backend="native", method="taylor", n_coordinates=self.n)
         if keep is not None:
             self._events_into(res, ev, keep, p)
-        del atol_keep
         return res
+
+    def _set_options(self, rtol, atol, max_step, max_steps, order) -> None:
+        opt = self._opt
+        opt.rtol = rtol
+        if isinstance(atol, float):
+            opt.atol = atol
+            opt.atol_vec = self.ffi.NULL
+        else:
+            self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (self.ny,)))
+            opt.atol = float(self._atol.min())
+            opt.atol_vec = self._buf("double[]", self._atol)
+        opt.max_steps = max_steps
+        opt.max_step = max_step
+        opt.order = order or 0
+
+    def _events_struct(self, max_events: int):
+        keep = (np.empty(max_events), np.empty((max_events, self.ny)), np.empty(max_events, dtype=np.intc),
+                np.empty(max_events, dtype=np.intc))
+        buf = self._buf
+        ev = self.ffi.new(f"{self.code.prefix}_taylor_events *")
+        ev.max_events = max_events
+        ev.t = buf("double[]", keep[0])
+        ev.y = buf("double[]", keep[1])
+        ev.which = buf("int[]", keep[2])
+        ev.direction = buf("int[]", keep[3])
+        return ev, keep
 
     def _events_into(self, res: Result, ev, keep, p) -> None:
         count = min(int(ev.n_events), keep[0].shape[0])
