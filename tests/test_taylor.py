@@ -17,7 +17,7 @@ from lagcodegen.derivation import derive
 from lagcodegen.errors import ModelError
 from lagcodegen.formulation.scene import Scene
 from lagcodegen.model.events import Event
-from lagcodegen.solvers.taylor import build_taylor, decompose, taylor_code
+from lagcodegen.solvers.taylor import build_taylor, decompose, taylor_code, taylor_sources
 from lagcodegen.theory.routhian import reduce as routh_reduce
 
 
@@ -267,6 +267,27 @@ def test_generated_c_compiles_without_warnings(tmp_path, cc):
     proc = subprocess.run([cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "h.c", "-o", "h"],
                           cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_bundle_example_builds_with_only_a_compiler(tmp_path, cc):
+    """taylor_example.c + <prefix>_taylor.c: a program; the double pendulum's energy it prints
+    (an output) stays constant and its events (q1 = 0, terminal) stop the run."""
+    scene = Scene(derive(lcg.systems.n_link_pendulum(2)), jacobian=False, outputs=["energy"])
+    files = taylor_sources(scene, [Event("q1_zero", sp.Symbol("q1"), 0, True)], example=True, q0=0.5, t_end=5.0)
+    assert sorted(files) == ["pendulum2_taylor.c", "pendulum2_taylor.h", "taylor_example.c"]
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    proc = subprocess.run([cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "taylor_example.c",
+                           "pendulum2_taylor.c", "-lm", "-o", "ex"], cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./ex"], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout
+    lines = run.stdout.splitlines()
+    assert lines[0].split() == ["t", "q1", "q2", "q1_dot", "q2_dot", "energy"]
+    rows = [[float(x) for x in line.split()] for line in lines[1:] if line[:1] == " "]
+    energy = [r[-1] for r in rows]
+    assert len(rows) >= 2 and max(energy) - min(energy) < 1e-9
+    assert any(line.startswith("event 0 at t = ") for line in lines) and lines[-1].startswith("flag 0")
 
 
 SANITIZE_MAIN = r"""

@@ -106,15 +106,23 @@ def check_events(scene: Scene, events=()) -> list[Event]:
     return out
 
 
-def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None) -> dict[str, str]:
+def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None, *,
+                   example: bool = False, q0: float = 0.1, t_end: float = 10.0) -> dict[str, str]:
     """``{"<prefix>_taylor.h": ..., "<prefix>_taylor.c": ...}`` for ``scene`` with ``events``
-    compiled in: standalone C99 + libm."""
+    compiled in: standalone C99 + libm. ``example``: also ``taylor_example.c``, a program
+    printing a run from q = ``q0`` at rest over [0, ``t_end``] (for bundles)."""
     events = check_events(scene, events)
     d = decomposition or decompose(scene, events)
     ctx = taylor_context(scene, d, events)
     env = _jinja()
-    return {f"{scene.prefix}_taylor.h": env.get_template("taylor/taylor.h.j2").render(**ctx),
-            f"{scene.prefix}_taylor.c": env.get_template("taylor/taylor.c.j2").render(**ctx)}
+    files = {f"{scene.prefix}_taylor.h": env.get_template("taylor/taylor.h.j2").render(**ctx),
+             f"{scene.prefix}_taylor.c": env.get_template("taylor/taylor.c.j2").render(**ctx)}
+    if example:
+        y0 = [repr(float(q0))] * d.n + ["0.0"] * (d.n + d.nz)
+        files["taylor_example.c"] = env.get_template("taylor/example.c.j2").render(
+            **ctx, y0=y0, q0=q0, t_end=repr(float(t_end)),
+            param_defaults=[repr(float(v)) for v in scene.default_parameters()])
+    return files
 
 
 def taylor_cdef(prefix: str) -> str:
