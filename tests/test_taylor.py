@@ -247,7 +247,8 @@ def test_non_finite_values_are_reported():
 def generated_sources(tmp_path):
     m = all_operations_model()
     code, _, _ = taylor_code(Scene(derive(m), jacobian=False, outputs=["energy"]),
-                             events=[Event("zero", sp.Symbol("x"), 0, False), Event("stop", sp.Symbol("t") - 3, 1, True)])
+                             events=[Event("zero", sp.Symbol("x"), 0, False),
+                                     Event("stop", sp.Symbol("t") - 3, 1, True)])
     code.write(tmp_path)
     red = routh_reduce(lcg.systems.central_potential())
     code2, _, _ = taylor_code(Scene(red.eom, jacobian=False, outputs=["jacobi_h"]))

@@ -32,7 +32,7 @@ import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...errors import ModelError
-from ...formulation.kernels import mass_matrix_is_diagonal, symbol_map  # noqa: F401
+from ...formulation.kernels import symbol_map
 from ...formulation.scene import Scene
 # ------------------------------------------------------------------------------------------
 
@@ -394,8 +394,8 @@ def group_by_atoms(expr, varsyms):
         key, poly = [], []
         for f in factors:
             base = f.args[0] if isinstance(f, se.Pow) else f
-            polynomial = not (f.free_symbols & varsyms) or (
-                base in varsyms and (not isinstance(f, se.Pow) or (isinstance(f.args[1], se.Integer) and f.args[1] > 0)))
+            positive_power = not isinstance(f, se.Pow) or (isinstance(f.args[1], se.Integer) and f.args[1] > 0)
+            polynomial = not (f.free_symbols & varsyms) or (base in varsyms and positive_power)
             (poly if polynomial else key).append(f)
         groups.setdefault(se.Mul(*key), []).append(se.Mul(*poly))
     return se.Add(*[k * se.Add(*v) for k, v in groups.items()])

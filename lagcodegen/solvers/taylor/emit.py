@@ -77,7 +77,8 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
         kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
         M=d.M, F=d.F, rates=d.rates, conv=conv, time_row=d.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
-        events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal))) for row, ev in zip(d.events, events)])
+        events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
+                for row, ev in zip(d.events, events)])
     return ctx
 
 
