@@ -19,6 +19,7 @@ Exit codes:
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -42,6 +43,10 @@ from .theory.minimal import reduced_model, solve_constraints
 from .version import __version__
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
+
+
+class UsageError(Exception):
+    """A bad command-line option (exit 2), found before any work."""
 
 
 def _progress(msg: str, quiet: bool) -> None:
@@ -310,7 +315,7 @@ def _simulate_constrained(mf, args):
     res = sim.simulate(times, q0=q0, v0=v0, params={k: v for k, v in values.items() if k in sim.param_names},
                        method=method, rtol=args.rtol if args.rtol is not None else s.rtol,
                        atol=args.atol if args.atol is not None else s.atol, backend=args.backend,
-                       initial="project" if args.project_initial else "check")
+                       initial="project" if args.project_initial else "check", **_max_steps(args))
     _progress(f"integrated t = {res.t[0]:g}..{res.t[-1]:g} ({formulation}, {res.method}) in "
               f"{time.perf_counter() - t0:.4f} s: {res.stats.get('steps')} steps, "
               f"{res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
@@ -326,7 +331,32 @@ def _simulate_constrained(mf, args):
     return res
 
 
+def _check_simulate_args(args) -> None:
+    """Every option of ``simulate`` checked before any work (exit 2 on a bad one)."""
+    out = Path(args.output)
+    if out.suffix not in (".csv", ".npz"):
+        raise UsageError(f"-o {args.output}: results are written as .csv or .npz")
+    if out.is_dir():
+        raise UsageError(f"-o {args.output}: is a folder; give a file name ending in .csv or .npz")
+    if args.plot is not None and Path(args.plot).suffix != ".png":
+        raise UsageError(f"--plot {args.plot}: plots are written as .png")
+    if args.n_out is not None and not 2 <= args.n_out <= 10_000_000:
+        raise UsageError(f"--n-out {args.n_out}: give between 2 and 10000000 output times")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise UsageError(f"--max-steps {args.max_steps}: give a positive step budget")
+    for name in ("t_end", "rtol", "atol"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and (value > 0 if name == "t_end" else value >= 0)):
+            raise UsageError(f"--{name.replace('_', '-')} {value}: give a finite "
+                             f"{'positive' if name == 't_end' else 'non-negative'} number")
+
+
+def _max_steps(args) -> dict:
+    return {} if args.max_steps is None else {"max_steps": args.max_steps}
+
+
 def cmd_simulate(args) -> int:
+    _check_simulate_args(args)
     mf = _load(args.model, args.quiet)
     if mf.constrained is not None:
         res = _simulate_constrained(mf, args)
@@ -350,7 +380,7 @@ def cmd_simulate(args) -> int:
     res = cm.simulate(times, q0=q0, v0=v0, params=runtime_values, method=args.method or sim.method,
                       rtol=args.rtol if args.rtol is not None else sim.rtol,
                       atol=args.atol if args.atol is not None else sim.atol,
-                      backend=args.backend, jacobian=scene.jacobian)
+                      backend=args.backend, jacobian=scene.jacobian, **_max_steps(args))
     _progress(f"integrated t = {times[0]:g}..{times[-1]:g} in {time.perf_counter() - t0:.4f} s: "
               f"{res.stats.get('steps')} steps, {res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
     return _write_result(res, args)
@@ -511,8 +541,11 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", required=True, help="result file (.csv or .npz)")
     s.add_argument("--plot", help="also save a PNG plot")
     s.add_argument("--t-end", type=float)
-    s.add_argument("--n-out", type=int)
-    s.add_argument("--method", choices=["adams", "bdf"])
+    s.add_argument("--n-out", type=int, help="number of output times (at least 2)")
+    s.add_argument("--method", choices=["adams", "bdf", "taylor", "auto"],
+                   help="adams/bdf: CVODE; taylor: the generated Taylor integrator (unconstrained files); "
+                        "auto: Taylor or Adams by the model's size")
+    s.add_argument("--max-steps", type=int, help="step budget of the whole run (default 1000000)")
     s.add_argument("--rtol", type=float)
     s.add_argument("--atol", type=float)
     s.add_argument("--backend", choices=["native", "sksundae"], default="native")
@@ -533,6 +566,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         return args.func(args)
+    except UsageError as exc:
+        print(f"lagcodegen: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except CompileError as exc:
         print(f"lagcodegen: error: {exc}", file=sys.stderr)
         return EXIT_COMPILE

@@ -1,6 +1,7 @@
 """The lagcodegen command: each subcommand end to end, and its exit codes."""
 
 import subprocess
+import time
 import sys
 from pathlib import Path
 
@@ -229,3 +230,32 @@ def test_project_initial_state_onto_the_constraints(tmp_path):
     data = np.loadtxt(tmp_path / "cp.csv", delimiter=",", skiprows=1)
     x, y = data[:, header.index("x")], data[:, header.index("y")]
     assert np.max(np.abs(np.hypot(x, y) - 1.5)) < 1e-6
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["-o", "x.txt"], "results are written as .csv or .npz"),
+    (["-o", "{tmp}"], "is a folder"),
+    (["-o", "r.csv", "--n-out", "-5"], "--n-out -5"),
+    (["-o", "r.csv", "--n-out", "100000000000000"], "--n-out"),
+    (["-o", "r.csv", "--max-steps", "0"], "--max-steps 0"),
+    (["-o", "r.csv", "--rtol", "nan"], "--rtol nan"),
+    (["-o", "r.csv", "--t-end", "-1"], "--t-end -1"),
+    (["-o", "r.csv", "--plot", "p.jpg"], "plots are written as .png"),
+])
+def test_simulate_options_are_checked_before_any_work(tmp_path, extra, message):
+    from lagcodegen.cli import main
+    args = ["simulate", str(ROOT / "examples" / "pendulum.toml")] + [a.replace("{tmp}", str(tmp_path)) for a in extra]
+    start = time.perf_counter()
+    code = main(args)
+    assert code == 2
+    assert time.perf_counter() - start < 0.5  # refused before loading, deriving or compiling
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_simulate_n_out_two_gives_two_rows_and_taylor_method(tmp_path):
+    from lagcodegen.cli import main
+    out = tmp_path / "r.csv"
+    assert main(["simulate", str(ROOT / "examples" / "pendulum.toml"), "-o", str(out), "--n-out", "2",
+                 "--method", "taylor", "-q"]) == 0
+    rows = out.read_text().strip().splitlines()
+    assert len(rows) == 3  # header + 2 output times

@@ -49,6 +49,12 @@ FLAG_TEXT = {
     },
 }
 FLAG_TEXT["scikit-sundae"] = FLAG_TEXT["CVODE"]
+FLAG_TEXT["Taylor"] = {
+    -1: _COMMON_TEXT[-1],
+    -3: "the step size fell below the resolution of t (is the solution singular there?)",
+    -20: "out of memory",
+    -22: "bad options",
+}
 #: Kept under its earlier name.
 CVODE_FLAG_TEXT = FLAG_TEXT["CVODE"]
 SINGULAR_MASS = "the mass matrix is singular"

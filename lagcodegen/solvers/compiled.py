@@ -13,6 +13,7 @@ from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..util import c_vector, check_finite
 from . import control
 from .ode import simulate
+from .ensemble import ensemble_ode
 
 
 def check_rc(rc: int, t: float, what: str) -> None:
@@ -150,7 +151,6 @@ class CompiledModel:
         :class:`~lagcodegen.solvers.ensemble.EnsembleInterrupted` (a KeyboardInterrupt) holding
         what finished.
         """
-        from .ensemble import ensemble_ode
         return ensemble_ode(self, t, q0, v0, y0=y0, z0=z0, params=params, threads=threads, save=save,
                             executor=executor, progress=progress, max_wall=max_wall, chunk_size=chunk_size,
                             **options)

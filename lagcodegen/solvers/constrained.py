@@ -50,6 +50,7 @@ from ..util import c_vector, check_finite, output_times, state_vector
 from . import cvode, ida, sksundae
 from .base import ERR_PROJECTION, ERR_SINGULAR, METHODS, tolerances
 from .compiled import CompiledModel
+from .ensemble import ensemble_constrained
 from .ida import ALGEBRAIC_ATOL
 from .options import merge
 
@@ -371,7 +372,6 @@ class ConstrainedSimulation(_Base):
         bit-identical to :meth:`simulate` member by member; see
         :meth:`lagcodegen.solvers.compiled.CompiledModel.ensemble` for the arguments, and
         :meth:`simulate` for ``options``. Members whose initial state is rejected get status -84."""
-        from .ensemble import ensemble_constrained
         return ensemble_constrained(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
                                     progress=progress, max_wall=max_wall, chunk_size=chunk_size, **options)
 

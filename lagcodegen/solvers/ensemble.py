@@ -23,11 +23,18 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import LagcodegenError
-from ..util import output_times
+from ..util import check_finite, output_times
 from .base import LINEAR_SOLVERS, METHODS, native_options, tolerances
 from .control import CHUNK_FAILED
+from .cvode import band_widths
 from .ensemble_result import FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleResult  # noqa: F401 - public names
+from .ida import ALGEBRAIC_ATOL
 from .ensemble_run import _members, _matrix, _param_row, ode_states, parameter_matrix, run_native
+from .ode import choose_method
+from .taylor.ensemble import run_taylor_ensemble
+
+#: Ensemble runners of the families other than CVODE, by method name (as :data:`.ode.FAMILIES`).
+ENSEMBLE_FAMILIES = {"taylor": run_taylor_ensemble}
 
 
 # ---------------------------------------------------------------------- the ODE of a compiled scene
@@ -36,7 +43,6 @@ def cvode_options(cm, y_probe, p_probe, *, method="adams", rtol=1e-8, atol=1e-10
                   linear_solver="dense", bandwidths=None, max_wall=0.0, keep=None):
     """The options struct of ``<prefix>_cvode_solve`` exactly as :func:`~lagcodegen.solvers.simulate`
     builds it for the same keywords (so that members are bit-identical to single runs)."""
-    from .cvode import band_widths
     if method not in METHODS:
         raise LagcodegenError(f"method must be one of {', '.join([*METHODS, 'taylor', 'auto'])}, got {method!r}")
     if linear_solver not in LINEAR_SOLVERS:
@@ -82,11 +88,10 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
         return run_chunks(cm, executor, chunk_size, n_mem, t, dict(y0=Y), P, threads, save, max_wall, options)
     method = options.get("method", "adams")
     if method == "auto":
-        from .ode import choose_method
         method = options["method"] = choose_method(cm.n, float(options.get("rtol", 1e-8)))
-    if method == "taylor":
-        from .taylor_ensemble import run_taylor_ensemble
-        return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, **options)
+    family = ENSEMBLE_FAMILIES.get(method)
+    if family is not None:
+        return family(cm, t, Y, P, threads=threads, save=save, progress=progress, **options)
     options.pop("order", None)
     if not cm.native or cm.native_solve_many is None:
         raise LagcodegenError("this module was built without the native driver (build(native=False))")
@@ -189,9 +194,6 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     """:meth:`ConstrainedSimulation.ensemble` (index-1 on CVODE, GGL on IDA): every member's initial
     state is checked (or projected) as :meth:`~ConstrainedSimulation.simulate` does; a member whose
     initial state is rejected gets flag -84 and the reason as its message, and is not run."""
-    from .cvode import append_event_row  # noqa: F401 - the single-run conventions live there
-    from .ida import ALGEBRAIC_ATOL
-    from ..util import check_finite
     unknown = [k for k in options if k not in CONSTRAINED_OPTIONS]
     if unknown:
         raise LagcodegenError(f"ensemble: unknown options {', '.join(unknown)}")

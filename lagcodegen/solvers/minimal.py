@@ -23,6 +23,7 @@ from ..theory.minimal import reduced_model, solve_constraints
 from ..util import check_finite, output_times, state_vector
 from .compiled import CompiledModel
 from .constrained import _Base
+from .ensemble import ensemble_minimal
 
 
 class MinimalSimulation(_Base):
@@ -164,7 +165,6 @@ class MinimalSimulation(_Base):
         """N runs in one call per solution branch into the generated C (see
         :meth:`lagcodegen.solvers.compiled.CompiledModel.ensemble`); q0/v0 (N, n) for all n
         coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``)."""
-        from .ensemble import ensemble_minimal
         return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
                                 progress=progress, max_wall=max_wall, chunk_size=chunk_size, **options)
 

@@ -37,8 +37,8 @@ def simulate(cm, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None =
     Parameters
     ----------
     t:
-        Output times (increasing; ``t[0]`` is the initial time), or a pair (t0, t1), which
-        gives 1001 evenly spaced output times.
+        Output times (increasing; ``t[0]`` is the initial time): an array is taken as it is
+        (two times give two rows); a list or tuple (t0, t1) gives 1001 evenly spaced times.
     q0, v0 / y0:
         Initial coordinates and velocities (arrays, or dicts by coordinate name), or the
         whole state. ``z0``: initial quadrature states (e.g. ignorable coordinates of a

@@ -20,7 +20,7 @@ from ...codegen.record import header_context, new_code
 from ...codegen.templates import environment
 from ...formulation.kernels import Block, substituter
 from ...formulation.scene import Scene
-from ...model.events import Event
+from ...model.events import Event, event_list
 # ------------------------------------------------------------------------------------------
 from .decompose import Const, Decomposition, decompose
 
@@ -83,28 +83,9 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
 
 
 def check_events(scene: Scene, events=()) -> list[Event]:
-    """``events`` as :class:`Event` s with symengine-convertible expressions in the model's
-    symbols (coordinates, velocities, parameters, t); unknown symbols raise ModelError."""
-    import sympy as sp
-
-    from ...errors import ModelError
-    model = scene.eom.model
-    allowed = set(model.known_symbols())
-    out, names = [], set()
-    for k, item in enumerate(events):
-        ev = item if isinstance(item, Event) else (Event(**item) if isinstance(item, dict) else Event(*item))
-        if ev.name in names:
-            raise ModelError(f"event name {ev.name!r} is used twice")
-        names.add(ev.name)
-        try:
-            expr = sp.sympify(ev.expr, strict=True)
-        except (sp.SympifyError, TypeError) as exc:
-            raise ModelError(f"event {ev.name!r}: not a symbolic expression: {ev.expr!r}") from exc
-        bad = expr.free_symbols - allowed
-        if bad:
-            raise ModelError(f"event {ev.name!r} uses unknown symbol(s): {', '.join(sorted(s.name for s in bad))}")
-        out.append(Event(ev.name, expr, ev.direction, bool(ev.terminal)))
-    return out
+    """``events`` as :class:`Event` s whose expressions use only the model's symbols
+    (coordinates, velocities, parameters, t): :func:`lagcodegen.model.events.event_list`."""
+    return event_list(scene.eom, events)
 
 
 def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None, *,

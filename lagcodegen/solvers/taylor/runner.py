@@ -21,30 +21,14 @@ from ...errors import LagcodegenError
 from ...formulation.scene import Scene
 from ...model.events import EventRecord
 from ...result import Result
-from ..base import CVODE_FLAG_TEXT
+from ..base import message as base_message
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
 from .emit import P_MAX, check_events, taylor_cdef, taylor_sources
 
-#: Messages of the driver's flags (model errors: the texts of every other solver).
-TAYLOR_FLAG_TEXT = {
-    -1: CVODE_FLAG_TEXT[-1],
-    -3: "the step size fell below the resolution of t (is the solution singular there?)",
-    -20: "out of memory",
-    -22: "bad options",
-}
-
-
 def message(flag: int, model_error: int, detail: str) -> str:
-    """The text of a driver flag, in the words of :func:`lagcodegen.solvers.base.message`."""
-    if flag >= 0:
-        return "success"
-    if model_error == 1:
-        return "the mass matrix is singular"
-    if model_error == 2:
-        return "a computed value is not finite"
-    text = TAYLOR_FLAG_TEXT.get(flag, f"the Taylor integrator failed with flag {flag}")
-    return f"{text}: {detail}" if detail else text
+    """The text of a driver flag (:data:`lagcodegen.solvers.base.FLAG_TEXT` ["Taylor"])."""
+    return base_message(flag, model_error, detail, "Taylor")
 
 
 def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:

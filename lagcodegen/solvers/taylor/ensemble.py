@@ -1,21 +1,21 @@
 """Ensembles with the Taylor method (``method="taylor"``): the Taylor integrator of the scene
 (:mod:`.taylor`, ``<prefix>_taylor_solve``) plus ``<prefix>_taylor_ens.c``
-(templates/c/taylor_ensemble.c.j2), built once per compiled model. The Taylor driver has no run
+(templates/taylor/ensemble.c.j2), built once per compiled model. The Taylor driver has no run
 control of its own, so Ctrl-C takes effect between members and ``max_wall`` is not available."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..build import build
-from ..codegen.cffi_decl import POLL_CDEF, ensemble_cdef
-from ..codegen.templates import environment
-from ..errors import LagcodegenError
-from ..version import __version__
-from . import control
-from .base import tolerances
-from .ensemble_run import run_native
-from .taylor.runner import taylor_code
+from ...build import build
+from ...codegen.cffi_decl import POLL_CDEF, ensemble_cdef
+from ...codegen.templates import environment
+from ...errors import LagcodegenError
+from ...version import __version__
+from .. import control
+from ..base import tolerances
+from ..ensemble_run import run_native
+from .runner import taylor_code
 
 
 def taylor_ensemble_module(cm):
@@ -31,8 +31,8 @@ def taylor_ensemble_module(cm):
         pre = code.prefix
         ctx = dict(prefix=pre, PREFIX=pre.upper(), version=__version__)
         env = environment()
-        code.files[f"{pre}_taylor_ens.h"] = env.get_template("c/taylor_ensemble.h.j2").render(**ctx)
-        code.files[f"{pre}_taylor_ens.c"] = env.get_template("c/taylor_ensemble.c.j2").render(**ctx)
+        code.files[f"{pre}_taylor_ens.h"] = env.get_template("taylor/ensemble.h.j2").render(**ctx)
+        code.files[f"{pre}_taylor_ens.c"] = env.get_template("taylor/ensemble.c.j2").render(**ctx)
         code.cffi_headers.append(f"{pre}_taylor_ens.h")
         code.cdef_extra += "\n" + ensemble_cdef(f"{pre}_taylor_ensemble", f"{pre}_taylor_options",
                                                 f"{pre}_taylor_solve_many") + "\n" + POLL_CDEF
