@@ -47,6 +47,16 @@ from .templates import environment
 
 #: The CVODE example's methods: name -> (CVODE constant, text).
 CVODE_METHODS = {"bdf": ("CV_BDF", "BDF"), "adams": ("CV_ADAMS", "Adams")}
+#: Standalone integrators a C bundle carries besides the model code, registered by their solver
+#: family (:mod:`lagcodegen.solvers.taylor` registers "taylor"): name -> function(scene, y0,
+#: parameter values, t_end) -> {file name: text} with the sources and ``<name>_example.c`` (a
+#: program that needs only a C compiler), raising ModelError when the scene cannot have one.
+INTEGRATORS: dict = {}
+
+
+def register_integrator(name: str, sources) -> None:
+    """Make C bundles carry the integrator ``name`` (see :data:`INTEGRATORS`)."""
+    INTEGRATORS[name] = sources
 #: Default initial coordinates of the examples when none are given (velocities and z: 0).
 DEFAULT_Q0 = 0.5
 
@@ -131,8 +141,24 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
         steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table,
         cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1])
+    integrators, skipped, extra = [], [], {}
+    for name, sources in (INTEGRATORS.items() if not fortran else ()):
+        try:
+            produced = sources(scene, y_values, _parameters(code, params), t_end)
+        except ModelError as exc:
+            skipped.append((name, str(exc)))
+            continue
+        extra.update(produced)
+        integrators.append(dict(name=name, sources=sorted(k for k in produced if k.endswith(".c")
+                                                           and not k.endswith("_example.c")),
+                                header=next(k for k in produced if k.endswith(".h")), example=f"{name}_example"))
+        table.insert(-1, (next(k for k in produced if k.endswith(".c") and not k.endswith("_example.c")),
+                          f"the {name} integrator, standalone (C99 + libm, no model code needed)"))
+        table.insert(-1, (f"{name}_example.c", f"a {name} integration, a table on stdout; needs only a C compiler"))
+    ctx.update(integrators=integrators, skipped_integrators=skipped)
     env = environment()
     files = {name: code.files[name] for name in names}
+    files.update(extra)
     files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
     files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
     files["rk4_example.c"] = env.get_template("bundle/rk4_example.c.j2").render(**ctx)
@@ -203,6 +229,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
                                "needs only a C compiler"),
              ("README.md", "this file")]
     ctx = dict(
+        integrators=[], skipped_integrators=[],
         version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
         fortran=fortran, lang_name="Fortran 2008" if fortran else "C99", header=header, source=source,
         stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,

@@ -64,8 +64,9 @@ def test_bundle_builds_with_make_and_cmake_and_matches_cvode(tmp_path, tools, sc
     scene = scenes[name]
     paths = write_bundle(scene, tmp_path, lang=lang, y0=s["y0"], params=s["params"], t_end=s["t_end"])
     source = f"{scene.prefix}.{'f90' if lang == 'fortran' else 'c'}"
+    taylor = [f"{scene.prefix}_taylor.c", f"{scene.prefix}_taylor.h", "taylor_example.c"] if lang == "c" else []
     assert sorted(p.name for p in paths) == sorted(["CMakeLists.txt", "Makefile", "README.md", "cvode_example.c",
-                                                   "rk4_example.c", f"{scene.prefix}.h", source])
+                                                   "rk4_example.c", f"{scene.prefix}.h", source, *taylor])
     ny = len(s["y0"])
 
     # make: library, example, `make check` runs it with the defaults baked into the bundle.
@@ -77,6 +78,13 @@ def test_bundle_builds_with_make_and_cmake_and_matches_cvode(tmp_path, tools, sc
     assert header == ["t", *(q.name for q in model.coords), *(v.name for v in model.speeds), "energy"]
     assert final[0] == s["t_end"]
     np.testing.assert_allclose(final[1:ny + 1], references[name, "default"], rtol=0, atol=1e-6)
+    if lang == "c":  # the Taylor example, built and run by `make check` with only a compiler
+        rows = [line.split() for line in (tmp_path / "taylor_example.csv").read_text().splitlines()]
+        data = [r for r in rows[1:] if r and r[0] not in ("flag", "event")]
+        assert rows[-1][:2] == ["flag", "0:"]
+        final_taylor = np.array([float(v) for v in data[-1]])
+        assert final_taylor[0] == pytest.approx(s["t_end"])
+        np.testing.assert_allclose(final_taylor[1:ny + 1], references[name, "default"], rtol=0, atol=1e-6)
 
     # CMake, out of source; the same example with parameters and the initial state on the command line.
     run(["cmake", "-S", ".", "-B", "build"], tmp_path)

@@ -5,9 +5,19 @@ the C jet, stepper and driver (``<prefix>_taylor.h``/``.c``), :mod:`.runner` com
 calls the driver through cffi.
 """
 
+from ...codegen.bundle import register_integrator
 from .decompose import Decomposition, Op, decompose  # noqa: F401
 from .emit import P_MAX, taylor_sources  # noqa: F401
 from .runner import TaylorModule, build_taylor, taylor_code  # noqa: F401
+
+
+def bundle_sources(scene, y0, params, t_end: float) -> dict[str, str]:
+    """The Taylor integrator of a C bundle: ``<prefix>_taylor.[ch]`` and ``taylor_example.c``
+    (from the bundle's initial state ``y0`` and run-time parameter values ``params``)."""
+    return taylor_sources(scene, example=True, y0=y0, param_values=params, t_end=t_end)
+
+
+register_integrator("taylor", bundle_sources)
 
 __all__ = ["Decomposition", "Op", "P_MAX", "TaylorModule", "build_taylor", "decompose", "taylor_code",
            "taylor_sources"]

@@ -89,10 +89,12 @@ def check_events(scene: Scene, events=()) -> list[Event]:
 
 
 def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None, *,
-                   example: bool = False, q0: float = 0.1, t_end: float = 10.0) -> dict[str, str]:
+                   example: bool = False, q0: float = 0.1, t_end: float = 10.0, y0=None,
+                   param_values=None) -> dict[str, str]:
     """``{"<prefix>_taylor.h": ..., "<prefix>_taylor.c": ...}`` for ``scene`` with ``events``
     compiled in: standalone C99 + libm. ``example``: also ``taylor_example.c``, a program
-    printing a run from q = ``q0`` at rest over [0, ``t_end``] (for bundles)."""
+    printing a run from q = ``q0`` at rest (or the whole state ``y0``) over [0, ``t_end``], with
+    the parameters' defaults (or ``param_values``, in run-time parameter order) (for bundles)."""
     events = check_events(scene, events)
     d = decomposition or decompose(scene, events)
     ctx = taylor_context(scene, d, events)
@@ -100,10 +102,12 @@ def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None 
     files = {f"{scene.prefix}_taylor.h": env.get_template("taylor/taylor.h.j2").render(**ctx),
              f"{scene.prefix}_taylor.c": env.get_template("taylor/taylor.c.j2").render(**ctx)}
     if example:
-        y0 = [repr(float(q0))] * d.n + ["0.0"] * (d.n + d.nz)
+        y0 = ([repr(float(v)) for v in y0] if y0 is not None
+              else [repr(float(q0))] * d.n + ["0.0"] * (d.n + d.nz))
         files["taylor_example.c"] = env.get_template("taylor/example.c.j2").render(
             **ctx, y0=y0, q0=q0, t_end=repr(float(t_end)),
-            param_defaults=[repr(float(v)) for v in scene.default_parameters()])
+            param_defaults=[repr(float(v)) for v in (param_values if param_values is not None
+                                                      else scene.default_parameters())])
     return files
 
 
