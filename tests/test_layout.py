@@ -154,3 +154,16 @@ def test_modules_stay_short_or_say_why(module):
         doc = ast.get_docstring(ast.parse(path.read_text())) or ""
         assert "One job:" in doc, (f"{module} has {lines} lines: split it, or say in its docstring "
                                    f"('One job: ...') why it is one thing")
+
+
+def test_every_subpackage_is_installed():
+    """pyproject.toml lists the packages by name: a new subpackage left out would be missing
+    from the installed wheel (the source tree's tests would not notice)."""
+    import sys
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(("lagcodegen", *p.parent.relative_to(PACKAGE).parts)) for p in PACKAGE.rglob("__init__.py")}
+    assert found <= listed, f"packages missing from pyproject.toml: {sorted(found - listed)}"
