@@ -4,6 +4,7 @@ from the headers through ``...;``), one function per kind of generated code."""
 from __future__ import annotations
 
 from .record import GeneratedCode
+from .signatures import c_signature
 
 #: The run-control fields at the end of every native driver's options struct
 #: (templates/c/_control.j2, option_fields).
@@ -30,19 +31,14 @@ int {fn}({name} *e, const {options} *opt);"""
 
 
 def model_cdef(code: GeneratedCode, native: bool) -> str:
+    """The model functions of ``code`` (:data:`~.signatures.MODEL_FUNCTIONS`, the header's own
+    signatures) and, with ``native``, the CVODE driver's."""
     p = code.prefix
-    lines = [f"int {p}_rhs(double t, const double *y, const double *p, double *ydot);"]
-    if code.jacobian:
-        lines.append(f"int {p}_jac(double t, const double *y, const double *ydot, const double *p, double *jac);")
-    if code.nout:
-        lines.append(f"int {p}_outputs(double t, const double *y, const double *p, double *out);")
-    if getattr(code, "sparse_jacobian", False):
-        lines.append(f"int {p}_jac_sparse(double t, const double *y, const double *ydot, const double *p, "
-                     f"double *vals);")
+    names = ["rhs"] + ["jac"] * code.jacobian + ["outputs"] * bool(code.nout)
+    names += ["jac_sparse"] * bool(getattr(code, "sparse_jacobian", False))
+    names += ["outputs_batch"] * bool(native and code.nout)
+    lines = [c_signature(name, p) + ";" for name in names]
     if native:
-        if code.nout:
-            lines.append(f"int {p}_outputs_batch(int nt, const double *t, const double *y, const double *p, "
-                         f"double *out);")
         lines.append(f"""
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import jinja2
 
+from .signatures import c_signature, fortran_signature
+
 
 def templates_dir() -> Path:
     """Folder holding the jinja2 templates (installed package data, or the source tree)."""
@@ -17,9 +19,13 @@ def templates_dir() -> Path:
 
 
 def environment() -> jinja2.Environment:
-    return jinja2.Environment(
+    """The environment of every template, with :func:`~.signatures.c_signature` and
+    :func:`~.signatures.fortran_signature` as globals."""
+    env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
         undefined=jinja2.StrictUndefined)
+    env.globals.update(c_signature=c_signature, fortran_signature=fortran_signature)
+    return env
 
 
