@@ -10,12 +10,14 @@ p[k]; folded parameters become numbers (printed with 17 significant digits, exac
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import symengine as se
 
 from ..formulation.kernels import Block, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
+from ..formulation.tangent import NARROW, TangentProgram, tangent_program
 from ..version import __version__
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
@@ -82,16 +84,77 @@ def print_block(block: Block, ng: int = 0) -> str:
     return emit_block([c_target(tg, ng) for tg in block.targets], block.exprs)
 
 
+def _tangent_target(target: tuple, n: int) -> str:
+    kind, *idx = target
+    if kind == "dM":
+        i, k = idx
+        return f"dM[{i}][{k}]" if i == k else f"dM[{i}][{k}] = dM[{k}][{i}]"
+    if kind == "dF":
+        return f"dF[{idx[0]}]"
+    return f"jac[j * NY + {2 * n + idx[0]}]"  # ("dZ", k): d z'_k / d y[j]
+
+
+def print_tangent(prog: TangentProgram) -> dict:
+    """The C pieces of the tangent-form Jacobian (:mod:`lagcodegen.formulation.tangent`) for
+    templates/c/model.c.j2: ``primal`` (the values v<k> and M), ``partials`` (the constants
+    e<m>, after common-subexpression elimination) and per column group its loop ``body``
+    (tangent statements, then dM, dF and the quadrature rates' column)."""
+    pad = _INDENT
+    primal = [f"{pad}const double {v} = {c_expr(e)};" for v, e in prog.primal]
+    primal += [f"{pad}{c_target(t)} = {c_expr(e)};" for t, e in prog.values]
+    partials = emit_block([f"const double e{t[1]}" for t in prog.partials.targets], prog.partials.exprs)
+    groups = []
+    for g in prog.groups:
+        stored = set(g.stored)
+
+        def line(item, e, depth):
+            if not isinstance(item, str):
+                return f"{pad * depth}{_tangent_target(item, prog.n)} = {c_expr(e)};"
+            return f"{pad * depth}{'' if item in stored else 'const double '}{item} = {c_expr(e)};"
+
+        body = []
+        if g.cases:
+            body.append(f"{pad * 2}switch (j) {{ /* the statements depending on at most {NARROW} columns */")
+            for c, case in g.cases.items():
+                body.append(f"{pad * 2}case {c}: {{")
+                body += [line(item, e, 3) for item, e in case]
+                body += [f"{pad * 3}break;", f"{pad * 2}}}"]
+            body.append(f"{pad * 2}}}")
+        body += [line(name, e, 2) for name, e in g.statements]
+        body += [line(t, e, 2) for t, e in g.targets]
+        reset = []
+        if g.resets:
+            reset.append(f"{pad * 2}switch (j) {{ /* zero again what this column set */")
+            for c, items in g.resets.items():
+                reset.append(f"{pad * 2}case {c}:")
+                reset += [f"{pad * 3}{item if isinstance(item, str) else _tangent_target(item, prog.n)} = 0.0;"
+                          for item in items]
+                reset.append(f"{pad * 3}break;")
+            reset.append(f"{pad * 2}}}")
+        groups.append(dict(start=g.start, stop=g.stop, mass=g.mass, force=g.force, body="\n".join(body),
+                           reset="\n".join(reset), what="positions" if g.start == 0 else "velocities",
+                           stored="".join(f"{pad}double {name} = 0.0;\n" for name in g.stored)))
+    seeded = any(str(u).startswith("s[") for g in prog.groups for _, e in g.statements + g.targets
+                 for u in e.free_symbols)
+    return dict(primal="\n".join(primal), partials=partials, groups=groups, seeded=seeded,
+                mass=any(g["mass"] for g in groups), force=any(g["force"] for g in groups))
+
+
 def generate_c(scene: Scene) -> GeneratedCode:
     """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
-    blocks = model_blocks(scene)
+    tangent = scene.jacobian and scene.resolved_jacobian_form() == "tangent"
+    blocks = model_blocks(dataclasses.replace(scene, jacobian=False) if tangent else scene)
     code = new_code(scene)
     ctx = header_context(scene, code)
     env = environment()
+    jac = dict(tangent=None)
+    if tangent:
+        jac = dict(tangent=print_tangent(tangent_program(blocks["rhs"], scene.eom.model.n,
+                                                         len(scene.eom.quadratures))))
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     code.files[code.source_name] = env.get_template("c/model.c.j2").render(
         **ctx, rhs=print_block(blocks["rhs"]), jac=print_block(blocks.get("jac", Block())),
-        out=print_block(blocks["out"]))
+        out=print_block(blocks["out"]), **jac)
     code.jac_pattern = scene.jacobian_pattern()
     if scene.sparse_jacobian:
         _add_sparse_jacobian(scene, code, env)

@@ -434,6 +434,10 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     The functions are those of :func:`lagcodegen.generate_c` (rhs; jac if the scene asks for
     the Jacobian; outputs if it has any), bound to the same C names and signatures, computed
     from the same expression blocks (:func:`lagcodegen.formulation.kernels.model_blocks`).
+    The Jacobian is always the expanded form (``model_blocks``' symbolic dr/dy, code growing
+    like n^3): ``Scene.jacobian_form`` ("tangent", or "auto" above
+    :data:`~lagcodegen.formulation.scene.EXPANDED_JACOBIAN_MAX_N` coordinates) chooses only the
+    C backend's form.
     """
     check_prefix(scene.prefix)
     n = scene.eom.n
