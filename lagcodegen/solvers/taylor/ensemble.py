@@ -10,11 +10,11 @@ import numpy as np
 from ...build import build
 from ...codegen.cffi_decl import POLL_CDEF, ensemble_cdef
 from ...codegen.templates import environment
-from ...errors import LagcodegenError
 from ...version import __version__
 from .. import control
 from ..base import tolerances
 from ..ensemble_run import run_native
+from .run import scene_of
 from .runner import taylor_code
 
 
@@ -23,11 +23,7 @@ def taylor_ensemble_module(cm):
     key = ("taylor-ensemble",)
     module = cm.solver_state.get(key)
     if module is None:
-        scene = cm.code.scene
-        if scene is None:
-            raise LagcodegenError("method='taylor' needs the scene of the compiled model (this one was assembled "
-                                  "by hand or unpickled without it)")
-        code, _, _ = taylor_code(scene)
+        code, _, _ = taylor_code(scene_of(cm))
         pre = code.prefix
         ctx = dict(prefix=pre, PREFIX=pre.upper(), version=__version__)
         env = environment()

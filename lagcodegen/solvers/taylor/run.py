@@ -10,16 +10,22 @@ from ...result import Result
 from .runner import build_taylor
 
 
+def scene_of(cm):
+    """The scene ``cm`` was generated from (the Taylor integrator is generated from it)."""
+    scene = cm.code.scene
+    if scene is None:
+        raise LagcodegenError("method='taylor' needs the scene of the compiled model (this one was assembled "
+                              "by hand or unpickled without it); compile it with lagcodegen.compile_model or "
+                              "build(generate_c(scene))")
+    return scene
+
+
 def taylor_module(cm, events=()):
     """The compiled Taylor integrator of ``cm``'s scene with ``events`` (built once, then reused)."""
     key = ("taylor", tuple(events))
     module = cm.solver_state.get(key)
     if module is None:
-        scene = cm.code.scene
-        if scene is None:
-            raise LagcodegenError("method='taylor' needs the scene of the compiled model (this one was assembled "
-                                  "by hand); compile it with lagcodegen.compile_model or build(generate_c(scene))")
-        module = cm.solver_state[key] = build_taylor(scene, events=events)
+        module = cm.solver_state[key] = build_taylor(scene_of(cm), events=events)
     return module
 
 
