@@ -39,6 +39,7 @@ from .derivation import derive
 from .errors import CompileError, LagcodegenError, ModelError, SolverError
 from .formulation.scene import Scene
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
+from .sweep import HELP as SWEEP_HELP, SweepOptionError, add_sweep_options, run_sweep, spec_from_namespace
 from .theory.minimal import reduced_model, solve_constraints
 from .version import __version__
 
@@ -403,6 +404,14 @@ def _write_result(res, args, plotted: list[str] | None = None) -> int:
     return EXIT_OK
 
 
+def cmd_sweep(args) -> int:
+    try:
+        run_sweep(spec_from_namespace(args))
+    except SweepOptionError as exc:
+        raise UsageError(str(exc)) from None
+    return EXIT_OK
+
+
 def cmd_info(args) -> int:
     mf = _load(args.model, True)
     eom = mf.derive()
@@ -559,6 +568,10 @@ def parser() -> argparse.ArgumentParser:
     i.add_argument("--simplify", action=argparse.BooleanOptionalAction, default=None,
                    help="simplify before printing (default: only for up to 3 coordinates)")
     i.set_defaults(func=cmd_info)
+    w = sub.add_parser("sweep", help="model file -> one ensemble over a grid or a random sample -> table (+PNG)",
+                       description=SWEEP_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_sweep_options(w)
+    w.set_defaults(func=cmd_sweep)
     return ap
 
 

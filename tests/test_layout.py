@@ -25,6 +25,7 @@ STAGES = [
     ("build",),
     ("solvers",),
     ("api",),
+    ("sweep",),
     ("legacy",),
     ("cli",),
     ("__main__", "__init__"),
