@@ -20,6 +20,7 @@ import symengine as se
 from ..derivation import to_se
 from ..errors import ModelError
 from ..model.events import event_list
+from ..model.model import RESERVED_PREFIX
 from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS as DEFAULT_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
@@ -191,7 +192,9 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         qp = [se.Symbol(f"__qp{i}") for i in range(n)]
         vp = [se.Symbol(f"__vp{i}") for i in range(n)]
         mu = [se.Symbol(f"__mu{k}") for k in range(JH)]
-        cj = se.Symbol("cj")
+        # IDA's coefficient: the C argument cj, a reserved symbol until printed (a coordinate or
+        # parameter named "cj" is y[i] or p[k] in the code, never this symbol)
+        cj = se.Symbol(f"{RESERVED_PREFIX}cj")
         res = []
         for i in range(n):
             res.append(qp[i] - sym.v[i] - sum((sym.A[k][i] * mu[k] for k in range(JH)), se.Integer(0)))
@@ -205,6 +208,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         gsub.update({m: se.Symbol(f"y[{2 * n + J + k}]") for k, m in enumerate(mu)})
         gsub.update({x: se.Symbol(f"yp[{i}]") for i, x in enumerate(qp)})
         gsub.update({x: se.Symbol(f"yp[{n + i}]") for i, x in enumerate(vp)})
+        gsub[cj] = se.Symbol("cj")
         blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], [c(e, gsub) for e in res])
         if ggl_jacobian:
             yvars = sym.q + sym.v + sym.lam + mu

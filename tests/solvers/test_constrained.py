@@ -359,3 +359,26 @@ def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
     fields = {k: dict(kv.split("=") for kv in v.split()) for k, v in lines.items()}
     assert abs(float(fields["cvc"]["g_end"])) < 1e-9 and int(fields["cvc"]["proj"]) > 0
     assert abs(float(fields["ida"]["g_end"])) < 1e-7
+
+
+def test_ggl_jacobian_of_a_coordinate_named_cj():
+    """The GGL Jacobian's own symbol cj (IDA's coefficient) never collides with a user's coordinate
+    or parameter of that name (issue 13)."""
+    m = lcg.Model("cj_pendulum")
+    cj, y = m.coordinates("cj y")
+    mass, l, g = m.parameters(m=1.0, l=1.0, g=G)
+    m.particle("bob", mass, [cj, y])
+    m.gravity(g)
+    sim = compile_constrained(ConstrainedSystem(m, holonomic=[cj ** 2 + y ** 2 - l ** 2]), "ggl")
+    rng = np.random.default_rng(2)
+    ng = sim.info.ng
+    yy, yp, c = rng.normal(size=ng), rng.normal(size=ng), 37.0
+    J = sim.ggl_jacobian(0.3, c, yy, yp)
+    eps = 1e-6
+    Jn = np.empty((ng, ng))
+    for j in range(ng):
+        d = np.zeros(ng)
+        d[j] = eps
+        Jn[:, j] = (sim.ggl_residual(0.3, yy + d, yp) - sim.ggl_residual(0.3, yy - d, yp)) / (2 * eps)
+        Jn[:, j] += c * (sim.ggl_residual(0.3, yy, yp + d) - sim.ggl_residual(0.3, yy, yp - d)) / (2 * eps)
+    assert np.max(np.abs(J - Jn)) < 1e-6 * max(1.0, np.max(np.abs(J)))
