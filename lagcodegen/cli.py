@@ -7,6 +7,9 @@ with Makefile, CMakeLists.txt, RK4 example and README), in minimal coordinates t
 model's sources; ``info`` also prints the constraints, their differential form (eq. 4.2) and
 the equations with multipliers (eq. 4.5).
 
+One job: the command line, from the options (each checked before any work) to the exit code;
+every subcommand hands the work to the pipeline's modules.
+
 Exit codes:
     0  success
     1  bad model or input (the message names the file, key and token)
@@ -14,12 +17,15 @@ Exit codes:
     3  the C compiler failed
     4  the integration failed
     5  ``generate --check``: the output folder is out of date
+  130  interrupted (Ctrl-C); 143: terminated (SIGTERM). No partial output file is left.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
+import signal
 import sys
 import time
 from pathlib import Path
@@ -39,8 +45,10 @@ from .derivation import derive
 from .errors import CompileError, LagcodegenError, ModelError, SolverError
 from .formulation.scene import Scene
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
+from .modelfile.loader import MAX_STEPS
 from .sweep import HELP as SWEEP_HELP, SweepOptionError, add_sweep_options, run_sweep, spec_from_namespace
 from .theory.minimal import reduced_model, solve_constraints
+from .util import EXCERPT, Terminated, excerpt, sigterm_raises
 from .version import __version__
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
@@ -61,17 +69,34 @@ def _csv(text: str | None) -> list[str] | None:
     return [s.strip() for s in text.split(",") if s.strip()]
 
 
+def _name(name: str) -> str:
+    """A name given on the command line, as it is, or an excerpt if it is long."""
+    return name if len(name) <= EXCERPT else excerpt(name)
+
+
 def _assignments(items: list[str]) -> dict[str, float]:
     out = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep:
-            raise ModelError(f"--set expects NAME=VALUE, got {item!r}")
+            raise UsageError(f"--set expects NAME=VALUE, got {excerpt(item)}")
         try:
             out[name.strip()] = float(value)
         except ValueError:
-            raise ModelError(f"--set {name.strip()}: {value!r} is not a number") from None
+            raise UsageError(f"--set {_name(name.strip())}: {excerpt(value)} is not a number") from None
     return out
+
+
+def _check_parameter_names(mf, args) -> None:
+    """Every --set names a parameter of the loaded model (exit 2 otherwise), checked before any
+    derivation: a misspelt name must not be ignored."""
+    params = [p.name for p in mf.model.params]
+    for name in _assignments(getattr(args, "set", None)):
+        if name not in params:
+            close = difflib.get_close_matches(name, params, n=1) or [p for p in params if p.lower() == name.lower()]
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise UsageError(f"--set {_name(name)}: not a parameter of {mf.model.name}{hint} "
+                             f"(parameters: {', '.join(params) or 'none'})")
 
 
 def _load(path: str, quiet: bool):
@@ -259,6 +284,7 @@ def cmd_generate(args) -> int:
         return EXIT_USAGE
     source = _load_source(args.model, args.quiet)
     mf = source.model_file
+    _check_parameter_names(mf, args)
     out = Path(args.output)
     manifest = manifest_name(args.prefix or mf.model.name)
     inputs, options, generator = input_record(source), _generate_options(args), generator_record()
@@ -316,7 +342,7 @@ def _simulate_constrained(mf, args):
     res = sim.simulate(times, q0=q0, v0=v0, params={k: v for k, v in values.items() if k in sim.param_names},
                        method=method, rtol=args.rtol if args.rtol is not None else s.rtol,
                        atol=args.atol if args.atol is not None else s.atol, backend=args.backend,
-                       initial="project" if args.project_initial else "check", **_max_steps(args))
+                       initial="project" if args.project_initial else "check", **_max_steps(args, s))
     _progress(f"integrated t = {res.t[0]:g}..{res.t[-1]:g} ({formulation}, {res.method}) in "
               f"{time.perf_counter() - t0:.4f} s: {res.stats.get('steps')} steps, "
               f"{res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
@@ -345,6 +371,9 @@ def _check_simulate_args(args) -> None:
         raise UsageError(f"--n-out {args.n_out}: give between 2 and 10000000 output times")
     if args.max_steps is not None and args.max_steps < 1:
         raise UsageError(f"--max-steps {args.max_steps}: give a positive step budget")
+    if args.max_steps is not None and args.max_steps > MAX_STEPS:
+        raise UsageError(f"--max-steps {args.max_steps}: give at most {MAX_STEPS} steps")
+    _assignments(args.set)  # NAME=VALUE pairs; the names are checked against the model once it is loaded
     for name in ("t_end", "rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and (value > 0 if name == "t_end" else value >= 0)):
@@ -352,13 +381,16 @@ def _check_simulate_args(args) -> None:
                              f"{'positive' if name == 't_end' else 'non-negative'} number")
 
 
-def _max_steps(args) -> dict:
-    return {} if args.max_steps is None else {"max_steps": args.max_steps}
+def _max_steps(args, sim) -> dict:
+    """The step budget of the whole run: --max-steps, else the file's [simulation] max_steps."""
+    max_steps = args.max_steps if args.max_steps is not None else sim.max_steps
+    return {} if max_steps is None else {"max_steps": max_steps}
 
 
 def cmd_simulate(args) -> int:
     _check_simulate_args(args)
     mf = _load(args.model, args.quiet)
+    _check_parameter_names(mf, args)
     if mf.constrained is not None:
         res = _simulate_constrained(mf, args)
         coords = [q.name for q in mf.model.coords]  # minimal: the eliminated ones are outputs
@@ -381,7 +413,7 @@ def cmd_simulate(args) -> int:
     res = cm.simulate(times, q0=q0, v0=v0, params=runtime_values, method=args.method or sim.method,
                       rtol=args.rtol if args.rtol is not None else sim.rtol,
                       atol=args.atol if args.atol is not None else sim.atol,
-                      backend=args.backend, jacobian=scene.jacobian, **_max_steps(args))
+                      backend=args.backend, jacobian=scene.jacobian, **_max_steps(args, sim))
     _progress(f"integrated t = {times[0]:g}..{times[-1]:g} in {time.perf_counter() - t0:.4f} s: "
               f"{res.stats.get('steps')} steps, {res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
     return _write_result(res, args)
@@ -578,7 +610,8 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
-        return args.func(args)
+        with sigterm_raises():  # SIGTERM: the atomic writers remove their temporary files
+            return args.func(args)
     except UsageError as exc:
         print(f"lagcodegen: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -594,6 +627,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C: runs stop within about a second; results are written only when complete
         print("lagcodegen: interrupted", file=sys.stderr)
         return 130
+    except Terminated:  # SIGTERM: as Ctrl-C, no partial output left behind
+        print("lagcodegen: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
 
 
 if __name__ == "__main__":  # pragma: no cover

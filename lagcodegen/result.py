@@ -87,15 +87,8 @@ class Result:
         path = Path(path)
         cols = self.columns()
         if path.suffix == ".npz":
-            import tempfile
-            fd, tmp = tempfile.mkstemp(dir=path.parent or ".", suffix=".npz")
-            os.close(fd)
-            try:
-                np.savez(tmp, **cols, stats=np.array(repr(self.stats)), message=np.array(self.message))
-                os.replace(tmp, path)
-            finally:
-                if os.path.exists(tmp):
-                    os.unlink(tmp)
+            with atomic_binary(path) as fh:  # the temporary file is removed on any exception (SIGTERM in the CLI)
+                np.savez(fh, **cols, stats=np.array(repr(self.stats)), message=np.array(self.message))
             return path
         if path.suffix != ".csv":
             raise ValueError(f"{path}: results are written as .csv or .npz")

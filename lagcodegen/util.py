@@ -1,4 +1,5 @@
-"""Small shared helpers under the whole pipeline: input checks and atomic file writes.
+"""Small shared helpers under the whole pipeline: input checks, bounded excerpts of inputs for
+messages, and atomic file writes (with SIGTERM turned into an exception so that they clean up).
 
 Every stage may import this module; it imports nothing of lagcodegen except the errors.
 """
@@ -8,7 +9,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import signal
 import tempfile
+import threading
 from pathlib import Path
 from typing import Mapping
 
@@ -17,12 +20,31 @@ import numpy as np
 from .errors import LagcodegenError, ModelError
 
 
+#: Characters of an offending input an error message shows (see :func:`excerpt`).
+EXCERPT = 80
+
+
+def excerpt(value, around: str | None = None, limit: int = EXCERPT) -> str:
+    """``repr(value)`` for an error message, bounded: a value whose text is longer than ``limit``
+    characters is shown as a quoted excerpt of ``limit`` characters (about ``around`` if it occurs
+    in it), ``...`` where cut, and its length, e.g. ``'x*zeta0 + x*ze'... (757 characters)``."""
+    text = value if isinstance(value, str) else repr(value)
+    if len(text) <= limit:
+        return repr(value)
+    start = 0
+    if around and around in text:
+        start = max(0, min(text.index(around) - (limit - len(around)) // 2, len(text) - limit))
+    piece = text[start:start + limit]
+    shown = repr(piece) if isinstance(value, str) else piece
+    return f"{'...' if start else ''}{shown}{'...' if start + limit < len(text) else ''} ({len(text)} characters)"
+
+
 def check_finite(value, what: str) -> float:
     """Return ``value`` as a float, or raise ModelError if it is not a finite real number."""
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ModelError(f"{what} must be a real number, got {value!r}") from None
+        raise ModelError(f"{what} must be a real number, got {excerpt(value)}") from None
     if not math.isfinite(x):
         raise ModelError(f"{what} must be finite, got {x}")
     return x
@@ -60,6 +82,30 @@ def atomic_binary(path: Path):
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+class Terminated(BaseException):
+    """SIGTERM as an exception (see :func:`sigterm_raises`); a BaseException, as KeyboardInterrupt,
+    so that nothing catches it by accident."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def sigterm_raises():
+    """Within the block, SIGTERM raises :class:`Terminated` (in the main thread; elsewhere signal
+    handlers cannot be set and this does nothing), so that :func:`atomic_write` and
+    :func:`atomic_binary` remove their temporary files on the way out."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def output_times(t) -> np.ndarray:

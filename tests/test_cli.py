@@ -259,3 +259,74 @@ def test_simulate_n_out_two_gives_two_rows_and_taylor_method(tmp_path):
                  "--method", "taylor", "-q"]) == 0
     rows = out.read_text().strip().splitlines()
     assert len(rows) == 3  # header + 2 output times
+
+
+SIGTERM_WHILE_WRITING = """
+import os, signal, sys, time
+from lagcodegen import cli
+from lagcodegen.result import Result
+
+real_replace = os.replace
+
+def sigterm_before_replace(src, dst):  # the temporary file is complete: SIGTERM arrives now
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(10)
+    real_replace(src, dst)
+
+method = getattr(Result, sys.argv[1])
+
+def writing(self, *args, **kwargs):
+    os.replace = sigterm_before_replace
+    return method(self, *args, **kwargs)
+
+setattr(Result, sys.argv[1], writing)
+sys.exit(cli.main(sys.argv[2:]))
+"""
+
+
+@pytest.mark.parametrize("method, name", [("save", "r.csv"), ("save", "r.npz"), ("plot", "r.png")])
+def test_sigterm_while_writing_leaves_no_temporary_file(tmp_path, method, name):
+    import os
+    out = tmp_path / "out"
+    out.mkdir()
+    args = ["simulate", EXAMPLES / "pendulum.toml", "-q", "--t-end", "0.1", "-o",
+            out / ("r.csv" if method == "plot" else name)]
+    if method == "plot":
+        args += ["--plot", out / name]
+    proc = subprocess.run([sys.executable, "-c", SIGTERM_WHILE_WRITING, method, *map(str, args)],
+                          capture_output=True, text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert proc.returncode == 143, proc.stderr
+    assert "terminated" in proc.stderr and "Traceback" not in proc.stderr
+    left = sorted(p.name for p in out.iterdir())
+    assert left == (["r.csv"] if method == "plot" else []), left  # no .tmp file, no partial output
+
+
+def test_set_of_an_unknown_parameter_is_refused(tmp_path):
+    from lagcodegen.cli import main
+    for model in ("pendulum.toml", "cartesian_pendulum.toml"):
+        for command in (["simulate", "-o", str(tmp_path / "r.csv")], ["generate", "-o", str(tmp_path / "gen")]):
+            for item in ("G=1.62", "zz=1"):
+                start = time.perf_counter()
+                assert main([command[0], str(EXAMPLES / model), *command[1:], "--set", item, "-q"]) == 2
+                assert time.perf_counter() - start < 2  # before deriving or compiling
+    assert not (tmp_path / "r.csv").exists() and not (tmp_path / "gen").exists()
+
+
+def test_set_message_names_the_parameters(capsys):
+    from lagcodegen.cli import main
+    assert main(["simulate", str(EXAMPLES / "pendulum.toml"), "-o", "r.csv", "--set", "G=1.62"]) == 2
+    err = capsys.readouterr().err
+    assert "--set G: not a parameter of pendulum; did you mean 'g'? (parameters: l, g, m)" in err
+    assert main(["simulate", str(EXAMPLES / "pendulum.toml"), "-o", "r.csv", "--set", "g"]) == 2
+    assert "--set expects NAME=VALUE, got 'g'" in capsys.readouterr().err
+
+
+def test_max_steps_from_the_model_file(tmp_path):
+    from lagcodegen.cli import main
+    text = (EXAMPLES / "pendulum.toml").read_text().replace('method = "adams"', 'method = "adams"\nmax_steps = 5')
+    model = tmp_path / "p.toml"
+    model.write_text(text)
+    for backend in ("native", "sksundae"):
+        assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "-q", "--backend", backend]) == 4
+        assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "-q", "--backend", backend,
+                     "--max-steps", "100000"]) == 0

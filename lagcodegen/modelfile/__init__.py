@@ -61,6 +61,7 @@ A build step can describe a model without writing Python::
     method = "adams"                      # or "bdf"
     rtol = 1e-8
     atol = 1e-10
+    max_steps = 1000000                   # step budget of the whole run (1 to 2**31 - 1)
     initial = { theta1 = 1.0, theta2 = 0.5, theta1_dot = 0.0 }
     outputs = ["energy", "positions"]     # scene outputs (see lagcodegen.scene.Scene)
     runtime_parameters = ["g"]            # default: every parameter stays adjustable

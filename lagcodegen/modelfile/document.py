@@ -36,6 +36,7 @@ class SimulationSettings:
     method: str = "adams"
     rtol: float = 1e-8
     atol: float = 1e-10
+    max_steps: int | None = None  # the step budget of the whole run (None: the solvers' default)
     initial: dict[str, float] = field(default_factory=dict)
     outputs: list[str] = field(default_factory=list)
     runtime_parameters: list[str] | None = None
@@ -107,6 +108,8 @@ class ModelFile:
         kwargs: dict[str, Any] = dict(
             q0=q0, v0=v0, method=method, rtol=s.rtol, atol=s.atol,
             params={k: v for k, v in s.parameters.items() if k in cm.param_names})
+        if s.max_steps is not None:
+            kwargs["max_steps"] = s.max_steps
         kwargs.update(options)
         return cm.simulate(self.times(), **kwargs)
 

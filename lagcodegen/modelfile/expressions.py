@@ -16,6 +16,7 @@ from typing import Callable, Mapping
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 
 #: Functions an expression may call: name -> (sympy function, number of arguments).
 FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
@@ -73,19 +74,19 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Basic],
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ExpressionError(f"invalid expression syntax ({exc.msg}) in {text!r}", token=text) from None
+        raise ExpressionError(f"invalid expression syntax ({exc.msg}) in {excerpt(text)}", token=text) from None
     except (ValueError, RecursionError, MemoryError):
-        raise ExpressionError(f"expression cannot be parsed: {text!r}", token=text) from None
+        raise ExpressionError(f"expression cannot be parsed: {excerpt(text)}", token=text) from None
     try:
         expr = _Converter(text.strip(), symbols, forbidden or {}).convert(tree)
     except RecursionError:
-        raise ExpressionError(f"expression is nested too deeply: {text!r}", token=text) from None
+        raise ExpressionError(f"expression is nested too deeply: {excerpt(text)}", token=text) from None
     if not isinstance(expr, sp.Expr):  # pragma: no cover - every converted node is an Expr
-        raise ExpressionError(f"not an expression: {text!r}", token=text)
+        raise ExpressionError(f"not an expression: {excerpt(text)}", token=text)
     if expr.has(*_NON_FINITE):
-        raise ExpressionError(f"expression {text!r} is not finite", token=text)
+        raise ExpressionError(f"expression {excerpt(text)} is not finite", token=text)
     if expr.has(sp.I):
-        raise ExpressionError(f"expression {text!r} has a complex value", token=text)
+        raise ExpressionError(f"expression {excerpt(text)} has a complex value", token=text)
     return expr
 
 
@@ -100,9 +101,13 @@ class _Converter:
     def source(self, node: ast.AST) -> str:
         return ast.get_source_segment(self.text, node) or type(node).__name__
 
+    def within(self, token: str | None = None) -> str:
+        """The expression for a message: all of it, or an excerpt about ``token`` if it is long."""
+        return excerpt(self.text, around=token)
+
     def reject(self, node: ast.AST, what: str) -> ExpressionError:
         token = self.source(node)
-        return ExpressionError(f"{what} {token!r} is not allowed in {self.text!r}", token=token)
+        return ExpressionError(f"{what} {excerpt(token)} is not allowed in {self.within(token)}", token=token)
 
     def convert(self, node: ast.AST) -> sp.Expr:
         if isinstance(node, ast.Expression):
@@ -119,8 +124,8 @@ class _Converter:
             return self.call(node)
         what = _CONSTRUCT_TEXT.get(type(node), f"Python construct {type(node).__name__}")
         if isinstance(node, ast.Attribute):
-            raise ExpressionError(f"attribute access {self.source(node)!r} (attribute {node.attr!r}) is not "
-                                  f"allowed in {self.text!r}", token=self.source(node))
+            raise ExpressionError(f"attribute access {excerpt(self.source(node))} (attribute {excerpt(node.attr)}) "
+                                  f"is not allowed in {self.within(self.source(node))}", token=self.source(node))
         raise self.reject(node, what)
 
     def constant(self, node: ast.Constant) -> sp.Expr:
@@ -142,15 +147,16 @@ class _Converter:
         if name in self.symbols:
             return self.symbols[name]
         if name in self.forbidden:
-            raise ExpressionError(f"{name!r} is not allowed here ({self.forbidden[name]}) in {self.text!r}",
+            raise ExpressionError(f"{name!r} is not allowed here ({self.forbidden[name]}) in {self.within(name)}",
                                   token=name)
         if name in FUNCTIONS:
-            raise ExpressionError(f"function {name!r} must be called, as {name}(...), in {self.text!r}",
+            raise ExpressionError(f"function {name!r} must be called, as {name}(...), in {self.within(name)}",
                                   token=name)
         close = difflib.get_close_matches(name, list(self.symbols), n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         known = ", ".join(self.symbols) or "none"
-        raise ExpressionError(f"unknown name {name!r} in {self.text!r}{hint} (known names: {known})", token=name)
+        raise ExpressionError(f"unknown name {excerpt(name)} in {self.within(name)}{hint} (known names: {known})",
+                              token=name)
 
     def binary(self, node: ast.BinOp) -> sp.Expr:
         # Long sums and products nest to the left: walk that spine without recursion.
@@ -167,7 +173,7 @@ class _Converter:
         if op is None:
             sym = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
             hint = " (use ** for powers)" if isinstance(node.op, ast.BitXor) else ""
-            raise ExpressionError(f"operator {sym!r} is not allowed in {self.text!r}{hint}", token=sym)
+            raise ExpressionError(f"operator {sym!r} is not allowed in {self.within(sym)}{hint}", token=sym)
         if isinstance(node.op, ast.Div) and right == 0:
             raise self.reject(node, "division by zero:")
         if isinstance(node.op, ast.Pow) and left.is_Number and right.is_Number:
@@ -180,22 +186,22 @@ class _Converter:
         if isinstance(node.op, ast.UAdd):
             return self.convert(node.operand)
         sym = _OPERATOR_TEXT.get(type(node.op), type(node.op).__name__)
-        raise ExpressionError(f"operator {sym!r} is not allowed in {self.text!r}", token=sym)
+        raise ExpressionError(f"operator {sym!r} is not allowed in {self.within(sym)}", token=sym)
 
     def call(self, node: ast.Call) -> sp.Expr:
         if not isinstance(node.func, ast.Name):
             token = self.source(node.func)
-            raise ExpressionError(f"call of {token!r} is not allowed in {self.text!r}; only the functions "
-                                  f"{', '.join(FUNCTIONS)} may be called", token=token)
+            raise ExpressionError(f"call of {excerpt(token)} is not allowed in {self.within(token)}; only the "
+                                  f"functions {', '.join(FUNCTIONS)} may be called", token=token)
         name = node.func.id
         if name not in FUNCTIONS:
-            raise ExpressionError(f"function {name!r} is not allowed in {self.text!r}; allowed functions: "
+            raise ExpressionError(f"function {excerpt(name)} is not allowed in {self.within(name)}; allowed functions: "
                                   f"{', '.join(FUNCTIONS)}", token=name)
         if node.keywords:
             kw = node.keywords[0]
             token = f"{kw.arg}=" if kw.arg else "**"
-            raise ExpressionError(f"keyword argument {token!r} in call of {name!r} is not allowed in "
-                                  f"{self.text!r}", token=token)
+            raise ExpressionError(f"keyword argument {excerpt(token)} in call of {name!r} is not allowed in "
+                                  f"{self.within(token)}", token=token)
         for arg in node.args:
             if isinstance(arg, ast.Starred):
                 raise self.reject(arg, "starred argument")
@@ -203,7 +209,7 @@ class _Converter:
         if len(node.args) != arity:
             plural = "s" if arity != 1 else ""
             raise ExpressionError(f"function {name!r} takes {arity} argument{plural}, got {len(node.args)} in "
-                                  f"{self.text!r}", token=name)
+                                  f"{self.within(name)}", token=name)
         return self.checked(node, func(*(self.convert(a) for a in node.args)))
 
     def check_power(self, node: ast.BinOp, base: sp.Expr, exponent: sp.Expr) -> None:

@@ -11,6 +11,7 @@ One job: :class:`_Loader` reads each table (the format: see :mod:`lagcodegen.mod
 from __future__ import annotations
 
 import difflib
+import math
 import re
 import sys
 from pathlib import Path
@@ -23,6 +24,7 @@ from ..model.events import DIRECTIONS, Event
 from ..model.model import Model
 from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS, OUTPUT_GROUPS
 from ..theory.constraints import FORMULATIONS, ConstrainedSystem
+from ..util import excerpt
 from .document import ModelFile, SimulationSettings, constrained_method, constrained_outputs
 from .expressions import FUNCTIONS, ExpressionError, parse_expression
 from .locate import ModelFileError, _format_key, _Key
@@ -44,8 +46,11 @@ _INTEGRABLE = ("error", "allow")
 _TOP_LEVEL = ("model", "parameters", "points", "particles", "planar_bodies", "rigid_bodies", "gravity",
               "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints", "events",
               "simulation")
-_SIMULATION_KEYS = ("t_start", "t_end", "n_out", "method", "rtol", "atol", "initial", "outputs",
+_SIMULATION_KEYS = ("t_start", "t_end", "n_out", "method", "rtol", "atol", "max_steps", "initial", "outputs",
                     "runtime_parameters", "parameters", "jacobian", "formulation", "baumgarte", "projection")
+#: Ranges of the [simulation] integers (n_out: as the CLI's --n-out; max_steps: fits a C long everywhere).
+MAX_N_OUT = 10_000_000
+MAX_STEPS = 2**31 - 1
 _CONSTRAINT_KEYS = ("holonomic", "nonholonomic", "inequalities", "integrable")
 _CONSTRAINT_PATH = re.compile(r"\b(nonholonomic|holonomic|inequality) constraint (\d+)")
 _POSITION_ONLY = "velocities are allowed only in forces, kinetic energy, dissipation, outputs and events"
@@ -83,7 +88,7 @@ class _Loader(_Reader):
         if isinstance(value, str):
             if value not in self.model.points:
                 known = ", ".join(self.model.points) or "none"
-                raise self.error(path, f"no point named {value!r} (points: {known})", token=value)
+                raise self.error(path, f"no point named {excerpt(value)} (points: {known})", token=value)
             return value
         if isinstance(value, list):
             return self.vector(path, value)
@@ -102,7 +107,8 @@ class _Loader(_Reader):
             if key not in _TOP_LEVEL:
                 close = difflib.get_close_matches(key, _TOP_LEVEL, n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise self.error([key], f"unknown top-level table {key!r}{hint} (allowed: {', '.join(_TOP_LEVEL)})",
+                raise self.error([key], f"unknown top-level table {excerpt(key)}{hint} "
+                                 f"(allowed: {', '.join(_TOP_LEVEL)})",
                                  token=key, needle=key)
         if "model" not in data:
             raise ModelFileError("missing required table [model]", self.filename, None, "", "model")
@@ -161,7 +167,7 @@ class _Loader(_Reader):
 
     def declare_name(self, path: Sequence[_Key], name: str) -> None:
         if name in FUNCTIONS:
-            raise self.error(path, f"name {name!r} is taken by the function {name}()", token=name, needle=name)
+            raise self.error(path, f"name {excerpt(name)} is taken by the function {name}()", token=name, needle=name)
 
     def load_parameters(self, table: dict) -> None:
         assert self.model is not None
@@ -259,7 +265,7 @@ class _Loader(_Reader):
         coord = self.string([*path, "coordinate"], entry["coordinate"])
         names = [q.name for q in self.model.coords]
         if coord not in names:
-            raise self.error([*path, "coordinate"], f"{coord!r} is not a coordinate (coordinates: "
+            raise self.error([*path, "coordinate"], f"{excerpt(coord)} is not a coordinate (coordinates: "
                              f"{', '.join(names)})", token=coord)
         expr = self.expr([*path, "expr"], entry["expr"], velocities=True)
         label = self.string([*path, "label"], entry["label"]) if "label" in entry else None
@@ -291,7 +297,7 @@ class _Loader(_Reader):
         for name, value in table.items():
             path = ["outputs", name]
             if name in builtin:
-                raise self.error(path, f"output name {name!r} is taken by a built-in output", token=name,
+                raise self.error(path, f"output name {excerpt(name)} is taken by a built-in output", token=name,
                                  needle=name)
             expr = self.expr(path, value, velocities=True)
             with self.at(path, needle=name):
@@ -320,7 +326,7 @@ class _Loader(_Reader):
             integrable = self.string([*path, "integrable"], table["integrable"])
             if integrable not in _INTEGRABLE:
                 raise self.error([*path, "integrable"], f"must be one of {', '.join(map(repr, _INTEGRABLE))}, got "
-                                 f"{integrable!r}", token=integrable)
+                                 f"{excerpt(integrable)}", token=integrable)
         if not (holonomic or nonholonomic or inequalities):
             raise self.error(path, "the [constraints] table gives no constraint (holonomic, nonholonomic or "
                              "inequalities)", token="constraints", needle="")
@@ -336,7 +342,7 @@ class _Loader(_Reader):
                 raise self.error(["parameters", name], f"the name {name!r} is reserved for the Lagrange multiplier "
                                  f"of constraint {j}: rename the parameter", token=name, needle=name)
             if name in self.symbols:
-                raise self.error(["model", "coordinates"], f"the name {name!r} is reserved for the Lagrange "
+                raise self.error(["model", "coordinates"], f"the name {excerpt(name)} is reserved for the Lagrange "
                                  f"multiplier of constraint {j}: rename the coordinate", token=name, needle=name)
         try:
             self.system = ConstrainedSystem(self.model, holonomic, nonholonomic, inequalities, integrable=integrable)
@@ -372,7 +378,7 @@ class _Loader(_Reader):
                 if name not in names:
                     close = difflib.get_close_matches(name, names, n=1)
                     hint = f"; did you mean {close[0]!r}?" if close else ""
-                    raise self.error([*path, "coefficients", name], f"{name!r} is not a coordinate{hint} "
+                    raise self.error([*path, "coefficients", name], f"{excerpt(name)} is not a coordinate{hint} "
                                      f"(coordinates: {', '.join(names)})", token=name, needle=name)
                 A[names.index(name)] = self.expr([*path, "coefficients", name], value)
         A0 = self.expr([*path, "A0"], entry["A0"]) if "A0" in entry else sp.Integer(0)
@@ -387,21 +393,22 @@ class _Loader(_Reader):
         self.fields(path, entry, required=["name", "expr"], optional=["direction", "terminal"])
         name = self.string([*path, "name"], entry["name"])
         if not name.isidentifier():
-            raise self.error([*path, "name"], f"event name {name!r} must be an identifier", token=name)
+            raise self.error([*path, "name"], f"event name {excerpt(name)} must be an identifier", token=name)
         taken = [f"ineq_{k}" for k in range(len(self.system.inequalities))] + [e.name for e in self.events]
         if name in taken:
             what = "is used twice" if name in (e.name for e in self.events) else \
                 "is taken by the event of an inequality constraint"
-            raise self.error([*path, "name"], f"event name {name!r} {what}", token=name)
+            raise self.error([*path, "name"], f"event name {excerpt(name)} {what}", token=name)
         multipliers = {lam.name: lam for lam in self.system.multipliers}
         expr = self.expr([*path, "expr"], entry["expr"], velocities=True, extra=multipliers)
         direction = entry.get("direction", 0)
         if isinstance(direction, bool) or direction not in DIRECTIONS:
             raise self.error([*path, "direction"], f"must be -1 (decreasing), 0 (both) or 1 (increasing), got "
-                             f"{direction!r}", token=repr(direction))
+                             f"{excerpt(direction)}", token=repr(direction))
         terminal = entry.get("terminal", True)
         if not isinstance(terminal, bool):
-            raise self.error([*path, "terminal"], f"must be true or false, got {terminal!r}", token=repr(terminal))
+            raise self.error([*path, "terminal"], f"must be true or false, got {excerpt(terminal)}",
+                             token=repr(terminal))
         with self.at(path):
             return Event(name, expr, int(direction), terminal)
 
@@ -417,15 +424,18 @@ class _Loader(_Reader):
         if not s.t_end > s.t_start:
             raise self.error([*sim, "t_end"], f"t_end ({s.t_end:g}) must be greater than t_start ({s.t_start:g})",
                              token="t_end")
+        if not math.isfinite(s.t_end - s.t_start):
+            raise self.error([*sim, "t_end"], f"t_end - t_start ({s.t_end:g} - {s.t_start:g}) is not a finite "
+                             "number", token="t_end")
         if "n_out" in table:
-            n_out = table["n_out"]
-            if isinstance(n_out, bool) or not isinstance(n_out, int) or n_out < 2:
-                raise self.error([*sim, "n_out"], f"must be an integer >= 2, got {n_out!r}", token=repr(n_out))
-            s.n_out = n_out
+            s.n_out = self.integer([*sim, "n_out"], table["n_out"], 2, MAX_N_OUT)
+        if "max_steps" in table:
+            s.max_steps = self.integer([*sim, "max_steps"], table["max_steps"], 1, MAX_STEPS)
         if "method" in table:
             method = self.string([*sim, "method"], table["method"])
             if method not in METHODS:
-                raise self.error([*sim, "method"], f"unknown method {method!r} (use one of: {', '.join(METHODS)})",
+                raise self.error([*sim, "method"], f"unknown method {excerpt(method)} "
+                                 f"(use one of: {', '.join(METHODS)})",
                                  token=method)
             s.method = method
         for key in ("rtol", "atol"):
@@ -434,9 +444,13 @@ class _Loader(_Reader):
                 if value < 0:
                     raise self.error([*sim, key], f"must not be negative, got {value:g}", token=key)
                 setattr(s, key, value)
+        if s.rtol == 0 and s.atol == 0:
+            key = "atol" if "atol" in table else "rtol"
+            raise self.error([*sim, key], "rtol and atol are both 0: no error tolerance at all; give rtol > 0 or "
+                             "atol > 0", token=key)
         for key in ("jacobian", "projection"):
             if key in table and not isinstance(table[key], bool):
-                raise self.error([*sim, key], f"must be true or false, got {table[key]!r}", token=key)
+                raise self.error([*sim, key], f"must be true or false, got {excerpt(table[key])}", token=key)
         if "jacobian" in table:
             s.jacobian = table["jacobian"]
         self.load_formulation(table, s)
@@ -445,7 +459,7 @@ class _Loader(_Reader):
         if "parameters" in table:
             for name, value in self.table([*sim, "parameters"], table["parameters"]).items():
                 if name not in params:
-                    raise self.error([*sim, "parameters", name], f"{name!r} is not a parameter (parameters: "
+                    raise self.error([*sim, "parameters", name], f"{excerpt(name)} is not a parameter (parameters: "
                                      f"{', '.join(params) or 'none'})", token=name)
                 s.parameters[name] = self.constant([*sim, "parameters", name], value)
         if "runtime_parameters" in table:
@@ -453,10 +467,10 @@ class _Loader(_Reader):
             runtime = self.strings(path, table["runtime_parameters"])
             for i, name in enumerate(runtime):
                 if name not in params:
-                    raise self.error([*path, i], f"{name!r} is not a parameter (parameters: "
+                    raise self.error([*path, i], f"{excerpt(name)} is not a parameter (parameters: "
                                      f"{', '.join(params) or 'none'})", token=name)
                 if runtime.index(name) != i:
-                    raise self.error([*path, i], f"parameter {name!r} is listed twice", token=name)
+                    raise self.error([*path, i], f"parameter {excerpt(name)} is listed twice", token=name)
             s.runtime_parameters = runtime
         if "outputs" in table:
             path = [*sim, "outputs"]
@@ -464,12 +478,12 @@ class _Loader(_Reader):
             for i, name in enumerate(self.strings(path, table["outputs"])):
                 if s.formulation == "minimal" and (name in ("lambda", "constraint_forces") or
                                                    name.startswith(("lambda_", "R_"))):
-                    raise self.error([*path, i], f"output {name!r}: minimal coordinates have no Lagrange "
+                    raise self.error([*path, i], f"output {excerpt(name)}: minimal coordinates have no Lagrange "
                                      "multipliers (use formulation 'index1' or 'ggl')", token=name)
                 if name not in known:
                     close = difflib.get_close_matches(name, known, n=1)
                     hint = f"; did you mean {close[0]!r}?" if close else ""
-                    raise self.error([*path, i], f"unknown output {name!r}{hint} (known: {', '.join(known)})",
+                    raise self.error([*path, i], f"unknown output {excerpt(name)}{hint} (known: {', '.join(known)})",
                                      token=name)
                 s.outputs.append(name)
         return s
@@ -501,14 +515,14 @@ class _Loader(_Reader):
             if formulation not in FORMULATIONS:
                 close = difflib.get_close_matches(formulation, FORMULATIONS, n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise self.error([*sim, "formulation"], f"unknown formulation {formulation!r}{hint} (use one of: "
-                                 f"{', '.join(FORMULATIONS)})", token=formulation)
+                raise self.error([*sim, "formulation"], f"unknown formulation {excerpt(formulation)}{hint} "
+                                 f"(use one of: {', '.join(FORMULATIONS)})", token=formulation)
             s.formulation = formulation
         if "baumgarte" in table:
             path = [*sim, "baumgarte"]
             raw = table["baumgarte"]
             if not isinstance(raw, list) or len(raw) != 2:
-                raise self.error(path, f"must be an array [alpha, beta] of two numbers, got {raw!r}",
+                raise self.error(path, f"must be an array [alpha, beta] of two numbers, got {excerpt(raw)}",
                                  token=repr(raw))
             values = tuple(self.constant([*path, i], v) for i, v in enumerate(raw))
             for i, value in enumerate(values):
@@ -539,7 +553,7 @@ class _Loader(_Reader):
         for name, value in table.items():
             path = ["simulation", "initial", name]
             if name not in names:
-                raise self.error(path, f"{name!r} is not a coordinate or velocity (state: {', '.join(names)})",
+                raise self.error(path, f"{excerpt(name)} is not a coordinate or velocity (state: {', '.join(names)})",
                                  token=name)
             initial[name] = self.constant(path, value)
         return initial

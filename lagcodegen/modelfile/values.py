@@ -15,6 +15,7 @@ from typing import Iterator, Mapping, Sequence
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 from .expressions import ExpressionError, parse_expression
 from .locate import ModelFileError, _format_key, _Key, _Locator
 
@@ -61,7 +62,7 @@ class _Reader:
             if key not in allowed:
                 close = difflib.get_close_matches(key, allowed, n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise self.error([*path, key], f"unknown key {key!r}{hint} (allowed: {', '.join(allowed)})",
+                raise self.error([*path, key], f"unknown key {excerpt(key)}{hint} (allowed: {', '.join(allowed)})",
                                  token=key)
         for key in required:
             if key not in table:
@@ -136,11 +137,19 @@ class _Reader:
                                  needle=value) from None
             number = float(expr.evalf())
             if not math.isfinite(number):
-                raise self.error(path, f"must be a finite number, {value!r} is {number}", token=value)
+                raise self.error(path, f"must be a finite number, {excerpt(value)} is {number}", token=value)
             return number
         if not math.isfinite(value):
             raise self.error(path, f"must be a finite number, got {value}", token=str(value))
         return float(value)
+
+    def integer(self, path: Sequence[_Key], value: object, low: int, high: int) -> int:
+        """A TOML integer from ``low`` to ``high``."""
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            what = f"an integer >= {low}" if isinstance(value, bool) or not isinstance(value, int) or value < low \
+                else f"an integer <= {high}"
+            raise self.error(path, f"must be {what}, got {excerpt(value)}", token=repr(value))
+        return value
 
     def array(self, path: Sequence[_Key], value: object) -> list:
         if not isinstance(value, list):

@@ -62,15 +62,16 @@ SINGULAR_AUGMENTED = ("the augmented matrix [M A^T; A 0] is singular (M singular
                       "rank deficient)")
 
 
-def message(flag: int, model_error: int, detail: str, solver: str = "CVODE", singular: str = SINGULAR_MASS) -> str:
+def message(flag: int, model_error: int, detail: str, solver: str = "CVODE", singular: str = SINGULAR_MASS,
+            t: float | None = None) -> str:
     """The message of a run that ended with ``flag``: success, the model's own error (singular
-    matrix, non-finite value) or the solver's, with the solver's ``detail`` text."""
+    matrix, non-finite value, at ``t`` if given) or the solver's, with the solver's ``detail`` text."""
     if flag >= 0:
         return "success"
     if model_error == ERR_SINGULAR:
         return singular
     if model_error == ERR_NONFINITE:
-        return "a computed value is not finite"
+        return "a computed value is not finite" + (f" at t = {t:.17g}" if t is not None else "")
     text = FLAG_TEXT.get(solver, {}).get(flag, f"{solver} failed with flag {flag}")
     return f"{text}: {detail}" if detail else text
 

@@ -77,9 +77,13 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     if done < nt:
         t, yout, out = t[:done].copy(), yout[:done].copy(), out[:done].copy()
+    text = message(flag, st.model_error, detail, t=st.t_reached)
+    if flag == -1 and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
+        text = (f"the step size fell below the resolution of t at t = {st.t_reached:.17g} (is the solution "
+                f"singular there?); {text}")
     return Result(t=t, y=yout, state_names=list(cm.state_names),
                   outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
-                  stats=native_stats(ffi, st), status=int(flag), message=message(flag, st.model_error, detail),
+                  stats=native_stats(ffi, st), status=int(flag), message=text,
                   backend="native", method=method)
 
 

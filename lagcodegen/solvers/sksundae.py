@@ -1,17 +1,22 @@
 """The scikit-sundae family: scikit-sundae's Python API (CVODE, IDA) on the same compiled
 functions as the native drivers (one Python callback per right-hand-side evaluation, about 5 us
-each): the second method that checks them. ODE runs, index-1 and GGL constrained runs."""
+each): the second method that checks them. ODE runs, index-1 and GGL constrained runs.
+
+``max_steps`` means what it means on the native drivers, a budget of internal steps for the
+whole run (scikit-sundae's ``max_num_steps`` counts the steps of one output interval):
+:func:`_budgeted_solve` takes the steps one by one and interpolates at the output times."""
 
 from __future__ import annotations
 
-import numpy as np
-
 import time
+from types import SimpleNamespace
+
+import numpy as np
 
 from ..errors import LagcodegenError
 from ..model.events import EventRecord
 from ..result import Result
-from .base import ERR_SINGULAR, SINGULAR_AUGMENTED, message
+from .base import ERR_NONFINITE, ERR_SINGULAR, SINGULAR_AUGMENTED, message
 from .ida import ALGEBRAIC_ATOL
 
 
@@ -27,10 +32,12 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
 
     def rhsfn(tt, y, yp):
         rc = crhs(tt, ffi.from_buffer("double[]", y), pp, ffi.from_buffer("double[]", yp, require_writable=True))
+        state["nonfinite"] = rc == ERR_NONFINITE  # as the native driver: named if the run fails right after
         if rc == 1:
             state["model_error"], state["t"] = 1, tt
             yp[:] = np.nan
         elif rc:
+            state["t_nonfinite"] = tt
             yp[:] = np.nan
 
     def jacfn(tt, y, yp, JJ):
@@ -47,8 +54,7 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
         options["max_order"] = max_order
     if jacobian:
         options["jacfn"] = jacfn
-    solver = CVODE(rhsfn, **options)
-    soln = solver.solve(t, y0)
+    soln = _budgeted_solve(CVODE(rhsfn, **options), t, (y0,), max_steps)
     done = len(soln.t)
     y = np.asarray(soln.y, dtype=float).reshape(done, ny)
     outs = np.full((done, cm.code.nout), np.nan)
@@ -66,22 +72,62 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
                 except LagcodegenError:
                     break
     status = int(getattr(soln, "status", 0))
-    # scikit-sundae reports no step count, and nfev omits difference-quotient Jacobian calls.
-    stats = dict(steps=None, rhs_evals=int(getattr(soln, "nfev", -1)),
+    if state.get("nonfinite") and not state["model_error"] and status in (-3, -4, -9, -10, -11):
+        state["model_error"], state["t"] = ERR_NONFINITE, state["t_nonfinite"]
+    # nfev omits difference-quotient Jacobian calls.
+    stats = dict(steps=soln.steps, rhs_evals=int(getattr(soln, "nfev", -1)),
                  jac_evals=int(getattr(soln, "njev", -1)), t_reached=float(soln.t[-1]) if done else float(t[0]),
                  model_error=state["model_error"])
     text = str(getattr(soln, "message", ""))
     if status < 0 or not getattr(soln, "success", True):
         status = status if status < 0 else -3
-        text = message(status, state["model_error"], text)
-        if state["model_error"]:
-            stats["t_reached"] = state["t"]
+        text = message(status, state["model_error"], text, t=state["t"] if state["model_error"] else None)
+        stats["t_reached"] = state["t"] if state["model_error"] else soln.t_reached
     return Result(t=np.asarray(soln.t, dtype=float), y=y, state_names=list(cm.state_names),
                   outputs={k: outs[:, i] for i, k in enumerate(cm.output_names)}, stats=stats,
                   status=status if status < 0 else 0, message=text if status < 0 else "success",
                   backend="sksundae", method=method)
 
 
+def _budgeted_solve(solver, t, initial: tuple, max_steps: int, eventsfn=None) -> SimpleNamespace:
+    """What ``solver.solve(t, *initial)`` returns (t, y, status, message, success, nfev, njev,
+    the events), plus ``steps``, with ``max_steps`` a budget of internal steps for the whole run
+    as on the native drivers: one internal step per call (stopping at t[-1]), each output time
+    interpolated by a call that takes no step once a step has passed it; a terminal event ends
+    the run with its own row; a run that would need more steps stops with status -1."""
+    first = solver.init_step(float(t[0]), *initial)
+    rows_t, rows_y = [float(t[0])], [np.array(first.y, dtype=float)]
+    last, steps, status, text = first, 0, 0, ""
+    t_end, tn, k, nt = float(t[-1]), float(t[0]), 1, len(t)
+    while k < nt:
+        if tn < t[k]:
+            if steps >= max_steps:
+                status = -1
+                text = f"the step budget max_steps = {max_steps} is used up before t = {float(t[k]):.17g}"
+                break
+            r = solver.step(float(t[k]), "onestep", t_end)
+            last, steps = r, steps + 1
+            if r.status < 0:
+                status, text, tn = int(r.status), str(r.message), float(r.t)
+                break
+            tn = float(r.t)
+            if r.status == 2 and eventsfn is not None and np.any(eventsfn._i_cnt >= eventsfn._max_events):
+                rows_t.append(tn)
+                rows_y.append(np.array(r.y, dtype=float))
+                break
+            continue
+        r = solver.step(float(t[k]), "normal", None)  # t[k] lies within the last step: no new step
+        last = r
+        if r.status < 0:
+            status, text = int(r.status), str(r.message)
+            break
+        rows_t.append(float(r.t))
+        rows_y.append(np.array(r.y, dtype=float))
+        k += 1
+    return SimpleNamespace(t=np.array(rows_t), y=np.array(rows_y), status=status, success=status >= 0,
+                           message=text or "success", nfev=last.nfev, njev=last.njev, steps=steps,
+                           t_reached=tn, i_events=last.i_events, t_events=last.t_events,
+                           y_events=last.y_events)
 
 
 def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, roots, max_steps, first_step,
@@ -111,7 +157,7 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, roots, max_step
     if roots:
         options.update(_events(sim, lambda tt, y: (y, None), p))
     start = time.perf_counter()
-    soln = CVODE(rhsfn, **options).solve(t, y0)
+    soln = _budgeted_solve(CVODE(rhsfn, **options), t, (y0,), max_steps, options.get("eventsfn"))
     wall = time.perf_counter() - start
     return _constrained_result(sim, soln, t, ny, p, state, wall, method, "scikit-sundae")
 
@@ -154,7 +200,7 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, jacobian, roots, max_steps, first
         options.update(_events(sim, lambda tt, y: (np.ascontiguousarray(y[: 2 * n]),
                                                    np.ascontiguousarray(y[2 * n: 2 * n + J])), p, dae=True))
     start = time.perf_counter()
-    soln = IDA(resfn, **options).solve(t, yy0, yp0)
+    soln = _budgeted_solve(IDA(resfn, **options), t, (yy0, yp0), max_steps, options.get("eventsfn"))
     wall = time.perf_counter() - start
     res = _constrained_result(sim, soln, t, 2 * n, p, state, wall, "bdf", "IDA", lam_slice=slice(2 * n, 2 * n + J))
     yfull = np.asarray(soln.y, dtype=float).reshape(len(soln.t), -1)
@@ -210,15 +256,14 @@ def _constrained_result(sim, soln, t, ny, p, state, wall, method, solver, lam_sl
                 recs.append(EventRecord(ev.name, int(i), float(te), np.array(yk[:ny], dtype=float),
                                         int(np.sign(info[i])), ev.terminal, list(sim.state_names)))
     status = int(getattr(soln, "status", 0))
-    stats = dict(steps=None, rhs_evals=int(getattr(soln, "nfev", -1)), jac_evals=int(getattr(soln, "njev", -1)),
+    stats = dict(steps=soln.steps, rhs_evals=int(getattr(soln, "nfev", -1)), jac_evals=int(getattr(soln, "njev", -1)),
                  t_reached=float(soln.t[-1]) if done else float(t[0]), model_error=state["model_error"],
                  wall_time=wall)
     text = str(getattr(soln, "message", ""))
     if status < 0 or not getattr(soln, "success", True):
         status = status if status < 0 else -3
         text = message(status, state["model_error"], text, solver, SINGULAR_AUGMENTED)
-        if state["model_error"]:
-            stats["t_reached"] = state["t"]
+        stats["t_reached"] = state["t"] if state["model_error"] else soln.t_reached
     res = Result(t=np.asarray(soln.t, dtype=float), y=y[:, :ny].copy(), state_names=list(sim.state_names),
                  outputs={k: outs[:, i] for i, k in enumerate(sim.info.output_names)}, stats=stats,
                  status=status if status < 0 else 0, message=text if status < 0 else "success",

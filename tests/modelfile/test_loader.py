@@ -779,3 +779,44 @@ def test_malicious_event_executes_nothing(tmp_path):
     err = load_error(text)
     assert_error(err, line=N_CBASE + 4, key="events[0].expr", token="__import__")
     assert not pwned.exists()
+
+
+@pytest.mark.parametrize("extra, key, token", [
+    ("n_out = 100000000000000", "simulation.n_out", "an integer <= 10000000"),
+    ("n_out = 1e14", "simulation.n_out", "an integer >= 2"),
+    ("max_steps = 0", "simulation.max_steps", "an integer >= 1"),
+    ("max_steps = 100000000000000", "simulation.max_steps", "an integer <= 2147483647"),
+    ("max_steps = 2.5", "simulation.max_steps", "an integer >= 1"),
+    ("rtol = 0\natol = 0", "simulation.atol", "rtol and atol are both 0"),
+    ("t_start = -1e308\nt_end = 1e308", "simulation.t_end", "is not a finite number"),
+])
+def test_simulation_numbers_are_range_checked_at_load(extra, key, token):
+    """Out-of-range numbers of [simulation] are refused at load, with the file and line (issue 13)."""
+    err = load_error(BASE + "\n[simulation]\n" + extra + "\n")
+    assert_error(err, line=N_BASE + 2 + extra.count("\n") + 1, key=key, token=token)
+
+
+def test_max_steps_in_the_simulation_table():
+    mf = loads_model(BASE + "\n[simulation]\nmax_steps = 5\n")
+    assert mf.simulation.max_steps == 5
+    with pytest.raises(lagcodegen.SolverError, match="max_steps = 5"):
+        mf.simulate()
+
+
+def test_messages_show_a_bounded_excerpt_of_a_long_input():
+    """A 757-character expression is not echoed whole (twice): the message names the problem
+    and shows at most about 80 characters of it, about the offending token (issue 13)."""
+    long = " + ".join(f"theta*m{i}" for i in range(70))
+    err = load_error(BASE.replace('mass = "m"', f'mass = "{long}"'))
+    text = str(err)
+    assert "unknown name 'm0' in 'theta*m0 + theta*m1" in text and f"({len(long)} characters)" in text
+    assert len(text) < 400 and long not in text
+    err = load_error(BASE.replace('mass = "m"', f'mass = "({long}) +* 2"'))
+    assert "invalid expression syntax" in str(err) and len(str(err)) < 300
+    err = load_error(BASE.replace('mass = "m"', f'mass = "{long} + 1.5e400"'))
+    assert len(str(err)) < 400
+    with pytest.raises(ModelError) as info:
+        parse_expression(" + ".join(["theta"] * 200) + " + zeta", {"theta": sp.Symbol("theta")})
+    assert "...'" in str(info.value) and "zeta" in str(info.value) and len(str(info.value)) < 300
+    # short inputs: the message as before
+    assert "unknown name 'zeta' in 'theta*zeta'" in str(load_error(BASE.replace('mass = "m"', 'mass = "theta*zeta"')))

@@ -233,3 +233,51 @@ def test_output_not_finite_at_the_initial_state_names_it(log_output, options):
         log_output.simulate([2.0, 3.0], q0=[-1.0], v0=[1.0], **options)
     res = log_output.simulate([0, 0.5], q0=[1.0], **options)
     assert res.success and np.isfinite(res["log_x"]).all()
+
+
+@pytest.mark.parametrize("method", ["adams", "bdf"])
+def test_max_steps_is_a_budget_for_the_whole_run_on_both_backends(double_pendulum, method):
+    """scikit-sundae's max_num_steps counts the steps of one output interval; max_steps means
+    the steps of the whole run on both backends (issue 13)."""
+    t = np.linspace(0, 5, 51)
+    kw = dict(q0=[1.0, 0.5], method=method, rtol=1e-8, atol=1e-10)
+    native = double_pendulum.simulate(t, **kw)
+    ref = double_pendulum.simulate(t, backend="sksundae", **kw)
+    steps = native.stats["steps"]
+    assert abs(ref.stats["steps"] - steps) < 0.1 * steps  # counted; about the same steps
+    np.testing.assert_allclose(ref.y, native.y, rtol=0, atol=1e-6)
+    budget = steps // 2  # more than any one interval takes, half of the run
+    for backend in ("native", "sksundae"):
+        with pytest.raises(SolverError, match="max_steps") as info:
+            double_pendulum.simulate(t, backend=backend, max_steps=budget, **kw)
+        assert info.value.flag == -1 and 0 < info.value.t < 5
+        assert double_pendulum.simulate(t, backend=backend, max_steps=2 * steps, **kw).success
+
+
+@pytest.fixture(scope="module")
+def toward_a_singularity():
+    """x'' = 1/sqrt(1 - x) from rest at 0: x reaches 1 in finite time, where the force is not
+    finite (beyond it: NaN)."""
+    m = lcg.Model("toward_one")
+    x, = m.coordinates("x")
+    m.particle("p", 1, [x, 0])
+    m.generalized_force(x, 1 / sp.sqrt(1 - x))
+    return lcg.compile_model(m)
+
+
+@pytest.mark.parametrize("backend", ["native", "sksundae"])
+@pytest.mark.parametrize("method", ["adams", "bdf"])
+def test_a_right_hand_side_turning_non_finite_is_named(toward_a_singularity, method, backend):
+    """Not 'corrector convergence failed' or 'too many steps' alone: the non-finite value and its
+    t, or steps that no longer advance t (issue 13)."""
+    with pytest.raises(SolverError) as info:
+        toward_a_singularity.simulate(np.linspace(0, 5, 101), method=method, max_steps=20000, backend=backend)
+    text = str(info.value)
+    if backend == "sksundae":  # its CVODE: the non-finite value, or too many steps
+        assert "a computed value is not finite at t = 1.333" in text or "max_steps" in text, text
+        return
+    assert "a computed value is not finite at t = 1.333" in text or \
+        "the step size fell below the resolution of t at t = 1.333" in text, text
+    assert 1.33 < info.value.t < 1.334
+    if method == "bdf":
+        assert "a computed value is not finite at t = 1.333" in text and "corrector" not in text
