@@ -181,9 +181,9 @@ class ConstrainedSimulation(_Base):
 
     def roots(self, t: float, y, params=None, lam=None) -> np.ndarray:
         """Event functions at (t, y)."""
+        y = self._y(y)
         if self.c_roots is None:
             return np.empty(0)
-        y = self._y(y)
         p = self._p(params)
         out = np.empty(len(self.info.events))
         lp = self.ffi.NULL if lam is None else self._ptr(self._y(lam, self.info.J, "lam"))
