@@ -33,6 +33,21 @@ def test_generated_c_compiles_with_strict_warnings(tmp_path, cc, name):
     assert proc.returncode == 0, proc.stderr
 
 
+@pytest.mark.parametrize("opt", ["-O2", "-O3"])
+@pytest.mark.parametrize("name", ["pendulum", "central_potential", "spring_chain"])
+def test_generated_c_compiles_strictly_when_optimized(tmp_path, cc, name, opt):
+    """Optimizers see more (inlined solves, array bounds, uninitialized reads): embedders build
+    with -O2 -Werror. One coordinate (a 1 x 1 system), a diagonal M, a chain with the sparse
+    Jacobian."""
+    model = getattr(systems, name)(*((4, 1e3) if name == "spring_chain" else ()))
+    code = generate_c(Scene(derive(model), outputs=["energy"], sparse_jacobian=True))
+    code.write(tmp_path)
+    for source in (code.source_name, f"{code.prefix}_sparse.c"):
+        proc = subprocess.run([cc, opt, *STRICT_CFLAGS, "-c", source, "-o", "m.o"], cwd=tmp_path,
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+
+
 def test_native_driver_compiles_with_strict_warnings(tmp_path, cc):
     code = code_for("double_pendulum", outputs=["energy"])
     code.write(tmp_path)
