@@ -51,19 +51,11 @@ def check_finite(value, what: str) -> float:
 
 
 def atomic_write(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    """Write ``text`` (UTF-8, newlines as they are) to ``path`` so that readers see the old file
+    or the new one, never half (:func:`atomic_binary`)."""
+    with atomic_binary(path) as fh:
+        fh.write(text.encode("utf-8"))
+    return Path(path)
 
 
 @contextlib.contextmanager
