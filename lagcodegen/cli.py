@@ -48,7 +48,7 @@ from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .modelfile.loader import MAX_STEPS
 from .sweep import HELP as SWEEP_HELP, SweepOptionError, add_sweep_options, run_sweep, spec_from_namespace
 from .theory.minimal import reduced_model, solve_constraints
-from .util import EXCERPT, Terminated, excerpt, sigterm_raises
+from .util import EXCERPT, Terminated, excerpt, output_problem, sigterm_raises
 from .version import __version__
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
@@ -360,13 +360,9 @@ def _simulate_constrained(mf, args):
 
 def _check_simulate_args(args) -> None:
     """Every option of ``simulate`` checked before any work (exit 2 on a bad one)."""
-    out = Path(args.output)
-    if out.suffix not in (".csv", ".npz"):
-        raise UsageError(f"-o {args.output}: results are written as .csv or .npz")
-    if out.is_dir():
-        raise UsageError(f"-o {args.output}: is a folder; give a file name ending in .csv or .npz")
-    if args.plot is not None and Path(args.plot).suffix != ".png":
-        raise UsageError(f"--plot {args.plot}: plots are written as .png")
+    problem = output_problem(args.output, args.plot, "results are")
+    if problem:
+        raise UsageError(problem)
     if args.n_out is not None and not 2 <= args.n_out <= 10_000_000:
         raise UsageError(f"--n-out {args.n_out}: give between 2 and 10000000 output times")
     if args.max_steps is not None and args.max_steps < 1:

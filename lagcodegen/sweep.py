@@ -42,7 +42,7 @@ from .buildstep import load_source
 from .errors import LagcodegenError, SolverError
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .solvers.ensemble import EnsembleInterrupted
-from .util import atomic_binary
+from .util import atomic_binary, output_problem
 
 #: Distributions of ``--sample``, with the meaning of their two numbers.
 DISTRIBUTIONS = {"uniform": "LOW:HIGH", "normal": "MEAN:SD", "loguniform": "LOW:HIGH (0 < LOW)"}
@@ -211,13 +211,9 @@ def parse_sample(item: str) -> tuple[str, str, float, float]:
 
 def check_options(spec: SweepSpec) -> Plan:
     """Everything that can be checked without reading the model file (exit 2 on a bad one)."""
-    out = Path(spec.output)
-    if out.suffix not in (".csv", ".npz"):
-        raise SweepOptionError(f"-o {spec.output}: the table is written as .csv or .npz")
-    if out.is_dir():
-        raise SweepOptionError(f"-o {spec.output}: is a folder; give a file name ending in .csv or .npz")
-    if spec.plot is not None and Path(spec.plot).suffix != ".png":
-        raise SweepOptionError(f"--plot {spec.plot}: plots are written as .png")
+    problem = output_problem(spec.output, spec.plot, "the table is")
+    if problem:
+        raise SweepOptionError(problem)
     if spec.plot_y is not None and spec.plot is None:
         raise SweepOptionError("--plot-y needs --plot FILE.png")
     if spec.threads is not None and not 1 <= spec.threads <= 4096:

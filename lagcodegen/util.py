@@ -125,6 +125,20 @@ def output_times(t) -> np.ndarray:
     return t
 
 
+def output_problem(output, plot, written: str) -> str | None:
+    """What is wrong with a command's result file ``output`` (.csv or .npz, not a folder) and
+    ``plot`` file (.png, or None), in the words "-o FILE: <written> written as .csv or .npz";
+    None when both are fine."""
+    out = Path(output)
+    if out.suffix not in (".csv", ".npz"):
+        return f"-o {output}: {written} written as .csv or .npz"
+    if out.is_dir():
+        return f"-o {output}: is a folder; give a file name ending in .csv or .npz"
+    if plot is not None and Path(plot).suffix != ".png":
+        return f"--plot {plot}: plots are written as .png"
+    return None
+
+
 def state_values(val, names: list[str], what: str) -> list[float]:
     """Values for ``names`` from None (zeros), a mapping by name (missing: 0) or a sequence, as
     a list of finite floats; ModelError names what is wrong (unknown names, length, values)."""
