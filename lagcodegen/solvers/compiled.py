@@ -48,6 +48,9 @@ class CompiledModel:
         self.c_outputs_batch = getattr(self.lib, f"{p}_outputs_batch", None)
         self.native_solve = getattr(self.lib, f"{p}_cvode_solve", None)
         self.native_solve_many = getattr(self.lib, f"{p}_cvode_solve_many", None)
+        # the C types of the CVODE driver's options, statistics and ensemble structs
+        self.options_type, self.stats_type = f"{p}_options", f"{p}_stats *"
+        self.ensemble_type = f"{p}_cvode_ensemble"
         self.poll = control.install(module)  # the drivers' poll callback (Ctrl-C, progress)
         self._defaults = np.array(code.param_defaults, dtype=float)
         self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use

@@ -55,12 +55,12 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                  min_step, max_order, band=None, fixedpoint=False, max_wall=0.0) -> Result:
     """An ODE run of a compiled scene: one call of ``<prefix>_cvode_solve`` over all output times."""
-    ffi, pre = cm.ffi, cm.code.prefix
+    ffi = cm.ffi
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, max(cm.code.nout, 1)))
     keep: list = []
-    opt = native_options(ffi, f"{pre}_options", atol, keep, method=METHODS[method], jacobian=int(jacobian),
+    opt = native_options(ffi, cm.options_type, atol, keep, method=METHODS[method], jacobian=int(jacobian),
                          rtol=rtol, max_steps=max_steps, first_step=first_step, max_step=max_step,
                          min_step=min_step, max_order=max_order,
                          linear_solver=1 if band else 2 if fixedpoint else 0,
@@ -68,7 +68,7 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     opt.poll = cm.poll
     opt.poll_every = POLL_EVERY
     opt.max_wall = max_wall
-    st = ffi.new(f"{pre}_stats *")
+    st = ffi.new(cm.stats_type)
     flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
                            ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
     if flag == CANCELLED:

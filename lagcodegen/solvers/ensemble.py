@@ -57,7 +57,7 @@ def cvode_options(cm, y_probe, p_probe, *, method="adams", rtol=1e-8, atol=1e-10
         raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
     band = band_widths(cm, bandwidths, y_probe, p_probe) if linear_solver == "band" else None
     keep = [] if keep is None else keep
-    opt = native_options(cm.ffi, f"{cm.code.prefix}_options", atol_arr, keep, method=METHODS[method],
+    opt = native_options(cm.ffi, cm.options_type, atol_arr, keep, method=METHODS[method],
                          jacobian=int(bool(jacobian)), rtol=rtol, max_steps=int(max_steps), first_step=first_step,
                          max_step=max_step, min_step=min_step, max_order=max_order,
                          linear_solver=1 if band else 2 if linear_solver == "fixedpoint" else 0,
@@ -96,7 +96,7 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
     if not cm.native or cm.native_solve_many is None:
         raise LagcodegenError("this module was built without the native driver (build(native=False))")
     opt, keep = cvode_options(cm, Y[0], _param_row(P, 0), max_wall=max_wall, **options)
-    return run_native(cm.ffi, cm.native_solve_many, f"{cm.code.prefix}_cvode_ensemble", opt, t=t, Y0=Y, P=P,
+    return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, t=t, Y0=Y, P=P,
                       nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
                       row_names=cm.state_names, save=save, threads=threads, progress=progress, poll=cm.poll,
                       method=options.get("method", "adams"), n_coordinates=cm.n, param_names=cm.param_names)
