@@ -10,8 +10,8 @@ Adams with difference quotients, BDF with the generated Jacobian):
 
 * hand [ms]        one complete solve in the C program (context, vectors and solver created
                    and freed each time), median of --repeats, timed inside the program;
-* driver [ms]      ``<prefix>_cvode_solve`` called through cffi with preallocated arrays
-                   (the generated driver alone);
+* driver [ms]      ``lcg_cvode_solve`` (the model-independent driver, on the model's function
+                   table) called through cffi with preallocated arrays (the driver alone);
 * simulate [ms]    ``CompiledModel.simulate`` (the Python API: checks, one RHS call at the
                    initial state, array allocation, the Result);
 * ratios           driver / hand and simulate / hand (target: within 1.2x), and the largest
@@ -99,22 +99,23 @@ def run_hand(exe: Path, method: str, jac: bool, repeats: int) -> tuple[float, np
 
 
 def driver_call(cm, method: str, jac: bool):
-    """A function running ``<prefix>_cvode_solve`` once through cffi with preallocated arrays."""
-    ffi, lib, pre = cm.ffi, cm.lib, cm.code.prefix
+    """A function running the native CVODE driver (``lcg_cvode_solve`` on the model's function
+    table) once through cffi with preallocated arrays."""
+    ffi = cm.ffi
     t = np.linspace(0.0, T_END, NT)
     y0 = np.array([Q0] * cm.n + [0.0] * cm.n)
     p = cm.parameter_vector()
     yout = np.empty((NT, cm.ny))
     out = np.empty((NT, 1))
-    opt = ffi.new(f"{pre}_options *")
-    st = ffi.new(f"{pre}_stats *")
+    opt = ffi.new(f"{cm.options_type} *")
+    st = ffi.new(cm.stats_type)
     opt.method = 1 if method == "adams" else 2
     opt.jacobian = int(jac)
     opt.rtol, opt.atol, opt.atol_vec = RTOL, ATOL, ffi.NULL
     opt.max_steps = 1_000_000
     args = (ffi.from_buffer("double[]", p), ffi.from_buffer("double[]", y0), NT, ffi.from_buffer("double[]", t),
             ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
-    fn = getattr(lib, f"{pre}_cvode_solve")
+    fn = cm.native_solve
 
     def call():
         if fn(*args) != 0:

@@ -6,144 +6,44 @@ folder that is renamed into the cache when complete, so a cached module is never
 written, and two processes building the same model at once both succeed (the second
 rename loses the race and that process uses the winner's files).
 
-A cached module is code that gets executed, so the cache trusts only what it can check:
-
-* the cache root (``$LAGCODEGEN_CACHE``, else ``~/.cache/lagcodegen``) is created 0700 and used
-  only if it is owned by the current user and not group/world-writable; otherwise a one-line
-  :class:`CacheWarning` says so and the build goes to a private temporary folder instead;
-* an entry is loaded only if its folder and files are the user's own, not group/world-writable,
-  and the module's sha256 matches the digest recorded when it was published (checked before
-  the module is opened: a truncated or altered module is never loaded). A foreign entry is
-  left alone and the model is built privately; a damaged one of the user's own is replaced
-  (both with a one-line warning);
-* a module is published only after it was imported from its build folder; one that does not
-  import is an error, never a cache entry;
-* generated files never shadow a system header: the build compiles without ``-I`` on its own
-  folder, so ``#include <math.h>`` finds the system's even for a model named ``math``;
-* ``.build-*`` folders left by a killed build are removed once stale (owned by the user, and
-  their process gone or they are older than any compile).
+The cache's rules of trust are :mod:`lagcodegen.cache`'s.
 """
 
 from __future__ import annotations
 
-import atexit
+import concurrent.futures
 import contextlib
-import errno
+import ctypes
 import functools
 import io
-import hashlib
 import importlib.machinery
 import importlib.util
 import os
 import re
 import shutil
-import stat
 import subprocess
 import sys
 import sysconfig
-import tempfile
-import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import cffi
 
-from .codegen.cffi_decl import model_cdef
+from .codegen.cffi_decl import model_cdef, runtime_cdef
 from .codegen.record import GeneratedCode
 from .codegen.templates import environment
+from .cache import (ABANDONED_BUILD_SECONDS, CACHE_FORMAT, DIGEST_NAME, STALE_BUILD_SECONDS, CacheWarning,
+                    cache_dir, cache_key, cached_build, clean_stale, import_module, open_library)
 from .errors import CompileError, LagcodegenError
 from .version import __version__
 
+#: The cache's names stay importable from here (lagcodegen.cache holds them).
+__all__ = ["ABANDONED_BUILD_SECONDS", "CACHE_FORMAT", "DIGEST_NAME", "STALE_BUILD_SECONDS", "CacheWarning",
+           "BuiltModule", "Sundials", "build", "cache_dir", "clean_stale", "compiler_id", "driver_sources",
+           "find_sundials", "runtime", "runtime_sources", "table_source", "DEFAULT_CFLAGS", "DEFAULT_FFLAGS"]
+
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
-
-
-#: Layout of a cache entry (part of the key): 2 = the module plus its sha256 in DIGEST_NAME.
-CACHE_FORMAT = 2
-DIGEST_NAME = "module.sha256"
-#: A ``.build-*`` folder of ours whose process is gone is stale after this many seconds; any
-#: of ours is after ABANDONED_BUILD_SECONDS (longer than a compile may take, see _run).
-STALE_BUILD_SECONDS = 10 * 60
-ABANDONED_BUILD_SECONDS = 2 * 3600
-_HINT = "set LAGCODEGEN_CACHE to a folder of your own"
-
-
-class CacheWarning(UserWarning):
-    """A cache folder or entry was not used (not the user's own, writable by others, damaged)."""
-
-
-def _warn(message: str) -> None:
-    warnings.warn(message, CacheWarning, stacklevel=3)
-
-
-def _distrust(st: os.stat_result) -> str | None:
-    """Why a cache file or folder with status ``st`` cannot be trusted, or None."""
-    uid = os.geteuid()
-    if stat.S_ISLNK(st.st_mode):
-        return "a symbolic link"
-    if st.st_uid != uid:
-        return f"owned by uid {st.st_uid}, not by you (uid {uid})"
-    if st.st_mode & 0o022:
-        who = " and ".join(w for bit, w in ((0o020, "group"), (0o002, "others")) if st.st_mode & bit)
-        return f"writable by {who} (mode {stat.S_IMODE(st.st_mode):04o})"
-    return None
-
-
-def _make_root(root: Path) -> None:
-    """Create ``root`` (and missing parents) private to the user: 0700 whatever the umask."""
-    if root.is_dir():
-        return
-    missing = []
-    p = root
-    while not p.exists() and p != p.parent:
-        missing.append(p)
-        p = p.parent
-    for p in reversed(missing):
-        try:
-            os.mkdir(p, 0o700)
-        except FileExistsError:
-            continue
-        if p == root:
-            os.chmod(p, 0o700)
-
-
-_PRIVATE: list[Path] = []
-
-
-def _private_root() -> Path:
-    """A cache folder for this process only (removed at exit), for builds the cache cannot take."""
-    if not _PRIVATE or not _PRIVATE[0].is_dir():
-        try:
-            path = Path(tempfile.mkdtemp(prefix="lagcodegen-private-"))
-        except OSError as exc:
-            raise LagcodegenError(f"cannot create a private build folder in {tempfile.gettempdir()}: "
-                                  f"{exc.strerror}; {_HINT}") from None
-        atexit.register(shutil.rmtree, path, True)
-        _PRIVATE[:] = [path]
-    return _PRIVATE[0]
-
-
-def cache_dir() -> Path:
-    """Cache root: $LAGCODEGEN_CACHE, else $XDG_CACHE_HOME/lagcodegen or ~/.cache/lagcodegen,
-    created 0700. A root not owned by the user, or writable by group or others, is not used
-    (a :class:`CacheWarning`): this process then builds in a private folder of its own."""
-    root = Path(os.environ.get("LAGCODEGEN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "lagcodegen"))
-    try:
-        _make_root(root)
-        st = os.stat(root)
-    except OSError as exc:
-        raise LagcodegenError(f"cannot create the build cache folder {root}: {exc.strerror or exc}; "
-                              f"{_HINT}") from None
-    if not stat.S_ISDIR(st.st_mode):
-        raise LagcodegenError(f"the build cache {root} is not a folder; {_HINT}")
-    problem = _distrust(st)
-    if problem:
-        _warn(f"lagcodegen: build cache {root} is {problem}: not used, building in a private folder "
-              f"(chmod go-w it if it is yours, or {_HINT})")
-        return _private_root()
-    return root
 
 
 @dataclass(frozen=True)
@@ -204,258 +104,240 @@ def compiler_id(cc: str) -> str:
     return f"{path}\n{ver}"
 
 
-def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
-    """The native CVODE driver files of ``code`` (header, source, SUNDIALS declarations)."""
+#: The model-independent native drivers (templates/c/lcg_*.j2), compiled once per installation.
+RUNTIME_TEMPLATES = {"lcg_model.h": "c/lcg_model.h.j2", "lcg_cvode.h": "c/lcg_cvode.h.j2",
+                     "lcg_cvode.c": "c/lcg_cvode.c.j2", "sundials_api.h": "c/sundials_api.h.j2"}
+
+
+def runtime_sources(sundials: Sundials) -> dict[str, str]:
+    """The model-independent native CVODE driver (taking a model's function table, lcg_model.h)
+    and the SUNDIALS declarations it is written against."""
     env = environment()
-    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__,
-               jacobian=code.jacobian, outputs=bool(code.nout), sparse=bool(getattr(code, "sparse_jacobian", False)),
-               sunindextype=sundials.sunindextype, sundials_version=sundials.version)
-    return {
-        "sundials_api.h": env.get_template("c/sundials_api.h.j2").render(**ctx),
-        f"{code.prefix}_cvode.h": env.get_template("c/cvode_driver.h.j2").render(**ctx),
-        f"{code.prefix}_cvode.c": env.get_template("c/cvode_driver.c.j2").render(**ctx),
-    }
+    ctx = dict(version=__version__, sunindextype=sundials.sunindextype, sundials_version=sundials.version)
+    return {name: env.get_template(t).render(**ctx) for name, t in RUNTIME_TEMPLATES.items()}
+
+
+def table_source(code: GeneratedCode) -> dict[str, str]:
+    """``<prefix>_table.c``: the function table of ``code`` (lcg_model.h) and ``lcg_model.h``."""
+    env = environment()
+    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=code.model_name,
+               jacobian=code.jacobian, outputs=bool(code.nout),
+               sparse=bool(getattr(code, "sparse_jacobian", False)))
+    return {"lcg_model.h": env.get_template("c/lcg_model.h.j2").render(version=__version__),
+            f"{code.prefix}_table.c": env.get_template("c/model_table.c.j2").render(**ctx)}
+
+
+def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
+    """Everything ``code`` needs besides its own files to run on the native CVODE driver: the
+    model-independent driver (:func:`runtime_sources`) and the model's table (:func:`table_source`)."""
+    return {**runtime_sources(sundials), **table_source(code)}
 
 
 @dataclass(frozen=True)
 class BuiltModule:
-    """A compiled, loaded cffi module: the code it was built from, where it lives, whether it
-    came from the cache. :class:`lagcodegen.solvers.compiled.CompiledModel` wraps it."""
+    """A compiled, loaded model: the code it was built from, where it lives, whether it came from
+    the cache. :class:`lagcodegen.solvers.compiled.CompiledModel` wraps it.
+
+    Either ``module`` is the model's own cffi module (code with drivers of its own, or built
+    without SUNDIALS), or (``table`` set) ``module`` is the model-independent runtime
+    (:func:`runtime`) and ``table`` the ``const lcg_model *`` of the model's library at ``path``
+    (no Python.h in it), kept open by ``library``."""
 
     code: GeneratedCode
     module: object
     path: Path
     native: bool
     cached: bool
+    table: object = None
+    library: object = None
 
 
-def _import(name: str, path: Path):
-    """Import the extension module ``name`` from ``path`` (once per process)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    sys.modules[name] = module
-    return module
-
-
-def _digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def _entry_problem(final: Path, sofile: Path) -> tuple[str | None, bool]:
-    """(what is wrong with the cache entry ``final``, whether it is foreign): (None, False) when
-    the module can be opened. Nothing of the entry is executed here."""
-    digest_file = final / DIGEST_NAME
-    for path in (final, sofile, digest_file):
-        try:
-            st = os.lstat(path)
-        except FileNotFoundError:
-            return f"{path.name} is missing", False
-        except OSError as exc:
-            return f"{path.name} cannot be read ({exc.strerror})", True
-        problem = _distrust(st)
-        if problem:
-            return f"{path.name if path != final else 'its folder'} is {problem}", st.st_uid != os.geteuid()
-        if path != final and not stat.S_ISREG(st.st_mode):
-            return f"{path.name} is not a regular file", False
-    try:
-        recorded = digest_file.read_text().split()[0] if digest_file.stat().st_size < 4096 else ""
-        actual = _digest(sofile)
-    except (OSError, IndexError, UnicodeDecodeError):
-        return "its digest cannot be read", False
-    if actual != recorded:
-        return "the module does not match its recorded sha256 digest (truncated or altered)", False
-    return None, False
-
-
-def _load(name: str, final: Path, sofile: Path):
-    """The module of the cache entry ``final`` if it is trusted, intact and imports; else None
-    (after a one-line warning), the entry removed if it is the user's own."""
-    if name in sys.modules:
-        return sys.modules[name]
-    problem, foreign = _entry_problem(final, sofile)
-    if problem is None:
-        try:
-            return _import(name, sofile)
-        except Exception as exc:  # noqa: BLE001 - any failed import means: rebuild
-            problem = f"the module does not import ({type(exc).__name__}: {str(exc)[:200]})"
-    if foreign:
-        _warn(f"lagcodegen: cache entry {final} not used: {problem}; building a private copy")
-    else:
-        _warn(f"lagcodegen: cache entry {final} not used: {problem}; rebuilding it")
-        _discard(final)
-    return None
-
-
-def _discard(entry: Path) -> None:
-    """Remove a cache entry of ours: renamed aside first (one step, so that no other process
-    sees it half removed), then deleted."""
-    aside = entry.with_name(f".stale-{entry.name}-{os.getpid()}-{os.urandom(4).hex()}")
-    try:
-        os.rename(entry, aside)
-    except OSError:
-        return  # gone already (another process), or not ours to move
-    if os.path.islink(aside):
-        os.unlink(aside)
-    else:
-        shutil.rmtree(aside, ignore_errors=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True
-    return True
-
-
-def clean_stale(root: Path, now: float | None = None) -> list[Path]:
-    """Remove the ``.build-*`` folders of ``root`` left by killed builds (the user's own only,
-    whose process is gone and older than STALE_BUILD_SECONDS, or older than
-    ABANDONED_BUILD_SECONDS) and entries set aside for removal; returns what was removed."""
-    now = time.time() if now is None else now
-    removed = []
-    try:
-        entries = list(os.scandir(root))
-    except OSError:
-        return removed
-    for entry in entries:
-        building, stale = entry.name.startswith(".build-"), entry.name.startswith(".stale-")
-        if not (building or stale):
-            continue
-        try:
-            st = entry.stat(follow_symlinks=False)
-        except OSError:
-            continue
-        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid():
-            continue
-        age = now - st.st_mtime
-        if building:
-            m = re.fullmatch(r"\.build-[0-9a-f]+-(\d+)-.*", entry.name)
-            pid = int(m.group(1)) if m else None
-            if not (age > ABANDONED_BUILD_SECONDS
-                    or (age > STALE_BUILD_SECONDS and pid is not None and not _alive(pid))):
-                continue
-        shutil.rmtree(entry.path, ignore_errors=True)
-        removed.append(Path(entry.path))
-    return removed
-
-
-def _secure(folder: Path) -> None:
-    """Take group/world write permission off everything in a build folder (umask 000)."""
-    for path in folder.iterdir():
-        st = os.lstat(path)
-        if stat.S_ISREG(st.st_mode) and st.st_mode & 0o022:
-            os.chmod(path, stat.S_IMODE(st.st_mode) & ~0o022)
-
-
-def _run(cmd: list[str], cwd: Path, what: str, code: GeneratedCode) -> None:
+def _run(cmd: list[str], cwd: Path, what: str, label: str) -> None:
     try:
         proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=1800)
     except OSError as exc:
         raise CompileError(f"cannot run the {what} {cmd[0]!r}", cmd, str(exc)) from None
     if proc.returncode != 0:
-        raise CompileError(f"compiling model {code.model_name!r} failed ({what}, exit {proc.returncode})",
+        raise CompileError(f"compiling {label} failed ({what}, exit {proc.returncode})",
                            cmd, proc.stdout + proc.stderr)
+
+
+def _run_all(cmds: list[list[str]], cwd: Path, what: str, label: str) -> None:
+    """Run the compiler commands ``cmds`` at once (as many as there are cores), each to its end."""
+    if len(cmds) <= 1 or (os.cpu_count() or 1) == 1:
+        for cmd in cmds:
+            _run(cmd, cwd, what, label)
+        return
+    with concurrent.futures.ThreadPoolExecutor(max_workers=min(len(cmds), os.cpu_count() or 1)) as pool:
+        for future in [pool.submit(_run, cmd, cwd, what, label) for cmd in cmds]:
+            future.result()
+
+
+def _write(folder: Path, sources: dict[str, str]) -> None:
+    for name, text in sources.items():
+        (folder / name).write_text(text)
+
+
+def _cffi_module(folder: Path, modname: str, cdef: str, headers: list[str]) -> str:
+    """Write the cffi wrapper ``<modname>.c`` including ``headers`` into ``folder``."""
+    ffi = cffi.FFI()
+    ffi.cdef(cdef)
+    ffi.set_source(modname, "".join(f'#include "{h}"\n' for h in headers))
+    with contextlib.redirect_stdout(io.StringIO()):  # cffi announces the file it writes
+        ffi.emit_c_code(str(folder / f"{modname}.c"))
+    return f"{modname}.c"
+
+
+def _fortran_objects(folder: Path, sources: dict[str, str], fc: str, fflags, label: str) -> list[str]:
+    objects = []
+    for name in sorted(n for n in sources if n.endswith(".f90")):  # modules first: sorted names
+        obj = name[:-4] + ".o"
+        _run([fc, *fflags, "-c", name, "-o", obj], folder, "Fortran compiler", label)
+        objects.append(obj)
+    return objects
+
+
+#: Sources at most this large compile in one compiler call; larger ones file by file, in parallel.
+ONE_CALL_BYTES = 200_000
+
+
+def _compile_shared(folder: Path, c_files: list[str], objects: list[str], out: str, cc: str, cflags,
+                    includes: list[str], libs: list[str], label: str) -> None:
+    """Compile ``c_files`` (and link ``objects``) into the shared library ``out``: one compiler
+    call for small sources, else one per file at once on every core, then a link."""
+    # No -I on the build folder: the generated files include each other with quotes (found
+    # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
+    size = sum((folder / f).stat().st_size for f in c_files)
+    if size <= ONE_CALL_BYTES or len(c_files) == 1:
+        _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler", label)
+        return
+    _run_all([[cc, *cflags, *includes, "-c", f, "-o", f[:-2] + ".o"] for f in c_files], folder, "C compiler", label)
+    _run([cc, *cflags, "-shared", *[f[:-2] + ".o" for f in c_files], *objects, "-o", out, *libs], folder,
+         "C compiler", label)
+
+
+def _python_include() -> str:
+    return f"-I{sysconfig.get_paths()['include']}"
+
+
+@functools.lru_cache(maxsize=4)
+def _runtimecached(cc: str, cflags: tuple[str, ...]):
+    sundials = find_sundials()
+    sources = runtime_sources(sundials)
+    cdef = runtime_cdef()
+    link = sundials.link_args(("cvode", "core"))
+    ext = importlib.machinery.EXTENSION_SUFFIXES[0]
+    key = cache_key([__version__, f"cache format {CACHE_FORMAT}", "runtime", compiler_id(cc), " ".join(cflags),
+                " ".join(link), ext, cdef, sys.version, *sorted(f"{k}\0{v}" for k, v in sources.items())])
+    modname = f"_lcg_runtime_{key}"
+
+    def make(tmp: Path) -> Path:
+        _write(tmp, sources)
+        wrapper = _cffi_module(tmp, modname, cdef, ["lcg_cvode.h"])
+        _compile_shared(tmp, [wrapper, "lcg_cvode.c"], [], f"{modname}{ext}", cc, cflags,
+                        [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime")
+        return tmp / f"{modname}{ext}"
+
+    module, path, cached = cached_build(key, modname, f"{modname}{ext}", make, import_module)
+    return module, path, cached
+
+
+def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The model-independent runtime: a cffi module with the native CVODE driver (taking a model's
+    function table), built into the cache once per lagcodegen version, compiler, flags, Python
+    and SUNDIALS libraries (the first call builds it, about a second; later ones load it)."""
+    cc = cc or os.environ.get("CC") or "cc"
+    return _runtimecached(cc, tuple(cflags))[0]
+
+
+def _uses_runtime(code: GeneratedCode, native: bool) -> bool:
+    """Plain model code on the native driver: built as a model library for the runtime."""
+    return native and not code.cdef_extra and not code.sundials_libs
+
+
+def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbose: bool) -> BuiltModule:
+    """The model's own C (and Fortran) with its function table as a shared library without
+    Python.h, opened for the runtime's driver."""
+    rt = runtime(cc, cflags)
+    sources = {**dict(code.files), **table_source(code)}
+    fortran = any(name.endswith(".f90") for name in sources)
+    libs = ["-lm"] + (["-lgfortran"] if fortran else [])
+    parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
+             " ".join(libs), *sorted(f"{k}\0{v}" for k, v in sources.items())]
+    if fortran:
+        parts += [compiler_id(fc), " ".join(fflags)]
+    key = cache_key(parts)
+    modname = f"lib_lcg_{code.prefix}_{key}"
+    filename = f"{modname}.so"
+    label = f"model {code.model_name!r}"
+
+    def make(tmp: Path) -> Path:
+        _write(tmp, sources)
+        if verbose:
+            print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
+        objects = _fortran_objects(tmp, sources, fc, fflags, label)
+        c_files = sorted(n for n in sources if n.endswith(".c"))
+        _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label)
+        return tmp / filename
+
+    library, path, cached = cached_build(key, modname, filename, make, open_library)
+    getter = getattr(library, f"{code.prefix}_model_table")
+    getter.restype = ctypes.c_void_p
+    table = rt.ffi.cast("const lcg_model *", getter())
+    expected = (code.n, code.nz, code.ny, code.np, code.nout)
+    if (table.nq, table.nz, table.ny, table.np, table.nout) != expected:
+        raise LagcodegenError(f"the library built for model {code.model_name!r} ({path}) has another layout "
+                              f"than its code: (nq, nz, ny, np, nout) = {(table.nq, table.nz, table.ny, table.np, table.nout)}"
+                              f", expected {expected}")
+    return BuiltModule(code, rt, path, True, cached, table=table, library=library)
 
 
 def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
           cflags: tuple[str, ...] = DEFAULT_CFLAGS, verbose: bool = False,
           fc: str | None = None, fflags: tuple[str, ...] = DEFAULT_FFLAGS) -> BuiltModule:
-    """Compile ``code`` (and the native CVODE driver) into a cffi module; cached by content hash.
+    """Compile ``code`` for Python; cached by content hash.
+
+    Plain model code with ``native`` compiles into a shared library of its own (no Python.h, no
+    driver) whose function table the model-independent runtime's CVODE driver takes
+    (:func:`runtime`, built once). Other code (``code.cdef_extra``: drivers of its own, e.g. the
+    constrained formulations; or ``native=False``) becomes a cffi module of its own.
 
     Every ``.c`` file of ``code.files`` is compiled with ``cc``, every ``.f90`` file with ``fc``
     (gfortran; its objects are linked in). ``code.cdef_extra`` adds declarations to the cffi
     interface, ``code.cffi_headers`` the headers the module includes, ``code.sundials_libs``
-    the SUNDIALS libraries linked besides CVODE (e.g. "ida").
+    the SUNDIALS libraries linked (e.g. "cvode", "ida").
     """
     cc = cc or os.environ.get("CC") or "cc"
     fc = fc or os.environ.get("FC") or "gfortran"
+    if _uses_runtime(code, native):
+        return _model_library(code, cc, cflags, fc, fflags, verbose)
     sundials = find_sundials() if native else None
     sources = dict(code.files)
-    headers = [code.header_name, *code.cffi_headers]
     if native:
-        sources.update(driver_sources(code, sundials))
-        headers.append(f"{code.prefix}_cvode.h")
-    fortran = sorted(name for name in sources if name.endswith(".f90"))
+        sources["sundials_api.h"] = runtime_sources(sundials)["sundials_api.h"]
+    headers = [code.header_name, *code.cffi_headers]
+    fortran = any(name.endswith(".f90") for name in sources)
     cdef = model_cdef(code, native) + "\n" + code.cdef_extra
     link = sundials.link_args(("cvode", *code.sundials_libs, "core")) if native else []
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
-    h = hashlib.sha256()
     parts = [__version__, f"cache format {CACHE_FORMAT}", compiler_id(cc), " ".join(cflags), " ".join(link),
              ext, cdef, sys.version, *headers, *sorted(f"{k}\0{v}" for k, v in sources.items())]
     if fortran:
         parts += [compiler_id(fc), " ".join(fflags)]
-    for part in parts:
-        h.update(part.encode())
-        h.update(b"\0")
-    key = h.hexdigest()[:24]
+    key = cache_key(parts)
     modname = f"_lcg_{code.prefix}_{key}"
-    root = cache_dir()
-    final = root / key
-    sofile = final / f"{modname}{ext}"
-    if os.path.lexists(final):
-        module = _load(modname, final, sofile)
-        if module is not None:
-            return BuiltModule(code, module, sofile, native, cached=True)
-        if os.path.lexists(final):  # not ours to replace: build where only we write
-            root = _private_root()
-            final = root / key
-            sofile = final / f"{modname}{ext}"
-    clean_stale(root)
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".build-{key}-{os.getpid()}-", dir=root))
-    except OSError as exc:
-        raise LagcodegenError(f"cannot write to the build cache {root}: {exc.strerror or exc}; {_HINT}") from None
-    try:
-        for name, text in sources.items():
-            (tmp / name).write_text(text)
-        ffi = cffi.FFI()
-        ffi.cdef(cdef)
-        ffi.set_source(modname, "".join(f'#include "{h}"\n' for h in headers))
-        with contextlib.redirect_stdout(io.StringIO()):  # cffi announces the file it writes
-            ffi.emit_c_code(str(tmp / f"{modname}.c"))
+    label = f"model {code.model_name!r}"
+
+    def make(tmp: Path) -> Path:
+        _write(tmp, sources)
+        wrapper = _cffi_module(tmp, modname, cdef, headers)
         if verbose:
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
-        objects = []
-        for name in fortran:  # modules first: sorted names put dependencies in the caller's hands
-            obj = name[:-4] + ".o"
-            _run([fc, *fflags, "-c", name, "-o", obj], tmp, "Fortran compiler", code)
-            objects.append(obj)
-        c_files = [f"{modname}.c"] + sorted(n for n in sources if n.endswith(".c"))
-        # No -I on the build folder: the generated files include each other with quotes (found
-        # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
-        cmd = [cc, *cflags, "-shared", f"-I{sysconfig.get_paths()['include']}",
-               *c_files, *objects, "-o", f"{modname}{ext}", *link, "-lm"]
-        if fortran:
-            cmd.append("-lgfortran")
-        _run(cmd, tmp, "C compiler", code)
-        built = tmp / f"{modname}{ext}"
-        try:  # never publish a module that does not import
-            module = _import(modname, built)
-        except Exception as exc:  # noqa: BLE001 - whatever the import raised
-            raise LagcodegenError(f"the module compiled for model {code.model_name!r} does not import: "
-                                  f"{type(exc).__name__}: {str(exc)[:300]}") from None
-        _secure(tmp)
-        (tmp / DIGEST_NAME).write_text(f"{_digest(built)}  {built.name}\n")
-        _secure(tmp)
-        try:
-            os.rename(tmp, final)  # atomic publish of the complete folder
-        except OSError as exc:
-            if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):  # not a lost race
-                raise LagcodegenError(f"cannot publish into the build cache {root}: {exc.strerror}; "
-                                      f"{_HINT}") from None
-        else:
-            tmp = None
-    finally:
-        if tmp is not None:
-            shutil.rmtree(tmp, ignore_errors=True)
-    return BuiltModule(code, module, sofile, native, cached=False)
+        objects = _fortran_objects(tmp, sources, fc, fflags, label)
+        c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
+        libs = [*link, "-lm"] + (["-lgfortran"] if fortran else [])
+        _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label)
+        return tmp / f"{modname}{ext}"
+
+    module, path, cached = cached_build(key, modname, f"{modname}{ext}", make, import_module)
+    return BuiltModule(code, module, path, native, cached)

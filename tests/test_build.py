@@ -14,6 +14,11 @@ from lagcodegen import CompileError, Scene, derive, generate_c, systems
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def is_runtime(entry) -> bool:
+    """The cache entry of the model-independent runtime (built once into whichever cache is first)."""
+    return entry.is_dir() and any(f.name.startswith("_lcg_runtime_") for f in entry.iterdir())
+
+
 def test_second_build_is_a_cache_hit(tmp_path, monkeypatch):
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
     code = generate_c(Scene(derive(systems.pendulum()), prefix="cachehit"))
@@ -21,8 +26,9 @@ def test_second_build_is_a_cache_hit(tmp_path, monkeypatch):
     second = lcg.build(code)
     assert not first.cached and second.cached
     assert first.path == second.path
-    entries = [p for p in tmp_path.iterdir()]
+    entries = [p for p in tmp_path.iterdir() if not is_runtime(p)]
     assert len(entries) == 1 and not entries[0].name.startswith(".build")  # no temp folder left
+    assert entries[0] == first.path.parent
 
 
 def test_changed_source_changes_the_key(tmp_path, monkeypatch):
@@ -69,7 +75,7 @@ def test_two_processes_building_the_same_model_both_succeed(tmp_path):
         assert out.startswith("OK")
     finals = {out.split()[-1] for out, _ in outs}
     assert len(finals) == 1  # same module, same numbers
-    published = [p for p in tmp_path.iterdir() if not p.name.startswith(".")]
+    published = [p for p in tmp_path.iterdir() if not p.name.startswith(".") and not is_runtime(p)]
     assert len(published) == 1
     assert not list(tmp_path.glob(".build-*"))
 
@@ -104,6 +110,7 @@ import warnings  # noqa: E402
 from lagcodegen import LagcodegenError, ModelError  # noqa: E402
 
 build_module = importlib.import_module("lagcodegen.build")  # (lagcodegen.build is the function)
+cache_module = importlib.import_module("lagcodegen.cache")
 
 OTHER_UID = 54321
 
@@ -223,7 +230,7 @@ def test_damaged_cache_entry_is_rebuilt_never_loaded(tmp_path, monkeypatch, dama
         digest_file.write_text(hashlib.sha256(junk).hexdigest() + "\n")
     forget(first)
     opened = []
-    monkeypatch.setattr(build_module, "_import", lambda name, path, _real=build_module._import:
+    monkeypatch.setattr(build_module, "import_module", lambda name, path, _real=build_module.import_module:
                         (opened.append(Path(path)), _real(name, path))[1])
     with pytest.warns(build_module.CacheWarning, match="not used.*rebuilding") as rec:
         second = fresh_build(prefix)
@@ -294,7 +301,7 @@ def test_unwritable_cache_is_a_clear_error(tmp_path, monkeypatch):
 
     def refuse(*args, **kwargs):
         raise PermissionError(errno.EROFS, "Read-only file system")
-    monkeypatch.setattr(build_module.tempfile, "mkdtemp", refuse)
+    monkeypatch.setattr(cache_module.tempfile, "mkdtemp", refuse)
     with pytest.raises(LagcodegenError, match=f"{tmp_path}: Read-only file system; set LAGCODEGEN_CACHE"):
         fresh_build("readonly")
 

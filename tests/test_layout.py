@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lagcodegen"
 #: a lower one, never from a higher one.
 STAGES = [
     ("errors", "version"),
-    ("util", "hooks"),
+    ("util", "hooks", "progress"),
     ("result",),
     ("model",),
     ("derivation",),
@@ -22,6 +22,7 @@ STAGES = [
     ("formulation",),
     ("codegen",),
     ("buildstep",),
+    ("cache",),
     ("build",),
     ("solvers",),
     ("api",),

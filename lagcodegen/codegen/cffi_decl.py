@@ -14,14 +14,17 @@ CONTROL_FIELDS = ("int *cancel; int (*poll)(void *data, long done, long total); 
 POLL_CDEF = 'extern "Python" int lcg_poll(void *data, long done, long total);'
 
 
-def ensemble_cdef(name: str, options: str, fn: str, yp0: bool = False, events: bool = False) -> str:
+def ensemble_cdef(name: str, options: str, fn: str, yp0: bool = False, events: bool = False,
+                  model: bool = False) -> str:
     """The ensemble struct ``name`` of a driver and its solve-many function ``fn``
-    (templates/c/_control.j2, ensemble_struct and pool)."""
+    (templates/c/_control.j2, ensemble_struct and pool; ``model``: the model-independent driver's
+    field with the model's function table)."""
     extra = "const double *yp0; long yp0_stride;" if yp0 else ""
     ev = "int max_events; const int *rootdir; const int *terminal;" if events else ""
+    table = "const lcg_model *model;" if model else ""
     return f"""
 typedef struct {{
-    long nmem; int nthreads; const double *p; long p_stride; const double *y0; long y0_stride; {extra}
+    {table} long nmem; int nthreads; const double *p; long p_stride; const double *y0; long y0_stride; {extra}
     int nt; const double *tout; double *final; double *traj; int ncol; const int *col; int *flag; int *nt_done;
     double *t_reached; double *wall; long *counts; char *messages; long max_messages; long *message_member;
     long n_messages; {ev} int (*poll)(void *data, long done, long total); void *poll_data; double poll_every;
@@ -30,28 +33,48 @@ typedef struct {{
 int {fn}({name} *e, const {options} *opt);"""
 
 
-def model_cdef(code: GeneratedCode, native: bool) -> str:
-    """The model functions of ``code`` (:data:`~.signatures.MODEL_FUNCTIONS`, the header's own
-    signatures) and, with ``native``, the CVODE driver's."""
-    p = code.prefix
-    names = ["rhs"] + ["jac"] * code.jacobian + ["outputs"] * bool(code.nout)
-    names += ["jac_sparse"] * bool(getattr(code, "sparse_jacobian", False))
-    names += ["outputs_batch"] * bool(native and code.nout)
-    lines = [c_signature(name, p) + ";" for name in names]
-    if native:
-        lines.append(f"""
+#: The function table of a compiled model (templates/c/lcg_model.h.j2).
+MODEL_TABLE_CDEF = """
+typedef struct lcg_model {
+    int abi; int nq; int nz; int ny; int np; int nout;
+    int (*rhs)(double t, const double *y, const double *p, double *ydot);
+    int (*jac)(double t, const double *y, const double *ydot, const double *p, double *jac);
+    int (*outputs)(double t, const double *y, const double *p, double *out);
+    int (*jac_sparse)(double t, const double *y, const double *ydot, const double *p, double *vals);
+    int jac_nnz; const int *jac_colptr; const int *jac_rowind;
+    ...;
+} lcg_model;"""
+
+
+def runtime_cdef() -> str:
+    """The model-independent runtime module: the model table, the CVODE driver taking it
+    (templates/c/lcg_cvode.h.j2), its ensembles, the batch of outputs and the poll callback."""
+    return "\n".join([MODEL_TABLE_CDEF, f"""
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;
     long max_steps; double first_step; double max_step; double min_step; int max_order;
     int linear_solver; long mupper; long mlower; {CONTROL_FIELDS}
-}} {p}_options;
+}} lcg_cvode_options;
 typedef struct {{
     long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails;
     double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512];
-}} {p}_stats;
-int {p}_cvode_solve(const double *p, const double *y0, int nt, const double *tout,
-                    double *yout, double *out, const {p}_options *opt, {p}_stats *st);""")
-        lines.append(ensemble_cdef(f"{p}_cvode_ensemble", f"{p}_options", f"{p}_cvode_solve_many"))
+}} lcg_cvode_stats;
+int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
+                    double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
+int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double *y, const double *p,
+                      double *out);""", ensemble_cdef("lcg_cvode_ensemble", "lcg_cvode_options", "lcg_cvode_solve_many",
+                                      model=True), POLL_CDEF])
+
+
+def model_cdef(code: GeneratedCode, native: bool) -> str:
+    """The model functions of ``code`` (:data:`~.signatures.MODEL_FUNCTIONS`, the header's own
+    signatures) for a module of its own (code with further drivers, or built without SUNDIALS);
+    with ``native``, the poll callback of its drivers."""
+    p = code.prefix
+    names = ["rhs"] + ["jac"] * code.jacobian + ["outputs"] * bool(code.nout)
+    names += ["jac_sparse"] * bool(getattr(code, "sparse_jacobian", False))
+    lines = [c_signature(name, p) + ";" for name in names]
+    if native:
         lines.append(POLL_CDEF)
     return "\n".join(lines)
 

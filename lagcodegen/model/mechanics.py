@@ -39,16 +39,27 @@ from typing import Iterable, Mapping, Sequence
 
 import sympy as sp
 from sympy.core.function import AppliedUndef
-from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
-from sympy.physics.vector import Point, ReferenceFrame, Vector, partial_velocity
 
 from ..errors import ModelError
 from .model import Model
 
-try:  # actuators exist from sympy 1.13 on
-    from sympy.physics.mechanics.actuator import ActuatorBase
-except ImportError:  # pragma: no cover - older sympy
-    ActuatorBase = None
+#: sympy.physics.mechanics and .vector, bound by _physics() on first use: importing them costs
+#: about 0.8 s (the package pulls in sympy's unit systems), which every other use of lagcodegen
+#: (the command line, model files, lagcodegen's own models) does without.
+Particle = RigidBody = dynamicsymbols = Point = ReferenceFrame = Vector = partial_velocity = ActuatorBase = None
+
+
+def _physics() -> None:
+    """Import sympy.physics.mechanics and .vector into this module's names (once)."""
+    global Particle, RigidBody, dynamicsymbols, Point, ReferenceFrame, Vector, partial_velocity, ActuatorBase
+    if Particle is not None:
+        return
+    from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
+    from sympy.physics.vector import Point, ReferenceFrame, Vector, partial_velocity
+    try:  # actuators exist from sympy 1.13 on
+        from sympy.physics.mechanics.actuator import ActuatorBase
+    except ImportError:  # pragma: no cover - older sympy
+        ActuatorBase = None
 
 __all__ = ["from_lagrangian", "from_bodies"]
 
@@ -88,6 +99,7 @@ def from_lagrangian(L, q: Sequence, *, parameters: ParameterValues | None = None
     right; terms of L linear in q' (moving frames, gyroscopic terms) end up in T. The
     equations of motion depend on L only and are exact in every case.
     """
+    _physics()
     imp = _Importer(q, time=time, name=name)
     L_conv = imp.convert(L, "the Lagrangian")
     D_conv = None if dissipation is None else imp.convert(dissipation, "the dissipation function")
@@ -131,6 +143,7 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
         ``frame``'s axes, is declared as a model point named like the body (so the
         ``positions`` outputs ``<body>_x/_y/_z`` exist).
     """
+    _physics()
     if not isinstance(frame, ReferenceFrame):
         raise ModelError(f"from_bodies: frame must be a sympy ReferenceFrame, got {frame!r}")
     bodies = list(bodies)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,8 @@ class CompiledModel:
     array handed to C is checked first (length, dtype): a wrong one raises LagcodegenError.
     """
 
-    def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool):
+    def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool, table=None,
+                 library=None):
         self.code = code
         self.module = module
         self.ffi = module.ffi
@@ -40,24 +42,49 @@ class CompiledModel:
         self.path = path
         self.native = native
         self.cached = cached
-        p = code.prefix
-        # the generated functions, called by the runners of each solver family
-        self.c_rhs = getattr(self.lib, f"{p}_rhs")
-        self.c_jac = getattr(self.lib, f"{p}_jac", None)
-        self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
-        self.c_outputs_batch = getattr(self.lib, f"{p}_outputs_batch", None)
-        self.native_solve = getattr(self.lib, f"{p}_cvode_solve", None)
-        self.native_solve_many = getattr(self.lib, f"{p}_cvode_solve_many", None)
-        # the C types of the CVODE driver's options, statistics and ensemble structs
-        self.options_type, self.stats_type = f"{p}_options", f"{p}_stats *"
-        self.ensemble_type = f"{p}_cvode_ensemble"
+        self.table = table      # the model's function table (runtime builds), else None
+        self._library = library  # keeps the model library open
+        if table is not None:
+            self._bind_table(table)
+        else:
+            self._bind_module(code.prefix)
         self.poll = control.install(module)  # the drivers' poll callback (Ctrl-C, progress)
         self._defaults = np.array(code.param_defaults, dtype=float)
         self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
 
+    def _bind_table(self, table) -> None:
+        """The model functions through its table, the runtime's CVODE driver applied to it."""
+        null, lib = self.ffi.NULL, self.lib
+        self.c_rhs = table.rhs
+        self.c_jac = table.jac if table.jac != null else None
+        self.c_outputs = table.outputs if table.outputs != null else None
+        self.c_jac_sparse = table.jac_sparse if table.jac_sparse != null else None
+        self.c_outputs_batch = functools.partial(lib.lcg_outputs_batch, table) if self.c_outputs else None
+        self.native_solve = functools.partial(lib.lcg_cvode_solve, table)
+        solve_many = lib.lcg_cvode_solve_many
+
+        def native_solve_many(e, opt):
+            e.model = table
+            return solve_many(e, opt)
+
+        self.native_solve_many = native_solve_many
+        # the C types of the CVODE driver's options, statistics and ensemble structs
+        self.options_type, self.stats_type, self.ensemble_type = ("lcg_cvode_options", "lcg_cvode_stats *",
+                                                                  "lcg_cvode_ensemble")
+
+    def _bind_module(self, p: str) -> None:
+        """The model functions of a module of their own (built without the native driver)."""
+        self.c_rhs = getattr(self.lib, f"{p}_rhs")
+        self.c_jac = getattr(self.lib, f"{p}_jac", None)
+        self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
+        self.c_jac_sparse = getattr(self.lib, f"{p}_jac_sparse", None)
+        self.c_outputs_batch = None
+        self.native_solve = self.native_solve_many = None
+        self.options_type = self.stats_type = self.ensemble_type = None
+
     @classmethod
     def from_built(cls, built: BuiltModule) -> "CompiledModel":
-        return cls(built.code, built.module, built.path, built.native, built.cached)
+        return cls(built.code, built.module, built.path, built.native, built.cached, built.table, built.library)
 
     # layout
     @property

@@ -29,12 +29,12 @@ def chain():
 
 
 def sparse_as_dense(cm, t, y):
-    ffi, pre = cm.ffi, cm.code.prefix
+    ffi = cm.ffi
     p = cm.parameter_vector()
     f = cm.rhs(t, y, p)
     pattern = cm.code.jac_pattern
     vals = np.empty(int(pattern.sum()))
-    rc = getattr(cm.lib, f"{pre}_jac_sparse")(t, ffi.from_buffer("double[]", np.ascontiguousarray(y)),
+    rc = cm.c_jac_sparse(t, ffi.from_buffer("double[]", np.ascontiguousarray(y)),
                                              ffi.from_buffer("double[]", f), ffi.from_buffer("double[]", p),
                                              ffi.from_buffer("double[]", vals))
     assert rc == 0
@@ -81,7 +81,7 @@ def test_sparse_code_and_band_driver_compile_strictly(tmp_path, cc, jacobian, sp
     code.write(tmp_path)
     for name, text in driver_sources(code, find_sundials()).items():
         (tmp_path / name).write_text(text)
-    for src in [n for n in code.files if n.endswith(".c")] + ["tb_strict_cvode.c"]:
+    for src in [n for n in code.files if n.endswith(".c")] + ["lcg_cvode.c", "tb_strict_table.c"]:
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", src + ".o"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr

@@ -226,7 +226,9 @@ SANITIZER_MAIN = r"""
 #include <stdio.h>
 #include <stdlib.h>
 #include "PREFIX.h"
-#include "PREFIX_cvode.h"
+#include "lcg_cvode.h"
+
+extern const lcg_model PREFIX_model;
 
 int main(void)
 {
@@ -236,8 +238,8 @@ int main(void)
     int col[2] = {0, PREFIXU_NY}, flag[M], nt_done[M], i, k, rc;
     long counts[M * 8], member[4];
     char messages[4 * 256];
-    PREFIX_options opt = {1, 1, 1e-8, 1e-10, NULL, 100000, 0.0, 0.0, 0.0, 0};
-    PREFIX_cvode_ensemble e = {0};
+    lcg_cvode_options opt = {1, 1, 1e-8, 1e-10, NULL, 100000, 0.0, 0.0, 0.0, 0};
+    lcg_cvode_ensemble e = {0};
 
     for (k = 0; k < NT; ++k)
         tout[k] = 0.1 * k;
@@ -249,11 +251,11 @@ int main(void)
         flag[i] = -82;
     }
     p[3 * PREFIXU_NP + MASS] = 0.0; /* member 3: a zero mass, a singular mass matrix */
-    e.nmem = M; e.nthreads = 3; e.p = p; e.p_stride = PREFIXU_NP; e.y0 = y0; e.y0_stride = PREFIXU_NY;
+    e.model = &PREFIX_model; e.nmem = M; e.nthreads = 3; e.p = p; e.p_stride = PREFIXU_NP; e.y0 = y0; e.y0_stride = PREFIXU_NY;
     e.nt = NT; e.tout = tout; e.final = final; e.traj = traj; e.ncol = 2; e.col = col; e.flag = flag;
     e.nt_done = nt_done; e.t_reached = t_reached; e.wall = wall; e.counts = counts; e.messages = messages;
     e.max_messages = 4; e.message_member = member;
-    rc = PREFIX_cvode_solve_many(&e, &opt);
+    rc = lcg_cvode_solve_many(&e, &opt);
     for (i = 0, k = 0; i < M; ++i)
         k += flag[i] == 0;
     printf("rc=%d ok=%d done=%ld flag3=%d messages=%ld\n", rc, k, e.done, flag[3], e.n_messages);
@@ -269,7 +271,7 @@ def test_ensemble_driver_strict_and_clean_under_sanitizers(tmp_path, cc):
     for fname, text in driver_sources(code, sundials).items():
         (tmp_path / fname).write_text(text)
     pre = code.prefix
-    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", f"{pre}_cvode.c", "-o", "d.o"], cwd=tmp_path,
+    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", "lcg_cvode.c", "-o", "d.o"], cwd=tmp_path,
                             capture_output=True, text=True)
     assert strict.returncode == 0, strict.stderr
     params = list(code.param_defaults)
@@ -277,7 +279,7 @@ def test_ensemble_driver_strict_and_clean_under_sanitizers(tmp_path, cc):
         "PREFIX", pre).replace("PARAMS", f"((const double[]){{{', '.join(map(repr, params))}}})")
     (tmp_path / "main.c").write_text(main)
     cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "main.c",
-           code.source_name, f"{pre}_cvode.c", "-o", "main", "-pthread", *sundials.link_args(), "-lm"]
+           code.source_name, f"{pre}_table.c", "lcg_cvode.c", "-o", "main", "-pthread", *sundials.link_args(), "-lm"]
     proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
