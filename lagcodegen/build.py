@@ -31,7 +31,7 @@ import cffi
 
 from .codegen.cffi_decl import model_cdef, runtime_cdef
 from .codegen.record import GeneratedCode
-from .codegen.templates import environment
+from .codegen.templates import environment, templates_dir
 from .cache import (ABANDONED_BUILD_SECONDS, CACHE_FORMAT, DIGEST_NAME, STALE_BUILD_SECONDS, CacheWarning,
                     cache_dir, cache_key, cached_build, clean_stale, import_module, open_library)
 from .errors import CompileError, LagcodegenError
@@ -67,12 +67,12 @@ class Sundials:
 
 @functools.lru_cache(maxsize=1)
 def find_sundials() -> Sundials:
-    """Locate the SUNDIALS libraries of the installed scikit-sundae wheel."""
-    try:
-        import sksundae
-    except ImportError as exc:  # pragma: no cover - dependency
-        raise LagcodegenError("scikit-sundae is not installed: pip install scikit-sundae") from exc
-    pkg = Path(sksundae.__file__).resolve().parent
+    """Locate the SUNDIALS libraries of the installed scikit-sundae wheel (found, not imported:
+    importing sksundae imports scipy.optimize, about a second)."""
+    spec = importlib.util.find_spec("sksundae")
+    if spec is None or not spec.submodule_search_locations:  # pragma: no cover - dependency
+        raise LagcodegenError("scikit-sundae is not installed: pip install scikit-sundae")
+    pkg = Path(list(spec.submodule_search_locations)[0]).resolve()
     libdir = pkg.parent / "scikit_sundae.libs"
     libs = {}
     for short in ("cvode", "ida", "core"):
@@ -107,6 +107,9 @@ def compiler_id(cc: str) -> str:
 #: The model-independent native drivers (templates/c/lcg_*.j2), compiled once per installation.
 RUNTIME_TEMPLATES = {"lcg_model.h": "c/lcg_model.h.j2", "lcg_cvode.h": "c/lcg_cvode.h.j2",
                      "lcg_cvode.c": "c/lcg_cvode.c.j2", "sundials_api.h": "c/sundials_api.h.j2"}
+#: Every template file the runtime's sources are rendered from (with the macros they import).
+RUNTIME_TEMPLATE_FILES = ("lcg_model.h.j2", "lcg_cvode.h.j2", "lcg_cvode.c.j2", "sundials_api.h.j2",
+                          "_sundials.j2", "_control.j2")
 
 
 def runtime_sources(sundials: Sundials) -> dict[str, str]:
@@ -221,18 +224,21 @@ def _python_include() -> str:
 
 
 @functools.lru_cache(maxsize=4)
-def _runtimecached(cc: str, cflags: tuple[str, ...]):
+def _runtime_module(cc: str, cflags: tuple[str, ...]):
     sundials = find_sundials()
-    sources = runtime_sources(sundials)
     cdef = runtime_cdef()
     link = sundials.link_args(("cvode", "core"))
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
+    # keyed by the templates' text (what the sources are rendered from), so that a process which
+    # finds the runtime in the cache never renders them
+    folder = templates_dir() / "c"
+    texts = [f"{name}\0{(folder / name).read_text()}" for name in sorted(RUNTIME_TEMPLATE_FILES)]
     key = cache_key([__version__, f"cache format {CACHE_FORMAT}", "runtime", compiler_id(cc), " ".join(cflags),
-                " ".join(link), ext, cdef, sys.version, *sorted(f"{k}\0{v}" for k, v in sources.items())])
+                     " ".join(link), ext, cdef, sys.version, sundials.sunindextype, sundials.version, *texts])
     modname = f"_lcg_runtime_{key}"
 
     def make(tmp: Path) -> Path:
-        _write(tmp, sources)
+        _write(tmp, runtime_sources(sundials))
         wrapper = _cffi_module(tmp, modname, cdef, ["lcg_cvode.h"])
         _compile_shared(tmp, [wrapper, "lcg_cvode.c"], [], f"{modname}{ext}", cc, cflags,
                         [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime")
@@ -247,7 +253,7 @@ def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
     function table), built into the cache once per lagcodegen version, compiler, flags, Python
     and SUNDIALS libraries (the first call builds it, about a second; later ones load it)."""
     cc = cc or os.environ.get("CC") or "cc"
-    return _runtimecached(cc, tuple(cflags))[0]
+    return _runtime_module(cc, tuple(cflags))[0]
 
 
 def _uses_runtime(code: GeneratedCode, native: bool) -> bool:

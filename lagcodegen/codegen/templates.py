@@ -19,13 +19,24 @@ def templates_dir() -> Path:
     raise FileNotFoundError(f"lagcodegen templates not found next to {here}")
 
 
+def _bytecode_cache():
+    """jinja2's FileSystemBytecodeCache in its default folder, or None where it cannot be used."""
+    try:
+        return jinja2.FileSystemBytecodeCache()
+    except (OSError, RuntimeError):  # no private temporary folder to be had: compile every time
+        return None
+
+
 @functools.lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
     """The environment of every template, with :func:`~.signatures.c_signature` and
     :func:`~.signatures.fortran_signature` as globals: one per process, so that each template is
-    compiled once (tens of milliseconds each, a large part of a small model's first build)."""
+    compiled once (tens of milliseconds each, a large part of a small model's first build), and
+    jinja2's own bytecode cache (a folder of the user's own in the temporary directory, which
+    jinja2 checks for ownership and mode 0700) keeps the compiled templates for the next process."""
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),
+        bytecode_cache=_bytecode_cache(),
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
         undefined=jinja2.StrictUndefined)
     env.globals.update(c_signature=c_signature, fortran_signature=fortran_signature)
