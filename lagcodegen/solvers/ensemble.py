@@ -119,13 +119,18 @@ def run_chunks(sim, executor, chunk_size, n_mem: int, t, inputs: dict, P, thread
     chunk_size = int(chunk_size)
     threads = 1 if threads is None else threads  # executors run one worker per core
     starts = list(range(0, n_mem, chunk_size))
+    payload = sim
+    if len(starts) > 1 and callable(getattr(executor, "scatter", None)):
+        # a dask.distributed Client: the simulation goes to each worker once (its generated
+        # sources, sometimes its sympy scene), not once per chunk
+        payload = executor.scatter(sim, broadcast=True)
 
     def args(s):
         sl = slice(s, min(s + chunk_size, n_mem))
         chunk_inputs = {k: np.ascontiguousarray(v[sl]) if isinstance(v, np.ndarray) else v
                         for k, v in inputs.items()}
         Pc = P if P.ndim == 1 else np.ascontiguousarray(P[sl])
-        return (sim, t, chunk_inputs, Pc, threads, save, max_wall, options)
+        return (payload, t, chunk_inputs, Pc, threads, save, max_wall, options)
 
     futures = {s: executor.submit(_run_chunk, *args(s)) for s in starts}
     parts, failures = [], {}
