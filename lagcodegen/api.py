@@ -9,6 +9,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from . import build as _build
 from . import hooks
+from . import progress as _progress
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.record import GeneratedCode
@@ -42,18 +43,24 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
 
 def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), runtime_parameters=None,
                   values=None, prefix: str | None = None, native: bool = True,
-                  verbose: bool = False, lang: str = "c") -> CompiledModel:
+                  verbose: bool = False, lang: str = "c", progress=None) -> CompiledModel:
     """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options;
     ``lang``: "c" or "fortran", the language of the generated model code).
 
     ``jacobian=None`` emits the analytic Jacobian for models with at most
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.
+
+    ``progress``: True draws a line on stderr naming the stage and how far it is (derive,
+    formulate, cse, compile) once a stage lasts a second; a callable is called as
+    ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
+    :func:`lagcodegen.progress.enabled` says (off unless set).
     """
-    if jacobian is None:
-        jacobian = model.n <= AUTO_JACOBIAN_MAX_N
-    scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
-                  values=values or {}, prefix=prefix)
-    return build(generate_code(scene, lang), native=native, verbose=verbose)
+    with _progress.enabled(progress):
+        if jacobian is None:
+            jacobian = model.n <= AUTO_JACOBIAN_MAX_N
+        scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
+                      values=values or {}, prefix=prefix)
+        return build(generate_code(scene, lang), native=native, verbose=verbose)
 
 
 def compile_reduction(reduction: RouthReduction, outputs: Sequence[str] = ("jacobi_h",), *, jacobian: bool = True,
@@ -78,7 +85,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
                         baumgarte: tuple[float, float] = (0.0, 0.0), projection: bool = False,
                         events: Iterable = (), runtime_parameters=None, values: Mapping | None = None,
                         prefix: str | None = None, jacobian: bool = True, eliminate: Sequence | None = None,
-                        verbose: bool = False, lang: str = "c"):
+                        verbose: bool = False, lang: str = "c", progress=None):
     """Generate and compile a constrained system (eq. 4.5) in one formulation.
 
     Parameters
@@ -109,7 +116,17 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         the C version's to the last bit where neither compiler contracts multiply-adds; the
         native CVODE/IDA drivers are C in both cases and call them through the same header).
         The minimal formulation is C only.
+    progress:
+        As :func:`compile_model`'s: True a progress line on stderr, a callable
+        ``progress(stage, done, total, elapsed)``, False nothing, None the caller's setting.
     """
+    with _progress.enabled(progress):
+        return _compile_constrained(system, formulation, outputs, baumgarte, projection, events, runtime_parameters,
+                                    values, prefix, jacobian, eliminate, verbose, lang)
+
+
+def _compile_constrained(system, formulation, outputs, baumgarte, projection, events, runtime_parameters, values,
+                         prefix, jacobian, eliminate, verbose, lang):
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
     if formulation not in FORMULATIONS:

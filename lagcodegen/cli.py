@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from . import progress
 from .api import build, compile_constrained
 from .buildstep import (cmake_dir, generator_record, input_record, load_source, manifest_matches, manifest_name,
                         manifest_outdated, manifest_text, read_manifest, split_python_spec, stale_by_manifest,
@@ -540,6 +541,12 @@ def parser() -> argparse.ArgumentParser:
                            help="constrained files: project the initial state onto the constraints "
                                 "instead of requiring it to satisfy them")
 
+    def progress_option(p):
+        p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                       help="a line on stderr naming the running stage (derive, formulate, cse, compile) and how "
+                            "far it is, once a stage lasts a second (default: when stderr is a terminal and "
+                            "without -q)")
+
     def scene_options(p):
         p.add_argument("--outputs", help="comma-separated outputs (energy, momenta, positions, ...)")
         p.add_argument("--runtime-parameters", help="comma-separated parameters kept adjustable")
@@ -547,6 +554,7 @@ def parser() -> argparse.ArgumentParser:
         p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter value (repeatable)")
         p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
         p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+        progress_option(p)
 
     g = sub.add_parser("generate", help="model file -> C or Fortran sources in a folder",
                        description=GENERATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -599,14 +607,26 @@ def parser() -> argparse.ArgumentParser:
     w = sub.add_parser("sweep", help="model file -> one ensemble over a grid or a random sample -> table (+PNG)",
                        description=SWEEP_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_sweep_options(w)
+    progress_option(w)
     w.set_defaults(func=cmd_sweep)
     return ap
+
+
+def _show_progress(args) -> bool:
+    """--progress/--no-progress; by default on when stderr is a terminal and -q is not given."""
+    if getattr(args, "progress", None) is not None:
+        return args.progress
+    try:
+        return sys.stderr.isatty() and not getattr(args, "quiet", False)
+    except (AttributeError, ValueError):
+        return False
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
-        with sigterm_raises():  # SIGTERM: the atomic writers remove their temporary files
+        # SIGTERM: the atomic writers remove their temporary files
+        with sigterm_raises(), progress.enabled(_show_progress(args)):
             return args.func(args)
     except UsageError as exc:
         print(f"lagcodegen: error: {exc}", file=sys.stderr)

@@ -22,6 +22,7 @@ from functools import cached_property
 import symengine as se
 import sympy as sp
 
+from . import progress
 from .errors import DerivationError, ModelError
 from .model.model import Model, Particle, PlanarBody, RigidBody
 
@@ -263,7 +264,14 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
 
     ``check=False`` skips the test for an identically singular mass matrix (for callers that
     only want the energies and momenta, e.g. to explain why a reduction is impossible).
+
+    Reports the stage "derive" (:mod:`lagcodegen.progress`), one step per coordinate.
     """
+    with progress.stage("derive", total=model.n, unit="coordinates") as stage:
+        return _derive(model, check, stage)
+
+
+def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
     start = time.perf_counter()
     model.validate()
     eng = _Engine(model)
@@ -291,17 +299,18 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
         if q not in used and qd not in used:
             raise ModelError(f"coordinate {q.name!r} appears nowhere in T, V, D or the forces")
 
-    p = [se.diff(L, v) for v in eng.qd]  # eq. 2.3
+    # One coordinate at a time (momentum, row of M, entry of F): a loop point for progress.
+    p, F = [], []
     M = [[None] * n for _ in range(n)]
     for i in range(n):
+        p.append(se.diff(L, eng.qd[i]))  # eq. 2.3
         for j in range(i, n):
             M[i][j] = M[j][i] = se.diff(p[i], eng.qd[j])
-    F = []
-    for i in range(n):
         Fi = se.diff(L, eng.q[i]) - se.diff(p[i], eng.t) - se.diff(D, eng.qd[i]) + Q[i]
         for j in range(n):
             Fi = Fi - se.diff(p[i], eng.q[j]) * eng.qd[j]
         F.append(Fi)
+        stage.advance()
     if check and all(M[i][j] == 0 for i in range(n) for j in range(n)):
         raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
     for i in range(n if check else 0):

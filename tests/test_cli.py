@@ -330,3 +330,37 @@ def test_max_steps_from_the_model_file(tmp_path):
         assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "-q", "--backend", backend]) == 4
         assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "-q", "--backend", backend,
                      "--max-steps", "100000"]) == 0
+
+
+@pytest.mark.parametrize("command", ["generate", "simulate", "sweep"])
+def test_progress_flags_are_accepted(command):
+    from lagcodegen.cli import _show_progress, parser
+    base = [command, "m.toml", "-o", "out.csv" if command != "generate" else "out"]
+    assert parser().parse_args(base + ["--progress"]).progress is True
+    assert parser().parse_args(base + ["--no-progress"]).progress is False
+    args = parser().parse_args(base)
+    assert args.progress is None
+    assert _show_progress(parser().parse_args(base + ["--progress", "-q"])) is True  # asked for: shown
+    assert _show_progress(parser().parse_args(base + ["--no-progress"])) is False
+
+
+def test_progress_lines_name_the_stages(tmp_path, capsys, monkeypatch):
+    """--progress: a line per long stage (here every stage, AFTER = 0); --no-progress and the default
+    off a terminal (pytest's stderr): none."""
+    from lagcodegen import progress
+    from lagcodegen.cli import main
+    monkeypatch.setattr(progress, "AFTER", 0.0)
+    model = EXAMPLES / "double_pendulum.toml"
+    assert main(["generate", str(model), "-o", str(tmp_path / "gen"), "--progress", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "lagcodegen: derive 0/2 coordinates, " in err and "lagcodegen: derive 2/2 coordinates, " in err
+    assert "lagcodegen: formulate " in err
+    for flags in (["--no-progress"], []):
+        assert main(["generate", str(model), "-o", str(tmp_path / f"gen{len(flags)}"), *flags]) == 0
+        assert "lagcodegen: derive " not in capsys.readouterr().err
+    assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "--t-end", "0.1", "--progress"]) == 0
+    err = capsys.readouterr().err
+    assert err.index("lagcodegen: derive 2/2 coordinates") < err.index("integrated")
+    assert main(["sweep", str(EXAMPLES / "pendulum.toml"), "--grid", "g=9.7:9.9:3", "-o", str(tmp_path / "s.csv"),
+                 "--t-end", "0.1", "--progress", "-q"]) == 0
+    assert "lagcodegen: derive 1/1 coordinates" in capsys.readouterr().err

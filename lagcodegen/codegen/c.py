@@ -15,7 +15,7 @@ import re
 
 import symengine as se
 
-from ..formulation.kernels import Block, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import NARROW, TangentProgram, tangent_program
 from ..version import __version__
@@ -56,7 +56,7 @@ def emit_block(targets: list[str], exprs: list, indent: int = 1) -> str:
     pad = _INDENT * indent
     if not exprs:
         return ""
-    repl, reduced = se.cse(list(exprs))
+    repl, reduced = cse(exprs)
     lines = [f"{pad}const double {sym} = {c_expr(e)};" for sym, e in repl]
     lines += [f"{pad}{tgt} = {c_expr(e)};" for tgt, e in zip(targets, reduced)]
     return "\n".join(lines)

@@ -14,8 +14,27 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
+from .. import progress
 from ..model.model import RESERVED_PREFIX
 from .scene import Scene
+
+#: A common-subexpression elimination of at least this many operations (symengine's count_ops:
+#: about 0.2 s of elimination, 61 000 for the right-hand side of a 20-link pendulum) runs in a
+#: child process (:func:`lagcodegen.progress.isolated`), so that Ctrl-C stops it at once; a
+#: smaller one runs here (a fork costs some 15 ms).
+ISOLATE_CSE_OPS = 50_000
+
+
+def cse(exprs) -> tuple[list, list]:
+    """symengine's ``cse(exprs)`` (replacements, reduced expressions), reported as the stage
+    "cse" (:mod:`lagcodegen.progress`) and stoppable by Ctrl-C: it is one C call holding the
+    GIL, seconds long for a 50-link chain, so large ones (:data:`ISOLATE_CSE_OPS`) run in a
+    child process. The result is the same either way."""
+    exprs = list(exprs)
+    with progress.stage("cse", unit=f"of {len(exprs)} expressions"):
+        if exprs and progress.can_isolate() and se.count_ops(*exprs) >= ISOLATE_CSE_OPS:
+            return progress.isolated(se.cse, exprs)
+        return se.cse(exprs)
 
 
 @dataclass
@@ -97,14 +116,24 @@ def model_blocks(scene: Scene) -> dict[str, Block]:
     Keys ``rhs``, ``jac`` (if the scene asks for it) and ``out``; targets ("M", i, j) for the
     upper triangle of M (the code mirrors it), ("F", i), ("ydot", k) (quadrature rates),
     ("G", i, j) = d r_i / d y_j for r = M a - F with a = q'' (the symbols ``a[i]``),
-    ("Z", k, j) = d z'_k / d y_j and ("out", k).
+    ("Z", k, j) = d z'_k / d y_j and ("out", k). Reports the stage "formulate"
+    (:mod:`lagcodegen.progress`): the rows of M, then the Jacobian's columns.
     """
+    n = scene.eom.model.n
+    with progress.stage("formulate", total=n + (2 * n if scene.jacobian else 0), unit="rows and columns") as stage:
+        return _model_blocks(scene, stage)
+
+
+def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
     eom = scene.eom
     model = eom.model
     n = model.n
     c = substituter(scene)
-    mass = Block([("M", i, j) for i in range(n) for j in range(i, n)],
-                 [c(eom.M_se[i][j]) for i in range(n) for j in range(i, n)])
+    mass = Block()
+    for i in range(n):  # row by row: a loop point for progress
+        for j in range(i, n):
+            mass.add(("M", i, j), c(eom.M_se[i][j]))
+        stage.advance()
     rhs = mass + Block([("F", i) for i in range(n)], [c(eom.F_se[i]) for i in range(n)])
     for k, (_, rate) in enumerate(eom.quadratures):
         rhs.add(("ydot", 2 * n + k), c(rate))
@@ -116,6 +145,7 @@ def model_blocks(scene: Scene) -> dict[str, Block]:
         for j in range(2 * n):
             for i in range(n):
                 jac.add(("G", i, j), c(dr(i, j)))
+            stage.advance()
         for k, (_, rate) in enumerate(eom.quadratures):
             for j, var in enumerate(y):
                 jac.add(("Z", k, j), c(se.diff(rate, var)))
