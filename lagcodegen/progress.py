@@ -1,4 +1,5 @@
-"""Progress of the long stages (derive, formulate, cse, compile) and Ctrl-C during long C calls.
+"""Progress of the long stages (derive, formulate, cse; the build's compiler runs) and Ctrl-C
+during long C calls.
 
 A stage reports how far it is::
 

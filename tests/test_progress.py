@@ -200,6 +200,13 @@ def test_cse_in_a_child_equals_cse_here(monkeypatch):
     assert [str(e) for e in child[1]] == [str(e) for e in here[1]]
 
 
+def test_cse_cost_counts_operations_and_expressions():
+    x, y = se.symbols("x y")
+    assert kernels.cse_cost([]) == 0
+    assert kernels.cse_cost([x] * 5) == 50
+    assert kernels.cse_cost([x * y + x, x]) == 2 + 20
+
+
 def test_cse_is_a_stage():
     rec = Recorder()
     with progress.enabled(rec):

@@ -18,11 +18,18 @@ from .. import progress
 from ..model.model import RESERVED_PREFIX
 from .scene import Scene
 
-#: A common-subexpression elimination of at least this many operations (symengine's count_ops:
-#: about 0.2 s of elimination, 61 000 for the right-hand side of a 20-link pendulum) runs in a
-#: child process (:func:`lagcodegen.progress.isolated`), so that Ctrl-C stops it at once; a
-#: smaller one runs here (a fork costs some 15 ms).
+#: A common-subexpression elimination of at least this many operations (symengine's count_ops,
+#: plus 10 per expression: many small expressions cost too) runs in a child process
+#: (:func:`lagcodegen.progress.isolated`), so that Ctrl-C stops it at once; a smaller one runs
+#: here (a fork costs some 15 ms). Measured (symengine 0.15, 20/30-link pendulums): the
+#: right-hand side, 230 expressions and 61 000 operations, takes 0.2 s, 495 and 185 000 1.1 s;
+#: the tangent Jacobian's 4126 partial derivatives of 21 000 operations 0.4 s.
 ISOLATE_CSE_OPS = 50_000
+
+
+def cse_cost(exprs) -> int:
+    """The measure of :data:`ISOLATE_CSE_OPS`: operations plus 10 per expression."""
+    return se.count_ops(*exprs) + 10 * len(exprs) if exprs else 0
 
 
 def cse(exprs) -> tuple[list, list]:
@@ -32,7 +39,7 @@ def cse(exprs) -> tuple[list, list]:
     child process. The result is the same either way."""
     exprs = list(exprs)
     with progress.stage("cse", unit=f"of {len(exprs)} expressions"):
-        if exprs and progress.can_isolate() and se.count_ops(*exprs) >= ISOLATE_CSE_OPS:
+        if exprs and progress.can_isolate() and cse_cost(exprs) >= ISOLATE_CSE_OPS:
             return progress.isolated(se.cse, exprs)
         return se.cse(exprs)
 
