@@ -70,9 +70,10 @@ class Scene:
         ``linear_solver="band"``.
     jacobian_form:
         How the C code computes the dense Jacobian: ``"expanded"`` (every entry of dr/dy,
-        r = M q'' - F, as its own expression: code growing like n^3), ``"tangent"``
-        (forward-mode differentiation of the right-hand side's program, run once per column
-        in a loop: code growing like n^2; :mod:`lagcodegen.formulation.tangent`) or ``"auto"``
+        r = M q'' - F, as its own expression: code growing like n^3 for a dense coupling),
+        ``"tangent"`` (forward-mode differentiation of the right-hand side's program: the
+        statements that depend on few columns specialized per column, the others shared by all
+        columns; code growing like n^2; :mod:`lagcodegen.formulation.tangent`) or ``"auto"``
         (:func:`auto_jacobian_form`). The Fortran backend always emits the expanded form.
     """
 
@@ -243,19 +244,22 @@ class Scene:
 
 #: Scene(jacobian_form="auto") emits the expanded Jacobian up to this many coordinates and the
 #: tangent form above (see auto_jacobian_form for the measurements).
-EXPANDED_JACOBIAN_MAX_N = 8
+EXPANDED_JACOBIAN_MAX_N = 20
 
 
 def auto_jacobian_form(n: int) -> str:
     """The Jacobian form of ``Scene(jacobian_form="auto")`` for ``n`` coordinates: "expanded" for
     n <= EXPANDED_JACOBIAN_MAX_N, "tangent" above.
 
-    Measured (benchmarks/jacobian.py --quick, planar n-link pendulum, gcc 12 -O2, <prefix>.c
-    alone): at n = 5 the tangent form compiles in 0.65 s against 0.45 s and its Jacobian call
-    costs 2.0x the expanded one's; at n = 10 it compiles in 3.0 s against 3.9 s (and less
-    compiler memory) at 1.8x the call cost, and its code grows like n^2 against n^3 (see the
-    benchmark's full run for n = 20, 30). Below about 8 coordinates the expanded form is both
-    the faster to build and to run; the generated C of those scenes is unchanged."""
+    Both are printed in pieces of bounded length above a few thousand operations (the compiler's
+    time then grows like the code's size). Measured (``python benchmarks/scaling.py``, planar
+    n-link pendulum, gcc 12 -O2, compiler CPU seconds / jac call in microseconds, expanded vs
+    tangent): n = 10: 1.0 / 6.5 vs 1.4 / 13.3; n = 20: 4.4 / 31 vs 5.1 / 62 (generation 2.0 vs
+    0.9 s); n = 30: 10.1 / 88 vs 10.6 / 215, but the expanded form's generation (symbolic
+    derivatives and their elimination) takes 12.5 s against 4.3 s. Up to 20 coordinates the
+    expanded form is as fast to build and runs its Jacobian twice as fast; above, its generation
+    grows like n^3.5 and the tangent form builds first (its code grows like n^2 for any coupling;
+    the expanded form's like n^3 when every coordinate enters every entry of M)."""
     return "expanded" if n <= EXPANDED_JACOBIAN_MAX_N else "tangent"
 
 

@@ -1,30 +1,40 @@
-"""The Jacobian in tangent form: forward-mode differentiation of the right-hand side's program.
+"""Straight-line programs of the right-hand side, and the Jacobian in tangent form.
 
 The expanded Jacobian (:func:`lagcodegen.formulation.kernels.model_blocks`, key ``jac``)
 differentiates r = M a - F symbolically: n x 2n expressions, each as long as a row of M and F,
-so its code grows like n^3 (and gcc's time and memory faster still). Here the right-hand side
-kernel (M's upper triangle, F, the quadrature rates) is first reduced to a straight-line program
-by common-subexpression elimination,
+so that its code grows like n^3 for a dense system, and gcc's time and memory grow faster still
+on the one huge function it makes. Here the right-hand side kernel (M's upper triangle, F, the
+quadrature rates) is first turned into a straight-line :class:`Program` of small statements,
 
-    v_k = f_k(v_0 .. v_{k-1}, y, p, t),    M_ij, F_i, z'_k = g(v, y, p, t),
+    v[k] = f_k(operands),    operands: earlier values v[i], the state y[i], p[k], t, numbers,
 
-and differentiated in forward mode along a seed direction e_j (dy = e_j):
+by hash-consing (every distinct subexpression once; sums with their numeric coefficients,
+products of two factors, one function or power each: :meth:`Program.atom`), optionally after
+symengine's common-subexpression elimination (which finds shared partial sums, at a cost that
+grows fast with the size). Every partial derivative d f_k / d u of a statement by an operand u is
+then a number times one value (``cos(y[0])`` is the value computed for the right-hand side, the
+product of the other factor, ...): the derivative values that the right-hand side does not
+compute are appended to the program (:attr:`Program.n_rhs` separates them).
 
-    dv_k = sum over the direct operands u of f_k of (d f_k / d u) * du,
+The Jacobian is forward-mode differentiation of that program along each column j of dr/dy
+(seed dy = e_j), grouped by positions and velocities (M(q, t) has no velocity in it: the
+velocity columns skip every statement of M). In a group, a statement is *narrow* if it depends
+on at most ``narrow`` of the group's columns, *wide* otherwise:
 
-the partial derivatives d f_k / d u being expressions of the program's own values, computed
-once per call. The generated code runs the tangent program once per column j of dr/dy
-(a loop, so the code holds it once per group of columns): its size is that of the right-hand
-side plus one term per (statement, operand) pair, which grows like the right-hand side, n^2
-for a chain. The columns are grouped (positions q, velocities q'): a group's tangent program
-holds only the statements that depend on one of its columns (M(q, t) has no velocity in it,
-so the velocity columns skip dM and every statement of M).
+* column c runs only the narrow statements that depend on c (their tangents, with the seed
+  folded in), and adds their contributions to the wide statements that read them (scatter into
+  the accumulators ``w``) and to the result g = dr/dy_c (dM a - dF: the entries of M add
+  dM_ik a_k to g_i, those of F subtract);
+* then the wide statements run in every column, in one piece of code shared by the columns:
+  dv = (accumulated narrow part) + sum of (partial) x (tangent of a wide operand).
 
-Column j of the Jacobian is then, as in the expanded form, -M^-1 (dM a - dF) (a = q'') for
-the accelerations and dz'/dy_j for the quadrature rates. Everything here is language-neutral:
-:class:`TangentProgram` holds symengine expressions in the kernels' array symbols (``y[i]``,
-``p[k]``, ``t``) and in the program's own symbols (``v<k>`` values, ``e<m>`` partial
-derivatives, ``dv<k>`` tangents, ``s[i]`` the seed); :mod:`lagcodegen.codegen.c` prints it.
+The code therefore holds each narrow statement once per column it depends on (at most
+``narrow`` times) and each wide one once: its size grows like the right-hand side's, n^2 for a
+chain; its run time is the sparse cost (like the expanded form) for the narrow part and a dense
+forward sweep for the wide part. Column j of the Jacobian is then -M^-1 g for the accelerations
+and dz'/dy_j for the quadrature rates. Everything here is language-neutral (symengine expressions
+in the array symbols ``y[i]``, ``p[k]``, ``t``, ``v[k]``, ``a[i]``, ``w[i]`` and the local
+tangents ``d<k>``); :mod:`lagcodegen.codegen.c` prints it.
 """
 
 from __future__ import annotations
@@ -33,228 +43,352 @@ from dataclasses import dataclass, field
 
 import symengine as se
 
-from .kernels import Block
+from ..errors import ModelError
+from .kernels import Block, cse as eliminate
 
 #: Choices of Scene.jacobian_form: "expanded" (kernels.model_blocks: symbolic dr/dy),
 #: "tangent" (this module).
 JACOBIAN_FORMS = ("expanded", "tangent")
 
+#: Statements depending on at most this many columns of a group are "narrow": computed only in
+#: those columns (one specialized copy each), not in every column.
+NARROW = 2
+
+#: Programs built from at most this many operations (symengine's count_ops) start from
+#: symengine's common-subexpression elimination (shared partial sums: a smaller program); larger
+#: ones from hash-consing alone (linear time: symengine's elimination takes seconds at 50 links).
+CSE_MAX_OPS = 200_000
+
+
+def _is_atom(e) -> bool:
+    return not e.args
+
+
+class Program:
+    """A straight-line program: values ``v[k] = exprs[k]`` (each over atoms: numbers, the
+    symbols ``y[i]``, ``p[k]``, ``t`` and earlier ``v[i]``), built by :meth:`atom`.
+
+    ``deps[k]``: the columns (indices i < 2n of y) that value k depends on; the other symbols
+    (parameters, t, the quadrature states) are constants of the differentiation."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.exprs: list = []
+        self.deps: list[frozenset] = []
+        self.symbols: list = []
+        self._memo: dict = {}    # statement (over atoms) -> its value symbol
+        self._seen: dict = {}    # any expression flattened before -> its atom
+        self._index: dict = {}   # value symbol -> k
+        self._state = {se.Symbol(f"y[{i}]"): i for i in range(2 * n)}
+        self.n_rhs = 0
+        self.partials: list = []
+
+    def __len__(self) -> int:
+        return len(self.exprs)
+
+    def deps_of(self, atom) -> frozenset:
+        """The columns an atom (number, symbol, value) depends on."""
+        if atom in self._index:
+            return self.deps[self._index[atom]]
+        if atom in self._state:
+            return frozenset((self._state[atom],))
+        return frozenset()
+
+    def index(self, atom):
+        """k if ``atom`` is the value v[k], else None."""
+        return self._index.get(atom)
+
+    def _value(self, expr):
+        """The value computing ``expr`` (a statement over atoms), created if new."""
+        if _is_atom(expr):
+            return expr
+        sym = self._memo.get(expr)
+        if sym is None:
+            k = len(self.exprs)
+            sym = se.Symbol(f"v[{k}]")
+            deps = frozenset()
+            for u in expr.free_symbols:
+                d = self.deps_of(u)
+                if d:
+                    deps = deps | d
+            self.exprs.append(expr)
+            self.deps.append(deps)
+            self.symbols.append(sym)
+            self._memo[expr] = sym
+            self._index[sym] = k
+        return sym
+
+    def _key(self, atom):
+        """Order of the factors of a product: constants first, then by creation."""
+        if atom.is_Number:
+            return (0, 0, "")
+        deps = self.deps_of(atom)
+        k = self._index.get(atom)
+        return (1 if not deps else 2, -1 if k is None else k, str(atom))
+
+    def atom(self, e, known: dict | None = None):
+        """An atom (number, symbol or value) equal to the expression ``e``, adding the values
+        it needs. ``known`` maps symbols standing for earlier expressions (a common-subexpression
+        elimination's) to their atoms."""
+        if _is_atom(e):
+            if known and e in known:
+                return known[e]
+            return e
+        hit = self._seen.get(e)
+        if hit is not None:
+            return hit
+        if isinstance(e, se.Add):
+            const, terms = se.Integer(0), []
+            for arg in e.args:
+                coef, rest = se.Integer(1), arg
+                if isinstance(arg, se.Mul) and arg.args[0].is_Number:
+                    coef, rest = arg.args[0], se.Mul(*arg.args[1:])
+                a = self.atom(rest, known)
+                if a.is_Number:
+                    const += coef * a
+                else:
+                    terms.append(coef * a)
+            out = self._value(se.Add(const, *terms))
+        elif isinstance(e, se.Mul):
+            coef, factors = se.Integer(1), []
+            for arg in e.args:
+                a = self.atom(arg, known)
+                if a.is_Number:
+                    coef *= a
+                else:
+                    factors.append(a)
+            factors.sort(key=self._key)
+            consts = [f for f in factors if not self.deps_of(f)]
+            rest = [f for f in factors if self.deps_of(f)]
+            if len(consts) > 1:
+                rest.insert(0, self._value(se.Mul(*consts)))
+            elif consts:
+                rest.insert(0, consts[0])
+            prod = rest[0] if rest else se.Integer(1)
+            for f in rest[1:-1]:
+                prod = self._value(prod * f)
+            if len(rest) > 1:
+                prod = self._value(coef * prod * rest[-1])
+            elif coef != 1 or not rest:
+                prod = self._value(coef * prod)
+            out = prod
+        elif isinstance(e, se.Pow):
+            base, exp = (self.atom(a, known) for a in e.args)
+            out = self._value(se.Pow(base, exp))
+        else:
+            args = [self.atom(a, known) for a in e.args]
+            out = self._value(type(e)(*args))
+        self._seen[e] = out
+        return out
+
+    def partial(self, k: int, u):
+        """d v[k] / d u as (number, atom or None): a number times one value (appended to the
+        program if new)."""
+        d = se.diff(self.exprs[k], u)
+        if d.atoms(se.Derivative, se.Subs):
+            raise ModelError(f"tangent Jacobian: cannot differentiate {self.exprs[k]} (use jacobian_form='expanded')")
+        if d.is_Number:
+            return d, None
+        coef, rest = se.Integer(1), d
+        if isinstance(d, se.Mul) and d.args[0].is_Number:
+            coef, rest = d.args[0], se.Mul(*d.args[1:])
+        return coef, self.atom(rest)
+
+    def finish_rhs(self) -> None:
+        """Mark the values so far as the right-hand side's and compute every statement's partial
+        derivatives by its operands (``partials[k]``: list of (operand, coefficient, atom))."""
+        self.n_rhs = len(self.exprs)
+        k = 0
+        while k < len(self.exprs):  # partial values appended here have partials too (unused)
+            if k < self.n_rhs:
+                ops = sorted((u for u in self.exprs[k].free_symbols if self.deps_of(u)), key=self._key)
+                self.partials.append([(u, *self.partial(k, u)) for u in ops])
+            else:
+                self.partials.append([])
+            k += 1
+
+
+def build_program(rhs: Block, n: int, cse: bool | None = None) -> tuple[Program, list]:
+    """The :class:`Program` of the right-hand side kernel ``rhs`` and its targets as (target,
+    atom). ``cse``: start from symengine's common-subexpression elimination (None: when the
+    block has at most :data:`CSE_MAX_OPS` operations)."""
+    prog = Program(n)
+    exprs = list(rhs.exprs)
+    if cse is None:
+        cse = se.count_ops(*exprs) <= CSE_MAX_OPS if exprs else False
+    known: dict = {}
+    if cse and exprs:
+        repl, exprs = eliminate(exprs)
+        for sym, e in repl:
+            known[sym] = prog.atom(e, known)
+    targets = [(t, prog.atom(e, known)) for t, e in zip(rhs.targets, exprs)]
+    return prog, targets
+
 
 @dataclass
 class TangentGroup:
-    """The tangent program of the columns ``start <= j < stop`` of dr/dy.
+    """The tangent code of the columns ``start <= j < stop`` of dr/dy.
 
-    ``statements``: (name, expr) for the values with a nonzero tangent in this group, in
-    order (``dv<k>`` = a linear combination of earlier tangents and the seed ``s[i]``);
-    ``targets``: (target, expr) for the structurally nonzero derivatives of the kernel's
-    targets: ("dM", i, j) (upper triangle), ("dF", i), ("dZ", k); the others are zero.
+    ``columns[c]``: the operations of column c alone (its narrow statements); ``blocks``: the wide
+    statements as (columns, lo, hi, operations), one block per set of columns they depend on,
+    run in column c if c is in that set, after the column's own operations, in the order of the
+    list; the block's accumulators are ``w[lo:hi]``. Operations are (kind, index, expr):
+    ("d", k, e) the local tangent ``d<k>`` = e of value k; ("w", i, e) ``w[i] += e``;
+    ("g", i, e) ``g[i] += e`` (g = dM a - dF); ("z", k, e) d z'_k / d y_j = e.
     """
 
     start: int
     stop: int
-    statements: list = field(default_factory=list)
-    targets: list = field(default_factory=list)
-    cases: dict = field(default_factory=dict)
-    stored: list = field(default_factory=list)
-    resets: dict = field(default_factory=dict)
+    columns: dict = field(default_factory=dict)
+    blocks: list = field(default_factory=list)
+    nw: int = 0
 
     @property
-    def mass(self) -> bool:
-        """True if some entry of M depends on a column of this group."""
-        return any(t[0] == "dM" for t, _ in self.targets) or any(
-            isinstance(t, tuple) and t[0] == "dM" for case in self.cases.values() for t, _ in case)
-
-    @property
-    def force(self) -> bool:
-        """True if some entry of F depends on a column of this group."""
-        return any(t[0] == "dF" for t, _ in self.targets) or any(
-            isinstance(t, tuple) and t[0] == "dF" for case in self.cases.values() for t, _ in case)
+    def wide(self) -> list:
+        """Every wide operation, in order."""
+        return [op for _, _, _, ops in self.blocks for op in ops]
 
 
 @dataclass
 class TangentProgram:
-    """Forward-mode program of the right-hand side kernel (see the module docstring).
+    """The right-hand side as a :class:`Program` and its Jacobian in tangent form (module docstring).
 
-    ``primal``: (v<k>, expr) statements, in order (only those the Jacobian reads);
-    ``values``: (target, expr) computing M's upper triangle ("M", i, j) from them; ``partials``: a Block
-    of targets ("e", m) (the nontrivial partial derivatives, printed as constants after
-    common-subexpression elimination); ``groups``: the tangent programs of the column groups
-    (positions, velocities) with a structurally nonzero derivative (the others' columns of
-    dr/dy are zero).
-    """
+    ``targets``: (target, atom) of the right-hand side kernel (("M", i, k) upper triangle,
+    ("F", i), ("ydot", 2n + k)); ``groups``: the tangent code per column group with a
+    structurally nonzero derivative (positions, velocities)."""
 
     n: int
     nz: int
-    primal: list
-    values: list
-    partials: Block
+    program: Program
+    targets: list
     groups: list
 
     def size(self) -> int:
-        """Number of operand terms of the tangent statements (a measure of the code's size)."""
-        return sum(len(se.Add.make_args(e)) for g in self.groups
-                   for _, e in g.statements + g.targets + [x for case in g.cases.values() for x in case])
+        """Number of operand terms of the program and the tangent code (a measure of the code's size)."""
+        ops = [e for g in self.groups for col in list(g.columns.values()) + [g.wide] for _, _, e in col]
+        return sum(len(se.Add.make_args(e)) for e in ops) + len(self.program)
 
 
-def _seed(i: int):
-    return se.Symbol(f"s[{i}]")
+def _mass_terms(target, tangent):
+    """The contributions of d(target) = ``tangent`` to g = dM a - dF."""
+    kind, *idx = target
+    if kind == "M":
+        i, k = idx
+        out = [("g", i, tangent * se.Symbol(f"a[{k}]"))]
+        if i != k:
+            out.append(("g", k, tangent * se.Symbol(f"a[{i}]")))
+        return out
+    if kind == "F":
+        return [("g", idx[0], -tangent)]
+    return [("z", idx[0], tangent)]
 
 
-#: Statements and targets depending on at most this many columns of their group are "narrow":
-#: computed only for those columns (one copy each, selected by the column), not in every column.
-NARROW = 2
-
-
-def tangent_program(rhs: Block, n: int, nz: int = 0, narrow: int = NARROW) -> TangentProgram:
-    """The forward-mode program of the right-hand side kernel ``rhs`` (model_blocks(scene)["rhs"]:
-    targets ("M", i, j), ("F", i), ("ydot", 2n + k)), for the derivatives by y[0] .. y[2n-1]
-    (the quadrature states z do not enter the rates, as in the expanded form). Statements and
-    targets depending on at most ``narrow`` columns of a group are specialized per column
-    (:func:`_split`; 0: none)."""
-    repl, reduced = se.cse(list(rhs.exprs))
-    # Rename the elimination's symbols (x<k>) to v<k>: the printer eliminates again, with x<k>.
-    rename = {sym: se.Symbol(f"v{k}") for k, (sym, _) in enumerate(repl)}
-    primal = [(rename[sym], expr.xreplace(rename)) for sym, expr in repl]
-    values = [(tgt, expr.xreplace(rename)) for tgt, expr in zip(rhs.targets, reduced)]
-    state = {se.Symbol(f"y[{i}]"): i for i in range(2 * n)}
-    index = {v: k for k, (v, _) in enumerate(primal)}
-
-    partials = Block()
-    known: dict = {}
-
-    def coefficient(expr, u):
-        """d expr / d u: numbers and single symbols inline, anything else an e<m> constant."""
-        d = se.diff(expr, u)
-        if d == 0:
-            return None
-        if d.is_Number or d.is_Symbol:
-            return d
-        if d not in known:
-            known[d] = se.Symbol(f"e{len(partials.exprs)}")
-            partials.add(("e", len(partials.exprs)), d)
-        return known[d]
-
-    def operands(expr):
-        return sorted((u for u in expr.free_symbols if u in index or u in state),
-                      key=lambda u: (u in state, index.get(u, state.get(u))))
-
-    # Partial derivatives: one list of (coefficient, operand) per statement and per target.
-    links = [[(c, u) for u in operands(f) if (c := coefficient(f, u)) is not None] for _, f in primal]
-    target_links = [[(c, u) for u in operands(g) if (c := coefficient(g, u)) is not None] for _, g in values]
-
-    def kind(target):
-        name, *idx = target
-        if name == "M":
-            return ("dM", *idx)
-        if name == "F":
-            return ("dF", *idx)
-        return ("dZ", idx[0] - 2 * n)
-
+def tangent_program(rhs: Block, n: int, nz: int = 0, narrow: int | None = None, cse: bool | None = None,
+                    program: tuple | None = None) -> TangentProgram:
+    """The forward-mode Jacobian of the right-hand side kernel ``rhs`` (model_blocks(scene)["rhs"]:
+    targets ("M", i, j), ("F", i), ("ydot", 2n + k)) by y[0] .. y[2n-1] (the quadrature states z
+    do not enter the rates, as in the expanded form). ``program``: (Program, targets) of
+    :func:`build_program` if already built (its partials are computed here)."""
+    prog, targets = program if program is not None else build_program(rhs, n, cse)
+    narrow = NARROW if narrow is None else narrow
+    targets = [((("ydot", t[1] - 2 * n) if t[0] == "ydot" else t), a) for t, a in targets]
+    prog.finish_rhs()
     groups = []
     for start, stop in ((0, n), (n, 2 * n)):
-        active: dict = {}  # operand -> its tangent symbol in this group
-
-        def tangent(terms):
-            parts = [c * active[u] for c, u in terms if u in active]
-            return se.Add(*parts) if parts else None
-
-        for i in range(start, stop):
-            active[se.Symbol(f"y[{i}]")] = _seed(i)
-        group = TangentGroup(start, stop)
-        for (v, _), terms in zip(primal, links):
-            d = tangent(terms)
-            if d is not None:
-                active[v] = se.Symbol(f"d{v}")
-                group.statements.append((f"d{v}", d))
-        for (tgt, _), terms in zip(values, target_links):
-            d = tangent(terms)
-            if d is not None:
-                group.targets.append((kind(tgt), d))
-        group.statements = _live(group.statements, [e for _, e in group.targets])
-        if group.targets:
-            groups.append(_split(group, narrow))
-    # Only what the Jacobian reads: M, the partial derivatives the tangents use, their values.
-    used = set()
-    for g in groups:
-        for _, e in g.statements + g.targets + [item for case in g.cases.values() for item in case]:
-            used |= e.free_symbols
-    kept = Block()
-    for (tgt, e) in zip(partials.targets, partials.exprs):
-        if se.Symbol(f"e{tgt[1]}") in used:
-            kept.add(tgt, e)
-    mass = [(t, e) for t, e in values if t[0] == "M"]
-    primal = _live(primal, [e for _, e in mass] + kept.exprs)
-    return TangentProgram(n, nz, primal, mass, kept, groups)
+        group = _group(prog, targets, start, stop, narrow)
+        if group.columns or group.blocks:
+            groups.append(group)
+    targets = [((("ydot", 2 * n + t[1]) if t[0] == "ydot" else t), a) for t, a in targets]
+    return TangentProgram(n, nz, prog, targets, groups)
 
 
-def _split(group: TangentGroup, narrow: int) -> TangentGroup:
-    """Move the group's narrow statements and targets (depending on at most ``narrow`` of its
-    columns) into per-column ``cases``: in column c only those depending on c are computed, with
-    the seed s[c] = 1 folded in, and the others are zero. A narrow tangent that a wide statement
-    or target reads is ``stored`` (a variable, zero outside the columns it depends on: ``resets``
-    lists per column what to zero again after it, narrow entries of dM and dF included); the
-    wide statements and targets stay in ``statements`` and ``targets``, run in every column."""
-    if narrow <= 0:
-        return group
-    seeds = {f"s[{i}]": i for i in range(group.start, group.stop)}
-    deps: dict = {}
+def _group(prog: Program, targets: list, start: int, stop: int, narrow: int) -> TangentGroup:
+    cols = frozenset(range(start, stop))
+    nv = prog.n_rhs
+    dg = [d & cols for d in prog.deps[:nv]]
+    is_wide = [len(d) > narrow for d in dg]
+    # Wide values by the set of columns they depend on (operands depend on subsets: smaller sets
+    # first is an order of evaluation), accumulators contiguous per set.
+    # Values read by a wide value of another set first in their set (their tangents are zeroed after
+    # each column that computes them, as one range).
+    shared = {u for k in range(nv) if is_wide[k] for u, _, _ in prog.partials[k]
+              if (j := prog.index(u)) is not None and is_wide[j] and dg[j] != dg[k]}
+    order = sorted((k for k in range(nv) if is_wide[k]), key=lambda k: (len(dg[k]), sorted(dg[k]), k))
+    slots = sorted(order, key=lambda k: (len(dg[k]), sorted(dg[k]), prog.symbols[k] not in shared, k))
+    widx = {k: i for i, k in enumerate(slots)}
+    state = {se.Symbol(f"y[{i}]"): i for i in cols}
+    group = TangentGroup(start, stop, nw=len(widx))
 
-    def tangents(expr):
-        return [str(u) for u in expr.free_symbols if str(u) in seeds or str(u) in deps]
+    def dsym(k):
+        return se.Symbol(f"d{k}")
 
-    def columns(expr):
-        out = set()
-        for u in tangents(expr):
-            out |= {seeds[u]} if u in seeds else deps[u]
-        return out
+    def wsym(k):
+        return se.Symbol(f"w[{widx[k]}]")
 
-    for name, e in group.statements:
-        deps[name] = columns(e)
-    is_narrow = {name: len(d) <= narrow for name, d in deps.items()}
-    wide = [(name, e) for name, e in group.statements if not is_narrow[name]]
-    wide_targets = [(t, e) for t, e in group.targets if len(columns(e)) > narrow]
-    stored = set()
-    for _, e in wide + wide_targets:
-        stored |= {u for u in tangents(e) if u in deps and is_narrow[u]}
-    narrow_items = [(name, e) for name, e in group.statements if is_narrow[name]]
-    narrow_targets = [(t, e) for t, e in group.targets if len(columns(e)) <= narrow]
-    cases, resets = {}, {}
-    for c in range(group.start, group.stop):
-        case = []
-        for item, e in narrow_items + narrow_targets:
-            if c not in (deps[item] if isinstance(item, str) else columns(e)):
+    def scaled(coef, atom, t):
+        e = coef if atom is None else coef * atom
+        return e * t
+
+    # Column c: the narrow values depending on c, their contributions to wide values and targets.
+    for c in sorted(cols):
+        ops = []
+        for k in range(nv):
+            if c not in dg[k]:
                 continue
             terms = []
-            for term in se.Add.make_args(e):
-                (u,) = tangents(term)
-                if u == f"s[{c}]":
-                    terms.append(term.xreplace({se.Symbol(u): se.Integer(1)}))
-                elif u in deps and c in deps[u]:
-                    terms.append(term)
-            case.append((item, se.Add(*terms)))
-        live = set(stored) | {str(u) for t, e in case if not isinstance(t, str) for u in e.free_symbols}
-        kept = []
-        for item, e in reversed(case):
-            if not isinstance(item, str) or item in live:
-                live |= {str(u) for u in e.free_symbols}
-                kept.append((item, e))
-        cases[c] = kept[::-1]
-        resets[c] = [item for item, _ in cases[c] if item in stored or (not isinstance(item, str) and item[0] != "dZ")]
-    group.statements, group.targets = wide, wide_targets
-    group.cases = {c: case for c, case in cases.items() if case}
-    group.resets = {c: r for c, r in resets.items() if r}
-    group.stored = [name for name, _ in narrow_items if name in stored]
+            for u, coef, atom in prog.partials[k]:
+                j = prog.index(u)
+                if j is None:
+                    if state.get(u) == c:
+                        terms.append(coef if atom is None else coef * atom)
+                elif c in dg[j] and not is_wide[j]:
+                    terms.append(scaled(coef, atom, dsym(j)))
+            if not terms:
+                continue
+            if is_wide[k]:
+                ops.append(("w", widx[k], se.Add(*terms)))
+            else:
+                ops.append(("d", k, se.Add(*terms)))
+        for tgt, a in targets:
+            j = prog.index(a)
+            if j is None:
+                if state.get(a) == c:
+                    ops += _mass_terms(tgt, se.Integer(1))
+            elif c in dg[j] and not is_wide[j]:
+                ops += _mass_terms(tgt, dsym(j))
+        ops = _live_ops(ops)
+        if ops:
+            group.columns[c] = ops
+    # The wide values (narrow parts accumulated above), then their targets, by blocks.
+    by_target: dict = {}
+    for tgt, a in targets:
+        j = prog.index(a)
+        if j is not None and is_wide[j]:
+            by_target.setdefault(j, []).append(tgt)
+    block = None
+    for k in order:
+        if block is None or block[0] != dg[k]:
+            block = [dg[k], widx[k], widx[k] + 1, []]
+            group.blocks.append(block)
+        block[1], block[2] = min(block[1], widx[k]), max(block[2], widx[k] + 1)
+        terms = [scaled(coef, atom, wsym(j)) for u, coef, atom in prog.partials[k]
+                 if (j := prog.index(u)) is not None and is_wide[j]]
+        if terms:
+            block[3].append(("w", widx[k], se.Add(*terms)))
+        for tgt in by_target.get(k, ()):
+            block[3] += _mass_terms(tgt, wsym(k))
+    group.blocks = [tuple(b) for b in group.blocks]
     return group
 
 
-def _live(statements: list, roots: list) -> list:
-    """The statements (name, expr) that ``roots`` (expressions) read, directly or through others."""
-    live = set()
-    for e in roots:
-        live |= {str(s) for s in e.free_symbols}
+def _live_ops(ops: list) -> list:
+    """The operations whose result is read (accumulations and results always are)."""
+    live: set = set()
     kept = []
-    for name, e in reversed(statements):
-        if str(name) in live:
-            live |= {str(s) for s in e.free_symbols}
-            kept.append((name, e))
+    for op in reversed(ops):
+        kind, k, e = op
+        if kind == "d" and f"d{k}" not in live:
+            continue
+        live |= {str(s) for s in e.free_symbols}
+        kept.append(op)
     return kept[::-1]

@@ -1,7 +1,10 @@
-"""The tangent-form Jacobian (lagcodegen.formulation.tangent): the expanded Jacobian's values to
-round-off, central differences of the right-hand side, strict C, the same CVODE BDF results, and
-code that grows like n^2."""
+"""The tangent-form Jacobian and the program form of large kernels (lagcodegen.formulation.tangent,
+lagcodegen.codegen.c): the expanded Jacobian's values to round-off, central differences of the
+right-hand side, the classic one-function right-hand side's values, strict C (also cut into pieces
+of a few statements, so that every path across pieces runs), the same CVODE BDF results, code
+that grows like n^2 and functions of bounded length."""
 
+import re
 import subprocess
 
 import numpy as np
@@ -30,6 +33,8 @@ CASES = {
     "pendulum": (lambda: derive(systems.pendulum("tg_pend")), {}),
     "double_pendulum": (lambda: derive(systems.double_pendulum("tg_dp")), {}),
     "n_link4": (lambda: derive(systems.n_link_pendulum(4, name="tg_n4")), {}),
+    # Large enough for blocks of wide statements of several column sets, and for the program form.
+    "n_link10": (lambda: derive(systems.n_link_pendulum(10, name="tg_n10")), {}),
     "spring_chain": (lambda: derive(systems.spring_chain(6, 1e3, name="tg_chain")), {}),
     "spherical": (lambda: derive(systems.spherical_pendulum("tg_sph")), {}),
     "routhian": (routhian_eom, {}),
@@ -41,15 +46,24 @@ CASES = {
 SIMULATED = ("double_pendulum", "spring_chain")
 
 
-def compiled(name, form):
+def compiled(name, form, tag=""):
     make, opts = CASES[name]
-    return build(generate_c(Scene(make(), jacobian_form=form, prefix=f"tg_{name}_{form}", **opts)),
+    return build(generate_c(Scene(make(), jacobian_form=form, prefix=f"tg_{name}_{form}{tag}", **opts)),
                  native=name in SIMULATED)
 
 
 @pytest.fixture(scope="module")
 def models():
     return {name: {form: compiled(name, form) for form in ("expanded", "tangent")} for name in CASES}
+
+
+@pytest.fixture()
+def tiny_pieces(monkeypatch):
+    """The program form everywhere (right-hand side, expanded Jacobian), cut into pieces of at most
+    3 statements: values, narrow tangents and wide tangents cross pieces."""
+    import lagcodegen.codegen.c as cmod
+    monkeypatch.setattr(cmod, "PROGRAM_MIN_OPS", 0)
+    monkeypatch.setattr(cmod, "CHUNK_STATEMENTS", 3)
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -82,7 +96,7 @@ def test_quadrature_rows_are_differentiated(models):
 def test_tangent_c_compiles_with_strict_warnings(tmp_path, cc, name):
     make, opts = CASES[name]
     code = generate_c(Scene(make(), jacobian_form="tangent", outputs=["energy"], prefix=f"tgs_{name}", **opts))
-    assert "switch (j)" in code.files[code.source_name]
+    assert "call_start[j]" in code.files[code.source_name]
     code.write(tmp_path)
     proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", code.source_name, "-o", "m.o"], cwd=tmp_path,
                           capture_output=True, text=True)
@@ -130,4 +144,75 @@ def test_jacobian_form_option():
     assert Scene(eom, jacobian_form="tangent").resolved_jacobian_form() == "tangent"
     expanded = generate_c(Scene(eom, jacobian_form="expanded"))
     assert generate_c(Scene(eom)).files == expanded.files  # auto keeps small models expanded
-    assert "switch (j)" not in expanded.files[expanded.source_name]
+    assert "call_start[j]" not in expanded.files[expanded.source_name]
+
+
+@pytest.mark.parametrize("name,eliminate", [("n_link4", True), ("spring_chain", True), ("routhian", True),
+                                             ("folded", True), ("n_link4", False), ("folded", False)])
+def test_tiny_pieces_give_the_same_values(models, tiny_pieces, monkeypatch, name, eliminate):
+    """eliminate=False: the programs by hash-consing alone, as for the largest models."""
+    exp, tan = models[name]["expanded"], models[name]["tangent"]
+    if not eliminate:
+        import lagcodegen.codegen.c as cmod
+        import lagcodegen.formulation.tangent as tmod
+        monkeypatch.setattr(cmod, "CSE_MAX_OPS", 0)
+        monkeypatch.setattr(tmod, "CSE_MAX_OPS", 0)
+    tag = "_pieces" if eliminate else "_hashed"
+    pieces = {form: compiled(name, form, tag) for form in ("expanded", "tangent")}
+    assert "NOINLINE void values" in pieces["expanded"].code.files[pieces["expanded"].code.source_name]
+    rng = np.random.default_rng(3)
+    for _ in range(2):
+        y = rng.uniform(-1.0, 1.0, tan.ny) + 0.3
+        f = exp.rhs(0.2, y)
+        Je = exp.jac(0.2, y)
+        scale = max(1.0, np.abs(Je).max())
+        for cm in pieces.values():
+            assert np.abs(cm.rhs(0.2, y) - f).max() <= 1e-13 * max(1.0, np.abs(f).max())
+            assert np.abs(cm.jac(0.2, y) - Je).max() <= 1e-13 * scale
+
+
+@pytest.mark.parametrize("name", ["routhian", "folded", "spring_chain"])
+def test_tiny_pieces_compile_with_strict_warnings(tmp_path, cc, tiny_pieces, name):
+    make, opts = CASES[name]
+    for form in ("expanded", "tangent"):
+        code = generate_c(Scene(make(), jacobian_form=form, outputs=["energy"], prefix=f"tgp_{name}_{form}", **opts))
+        code.write(tmp_path)
+        for level in ("-O0", "-O2"):
+            proc = subprocess.run([cc, *STRICT_CFLAGS, level, "-c", code.source_name, "-o", "m.o"], cwd=tmp_path,
+                                  capture_output=True, text=True)
+            assert proc.returncode == 0, proc.stderr
+
+
+def test_large_kernels_come_in_short_functions():
+    """The compiler's time grows like the code's size only if no function grows with n: every
+    function of the program form holds at most CHUNK_STATEMENTS statements (or CHUNK_CHARS)."""
+    from lagcodegen.codegen.c import CHUNK_CHARS, CHUNK_STATEMENTS
+    eom = derive(systems.n_link_pendulum(12, name="tg_short"))
+    for form in ("expanded", "tangent"):
+        src = generate_c(Scene(eom, jacobian_form=form)).files["tg_short.c"]
+        bodies = re.findall(r"^static NOINLINE void \w+\([^)]*\)\n\{\n(.*?)^\}", src, re.S | re.M)
+        assert len(bodies) > 10
+        for body in bodies:
+            lines = body.splitlines()[1:]  # the (void) casts first
+            assert len(lines) <= CHUNK_STATEMENTS or sum(map(len, lines)) <= CHUNK_CHARS + max(map(len, lines))
+        # rhs and jac themselves: calls and short loops, not the kernel's statements
+        for fn in ("rhs", "jac"):
+            body = re.search(rf"^int tg_short_{fn}\(.*?^\}}", src, re.S | re.M).group(0)
+            assert body.count("\n") < 200
+
+
+def test_program_form_rhs_equals_the_one_function_form(monkeypatch):
+    """The right-hand side of a large model (program form: hash-consed statements in pieces)
+    against the same scene printed as one function (symengine's elimination), to round-off."""
+    import lagcodegen.codegen.c as cmod
+    eom = derive(systems.n_link_pendulum(10, name="tg_prog"))
+    program = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_pieces")), native=False)
+    assert "NOINLINE void values" in program.code.files[program.code.source_name]
+    monkeypatch.setattr(cmod, "PROGRAM_MIN_OPS", 10 ** 9)
+    single = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_single")), native=False)
+    assert "NOINLINE" not in single.code.files[single.code.source_name]
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        y = rng.uniform(-1.0, 1.0, single.ny)
+        f = single.rhs(0.0, y)
+        assert np.abs(program.rhs(0.0, y) - f).max() <= 1e-12 * max(1.0, np.abs(f).max())
