@@ -329,15 +329,18 @@ def _group(prog: Program, targets: list, start: int, stop: int, narrow: int) -> 
         e = coef if atom is None else coef * atom
         return e * t
 
+    # The operands of each value with their index (None: not a value), once.
+    links = [[(u, coef, atom, prog.index(u)) for u, coef, atom in prog.partials[k]] for k in range(nv)]
+    by_column: dict[int, list[int]] = {c: [] for c in cols}
+    for k in range(nv):
+        for c in dg[k]:
+            by_column[c].append(k)
     # Column c: the narrow values depending on c, their contributions to wide values and targets.
     for c in sorted(cols):
         ops = []
-        for k in range(nv):
-            if c not in dg[k]:
-                continue
+        for k in by_column[c]:
             terms = []
-            for u, coef, atom in prog.partials[k]:
-                j = prog.index(u)
+            for u, coef, atom, j in links[k]:
                 if j is None:
                     if state.get(u) == c:
                         terms.append(coef if atom is None else coef * atom)
@@ -371,8 +374,7 @@ def _group(prog: Program, targets: list, start: int, stop: int, narrow: int) -> 
             block = [dg[k], widx[k], widx[k] + 1, []]
             group.blocks.append(block)
         block[1], block[2] = min(block[1], widx[k]), max(block[2], widx[k] + 1)
-        terms = [scaled(coef, atom, wsym(j)) for u, coef, atom in prog.partials[k]
-                 if (j := prog.index(u)) is not None and is_wide[j]]
+        terms = [scaled(coef, atom, wsym(j)) for u, coef, atom, j in links[k] if j is not None and is_wide[j]]
         if terms:
             block[3].append(("w", widx[k], se.Add(*terms)))
         for tgt in by_target.get(k, ()):
