@@ -204,10 +204,10 @@ def plot(path: Path, rows: list[dict]) -> None:
               ("e2e_s", "end to end [s]"), ("bdf_ms", "BDF run [ms]"), ("jac_us", "jac call [us]")]
     fig, axes = plt.subplots(2, 3, figsize=(14, 8))
     for ax, (key, label) in zip(axes.flat, panels):
-        for form, style in zip(FORMS, ("o-", "s--", "^-")):
+        for form, style, color in zip(FORMS, ("o-", "s--", "^-"), ("C0", "C1", "C2")):
             pts = [(r["n"], r[key]) for r in rows if r["form"] == form and r.get(key)]
             if pts:
-                ax.loglog(*zip(*pts), style, label=form)
+                ax.loglog(*zip(*pts), style, color=color, label=form)
         ax.set_xlabel("links n")
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
