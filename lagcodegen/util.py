@@ -13,7 +13,7 @@ import signal
 import tempfile
 import threading
 from pathlib import Path
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

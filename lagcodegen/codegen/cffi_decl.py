@@ -102,7 +102,9 @@ typedef struct {{
     double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512]; ...;
 }} {p}_cvc_stats;
 int {p}_cvc_solve(const double *p, const double *y0, int nt, const double *tout, double *yout, double *out,
-                  const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);""")
+                  const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);
+int {p}_initial_state(double t, const double *y, const double *p, int mode, double tol, int nineq, double *yy,
+                      double *yp);""")
         lines.append(ensemble_cdef(f"{p}_cvc_ensemble", f"{p}_cvc_options", f"{p}_cvc_solve_many", events=True))
     if roots:
         lines.append(f"int {p}_roots(double t, const double *y, const double *lam, const double *p, double *gout);")

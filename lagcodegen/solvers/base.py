@@ -5,6 +5,8 @@ initial state of an ODE run."""
 from __future__ import annotations
 
 import math
+import operator
+import struct
 
 import numpy as np
 
@@ -124,22 +126,39 @@ STAT_NAMES = {
 _FIELDS: dict = {}
 
 
+def _stats_reader(ctype):
+    """(keys, a getter of the counters and of nrhs, nrhs_dq / nres, nres_dq where present, which
+    of those two pairs are there) for a statistics struct type."""
+    fields = frozenset(name for name, _ in ctype.item.fields)
+    names = [name for name in STAT_NAMES if name in fields]
+    keys = [STAT_NAMES[name] for name in names]
+    rhs, res = "nrhs" in fields, "nres" in fields
+    names += ["nrhs", "nrhs_dq"] * rhs + ["nres", "nres_dq"] * res
+    if len(names) > 1:
+        return keys, operator.attrgetter(*names), rhs, res
+    return keys, (lambda st: tuple(getattr(st, name) for name in names)), rhs, res
+
+
 def native_stats(ffi, st) -> dict:
     """Result.stats from a native driver's statistics struct (CVODE, index-1 CVODE, IDA): every
     counter it has, by the names of :data:`STAT_NAMES`, and the right-hand-side (or residual)
     evaluations including those of difference-quotient Jacobians."""
     ctype = ffi.typeof(st)
-    fields = _FIELDS.get(ctype)
-    if fields is None:
-        fields = _FIELDS[ctype] = frozenset(name for name, _ in ctype.item.fields)
-    stats = {key: getattr(st, name) for name, key in STAT_NAMES.items() if name in fields}
-    if "nrhs" in fields:
-        stats["rhs_evals"] = st.nrhs + st.nrhs_dq
-        stats["rhs_evals_dq"] = st.nrhs_dq
-    if "nres" in fields:
-        stats["rhs_evals"] = st.nres + st.nres_dq
-        stats["res_evals"] = st.nres
-        stats["res_evals_dq"] = st.nres_dq
+    reader = _FIELDS.get(ctype)
+    if reader is None:
+        reader = _FIELDS[ctype] = _stats_reader(ctype)
+    keys, get, rhs, res = reader
+    values = get(st)  # every field in one call
+    stats = dict(zip(keys, values))
+    k = len(keys)
+    if rhs:
+        stats["rhs_evals"] = values[k] + values[k + 1]
+        stats["rhs_evals_dq"] = values[k + 1]
+        k += 2
+    if res:
+        stats["rhs_evals"] = values[k] + values[k + 1]
+        stats["res_evals"] = values[k]
+        stats["res_evals_dq"] = values[k + 1]
     return stats
 
 
@@ -161,6 +180,42 @@ def native_options(ffi, typename: str, atol: np.ndarray, keep: list, **values):
     for name, value in values.items():
         setattr(opt, name, value)
     return opt
+
+
+class PreparedOptions:
+    """The options structs of one native driver kept for reuse across calls (per compiled module):
+    one struct per distinct set of values, compared bit for bit (the values packed with
+    ``formats``, and the bytes of ``atol``), never written once made, so that concurrent runs
+    may share it. ``fixed``: fields with the same value in every struct."""
+
+    LIMIT = 64  # structs kept at most (then the cache starts afresh)
+
+    def __init__(self, ffi, typename: str, names: tuple, formats: str, **fixed):
+        self.ffi, self.typename, self.names, self.fixed = ffi, typename, names, fixed
+        self._pack = struct.Struct("=" + formats).pack
+        self._cache: dict = {}
+
+    def get(self, atol, *values):
+        """The struct of ``native_options(ffi, typename, atol, ..., **fixed, **dict(zip(names, values)))``."""
+        try:
+            key = (b"f" + _DOUBLE(atol) if type(atol) is float else b"a" + atol.tobytes()) + self._pack(*values)
+        except (struct.error, TypeError, ValueError, OverflowError, AttributeError):
+            key = None  # values a struct cannot hold bit for bit: a new struct (which says what is wrong)
+        entry = self._cache.get(key) if key is not None else None
+        if entry is None:
+            keep: list = []
+            if key is not None and type(atol) is not float:
+                atol = atol.copy()  # the struct's own (its atol_vec points into it)
+            opt = native_options(self.ffi, self.typename, atol, keep, **self.fixed, **dict(zip(self.names, values)))
+            if key is None:
+                return opt
+            if len(self._cache) >= self.LIMIT:
+                self._cache.clear()
+            entry = self._cache[key] = (opt, keep)
+        return entry[0]
+
+
+_DOUBLE = struct.Struct("=d").pack
 
 
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
@@ -198,6 +253,7 @@ class NativeEvents:
     def __init__(self, ffi, prefix: str, events: list, ny: int, max_events: int):
         self.events = events
         self.ny = ny
+        self.max_events = max_events
         self.t = np.full(max_events, np.nan)
         self.y = np.full((max_events, ny), np.nan)
         self.which = np.zeros(max_events, dtype=np.intc)

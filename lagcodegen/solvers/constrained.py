@@ -37,6 +37,7 @@ the same header, so results and solver statistics are the C version's.
 from __future__ import annotations
 
 import inspect
+import math
 from typing import Mapping
 
 import numpy as np
@@ -46,16 +47,22 @@ from ..formulation.constrained import ConstrainedCodeInfo
 from ..model.events import Event
 from ..result import Result
 from ..theory.constraints import ConstrainedSystem, dependent_rows, rank_tolerance
-from ..util import c_vector, check_finite, output_times, state_vector
+from ..util import c_vector, check_finite, output_times, state_values, state_vector
 from . import cvode, ida, sksundae
-from .base import ERR_PROJECTION, ERR_SINGULAR, METHODS, tolerances
+from .base import _DOUBLE, ERR_PROJECTION, ERR_SINGULAR, METHODS, NativeEvents, PreparedOptions, tolerances
 from .compiled import CompiledModel
+from .control import POLL_EVERY
 from .ensemble import ensemble_constrained
 from .ida import ALGEBRAIC_ATOL
 from .options import merge
 
 #: Kept under its earlier name: the tolerance of lambda, mu on scikit-sundae's IDA.
 SKSUNDAE_ALGEBRAIC_ATOL = ALGEBRAIC_ATOL
+#: ``initial`` of simulate() -> the mode of the generated ``<prefix>_initial_state``.
+_INITIAL_MODES = {"none": 0, "check": 1, "project": 2}
+#: Events structs (with their buffers, max_events x NY values) kept for reuse per simulation and
+#: value of max_events, at most; and the values of max_events kept at most.
+_EVENT_POOL, _EVENT_POOL_KEYS = 2, 8
 
 class _Base:
     """What every compiled constrained system offers: layout, parameters, initial-state checks."""
@@ -95,11 +102,45 @@ class ConstrainedSimulation(_Base):
         self.c_roots = getattr(self.lib, f"{p}_roots", None)
         self.c_ggl_res = getattr(self.lib, f"{p}_ggl_res", None)
         self.c_ggl_jac = getattr(self.lib, f"{p}_ggl_jac", None)
+        # the native drivers, their C types, and the initial state in one call (None in modules
+        # built without the drivers: the initial state is then checked function by function)
+        self.c_cvc_solve = getattr(self.lib, f"{p}_cvc_solve", None)
+        self.c_ida_solve = getattr(self.lib, f"{p}_ida_solve", None)
+        self.c_initial_state = getattr(self.lib, f"{p}_initial_state", None)
+        self.cvc_options_type, self.cvc_stats_type = f"{p}_cvc_options", f"{p}_cvc_stats *"
+        self.ida_options_type, self.ida_stats_type = f"{p}_ida_options", f"{p}_ida_stats *"
+        # the drivers' options structs, kept across calls (one per distinct set of option values)
+        self.cvc_options = PreparedOptions(self.ffi, self.cvc_options_type, *cvode.CVC_OPTIONS, proj_err=1,
+                                           poll=cm.poll, poll_every=POLL_EVERY)
+        self.ida_options = PreparedOptions(self.ffi, self.ida_options_type, *ida.IDA_OPTIONS, calc_ic=1,
+                                           ic_alg_atol=ALGEBRAIC_ATOL, poll=cm.poll, poll_every=POLL_EVERY)
+        # layout, fixed at compile time (read on every call)
+        self._n = system.model.n
+        self._state_names = list(cm.state_names[: 2 * self._n])
+        self._coord_names = [q.name for q in system.model.coords]
+        self._nineq = len(system.inequalities)
+        self.n_out_columns = max(len(info.output_names), 1)  # columns of the drivers' output rows
+        self._event_pool: dict = {}  # max_events -> NativeEvents structs free for reuse
+        self._pair_times = None  # (key, array) of the last t = (t0, t1)
+        self._ggl_atol = (None, None)  # (bytes of a scalar atol, GGL tolerances of every unknown) of the last call
+        self.cvc_stats_pool: list = []  # the drivers' statistics structs free for reuse
+        self.ida_stats_pool: list = []
+        self._double_array = self.ffi.typeof("double[]")
+        # the default parameters (read-only) and their C pointer, for runs without ``params``
+        self._default_p = cm.parameter_vector(None)
+        self._default_p.flags.writeable = False
+        self._default_pc = self._ptr(self._default_p)
+        self._default_parameters = dict(zip(self.param_names, self._default_p))  # Result.parameters
 
     # ------------------------------------------------------------------ layout
     @property
+    def n(self) -> int:
+        """Number of coordinates."""
+        return self._n
+
+    @property
     def state_names(self) -> list[str]:
-        return self.compiled.state_names[: 2 * self.n]
+        return list(self._state_names)
 
     @property
     def param_names(self) -> list[str]:
@@ -117,7 +158,7 @@ class ConstrainedSimulation(_Base):
         return self.compiled.parameter_vector(params)
 
     def _ptr(self, arr):
-        return self.ffi.from_buffer("double[]", arr) if arr.size else self.ffi.NULL
+        return self.ffi.from_buffer(self._double_array, arr) if arr.size else self.ffi.NULL
 
     def _p(self, params):
         """Run-time parameters: an array of exactly np values, or a mapping by name (defaults)."""
@@ -127,6 +168,8 @@ class ConstrainedSimulation(_Base):
 
     def c_params(self, p: np.ndarray):
         """``p`` as the C pointer the generated drivers take (NULL without run-time parameters)."""
+        if p is self._default_p:
+            return self._default_pc
         return self._ptr(p)
 
     def _y(self, y, size: int | None = None, what: str = "y") -> np.ndarray:
@@ -284,7 +327,10 @@ class ConstrainedSimulation(_Base):
         Jacobian, default when compiled), ``alg_atol`` (absolute tolerance of lambda, mu;
         default :data:`ALGEBRAIC_ATOL`, see there), ``stop_at_outputs`` (native: step exactly to
         every output time instead of interpolating, so that the reported states satisfy the
-        constraints to the Newton tolerance). ``atol`` may be a scalar, one value per
+        constraints to the Newton tolerance). Otherwise the output times are served by the
+        integrator's interpolation (index-1 always): ``t = (t0, t1)`` (1001 output times) takes
+        the steps that ``[t0, t1]`` takes, up to CVODE's estimate of the first step, which
+        looks at the first output interval. ``atol`` may be a scalar, one value per
         (q, q') or, for GGL, one per (q, q', lambda, mu). ``events``: enable root finding.
         ``solver``: :class:`~lagcodegen.solvers.options.CVODE` (index-1) or
         :class:`~lagcodegen.solvers.options.IDA` (GGL) instead of those keywords.
@@ -303,15 +349,12 @@ class ConstrainedSimulation(_Base):
             expected = "IDA" if self.formulation == "ggl" else "CVODE"
             if type(solver).__name__ != expected:
                 raise LagcodegenError(f"formulation {self.formulation!r} runs on {expected}, got solver={solver!r}")
-        t = output_times(t)
+        t = self._times(t)
         if q0 is None:
             raise LagcodegenError("q0 is required")
-        p = self.parameter_vector(params)
-        y0 = self.consistent_initial_state(float(t[0]), q0, v0, p, initial=initial, ic_tol=ic_tol)
-        try:
-            self.kkt(t[0], y0, p)
-        except SingularMassMatrixError as exc:
-            raise SingularMassMatrixError(f"at the initial state: {exc}", t=float(t[0])) from None
+        p = self._default_p if params is None else self.parameter_vector(params)
+        ggl = self.formulation == "ggl"
+        y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, ggl)
         roots = bool(events) and len(self.info.events) > 0
         if backend not in ("native", "sksundae"):
             raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
@@ -325,7 +368,11 @@ class ConstrainedSimulation(_Base):
             if projection and method != "bdf":
                 raise LagcodegenError("projection onto the constraints (CVodeSetProjFn) needs method='bdf': "
                                       "CVODE supports projection with BDF only")
-            rtol, atol_arr = tolerances(rtol, atol, 2 * self.n)
+            if type(rtol) is float and type(atol) is float and 0 < rtol < math.inf and 0 <= atol < math.inf \
+                    and backend == "native":
+                atol_arr = atol  # what tolerances() returns for these
+            else:
+                rtol, atol_arr = tolerances(rtol, atol, 2 * self.n, scalar=backend == "native")
             if backend == "native":
                 res = cvode.solve_index1(self, t, y0, p, method, rtol, atol_arr, float(alpha), float(beta), projection,
                                       proj_tol, proj_maxit, roots, max_events, max_steps, first_step, max_step,
@@ -346,10 +393,19 @@ class ConstrainedSimulation(_Base):
             if jacobian and not self.info.ggl_jac:
                 raise LagcodegenError("jacobian=True but the residual Jacobian was not generated "
                                       "(compile_constrained(..., jacobian=False))")
-            yy0, yp0 = self._ggl_initial(t[0], y0, p)
-            rtol, atol_arr = tolerances(rtol, atol, self.info.ng, 2 * self.n)
-            if np.asarray(atol).size != self.info.ng:  # lambda, mu: see ALGEBRAIC_ATOL
-                atol_arr[2 * self.n:] = ALGEBRAIC_ATOL if alg_atol is None else check_finite(alg_atol, "alg_atol")
+            if yy0 is None:
+                yy0, yp0 = self._ggl_initial(t[0], y0, p)
+            cached = self._ggl_atol
+            if (type(atol) is float and alg_atol is None and type(rtol) is float and 0 < rtol < math.inf
+                    and cached[0] == _DOUBLE(atol)):
+                atol_arr = cached[1]  # what tolerances() gave for this atol last time
+            else:
+                rtol, atol_arr = tolerances(rtol, atol, self.info.ng, 2 * self.n)
+                if np.asarray(atol).size != self.info.ng:  # lambda, mu: see ALGEBRAIC_ATOL
+                    atol_arr[2 * self.n:] = ALGEBRAIC_ATOL if alg_atol is None else check_finite(alg_atol, "alg_atol")
+                    if type(atol) is float and alg_atol is None:  # kept (read-only) for the next call
+                        atol_arr.flags.writeable = False
+                        self._ggl_atol = (_DOUBLE(atol), atol_arr)
             if backend == "native":
                 res = ida.solve_ggl(self, t, yy0, yp0, p, rtol, atol_arr, bool(suppress_alg), bool(jacobian), roots,
                                       max_events, max_steps, first_step, max_step, min_step, max_order,
@@ -357,7 +413,7 @@ class ConstrainedSimulation(_Base):
             else:
                 res = sksundae.solve_ggl(self, t, yy0, yp0, p, rtol, atol_arr, bool(jacobian), roots, max_steps,
                                          first_step, max_step, min_step, max_order)
-        res.parameters = dict(zip(self.param_names, p))
+        res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         res.formulation = self.formulation
         if raise_on_error and not res.success:
@@ -365,6 +421,72 @@ class ConstrainedSimulation(_Base):
             t_end = res.stats.get("t_reached", res.t[-1] if res.t.size else t[0])
             raise cls(res.message, t=t_end, flag=res.status, result=res)
         return res
+
+    def _times(self, t) -> np.ndarray:
+        """:func:`~lagcodegen.util.output_times`, with the 1001 times of the last pair (t0, t1) of
+        Python numbers kept (read-only) for the next call with the same pair."""
+        if (type(t) is tuple or type(t) is list) and len(t) == 2:
+            a, b = t
+            if (type(a) is float or type(a) is int) and (type(b) is float or type(b) is int):
+                key = (a, b, a == 0 and math.copysign(1.0, a) < 0, b == 0 and math.copysign(1.0, b) < 0)
+                last = self._pair_times
+                if last is not None and last[0] == key:
+                    return last[1]
+                times = output_times(t)
+                times.flags.writeable = False
+                self._pair_times = (key, times)
+                return times
+        return output_times(t)
+
+    def _initial_values(self, t0: float, q0, v0, p: np.ndarray, initial, ic_tol, ggl: bool):
+        """(y0, yy0, yp0): the initial state of a run, checked or projected per ``initial`` and with
+        a regular augmented matrix there, and for GGL the initial values (yy0, yp0) of IDA (else
+        None, None). One call of the generated ``<prefix>_initial_state``; when a check fails
+        there (or the module has none), the same checks function by function, which raise the
+        error that says why (:meth:`consistent_initial_state`)."""
+        fn = self.c_initial_state
+        mode = _INITIAL_MODES.get(initial) if type(initial) is str else None
+        if fn is not None and mode is not None and (isinstance(ic_tol, float) or type(ic_tol) is int):
+            names = self._coord_names
+            fb, darr = self.ffi.from_buffer, self._double_array
+            y = self.ffi.new(darr, _state_values(q0, names, "q0") + _state_values(v0, names, "v0"))
+            if ggl:
+                yy, yp = np.empty(self.info.ng), np.empty(self.info.ng)
+                rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), fb(darr, yp))
+                if rc == 0:
+                    return yy[: 2 * self._n], yy, yp
+            else:
+                yy = np.empty(2 * self._n)
+                rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), self.ffi.NULL)
+                if rc == 0:
+                    return yy, None, None
+        y0 = self.consistent_initial_state(t0, q0, v0, p, initial=initial, ic_tol=ic_tol)
+        try:
+            self.kkt(t0, y0, p)
+        except SingularMassMatrixError as exc:
+            raise SingularMassMatrixError(f"at the initial state: {exc}", t=t0) from None
+        return y0, None, None
+
+    def native_events(self, max_events: int) -> NativeEvents:
+        """An events struct for a native run (from the pool of this simulation when one is free;
+        the drivers reset its counters); hand it back with :meth:`release_events`."""
+        pool = self._event_pool.get(max_events)
+        if pool:
+            try:
+                return pool.pop()
+            except IndexError:  # taken by another thread meanwhile
+                pass
+        ny = self.info.ng if self.formulation == "ggl" else 2 * self._n
+        return NativeEvents(self.ffi, self.info.prefix, self.info.events, ny, max_events)
+
+    def release_events(self, events: NativeEvents) -> None:
+        """Return an events struct of :meth:`native_events` (its records already made)."""
+        pools = self._event_pool
+        if events.max_events not in pools and len(pools) >= _EVENT_POOL_KEYS:
+            pools.clear()
+        pool = pools.setdefault(events.max_events, [])
+        if len(pool) < _EVENT_POOL:
+            pool.append(events)
 
     def ensemble(self, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
                  progress=None, max_wall: float = 0.0, chunk_size=None, **options):
@@ -418,6 +540,22 @@ class ConstrainedSimulation(_Base):
         """The GGL multipliers mu_k of the velocity-level holonomic rows, as outputs."""
         n, J, JH = self.n, self.info.J, self.info.JH
         return {f"mu_{k}": yy[:, 2 * n + J + k].copy() for k in range(JH)}
+
+
+def _state_values(val, names: list, what: str) -> list:
+    """:func:`~lagcodegen.util.state_values`, without its general checks for the common input:
+    a list or tuple of len(names) finite numbers, or a 1-D float64 array of them."""
+    out = None
+    if (type(val) is list or type(val) is tuple) and len(val) == len(names):
+        try:
+            out = [float(x) for x in val]
+        except (TypeError, ValueError):
+            out = None
+    elif type(val) is np.ndarray and val.dtype == np.float64 and val.ndim == 1 and val.size == len(names):
+        out = val.tolist()
+    if out is not None and all(map(math.isfinite, out)):
+        return out
+    return state_values(val, names, what)
 
 
 def _norm(x) -> float:

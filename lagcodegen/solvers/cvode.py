@@ -13,7 +13,7 @@ from ..errors import LagcodegenError
 from ..formulation.scene import band_order
 from ..formulation.scene import bandwidths as widths
 from ..result import Result
-from .base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats
+from .base import METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats
 from .control import CANCELLED, POLL_EVERY, raise_pending
 
 
@@ -87,43 +87,55 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
                   backend="native", method=method)
 
 
+#: The fields of the index-1 driver's options that vary between runs (PreparedOptions).
+CVC_OPTIONS = (("method", "rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "alpha", "beta",
+                "projection", "proj_tol", "proj_maxit", "roots", "max_wall"), "idqdddiddidiid")
+
+
 def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,
                  max_events, max_steps, first_step, max_step, min_step, max_order, max_wall=0.0) -> Result:
     """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
-    and/or CVODE's projection): one call of ``<prefix>_cvc_solve``."""
-    ffi, pre = sim.ffi, sim.info.prefix
-    ny, nt, nout = 2 * sim.n, t.size, len(sim.info.output_names)
-    yout = np.full((nt, ny), np.nan)
-    out = np.full((nt, max(nout, 1)), np.nan)
-    keep: list = []
-    opt = native_options(ffi, f"{pre}_cvc_options", atol, keep, method=METHODS[method], rtol=rtol,
-                         max_steps=int(max_steps), first_step=first_step, max_step=max_step, min_step=min_step,
-                         max_order=max_order, alpha=alpha, beta=beta, projection=int(projection),
-                         proj_tol=proj_tol, proj_maxit=proj_maxit, proj_err=1, roots=int(roots),
-                         poll=sim.compiled.poll, poll_every=POLL_EVERY, max_wall=max_wall)
-    st = ffi.new(f"{pre}_cvc_stats *")
-    events = NativeEvents(ffi, pre, sim.info.events, ny, max_events) if roots else None
-    start = time.perf_counter()
-    flag = getattr(sim.lib, f"{pre}_cvc_solve")(sim.c_params(p), ffi.from_buffer("double[]", y0), nt,
-                                                ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
-                                                ffi.from_buffer("double[]", out), opt, st,
-                                                events.struct if events else ffi.NULL)
-    wall = time.perf_counter() - start
-    if flag == CANCELLED:
-        raise_pending()
-    recs = events.records(sim.state_names, ny) if events else []
-    tt, yy, oo = t[:st.nt_done].copy(), yout[:st.nt_done].copy(), out[:st.nt_done].copy()
-    if events and events.terminated and recs:
-        tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, recs[-1].y, p)
+    and/or CVODE's projection): one call of ``<prefix>_cvc_solve``. ``atol`` a float (every
+    state) or an array; ``t`` and ``y0`` contiguous float64 arrays (the caller's checks)."""
+    ffi = sim.ffi
+    ny, nt = 2 * sim.n, t.size
+    yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
+    out = np.empty((nt, sim.n_out_columns))
+    opt = sim.cvc_options.get(atol, METHODS[method], rtol, int(max_steps), first_step, max_step, min_step, max_order,
+                              alpha, beta, int(projection), proj_tol, proj_maxit, int(roots), max_wall)
+    pool = sim.cvc_stats_pool  # statistics structs of finished runs (the driver clears them)
+    try:
+        st = pool.pop()
+    except IndexError:
+        st = ffi.new(sim.cvc_stats_type)
+    events = sim.native_events(max_events) if roots else None
+    fb, darr = ffi.from_buffer, sim._double_array
+    try:
+        start = time.perf_counter()
+        flag = sim.c_cvc_solve(sim.c_params(p), fb(darr, y0), nt, fb(darr, t), fb(darr, yout),
+                               fb(darr, out), opt, st, events.struct if events else ffi.NULL)
+        wall = time.perf_counter() - start
+        if flag == CANCELLED:
+            raise_pending()
+        recs = events.records(sim.state_names, ny) if events else []
+        done = st.nt_done
+        if done < nt:
+            tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()
+        else:
+            tt, yy, oo = t.copy(), yout, out
+        if events and events.terminated and recs:
+            tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, recs[-1].y, p)
+    finally:
+        if events:
+            sim.release_events(events)
     stats = native_stats(ffi, st)
     stats["wall_time"] = wall
-    detail = ffi.string(st.message).decode(errors="replace")
-    res = Result(t=tt, y=yy, state_names=list(sim.state_names),
-                 outputs={k: oo[:, i].copy() for i, k in enumerate(sim.info.output_names)}, stats=stats,
-                 status=int(flag), message=message(flag, st.model_error, detail, "CVODE", SINGULAR_AUGMENTED),
-                 backend="native", method=method)
-    res.events = recs
-    return res
+    text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(errors="replace"),
+                                               "CVODE", SINGULAR_AUGMENTED)
+    pool.append(st)
+    return Result(t=tt, y=yy, state_names=sim.state_names,
+                  outputs=dict(zip(sim.info.output_names, oo.T)), stats=stats,
+                  status=int(flag), message=text, backend="native", method=method, events=recs)
 
 
 def append_event_row(sim, tt, yy, oo, t_event: float, y_event, p, lam=None):

@@ -10,8 +10,8 @@ import time
 import numpy as np
 
 from ..result import Result
-from .base import SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats
-from .control import CANCELLED, POLL_EVERY, raise_pending
+from .base import SINGULAR_AUGMENTED, message, native_stats
+from .control import CANCELLED, raise_pending
 from .cvode import append_event_row
 
 #: Default absolute tolerance of the algebraic GGL unknowns lambda, mu. scikit-sundae never
@@ -24,42 +24,58 @@ from .cvode import append_event_row
 ALGEBRAIC_ATOL = 1e8
 
 
+#: The fields of the IDA driver's options that vary between runs (PreparedOptions).
+IDA_OPTIONS = (("rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "suppress_alg", "jacobian",
+                "roots", "stop_at_outputs", "max_wall"), "dqdddiiiiid")
+
+
 def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, max_events, max_steps,
               first_step, max_step, min_step, max_order, stop_at_outputs, max_wall=0.0) -> Result:
-    ffi, pre = sim.ffi, sim.info.prefix
-    ng, nt, nout, n = sim.info.ng, t.size, len(sim.info.output_names), sim.n
-    yout = np.full((nt, ng), np.nan)
-    out = np.full((nt, max(nout, 1)), np.nan)
-    keep: list = []
-    opt = native_options(ffi, f"{pre}_ida_options", atol, keep, rtol=rtol, max_steps=int(max_steps),
-                         first_step=first_step, max_step=max_step, min_step=min_step, max_order=max_order,
-                         suppress_alg=int(suppress_alg), jacobian=int(jacobian), calc_ic=1,
-                         ic_alg_atol=ALGEBRAIC_ATOL, roots=int(roots), stop_at_outputs=int(stop_at_outputs),
-                         poll=sim.compiled.poll, poll_every=POLL_EVERY, max_wall=max_wall)
-    st = ffi.new(f"{pre}_ida_stats *")
-    events = NativeEvents(ffi, pre, sim.info.events, ng, max_events) if roots else None
-    start = time.perf_counter()
-    flag = getattr(sim.lib, f"{pre}_ida_solve")(sim.c_params(p), ffi.from_buffer("double[]", yy0),
-                                                ffi.from_buffer("double[]", yp0), nt, ffi.from_buffer("double[]", t),
-                                                ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out),
-                                                opt, st, events.struct if events else ffi.NULL)
-    wall = time.perf_counter() - start
-    if flag == CANCELLED:
-        raise_pending()
-    recs = events.records(sim.state_names, 2 * n) if events else []
-    done = st.nt_done
-    tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()
-    if events and events.terminated and recs:
-        row = events.y[events.count - 1]
-        tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, row, p, lam=row[2 * n: 2 * n + sim.info.J])
+    """A GGL run: one call of ``<prefix>_ida_solve`` (``t``, ``yy0``, ``yp0`` contiguous float64
+    arrays, ``atol`` a float or an array of NG values)."""
+    ffi = sim.ffi
+    ng, nt, n = sim.info.ng, t.size, sim.n
+    yout = np.empty((nt, ng))  # rows past st.nt_done are cut off below
+    out = np.empty((nt, sim.n_out_columns))
+    opt = sim.ida_options.get(atol, rtol, int(max_steps), first_step, max_step, min_step, max_order, int(suppress_alg),
+                              int(jacobian), int(roots), int(stop_at_outputs), max_wall)
+    pool = sim.ida_stats_pool  # statistics structs of finished runs (the driver clears them)
+    try:
+        st = pool.pop()
+    except IndexError:
+        st = ffi.new(sim.ida_stats_type)
+    events = sim.native_events(max_events) if roots else None
+    fb, darr = ffi.from_buffer, sim._double_array
+    try:
+        start = time.perf_counter()
+        flag = sim.c_ida_solve(sim.c_params(p), fb(darr, yy0), fb(darr, yp0), nt, fb(darr, t),
+                               fb(darr, yout), fb(darr, out), opt, st,
+                               events.struct if events else ffi.NULL)
+        wall = time.perf_counter() - start
+        if flag == CANCELLED:
+            raise_pending()
+        recs = events.records(sim.state_names, 2 * n) if events else []
+        done = st.nt_done
+        if done < nt:
+            tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()
+        else:
+            tt, yy, oo = t.copy(), yout, out
+        if events and events.terminated and recs:
+            row = events.y[events.count - 1]
+            tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, row, p, lam=row[2 * n: 2 * n + sim.info.J])
+    finally:
+        if events:
+            sim.release_events(events)
     stats = native_stats(ffi, st)
-    stats.update(suppress_alg=suppress_alg, wall_time=wall)
-    detail = ffi.string(st.message).decode(errors="replace")
-    outputs = {k: oo[:, i].copy() for i, k in enumerate(sim.info.output_names)}
-    outputs.update(sim.ggl_multiplier_outputs(yy))
-    res = Result(t=tt, y=yy[:, : 2 * n].copy(), state_names=list(sim.state_names), outputs=outputs,
-                 stats=stats, status=int(flag), backend="native", method="bdf",
-                 message=("IDACalcIC found no consistent lambda, y': " if st.ic_flag < 0 else "")
-                 + message(flag, st.model_error, detail, "IDA", SINGULAR_AUGMENTED))
-    res.events = recs
-    return res
+    stats["suppress_alg"] = suppress_alg
+    stats["wall_time"] = wall
+    text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(errors="replace"),
+                                               "IDA", SINGULAR_AUGMENTED)
+    if st.ic_flag < 0:
+        text = "IDACalcIC found no consistent lambda, y': " + text
+    pool.append(st)
+    outputs = dict(zip(sim.info.output_names, oo.T))  # column views
+    for k in range(sim.info.JH):  # the multipliers mu_k of the velocity-level rows (GGL)
+        outputs[f"mu_{k}"] = yy[:, 2 * n + sim.info.J + k]
+    return Result(t=tt, y=yy[:, : 2 * n], state_names=sim.state_names, outputs=outputs, stats=stats,
+                  status=int(flag), backend="native", method="bdf", message=text, events=recs)

@@ -233,6 +233,142 @@ def test_solver_failure_is_reported(cpend):
         cpend["ggl"].simulate([0, 10], q0=pendulum_q0(), v0=[0, 0], max_steps=50)
 
 
+# ---------------------------------------------------------------------- the call path (issue 16)
+def consistent_state(th=TH0, w=0.7):
+    """(q0, v0) on the pendulum's constraint manifold: v tangent to the circle."""
+    return pendulum_q0(th), [w * np.cos(th), w * np.sin(th)]
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+@pytest.mark.parametrize("initial,scale", [("check", 1.0), ("project", 1.01), ("none", 1.0)])
+def test_initial_state_in_one_call_is_the_checks_function_by_function(cpend, formulation, initial, scale):
+    """The generated <prefix>_initial_state gives bit for bit the state (and the GGL initial
+    values) of the Python-driven checks, projection and augmented-system solve."""
+    sim = cpend[formulation]
+    q0, v0 = consistent_state()
+    q0 = [scale * x for x in q0]
+    p = sim.parameter_vector()
+    y0, yy0, yp0 = sim._initial_values(0.0, q0, v0, p, initial, 1e-8, formulation == "ggl")
+    ref = sim.consistent_initial_state(0.0, q0, v0, p, initial=initial)
+    assert np.array_equal(y0, ref)
+    if formulation == "ggl":
+        ref_yy, ref_yp = sim._ggl_initial(0.0, ref, p)
+        assert np.array_equal(yy0, ref_yy) and np.array_equal(yp0, ref_yp)
+    else:
+        assert yy0 is None and yp0 is None
+
+
+def test_initial_state_in_one_call_with_inequalities_and_mixed_rows():
+    """Holonomic and nonholonomic rows and an inequality (its root function checked at t0): the
+    one-call path agrees with the function-by-function checks, and rejects what they reject
+    with their message."""
+    sim = compile_constrained(mixed_system(), "ggl", prefix="mixed_init")
+    p = sim.parameter_vector()
+    x, t0, th = 0.5, 0.2, 0.3
+    vx = x * np.cos(t0) / 4 / (np.tan(th) - np.sin(t0) / 4)  # y' = x' sin(t)/4 + x cos(t)/4, y' = tan(th) x'
+    q0, v0 = [x, x * np.sin(t0) / 4, th], [vx, np.tan(th) * vx, 0.4]
+    for initial in ("check", "project"):
+        y0, yy0, yp0 = sim._initial_values(0.2, q0, v0, p, initial, 1e-8, True)
+        ref = sim.consistent_initial_state(0.2, q0, v0, p, initial=initial)
+        assert np.array_equal(y0, ref)
+        assert all(np.array_equal(a, b) for a, b in zip((yy0, yp0), sim._ggl_initial(0.2, ref, p)))
+    bad = [4.0, 4.0 * np.sin(0.2) / 4, 0.3]  # x > 3: the inequality 3 - x >= 0 is violated
+    with pytest.raises(ModelError) as fast:
+        sim.simulate([0.2, 1], q0=bad, v0=v0)
+    with pytest.raises(ModelError) as slow:
+        sim.consistent_initial_state(0.2, bad, v0, p)
+    assert str(fast.value) == str(slow.value)
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_simulate_does_no_symbolic_work(cpend, formulation, monkeypatch):
+    """A consistent initial state is checked by compiled code only: no sympy in the call."""
+    def symbolic(*args, **kwargs):
+        raise AssertionError("symbolic work in simulate()")
+    monkeypatch.setattr(ConstrainedSystem, "evaluate", symbolic)
+    monkeypatch.setattr(ConstrainedSystem, "check_initial", symbolic)
+    q0, v0 = consistent_state()
+    for initial in ("check", "project", "none"):
+        assert cpend[formulation].simulate((0, 1), q0=q0, v0=v0, initial=initial).success
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_repeated_calls_reuse_nothing_visible(cpend, formulation):
+    """Runs with other options in between give bit for bit the first run's result (the option
+    structs kept across calls), and no result shares its arrays with the next one."""
+    sim = cpend[formulation]
+    q0, v0 = consistent_state()
+    first = sim.simulate((0, 1), q0=q0, v0=v0, rtol=1e-6)
+    sim.simulate(np.linspace(0, 1, 11), q0=q0, v0=v0, rtol=1e-9, atol=np.linspace(1e-11, 1e-10, 4))
+    sim.simulate((0, 0.5), q0=q0, v0=v0, rtol=1e-6, max_step=0.01)
+    first_t, first_y = first.t.copy(), first.y.copy()
+    first.t[:] = -1.0  # the caller owns its result
+    first.y[:] = np.nan
+    again = sim.simulate((0, 1), q0=q0, v0=v0, rtol=1e-6)
+    assert np.array_equal(again.t, first_t) and np.array_equal(again.y, first_y)
+    assert again.stats["steps"] == first.stats["steps"] and again.t.flags.writeable
+    assert all(np.array_equal(v, first.outputs[k]) for k, v in again.outputs.items())
+
+
+def test_terminal_events_repeat_exactly():
+    """The events structs kept across calls: the same events and final row every time."""
+    m = lcg.Model("ball_again")
+    x, y = m.coordinates("x y")
+    m.particle("b", 1.0, (x, y))
+    m.gravity(G)
+    sim = compile_constrained(ConstrainedSystem(m, inequalities=[y]), "index1", outputs=["energy"])
+    runs = [sim.simulate(np.linspace(0, 1, 11), q0=[0, 1], v0=[1, 0], max_events=k) for k in (10, 10, 3, 10)]
+    for res in runs[1:]:
+        assert [(e.name, e.t) for e in res.events] == [(e.name, e.t) for e in runs[0].events]
+        assert np.array_equal(res.t, runs[0].t) and np.array_equal(res.y, runs[0].y)
+        assert np.array_equal(res.events[0].y, runs[0].events[0].y)
+
+
+def test_concurrent_calls_give_the_sequential_results(cpend):
+    """The structs kept across calls are shared safely between threads (cffi releases the GIL
+    in the drivers): runs with different options from 4 threads give the sequential results."""
+    from concurrent.futures import ThreadPoolExecutor
+    for formulation in ("index1", "ggl"):
+        sim = cpend[formulation]
+        jobs = [dict(t=(0, 1 + i % 3), q0=pendulum_q0(0.5 + 0.1 * (i % 5)), rtol=10.0 ** -(5 + i % 4),
+                     atol=1e-10 if i % 2 else 1e-9) for i in range(40)]
+        ref = [sim.simulate(**job) for job in jobs]
+        with ThreadPoolExecutor(4) as ex:
+            got = list(ex.map(lambda job: sim.simulate(**job), jobs))
+        for a, b in zip(ref, got):
+            assert np.array_equal(a.t, b.t) and np.array_equal(a.y, b.y) and a.stats["steps"] == b.stats["steps"]
+
+
+@pytest.mark.parametrize("formulation,backend", [("index1", "native"), ("ggl", "native"), ("index1", "sksundae"),
+                                                 ("ggl", "sksundae")])
+def test_output_times_are_interpolated_not_stepped_to(cpend, formulation, backend):
+    """t = (t0, t1) (1001 output times) takes the integrator's own steps: the same work with 11
+    and with 1001 output times (CVODE's first step is estimated from the first output interval,
+    hence "within a few"). scikit-sundae's step counter also counts the calls that return an
+    already reached step after an interpolated output, so there the right-hand-side evaluations
+    are compared."""
+    q0, v0 = consistent_state()
+    runs = [cpend[formulation].simulate(t, q0=q0, v0=v0, backend=backend)
+            for t in (np.linspace(0, 2, 11), np.linspace(0, 2, 1001), (0, 2))]
+    key = "steps" if backend == "native" else "rhs_evals"
+    work = [r.stats[key] for r in runs]
+    assert abs(work[1] - work[0]) <= 5 and work[2] == work[1], work
+    assert runs[2].t.size == 1001 and np.array_equal(runs[2].t, np.linspace(0, 2, 1001))
+
+
+def test_overhead_benchmark_runs():
+    """benchmarks/constrained_overhead.py measures what simulate() runs (one repeat)."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import constrained_overhead as co
+    sim = compile_constrained(co.chain(1, "tb_ovc"), "ggl", prefix="tb_ovc")
+    rows = co.measure("pendulum", sim, co.chain_q0(1), 1)
+    assert len(rows) == len(co.TIMES)
+    for r in rows:
+        assert r["same"] and r["steps"] > 0 and r["driver_us"] > 0 and r["simulate_us"] > 0
+
+
 # ---------------------------------------------------------------------- generated code
 def test_ggl_jacobian_matches_central_differences(cpend):
     sim = compile_constrained(knife_edge(name="knife_jac"), "ggl")
@@ -283,7 +419,7 @@ int main(void)
 {
     double p[U_DAE_NP + 1], y[U_DAE_NY], yn[U_DAE_NY], err[U_DAE_NY], acc[U_DAE_NQ], lam[U_DAE_NJ];
     double yd[U_DAE_NY], g[U_DAE_NJH], s[U_DAE_NJ], out[U_DAE_NOUT], gout[U_DAE_NROOT];
-    double yy[U_DAE_NG], yp[U_DAE_NG], rr[U_DAE_NG], jac[U_DAE_NG * U_DAE_NG];
+    double yy[U_DAE_NG], yp[U_DAE_NG], rr[U_DAE_NG], jac[U_DAE_NG * U_DAE_NG], yy2[U_DAE_NG], yp2[U_DAE_NG];
     double tout[41], yout[41 * U_DAE_NG], outs[41 * U_DAE_NOUT], evt[8], evy[8 * U_DAE_NG], atol[U_DAE_NG];
     int which[8], dir[8], rootdir[U_DAE_NROOT], terminal[U_DAE_NROOT];
     P_events ev = {8, 0, evt, evy, which, dir, rootdir, terminal, 0};
@@ -311,6 +447,12 @@ int main(void)
     rc |= P_coutputs(0.1, yn, NULL, p, out);
     rc |= P_roots(0.1, yn, lam, p, gout);
     rc |= P_kkt(0.0, yn, p, 0.0, 0.0, acc, lam);
+    rc |= P_initial_state(0.1, y, p, 2, 1e-8, 0, yy2, yp2);   /* project */
+    rc |= P_initial_state(0.1, yy2, p, 1, 1e-8, 0, yy2, yp2); /* check the projected state */
+    (void)P_initial_state(0.1, yy2, p, 1, 1e-8, 1, yy2, yp2);  /* root 0 (lambda) taken for an inequality */
+    rc |= P_initial_state(0.1, yy2, p, 0, 1e-8, 0, yy2, NULL); /* as it is, index-1 layout */
+    if (P_initial_state(0.1, y, p, 1, 1e-8, 0, yy2, yp2) != 1) /* y is off the constraints: rejected */
+        rc |= 1;
     for (i = 0; i < U_DAE_NG; ++i)
         yy[i] = yp[i] = 0.0;
     for (i = 0; i < U_DAE_NY; ++i)
