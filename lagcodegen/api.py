@@ -52,7 +52,7 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.
 
     ``progress``: True draws a line on stderr naming the stage and how far it is (derive,
-    formulate, cse) once a stage lasts a second; a callable is called as
+    formulate, cse, compile) once a stage lasts a second; a callable is called as
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """

@@ -34,6 +34,7 @@ from .codegen.record import GeneratedCode
 from .codegen.templates import environment, templates_dir
 from .cache import (ABANDONED_BUILD_SECONDS, CACHE_FORMAT, DIGEST_NAME, STALE_BUILD_SECONDS, CacheWarning,
                     cache_dir, cache_key, cached_build, clean_stale, import_module, open_library)
+from . import progress
 from .errors import CompileError, LagcodegenError
 from .version import __version__
 
@@ -165,15 +166,18 @@ def _run(cmd: list[str], cwd: Path, what: str, label: str) -> None:
                            cmd, proc.stdout + proc.stderr)
 
 
-def _run_all(cmds: list[list[str]], cwd: Path, what: str, label: str) -> None:
-    """Run the compiler commands ``cmds`` at once (as many as there are cores), each to its end."""
+def _run_all(cmds: list[list[str]], cwd: Path, what: str, label: str, stage=progress.OFF) -> None:
+    """Run the compiler commands ``cmds`` at once (as many as there are cores), each to its end;
+    ``stage`` advances (in the calling thread) as each one ends."""
     if len(cmds) <= 1 or (os.cpu_count() or 1) == 1:
         for cmd in cmds:
             _run(cmd, cwd, what, label)
+            stage.advance()
         return
     with concurrent.futures.ThreadPoolExecutor(max_workers=min(len(cmds), os.cpu_count() or 1)) as pool:
-        for future in [pool.submit(_run, cmd, cwd, what, label) for cmd in cmds]:
+        for future in concurrent.futures.as_completed([pool.submit(_run, cmd, cwd, what, label) for cmd in cmds]):
             future.result()
+            stage.advance()
 
 
 def _write(folder: Path, sources: dict[str, str]) -> None:
@@ -211,12 +215,18 @@ def _compile_shared(folder: Path, c_files: list[str], objects: list[str], out: s
     # No -I on the build folder: the generated files include each other with quotes (found
     # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
     size = sum((folder / f).stat().st_size for f in c_files)
-    if size <= ONE_CALL_BYTES or len(c_files) == 1:
-        _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler", label)
-        return
-    _run_all([[cc, *cflags, *includes, "-c", f, "-o", f[:-2] + ".o"] for f in c_files], folder, "C compiler", label)
-    _run([cc, *cflags, "-shared", *[f[:-2] + ".o" for f in c_files], *objects, "-o", out, *libs], folder,
-         "C compiler", label)
+    one = size <= ONE_CALL_BYTES or len(c_files) == 1
+    with progress.stage("compile", total=1 if one else len(c_files) + 1, unit=f"compiler runs, {label}") as stage:
+        if one:
+            _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler",
+                 label)
+            stage.advance()
+            return
+        _run_all([[cc, *cflags, *includes, "-c", f, "-o", f[:-2] + ".o"] for f in c_files], folder, "C compiler",
+                 label, stage)
+        _run([cc, *cflags, "-shared", *[f[:-2] + ".o" for f in c_files], *objects, "-o", out, *libs], folder,
+             "C compiler", label)
+        stage.advance()
 
 
 def _python_include() -> str:

@@ -543,7 +543,7 @@ def parser() -> argparse.ArgumentParser:
 
     def progress_option(p):
         p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                       help="a line on stderr naming the running stage (derive, formulate, cse) and how "
+                       help="a line on stderr naming the running stage (derive, formulate, cse, compile) and how "
                             "far it is, once a stage lasts a second (default: when stderr is a terminal and "
                             "without -q)")
 
