@@ -254,8 +254,7 @@ def _runtime_module(cc: str, cflags: tuple[str, ...]):
                         [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime")
         return tmp / f"{modname}{ext}"
 
-    module, path, cached = cached_build(key, modname, f"{modname}{ext}", make, import_module)
-    return module, path, cached
+    return cached_build(key, modname, f"{modname}{ext}", make, import_module)[0]
 
 
 def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
@@ -263,7 +262,7 @@ def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
     function table), built into the cache once per lagcodegen version, compiler, flags, Python
     and SUNDIALS libraries (the first call builds it, about a second; later ones load it)."""
     cc = cc or os.environ.get("CC") or "cc"
-    return _runtime_module(cc, tuple(cflags))[0]
+    return _runtime_module(cc, tuple(cflags))
 
 
 def _uses_runtime(code: GeneratedCode, native: bool) -> bool:

@@ -183,11 +183,10 @@ def open_library(name: str, path: Path):
     return lib
 
 
-def _load(name: str, final: Path, sofile: Path, opener=None):
-    """The module (or library, with ``opener``) of the cache entry ``final`` if it is trusted,
-    intact and opens; else None (after a one-line warning), the entry removed if it is the
-    user's own."""
-    opener = opener or import_module
+def _load(name: str, final: Path, sofile: Path, opener):
+    """What ``opener`` (:func:`import_module`, :func:`open_library`) opens of the cache entry
+    ``final`` if it is trusted, intact and opens; else None (after a one-line warning), the
+    entry removed if it is the user's own."""
     if name in sys.modules or name in _LIBRARIES:
         return opener(name, sofile)
     problem, foreign = _entry_problem(final, sofile)

@@ -52,14 +52,12 @@ _YDOT_IN = Arg("ydot", "const double *", "ny")
 _P = Arg("p", "const double *", "*")
 
 #: The model functions every language emits (:mod:`lagcodegen.codegen.c`,
-#: :mod:`lagcodegen.codegen.fortran`) and the native driver's batch of outputs.
+#: :mod:`lagcodegen.codegen.fortran`).
 MODEL_FUNCTIONS = {sig.name: sig for sig in (
     Signature("rhs", (_T, _Y, _P, Arg("ydot", "double *", "ny", out=True))),
     Signature("jac", (_T, _Y, _YDOT_IN, _P, Arg("jac", "double *", "ny, ny", out=True))),
     Signature("outputs", (_T, _Y, _P, Arg("out", "double *", "nout", out=True))),
     Signature("jac_sparse", (_T, _Y, _YDOT_IN, _P, Arg("vals", "double *", "nnz", out=True))),
-    Signature("outputs_batch", (Arg("nt", "int"), Arg("t", "const double *", "nt"), Arg("y", "const double *", "*"),
-                                _P, Arg("out", "double *", "*", out=True))),
 )}
 
 

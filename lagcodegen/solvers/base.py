@@ -218,6 +218,23 @@ class PreparedOptions:
 _DOUBLE = struct.Struct("=d").pack
 
 
+def pooled_stats(ffi, pool: list, typename: str):
+    """A statistics struct of a finished run from ``pool`` (the drivers clear it first), else a
+    new ``typename``; the caller appends it back once read."""
+    try:
+        return pool.pop()
+    except IndexError:
+        return ffi.new(typename)
+
+
+def reached_rows(t, yout, out, done: int):
+    """(t, y, outputs) of a run that filled ``done`` rows: copies of those rows when it stopped
+    early, else the driver's arrays themselves (``t`` copied: callers may reuse their grid)."""
+    if done < t.size:
+        return t[:done].copy(), yout[:done].copy(), out[:done].copy()
+    return t.copy(), yout, out
+
+
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
     """The state y = (q, q', z) of an ODE run from q0/v0 (and z0) or the whole y0."""
     n = cm.n

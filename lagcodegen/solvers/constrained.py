@@ -536,10 +536,12 @@ class ConstrainedSimulation(_Base):
         self._check(rc, t, "GGL Jacobian")
         return J
 
-    def ggl_multiplier_outputs(self, yy: np.ndarray) -> dict:
-        """The GGL multipliers mu_k of the velocity-level holonomic rows, as outputs."""
+    def ggl_multiplier_outputs(self, yy: np.ndarray, copy: bool = True) -> dict:
+        """The GGL multipliers mu_k of the velocity-level holonomic rows, as outputs (column
+        views of ``yy`` with ``copy=False``)."""
         n, J, JH = self.n, self.info.J, self.info.JH
-        return {f"mu_{k}": yy[:, 2 * n + J + k].copy() for k in range(JH)}
+        cols = (yy[:, 2 * n + J + k] for k in range(JH))
+        return {f"mu_{k}": col.copy() if copy else col for k, col in enumerate(cols)}
 
 
 def _state_values(val, names: list, what: str) -> list:

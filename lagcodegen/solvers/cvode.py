@@ -13,7 +13,8 @@ from ..errors import LagcodegenError
 from ..formulation.scene import band_order
 from ..formulation.scene import bandwidths as widths
 from ..result import Result
-from .base import METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats
+from .base import (METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats, pooled_stats,
+                   reached_rows)
 from .control import CANCELLED, POLL_EVERY, raise_pending
 
 
@@ -103,11 +104,8 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
     out = np.empty((nt, sim.n_out_columns))
     opt = sim.cvc_options.get(atol, METHODS[method], rtol, int(max_steps), first_step, max_step, min_step, max_order,
                               alpha, beta, int(projection), proj_tol, proj_maxit, int(roots), max_wall)
-    pool = sim.cvc_stats_pool  # statistics structs of finished runs (the driver clears them)
-    try:
-        st = pool.pop()
-    except IndexError:
-        st = ffi.new(sim.cvc_stats_type)
+    pool = sim.cvc_stats_pool
+    st = pooled_stats(ffi, pool, sim.cvc_stats_type)
     events = sim.native_events(max_events) if roots else None
     fb, darr = ffi.from_buffer, sim._double_array
     try:
@@ -118,11 +116,7 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
         if flag == CANCELLED:
             raise_pending()
         recs = events.records(sim.state_names, ny) if events else []
-        done = st.nt_done
-        if done < nt:
-            tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()
-        else:
-            tt, yy, oo = t.copy(), yout, out
+        tt, yy, oo = reached_rows(t, yout, out, st.nt_done)
         if events and events.terminated and recs:
             tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, recs[-1].y, p)
     finally:

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from ..result import Result
-from .base import SINGULAR_AUGMENTED, message, native_stats
+from .base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
 from .control import CANCELLED, raise_pending
 from .cvode import append_event_row
 
@@ -39,11 +39,8 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, ma
     out = np.empty((nt, sim.n_out_columns))
     opt = sim.ida_options.get(atol, rtol, int(max_steps), first_step, max_step, min_step, max_order, int(suppress_alg),
                               int(jacobian), int(roots), int(stop_at_outputs), max_wall)
-    pool = sim.ida_stats_pool  # statistics structs of finished runs (the driver clears them)
-    try:
-        st = pool.pop()
-    except IndexError:
-        st = ffi.new(sim.ida_stats_type)
+    pool = sim.ida_stats_pool
+    st = pooled_stats(ffi, pool, sim.ida_stats_type)
     events = sim.native_events(max_events) if roots else None
     fb, darr = ffi.from_buffer, sim._double_array
     try:
@@ -55,11 +52,7 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, ma
         if flag == CANCELLED:
             raise_pending()
         recs = events.records(sim.state_names, 2 * n) if events else []
-        done = st.nt_done
-        if done < nt:
-            tt, yy, oo = t[:done].copy(), yout[:done].copy(), out[:done].copy()
-        else:
-            tt, yy, oo = t.copy(), yout, out
+        tt, yy, oo = reached_rows(t, yout, out, st.nt_done)
         if events and events.terminated and recs:
             row = events.y[events.count - 1]
             tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, row, p, lam=row[2 * n: 2 * n + sim.info.J])
@@ -75,7 +68,6 @@ def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, ma
         text = "IDACalcIC found no consistent lambda, y': " + text
     pool.append(st)
     outputs = dict(zip(sim.info.output_names, oo.T))  # column views
-    for k in range(sim.info.JH):  # the multipliers mu_k of the velocity-level rows (GGL)
-        outputs[f"mu_{k}"] = yy[:, 2 * n + sim.info.J + k]
+    outputs.update(sim.ggl_multiplier_outputs(yy, copy=False))
     return Result(t=tt, y=yy[:, : 2 * n], state_names=sim.state_names, outputs=outputs, stats=stats,
                   status=int(flag), backend="native", method="bdf", message=text, events=recs)
