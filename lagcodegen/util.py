@@ -100,6 +100,9 @@ def sigterm_raises():
         signal.signal(signal.SIGTERM, previous)
 
 
+_FLOAT64 = np.dtype(np.float64)
+
+
 def output_times(t) -> np.ndarray:
     """Output times as an array: a numpy array of times as it is; a list or tuple (t0, t1) of
     two numbers gives 1001 evenly spaced output times, a longer one its own times.
@@ -107,14 +110,17 @@ def output_times(t) -> np.ndarray:
     Cheap on the common input (a contiguous float64 array): one comparison pass; strictly
     increasing with finite ends implies every time finite (NaN never compares greater)."""
     pair = isinstance(t, (list, tuple)) and len(t) == 2
-    if type(t) is not np.ndarray or t.dtype != np.float64 or t.ndim != 1 or not t.flags.c_contiguous:
+    if type(t) is not np.ndarray or t.dtype is not _FLOAT64 or t.ndim != 1 or not t.flags.c_contiguous:
         try:
             t = np.ascontiguousarray(t, dtype=float).ravel()
         except (TypeError, ValueError):
             raise LagcodegenError(f"t must be an array of times, got {t!r:.60}") from None
     if pair:
         t = np.linspace(t[0], t[1], 1001)
-    if t.size <= 64:  # a Python pass is cheaper than numpy's on a few values
+    if t.size == 2:  # [t0, t1]
+        a, b = t.tolist()
+        ok = a < b and math.isfinite(a) and math.isfinite(b)
+    elif t.size <= 64:  # a Python pass is cheaper than numpy's on a few values
         times = t.tolist()
         ok = len(times) >= 2 and math.isfinite(times[0]) and math.isfinite(times[-1]) \
             and all(a < b for a, b in zip(times, times[1:]))
