@@ -24,7 +24,7 @@ from .solvers.constrained import ConstrainedSimulation
 from .solvers.minimal import MinimalSimulation
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.routhian import RouthReduction
-from .util import check_finite
+from .util import check_baumgarte
 
 #: compile_model emits the analytic Jacobian by default up to this many coordinates. Measured
 #: (benchmarks/scaling.py, n-link pendulum, BDF to rtol 1e-8): from n = 10 to 100 it makes a run
@@ -83,7 +83,7 @@ def compile_reduction(reduction: RouthReduction, outputs: Sequence[str] = ("jaco
 
 
 def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", outputs: Sequence[str] | None = None,
-                        baumgarte: tuple[float, float] = (0.0, 0.0), projection: bool = False,
+                        baumgarte: tuple[float, float] | str = "auto", projection: bool = False,
                         events: Iterable = (), runtime_parameters=None, values: Mapping | None = None,
                         prefix: str | None = None, jacobian: bool = True, eliminate: Sequence | None = None,
                         verbose: bool = False, lang: str = "c", progress=None):
@@ -100,7 +100,12 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         model's (``energy``, ``positions``, ``momenta``, ...). Default: energy, lambda,
         residuals (minimal: energy, residuals, plus the eliminated coordinates).
     baumgarte:
-        Default (alpha, beta) of the index-1 formulation (0, 0: none); simulate() may override.
+        Default Baumgarte stabilization of the index-1 formulation (eq. 4.5 with f'' + 2 alpha f' +
+        beta^2 f = 0): ``"auto"`` (default) takes alpha = beta = the rate of the system's fastest
+        motion at each run's initial state (``<prefix>_natural_rate``: the diagonal of the index-1
+        Jacobian, in 1/time, so it follows the model's time unit), none with projection;
+        (alpha, beta) fixed values; (0, 0) none. simulate() may override. The choice is measured
+        in benchmarks/bari.py (README, "Constrained systems").
     projection:
         Default for projection onto the constraints after each CVODE step (index-1 only).
     events:
@@ -132,7 +137,7 @@ def _compile_constrained(system, formulation, outputs, baumgarte, projection, ev
         raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
     if formulation not in FORMULATIONS:
         raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
-    alpha, beta = (check_finite(x, "baumgarte parameter") for x in baumgarte)
+    baumgarte = check_baumgarte(baumgarte, "baumgarte")
     check_language(lang)
     if formulation == "minimal":
         return MinimalSimulation(system, outputs=outputs, events=events, runtime_parameters=runtime_parameters,
@@ -143,7 +148,7 @@ def _compile_constrained(system, formulation, outputs, baumgarte, projection, ev
                                       events=events, runtime_parameters=runtime_parameters, values=values,
                                       prefix=prefix, lang=lang)
     cm = build(code, native=True, verbose=verbose)
-    return ConstrainedSimulation(system, formulation, cm, info, (alpha, beta), bool(projection))
+    return ConstrainedSimulation(system, formulation, cm, info, baumgarte, bool(projection))
 
 
 

@@ -132,13 +132,14 @@ def _scene(mf, args, quiet: bool):
     return scene, runtime_values
 
 
-def _formulation(mf, args, quiet: bool) -> tuple[str, tuple[float, float], bool]:
+def _formulation(mf, args, quiet: bool) -> tuple[str, tuple[float, float] | str, bool]:
     """(formulation, baumgarte, projection) of a constrained file, ``--formulation`` overriding."""
     sim = mf.simulation
     formulation = getattr(args, "formulation", None) or sim.formulation or "index1"
     baumgarte, projection = sim.baumgarte, sim.projection
     if formulation != "index1":
-        dropped = [name for name, used in (("baumgarte", baumgarte != (0.0, 0.0)), ("projection", projection))
+        dropped = [name for name, used in (("baumgarte", baumgarte not in ((0.0, 0.0), "auto")),
+                                           ("projection", projection))
                    if used]
         if dropped:
             _progress(f"formulation {formulation}: ignoring the file's {' and '.join(dropped)} (index1 only)", quiet)

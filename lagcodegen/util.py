@@ -50,6 +50,24 @@ def check_finite(value, what: str) -> float:
     return x
 
 
+#: ``baumgarte`` of the index-1 formulation that picks (alpha, beta) per run: both equal to the
+#: rate of the system's fastest motion at the initial state (``<prefix>_natural_rate``).
+BAUMGARTE_AUTO = "auto"
+
+
+def check_baumgarte(value, what: str = "baumgarte"):
+    """``"auto"``, or ``value`` as (alpha, beta), two finite floats; else ModelError."""
+    if isinstance(value, str):
+        if value == BAUMGARTE_AUTO:
+            return BAUMGARTE_AUTO
+        raise ModelError(f"{what} must be 'auto' or (alpha, beta), got {excerpt(value)}")
+    try:
+        alpha, beta = value
+    except (TypeError, ValueError):
+        raise ModelError(f"{what} must be 'auto' or (alpha, beta), got {excerpt(value)}") from None
+    return check_finite(alpha, f"{what} alpha"), check_finite(beta, f"{what} beta")
+
+
 def atomic_write(path: Path, text: str) -> Path:
     """Write ``text`` (UTF-8, newlines as they are) to ``path`` so that readers see the old file
     or the new one, never half (:func:`atomic_binary`)."""

@@ -38,7 +38,7 @@ from ..errors import ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
-from ..util import atomic_write, check_finite
+from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite
 from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
@@ -183,7 +183,7 @@ def _checked_span(t_start, t_end, steps) -> tuple[float, float, int]:
 def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str] | None = None,
                               events=(), runtime_parameters=None, values: Mapping[str, float] | None = None,
                               prefix: str | None = None, ggl: bool = False,
-                              baumgarte: tuple[float, float] = (0.0, 0.0), y0: Sequence[float] | None = None,
+                              baumgarte: tuple[float, float] | str = "auto", y0: Sequence[float] | None = None,
                               params: Mapping[str, float] | None = None, t_start: float = 0.0,
                               t_end: float = 10.0, steps: int | None = None) -> dict[str, str]:
     """The files of the bundle of a :class:`~lagcodegen.constraints.ConstrainedSystem` in the
@@ -195,8 +195,9 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     projection, outputs, root functions for ``events``, and with ``ggl`` the GGL residual and
     its Jacobian. The Makefile, CMakeLists.txt and README.md are those of :func:`render_bundle`;
     ``rk4_example.c`` integrates the index-1 ODE with fixed-step RK4 (initial state projected
-    onto the constraints; Baumgarte parameters ``baumgarte`` = (alpha, beta) by default, others
-    and per-step projection on its command line). There is no SUNDIALS example (the native
+    onto the constraints; Baumgarte parameters ``baumgarte`` = (alpha, beta) by default, or with
+    ``"auto"`` alpha = beta = ``<prefix>_natural_rate`` at the initial state; others and per-step
+    projection on its command line). There is no SUNDIALS example (the native
     drivers of :mod:`lagcodegen.dae` are written against lagcodegen's own SUNDIALS declarations).
 
     ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
@@ -209,7 +210,9 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
-    alpha, beta = (check_finite(x, "bundle baumgarte parameter") for x in baumgarte)
+    stab = check_baumgarte(baumgarte, "bundle baumgarte")
+    auto = stab == BAUMGARTE_AUTO
+    alpha, beta = (-1.0, -1.0) if auto else stab  # negative: the example's "auto"
     t_start, t_end, steps = _checked_span(t_start, t_end, steps)
     code, info = generate_constrained(system, ggl=ggl, outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else outputs,
                                         events=events, runtime_parameters=runtime_parameters, values=values,
@@ -239,7 +242,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         ggl_jac=info.ggl_jac, folded=folded,
         folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
         y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
-        alpha=_c_double(alpha), beta=_c_double(beta), steps=steps, every=max(1, steps // 100),
+        alpha=_c_double(alpha), beta=_c_double(beta), auto_stab=auto, steps=steps, every=max(1, steps // 100),
         sundials_example=False, file_table=table, holonomic=[str(f) for f in system.holonomic],
         nonholonomic=[str(r) for r in _nonholonomic_text(system)])
     env = environment()

@@ -88,6 +88,7 @@ typedef struct {{
 }} {p}_events;
 int {p}_kkt(double t, const double *y, const double *p, double alpha, double beta, double *acc, double *lam);
 int {p}_crhs(double t, const double *y, const double *p, double alpha, double beta, double *ydot);
+int {p}_natural_rate(double t, const double *y, const double *p, double *rate);
 int {p}_residuals(double t, const double *y, const double *p, double *g, double *s);
 int {p}_project(double t, const double *y, const double *p, double tol, int maxit, double *ynew, double *err);
 int {p}_coutputs(double t, const double *y, const double *lam, const double *p, double *out);"""]
@@ -99,7 +100,8 @@ int {p}_coutputs(double t, const double *y, const double *lam, const double *p, 
 }} {p}_cvc_options;
 typedef struct {{
     long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails, nproj, nprojfails, ngevals;
-    double t_reached; double h_last; int flag; int model_error; int nt_done; char message[512]; ...;
+    double t_reached; double h_last; double alpha; double beta; int flag; int model_error; int nt_done;
+    char message[512]; ...;
 }} {p}_cvc_stats;
 int {p}_cvc_solve(const double *p, const double *y0, int nt, const double *tout, double *yout, double *out,
                   const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);

@@ -68,7 +68,7 @@ A build step can describe a model without writing Python::
     parameters = { g = 1.62 }             # overrides of the parameter defaults
     jacobian = true
     formulation = "index1"                # constrained files: "index1" (default), "ggl", "minimal"
-    baumgarte = [5.0, 5.0]                # index1: (alpha, beta); default none
+    baumgarte = [5.0, 5.0]                # index1: (alpha, beta), [0, 0] none; default "auto"
     projection = false                    # index1: project after each step (needs method "bdf")
 
 Each table maps onto one :class:`~lagcodegen.model.Model` call (``particle``, ``point``,

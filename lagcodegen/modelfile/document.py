@@ -43,7 +43,7 @@ class SimulationSettings:
     parameters: dict[str, float] = field(default_factory=dict)
     jacobian: bool = True
     formulation: str | None = None  # constrained files: "index1" (default), "ggl" or "minimal"
-    baumgarte: tuple[float, float] = (0.0, 0.0)  # index1: (alpha, beta); (0, 0) is none
+    baumgarte: tuple[float, float] | str = "auto"  # index1: "auto" or (alpha, beta); (0, 0) is none
     projection: bool = False  # index1: project onto the constraints after each step (BDF)
 
 

@@ -521,17 +521,20 @@ class _Loader(_Reader):
         if "baumgarte" in table:
             path = [*sim, "baumgarte"]
             raw = table["baumgarte"]
-            if not isinstance(raw, list) or len(raw) != 2:
-                raise self.error(path, f"must be an array [alpha, beta] of two numbers, got {excerpt(raw)}",
-                                 token=repr(raw))
-            values = tuple(self.constant([*path, i], v) for i, v in enumerate(raw))
-            for i, value in enumerate(values):
-                if value < 0:
-                    raise self.error([*path, i], f"must not be negative, got {value:g}", token=repr(raw[i]))
-            s.baumgarte = (values[0], values[1])
+            if raw == "auto":
+                s.baumgarte = "auto"
+            else:
+                if not isinstance(raw, list) or len(raw) != 2:
+                    raise self.error(path, f"must be \"auto\" or an array [alpha, beta] of two numbers, got "
+                                     f"{excerpt(raw)}", token=repr(raw))
+                values = tuple(self.constant([*path, i], v) for i, v in enumerate(raw))
+                for i, value in enumerate(values):
+                    if value < 0:
+                        raise self.error([*path, i], f"must not be negative, got {value:g}", token=repr(raw[i]))
+                s.baumgarte = (values[0], values[1])
         if "projection" in table:
             s.projection = table["projection"]
-        for key, used in (("baumgarte", s.baumgarte != (0.0, 0.0)), ("projection", s.projection)):
+        for key, used in (("baumgarte", s.baumgarte not in ((0.0, 0.0), "auto")), ("projection", s.projection)):
             if used and s.formulation != "index1":
                 raise self.error([*sim, key], f"{key!r} applies to formulation 'index1' only (the formulation is "
                                  f"{s.formulation!r})", token=key)

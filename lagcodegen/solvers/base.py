@@ -120,6 +120,7 @@ STAT_NAMES = {
     "nniters": "nonlin_iters", "nncfails": "nonlin_conv_fails", "nproj": "projections",
     "nprojfails": "projection_fails", "ngevals": "root_evals", "nbacktracks": "backtracks",
     "t_reached": "t_reached", "h_last": "h_last", "model_error": "model_error", "ic_flag": "ic_flag",
+    "alpha": "alpha", "beta": "beta",
 }
 
 

@@ -47,7 +47,7 @@ from ..formulation.constrained import ConstrainedCodeInfo
 from ..model.events import Event
 from ..result import Result
 from ..theory.constraints import ConstrainedSystem, dependent_rows, rank_tolerance
-from ..util import c_vector, check_finite, output_times, state_values, state_vector
+from ..util import BAUMGARTE_AUTO, c_vector, check_baumgarte, check_finite, output_times, state_values, state_vector
 from . import cvode, ida, sksundae
 from .base import _DOUBLE, ERR_PROJECTION, ERR_SINGULAR, METHODS, NativeEvents, PreparedOptions, tolerances
 from .compiled import CompiledModel
@@ -84,7 +84,7 @@ class ConstrainedSimulation(_Base):
     """A compiled constrained system (formulation ``index1`` or ``ggl``); call :meth:`simulate`."""
 
     def __init__(self, system: ConstrainedSystem, formulation: str, cm: CompiledModel, info: ConstrainedCodeInfo,
-                 baumgarte: tuple[float, float], projection: bool):
+                 baumgarte: tuple[float, float] | str, projection: bool):
         self.system = system
         self.formulation = formulation
         self.compiled = cm
@@ -96,6 +96,7 @@ class ConstrainedSimulation(_Base):
         # the generated functions, called by the runners of each solver family
         self.c_kkt = getattr(self.lib, f"{p}_kkt")
         self.c_crhs = getattr(self.lib, f"{p}_crhs")
+        self.c_natural_rate = getattr(self.lib, f"{p}_natural_rate")
         self.c_residuals = getattr(self.lib, f"{p}_residuals")
         self.c_project = getattr(self.lib, f"{p}_project")
         self.c_outputs = getattr(self.lib, f"{p}_coutputs")
@@ -194,6 +195,34 @@ class ConstrainedSimulation(_Base):
         rc = self.c_residuals(float(t), self._ptr(y), self._ptr(p), self._ptr(g), self._ptr(s))
         self._check(rc, t, "constraint residuals")
         return g[: self.info.JH], s[: self.info.J]
+
+    def natural_rate(self, t: float, y, params=None) -> float:
+        """The rate (1/time) of the system's fastest motion at (t, y): max(sqrt(max_i |dq''_i/dq_i|),
+        max_i |dq''_i/dq'_i|), diagonal entries of the unstabilized index-1 Jacobian (forward
+        differences in C); alpha = beta of ``baumgarte="auto"``. Unchanged when coordinates are
+        rescaled; within 1.2x of the Jacobian's largest eigenvalue on benchmarks/bari.py's problems."""
+        y = self._y(y)
+        rate = self.ffi.new("double *")
+        rc = self.c_natural_rate(float(t), self._ptr(y), self._ptr(self._p(params)), rate)
+        self._check(rc, t, "natural rate")
+        return rate[0]
+
+    def _stabilization(self, baumgarte, projection: bool, t0: float, y0: np.ndarray, p: np.ndarray,
+                       native: bool = True):
+        """(alpha, beta) of an index-1 run: ``baumgarte`` (None: the compiled default) resolved;
+        "auto" none with projection, else (-1, -1) for the native driver (which takes the natural
+        rate of each run's initial state) or the rate at (t0, y0) (0 where it cannot be computed)."""
+        stab = self.baumgarte if baumgarte is None else check_baumgarte(baumgarte)
+        if stab != BAUMGARTE_AUTO:
+            return stab
+        if projection:
+            return 0.0, 0.0
+        if native:
+            return -1.0, -1.0
+        rate = self.ffi.new("double *")
+        if self.c_natural_rate(t0, self.ffi.from_buffer(self._double_array, y0), self.c_params(p), rate) != 0:
+            return 0.0, 0.0
+        return rate[0], rate[0]
 
     def project(self, t: float, y, params=None, tol: float = 1e-14, maxit: int = 50) -> np.ndarray:
         """y projected onto f(q, t) = 0 (Gauss-Newton) and A q' + A0 = 0."""
@@ -306,7 +335,7 @@ class ConstrainedSimulation(_Base):
 
     # ------------------------------------------------------------------ simulate
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
-                 atol=1e-10, backend: str = "native", method: str | None = None, baumgarte: tuple | None = None,
+                 atol=1e-10, backend: str = "native", method: str | None = None, baumgarte: tuple | str | None = None,
                  projection: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
                  max_steps: int = 1_000_000, first_step: float = 0.0, max_step: float = 0.0,
                  min_step: float = 0.0, max_order: int = 0, events: bool = True, max_events: int = 10_000,
@@ -322,8 +351,9 @@ class ConstrainedSimulation(_Base):
         huge atol on lambda, mu instead of IDASetSuppressAlg).
 
         Index-1: ``method`` ``"adams"`` (default without projection) or ``"bdf"`` (default and
-        required with projection); ``baumgarte=(alpha, beta)`` and ``projection`` override the
-        compiled defaults. GGL: ``suppress_alg`` (native), ``jacobian`` (generated residual
+        required with projection); ``baumgarte`` (``"auto"`` or (alpha, beta), see
+        :func:`~lagcodegen.api.compile_constrained`; the values used are in ``stats["alpha"]``,
+        ``stats["beta"]``) and ``projection`` override the compiled defaults. GGL: ``suppress_alg`` (native), ``jacobian`` (generated residual
         Jacobian, default when compiled), ``alg_atol`` (absolute tolerance of lambda, mu;
         default :data:`ALGEBRAIC_ATOL`, see there), ``stop_at_outputs`` (native: step exactly to
         every output time instead of interpolating, so that the reported states satisfy the
@@ -359,8 +389,8 @@ class ConstrainedSimulation(_Base):
         if backend not in ("native", "sksundae"):
             raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
         if self.formulation == "index1":
-            alpha, beta = self.baumgarte if baumgarte is None else (check_finite(x, "baumgarte") for x in baumgarte)
             projection = self.projection if projection is None else bool(projection)
+            alpha, beta = self._stabilization(baumgarte, projection, float(t[0]), y0, p, backend == "native")
             if method is None:
                 method = "bdf" if projection else "adams"
             if method not in METHODS:
@@ -383,7 +413,8 @@ class ConstrainedSimulation(_Base):
                                           "CVodeSetProjFn): use backend='native'")
                 res = sksundae.solve_index1(self, t, y0, p, method, rtol, atol_arr, float(alpha), float(beta), roots,
                                            max_steps, first_step, max_step, min_step, max_order)
-            res.stats.update(alpha=float(alpha), beta=float(beta), projection=projection)
+                res.stats.update(alpha=float(alpha), beta=float(beta))
+            res.stats["projection"] = projection
         else:
             if method not in (None, "bdf"):
                 raise LagcodegenError("IDA integrates with BDF only (method='bdf')")

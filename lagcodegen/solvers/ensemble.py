@@ -244,9 +244,8 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     common = dict(max_steps=int(o["max_steps"]), first_step=o["first_step"], max_step=o["max_step"],
                   min_step=o["min_step"], max_order=o["max_order"], roots=int(roots), max_wall=float(max_wall))
     if not ggl:
-        alpha, beta = sim.baumgarte if o["baumgarte"] is None else (check_finite(x, "baumgarte")
-                                                                      for x in o["baumgarte"])
         projection = sim.projection if o["projection"] is None else bool(o["projection"])
+        alpha, beta = sim._stabilization(o["baumgarte"], projection, t0, None, None)  # "auto": per member, in C
         method = o["method"] or ("bdf" if projection else "adams")
         if method not in METHODS:
             raise LagcodegenError(f"method must be one of {', '.join(METHODS)}, got {method!r}")

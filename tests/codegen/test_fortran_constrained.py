@@ -69,7 +69,7 @@ def test_constrained_fortran_compiles_with_strict_warnings(tmp_path, fc, name): 
     assert max(map(len, src.splitlines())) <= 132
     body = src[src.index("contains"):]
     assert "y[" not in body and "lam[" not in body and "pow(" not in body
-    for fn in ("kkt", "crhs", "residuals", "project", "coutputs"):
+    for fn in ("kkt", "crhs", "residuals", "project", "coutputs", "natural_rate"):
         assert f'bind(C, name="{pre}_{fn}")' in src
     assert (f'name="{pre}_ggl_res"' in src) == options.get("ggl", False)
     assert (f'name="{pre}_ggl_jac"' in src) == (options.get("ggl", False) and options.get("ggl_jacobian", True))
@@ -126,6 +126,7 @@ def test_c_and_fortran_constrained_functions_agree(fc, pairs, name, form):  # no
         for k, (a, b) in enumerate(zip(c.residuals(t, y), f.residuals(t, y))):
             same(a, b, ("g", "s")[k])
         same(crhs(c, t, y, alpha, beta), crhs(f, t, y, alpha, beta), "crhs")
+        same(c.natural_rate(t, y), f.natural_rate(t, y), "natural_rate")
         same(c.project(t, y), f.project(t, y), "project")
         same(c.outputs(t, y), f.outputs(t, y), "outputs (lam from the augmented system)")
         lam = rng.normal(size=c.info.J)

@@ -610,7 +610,7 @@ def test_unconstrained_files_have_no_constrained_system():
     mf = loads_model(BASE, "p.toml")
     assert mf.constrained is None and mf.events == [] and mf.simulation.formulation is None
     mf = loads_model(CBASE, "cp.toml")  # constrained, no [simulation]: index1 by default
-    assert mf.simulation.formulation == "index1" and mf.simulation.baumgarte == (0.0, 0.0)
+    assert mf.simulation.formulation == "index1" and mf.simulation.baumgarte == "auto"
 
 
 def test_nonholonomic_forms_agree():

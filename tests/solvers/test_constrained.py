@@ -166,7 +166,8 @@ def test_long_cartesian_pendulum_runs_drift(cpend, capsys):
     """t = 100 under every formulation: max |f(q)|, max |A q'|, energy drift."""
     t = np.linspace(0, 100, 2001)
     q0, rows = pendulum_q0(), {}
-    runs = {"index1": ("index1", {}), "index1+baumgarte": ("index1", {"baumgarte": (10.0, 10.0)}),
+    runs = {"index1": ("index1", {"baumgarte": (0, 0)}), "index1 default": ("index1", {}),
+            "index1+baumgarte": ("index1", {"baumgarte": (10.0, 10.0)}),
             "index1+projection": ("index1", {"projection": True}), "ggl native": ("ggl", {}),
             "ggl sksundae": ("ggl", {"backend": "sksundae"}), "minimal": ("minimal", {})}
     for name, (form, opts) in runs.items():
@@ -180,6 +181,7 @@ def test_long_cartesian_pendulum_runs_drift(cpend, capsys):
     assert rows["index1+projection"][0] <= 1e-10 and rows["index1+projection"][1] <= 1e-9
     assert rows["minimal"][0] <= 1e-13
     assert rows["index1+baumgarte"][0] < rows["index1"][0] / 100  # stabilization works
+    assert rows["index1 default"][0] < rows["index1"][0] / 100  # and is on by default ("auto")
     assert all(e < 1e-4 for _, _, e in rows.values())
 
 
