@@ -1,6 +1,8 @@
 """Constrained dynamics (eq. 4.5) in generated C: index-1 on CVODE (Baumgarte, projection),
 GGL on IDA (native and scikit-sundae), minimal coordinates; checked against independent facts."""
 
+import dataclasses
+import importlib
 import subprocess
 
 import numpy as np
@@ -569,6 +571,38 @@ def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
     assert abs(float(fields["ida"]["g_end"])) < 1e-7
     assert fields["bad"] == {"rc": "-22", "ida": "-22", "init": "-22", "message": "yes"}
     assert fields["cvc_many"]["ok"] == "5" and fields["ida_many"]["ok"] == "5"
+
+
+def test_constrained_models_are_plain_libraries_on_the_shared_runtime():
+    """Constrained code compiles into a library without Python.h whose tables the runtime's
+    model-independent drivers take: one runtime for every model and formulation, the table's
+    layout that of the code; a library whose table disagrees with its code is refused."""
+    build_module = importlib.import_module("lagcodegen.build")
+    rt = build_module.runtime()
+    sims = [compile_constrained(cartesian_pendulum("plain_lib"), form) for form in ("index1", "ggl")]
+    sims.append(compile_constrained(knife_edge("plain_knife"), "ggl", jacobian=False,
+                                    events=[Event("x0", knife_edge().model.coords[0], 0, False)]))
+    null = rt.ffi.NULL
+    for sim in sims:
+        cm = sim.compiled
+        assert cm.module is rt and sim.lib is rt.lib
+        assert cm.path.suffix == ".so" and cm.path.name.startswith("lib_lcg_")
+        binary = cm.path.read_bytes()
+        assert b"PyInit_" not in binary and b"Py_" not in binary  # no Python in the model library
+        t = sim.table
+        assert (t.abi, t.nq, t.ny, t.nj, t.njh, t.ng, t.nout, t.nroot) == (
+            1, sim.n, 2 * sim.n, sim.info.J, sim.info.JH, sim.info.ng, len(sim.info.output_names),
+            len(sim.info.events))
+        assert t.model == cm.table and cm.table.nq == sim.n
+    assert sims[0].table.ggl_res == null and sims[0].c_ida_solve is None
+    assert sims[1].table.ggl_res != null and sims[1].table.ggl_jac != null and sims[1].table.roots == null
+    assert sims[2].table.ggl_jac == null and sims[2].table.roots != null and sims[2].table.njh == 0
+    code = sims[1].compiled.code
+    wrong = dataclasses.replace(code, dae=dataclasses.replace(code.dae, nout=code.dae.nout + 1))
+    with pytest.raises(lcg.LagcodegenError, match="another layout"):
+        build_module.build(wrong)
+    with pytest.raises(lcg.LagcodegenError, match="native"):
+        build_module.build(code, native=False)
 
 
 def test_ggl_jacobian_of_a_coordinate_named_cj():
