@@ -6,7 +6,7 @@ the index-1 (CVODE) and GGL (IDA) formulations with the default options (rtol 1e
 over t in [0, 1] given three ways -- the pair (0, 1) (1001 output times), an array of 1001 times,
 and the array [0, 1] (two output times) -- it times, interleaved:
 
-* driver [us]     ``<prefix>_cvc_solve`` / ``<prefix>_ida_solve`` called through cffi with every
+* driver [us]     ``lcg_cvc_solve`` / ``lcg_ida_solve`` on the model's table, called through cffi with every
                   argument prepared beforehand (the consistent initial values, the options
                   struct simulate() builds, preallocated outputs): the C integration alone;
 * simulate [us]   ``ConstrainedSimulation.simulate(t, q0=..., v0=...)``: the checks of the
@@ -95,7 +95,7 @@ SYSTEMS = (("pendulum", 1), ("3-link chain", 3))
 def driver_call(sim, t: np.ndarray, q0):
     """A function running the native driver of ``sim`` once through cffi, every argument prepared
     as simulate() prepares it with the default options; it returns (steps, final state)."""
-    ffi, lib, pre, n = sim.ffi, sim.lib, sim.info.prefix, sim.n
+    ffi, pre, n = sim.ffi, sim.info.prefix, sim.n
     p = sim.parameter_vector()
     y0 = sim.consistent_initial_state(float(t[0]), q0, None, p)
     poll = sim.compiled.poll
@@ -103,13 +103,13 @@ def driver_call(sim, t: np.ndarray, q0):
     keep = [p, t]
     if sim.formulation == "index1":
         yout, out = np.empty((nt, 2 * n)), np.empty((nt, nout))
-        opt = ffi.new(f"{pre}_cvc_options *")
-        st = ffi.new(f"{pre}_cvc_stats *")
+        opt = ffi.new(f"{sim.cvc_options_type} *")
+        st = ffi.new(sim.cvc_stats_type)
         for name, value in dict(method=1, rtol=RTOL, atol=ATOL, atol_vec=ffi.NULL, max_steps=1_000_000,
                                 alpha=0.0, beta=0.0, projection=0, proj_tol=1e-12, proj_maxit=10, proj_err=1,
                                 roots=0, poll=poll, poll_every=POLL_EVERY, max_wall=0.0).items():
             setattr(opt, name, value)
-        fn = getattr(lib, f"{pre}_cvc_solve")
+        fn = sim.c_cvc_solve  # the runtime's lcg_cvc_solve on the model's table
         args = (ffi.from_buffer("double[]", p) if p.size else ffi.NULL, ffi.from_buffer("double[]", y0), nt,
                 ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out),
                 opt, st, ffi.NULL)
@@ -122,14 +122,14 @@ def driver_call(sim, t: np.ndarray, q0):
         atol[2 * n:] = ALG_ATOL
         yout, out = np.empty((nt, ng)), np.empty((nt, nout))
         keep += [yy0, yp0, atol]
-        opt = ffi.new(f"{pre}_ida_options *")
-        st = ffi.new(f"{pre}_ida_stats *")
+        opt = ffi.new(f"{sim.ida_options_type} *")
+        st = ffi.new(sim.ida_stats_type)
         for name, value in dict(rtol=RTOL, atol=ATOL, atol_vec=ffi.from_buffer("double[]", atol),
                                 max_steps=1_000_000, suppress_alg=1, jacobian=int(sim.info.ggl_jac), calc_ic=1,
                                 ic_alg_atol=ALG_ATOL, roots=0, stop_at_outputs=0, poll=poll, poll_every=POLL_EVERY,
                                 max_wall=0.0).items():
             setattr(opt, name, value)
-        fn = getattr(lib, f"{pre}_ida_solve")
+        fn = sim.c_ida_solve  # the runtime's lcg_ida_solve on the model's table
         args = (ffi.from_buffer("double[]", p) if p.size else ffi.NULL, ffi.from_buffer("double[]", yy0),
                 ffi.from_buffer("double[]", yp0), nt, ffi.from_buffer("double[]", t),
                 ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st, ffi.NULL)

@@ -9,6 +9,10 @@ For the pendulum (n = 1) and the double pendulum (n = 2), t in [0, 10], rtol 1e-
   installation) already in the cache;
 * ``lagcodegen, empty cache``: the same with an empty cache, so the runtime is built too (what the
   very first model of an installation costs);
+* ``lagcodegen index-1`` / ``lagcodegen GGL`` (row n = 2 only): ``compile_constrained`` of a
+  pendulum in Cartesian coordinates (x, y with x^2 + y^2 = l^2; 2 coordinates, 1 constraint) and
+  its first ``simulate`` (CVODE on the index-1 form, IDA on the GGL form), a model never built, the
+  runtime (which holds the constrained drivers too) in the cache; no CasADi counterpart;
 * ``casadi``: the same Lagrangian derived with CasADi's SX (M = d2T/dq'dq', F from the Euler-
   Lagrange equations, M q'' = F solved by ``solve``), ``integrator("cvodes")`` built and called once.
 
@@ -53,6 +57,30 @@ assert res.status == 0, res.message
 print(json.dumps(dict(imports=t1 - t0, build=t2 - t1, first=t3 - t1, y=float(res.y[-1, 0]), cached=sim.cached)))
 """
 
+CONSTRAINED = r"""
+import json, sys, time, uuid
+t0 = time.perf_counter()
+import math
+import lagcodegen as lcg
+from lagcodegen.theory.constraints import ConstrainedSystem
+t1 = time.perf_counter()
+form = sys.argv[2]
+m = lcg.Model("fa_" + uuid.uuid4().hex[:12])
+x, y = m.coordinates("x y")
+l, g, mass = m.parameters(l=1.0, g=9.81, m=1.0)
+m.particle("bob", mass, (x, y))
+m.gravity(g)
+sim = lcg.compile_constrained(ConstrainedSystem(m, holonomic=[x ** 2 + y ** 2 - l ** 2]), form)
+t2 = time.perf_counter()
+res = sim.simulate([0.0, 10.0], q0=[math.sin(1.0), -math.cos(1.0)], v0=[0.0, 0.0], rtol=1e-8, atol=1e-10)
+t3 = time.perf_counter()
+assert res.status == 0, res.message
+print(json.dumps(dict(imports=t1 - t0, build=t2 - t1, first=t3 - t1, y=float(res.y[-1, 0]), cached=False)))
+"""
+
+#: The constrained contenders (n = 2 only) and their formulations.
+CONSTRAINED_ROWS = {"lagcodegen index-1": "index1", "lagcodegen GGL": "ggl"}
+
 CASADI = r"""
 import json, sys, time
 t0 = time.perf_counter()
@@ -79,8 +107,8 @@ print(json.dumps(dict(imports=t1 - t0, build=t2 - t1, first=t3 - t1, y=float(out
 """
 
 
-def run(script: str, n: int, env: dict) -> dict:
-    proc = subprocess.run([sys.executable, "-c", script, str(n)], capture_output=True, text=True, env=env,
+def run(script: str, n: int, env: dict, *extra: str) -> dict:
+    proc = subprocess.run([sys.executable, "-c", script, str(n), *extra], capture_output=True, text=True, env=env,
                           timeout=600)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-2000:])
@@ -107,12 +135,17 @@ def main(argv=None) -> int:
     contenders = {"lagcodegen": lambda n: run(LAGCODEGEN, n, {**base_env, "LAGCODEGEN_CACHE": str(warm)}),
                   "lagcodegen, empty cache": lambda n: run(
                       LAGCODEGEN, n, {**base_env, "LAGCODEGEN_CACHE": tempfile.mkdtemp(prefix="lcg-empty-")})}
+    for label, form in CONSTRAINED_ROWS.items():
+        contenders[label] = (lambda form: lambda n: run(CONSTRAINED, n, {**base_env, "LAGCODEGEN_CACHE": str(warm)},
+                                                        form))(form)
     if have_casadi:
         contenders["casadi"] = lambda n: run(CASADI, n, base_env)
     samples: dict = {}
     for r in range(rounds):
         for n in (1, 2):
             for name, fn in contenders.items():
+                if name in CONSTRAINED_ROWS and n != 2:
+                    continue  # the Cartesian pendulum has 2 coordinates
                 H.progress(TAG, f"round {r + 1}/{rounds}: {name}, n = {n}")
                 samples.setdefault((name, n), []).append(fn(n))
     rows = []
@@ -122,6 +155,8 @@ def main(argv=None) -> int:
                          y_end=runs[0]["y"]))
     for row in rows:
         ref = next((r for r in rows if r["contender"] == "casadi" and r["n"] == row["n"]), None)
+        if row["contender"] in CONSTRAINED_ROWS:
+            ref = None  # another model (a pendulum in Cartesian coordinates): no CasADi counterpart
         row["vs_casadi"] = row["first_s"] / ref["first_s"] if ref else None
     cols = [("contender", "contender", "{}"), ("n", "n", "{}"), ("first_s", "first answer [s]", "{:.3f}"),
             ("build_s", "build [s]", "{:.3f}"), ("imports_s", "imports [s]", "{:.3f}"),

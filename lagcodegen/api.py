@@ -89,6 +89,11 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
                         verbose: bool = False, lang: str = "c", progress=None):
     """Generate and compile a constrained system (eq. 4.5) in one formulation.
 
+    ``index1`` and ``ggl`` compile only the system's own code (model, ``<prefix>_dae.c`` or
+    ``.f90``, and its function tables) into a library without Python.h; the native drivers
+    (index 1 on CVODE, GGL on IDA) are the model-independent runtime's
+    (:func:`lagcodegen.build.runtime`, compiled once per installation).
+
     Parameters
     ----------
     formulation:
@@ -120,7 +125,8 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         Language of the generated model functions: ``"c"`` or ``"fortran"`` (Fortran 2008
         modules bound to the same C names, evaluating the same operations, so the results are
         the C version's to the last bit where neither compiler contracts multiply-adds; the
-        native CVODE/IDA drivers are C in both cases and call them through the same header).
+        native CVODE/IDA drivers are C in both cases and call them through the same function
+        table).
         The minimal formulation is C only.
     progress:
         As :func:`compile_model`'s: True a progress line on stderr, a callable

@@ -41,7 +41,8 @@ from .version import __version__
 #: The cache's names stay importable from here (lagcodegen.cache holds them).
 __all__ = ["ABANDONED_BUILD_SECONDS", "CACHE_FORMAT", "DIGEST_NAME", "STALE_BUILD_SECONDS", "CacheWarning",
            "BuiltModule", "Sundials", "build", "cache_dir", "clean_stale", "compiler_id", "driver_sources",
-           "find_sundials", "runtime", "runtime_sources", "table_source", "DEFAULT_CFLAGS", "DEFAULT_FFLAGS"]
+           "find_sundials", "runtime", "runtime_sources", "table_source", "dae_table_source", "DEFAULT_CFLAGS",
+           "DEFAULT_FFLAGS"]
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
@@ -105,17 +106,24 @@ def compiler_id(cc: str) -> str:
     return f"{path}\n{ver}"
 
 
-#: The model-independent native drivers (templates/c/lcg_*.j2), compiled once per installation.
+#: The model-independent native drivers (templates/c/lcg_*.j2), compiled once per installation:
+#: CVODE for ODEs (lcg_cvode), CVODE for the index-1 constrained equations (lcg_cvc), IDA for the
+#: GGL form (lcg_ida).
 RUNTIME_TEMPLATES = {"lcg_model.h": "c/lcg_model.h.j2", "lcg_cvode.h": "c/lcg_cvode.h.j2",
-                     "lcg_cvode.c": "c/lcg_cvode.c.j2", "sundials_api.h": "c/sundials_api.h.j2"}
+                     "lcg_cvode.c": "c/lcg_cvode.c.j2", "lcg_dae_model.h": "c/lcg_dae_model.h.j2",
+                     "lcg_cvc.h": "c/lcg_cvc.h.j2", "lcg_cvc.c": "c/lcg_cvc.c.j2", "lcg_ida.h": "c/lcg_ida.h.j2",
+                     "lcg_ida.c": "c/lcg_ida.c.j2", "sundials_api.h": "c/sundials_api.h.j2"}
+#: The runtime's C files and the headers its cffi module includes.
+RUNTIME_C_FILES = ("lcg_cvode.c", "lcg_cvc.c", "lcg_ida.c")
+RUNTIME_HEADERS = ("lcg_cvode.h", "lcg_cvc.h", "lcg_ida.h")
 #: Every template file the runtime's sources are rendered from (with the macros they import).
-RUNTIME_TEMPLATE_FILES = ("lcg_model.h.j2", "lcg_cvode.h.j2", "lcg_cvode.c.j2", "sundials_api.h.j2",
-                          "_sundials.j2", "_control.j2")
+RUNTIME_TEMPLATE_FILES = tuple(sorted({t.split("/", 1)[1] for t in RUNTIME_TEMPLATES.values()}
+                                      | {"_sundials.j2", "_control.j2"}))
 
 
 def runtime_sources(sundials: Sundials) -> dict[str, str]:
-    """The model-independent native CVODE driver (taking a model's function table, lcg_model.h)
-    and the SUNDIALS declarations it is written against."""
+    """The model-independent native drivers (taking a model's function table, lcg_model.h, or a
+    constrained model's, lcg_dae_model.h) and the SUNDIALS declarations they are written against."""
     env = environment()
     ctx = dict(version=__version__, sunindextype=sundials.sunindextype, sundials_version=sundials.version)
     return {name: env.get_template(t).render(**ctx) for name, t in RUNTIME_TEMPLATES.items()}
@@ -131,10 +139,24 @@ def table_source(code: GeneratedCode) -> dict[str, str]:
             f"{code.prefix}_table.c": env.get_template("c/model_table.c.j2").render(**ctx)}
 
 
+def dae_table_source(code: GeneratedCode) -> dict[str, str]:
+    """``<prefix>_dae_table.c``: the function table of constrained ``code`` (``code.dae``;
+    lcg_dae_model.h, which it includes, with lcg_model.h)."""
+    if code.dae is None:
+        raise LagcodegenError(f"{code.prefix!r} is not constrained code (generate_constrained)")
+    env = environment()
+    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=code.model_name,
+               roots=code.dae.nroot > 0, ggl=code.dae.ggl, ggl_jac=code.dae.ggl_jac)
+    return {"lcg_dae_model.h": env.get_template("c/lcg_dae_model.h.j2").render(version=__version__),
+            f"{code.prefix}_dae_table.c": env.get_template("c/dae_table.c.j2").render(**ctx)}
+
+
 def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
-    """Everything ``code`` needs besides its own files to run on the native CVODE driver: the
-    model-independent driver (:func:`runtime_sources`) and the model's table (:func:`table_source`)."""
-    return {**runtime_sources(sundials), **table_source(code)}
+    """Everything ``code`` needs besides its own files to run on the native drivers: the
+    model-independent drivers (:func:`runtime_sources`) and the model's tables (:func:`table_source`,
+    and :func:`dae_table_source` for constrained code)."""
+    tables = {**table_source(code), **(dae_table_source(code) if code.dae is not None else {})}
+    return {**runtime_sources(sundials), **tables}
 
 
 @dataclass(frozen=True)
@@ -145,7 +167,8 @@ class BuiltModule:
     Either ``module`` is the model's own cffi module (code with drivers of its own, or built
     without SUNDIALS), or (``table`` set) ``module`` is the model-independent runtime
     (:func:`runtime`) and ``table`` the ``const lcg_model *`` of the model's library at ``path``
-    (no Python.h in it), kept open by ``library``."""
+    (no Python.h in it), kept open by ``library``; for constrained code ``dae_table`` is the
+    library's ``const lcg_dae_model *`` too."""
 
     code: GeneratedCode
     module: object
@@ -154,6 +177,7 @@ class BuiltModule:
     cached: bool
     table: object = None
     library: object = None
+    dae_table: object = None
 
 
 def _run(cmd: list[str], cwd: Path, what: str, label: str) -> None:
@@ -209,13 +233,14 @@ ONE_CALL_BYTES = 200_000
 
 
 def _compile_shared(folder: Path, c_files: list[str], objects: list[str], out: str, cc: str, cflags,
-                    includes: list[str], libs: list[str], label: str) -> None:
+                    includes: list[str], libs: list[str], label: str, parallel: bool = False) -> None:
     """Compile ``c_files`` (and link ``objects``) into the shared library ``out``: one compiler
-    call for small sources, else one per file at once on every core, then a link."""
+    call for small sources (unless ``parallel``), else one per file at once on every core, then a
+    link."""
     # No -I on the build folder: the generated files include each other with quotes (found
     # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
     size = sum((folder / f).stat().st_size for f in c_files)
-    one = size <= ONE_CALL_BYTES or len(c_files) == 1
+    one = (size <= ONE_CALL_BYTES and not parallel) or len(c_files) == 1
     with progress.stage("compile", total=1 if one else len(c_files) + 1, unit=f"compiler runs, {label}") as stage:
         if one:
             _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler",
@@ -237,7 +262,7 @@ def _python_include() -> str:
 def _runtime_module(cc: str, cflags: tuple[str, ...]):
     sundials = find_sundials()
     cdef = runtime_cdef()
-    link = sundials.link_args(("cvode", "core"))
+    link = sundials.link_args(("cvode", "ida", "core"))
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
     # keyed by the templates' text (what the sources are rendered from), so that a process which
     # finds the runtime in the cache never renders them
@@ -249,32 +274,46 @@ def _runtime_module(cc: str, cflags: tuple[str, ...]):
 
     def make(tmp: Path) -> Path:
         _write(tmp, runtime_sources(sundials))
-        wrapper = _cffi_module(tmp, modname, cdef, ["lcg_cvode.h"])
-        _compile_shared(tmp, [wrapper, "lcg_cvode.c"], [], f"{modname}{ext}", cc, cflags,
-                        [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime")
+        wrapper = _cffi_module(tmp, modname, cdef, list(RUNTIME_HEADERS))
+        _compile_shared(tmp, [wrapper, *RUNTIME_C_FILES], [], f"{modname}{ext}", cc, cflags,
+                        [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime", parallel=True)
         return tmp / f"{modname}{ext}"
 
     return cached_build(key, modname, f"{modname}{ext}", make, import_module)[0]
 
 
 def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
-    """The model-independent runtime: a cffi module with the native CVODE driver (taking a model's
-    function table), built into the cache once per lagcodegen version, compiler, flags, Python
-    and SUNDIALS libraries (the first call builds it, about a second; later ones load it)."""
+    """The model-independent runtime: a cffi module with the native drivers -- CVODE taking a
+    model's function table (lcg_model.h), CVODE (index 1) and IDA (GGL) taking a constrained
+    model's (lcg_dae_model.h) -- built into the cache once per lagcodegen version, compiler,
+    flags, Python and SUNDIALS libraries (the first call builds it, a few seconds; later ones
+    load it)."""
     cc = cc or os.environ.get("CC") or "cc"
     return _runtime_module(cc, tuple(cflags))
 
 
 def _uses_runtime(code: GeneratedCode, native: bool) -> bool:
-    """Plain model code on the native driver: built as a model library for the runtime."""
-    return native and not code.cdef_extra and not code.sundials_libs
+    """Plain model code, or constrained code, on the native drivers: built as a model library for
+    the runtime."""
+    return native and (code.dae is not None or (not code.cdef_extra and not code.sundials_libs))
+
+
+def _table(rt, library, getter_name: str, ctype: str):
+    """The table a model library's ``getter_name()`` returns, as the runtime's ``ctype``."""
+    getter = getattr(library, getter_name)
+    getter.restype = ctypes.c_void_p
+    getter.argtypes = []
+    return rt.ffi.cast(ctype, getter())
 
 
 def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbose: bool) -> BuiltModule:
-    """The model's own C (and Fortran) with its function table as a shared library without
-    Python.h, opened for the runtime's driver."""
+    """The model's own C (and Fortran) with its function table (and, for constrained code,
+    ``<prefix>_dae.c`` and its table ``<prefix>_dae_table.c``) as a shared library without
+    Python.h, opened for the runtime's drivers; its tables checked against ``code``."""
     rt = runtime(cc, cflags)
     sources = {**dict(code.files), **table_source(code)}
+    if code.dae is not None:
+        sources.update(dae_table_source(code))
     fortran = any(name.endswith(".f90") for name in sources)
     libs = ["-lm"] + (["-lgfortran"] if fortran else [])
     parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
@@ -296,15 +335,33 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
         return tmp / filename
 
     library, path, cached = cached_build(key, modname, filename, make, open_library)
-    getter = getattr(library, f"{code.prefix}_model_table")
-    getter.restype = ctypes.c_void_p
-    table = rt.ffi.cast("const lcg_model *", getter())
+    table = _table(rt, library, f"{code.prefix}_model_table", "const lcg_model *")
     expected = (code.n, code.nz, code.ny, code.np, code.nout)
     if (table.nq, table.nz, table.ny, table.np, table.nout) != expected:
         raise LagcodegenError(f"the library built for model {code.model_name!r} ({path}) has another layout "
                               f"than its code: (nq, nz, ny, np, nout) = {(table.nq, table.nz, table.ny, table.np, table.nout)}"
                               f", expected {expected}")
-    return BuiltModule(code, rt, path, True, cached, table=table, library=library)
+    dae_table = None
+    if code.dae is not None:
+        dae_table = _table(rt, library, f"{code.prefix}_dae_model_table", "const lcg_dae_model *")
+        _check_dae_table(rt, dae_table, table, code, path)
+    return BuiltModule(code, rt, path, True, cached, table=table, library=library, dae_table=dae_table)
+
+
+def _check_dae_table(rt, dae, table, code: GeneratedCode, path: Path) -> None:
+    """Raise LagcodegenError unless the constrained table ``dae`` is what ``code.dae`` describes
+    (and one the runtime's drivers read)."""
+    lay, null = code.dae, rt.ffi.NULL
+    got = (dae.nq, dae.nj, dae.njh, dae.ng, dae.np, dae.nout, dae.nroot, dae.roots != null, dae.ggl_res != null,
+           dae.ggl_jac != null, dae.model == table)
+    expected = (lay.nq, lay.nj, lay.njh, lay.ng, lay.np, lay.nout, lay.nroot, lay.nroot > 0, lay.ggl, lay.ggl_jac,
+                True)
+    message = rt.ffi.new("char[]", 256)
+    if got != expected or not rt.lib.lcg_dae_check(dae, message, 256):
+        why = rt.ffi.string(message).decode(errors="replace")
+        raise LagcodegenError(f"the library built for constrained model {code.model_name!r} ({path}) has another "
+                              f"layout than its code: (nq, nj, njh, ng, np, nout, nroot, roots, ggl_res, ggl_jac, "
+                              f"model) = {got}, expected {expected}" + (f"; {why}" if why else ""))
 
 
 def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
@@ -314,8 +371,10 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
 
     Plain model code with ``native`` compiles into a shared library of its own (no Python.h, no
     driver) whose function table the model-independent runtime's CVODE driver takes
-    (:func:`runtime`, built once). Other code (``code.cdef_extra``: drivers of its own, e.g. the
-    constrained formulations; or ``native=False``) becomes a cffi module of its own.
+    (:func:`runtime`, built once); constrained code (``code.dae``) likewise, with its constrained
+    table for the runtime's index-1 (CVODE) and GGL (IDA) drivers. Other code (``code.cdef_extra``:
+    drivers of its own, e.g. the Taylor integrator; or ``native=False``) becomes a cffi module of
+    its own.
 
     Every ``.c`` file of ``code.files`` is compiled with ``cc``, every ``.f90`` file with ``fc``
     (gfortran; its objects are linked in). ``code.cdef_extra`` adds declarations to the cffi
@@ -326,6 +385,8 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
     fc = fc or os.environ.get("FC") or "gfortran"
     if _uses_runtime(code, native):
         return _model_library(code, cc, cflags, fc, fflags, verbose)
+    if code.dae is not None:
+        raise LagcodegenError("constrained code runs on the runtime's native drivers: build it with native=True")
     sundials = find_sundials() if native else None
     sources = dict(code.files)
     if native:

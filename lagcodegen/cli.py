@@ -230,7 +230,7 @@ def _constrained_files(mf, args) -> dict[str, str]:
     code, _ = generate_constrained(mf.constrained, ggl=ggl, ggl_jacobian=options["jacobian"],
                                      outputs=options["outputs"], events=options["events"],
                                      runtime_parameters=options["runtime_parameters"], values=options["values"],
-                                     prefix=options["prefix"], lang=args.lang, drivers=False)
+                                     prefix=options["prefix"], lang=args.lang)
     dae = [name for name in code.files if name.startswith(f"{code.prefix}_dae.")]
     return {name: code.files[name] for name in dae}
 

@@ -216,7 +216,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     t_start, t_end, steps = _checked_span(t_start, t_end, steps)
     code, info = generate_constrained(system, ggl=ggl, outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else outputs,
                                         events=events, runtime_parameters=runtime_parameters, values=values,
-                                        prefix=prefix, lang=lang, drivers=False)
+                                        prefix=prefix, lang=lang)
     fortran = lang == "fortran"
     pre = code.prefix
     header = f"{pre}_dae.h"

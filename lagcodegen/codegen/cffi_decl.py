@@ -15,13 +15,13 @@ POLL_CDEF = 'extern "Python" int lcg_poll(void *data, long done, long total);'
 
 
 def ensemble_cdef(name: str, options: str, fn: str, yp0: bool = False, events: bool = False,
-                  model: bool = False) -> str:
+                  model: bool | str = False) -> str:
     """The ensemble struct ``name`` of a driver and its solve-many function ``fn``
     (templates/c/_control.j2, ensemble_struct and pool; ``model``: the model-independent driver's
-    field with the model's function table)."""
+    field with the model's function table, of type ``model`` if a string, else ``lcg_model``)."""
     extra = "const double *yp0; long yp0_stride;" if yp0 else ""
     ev = "int max_events; const int *rootdir; const int *terminal;" if events else ""
-    table = "const lcg_model *model;" if model else ""
+    table = f"const {model if isinstance(model, str) else 'lcg_model'} *model;" if model else ""
     return f"""
 typedef struct {{
     {table} long nmem; int nthreads; const double *p; long p_stride; const double *y0; long y0_stride; {extra}
@@ -46,9 +46,69 @@ typedef struct lcg_model {
 } lcg_model;"""
 
 
+#: The function table of a compiled constrained model and the events record of its drivers
+#: (templates/c/lcg_dae_model.h.j2).
+DAE_TABLE_CDEF = """
+typedef struct lcg_dae_model {
+    int abi; int nq; int ny; int nj; int njh; int ng; int np; int nout; int nroot;
+    int (*kkt)(double t, const double *y, const double *p, double alpha, double beta, double *acc, double *lam);
+    int (*crhs)(double t, const double *y, const double *p, double alpha, double beta, double *ydot);
+    int (*natural_rate)(double t, const double *y, const double *p, double *rate);
+    int (*residuals)(double t, const double *y, const double *p, double *g, double *s);
+    int (*project)(double t, const double *y, const double *p, double tol, int maxit, double *ynew, double *err);
+    int (*coutputs)(double t, const double *y, const double *lam, const double *p, double *out);
+    int (*roots)(double t, const double *y, const double *lam, const double *p, double *gout);
+    int (*ggl_res)(double t, const double *yy, const double *yp, const double *p, double *rr);
+    int (*ggl_jac)(double t, double cj, const double *yy, const double *yp, const double *p, double *jac);
+    const lcg_model *model;
+    ...;
+} lcg_dae_model;
+typedef struct {
+    int max_events; int n_events; double *t; double *y; int *which; int *direction;
+    const int *rootdir; const int *terminal; int terminated; ...;
+} lcg_events;"""
+
+
+def constrained_runtime_cdef() -> str:
+    """The constrained drivers of the runtime: the index-1 CVODE driver (templates/c/lcg_cvc.h.j2)
+    with the initial state in one call, the GGL IDA driver (lcg_ida.h.j2), their ensembles."""
+    return "\n".join([DAE_TABLE_CDEF, f"""
+typedef struct {{
+    int method; double rtol; double atol; const double *atol_vec; long max_steps; double first_step;
+    double max_step; double min_step; int max_order; double alpha; double beta; int projection;
+    double proj_tol; int proj_maxit; int proj_err; int roots; {CONTROL_FIELDS} ...;
+}} lcg_cvc_options;
+typedef struct {{
+    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails, nproj, nprojfails, ngevals;
+    double t_reached; double h_last; double alpha; double beta; int flag; int model_error; int nt_done;
+    char message[512]; ...;
+}} lcg_cvc_stats;
+int lcg_cvc_solve(const lcg_dae_model *m, const double *p, const double *y0, int nt, const double *tout,
+                  double *yout, double *out, const lcg_cvc_options *opt, lcg_cvc_stats *st, lcg_events *ev);
+int lcg_dae_initial_state(const lcg_dae_model *m, double t, const double *y, const double *p, int mode, double tol,
+                          int nineq, double *yy, double *yp);
+int lcg_dae_check(const lcg_dae_model *m, char *message, size_t size);""",
+                      ensemble_cdef("lcg_cvc_ensemble", "lcg_cvc_options", "lcg_cvc_solve_many", events=True,
+                                    model="lcg_dae_model"), f"""
+typedef struct {{
+    double rtol; double atol; const double *atol_vec; long max_steps; double first_step; double max_step;
+    double min_step; int max_order; int suppress_alg; int jacobian; int calc_ic; double ic_alg_atol; int roots;
+    int stop_at_outputs; {CONTROL_FIELDS} ...;
+}} lcg_ida_options;
+typedef struct {{
+    long nsteps, nres, nres_dq, njac, nlinsetups, netfails, nniters, nncfails, nbacktracks, ngevals;
+    double t_reached; double h_last; int flag; int ic_flag; int model_error; int nt_done; char message[512]; ...;
+}} lcg_ida_stats;
+int lcg_ida_solve(const lcg_dae_model *m, const double *p, const double *yy0, const double *yp0, int nt,
+                  const double *tout, double *yout, double *out, const lcg_ida_options *opt, lcg_ida_stats *st,
+                  lcg_events *ev);""", ensemble_cdef("lcg_ida_ensemble", "lcg_ida_options", "lcg_ida_solve_many",
+                                                   yp0=True, events=True, model="lcg_dae_model")])
+
+
 def runtime_cdef() -> str:
     """The model-independent runtime module: the model table, the CVODE driver taking it
-    (templates/c/lcg_cvode.h.j2), its ensembles, the batch of outputs and the poll callback."""
+    (templates/c/lcg_cvode.h.j2), its ensembles, the batch of outputs, the constrained drivers
+    (:func:`constrained_runtime_cdef`) and the poll callback."""
     return "\n".join([MODEL_TABLE_CDEF, f"""
 typedef struct {{
     int method; int jacobian; double rtol; double atol; const double *atol_vec;
@@ -63,7 +123,7 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
 int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double *y, const double *p,
                       double *out);""", ensemble_cdef("lcg_cvode_ensemble", "lcg_cvode_options", "lcg_cvode_solve_many",
-                                      model=True), POLL_CDEF])
+                                      model=True), constrained_runtime_cdef(), POLL_CDEF])
 
 
 def model_cdef(code: GeneratedCode, native: bool) -> str:
@@ -77,60 +137,3 @@ def model_cdef(code: GeneratedCode, native: bool) -> str:
     if native:
         lines.append(POLL_CDEF)
     return "\n".join(lines)
-
-
-def constrained_cdef(p: str, roots: bool, ggl: bool, ggl_jac: bool, drivers: bool = True) -> str:
-    """cffi declarations (API mode: the struct layouts come from the headers via '...;')."""
-    lines = [f"""
-typedef struct {{
-    int max_events; int n_events; double *t; double *y; int *which; int *direction;
-    const int *rootdir; const int *terminal; int terminated; ...;
-}} {p}_events;
-int {p}_kkt(double t, const double *y, const double *p, double alpha, double beta, double *acc, double *lam);
-int {p}_crhs(double t, const double *y, const double *p, double alpha, double beta, double *ydot);
-int {p}_natural_rate(double t, const double *y, const double *p, double *rate);
-int {p}_residuals(double t, const double *y, const double *p, double *g, double *s);
-int {p}_project(double t, const double *y, const double *p, double tol, int maxit, double *ynew, double *err);
-int {p}_coutputs(double t, const double *y, const double *lam, const double *p, double *out);"""]
-    if drivers:
-        lines.append(f"""typedef struct {{
-    int method; double rtol; double atol; const double *atol_vec; long max_steps; double first_step;
-    double max_step; double min_step; int max_order; double alpha; double beta; int projection;
-    double proj_tol; int proj_maxit; int proj_err; int roots; {CONTROL_FIELDS} ...;
-}} {p}_cvc_options;
-typedef struct {{
-    long nsteps, nrhs, nrhs_dq, njac, nlinsetups, netfails, nniters, nncfails, nproj, nprojfails, ngevals;
-    double t_reached; double h_last; double alpha; double beta; int flag; int model_error; int nt_done;
-    char message[512]; ...;
-}} {p}_cvc_stats;
-int {p}_cvc_solve(const double *p, const double *y0, int nt, const double *tout, double *yout, double *out,
-                  const {p}_cvc_options *opt, {p}_cvc_stats *st, {p}_events *ev);
-int {p}_initial_state(double t, const double *y, const double *p, int mode, double tol, int nineq, double *yy,
-                      double *yp);""")
-        lines.append(ensemble_cdef(f"{p}_cvc_ensemble", f"{p}_cvc_options", f"{p}_cvc_solve_many", events=True))
-    if roots:
-        lines.append(f"int {p}_roots(double t, const double *y, const double *lam, const double *p, double *gout);")
-    if ggl:
-        lines.append(f"""
-int {p}_ggl_res(double t, const double *yy, const double *yp, const double *p, double *rr);""")
-        if drivers:
-            lines[-1] += f"""
-typedef struct {{
-    double rtol; double atol; const double *atol_vec; long max_steps; double first_step; double max_step;
-    double min_step; int max_order; int suppress_alg; int jacobian; int calc_ic; double ic_alg_atol; int roots;
-    int stop_at_outputs; {CONTROL_FIELDS} ...;
-}} {p}_ida_options;
-typedef struct {{
-    long nsteps, nres, nres_dq, njac, nlinsetups, netfails, nniters, nncfails, nbacktracks, ngevals;
-    double t_reached; double h_last; int flag; int ic_flag; int model_error; int nt_done; char message[512]; ...;
-}} {p}_ida_stats;
-int {p}_ida_solve(const double *p, const double *yy0, const double *yp0, int nt, const double *tout,
-                  double *yout, double *out, const {p}_ida_options *opt, {p}_ida_stats *st, {p}_events *ev);"""
-            lines[-1] += ensemble_cdef(f"{p}_ida_ensemble", f"{p}_ida_options", f"{p}_ida_solve_many", yp0=True,
-                                       events=True)
-        if ggl_jac:
-            lines.append(f"int {p}_ggl_jac(double t, double cj, const double *yy, const double *yp, "
-                         f"const double *p, double *jac);")
-    return "\n".join(lines)
-
-

@@ -5,8 +5,10 @@ GGL residual, from the kernels of :mod:`lagcodegen.formulation.constrained`.
 [M A^T; A 0][q''; -lambda] = [F; gamma], constraint residuals, projection, outputs, events) and,
 for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + cj dF/dy' for
 IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
-to the same C names, evaluating the same operations). The native drivers are
-templates/c/cvode_constrained_driver.c.j2 and ida_driver.c.j2 (C in both cases).
+to the same C names, evaluating the same operations). The native drivers are not part of a
+model's code: they are model-independent (templates/c/lcg_cvc.c.j2, lcg_ida.c.j2), compiled once
+into the runtime (:func:`lagcodegen.build.runtime`), and call a model through its function table
+``<prefix>_dae_table.c`` (lcg_dae_model.h), which the build adds (:func:`lagcodegen.build.dae_table_source`).
 """
 
 from __future__ import annotations
@@ -20,24 +22,22 @@ from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
 from ..version import __version__
 from .languages import LANGUAGE_MODULES
-from .cffi_decl import constrained_cdef
+from .record import DaeLayout
 from .templates import environment
-
 
 
 def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_jacobian: bool = True,
                            outputs: Sequence[str] = DEFAULT_OUTPUTS, events: Iterable = (),
-                           runtime_parameters=None, values=None, prefix: str | None = None, lang: str = "c",
-                           drivers: bool = True):
+                           runtime_parameters=None, values=None, prefix: str | None = None, lang: str = "c"):
     """Generated code of a constrained system: the model's own files plus ``<prefix>_dae.h`` and
     its implementation (augmented-system solve, projection, outputs, roots, GGL residual and
-    Jacobian) and, with ``drivers``, the native drivers ``<prefix>_cvc.[ch]`` (CVODE) and, with
-    ``ggl``, ``<prefix>_ida.[ch]`` (IDA).
+    Jacobian), with its layout in ``code.dae`` (:class:`~.record.DaeLayout`). The native drivers
+    that integrate it (index 1 on CVODE, GGL on IDA) are the runtime's, model-independent.
 
     ``lang``: ``"c"`` (``<prefix>.c``, ``<prefix>_dae.c``, C99) or ``"fortran"`` (``<prefix>.f90``
     and ``<prefix>_dae.f90``, Fortran 2008 modules whose functions are bound to the same C
     names and signatures, see :func:`lagcodegen.fortran.generate_constrained_fortran_source`);
-    the headers and the drivers are the same C files in both cases.
+    the headers are the same C files in both cases.
 
     Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
     """
@@ -66,20 +66,9 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     env = environment()
     files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
     files.update(language.constrained_source(cb, ctx))
-    headers = [f"{pre}_dae.h"]
-    if drivers:
-        files[f"{pre}_cvc.h"] = env.get_template("c/cvode_constrained_driver.h.j2").render(**ctx)
-        files[f"{pre}_cvc.c"] = env.get_template("c/cvode_constrained_driver.c.j2").render(**ctx)
-        headers.append(f"{pre}_cvc.h")
-        if ggl:
-            files[f"{pre}_ida.h"] = env.get_template("c/ida_driver.h.j2").render(**ctx)
-            files[f"{pre}_ida.c"] = env.get_template("c/ida_driver.c.j2").render(**ctx)
-            headers.append(f"{pre}_ida.h")
-            code.sundials_libs = tuple(dict.fromkeys((*code.sundials_libs, "ida")))
     code.files.update(files)
-    code.cffi_headers = list(dict.fromkeys([*code.cffi_headers, *headers]))
-    code.cdef_extra = (code.cdef_extra + "\n" + constrained_cdef(pre, bool(evs), ggl, bool(ggl and ggl_jacobian),
-                                                       drivers)).strip()
+    code.dae = DaeLayout(nq=n, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
+                         nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian))
     info = ConstrainedCodeInfo(pre, n, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
                                dict(scene.folded), lang)
     return code, info

@@ -13,6 +13,24 @@ from ..util import atomic_write
 from ..version import __version__
 
 
+@dataclass(frozen=True)
+class DaeLayout:
+    """The layout of a constrained system's functions (``<prefix>_dae.h``), which its function
+    table ``<prefix>_dae_table.c`` (``lcg_dae_model.h``) states and the build checks: nq
+    coordinates, nj equality constraints (njh holonomic), ng GGL unknowns, nout outputs, nroot
+    root functions; ``ggl``: the GGL residual is compiled, ``ggl_jac``: its Jacobian too."""
+
+    nq: int
+    nj: int
+    njh: int
+    ng: int
+    np: int
+    nout: int
+    nroot: int
+    ggl: bool
+    ggl_jac: bool
+
+
 @dataclass
 class GeneratedCode:
     """Generated C sources of one scene: ``files`` maps file name -> text."""
@@ -39,6 +57,10 @@ class GeneratedCode:
     sparse_jacobian: bool = False
     # Parameters folded into the code as constants, with their values.
     folded: dict = field(default_factory=dict)
+    # Constrained code (<prefix>_dae.h and its implementation in ``files``): its layout, which
+    # makes build() compile the function table <prefix>_dae_table.c for the runtime's constrained
+    # drivers; None for other code.
+    dae: DaeLayout | None = None
     # The scene the code was generated from (for further code of the same scene, e.g. the
     # Taylor integrator), or None for code assembled by hand.
     scene: object = field(default=None, repr=False, compare=False)

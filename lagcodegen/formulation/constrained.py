@@ -5,9 +5,9 @@
 for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + cj dF/dy' for
 IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
 to the same C names, evaluating the same operations: :func:`constrained_blocks` builds the
-expression blocks once for both languages). The native drivers are
-templates/c/cvode_constrained_driver.c.j2 and ida_driver.c.j2 (C in both cases);
-:mod:`lagcodegen.dae` compiles and runs them.
+expression blocks once for both languages). The native drivers are model-independent C
+(templates/c/lcg_cvc.c.j2, lcg_ida.c.j2), compiled once into the runtime, and reach a model's
+functions through its table (lcg_dae_model.h); :mod:`lagcodegen.dae` compiles and runs them.
 """
 
 from __future__ import annotations

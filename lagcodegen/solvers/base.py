@@ -289,10 +289,10 @@ def check_initial_mass_matrix(cm, t0: float, y: np.ndarray, p: np.ndarray) -> No
 
 
 class NativeEvents:
-    """The events struct a native driver with root finding fills (``<prefix>_events``), its
-    buffers, and the :class:`EventRecord` s made from it."""
+    """The events struct a native driver with root finding fills (``typename``, e.g. the
+    constrained drivers' ``lcg_events``), its buffers, and the :class:`EventRecord` s made from it."""
 
-    def __init__(self, ffi, prefix: str, events: list, ny: int, max_events: int):
+    def __init__(self, ffi, typename: str, events: list, ny: int, max_events: int):
         self.events = events
         self.ny = ny
         self.max_events = max_events
@@ -302,7 +302,7 @@ class NativeEvents:
         self.direction = np.zeros(max_events, dtype=np.intc)
         self.rootdir = np.array([e.direction for e in events], dtype=np.intc)
         self.terminal = np.array([1 if e.terminal else 0 for e in events], dtype=np.intc)
-        ev = self.struct = ffi.new(f"{prefix}_events *")
+        ev = self.struct = ffi.new(f"{typename} *")
         ev.max_events = max_events
         ev.t = ffi.from_buffer("double[]", self.t)
         ev.y = ffi.from_buffer("double[]", self.y)

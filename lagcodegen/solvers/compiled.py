@@ -34,7 +34,7 @@ class CompiledModel:
     """
 
     def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool, table=None,
-                 library=None):
+                 library=None, dae_table=None):
         self.code = code
         self.module = module
         self.ffi = module.ffi
@@ -43,6 +43,7 @@ class CompiledModel:
         self.native = native
         self.cached = cached
         self.table = table      # the model's function table (runtime builds), else None
+        self.dae_table = dae_table  # constrained code: its table for the runtime's constrained drivers
         self._library = library  # keeps the model library open
         if table is not None:
             self._bind_table(table)
@@ -84,7 +85,8 @@ class CompiledModel:
 
     @classmethod
     def from_built(cls, built: BuiltModule) -> "CompiledModel":
-        return cls(built.code, built.module, built.path, built.native, built.cached, built.table, built.library)
+        return cls(built.code, built.module, built.path, built.native, built.cached, built.table, built.library,
+                   built.dae_table)
 
     # layout
     @property

@@ -7,10 +7,11 @@ compiled code with one of three formulations of the equations with multipliers (
 
 * ``"index1"``: differentiate every constraint to the acceleration level, A q'' = gamma, and
   solve the augmented (n+J) x (n+J) system [M A^T; A 0][q''; -lambda] = [F; gamma - stab]
-  numerically in C (dense LU with partial pivoting) at every right-hand-side call; integrate
-  y = (q, q') with CVODE (difference-quotient Jacobian). Drift of f(q) and A q' + A0 is
-  controlled by Baumgarte stabilization (f'' + 2 alpha f' + beta^2 f = 0 for holonomic rows,
-  s' + alpha s = 0 for nonholonomic rows s = A q' + A0) and/or by projection onto the
+  numerically in C (Schur complement of M by Cholesky, else dense LU with partial pivoting) at
+  every right-hand-side call; integrate y = (q, q') with CVODE (difference-quotient Jacobian).
+  Drift of f(q) and A q' + A0 is controlled by Baumgarte stabilization (f'' + 2 alpha f' +
+  beta^2 f = 0 for holonomic rows, s' + alpha s = 0 for nonholonomic rows s = A q' + A0; by
+  default alpha = beta = the natural rate of each run's initial state) and/or by projection onto the
   constraint manifold after each step through CVODE's own projection interface
   (CVodeSetProjFn: Gauss-Newton q <- q - A^T (A A^T)^{-1} f, then q' onto A q' + A0 = 0;
   CVODE only allows it with BDF).
@@ -31,11 +32,21 @@ constraint forces ``R_<j>_<coordinate>`` = lambda_j A_j (sec. 4.3), and ``events
 
 ``lang="fortran"`` (index1, ggl) generates the model functions as Fortran 2008 modules bound
 to the C names (:mod:`lagcodegen.fortran`); the native drivers stay C and call them through
-the same header, so results and solver statistics are the C version's.
+the same function table, so results and solver statistics are the C version's.
+
+The native drivers are model-independent and compiled once, into the runtime
+(:func:`lagcodegen.build.runtime`): a model compiles only its own functions (model, ``<prefix>_dae.c``
+and its table ``<prefix>_dae_table.c``, lcg_dae_model.h) into a library without Python.h, and
+every function of it is called through that table, from the drivers and from Python alike.
+
+One job: :class:`ConstrainedSimulation`, the Python face of a compiled constrained system (its
+layout, its compiled functions, the consistent initial state, and the call of each formulation's
+runner); the runners themselves are the solver families' (cvode, ida, sksundae, ensemble).
 """
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 from typing import Mapping
@@ -58,7 +69,7 @@ from .options import merge
 
 #: Kept under its earlier name: the tolerance of lambda, mu on scikit-sundae's IDA.
 SKSUNDAE_ALGEBRAIC_ATOL = ALGEBRAIC_ATOL
-#: ``initial`` of simulate() -> the mode of the generated ``<prefix>_initial_state``.
+#: ``initial`` of simulate() -> the mode of the runtime's ``lcg_dae_initial_state``.
 _INITIAL_MODES = {"none": 0, "check": 1, "project": 2}
 #: Events structs (with their buffers, max_events x NY values) kept for reuse per simulation and
 #: value of max_events, at most; and the values of max_events kept at most.
@@ -91,25 +102,32 @@ class ConstrainedSimulation(_Base):
         self.info = info
         self.baumgarte = baumgarte
         self.projection = projection
-        self.ffi, self.lib = cm.ffi, cm.lib
-        p = info.prefix
-        # the generated functions, called by the runners of each solver family
-        self.c_kkt = getattr(self.lib, f"{p}_kkt")
-        self.c_crhs = getattr(self.lib, f"{p}_crhs")
-        self.c_natural_rate = getattr(self.lib, f"{p}_natural_rate")
-        self.c_residuals = getattr(self.lib, f"{p}_residuals")
-        self.c_project = getattr(self.lib, f"{p}_project")
-        self.c_outputs = getattr(self.lib, f"{p}_coutputs")
-        self.c_roots = getattr(self.lib, f"{p}_roots", None)
-        self.c_ggl_res = getattr(self.lib, f"{p}_ggl_res", None)
-        self.c_ggl_jac = getattr(self.lib, f"{p}_ggl_jac", None)
-        # the native drivers, their C types, and the initial state in one call (None in modules
-        # built without the drivers: the initial state is then checked function by function)
-        self.c_cvc_solve = getattr(self.lib, f"{p}_cvc_solve", None)
-        self.c_ida_solve = getattr(self.lib, f"{p}_ida_solve", None)
-        self.c_initial_state = getattr(self.lib, f"{p}_initial_state", None)
-        self.cvc_options_type, self.cvc_stats_type = f"{p}_cvc_options", f"{p}_cvc_stats *"
-        self.ida_options_type, self.ida_stats_type = f"{p}_ida_options", f"{p}_ida_stats *"
+        self.ffi, self.lib = cm.ffi, cm.lib  # the runtime module (its drivers and C types)
+        table = cm.dae_table  # the model's constrained function table (lcg_dae_model.h)
+        if table is None:
+            raise LagcodegenError("ConstrainedSimulation needs constrained code built for the runtime's drivers "
+                                  "(generate_constrained, then build with native=True)")
+        self.table = table
+        null, lib = self.ffi.NULL, self.lib
+        # the generated functions (through the table), called by the runners of each solver family
+        self.c_kkt = table.kkt
+        self.c_crhs = table.crhs
+        self.c_natural_rate = table.natural_rate
+        self.c_residuals = table.residuals
+        self.c_project = table.project
+        self.c_outputs = table.coutputs
+        self.c_roots = table.roots if table.roots != null else None
+        self.c_ggl_res = table.ggl_res if table.ggl_res != null else None
+        self.c_ggl_jac = table.ggl_jac if table.ggl_jac != null else None
+        # the runtime's model-independent drivers applied to this model, their C types, and the
+        # initial state in one call
+        self.c_cvc_solve = functools.partial(lib.lcg_cvc_solve, table)
+        self.c_ida_solve = functools.partial(lib.lcg_ida_solve, table) if self.c_ggl_res is not None else None
+        self.c_initial_state = functools.partial(lib.lcg_dae_initial_state, table)
+        self.cvc_options_type, self.cvc_stats_type = "lcg_cvc_options", "lcg_cvc_stats *"
+        self.ida_options_type, self.ida_stats_type = "lcg_ida_options", "lcg_ida_stats *"
+        self.cvc_ensemble_type, self.ida_ensemble_type, self.events_type = ("lcg_cvc_ensemble", "lcg_ida_ensemble",
+                                                                            "lcg_events")
         # the drivers' options structs, kept across calls (one per distinct set of option values)
         self.cvc_options = PreparedOptions(self.ffi, self.cvc_options_type, *cvode.CVC_OPTIONS, proj_err=1,
                                            poll=cm.poll, poll_every=POLL_EVERY)
@@ -472,12 +490,12 @@ class ConstrainedSimulation(_Base):
     def _initial_values(self, t0: float, q0, v0, p: np.ndarray, initial, ic_tol, ggl: bool):
         """(y0, yy0, yp0): the initial state of a run, checked or projected per ``initial`` and with
         a regular augmented matrix there, and for GGL the initial values (yy0, yp0) of IDA (else
-        None, None). One call of the generated ``<prefix>_initial_state``; when a check fails
-        there (or the module has none), the same checks function by function, which raise the
-        error that says why (:meth:`consistent_initial_state`)."""
+        None, None). One call of the runtime's ``lcg_dae_initial_state`` on the model's table;
+        when a check fails there, the same checks function by function, which raise the error
+        that says why (:meth:`consistent_initial_state`)."""
         fn = self.c_initial_state
         mode = _INITIAL_MODES.get(initial) if type(initial) is str else None
-        if fn is not None and mode is not None and (isinstance(ic_tol, float) or type(ic_tol) is int):
+        if mode is not None and (isinstance(ic_tol, float) or type(ic_tol) is int):
             names = self._coord_names
             fb, darr = self.ffi.from_buffer, self._double_array
             y = self.ffi.new(darr, _state_values(q0, names, "q0") + _state_values(v0, names, "v0"))
@@ -508,7 +526,7 @@ class ConstrainedSimulation(_Base):
             except IndexError:  # taken by another thread meanwhile
                 pass
         ny = self.info.ng if self.formulation == "ggl" else 2 * self._n
-        return NativeEvents(self.ffi, self.info.prefix, self.info.events, ny, max_events)
+        return NativeEvents(self.ffi, self.events_type, self.info.events, ny, max_events)
 
     def release_events(self, events: NativeEvents) -> None:
         """Return an events struct of :meth:`native_events` (its records already made)."""
@@ -533,6 +551,20 @@ class ConstrainedSimulation(_Base):
         receiving process's cache)."""
         return ConstrainedSimulation, (self.system, self.formulation, self.compiled, self.info, self.baumgarte,
                                        self.projection)
+
+    def cvc_solve_many(self, e, opt) -> int:
+        """The runtime's index-1 ensemble driver (``lcg_cvc_solve_many``) on this model: ``e`` a
+        ``lcg_cvc_ensemble *`` (its model field is set here)."""
+        e.model = self.table
+        return self.lib.lcg_cvc_solve_many(e, opt)
+
+    def ida_solve_many(self, e, opt) -> int:
+        """The runtime's GGL ensemble driver (``lcg_ida_solve_many``) on this model: ``e`` a
+        ``lcg_ida_ensemble *`` (its model field is set here)."""
+        if self.c_ggl_res is None:
+            raise LagcodegenError("the GGL residual is compiled with formulation='ggl' only")
+        e.model = self.table
+        return self.lib.lcg_ida_solve_many(e, opt)
 
     # ------------------------------------------------------------------ GGL
     def _ggl_initial(self, t0, y0, p):

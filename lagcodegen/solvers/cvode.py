@@ -1,7 +1,8 @@
-"""The native CVODE family: the generated C drivers call CVODE with no Python in the solver
-loop, one call over all output times: ``<prefix>_cvode_solve`` for the ODE of a scene (plain,
-Routhian, minimal coordinates; dense, band or fixed-point iteration) and ``<prefix>_cvc_solve``
-for the index-1 form of a constrained system (Baumgarte, projection, events)."""
+"""The native CVODE family: the runtime's model-independent C drivers call CVODE with no Python in
+the solver loop, one call over all output times: ``lcg_cvode_solve`` for the ODE of a scene (plain,
+Routhian, minimal coordinates; dense, band or fixed-point iteration) and ``lcg_cvc_solve`` for the
+index-1 form of a constrained system (Baumgarte, projection, events), each taking the model's
+function table."""
 
 from __future__ import annotations
 
@@ -55,7 +56,8 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                  min_step, max_order, band=None, fixedpoint=False, max_wall=0.0) -> Result:
-    """An ODE run of a compiled scene: one call of ``<prefix>_cvode_solve`` over all output times."""
+    """An ODE run of a compiled scene: one call of the native driver (``lcg_cvode_solve``) over all
+    output times."""
     ffi = cm.ffi
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
@@ -96,7 +98,8 @@ CVC_OPTIONS = (("method", "rtol", "max_steps", "first_step", "max_step", "min_st
 def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,
                  max_events, max_steps, first_step, max_step, min_step, max_order, max_wall=0.0) -> Result:
     """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
-    and/or CVODE's projection): one call of ``<prefix>_cvc_solve``. ``atol`` a float (every
+    and/or CVODE's projection): one call of the runtime's ``lcg_cvc_solve`` on the model's table
+    (``sim.c_cvc_solve``). ``atol`` a float (every
     state) or an array; ``t`` and ``y0`` contiguous float64 arrays (the caller's checks)."""
     ffi = sim.ffi
     ny, nt = 2 * sim.n, t.size

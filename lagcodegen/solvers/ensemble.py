@@ -1,5 +1,6 @@
 """Ensembles: N runs of one compiled simulation that differ in initial state and run-time
-parameters, in ONE call into the generated C (``<prefix>_<driver>_solve_many``, templates/c/_control.j2).
+parameters, in ONE call into a native driver's ``*_solve_many`` (the runtime's ``lcg_cvode_solve_many``,
+``lcg_cvc_solve_many``, ``lcg_ida_solve_many``, or a module's own, e.g. Taylor; templates/c/_control.j2).
 
 The members are spread over a pthread pool and taken in turn from a shared counter (their run
 times differ); each member is a run of the single-run driver with its own SUNDIALS context, so its
@@ -239,7 +240,7 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     evs = sim.info.events
     events = (np.array([e.direction for e in evs] or [0], dtype=np.intc),
               np.array([1 if e.terminal else 0 for e in evs] or [0], dtype=np.intc))
-    ffi, pre, keep = sim.ffi, sim.info.prefix, []
+    ffi, keep = sim.ffi, []
     poll = sim.compiled.poll
     common = dict(max_steps=int(o["max_steps"]), first_step=o["first_step"], max_step=o["max_step"],
                   min_step=o["min_step"], max_order=o["max_order"], roots=int(roots), max_wall=float(max_wall))
@@ -252,10 +253,10 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
         if projection and method != "bdf":
             raise LagcodegenError("projection onto the constraints (CVodeSetProjFn) needs method='bdf'")
         rtol, atol_arr = tolerances(o["rtol"], o["atol"], 2 * n)
-        opt = native_options(ffi, f"{pre}_cvc_options", atol_arr, keep, method=METHODS[method], rtol=rtol,
+        opt = native_options(ffi, sim.cvc_options_type, atol_arr, keep, method=METHODS[method], rtol=rtol,
                              alpha=float(alpha), beta=float(beta), projection=int(projection),
                              proj_tol=o["proj_tol"], proj_maxit=o["proj_maxit"], proj_err=1, **common)
-        fn, ens_type, nrow = getattr(sim.lib, f"{pre}_cvc_solve_many"), f"{pre}_cvc_ensemble", 2 * n
+        fn, ens_type, nrow = sim.cvc_solve_many, sim.cvc_ensemble_type, 2 * n
         Y0, YP0, extra, row_names = Y, None, {}, list(sim.state_names)
     else:
         if o["method"] not in (None, "bdf"):
@@ -268,10 +269,10 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
         rtol, atol_arr = tolerances(o["rtol"], o["atol"], ng, 2 * n)
         if np.asarray(o["atol"]).size != ng:
             atol_arr[2 * n:] = ALGEBRAIC_ATOL if o["alg_atol"] is None else check_finite(o["alg_atol"], "alg_atol")
-        opt = native_options(ffi, f"{pre}_ida_options", atol_arr, keep, rtol=rtol,
+        opt = native_options(ffi, sim.ida_options_type, atol_arr, keep, rtol=rtol,
                              suppress_alg=int(bool(o["suppress_alg"])), jacobian=int(jacobian), calc_ic=1,
                              ic_alg_atol=ALGEBRAIC_ATOL, stop_at_outputs=int(bool(o["stop_at_outputs"])), **common)
-        fn, ens_type, nrow = getattr(sim.lib, f"{pre}_ida_solve_many"), f"{pre}_ida_ensemble", ng
+        fn, ens_type, nrow = sim.ida_solve_many, sim.ida_ensemble_type, ng
         Y0, YP0 = np.ascontiguousarray(Y[:, :ng]), np.ascontiguousarray(Y[:, ng:])
         J, JH = sim.info.J, sim.info.JH
         row_names = list(sim.state_names) + [f"_lambda_{j}" for j in range(J)] + [f"mu_{k}" for k in range(JH)]

@@ -1,6 +1,6 @@
 """The native IDA family: the stabilized index-2 GGL form of a constrained system (eq. 4.5;
-unknowns q, v, lambda, mu) integrated by the generated driver ``<prefix>_ida_solve``, one call
-over all output times; lambda and mu are algebraic (IDASetId) and left out of the error test
+unknowns q, v, lambda, mu) integrated by the runtime's model-independent driver ``lcg_ida_solve`` on
+the model's function table, one call over all output times; lambda and mu are algebraic (IDASetId) and left out of the error test
 (IDASetSuppressAlg); IDACalcIC polishes the consistent initial values."""
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ IDA_OPTIONS = (("rtol", "max_steps", "first_step", "max_step", "min_step", "max_
 
 def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, max_events, max_steps,
               first_step, max_step, min_step, max_order, stop_at_outputs, max_wall=0.0) -> Result:
-    """A GGL run: one call of ``<prefix>_ida_solve`` (``t``, ``yy0``, ``yp0`` contiguous float64
-    arrays, ``atol`` a float or an array of NG values)."""
+    """A GGL run: one call of ``lcg_ida_solve`` (``sim.c_ida_solve``; ``t``, ``yy0``, ``yp0``
+    contiguous float64 arrays, ``atol`` a float or an array of NG values)."""
     ffi = sim.ffi
     ng, nt, n = sim.info.ng, t.size, sim.n
     yout = np.empty((nt, ng))  # rows past st.nt_done are cut off below

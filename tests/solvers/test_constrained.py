@@ -1,6 +1,8 @@
 """Constrained dynamics (eq. 4.5) in generated C: index-1 on CVODE (Baumgarte, projection),
 GGL on IDA (native and scikit-sundae), minimal coordinates; checked against independent facts."""
 
+import dataclasses
+import importlib
 import subprocess
 
 import numpy as np
@@ -422,7 +424,11 @@ def test_generated_constrained_code_compiles_with_strict_warnings(tmp_path, cc, 
     code.write(tmp_path)
     for fname, text in driver_sources(code, find_sundials()).items():
         (tmp_path / fname).write_text(text)
-    for src in sorted(f for f in code.files if f.endswith(".c")):
+    sources = sorted(f for f in code.files if f.endswith(".c"))
+    # the model's tables and the runtime's model-independent constrained drivers too
+    assert {f"{code.prefix}_table.c", f"{code.prefix}_dae_table.c", "lcg_cvc.c", "lcg_ida.c"} <= set(
+        driver_sources(code, find_sundials()))
+    for src in sources + [f"{code.prefix}_table.c", f"{code.prefix}_dae_table.c", "lcg_cvc.c", "lcg_ida.c"]:
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", "x.o"], cwd=tmp_path, capture_output=True,
                               text=True)
         assert proc.returncode == 0, src + "\n" + proc.stderr
@@ -431,23 +437,36 @@ def test_generated_constrained_code_compiles_with_strict_warnings(tmp_path, cc, 
 SANITIZER_MAIN = r"""
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 #include "P_dae.h"
-#include "P_cvc.h"
-#include "P_ida.h"
+#include "lcg_cvc.h"
+#include "lcg_ida.h"
+
+extern const lcg_dae_model P_dae_model;
+
+#define M 5
+#define NT 41
 
 int main(void)
 {
+    const lcg_dae_model *m = &P_dae_model;
+    lcg_dae_model bad;
     double p[U_DAE_NP + 1], y[U_DAE_NY], yn[U_DAE_NY], err[U_DAE_NY], acc[U_DAE_NQ], lam[U_DAE_NJ];
     double yd[U_DAE_NY], g[U_DAE_NJH], s[U_DAE_NJ], out[U_DAE_NOUT], gout[U_DAE_NROOT];
     double yy[U_DAE_NG], yp[U_DAE_NG], rr[U_DAE_NG], jac[U_DAE_NG * U_DAE_NG], yy2[U_DAE_NG], yp2[U_DAE_NG];
-    double tout[41], yout[41 * U_DAE_NG], outs[41 * U_DAE_NOUT], evt[8], evy[8 * U_DAE_NG], atol[U_DAE_NG];
-    int which[8], dir[8], rootdir[U_DAE_NROOT], terminal[U_DAE_NROOT];
-    P_events ev = {8, 0, evt, evy, which, dir, rootdir, terminal, 0};
-    P_cvc_options co = {2, 1e-8, 1e-10, NULL, 100000, 0.0, 0.0, 0.0, 0, 1.0, 1.0, 1, 1e-12, 10, 1, 1};
-    P_ida_options io = {1e-8, 1e-10, atol, 100000, 0.0, 0.0, 0.0, 0, 1, 1, 1, 1e8, 1, 1};
-    P_cvc_stats cs;
-    P_ida_stats is;
-    int i, rc = 0;
+    double tout[NT], yout[NT * U_DAE_NG], outs[NT * U_DAE_NOUT], evt[8], evy[8 * U_DAE_NG], atol[U_DAE_NG];
+    double y0s[M * 2 * U_DAE_NG], final[M * (U_DAE_NG + U_DAE_NOUT)], traj[M * NT * 2], t_reached[M], wall[M];
+    long counts[M * 8], member[4];
+    int which[8], dir[8], rootdir[U_DAE_NROOT], terminal[U_DAE_NROOT], flag[M], nt_done[M], col[2] = {0, 1};
+    char messages[4 * 256];
+    lcg_events ev = {8, 0, evt, evy, which, dir, rootdir, terminal, 0};
+    lcg_cvc_options co = {2, 1e-8, 1e-10, NULL, 100000, 0.0, 0.0, 0.0, 0, 1.0, 1.0, 1, 1e-12, 10, 1, 1};
+    lcg_ida_options io = {1e-8, 1e-10, atol, 100000, 0.0, 0.0, 0.0, 0, 1, 1, 1, 1e8, 1, 1};
+    lcg_cvc_stats cs;
+    lcg_ida_stats is;
+    lcg_cvc_ensemble ce;
+    lcg_ida_ensemble ie;
+    int i, k, ok, rc = 0;
 
     for (i = 0; i < U_DAE_NP; ++i)
         p[i] = PARAMS[i];
@@ -458,20 +477,20 @@ int main(void)
         terminal[i] = 0;
     }
     y[0] = sin(1.0); y[1] = -cos(1.0); y[2] = 0.1; y[3] = 0.2;
-    rc |= P_kkt(0.1, y, p, 1.0, 2.0, acc, lam);
-    rc |= P_crhs(0.1, y, p, 0.0, 0.0, yd);
-    rc |= P_residuals(0.1, y, p, g, s);
+    rc |= m->kkt(0.1, y, p, 1.0, 2.0, acc, lam);
+    rc |= m->crhs(0.1, y, p, 0.0, 0.0, yd);
+    rc |= m->residuals(0.1, y, p, g, s);
     for (i = 0; i < U_DAE_NY; ++i)
         err[i] = 1e-3 * (i + 1);
-    rc |= P_project(0.1, y, p, 1e-14, 20, yn, err);
-    rc |= P_coutputs(0.1, yn, NULL, p, out);
-    rc |= P_roots(0.1, yn, lam, p, gout);
-    rc |= P_kkt(0.0, yn, p, 0.0, 0.0, acc, lam);
-    rc |= P_initial_state(0.1, y, p, 2, 1e-8, 0, yy2, yp2);   /* project */
-    rc |= P_initial_state(0.1, yy2, p, 1, 1e-8, 0, yy2, yp2); /* check the projected state */
-    (void)P_initial_state(0.1, yy2, p, 1, 1e-8, 1, yy2, yp2);  /* root 0 (lambda) taken for an inequality */
-    rc |= P_initial_state(0.1, yy2, p, 0, 1e-8, 0, yy2, NULL); /* as it is, index-1 layout */
-    if (P_initial_state(0.1, y, p, 1, 1e-8, 0, yy2, yp2) != 1) /* y is off the constraints: rejected */
+    rc |= m->project(0.1, y, p, 1e-14, 20, yn, err);
+    rc |= m->coutputs(0.1, yn, NULL, p, out);
+    rc |= m->roots(0.1, yn, lam, p, gout);
+    rc |= m->kkt(0.0, yn, p, 0.0, 0.0, acc, lam);
+    rc |= lcg_dae_initial_state(m, 0.1, y, p, 2, 1e-8, 0, yy2, yp2);   /* project */
+    rc |= lcg_dae_initial_state(m, 0.1, yy2, p, 1, 1e-8, 0, yy2, yp2); /* check the projected state */
+    (void)lcg_dae_initial_state(m, 0.1, yy2, p, 1, 1e-8, 1, yy2, yp2);  /* root 0 (lambda) taken for an inequality */
+    rc |= lcg_dae_initial_state(m, 0.1, yy2, p, 0, 1e-8, 0, yy2, NULL); /* as it is, index-1 layout */
+    if (lcg_dae_initial_state(m, 0.1, y, p, 1, 1e-8, 0, yy2, yp2) != 1) /* y is off the constraints: rejected */
         rc |= 1;
     for (i = 0; i < U_DAE_NG; ++i)
         yy[i] = yp[i] = 0.0;
@@ -483,21 +502,70 @@ int main(void)
     }
     for (i = 0; i < U_DAE_NJ; ++i)
         yy[U_DAE_NY + i] = lam[i];
-    rc |= P_ggl_res(0.0, yy, yp, p, rr);
-    rc |= P_ggl_jac(0.0, 10.0, yy, yp, p, jac);
-    for (i = 0; i < 41; ++i)
+    rc |= m->ggl_res(0.0, yy, yp, p, rr);
+    rc |= m->ggl_jac(0.0, 10.0, yy, yp, p, jac);
+    for (i = 0; i < NT; ++i)
         tout[i] = 0.05 * i;
-    rc |= P_cvc_solve(p, yn, 41, tout, yout, outs, &co, &cs, &ev);
+    rc |= lcg_cvc_solve(m, p, yn, NT, tout, yout, outs, &co, &cs, &ev);
     printf("cvc rc=%d steps=%ld proj=%ld events=%d g_end=%.3g\n", rc, cs.nsteps, cs.nproj, ev.n_events,
-           outs[40 * U_DAE_NOUT + 2]);
-    rc |= P_ida_solve(p, yy, yp, 41, tout, yout, outs, &io, &is, &ev);
-    printf("ida rc=%d steps=%ld events=%d g_end=%.3g\n", rc, is.nsteps, ev.n_events, outs[40 * U_DAE_NOUT + 2]);
-    return rc != 0 || cs.nt_done != 41 || is.nt_done != 41;
+           outs[(NT - 1) * U_DAE_NOUT + 2]);
+    rc |= lcg_ida_solve(m, p, yy, yp, NT, tout, yout, outs, &io, &is, &ev);
+    printf("ida rc=%d steps=%ld events=%d g_end=%.3g\n", rc, is.nsteps, ev.n_events, outs[(NT - 1) * U_DAE_NOUT + 2]);
+    rc |= cs.nt_done != NT || is.nt_done != NT;
+
+    /* a table of another layout version is refused, with a message */
+    bad = *m;
+    bad.abi = LCG_DAE_MODEL_ABI + 1;
+    k = lcg_cvc_solve(&bad, p, yn, NT, tout, yout, outs, &co, &cs, &ev);
+    printf("bad rc=%d ida=%d init=%d message=%s\n", k, lcg_ida_solve(&bad, p, yy, yp, NT, tout, yout, outs, &io, &is,
+           NULL), lcg_dae_initial_state(&bad, 0.1, y, p, 0, 1e-8, 0, yy2, NULL), strstr(cs.message, "version") ? "yes"
+           : "no");
+
+    /* ensembles on 3 threads, M members: index 1 with velocities that differ (off the constraints a
+       little: the driver takes the state as given), GGL from the consistent state */
+    for (i = 0; i < M; ++i) {
+        for (k = 0; k < U_DAE_NG; ++k) {
+            y0s[i * 2 * U_DAE_NG + k] = yy[k];
+            y0s[i * 2 * U_DAE_NG + U_DAE_NG + k] = yp[k];
+        }
+        y0s[i * 2 * U_DAE_NG + U_DAE_NQ] += 0.01 * i; /* velocities differ */
+        flag[i] = -82;
+    }
+    memset(&ce, 0, sizeof ce);
+    ce.model = m; ce.nmem = M; ce.nthreads = 3; ce.p = p; ce.p_stride = 0; ce.y0 = y0s; ce.y0_stride = 2 * U_DAE_NG;
+    ce.nt = NT; ce.tout = tout; ce.final = final; ce.traj = traj; ce.ncol = 2; ce.col = col; ce.flag = flag;
+    ce.nt_done = nt_done; ce.t_reached = t_reached; ce.wall = wall; ce.counts = counts; ce.messages = messages;
+    ce.max_messages = 4; ce.message_member = member; ce.max_events = 4; ce.rootdir = rootdir; ce.terminal = terminal;
+    co.projection = 0;
+    k = lcg_cvc_solve_many(&ce, &co);
+    for (i = 0, ok = 0; i < M; ++i)
+        ok += flag[i] == 0 && nt_done[i] == NT;
+    printf("cvc_many rc=%d ok=%d done=%ld\n", k, ok, ce.done);
+    rc |= k != 0 || ok != M;
+    memset(&ie, 0, sizeof ie);
+    for (i = 0; i < M; ++i) {
+        y0s[i * 2 * U_DAE_NG + U_DAE_NQ] = yy[U_DAE_NQ];
+        flag[i] = -82;
+    }
+    ie.model = m; ie.nmem = M; ie.nthreads = 3; ie.p = p; ie.p_stride = 0; ie.y0 = y0s; ie.y0_stride = 2 * U_DAE_NG;
+    ie.yp0 = y0s + U_DAE_NG; ie.yp0_stride = 2 * U_DAE_NG;
+    ie.nt = NT; ie.tout = tout; ie.final = final; ie.traj = traj; ie.ncol = 2; ie.col = col; ie.flag = flag;
+    ie.nt_done = nt_done; ie.t_reached = t_reached; ie.wall = wall; ie.counts = counts; ie.messages = messages;
+    ie.max_messages = 4; ie.message_member = member; ie.max_events = 4; ie.rootdir = rootdir; ie.terminal = terminal;
+    k = lcg_ida_solve_many(&ie, &io);
+    for (i = 0, ok = 0; i < M; ++i)
+        ok += flag[i] == 0 && nt_done[i] == NT;
+    printf("ida_many rc=%d ok=%d done=%ld\n", k, ok, ie.done);
+    rc |= k != 0 || ok != M;
+    return rc != 0;
 }
 """
 
 
 def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
+    """The model's functions, its tables and the runtime's model-independent constrained drivers
+    (single runs, the initial state, ensembles on 3 threads, a table of another version) under
+    AddressSanitizer (leaks too) and UBSan."""
     cs = cartesian_pendulum(name="san")
     code, info = generate_constrained_c(cs, ggl=True, events=[Event("lam", cs.multipliers[0], 0, False)],
                                         outputs=["energy", "lambda", "residuals"])
@@ -508,9 +576,9 @@ def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
     params = ", ".join(repr(float(v)) for v in code.param_defaults) or "0.0"
     main = SANITIZER_MAIN.replace("P_", "san_").replace("U_", "SAN_").replace("PARAMS", f"((double[]){{{params}}})")
     (tmp_path / "main.c").write_text(main)
-    srcs = ["main.c", "san_dae.c", "san_cvc.c", "san_ida.c"]
+    srcs = ["main.c", "san.c", "san_dae.c", "san_table.c", "san_dae_table.c", "lcg_cvc.c", "lcg_ida.c"]
     cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", *srcs,
-           "-o", "main", *sundials.link_args(("cvode", "ida", "core")), "-lm"]
+           "-o", "main", "-pthread", *sundials.link_args(("cvode", "ida", "core")), "-lm"]
     proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
@@ -521,6 +589,40 @@ def test_constrained_code_and_drivers_clean_under_sanitizers(tmp_path, cc):
     fields = {k: dict(kv.split("=") for kv in v.split()) for k, v in lines.items()}
     assert abs(float(fields["cvc"]["g_end"])) < 1e-9 and int(fields["cvc"]["proj"]) > 0
     assert abs(float(fields["ida"]["g_end"])) < 1e-7
+    assert fields["bad"] == {"rc": "-22", "ida": "-22", "init": "-22", "message": "yes"}
+    assert fields["cvc_many"]["ok"] == "5" and fields["ida_many"]["ok"] == "5"
+
+
+def test_constrained_models_are_plain_libraries_on_the_shared_runtime():
+    """Constrained code compiles into a library without Python.h whose tables the runtime's
+    model-independent drivers take: one runtime for every model and formulation, the table's
+    layout that of the code; a library whose table disagrees with its code is refused."""
+    build_module = importlib.import_module("lagcodegen.build")
+    rt = build_module.runtime()
+    sims = [compile_constrained(cartesian_pendulum("plain_lib"), form) for form in ("index1", "ggl")]
+    sims.append(compile_constrained(knife_edge("plain_knife"), "ggl", jacobian=False,
+                                    events=[Event("x0", knife_edge().model.coords[0], 0, False)]))
+    null = rt.ffi.NULL
+    for sim in sims:
+        cm = sim.compiled
+        assert cm.module is rt and sim.lib is rt.lib
+        assert cm.path.suffix == ".so" and cm.path.name.startswith("lib_lcg_")
+        binary = cm.path.read_bytes()
+        assert b"PyInit_" not in binary and b"Py_" not in binary  # no Python in the model library
+        t = sim.table
+        assert (t.abi, t.nq, t.ny, t.nj, t.njh, t.ng, t.nout, t.nroot) == (
+            1, sim.n, 2 * sim.n, sim.info.J, sim.info.JH, sim.info.ng, len(sim.info.output_names),
+            len(sim.info.events))
+        assert t.model == cm.table and cm.table.nq == sim.n
+    assert sims[0].table.ggl_res == null and sims[0].c_ida_solve is None
+    assert sims[1].table.ggl_res != null and sims[1].table.ggl_jac != null and sims[1].table.roots == null
+    assert sims[2].table.ggl_jac == null and sims[2].table.roots != null and sims[2].table.njh == 0
+    code = sims[1].compiled.code
+    wrong = dataclasses.replace(code, dae=dataclasses.replace(code.dae, nout=code.dae.nout + 1))
+    with pytest.raises(lcg.LagcodegenError, match="another layout"):
+        build_module.build(wrong)
+    with pytest.raises(lcg.LagcodegenError, match="native"):
+        build_module.build(code, native=False)
 
 
 def test_ggl_jacobian_of_a_coordinate_named_cj():

@@ -295,7 +295,7 @@ def test_constrained_and_taylor_ensemble_sources_compile_strictly(tmp_path, cc):
     code.write(tmp_path)
     for fname, text in driver_sources(code, find_sundials()).items():
         (tmp_path / fname).write_text(text)
-    for src in (f"{code.prefix}_cvc.c", f"{code.prefix}_ida.c"):
+    for src in ("lcg_cvc.c", "lcg_ida.c", f"{code.prefix}_dae_table.c"):
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", "x.o"], cwd=tmp_path, capture_output=True,
                               text=True)
         assert proc.returncode == 0, proc.stderr
