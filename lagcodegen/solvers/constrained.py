@@ -138,6 +138,8 @@ class ConstrainedSimulation(_Base):
         self._state_names = list(cm.state_names[: 2 * self._n])
         self._coord_names = [q.name for q in system.model.coords]
         self._nineq = len(system.inequalities)
+        self._ggl = formulation == "ggl"
+        self._has_events = len(info.events) > 0
         self.n_out_columns = max(len(info.output_names), 1)  # columns of the drivers' output rows
         self._event_pool: dict = {}  # max_events -> NativeEvents structs free for reuse
         self._pair_times = None  # (key, array) of the last t = (t0, t1)
@@ -401,14 +403,17 @@ class ConstrainedSimulation(_Base):
         if q0 is None:
             raise LagcodegenError("q0 is required")
         p = self._default_p if params is None else self.parameter_vector(params)
-        ggl = self.formulation == "ggl"
+        ggl = self._ggl
         y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, ggl)
-        roots = bool(events) and len(self.info.events) > 0
+        roots = bool(events) and self._has_events
         if backend not in ("native", "sksundae"):
             raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
         if self.formulation == "index1":
             projection = self.projection if projection is None else bool(projection)
-            alpha, beta = self._stabilization(baumgarte, projection, float(t[0]), y0, p, backend == "native")
+            if baumgarte is None and self.baumgarte == BAUMGARTE_AUTO and not projection and backend == "native":
+                alpha = beta = -1.0  # "auto": the driver takes the natural rate of y0
+            else:
+                alpha, beta = self._stabilization(baumgarte, projection, float(t[0]), y0, p, backend == "native")
             if method is None:
                 method = "bdf" if projection else "adams"
             if method not in METHODS:
@@ -463,7 +468,7 @@ class ConstrainedSimulation(_Base):
                 res = sksundae.solve_ggl(self, t, yy0, yp0, p, rtol, atol_arr, bool(jacobian), roots, max_steps,
                                          first_step, max_step, min_step, max_order)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
-        res.n_coordinates = self.n
+        res.n_coordinates = self._n
         res.formulation = self.formulation
         if raise_on_error and not res.success:
             cls = SingularMassMatrixError if res.stats.get("model_error") == ERR_SINGULAR else SolverError

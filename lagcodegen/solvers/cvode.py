@@ -102,7 +102,7 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
     (``sim.c_cvc_solve``). ``atol`` a float (every
     state) or an array; ``t`` and ``y0`` contiguous float64 arrays (the caller's checks)."""
     ffi = sim.ffi
-    ny, nt = 2 * sim.n, t.size
+    ny, nt = 2 * sim._n, t.size
     yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
     opt = sim.cvc_options.get(atol, METHODS[method], rtol, int(max_steps), first_step, max_step, min_step, max_order,
