@@ -15,13 +15,13 @@ POLL_CDEF = 'extern "Python" int lcg_poll(void *data, long done, long total);'
 
 
 def ensemble_cdef(name: str, options: str, fn: str, yp0: bool = False, events: bool = False,
-                  model: bool = False) -> str:
+                  model: bool | str = False) -> str:
     """The ensemble struct ``name`` of a driver and its solve-many function ``fn``
     (templates/c/_control.j2, ensemble_struct and pool; ``model``: the model-independent driver's
-    field with the model's function table)."""
+    field with the model's function table, of type lcg_model, or of the type named)."""
     extra = "const double *yp0; long yp0_stride;" if yp0 else ""
     ev = "int max_events; const int *rootdir; const int *terminal;" if events else ""
-    table = "const lcg_model *model;" if model else ""
+    table = f"const {model if isinstance(model, str) else 'lcg_model'} *model;" if model else ""
     return f"""
 typedef struct {{
     {table} long nmem; int nthreads; const double *p; long p_stride; const double *y0; long y0_stride; {extra}
@@ -132,3 +132,39 @@ int {p}_ida_solve(const double *p, const double *yy0, const double *yp0, int nt,
     return "\n".join(lines)
 
 
+
+
+#: The table of a model's Taylor jet (templates/taylor/lcg_taylor_model.h.j2).
+TAYLOR_TABLE_CDEF = """
+#define LCG_TAYLOR_ABI ...
+#define LCG_TAYLOR_ORDER_MAX ...
+typedef struct lcg_taylor_model {
+    int abi; int nq; int nz; int ny; int np; int nout; int ne; int nrows; int order_max; size_t work_size;
+    int (*start)(void *work, const double *p);
+    int (*jet)(void *work, double *X, double t, const double *y, int kmax);
+    int (*outputs)(double t, const double *y, const double *p, double *out);
+    const int *event_row; const int *event_direction; const int *event_terminal;
+    ...;
+} lcg_taylor_model;"""
+
+
+def taylor_runtime_cdef() -> str:
+    """The model-independent Taylor runtime module: the jet table, the Taylor driver taking it
+    (templates/taylor/lcg_taylor.h.j2), its ensembles and the poll callback."""
+    return "\n".join([TAYLOR_TABLE_CDEF, f"""
+typedef struct {{
+    double rtol; double atol; const double *atol_vec; long max_steps; double max_step; int order; {CONTROL_FIELDS}
+}} lcg_taylor_options;
+typedef struct {{
+    long nsteps; long njet; long nroot; int order; double t_reached; double h_last; double h_min;
+    double h_max; int flag; int model_error; int nt_done; char message[512];
+}} lcg_taylor_stats;
+typedef struct {{
+    int max_events; int n_events; double *t; double *y; int *which; int *direction; int terminated;
+}} lcg_taylor_events;
+int lcg_taylor_solve(const lcg_taylor_model *m, const double *p, const double *y0, int nt, const double *tout,
+                     double *yout, double *out, const lcg_taylor_options *opt, lcg_taylor_stats *st,
+                     lcg_taylor_events *ev);
+int lcg_taylor_jet(const lcg_taylor_model *m, double t, const double *y, const double *p, int order,
+                   double *jet);""", ensemble_cdef("lcg_taylor_ensemble", "lcg_taylor_options", "lcg_taylor_solve_many",
+                                   model="lcg_taylor_model"), POLL_CDEF])

@@ -290,7 +290,7 @@ def test_ensemble_driver_strict_and_clean_under_sanitizers(tmp_path, cc):
 
 def test_constrained_and_taylor_ensemble_sources_compile_strictly(tmp_path, cc):
     from lagcodegen.codegen.constrained import generate_constrained
-    from lagcodegen.solvers.taylor.ensemble import taylor_ensemble_module  # noqa: F401 - importable
+    from lagcodegen.solvers.taylor.ensemble import run_taylor_ensemble  # noqa: F401 - importable
     code, _ = generate_constrained(cartesian_pendulum("ens_strict"), ggl=True)
     code.write(tmp_path)
     for fname, text in driver_sources(code, find_sundials()).items():
