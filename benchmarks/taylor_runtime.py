@@ -13,7 +13,8 @@ results of both are compared bit for bit.
 
 Build time: a model never built before (a fresh cache folder, a new model name each time), the
 runtime already built: ``build_taylor`` from the scene to a loaded module, code generation
-included (about the same in both; given apart). Builds alternate between the two kinds.
+included (about the same in both; given apart). Builds alternate between the two kinds. The
+runtime's own build (once per installation) is timed apart.
 
 ``--baseline TREE`` adds a third contender to the run times: the per-model integrator as the
 lagcodegen in the source tree TREE generates it (e.g. a checkout of the release before the
@@ -46,8 +47,9 @@ import _harness as H  # noqa: E402
 import lagcodegen as lcg  # noqa: E402
 from lagcodegen.derivation import derive  # noqa: E402
 from lagcodegen.formulation.scene import Scene  # noqa: E402
-from lagcodegen.build import build  # noqa: E402
+from lagcodegen.build import DEFAULT_CFLAGS, build  # noqa: E402
 from lagcodegen.solvers.taylor import TaylorModule, build_taylor, jet_code, taylor_code  # noqa: E402
+from lagcodegen.solvers.taylor import runner  # noqa: E402
 from lagcodegen.solvers.taylor.runner import taylor_runtime  # noqa: E402
 
 KINDS = ("per-model", "runtime")
@@ -145,6 +147,14 @@ def build_times(n: int, reps: int) -> list[dict]:
     return out
 
 
+def runtime_build_time() -> float:
+    """Seconds to build the Taylor runtime itself into an empty cache (once per installation)."""
+    with tempfile.TemporaryDirectory() as cold, H.cache_at(Path(cold)):
+        start = time.perf_counter()
+        runner._taylor_runtime.__wrapped__(H.c_compiler(), DEFAULT_CFLAGS)  # not memoized
+        return time.perf_counter() - start
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="n = 1, 2; two tolerances; 5 rounds; 1 build each")
@@ -166,6 +176,7 @@ def main(argv=None) -> int:
         taylor_runtime()
         runs = [row for n in ns for row in run_times(n, tols, rounds, args.batch, args.t_end, args.baseline)]
     cold = [row for n in ns for row in build_times(n, builds)]
+    rt_build = runtime_build_time()
     lines = H.machine_lines("benchmarks/taylor_runtime.py: per-model Taylor integrator vs the runtime's driver",
                             (load0, H.load_average()))
     lines += ["", f"run time per integration (median of {rounds} interleaved rounds; ratio = runtime / per-model; "
@@ -179,7 +190,8 @@ def main(argv=None) -> int:
                                  ("ratio_baseline", "runtime/baseline", "{:.3f}")] if args.baseline else []), runs),
               "", f"cold build of a never-built model, the runtime cached (median of {builds}; generate: the C text)",
               H.format_table([("n", "n", "{}"), ("kind", "kind", "{}"), ("generate", "generate [s]", "{:.3f}"),
-                              ("total", "build_taylor [s]", "{:.3f}")], cold)]
+                              ("total", "build_taylor [s]", "{:.3f}")], cold),
+              "", f"the Taylor runtime itself, built once per installation into an empty cache: {rt_build:.2f} s"]
     text = "\n".join(lines)
     print(text)
     if args.out is not None:
