@@ -5,11 +5,11 @@ the Taylor runtime (``runtime=True``, the default: ``lcg_taylor.c`` compiled onc
 installation, taking the table of the model's jet, a plain library per model).
 
 Run time: the planar n-link pendulum (unit masses and lengths, g = 9.81), every angle 1.0 rad at
-rest, t in [0, T] (T = 10; ``--t-end``) with outputs at 0, T/2, T, rtol = atol = tol; one ``TaylorModule.simulate``
-call per integration (its lean Python wrapper included). Rounds interleave the two builds (each
-round times a batch of calls of each, batches of about ``--batch`` seconds, the order of the two
-alternating); the table gives medians over rounds per call, per step, and their ratio. The
-results of both are compared bit for bit.
+rest, t in [0, T] (T = 10; ``--t-end``) with outputs at 0, T/2, T, rtol = atol = tol; one
+``TaylorModule.simulate`` call per integration (its lean Python wrapper included). Rounds
+interleave the builds (each round times a batch of calls of each, batches of about ``--batch``
+seconds, the order alternating); the table gives medians over rounds per call, per step, and
+their ratio. The results of all are compared bit for bit.
 
 Build time: a model never built before (a fresh cache folder, a new model name each time), the
 runtime already built: ``build_taylor`` from the scene to a loaded module, code generation
