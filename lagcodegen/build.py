@@ -42,7 +42,7 @@ from .version import __version__
 __all__ = ["ABANDONED_BUILD_SECONDS", "CACHE_FORMAT", "DIGEST_NAME", "STALE_BUILD_SECONDS", "CacheWarning",
            "BuiltModule", "Sundials", "build", "cache_dir", "clean_stale", "compiler_id", "driver_sources",
            "find_sundials", "runtime", "runtime_sources", "table_source", "dae_table_source", "DEFAULT_CFLAGS",
-           "DEFAULT_FFLAGS"]
+           "DEFAULT_FFLAGS", "driver_runtime", "plain_library"]
 
 DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
@@ -290,6 +290,55 @@ def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
     load it)."""
     cc = cc or os.environ.get("CC") or "cc"
     return _runtime_module(cc, tuple(cflags))
+
+
+def driver_runtime(label: str, key_texts: list[str], render, cdef: str, header: str, libs: list[str],
+                   cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """A model-independent driver as a cffi module of its own, built into the cache once per
+    lagcodegen version, compiler, flags and Python (as :func:`runtime`; e.g. the Taylor driver,
+    :mod:`lagcodegen.solvers.taylor`): ``render()`` returns its sources (called only to build),
+    ``key_texts`` what they are rendered from, ``cdef`` its interface, ``header`` the header the
+    wrapper includes, ``libs`` what it links. Not memoized: the caller keeps the module."""
+    cc = cc or os.environ.get("CC") or "cc"
+    ext = importlib.machinery.EXTENSION_SUFFIXES[0]
+    key = cache_key([__version__, f"cache format {CACHE_FORMAT}", f"{label} runtime", compiler_id(cc),
+                     " ".join(cflags), " ".join(libs), ext, cdef, sys.version, header, *key_texts])
+    modname = f"_lcg_{label}_runtime_{key}"
+
+    def make(tmp: Path) -> Path:
+        sources = render()
+        _write(tmp, sources)
+        wrapper = _cffi_module(tmp, modname, cdef, [header])
+        c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
+        _compile_shared(tmp, c_files, [], f"{modname}{ext}", cc, cflags, [_python_include()], libs,
+                        f"the lagcodegen {label} runtime")
+        return tmp / f"{modname}{ext}"
+
+    return cached_build(key, modname, f"{modname}{ext}", make, import_module)[0]
+
+
+def plain_library(label: str, prefix: str, sources: dict[str, str], cc: str | None = None,
+                  cflags: tuple[str, ...] = DEFAULT_CFLAGS, libs: tuple[str, ...] = ("-lm",),
+                  verbose: bool = False):
+    """The C files of ``sources`` compiled into a shared library without Python.h (cached by
+    content like every build; loaded only when its digest matches), opened with ctypes: (the
+    ctypes library, its path, whether it came from the cache). ``label`` names what it is in
+    messages, ``prefix`` in its file name."""
+    cc = cc or os.environ.get("CC") or "cc"
+    key = cache_key([__version__, f"cache format {CACHE_FORMAT}", "plain library", compiler_id(cc),
+                     " ".join(cflags), " ".join(libs), *sorted(f"{k}\0{v}" for k, v in sources.items())])
+    modname = f"lib_lcg_{prefix}_{key}"
+    filename = f"{modname}.so"
+
+    def make(tmp: Path) -> Path:
+        _write(tmp, sources)
+        if verbose:
+            print("lagcodegen: compiling", prefix, "...", file=sys.stderr, flush=True)
+        c_files = sorted(n for n in sources if n.endswith(".c"))
+        _compile_shared(tmp, c_files, [], filename, cc, cflags, [], list(libs), label)
+        return tmp / filename
+
+    return cached_build(key, modname, filename, make, open_library)
 
 
 def _uses_runtime(code: GeneratedCode, native: bool) -> bool:

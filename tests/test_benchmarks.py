@@ -107,3 +107,13 @@ def test_peers_one_link(tmp_path, peer):
     assert finite(res.get("rhs_c_ns") or res.get("rhs_py_ns"))
     errs = [e for e, _ in res["points"]]
     assert all(finite(e) for e in errs) and errs[1] < errs[0]
+
+
+def test_taylor_runtime_one_link():
+    """benchmarks/taylor_runtime.py: both Taylor builds run (bit-identical, else it exits) and build."""
+    import taylor_runtime as tr
+    rows = tr.run_times(1, [1e-6], rounds=1, batch=0.001)
+    assert rows[0]["identical"] and rows[0]["steps"] > 10
+    assert finite(rows[0]["per_model_us"]) and finite(rows[0]["runtime_us"]) and rows[0]["ratio"] > 0
+    cold = tr.build_times(1, 1)
+    assert [r["kind"] for r in cold] == ["per-model", "runtime"] and all(finite(r["total"]) for r in cold)

@@ -137,3 +137,39 @@ def model_cdef(code: GeneratedCode, native: bool) -> str:
     if native:
         lines.append(POLL_CDEF)
     return "\n".join(lines)
+
+
+#: The table of a model's Taylor jet (templates/taylor/lcg_taylor_model.h.j2).
+TAYLOR_TABLE_CDEF = """
+#define LCG_TAYLOR_ABI ...
+#define LCG_TAYLOR_ORDER_MAX ...
+typedef struct lcg_taylor_model {
+    int abi; int nq; int nz; int ny; int np; int nout; int ne; int nrows; int order_max; size_t work_size;
+    int (*start)(void *work, const double *p);
+    int (*jet)(void *work, double *X, double t, const double *y, int kmax);
+    int (*outputs)(double t, const double *y, const double *p, double *out);
+    const int *event_row; const int *event_direction; const int *event_terminal;
+    ...;
+} lcg_taylor_model;"""
+
+
+def taylor_runtime_cdef() -> str:
+    """The model-independent Taylor runtime module: the jet table, the Taylor driver taking it
+    (templates/taylor/lcg_taylor.h.j2), its ensembles and the poll callback."""
+    return "\n".join([TAYLOR_TABLE_CDEF, f"""
+typedef struct {{
+    double rtol; double atol; const double *atol_vec; long max_steps; double max_step; int order; {CONTROL_FIELDS}
+}} lcg_taylor_options;
+typedef struct {{
+    long nsteps; long njet; long nroot; int order; double t_reached; double h_last; double h_min;
+    double h_max; int flag; int model_error; int nt_done; char message[512];
+}} lcg_taylor_stats;
+typedef struct {{
+    int max_events; int n_events; double *t; double *y; int *which; int *direction; int terminated;
+}} lcg_taylor_events;
+int lcg_taylor_solve(const lcg_taylor_model *m, const double *p, const double *y0, int nt, const double *tout,
+                     double *yout, double *out, const lcg_taylor_options *opt, lcg_taylor_stats *st,
+                     lcg_taylor_events *ev);
+int lcg_taylor_jet(const lcg_taylor_model *m, double t, const double *y, const double *p, int order,
+                   double *jet);""", ensemble_cdef("lcg_taylor_ensemble", "lcg_taylor_options", "lcg_taylor_solve_many",
+                                   model="lcg_taylor_model"), POLL_CDEF])

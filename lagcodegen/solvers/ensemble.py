@@ -92,7 +92,7 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
         method = options["method"] = choose_method(cm.n, float(options.get("rtol", 1e-8)))
     family = ENSEMBLE_FAMILIES.get(method)
     if family is not None:
-        return family(cm, t, Y, P, threads=threads, save=save, progress=progress, **options)
+        return family(cm, t, Y, P, threads=threads, save=save, progress=progress, max_wall=max_wall, **options)
     options.pop("order", None)
     if not cm.native or cm.native_solve_many is None:
         raise LagcodegenError("this module was built without the native driver (build(native=False))")

@@ -325,3 +325,165 @@ def test_sanitizers_run_clean(tmp_path, cc):
     flag, steps, nev, terminated, t_reached, done = run.stdout.split()
     # the terminal event t = 3 ends the run after the output at t = 2
     assert int(terminated) == 1 and abs(float(t_reached) - 3.0) < 1e-12 and int(done) == 4 and int(nev) >= 2
+
+
+# --------------------------------------------------------------------------- the runtime's driver
+RUNTIME_MAIN = r"""
+#include <stdio.h>
+#include <string.h>
+#include "lcg_taylor.h"
+
+extern const lcg_taylor_model allops_taylor_model;
+
+int main(void)
+{
+    double p[2] = {1.3, 1.1}, y0[4] = {0.3, -0.4, 0.2, 0.1}, t[5] = {0.0, 0.5, 1.0, 2.0, 5.0}, yout[10], out[5];
+    double et[4], ey[8], fin[2 * 3], tr[2] = {0}, wall[2];
+    int which[4], dir[4], mflag[2], mdone[2], k;
+    long counts[16];
+    lcg_taylor_options opt;
+    lcg_taylor_stats st;
+    lcg_taylor_events ev = {4, 0, et, ey, which, dir, 0};
+    lcg_taylor_ensemble e;
+    lcg_taylor_model bad = allops_taylor_model;
+    int flag;
+
+    memset(&opt, 0, sizeof opt);
+    opt.rtol = 1e-10;
+    opt.atol = 1e-10;
+    opt.max_steps = 100000;
+    flag = lcg_taylor_solve(&allops_taylor_model, p, y0, 5, t, yout, out, &opt, &st, &ev);
+    printf("%d %ld %d %d %.17g %d", flag, st.nsteps, ev.n_events, ev.terminated, st.t_reached, st.nt_done);
+    for (k = 0; k < 2 * st.nt_done; ++k)
+        printf(" %.17g", yout[k]);
+    printf("\n");
+    /* two members over two threads, no events: parameters per member, the state shared */
+    memset(&e, 0, sizeof e);
+    e.model = &allops_taylor_model;
+    e.nmem = 2;
+    e.nthreads = 2;
+    e.p = p;
+    e.p_stride = 1;
+    e.y0 = y0;
+    e.y0_stride = 0;
+    e.nt = 5;
+    e.tout = t;
+    e.final = fin;
+    e.flag = mflag;
+    e.nt_done = mdone;
+    e.t_reached = tr;
+    e.wall = wall;
+    e.counts = counts;
+    flag = lcg_taylor_solve_many(&e, &opt);
+    printf("%d %d %d %d %d\n", flag, mflag[0], mflag[1], mdone[0], mdone[1]);
+    bad.abi = LCG_TAYLOR_ABI + 1;
+    flag = lcg_taylor_solve(&bad, p, y0, 5, t, yout, out, &opt, &st, NULL);
+    printf("%d %d\n", flag, lcg_taylor_jet(&bad, 0.0, y0, p, 3, yout));
+    return 0;
+}
+"""
+
+
+def runtime_sources_of(tmp_path, scene, events=()):
+    from lagcodegen.solvers.taylor.emit import jet_sources, runtime_sources
+    files = {**runtime_sources(), **jet_sources(scene, events)}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    return [name for name in files if name.endswith(".c")]
+
+
+def test_runtime_driver_and_jets_compile_strictly(tmp_path, cc):
+    scenes = [Scene(derive(all_operations_model()), jacobian=False, outputs=["energy"]),
+              Scene(routh_reduce(lcg.systems.central_potential()).eom, jacobian=False, outputs=["jacobi_h"]),
+              Scene(derive(lcg.systems.n_link_pendulum(3)), jacobian=False)]
+    events = [[Event("zero", sp.Symbol("x"), 0, False)], [], []]
+    for sc, ev in zip(scenes, events):
+        for src in runtime_sources_of(tmp_path, sc, ev):
+            proc = subprocess.run([cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "-c", src,
+                                   "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+            assert proc.returncode == 0, src + proc.stderr
+
+
+def test_runtime_driver_runs_clean_under_sanitizers_and_as_the_standalone_one(tmp_path, cc):
+    """lcg_taylor.c with the jet of the all-operations model under ASan/UBSan: a run with events
+    (the terminal one at t = 3), an ensemble of two members (k = 1.3, 1.1) over two threads, a table
+    of another version refused; the run's numbers are those of the standalone integrator of the same
+    scene, bit for bit."""
+    m = all_operations_model()
+    sc = Scene(derive(m), jacobian=False, outputs=["energy"])
+    events = [Event("zero", sp.Symbol("x"), 0, False), Event("stop", sp.Symbol("t") - 3, 1, True)]
+    sources = runtime_sources_of(tmp_path, sc, events)
+    assert len(sc.default_parameters()) == 1  # k; main.c's p[1] is the second member's k
+    (tmp_path / "main.c").write_text(RUNTIME_MAIN)
+    san = ["-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    proc = subprocess.run([cc, *san, "main.c", *sources, "-o", "run", "-lm", "-pthread"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    env = {"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"}
+    run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True, env=env)
+    assert run.returncode == 0, run.stdout + run.stderr
+    single, many, bad = run.stdout.splitlines()
+    flag, steps, nev, terminated, t_reached, done, *ys = single.split()
+    assert int(terminated) == 1 and abs(float(t_reached) - 3.0) < 1e-12 and int(done) == 4 and int(nev) >= 2
+    assert many.split() == ["0", "0", "0", "4", "4"]  # the terminal event at t = 3 ends both members
+    assert bad.split() == ["-22", "-22"]
+    # the standalone integrator of the same scene (taylor.c.j2: the same driver text, sizes as constants)
+    for name, text in taylor_sources(sc, events).items():
+        (tmp_path / name).write_text(text)
+    (tmp_path / "alone.c").write_text(SANITIZE_MAIN.replace('%d\\n", flag', '%d", flag').replace(
+        "    return flag;", "    for (int k = 0; k < 2 * st.nt_done; ++k)\n        printf(\" %.17g\", yout[k]);\n"
+        "    printf(\"\\n\");\n    return flag;"))
+    proc = subprocess.run([cc, *san, "alone.c", "allops_taylor.c", "-o", "alone", "-lm"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    alone = subprocess.run(["./alone"], cwd=tmp_path, capture_output=True, text=True, env=env)
+    assert alone.returncode == 0, alone.stdout + alone.stderr
+    assert alone.stdout.split() == single.split()
+
+
+def test_runtime_and_per_model_builds_agree_bit_for_bit():
+    """build_taylor (the runtime's driver over the model's jet) and build_taylor(runtime=False) (the
+    per-model integrator): the same states, outputs, events and statistics, a quadrature state too."""
+    cases = [(lcg.systems.pendulum(), ["energy"], [Event("down", sp.Symbol("theta"), 0, False),
+                                                  Event("up", sp.Symbol("theta"), 1, True)], [1.0, 0.0]),
+             (routh_reduce(lcg.systems.central_potential()).eom, ["jacobi_h"], [], [1.0, 0.0, 0.0])]
+    for model, outputs, events, y0 in cases:
+        eom = derive(model) if isinstance(model, lcg.Model) else model
+        sc = Scene(eom, jacobian=False, outputs=outputs)
+        a, b = build_taylor(sc, events=events), build_taylor(sc, events=events, runtime=False)
+        assert a.table is not None and b.table is None
+        y0 = np.array(y0)
+        p = np.array(sc.default_parameters(), dtype=float)
+        if a.code.nz:  # the reduced Kepler problem: C_phi = r^2 phi' = 1.3 (test_quadrature_state_...)
+            p = np.array([1.3 if k == "C_phi" else v for k, v in zip(a.param_names, p)])
+        t = np.linspace(0.0, 7.0, 15)
+        ra, rb = (m.simulate(t, y0, p, rtol=1e-11, atol=1e-11) for m in (a, b))
+        assert ra.status == rb.status == 0 and ra.stats == rb.stats and ra.stats["steps"] > 10
+        assert np.array_equal(ra.t, rb.t) and np.array_equal(ra.y, rb.y)
+        assert all(np.array_equal(ra.outputs[k], rb.outputs[k]) for k in outputs)
+        assert [(e.t, e.index) for e in ra.events or []] == [(e.t, e.index) for e in rb.events or []]
+        assert np.array_equal(a.jet(0.3, y0, p, 9), b.jet(0.3, y0, p, 9))
+
+
+def test_runtime_refuses_a_table_of_another_version_and_keeps_max_wall():
+    tm, p = module(lcg.systems.pendulum())
+    ffi, lib = tm.ffi, tm.lib
+    bad = ffi.new("lcg_taylor_model *", tm.table[0])
+    bad.abi = lib.LCG_TAYLOR_ABI + 1
+    opt, st = ffi.new("lcg_taylor_options *"), ffi.new("lcg_taylor_stats *")
+    opt.rtol = opt.atol = 1e-8
+    opt.max_steps = 100
+    y0, t, yout = np.array([1.0, 0.0]), np.array([0.0, 1.0]), np.empty((2, 2))
+    buf = ffi.from_buffer
+    flag = lib.lcg_taylor_solve(bad, buf("double[]", p), buf("double[]", y0), 2, buf("double[]", t),
+                                buf("double[]", yout), ffi.NULL, opt, st, ffi.NULL)
+    assert flag == -22 and "another layout" in ffi.string(st.message).decode()
+    with pytest.raises(lcg.LagcodegenError, match="y has 1 values, expected 2"):
+        tm.jet(0.0, [1.0], p, 3)
+    with pytest.raises(lcg.LagcodegenError, match="order must be 1..30"):
+        tm.jet(0.0, y0, p, 31)
+    # the runtime's run control: each member of a Taylor ensemble stops at its wall-clock limit
+    sim = lcg.compile_model(lcg.systems.pendulum(), jacobian=False)
+    ens = sim.ensemble((0.0, 1e7), q0=[[1.0], [0.5]], method="taylor", max_wall=0.05, rtol=1e-12, atol=1e-12,
+                       max_steps=10**9, threads=1)
+    assert list(ens.status) == [-81, -81]

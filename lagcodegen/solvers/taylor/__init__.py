@@ -1,14 +1,15 @@
 """Taylor-series integration emitted as plain C (libm only, no SUNDIALS).
 
 :mod:`.decompose` turns a scene's equations into elementary operations, :mod:`.emit` renders
-the C jet, stepper and driver (``<prefix>_taylor.h``/``.c``), :mod:`.runner` compiles them and
+the C jet, stepper and driver (the model's jet for the Taylor runtime's model-independent driver,
+or the standalone ``<prefix>_taylor.h``/``.c`` of bundles), :mod:`.runner` compiles them and
 calls the driver through cffi.
 """
 
 from ...codegen.bundle import register_integrator
 from .decompose import Decomposition, Op, decompose  # noqa: F401
 from .emit import P_MAX, taylor_sources  # noqa: F401
-from .runner import TaylorModule, build_taylor, taylor_code  # noqa: F401
+from .runner import TaylorModule, build_taylor, jet_code, taylor_code, taylor_runtime  # noqa: F401
 
 
 def bundle_sources(scene, y0, params, t_end: float) -> dict[str, str]:
@@ -19,5 +20,6 @@ def bundle_sources(scene, y0, params, t_end: float) -> dict[str, str]:
 
 register_integrator("taylor", bundle_sources)
 
-__all__ = ["Decomposition", "Op", "P_MAX", "TaylorModule", "build_taylor", "decompose", "taylor_code",
+__all__ = ["Decomposition", "Op", "P_MAX", "TaylorModule", "build_taylor", "decompose", "jet_code", "taylor_code",
+           "taylor_runtime",
            "taylor_sources"]

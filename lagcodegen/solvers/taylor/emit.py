@@ -3,9 +3,14 @@ elementary operations inside a C loop over the orders), the step-size rule, dens
 event root finding and the driver ``<prefix>_taylor_solve``, rendered from the jinja2
 templates in ``templates/taylor``.
 
-Files: ``<prefix>_taylor.h`` and ``<prefix>_taylor.c``, C99 + libm, standalone: they compute the
-equations, the outputs (``<prefix>_taylor_outputs``) and the events themselves and need no
-other generated file.
+Two sets of files from the same templates (the jet: taylor/jet.c.j2; the driver: taylor/_driver.j2):
+
+* :func:`taylor_sources`: ``<prefix>_taylor.h`` and ``<prefix>_taylor.c``, C99 + libm, standalone
+  (what C bundles ship): they compute the equations, the outputs (``<prefix>_taylor_outputs``) and
+  the events themselves, the driver compiled with the sizes as constants;
+* :func:`jet_sources` (a model's part: its jet and the table ``lcg_taylor_model``) and
+  :func:`runtime_sources` (the model-independent driver ``lcg_taylor.c``, compiled once per
+  installation): what ``simulate(method="taylor")`` builds.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from ...codegen.templates import environment
 from ...formulation.kernels import Block, substituter
 from ...formulation.scene import Scene
 from ...model.events import Event, event_list
+from ...version import __version__
 # ------------------------------------------------------------------------------------------
 from .decompose import Const, Decomposition, decompose
 
@@ -77,6 +83,7 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
         kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
         M=d.M, F=d.F, rates=d.rates, conv=conv, time_row=d.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
+        table=False, outputs_name=f"{scene.prefix}_taylor_outputs",
         events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
                 for row, ev in zip(d.events, events)])
     return ctx
@@ -109,6 +116,36 @@ def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None 
             param_defaults=[repr(float(v)) for v in (param_values if param_values is not None
                                                       else scene.default_parameters())])
     return files
+
+
+#: The templates of the model-independent Taylor driver (compiled once per installation into the
+#: Taylor runtime, :func:`lagcodegen.solvers.taylor.runner.taylor_runtime`): file -> template.
+RUNTIME_TEMPLATES = {"lcg_taylor_model.h": "taylor/lcg_taylor_model.h.j2", "lcg_taylor.h": "taylor/lcg_taylor.h.j2",
+                     "lcg_taylor.c": "taylor/lcg_taylor.c.j2"}
+#: Every template file the Taylor runtime's sources are rendered from (with those they include).
+RUNTIME_TEMPLATE_FILES = ("taylor/lcg_taylor_model.h.j2", "taylor/lcg_taylor.h.j2", "taylor/lcg_taylor.c.j2",
+                          "taylor/_driver.j2", "taylor/roots.c.j2", "c/_control.j2")
+
+
+def runtime_sources() -> dict[str, str]:
+    """The model-independent Taylor driver ``lcg_taylor.[ch]`` and the table of a model's jet it
+    takes, ``lcg_taylor_model.h``."""
+    env = _jinja()
+    ctx = dict(version=__version__, p_max=P_MAX)
+    return {name: env.get_template(t).render(**ctx) for name, t in RUNTIME_TEMPLATES.items()}
+
+
+def jet_sources(scene: Scene, events=(), decomposition: Decomposition | None = None) -> dict[str, str]:
+    """``<prefix>_taylor_jet.c`` (the model part of the Taylor integrator: jet, outputs, event rows
+    and their table ``<prefix>_taylor_model``, libm only) and ``lcg_taylor_model.h``."""
+    events = check_events(scene, events)
+    d = decomposition or decompose(scene, events)
+    ctx = taylor_context(scene, d, events)
+    ctx.update(table=True, outputs_name="tl_outputs")
+    env = _jinja()
+    return {"lcg_taylor_model.h": env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__,
+                                                                                         p_max=P_MAX),
+            f"{scene.prefix}_taylor_jet.c": env.get_template("taylor/jet_table.c.j2").render(**ctx)}
 
 
 def taylor_cdef(prefix: str) -> str:

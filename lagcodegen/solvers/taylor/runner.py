@@ -1,6 +1,13 @@
 """Compile the Taylor integrator of a scene and run it: :func:`build_taylor` ->
-:class:`TaylorModule`, whose :meth:`~TaylorModule.simulate` calls the C driver
-``<prefix>_taylor_solve`` once for all output times and returns a :class:`Result`.
+:class:`TaylorModule`, whose :meth:`~TaylorModule.simulate` calls the C driver once for all
+output times and returns a :class:`Result`.
+
+By default (``runtime=True``) the model compiles only its jet (``<prefix>_taylor_jet.c``: the
+recurrences, outputs, event rows and their table ``lcg_taylor_model``) into a plain shared library
+without Python.h, and the model-independent driver ``lcg_taylor_solve`` of the Taylor runtime
+(:func:`taylor_runtime`, compiled once per installation) integrates it. ``runtime=False`` compiles
+the standalone integrator ``<prefix>_taylor.c`` (the same driver text with the sizes as constants;
+what C bundles ship) into a cffi module of its own.
 
 The per-call Python is kept lean (the options and statistics structs are allocated once per
 module, arrays are handed to C without copies, nothing is validated twice): callers such as
@@ -9,22 +16,29 @@ module, arrays are handed to C without copies, nothing is validated twice): call
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
+import functools
+import os
 
 import numpy as np
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
-from ...build import build
+from ...build import DEFAULT_CFLAGS, build, driver_runtime, plain_library
+from ...codegen.cffi_decl import taylor_runtime_cdef
 from ...codegen.record import GeneratedCode, header_context, new_code
-from ...codegen.templates import environment
+from ...codegen.templates import environment, templates_dir
 from ...errors import LagcodegenError
 from ...formulation.scene import Scene
 from ...model.events import EventRecord
 from ...result import Result
+from ...util import c_vector
 from ..base import message as base_message
+from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
-from .emit import P_MAX, check_events, taylor_cdef, taylor_sources
+from .emit import (P_MAX, RUNTIME_TEMPLATE_FILES, check_events, jet_sources, runtime_sources, taylor_cdef,
+                   taylor_sources)
 
 def message(flag: int, model_error: int, detail: str) -> str:
     """The text of a driver flag (:data:`lagcodegen.solvers.base.FLAG_TEXT` ["Taylor"])."""
@@ -52,34 +66,93 @@ def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, 
     return code, d, events
 
 
-def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: bool = False) -> "TaylorModule":
-    """Generate and compile the Taylor integrator of ``scene`` (cached like every build)."""
-    code, d, events = taylor_code(scene, events)
-    built = build(code, native=False, cc=cc, verbose=verbose)
-    return TaylorModule(code, built.module, d, events, built.path)
+@functools.lru_cache(maxsize=4)
+def _taylor_runtime(cc: str, cflags: tuple[str, ...]):
+    folder = templates_dir()
+    texts = [f"{name}\0{(folder / name).read_text()}" for name in sorted(RUNTIME_TEMPLATE_FILES)]
+    return driver_runtime("taylor", [f"P_MAX {P_MAX}", *texts], runtime_sources, taylor_runtime_cdef(),
+                          "lcg_taylor.h", ["-lm", "-pthread"], cc, cflags)
+
+
+def taylor_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The Taylor runtime: a cffi module with the model-independent Taylor driver
+    (templates/taylor/lcg_taylor.c.j2, ``lcg_taylor_solve``, ``lcg_taylor_jet``, ensembles), built
+    into the cache once per lagcodegen version, compiler, flags and Python (no SUNDIALS)."""
+    return _taylor_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+
+
+def jet_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
+    """The model part of the Taylor integrator of ``scene`` for the runtime's driver: a
+    :class:`GeneratedCode` (layout and names of the plain scene) whose files are
+    ``<prefix>_taylor_jet.c`` and ``lcg_taylor_model.h``."""
+    events = check_events(scene, events)
+    d = decompose(scene, events)
+    code = new_code(dataclasses.replace(scene, jacobian=False, sparse_jacobian=False))
+    code.scene = scene
+    code.files.update(jet_sources(scene, events, d))
+    return code, d, events
+
+
+def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: bool = False,
+                 runtime: bool = True) -> "TaylorModule":
+    """Generate and compile the Taylor integrator of ``scene`` (cached like every build): with
+    ``runtime``, only its jet, for the Taylor runtime's driver; else the standalone integrator."""
+    if not runtime:
+        code, d, events = taylor_code(scene, events)
+        built = build(code, native=False, cc=cc, verbose=verbose)
+        return TaylorModule(code, built.module, d, events, built.path)
+    code, d, events = jet_code(scene, events)
+    rt = taylor_runtime(cc)
+    library, path, _ = plain_library(f"the Taylor jet of model {code.model_name!r}", f"{code.prefix}_taylor",
+                                     code.files, cc, verbose=verbose)
+    getter = getattr(library, f"{code.prefix}_taylor_table")
+    getter.restype = ctypes.c_void_p
+    table = rt.ffi.cast("const lcg_taylor_model *", getter())
+    got = (table.abi, table.nq, table.nz, table.ny, table.np, table.nout, table.ne, table.nrows, table.order_max)
+    expected = (rt.lib.LCG_TAYLOR_ABI, code.n, code.nz, code.ny, code.np, code.nout, len(events), d.nrows,
+                rt.lib.LCG_TAYLOR_ORDER_MAX)
+    if got != expected:
+        raise LagcodegenError(f"the Taylor library built for model {code.model_name!r} ({path}) has another layout "
+                              f"than its code: (abi, nq, nz, ny, np, nout, ne, nrows, order_max) = {got}, expected "
+                              f"{expected}")
+    return TaylorModule(code, rt, d, events, path, table=table, library=library)
 
 
 class TaylorModule:
     """A compiled Taylor integrator. Not reentrant: one call at a time per module (the options
     and statistics structs are reused)."""
 
-    def __init__(self, code: GeneratedCode, module, decomposition: Decomposition, events, path=None):
+    def __init__(self, code: GeneratedCode, module, decomposition: Decomposition, events, path=None, table=None,
+                 library=None):
         self.code = code
         self.decomposition = decomposition
         self.events = list(events)
         self.path = path
+        self.module = module
         self.ffi = ffi = module.ffi
-        self.lib = module.lib
+        self.lib = lib = module.lib
+        self.table = table        # the jet's table (runtime builds), else None
+        self._library = library   # keeps the jet's library open
         pre = code.prefix
         self.n, self.ny, self.nout = code.n, code.ny, code.nout
         self.state_names = list(code.state_names)
         self.output_names = list(code.output_names)
         self.param_names = list(code.param_names)
-        self._solve = getattr(self.lib, f"{pre}_taylor_solve")
-        self._jet = getattr(self.lib, f"{pre}_taylor_jet")
-        self._out = getattr(self.lib, f"{pre}_taylor_outputs")
-        self._opt = ffi.new(f"{pre}_taylor_options *")
-        self._st = ffi.new(f"{pre}_taylor_stats *")
+        if table is not None:
+            self._solve = functools.partial(lib.lcg_taylor_solve, table)
+            self._jet = functools.partial(lib.lcg_taylor_jet, table)
+            self._out = table.outputs if table.outputs != ffi.NULL else None
+            self.types = ("lcg_taylor_options *", "lcg_taylor_stats *", "lcg_taylor_events *")
+        else:
+            self._solve = getattr(lib, f"{pre}_taylor_solve")
+            self._jet = getattr(lib, f"{pre}_taylor_jet")
+            self._out = getattr(lib, f"{pre}_taylor_outputs")
+            self.types = (f"{pre}_taylor_options *", f"{pre}_taylor_stats *", f"{pre}_taylor_events *")
+        self._opt = ffi.new(self.types[0])
+        self._st = ffi.new(self.types[1])
+        if table is not None:  # run control: Ctrl-C stops a long run (the poll callback)
+            self._opt.poll = install(module)
+            self._opt.poll_every = POLL_EVERY
         self._buf = ffi.from_buffer
         self._empty = np.zeros(1)
         self._ptrs = [None, None, None]
@@ -89,10 +162,13 @@ class TaylorModule:
 
     # ------------------------------------------------------------------ helpers
     def jet(self, t: float, y, p, order: int) -> np.ndarray:
-        """Normalized Taylor coefficients (ny x (order+1)) of the state at (t, y)."""
-        y = np.ascontiguousarray(y, dtype=float)
-        p = np.ascontiguousarray(p, dtype=float)
-        out = np.empty((self.ny, order + 1))
+        """Normalized Taylor coefficients (ny x (order+1)) of the state at (t, y); ``order`` in
+        1..P_MAX."""
+        y = c_vector(y, self.ny, "y", self.state_names)
+        p = c_vector(p, len(self.param_names), "p", self.param_names)
+        if not 1 <= int(order) <= P_MAX:
+            raise LagcodegenError(f"Taylor jet: order must be 1..{P_MAX}, got {order}")
+        out = np.empty((self.ny, int(order) + 1))
         rc = self._jet(float(t), self._buf("double[]", y), self._buf("double[]", p) if p.size else self.ffi.NULL,
                        int(order), self._buf("double[]", out))
         if rc:
@@ -101,7 +177,7 @@ class TaylorModule:
 
     def _outputs_at(self, t: float, y, p) -> np.ndarray:
         out = np.full(max(self.nout, 1), np.nan)
-        if self.nout:
+        if self.nout and self._out is not None:
             self._out(float(t), self._buf("double[]", np.ascontiguousarray(y)),
                       self._buf("double[]", p) if p.size else self.ffi.NULL, self._buf("double[]", out))
         return out
@@ -142,6 +218,8 @@ class TaylorModule:
             ev, keep = self._events_struct(max_events)
         flag = self._solve(self._ptr(p, 0), self._ptr(y0, 1), nt, self._ptr(t_out, 2), buf("double[]", yout),
                            buf("double[]", out), opt, st, ev)
+        if flag == CANCELLED:
+            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
         njet = st.njet
         stats = {"steps": st.nsteps, "rhs_evals": njet, "jet_evals": njet, "order": st.order,
                  "root_searches": st.nroot, "t_reached": st.t_reached, "h_last": st.h_last, "h_min": st.h_min,
@@ -177,7 +255,7 @@ class TaylorModule:
         keep = (np.empty(max_events), np.empty((max_events, self.ny)), np.empty(max_events, dtype=np.intc),
                 np.empty(max_events, dtype=np.intc))
         buf = self._buf
-        ev = self.ffi.new(f"{self.code.prefix}_taylor_events *")
+        ev = self.ffi.new(self.types[2])
         ev.max_events = max_events
         ev.t = buf("double[]", keep[0])
         ev.y = buf("double[]", keep[1])
