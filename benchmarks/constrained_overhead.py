@@ -6,9 +6,10 @@ the index-1 (CVODE) and GGL (IDA) formulations with the default options (rtol 1e
 over t in [0, 1] given three ways -- the pair (0, 1) (1001 output times), an array of 1001 times,
 and the array [0, 1] (two output times) -- it times, interleaved:
 
-* driver [us]     ``lcg_cvc_solve`` / ``lcg_ida_solve`` on the model's table, called through cffi with every
-                  argument prepared beforehand (the consistent initial values, the options
-                  struct simulate() builds, preallocated outputs): the C integration alone;
+* driver [us]     ``lcg_cvc_solve`` / ``lcg_ida_solve`` on the model's table (index-1: the default
+                  "auto" stabilization), called through cffi with every argument prepared
+                  beforehand (the consistent initial values, the options struct simulate()
+                  builds, preallocated outputs): the C integration alone;
 * simulate [us]   ``ConstrainedSimulation.simulate(t, q0=..., v0=...)``: the checks of the
                   arguments, the initial-state check (and projection), the options, the driver
                   call, the Result;
@@ -106,7 +107,7 @@ def driver_call(sim, t: np.ndarray, q0):
         opt = ffi.new(f"{sim.cvc_options_type} *")
         st = ffi.new(sim.cvc_stats_type)
         for name, value in dict(method=1, rtol=RTOL, atol=ATOL, atol_vec=ffi.NULL, max_steps=1_000_000,
-                                alpha=0.0, beta=0.0, projection=0, proj_tol=1e-12, proj_maxit=10, proj_err=1,
+                                alpha=-1.0, beta=-1.0, projection=0, proj_tol=1e-12, proj_maxit=10, proj_err=1,
                                 roots=0, poll=poll, poll_every=POLL_EVERY, max_wall=0.0).items():
             setattr(opt, name, value)
         fn = sim.c_cvc_solve  # the runtime's lcg_cvc_solve on the model's table

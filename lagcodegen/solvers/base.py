@@ -213,13 +213,14 @@ class PreparedOptions:
         self.ffi, self.typename, self.names, self.fixed = ffi, typename, names, fixed
         self._pack = struct.Struct("=" + formats).pack
         self._cache: dict = {}
-        self._last = None  # ((atol, values), struct) of the last call with a float atol
+        self._last = None  # (atol, values, struct) of the last call (float atol or a read-only array)
 
     def get(self, atol, *values):
         """The struct of ``native_options(ffi, typename, atol, ..., **fixed, **dict(zip(names, values)))``."""
         last = self._last
-        if last is not None and type(atol) is float and last[0] == (atol, values):
-            return last[1]  # the same values as the last call (equal numbers: the same C behaviour)
+        if last is not None and (last[0] is atol or (type(atol) is float and type(last[0]) is float
+                                                     and last[0] == atol)) and last[1] == values:
+            return last[2]  # the same values as the last call (equal numbers: the same C behaviour)
         try:
             key = (b"f" + _DOUBLE(atol) if type(atol) is float else b"a" + atol.tobytes()) + self._pack(*values)
         except (struct.error, TypeError, ValueError, OverflowError, AttributeError):
@@ -235,8 +236,11 @@ class PreparedOptions:
             if len(self._cache) >= self.LIMIT:
                 self._cache.clear()
             entry = self._cache[key] = (opt, keep)
-        if type(atol) is float and atol == atol and all(v == v for v in values):  # no NaN: equality holds
-            self._last = ((atol, values), entry[0])
+        if all(v == v for v in values) and (type(atol) is float and atol == atol
+                                            or type(atol) is np.ndarray and not atol.flags.writeable):
+            # no NaN, so that equality holds; an array atol only by identity, and read-only (the
+            # callers' cached tolerance arrays): its values cannot have changed
+            self._last = (atol, values, entry[0])
         return entry[0]
 
 

@@ -139,6 +139,7 @@ class ConstrainedSimulation(_Base):
         self._coord_names = [q.name for q in system.model.coords]
         self._nineq = len(system.inequalities)
         self._ggl = formulation == "ggl"
+        self._mu_names = [f"mu_{k}" for k in range(info.JH)]
         self._has_events = len(info.events) > 0
         self.n_out_columns = max(len(info.output_names), 1)  # columns of the drivers' output rows
         self._event_pool: dict = {}  # max_events -> NativeEvents structs free for reuse
@@ -607,9 +608,9 @@ class ConstrainedSimulation(_Base):
     def ggl_multiplier_outputs(self, yy: np.ndarray, copy: bool = True) -> dict:
         """The GGL multipliers mu_k of the velocity-level holonomic rows, as outputs (column
         views of ``yy`` with ``copy=False``)."""
-        n, J, JH = self.n, self.info.J, self.info.JH
-        cols = (yy[:, 2 * n + J + k] for k in range(JH))
-        return {f"mu_{k}": col.copy() if copy else col for k, col in enumerate(cols)}
+        first = 2 * self._n + self.info.J
+        cols = yy.T[first: first + self.info.JH]
+        return dict(zip(self._mu_names, cols.copy() if copy else cols))
 
 
 def _state_values(val, names: list, what: str) -> list:
