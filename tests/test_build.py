@@ -6,6 +6,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import lagcodegen as lcg
@@ -29,6 +30,20 @@ def test_second_build_is_a_cache_hit(tmp_path, monkeypatch):
     entries = [p for p in tmp_path.iterdir() if not is_runtime(p)]
     assert len(entries) == 1 and not entries[0].name.startswith(".build")  # no temp folder left
     assert entries[0] == first.path.parent
+
+
+def test_model_library_joins_each_table_with_its_functions(tmp_path, monkeypatch):
+    """Small model libraries compile the table in the translation unit of the functions it points
+    to, at MODEL_CFLAGS (the runtime at DEFAULT_CFLAGS); the library's functions are the model's."""
+    from lagcodegen.build import MODEL_CFLAGS, DEFAULT_CFLAGS
+    assert MODEL_CFLAGS != DEFAULT_CFLAGS and "-O1" in MODEL_CFLAGS
+    monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
+    built = lcg.build(generate_c(Scene(derive(systems.pendulum()), prefix="unitpend")))
+    folder = built.path.parent
+    assert (folder / "unitpend_unit.c").read_text() == '#include "unitpend.c"\n#include "unitpend_table.c"\n'
+    sim = lcg.compile_model(systems.pendulum(), prefix="unitpend")
+    ydot = sim.rhs(0.0, [0.5, 0.0])
+    assert ydot[1] == pytest.approx(-9.81 * np.sin(0.5))  # l = 1: theta'' = -g sin(theta)
 
 
 def test_changed_source_changes_the_key(tmp_path, monkeypatch):
