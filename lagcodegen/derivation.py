@@ -153,6 +153,14 @@ class EquationsOfMotion:
         """Mechanical energy T + V."""
         return self.T + self.V
 
+    def position(self, point: str) -> list:
+        """The position x(q, t) of the model's point named ``point`` as symengine expressions
+        (converted from sympy once; :func:`derive` converts those of the bodies)."""
+        cache = self._cache.setdefault("positions", {})
+        if point not in cache:
+            cache[point] = [to_se(c, f"position of {point!r}") for c in self.model.points[point].position]
+        return cache[point]
+
     def accelerations(self) -> sp.Matrix:
         """Symbols q_i'' used by :meth:`equations`."""
         return sp.Matrix([sp.Symbol(f"{q.name}_ddot") for q in self.q])
@@ -171,14 +179,42 @@ class _Engine:
         self.q = [se.Symbol(s.name) for s in model.coords]
         self.qd = [se.Symbol(s.name) for s in model.speeds]
         self.t = se.Symbol(model.t.name)
+        self.memo: dict = {}
 
     def ddt(self, e):
         """Total time derivative of an expression in (q, t)."""
-        free = e.free_symbols
-        return se.Add(se.diff(e, self.t), *(se.diff(e, q) * v for q, v in zip(self.q, self.qd) if q in free))
+        grad = gradient(e, self.q)
+        return se.Add(se.diff(e, self.t), *(grad[q] * v for q, v in zip(self.q, self.qd) if q in grad))
 
     def vec(self, m, what):
-        return [to_se(c, what) for c in m]
+        return [self.convert(c, what) for c in m]
+
+    def convert(self, e, what):
+        """:func:`to_se` remembering every sum and product converted: a chain's positions share
+        their terms (the position of link k is that of link k - 1 plus two terms), converted once."""
+        hit = self.memo.get(e)
+        if hit is None:
+            if isinstance(e, (sp.Add, sp.Mul)):
+                op = se.Add if isinstance(e, sp.Add) else se.Mul
+                hit = op(*(self.convert(a, what) for a in e.args))
+            else:
+                hit = to_se(e, what)
+            self.memo[e] = hit
+        return hit
+
+
+def gradient(e, symbols) -> dict:
+    """The nonzero derivatives of ``e`` by ``symbols``, {symbol: derivative}: a sum is differentiated
+    term by term, each term by the symbols it holds only (a chain's positions, sums of n terms of
+    one coordinate each, cost O(n) rather than n derivatives of the whole sum). The same
+    expressions as se.diff(e, symbol)."""
+    wanted = set(symbols)
+    parts: dict = {}
+    for term in (e.args if isinstance(e, se.Add) else (e,)):
+        for s in term.free_symbols & wanted:
+            parts.setdefault(s, []).append(se.diff(term, s))
+    out = {s: se.Add(*ds) for s, ds in parts.items()}
+    return {s: d for s, d in out.items() if d != 0}
 
 
 PYTHAGORAS_MAX_COORDS = 3
@@ -250,28 +286,37 @@ def _point_masses(masses: list, eng: _Engine):
     """The contributions of point masses (mass m, position x(q, t), velocity v = x') to the
     momenta, M and F (eq. 3.16), from the velocity Jacobian J = dx/dq alone: with
     v = J q' + dx/dt, d/dt dT/dq' - dT/dq = m J^T (J q'' + a), a = v' at q'' = 0, so
-    p += m J^T v, M += m J^T J, F -= m J^T a. Returns (p, F): lists of terms per coordinate
-    (p, F); M follows from p (M_ij = dp_i/dq_j'). Terms m J_ci of equal value are gathered
-    (m J_ci (a_1 + a_2 + ...)), which on a chain sums the accelerations of every outer link into
-    one Add."""
+    p += m J^T v, M += m J^T J, F -= m J^T a. Returns (p, M, F): lists of terms per coordinate
+    (p, F) and per entry (i, j) of M (the terms of dp_i/dq_j', j >= i). Terms m J_ci of equal
+    value are gathered (m J_ci (a_1 + a_2 + ...)), which on a chain sums the accelerations of
+    every outer link into one Add."""
     n = len(eng.q)
     index = {q: i for i, q in enumerate(eng.q)}
+    speed = {v: i for i, v in enumerate(eng.qd)}
     pg = [dict() for _ in range(n)]
     fg = [dict() for _ in range(n)]
     for m, x, v in masses:
-        coords = sorted(index[s] for s in set().union(*(c.free_symbols for c in x)) if s in index)
         for xc, vc in zip(x, v):
-            J = [(i, d) for i in coords if (d := se.diff(xc, eng.q[i])) != 0]
+            J = sorted((index[q], d) for q, d in gradient(xc, eng.q).items())
             if not J:
                 continue
-            a = se.Add(se.diff(vc, eng.t), *(se.diff(vc, eng.q[j]) * eng.qd[j] for j in coords))
+            dv = gradient(vc, eng.q)
+            a = se.Add(se.diff(vc, eng.t), *(dv[q] * eng.qd[index[q]] for q in sorted(dv, key=index.get)))
             for i, Ji in J:
                 coef = m * Ji
                 pg[i].setdefault(coef, []).append(vc)
                 fg[i].setdefault(coef, []).append(a)
-    p = [[c * se.Add(*vs) for c, vs in g.items()] for g in pg]
+    p, M = [], {}
+    for i, g in enumerate(pg):
+        p.append([])
+        for c, vs in g.items():
+            total = se.Add(*vs)
+            p[-1].append(c * total)
+            for qd, d in gradient(total, eng.qd).items():  # d p_i / d q_j' = c d total / d q_j'
+                if speed[qd] >= i:
+                    M.setdefault((i, speed[qd]), []).append(c * d)
     F = [[-c * se.Add(*acc) for c, acc in g.items()] for g in fg]
-    return p, F
+    return p, M, F
 
 
 def _potential_energy(model: Model, eng: _Engine):
@@ -348,22 +393,25 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
 
     # L without the point masses of _point_masses (differentiated symbolically), and their terms.
     L_rest = T_rest - V - Uv if masses else L
-    p_mass, F_mass = _point_masses(masses, eng)
+    p_mass, M_mass, F_mass = _point_masses(masses, eng)
     # One coordinate at a time (momentum, row of M, entry of F): a loop point for progress.
     p, F = [], []
     M = [[None] * n for _ in range(n)]
     for i in range(n):
         pi = se.diff(L_rest, eng.qd[i])
+        free = pi.free_symbols
         Fi = se.diff(L_rest, eng.q[i]) - se.diff(pi, eng.t) - se.diff(D, eng.qd[i]) + Q[i]
         for j in range(n):
-            Fi = Fi - se.diff(pi, eng.q[j]) * eng.qd[j]
+            if eng.q[j] in free:
+                Fi = Fi - se.diff(pi, eng.q[j]) * eng.qd[j]
+        for j in range(i, n):
+            d = se.diff(pi, eng.qd[j]) if eng.qd[j] in free else se.Integer(0)
+            M[i][j] = M[j][i] = se.Add(d, *M_mass[i, j]) if (i, j) in M_mass else d
         if masses:
             pi = se.Add(pi, *p_mass[i])
             Fi = se.Add(Fi, *F_mass[i])
         p.append(pi)  # eq. 2.3
         F.append(Fi)
-        for j in range(i, n):
-            M[i][j] = M[j][i] = se.diff(pi, eng.qd[j])
         stage.advance()
     if check and all(M[i][j] == 0 for i in range(n) for j in range(n)):
         raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
@@ -374,5 +422,8 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
                 f"{model.speeds[i].name!r}")
     h = sum((v * pi for v, pi in zip(eng.qd, p)), se.Integer(0)) - L  # eq. 3.5
     dhdt = -se.diff(L, eng.t) + sum((v * (Qi - se.diff(D, v)) for v, Qi in zip(eng.qd, Q)), se.Integer(0))
-    return EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
-                             h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start)
+    eom = EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
+                            h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start)
+    eom._cache["positions"] = {pt.name: eng.vec(pt.position, f"position of {pt.name!r}")
+                               for pt in model.points.values()}
+    return eom
