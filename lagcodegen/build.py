@@ -208,23 +208,38 @@ def _fortran_objects(folder: Path, sources: dict[str, str], fc: str, fflags, lab
 ONE_CALL_BYTES = 200_000
 
 
+def split_parts(groups: int) -> int:
+    """How many objects a source cut into ``groups`` groups of functions compiles as (one per core,
+    at most one per group; 1: the file as one translation unit)."""
+    return max(1, min(groups, os.cpu_count() or 1))
+
+
 def _compile_shared(folder: Path, c_files: list[str], objects: list[str], out: str, cc: str, cflags,
-                    includes: list[str], libs: list[str], label: str) -> None:
+                    includes: list[str], libs: list[str], label: str, split: dict | None = None) -> None:
     """Compile ``c_files`` (and link ``objects``) into the shared library ``out``: one compiler
-    call for small sources, else one per file at once on every core, then a link."""
+    call for small sources, else one per file at once on every core, then a link. A file of
+    ``split`` (name -> groups, :attr:`GeneratedCode.split`) compiles as :func:`split_parts` objects
+    at once (``-DLCG_PARTS=K -DLCG_PART=k``)."""
     # No -I on the build folder: the generated files include each other with quotes (found
     # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
+    jobs = []  # (source, extra flags, object)
+    for f in c_files:
+        parts = split_parts((split or {}).get(f, 1))
+        if parts == 1:
+            jobs.append((f, [], f[:-2] + ".o"))
+        else:
+            jobs += [(f, [f"-DLCG_PARTS={parts}", f"-DLCG_PART={k}"], f"{f[:-2]}.part{k}.o") for k in range(parts)]
     size = sum((folder / f).stat().st_size for f in c_files)
-    one = size <= ONE_CALL_BYTES or len(c_files) == 1
-    with progress.stage("compile", total=1 if one else len(c_files) + 1, unit=f"compiler runs, {label}") as stage:
+    one = (size <= ONE_CALL_BYTES or len(c_files) == 1) and len(jobs) == len(c_files)
+    with progress.stage("compile", total=1 if one else len(jobs) + 1, unit=f"compiler runs, {label}") as stage:
         if one:
             _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler",
                  label)
             stage.advance()
             return
-        _run_all([[cc, *cflags, *includes, "-c", f, "-o", f[:-2] + ".o"] for f in c_files], folder, "C compiler",
-                 label, stage)
-        _run([cc, *cflags, "-shared", *[f[:-2] + ".o" for f in c_files], *objects, "-o", out, *libs], folder,
+        _run_all([[cc, *cflags, *includes, *extra, "-c", f, "-o", obj] for f, extra, obj in jobs], folder,
+                 "C compiler", label, stage)
+        _run([cc, *cflags, "-shared", *[obj for _, _, obj in jobs], *objects, "-o", out, *libs], folder,
              "C compiler", label)
         stage.advance()
 
@@ -292,7 +307,7 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
         objects = _fortran_objects(tmp, sources, fc, fflags, label)
         c_files = sorted(n for n in sources if n.endswith(".c"))
-        _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label)
+        _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label, code.split)
         return tmp / filename
 
     library, path, cached = cached_build(key, modname, filename, make, open_library)
@@ -351,7 +366,8 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         objects = _fortran_objects(tmp, sources, fc, fflags, label)
         c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
         libs = [*link, "-lm"] + (["-lgfortran"] if fortran else [])
-        _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label)
+        _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label,
+                        code.split)
         return tmp / f"{modname}{ext}"
 
     module, path, cached = cached_build(key, modname, f"{modname}{ext}", make, import_module)

@@ -39,6 +39,9 @@ class GeneratedCode:
     sparse_jacobian: bool = False
     # Parameters folded into the code as constants, with their values.
     folded: dict = field(default_factory=dict)
+    # Sources cut into groups of functions (file name -> number of groups): compiled as one
+    # translation unit, or by build() as several objects at once (-DLCG_PARTS, -DLCG_PART).
+    split: dict = field(default_factory=dict)
     # The scene the code was generated from (for further code of the same scene, e.g. the
     # Taylor integrator), or None for code assembled by hand.
     scene: object = field(default=None, repr=False, compare=False)

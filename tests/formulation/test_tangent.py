@@ -187,10 +187,10 @@ def test_large_kernels_come_in_short_functions():
     """The compiler's time grows like the code's size only if no function grows with n: every
     function of the program form holds at most CHUNK_STATEMENTS statements (or CHUNK_CHARS)."""
     from lagcodegen.codegen.c import CHUNK_CHARS, CHUNK_STATEMENTS
-    eom = derive(systems.n_link_pendulum(12, name="tg_short"))
+    eom = derive(systems.n_link_pendulum(18, name="tg_short"))  # a right-hand side of >= PROGRAM_MIN_OPS
     for form in ("expanded", "tangent"):
         src = generate_c(Scene(eom, jacobian_form=form)).files["tg_short.c"]
-        bodies = re.findall(r"^static NOINLINE void \w+\([^)]*\)\n\{\n(.*?)^\}", src, re.S | re.M)
+        bodies = re.findall(r"^(?:static|PIECE) NOINLINE void \w+\([^)]*\)\n\{\n(.*?)^\}", src, re.S | re.M)
         assert len(bodies) > 10
         for body in bodies:
             lines = body.splitlines()[1:]  # the (void) casts first
@@ -205,7 +205,7 @@ def test_program_form_rhs_equals_the_one_function_form(monkeypatch):
     """The right-hand side of a large model (program form: hash-consed statements in pieces)
     against the same scene printed as one function (symengine's elimination), to round-off."""
     import lagcodegen.codegen.c as cmod
-    eom = derive(systems.n_link_pendulum(10, name="tg_prog"))
+    eom = derive(systems.n_link_pendulum(18, name="tg_prog"))  # >= PROGRAM_MIN_OPS operations
     program = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_pieces")), native=False)
     assert "NOINLINE void values" in program.code.files[program.code.source_name]
     monkeypatch.setattr(cmod, "PROGRAM_MIN_OPS", 10 ** 9)
