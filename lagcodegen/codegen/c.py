@@ -18,7 +18,7 @@ import symengine as se
 
 from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
-from ..formulation.tangent import CSE_MAX_OPS, TangentProgram, build_program, tangent_program
+from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
@@ -392,6 +392,10 @@ def print_program(prog, targets: list, tangent: TangentProgram | None = None) ->
     return ctx
 
 
+#: A block printed by print_block_pieces (the expanded Jacobian of a large model) with more operations
+#: than this is hash-consed (lagcodegen.formulation.tangent.build_program) rather than eliminated.
+BLOCK_CSE_MAX_OPS = 400_000
+
 _TEMP = re.compile(r"\bx(\d+)\b")
 
 
@@ -400,7 +404,7 @@ def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple
     statements (after common-subexpression elimination, the temporaries in an array ``x``):
     returns (the definitions, a list; the statements of the caller: allocation, calls
     ``name<k>(args)``, free)."""
-    if se.count_ops(*block.exprs) > 2 * CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
+    if se.count_ops(*block.exprs) > BLOCK_CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
         prog, targets = build_program(block, 0, cse=False)
         nv = len(prog)
         pieces = _value_pieces(prog, [(0, nv)], {prog.index(a) for _, a in targets} - {None})[0]

@@ -155,7 +155,7 @@ def test_tiny_pieces_give_the_same_values(models, tiny_pieces, monkeypatch, name
     if not eliminate:
         import lagcodegen.codegen.c as cmod
         import lagcodegen.formulation.tangent as tmod
-        monkeypatch.setattr(cmod, "CSE_MAX_OPS", 0)
+        monkeypatch.setattr(cmod, "BLOCK_CSE_MAX_OPS", 0)
         monkeypatch.setattr(tmod, "CSE_MAX_OPS", 0)
     tag = "_pieces" if eliminate else "_hashed"
     pieces = {form: compiled(name, form, tag) for form in ("expanded", "tangent")}
