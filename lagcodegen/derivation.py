@@ -237,7 +237,7 @@ def pythagoras(expr):
 #: PYTHAGORAS_MAX_COORDS (and of a mass free of q and t) enter Lagrange's equations through their
 #: velocity Jacobians J = dx/dq (:func:`_point_masses`), not by differentiating L: the same
 #: equations, without the terms of dT/dq and d/dt dT/dq' that cancel only after expansion
-#: (a 50-link chain's F shrinks from 760 000 operations to 25 000 and derives 10x faster).
+#: (a 50-link chain's F shrinks from 761 685 operations to 31 062; derive() 2.8 -> 0.3 s).
 SPLIT_POINT_MASSES = True
 
 
