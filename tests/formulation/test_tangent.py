@@ -33,7 +33,8 @@ CASES = {
     "pendulum": (lambda: derive(systems.pendulum("tg_pend")), {}),
     "double_pendulum": (lambda: derive(systems.double_pendulum("tg_dp")), {}),
     "n_link4": (lambda: derive(systems.n_link_pendulum(4, name="tg_n4")), {}),
-    # Large enough for blocks of wide statements of several column sets, and for the program form.
+    # Large enough for blocks of wide statements of several column sets (program form: the tangent
+    # Jacobian always; the right-hand side from PROGRAM_MIN_OPS, 17 links since the point-mass derivation).
     "n_link10": (lambda: derive(systems.n_link_pendulum(10, name="tg_n10")), {}),
     "spring_chain": (lambda: derive(systems.spring_chain(6, 1e3, name="tg_chain")), {}),
     "spherical": (lambda: derive(systems.spherical_pendulum("tg_sph")), {}),
