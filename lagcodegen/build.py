@@ -237,24 +237,39 @@ def _fortran_objects(folder: Path, sources: dict[str, str], fc: str, fflags, lab
 ONE_CALL_BYTES = 200_000
 
 
+def split_parts(groups: int) -> int:
+    """How many objects a source cut into ``groups`` groups of functions compiles as (one per core,
+    at most one per group; 1: the file as one translation unit)."""
+    return max(1, min(groups, os.cpu_count() or 1))
+
+
 def _compile_shared(folder: Path, c_files: list[str], objects: list[str], out: str, cc: str, cflags,
-                    includes: list[str], libs: list[str], label: str, parallel: bool = False) -> None:
+                    includes: list[str], libs: list[str], label: str, parallel: bool = False,
+                    split: dict | None = None) -> None:
     """Compile ``c_files`` (and link ``objects``) into the shared library ``out``: one compiler
     call for small sources (unless ``parallel``), else one per file at once on every core, then a
-    link."""
+    link. A file of ``split`` (name -> groups, :attr:`GeneratedCode.split`) compiles as
+    :func:`split_parts` objects at once (``-DLCG_PARTS=K -DLCG_PART=k``)."""
     # No -I on the build folder: the generated files include each other with quotes (found
     # beside the includer), so a model named math, stdlib or Python never shadows <math.h>.
+    jobs = []  # (source, extra flags, object)
+    for f in c_files:
+        parts = split_parts((split or {}).get(f, 1))
+        if parts == 1:
+            jobs.append((f, [], f[:-2] + ".o"))
+        else:
+            jobs += [(f, [f"-DLCG_PARTS={parts}", f"-DLCG_PART={k}"], f"{f[:-2]}.part{k}.o") for k in range(parts)]
     size = sum((folder / f).stat().st_size for f in c_files)
-    one = (size <= ONE_CALL_BYTES and not parallel) or len(c_files) == 1
-    with progress.stage("compile", total=1 if one else len(c_files) + 1, unit=f"compiler runs, {label}") as stage:
+    one = ((size <= ONE_CALL_BYTES and not parallel) or len(c_files) == 1) and len(jobs) == len(c_files)
+    with progress.stage("compile", total=1 if one else len(jobs) + 1, unit=f"compiler runs, {label}") as stage:
         if one:
             _run([cc, *cflags, "-shared", *includes, *c_files, *objects, "-o", out, *libs], folder, "C compiler",
                  label)
             stage.advance()
             return
-        _run_all([[cc, *cflags, *includes, "-c", f, "-o", f[:-2] + ".o"] for f in c_files], folder, "C compiler",
-                 label, stage)
-        _run([cc, *cflags, "-shared", *[f[:-2] + ".o" for f in c_files], *objects, "-o", out, *libs], folder,
+        _run_all([[cc, *cflags, *includes, *extra, "-c", f, "-o", obj] for f, extra, obj in jobs], folder,
+                 "C compiler", label, stage)
+        _run([cc, *cflags, "-shared", *[obj for _, _, obj in jobs], *objects, "-o", out, *libs], folder,
              "C compiler", label)
         stage.advance()
 
@@ -363,17 +378,17 @@ def _table(rt, library, getter_name: str, ctype: str):
 _UNIT = "_unit.c"
 
 
-def _with_units(sources: dict[str, str], prefix: str) -> dict[str, str]:
+def _with_units(sources: dict[str, str], prefix: str, split: dict) -> dict[str, str]:
     """``sources`` plus, where the C is small enough for one compiler call, a translation unit
     ``<file>_unit.c`` including each table with the functions it points to (``<prefix>.c`` with
     ``<prefix>_table.c``, ``<prefix>_dae.c`` with ``<prefix>_dae_table.c``): one compiler and
     assembler run less per table (about 20 ms each). The tables define no static names and
-    read no macro of their partners."""
+    read no macro of their partners. Files cut into parts (``split``) stay as they are."""
     if sum(len(v) for k, v in sources.items() if k.endswith(".c")) > ONE_CALL_BYTES:
         return sources
     out = dict(sources)
     for source, table in ((f"{prefix}.c", f"{prefix}_table.c"), (f"{prefix}_dae.c", f"{prefix}_dae_table.c")):
-        if source in sources and table in sources:
+        if source in sources and table in sources and source not in split:
             out[source[:-2] + _UNIT] = f'#include "{source}"\n#include "{table}"\n'
     return out
 
@@ -393,7 +408,7 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
     sources = {**dict(code.files), **table_source(code)}
     if code.dae is not None:
         sources.update(dae_table_source(code))
-    sources = _with_units(sources, code.prefix)
+    sources = _with_units(sources, code.prefix, code.split)
     fortran = any(name.endswith(".f90") for name in sources)
     libs = ["-lm"] + (["-lgfortran"] if fortran else [])
     parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
@@ -412,7 +427,7 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
         objects = _fortran_objects(tmp, sources, fc, fflags, label)
         included = {name for unit in sources if unit.endswith(_UNIT) for name in _unit_members(sources[unit])}
         c_files = sorted(n for n in sources if n.endswith(".c") and n not in included)
-        _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label)
+        _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label, split=code.split)
         return tmp / filename
 
     library, path, cached = cached_build(key, modname, filename, make, open_library)
@@ -493,7 +508,8 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         objects = _fortran_objects(tmp, sources, fc, fflags, label)
         c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
         libs = [*link, "-lm"] + (["-lgfortran"] if fortran else [])
-        _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label)
+        _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label,
+                        split=code.split)
         return tmp / f"{modname}{ext}"
 
     module, path, cached = cached_build(key, modname, f"{modname}{ext}", make, import_module)

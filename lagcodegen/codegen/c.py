@@ -18,7 +18,7 @@ import symengine as se
 
 from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
-from ..formulation.tangent import CSE_MAX_OPS, TangentProgram, build_program, tangent_program
+from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
@@ -254,6 +254,37 @@ def _wide_pieces(ops: list, acc: set, shared: set, nw: int) -> list[list[str]]:
     return out
 
 
+#: Program-form sources whose pieces hold more than this many characters are cut into groups of
+#: about GROUP_CHARS, each between ``#if`` lines, so that the build compiles the file as several
+#: objects at once (``-DLCG_PARTS=K -DLCG_PART=k``: group g in object g % K, the rest of the file in
+#: object 0; ``lagcodegen.build``). Without those macros the file is one translation unit as before.
+SPLIT_MIN_CHARS = 100_000
+GROUP_CHARS = 20_000
+
+
+def _group_pieces(defs: list[str]) -> tuple[str, str, int]:
+    """The piece functions ``defs`` (static) as the source's text, in groups between ``#if`` lines
+    when they exceed SPLIT_MIN_CHARS (then declared ``PIECE``: static in one translation unit,
+    hidden across the objects of a split build): (text, prototypes of a split build, number of
+    groups)."""
+    total = sum(map(len, defs))
+    if total <= SPLIT_MIN_CHARS:
+        return "\n\n".join(defs), "", 1
+    defs = ["PIECE" + d[len("static"):] if d.startswith("static ") else d for d in defs]
+    groups: list[list[str]] = [[]]
+    size = 0
+    for d in defs:
+        if groups[-1] and size + len(d) > GROUP_CHARS:
+            groups.append([])
+            size = 0
+        groups[-1].append(d)
+        size += len(d)
+    text = "\n\n".join(f"#if !defined(LCG_PART) || {g} % LCG_PARTS == LCG_PART\n" + "\n\n".join(ds) + "\n#endif"
+                        for g, ds in enumerate(groups))
+    protos = "\n".join(d.split("\n", 1)[0] + ";" for d in defs)
+    return text, protos, len(groups)
+
+
 def _ranges(indices: list[int]) -> list[int]:
     """Sorted ``indices`` as [start, stop) pairs, flattened."""
     out: list[int] = []
@@ -357,18 +388,23 @@ def print_program(prog, targets: list, tangent: TangentProgram | None = None) ->
     ctx["mass"] = "\n".join(f"{pad}{f}(y, p, v, M);" for f in mass)
     ctx["rhs_targets"] = "\n".join([ctx["mass"]] + [f"{pad}{_rhs_target(t)} = {c_expr(a)};"
                                                      for t, a in targets if t[0] != "M"])
-    ctx["functions"] = "\n\n".join(defs)
+    ctx["functions"] = defs
     return ctx
 
+
+#: A block printed by print_block_pieces (the expanded Jacobian of a large model) with more operations
+#: than this is hash-consed (lagcodegen.formulation.tangent.build_program) rather than eliminated.
+BLOCK_CSE_MAX_OPS = 400_000
 
 _TEMP = re.compile(r"\bx(\d+)\b")
 
 
-def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple[str, str]:
+def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple[list[str], str]:
     """A kernel :class:`Block` as static functions ``name<k>(params)`` of at most CHUNK_STATEMENTS
     statements (after common-subexpression elimination, the temporaries in an array ``x``):
-    returns (definitions, the statements of the caller: allocation, calls ``name<k>(args)``, free)."""
-    if se.count_ops(*block.exprs) > 2 * CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
+    returns (the definitions, a list; the statements of the caller: allocation, calls
+    ``name<k>(args)``, free)."""
+    if se.count_ops(*block.exprs) > BLOCK_CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
         prog, targets = build_program(block, 0, cse=False)
         nv = len(prog)
         pieces = _value_pieces(prog, [(0, nv)], {prog.index(a) for _, a in targets} - {None})[0]
@@ -379,7 +415,7 @@ def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple
                  f"{_INDENT}if (v == NULL)", f"{_INDENT * 2}return LCG_ERR_MEMORY;"]
         vargs = ", ".join("v" if a == "x" else a for a in args.split(", "))
         calls += [f"{_INDENT}{f}({vargs});" for f in names] + [f"{_INDENT}free(v);"]
-        return "\n\n".join(defs), "\n".join(calls)
+        return defs, "\n".join(calls)
     repl, reduced = cse(block.exprs)
 
     def text(e):
@@ -391,7 +427,7 @@ def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple
     calls = [f"{_INDENT}double *x = (double *)malloc({nx} * sizeof(double));",
              f"{_INDENT}if (x == NULL)", f"{_INDENT * 2}return LCG_ERR_MEMORY;"]
     calls += [f"{_INDENT}{f}({args});" for f in names] + [f"{_INDENT}free(x);"]
-    return "\n\n".join(defs), "\n".join(calls)
+    return defs, "\n".join(calls)
 
 
 def use_program(scene: Scene, rhs: Block) -> bool:
@@ -422,7 +458,12 @@ def generate_c(scene: Scene) -> GeneratedCode:
                   "double G[][N]" + (", double Z[][2 * N]" if nz else ""))
         defs, jac = print_block_pieces(blocks["jac"], "jacobian", params, "t, y, p, a, x, M, G" + (", Z" if nz else ""))
         jac = jac.replace("LCG_ERR_MEMORY", f"{code.prefix.upper()}_ERR_MEMORY")
-        extra["program"]["functions"] += "\n\n" + defs
+        extra["program"]["functions"] += defs
+    if extra["program"]:
+        program = extra["program"]
+        program["functions"], program["prototypes"], program["groups"] = _group_pieces(program["functions"])
+        if program["groups"] > 1:
+            code.split[code.source_name] = program["groups"]
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx, program=extra["program"])
     code.files[code.source_name] = env.get_template("c/model.c.j2").render(
         **ctx, rhs=None if extra["program"] else print_block(blocks["rhs"]),

@@ -61,6 +61,9 @@ class GeneratedCode:
     # makes build() compile the function table <prefix>_dae_table.c for the runtime's constrained
     # drivers; None for other code.
     dae: DaeLayout | None = None
+    # Sources cut into groups of functions (file name -> number of groups): compiled as one
+    # translation unit, or by build() as several objects at once (-DLCG_PARTS, -DLCG_PART).
+    split: dict = field(default_factory=dict)
     # The scene the code was generated from (for further code of the same scene, e.g. the
     # Taylor integrator), or None for code assembled by hand.
     scene: object = field(default=None, repr=False, compare=False)

@@ -97,6 +97,16 @@ def substituter(scene: Scene):
     return c
 
 
+def substitute_all(sub: dict, exprs) -> list:
+    """``exprs`` with the substitution ``sub`` (:func:`symbol_map`) applied, as one matrix: the
+    same expressions as ``e.xreplace(sub)`` each, the dictionary converted once rather than per
+    expression (1325 entries of a 50-link chain: 0.17 -> 0.05 s)."""
+    exprs = [se.sympify(e) for e in exprs]
+    if not sub or not exprs:
+        return exprs
+    return list(se.DenseMatrix(len(exprs), 1, exprs).xreplace(sub))
+
+
 def residual_derivatives(eom):
     """d r_i / d y_j for r = M a - F (eq. 3.16 as a residual), y = (q, q'), with the
     accelerations a as the symbols ``a[i]``: a function (i, j) -> symengine expression in the
@@ -136,12 +146,13 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
     model = eom.model
     n = model.n
     c = substituter(scene)
+    sub = symbol_map(scene)
     mass = Block()
     for i in range(n):  # row by row: a loop point for progress
-        for j in range(i, n):
-            mass.add(("M", i, j), c(eom.M_se[i][j]))
+        for j, e in enumerate(substitute_all(sub, eom.M_se[i][i:]), start=i):
+            mass.add(("M", i, j), e)
         stage.advance()
-    rhs = mass + Block([("F", i) for i in range(n)], [c(eom.F_se[i]) for i in range(n)])
+    rhs = mass + Block([("F", i) for i in range(n)], substitute_all(sub, eom.F_se))
     for k, (_, rate) in enumerate(eom.quadratures):
         rhs.add(("ydot", 2 * n + k), c(rate))
     blocks = {"rhs": rhs}
@@ -157,8 +168,8 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
             for j, var in enumerate(y):
                 jac.add(("Z", k, j), c(se.diff(rate, var)))
         blocks["jac"] = jac
-    blocks["out"] = Block([("out", k) for k in range(len(scene.output_list()))],
-                          [c(o.expr) for o in scene.output_list()])
+    outputs = scene.output_list()
+    blocks["out"] = Block([("out", k) for k in range(len(outputs))], substitute_all(sub, [o.expr for o in outputs]))
     return blocks
 
 

@@ -148,8 +148,8 @@ class Scene:
         for q, p in zip(model.coords, eom.p_se):
             out[f"p_{q.name}"] = p
         for pt in model.points.values():
-            for axis, c in zip("xyz", pt.position):
-                out[f"{pt.name}_{axis}"] = to_se(c, f"position of {pt.name!r}")
+            for axis, c in zip("xyz", eom.position(pt.name)):
+                out[f"{pt.name}_{axis}"] = c
         for name, expr in model.outputs.items():
             out[name] = to_se(expr, f"output {name!r}")
         return out

@@ -33,7 +33,8 @@ CASES = {
     "pendulum": (lambda: derive(systems.pendulum("tg_pend")), {}),
     "double_pendulum": (lambda: derive(systems.double_pendulum("tg_dp")), {}),
     "n_link4": (lambda: derive(systems.n_link_pendulum(4, name="tg_n4")), {}),
-    # Large enough for blocks of wide statements of several column sets, and for the program form.
+    # Large enough for blocks of wide statements of several column sets (program form: the tangent
+    # Jacobian always; the right-hand side from PROGRAM_MIN_OPS, 17 links since the point-mass derivation).
     "n_link10": (lambda: derive(systems.n_link_pendulum(10, name="tg_n10")), {}),
     "spring_chain": (lambda: derive(systems.spring_chain(6, 1e3, name="tg_chain")), {}),
     "spherical": (lambda: derive(systems.spherical_pendulum("tg_sph")), {}),
@@ -155,7 +156,7 @@ def test_tiny_pieces_give_the_same_values(models, tiny_pieces, monkeypatch, name
     if not eliminate:
         import lagcodegen.codegen.c as cmod
         import lagcodegen.formulation.tangent as tmod
-        monkeypatch.setattr(cmod, "CSE_MAX_OPS", 0)
+        monkeypatch.setattr(cmod, "BLOCK_CSE_MAX_OPS", 0)
         monkeypatch.setattr(tmod, "CSE_MAX_OPS", 0)
     tag = "_pieces" if eliminate else "_hashed"
     pieces = {form: compiled(name, form, tag) for form in ("expanded", "tangent")}
@@ -187,10 +188,10 @@ def test_large_kernels_come_in_short_functions():
     """The compiler's time grows like the code's size only if no function grows with n: every
     function of the program form holds at most CHUNK_STATEMENTS statements (or CHUNK_CHARS)."""
     from lagcodegen.codegen.c import CHUNK_CHARS, CHUNK_STATEMENTS
-    eom = derive(systems.n_link_pendulum(12, name="tg_short"))
+    eom = derive(systems.n_link_pendulum(18, name="tg_short"))  # a right-hand side of >= PROGRAM_MIN_OPS
     for form in ("expanded", "tangent"):
         src = generate_c(Scene(eom, jacobian_form=form)).files["tg_short.c"]
-        bodies = re.findall(r"^static NOINLINE void \w+\([^)]*\)\n\{\n(.*?)^\}", src, re.S | re.M)
+        bodies = re.findall(r"^(?:static|PIECE) NOINLINE void \w+\([^)]*\)\n\{\n(.*?)^\}", src, re.S | re.M)
         assert len(bodies) > 10
         for body in bodies:
             lines = body.splitlines()[1:]  # the (void) casts first
@@ -205,7 +206,7 @@ def test_program_form_rhs_equals_the_one_function_form(monkeypatch):
     """The right-hand side of a large model (program form: hash-consed statements in pieces)
     against the same scene printed as one function (symengine's elimination), to round-off."""
     import lagcodegen.codegen.c as cmod
-    eom = derive(systems.n_link_pendulum(10, name="tg_prog"))
+    eom = derive(systems.n_link_pendulum(18, name="tg_prog"))  # >= PROGRAM_MIN_OPS operations
     program = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_pieces")), native=False)
     assert "NOINLINE void values" in program.code.files[program.code.source_name]
     monkeypatch.setattr(cmod, "PROGRAM_MIN_OPS", 10 ** 9)
