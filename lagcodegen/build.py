@@ -48,8 +48,9 @@ DEFAULT_CFLAGS = ("-O2", "-fPIC", "-std=c99")
 #: A model library's flags when the caller keeps DEFAULT_CFLAGS (the runtime's drivers stay at
 #: -O2): -O1 integrates in 0.99-1.04x the time of -O2 (double pendulum, 5- and 8-link chains,
 #: Adams and BDF; -Og 1.18-1.28x, -O0 1.2-1.55x) and compiles the double pendulum in 0.13 s
-#: instead of 0.15 s (gcc 12).
-MODEL_CFLAGS = ("-O1", "-fPIC", "-std=c99")
+#: instead of 0.15 s (gcc 12); LCG_COLD_JACOBIAN compiles the dense Jacobian at -O0 under gcc
+#: (model.c.j2: run times 0.99-1.03x, the 8-link chain's build 0.59 -> 0.22 s).
+MODEL_CFLAGS = ("-O1", "-fPIC", "-std=c99", "-DLCG_COLD_JACOBIAN")
 DEFAULT_FFLAGS = ("-O2", "-fPIC", "-std=f2008", "-ffp-contract=off")  # no FMA: same numbers as C
 
 

@@ -36,7 +36,7 @@ def test_model_library_joins_each_table_with_its_functions(tmp_path, monkeypatch
     """Small model libraries compile the table in the translation unit of the functions it points
     to, at MODEL_CFLAGS (the runtime at DEFAULT_CFLAGS); the library's functions are the model's."""
     from lagcodegen.build import MODEL_CFLAGS, DEFAULT_CFLAGS
-    assert MODEL_CFLAGS != DEFAULT_CFLAGS and "-O1" in MODEL_CFLAGS
+    assert MODEL_CFLAGS != DEFAULT_CFLAGS and "-O1" in MODEL_CFLAGS and "-DLCG_COLD_JACOBIAN" in MODEL_CFLAGS
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
     built = lcg.build(generate_c(Scene(derive(systems.pendulum()), prefix="unitpend")))
     folder = built.path.parent
