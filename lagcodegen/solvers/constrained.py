@@ -374,9 +374,10 @@ class ConstrainedSimulation(_Base):
         Index-1: ``method`` ``"adams"`` (default without projection) or ``"bdf"`` (default and
         required with projection); ``baumgarte`` (``"auto"`` or (alpha, beta), see
         :func:`~lagcodegen.api.compile_constrained`; the values used are in ``stats["alpha"]``,
-        ``stats["beta"]``) and ``projection`` override the compiled defaults. GGL: ``suppress_alg`` (native), ``jacobian`` (generated residual
-        Jacobian, default when compiled), ``alg_atol`` (absolute tolerance of lambda, mu;
-        default :data:`ALGEBRAIC_ATOL`, see there), ``stop_at_outputs`` (native: step exactly to
+        ``stats["beta"]``) and ``projection`` override the compiled defaults. GGL:
+        ``suppress_alg`` (native), ``jacobian`` (generated residual Jacobian, default when
+        compiled), ``alg_atol`` (absolute tolerance of lambda, mu; default
+        :data:`ALGEBRAIC_ATOL`, see there), ``stop_at_outputs`` (native: step exactly to
         every output time instead of interpolating, so that the reported states satisfy the
         constraints to the Newton tolerance). Otherwise the output times are served by the
         integrator's interpolation (index-1 always): ``t = (t0, t1)`` (1001 output times) takes
