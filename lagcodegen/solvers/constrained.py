@@ -240,10 +240,11 @@ class ConstrainedSimulation(_Base):
             return 0.0, 0.0
         if native:
             return -1.0, -1.0
-        rate = self.ffi.new("double *")
-        if self.c_natural_rate(t0, self.ffi.from_buffer(self._double_array, y0), self.c_params(p), rate) != 0:
-            return 0.0, 0.0
-        return rate[0], rate[0]
+        try:
+            rate = self.natural_rate(t0, y0, p)
+        except LagcodegenError:  # the run reports the model's error at its first step
+            rate = 0.0
+        return rate, rate
 
     def project(self, t: float, y, params=None, tol: float = 1e-14, maxit: int = 50) -> np.ndarray:
         """y projected onto f(q, t) = 0 (Gauss-Newton) and A q' + A0 = 0."""

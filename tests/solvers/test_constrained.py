@@ -187,6 +187,24 @@ def test_long_cartesian_pendulum_runs_drift(cpend, capsys):
     assert all(e < 1e-4 for _, _, e in rows.values())
 
 
+def test_default_stabilization_is_the_natural_rate(cpend):
+    """At the bottom, at rest, the Cartesian pendulum's index-1 Jacobian has d x''/d x = -g/l
+    (small oscillations x'' = -(g/l) x): its natural rate is sqrt(g/l). The default run takes
+    alpha = beta = the rate of its initial state (native and scikit-sundae alike); "auto" with
+    projection and (0, 0) turn it off."""
+    sim = cpend["index1"]
+    assert sim.natural_rate(0.0, [0.0, -1.0, 0.0, 0.0]) == pytest.approx(np.sqrt(G), rel=1e-6)
+    y0 = np.array([*pendulum_q0(), 0.0, 0.0])
+    rate = sim.natural_rate(0.0, y0)
+    for backend in ("native", "sksundae"):
+        res = sim.simulate([0, 1], q0=pendulum_q0(), v0=[0, 0], backend=backend)
+        assert res.stats["alpha"] == res.stats["beta"] == pytest.approx(rate, rel=1e-15)
+    assert sim.simulate([0, 1], q0=pendulum_q0(), v0=[0, 0], baumgarte=(0, 0)).stats["alpha"] == 0.0
+    assert sim.simulate([0, 1], q0=pendulum_q0(), v0=[0, 0], projection=True).stats["beta"] == 0.0
+    with pytest.raises(ModelError, match="'auto' or"):
+        sim.simulate([0, 1], q0=pendulum_q0(), v0=[0, 0], baumgarte="fast")
+
+
 def test_augmented_solve_where_the_mass_matrix_is_singular():
     """Bead on a rod spun at the rate w (polar r, z; z = w t): M = diag(m, m r^2) is singular at
     r = 0 and not numerically positive definite at r = 1e-9, where the generated solve falls
