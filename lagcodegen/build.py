@@ -376,27 +376,23 @@ def _table(rt, library, getter_name: str, ctype: str):
     return rt.ffi.cast(ctype, getter())
 
 
-_UNIT = "_unit.c"
-
-
-def _with_units(sources: dict[str, str], prefix: str, split: dict) -> dict[str, str]:
-    """``sources`` plus, where the C is small enough for one compiler call, a translation unit
-    ``<file>_unit.c`` including each table with the functions it points to (``<prefix>.c`` with
-    ``<prefix>_table.c``, ``<prefix>_dae.c`` with ``<prefix>_dae_table.c``): one compiler and
-    assembler run less per table (about 20 ms each). The tables define no static names and
-    read no macro of their partners. Files cut into parts (``split``) stay as they are."""
-    if sum(len(v) for k, v in sources.items() if k.endswith(".c")) > ONE_CALL_BYTES:
-        return sources
+def _translation_units(sources: dict[str, str], prefix: str, split: dict) -> tuple[dict[str, str], list[str]]:
+    """(``sources`` plus their units, the C files to compile). Where the C is small enough for one
+    compiler call, each table compiles in a translation unit ``<file>_unit.c`` with the functions
+    it points to (``<prefix>.c`` with ``<prefix>_table.c``, ``<prefix>_dae.c`` with
+    ``<prefix>_dae_table.c``): one compiler and assembler run less per table (about 20 ms each).
+    The tables define no static names and read no macro of their partners. Files cut into parts
+    (``split``) stay as they are."""
+    c_files = sorted(n for n in sources if n.endswith(".c"))
+    if sum(len(sources[n]) for n in c_files) > ONE_CALL_BYTES:
+        return sources, c_files
     out = dict(sources)
     for source, table in ((f"{prefix}.c", f"{prefix}_table.c"), (f"{prefix}_dae.c", f"{prefix}_dae_table.c")):
         if source in sources and table in sources and source not in split:
-            out[source[:-2] + _UNIT] = f'#include "{source}"\n#include "{table}"\n'
-    return out
-
-
-def _unit_members(text: str) -> list[str]:
-    """The files a ``_with_units`` translation unit includes."""
-    return [line.split('"')[1] for line in text.splitlines() if line.startswith("#include ")]
+            unit = source[:-2] + "_unit.c"
+            out[unit] = f'#include "{source}"\n#include "{table}"\n'
+            c_files = sorted({*c_files, unit} - {source, table})
+    return out, c_files
 
 
 def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbose: bool) -> BuiltModule:
@@ -409,7 +405,7 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
     sources = {**dict(code.files), **table_source(code)}
     if code.dae is not None:
         sources.update(dae_table_source(code))
-    sources = _with_units(sources, code.prefix, code.split)
+    sources, c_files = _translation_units(sources, code.prefix, code.split)
     fortran = any(name.endswith(".f90") for name in sources)
     libs = ["-lm"] + (["-lgfortran"] if fortran else [])
     parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
@@ -426,8 +422,6 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
         if verbose:
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
         objects = _fortran_objects(tmp, sources, fc, fflags, label)
-        included = {name for unit in sources if unit.endswith(_UNIT) for name in _unit_members(sources[unit])}
-        c_files = sorted(n for n in sources if n.endswith(".c") and n not in included)
         _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label, split=code.split)
         return tmp / filename
 

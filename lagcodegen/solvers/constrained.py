@@ -413,10 +413,7 @@ class ConstrainedSimulation(_Base):
             raise LagcodegenError(f"backend must be 'native' or 'sksundae', got {backend!r}")
         if self.formulation == "index1":
             projection = self.projection if projection is None else bool(projection)
-            if baumgarte is None and self.baumgarte == BAUMGARTE_AUTO and not projection and backend == "native":
-                alpha = beta = -1.0  # "auto": the driver takes the natural rate of y0
-            else:
-                alpha, beta = self._stabilization(baumgarte, projection, float(t[0]), y0, p, backend == "native")
+            alpha, beta = self._stabilization(baumgarte, projection, float(t[0]), y0, p, backend == "native")
             if method is None:
                 method = "bdf" if projection else "adams"
             if method not in METHODS:

@@ -99,8 +99,8 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, pro
                  max_events, max_steps, first_step, max_step, min_step, max_order, max_wall=0.0) -> Result:
     """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
     and/or CVODE's projection): one call of the runtime's ``lcg_cvc_solve`` on the model's table
-    (``sim.c_cvc_solve``). ``atol`` a float (every
-    state) or an array; ``t`` and ``y0`` contiguous float64 arrays (the caller's checks)."""
+    (``sim.c_cvc_solve``). ``atol`` a float (every state) or an array; ``t`` and ``y0``
+    contiguous float64 arrays (the caller's checks)."""
     ffi = sim.ffi
     ny, nt = 2 * sim._n, t.size
     yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
