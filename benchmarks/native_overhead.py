@@ -77,7 +77,8 @@ def build_hand(code, folder: Path) -> Path:
     sundials = find_sundials()
     folder.mkdir(parents=True, exist_ok=True)
     code.write(folder)
-    (folder / "sundials_api.h").write_text(driver_sources(code, sundials)["sundials_api.h"])
+    for name in ("sundials_api.h", "lcg_config.h"):
+        (folder / name).write_text(driver_sources(code, sundials)[name])
     (folder / "model_alias.h").write_text(alias_header(code))
     (folder / "hand_cvode.c").write_text((HERE / "hand_cvode.c").read_text())
     cmd = [H.c_compiler(), *STRICT, "hand_cvode.c", code.source_name, "-o", "hand_cvode",

@@ -13,6 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lagcodegen"
 #: a lower one, never from a higher one.
 STAGES = [
     ("errors", "version"),
+    ("codes", "runtime"),
     ("util", "hooks", "progress"),
     ("result",),
     ("model",),

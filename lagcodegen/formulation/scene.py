@@ -26,6 +26,8 @@ from ..util import check_finite
 #: generated files include each other with quotes, never through -I on their folder.)
 RESERVED_PREFIXES = {
     "sundials_api": "sundials_api.h is the SUNDIALS declarations of the native drivers",
+    "lcg_codes": "lcg_codes.h is the result codes of the model tables and native drivers",
+    "lcg_config": "lcg_config.h is the build configuration of the native drivers",
     "rk4_example": "rk4_example.c is the example program of the bundles",
     "cvode_example": "cvode_example.c is the CVODE example program of the bundles",
 }

@@ -1,4 +1,4 @@
-"""Run control of the native drivers: Ctrl-C, progress and wall-clock limits (templates/c/_control.j2).
+"""Run control of the native drivers: Ctrl-C, progress and wall-clock limits (lagcodegen/runtime/lcg_control.h).
 
 cffi releases the GIL around a driver call, so Python's SIGINT handler cannot run until the call
 returns. Every driver therefore takes a poll callback (``lcg_poll``, an ``extern "Python"``

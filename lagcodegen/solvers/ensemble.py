@@ -1,6 +1,6 @@
 """Ensembles: N runs of one compiled simulation that differ in initial state and run-time
 parameters, in ONE call into a native driver's ``*_solve_many`` (the runtime's ``lcg_cvode_solve_many``,
-``lcg_cvc_solve_many``, ``lcg_ida_solve_many``, or a module's own, e.g. Taylor; templates/c/_control.j2).
+``lcg_cvc_solve_many``, ``lcg_ida_solve_many``, or a module's own, e.g. Taylor; lagcodegen/runtime/lcg_pool.h).
 
 The members are spread over a pthread pool and taken in turn from a shared counter (their run
 times differ); each member is a run of the single-run driver with its own SUNDIALS context, so its

@@ -1,6 +1,6 @@
 """One ensemble call into the generated C: the per-member inputs as arrays (states, run-time
 parameters) and :func:`run_native`, which fills an :class:`~.ensemble_result.EnsembleResult` from a
-driver's ``<prefix>_<driver>_solve_many`` (templates/c/_control.j2)."""
+driver's ``<prefix>_<driver>_solve_many`` (lagcodegen/runtime/lcg_pool.h)."""
 
 from __future__ import annotations
 

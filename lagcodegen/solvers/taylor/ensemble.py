@@ -1,5 +1,5 @@
 """Ensembles with the Taylor method (``method="taylor"``): the Taylor runtime's
-``lcg_taylor_solve_many`` (templates/taylor/lcg_taylor.c.j2) over the jet of the scene, the same
+``lcg_taylor_solve_many`` (lagcodegen/runtime/lcg_taylor.c) over the jet of the scene, the same
 module :func:`~.run.taylor_module` builds for ``simulate`` (no events). Ctrl-C stops running
 members too; ``max_wall`` limits each member."""
 

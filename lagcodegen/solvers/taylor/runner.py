@@ -27,7 +27,7 @@ import numpy as np
 from ...build import DEFAULT_CFLAGS, build, driver_runtime, plain_library
 from ...codegen.cffi_decl import taylor_runtime_cdef
 from ...codegen.record import GeneratedCode, header_context, new_code
-from ...codegen.templates import environment, templates_dir
+from ...codegen.templates import environment
 from ...errors import LagcodegenError
 from ...formulation.scene import Scene
 from ...model.events import EventRecord
@@ -37,7 +37,7 @@ from ..base import message as base_message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
-from .emit import (P_MAX, RUNTIME_TEMPLATE_FILES, check_events, jet_sources, runtime_sources, taylor_cdef,
+from .emit import (P_MAX, check_events, jet_sources, runtime_key_texts, runtime_sources, taylor_cdef,
                    taylor_sources)
 
 def message(flag: int, model_error: int, detail: str) -> str:
@@ -68,15 +68,13 @@ def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, 
 
 @functools.lru_cache(maxsize=4)
 def _taylor_runtime(cc: str, cflags: tuple[str, ...]):
-    folder = templates_dir()
-    texts = [f"{name}\0{(folder / name).read_text()}" for name in sorted(RUNTIME_TEMPLATE_FILES)]
-    return driver_runtime("taylor", [f"P_MAX {P_MAX}", *texts], runtime_sources, taylor_runtime_cdef(),
+    return driver_runtime("taylor", [f"P_MAX {P_MAX}", *runtime_key_texts()], runtime_sources, taylor_runtime_cdef(),
                           "lcg_taylor.h", ["-lm", "-pthread"], cc, cflags)
 
 
 def taylor_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
     """The Taylor runtime: a cffi module with the model-independent Taylor driver
-    (templates/taylor/lcg_taylor.c.j2, ``lcg_taylor_solve``, ``lcg_taylor_jet``, ensembles), built
+    (lagcodegen/runtime/lcg_taylor.c, ``lcg_taylor_solve``, ``lcg_taylor_jet``, ensembles), built
     into the cache once per lagcodegen version, compiler, flags and Python (no SUNDIALS)."""
     return _taylor_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
 

@@ -1,0 +1,101 @@
+/* lcg_sundials.h -- the SUNDIALS plumbing shared by the native drivers (lcg_cvode.c, lcg_cvc.c,
+ * lcg_ida.c): how SUNDIALS errors reach the caller's stats (record_error, the context and its
+ * error handler) and the drivers' flag conventions (lcg_codes.h: LCG_FLAG_NOMEM out of memory,
+ * -1 step budget used up, LCG_MODEL_ERROR_FLAG(rc) a model error).
+ *
+ * Included by a driver source after sundials_api.h, with LCG_STATS defined (its statistics type,
+ * with a char message[]), and, for root finding, LCG_ROOT_INFO (CVodeGetRootInfo or
+ * IDAGetRootInfo) and the events type lcg_events. The statement macros assume the drivers' local
+ * names: st (the stats), flag, rc, mem, nst, opt, tout, k, ctx, and the label done. */
+#ifndef LCG_SUNDIALS_H
+#define LCG_SUNDIALS_H
+
+#include <stdio.h>
+
+#include "lcg_codes.h"
+
+/* The SUNErrHandlerFn: the last SUNDIALS error message, into stats->message. */
+static void record_error(int line, const char *func, const char *file, const char *msg,
+                         SUNErrCode err_code, void *err_user_data, SUNContext sunctx)
+{
+    LCG_STATS *st = (LCG_STATS *)err_user_data;
+    (void)line;
+    (void)file;
+    (void)sunctx;
+    snprintf(st->message, sizeof st->message, "%s (code %d): %s", func ? func : "SUNDIALS",
+             err_code, msg ? msg : "");
+}
+
+/* Create the SUNContext ctx with record_error as its only error handler; nomem: the driver's
+ * out-of-memory flag, returned (and stored in st->flag) when the context cannot be made. */
+#define LCG_CREATE_CONTEXT(nomem)                                                    \
+    do {                                                                             \
+        if (SUNContext_Create(0, &ctx) != 0) {                                       \
+            snprintf(st->message, sizeof st->message, "SUNContext_Create failed");   \
+            return st->flag = (nomem);                                               \
+        }                                                                            \
+        SUNContext_ClearErrHandlers(ctx);                                            \
+        SUNContext_PushErrHandler(ctx, record_error, st);                            \
+    } while (0)
+
+/* Before each call of the solver (CVode or IDA): stop with flag -1 once opt->max_steps steps are
+ * taken, else allow the steps that are left. */
+#define LCG_STEP_BUDGET(solver)                                                      \
+    do {                                                                             \
+        solver##GetNumSteps(mem, &nst);                                              \
+        if (nst >= opt->max_steps) {                                                 \
+            flag = -1;                                                               \
+            snprintf(st->message, sizeof st->message,                                \
+                     "the step budget max_steps = %ld is used up before t = %.17g",  \
+                     opt->max_steps, tout[k]);                                       \
+            goto done;                                                               \
+        }                                                                            \
+        solver##SetMaxNumSteps(mem, opt->max_steps - nst);                           \
+    } while (0)
+
+/* After a model function returned rc: unless rc is ok, stop with flag LCG_MODEL_ERROR_FLAG(rc). */
+#define LCG_MODEL_ERROR(ok)                                                          \
+    do {                                                                             \
+        if (rc != (ok)) {                                                            \
+            st->model_error = rc;                                                    \
+            flag = LCG_MODEL_ERROR_FLAG(rc);                                         \
+            goto done;                                                               \
+        }                                                                            \
+    } while (0)
+
+/* After done: the message of the out-of-memory flag nomem when nothing more precise was recorded. */
+#define LCG_NOMEM_MESSAGE(nomem, solver)                                             \
+    do {                                                                             \
+        if (flag == (nomem) && st->message[0] == '\0')                               \
+            snprintf(st->message, sizeof st->message,                                \
+                     "out of memory creating the " solver " solver");                \
+    } while (0)
+
+#ifdef LCG_ROOT_INFO
+/* Record the roots the solver found at t, with the state y of ny values, into the events record
+ * ev; info: scratch of nroot ints (allocated with the run); returns 1 if one of them is terminal. */
+static int record_events(void *mem, lcg_events *ev, double t, const double *y, int nroot, int ny, int *info)
+{
+    int i, k, stop = 0;
+
+    if (LCG_ROOT_INFO(mem, info) < 0)
+        return 1;
+    for (i = 0; i < nroot; ++i) {
+        if (info[i] == 0)
+            continue;
+        if (ev->n_events < ev->max_events) {
+            ev->t[ev->n_events] = t;
+            for (k = 0; k < ny; ++k)
+                ev->y[(long)ev->n_events * ny + k] = y[k];
+            ev->which[ev->n_events] = i;
+            ev->direction[ev->n_events] = info[i];
+        }
+        ev->n_events++;
+        if (ev->terminal == NULL || ev->terminal[i])
+            stop = 1;
+    }
+    return stop;
+}
+#endif
+
+#endif /* LCG_SUNDIALS_H */
