@@ -30,6 +30,8 @@ from pathlib import Path
 import cffi
 
 from .codegen.cffi_decl import model_cdef, runtime_cdef
+from .codegen.signatures import DRIVERS
+from .codegen.signatures import c_header as types_header
 from .codegen.record import GeneratedCode
 from .codegen.templates import environment
 from .codes import c_header
@@ -144,12 +146,23 @@ def generated_headers() -> dict[str, str]:
     return {"lcg_codes.h": c_header()}
 
 
+#: The SUNDIALS drivers whose structs the runtime's generated headers declare (lcg_<name>_types.h).
+RUNTIME_DRIVERS = ("cvode", "dae", "cvc", "ida")
+
+
+def types_headers(names=RUNTIME_DRIVERS) -> dict[str, str]:
+    """``lcg_<driver>_types.h``: the structs of the drivers ``names``, rendered from their one
+    declaration (:data:`lagcodegen.codegen.signatures.DRIVERS`)."""
+    return {DRIVERS[n].header_name: types_header(DRIVERS[n], __version__) for n in names}
+
+
 def runtime_sources(sundials: Sundials) -> dict[str, str]:
     """The model-independent native drivers (taking a model's function table, lcg_model.h, or a
     constrained model's, lcg_dae_model.h) and the SUNDIALS declarations they are written against:
-    the files of lagcodegen/runtime/ as they are, with the generated ``lcg_config.h`` and
-    ``lcg_codes.h``."""
-    return {**runtime_files(RUNTIME_FILES), "lcg_config.h": config_header(sundials), **generated_headers()}
+    the files of lagcodegen/runtime/ as they are, with the generated ``lcg_config.h``,
+    ``lcg_codes.h`` and ``lcg_<driver>_types.h``."""
+    return {**runtime_files(RUNTIME_FILES), "lcg_config.h": config_header(sundials), **generated_headers(),
+            **types_headers()}
 
 
 def table_source(code: GeneratedCode) -> dict[str, str]:

@@ -57,11 +57,11 @@ class Flag(enum.IntEnum):
 
 #: What each of lagcodegen's flags means (run control and ensembles).
 FLAG_TEXT = {
-    Flag.CANCELLED: "cancelled",
-    Flag.TIMED_OUT: "the wall-clock limit max_wall was reached",
-    Flag.NOT_RUN: "not run (the ensemble was cancelled first)",
-    Flag.CHUNK_FAILED: "its chunk failed on the executor",
-    Flag.REJECTED: "the initial state was rejected",
+    int(Flag.CANCELLED): "cancelled",
+    int(Flag.TIMED_OUT): "the wall-clock limit max_wall was reached",
+    int(Flag.NOT_RUN): "not run (the ensemble was cancelled first)",
+    int(Flag.CHUNK_FAILED): "its chunk failed on the executor",
+    int(Flag.REJECTED): "the initial state was rejected",
 }
 
 
@@ -105,8 +105,8 @@ SOLVER_FLAG_TEXT = {
     "Taylor": {
         TOO_MUCH_WORK: _COMMON_TEXT[TOO_MUCH_WORK],
         -3: "the step size fell below the resolution of t (is the solution singular there?)",
-        Flag.NOMEM: "out of memory",
-        Flag.BAD_INPUT: "bad options",
+        int(Flag.NOMEM): "out of memory",
+        int(Flag.BAD_INPUT): "bad options",
     },
 }
 SOLVER_FLAG_TEXT["scikit-sundae"] = SOLVER_FLAG_TEXT["CVODE"]

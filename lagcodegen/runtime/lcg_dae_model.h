@@ -14,7 +14,7 @@
 extern "C" {
 #endif
 
-/* Layout version of lcg_dae_model and lcg_events: a driver refuses a table of another version. */
+/* Layout version of lcg_dae_model (and of lcg_events, lcg_dae_types.h): a driver refuses a table of another version. */
 #define LCG_DAE_MODEL_ABI 1
 
 /* The constrained model functions' return codes (<PREFIX>_DAE_OK, ... of every <prefix>_dae.h):
@@ -46,20 +46,6 @@ typedef struct lcg_dae_model {
     /* the unconstrained model's own table (<prefix>_table.c: M q'' = F without the constraints) */
     const lcg_model *model;
 } lcg_dae_model;
-
-/* Events found by the drivers' root finding: event k at t[k], state y[k*nrow..] (nrow: ny on
- * CVODE, ng on IDA), root function which[k], crossing direction[k] (+1 increasing, -1 decreasing). */
-typedef struct {
-    int max_events;
-    int n_events;
-    double *t;
-    double *y;
-    int *which;
-    int *direction;
-    const int *rootdir;  /* nroot directions to watch (0 both, +1, -1), or NULL: both */
-    const int *terminal; /* nroot flags: stop at this event, or NULL: every event stops */
-    int terminated;      /* 1 if the run stopped at a terminal event */
-} lcg_events;
 
 #ifdef __cplusplus
 }

@@ -10,6 +10,8 @@ import struct
 
 import numpy as np
 
+from ..codegen.signatures import STAT_NAMES as SIGNATURE_STAT_NAMES
+from ..codes import SOLVER_FLAG_TEXT, ModelCode
 from ..errors import LagcodegenError, SingularMassMatrixError
 from ..model.events import records
 from ..util import check_finite, state_values
@@ -17,46 +19,12 @@ from ..util import check_finite, state_values
 #: Linear multistep methods of CVODE (the values of CV_ADAMS, CV_BDF).
 METHODS = {"adams": 1, "bdf": 2}
 LINEAR_SOLVERS = ("dense", "band", "fixedpoint")
-#: Error codes the generated model functions return (every language, every formulation).
-ERR_SINGULAR, ERR_NONFINITE, ERR_PROJECTION = 1, 2, 3
+#: Error codes the generated model functions return (every language, every formulation;
+#: :class:`lagcodegen.codes.ModelCode`).
+ERR_SINGULAR, ERR_NONFINITE, ERR_PROJECTION = int(ModelCode.SINGULAR), int(ModelCode.NONFINITE), int(ModelCode.PROJECTION)
 
-_COMMON_TEXT = {
-    -1: "too many steps (max_steps reached); raise max_steps or loosen the tolerances",
-    -2: "tolerance too tight for machine precision",
-    -3: "error test failed repeatedly or with |h| = hmin",
-}
-#: What a negative return flag of each solver family means.
-FLAG_TEXT = {
-    "CVODE": {
-        **_COMMON_TEXT,
-        -4: "corrector convergence failed repeatedly",
-        -8: "the right-hand side failed unrecoverably",
-        -9: "the right-hand side failed at the first call",
-        -10: "the right-hand side failed repeatedly with recoverable errors (non-finite values)",
-        -12: "a root (event) function failed",
-        -30: "the projection onto the constraints failed unrecoverably",
-        -31: "the projection onto the constraints failed repeatedly",
-    },
-    "IDA": {
-        **_COMMON_TEXT,
-        -4: "Newton iteration failed to converge repeatedly",
-        -6: "the linear solver setup failed (singular iteration matrix?)",
-        -7: "the linear solve failed",
-        -8: "the residual failed unrecoverably",
-        -9: "the residual failed repeatedly with recoverable errors (non-finite values)",
-        -10: "a root (event) function failed",
-        -12: "the residual failed at the first call",
-        -13: "IDACalcIC: line search failed (no consistent lambda and y' found)",
-        -14: "IDACalcIC: the residual failed; no consistent initial values",
-    },
-}
-FLAG_TEXT["scikit-sundae"] = FLAG_TEXT["CVODE"]
-FLAG_TEXT["Taylor"] = {
-    -1: _COMMON_TEXT[-1],
-    -3: "the step size fell below the resolution of t (is the solution singular there?)",
-    -20: "out of memory",
-    -22: "bad options",
-}
+#: What a negative return flag of each solver family means (:data:`lagcodegen.codes.SOLVER_FLAG_TEXT`).
+FLAG_TEXT = SOLVER_FLAG_TEXT
 #: Kept under its earlier name.
 CVODE_FLAG_TEXT = FLAG_TEXT["CVODE"]
 SINGULAR_MASS = "the mass matrix is singular"
@@ -114,14 +82,9 @@ def tolerances(rtol, atol, size: int, n_diff: int | None = None, scalar: bool = 
     return rtol, out
 
 
-#: Fields of the native drivers' statistics structs -> keys of Result.stats.
-STAT_NAMES = {
-    "nsteps": "steps", "njac": "jac_evals", "nlinsetups": "lin_setups", "netfails": "err_test_fails",
-    "nniters": "nonlin_iters", "nncfails": "nonlin_conv_fails", "nproj": "projections",
-    "nprojfails": "projection_fails", "ngevals": "root_evals", "nbacktracks": "backtracks",
-    "t_reached": "t_reached", "h_last": "h_last", "model_error": "model_error", "ic_flag": "ic_flag",
-    "alpha": "alpha", "beta": "beta",
-}
+#: Fields of the native drivers' statistics structs -> keys of Result.stats (from the structs'
+#: declaration, :data:`lagcodegen.codegen.signatures.STAT_FIELDS`).
+STAT_NAMES = SIGNATURE_STAT_NAMES
 
 
 _FIELDS: dict = {}

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..build import BuiltModule, build
 from ..codegen.record import GeneratedCode
+from ..codes import ModelCode
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..util import c_vector, check_finite
 from . import control
@@ -20,9 +21,9 @@ from .ensemble import ensemble_ode
 def check_rc(rc: int, t: float, what: str) -> None:
     """Raise the error a generated model function's return code stands for (1: singular mass
     matrix, 2: a non-finite value)."""
-    if rc == 1:
+    if rc == ModelCode.SINGULAR:
         raise SingularMassMatrixError(f"{what}: the mass matrix is singular", t=float(t))
-    if rc == 2:
+    if rc == ModelCode.NONFINITE:
         raise SolverError(f"{what}: a computed value is not finite", t=float(t))
 
 

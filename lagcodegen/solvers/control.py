@@ -19,13 +19,15 @@ import sys
 import threading
 import time
 
+from ..codes import FLAG_TEXT as CODE_TEXT
+from ..codes import Flag
+
 #: Seconds between two calls of the poll callback (Ctrl-C latency, progress refresh).
 POLL_EVERY = 0.05
-#: Driver flags of run control.
-CANCELLED, TIMED_OUT, NOT_RUN, CHUNK_FAILED = -80, -81, -82, -83
-FLAG_TEXT = {CANCELLED: "cancelled", TIMED_OUT: "the wall-clock limit max_wall was reached",
-             NOT_RUN: "not run (the ensemble was cancelled first)",
-             CHUNK_FAILED: "its chunk failed on the executor"}
+#: Driver flags of run control (:class:`lagcodegen.codes.Flag`).
+CANCELLED, TIMED_OUT, NOT_RUN, CHUNK_FAILED = (int(f) for f in (Flag.CANCELLED, Flag.TIMED_OUT, Flag.NOT_RUN,
+                                                                  Flag.CHUNK_FAILED))
+FLAG_TEXT = {flag: CODE_TEXT[flag] for flag in (CANCELLED, TIMED_OUT, NOT_RUN, CHUNK_FAILED)}
 
 _pending = threading.local()
 

@@ -10,6 +10,9 @@ import time
 
 import numpy as np
 
+from ..codegen.signatures import CVC_OPTIONS as CVC_STRUCT
+from ..codegen.signatures import pack_format
+from ..codes import TOO_MUCH_WORK
 from ..errors import LagcodegenError
 from ..formulation.scene import band_order
 from ..formulation.scene import bandwidths as widths
@@ -81,7 +84,7 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     if done < nt:
         t, yout, out = t[:done].copy(), yout[:done].copy(), out[:done].copy()
     text = message(flag, st.model_error, detail, t=st.t_reached)
-    if flag == -1 and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
+    if flag == TOO_MUCH_WORK and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
         text = (f"the step size fell below the resolution of t at t = {st.t_reached:.17g} (is the solution "
                 f"singular there?); {text}")
     return Result(t=t, y=yout, state_names=list(cm.state_names),
@@ -90,9 +93,11 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
                   backend="native", method=method)
 
 
-#: The fields of the index-1 driver's options that vary between runs (PreparedOptions).
-CVC_OPTIONS = (("method", "rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "alpha", "beta",
-                "projection", "proj_tol", "proj_maxit", "roots", "max_wall"), "idqdddiddidiid")
+#: The fields of the index-1 driver's options that vary between runs and their pack format
+#: (PreparedOptions; the format from the struct's declaration, lagcodegen.codegen.signatures).
+_CVC_VARYING = ("method", "rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "alpha", "beta",
+                "projection", "proj_tol", "proj_maxit", "roots", "max_wall")
+CVC_OPTIONS = (_CVC_VARYING, pack_format(CVC_STRUCT, _CVC_VARYING))
 
 
 def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,

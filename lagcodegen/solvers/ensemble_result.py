@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..codes import FLAG_TEXT as CODE_TEXT
+from ..codes import Flag
 from ..errors import LagcodegenError
 from ..result import Result
 from .control import FLAG_TEXT as CONTROL_TEXT
@@ -20,8 +22,8 @@ COUNT_NAMES = ("steps", "rhs_evals", "jac_evals", "err_test_fails", "nonlin_conv
 #: Messages kept verbatim (the first failures); later failed members get the text of their flag.
 MAX_MESSAGES = 1000
 #: A member whose initial state the Python checks reject (constrained systems): never run.
-REJECTED = -84
-FLAG_TEXT = {**CONTROL_TEXT, REJECTED: "the initial state was rejected"}
+REJECTED = int(Flag.REJECTED)
+FLAG_TEXT = {**CONTROL_TEXT, REJECTED: CODE_TEXT[REJECTED]}
 
 
 

@@ -9,6 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
+from ..codes import Flag
 from ..errors import LagcodegenError
 from .base import message
 from .control import CANCELLED, NOT_RUN, POLL_EVERY, Progress, take_pending
@@ -206,7 +207,7 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
     rc = fn(e, opt)
     bar.close(int(e.done))
     err = take_pending() if rc == CANCELLED else None
-    if rc == -20:
+    if rc == Flag.NOMEM:
         raise LagcodegenError("ensemble: out of memory (threads or per-thread buffers)")
     not_run = status == NOT_RUN
     if not_run.any():
@@ -223,7 +224,7 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
         for i in failed.tolist():
             flag = int(status[i])
             if flag in FLAG_TEXT:
-                text = FLAG_TEXT[flag] if flag != -81 else texts.get(i, FLAG_TEXT[flag])
+                text = FLAG_TEXT[flag] if flag != Flag.TIMED_OUT else texts.get(i, FLAG_TEXT[flag])
             else:
                 text = message(flag, int(counts[i, 5]), texts.get(i, ""), solver)
             messages[i] = text

@@ -9,6 +9,8 @@ import time
 
 import numpy as np
 
+from ..codegen.signatures import IDA_OPTIONS as IDA_STRUCT
+from ..codegen.signatures import pack_format
 from ..result import Result
 from .base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
 from .control import CANCELLED, raise_pending
@@ -24,9 +26,11 @@ from .cvode import append_event_row
 ALGEBRAIC_ATOL = 1e8
 
 
-#: The fields of the IDA driver's options that vary between runs (PreparedOptions).
-IDA_OPTIONS = (("rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "suppress_alg", "jacobian",
-                "roots", "stop_at_outputs", "max_wall"), "dqdddiiiiid")
+#: The fields of the IDA driver's options that vary between runs and their pack format
+#: (PreparedOptions; the format from the struct's declaration, lagcodegen.codegen.signatures).
+_IDA_VARYING = ("rtol", "max_steps", "first_step", "max_step", "min_step", "max_order", "suppress_alg", "jacobian",
+                "roots", "stop_at_outputs", "max_wall")
+IDA_OPTIONS = (_IDA_VARYING, pack_format(IDA_STRUCT, _IDA_VARYING))
 
 
 def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, max_events, max_steps,

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..codes import NONFINITE_CAUSES
 from ..errors import LagcodegenError
 from ..model.events import EventRecord
 from ..result import Result
@@ -33,8 +34,8 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
     def rhsfn(tt, y, yp):
         rc = crhs(tt, ffi.from_buffer("double[]", y), pp, ffi.from_buffer("double[]", yp, require_writable=True))
         state["nonfinite"] = rc == ERR_NONFINITE  # as the native driver: named if the run fails right after
-        if rc == 1:
-            state["model_error"], state["t"] = 1, tt
+        if rc == ERR_SINGULAR:
+            state["model_error"], state["t"] = ERR_SINGULAR, tt
             yp[:] = np.nan
         elif rc:
             state["t_nonfinite"] = tt
@@ -72,7 +73,7 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
                 except LagcodegenError:
                     break
     status = int(getattr(soln, "status", 0))
-    if state.get("nonfinite") and not state["model_error"] and status in (-3, -4, -9, -10, -11):
+    if state.get("nonfinite") and not state["model_error"] and status in NONFINITE_CAUSES["CVODE"]:
         state["model_error"], state["t"] = ERR_NONFINITE, state["t_nonfinite"]
     # nfev omits difference-quotient Jacobian calls.
     stats = dict(steps=soln.steps, rhs_evals=int(getattr(soln, "nfev", -1)),

@@ -23,6 +23,8 @@ import symengine as se
 from ...codegen.c import c_expr, print_block
 from ...codegen.record import header_context, new_code
 from ...codegen.templates import environment, templates_dir
+from ...codegen.signatures import DRIVERS
+from ...codegen.signatures import c_header as types_header
 from ...codes import c_header
 from ...runtime import sources as runtime_files
 from ...formulation.kernels import Block, substituter
@@ -145,16 +147,19 @@ def runtime_key_texts() -> list[str]:
     the runtime's files, the templates of its rendered parts and the result codes."""
     folder = templates_dir()
     texts = [f"{name}\0{(folder / name).read_text()}" for name in sorted(RUNTIME_TEMPLATE_FILES)]
-    return texts + [f"{name}\0{text}" for name, text in sorted(runtime_files(RUNTIME_FILES).items())] + [c_header()]
+    return texts + [f"{name}\0{text}" for name, text in sorted(runtime_files(RUNTIME_FILES).items())] + [
+        c_header(), types_header(DRIVERS["taylor"], __version__)]
 
 
 def runtime_sources() -> dict[str, str]:
     """The model-independent Taylor driver ``lcg_taylor.[ch]`` (with the run control and pool it
-    includes, and the generated ``lcg_codes.h`` and ``lcg_taylor_driver.h``) and the table of a
+    includes, and the generated ``lcg_codes.h``, ``lcg_taylor_types.h`` and ``lcg_taylor_driver.h``) and the table of a
     model's jet it takes, ``lcg_taylor_model.h``."""
     env = _jinja()
     ctx = dict(version=__version__, p_max=P_MAX)
+    types = DRIVERS["taylor"]
     return {**runtime_files(RUNTIME_FILES), "lcg_codes.h": c_header(), "lcg_taylor_driver.h": driver_header(),
+            types.header_name: types_header(types, __version__),
             **{name: env.get_template(t).render(**ctx) for name, t in RUNTIME_TEMPLATES.items()}}
 
 

@@ -28,6 +28,7 @@ from ...build import DEFAULT_CFLAGS, build, driver_runtime, plain_library
 from ...codegen.cffi_decl import taylor_runtime_cdef
 from ...codegen.record import GeneratedCode, header_context, new_code
 from ...codegen.templates import environment
+from ...codes import model_error_flag
 from ...errors import LagcodegenError
 from ...formulation.scene import Scene
 from ...model.events import EventRecord
@@ -170,7 +171,7 @@ class TaylorModule:
         rc = self._jet(float(t), self._buf("double[]", y), self._buf("double[]", p) if p.size else self.ffi.NULL,
                        int(order), self._buf("double[]", out))
         if rc:
-            raise LagcodegenError(f"Taylor jet failed: {message(-100 - rc if rc > 0 else rc, rc, '')}")
+            raise LagcodegenError(f"Taylor jet failed: {message(model_error_flag(rc) if rc > 0 else rc, rc, '')}")
         return out
 
     def _outputs_at(self, t: float, y, p) -> np.ndarray:
