@@ -309,16 +309,24 @@ def _python_include() -> str:
     return f"-I{sysconfig.get_paths()['include']}"
 
 
+def runtime_key(cc: str, cflags: tuple[str, ...], sundials: Sundials) -> str:
+    """The cache key of the runtime: the sources' text (the files of lagcodegen/runtime/ as they
+    are, and the generated headers), the cffi declarations, compiler, flags, Python, SUNDIALS."""
+    link = sundials.link_args(("cvode", "ida", "core"))
+    ext = importlib.machinery.EXTENSION_SUFFIXES[0]
+    texts = [f"{name}\0{text}" for name, text in sorted(runtime_sources(sundials).items())]
+    return cache_key([__version__, f"cache format {CACHE_FORMAT}", "runtime", compiler_id(cc), " ".join(cflags),
+                      " ".join(link), ext, runtime_cdef(), sys.version, sundials.sunindextype, sundials.version,
+                      *texts])
+
+
 @functools.lru_cache(maxsize=4)
 def _runtime_module(cc: str, cflags: tuple[str, ...]):
     sundials = find_sundials()
     cdef = runtime_cdef()
     link = sundials.link_args(("cvode", "ida", "core"))
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
-    # keyed by the sources' text (the runtime's files as they are, and the generated headers)
-    texts = [f"{name}\0{text}" for name, text in sorted(runtime_sources(sundials).items())]
-    key = cache_key([__version__, f"cache format {CACHE_FORMAT}", "runtime", compiler_id(cc), " ".join(cflags),
-                     " ".join(link), ext, cdef, sys.version, sundials.sunindextype, sundials.version, *texts])
+    key = runtime_key(cc, cflags, sundials)
     modname = f"_lcg_runtime_{key}"
 
     def make(tmp: Path) -> Path:

@@ -65,6 +65,15 @@ FLAG_TEXT = {
 }
 
 
+#: What each flag means, in the C header's comments.
+FLAG_DOC = {
+    Flag.NOMEM: "out of memory", Flag.NOMEM_IDA: "out of memory creating the IDA solver",
+    Flag.BAD_INPUT: "bad options, or a model table of another layout",
+    **{Flag(k): v for k, v in FLAG_TEXT.items()},
+    Flag.MODEL_ERROR: "LCG_MODEL_ERROR_FLAG(rc): a model function returned error rc",
+}
+
+
 def model_error_flag(code: int) -> int:
     """The driver flag of a run that a model function ended with error ``code``: -100 - code."""
     return int(Flag.MODEL_ERROR) - int(code)
@@ -127,11 +136,11 @@ def c_header() -> str:
              " * (besides their solver's own). Pure C99; no other dependency. */",
              "#ifndef LCG_CODES_H", "#define LCG_CODES_H", "",
              "/* The model functions' return codes (every model, every language; lcg_model.h). */"]
-    lines += [f"#define {plain} {int(code)}" for code, (plain, _dae, _text) in MODEL_CODE_C.items() if plain]
+    lines += [f"#define {plain} {int(code)} /* {text} */" for code, (plain, _dae, text) in MODEL_CODE_C.items() if plain]
     lines += ["", "/* The constrained model functions' return codes (<PREFIX>_DAE_OK, ... of every <prefix>_dae.h). */"]
     lines += [f"#define {dae} {int(code)} /* {text} */" for code, (_plain, dae, text) in MODEL_CODE_C.items()]
     lines += ["", "/* The drivers' flags besides their solver's own. */"]
-    lines += [f"#define LCG_FLAG_{flag.name} ({int(flag)})" for flag in Flag]
+    lines += [f"#define LCG_FLAG_{flag.name} ({int(flag)}) /* {FLAG_DOC[flag]} */" for flag in Flag]
     lines += ["/* The flag of a run that a model function ended with error code rc. */",
               "#define LCG_MODEL_ERROR_FLAG(rc) (LCG_FLAG_MODEL_ERROR - (rc))", ""]
     for family, flags in NONFINITE_CAUSES.items():

@@ -1,0 +1,165 @@
+"""The runtime's C as real files, its structs declared once, its result codes in one table.
+
+* lagcodegen/runtime/ holds C that compiles as it is (no template syntax), and the runtime's cache
+  key follows every file's text;
+* the C ``#define`` s of lcg_codes.h carry the values of lagcodegen.codes, and the C drivers and
+  the Python runners share its rule for non-finite values;
+* the generated struct headers, the cffi declarations and the Python pack formats come from one
+  declaration, and cffi refuses a declaration that disagrees with the compiled header.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import shutil
+import subprocess
+
+import cffi
+import pytest
+
+import lagcodegen.runtime as runtime_package
+from lagcodegen.codegen import signatures as sig
+from lagcodegen.codegen.cffi_decl import runtime_cdef, taylor_runtime_cdef
+from lagcodegen.codes import FLAG_TEXT, NONFINITE_CAUSES, SOLVER_FLAG_TEXT, Flag, ModelCode, c_header, \
+    model_error_flag
+from lagcodegen.solvers import base, control, cvode, ensemble_result, ida
+from lagcodegen.solvers.taylor.emit import runtime_sources as taylor_runtime_sources
+
+from helpers import STRICT_CFLAGS
+
+B = importlib.import_module("lagcodegen.build")
+
+
+def test_runtime_files_are_plain_c_and_compile_strictly(tmp_path, cc):
+    files = sorted(p.name for p in runtime_package.FOLDER.iterdir() if p.suffix in (".c", ".h"))
+    assert {"lcg_cvode.c", "lcg_cvc.c", "lcg_ida.c", "lcg_taylor.c", "lcg_pool.h", "lcg_control.h"} <= set(files)
+    for name in files:
+        text = runtime_package.source(name)
+        assert "{{" not in text and "{%" not in text, f"{name} holds template syntax"
+    sources = {**B.runtime_sources(B.find_sundials()), **taylor_runtime_sources()}
+    for name, text in sources.items():
+        (tmp_path / name).write_text(text)
+    for name in ("lcg_cvode.c", "lcg_cvc.c", "lcg_ida.c", "lcg_taylor.c"):
+        proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name[:-2] + ".o"], cwd=tmp_path,
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+
+
+def test_runtime_key_follows_every_runtime_file(tmp_path, monkeypatch, cc):
+    sundials = B.find_sundials()
+    before = B.runtime_key(cc, B.DEFAULT_CFLAGS, sundials)
+    assert B.runtime_key(cc, B.DEFAULT_CFLAGS, sundials) == before
+    for name in ("lcg_pool.h", "lcg_cvode.c", "sundials_api.h"):
+        folder = tmp_path / name
+        shutil.copytree(runtime_package.FOLDER, folder, ignore=shutil.ignore_patterns("*.py", "__pycache__"))
+        (folder / name).write_text((folder / name).read_text() + "\n/* changed */\n")
+        monkeypatch.setattr(runtime_package, "FOLDER", folder)
+        assert B.runtime_key(cc, B.DEFAULT_CFLAGS, sundials) != before, name
+        monkeypatch.undo()
+    # and the generated headers: a changed declaration changes the key
+    monkeypatch.setattr(sig, "CVODE_STATS", sig.Struct("lcg_cvode_stats", sig.CVODE_STATS.fields[:-1]))
+    monkeypatch.setitem(sig.DRIVERS, "cvode", sig.Driver("cvode", "lcg_model.h", (
+        sig.CVODE_OPTIONS, sig.CVODE_STATS, sig.ensemble("lcg_cvode_ensemble", "lcg_model"))))
+    assert B.runtime_key(cc, B.DEFAULT_CFLAGS, sundials) != before
+
+
+def _c_values(tmp_path, cc, exprs: list[str]) -> list[int]:
+    (tmp_path / "lcg_codes.h").write_text(c_header())
+    body = "".join(f'    printf("%d\\n", (int)({e}));\n' for e in exprs)
+    (tmp_path / "main.c").write_text(f'#include <stdio.h>\n#include "lcg_codes.h"\nint main(void)\n{{\n{body}'
+                                     "    return 0;\n}\n")
+    subprocess.run([cc, *STRICT_CFLAGS, "main.c", "-o", "main"], cwd=tmp_path, check=True)
+    out = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True, check=True).stdout
+    return [int(v) for v in out.split()]
+
+
+def test_c_codes_are_the_python_table(tmp_path, cc):
+    names = [f"LCG_FLAG_{f.name}" for f in Flag] + ["LCG_OK", "LCG_ERR_SINGULAR_MASS", "LCG_ERR_NONFINITE",
+                                                      "LCG_DAE_OK", "LCG_DAE_ERR_SINGULAR", "LCG_DAE_ERR_NONFINITE",
+                                                      "LCG_DAE_ERR_PROJECTION", "LCG_MODEL_ERROR_FLAG(2)"]
+    expected = [int(f) for f in Flag] + [0, 1, 2, 0, 1, 2, 3, model_error_flag(ModelCode.NONFINITE)]
+    assert _c_values(tmp_path, cc, names) == expected
+    assert model_error_flag(ModelCode.NONFINITE) == -102
+    # the attribution rule of non-finite values: the C macro and the scikit-sundae runner's tuple
+    flags = list(range(-40, 1))
+    got = _c_values(tmp_path, cc, [f"LCG_CVODE_NONFINITE_CAUSE({f})" for f in flags])
+    assert [f for f, v in zip(flags, got) if v] == sorted(NONFINITE_CAUSES["CVODE"])
+
+
+def test_python_reads_the_one_table():
+    assert (base.ERR_SINGULAR, base.ERR_NONFINITE, base.ERR_PROJECTION) == (1, 2, 3)
+    assert base.FLAG_TEXT is SOLVER_FLAG_TEXT
+    assert (control.CANCELLED, control.TIMED_OUT, control.NOT_RUN, control.CHUNK_FAILED) == (-80, -81, -82, -83)
+    assert ensemble_result.REJECTED == -84
+    for flag, text in ensemble_result.FLAG_TEXT.items():
+        assert FLAG_TEXT[flag] == text
+    assert SOLVER_FLAG_TEXT["Taylor"][-20] == "out of memory"
+    assert base.message(-20, 0, "", "Taylor") == "out of memory"
+
+
+def test_runtime_c_has_no_literal_flags():
+    """Every driver flag in the runtime's C is a name of lcg_codes.h (comments aside)."""
+    for name in ("lcg_cvode.c", "lcg_cvc.c", "lcg_ida.c", "lcg_taylor.c", "lcg_pool.h", "lcg_control.h",
+                 "lcg_sundials.h"):
+        code = re.sub(r"/\*.*?\*/", "", runtime_package.source(name), flags=re.S)
+        literal = re.findall(r"-\s*(?:2[0-2]|8[0-4]|100)\b", code)
+        assert not literal, f"{name}: literal flags {literal}"
+
+
+def test_pack_formats_and_stat_names_come_from_the_declaration():
+    assert cvode.CVC_OPTIONS[1] == sig.pack_format(sig.CVC_OPTIONS, cvode.CVC_OPTIONS[0]) == "idqdddiddidiid"
+    assert ida.IDA_OPTIONS[1] == sig.pack_format(sig.IDA_OPTIONS, ida.IDA_OPTIONS[0]) == "dqdddiiiiid"
+    assert base.STAT_NAMES == sig.STAT_NAMES
+    assert list(base.STAT_NAMES)[:3] == ["nsteps", "njac", "nlinsetups"]
+    with pytest.raises(KeyError, match="no field 'nope'"):
+        sig.pack_format(sig.CVC_OPTIONS, ("rtol", "nope"))
+
+
+def test_every_declared_struct_is_in_the_cffi_interface():
+    rt, taylor = runtime_cdef(), taylor_runtime_cdef()
+    for name, driver in sig.DRIVERS.items():
+        for struct in driver.structs:
+            assert sig.cffi_struct(struct) in (taylor if name == "taylor" else rt), struct.name
+    for table, cdef in ((sig.MODEL_TABLE, rt), (sig.DAE_TABLE, rt), (sig.TAYLOR_TABLE, taylor)):
+        assert sig.cffi_struct(table) in cdef
+
+
+def test_generated_header_and_cffi_agree_and_cffi_refuses_a_wrong_declaration(tmp_path):
+    header = sig.c_header(sig.Driver("probe", "stddef.h", (sig.CVODE_STATS,)), "test").replace(
+        '#include "stddef.h"', "#include <stddef.h>")
+    (tmp_path / "probe.h").write_text(header)
+
+    def build(struct, name):
+        ffi = cffi.FFI()
+        ffi.cdef(sig.cffi_struct(struct) + "\nsize_t probe_size(void);")
+        ffi.set_source(name, '#include "probe.h"\nsize_t probe_size(void) { return sizeof(lcg_cvode_stats); }',
+                       include_dirs=[str(tmp_path)])
+        ffi.compile(tmpdir=str(tmp_path))
+        module = importlib.import_module(name)
+        return module
+
+    import sys
+    sys.path.insert(0, str(tmp_path))
+    try:
+        good = build(sig.CVODE_STATS, "_lcg_probe_good")
+        assert good.ffi.sizeof("lcg_cvode_stats") == good.lib.probe_size()
+        assert good.ffi.offsetof("lcg_cvode_stats", "message") == good.ffi.sizeof("long") * 8 + 8 * 2 + 4 * 3
+        swapped = list(sig.CVODE_STATS.fields)
+        swapped[0], swapped[1] = swapped[1], swapped[0]  # same size, another order: a wrong layout
+        with pytest.raises(Exception, match="wrong offset for field .nrhs."):
+            bad = build(sig.Struct("lcg_cvode_stats", tuple(swapped)), "_lcg_probe_bad")
+            bad.ffi.new("lcg_cvode_stats *")
+    finally:
+        sys.path.remove(str(tmp_path))
+
+
+def test_c_struct_renders_every_field_in_order():
+    text = sig.c_struct(sig.IDA_OPTIONS)
+    at = [text.find("    " + f.c() + ";") for f in sig.IDA_OPTIONS.fields]
+    assert -1 not in at and at == sorted(at)
+    assert sig.Field("poll", "int (*)(void *data)").c() == "int (*poll)(void *data)"
+    assert sig.Field("message", "char[512]").c() == "char message[512]"
+    assert sig.Field("p", "const double *").c() == "const double *p"
+    assert "    /* run control (all zero: none) */\n    int *cancel;" in text
+    assert all(len(line) <= 110 for line in text.splitlines())
