@@ -389,6 +389,13 @@ DRIVERS = {d.name: d for d in (
 )}
 
 
+def standalone(struct: Struct, prefix: str) -> Struct:
+    """``struct`` as a model's own driver declares it (``lcg_taylor_options`` ->
+    ``<prefix>_taylor_options``; no run-control fields: a standalone driver has none)."""
+    fields = tuple(f for f in struct.fields if f not in CONTROL_FIELDS)
+    return Struct(prefix + struct.name[len("lcg"):], fields, struct.doc)
+
+
 def _fn(name: str, sig: str) -> Field:
     return Field(name, f"int (*)({sig})")
 

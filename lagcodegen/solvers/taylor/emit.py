@@ -23,7 +23,8 @@ import symengine as se
 from ...codegen.c import c_expr, print_block
 from ...codegen.record import header_context, new_code
 from ...codegen.templates import environment, templates_dir
-from ...codegen.signatures import DRIVERS
+from ...codegen.signatures import (DRIVERS, TAYLOR_EVENTS, TAYLOR_OPTIONS, TAYLOR_STATS, cffi_struct,
+                                     standalone)
 from ...codegen.signatures import c_header as types_header
 from ...codes import c_header
 from ...runtime import sources as runtime_files
@@ -177,19 +178,12 @@ def jet_sources(scene: Scene, events=(), decomposition: Decomposition | None = N
 
 
 def taylor_cdef(prefix: str) -> str:
-    """cffi declarations of the Taylor driver (API mode: struct layouts from the header)."""
+    """cffi declarations of a model's own Taylor driver (<prefix>_taylor.h): its structs from the
+    runtime driver's declaration (:func:`lagcodegen.codegen.signatures.standalone`; every field,
+    so that cffi checks the header's layout), its functions."""
     p = prefix
-    return f"""
-typedef struct {{
-    double rtol; double atol; const double *atol_vec; long max_steps; double max_step; int order; ...;
-}} {p}_taylor_options;
-typedef struct {{
-    long nsteps; long njet; long nroot; int order; double t_reached; double h_last; double h_min;
-    double h_max; int flag; int model_error; int nt_done; char message[512]; ...;
-}} {p}_taylor_stats;
-typedef struct {{
-    int max_events; int n_events; double *t; double *y; int *which; int *direction; int terminated; ...;
-}} {p}_taylor_events;
+    structs = "\n".join(cffi_struct(standalone(s, p)) for s in (TAYLOR_OPTIONS, TAYLOR_STATS, TAYLOR_EVENTS))
+    return "\n" + structs + f"""
 int {p}_taylor_solve(const double *p, const double *y0, int nt, const double *tout, double *yout,
                      double *out, const {p}_taylor_options *opt, {p}_taylor_stats *st,
                      {p}_taylor_events *ev);
