@@ -163,3 +163,23 @@ def test_c_struct_renders_every_field_in_order():
     assert sig.Field("p", "const double *").c() == "const double *p"
     assert "    /* run control (all zero: none) */\n    int *cancel;" in text
     assert all(len(line) <= 110 for line in text.splitlines())
+
+
+def test_taylor_event_location_is_one_file_for_both_drivers():
+    """lcg_taylor_roots.h is printed as it is into a standalone integrator with events, and
+    included by the runtime's driver (one source, two uses)."""
+    import sympy as sp
+
+    import lagcodegen as lcg
+    from lagcodegen.model.events import Event
+    from lagcodegen.solvers.taylor.emit import taylor_sources
+
+    roots = runtime_package.source("lcg_taylor_roots.h")
+    scene = lcg.Scene(lcg.derive(lcg.systems.pendulum()), jacobian=False)
+    with_events = taylor_sources(scene, [Event("down", sp.Symbol("theta"), 0, False)])["pendulum_taylor.c"]
+    assert roots in with_events and "#include \"lcg_taylor_roots.h\"" not in with_events
+    assert roots not in taylor_sources(scene)["pendulum_taylor.c"]  # no events: no root finding
+    runtime = taylor_runtime_sources()
+    assert runtime["lcg_taylor_roots.h"] == roots
+    assert '#include "lcg_taylor_roots.h"' in runtime["lcg_taylor_driver.h"]
+    assert roots not in runtime["lcg_taylor_driver.h"]

@@ -27,6 +27,7 @@ from ...codegen.signatures import (DRIVERS, TAYLOR_EVENTS, TAYLOR_OPTIONS, TAYLO
                                      standalone)
 from ...codegen.signatures import c_header as types_header
 from ...codes import c_header
+from ...runtime import source as runtime_file
 from ...runtime import sources as runtime_files
 from ...formulation.kernels import Block, substituter
 from ...formulation.scene import Scene
@@ -69,6 +70,7 @@ def _jinja():
     env.tests["row"] = lambda e: isinstance(e, int) and not isinstance(e, bool)
     env.tests["zero"] = lambda e: not isinstance(e, (int, Const)) and e == 0
     env.globals["coef"] = _coef
+    env.globals["runtime_source"] = runtime_file  # event location (lcg_taylor_roots.h), printed as it is
     return env
 
 
@@ -125,12 +127,12 @@ def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None 
 
 #: The model-independent Taylor driver: real C files of lagcodegen/runtime/ (compiled once per
 #: installation into the Taylor runtime, :func:`lagcodegen.solvers.taylor.runner.taylor_runtime`).
-RUNTIME_FILES = ("lcg_taylor.c", "lcg_taylor.h", "lcg_control.h", "lcg_pool.h")
+RUNTIME_FILES = ("lcg_taylor.c", "lcg_taylor.h", "lcg_taylor_roots.h", "lcg_control.h", "lcg_pool.h")
 #: The templates of what the runtime renders: the table of a model's jet (shipped with every jet
 #: too) and the driver's body, the text every standalone integrator prints (taylor/_driver.j2).
 RUNTIME_TEMPLATES = {"lcg_taylor_model.h": "taylor/lcg_taylor_model.h.j2"}
 #: Every template file the Taylor runtime's rendered sources come from (with those they include).
-RUNTIME_TEMPLATE_FILES = ("taylor/lcg_taylor_model.h.j2", "taylor/_driver.j2", "taylor/roots.c.j2")
+RUNTIME_TEMPLATE_FILES = ("taylor/lcg_taylor_model.h.j2", "taylor/_driver.j2")
 
 
 def driver_header() -> str:
