@@ -183,3 +183,29 @@ def test_taylor_event_location_is_one_file_for_both_drivers():
     assert runtime["lcg_taylor_roots.h"] == roots
     assert '#include "lcg_taylor_roots.h"' in runtime["lcg_taylor_driver.h"]
     assert roots not in runtime["lcg_taylor_driver.h"]
+
+
+def test_model_headers_declare_the_declared_signatures():
+    """The prototypes of a generated model's header (plain and constrained) are those of
+    MODEL_FUNCTIONS and DAE_FUNCTIONS, whose pointer types the runtime's tables (and their cffi
+    declarations) are made of."""
+    import lagcodegen as lcg
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.theory.constraints import ConstrainedSystem
+
+    m = lcg.Model("cart")
+    x, y = m.coordinates("x y")
+    length, g, mass = m.parameters(l=1.0, g=9.81, m=1.0)
+    m.particle("bob", mass, (x, y))
+    m.gravity(g)
+    code, _ = generate_constrained(ConstrainedSystem(m, holonomic=[x**2 + y**2 - length**2]), ggl=True)
+    flat = {name: " ".join(text.split()) for name, text in code.files.items() if name.endswith(".h")}
+    dae = flat["cart_dae.h"]
+    for name, s in sig.DAE_FUNCTIONS.items():
+        if name == "roots":
+            continue  # declared only by models with events
+        assert s.c("cart") + ";" in dae, name
+    assert sig.MODEL_FUNCTIONS["rhs"].c("cart") + ";" in flat["cart.h"]
+    table = sig.cffi_struct(sig.DAE_TABLE)
+    for s in sig.DAE_FUNCTIONS.values():
+        assert f"int (*{s.name})({', '.join(a.c() for a in s.args)});" in table

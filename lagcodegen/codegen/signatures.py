@@ -61,6 +61,30 @@ MODEL_FUNCTIONS = {sig.name: sig for sig in (
 )}
 
 
+_D = "double"
+_CD = "const double *"
+_OUT = "double *"
+
+#: The functions of a constrained model (<prefix>_dae.h; the lcg_dae_model table points to them):
+#: the augmented system (kkt, eq. 4.5), the index-1 right-hand side (crhs), the natural rate of
+#: the Baumgarte parameters, the constraint residuals, the projection onto the constraints, the
+#: outputs, the event functions, the GGL residual and its Jacobian.
+DAE_FUNCTIONS = {sig.name: sig for sig in (
+    Signature("kkt", (_T, _Y, _P, Arg("alpha", _D), Arg("beta", _D), Arg("acc", _OUT, "nq", out=True),
+                      Arg("lam", _OUT, "nj", out=True))),
+    Signature("crhs", (_T, _Y, _P, Arg("alpha", _D), Arg("beta", _D), Arg("ydot", _OUT, "ny", out=True))),
+    Signature("natural_rate", (_T, _Y, _P, Arg("rate", _OUT, "1", out=True))),
+    Signature("residuals", (_T, _Y, _P, Arg("g", _OUT, "njh", out=True), Arg("s", _OUT, "nj", out=True))),
+    Signature("project", (_T, _Y, _P, Arg("tol", _D), Arg("maxit", "int"), Arg("ynew", _OUT, "ny", out=True),
+                          Arg("err", _OUT, "1", out=True))),
+    Signature("coutputs", (_T, _Y, Arg("lam", _CD, "nj"), _P, Arg("out", _OUT, "nout", out=True))),
+    Signature("roots", (_T, _Y, Arg("lam", _CD, "nj"), _P, Arg("gout", _OUT, "nroot", out=True))),
+    Signature("ggl_res", (_T, Arg("yy", _CD, "ng"), Arg("yp", _CD, "ng"), _P, Arg("rr", _OUT, "ng", out=True))),
+    Signature("ggl_jac", (_T, Arg("cj", _D), Arg("yy", _CD, "ng"), Arg("yp", _CD, "ng"), _P,
+                          Arg("jac", _OUT, "ng, ng", out=True))),
+)}
+
+
 def c_signature(name: str, prefix: str) -> str:
     """``int <prefix>_<name>(...)``: the C prototype (add ``;``) or the definition's first line."""
     return MODEL_FUNCTIONS[name].c(prefix)
@@ -408,15 +432,7 @@ MODEL_TABLE = Struct("lcg_model", (
 #: The function table of a compiled constrained model (lcg_dae_model.h).
 DAE_TABLE = Struct("lcg_dae_model", (
     *(Field(n, "int") for n in ("abi", "nq", "ny", "nj", "njh", "ng", "np", "nout", "nroot")),
-    _fn("kkt", "double t, const double *y, const double *p, double alpha, double beta, double *acc, double *lam"),
-    _fn("crhs", "double t, const double *y, const double *p, double alpha, double beta, double *ydot"),
-    _fn("natural_rate", "double t, const double *y, const double *p, double *rate"),
-    _fn("residuals", "double t, const double *y, const double *p, double *g, double *s"),
-    _fn("project", "double t, const double *y, const double *p, double tol, int maxit, double *ynew, double *err"),
-    _fn("coutputs", "double t, const double *y, const double *lam, const double *p, double *out"),
-    _fn("roots", "double t, const double *y, const double *lam, const double *p, double *gout"),
-    _fn("ggl_res", "double t, const double *yy, const double *yp, const double *p, double *rr"),
-    _fn("ggl_jac", "double t, double cj, const double *yy, const double *yp, const double *p, double *jac"),
+    *(_fn(sig.name, ", ".join(a.c() for a in sig.args)) for sig in DAE_FUNCTIONS.values()),
     Field("model", "const lcg_model *")))
 #: The table of a model's Taylor jet (lcg_taylor_model.h).
 TAYLOR_TABLE = Struct("lcg_taylor_model", (
