@@ -118,12 +118,15 @@ def compiler_id(cc: str) -> str:
 
 #: The model-independent native drivers, real C files of lagcodegen/runtime/ compiled once per
 #: installation: CVODE for ODEs (lcg_cvode.c), CVODE for the index-1 constrained equations
-#: (lcg_cvc.c), IDA for the GGL form (lcg_ida.c), with the headers they include.
-RUNTIME_FILES = ("lcg_model.h", "lcg_dae_model.h", "lcg_control.h", "lcg_pool.h", "lcg_sundials.h", "sundials_api.h",
-                 "lcg_cvode.h", "lcg_cvode.c", "lcg_cvc.h", "lcg_cvc.c", "lcg_ida.h", "lcg_ida.c")
+#: (lcg_cvc.c), IDA for the GGL form (lcg_ida.c); each lcg_<name>.c with its header lcg_<name>.h,
+#: and its structs in lcg_<name>_types.h (signatures.DRIVERS[name]).
+SUNDIALS_DRIVERS = ("cvode", "cvc", "ida")
 #: The runtime's C files and the headers its cffi module includes.
-RUNTIME_C_FILES = ("lcg_cvode.c", "lcg_cvc.c", "lcg_ida.c")
-RUNTIME_HEADERS = ("lcg_cvode.h", "lcg_cvc.h", "lcg_ida.h")
+RUNTIME_C_FILES = tuple(f"lcg_{d}.c" for d in SUNDIALS_DRIVERS)
+RUNTIME_HEADERS = tuple(f"lcg_{d}.h" for d in SUNDIALS_DRIVERS)
+#: Every file of lagcodegen/runtime/ the runtime is compiled from: the drivers and what they share.
+RUNTIME_FILES = ("lcg_model.h", "lcg_dae_model.h", "lcg_control.h", "lcg_pool.h", "lcg_sundials.h", "sundials_api.h",
+                 *RUNTIME_HEADERS, *RUNTIME_C_FILES)
 #: The headers of a model's function table (its library compiles them with its table).
 TABLE_FILES = ("lcg_model.h",)
 DAE_TABLE_FILES = ("lcg_model.h", "lcg_dae_model.h")
@@ -146,8 +149,9 @@ def generated_headers() -> dict[str, str]:
     return {"lcg_codes.h": c_header()}
 
 
-#: The SUNDIALS drivers whose structs the runtime's generated headers declare (lcg_<name>_types.h).
-RUNTIME_DRIVERS = ("cvode", "dae", "cvc", "ida")
+#: The drivers whose structs the runtime's generated headers declare (lcg_<name>_types.h; "dae":
+#: the events record of the constrained drivers).
+RUNTIME_DRIVERS = ("dae", *SUNDIALS_DRIVERS)
 
 
 def types_headers(names=RUNTIME_DRIVERS) -> dict[str, str]:
