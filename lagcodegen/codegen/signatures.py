@@ -1,7 +1,11 @@
-"""The signatures of the generated model functions, once: the C header's prototypes, the
-definitions in the C sources, the cffi declarations and the Fortran ``bind(C)`` interfaces are
-all printed from :data:`MODEL_FUNCTIONS` (templates call :func:`c_signature` and
-:func:`fortran_signature` as jinja2 globals)."""
+"""The interface between generated code, the runtime's C drivers and Python, declared once: the
+signatures of the generated model functions (:data:`MODEL_FUNCTIONS`, :data:`DAE_FUNCTIONS`) and
+the structs the drivers exchange (options, statistics, ensembles, events, the model tables:
+:data:`DRIVERS`, :data:`MODEL_TABLE`, ...). From them come the C header's prototypes and the
+Fortran ``bind(C)`` interfaces (templates call :func:`c_signature` and :func:`fortran_signature`
+as jinja2 globals), the drivers' generated headers ``lcg_<driver>_types.h`` (:func:`c_header`),
+the cffi declarations (:func:`cffi_struct`), the Python pack formats of the options
+(:func:`pack_format`) and the keys of Result.stats (:data:`STAT_NAMES`)."""
 
 from __future__ import annotations
 
@@ -125,7 +129,7 @@ class Field:
 @dataclass(frozen=True)
 class Struct:
     """A ``typedef struct { ... } name;`` of the drivers' interface: its fields in layout order,
-    a comment, and ``section`` (field name -> a comment line printed before it)."""
+    a comment, and ``sections`` ((field name, a comment line printed before it), ...)."""
 
     name: str
     fields: tuple[Field, ...]
