@@ -3,8 +3,8 @@
  * The table of a compiled model's functions: what the model-independent native drivers
  * (lcg_cvode.c, compiled once per installation) need to know of a model. Each model library
  * defines one table, <prefix>_model (file <prefix>_table.c), and <prefix>_model_table() returning
- * its address. Pure C99; no other dependency
- * than lcg_codes.h. */
+ * its address. Pure C99; no other dependency than lcg_codes.h (the result codes, generated from
+ * lagcodegen/codes.py). */
 #ifndef LCG_MODEL_H
 #define LCG_MODEL_H
 
