@@ -24,6 +24,7 @@ STAGES = [
     ("buildstep",),
     ("cache",),
     ("build",),
+    ("fmu",),
     ("solvers",),
     ("api",),
     ("sweep",),

@@ -1,0 +1,246 @@
+"""Export a model as an FMU (FMI 2.0 or 3.0, Model Exchange and Co-Simulation in one archive):
+one job, from a model (or model file) to the zip file: derivation, the scene with every
+parameter in ``p``, the generated C (:func:`lagcodegen.codegen.generate_code`, as it is), the
+model table ``lcg_fmu_model.c``, the model-independent FMU core and FMI functions
+(``templates/fmu``), the standard's headers (``include/``), modelDescription.xml
+(:mod:`.description`), the compiled binary for this platform and the sources.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Mapping, Sequence
+
+from ..codegen.languages import generate_code
+from ..codegen.templates import environment, templates_dir
+from ..derivation import derive
+from ..errors import CompileError, ModelError
+from ..formulation.scene import Scene
+from ..model.model import Model
+from ..modelfile.document import ModelFile
+from ..modelfile.loader import load_model
+from ..util import check_finite, excerpt
+from ..version import __version__
+from .description import Header, build_description_fmi3, model_description_fmi2, model_description_fmi3
+from .variables import VariableTable, variable_table
+
+FMI_VERSIONS = (2, 3)
+#: The model-independent C of every FMU (templates/fmu), and the FMI version's own functions.
+CORE_FILES = ("lcg_fmu.h", "lcg_fmu_core.c", "lcg_dopri.h", "lcg_dopri.c")
+FMI_FILES = {2: ("lcg_fmi2.c",), 3: ("lcg_fmi3.c",)}
+#: The standard's headers (lagcodegen/fmu/include/fmi<version>, BSD 2-clause, unchanged).
+FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+MODEL_TABLE = "lcg_fmu_model.c"
+#: Flags of the binary (the sources are C99 + libm; only the FMI functions are exported).
+FMU_CFLAGS = ("-std=c99", "-O2", "-fPIC", "-fvisibility=hidden")
+#: Relative tolerance of the Co-Simulation integrator when neither the call nor the file gives one
+#: (the importer's tolerance, fmi2SetupExperiment / fmi3EnterInitializationMode, replaces it).
+DEFAULT_TOLERANCE = 1e-8
+INCLUDE_DIR = Path(__file__).resolve().parent / "include"
+
+
+def _binary_folder(fmi_version: int) -> tuple[str, str]:
+    """(platform folder, library suffix) of this machine's binary."""
+    system, machine = sys.platform, platform.machine().lower()
+    arch = {"amd64": "x86_64", "x86_64": "x86_64", "arm64": "aarch64", "aarch64": "aarch64"}.get(machine)
+    if system.startswith("linux") and arch:
+        return ("linux64" if arch == "x86_64" and fmi_version == 2 else f"{arch}-linux"), ".so"
+    if system == "darwin" and arch:
+        return ("darwin64" if fmi_version == 2 else f"{arch}-darwin"), ".dylib"
+    raise ModelError(f"export_fmu: no FMI platform name known for {system} on {machine} (Linux and macOS on "
+                     "x86_64 or aarch64 are)")
+
+
+def _model_file(source) -> ModelFile | None:
+    if isinstance(source, ModelFile):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        return load_model(source)
+    return None
+
+
+def _token(texts: Sequence[str]) -> str:
+    """A GUID-shaped digest of the FMU's content: the same sources give the same token."""
+    h = hashlib.sha256("\0".join(texts).encode()).hexdigest()
+    return f"{{{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}}}"
+
+
+def _check_names(table: VariableTable) -> None:
+    seen: dict[str, str] = {}
+    for v in table.variables:
+        if v.name in seen:
+            raise ModelError(f"export_fmu: the name {v.name!r} is both a {seen[v.name]} and a {v.kind} of the FMU: "
+                             "FMU variable names must be unique (rename the output or coordinate)")
+        seen[v.name] = v.kind
+
+
+def _compile(folder: Path, c_files: list[str], out: str, cc: str) -> None:
+    cmd = [cc, *FMU_CFLAGS, "-shared", *c_files, "-o", out, "-lm"]
+    try:
+        proc = subprocess.run(cmd, cwd=folder, capture_output=True, text=True)
+    except OSError as exc:
+        raise CompileError(f"export_fmu: cannot run the C compiler {cc!r}: {exc}", cmd, "") from None
+    if proc.returncode != 0:
+        raise CompileError("export_fmu: the C compiler failed on the FMU's sources", cmd, proc.stdout + proc.stderr)
+
+
+def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tunable: set[str], header: dict
+                ) -> tuple[dict[str, str], str, VariableTable]:
+    """The FMU's C sources (file name -> text, flat: the folder ``sources/`` of the archive, the
+    standard's headers included), its modelDescription.xml and its variables."""
+    if fmi_version not in FMI_VERSIONS:
+        raise ModelError(f"export_fmu: fmi_version must be 2 or 3, got {excerpt(fmi_version)}")
+    identifier = scene.prefix
+    taken = {Path(f).stem for f in (*CORE_FILES, *FMI_FILES[2], *FMI_FILES[3], MODEL_TABLE,
+                                    *FMI_HEADERS[2], *FMI_HEADERS[3])}
+    if identifier in taken:
+        raise ModelError(f"export_fmu: the model identifier {identifier!r} is the name of one of the FMU's own "
+                         f"files ({', '.join(sorted(taken))}): give the model another name, or model_identifier=...")
+    code = generate_code(scene, "c")
+    table = variable_table(scene, x_start=list(x_start), tunable=tunable)
+    _check_names(table)
+    folder = templates_dir() / "fmu"
+    files: dict[str, str] = {name: text for name, text in code.files.items()}
+    for name in (*CORE_FILES, *FMI_FILES[fmi_version]):
+        files[name] = (folder / name).read_text()
+    for name in FMI_HEADERS[fmi_version]:
+        files[name] = (INCLUDE_DIR / f"fmi{fmi_version}" / name).read_text()
+    c_files = sorted(n for n in files if n.endswith(".c")) + [MODEL_TABLE]
+    # The token digests everything but itself: the model's code, the glue, the variables.
+    token = _token([f"fmi {fmi_version}", *(f"{k}\0{v}" for k, v in sorted(files.items())),
+                    repr(table.variables), repr(sorted(header.items()))])
+    ctx = dict(version=__version__, identifier=identifier, model_name=scene.eom.model.name, token=token,
+               prefix=code.prefix, nx=table.nx, np=table.np, nout=table.nout, state_names=code.state_names,
+               param_names=code.param_names, input_names=code.input_names, output_names=code.output_names,
+               x_start=[repr(float(v)) for v in x_start], p_start=[repr(float(v)) for v in code.param_defaults],
+               tolerance=repr(float(header["tolerance"])))
+    files[MODEL_TABLE] = environment().get_template("fmu/lcg_fmu_model.c.j2").render(**ctx)
+    h = Header(identifier=identifier, token=token, **header)
+    if fmi_version == 2:
+        description = model_description_fmi2(table, h, c_files)
+    else:
+        description = model_description_fmi3(table, h)
+        files["buildDescription.xml"] = build_description_fmi3(identifier, c_files)
+    return files, description, table
+
+
+def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.PathLike, *, fmi_version: int = 2,
+               outputs: Sequence[str] | None = None, tunable: Sequence[str] | None = None,
+               values: Mapping[str, float] | None = None, initial: Mapping[str, float] | None = None,
+               model_identifier: str | None = None, tolerance: float | None = None,
+               start_time: float | None = None, stop_time: float | None = None, cc: str | None = None) -> Path:
+    """Write ``source`` (a :class:`Model`, a loaded :class:`ModelFile` or a model file's path) as an
+    FMU at ``path``: Model Exchange and Co-Simulation in one archive, FMI 2.0 or 3.0.
+
+    The FMU's states are y = (q, q') named as in ``simulate()``'s CSV (``theta``, ``theta_dot``),
+    their derivatives ``der(theta)``; every parameter of the model is a parameter of the FMU
+    (``tunable`` ones may change during a simulation, the others are fixed after initialization);
+    the model's inputs (:meth:`Model.input`) are FMI inputs (held between communication points in
+    Co-Simulation, the importer's values in Model Exchange); ``outputs`` are scene outputs
+    (:class:`Scene`). Co-Simulation integrates inside the FMU with Dormand-Prince 5(4) and a PI
+    step size controller (lcg_dopri.c) to the importer's relative tolerance (absolute: 1e-3 of
+    it), or ``tolerance`` when the importer gives none. The binary is compiled for this machine
+    (``binaries/linux64`` for FMI 2.0, ``binaries/x86_64-linux`` for FMI 3.0 on x86-64 Linux);
+    ``sources/`` holds every C file (FMI 2.0: the ``SourceFiles`` lists; FMI 3.0:
+    ``sources/buildDescription.xml``) so that it builds elsewhere.
+
+    Parameters
+    ----------
+    source:
+        The model. A model file's settings are the defaults: ``[simulation]`` outputs,
+        runtime_parameters (the tunable ones), parameters (start values), initial (start values
+        of the states), t_start, t_end and rtol (the DefaultExperiment).
+    fmi_version:
+        2 or 3.
+    outputs:
+        Output names (default: the file's outputs, else energy and the positions of the points).
+    tunable:
+        Parameters the importer may change during a simulation (default: the file's
+        runtime_parameters, else all).
+    values, initial:
+        Start values of parameters (and inputs) and of states by name (missing states: 0).
+    model_identifier:
+        The C name of the FMU's binary (default: the model's name).
+    tolerance, start_time, stop_time:
+        The DefaultExperiment (tolerance also the Co-Simulation default).
+    cc:
+        C compiler (default: ``$CC`` or ``cc``).
+    """
+    mf = _model_file(source)
+    if mf is not None:
+        if mf.constrained is not None:
+            raise ModelError(f"export_fmu: {mf.path} has a [constraints] table: FMUs of constrained systems are not "
+                             "available yet (an FMU needs an ODE: the index-1 form with its Baumgarte stabilization "
+                             "would be exported, and its generated code has no plain right-hand side for the FMU "
+                             "core to call); export an unconstrained model, e.g. in minimal coordinates")
+        model, s = mf.model, mf.simulation
+        eom = mf.derive()
+    elif isinstance(source, Model):
+        model, s = source, None
+        eom = derive(model)
+    else:
+        raise ModelError(f"export_fmu: source must be a Model, a ModelFile or a model file's path, got "
+                         f"{type(source).__name__} (constrained systems cannot be exported yet)")
+    if outputs is None:
+        outputs = list(s.outputs) if s is not None and s.outputs else (["energy", "positions"] if model.points
+                                                                        else ["energy"])
+    names = [p.name for p in model.params]
+    if tunable is None:
+        tunable = s.runtime_parameters if s is not None and s.runtime_parameters is not None else names
+    for name in tunable:
+        if name not in names:
+            raise ModelError(f"export_fmu: tunable parameter {name!r} is not a parameter of the model "
+                             f"(parameters: {', '.join(names) or 'none'})")
+    vals = dict(s.parameters) if s is not None else {}
+    vals.update(values or {})
+    init = dict(s.initial) if s is not None else {}
+    for name, value in (initial or {}).items():
+        init[name] = check_finite(value, f"export_fmu: initial value of {name!r}")
+    state_names = [q.name for q in model.coords] + [v.name for v in model.speeds]
+    for name in init:
+        if name not in state_names:
+            raise ModelError(f"export_fmu: initial value given for {name!r}, which is not a coordinate or velocity "
+                             f"(state: {', '.join(state_names)})")
+    x_start = [float(init.get(name, 0.0)) for name in state_names] + [0.0] * len(eom.quadratures)
+    if tolerance is None:
+        tolerance = s.rtol if s is not None and s.rtol > 0 else DEFAULT_TOLERANCE
+    tolerance = check_finite(tolerance, "export_fmu: tolerance")
+    if not tolerance > 0:
+        raise ModelError(f"export_fmu: tolerance must be positive, got {tolerance:g}")
+    t0 = start_time if start_time is not None else (s.t_start if s is not None else 0.0)
+    t1 = stop_time if stop_time is not None else (s.t_end if s is not None else None)
+    scene = Scene(eom, jacobian=False, outputs=outputs, runtime_parameters=None, values=vals,
+                  prefix=model_identifier)
+    header = dict(model_name=model.name, description=f"lagcodegen model {model.name}", start_time=float(t0),
+                  stop_time=None if t1 is None else float(t1), tolerance=float(tolerance))
+    files, description, _ = fmu_sources(scene, fmi_version=fmi_version, x_start=x_start, tunable=set(tunable),
+                                        header=header)
+    plat, suffix = _binary_folder(fmi_version)
+    identifier = scene.prefix
+    cc = cc or os.environ.get("CC") or "cc"
+    path = Path(path)
+    with tempfile.TemporaryDirectory(prefix="lcg_fmu_") as tmp:
+        work = Path(tmp)
+        for name, text in files.items():
+            (work / name).write_text(text)
+        library = f"{identifier}{suffix}"
+        _compile(work, sorted(n for n in files if n.endswith(".c")), library, cc)
+        staged = work / "out.fmu"
+        with zipfile.ZipFile(staged, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("modelDescription.xml", description)
+            zf.write(work / library, f"binaries/{plat}/{library}")
+            for name in sorted(files):
+                zf.writestr(f"sources/{name}", files[name])
+            zf.writestr("documentation/licenses/fmi-standard-headers.txt", (INCLUDE_DIR / "LICENSE.txt").read_text())
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(str(staged), str(path))
+    return path
