@@ -46,6 +46,7 @@ from .solvers.options import CVODE, IDA, Taylor  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
                   compile_reduction)
 from . import modelfile  # noqa: F401
+from .fmu import export_fmu  # noqa: F401
 
 from . import legacy as _legacy  # noqa: E402
 
