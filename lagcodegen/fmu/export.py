@@ -19,6 +19,8 @@ import zipfile
 from pathlib import Path
 from typing import Mapping, Sequence
 
+from ..build import compiler_id
+from ..cache import CACHE_FORMAT, cache_key, cached_build
 from ..codegen.languages import generate_code
 from ..codegen.templates import environment, templates_dir
 from ..derivation import derive
@@ -83,14 +85,44 @@ def _check_names(table: VariableTable) -> None:
         seen[v.name] = v.kind
 
 
-def _compile(folder: Path, c_files: list[str], out: str, cc: str) -> None:
-    cmd = [cc, *FMU_CFLAGS, "-shared", *c_files, "-o", out, "-lm"]
+def _run(cmd: list[str], folder: Path, what: str) -> None:
     try:
         proc = subprocess.run(cmd, cwd=folder, capture_output=True, text=True)
     except OSError as exc:
-        raise CompileError(f"export_fmu: cannot run the C compiler {cc!r}: {exc}", cmd, "") from None
+        raise CompileError(f"export_fmu: cannot run the C compiler {cmd[0]!r}: {exc}", cmd, "") from None
     if proc.returncode != 0:
-        raise CompileError("export_fmu: the C compiler failed on the FMU's sources", cmd, proc.stdout + proc.stderr)
+        raise CompileError(f"export_fmu: the C compiler failed on {what}", cmd, proc.stdout + proc.stderr)
+
+
+def runtime_files(fmi_version: int) -> dict[str, str]:
+    """The model-independent C of an FMI version's FMUs (core, integrator, FMI functions, the
+    standard's headers): file name -> text."""
+    folder = templates_dir() / "fmu"
+    files = {name: (folder / name).read_text() for name in (*CORE_FILES, *FMI_FILES[fmi_version])}
+    files.update({name: (INCLUDE_DIR / f"fmi{fmi_version}" / name).read_text() for name in FMI_HEADERS[fmi_version]})
+    return files
+
+
+def runtime_object(fmi_version: int, cc: str) -> Path:
+    """The model-independent part of an FMI version's binaries compiled once per lagcodegen
+    version, compiler and sources into one relocatable object (``cc -r``), kept in the build cache
+    (:mod:`lagcodegen.cache`): an export then compiles only the model's C (the runtime is 80-90%
+    of the compiler's time for a double pendulum)."""
+    files = runtime_files(fmi_version)
+    key = cache_key([__version__, f"cache format {CACHE_FORMAT}", f"fmu runtime fmi{fmi_version}", compiler_id(cc),
+                     " ".join(FMU_CFLAGS), *sorted(f"{k}\0{v}" for k, v in files.items())])
+    filename = f"lcg_fmu_fmi{fmi_version}.o"
+
+    def make(tmp: Path) -> Path:
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+        c_files = sorted(n for n in files if n.endswith(".c"))
+        for name in c_files:
+            _run([cc, *FMU_CFLAGS, "-c", name, "-o", name[:-2] + ".o"], tmp, "the FMU runtime")
+        _run([cc, "-r", *[n[:-2] + ".o" for n in c_files], "-o", filename], tmp, "the FMU runtime")
+        return tmp / filename
+
+    return cached_build(key, f"lcg_fmu_fmi{fmi_version}_{key}", filename, make, lambda name, path: path)[1]
 
 
 def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tunable: set[str], header: dict
@@ -108,12 +140,8 @@ def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tun
     code = generate_code(scene, "c")
     table = variable_table(scene, x_start=list(x_start), tunable=tunable)
     _check_names(table)
-    folder = templates_dir() / "fmu"
     files: dict[str, str] = {name: text for name, text in code.files.items()}
-    for name in (*CORE_FILES, *FMI_FILES[fmi_version]):
-        files[name] = (folder / name).read_text()
-    for name in FMI_HEADERS[fmi_version]:
-        files[name] = (INCLUDE_DIR / f"fmi{fmi_version}" / name).read_text()
+    files.update(runtime_files(fmi_version))
     c_files = sorted(n for n in files if n.endswith(".c")) + [MODEL_TABLE]
     # The token digests everything but itself: the model's code, the glue, the variables.
     token = _token([f"fmi {fmi_version}", *(f"{k}\0{v}" for k, v in sorted(files.items())),
@@ -233,7 +261,10 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         for name, text in files.items():
             (work / name).write_text(text)
         library = f"{identifier}{suffix}"
-        _compile(work, sorted(n for n in files if n.endswith(".c")), library, cc)
+        runtime = set(runtime_files(fmi_version))
+        model_c = sorted(n for n in files if n.endswith(".c") and n not in runtime)
+        _run([cc, *FMU_CFLAGS, "-shared", *model_c, str(runtime_object(fmi_version, cc)), "-o", library, "-lm"], work,
+             "the FMU's sources")
         staged = work / "out.fmu"
         with zipfile.ZipFile(staged, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("modelDescription.xml", description)
