@@ -386,7 +386,8 @@ class Model:
         damper depending on u would bring through d/dt dL/dq' (eq. 3.3), are not formed; give
         such a rate as an input of its own.
         """
-        sym = self.parameter(name, default)
+        _check_name(name, "input")
+        sym = self.parameter(name, check_finite(default, f"input {name!r}"))
         self.inputs.append(name)
         return sym
 
