@@ -1,5 +1,6 @@
 """FMU export: a model as a Functional Mock-up Unit (FMI 2.0 or 3.0, Model Exchange and
-Co-Simulation in one archive) that other simulation tools import.
+Co-Simulation in one archive) that other simulation tools import; constrained systems in their
+index-1 form with Baumgarte stabilization.
 
 The package, one job a module: :mod:`.variables` (the FMU's variables, value references and
 dependencies from a scene), :mod:`.description` (modelDescription.xml, buildDescription.xml) and
@@ -9,6 +10,6 @@ every FMU is model-independent (``templates/fmu``: the core ``lcg_fmu_core.c``, 
 the FMI standard's headers, unchanged, under their BSD 2-clause licence (``include/LICENSE.txt``).
 """
 
-from .export import FMI_VERSIONS, export_fmu, fmu_sources  # noqa: F401
+from .export import FMI_VERSIONS, constrained_fmu_sources, export_fmu, fmu_sources  # noqa: F401
 
-__all__ = ["FMI_VERSIONS", "export_fmu", "fmu_sources"]
+__all__ = ["FMI_VERSIONS", "constrained_fmu_sources", "export_fmu", "fmu_sources"]

@@ -37,12 +37,17 @@ def _attrs(**attrs) -> str:
     return "".join(f" {k}={quoteattr(str(v))}" for k, v in attrs.items() if v is not None)
 
 
-def _deps(refs) -> str:
-    return " ".join(str(r) for r in refs)
+def _deps(refs, index=None) -> str | None:
+    """The dependencies attribute (value references, or FMI 2.0 indices through ``index``); None
+    (no attribute: every state and input) when the dependencies are not known."""
+    if refs is None:
+        return None
+    return " ".join(str(index[r] if index else r) for r in refs)
 
 
 def _experiment(h: Header) -> str:
-    return (f"  <DefaultExperiment{_attrs(startTime=_num(h.start_time), stopTime=None if h.stop_time is None else _num(h.stop_time), tolerance=_num(h.tolerance))}/>\n")
+    stop = None if h.stop_time is None else _num(h.stop_time)
+    return f"  <DefaultExperiment{_attrs(startTime=_num(h.start_time), stopTime=stop, tolerance=_num(h.tolerance))}/>\n"
 
 
 def _fmi2_variable(v: Variable) -> str:
@@ -79,11 +84,15 @@ def model_description_fmi2(table: VariableTable, h: Header, source_files: list[s
     common = _attrs(modelIdentifier=h.identifier, canNotUseMemoryManagementFunctions="true",
                     canGetAndSetFMUstate="false", canSerializeFMUstate="false",
                     providesDirectionalDerivative="false")
+    root = _attrs(fmiVersion="2.0", modelName=h.model_name, guid=h.token, description=h.description,
+                  generationTool=f"lagcodegen {__version__}", variableNamingConvention="structured",
+                  numberOfEventIndicators=0)
+    cs = _attrs(canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
+                maxOutputDerivativeOrder=0)
     out = ['<?xml version="1.0" encoding="UTF-8"?>\n',
-           f"<fmiModelDescription{_attrs(fmiVersion='2.0', modelName=h.model_name, guid=h.token, description=h.description, generationTool=f'lagcodegen {__version__}', variableNamingConvention='structured', numberOfEventIndicators=0)}>\n",
+           f"<fmiModelDescription{root}>\n",
            f"  <ModelExchange{common}>\n    <SourceFiles>\n{files}    </SourceFiles>\n  </ModelExchange>\n",
-           f"  <CoSimulation{common}{_attrs(canHandleVariableCommunicationStepSize='true', canInterpolateInputs='false', maxOutputDerivativeOrder=0)}>\n"
-           f"    <SourceFiles>\n{files}    </SourceFiles>\n  </CoSimulation>\n",
+           f"  <CoSimulation{common}{cs}>\n    <SourceFiles>\n{files}    </SourceFiles>\n  </CoSimulation>\n",
            '  <LogCategories>\n    <Category name="logStatusError"/>\n  </LogCategories>\n',
            _experiment(h),
            "  <ModelVariables>\n"]
@@ -93,13 +102,13 @@ def model_description_fmi2(table: VariableTable, h: Header, source_files: list[s
     outputs = table.of_kind("output")
     if outputs:
         out.append("    <Outputs>\n")
-        out += [f"      <Unknown{_attrs(index=index[v.vr], dependencies=_deps(index[r] for r in v.dependencies))}/>\n"
+        out += [f"      <Unknown{_attrs(index=index[v.vr], dependencies=_deps(v.dependencies, index))}/>\n"
                 for v in outputs]
         out.append("    </Outputs>\n")
     derivatives = table.of_kind("derivative")
     if derivatives:
         out.append("    <Derivatives>\n")
-        out += [f"      <Unknown{_attrs(index=index[v.vr], dependencies=_deps(index[r] for r in v.dependencies))}/>\n"
+        out += [f"      <Unknown{_attrs(index=index[v.vr], dependencies=_deps(v.dependencies, index))}/>\n"
                 for v in derivatives]
         out.append("    </Derivatives>\n")
     unknowns = sorted(table.of_kind("derivative", "output"), key=lambda v: v.vr)
@@ -138,10 +147,14 @@ def model_description_fmi3(table: VariableTable, h: Header) -> str:
     """modelDescription.xml of an FMI 3.0 FMU."""
     common = _attrs(modelIdentifier=h.identifier, canGetAndSetFMUState="false", canSerializeFMUState="false",
                     providesDirectionalDerivatives="false", providesAdjointDerivatives="false")
+    root = _attrs(fmiVersion="3.0", modelName=h.model_name, instantiationToken=h.token, description=h.description,
+                  generationTool=f"lagcodegen {__version__}", variableNamingConvention="structured")
+    cs = _attrs(canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder=0, hasEventMode="false",
+                providesIntermediateUpdate="false")
     out = ['<?xml version="1.0" encoding="UTF-8"?>\n',
-           f"<fmiModelDescription{_attrs(fmiVersion='3.0', modelName=h.model_name, instantiationToken=h.token, description=h.description, generationTool=f'lagcodegen {__version__}', variableNamingConvention='structured')}>\n",
+           f"<fmiModelDescription{root}>\n",
            f"  <ModelExchange{common}/>\n",
-           f"  <CoSimulation{common}{_attrs(canHandleVariableCommunicationStepSize='true', maxOutputDerivativeOrder=0, hasEventMode='false', providesIntermediateUpdate='false')}/>\n",
+           f"  <CoSimulation{common}{cs}/>\n",
            '  <LogCategories>\n    <Category name="logStatusError"/>\n  </LogCategories>\n',
            _experiment(h),
            "  <ModelVariables>\n"]

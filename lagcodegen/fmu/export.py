@@ -21,18 +21,20 @@ from typing import Mapping, Sequence
 
 from ..build import compiler_id
 from ..cache import CACHE_FORMAT, cache_key, cached_build
+from ..codegen.constrained import generate_constrained
 from ..codegen.languages import generate_code
 from ..codegen.templates import environment, templates_dir
 from ..derivation import derive
 from ..errors import CompileError, ModelError
 from ..formulation.scene import Scene
 from ..model.model import Model
-from ..modelfile.document import ModelFile
+from ..modelfile.document import ModelFile, constrained_outputs
 from ..modelfile.loader import load_model
-from ..util import check_finite, excerpt
+from ..theory.constraints import ConstrainedSystem
+from ..util import BAUMGARTE_AUTO, check_baumgarte, check_finite, excerpt
 from ..version import __version__
 from .description import Header, build_description_fmi3, model_description_fmi2, model_description_fmi3
-from .variables import VariableTable, variable_table
+from .variables import VariableTable, build_table, variable_table
 
 FMI_VERSIONS = (2, 3)
 #: The model-independent C of every FMU (templates/fmu), and the FMI version's own functions.
@@ -125,32 +127,39 @@ def runtime_object(fmi_version: int, cc: str) -> Path:
     return cached_build(key, f"lcg_fmu_fmi{fmi_version}_{key}", filename, make, lambda name, path: path)[1]
 
 
-def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tunable: set[str], header: dict
-                ) -> tuple[dict[str, str], str, VariableTable]:
-    """The FMU's C sources (file name -> text, flat: the folder ``sources/`` of the archive, the
-    standard's headers included), its modelDescription.xml and its variables."""
-    if fmi_version not in FMI_VERSIONS:
-        raise ModelError(f"export_fmu: fmi_version must be 2 or 3, got {excerpt(fmi_version)}")
-    identifier = scene.prefix
+def _check_identifier(identifier: str) -> None:
     taken = {Path(f).stem for f in (*CORE_FILES, *FMI_FILES[2], *FMI_FILES[3], MODEL_TABLE,
                                     *FMI_HEADERS[2], *FMI_HEADERS[3])}
     if identifier in taken:
         raise ModelError(f"export_fmu: the model identifier {identifier!r} is the name of one of the FMU's own "
                          f"files ({', '.join(sorted(taken))}): give the model another name, or model_identifier=...")
-    code = generate_code(scene, "c")
-    table = variable_table(scene, x_start=list(x_start), tunable=tunable)
+
+
+def _check_version(fmi_version) -> None:
+    if fmi_version not in FMI_VERSIONS:
+        raise ModelError(f"export_fmu: fmi_version must be 2 or 3, got {excerpt(fmi_version)}")
+
+
+def _assemble(code, table: VariableTable, *, fmi_version: int, x_start: Sequence[float], p_start: Sequence[float],
+              header: dict, constrained: bool) -> tuple[dict[str, str], str]:
+    """The FMU's files (the generated ``code``, the runtime, the model table) and its
+    modelDescription.xml."""
     _check_names(table)
+    identifier = code.prefix
     files: dict[str, str] = {name: text for name, text in code.files.items()}
     files.update(runtime_files(fmi_version))
     c_files = sorted(n for n in files if n.endswith(".c")) + [MODEL_TABLE]
     # The token digests everything but itself: the model's code, the glue, the variables.
     token = _token([f"fmi {fmi_version}", *(f"{k}\0{v}" for k, v in sorted(files.items())),
                     repr(table.variables), repr(sorted(header.items()))])
-    ctx = dict(version=__version__, identifier=identifier, model_name=scene.eom.model.name, token=token,
-               prefix=code.prefix, nx=table.nx, np=table.np, nout=table.nout, state_names=code.state_names,
-               param_names=code.param_names, input_names=code.input_names, output_names=code.output_names,
-               x_start=[repr(float(v)) for v in x_start], p_start=[repr(float(v)) for v in code.param_defaults],
-               tolerance=repr(float(header["tolerance"])))
+    params = [v.name for v in table.of_kind("parameter", "input")]
+    ctx = dict(version=__version__, identifier=identifier, model_name=header["model_name"], token=token,
+               prefix=code.prefix, nx=table.nx, np=table.np, nout=table.nout,
+               state_names=[v.name for v in table.of_kind("state")], param_names=params,
+               input_names=[v.name for v in table.of_kind("input")],
+               output_names=[v.name for v in table.of_kind("output")], x_start=[repr(float(v)) for v in x_start],
+               p_start=[repr(float(v)) for v in p_start], tolerance=repr(float(header["tolerance"])),
+               constrained=constrained)
     files[MODEL_TABLE] = environment().get_template("fmu/lcg_fmu_model.c.j2").render(**ctx)
     h = Header(identifier=identifier, token=token, **header)
     if fmi_version == 2:
@@ -158,6 +167,55 @@ def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tun
     else:
         description = model_description_fmi3(table, h)
         files["buildDescription.xml"] = build_description_fmi3(identifier, c_files)
+    return files, description
+
+
+def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tunable: set[str], header: dict
+                ) -> tuple[dict[str, str], str, VariableTable]:
+    """The FMU's C sources (file name -> text, flat: the folder ``sources/`` of the archive, the
+    standard's headers included), its modelDescription.xml and its variables. ``header``: the
+    fields of :class:`~.description.Header` but the identifier and the token."""
+    _check_version(fmi_version)
+    _check_identifier(scene.prefix)
+    code = generate_code(scene, "c")
+    table = variable_table(scene, x_start=list(x_start), tunable=tunable)
+    files, description = _assemble(code, table, fmi_version=fmi_version, x_start=x_start,
+                                   p_start=code.param_defaults, header=header, constrained=False)
+    return files, description, table
+
+
+#: The Baumgarte rates of a constrained FMU: fixed parameters after the model's own.
+BAUMGARTE_PARAMETERS = ("baumgarte_alpha", "baumgarte_beta")
+
+
+def constrained_fmu_sources(system: ConstrainedSystem, *, fmi_version: int, x_start: Sequence[float],
+                            tunable: set[str], outputs: Sequence[str], values: Mapping[str, float],
+                            baumgarte, prefix: str | None, header: dict
+                            ) -> tuple[dict[str, str], str, VariableTable]:
+    """:func:`fmu_sources` of a constrained system in its index-1 form (eq. 4.5 with Baumgarte
+    stabilization f'' + 2 alpha f' + beta^2 f = 0): the FMU's states are (q, q'); alpha and beta
+    are the fixed parameters ``baumgarte_alpha``, ``baumgarte_beta`` (negative: the natural rate
+    of the system at the initial state, as ``baumgarte="auto"`` in simulate()); the outputs'
+    dependencies are not listed (every state and parameter)."""
+    _check_version(fmi_version)
+    code, info = generate_constrained(system, ggl=False, outputs=list(outputs), events=(), runtime_parameters=None,
+                                      values=dict(values), prefix=prefix, lang="c")
+    _check_identifier(code.prefix)
+    for name in BAUMGARTE_PARAMETERS:
+        if name in code.param_names:
+            raise ModelError(f"export_fmu: the parameter name {name!r} is the FMU's Baumgarte rate: rename it")
+    alpha, beta = (-1.0, -1.0) if baumgarte == BAUMGARTE_AUTO else baumgarte
+    nx = 2 * info.n
+    params = [(name, value, "parameter", "tunable" if name in tunable else "fixed", "")
+              for name, value in zip(code.param_names, code.param_defaults)]
+    params += [(BAUMGARTE_PARAMETERS[0], alpha, "parameter", "fixed",
+                "Baumgarte rate alpha (negative: the natural rate at the initial state)"),
+               (BAUMGARTE_PARAMETERS[1], beta, "parameter", "fixed",
+                "Baumgarte rate beta (negative: the natural rate at the initial state)")]
+    table = build_table(code.state_names, list(x_start), [None] * nx, params,
+                        [(name, None) for name in info.output_names])
+    files, description = _assemble(code, table, fmi_version=fmi_version, x_start=x_start,
+                                   p_start=[p[1] for p in params], header=header, constrained=True)
     return files, description, table
 
 
@@ -165,9 +223,11 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
                outputs: Sequence[str] | None = None, tunable: Sequence[str] | None = None,
                values: Mapping[str, float] | None = None, initial: Mapping[str, float] | None = None,
                model_identifier: str | None = None, tolerance: float | None = None,
-               start_time: float | None = None, stop_time: float | None = None, cc: str | None = None) -> Path:
-    """Write ``source`` (a :class:`Model`, a loaded :class:`ModelFile` or a model file's path) as an
-    FMU at ``path``: Model Exchange and Co-Simulation in one archive, FMI 2.0 or 3.0.
+               start_time: float | None = None, stop_time: float | None = None, baumgarte=None,
+               cc: str | None = None) -> Path:
+    """Write ``source`` (a :class:`Model`, a :class:`ConstrainedSystem`, a loaded :class:`ModelFile`
+    or a model file's path) as an FMU at ``path``: Model Exchange and Co-Simulation in one archive,
+    FMI 2.0 or 3.0.
 
     The FMU's states are y = (q, q') named as in ``simulate()``'s CSV (``theta``, ``theta_dot``),
     their derivatives ``der(theta)``; every parameter of the model is a parameter of the FMU
@@ -180,6 +240,13 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
     (``binaries/linux64`` for FMI 2.0, ``binaries/x86_64-linux`` for FMI 3.0 on x86-64 Linux);
     ``sources/`` holds every C file (FMI 2.0: the ``SourceFiles`` lists; FMI 3.0:
     ``sources/buildDescription.xml``) so that it builds elsewhere.
+
+    A constrained system is exported in its index-1 form (eq. 4.5 with Baumgarte stabilization,
+    :func:`constrained_fmu_sources`): states (q, q'), outputs as a constrained run's (default:
+    energy, the multipliers ``lambda_<j>``, the residuals ``g_<j>``, ``gdot_<j>``), the Baumgarte
+    rates as the fixed parameters ``baumgarte_alpha``, ``baumgarte_beta``. Projection onto the
+    constraints (a step of the integrator) is not part of an FMU; events and inequality
+    constraints (no event indicators) are refused.
 
     Parameters
     ----------
@@ -200,25 +267,36 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         The C name of the FMU's binary (default: the model's name).
     tolerance, start_time, stop_time:
         The DefaultExperiment (tolerance also the Co-Simulation default).
+    baumgarte:
+        Constrained systems: ``"auto"`` (alpha = beta = the natural rate of the system at the
+        initial state, computed when initialization ends, as simulate() does at each run's start)
+        or (alpha, beta); default: the file's index-1 setting, else "auto".
     cc:
         C compiler (default: ``$CC`` or ``cc``).
     """
     mf = _model_file(source)
+    system = None
     if mf is not None:
-        if mf.constrained is not None:
-            raise ModelError(f"export_fmu: {mf.path} has a [constraints] table: FMUs of constrained systems are not "
-                             "available yet (an FMU needs an ODE: the index-1 form with its Baumgarte stabilization "
-                             "would be exported, and its generated code has no plain right-hand side for the FMU "
-                             "core to call); export an unconstrained model, e.g. in minimal coordinates")
-        model, s = mf.model, mf.simulation
-        eom = mf.derive()
+        model, s, system = mf.model, mf.simulation, mf.constrained
+        eom = mf.derive() if system is None else None
+    elif isinstance(source, ConstrainedSystem):
+        model, s, system, eom = source.model, None, source, None
     elif isinstance(source, Model):
         model, s = source, None
         eom = derive(model)
     else:
-        raise ModelError(f"export_fmu: source must be a Model, a ModelFile or a model file's path, got "
-                         f"{type(source).__name__} (constrained systems cannot be exported yet)")
-    if outputs is None:
+        raise ModelError(f"export_fmu: source must be a Model, a ConstrainedSystem, a ModelFile or a model file's "
+                         f"path, got {type(source).__name__}")
+    if system is not None:
+        if (mf is not None and mf.events) or system.inequalities:
+            raise ModelError("export_fmu: events and inequality constraints need event indicators, which lagcodegen's "
+                             "FMUs do not have: export the system without them")
+        if baumgarte is None:
+            baumgarte = s.baumgarte if s is not None and s.formulation in (None, "index1") else BAUMGARTE_AUTO
+        baumgarte = check_baumgarte(baumgarte, "export_fmu: baumgarte")
+        if outputs is None:
+            outputs = constrained_outputs(system, s.outputs if s is not None else [], "index1")
+    elif outputs is None:
         outputs = list(s.outputs) if s is not None and s.outputs else (["energy", "positions"] if model.points
                                                                         else ["energy"])
     names = [p.name for p in model.params]
@@ -238,7 +316,7 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         if name not in state_names:
             raise ModelError(f"export_fmu: initial value given for {name!r}, which is not a coordinate or velocity "
                              f"(state: {', '.join(state_names)})")
-    x_start = [float(init.get(name, 0.0)) for name in state_names] + [0.0] * len(eom.quadratures)
+    x_start = [float(init.get(name, 0.0)) for name in state_names] + [0.0] * (len(eom.quadratures) if eom else 0)
     if tolerance is None:
         tolerance = s.rtol if s is not None and s.rtol > 0 else DEFAULT_TOLERANCE
     tolerance = check_finite(tolerance, "export_fmu: tolerance")
@@ -246,14 +324,20 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         raise ModelError(f"export_fmu: tolerance must be positive, got {tolerance:g}")
     t0 = start_time if start_time is not None else (s.t_start if s is not None else 0.0)
     t1 = stop_time if stop_time is not None else (s.t_end if s is not None else None)
-    scene = Scene(eom, jacobian=False, outputs=outputs, runtime_parameters=None, values=vals,
-                  prefix=model_identifier)
     header = dict(model_name=model.name, description=f"lagcodegen model {model.name}", start_time=float(t0),
                   stop_time=None if t1 is None else float(t1), tolerance=float(tolerance))
-    files, description, _ = fmu_sources(scene, fmi_version=fmi_version, x_start=x_start, tunable=set(tunable),
-                                        header=header)
+    if system is None:
+        scene = Scene(eom, jacobian=False, outputs=outputs, runtime_parameters=None, values=vals,
+                      prefix=model_identifier)
+        files, description, _ = fmu_sources(scene, fmi_version=fmi_version, x_start=x_start, tunable=set(tunable),
+                                            header=header)
+    else:
+        header["description"] = f"lagcodegen model {model.name}, constrained, index-1 form with Baumgarte stabilization"
+        files, description, _ = constrained_fmu_sources(system, fmi_version=fmi_version, x_start=x_start,
+                                                        tunable=set(tunable), outputs=outputs, values=vals,
+                                                        baumgarte=baumgarte, prefix=model_identifier, header=header)
     plat, suffix = _binary_folder(fmi_version)
-    identifier = scene.prefix
+    identifier = model_identifier or model.name  # the scene's prefix
     cc = cc or os.environ.get("CC") or "cc"
     path = Path(path)
     with tempfile.TemporaryDirectory(prefix="lcg_fmu_") as tmp:

@@ -12,6 +12,7 @@ states and inputs of its expression.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Sequence
 
 import symengine as se
 
@@ -49,7 +50,7 @@ def _symbols(expr) -> set[str]:
     return {s.name for s in se.sympify(expr).free_symbols}
 
 
-def variable_table(scene: Scene, *, x_start: list[float], tunable: set[str]) -> VariableTable:
+def variable_table(scene: Scene, *, x_start: Sequence[float], tunable: set[str]) -> VariableTable:
     """The FMU's variables for ``scene`` (every parameter in ``p``; ``tunable`` names those the
     importer may change during the simulation, the others are fixed after initialization)."""
     eom = scene.eom
@@ -92,29 +93,44 @@ def variable_table(scene: Scene, *, x_start: list[float], tunable: set[str]) -> 
     for i in range(n):
         comp_inputs.setdefault(find(i), set()).update(row_syms[i] & inputs)
 
+    derivative_deps = []
+    for k in range(nx):
+        if k < n:
+            derivative_deps.append((state_vr[state_names[n + k]],))
+            continue
+        names = {state_names[j] for j in range(nx) if pattern[k, j]}
+        if k < 2 * n:
+            names |= comp_inputs[find(k - n)]
+        else:
+            names |= _symbols(eom.quadratures[k - 2 * n][1]) & inputs
+        derivative_deps.append(deps_of(names))
+    defaults = scene.default_parameters()
+    param_rows = [(name, defaults[k], "input" if name in inputs else "parameter",
+                   "tunable" if name in tunable else "fixed", "") for k, name in enumerate(params)]
+    output_rows = [(out.name, deps_of(_symbols(out.expr))) for out in outputs]
+    return build_table(state_names, x_start, derivative_deps, param_rows, output_rows)
+
+
+def build_table(state_names: list[str], x_start: list[float], derivative_deps: list[tuple[int, ...] | None],
+                params: list[tuple[str, float, str, str, str]],
+                outputs: list[tuple[str, tuple[int, ...] | None]]) -> VariableTable:
+    """The table in value-reference order: ``params`` rows are (name, start, "parameter" or
+    "input", "tunable" or "fixed", description), ``outputs`` rows (name, dependencies); None
+    dependencies are not listed (the variable depends on every state and input)."""
+    nx = len(state_names)
     table = VariableTable(nx=nx, np=len(params), nout=len(outputs))
     add = table.variables.append
     add(Variable("time", 0, "time", description="time"))
     for k, name in enumerate(state_names):
         add(Variable(name, 1 + k, "state", start=float(x_start[k])))
     for k, name in enumerate(state_names):
-        if k < n:
-            deps = (state_vr[state_names[n + k]],)
+        add(Variable(f"der({name})", 1 + nx + k, "derivative", derivative_of=1 + k, dependencies=derivative_deps[k]))
+    for k, (name, start, kind, variability, description) in enumerate(params):
+        if kind == "input":
+            add(Variable(name, 1 + 2 * nx + k, "input", start=float(start), description=description or "input signal"))
         else:
-            names = {state_names[j] for j in range(nx) if pattern[k, j]}
-            if k < 2 * n:
-                names |= comp_inputs[find(k - n)]
-            else:
-                names |= _symbols(eom.quadratures[k - 2 * n][1]) & inputs
-            deps = deps_of(names)
-        add(Variable(f"der({name})", 1 + nx + k, "derivative", derivative_of=1 + k, dependencies=deps))
-    defaults = scene.default_parameters()
-    for k, name in enumerate(params):
-        if name in inputs:
-            add(Variable(name, param_vr[name], "input", start=defaults[k], description="input signal"))
-        else:
-            add(Variable(name, param_vr[name], "parameter", start=defaults[k],
-                         variability="tunable" if name in tunable else "fixed"))
-    for k, out in enumerate(outputs):
-        add(Variable(out.name, 1 + 2 * nx + len(params) + k, "output", dependencies=deps_of(_symbols(out.expr))))
+            add(Variable(name, 1 + 2 * nx + k, "parameter", start=float(start), variability=variability,
+                         description=description))
+    for k, (name, deps) in enumerate(outputs):
+        add(Variable(name, 1 + 2 * nx + len(params) + k, "output", dependencies=deps))
     return table

@@ -123,7 +123,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
     lcg_fmi2 *c = (lcg_fmi2 *)comp;
     if (c == NULL)
         return fmi2Error;
-    return lcg_fmu_eval(c->core) == 0 ? fmi2OK : fail(c);
+    return lcg_fmu_start(c->core) == 0 && lcg_fmu_eval(c->core) == 0 ? fmi2OK : fail(c);
 }
 
 fmi2Status fmi2Terminate(fmi2Component comp)

@@ -156,7 +156,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
     lcg_fmi3 *c = (lcg_fmi3 *)instance;
     if (c == NULL)
         return fmi3Error;
-    return lcg_fmu_eval(c->core) == 0 ? fmi3OK : fail(c);
+    return lcg_fmu_start(c->core) == 0 && lcg_fmu_eval(c->core) == 0 ? fmi3OK : fail(c);
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance)

@@ -36,6 +36,10 @@ typedef struct {
     double tolerance;          /* default relative tolerance of the Co-Simulation integrator */
     lcg_fmu_rhs_fn rhs;
     lcg_fmu_outputs_fn outputs;  /* NULL when nout is 0 */
+    int nwork;                 /* doubles after p[np] that no value reference names (start's results) */
+    /* Called when initialization ends, with the initial state and p (of np + nwork doubles), or NULL:
+     * e.g. the Baumgarte rates of a constrained model's "auto" stabilization. 0 or an error code. */
+    int (*start)(double t, const double *x, double *p);
 } lcg_fmu_model;
 
 extern const lcg_fmu_model lcg_fmu_this_model;
@@ -48,6 +52,7 @@ typedef struct {
     double t;
     double *x, *p, *dx, *out, *work;
     int valid;                 /* dx and out hold the values at (t, x, p) */
+    int started;               /* m->start has run since the last reset or initialization */
     double rtol, atol;         /* Co-Simulation tolerances */
     lcg_dopri ode;
     char message[256];         /* what went wrong, for the importer's log */
@@ -68,6 +73,8 @@ int lcg_fmu_kind(const lcg_fmu_instance *inst, unsigned int vr, int *index);
 int lcg_fmu_get(lcg_fmu_instance *inst, unsigned int vr, double *value);
 /* Write one variable (time, states, parameters and inputs): 0, or -1 with inst->message set. */
 int lcg_fmu_set(lcg_fmu_instance *inst, unsigned int vr, double value);
+/* Initialization ends: run m->start at (t, x, p). 0 or -1. */
+int lcg_fmu_start(lcg_fmu_instance *inst);
 /* Evaluate the derivatives and outputs at (t, x, p) unless they are current: 0 or -1. */
 int lcg_fmu_eval(lcg_fmu_instance *inst);
 /* Integrate from inst->t to t_end with the inputs held (Co-Simulation): 0 or -1. */

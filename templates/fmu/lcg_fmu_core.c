@@ -11,9 +11,11 @@ static const char *model_error(int code)
 {
     switch (code) {
     case 1:
-        return "the mass matrix M(q, t) is singular at this state";
+        return "the mass matrix M(q, t) (constrained: the augmented matrix [M A^T; A 0]) is singular at this state";
     case 2:
         return "a computed value is not finite (overflow, division by zero, domain error)";
+    case 3:
+        return "the projection onto the constraints did not converge";
     default:
         return "the model function failed";
     }
@@ -28,14 +30,15 @@ lcg_fmu_instance *lcg_fmu_new(const lcg_fmu_model *m)
         return NULL;
     inst->m = m;
     /* one block: x, dx, p, out, the integrator's work (at least one double each) */
-    inst->x = (double *)calloc(2 * nx + np + nout + (size_t)LCG_DOPRI_WORK(m->nx) + 4, sizeof(double));
+    inst->x = (double *)calloc(2 * nx + np + (size_t)m->nwork + nout + (size_t)LCG_DOPRI_WORK(m->nx) + 4,
+                               sizeof(double));
     if (inst->x == NULL) {
         free(inst);
         return NULL;
     }
     inst->dx = inst->x + nx;
     inst->p = inst->dx + nx + 1;
-    inst->out = inst->p + np + 1;
+    inst->out = inst->p + np + (size_t)m->nwork + 1;
     inst->work = inst->out + nout + 1;
     lcg_fmu_reset(inst);
     return inst;
@@ -58,7 +61,10 @@ void lcg_fmu_reset(lcg_fmu_instance *inst)
         memcpy(inst->x, m->x_start, (size_t)m->nx * sizeof(double));
     if (m->np)
         memcpy(inst->p, m->p_start, (size_t)m->np * sizeof(double));
+    if (m->nwork)
+        memset(inst->p + m->np, 0, (size_t)m->nwork * sizeof(double));
     inst->valid = 0;
+    inst->started = 0;
     inst->message[0] = '\0';
     lcg_fmu_set_tolerance(inst, m->tolerance);
 }
@@ -103,11 +109,28 @@ int lcg_fmu_kind(const lcg_fmu_instance *inst, unsigned int vr, int *index)
     return LCG_FMU_UNKNOWN;
 }
 
+int lcg_fmu_start(lcg_fmu_instance *inst)
+{
+    const lcg_fmu_model *m = inst->m;
+    int code = m->start != NULL ? m->start(inst->t, inst->x, inst->p) : 0;
+
+    inst->valid = 0;
+    if (code != 0) {
+        snprintf(inst->message, sizeof inst->message, "%s: at the initial state (t = %.17g) %s (code %d)",
+                 m->identifier, inst->t, model_error(code), code);
+        return -1;
+    }
+    inst->started = 1;
+    return 0;
+}
+
 int lcg_fmu_eval(lcg_fmu_instance *inst)
 {
     const lcg_fmu_model *m = inst->m;
     int code;
 
+    if (!inst->started && lcg_fmu_start(inst) != 0)
+        return -1;
     if (inst->valid)
         return 0;
     code = m->rhs(inst->t, inst->x, inst->p, inst->dx);
@@ -192,6 +215,8 @@ int lcg_fmu_step(lcg_fmu_instance *inst, double t_end)
     const lcg_fmu_model *m = inst->m;
     int code;
 
+    if (!inst->started && lcg_fmu_start(inst) != 0)
+        return -1;
     inst->valid = 0;
     if (m->nx == 0) {
         inst->t = t_end;

@@ -1,8 +1,9 @@
 """FMU export (lagcodegen.fmu): the archives validated by FMPy (FMI 2.0 and 3.0), simulated by
 FMPy in Model Exchange (its CVODE) and Co-Simulation (the FMU's own Dormand-Prince) against
 lagcodegen's simulate(), an input force with a step against the analytic step response of a
-damped oscillator, the sources built again from the archive alone, strict compiler flags, the
-command line and the errors."""
+damped oscillator, a constrained system in its index-1 form against the constrained simulate(),
+the sources built again from the archive alone, strict compiler flags, the command line and the
+errors."""
 
 import subprocess
 import xml.etree.ElementTree as ET
@@ -247,6 +248,56 @@ def test_input_stays_an_input_when_the_file_folds_parameters(tmp_path):
                      "F": ("input", "continuous")}
 
 
+# ---------------------------------------------------------------------- constrained systems
+@pytest.mark.parametrize("version", VERSIONS)
+def test_constrained_system_exports_its_index1_form(tmp_path, version):
+    """The Cartesian pendulum (x^2 + y^2 = l^2) as the index-1 ODE with the file's Baumgarte rates
+    (5, 5): FMPy finds no problem; Co-Simulation (10 s) and Model Exchange (2 s, rtol 1e-8) agree
+    with the constrained simulate() (native CVODE on the same index-1 form) to 1e-6, multiplier
+    and tension included; the constraint residuals stay at the level of the integration error."""
+    mf = lcg.modelfile.load_model(EXAMPLES / "cartesian_pendulum.toml")
+    path = lcg.export_fmu(mf, tmp_path / "cp.fmu", fmi_version=version)
+    assert validate_fmu(str(path)) == []
+    md = fmpy.read_model_description(str(path))
+    variables = {v.name: v for v in md.modelVariables}
+    assert [(n, variables[n].variability, float(variables[n].start)) for n in ("baumgarte_alpha", "baumgarte_beta")] \
+        == [("baumgarte_alpha", "fixed", 5.0), ("baumgarte_beta", "fixed", 5.0)]
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert outputs == ["energy", "tension", "bob_x", "bob_y", "lambda_0", "g_0", "gdot_0"]
+    cm = mf.compile()
+    q0, v0 = mf.initial_state()
+    compared = ["x", "y", "x_dot", "y_dot", "energy", "tension", "lambda_0"]
+    for kind, t_end, options, drift in (("CoSimulation", 10.0, {}, 1e-8),
+                                        ("ModelExchange", 2.0, dict(solver="CVode"), 1e-6)):
+        t = np.linspace(0.0, t_end, 201)
+        ref = cm.simulate(t, q0=q0, v0=v0, rtol=1e-12, atol=1e-14)
+        res = fmpy.simulate_fmu(str(path), fmi_type=kind, stop_time=t_end, output_interval=1e-3,
+                                relative_tolerance=1e-8, output=compared + ["g_0", "gdot_0"], **options)
+        var, err = worst(res, ref, t, compared)
+        assert err < 1e-6, f"{kind}, {var}: {err:.2e}"
+        assert np.max(np.abs(res["g_0"])) < drift and np.max(np.abs(res["gdot_0"])) < 10 * drift, kind
+
+
+def test_constrained_auto_stabilization_takes_the_natural_rate(tmp_path):
+    """baumgarte="auto" exports alpha = beta = -1 (the natural rate at the initial state, computed
+    when initialization ends), as the native driver does at each run's start: Co-Simulation agrees
+    with simulate(baumgarte="auto") from a drifted initial state (where the rates matter)."""
+    mf = lcg.modelfile.load_model(EXAMPLES / "cartesian_pendulum.toml")
+    path = lcg.export_fmu(mf, tmp_path / "cp.fmu", fmi_version=3, baumgarte="auto")
+    md = fmpy.read_model_description(str(path))
+    assert {v.name: float(v.start) for v in md.modelVariables if v.name.startswith("baumgarte")} == \
+        {"baumgarte_alpha": -1.0, "baumgarte_beta": -1.0}
+    cm = mf.compile()
+    q0 = [np.sin(1.0) * 1.01, -np.cos(1.0) * 1.01]  # 1 % off the circle: the stabilization pulls it back
+    t = np.linspace(0.0, 3.0, 121)
+    ref = cm.simulate(t, q0=q0, v0=[0.0, 0.0], baumgarte="auto", initial="none", rtol=1e-12, atol=1e-14)
+    res = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation", stop_time=3.0, output_interval=1e-3,
+                            relative_tolerance=1e-10, start_values={"x": q0[0], "y": q0[1]}, output=["x", "y", "g_0"])
+    var, err = worst(res, ref, t, ["x", "y"])
+    assert err < 1e-6, f"{var}: {err:.2e}"
+    assert abs(res["g_0"][0]) > 1e-2 and abs(res["g_0"][-1]) < 1e-4  # the drift decays
+
+
 # ---------------------------------------------------------------------- sources
 @pytest.mark.parametrize("version", VERSIONS)
 def test_sources_build_the_fmu_again(fmus, tmp_path, cc, version):
@@ -294,8 +345,10 @@ def test_errors_name_the_problem(tmp_path):
         lcg.export_fmu(EXAMPLES / "pendulum.toml", tmp_path / "x.fmu", tunable=["q"])
     with pytest.raises(ModelError, match="'phi', which is not a coordinate"):
         lcg.export_fmu(EXAMPLES / "pendulum.toml", tmp_path / "x.fmu", initial={"phi": 1.0})
-    with pytest.raises(ModelError, match=r"\[constraints\] table: FMUs of constrained systems"):
-        lcg.export_fmu(EXAMPLES / "cartesian_pendulum.toml", tmp_path / "x.fmu")
+    with pytest.raises(ModelError, match="events and inequality constraints need event indicators"):
+        lcg.export_fmu(EXAMPLES / "sliding_off_sphere.toml", tmp_path / "x.fmu")
+    with pytest.raises(ModelError, match="baumgarte must be 'auto' or"):
+        lcg.export_fmu(EXAMPLES / "cartesian_pendulum.toml", tmp_path / "x.fmu", baumgarte="fast")
     model = lcg.systems.pendulum()
     model.output("time", model.t)
     with pytest.raises(ModelError, match="'time' is both"):
@@ -306,13 +359,16 @@ def test_errors_name_the_problem(tmp_path):
 
 
 def test_strict_flags_on_every_source(fmus, tmp_path, cc):
-    """Every C file of both versions' archives compiles with -Wall -Wextra -Werror -std=c99 -pedantic."""
-    for version in VERSIONS:
-        folder = tmp_path / f"v{version}"
-        with zipfile.ZipFile(fmus("damped_driven_oscillator", version)) as zf:
-            zf.extractall(folder)
-        sources = folder / "sources"
-        for c_file in sorted(sources.glob("*.c")):
-            proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", c_file.name, "-o", "/dev/null"], cwd=sources,
-                                  capture_output=True, text=True)
-            assert proc.returncode == 0, f"FMI {version}, {c_file.name}:\n{proc.stderr}"
+    """Every C file of both versions' archives (an unconstrained and a constrained model) compiles
+    with -Wall -Wextra -Werror -std=c99 -pedantic."""
+    for name in ("damped_driven_oscillator", "cartesian_pendulum"):
+        for version in VERSIONS:
+            folder = tmp_path / f"{name}{version}"
+            with zipfile.ZipFile(fmus(name, version)) as zf:
+                zf.extractall(folder)
+            sources = folder / "sources"
+            assert "lcg_fmu_model.c" in [f.name for f in sources.glob("*.c")]
+            for c_file in sorted(sources.glob("*.c")):
+                proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", c_file.name, "-o", "/dev/null"], cwd=sources,
+                                      capture_output=True, text=True)
+                assert proc.returncode == 0, f"{name}, FMI {version}, {c_file.name}:\n{proc.stderr}"
