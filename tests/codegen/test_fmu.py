@@ -150,6 +150,22 @@ def test_model_exchange_agrees_with_simulate(fmus, references, name, version):
         assert err < bound, f"rtol {rtol:g}, {var}: {err:.2e}"
 
 
+def test_co_simulation_follows_the_importers_tolerance(fmus, references):
+    """The embedded Dormand-Prince steps to the tolerance the importer sets (fmi2SetupExperiment /
+    fmi3EnterInitializationMode): over long communication steps (0.5 s) the error against
+    simulate() shrinks with the tolerance and stays near it."""
+    mf, cm = references("double_pendulum")
+    t = np.linspace(0.0, 5.0, 11)
+    ref = reference(mf, cm, t)
+    errors = []
+    for rtol in (1e-4, 1e-7, 1e-10):
+        res = fmpy.simulate_fmu(str(fmus("double_pendulum", 2)), fmi_type="CoSimulation", stop_time=5.0,
+                                output_interval=0.5, relative_tolerance=rtol, output=["theta1", "theta2"])
+        errors.append(worst(res, ref, t, ["theta1", "theta2"])[1])
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 1e-7 and errors[0] < 1e-1
+
+
 def test_start_values_and_parameters_set_by_the_importer(fmus, references):
     """FMPy's start_values reach the states and parameters (set before initialization)."""
     mf, cm = references("pendulum")
