@@ -5,7 +5,8 @@ The pipeline, one subpackage per stage, imports running one way (down this list)
     model (Model, model files in modelfile) -> derivation (derive) -> theory (energy, forces,
     Routhian, steady motion, linearization, constraints, minimal coordinates) -> formulation
     (Scene, language-neutral kernels) -> codegen (C, Fortran, cffi declarations, bundles)
-    -> build (cffi module, cache) -> solvers (CVODE, IDA, scikit-sundae, hybrid) -> api -> cli
+    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, scikit-sundae, hybrid)
+    -> api -> cli
 
 Quick start::
 
