@@ -7,7 +7,9 @@ dependencies from a scene), :mod:`.description` (modelDescription.xml, buildDesc
 :mod:`.export` (:func:`export_fmu`: sources, compiled binary, the zip). The C that runs inside
 every FMU is model-independent (``templates/fmu``: the core ``lcg_fmu_core.c``, the FMI functions
 ``lcg_fmi2.c``/``lcg_fmi3.c``, the Dormand-Prince integrator ``lcg_dopri.c``); ``include/`` holds
-the FMI standard's headers, unchanged, under their BSD 2-clause licence (``include/LICENSE.txt``).
+the FMI standard's headers (modelica/fmi-standard, tags v2.0.5 and v3.0.2), unchanged, under their
+BSD 2-clause licence (``include/LICENSE.txt``; every FMU carries it in
+``documentation/licenses/``).
 """
 
 from .export import FMI_VERSIONS, constrained_fmu_sources, export_fmu, fmu_sources  # noqa: F401
