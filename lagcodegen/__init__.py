@@ -5,7 +5,8 @@ The pipeline, one subpackage per stage, imports running one way (down this list)
     model (Model, model files in modelfile) -> derivation (derive) -> theory (energy, forces,
     Routhian, steady motion, linearization, constraints, minimal coordinates) -> formulation
     (Scene, language-neutral kernels) -> codegen (C, Fortran, cffi declarations, bundles)
-    -> build (cffi module, cache) -> solvers (CVODE, IDA, scikit-sundae, hybrid) -> api -> cli
+    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, scikit-sundae, hybrid)
+    -> api -> cli
 
 Quick start::
 
@@ -46,6 +47,7 @@ from .solvers.options import CVODE, IDA, Taylor  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
                   compile_reduction)
 from . import modelfile  # noqa: F401
+from .fmu import export_fmu  # noqa: F401
 
 from . import legacy as _legacy  # noqa: E402
 

@@ -45,6 +45,7 @@ from .codegen.languages import generate_code
 from .derivation import derive
 from .errors import CompileError, LagcodegenError, ModelError, SolverError
 from .formulation.scene import Scene
+from .fmu import export_fmu
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .modelfile.loader import MAX_STEPS
 from .sweep import HELP as SWEEP_HELP, SweepOptionError, add_sweep_options, run_sweep, spec_from_namespace
@@ -280,7 +281,25 @@ def _listing(out: Path, names) -> str:
     return "".join(f"{out / name}\n" for name in sorted(names))
 
 
+def _generate_fmu(args) -> int:
+    """``generate --fmu FILE [--fmi 3]``: the model file as an FMU (lagcodegen.fmu.export_fmu)."""
+    if args.bundle or args.check or args.list_outputs or args.lang != "c":
+        raise UsageError("--fmu writes one FMU file: --bundle, --check, --list-outputs and --lang fortran do not apply")
+    mf = _load(args.model, args.quiet)
+    _check_parameter_names(mf, args)
+    t0 = time.perf_counter()
+    tunable = [] if args.fold_all else _csv(args.runtime_parameters)
+    path = export_fmu(mf, args.fmu, fmi_version=args.fmi, outputs=_csv(args.outputs), tunable=tunable,
+                      values=_assignments(args.set), model_identifier=args.prefix)
+    _progress(f"wrote {path} (FMI {args.fmi}.0) in {time.perf_counter() - t0:.3f} s", args.quiet)
+    return EXIT_OK
+
+
 def cmd_generate(args) -> int:
+    if args.fmu:
+        return _generate_fmu(args)
+    if not args.output:
+        raise UsageError("generate needs -o/--output FOLDER (or --fmu FILE)")
     if args.check and args.list_outputs:
         print("lagcodegen generate: --check and --list-outputs exclude each other", file=sys.stderr)
         return EXIT_USAGE
@@ -561,7 +580,9 @@ def parser() -> argparse.ArgumentParser:
                        description=GENERATE_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     g.add_argument("model", help="TOML model file, or FILE.py:FUNCTION (executes FILE.py; FUNCTION() returns "
                                  "a Model or ConstrainedSystem)")
-    g.add_argument("-o", "--output", required=True, help="output folder")
+    g.add_argument("-o", "--output", help="output folder (required unless --fmu)")
+    g.add_argument("--fmu", metavar="FILE", help="write an FMU (Model Exchange and Co-Simulation) instead of sources")
+    g.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="--fmu: the FMI version (default 2)")
     g.add_argument("--prefix", help="C identifier prefix (default: the model name)")
     g.add_argument("--lang", choices=["c", "fortran"], default="c",
                    help="language of the model code: C99 (<prefix>.c) or Fortran 2008 (<prefix>.f90); "

@@ -25,6 +25,7 @@ STAGES = [
     ("buildstep",),
     ("cache",),
     ("build",),
+    ("fmu",),
     ("solvers",),
     ("api",),
     ("sweep",),

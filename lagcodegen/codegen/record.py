@@ -67,6 +67,9 @@ class GeneratedCode:
     # The scene the code was generated from (for further code of the same scene, e.g. the
     # Taylor integrator), or None for code assembled by hand.
     scene: object = field(default=None, repr=False, compare=False)
+    # The run-time parameters that are input signals u(t) (Model.input), in p order: an FMU
+    # declares them as inputs.
+    input_names: list[str] = field(default_factory=list)
 
     @property
     def ny(self) -> int:
@@ -108,7 +111,7 @@ def new_code(scene: Scene) -> GeneratedCode:
         + [name for name, _ in eom.quadratures],
         param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
         output_names=[o.name for o in scene.output_list()], jacobian=scene.jacobian, nz=len(eom.quadratures),
-        folded=dict(scene.folded), scene=scene)
+        folded=dict(scene.folded), scene=scene, input_names=scene.input_names)
 
 
 def header_context(scene: Scene, code: GeneratedCode) -> dict:

@@ -60,7 +60,9 @@ class Scene:
         declared with :meth:`Model.output`.
     runtime_parameters:
         Parameters that stay adjustable at run time (passed in the ``p`` array, in this
-        order). ``None`` keeps them all adjustable; the others are folded as constants.
+        order). ``None`` keeps them all adjustable; the others are folded as constants. The
+        model's inputs (:meth:`Model.input`) are always run-time parameters (appended when
+        missing from the list).
     values:
         Values for folded parameters, overriding the model's defaults.
     prefix:
@@ -108,6 +110,8 @@ class Scene:
                 if name not in names:
                     raise ModelError(f"scene: runtime parameter {name!r} is not a parameter of the model "
                                      f"(parameters: {', '.join(names) or 'none'})")
+        # An input (Model.input) is a run-time parameter of every scene: a signal is never folded.
+        self.runtime_parameters += [u for u in getattr(model, "inputs", ()) if u not in self.runtime_parameters]
         for name, value in self.values.items():
             if name not in names:
                 raise ModelError(f"scene: value given for unknown parameter {name!r}")
@@ -129,6 +133,12 @@ class Scene:
         vals = {s.name: v for s, v in model.params.items() if s.name not in self.runtime_parameters}
         vals.update({k: float(v) for k, v in self.values.items() if k in vals})
         return vals
+
+    @property
+    def input_names(self) -> list[str]:
+        """The run-time parameters that are input signals (:meth:`Model.input`), in ``p`` order."""
+        inputs = set(getattr(self.eom.model, "inputs", ()))
+        return [name for name in self.runtime_parameters if name in inputs]
 
     def default_parameters(self) -> list[float]:
         """Default values of the run-time parameters, in ``p`` order."""

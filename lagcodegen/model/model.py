@@ -168,6 +168,7 @@ class Model:
     generalized_forces: list = field(default_factory=list)  # (label, index, Q*)
     gravity_spec: tuple | None = None  # (g, unit "up" vector)
     outputs: dict = field(default_factory=dict)  # name -> expression (user outputs)
+    inputs: list = field(default_factory=list)  # names of the parameters that are input signals u(t)
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -373,6 +374,22 @@ class Model:
         """A named output expression in (q, q', t), emitted when a scene asks for it."""
         _check_name(name, "output")
         self.outputs[name] = _as_expr(expr, f"output {name!r}")
+
+    def input(self, name: str, default: float = 0.0) -> sp.Symbol:
+        """Declare an input signal u(t) with its default value; return its symbol.
+
+        An input enters T, V, forces, generalized forces, dissipation and outputs as a parameter
+        does, and stays a run-time parameter of every scene (an entry of ``p``, listed in
+        ``GeneratedCode.input_names``): an FMU importer sets it between steps, ``simulate(...,
+        params={name: value})`` holds it constant. The derivation treats it as piecewise constant
+        (as a zero-order hold between communication points): terms in du/dt, which a T or a
+        damper depending on u would bring through d/dt dL/dq' (eq. 3.3), are not formed; give
+        such a rate as an input of its own.
+        """
+        _check_name(name, "input")
+        sym = self.parameter(name, check_finite(default, f"input {name!r}"))
+        self.inputs.append(name)
+        return sym
 
     # ------------------------------------------------------------------ checks
     def known_symbols(self) -> set:

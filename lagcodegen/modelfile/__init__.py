@@ -11,6 +11,9 @@ A build step can describe a model without writing Python::
     l1 = 1.0
     g = 9.81
 
+    [inputs]                              # input signals u(t): name = default value; used in
+    F = 0.0                               # expressions as parameters are (Model.input)
+
     [[points]]                            # optional named points (anchors, attachment points)
     name = "anchor"
     position = [0, 0]
@@ -74,15 +77,15 @@ A build step can describe a model without writing Python::
 Each table maps onto one :class:`~lagcodegen.model.Model` call (``particle``, ``point``,
 ``planar_body``, ``rigid_body``, ``gravity``, ``spring``, ``damper``, ``force``,
 ``generalized_force``, ``kinetic_energy``, ``potential_energy``, ``dissipation``,
-``output``). Where a point is expected (``a``, ``b``, ``point``), a string names a point
-(``[[points]]`` or a body) and an array gives a position.
+``output``; ``[inputs]``: ``input``). Where a point is expected (``a``, ``b``, ``point``), a
+string names a point (``[[points]]`` or a body) and an array gives a position.
 
 Expressions are TOML numbers or strings such as ``"-l1*cos(theta1)"``. A string is parsed
 by :func:`ast.parse` and converted by walking a whitelist of node types: numbers, names,
 ``+ - * / **``, unary ``-``/``+`` and calls of ``sin cos tan asin acos atan atan2 sinh
 cosh tanh exp log sqrt abs sign``. Names are the coordinates, their velocities
 ``<coord>_dot`` (only in forces, kinetic energy, dissipation, outputs and events), the parameters,
-``t`` and ``pi``. Nothing is ever evaluated: no ``eval``, no ``sympify`` of raw text.
+the inputs, ``t`` and ``pi``. Nothing is ever evaluated: no ``eval``, no ``sympify`` of raw text.
 Parameter values, ``initial`` values and ``t_start``/``t_end``/``rtol``/``atol`` may be
 constant expressions too (``"pi/2"``).
 

@@ -43,9 +43,9 @@ __all__ = ["FORMULATIONS", "FUNCTIONS", "ExpressionError", "ModelFile", "ModelFi
 METHODS = ("adams", "bdf")
 #: What [constraints] integrable = ... may say (see ConstrainedSystem).
 _INTEGRABLE = ("error", "allow")
-_TOP_LEVEL = ("model", "parameters", "points", "particles", "planar_bodies", "rigid_bodies", "gravity",
-              "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints", "events",
-              "simulation")
+_TOP_LEVEL = ("model", "parameters", "inputs", "points", "particles", "planar_bodies", "rigid_bodies",
+              "gravity", "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints",
+              "events", "simulation")
 _SIMULATION_KEYS = ("t_start", "t_end", "n_out", "method", "rtol", "atol", "max_steps", "initial", "outputs",
                     "runtime_parameters", "parameters", "jacobian", "formulation", "baumgarte", "projection")
 #: Ranges of the [simulation] integers (n_out: as the CLI's --n-out; max_steps: fits a C long everywhere).
@@ -114,6 +114,7 @@ class _Loader(_Reader):
             raise ModelFileError("missing required table [model]", self.filename, None, "", "model")
         self.load_model_table(self.table(["model"], data["model"]))
         self.load_parameters(self.table(["parameters"], data.get("parameters", {})))
+        self.load_inputs(self.table(["inputs"], data.get("inputs", {})))
         for section, loader in (("points", self.load_point), ("particles", self.load_particle),
                                 ("planar_bodies", self.load_planar_body), ("rigid_bodies", self.load_rigid_body)):
             for i, entry in enumerate(self.tables([section], data.get(section, []))):
@@ -177,6 +178,16 @@ class _Loader(_Reader):
             number = self.constant(path, value)
             with self.at(path, needle=name):
                 self.symbols[name] = self.model.parameter(name, number)
+
+    def load_inputs(self, table: dict) -> None:
+        """[inputs]: name = default value (an input signal u(t), :meth:`Model.input`)."""
+        assert self.model is not None
+        for name, value in table.items():
+            path = ["inputs", name]
+            self.declare_name(path, name)
+            number = self.constant(path, value)
+            with self.at(path, needle=name):
+                self.symbols[name] = self.model.input(name, number)
 
     def load_point(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
