@@ -299,6 +299,11 @@ class _Loader(_Reader):
             if name in builtin:
                 raise self.error(path, f"output name {excerpt(name)} is taken by a built-in output", token=name,
                                  needle=name)
+            states = [q.name for q in self.model.coords] + [v.name for v in self.model.speeds] + ["t"]
+            if name in states:
+                raise self.error(path, f"output name {excerpt(name)} is the name of a state (state: "
+                                 f"{', '.join(states[:-1])}; and the time t): its column would replace the state's "
+                                 "(rename the output)", token=name, needle=name)
             expr = self.expr(path, value, velocities=True)
             with self.at(path, needle=name):
                 self.model.output(name, expr)
