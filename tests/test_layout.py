@@ -14,6 +14,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lagcodegen"
 STAGES = [
     ("errors", "version"),
     ("util", "hooks", "progress"),
+    ("animation", "notebook"),
     ("result",),
     ("model",),
     ("derivation",),
