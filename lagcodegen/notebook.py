@@ -10,6 +10,7 @@ its HTML. One of the lowest stages (beside :mod:`lagcodegen.animation`): sympy a
 from __future__ import annotations
 
 import html
+import time
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -25,6 +26,10 @@ MAX_LATEX = 1200
 HEAD_ROWS = 5
 #: Columns of a result's head table.
 MAX_COLUMNS = 10
+#: Expressions up to this many characters are shown trigonometrically simplified (sin^2 + cos^2
+#: = 1, cos(a)cos(b) + sin(a)sin(b) = cos(a - b)), within SIMPLIFY_SECONDS per display.
+SIMPLIFY_CHARS = 400
+SIMPLIFY_SECONDS = 2.0
 
 
 def esc(x: object) -> str:
@@ -69,13 +74,29 @@ def dotted_names(coords: Sequence[sp.Symbol]) -> dict:
     return names
 
 
-def latex(expr, names: dict, limit: int = MAX_LATEX) -> str:
-    """LaTeX of a sympy (or symengine) expression with dotted velocity names; an expression whose
-    text is longer than ``limit`` is replaced by a note of its size (measured before printing)."""
+class Budget:
+    """Seconds left for simplification in one display."""
+
+    def __init__(self, seconds: float = SIMPLIFY_SECONDS):
+        self.end = time.perf_counter() + seconds
+
+    def simplified(self, expr: sp.Expr, text: str) -> sp.Expr:
+        if len(text) > SIMPLIFY_CHARS or time.perf_counter() > self.end:
+            return expr
+        return sp.trigsimp(expr)
+
+
+def latex(expr, names: dict, limit: int = MAX_LATEX, budget: Budget | None = None) -> str:
+    """LaTeX of a sympy (or symengine) expression with dotted velocity names (short ones
+    simplified within ``budget``); an expression whose text is longer than ``limit`` is replaced
+    by a note of its size (measured before printing)."""
     text = str(expr)
     if len(text) > limit:
         return rf"\text{{(an expression of {len(text)} characters)}}"
-    out = sp.latex(sp.sympify(expr), symbol_names=names)
+    e = sp.sympify(expr)
+    if budget is not None:
+        e = budget.simplified(e, text)
+    out = sp.latex(e, symbol_names=names)
     if len(out) > limit:
         return rf"\text{{(an expression of {len(text)} characters)}}"
     return out
@@ -108,19 +129,18 @@ def model_latex(model) -> str:
     if model.n > MAX_ITEMS:
         q += rf", \ldots\ \text{{({model.n - MAX_ITEMS} more)}}"
     lines = [rf"\text{{{_tex_text(model.name)}}}:\ q = ({q})"]
-    for label, T in more(model.kinetic_terms, MAX_EQUATIONS):
-        lines.append(_labelled("T", label, T, names))
-    for label, V in more(model.potential_terms, MAX_EQUATIONS):
-        lines.append(_labelled("V", label, V, names))
+    for symbol, terms in (("T", model.kinetic_terms), ("V", model.potential_terms)):
+        for label, expr in terms[:MAX_EQUATIONS]:
+            lines.append(_labelled(symbol, label, expr, names))
+        if len(terms) > MAX_EQUATIONS:
+            lines.append(rf"\text{{... ({len(terms) - MAX_EQUATIONS} more {symbol} terms)}}")
     if model.bodies:
         lines.append(rf"\text{{bodies: {_tex_text(', '.join(more([b.name for b in model.bodies])))}}}")
     return "$\\begin{array}{l}" + r" \\ ".join(lines) + r"\end{array}$"
 
 
-def _labelled(symbol: str, label, expr, names) -> str:
-    if isinstance(label, str):
-        return rf"{symbol}_{{\text{{{_tex_text(label)}}}}} = {latex(expr, names)}"
-    return rf"\text{{{_tex_text(label)}}}"  # the "... (n more)" marker
+def _labelled(symbol: str, label: str, expr, names) -> str:
+    return rf"{symbol}_{{\text{{{_tex_text(label)}}}}} = {latex(expr, names)}"
 
 
 def _tex_text(s: str) -> str:
@@ -138,6 +158,7 @@ def eom_rows(eom, limit: int = MAX_EQUATIONS) -> list[str]:
     model = eom.model
     names = dotted_names(model.coords)
     n = model.n
+    budget = Budget()
     rows = []
     for i in range(min(n, limit)):
         terms = []
@@ -146,11 +167,11 @@ def eom_rows(eom, limit: int = MAX_EQUATIONS) -> list[str]:
             if m == 0:
                 continue
             acc = names[sp.Symbol(f"{model.coords[j].name}_ddot")]
-            coef = latex(m, names)
+            coef = latex(m, names, budget=budget)
             terms.append(acc if coef == "1" else rf"\left({coef}\right) {acc}")
         lhs = " + ".join(more(terms, MAX_EQUATIONS)) if len(terms) <= MAX_EQUATIONS else \
             " + ".join(terms[:MAX_EQUATIONS]) + rf" + \ldots\ \text{{({len(terms) - MAX_EQUATIONS} more terms)}}"
-        rows.append(rf"{lhs or '0'} &= {latex(eom.F_se[i], names)}")
+        rows.append(rf"{lhs or '0'} &= {latex(eom.F_se[i], names, budget=budget)}")
     if n > limit:
         rows.append(rf"&\ \text{{... ({n - limit} more)}}")
     return rows
