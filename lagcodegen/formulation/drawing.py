@@ -104,10 +104,14 @@ class DeferredDrawing:
         return self._drawing
 
     def __reduce__(self):
-        return (_stored, (self(),))
+        try:
+            drawing = self()
+        except Exception:  # noqa: BLE001 - a model the drawing cannot evaluate: pickled without one
+            drawing = None
+        return (_stored, (drawing,))
 
 
-def _stored(drawing: Drawing) -> Drawing:
+def _stored(drawing: Drawing | None) -> Drawing | None:
     return drawing
 
 
