@@ -42,10 +42,12 @@ class Drawing:
     ``points``: the model's points by name with their dimension (2 or 3), in the model's order;
     ``links``: pairs of names joined by a line (points, or names of ``pivots``); ``pivots``:
     fixed positions drawn as squares (a pendulum's suspension); ``fixed``: points that never
-    move (drawn as pivots); ``evaluate(t, y, parameters)``: the points' positions {name: (N, dim)}
-    at the states ``y`` (N rows) and times ``t`` (N) with the run-time ``parameters`` (name ->
-    value), or None (then the positions must be among the result's outputs). ``evaluate`` is
-    dropped when the record is pickled.
+    move (drawn as pivots); ``body_axes``: tips of the axes drawn on bodies, tip name -> (the
+    body's point, axis letter "x", "y" or "z"), so that a body's rotation shows (a top's spin);
+    ``evaluate(t, y, parameters)``: the positions {name: (N, dim)} of the points and axis tips at
+    the states ``y`` (N rows) and times ``t`` (N) with the run-time ``parameters`` (name ->
+    value), or None (then the points' positions must be among the result's outputs, and no axes
+    are drawn). ``evaluate`` is dropped when the record is pickled.
     """
 
     name: str
@@ -54,6 +56,7 @@ class Drawing:
     pivots: dict[str, tuple[float, ...]] = field(default_factory=dict)
     fixed: tuple[str, ...] = ()
     evaluate: Callable | None = field(default=None, repr=False, compare=False)
+    body_axes: dict[str, tuple[str, str]] = field(default_factory=dict)
 
     @property
     def dim(self) -> int:
@@ -91,17 +94,25 @@ def tracks(drawing: Drawing, outputs: Mapping[str, np.ndarray], evaluate_args: C
     they are all there, else from ``drawing.evaluate(*evaluate_args())``. Raises LagcodegenError
     saying what to request when neither is possible."""
     axes = "xyz"
+    computed = None
+    if drawing.evaluate is not None and evaluate_args is not None and drawing.body_axes:
+        computed = drawing.evaluate(*evaluate_args())
     if all(f"{p}_{a}" in outputs for p, d in drawing.points.items() for a in axes[:d]):
-        return {p: np.column_stack([np.asarray(outputs[f"{p}_{a}"], dtype=float) for a in axes[:d]])
-                for p, d in drawing.points.items()}
+        out = {p: np.column_stack([np.asarray(outputs[f"{p}_{a}"], dtype=float) for a in axes[:d]])
+               for p, d in drawing.points.items()}
+        if computed is not None:
+            out.update({tip: np.asarray(computed[tip], dtype=float) for tip in drawing.body_axes})
+        return out
     if drawing.evaluate is None or evaluate_args is None:
         missing = [f"{p}_{a}" for p, d in drawing.points.items() for a in axes[:d] if f"{p}_{a}" not in outputs]
         raise LagcodegenError(f"cannot draw {drawing.name or 'this result'}: the positions "
                               f"{', '.join(missing[:6])}{' ...' if len(missing) > 6 else ''} are not among the "
                               "outputs and no model is attached to compute them: simulate with "
                               "outputs=['positions'] (compile_model(..., outputs=['positions']))")
-    out = drawing.evaluate(*evaluate_args())
-    return {p: np.asarray(out[p], dtype=float).reshape(-1, d) for p, d in drawing.points.items()}
+    out = computed if computed is not None else drawing.evaluate(*evaluate_args())
+    tracks = {p: np.asarray(out[p], dtype=float).reshape(-1, d) for p, d in drawing.points.items()}
+    tracks.update({tip: np.asarray(out[tip], dtype=float) for tip in drawing.body_axes if tip in out})
+    return tracks
 
 
 def frame_times(t: np.ndarray, *, fps: float, duration: float | None, frames: int | None) -> np.ndarray:
@@ -165,6 +176,12 @@ class Animator:
         for a, b in drawing.links:
             (line,) = self.ax.plot(*([[0, 0]] * self.dim), color="0.25", lw=2, zorder=2, animated=True)
             self.links[(a, b)] = line
+        self.axes_lines = {}
+        for tip, (body, axis) in drawing.body_axes.items():
+            if tip in self.full and body in self.full:
+                (line,) = self.ax.plot(*([[0, 0]] * self.dim), color={"x": "tab:red", "y": "tab:green"}.get(
+                    axis, "tab:blue"), lw=2, zorder=2, animated=True)
+                self.axes_lines[tip] = line
         self.trails = {}
         if trail:
             for i, p in enumerate(moving):
@@ -220,6 +237,8 @@ class Animator:
         """Frame ``k``: every artist updated; returns them."""
         for (a, b), line in self.links.items():
             self._set(line, np.vstack([self.position(a, k), self.position(b, k)]))
+        for tip, line in self.axes_lines.items():
+            self._set(line, np.vstack([self.frames[self.drawing.body_axes[tip][0]][k], self.frames[tip][k]]))
         for p, line in self.points.items():
             self._set(line, self.frames[p][k][None, :])
         tk = self.times[k]
@@ -228,7 +247,8 @@ class Animator:
             sel = (self.t >= first) & (self.t <= tk)
             self._set(line, np.vstack([self.full[p][sel], self.frames[p][k][None, :]]))
         self.clock.set_text(f"t = {tk:.3g}")
-        return [*self.links.values(), *self.points.values(), *self.trails.values(), self.clock]
+        return [*self.links.values(), *self.axes_lines.values(), *self.points.values(), *self.trails.values(),
+                self.clock]
 
     def render(self, k: int) -> np.ndarray:
         """Frame ``k`` as an RGBA image (height, width, 4): the static part (axes, pivots) drawn

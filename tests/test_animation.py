@@ -174,3 +174,41 @@ def test_results_without_a_model_draw_their_position_outputs_or_say_what_to_requ
     with pytest.raises(LagcodegenError, match="positions"):
         back.tracks()
     assert np.allclose(res.tracks()["bob"][:, 0], np.sin(res["theta"]), atol=1e-12)
+
+
+def heavy_top():
+    """A symmetric top on a fixed tip: Euler angles (z-x-z), centre of mass l along the body's z axis."""
+    m = lcg.Model("top")
+    phi, theta, psi = m.coordinates("phi theta psi")
+    mass, l, g, I1, I3 = m.parameters(m=1.0, l=0.5, g=9.81, I1=0.3, I3=0.1)
+
+    def rz(a):
+        return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
+
+    R = rz(phi) * sp.Matrix([[1, 0, 0], [0, sp.cos(theta), -sp.sin(theta)], [0, sp.sin(theta), sp.cos(theta)]]) \
+        * rz(psi)
+    m.rigid_body("top", mass, [I1, I1, I3], R * sp.Matrix([0, 0, l]), R)
+    m.gravity(g)
+    return m
+
+
+def test_a_spinning_top_draws_its_body_axes(tmp_path):
+    res = lcg.compile_model(heavy_top()).simulate(np.linspace(0, 1, 51), q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 30.0])
+    d = res.drawn()
+    assert d.links == [("origin", "top")] and d.dim == 3
+    assert d.body_axes == {"top.x": ("top", "x"), "top.y": ("top", "y"), "top.z": ("top", "z")}
+    tr = res.tracks()
+    c = tr["top"]
+    assert np.allclose(np.linalg.norm(c, axis=1), 0.5, atol=1e-12)  # the tip is fixed: |x_G| = l
+    arms = {a: tr[f"top.{a}"] - c for a in "xyz"}
+    length = np.linalg.norm(arms["x"], axis=1)
+    assert np.allclose(length, 0.3 * 0.5, rtol=1e-9)  # AXIS_FRACTION of the model's reach
+    for a, b in (("x", "y"), ("y", "z"), ("x", "z")):
+        assert np.allclose(np.einsum("ij,ij->i", arms[a], arms[b]), 0, atol=1e-12)  # body axes stay orthogonal
+    assert np.allclose(np.cross(arms["z"], c), 0, atol=1e-12)  # the symmetry axis points at the centre
+    # the spin turns the x axis about the symmetry axis: about 30 rad/s, so it moves between frames
+    assert np.linalg.norm(arms["x"][1] - arms["x"][0]) > 0.1 * length[0]
+    anim = Animator(d, res.t, tr, res.t[:3])
+    anim.draw(2)
+    assert np.array_equal(anim.data(anim.axes_lines["top.x"]), np.vstack([c[2], tr["top.x"][2]]))
+    assert Image.open(res.animate(tmp_path / "top.gif", frames=6)).n_frames == 6

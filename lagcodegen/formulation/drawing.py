@@ -5,7 +5,9 @@ Links are read from the model's geometry: two points (or a point and the origin,
 of a pendulum) are joined when their distance is the same in every configuration, a rod or a
 rigid body between them. The test is numerical: the distance at a few random states (q in
 [-2, 2], t in [0, 1], the scene's parameter values) constant to 1e-9 relative. Points that no
-coordinate or time moves are drawn as fixed pivots.
+coordinate or time moves are drawn as fixed pivots. Bodies carry short axes (a rigid body its
+three body axes, the columns of R; a planar body the direction of its angle), their length
+:data:`AXIS_FRACTION` of the model's size, so that a rotation shows.
 
 :func:`attaches_drawing` decorates a compiled model's ``simulate``: every result gets a deferred
 drawing (made on first use, once per compiled model) and the model's name, so that
@@ -19,8 +21,11 @@ from typing import Callable
 
 import numpy as np
 import symengine as se
+import sympy as sp
 
 from ..animation import Drawing
+from ..derivation import to_se
+from ..model.model import PlanarBody, RigidBody
 from .scene import Scene
 
 #: Random states of the rigid-link test, and its relative tolerance.
@@ -28,6 +33,9 @@ LINK_SAMPLES = 5
 LINK_RTOL = 1e-9
 #: Name of the origin when it is drawn as a pivot.
 ORIGIN = "origin"
+#: Length of the axes drawn on bodies, as a fraction of the largest distance of a point from the
+#: origin over the link test's samples (1 where every point sits at the origin).
+AXIS_FRACTION = 0.3
 
 
 def drawing_of(scene: Scene) -> Drawing:
@@ -40,24 +48,31 @@ def drawing_of(scene: Scene) -> Drawing:
     coords = [se.Symbol(q.name) for q in model.coords]
     params = [se.Symbol(name) for name in scene.runtime_parameters]
     t = se.Symbol(model.t.name)
-    exprs = [c.xreplace(sub) if sub else c for p in names for c in eom.position(p)]
+    directions = body_directions(model)  # (tip name, body point, axis letter, direction expressions)
+    exprs = [c for p in names for c in eom.position(p)] + [to_se(c, f"axis of {body!r}")
+                                                          for _, body, _, d in directions for c in d]
+    exprs = [c.xreplace(sub) if sub else c for c in exprs]
     if not exprs:
         return Drawing(model.name, {})
     f = se.Lambdify([t, *coords, *params], exprs, backend="lambda")
     n = len(coords)
     pvals = scene.default_parameters()
+    sizes = [dims[p] for p in names] + [len(d) for _, _, _, d in directions]
 
     def positions(t_arr, q_rows, p_vals) -> list[np.ndarray]:
+        """Positions of the points, then the axes' unit directions, each (N, dim)."""
         rows = np.array([f([ti, *q, *p_vals]) for ti, q in zip(t_arr, q_rows)], dtype=float).reshape(len(t_arr), -1)
         out, k = [], 0
-        for p in names:
-            out.append(rows[:, k:k + dims[p]])
-            k += dims[p]
+        for size in sizes:
+            out.append(rows[:, k:k + size])
+            k += size
         return out
 
     rng = np.random.default_rng(12345)
     samples = positions(rng.uniform(0, 1, LINK_SAMPLES), rng.uniform(-2, 2, (LINK_SAMPLES, n)), pvals)
     at = dict(zip(names, samples))
+    reach = max((float(np.linalg.norm(x, axis=1).max()) for x in at.values()), default=0.0)
+    axis_length = AXIS_FRACTION * (reach if reach > 0 else 1.0)
     fixed = tuple(p for p in names if np.ptp(at[p], axis=0).max() <= LINK_RTOL * (1 + np.abs(at[p]).max()))
     links: list[tuple[str, str]] = []
 
@@ -85,9 +100,29 @@ def drawing_of(scene: Scene) -> Drawing:
     def evaluate(t_arr, y, parameters) -> dict[str, np.ndarray]:
         y = np.asarray(y, dtype=float)
         pv = [float(parameters.get(name, d)) for name, d in zip(param_names, pvals)] if parameters else pvals
-        return dict(zip(names, positions(np.asarray(t_arr, dtype=float), y[:, :n], pv)))
+        values = positions(np.asarray(t_arr, dtype=float), y[:, :n], pv)
+        out = dict(zip(names, values))
+        for (tip, body, _, _), direction in zip(directions, values[len(names):]):
+            out[tip] = out[body] + axis_length * direction
+        return out
 
-    return Drawing(model.name, dims, links, pivots, fixed, evaluate)
+    return Drawing(model.name, dims, links, pivots, fixed, evaluate,
+                   {tip: (body, axis) for tip, body, axis, _ in directions})
+
+
+def body_directions(model) -> list[tuple[str, str, str, list]]:
+    """The axes drawn on the model's bodies: (tip name ``<body>.<axis>``, the body's point, the
+    axis letter, the axis' unit direction as sympy expressions): a rigid body's three body axes
+    in world coordinates (the columns of its orientation R), a planar body's (cos, sin) of its
+    angle."""
+    out = []
+    for body in model.bodies:
+        if isinstance(body, RigidBody):
+            for k, axis in enumerate("xyz"):
+                out.append((f"{body.name}.{axis}", body.point.name, axis, list(body.orientation[:, k])))
+        elif isinstance(body, PlanarBody):
+            out.append((f"{body.name}.x", body.point.name, "x", [sp.cos(body.angle), sp.sin(body.angle)]))
+    return out
 
 
 class DeferredDrawing:
