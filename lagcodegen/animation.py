@@ -203,6 +203,9 @@ class Animator:
     def _limits(self) -> None:
         pts = [x for x in self.full.values()] + [v[None, :] for v in self.pivots.values()]
         allp = np.vstack(pts) if pts else np.zeros((1, self.dim))
+        allp = allp[np.isfinite(allp).all(axis=1)]  # a failed run's last rows may be NaN
+        if not allp.size:
+            allp = np.zeros((1, self.dim))
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-9) * 1.1
         ax = self.ax

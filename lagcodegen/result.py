@@ -145,8 +145,7 @@ class Result:
             fig = Figure(figsize=(4 * min(len(names), 3), 4 * ((len(names) + 2) // 3)))
             for i, name in enumerate(names):
                 ax = fig.add_subplot((len(names) + 2) // 3, min(len(names), 3), i + 1)
-                ax.plot(self[name], self[f"{name}_dot"] if f"{name}_dot" in self.state_names
-                        else self.y[:, self.n + i], lw=0.8)
+                ax.plot(self.y[:, i], self.y[:, self.n + i], lw=0.8)
                 ax.set_xlabel(name)
                 ax.set_ylabel(f"{name}'")
                 ax.grid(alpha=0.3)
