@@ -169,6 +169,16 @@ class EquationsOfMotion:
         """Lagrange's equations as residuals M q'' - F (each = 0)."""
         return self.M * self.accelerations() - self.F
 
+    def _repr_latex_(self) -> str:
+        """Lagrange's equations M q'' = F with dotted velocities; a few rows, each of bounded
+        length, then how many more (a 20-link chain's stays a few kB)."""
+        from .notebook import eom_latex
+        return eom_latex(self)
+
+    def _repr_html_(self) -> str:
+        from .notebook import eom_html
+        return eom_html(self)
+
 
 # ---------------------------------------------------------------------- helpers
 class _Engine:

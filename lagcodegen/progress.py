@@ -19,6 +19,10 @@ whose methods do nothing: a few hundred nanoseconds per stage, tens per advance.
 redrawn by a small thread, so that a stage without loop points (a compiler run) still shows
 its elapsed time; callbacks are always called from the thread doing the work.
 
+Lines drawn by others (the ensembles' members-done bar) go through :class:`StatusLine`, which
+keeps the same rule: redrawn in place at most every :data:`REFRESH` seconds on a terminal, one
+line every :data:`LOG_EVERY` seconds into a log file or a pipe.
+
 Ctrl-C: Python runs its SIGINT handler only between bytecodes, so one long C call holding the
 GIL (symengine's common-subexpression elimination of a 50-link chain: seconds) delays
 KeyboardInterrupt until it returns. :func:`isolated` runs such a call in a forked child
@@ -234,6 +238,50 @@ class _LineReporter:
     def _run(self, stop: threading.Event) -> None:
         while not stop.wait(REFRESH):
             self.draw()
+
+
+class StatusLine:
+    """One status line on ``stream`` (default stderr) that a caller redraws as often as it likes:
+    on a terminal rewritten in place (``\\r``) at most every :data:`REFRESH` seconds; elsewhere
+    (a log file, a pipe) a new line at most every :data:`LOG_EVERY` seconds, never a carriage
+    return. :meth:`close` draws the last text (if anything was drawn) and ends the line."""
+
+    def __init__(self, stream=None):
+        self.stream = stream if stream is not None else sys.stderr
+        try:
+            self.tty = bool(self.stream.isatty())
+        except (AttributeError, ValueError):
+            self.tty = False
+        self.last: float | None = None  # time of the last draw
+        self.text = ""
+        self.drawn = False  # the latest text is on the stream
+
+    def write(self, text: str, force: bool = False) -> bool:
+        """Show ``text`` if a draw is due (or ``force``); returns True if it was written."""
+        self.text, self.drawn = text, False
+        now = time.perf_counter()
+        if not force and self.last is not None and now - self.last < (REFRESH if self.tty else LOG_EVERY):
+            return False
+        try:
+            self.stream.write(("\r" + text) if self.tty else (text.rstrip() + "\n"))
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed stream: drawing is best effort
+            return False
+        self.last, self.drawn = now, True
+        return True
+
+    def close(self) -> None:
+        """Draw the latest text if it was not drawn, then end the line (a terminal's newline)."""
+        if self.last is None:
+            return
+        if not self.drawn:
+            self.write(self.text, force=True)
+        if self.tty:
+            try:
+                self.stream.write("\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
 
 
 _reporter: contextvars.ContextVar = contextvars.ContextVar("lagcodegen_progress", default=None)

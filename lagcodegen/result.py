@@ -1,4 +1,5 @@
-"""The result of one simulation, the same for every backend."""
+"""The result of one simulation, the same for every backend: its columns by name, files (CSV,
+NPZ), plots, animations (:mod:`lagcodegen.animation`) and its notebook view."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import LagcodegenError
 from .util import atomic_binary, atomic_write
 
 
@@ -34,6 +36,9 @@ class Result:
     n_coordinates: int | None = None  # n: y = (q_1..q_n, q_1'..q_n', z...) with z quadrature states
     events: list = field(default_factory=list)  # events found by root finding (lagcodegen.events.EventRecord)
     formulation: str = ""  # constrained systems: "index1", "ggl" or "minimal"
+    model_name: str = ""  # the model's name (plot titles), set by the compiled model
+    # how the model is drawn (lagcodegen.animation.Drawing, or a callable making one on first use)
+    drawing: object = field(default=None, repr=False, compare=False)
 
     @property
     def success(self) -> bool:
@@ -98,24 +103,146 @@ class Result:
         lines += [",".join(repr(float(x)) for x in row) for row in data]
         return atomic_write(path, "\n".join(lines) + "\n")
 
-    def plot(self, path: str | os.PathLike, what: list[str] | None = None) -> Path:
-        """Save a PNG of the coordinates (or the named columns) against time."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        what = what or self.state_names[: self.n]
-        fig, axes = plt.subplots(len(what), 1, figsize=(8, 1.8 * len(what) + 1), sharex=True, squeeze=False)
-        for ax, name in zip(axes[:, 0], what):
-            ax.plot(self.t, self[name], lw=1)
-            ax.set_ylabel(name)
-            ax.grid(alpha=0.3)
-        axes[-1, 0].set_xlabel("t")
-        fig.suptitle(f"{self.backend} {self.method}".strip())
+    # ------------------------------------------------------------------ pictures
+    def title(self) -> str:
+        """The model's name (else the backend and method), the title of plots."""
+        return self.model_name or f"{self.backend} {self.method}".strip()
+
+    def panels(self) -> list[list[str]]:
+        """The default panels of :meth:`plot`: each coordinate, then the outputs that tell what
+        the run is about, a panel per kind: energies (T + V, T, V, D), the Jacobi integral h,
+        its rate, the multipliers lambda_j, the constraint residuals, integrals of motion C_i."""
+        panels = [[name] for name in self.state_names[: self.n]]
+        kinds = [lambda k: k in ("energy", "kinetic_energy", "potential_energy", "dissipation"),
+                 lambda k: k == "jacobi_h", lambda k: k == "dh_dt", lambda k: k.startswith("lambda_"),
+                 lambda k: k.startswith(("g_", "gdot_")), lambda k: k.startswith("C_")]
+        for kind in kinds:
+            names = [k for k in self.outputs if kind(k)]
+            if names:
+                panels.append(names)
+        return panels
+
+    def plot(self, path: str | os.PathLike | None = None, what: list | None = None, *, xy: bool | str | None = None,
+             phase: bool = False, title: str | None = None):
+        """Plot the run against time: a panel per coordinate and per requested kind of output
+        (:meth:`panels`), or per item of ``what`` (a name, or a list of names sharing a panel);
+        titled with the model's name.
+
+        ``xy``: instead, the x-y path of planar points (an orbit, not r(t)): True every 2-D
+        point, or a point's name (positions from the outputs, or computed from the states by
+        the model's drawing). ``phase``: instead, phase portraits q' against q.
+
+        With ``path``, the figure is saved as PNG (atomically) and the path returned; without,
+        the matplotlib figure is returned (a notebook shows it).
+        """
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        if xy:
+            fig = self._xy_figure(xy)
+        elif phase:
+            names = self.state_names[: self.n]
+            fig = Figure(figsize=(4 * min(len(names), 3), 4 * ((len(names) + 2) // 3)))
+            for i, name in enumerate(names):
+                ax = fig.add_subplot((len(names) + 2) // 3, min(len(names), 3), i + 1)
+                ax.plot(self.y[:, i], self.y[:, self.n + i], lw=0.8)
+                ax.set_xlabel(name)
+                ax.set_ylabel(f"{name}'")
+                ax.grid(alpha=0.3)
+        else:
+            panels = [[w] if isinstance(w, str) else list(w) for w in what] if what else self.panels()
+            fig = Figure(figsize=(8, 1.8 * len(panels) + 1))
+            axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+            for ax, names in zip(axes, panels):
+                for name in names:
+                    ax.plot(self.t, self[name], lw=1, label=name)
+                ax.set_ylabel(names[0] if len(names) == 1 else ", ".join(names) if len(names) <= 3
+                              else f"{names[0]}, ...")
+                if len(names) > 1:
+                    ax.legend(fontsize="small", loc="best")
+                ax.grid(alpha=0.3)
+            axes[-1].set_xlabel("t")
+        fig.suptitle(title if title is not None else self.title())
         fig.tight_layout()
+        if path is None:
+            return fig
+        FigureCanvasAgg(fig)
         path = Path(path)
-        try:
-            with atomic_binary(path) as fh:  # a unique temporary file, never a predictable name
-                fig.savefig(fh, dpi=100, format="png")
-        finally:
-            plt.close(fig)
+        with atomic_binary(path) as fh:  # a unique temporary file, never a predictable name
+            fig.savefig(fh, dpi=100, format="png")
         return path
+
+    def _xy_figure(self, which):
+        from matplotlib.figure import Figure
+
+        drawing = self.drawn()
+        planar = [p for p, d in drawing.points.items() if d == 2]
+        if which is not True:
+            if which not in drawing.points:
+                raise LagcodegenError(f"xy={which!r}: not a point of the model (points: "
+                                      f"{', '.join(drawing.points) or 'none'})")
+            planar = [which]
+        if not planar:
+            raise LagcodegenError("xy: the model has no planar (2-D) point")
+        tracks = self.tracks()
+        fig = Figure(figsize=(6, 6))
+        ax = fig.add_subplot()
+        for p in planar:
+            ax.plot(tracks[p][:, 0], tracks[p][:, 1], lw=0.8, label=p)
+        for name, pos in drawing.pivots.items():
+            ax.plot([pos[0]], [pos[1]], "ks")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.grid(alpha=0.3)
+        if len(planar) > 1:
+            ax.legend(fontsize="small")
+        return fig
+
+    def drawn(self):
+        """How this run's model is drawn (:class:`lagcodegen.animation.Drawing`): the compiled
+        model's, else the points among the outputs; LagcodegenError if there is neither."""
+        from .animation import drawing_from_columns, resolve
+        drawing = resolve(self.drawing) or drawing_from_columns(list(self.outputs), self.model_name)
+        if drawing is None or not drawing.points:
+            raise LagcodegenError("nothing to draw: this result has no point positions and no model to compute them "
+                                  "(simulate with outputs=['positions'] a model with points or bodies)")
+        return drawing
+
+    def tracks(self) -> dict[str, np.ndarray]:
+        """Positions {point: (N, dim)} of the model's points over the run: the ``positions``
+        outputs if they were requested, else computed from the states."""
+        from .animation import tracks
+        return tracks(self.drawn(), self.outputs, lambda: (self.t, self.y, self.parameters))
+
+    def animate(self, path: str | os.PathLike, *, fps: float = 25, duration: float | None = None,
+                frames: int | None = None, trail: bool | float = False, size: tuple[float, float] = (5.0, 5.0),
+                dpi: float = 80, title: str | None = None) -> Path:
+        """Draw the mechanism moving: its points, the links between them and to fixed pivots
+        (2-D or 3-D as the model is), into ``path``: ``.gif``, ``.mp4`` (needs ffmpeg) or
+        ``.html`` (a player), written atomically.
+
+        ``frames`` evenly spaced over the run (default ``fps * duration``; ``duration`` in
+        seconds of playback, default the run's length up to 10 s); ``trail``: True the whole
+        path behind each point, a number the last that much model time. The positions are the
+        ``positions`` outputs if requested, else computed from the states by the model.
+        """
+        from .animation import animate
+        drawing = self.drawn()
+        return animate(path, drawing, self.t, self.tracks(), fps=fps, duration=duration, frames=frames, trail=trail,
+                       title=self.title() if title is None else title, size=size, dpi=dpi)
+
+    # ------------------------------------------------------------------ notebooks
+    def to_pandas(self):
+        """The columns (t, states, outputs) as a pandas DataFrame indexed by nothing but row
+        number; pandas is optional (LagcodegenError if it is missing)."""
+        try:
+            import pandas
+        except ImportError:
+            raise LagcodegenError("Result.to_pandas needs pandas, which is not installed (pip install pandas); "
+                                  "Result.columns() gives the same columns as a dict of arrays") from None
+        return pandas.DataFrame(self.columns())
+
+    def _repr_html_(self) -> str:
+        from .notebook import result_html
+        return result_html(self)

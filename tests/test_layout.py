@@ -15,6 +15,7 @@ STAGES = [
     ("errors", "version"),
     ("codes", "runtime"),
     ("util", "hooks", "progress"),
+    ("animation", "notebook"),
     ("result",),
     ("model",),
     ("derivation",),

@@ -464,4 +464,13 @@ class Model:
         if not self.bodies and not self.kinetic_terms:
             raise ModelError(f"model {self.name!r} has no kinetic energy: add bodies or kinetic_energy()")
 
+    # ------------------------------------------------------------------ notebooks
+    def _repr_html_(self) -> str:
+        """Name, coordinates, parameters, bodies, energies, forces and outputs (bounded size)."""
+        from ..notebook import model_html
+        return model_html(self)
 
+    def _repr_latex_(self) -> str:
+        """The coordinates and the energies stated directly, velocities dotted."""
+        from ..notebook import model_latex
+        return model_latex(self)

@@ -101,7 +101,12 @@ Every problem raises :class:`ModelFileError` (a :class:`~lagcodegen.errors.Model
 naming the file, the line when it can be found, the key path (``particles[1].position[0]``)
 and the offending token.
 
-The package, one job a module: :mod:`.expressions` (the expression whitelist),
+Every table and key, with its type, default and meaning, is declared in :mod:`.schema`, which
+the loader validates against; ``docs/model-files.md`` is generated from it
+(``python tools/model_file_reference.py``).
+
+The package, one job a module: :mod:`.schema` (the tables and keys as data),
+:mod:`.expressions` (the expression whitelist),
 :mod:`.locate` (finding the line of a problem in the TOML text), :mod:`.values` (typed values
 read with located errors), :mod:`.loader` (the sections, into a Model and its settings) and
 :mod:`.document` (the loaded :class:`ModelFile` and how it runs).

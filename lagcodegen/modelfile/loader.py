@@ -27,7 +27,9 @@ from ..theory.constraints import FORMULATIONS, ConstrainedSystem
 from ..util import excerpt
 from .document import ModelFile, SimulationSettings, constrained_method, constrained_outputs
 from .expressions import FUNCTIONS, ExpressionError, parse_expression
+from . import schema
 from .locate import ModelFileError, _format_key, _Key
+from .schema import MAX_N_OUT, MAX_STEPS
 from .values import _Reader, _type_name
 
 if sys.version_info >= (3, 11):
@@ -43,15 +45,10 @@ __all__ = ["FORMULATIONS", "FUNCTIONS", "ExpressionError", "ModelFile", "ModelFi
 METHODS = ("adams", "bdf")
 #: What [constraints] integrable = ... may say (see ConstrainedSystem).
 _INTEGRABLE = ("error", "allow")
-_TOP_LEVEL = ("model", "parameters", "inputs", "points", "particles", "planar_bodies", "rigid_bodies",
-              "gravity", "springs", "dampers", "forces", "generalized_forces", "energy", "outputs", "constraints",
-              "events", "simulation")
-_SIMULATION_KEYS = ("t_start", "t_end", "n_out", "method", "rtol", "atol", "max_steps", "initial", "outputs",
-                    "runtime_parameters", "parameters", "jacobian", "formulation", "baumgarte", "projection")
-#: Ranges of the [simulation] integers (n_out: as the CLI's --n-out; max_steps: fits a C long everywhere).
-MAX_N_OUT = 10_000_000
-MAX_STEPS = 2**31 - 1
-_CONSTRAINT_KEYS = ("holonomic", "nonholonomic", "inequalities", "integrable")
+#: The tables and their keys: the declarative schema (also the source of docs/model-files.md).
+_TOP_LEVEL = schema.TOP_LEVEL
+_SIMULATION_KEYS = tuple(schema.keys("simulation")["optional"])
+_CONSTRAINT_KEYS = tuple(schema.keys("constraints")["optional"])
 _CONSTRAINT_PATH = re.compile(r"\b(nonholonomic|holonomic|inequality) constraint (\d+)")
 _POSITION_ONLY = "velocities are allowed only in forces, kinetic energy, dissipation, outputs and events"
 
@@ -144,7 +141,7 @@ class _Loader(_Reader):
                          constrained=self.system, events=list(self.events))
 
     def load_model_table(self, table: dict) -> None:
-        self.fields(["model"], table, required=["coordinates"], optional=["name"])
+        self.fields(["model"], table, **schema.keys("model"))
         if "name" in table:
             name = self.string(["model", "name"], table["name"])
         else:
@@ -191,7 +188,7 @@ class _Loader(_Reader):
 
     def load_point(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["name", "position"])
+        self.fields(path, entry, **schema.keys("points"))
         name = self.string([*path, "name"], entry["name"])
         position = self.vector([*path, "position"], entry["position"])
         with self.at([*path, "name"], needle=name):
@@ -199,7 +196,7 @@ class _Loader(_Reader):
 
     def load_particle(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["name", "mass", "position"])
+        self.fields(path, entry, **schema.keys("particles"))
         name = self.string([*path, "name"], entry["name"])
         mass = self.expr([*path, "mass"], entry["mass"])
         position = self.vector([*path, "position"], entry["position"])
@@ -208,7 +205,7 @@ class _Loader(_Reader):
 
     def load_planar_body(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["name", "mass", "inertia", "position", "angle"])
+        self.fields(path, entry, **schema.keys("planar_bodies"))
         name = self.string([*path, "name"], entry["name"])
         mass = self.expr([*path, "mass"], entry["mass"])
         inertia = self.expr([*path, "inertia"], entry["inertia"])
@@ -219,7 +216,7 @@ class _Loader(_Reader):
 
     def load_rigid_body(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["name", "mass", "inertia", "position", "orientation"])
+        self.fields(path, entry, **schema.keys("rigid_bodies"))
         name = self.string([*path, "name"], entry["name"])
         mass = self.expr([*path, "mass"], entry["mass"])
         raw = entry["inertia"]
@@ -234,7 +231,7 @@ class _Loader(_Reader):
 
     def load_gravity(self, table: dict) -> None:
         assert self.model is not None
-        self.fields(["gravity"], table, required=["g"], optional=["up"])
+        self.fields(["gravity"], table, **schema.keys("gravity"))
         g = self.expr(["gravity", "g"], table["g"])
         up = self.vector(["gravity", "up"], table["up"]) if "up" in table else None
         with self.at(["gravity"]):
@@ -242,7 +239,7 @@ class _Loader(_Reader):
 
     def load_spring(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["a", "b", "k"], optional=["rest_length", "label"])
+        self.fields(path, entry, **schema.keys("springs"))
         a = self.point_ref([*path, "a"], entry["a"])
         b = self.point_ref([*path, "b"], entry["b"])
         k = self.expr([*path, "k"], entry["k"])
@@ -253,7 +250,7 @@ class _Loader(_Reader):
 
     def load_damper(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["point", "c"], optional=["b", "label"])
+        self.fields(path, entry, **schema.keys("dampers"))
         a = self.point_ref([*path, "point"], entry["point"])
         c = self.expr([*path, "c"], entry["c"])
         b = self.point_ref([*path, "b"], entry["b"]) if "b" in entry else None
@@ -263,7 +260,7 @@ class _Loader(_Reader):
 
     def load_force(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["point", "vector"], optional=["label"])
+        self.fields(path, entry, **schema.keys("forces"))
         point = self.point_ref([*path, "point"], entry["point"])
         vector = self.vector([*path, "vector"], entry["vector"], velocities=True)
         label = self.string([*path, "label"], entry["label"]) if "label" in entry else None
@@ -272,7 +269,7 @@ class _Loader(_Reader):
 
     def load_generalized_force(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None
-        self.fields(path, entry, required=["coordinate", "expr"], optional=["label"])
+        self.fields(path, entry, **schema.keys("generalized_forces"))
         coord = self.string([*path, "coordinate"], entry["coordinate"])
         names = [q.name for q in self.model.coords]
         if coord not in names:
@@ -284,7 +281,7 @@ class _Loader(_Reader):
 
     def load_energy(self, table: dict) -> None:
         assert self.model is not None
-        self.fields(["energy"], table, optional=["kinetic", "potential", "dissipation"])
+        self.fields(["energy"], table, **schema.keys("energy"))
         if "kinetic" in table:
             self.model.kinetic_energy(self.expr(["energy", "kinetic"], table["kinetic"], velocities=True),
                                       label="energy.kinetic")
@@ -310,6 +307,11 @@ class _Loader(_Reader):
             if name in builtin:
                 raise self.error(path, f"output name {excerpt(name)} is taken by a built-in output", token=name,
                                  needle=name)
+            states = [q.name for q in self.model.coords] + [v.name for v in self.model.speeds] + ["t"]
+            if name in states:
+                raise self.error(path, f"output name {excerpt(name)} is the name of a state (state: "
+                                 f"{', '.join(states[:-1])}; and the time t): its column would replace the state's "
+                                 "(rename the output)", token=name, needle=name)
             expr = self.expr(path, value, velocities=True)
             with self.at(path, needle=name):
                 self.model.output(name, expr)
@@ -369,7 +371,7 @@ class _Loader(_Reader):
     def load_pfaffian(self, path: list[_Key], entry: dict) -> tuple[tuple, sp.Expr]:
         """A nonholonomic constraint: ``{A = [...], A0 = ...}`` or ``{coefficients = {q = ...}, A0 = ...}``."""
         assert self.model is not None
-        self.fields(path, entry, optional=["A", "coefficients", "A0"])
+        self.fields(path, entry, **schema.keys("constraints.nonholonomic"))
         names = [q.name for q in self.model.coords]
         if ("A" in entry) == ("coefficients" in entry):
             what = "both 'A' and 'coefficients' given" if "A" in entry else "missing key 'A' or 'coefficients'"
@@ -401,7 +403,7 @@ class _Loader(_Reader):
     def load_event(self, path: list[_Key], entry: dict) -> Event:
         """[[events]]: name, expr (q, q', t, parameters, lambda_<j>), direction, terminal."""
         assert self.system is not None
-        self.fields(path, entry, required=["name", "expr"], optional=["direction", "terminal"])
+        self.fields(path, entry, **schema.keys("events"))
         name = self.string([*path, "name"], entry["name"])
         if not name.isidentifier():
             raise self.error([*path, "name"], f"event name {excerpt(name)} must be an identifier", token=name)

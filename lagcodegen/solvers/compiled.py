@@ -12,6 +12,8 @@ from ..build import BuiltModule, build
 from ..codegen.record import GeneratedCode
 from ..codes import ModelCode
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
+from ..formulation.drawing import attaches_drawing
+from ..notebook import CompiledReprMixin
 from ..util import c_vector, check_finite
 from . import control
 from .ode import simulate
@@ -27,7 +29,7 @@ def check_rc(rc: int, t: float, what: str) -> None:
         raise SolverError(f"{what}: a computed value is not finite", t=float(t))
 
 
-class CompiledModel:
+class CompiledModel(CompiledReprMixin):
     """A compiled scene: the cffi module plus the layout of its arrays.
 
     Call :meth:`rhs`, :meth:`jac`, :meth:`outputs` from Python, or :meth:`simulate`. Every
@@ -163,6 +165,7 @@ class CompiledModel:
         check_rc(rc, t, "outputs")
         return out
 
+    @attaches_drawing
     def simulate(self, t, **options):
         """Integrate; see :func:`lagcodegen.solvers.simulate` for the options."""
         return simulate(self, t, **options)

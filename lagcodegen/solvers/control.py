@@ -21,6 +21,7 @@ import time
 
 from ..codes import FLAG_TEXT as CODE_TEXT
 from ..codes import Flag
+from ..progress import StatusLine
 
 #: Seconds between two calls of the poll callback (Ctrl-C latency, progress refresh).
 POLL_EVERY = 0.05
@@ -89,6 +90,7 @@ class Progress:
         self.start = time.perf_counter()
         self.shown = False
         self.done = 0
+        self.line = StatusLine(self.stream)  # in place on a terminal, a line every few seconds in a log
 
     def update(self, done: int, total: int) -> int:
         self.done = done
@@ -101,9 +103,7 @@ class Progress:
         eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
         width = 30
         bar = "#" * int(width * frac) + "-" * (width - int(width * frac))
-        self.stream.write(f"\r{self.label} [{bar}] {done}/{total} ({100 * frac:.0f}%) "
-                          f"{elapsed:.1f} s, eta {eta:.1f} s ")
-        self.stream.flush()
+        self.line.write(f"{self.label} [{bar}] {done}/{total} ({100 * frac:.0f}%) {elapsed:.1f} s, eta {eta:.1f} s ")
         self.shown = True
         return 0
 
@@ -111,5 +111,4 @@ class Progress:
         if self.shown:
             if done is not None:
                 self.update(done, self.total)
-            self.stream.write("\n")
-            self.stream.flush()
+            self.line.close()

@@ -1,0 +1,177 @@
+"""How a scene's model is drawn: its points, which of them are linked, and a function computing
+their positions from the states, as a :class:`lagcodegen.animation.Drawing` record.
+
+Links are read from the model's geometry: two points (or a point and the origin, the suspension
+of a pendulum) are joined when their distance is the same in every configuration, a rod or a
+rigid body between them. The test is numerical: the distance at a few random states (q in
+[-2, 2], t in [0, 1], the scene's parameter values) constant to 1e-9 relative. Points that no
+coordinate or time moves are drawn as fixed pivots. Bodies carry short axes (a rigid body its
+three body axes, the columns of R; a planar body the direction of its angle), their length
+:data:`AXIS_FRACTION` of the model's size, so that a rotation shows.
+
+:func:`attaches_drawing` decorates a compiled model's ``simulate``: every result gets a deferred
+drawing (made on first use, once per compiled model) and the model's name, so that
+``res.animate("x.gif")`` and ``res.plot()`` need nothing else.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable
+
+import numpy as np
+import symengine as se
+import sympy as sp
+
+from ..animation import Drawing
+from ..derivation import to_se
+from ..model.model import PlanarBody, RigidBody
+from .scene import Scene
+
+#: Random states of the rigid-link test, and its relative tolerance.
+LINK_SAMPLES = 5
+LINK_RTOL = 1e-9
+#: Name of the origin when it is drawn as a pivot.
+ORIGIN = "origin"
+#: Length of the axes drawn on bodies, as a fraction of the largest distance of a point from the
+#: origin over the link test's samples (1 where every point sits at the origin).
+AXIS_FRACTION = 0.3
+
+
+def drawing_of(scene: Scene) -> Drawing:
+    """The drawing of ``scene``'s model (see the module's docstring)."""
+    eom = scene.eom
+    model = eom.model
+    names = list(model.points)
+    dims = {p: model.points[p].dim for p in names}
+    sub = scene.substitutions()
+    coords = [se.Symbol(q.name) for q in model.coords]
+    params = [se.Symbol(name) for name in scene.runtime_parameters]
+    t = se.Symbol(model.t.name)
+    directions = body_directions(model)  # (tip name, body point, axis letter, direction expressions)
+    exprs = [c for p in names for c in eom.position(p)] + [to_se(c, f"axis of {body!r}")
+                                                          for _, body, _, d in directions for c in d]
+    exprs = [c.xreplace(sub) if sub else c for c in exprs]
+    if not exprs:
+        return Drawing(model.name, {})
+    f = se.Lambdify([t, *coords, *params], exprs, backend="lambda")
+    n = len(coords)
+    pvals = scene.default_parameters()
+    sizes = [dims[p] for p in names] + [len(d) for _, _, _, d in directions]
+
+    def positions(t_arr, q_rows, p_vals) -> list[np.ndarray]:
+        """Positions of the points, then the axes' unit directions, each (N, dim)."""
+        rows = np.array([f([ti, *q, *p_vals]) for ti, q in zip(t_arr, q_rows)], dtype=float).reshape(len(t_arr), -1)
+        out, k = [], 0
+        for size in sizes:
+            out.append(rows[:, k:k + size])
+            k += size
+        return out
+
+    rng = np.random.default_rng(12345)
+    samples = positions(rng.uniform(0, 1, LINK_SAMPLES), rng.uniform(-2, 2, (LINK_SAMPLES, n)), pvals)
+    at = dict(zip(names, samples))
+    reach = max((float(np.linalg.norm(x, axis=1).max()) for x in at.values()), default=0.0)
+    axis_length = AXIS_FRACTION * (reach if reach > 0 else 1.0)
+    fixed = tuple(p for p in names if np.ptp(at[p], axis=0).max() <= LINK_RTOL * (1 + np.abs(at[p]).max()))
+    links: list[tuple[str, str]] = []
+
+    def rigid(a: np.ndarray, b: np.ndarray) -> bool:
+        d = np.linalg.norm(a - b, axis=1)
+        return bool(d.min() > 0 and np.ptp(d) <= LINK_RTOL * (1 + d.max()))
+
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            if dims[a] == dims[b] and not (a in fixed and b in fixed) and rigid(at[a], at[b]):
+                links.append((a, b))
+    pivots: dict[str, tuple[float, ...]] = {}
+    fixed_at_origin = [p for p in fixed if np.abs(at[p][0]).max() <= LINK_RTOL]
+    for p in names:
+        if p in fixed:
+            continue
+        origin = np.zeros_like(at[p])
+        if rigid(at[p], origin):
+            if fixed_at_origin:  # a declared anchor there: the pair test has linked them
+                continue
+            pivots[ORIGIN] = (0.0,) * dims[p]
+            links.append((ORIGIN, p))
+    param_names = list(scene.runtime_parameters)
+
+    def evaluate(t_arr, y, parameters) -> dict[str, np.ndarray]:
+        y = np.asarray(y, dtype=float)
+        pv = [float(parameters.get(name, d)) for name, d in zip(param_names, pvals)] if parameters else pvals
+        values = positions(np.asarray(t_arr, dtype=float), y[:, :n], pv)
+        out = dict(zip(names, values))
+        for (tip, body, _, _), direction in zip(directions, values[len(names):]):
+            out[tip] = out[body] + axis_length * direction
+        return out
+
+    return Drawing(model.name, dims, links, pivots, fixed, evaluate,
+                   {tip: (body, axis) for tip, body, axis, _ in directions})
+
+
+def body_directions(model) -> list[tuple[str, str, str, list]]:
+    """The axes drawn on the model's bodies: (tip name ``<body>.<axis>``, the body's point, the
+    axis letter, the axis' unit direction as sympy expressions): a rigid body's three body axes
+    in world coordinates (the columns of its orientation R), a planar body's (cos, sin) of its
+    angle."""
+    out = []
+    for body in model.bodies:
+        if isinstance(body, RigidBody):
+            for k, axis in enumerate("xyz"):
+                out.append((f"{body.name}.{axis}", body.point.name, axis, list(body.orientation[:, k])))
+        elif isinstance(body, PlanarBody):
+            out.append((f"{body.name}.x", body.point.name, "x", [sp.cos(body.angle), sp.sin(body.angle)]))
+    return out
+
+
+class DeferredDrawing:
+    """A drawing made on first call (and kept): what a result holds until it is drawn. Pickled,
+    it is made and stored without its position function (see :class:`Drawing`)."""
+
+    def __init__(self, make: Callable[[], Drawing]):
+        self._make = make
+        self._drawing: Drawing | None = None
+
+    def __call__(self) -> Drawing:
+        if self._drawing is None:
+            self._drawing = self._make()
+        return self._drawing
+
+    def __reduce__(self):
+        try:
+            drawing = self()
+        except Exception:  # noqa: BLE001 - a model the drawing cannot evaluate: pickled without one
+            drawing = None
+        return (_stored, (drawing,))
+
+
+def _stored(drawing: Drawing | None) -> Drawing | None:
+    return drawing
+
+
+def deferred_drawing(cm) -> DeferredDrawing | None:
+    """The deferred drawing of a compiled model (one per model), None without its scene."""
+    scene = getattr(getattr(cm, "code", None), "scene", None)
+    if not isinstance(scene, Scene):
+        return None
+    cached = cm.__dict__.get("_lcg_drawing")
+    if cached is None:
+        cached = cm.__dict__["_lcg_drawing"] = DeferredDrawing(functools.partial(drawing_of, scene))
+    return cached
+
+
+def attaches_drawing(simulate: Callable) -> Callable:
+    """Decorate a compiled model's ``simulate(self, t, **options)``: its result gets the model's
+    deferred drawing (``Result.drawing``) and name (``Result.model_name``)."""
+
+    @functools.wraps(simulate)
+    def wrapped(self, *args, **kwargs):
+        res = simulate(self, *args, **kwargs)
+        if getattr(res, "drawing", "absent") is None:
+            res.drawing = deferred_drawing(self)
+        if hasattr(res, "model_name") and not res.model_name:
+            res.model_name = getattr(getattr(self, "code", None), "model_name", "") or ""
+        return res
+
+    return wrapped

@@ -1,0 +1,185 @@
+"""The robustness findings of a newcomer's first hour (issue 27), each a clear error or a correct
+result: huge powers and numbers beyond double range refused before any C is written, outputs
+named like a state refused, the ensembles' progress bar one line every few seconds in a log,
+the constrained functions given empty arrays."""
+
+import io
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+import sympy as sp
+
+import lagcodegen as lcg
+from lagcodegen import ModelError, progress
+from lagcodegen.modelfile import ModelFileError, loads_model
+from lagcodegen.modelfile.expressions import MAX_POWER
+from lagcodegen.solvers import control
+
+ROOT = Path(__file__).resolve().parents[1]
+
+PENDULUM = """
+[model]
+name = "p"
+coordinates = ["theta"]
+[parameters]
+g = 9.81
+[[particles]]
+name = "bob"
+mass = 1
+position = ["{x}", "-cos(theta)"]
+[energy]
+potential = "{v}"
+"""
+
+
+def pendulum_file(x="sin(theta)", v="g*theta", extra=""):
+    return PENDULUM.format(x=x, v=v) + extra
+
+
+# ---------------------------------------------------------------------- powers and number range
+def test_a_huge_power_is_refused_at_load_naming_it():
+    t0 = time.perf_counter()
+    with pytest.raises(ModelFileError) as err:
+        loads_model(pendulum_file(x="(theta + 1)**100000"))
+    assert time.perf_counter() - t0 < 30  # unbounded before (derivation ran for minutes)
+    msg = str(err.value)
+    assert "particles[0].position[0]" in msg and "(theta + 1)**100000" in msg and str(MAX_POWER) in msg
+    # powers built in steps are seen too; the bound itself is allowed
+    for text in ("((theta+1)**20)**20", "(theta+1)**60*(1+theta)**60"):
+        with pytest.raises(ModelFileError, match="limited to"):
+            loads_model(pendulum_file(x=text))
+    mf = loads_model(pendulum_file(x=f"(theta + 1)**{MAX_POWER}"))
+    assert mf.model.points["bob"].position[0] == (sp.Symbol("theta") + 1) ** MAX_POWER
+    assert loads_model(pendulum_file(v="g*theta**-3 + (1 + theta)**2")).model is not None
+
+
+def test_a_number_beyond_double_range_is_refused_at_load():
+    with pytest.raises(ModelFileError) as err:
+        loads_model(pendulum_file(v="(1e200*theta)**2"))
+    assert "energy.potential" in str(err.value) and "double precision" in str(err.value)
+
+
+def test_coefficients_beyond_double_range_in_the_equations_are_refused_before_any_c():
+    mf = loads_model(pendulum_file(x="1e200*theta"))  # fine alone; squared in T: 1e400 in M
+    with pytest.raises(ModelError) as err:
+        lcg.generate_code(lcg.Scene(lcg.derive(mf.model)), "c")
+    assert "M[0][0]" in str(err.value) and "double precision" in str(err.value)
+    # the Python API the same; a large but representable scale is fine and its C has no inf
+    m = lcg.Model("big")
+    th, = m.coordinates("theta")
+    m.particle("b", 1, (sp.Float(1e200) * th, 0))
+    with pytest.raises(ModelError, match="beyond double precision"):
+        lcg.Scene(lcg.derive(m))
+    ok = loads_model(pendulum_file(x="1e100*theta"))
+    code = lcg.generate_code(lcg.Scene(lcg.derive(ok.model)), "c")
+    assert not any("inf" in line.split("//")[0] for text in code.files.values() for line in text.splitlines()
+                   if "=" in line and "info" not in line)
+
+
+# ---------------------------------------------------------------------- outputs named like states
+def test_an_output_named_like_a_state_is_refused():
+    with pytest.raises(ModelFileError) as err:
+        loads_model(pendulum_file(extra='[outputs]\ntheta = "100*theta"\n'))
+    msg = str(err.value)
+    assert ":14:" in msg and "outputs.theta" in msg and "name of a state" in msg
+    with pytest.raises(ModelFileError, match="name of a state"):
+        loads_model(pendulum_file(extra='[outputs]\ntheta_dot = "2*theta_dot"\n'))
+    m = lcg.systems.pendulum()
+    th = m.coords[0]
+    m.output("theta_dot", 100 * th)
+    with pytest.raises(ModelError, match="velocity of coordinate 'theta'"):
+        lcg.Scene(lcg.derive(m), outputs=["theta_dot"])
+    m.output("scaled", 100 * th)  # another name works, and is the expression asked for
+    sim = lcg.compile_model(m, outputs=["scaled"])
+    res = sim.simulate([0, 1], q0=[0.3])
+    assert abs(res["scaled"][-1] - 100 * res["theta"][-1]) < 1e-9
+
+
+# ---------------------------------------------------------------------- progress into a log
+class Clock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_ensemble_progress_into_a_log_is_a_line_every_few_seconds(monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(time, "perf_counter", clock)
+    log = io.StringIO()
+    bar = control.Progress(100, show=None, after=2.0, stream=log)
+    for done in range(100):  # the poll callback: every 0.05 s, for 5 s
+        clock.now += control.POLL_EVERY
+        bar.update(done, 100)
+    bar.close(100)
+    text = log.getvalue()
+    assert "\r" not in text
+    lines = text.splitlines()
+    # shown from 2 s on: at 2 s, then every LOG_EVERY seconds, plus the final count
+    assert 2 <= len(lines) <= 3, lines
+    assert lines[-1].startswith("ensemble [") and "100/100" in lines[-1]
+
+
+def test_ensemble_progress_on_a_terminal_redraws_in_place_at_most_every_refresh(monkeypatch):
+    clock = Clock()
+    monkeypatch.setattr(time, "perf_counter", clock)
+    tty = FakeTerminal()
+    bar = control.Progress(100, show=True, stream=tty)
+    for done in range(100):
+        clock.now += control.POLL_EVERY
+        bar.update(done, 100)
+    bar.close(100)
+    text = tty.getvalue()
+    draws = text.count("\r")
+    most = 100 * control.POLL_EVERY / progress.REFRESH + 2  # 5 s of polls: 25 redraws at most, not 100
+    assert most / 2 <= draws <= most
+    assert text.endswith("\n") and text.count("\n") == 1 and "100/100" in text.rsplit("\r", 1)[-1]
+
+
+def test_status_line_draws_nothing_when_nothing_was_written():
+    log = io.StringIO()
+    line = progress.StatusLine(log)
+    line.close()
+    assert log.getvalue() == ""
+
+
+# ---------------------------------------------------------------------- constrained functions, empty arrays
+def test_constrained_functions_given_empty_arrays_raise_instead_of_crashing(tmp_path):
+    """Run in a child process: a segmentation fault would end it (exit code < 0), not fail here."""
+    script = textwrap.dedent("""
+        import numpy as np
+        from helpers import cartesian_pendulum
+        from lagcodegen.api import compile_constrained
+        from lagcodegen.errors import LagcodegenError
+        sim = compile_constrained(cartesian_pendulum("cpempty"), "index1")
+        y = np.array([0.6, -0.8, 0.0, 0.0])
+        calls = {"kkt": lambda a: sim.kkt(0.0, a), "residuals": lambda a: sim.residuals(0.0, a),
+                 "project": lambda a: sim.project(0.0, a), "outputs": lambda a: sim.outputs(0.0, a),
+                 "kkt params": lambda a: sim.kkt(0.0, y, a), "project params": lambda a: sim.project(0.0, y, a),
+                 "outputs lam": lambda a: sim.outputs(0.0, y, lam=a)}
+        for name, call in calls.items():
+            for empty in (np.array([]), [], np.zeros((0, 4))):
+                try:
+                    call(empty)
+                except LagcodegenError as exc:
+                    assert "values, expected" in str(exc), exc
+                else:
+                    raise SystemExit(f"{name}: no error")
+        print("ok")
+    """)
+    env = {"PYTHONPATH": f"{ROOT}:{ROOT / 'tests'}", "PATH": "/usr/bin:/bin"}
+    import os
+    env = {**os.environ, **env}
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
+    assert proc.stdout.strip() == "ok"
