@@ -1,6 +1,6 @@
 """The public entry points: from a model (or a reduction, a constrained system, a model file)
 to a compiled simulation in one call. Each runs the pipeline model -> derivation -> formulation
--> codegen -> build -> solvers; nothing below this module imports it.
+-> codegen -> build -> solvers -> simulation; nothing below this module imports it.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
 from .model.model import Model
 from .modelfile.loader import constrained_outputs
-from .solvers.compiled import CompiledModel
-from .solvers.constrained import ConstrainedSimulation
-from .solvers.minimal import MinimalSimulation
+from .simulation.constrained import ConstrainedSimulation
+from .simulation.minimal import MinimalSimulation
+from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.routhian import RouthReduction
 from .util import check_baumgarte

@@ -25,6 +25,7 @@ STAGES = [
     ("cache",),
     ("build",),
     ("solvers",),
+    ("simulation",),
     ("api",),
     ("sweep",),
     ("legacy",),
