@@ -1,7 +1,7 @@
 """The face of a compiled constrained system (:class:`ConstrainedSimulation`): its runs and
 ensembles (index-1 on CVODE, GGL on IDA), its drivers' reusable structs, its pickling.
 
-:func:`~lagcodegen.api.compile_constrained` turns a :class:`~lagcodegen.constraints.ConstrainedSystem` into
+:func:`~lagcodegen.api.compile_constrained` turns a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` into
 compiled code with one of three formulations of the equations with multipliers (eq. 4.5)
 
     M q'' = F + A^T lambda,   A q' + A0 = 0   (eqs. 4.2, 4.3; f(q, t) = 0, eq. 4.1, for holonomic rows)
@@ -32,7 +32,7 @@ holonomic j), ``gdot_<j>`` (A_j q' + A0_j), ``energy`` (T + V), and on request t
 constraint forces ``R_<j>_<coordinate>`` = lambda_j A_j (sec. 4.3), and ``events``.
 
 ``lang="fortran"`` (index1, ggl) generates the model functions as Fortran 2008 modules bound
-to the C names (:mod:`lagcodegen.fortran`); the native drivers stay C and call them through
+to the C names (:mod:`lagcodegen.codegen.fortran`); the native drivers stay C and call them through
 the same function table, so results and solver statistics are the C version's.
 
 The native drivers are model-independent and compiled once, into the runtime
@@ -139,9 +139,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t[0], y0, p)
-            res = family.run_ggl(self, t, yy0, yp0, p, rtol, atol, roots)
+            res = family.runner("ggl")(self, t, yy0, yp0, p, rtol, atol, roots)
         else:
-            res = family.run_index1(self, t, y0, p, rtol, atol, roots)
+            res = family.runner("index1")(self, t, y0, p, rtol, atol, roots)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
         res.formulation = self.formulation

@@ -209,7 +209,7 @@ class CompiledModel:
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
-        res = family.run_ode(self, t, y, p, rtol, atol_arr, events)
+        res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         if not res.success and res.t.size <= 1:  # failed at the start: say which value it was
