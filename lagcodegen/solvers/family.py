@@ -25,11 +25,11 @@ from ..errors import LagcodegenError
 FACES = {"ode": "the ODE of a compiled scene", "index1": "a constrained system in the index-1 form",
          "ggl": "a constrained system in the GGL form", "minimal": "a constrained system in minimal coordinates"}
 
-#: Keywords of simulate() that ask for nothing when given with these values: accepted (without
-#: effect) by a family that has no such option, e.g. ``backend="native"`` on Taylor.
-NEUTRAL = {"backend": "native", "linear_solver": "dense", "bandwidths": None, "max_order": 0, "first_step": 0.0,
-           "min_step": 0.0, "order": None, "jacobian": None, "baumgarte": None, "projection": None,
-           "suppress_alg": True, "alg_atol": None, "stop_at_outputs": False}
+#: Keywords of simulate() that ask for nothing when given with one of these values: accepted
+#: (without effect) by a family that has no such option, e.g. ``backend="native"`` on Taylor.
+NEUTRAL = {"backend": ("native",), "linear_solver": ("dense",), "bandwidths": (None,), "max_order": (0,),
+           "first_step": (0.0,), "min_step": (0.0,), "order": (None,), "jacobian": (None,), "baumgarte": (None,),
+           "projection": (None, False), "suppress_alg": (True,), "alg_atol": (None,), "stop_at_outputs": (False,)}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,7 +93,7 @@ class Family:
         for key, value in options.items():
             if key in fields:
                 own[key] = value
-            elif key in cls.ignores or (key in NEUTRAL and _same(value, NEUTRAL[key])):
+            elif key in cls.ignores or any(_same(value, v) for v in NEUTRAL.get(key, ())):
                 continue
             else:
                 foreign.append(key)

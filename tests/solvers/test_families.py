@@ -103,7 +103,10 @@ def test_keywords_that_ask_for_nothing_are_accepted_everywhere():
     ask for nothing a family lacks; Taylor takes no Jacobian, so jacobian= has no effect there."""
     assert resolve("ode", None, {"method": "taylor", "backend": "native", "linear_solver": "dense",
                                  "jacobian": True}) == Taylor()
-    assert resolve("ggl", None, {"method": "bdf", "linear_solver": "dense", "baumgarte": None}) == IDA()
+    assert resolve("ggl", None, {"method": "bdf", "linear_solver": "dense", "baumgarte": None,
+                                 "projection": False}) == IDA()
+    with pytest.raises(LagcodegenError, match="'projection' is not an option of IDA"):
+        resolve("ggl", None, {"projection": True})
 
 
 def test_keywords_beside_an_object_complete_it_but_never_contradict_it():
