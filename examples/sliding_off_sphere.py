@@ -13,7 +13,7 @@ import lagcodegen as lcg
 from lagcodegen.theory.constraints import ConstrainedSystem
 from lagcodegen.api import compile_constrained
 from lagcodegen.model.events import Event
-from lagcodegen.solvers.hybrid import simulate_with_switch
+from lagcodegen.simulation.hybrid import simulate_with_switch
 
 
 def particle(name):

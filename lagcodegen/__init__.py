@@ -5,8 +5,8 @@ The pipeline, one subpackage per stage, imports running one way (down this list)
     model (Model, model files in modelfile) -> derivation (derive) -> theory (energy, forces,
     Routhian, steady motion, linearization, constraints, minimal coordinates) -> formulation
     (Scene, language-neutral kernels) -> codegen (C, Fortran, cffi declarations, bundles)
-    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, scikit-sundae, hybrid)
-    -> api -> cli
+    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, Taylor; scikit-sundae) -> simulation
+    (compiled ODE, constrained and minimal faces, hybrid runs) -> api -> cli
 
 Quick start::
 
@@ -40,10 +40,9 @@ from .codegen import bundle, fortran  # noqa: F401
 from .codegen.bundle import render_bundle, write_bundle  # noqa: F401
 from . import build as _build_module  # noqa: F401
 from .result import Result  # noqa: F401
-from .solvers.compiled import CompiledModel  # noqa: F401
-from .solvers.hybrid import simulate_with_switch  # noqa: F401
-from .solvers.ode import simulate  # noqa: F401
-from .solvers.options import CVODE, IDA, Taylor  # noqa: F401
+from .solvers.registry import CVODE, IDA, Taylor  # noqa: F401
+from .simulation.ode import CompiledModel, simulate  # noqa: F401
+from .simulation.hybrid import simulate_with_switch  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
                   compile_reduction)
 from . import modelfile  # noqa: F401

@@ -1,6 +1,6 @@
 """The public entry points: from a model (or a reduction, a constrained system, a model file)
 to a compiled simulation in one call. Each runs the pipeline model -> derivation -> formulation
--> codegen -> build -> solvers; nothing below this module imports it.
+-> codegen -> build -> solvers -> simulation; nothing below this module imports it.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
 from .model.model import Model
 from .modelfile.loader import constrained_outputs
-from .solvers.compiled import CompiledModel
-from .solvers.constrained import ConstrainedSimulation
-from .solvers.minimal import MinimalSimulation
+from .simulation.constrained import ConstrainedSimulation
+from .simulation.minimal import MinimalSimulation
+from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.routhian import RouthReduction
 from .util import check_baumgarte
@@ -82,12 +82,16 @@ def compile_reduction(reduction: RouthReduction, outputs: Sequence[str] = ("jaco
     return build(generate_code(scene, "c"), native=native, verbose=verbose)
 
 
-def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", outputs: Sequence[str] | None = None,
-                        baumgarte: tuple[float, float] | str = "auto", projection: bool = False,
-                        events: Iterable = (), runtime_parameters=None, values: Mapping | None = None,
-                        prefix: str | None = None, jacobian: bool = True, eliminate: Sequence | None = None,
-                        verbose: bool = False, lang: str = "c", progress=None):
+def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", *,
+                        outputs: Sequence[str] | None = None, events: Iterable = (), runtime_parameters=None,
+                        values: Mapping | None = None, prefix: str | None = None, lang: str = "c",
+                        verbose: bool = False, progress=None, **options):
     """Generate and compile a constrained system (eq. 4.5) in one formulation.
+
+    ``options`` are the formulation's own (:data:`FORMULATION_OPTIONS`): ``baumgarte`` and
+    ``projection`` (index1), ``jacobian`` (ggl; accepted by every formulation, the others generate
+    no Jacobian), ``eliminate`` (minimal); a name that is none of these, or an option given to a
+    formulation that does not take it, raises ModelError naming it.
 
     ``index1`` and ``ggl`` compile only the system's own code (model, ``<prefix>_dae.c`` or
     ``.f90``, and its function tables) into a library without Python.h; the native drivers
@@ -114,7 +118,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     projection:
         Default for projection onto the constraints after each CVODE step (index-1 only).
     events:
-        :class:`~lagcodegen.events.Event` items (name, expression, direction, terminal); the
+        :class:`~lagcodegen.model.events.Event` items (name, expression, direction, terminal); the
         expressions may use ``lambda_<j>``. Inequality constraints are added as events.
     jacobian:
         GGL: generate the residual Jacobian dF/dy + cj dF/dy' (else IDA's difference quotients).
@@ -133,16 +137,39 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         ``progress(stage, done, total, elapsed)``, False nothing, None the caller's setting.
     """
     with _progress.enabled(progress):
-        return _compile_constrained(system, formulation, outputs, baumgarte, projection, events, runtime_parameters,
-                                    values, prefix, jacobian, eliminate, verbose, lang)
+        if not isinstance(system, ConstrainedSystem):
+            raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
+        if formulation not in FORMULATIONS:
+            raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
+        o = formulation_options(formulation, options)
+        return _compile_constrained(system, formulation, outputs, o["baumgarte"], o["projection"], events,
+                                    runtime_parameters, values, prefix, o["jacobian"], o["eliminate"], verbose, lang)
+
+
+#: The options of each constrained formulation with their defaults (``compile_constrained(**options)``).
+FORMULATION_OPTIONS = {"baumgarte": ("auto", ("index1",)), "projection": (False, ("index1",)),
+                       "jacobian": (True, FORMULATIONS), "eliminate": (None, ("minimal",))}
+
+
+def formulation_options(formulation: str, options: Mapping) -> dict:
+    """Every option of :data:`FORMULATION_OPTIONS`, from ``options`` or its default; ModelError
+    for an unknown name or one ``formulation`` does not take (given a value other than the default)."""
+    unknown = [k for k in options if k not in FORMULATION_OPTIONS]
+    if unknown:
+        raise ModelError(f"compile_constrained: unknown option{'s' if len(unknown) > 1 else ''} "
+                         f"{', '.join(map(repr, unknown))} (options: {', '.join(FORMULATION_OPTIONS)})")
+    out = {}
+    for name, (default, takes) in FORMULATION_OPTIONS.items():
+        value = options.get(name, default)
+        if formulation not in takes and value is not default and value != default:
+            raise ModelError(f"compile_constrained: {name}={value!r} does not apply to formulation {formulation!r} "
+                             f"({', '.join(takes)} only)")
+        out[name] = value
+    return out
 
 
 def _compile_constrained(system, formulation, outputs, baumgarte, projection, events, runtime_parameters, values,
                          prefix, jacobian, eliminate, verbose, lang):
-    if not isinstance(system, ConstrainedSystem):
-        raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
-    if formulation not in FORMULATIONS:
-        raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
     baumgarte = check_baumgarte(baumgarte, "baumgarte")
     check_language(lang)
     if formulation == "minimal":

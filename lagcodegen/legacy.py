@@ -16,7 +16,8 @@ from .codegen import c, constrained as codegen_constrained, fortran, languages, 
 from .codegen import bundle
 from .formulation import constrained as formulation_constrained, kernels, scene
 from .model import events, mechanics, outputs, systems
-from .solvers import base, constrained as solvers_constrained, hybrid, minimal as solvers_minimal, ode
+from .simulation import constrained as solvers_constrained, hybrid, minimal as solvers_minimal, ode
+from .solvers import base
 from .theory import constraints, energy, forces, linearize, minimal, routhian, steady
 
 #: old module name -> the modules (or (module, names)) its public names come from now.

@@ -28,6 +28,7 @@ STAGES = [
     ("build",),
     ("fmu",),
     ("solvers",),
+    ("simulation",),
     ("api",),
     ("sweep",),
     ("legacy",),
@@ -172,3 +173,150 @@ def test_every_subpackage_is_installed():
     listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     found = {".".join(("lagcodegen", *p.parent.relative_to(PACKAGE).parts)) for p in PACKAGE.rglob("__init__.py")}
     assert found <= listed, f"packages missing from pyproject.toml: {sorted(found - listed)}"
+
+
+# ---------------------------------------------------------------------- public signatures, long modules
+#: Parameters a public function or method may take at most.
+MAX_PARAMETERS = 12
+#: Public functions of other subsystems that are still wider (each to be cut, then removed from here).
+WIDE_FOR_NOW = {"lagcodegen.codegen.bundle.render_constrained_bundle"}
+
+
+def public_callables() -> dict[str, tuple]:
+    """The public API, by qualified name: every function and class that ``lagcodegen/__init__.py``
+    imports from a submodule by name, and every public function and class defined in a module it
+    imports as a whole (``from .codegen import bundle``); of each class, its ``__init__`` and its
+    methods without a leading underscore (static and class methods included). Values: (the
+    function, whether it is bound to an instance or class, i.e. has a ``self``/``cls``)."""
+    import importlib
+    import inspect
+    import types
+
+    import lagcodegen
+
+    found: dict[str, object] = {}
+
+    def add_class(qual: str, cls) -> None:
+        for name, member in vars(cls).items():
+            if name.startswith("_") and name != "__init__":
+                continue
+            func = member.__func__ if isinstance(member, (staticmethod, classmethod)) else member
+            if inspect.isfunction(func):
+                found[f"{qual}.{name}"] = (member, not isinstance(member, staticmethod))
+
+    def add(qual: str, obj) -> None:
+        if inspect.isclass(obj):
+            add_class(qual, obj)
+        elif inspect.isfunction(obj):
+            found[qual] = (obj, False)
+
+    tree = ast.parse((PACKAGE / "__init__.py").read_text())
+    for node in tree.body:
+        if not (isinstance(node, ast.ImportFrom) and node.level == 1 and node.module):
+            continue
+        module = importlib.import_module(f"lagcodegen.{node.module}")
+        for alias in node.names:
+            if alias.name.startswith("_") or (alias.asname or "").startswith("_"):
+                continue
+            obj = getattr(module, alias.name, None)
+            if obj is None or isinstance(obj, types.ModuleType):
+                sub = obj if obj is not None else importlib.import_module(f"lagcodegen.{node.module}.{alias.name}")
+                for name, member in vars(sub).items():
+                    if not name.startswith("_") and getattr(member, "__module__", None) == sub.__name__:
+                        add(f"{sub.__name__}.{name}", member)
+            elif inspect.isclass(obj) or inspect.isfunction(obj):
+                add(f"{obj.__module__}.{obj.__qualname__}", obj)
+    assert lagcodegen  # the package imported as a whole first
+    return found
+
+
+def parameter_count(member, bound: bool) -> int | None:
+    """The parameters of a function or method as a caller sees them: every name of its signature
+    (``*args`` and ``**kwargs`` one each) except ``self``/``cls`` of a ``bound`` method; None for
+    the ``__init__`` a dataclass generates (a record's fields, each named and defaulted, not a call
+    that flattens options)."""
+    import inspect
+    func = member.__func__ if isinstance(member, (staticmethod, classmethod)) else member
+    if func.__name__ == "__init__" and func.__code__.co_filename.startswith("<"):  # made by @dataclass
+        return None
+    params = list(inspect.signature(func).parameters)
+    return len(params) - (1 if bound and params else 0)
+
+
+def too_wide(callables: dict) -> list[str]:
+    out = []
+    for qual, (member, bound) in sorted(callables.items()):
+        count = parameter_count(member, bound)
+        if count is not None and count > MAX_PARAMETERS and qual not in WIDE_FOR_NOW:
+            out.append(f"{qual}: {count} parameters")
+    return out
+
+
+def test_public_functions_take_at_most_twelve_parameters():
+    """The rule: a function or method of the public API (see :func:`public_callables`: what
+    ``lagcodegen/__init__.py`` imports by name, the public functions and classes of the modules it
+    imports whole, and of every such class its ``__init__`` and public methods) takes at most
+    MAX_PARAMETERS = 12 parameters, counting every name of its signature (``*args`` and
+    ``**kwargs`` one each) except ``self``/``cls``; a dataclass's generated ``__init__`` (a record's
+    fields) does not count. Options that belong together go into an object (a solver family,
+    a Scene), not into more keywords."""
+    callables = public_callables()
+    assert "lagcodegen.simulation.ode.CompiledModel.simulate" in callables
+    assert "lagcodegen.api.compile_constrained" in callables
+    wide = too_wide(callables)
+    assert not wide, "public functions with more than 12 parameters:\n" + "\n".join(wide)
+
+
+def test_the_parameter_rule_catches_a_wide_function():
+    def wide(a, b, c, d, e, f, g, h, i, j, k, *, m=0, **rest):  # 13
+        return a
+
+    class Face:
+        def simulate(self, t, q0, v0, *, y0, z0, params, solver, rtol, atol, events, raise_on_error, **options):
+            return t  # 12: allowed
+
+    assert too_wide({"x.wide": (wide, False), "x.Face.simulate": (Face.__dict__["simulate"], True)}) == \
+        ["x.wide: 13 parameters"]
+    assert too_wide({"x.Face.simulate": (Face.__dict__["simulate"], False)}) == ["x.Face.simulate: 13 parameters"]
+
+
+def first_sentence(doc: str) -> str:
+    """The first sentence of a docstring's first paragraph (up to a period followed by a space or
+    the paragraph's end), or "" when the first paragraph has no period."""
+    import re
+    para = " ".join(doc.strip().split("\n\n")[0].split())
+    match = re.search(r"\.(\s|$)", para)
+    return para[: match.start() + 1] if match else ""
+
+
+def job_problem(text: str, limit: int = 500) -> str | None:
+    """Why a module's source ``text`` breaks the rule, or None: a module over ``limit`` lines must
+    open with a docstring whose first sentence says what the module does (one statement of 6 to
+    80 words ending with a period)."""
+    lines = text.count("\n")
+    if lines <= limit:
+        return None
+    doc = ast.get_docstring(ast.parse(text)) or ""
+    sentence = first_sentence(doc)
+    words = len(sentence.split())
+    if not doc:
+        return f"{lines} lines and no docstring"
+    if not 6 <= words <= 80:
+        return f"{lines} lines and the docstring's first sentence has {words} words: {sentence[:80]!r}"
+    return None
+
+
+@pytest.mark.parametrize("module", sorted(modules()))
+def test_long_modules_open_with_their_job(module):
+    """A module over 500 lines opens with a docstring whose first sentence says what it does."""
+    problem = job_problem(modules()[module].read_text())
+    assert problem is None, f"{module}: {problem}: split it or state its one job in its first sentence"
+
+
+def test_the_job_rule_catches_a_long_module_without_one():
+    body = "x = 1\n" * 501
+    assert job_problem(body) == "501 lines and no docstring"
+    assert "first sentence has 2 words" in job_problem('"""Various helpers."""\n' + body)
+    assert job_problem('"""Loading a model file: the TOML document, section by section, into a Model."""\n'
+                       + body) is None
+    assert job_problem('"""Short."""\n' + "x = 1\n" * 10) is None

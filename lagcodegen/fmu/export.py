@@ -223,8 +223,7 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
                outputs: Sequence[str] | None = None, tunable: Sequence[str] | None = None,
                values: Mapping[str, float] | None = None, initial: Mapping[str, float] | None = None,
                model_identifier: str | None = None, tolerance: float | None = None,
-               start_time: float | None = None, stop_time: float | None = None, baumgarte=None,
-               cc: str | None = None) -> Path:
+               start_time: float | None = None, stop_time: float | None = None, baumgarte=None) -> Path:
     """Write ``source`` (a :class:`Model`, a :class:`ConstrainedSystem`, a loaded :class:`ModelFile`
     or a model file's path) as an FMU at ``path``: Model Exchange and Co-Simulation in one archive,
     FMI 2.0 or 3.0.
@@ -271,8 +270,6 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         Constrained systems: ``"auto"`` (alpha = beta = the natural rate of the system at the
         initial state, computed when initialization ends, as simulate() does at each run's start)
         or (alpha, beta); default: the file's index-1 setting, else "auto".
-    cc:
-        C compiler (default: ``$CC`` or ``cc``).
     """
     mf = _model_file(source)
     system = None
@@ -338,7 +335,7 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
                                                         baumgarte=baumgarte, prefix=model_identifier, header=header)
     plat, suffix = _binary_folder(fmi_version)
     identifier = model_identifier or model.name  # the scene's prefix
-    cc = cc or os.environ.get("CC") or "cc"
+    cc = os.environ.get("CC") or "cc"  # the compiler of the build: $CC, as for model libraries
     path = Path(path)
     with tempfile.TemporaryDirectory(prefix="lcg_fmu_") as tmp:
         work = Path(tmp)

@@ -1,4 +1,7 @@
-"""Solver families run on compiled code: native CVODE (:mod:`.cvode`), scikit-sundae
-(:mod:`.sksundae`), the constrained formulations on CVODE and IDA (:mod:`.constrained`,
-:mod:`.minimal`), switched runs (:mod:`.hybrid`). :mod:`.ode` checks the options of an ODE run
-and chooses the family; :mod:`.compiled` is the compiled scene Python sees."""
+"""Solver families and run control: one folder per family (:mod:`.cvode`, :mod:`.ida`,
+:mod:`.taylor`: its options object, its runner and its ensemble runner), scikit-sundae as a
+second backend of CVODE and IDA (:mod:`.sksundae`), the registry that turns a run's options into
+a family object (:mod:`.registry`), what the families share (:mod:`.family`, :mod:`.base`) and
+run control (:mod:`.control`: Ctrl-C, progress, wall-clock limits; :mod:`.ensemble_run`: one
+ensemble call into C; :mod:`.ensemble`: chunks on executors). The compiled models these run are
+the faces of :mod:`lagcodegen.simulation`."""

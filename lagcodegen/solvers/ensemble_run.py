@@ -1,11 +1,10 @@
-"""One ensemble call into the generated C: the per-member inputs as arrays (states, run-time
-parameters) and :func:`run_native`, which fills an :class:`~.ensemble_result.EnsembleResult` from a
-driver's ``<prefix>_<driver>_solve_many`` (lagcodegen/runtime/lcg_pool.h)."""
+"""One ensemble call into the generated C: :func:`run_native` fills an
+:class:`~.ensemble_result.EnsembleResult` from a driver's ``*_solve_many`` (lagcodegen/runtime/lcg_pool.h),
+whichever family's driver it is."""
 
 from __future__ import annotations
 
 import os
-from typing import Mapping
 
 import numpy as np
 
@@ -14,110 +13,6 @@ from ..errors import LagcodegenError
 from .base import message
 from .control import CANCELLED, NOT_RUN, POLL_EVERY, Progress, take_pending
 from .ensemble_result import COUNT_NAMES, FLAG_TEXT, MAX_MESSAGES, EnsembleInterrupted, EnsembleResult
-
-
-def _members(*arrays) -> int:
-    """N from the leading dimension of the per-member inputs (2-D states, 1-D parameters)."""
-    sizes = {a.shape[0] for a, per_member_ndim in arrays if a is not None and a.ndim == per_member_ndim}
-    if len(sizes) > 1:
-        raise LagcodegenError(f"the ensemble inputs disagree on the number of members: {sorted(sizes)}")
-    return sizes.pop() if sizes else 1
-
-
-def _matrix(x, n: int, width: int, what: str, names) -> np.ndarray:
-    """(n, width) float array of per-member values: ``x`` (n, width), (width,) shared, or a mapping
-    name -> (n,) / scalar."""
-    if isinstance(x, Mapping):
-        unknown = [k for k in x if k not in names]
-        if unknown:
-            raise LagcodegenError(f"{what}: unknown names {', '.join(map(repr, unknown))} "
-                                  f"(expected {', '.join(names)})")
-        missing = [k for k in names if k not in x]
-        if missing:
-            raise LagcodegenError(f"{what}: missing {', '.join(missing)}")
-        x = np.column_stack([np.broadcast_to(np.asarray(x[k], dtype=float), (n,)) for k in names]) if names \
-            else np.zeros((n, 0))
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError):
-        raise LagcodegenError(f"{what} must be an array of numbers") from None
-    if arr.ndim == 1 and arr.size == width:
-        arr = np.broadcast_to(arr, (n, width))
-    if arr.shape != (n, width):
-        raise LagcodegenError(f"{what} has shape {arr.shape}, expected ({n}, {width}) or ({width},): "
-                              f"{', '.join(names)}")
-    if not np.isfinite(arr).all():
-        bad = np.argwhere(~np.isfinite(arr))[0]
-        raise LagcodegenError(f"{what}: non-finite value for member {bad[0]} ({names[bad[1]]})")
-    return np.ascontiguousarray(arr)
-
-
-def parameter_matrix(defaults: np.ndarray, names: list, params, n: int) -> np.ndarray:
-    """Run-time parameters by member: (np,) when every member has the defaults or the same values,
-    else (n, np). ``params``: None, a mapping name -> scalar or (n,) array, or an (n, np) array."""
-    if params is None:
-        return defaults.copy()
-    if not isinstance(params, Mapping):
-        return _matrix(params, n, len(names), "params", names)
-    unknown = [k for k in params if k not in names]
-    if unknown:
-        raise LagcodegenError(f"{', '.join(map(repr, unknown))} is not a run-time parameter "
-                              f"(run-time parameters: {', '.join(names) or 'none'})")
-    if all(np.ndim(v) == 0 for v in params.values()):
-        p = defaults.copy()
-        for k, v in params.items():
-            p[names.index(k)] = float(v)
-        if not np.isfinite(p).all():
-            raise LagcodegenError("params: non-finite value")
-        return p
-    P = np.array(np.broadcast_to(defaults, (n, len(names))))
-    for k, v in params.items():
-        v = np.asarray(v, dtype=float)
-        if v.ndim > 1 or (v.ndim == 1 and v.shape[0] != n):
-            raise LagcodegenError(f"parameter {k!r}: expected a scalar or {n} values, got shape {v.shape}")
-        P[:, names.index(k)] = v
-    if not np.isfinite(P).all():
-        bad = np.argwhere(~np.isfinite(P))[0]
-        raise LagcodegenError(f"params: non-finite value for member {bad[0]} ({names[bad[1]]})")
-    return P
-
-
-def _param_row(P: np.ndarray, i: int) -> np.ndarray:
-    return P if P.ndim == 1 else P[i]
-
-
-def ode_states(cm, q0, v0, y0, z0, params) -> tuple[int, np.ndarray, np.ndarray]:
-    """(N, Y0 (N, ny), P) of an ensemble of the ODE of ``cm``."""
-    arrs = [(None if x is None or isinstance(x, Mapping) else np.asarray(x, dtype=float), 2)
-            for x in (q0, v0, y0, z0)]
-    pn = None
-    if isinstance(params, Mapping):
-        lens = {np.shape(v)[0] for v in params.values() if np.ndim(v) == 1}
-        pn = (np.zeros(lens.pop()), 1) if len(lens) == 1 else None
-    elif params is not None:
-        pn = (np.asarray(params, dtype=float), 2)
-    for x in (q0, v0, z0):
-        if isinstance(x, Mapping):
-            lens = {np.shape(v)[0] for v in x.values() if np.ndim(v) == 1}
-            if lens:
-                arrs.append((np.zeros(lens.pop()), 1))
-    n_mem = _members(*arrs, *([pn] if pn else []))
-    n, names = cm.n, cm.state_names
-    if y0 is not None:
-        if q0 is not None or v0 is not None or z0 is not None:
-            raise LagcodegenError("give either y0 or q0/v0, not both")
-        Y = _matrix(y0, n_mem, cm.ny, "y0", names)
-    else:
-        if q0 is None:
-            raise LagcodegenError("q0 (or y0) is required")
-        parts = [_matrix(q0, n_mem, n, "q0", names[:n]),
-                 np.zeros((n_mem, n)) if v0 is None else _matrix(v0, n_mem, n, "v0", names[:n])]
-        nz = cm.ny - 2 * n
-        if nz:
-            parts.append(np.zeros((n_mem, nz)) if z0 is None else _matrix(z0, n_mem, nz, "z0", names[2 * n:]))
-        Y = np.ascontiguousarray(np.hstack(parts))
-    P = parameter_matrix(cm._defaults, list(cm.param_names), params, n_mem)
-    return n_mem, Y, P
 
 
 # ---------------------------------------------------------------------- the C call
@@ -248,3 +143,9 @@ def default_threads(n_mem: int) -> int:
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
     return max(1, min(cores, n_mem))
+
+
+def event_arrays(events) -> tuple:
+    """(directions, terminal flags) of ``events`` as the int arrays of an ensemble struct."""
+    return (np.array([e.direction for e in events] or [0], dtype=np.intc),
+            np.array([1 if e.terminal else 0 for e in events] or [0], dtype=np.intc))

@@ -18,7 +18,7 @@ from ..errors import LagcodegenError
 from ..model.events import EventRecord
 from ..result import Result
 from .base import ERR_NONFINITE, ERR_SINGULAR, SINGULAR_AUGMENTED, message
-from .ida import ALGEBRAIC_ATOL
+from .ida.native import ALGEBRAIC_ATOL
 
 
 def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,

@@ -1,4 +1,4 @@
-"""Ensembles with the Taylor method (``method="taylor"``): the Taylor runtime's
+"""The Taylor family's ensemble runner (``method="taylor"``): the Taylor runtime's
 ``lcg_taylor_solve_many`` (lagcodegen/runtime/lcg_taylor.c) over the jet of the scene, the same
 module :func:`~.run.taylor_module` builds for ``simulate`` (no events). Ctrl-C stops running
 members too; ``max_wall`` limits each member."""
@@ -14,7 +14,7 @@ from .run import taylor_module
 
 
 def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol=1e-10, max_step=0.0,
-                        max_steps=1_000_000, order=None, method="taylor", max_wall=0.0, **ignored):
+                        max_steps=1_000_000, order=None, max_wall=0.0):
     tm = taylor_module(cm)  # the jet of simulate(method="taylor") without events, built once
     ffi, table = tm.ffi, tm.table
     rtol, atol_arr = tolerances(rtol, atol, cm.ny)

@@ -1,4 +1,4 @@
-"""``simulate(method="taylor")`` on a compiled scene: the Taylor integrator of the scene is built
+"""The Taylor family's runner: ``simulate(method="taylor")`` on a compiled scene: the Taylor integrator of the scene is built
 on first use (per set of events) and kept with the compiled model."""
 
 from __future__ import annotations
@@ -30,8 +30,9 @@ def taylor_module(cm, events=()):
 
 
 def run_taylor(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, *, rtol: float, atol: np.ndarray,
-               max_step: float, max_steps: int, order: int | None, events=()) -> Result:
+               max_step: float, max_steps: int, order: int | None, events=(), max_events: int = 10_000,
+               max_wall: float = 0.0) -> Result:
     """Integrate with the Taylor method; the inputs were checked by the caller."""
     module = taylor_module(cm, events)
     return module.simulate(t, y, p, rtol=rtol, atol=atol, max_step=float(max_step), max_steps=max_steps,
-                           order=order)
+                           order=order, max_events=max_events, max_wall=max_wall)

@@ -194,7 +194,7 @@ class TaylorModule:
 
     def simulate(self, t_out: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float = 1e-8,
                  atol=1e-10, max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
-                 max_events: int = 10_000) -> Result:
+                 max_events: int = 10_000, max_wall: float = 0.0) -> Result:
         """Integrate from ``t_out[0]`` with y(t_out[0]) = ``y0`` (float64 arrays, contiguous;
         not checked again) and return the trajectory at ``t_out``.
 
@@ -210,6 +210,10 @@ class TaylorModule:
         key = (rtol, atol, max_step, max_steps, order)
         if key != self._opt_key:
             self._set_options(*key)
+        if max_wall or self.table is not None:
+            if self.table is None:
+                raise LagcodegenError("max_wall needs the Taylor runtime's driver (build_taylor(runtime=True))")
+            opt.max_wall = max_wall
             self._opt_key = key if isinstance(atol, float) else None
         ev = ffi.NULL
         keep = None

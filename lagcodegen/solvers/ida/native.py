@@ -9,12 +9,12 @@ import time
 
 import numpy as np
 
-from ..codegen.signatures import IDA_OPTIONS as IDA_STRUCT
-from ..codegen.signatures import pack_format
-from ..result import Result
-from .base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
-from .control import CANCELLED, raise_pending
-from .cvode import append_event_row
+from ...codegen.signatures import IDA_OPTIONS as IDA_STRUCT
+from ...codegen.signatures import pack_format
+from ...result import Result
+from ..base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
+from ..control import CANCELLED, raise_pending
+from ..cvode.native import append_event_row
 
 #: Default absolute tolerance of the algebraic GGL unknowns lambda, mu. scikit-sundae never
 #: calls IDASetSuppressAlg, so there a huge atol is what keeps them out of the error test. The

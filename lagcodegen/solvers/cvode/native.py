@@ -10,16 +10,16 @@ import time
 
 import numpy as np
 
-from ..codegen.signatures import CVC_OPTIONS as CVC_STRUCT
-from ..codegen.signatures import pack_format
-from ..codes import TOO_MUCH_WORK
-from ..errors import LagcodegenError
-from ..formulation.scene import band_order
-from ..formulation.scene import bandwidths as widths
-from ..result import Result
-from .base import (METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats, pooled_stats,
+from ...codegen.signatures import CVC_OPTIONS as CVC_STRUCT
+from ...codegen.signatures import pack_format
+from ...codes import TOO_MUCH_WORK
+from ...errors import LagcodegenError
+from ...formulation.scene import band_order
+from ...formulation.scene import bandwidths as widths
+from ...result import Result
+from ..base import (METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats, pooled_stats,
                    reached_rows)
-from .control import CANCELLED, POLL_EVERY, raise_pending
+from ..control import CANCELLED, POLL_EVERY, raise_pending
 
 
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:

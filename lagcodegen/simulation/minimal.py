@@ -1,4 +1,4 @@
-"""Minimal coordinates run: a constrained system whose holonomic constraints were solved
+"""The face of a constrained system in minimal coordinates (:class:`MinimalSimulation`): a constrained system whose holonomic constraints were solved
 symbolically (:mod:`lagcodegen.theory.minimal`) integrated as the unconstrained model of the
 branch its initial state lies on, with the eliminated coordinates and the constraint residuals
 reported."""
@@ -21,9 +21,9 @@ from ..result import Result
 from ..theory.constraints import ConstrainedSystem
 from ..theory.minimal import reduced_model, solve_constraints
 from ..util import check_finite, output_times, state_vector
-from .compiled import CompiledModel
-from .constrained import _Base
+from .constrained_functions import _Base
 from .ensemble import ensemble_minimal
+from .ode import CompiledModel
 
 
 class MinimalSimulation(_Base):
@@ -118,17 +118,19 @@ class MinimalSimulation(_Base):
                              f"(closest differs by {err:.3g}); inconsistent initial conditions")
         return best
 
-    def simulate(self, t, q0=None, v0=None, params: Mapping | None = None, rtol: float = 1e-8, atol=1e-10,
-                 backend: str = "native", method: str | None = None, initial: str = "check", ic_tol: float = 1e-8,
-                 raise_on_error: bool = True, **kwargs) -> Result:
+    def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
+                 atol=1e-10, events: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
+                 raise_on_error: bool = True, **options) -> Result:
         """Integrate in the remaining coordinates; q0/v0 are given for all n coordinates.
 
         ``initial="check"`` requires them to satisfy the constraints (within ``ic_tol``);
         ``"project"`` keeps the remaining coordinates and velocities and recomputes the
-        eliminated ones. Other keyword arguments go to :func:`lagcodegen.solve.simulate`.
+        eliminated ones. ``solver`` and ``options`` are those of the ODE of a compiled scene
+        (:meth:`CompiledModel.simulate <lagcodegen.simulation.ode.CompiledModel.simulate>`);
+        minimal coordinates have no events (``events`` None or False) and no Baumgarte
+        stabilization or projection (they have no drift to correct): such options raise.
         """
-        for key in ("baumgarte", "projection", "suppress_alg", "events"):
-            kwargs.pop(key, None)
+        self.check_events(events)
         t = output_times(t)
         model = self.system.model
         names = [q.name for q in model.coords]
@@ -151,8 +153,8 @@ class MinimalSimulation(_Base):
         idx = [model.index(qr) for qr in self.remaining]
         run_params = {k: vals[k] for k in cm.param_names}
         start = time.perf_counter()
-        res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, rtol=rtol, atol=atol, backend=backend,
-                          method=method or "adams", raise_on_error=raise_on_error, **kwargs)
+        res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver, rtol=rtol, atol=atol,
+                          raise_on_error=raise_on_error, **options)
         res.stats["wall_time"] = time.perf_counter() - start
         res.stats["branch"] = b
         self._add_residuals(res, vals)
@@ -161,12 +163,21 @@ class MinimalSimulation(_Base):
         return res
 
     def ensemble(self, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
-                 progress=None, max_wall: float = 0.0, chunk_size=None, **options):
+                 progress=None, chunk_size=None, initial: str = "check", ic_tol: float = 1e-8, **options):
         """N runs in one call per solution branch into the generated C (see
-        :meth:`lagcodegen.solvers.compiled.CompiledModel.ensemble`); q0/v0 (N, n) for all n
+        :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble`); q0/v0 (N, n) for all n
         coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``)."""
         return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
-                                progress=progress, max_wall=max_wall, chunk_size=chunk_size, **options)
+                                progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
+                                options=options)
+
+    @staticmethod
+    def check_events(events) -> None:
+        """Raise unless ``events`` (of simulate or ensemble) asks for nothing: minimal coordinates
+        have no events (their plain CVODE driver has no root finding)."""
+        if events is not None and events is not False:
+            raise LagcodegenError(f"events={events!r:.60}: minimal coordinates have no events (compile with "
+                                  "formulation 'index1' or 'ggl')")
 
     def __reduce__(self):
         """Pickled by its constructor's arguments (the branches are compiled again, from the cache)."""

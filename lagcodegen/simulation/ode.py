@@ -1,9 +1,11 @@
-"""A compiled scene as Python sees it: the functions of the generated code, checked, and
-:meth:`CompiledModel.simulate`, which runs any registered solver family on them."""
+"""The face of a compiled scene (:class:`CompiledModel`): the functions of the generated code,
+checked, and its runs (:meth:`CompiledModel.simulate`) and ensembles of the ODE y' = f(t, y),
+y = (q, q', z), on any registered solver family that integrates an ODE."""
 
 from __future__ import annotations
 
 import functools
+import math
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +16,11 @@ from ..codes import ModelCode
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.drawing import attaches_drawing
 from ..notebook import CompiledReprMixin
-from ..util import c_vector, check_finite
-from . import control
-from .ode import simulate
+from ..result import Result
+from ..solvers import control
+from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
+from ..solvers.registry import resolve
+from ..util import c_vector, check_finite, output_times
 from .ensemble import ensemble_ode
 
 
@@ -166,30 +170,98 @@ class CompiledModel(CompiledReprMixin):
         return out
 
     @attaches_drawing
-    def simulate(self, t, **options):
-        """Integrate; see :func:`lagcodegen.solvers.simulate` for the options."""
-        return simulate(self, t, **options)
+    def simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
+                 rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True, **options) -> Result:
+        """Integrate the scene and return the trajectory at the times ``t``.
+
+        Parameters
+        ----------
+        t:
+            Output times (increasing; ``t[0]`` is the initial time): an array is taken as it is
+            (two times give two rows); a list or tuple (t0, t1) gives 1001 evenly spaced times.
+        q0, v0 / y0:
+            Initial coordinates and velocities (arrays, or dicts by coordinate name), or the
+            whole state. ``z0``: initial quadrature states (e.g. ignorable coordinates of a
+            Routhian-reduced model), zeros by default.
+        params:
+            Run-time parameter values by name (defaults from the model).
+        solver:
+            A solver family object: :class:`~lagcodegen.solvers.cvode.CVODE` (default; method,
+            linear solver, Jacobian, backend, budgets) or :class:`~lagcodegen.solvers.taylor.Taylor`
+            (the generated Taylor-series integrator, built on first use).
+        rtol, atol:
+            Tolerances (``atol`` a scalar or one value per state).
+        events:
+            Taylor only: :class:`~lagcodegen.model.events.Event` items (expressions in q, q', t
+            and the parameters) located by root finding on each step's polynomial.
+        raise_on_error:
+            Raise :class:`SolverError` on failure (default); otherwise return the partial result
+            with a negative ``status``.
+        options:
+            The family's fields as keywords, made into the family object by
+            :func:`lagcodegen.solvers.registry.resolve`: ``method`` "adams", "bdf", "taylor" or
+            "auto" (:func:`~lagcodegen.solvers.registry.choose_method`), ``jacobian``,
+            ``linear_solver`` ("dense", "band", "fixedpoint"), ``bandwidths``, ``backend``
+            ("native", "sksundae"), ``max_order``, ``order`` (Taylor), ``max_steps`` (steps over the
+            whole run), ``max_step``, ``first_step``, ``min_step``, ``max_wall``; a keyword the
+            family does not have raises LagcodegenError naming it.
+        """
+        t = output_times(t)
+        y = initial_state(self, q0, v0, y0, z0)
+        if not all(map(math.isfinite, y.tolist())):
+            raise LagcodegenError("the initial state has non-finite values")
+        p = self.parameter_vector(params)
+        rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
+        family = resolve("ode", solver, options, self.n, rtol)
+        res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
+        res.parameters = dict(zip(self.param_names, p))
+        res.n_coordinates = self.n
+        if not res.success and res.t.size <= 1:  # failed at the start: say which value it was
+            self.check_initial_outputs(t[0], y, p)
+            if res.stats.get("model_error") == 1:
+                check_initial_mass_matrix(self, t[0], y, p)
+        if raise_on_error and not res.success:
+            cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
+            raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]),
+                      flag=res.status, result=res)
+        return res
+
+    def check_initial_outputs(self, t0: float, y: np.ndarray, p: np.ndarray) -> None:
+        """Raise SolverError naming every output that is not finite at the initial state (each
+        family would stop there anyway, with nothing to say which value it was)."""
+        nout = self.code.nout
+        if not nout or self.c_outputs is None:
+            return
+        out = np.empty(nout)
+        self.c_outputs(float(t0), self.ffi.from_buffer("double[]", y), self.c_params(p),
+                       self.ffi.from_buffer("double[]", out))
+        values = out.tolist()
+        if all(map(math.isfinite, values)):
+            return
+        bad = [f"{name} = {v}" for name, v in zip(self.output_names, values) if not math.isfinite(v)]
+        more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+        raise SolverError(f"output{'s' if len(bad) > 1 else ''} not finite at the initial state: "
+                          f"{', '.join(bad[:5])}{more}", t=float(t0))
 
     def ensemble(self, t, q0=None, v0=None, *, y0=None, z0=None, params=None, threads=None, save="final",
-                 executor=None, progress=None, max_wall: float = 0.0, chunk_size=None, **options):
+                 executor=None, progress=None, chunk_size=None, **options):
         """N runs in one call into the generated C, spread over ``threads`` threads (default: the
         cores), bit-identical to running each member alone with :meth:`simulate`.
 
         ``q0``, ``v0`` (N, n) (or (n,) shared, or dicts by name), or ``y0`` (N, ny); ``params``
         {name: (N,) array or scalar} or an (N, np) array; ``save``: "final" (states and outputs at
         the last time reached), "trajectory" (every state and output at every time) or a list of
-        names (their trajectories); ``max_wall``: wall-clock limit of each member in seconds;
-        ``progress``: True/False, or None (a progress line on stderr once the run lasts 2 s);
-        ``executor``: a concurrent.futures executor or a dask.distributed Client, which runs chunks
-        of ``chunk_size`` members each. Other keywords as :meth:`simulate` (method, rtol, atol,
-        max_steps, ...; ``method="taylor"``: the Taylor integrator). Returns
-        :class:`~lagcodegen.solvers.ensemble.EnsembleResult`; Ctrl-C raises
-        :class:`~lagcodegen.solvers.ensemble.EnsembleInterrupted` (a KeyboardInterrupt) holding
-        what finished.
+        names (their trajectories); ``progress``: True/False, or None (a progress line on stderr
+        once the run lasts 2 s); ``executor``: a concurrent.futures executor or a
+        dask.distributed Client, which runs chunks of ``chunk_size`` members each. ``options``:
+        those of :meth:`simulate` (solver, rtol, atol, method, max_steps, ...; ``max_wall``: the
+        wall-clock limit of each member in seconds). Returns
+        :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult`; Ctrl-C raises
+        :class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` (a KeyboardInterrupt)
+        holding what finished.
         """
         return ensemble_ode(self, t, q0, v0, y0=y0, z0=z0, params=params, threads=threads, save=save,
-                            executor=executor, progress=progress, max_wall=max_wall, chunk_size=chunk_size,
-                            **options)
+                            executor=executor, progress=progress, chunk_size=chunk_size, options=options)
 
     def __reduce__(self):
         """Pickled by its generated sources (never the .so, which links SUNDIALS by an absolute
@@ -220,3 +292,8 @@ def rebuild_compiled(code, native: bool):
     if cm is None:
         cm = _REBUILT[key] = CompiledModel.from_built(build(code, native=native))
     return cm
+
+
+def simulate(sim, t, *args, **options) -> Result:
+    """``sim.simulate(t, ...)``: a run of any compiled simulation (see its ``simulate``)."""
+    return sim.simulate(t, *args, **options)

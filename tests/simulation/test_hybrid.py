@@ -12,7 +12,7 @@ from lagcodegen import ModelError
 from lagcodegen.theory.constraints import ConstrainedSystem
 from lagcodegen.api import compile_constrained
 from lagcodegen.model.events import Event, event_list
-from lagcodegen.solvers.hybrid import simulate_with_switch
+from lagcodegen.simulation.hybrid import simulate_with_switch
 
 G = 9.81
 V0 = 1e-3  # initial speed at the top of the sphere

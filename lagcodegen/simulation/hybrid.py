@@ -53,7 +53,7 @@ def simulate_with_switch(first, second, t, q0, v0=None, params: Mapping | None =
                          **kwargs) -> HybridResult:
     """Run ``first`` until a terminal event, then ``second`` from the event state.
 
-    ``first``: a compiled constrained system (:func:`lagcodegen.dae.compile_constrained`) or a
+    ``first``: a compiled constrained system (:func:`lagcodegen.api.compile_constrained`) or a
     compiled model; ``second``: either as well (e.g. the free particle after it leaves a
     surface). ``event`` names the switching event (default: the first terminal event).
     ``transfer(record) -> (q0, v0)`` maps the event state to the second system's initial

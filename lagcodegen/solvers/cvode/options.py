@@ -1,0 +1,173 @@
+"""The CVODE family's options object (:class:`CVODE`): its values checked once, resolved into
+what the native drivers (:mod:`.native`, :mod:`.ensemble`) or scikit-sundae
+(:mod:`lagcodegen.solvers.sksundae`) take, for the ODE of a compiled scene and the index-1 form
+of a constrained system."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ...errors import LagcodegenError
+from ...result import Result
+from ...util import check_baumgarte
+from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
+from ..family import Family, choice
+from . import ensemble, native
+
+BACKENDS = ("native", "sksundae")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CVODE(Family):
+    """CVODE (variable-order multistep methods).
+
+    ``method`` "adams" (nonstiff) or "bdf" (stiff); None: Adams, but BDF for an index-1 run with
+    projection. ``backend`` "native" (the runtime's C driver, no Python in the solver loop) or
+    "sksundae" (scikit-sundae calling the same compiled functions). ``max_order`` (0: CVODE's),
+    ``first_step``, ``min_step`` (0: CVODE's). The ODE of a scene: ``linear_solver`` "dense",
+    "band" (native: the bandwidths of the scene's Jacobian pattern in the interleaved order, or
+    ``bandwidths`` = (upper, lower)) or "fixedpoint" (native: no linear solver, no Jacobian);
+    ``jacobian`` the generated one (None: when compiled) or difference quotients (False).
+    Index-1 constrained systems (eq. 4.5): ``baumgarte`` ("auto" or (alpha, beta); None: the
+    compiled default), ``projection`` onto the constraints after each step (None: the compiled
+    default; BDF only), ``proj_tol``, ``proj_maxit``, ``max_events`` (events kept; None: 10000 in
+    a run, 64 per ensemble member).
+    """
+
+    name = "CVODE"
+    methods = ("adams", "bdf")
+    faces = ("ode", "index1")
+    only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
+            "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
+            "max_events": ("index1",)}
+
+    method: str | None = None
+    backend: str = "native"
+    max_order: int = 0
+    first_step: float = 0.0
+    min_step: float = 0.0
+    linear_solver: str = "dense"
+    bandwidths: tuple[int, int] | None = None
+    jacobian: bool | None = None
+    baumgarte: tuple[float, float] | str | None = None
+    projection: bool | None = None
+    proj_tol: float = 1e-12
+    proj_maxit: int = 10
+    max_events: int | None = None
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.method is not None:
+            choice("method", self.method, tuple(METHODS))
+        choice("backend", self.backend, BACKENDS)
+        choice("linear_solver", self.linear_solver, LINEAR_SOLVERS)
+        if self.linear_solver != "dense" and self.backend != "native":
+            raise LagcodegenError(f"linear_solver={self.linear_solver!r} needs backend='native'")
+        if self.baumgarte is not None:
+            object.__setattr__(self, "baumgarte", check_baumgarte(self.baumgarte))
+        if self.projection and self.method == "adams":
+            raise LagcodegenError("projection onto the constraints (CVodeSetProjFn) needs method='bdf': "
+                                  "CVODE supports projection with BDF only")
+        if self.projection and self.backend != "native":
+            raise LagcodegenError("the sksundae backend has no projection (scikit-sundae does not expose "
+                                  "CVodeSetProjFn): use backend='native'")
+        if self.max_wall and self.backend != "native":
+            raise LagcodegenError("max_wall needs backend='native'")
+
+    # ------------------------------------------------------------------ the ODE of a scene
+    def _ode_options(self, cm, y, p, native_backend: bool) -> dict:
+        """The driver's options for the ODE of ``cm`` (the Jacobian and linear solver resolved)."""
+        jacobian = False if self.linear_solver == "fixedpoint" else self.jacobian  # functional iteration
+        has_jac = cm.code.jacobian or (bool(getattr(cm.code, "sparse_jacobian", False)) and native_backend)
+        if jacobian is None:
+            jacobian = has_jac
+        if jacobian and not has_jac:
+            raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
+        opts = dict(method=self.method or "adams", jacobian=bool(jacobian), max_steps=int(self.max_steps),
+                    first_step=self.first_step, max_step=self.max_step, min_step=self.min_step,
+                    max_order=self.max_order)
+        if self.linear_solver == "band":
+            opts["band"] = native.band_widths(cm, self.bandwidths, y, p)
+        elif self.linear_solver == "fixedpoint":
+            opts["fixedpoint"] = True
+        return opts
+
+    def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
+        """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values)."""
+        if events:
+            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
+                                  "a plain scene has no root finding; constrained systems have events on CVODE "
+                                  "and IDA)")
+        if self.backend != "native":  # the native driver reports this itself, from its first RHS call
+            check_initial_mass_matrix(cm, t[0], y, p)
+        opts = self._ode_options(cm, y, p, self.backend == "native")
+        if self.backend == "native":
+            if not cm.native:
+                raise LagcodegenError("this module was built without the native driver (build(native=False))")
+            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
+        from ..sksundae import solve_sksundae
+        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, **opts)
+        # its outputs are evaluated after the run, where nothing fails: check the first row
+        if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
+            cm.check_initial_outputs(t[0], y, p)
+        return res
+
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
+        """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver."""
+        self._native_only()
+        if not cm.native or cm.native_solve_many is None:
+            raise LagcodegenError("this module was built without the native driver (build(native=False))")
+        opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
+        return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
+                                     save=save, progress=progress)
+
+    # ------------------------------------------------------------------ index-1 constrained systems
+    def index1_settings(self, sim, t0: float, y0, p, native_backend: bool = True):
+        """(method, projection, alpha, beta) of an index-1 run of ``sim`` (its compiled defaults
+        where this object says None; ``y0`` None: "auto" Baumgarte left to the native driver)."""
+        projection = sim.projection if self.projection is None else bool(self.projection)
+        alpha, beta = sim.stabilization(self.baumgarte, projection, t0, y0, p, native_backend)
+        method = self.method or ("bdf" if projection else "adams")
+        if projection and method != "bdf":
+            raise LagcodegenError("projection onto the constraints (CVodeSetProjFn) needs method='bdf': "
+                                  "CVODE supports projection with BDF only")
+        if projection and not native_backend:
+            raise LagcodegenError("the sksundae backend has no projection (scikit-sundae does not expose "
+                                  "CVodeSetProjFn): use backend='native'")
+        return method, projection, float(alpha), float(beta)
+
+    def run_index1(self, sim, t, y0, p, rtol, atol, roots: bool) -> Result:
+        """An index-1 run of ``sim`` from the consistent state ``y0`` (eq. 4.5, Baumgarte and/or
+        projection); ``roots``: locate the compiled events."""
+        native_backend = self.backend == "native"
+        method, projection, alpha, beta = self.index1_settings(sim, float(t[0]), y0, p, native_backend)
+        if type(rtol) is float and type(atol) is float and 0 < rtol < math.inf and 0 <= atol < math.inf \
+                and native_backend:
+            atol_arr = atol  # what tolerances() returns for these
+        else:
+            rtol, atol_arr = tolerances(rtol, atol, 2 * sim.n, scalar=native_backend)
+        if native_backend:
+            max_events = 10_000 if self.max_events is None else self.max_events
+            res = native.solve_index1(sim, t, y0, p, method, rtol, atol_arr, alpha, beta, projection, self.proj_tol,
+                                      self.proj_maxit, roots, max_events, self.max_steps, self.first_step,
+                                      self.max_step, self.min_step, self.max_order, float(self.max_wall))
+        else:
+            from .. import sksundae
+            res = sksundae.solve_index1(sim, t, y0, p, method, rtol, atol_arr, alpha, beta, roots, self.max_steps,
+                                        self.first_step, self.max_step, self.min_step, self.max_order)
+            res.stats.update(alpha=alpha, beta=beta)
+        res.stats["projection"] = projection
+        return res
+
+    def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
+        """Members (consistent initial states, rows of Y) of an index-1 system in one native call."""
+        self._native_only()
+        method, projection, alpha, beta = self.index1_settings(sim, float(t[0]), None, None)
+        max_events = 64 if self.max_events is None else self.max_events
+        return ensemble.ensemble_index1(sim, t, Y, P, rtol, atol, self, method, projection, alpha, beta, roots,
+                                        max_events, threads=threads, save=save, progress=progress)
+
+    def _native_only(self) -> None:
+        if self.backend != "native":
+            raise LagcodegenError("ensembles run on the native drivers (backend='native')")

@@ -1,0 +1,102 @@
+"""The IDA family's options object (:class:`IDA`): its values checked once, resolved into what the
+native GGL driver (:mod:`.native`, :mod:`.ensemble`) or scikit-sundae's IDA takes."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import LagcodegenError
+from ...result import Result
+from ...util import check_finite
+from ..base import _DOUBLE, tolerances
+from ..family import Family, choice
+from . import ensemble, native
+from .native import ALGEBRAIC_ATOL
+
+BACKENDS = ("native", "sksundae")
+
+
+@dataclass(frozen=True, kw_only=True)
+class IDA(Family):
+    """IDA (variable-order BDF) on the stabilized index-2 GGL form of a constrained system
+    (eq. 4.5; unknowns q, v, lambda, mu).
+
+    ``suppress_alg``: leave lambda, mu out of the error test (native); ``jacobian``: the
+    generated residual Jacobian (None: when compiled) or difference quotients (False);
+    ``alg_atol``: absolute tolerance of lambda, mu (None: :data:`~.native.ALGEBRAIC_ATOL`);
+    ``stop_at_outputs``: step exactly to every output time (native); ``backend`` "native" or
+    "sksundae"; ``max_order``, ``first_step``, ``min_step`` (0: IDA's); ``max_events`` (events
+    kept; None: 10000 in a run, 64 per ensemble member).
+    """
+
+    name = "IDA"
+    methods = ("bdf",)
+    faces = ("ggl",)
+
+    backend: str = "native"
+    suppress_alg: bool = True
+    jacobian: bool | None = None
+    alg_atol: float | None = None
+    stop_at_outputs: bool = False
+    max_order: int = 0
+    first_step: float = 0.0
+    min_step: float = 0.0
+    max_events: int | None = None
+
+    def __post_init__(self):
+        super().__post_init__()
+        choice("backend", self.backend, BACKENDS)
+        if self.alg_atol is not None:
+            check_finite(self.alg_atol, "alg_atol")
+        if self.max_wall and self.backend != "native":
+            raise LagcodegenError("max_wall needs backend='native'")
+
+    def _jacobian(self, sim) -> bool:
+        jacobian = sim.info.ggl_jac if self.jacobian is None else bool(self.jacobian)
+        if jacobian and not sim.info.ggl_jac:
+            raise LagcodegenError("jacobian=True but the residual Jacobian was not generated "
+                                  "(compile_constrained(..., jacobian=False))")
+        return jacobian
+
+    def tolerances(self, sim, rtol, atol):
+        """(rtol, atol of every unknown q, v, lambda, mu): lambda, mu get ``alg_atol`` unless
+        ``atol`` gives them; the array of a scalar ``atol`` is kept (read-only) on ``sim`` for the
+        next call with the same value."""
+        n, ng = sim.n, sim.info.ng
+        cached = sim.ggl_atol_cache
+        if (type(atol) is float and self.alg_atol is None and type(rtol) is float and 0 < rtol < math.inf
+                and cached[0] == _DOUBLE(atol)):
+            return rtol, cached[1]  # what tolerances() gave for this atol last time
+        rtol, atol_arr = tolerances(rtol, atol, ng, 2 * n)
+        if np.asarray(atol).size != ng:  # lambda, mu: see ALGEBRAIC_ATOL
+            atol_arr[2 * n:] = ALGEBRAIC_ATOL if self.alg_atol is None else check_finite(self.alg_atol, "alg_atol")
+            if type(atol) is float and self.alg_atol is None:  # kept (read-only) for the next call
+                atol_arr.flags.writeable = False
+                sim.ggl_atol_cache = (_DOUBLE(atol), atol_arr)
+        return rtol, atol_arr
+
+    def run_ggl(self, sim, t, yy0, yp0, p, rtol, atol, roots: bool) -> Result:
+        """A GGL run of ``sim`` from the consistent initial values (yy0, yp0)."""
+        jacobian = self._jacobian(sim)
+        rtol, atol_arr = self.tolerances(sim, rtol, atol)
+        if self.backend == "native":
+            max_events = 10_000 if self.max_events is None else self.max_events
+            return native.solve_ggl(sim, t, yy0, yp0, p, rtol, atol_arr, bool(self.suppress_alg), bool(jacobian),
+                                    roots, max_events, self.max_steps, self.first_step, self.max_step,
+                                    self.min_step, self.max_order, bool(self.stop_at_outputs), float(self.max_wall))
+        from .. import sksundae
+        return sksundae.solve_ggl(sim, t, yy0, yp0, p, rtol, atol_arr, bool(jacobian), roots, self.max_steps,
+                                  self.first_step, self.max_step, self.min_step, self.max_order)
+
+    def ensemble_ggl(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
+        """Members (rows (yy0, yp0) of Y) of the GGL form of ``sim`` in one native call."""
+        if self.backend != "native":
+            raise LagcodegenError("ensembles run on the native drivers (backend='native')")
+        jacobian = self._jacobian(sim)
+        rtol_, atol_arr = self.tolerances(sim, rtol, atol)
+        max_events = 64 if self.max_events is None else self.max_events
+        return ensemble.ensemble_ggl(sim, t, Y, P, rtol_, atol_arr, self, jacobian, roots, max_events,
+                                     threads=threads, save=save, progress=progress)

@@ -1,0 +1,109 @@
+"""The registry of solver families (one line per family) and the one resolution of a run's
+solver options into a family object, which ``simulate`` and ``ensemble`` of every face share
+(:func:`resolve`), so that the two cannot drift apart.
+
+* ``solver=CVODE(...)``, ``IDA(...)``, ``Taylor(...)``: that object (keywords given beside it
+  must not contradict it);
+* else the keyword spellings: ``method`` chooses the family among those that run the face
+  (``"adams"``/``"bdf"``: CVODE, ``"taylor"``: Taylor, GGL: IDA, ``"auto"``: Taylor or Adams by
+  :func:`choose_method`) and the other keywords become its fields;
+* a keyword the family does not have raises LagcodegenError naming it, unless it asks for
+  nothing (``backend="native"``, ``linear_solver="dense"``, ... :data:`.family.NEUTRAL`).
+"""
+
+from __future__ import annotations
+
+from ..errors import LagcodegenError
+from .cvode import CVODE
+from .family import FACES, Family
+from .ida import IDA
+from .taylor import Taylor
+
+#: Every solver family, by name. The first family that runs a face is that face's default; a
+#: new family is a folder under solvers/ (options object, runner, ensemble runner) plus one line here.
+FAMILIES: dict[str, type[Family]] = {
+    "cvode": CVODE,
+    "ida": IDA,
+    "taylor": Taylor,
+}
+
+
+def methods(face: str) -> list[str]:
+    """The ``method=`` spellings of the families that run ``face``."""
+    return [m for cls in FAMILIES.values() if face in cls.faces for m in cls.methods]
+
+
+def family_class(face: str, method: str | None) -> type[Family]:
+    """The family that runs ``face`` with ``method`` (None: the face's default)."""
+    for cls in FAMILIES.values():
+        if face in cls.faces and (method is None or method in cls.methods):
+            return cls
+    if face == "ggl":
+        raise LagcodegenError("IDA integrates with BDF only (method='bdf')")
+    spellings = methods(face) + (["auto"] if face == "ode" else [])
+    raise LagcodegenError(f"method must be one of {', '.join(spellings)}, got {method!r}")
+
+
+_CACHE: dict = {}
+
+
+def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8) -> Family:
+    """The family object of a run on ``face`` ("ode", "index1", "ggl"): ``solver`` (a family
+    object or None) with ``options`` (the run's other keywords: method, linear_solver, ...)
+    applied, checked against the face. ``n`` and ``rtol`` choose the family of ``method="auto"``."""
+    try:
+        key = (face, solver, tuple(options.items()), n, rtol)
+        hit = _CACHE.get(key)
+    except TypeError:  # unhashable values (arrays): resolved every time
+        key = hit = None
+    if hit is not None:
+        return hit
+    if solver is None:
+        options = dict(options)
+        method = options.pop("method", None)
+        if method == "auto" and face == "ode":
+            method = choose_method(n, rtol)
+        cls = family_class(face, method)
+        if "method" in cls.fields() and method is not None:
+            options["method"] = method
+        family = cls.from_options(face, options)
+    elif isinstance(solver, Family):
+        options = dict(options)
+        method = options.pop("method", None)
+        if method is not None and method not in type(solver).methods + ("auto",):
+            raise LagcodegenError(f"method={method!r} contradicts solver={solver!r}")
+        if method is not None and "method" in type(solver).fields() and method != "auto":
+            options["method"] = method
+        family = solver.updated(face, options)
+    else:
+        raise LagcodegenError(f"solver must be {', '.join(f'{c.__name__}(...)' for c in FAMILIES.values())}, "
+                              f"got {solver!r}")
+    family.check_face(face)
+    if key is not None:
+        if len(_CACHE) >= 256:
+            _CACHE.clear()
+        _CACHE[key] = family
+    return family
+
+
+def choose_method(n: int, rtol: float) -> str:
+    """The method ``method="auto"`` picks: Taylor for up to :data:`AUTO_TAYLOR_MAX_N`
+    coordinates at any tolerance, and up to :data:`AUTO_TAYLOR_TIGHT_MAX_N` at rtol <= 1e-8;
+    Adams otherwise.
+
+    Measured with ``python benchmarks/taylor.py --rounds 3`` (n-link pendulums, q0 = 0.1 and 1.0,
+    t in [0, 10], time of ``simulate()`` at equal achieved error): Adams/Taylor time ratio 1.7-12
+    for n <= 3, 1.0-2.1 at n = 5, 0.7-0.9 at n = 10 for errors >= 1e-6 but 1.0-1.7 below 1e-8,
+    0.4-1.3 at n = 20 (Adams faster in most cells)."""
+    if n <= AUTO_TAYLOR_MAX_N or (n <= AUTO_TAYLOR_TIGHT_MAX_N and rtol <= 1e-8):
+        return "taylor"
+    return "adams"
+
+
+#: ``method="auto"`` integrates models with at most this many coordinates by the Taylor method
+#: (see :func:`choose_method`), and up to AUTO_TAYLOR_TIGHT_MAX_N at tight tolerances.
+AUTO_TAYLOR_MAX_N = 5
+AUTO_TAYLOR_TIGHT_MAX_N = 10
+
+__all__ = ["AUTO_TAYLOR_MAX_N", "AUTO_TAYLOR_TIGHT_MAX_N", "CVODE", "FACES", "FAMILIES", "IDA", "Taylor",
+           "choose_method", "family_class", "methods", "resolve"]

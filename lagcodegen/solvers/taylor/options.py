@@ -1,0 +1,45 @@
+"""The Taylor family's options object (:class:`Taylor`): its values checked once, resolved into
+what the Taylor runtime's driver takes (:mod:`.run`, :mod:`.ensemble`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ...errors import LagcodegenError
+from ...result import Result
+from ..family import Family
+from .ensemble import run_taylor_ensemble
+from .run import run_taylor
+
+
+@dataclass(frozen=True, kw_only=True)
+class Taylor(Family):
+    """The generated Taylor-series integrator of a scene (libm only, no SUNDIALS; the model's jet
+    built on first use): ``order`` of the series (None: from the tolerance, about
+    -ln(rtol)/2 + 1); ``max_events``: events kept in a run. It needs no Jacobian, so
+    ``jacobian=`` beside ``method="taylor"`` has no effect."""
+
+    name = "Taylor"
+    methods = ("taylor",)
+    faces = ("ode",)
+    ignores = ("jacobian",)
+
+    order: int | None = None
+    max_events: int = 10_000
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.order is not None and not (isinstance(self.order, int) and 2 <= self.order):
+            raise LagcodegenError(f"Taylor order must be an integer >= 2, got {self.order!r}")
+
+    def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
+        """A run of the ODE of ``cm`` (inputs checked by the face); ``events`` located on each
+        step's polynomial."""
+        return run_taylor(cm, t, y, p, rtol=rtol, atol=atol, max_step=self.max_step, max_steps=int(self.max_steps),
+                          order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
+
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
+        """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``."""
+        return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
+                                   max_step=self.max_step, max_steps=self.max_steps, order=self.order,
+                                   max_wall=self.max_wall)
