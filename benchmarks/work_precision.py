@@ -75,7 +75,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
 import lagcodegen as lcg  # noqa: E402
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 from lagcodegen.errors import LagcodegenError  # noqa: E402
 
 TAG = "work_precision"
@@ -219,7 +219,7 @@ def scipy_contenders(fun, jac, t, y0, select, methods, family="scipy", suffix="c
 
 
 def compiled(eom, prefix, **scene):
-    return build(generate_c(Scene(eom, prefix=prefix, **scene)))
+    return build_code(generate_c(Scene(eom, prefix=prefix, **scene)))
 
 
 def ode_scene(key, title, model_or_eom, q0, v0, T, settings, stiff=False, band=False, compared="all states",
@@ -339,7 +339,7 @@ def scene_spherical_routh(settings):
     t = np.linspace(0.0, SPH_T, N_GRID)
     ref, unc, _ = spherical_reference(settings, t)
     red = reduce(systems.spherical_pendulum("wp_sph"))
-    cm = red.compile(outputs=(), prefix="wp_sph_routh")
+    cm = lcg.compile_reduction(red, outputs=(), prefix="wp_sph_routh")
     y0, params = red.initial_state(cm, SPH_Q0, SPH_V0)
     p = cm.parameter_vector(params)
     # reduced state (theta, theta', phi) -> compared (theta, phi, theta')

@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lagcodegen"
 #: a lower one, never from a higher one.
 STAGES = [
     ("errors", "version"),
-    ("util", "hooks", "progress"),
+    ("util", "progress"),
     ("result",),
     ("model",),
     ("derivation",),
@@ -25,9 +25,8 @@ STAGES = [
     ("cache",),
     ("build",),
     ("solvers",),
-    ("api",),
     ("sweep",),
-    ("legacy",),
+    ("api",),
     ("cli",),
     ("__main__", "__init__"),
 ]
