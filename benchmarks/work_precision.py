@@ -11,7 +11,7 @@ Scenes (y: the compared quantities; errors are relative per component, see below
 * ``hoop``           bead on a hoop spinning at w = 5 (explicitly time-dependent), theta0 = 1.0,
                      t in [0, 20];
 * ``constrained``    Cartesian pendulum x^2 + y^2 = 1 released from 1 rad, t in [0, 10], compared
-                     on (x, y), under each formulation of lagcodegen.dae: index-1 (Adams),
+                     on (x, y), under each formulation of compile_constrained: index-1 (Adams),
                      index-1 + Baumgarte (10, 10), index-1 + projection (BDF), GGL on native IDA
                      and on scikit-sundae's IDA, minimal coordinates;
 * ``chain``          stiff chain of 20 unit masses between walls, springs alternating k = 1 and

@@ -36,8 +36,8 @@ from .theory.routhian import RouthReduction
 from .util import check_baumgarte
 
 #: compile_model emits the analytic Jacobian by default up to this many coordinates; above, the
-#: longer build outweighs the faster runs of a first run (measured in benchmarks/scaling.py, the
-#: figures in README.md, "When compile_model emits the Jacobian").
+#: longer build outweighs the faster runs of a first run (measured in benchmarks/scaling.py; the
+#: figures in README.md, "Notes on the solvers").
 AUTO_JACOBIAN_MAX_N = 8
 
 

@@ -14,8 +14,8 @@ give their Cartesian product (the first varies slowest). ``--sample NAME=DIST:A:
 sample exactly. Grids and samples exclude each other.
 
 Every member runs from the file's ``t_start`` to ``--t-end`` (default the file's) in ONE call into
-the generated C (:meth:`CompiledModel.ensemble`, or :meth:`ConstrainedSimulation.ensemble` /
-:meth:`MinimalSimulation.ensemble` for files with [constraints]). The table's columns: the swept
+the generated C (:meth:`lagcodegen.CompiledModel.ensemble`, or the ``ensemble`` of the
+constrained formulation for files with [constraints]). The table's columns: the swept
 values, ``status`` (0 success, negative: the member's failure flag, see
 :class:`lagcodegen.solvers.ensemble_result.EnsembleResult`), ``t_reached``, then ``final_<name>`` for
 every state and output at the last time reached. A failed member is a row like the others (its

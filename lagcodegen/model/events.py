@@ -3,7 +3,7 @@
 An :class:`Event` is a scalar expression e(q, q', t, p, lambda) whose zero crossings the
 solvers locate (CVODE's CVodeRootInit/CVodeGetRootInfo in the constrained CVODE driver,
 IDARootInit in the IDA driver, the ``eventsfn`` of scikit-sundae on that backend). Every
-inequality constraint g_k(q, t) >= 0 of a :class:`~lagcodegen.constraints.ConstrainedSystem`
+inequality constraint g_k(q, t) >= 0 of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem`
 (eq. 4.3) becomes the event ``ineq_<k>`` (direction -1, terminal): the moment the
 inequality would start to be violated. Event expressions may use the Lagrange multipliers
 ``lambda_<j>`` (eq. 4.5), e.g. a normal force that drops to zero.

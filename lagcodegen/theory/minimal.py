@@ -1,9 +1,10 @@
 """Minimal coordinates: holonomic constraints solved symbolically and eliminated (formulation "minimal").
 
 :func:`solve_constraints` solves f(q, t) = 0 (eq. 4.1) for some coordinates with sympy (every
-branch), :func:`closest_branch` finds the branch a state lies on, :func:`reduced_model`
-substitutes a branch into the model's positions and energies, and :class:`lagcodegen.solvers.minimal.MinimalSimulation` compiles the unconstrained model of
-the branch the initial state lies on. Symbolic only: nothing here compiles.
+branch), :func:`closest_branch` finds the branch a state lies on and :func:`reduced_model`
+substitutes a branch into the model's positions and energies; :func:`lagcodegen.compile_constrained`
+(formulation "minimal") compiles the unconstrained model of the branch the initial state lies
+on. Symbolic only: nothing here compiles.
 """
 
 from __future__ import annotations
