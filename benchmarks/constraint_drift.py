@@ -1,4 +1,4 @@
-"""Constraint drift of the Cartesian pendulum under every formulation of lagcodegen.dae.
+"""Constraint drift of the Cartesian pendulum under every formulation of lagcodegen.compile_constrained.
 
 The bob at (x, y) with x^2 + y^2 = l^2 (eq. 4.1), l = 1, g = 9.81, released from 1 rad at rest,
 integrated over t in [0, T] (T = 100, and 1000 unless --quick) with rtol 1e-10, atol 1e-12 and

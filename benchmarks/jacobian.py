@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 
 TAG = "jacobian"
 FORMS = ("none", "expanded", "tangent")
@@ -154,7 +154,7 @@ def chain_row(n: int, form: str, scratch: Path, k: int) -> dict:
                   jacobian_form=form if form != "none" else "expanded")
     with H.cache_at(scratch / f"cache{k}"):
         start = time.perf_counter()
-        cm = build(generate_c(scene))
+        cm = build_code(generate_c(scene))
         build_s = time.perf_counter() - start
     q0, v0 = H.chain_initial(n)
     t = np.linspace(0.0, 10.0, 101)
@@ -205,7 +205,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="lcg-jacobian-") as tmp:
         scratch = Path(tmp)
         with H.cache_at(scratch / "warm"):  # one untimed build: compiler binaries in the page cache
-            build(generate_c(Scene(derive(systems.pendulum("jb_warm")))))
+            build_code(generate_c(Scene(derive(systems.pendulum("jb_warm")))))
         code_rows = [code_row(n, form, scratch) for n in ns for form in FORMS]
         for k in range(repeats):
             compile_round(code_rows, first=k == 0)

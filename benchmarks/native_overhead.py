@@ -37,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 from lagcodegen.build import driver_sources, find_sundials  # noqa: E402
 
 TAG = "native_overhead"
@@ -128,7 +128,7 @@ def driver_call(cm, method: str, jac: bool):
 def measure(label: str, model, repeats: int, scratch: Path) -> list[dict]:
     progress(f"{label}: generate, build, compile hand_cvode.c")
     code = generate_c(Scene(derive(model), jacobian=True, prefix=f"ovh_{model.name}"))
-    cm = build(code)
+    cm = build_code(code)
     exe = build_hand(code, scratch / model.name)
     rows = []
     t = np.linspace(0.0, T_END, NT)

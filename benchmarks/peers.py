@@ -51,7 +51,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 
 TAG = "peers"
 T_END = 5.0
@@ -135,7 +135,7 @@ def peer_lagcodegen(n, ctx, scratch: Path) -> dict:
     start = time.perf_counter()
     with H.cache_at(scratch / f"lcg{n}"):
         code = generate_c(Scene(eom, jacobian=False, prefix=f"peer_lcg{n}"))
-        cm = build(code)
+        cm = build_code(code)
     codegen_s = time.perf_counter() - start
     c_ns = H.c_call_costs(code, scratch / f"lcg_h{n}", ctx.settings)["rhs"]
     p = cm.parameter_vector()
@@ -370,7 +370,7 @@ RUNNERS = {"lagcodegen": peer_lagcodegen, "sympy": peer_sympy, "pydy": peer_pydy
 
 # --------------------------------------------------------------------------- main
 def context(n: int, rtols, settings, budget) -> SimpleNamespace:
-    cm = build(generate_c(Scene(derive(systems.n_link_pendulum(n, name=f"peer_ref{n}")), jacobian=False,
+    cm = build_code(generate_c(Scene(derive(systems.n_link_pendulum(n, name=f"peer_ref{n}")), jacobian=False,
                                 prefix=f"peer_ref{n}")))
     p = cm.parameter_vector()
     t = np.linspace(0.0, T_END, 101)

@@ -4,7 +4,7 @@ For the double pendulum and the planar n-link pendulum (n = 1, 2, 3, 5, 8, 10) t
 one row per system:
 
 * derive [s]        ``lagcodegen.derive(model)``, median of a few runs;
-* gen / compile [s] ``generate_c(Scene(eom, outputs=["energy"]))`` and ``build(code)`` from a
+* gen / compile [s] ``generate_c(Scene(eom, outputs=["energy"]))`` and ``build_code(code)`` from a
                     cold cache (a fresh, empty LAGCODEGEN_CACHE folder per system);
 * rhs / jac [ns]    cost of one call of ``<prefix>_rhs`` / ``<prefix>_jac``, measured in C by a
                     small harness compiled with ``cc -O2 -std=c99`` (no Python involved);
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 import lagcodegen
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, derive, generate_c, systems
 from lagcodegen.build import find_sundials
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -127,10 +127,10 @@ def time_build(eom, cache: Path):
     code = generate_c(Scene(eom, outputs=["energy"]))
     generated = time.perf_counter()
     with cache_at(cache):
-        cm = build(code)
+        cm = build_code(code)
     compiled = time.perf_counter()
     if cm.cached:
-        raise RuntimeError(f"{cache} was expected to be empty, but build() found the module cached")
+        raise RuntimeError(f"{cache} was expected to be empty, but build_code() found the module cached")
     return code, cm, generated - start, compiled - generated
 
 

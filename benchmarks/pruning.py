@@ -43,7 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 
 TAG = "pruning"
 ALL_OUTPUTS = ["energy", "kinetic_energy", "potential_energy", "jacobi_h", "dh_dt", "momenta", "positions"]
@@ -141,7 +141,7 @@ def measure(v: Variant, k: int, settings, scratch: Path, sim_repeats: int = 0) -
     for r in range(settings.repeats):
         with H.cache_at(scratch / f"cache{k}_{r}"):
             start = time.perf_counter()
-            cm = build(code)
+            cm = build_code(code)
             compile_times.append(time.perf_counter() - start)
     exe = H.compile_harness(code, scratch / f"harness{k}")
     costs = H.c_call_costs(code, scratch / f"harness{k}", settings) if sim_repeats else {}
@@ -234,7 +234,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="lcg-pruning-") as tmp:
         scratch = Path(tmp)
         with H.cache_at(scratch / "warm"):  # one untimed build: compiler binaries in the page cache
-            build(generate_c(Scene(derive(systems.pendulum("pr_warm")))))
+            build_code(generate_c(Scene(derive(systems.pendulum("pr_warm")))))
         for k, v in enumerate(variants(args.quick)):
             rows.append(measure(v, k, settings, scratch))
         progress("C harness: every variant, round-robin")

@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness  # noqa: E402  (the C timing harness)
 
 import lagcodegen as lcg  # noqa: E402
-from lagcodegen import Scene, build, generate_c  # noqa: E402
+from lagcodegen import Scene, build_code, generate_c  # noqa: E402
 from lagcodegen.theory.routhian import reduce  # noqa: E402
 from lagcodegen.model.systems import spherical_pendulum  # noqa: E402
 
@@ -91,9 +91,9 @@ def reference(t: np.ndarray, rtol: float, atol: float) -> np.ndarray:
 def compile_models(C: float):
     """Full and reduced CompiledModel (no outputs) and the reduction."""
     model = spherical_pendulum()
-    full = build(generate_c(Scene(lcg.derive(model), prefix="sph_full")))
+    full = build_code(generate_c(Scene(lcg.derive(model), prefix="sph_full")))
     red = reduce(model)
-    reduced = build(generate_c(Scene(red.eom, prefix="sph_routh", values={"C_phi": C})))
+    reduced = build_code(generate_c(Scene(red.eom, prefix="sph_routh", values={"C_phi": C})))
     return full, reduced, red
 
 

@@ -6,7 +6,7 @@ and the tangent-form Jacobian (``"tangent"``), each row is built in a fresh Pyth
 (the model never built before; the model-independent parts, built by an untimed warm-up row,
 already in the cache) that reports:
 
-* derive, generate (C code), build (``lagcodegen.build``: the model's C, the cffi module and
+* derive, generate (C code), build (``lagcodegen.build_code``: the model's C, the cffi module and
   the native driver) wall times, the compiler's CPU time (user + system of the
   build's children: less sensitive to other load on the machine than wall time) and its peak
   resident memory (ru_maxrss of the largest child), bytes of <prefix>.c;
@@ -58,7 +58,7 @@ import json, resource, sys, time
 args = json.loads(sys.argv[1])
 start = time.perf_counter()
 import numpy as np
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, derive, generate_c, systems
 t_import = time.perf_counter() - start
 n, form = args["n"], args["form"]
 start = time.perf_counter()
@@ -71,7 +71,7 @@ code = generate_c(scene)
 t_generate = time.perf_counter() - start
 before = resource.getrusage(resource.RUSAGE_CHILDREN)
 start = time.perf_counter()
-cm = build(code)
+cm = build_code(code)
 t_build = time.perf_counter() - start
 after = resource.getrusage(resource.RUSAGE_CHILDREN)
 t = np.linspace(0.0, 2.0, 21)
@@ -89,14 +89,14 @@ print(json.dumps(dict(import_s=t_import, derive_s=t_derive, gen_s=t_generate, bu
 _RUN = r"""
 import json, sys, time
 import numpy as np
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, derive, generate_c, systems
 rows, rounds = json.loads(sys.argv[1]), int(sys.argv[2])
 models = []
 for r in rows:
     eom = derive(systems.n_link_pendulum(r["n"], name=r["prefix"]))
     scene = Scene(eom, prefix=r["prefix"], jacobian=r["form"] != "none",
                   jacobian_form=r["form"] if r["form"] != "none" else "expanded")
-    models.append(build(generate_c(scene)))  # from the cache the row's build filled
+    models.append(build_code(generate_c(scene)))  # from the cache the row's build filled
 t = np.linspace(0.0, 2.0, 21)
 out = [dict(bdf=[], rhs=[], jac=[]) for _ in rows]
 
@@ -282,7 +282,7 @@ def main(argv=None) -> int:
     lines = H.machine_lines("lagcodegen scaling benchmark (issue 14)", (load_start, H.load_average()))
     lines += [f"run:      each row built cold in a fresh process; BDF runs and call costs: medians of {rounds} "
               "rounds interleaved over the rows, in one process", "",
-              "planar n-link pendulum, every parameter run-time; build = lagcodegen.build (model C, cffi module, "
+              "planar n-link pendulum, every parameter run-time; build = lagcodegen.build_code (model C, cffi module, "
               "native driver), model never built before; end to end = derive + generate + build + first BDF run", "",
               H.format_table(COLUMNS, [r for r in rows if not r.get("skipped")]), ""]
     lines += summary(rows)

@@ -54,7 +54,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, compile_reduction, derive, generate_c, systems  # noqa: E402
 from lagcodegen.errors import LagcodegenError, SingularMassMatrixError  # noqa: E402
 
 TAG = "stress"
@@ -89,7 +89,7 @@ def c_stdout_to_stderr():
 
 
 def compiled(model, prefix, outputs=(), jacobian=True, **scene):
-    return build(generate_c(Scene(derive(model), prefix=prefix, outputs=list(outputs), jacobian=jacobian, **scene)))
+    return build_code(generate_c(Scene(derive(model), prefix=prefix, outputs=list(outputs), jacobian=jacobian, **scene)))
 
 
 def drift_series(x: np.ndarray) -> np.ndarray:
@@ -132,7 +132,7 @@ def long_cases(quick: bool):
 
     from lagcodegen.theory.routhian import reduce
     red = reduce(systems.spherical_pendulum("st_sph"))
-    cmr = red.compile(outputs=("jacobi_h",), prefix="st_sph_routh")
+    cmr = compile_reduction(red, outputs=("jacobi_h",), prefix="st_sph_routh")
 
     def run_red(t):
         res = red.simulate(cmr, t, q0=[0.8, 0.0], v0=[0.3, 2.0], max_steps=2_000_000_000, **TOL)
@@ -207,7 +207,7 @@ def section_b(quick: bool, limits: list) -> list[dict]:
     rows = []
     full = compiled(systems.spherical_pendulum("st_sphn"), "st_sphn", ["energy", "p_phi"])
     red = reduce(systems.spherical_pendulum("st_sphn"))
-    cmr = red.compile(outputs=("jacobi_h",), prefix="st_sphn_routh")
+    cmr = compile_reduction(red, outputs=("jacobi_h",), prefix="st_sphn_routh")
     theta0 = 0.5
     t = np.linspace(0.0, 10.0, 2001)
     Cs = [1e-1, 1e-3, 1e-6] if quick else [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8]
@@ -383,7 +383,7 @@ def section_e(quick: bool, limits: list) -> list[dict]:
             start = time.perf_counter()
             with H.cache_at(Path(tmp) / f"{n}_{int(jac)}"):
                 try:
-                    cm = build(code)
+                    cm = build_code(code)
                 except LagcodegenError as exc:
                     row["status"] = f"compile failed: {str(exc)[:50]}"
                     limits.append(f"E n = {n}: compilation failed: {exc}")

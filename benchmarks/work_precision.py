@@ -11,7 +11,7 @@ Scenes (y: the compared quantities; errors are relative per component, see below
 * ``hoop``           bead on a hoop spinning at w = 5 (explicitly time-dependent), theta0 = 1.0,
                      t in [0, 20];
 * ``constrained``    Cartesian pendulum x^2 + y^2 = 1 released from 1 rad, t in [0, 10], compared
-                     on (x, y), under each formulation of lagcodegen.dae: index-1 (Adams),
+                     on (x, y), under each formulation of compile_constrained: index-1 (Adams),
                      index-1 + Baumgarte (10, 10), index-1 + projection (BDF), GGL on native IDA
                      and on scikit-sundae's IDA, minimal coordinates;
 * ``chain``          stiff chain of 20 unit masses between walls, springs alternating k = 1 and
@@ -75,7 +75,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
 import lagcodegen as lcg  # noqa: E402
-from lagcodegen import Scene, build, derive, generate_c, systems  # noqa: E402
+from lagcodegen import Scene, build_code, derive, generate_c, systems  # noqa: E402
 from lagcodegen.errors import LagcodegenError  # noqa: E402
 
 TAG = "work_precision"
@@ -219,7 +219,7 @@ def scipy_contenders(fun, jac, t, y0, select, methods, family="scipy", suffix="c
 
 
 def compiled(eom, prefix, **scene):
-    return build(generate_c(Scene(eom, prefix=prefix, **scene)))
+    return build_code(generate_c(Scene(eom, prefix=prefix, **scene)))
 
 
 def ode_scene(key, title, model_or_eom, q0, v0, T, settings, stiff=False, band=False, compared="all states",
@@ -339,7 +339,7 @@ def scene_spherical_routh(settings):
     t = np.linspace(0.0, SPH_T, N_GRID)
     ref, unc, _ = spherical_reference(settings, t)
     red = reduce(systems.spherical_pendulum("wp_sph"))
-    cm = red.compile(outputs=(), prefix="wp_sph_routh")
+    cm = lcg.compile_reduction(red, outputs=(), prefix="wp_sph_routh")
     y0, params = red.initial_state(cm, SPH_Q0, SPH_V0)
     p = cm.parameter_vector(params)
     # reduced state (theta, theta', phi) -> compared (theta, phi, theta')

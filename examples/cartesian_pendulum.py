@@ -1,7 +1,7 @@
 """Pendulum in Cartesian coordinates with the constraint x^2 + y^2 = l^2 (eq. 4.1).
 
-Integrated in every formulation of lagcodegen.dae (index-1 on CVODE, plain / Baumgarte /
-projection; GGL on IDA; minimal coordinates) and compared with the angle model; the rod tension
+Integrated in every formulation of lagcodegen.compile_constrained (index-1 on CVODE, plain /
+Baumgarte / projection; GGL on IDA; minimal coordinates) and compared with the angle model; the rod tension
 T = m (g cos(theta) + l theta'^2) is recovered from the multiplier: with A = (2x, 2y) the
 constraint force is lambda A, so T = -2 l lambda.
 """

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lagcodegen import systems
+from lagcodegen import compile_reduction, systems
 from lagcodegen.theory.routhian import reduce
 from lagcodegen.theory.steady import steady_motions
 
@@ -21,7 +21,7 @@ m, k = 2.0, 3.0
 params = {"m": m, "k": k}
 red = reduce(systems.central_potential())
 print(f"R = {red.R}; phi' = dR/dC = {red.reconstruction[0]}")
-cm = red.compile(outputs=["jacobi_h"])
+cm = compile_reduction(red, outputs=["jacobi_h"])
 
 # Circular orbit as a steady motion.
 C = 1.7

@@ -25,7 +25,7 @@ red = reduce(model)
 print(f"ignorable: {[q.name for q in red.ignorable]}, integral {red.integrals[0]} = {red.momenta[0]}")
 print(f"Routhian R = {red.R}")
 full = lcg.compile_model(model, outputs=["jacobi_h", "p_phi"])
-cm = red.compile(outputs=["jacobi_h"])
+cm = lcg.compile_reduction(red, outputs=["jacobi_h"])
 
 # ----------------------------------------------------------- full vs reduced trajectory
 q0, v0 = [0.8, 0.0], [0.3, 2.0]

@@ -5,8 +5,8 @@ The pipeline, one subpackage per stage, imports running one way (down this list)
     model (Model, model files in modelfile) -> derivation (derive) -> theory (energy, forces,
     Routhian, steady motion, linearization, constraints, minimal coordinates) -> formulation
     (Scene, language-neutral kernels) -> codegen (C, Fortran, cffi declarations, bundles)
-    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, Taylor; scikit-sundae) -> simulation
-    (compiled ODE, constrained and minimal faces, hybrid runs) -> api -> cli
+    -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, Taylor; scikit-sundae)
+    -> simulation (compiled ODE, constrained and minimal faces, hybrid runs) -> sweep -> api -> cli
 
 Quick start::
 
@@ -19,37 +19,25 @@ Quick start::
 
 from __future__ import annotations
 
-import sys as _sys
-
 from .version import __version__  # noqa: F401
 from .errors import (CompileError, DerivationError, LagcodegenError, ModelError,  # noqa: F401
                      SingularMassMatrixError, SolverError)
-from .model import events, mechanics, outputs, systems  # noqa: F401
+from .model import systems  # noqa: F401
 from .model.model import Model  # noqa: F401
 from .model.events import Event  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
-from .theory import constraints, energy, forces, linearize as _linearize_module, minimal, routhian, steady  # noqa: F401
 from .theory.constraints import ConstrainedSystem  # noqa: F401
 from .theory.routhian import ignorable_coordinates, reduce as routh_reduce  # noqa: F401
 from .theory.steady import steady_motions  # noqa: F401
 from .theory.linearize import linearize  # noqa: F401
-from .formulation import scene  # noqa: F401
 from .formulation.scene import Scene  # noqa: F401
 from .codegen import GeneratedCode, generate_c, generate_code, generate_fortran  # noqa: F401
-from .codegen import bundle, fortran  # noqa: F401
 from .codegen.bundle import render_bundle, write_bundle  # noqa: F401
-from . import build as _build_module  # noqa: F401
 from .result import Result  # noqa: F401
 from .solvers.registry import CVODE, IDA, Taylor  # noqa: F401
 from .simulation.ode import CompiledModel, simulate  # noqa: F401
 from .simulation.hybrid import simulate_with_switch  # noqa: F401
-from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
-                  compile_reduction)
-from . import modelfile  # noqa: F401
+from .api import (AUTO_JACOBIAN_MAX_N, build_code, compile_constrained, compile_file,  # noqa: F401
+                  compile_model, compile_reduction, generate_file, run_sweep)
+from . import modelfile, progress  # noqa: F401
 from .fmu import export_fmu  # noqa: F401
-
-from . import legacy as _legacy  # noqa: E402
-
-# The module paths of lagcodegen 0.1 (``from lagcodegen.dae import compile_constrained``, ...).
-_legacy.install(_sys.modules[__name__])
-dae = _sys.modules[f"{__name__}.dae"]

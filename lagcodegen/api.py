@@ -1,43 +1,51 @@
 """The public entry points: from a model (or a reduction, a constrained system, a model file)
-to a compiled simulation in one call. Each runs the pipeline model -> derivation -> formulation
--> codegen -> build -> solvers -> simulation; nothing below this module imports it.
+to a compiled simulation in one call, the sources of a model file, and a sweep over a model
+file. Each runs the pipeline model -> derivation -> formulation -> codegen -> build -> solvers -> simulation;
+nothing below this module imports it, and the command line (:mod:`lagcodegen.cli`) calls only
+these functions to run a pipeline.
 """
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Mapping, Sequence
+import sys
+import time
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
 
 from . import build as _build
-from . import hooks
 from . import progress as _progress
+from . import sweep as _sweep
+from .buildstep import load_source
+from .codegen.bundle import render_bundle, render_constrained_bundle
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.record import GeneratedCode
-from .derivation import derive
+from .derivation import EquationsOfMotion, derive
 from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
 from .model.model import Model
-from .modelfile.loader import constrained_outputs
+from .modelfile import ModelFile, constrained_outputs
 from .simulation.constrained import ConstrainedSimulation
 from .simulation.minimal import MinimalSimulation
 from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
+from .theory.minimal import closest_branch, reduced_model, solve_constraints
 from .theory.routhian import RouthReduction
 from .util import check_baumgarte
 
-#: compile_model emits the analytic Jacobian by default up to this many coordinates. Measured
-#: (benchmarks/scaling.py, n-link pendulum, BDF to rtol 1e-8): from n = 10 to 100 it makes a run
-#: 0.3-1.1x as long as with CVODE's difference quotients but the build 1.2-5x as long (n = 10:
-#: build 1.2 s against 0.5 s, run 1.6 ms against 1.9 ms), so a first run pays for it nowhere there.
+#: compile_model emits the analytic Jacobian by default up to this many coordinates; above, the
+#: longer build outweighs the faster runs of a first run (measured in benchmarks/scaling.py; the
+#: figures in README.md, "Notes on the solvers").
 AUTO_JACOBIAN_MAX_N = 8
 
 
-def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
-          cflags: tuple[str, ...] = _build.DEFAULT_CFLAGS, verbose: bool = False,
-          fc: str | None = None, fflags: tuple[str, ...] = _build.DEFAULT_FFLAGS) -> CompiledModel:
-    """Compile ``code`` (:func:`lagcodegen.build.build`: cffi module, native CVODE driver, cache)
-    and wrap it as a :class:`CompiledModel` ready to simulate."""
+def build_code(code: GeneratedCode, native: bool = True, cc: str | None = None,
+               cflags: tuple[str, ...] = _build.DEFAULT_CFLAGS, verbose: bool = False,
+               fc: str | None = None, fflags: tuple[str, ...] = _build.DEFAULT_FFLAGS) -> CompiledModel:
+    """Compile ``code`` (:func:`lagcodegen.build.build`: the model's library, the cffi module,
+    the cache) and wrap it as a :class:`CompiledModel` ready to simulate."""
     return CompiledModel.from_built(_build.build(code, native=native, cc=cc, cflags=cflags, verbose=verbose,
                                                  fc=fc, fflags=fflags))
 
@@ -57,17 +65,25 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
     with _progress.enabled(progress):
-        if jacobian is None:
-            jacobian = model.n <= AUTO_JACOBIAN_MAX_N
-        scene = Scene(derive(model), jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
-                      values=values or {}, prefix=prefix)
-        return build(generate_code(scene, lang), native=native, verbose=verbose)
+        return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
+                                  runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
+                                  verbose=verbose, lang=lang)
+
+
+def _compile_equations(eom: EquationsOfMotion, *, jacobian: bool | None, outputs, runtime_parameters, values,
+                       prefix: str | None, native: bool, verbose: bool, lang: str) -> CompiledModel:
+    if jacobian is None:
+        jacobian = eom.model.n <= AUTO_JACOBIAN_MAX_N
+    scene = Scene(eom, jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
+                  values=values or {}, prefix=prefix)
+    return build_code(generate_code(scene, lang), native=native, verbose=verbose)
 
 
 def compile_reduction(reduction: RouthReduction, outputs: Sequence[str] = ("jacobi_h",), *, jacobian: bool = True,
                       runtime_parameters: Sequence[str] | None = None, values: Mapping[str, float] | None = None,
                       prefix: str | None = None, native: bool = True, verbose: bool = False) -> CompiledModel:
-    """Generate and build a Routhian-reduced system (eqs. 3.8-3.12; :meth:`RouthReduction.compile`).
+    """Generate and build a Routhian-reduced system (eqs. 3.8-3.12) for
+    :meth:`RouthReduction.simulate <lagcodegen.theory.routhian.RouthReduction.simulate>`.
 
     The integrals C_i always stay run-time parameters. The outputs ``<q_i>_dot`` (the
     ignorable velocities, eq. 3.11) come first, then ``outputs``; ``jacobi_h`` is the
@@ -79,7 +95,7 @@ def compile_reduction(reduction: RouthReduction, outputs: Sequence[str] = ("jaco
     rates = [f"{q.name}_dot" for q in reduction.ignorable]
     scene = Scene(reduction.eom, jacobian=jacobian, outputs=rates + [o for o in outputs if o not in rates],
                   runtime_parameters=runtime_parameters, values=dict(values or {}), prefix=prefix)
-    return build(generate_code(scene, "c"), native=native, verbose=verbose)
+    return build_code(generate_code(scene, "c"), native=native, verbose=verbose)
 
 
 def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", *,
@@ -180,33 +196,147 @@ def _compile_constrained(system, formulation, outputs, baumgarte, projection, ev
     code, info = generate_constrained(system, ggl=formulation == "ggl", ggl_jacobian=jacobian, outputs=outputs,
                                       events=events, runtime_parameters=runtime_parameters, values=values,
                                       prefix=prefix, lang=lang)
-    cm = build(code, native=True, verbose=verbose)
+    cm = build_code(code, native=True, verbose=verbose)
     return ConstrainedSimulation(system, formulation, cm, info, baumgarte, bool(projection))
 
 
+# ---------------------------------------------------------------------- model files
+def compile_file(mf: ModelFile, **options: Any):
+    """Compile a loaded model file with its ``[simulation]`` settings (``options`` override; run
+    it with :meth:`ModelFile.simulate <lagcodegen.modelfile.ModelFile.simulate>`).
 
-
-def compile_file(mf, **options: Any):
-    """Compile a loaded model file (:meth:`lagcodegen.modelfile.ModelFile.compile`) with its
-    scene settings (``options`` override): :func:`compile_model`, or with constraints
-    :func:`compile_constrained` with the file's formulation, Baumgarte parameters, projection,
-    events and outputs (:func:`lagcodegen.modelfile.constrained_outputs`)."""
+    Without constraints: :func:`compile_model` with the file's outputs, run-time parameters,
+    parameter values and Jacobian setting. With constraints: :func:`compile_constrained` with the
+    file's formulation, Baumgarte parameters, projection, events and outputs
+    (:func:`lagcodegen.modelfile.constrained_outputs`). Errors of the derivation name the file
+    and line (:meth:`ModelFile.derive <lagcodegen.modelfile.ModelFile.derive>`).
+    """
     s = mf.simulation
-    if mf.constrained is not None:
-        formulation = options.pop("formulation", s.formulation or "index1")
-        copts: dict[str, Any] = dict(
-            formulation=formulation, outputs=constrained_outputs(mf.constrained, s.outputs, formulation),
-            events=list(mf.events), runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
-            jacobian=s.jacobian)
-        if formulation == "index1":
-            copts.update(baumgarte=s.baumgarte, projection=s.projection)
-        copts.update(options)
-        return compile_constrained(mf.constrained, **copts)
-    kwargs: dict[str, Any] = dict(jacobian=s.jacobian, outputs=list(s.outputs),
-                                  runtime_parameters=s.runtime_parameters, values=dict(s.parameters))
-    kwargs.update(options)
-    return compile_model(mf.model, **kwargs)
+    with _progress.enabled(options.pop("progress", None)):
+        if mf.constrained is not None:
+            mf.derive()  # errors located in the file; compile_constrained derives the system again
+            formulation = options.pop("formulation", None) or s.formulation or "index1"
+            copts: dict[str, Any] = dict(
+                formulation=formulation, outputs=constrained_outputs(mf.constrained, s.outputs, formulation),
+                events=list(mf.events), runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
+                jacobian=s.jacobian)
+            if formulation == "index1":
+                copts.update(baumgarte=s.baumgarte, projection=s.projection)
+            copts.update(options)
+            return compile_constrained(mf.constrained, **copts)
+        if options.pop("formulation", None) is not None:
+            raise ModelError(f"{mf.path}: a formulation applies to model files with [constraints]")
+        kwargs: dict[str, Any] = dict(jacobian=s.jacobian, outputs=list(s.outputs),
+                                      runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
+                                      prefix=None, native=True, verbose=False, lang="c")
+        kwargs.update(options)
+        return _compile_equations(mf.derive(), **kwargs)
 
 
-hooks.register("compile_reduction", compile_reduction)
-hooks.register("compile_file", compile_file)
+def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, method: str | None = None,
+                  prefix: str | None = None, report: Callable[[str], None] | None = None) -> dict[str, str]:
+    """The sources of a loaded model file (file name -> text) with its ``[simulation]`` settings
+    (outputs, run-time parameters and values, Jacobian; constrained files: formulation,
+    Baumgarte parameters, events), in ``lang`` ("c" or "fortran"), rendered in memory.
+
+    Without constraints: the model code (:func:`lagcodegen.codegen.generate_code`). With
+    constraints: the system's ``<prefix>_dae`` sources (index1, ggl), or in minimal coordinates
+    the model code of the reduced model on the solution branch of the file's initial state
+    (:func:`lagcodegen.theory.minimal.closest_branch`). ``bundle``: the self-contained folder
+    (:func:`lagcodegen.codegen.bundle.render_bundle`: Makefile, CMakeLists.txt, examples, README)
+    starting from the file's initial state; ``method``: its CVODE example's method (default
+    "bdf"). ``report``, if given, is called with a line naming the branch chosen.
+    """
+    check_language(lang)
+    s = mf.simulation
+    runtime = s.runtime_parameters
+    values = dict(s.parameters)
+    folded = {k: v for k, v in values.items() if runtime is not None and k not in runtime}
+    q0, v0 = mf.initial_state()
+    if mf.constrained is None:
+        scene = Scene(mf.derive(), jacobian=s.jacobian, outputs=list(s.outputs), runtime_parameters=runtime,
+                      values=folded, prefix=prefix)
+        code = generate_code(scene, lang)
+        if not bundle:
+            return dict(code.files)
+        params = {k: v for k, v in values.items() if k in scene.runtime_parameters}
+        return render_bundle(scene, lang, y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end, code=code,
+                             method=method or "bdf")
+    system = mf.constrained
+    mf.derive()  # errors located in the file
+    formulation = s.formulation or "index1"
+    outputs = constrained_outputs(system, s.outputs, formulation)
+    values = {**{p.name: v for p, v in system.model.params.items()}, **values}
+    params = {k: v for k, v in values.items() if runtime is None or k in runtime}
+    if formulation == "minimal":
+        scene, eliminated = _minimal_scene(mf, outputs, folded, prefix, report)
+        code = generate_code(scene, lang)
+        if not bundle:
+            return dict(code.files)
+        keep = [i for i, q in enumerate(system.model.coords) if q not in eliminated]
+        return render_bundle(scene, lang, y0=[q0[i] for i in keep] + [v0[i] for i in keep],
+                             params={k: v for k, v in params.items() if k in scene.runtime_parameters},
+                             t_start=s.t_start, t_end=s.t_end, code=code)
+    ggl = formulation == "ggl"
+    if bundle:
+        return render_constrained_bundle(system, lang, outputs=outputs, events=list(mf.events),
+                                         runtime_parameters=runtime, values=folded, prefix=prefix, ggl=ggl,
+                                         baumgarte=s.baumgarte if formulation == "index1" else (0.0, 0.0),
+                                         y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end)
+    code, _ = generate_constrained(system, ggl=ggl, ggl_jacobian=s.jacobian, outputs=outputs, events=list(mf.events),
+                                   runtime_parameters=runtime, values=folded, prefix=prefix, lang=lang)
+    return {name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_dae.")}
+
+
+def _minimal_scene(mf: ModelFile, outputs: Sequence[str], folded: Mapping[str, float], prefix: str | None,
+                   report: Callable[[str], None] | None) -> tuple[Scene, list]:
+    """The Scene of the reduced model (minimal coordinates) on the branch of the file's initial
+    state, and the eliminated coordinates."""
+    system, s = mf.constrained, mf.simulation
+    model = system.model
+    if mf.events or system.inequalities:
+        raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' or 'ggl'")
+    eliminated, branches = solve_constraints(system)
+    q0, _ = mf.initial_state()
+    values = {**{p.name: v for p, v in model.params.items()}, **s.parameters}
+    b, error = closest_branch(system, eliminated, branches, q0, s.t_start, values)
+    if not error <= 1e-8 * (1 + max(map(abs, q0))):
+        raise ModelError(f"minimal coordinates: no solution branch of the constraints matches the initial state "
+                         f"(closest differs by {error:.3g})")
+    if report is not None:
+        report(f"minimal coordinates: {', '.join(q.name for q in eliminated)} eliminated (branch {b}: "
+               + ", ".join(f"{q.name} = {branches[b][q]}" for q in eliminated) + ")")
+    red = reduced_model(system, branches[b], name=model.name)
+    python_side = ("residuals", "inequalities")
+    scene_outputs = [o for o in outputs if o not in python_side and not o.startswith(("g_", "gdot_"))]
+    scene_outputs += [q.name for q in eliminated] + [f"{q.name}_dot" for q in eliminated]
+    return Scene(derive(red), jacobian=s.jacobian, outputs=scene_outputs, runtime_parameters=s.runtime_parameters,
+                 values=folded, prefix=prefix), eliminated
+
+
+# ---------------------------------------------------------------------- sweeps
+def run_sweep(spec: _sweep.SweepSpec, say: Callable[[str], None] | None = None) -> dict[str, np.ndarray]:
+    """A whole sweep (:mod:`lagcodegen.sweep`): check the options, load the model file
+    (:func:`lagcodegen.buildstep.load_source`), check the names, compile (:func:`compile_file`,
+    every swept parameter a run-time parameter), run one ensemble and write the table (and the
+    plot). Returns the table (column name -> (N,) array). ``say`` gets the progress lines
+    (default: stderr unless ``spec.quiet``).
+
+    Raises :class:`lagcodegen.sweep.SweepOptionError` on a bad option (before any work),
+    :class:`~lagcodegen.errors.SolverError` when every member failed (after writing), and the
+    ensemble's KeyboardInterrupt on Ctrl-C (writing nothing).
+    """
+    if say is None:
+        def say(msg: str) -> None:
+            if not spec.quiet:
+                print(f"lagcodegen: {msg}", file=sys.stderr, flush=True)
+    plan = _sweep.check_options(spec)
+    t0 = time.perf_counter()
+    mf = load_source(spec.model).model_file
+    say(f"loaded {spec.model} ({mf.model.n} coordinates) in {time.perf_counter() - t0:.3f} s")
+    _sweep.check_names(plan, mf)
+    options, values = _sweep.compile_options(plan, mf)
+    t0 = time.perf_counter()
+    sim = compile_file(mf, **options)
+    say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s")
+    return _sweep.run_plan(plan, mf, sim, values, say)

@@ -202,7 +202,7 @@ def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:
 @dataclass(frozen=True)
 class BuiltModule:
     """A compiled, loaded model: the code it was built from, where it lives, whether it came from
-    the cache. :class:`lagcodegen.solvers.compiled.CompiledModel` wraps it.
+    the cache. :class:`lagcodegen.simulation.ode.CompiledModel` wraps it.
 
     Either ``module`` is the model's own cffi module (code with drivers of its own, or built
     without SUNDIALS), or (``table`` set) ``module`` is the model-independent runtime

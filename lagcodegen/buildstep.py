@@ -32,9 +32,8 @@ from pathlib import Path
 from typing import Mapping
 
 from .errors import ModelError
-from .model import Model
-from .modelfile import ModelFile, SimulationSettings, load_model
-from .theory.constraints import ConstrainedSystem
+from .modelfile import ModelFile, load_model_path
+from .modelfile.formats import as_model_file
 from .util import atomic_write
 from .version import __version__
 
@@ -69,11 +68,12 @@ def split_python_spec(spec: str) -> tuple[str, str] | None:
 
 
 def load_source(spec: str) -> ModelSource:
-    """The model named by ``spec``: a TOML model file, or ``file.py:function`` (executes the file)."""
+    """The model named by ``spec``: a model file (:func:`lagcodegen.modelfile.load_model_path`,
+    by its suffix), or ``file.py:function`` (executes the file)."""
     python = split_python_spec(spec)
     if python is None:
         path = Path(spec)
-        return ModelSource(load_model(path), path.name, [path.resolve()])
+        return ModelSource(load_model_path(path), path.name, [path.resolve()])
     return load_python_model(*python)
 
 
@@ -112,17 +112,7 @@ def load_python_model(path: str | os.PathLike, function: str) -> ModelSource:
                 if Path(origin).resolve() != file:
                     inputs.append(Path(origin).resolve())
                 del sys.modules[mod]
-    return ModelSource(_model_file(value, file, f"{path}:{function}"), f"{file.name}:{function}", inputs)
-
-
-def _model_file(value, file: Path, what: str) -> ModelFile:
-    if isinstance(value, ModelFile):
-        return value
-    if isinstance(value, ConstrainedSystem):
-        return ModelFile(model=value.model, simulation=SimulationSettings(), path=file, constrained=value)
-    if isinstance(value, Model):
-        return ModelFile(model=value, simulation=SimulationSettings(), path=file)
-    raise ModelError(f"{what} returned {type(value).__name__}, not a Model, ConstrainedSystem or ModelFile")
+    return ModelSource(as_model_file(value, file, f"{path}:{function}"), f"{file.name}:{function}", inputs)
 
 
 # --------------------------------------------------------------------------- manifest

@@ -246,8 +246,8 @@ def pythagoras(expr):
 #: Translational kinetic energies m/2 |x'|^2 of bodies moved by more coordinates than
 #: PYTHAGORAS_MAX_COORDS (and of a mass free of q and t) enter Lagrange's equations through their
 #: velocity Jacobians J = dx/dq (:func:`_point_masses`), not by differentiating L: the same
-#: equations, without the terms of dT/dq and d/dt dT/dq' that cancel only after expansion
-#: (a 50-link chain's F shrinks from 761 685 operations to 31 062; derive() 2.8 -> 0.3 s).
+#: equations, without the terms of dT/dq and d/dt dT/dq' that cancel only after expansion (the
+#: operation counts of a 50-link chain in README.md, "Notes on the solvers").
 SPLIT_POINT_MASSES = True
 
 

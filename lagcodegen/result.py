@@ -34,7 +34,7 @@ class Result:
     method: str = ""
     parameters: dict = field(default_factory=dict)
     n_coordinates: int | None = None  # n: y = (q_1..q_n, q_1'..q_n', z...) with z quadrature states
-    events: list = field(default_factory=list)  # events found by root finding (lagcodegen.events.EventRecord)
+    events: list = field(default_factory=list)  # events found by root finding (lagcodegen.model.events.EventRecord)
     formulation: str = ""  # constrained systems: "index1", "ggl" or "minimal"
     model_name: str = ""  # the model's name (plot titles), set by the compiled model
     # how the model is drawn (lagcodegen.animation.Drawing, or a callable making one on first use)

@@ -1,6 +1,9 @@
-"""``lagcodegen sweep``: one ensemble over a grid or random samples of a model file's parameters
-and initial values, written as one row per member (CSV or NPZ), with an optional PNG of a final
-value against the swept quantity.
+"""Sweeps: one ensemble over a grid or random samples of a model file's parameters and initial
+values, written as one row per member (CSV or NPZ), with an optional PNG of a final value
+against the swept quantity. :func:`lagcodegen.api.run_sweep` runs one (the command
+``lagcodegen sweep``); this module holds its steps: the options checked (:func:`check_options`,
+:func:`check_names`), the members drawn (:func:`member_values`), the compile options
+(:func:`compile_options`), the ensemble run and the table (:func:`run_plan`), the files.
 
 The swept names are the model's parameters (made run-time parameters for the run), its
 coordinates (initial values) and their velocities ``<q>_dot``. ``--grid NAME=START:STOP:NUM``
@@ -11,10 +14,10 @@ give their Cartesian product (the first varies slowest). ``--sample NAME=DIST:A:
 sample exactly. Grids and samples exclude each other.
 
 Every member runs from the file's ``t_start`` to ``--t-end`` (default the file's) in ONE call into
-the generated C (:meth:`CompiledModel.ensemble`, or :meth:`ConstrainedSimulation.ensemble` /
-:meth:`MinimalSimulation.ensemble` for files with [constraints]). The table's columns: the swept
+the generated C (:meth:`lagcodegen.CompiledModel.ensemble`, or the ``ensemble`` of the
+constrained formulation for files with [constraints]). The table's columns: the swept
 values, ``status`` (0 success, negative: the member's failure flag, see
-:class:`lagcodegen.solvers.ensemble.EnsembleResult`), ``t_reached``, then ``final_<name>`` for
+:class:`lagcodegen.solvers.ensemble_result.EnsembleResult`), ``t_reached``, then ``final_<name>`` for
 every state and output at the last time reached. A failed member is a row like the others (its
 final values at the time it stopped, NaN if never run); only a sweep whose every member failed
 is an error (after writing the table).
@@ -29,7 +32,6 @@ from __future__ import annotations
 
 import math
 import secrets
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,8 +39,6 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .api import compile_file
-from .buildstep import load_source
 from .errors import LagcodegenError, SolverError
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .solvers.ensemble import EnsembleInterrupted
@@ -56,52 +56,10 @@ class SweepOptionError(LagcodegenError):
     """A bad option of ``lagcodegen sweep`` (the command exits 2), found before any work."""
 
 
-HELP = """Run one ensemble over a grid or a random sample of the model's parameters and
-initial values (coordinates by name, velocities as <q>_dot), all members in one call into the
-generated C over a thread pool, and write one row per member: the swept values, status (0
-success, negative: the member failed), t_reached, final_<state> and final_<output>.
-
-    lagcodegen sweep pendulum.toml --grid g=9.7:9.9:101 -o g.csv --plot g.png
-    lagcodegen sweep pendulum.toml --sample l=uniform:0.9:1.1 --sample theta=normal:1:0.1 \\
-        --n 10000 --seed 1 -o mc.npz --plot mc.png --plot-y energy
-
-Options are checked before any work (exit 2); Ctrl-C stops within about a second, writing
-nothing (exit 130); a sweep whose every member failed exits 4 (after writing the table)."""
-
-
-def add_sweep_options(p) -> None:
-    """The options of ``lagcodegen sweep`` on the argparse parser ``p`` (the attribute names of
-    :class:`SweepSpec`)."""
-    p.add_argument("model", help="TOML model file, or FILE.py:FUNCTION (executes FILE.py)")
-    p.add_argument("-o", "--output", required=True, help="table, one row per member (.csv or .npz)")
-    p.add_argument("--grid", action="append", metavar="NAME=START:STOP:NUM",
-                   help="NUM values from START to STOP (or NAME=V1,V2,...); several give the product")
-    p.add_argument("--sample", action="append", metavar="NAME=DIST:A:B",
-                   help="random values: uniform:LOW:HIGH, normal:MEAN:SD, loguniform:LOW:HIGH (repeatable)")
-    p.add_argument("--n", type=int, help="--sample: number of members")
-    p.add_argument("--seed", type=int, help="--sample: seed of numpy's default_rng (default: a random one, printed)")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="fixed parameter value (repeatable)")
-    p.add_argument("--plot", help="PNG of a final value against the first swept quantity")
-    p.add_argument("--plot-y", help="--plot: the state or output plotted (default: the first coordinate)")
-    p.add_argument("--threads", type=int, help="threads of the ensemble call (default: every core)")
-    p.add_argument("--method", choices=["adams", "bdf", "taylor", "auto"],
-                   help="default: the file's (constrained files: adams or bdf only)")
-    p.add_argument("--rtol", type=float)
-    p.add_argument("--atol", type=float)
-    p.add_argument("--t-end", type=float, help="default: the file's t_end")
-    p.add_argument("--max-steps", type=int, help="step budget of each member")
-    p.add_argument("--max-wall", type=float, help="wall-clock limit of each member, seconds")
-    p.add_argument("--outputs", help="comma-separated outputs (default: the file's)")
-    p.add_argument("--formulation", choices=list(FORMULATIONS),
-                   help="constrained files: override the file's formulation (index1, ggl, minimal)")
-    p.add_argument("--project-initial", action="store_true",
-                   help="constrained files: project each member's initial state onto the constraints")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-
-
 @dataclass
 class SweepSpec:
-    """The options of a sweep, as the command line gives them (see :func:`spec_from_namespace`)."""
+    """The options of a sweep, as the command line gives them (the option names of
+    ``lagcodegen sweep``, :mod:`lagcodegen.cli.sweep`)."""
 
     model: str
     output: str
@@ -123,12 +81,6 @@ class SweepSpec:
     project_initial: bool = False
     outputs: str | None = None
     quiet: bool = False
-
-
-def spec_from_namespace(args) -> SweepSpec:
-    """A :class:`SweepSpec` from an argparse namespace with the same attribute names."""
-    names = SweepSpec.__dataclass_fields__
-    return SweepSpec(**{k: getattr(args, k) for k in names if hasattr(args, k) and getattr(args, k) is not None})
 
 
 @dataclass
@@ -309,9 +261,10 @@ def member_values(plan: Plan) -> dict[str, np.ndarray]:
     return out
 
 
-def _compile(plan: Plan, mf):
-    """The compiled simulation, with every swept parameter a run-time parameter; and the
-    parameter values by name (model defaults < file < --set)."""
+def compile_options(plan: Plan, mf) -> tuple[dict[str, Any], dict[str, float]]:
+    """The options of :func:`lagcodegen.api.compile_file` for the sweep (every swept parameter a
+    run-time parameter; the --outputs; the --formulation), and the parameter values by name
+    (model defaults < file < --set)."""
     s, spec = mf.simulation, plan.spec
     params = [p.name for p in mf.model.params]
     swept = [n for n in plan.names if n in params]
@@ -327,24 +280,17 @@ def _compile(plan: Plan, mf):
                                                  else list(s.outputs), formulation)
     elif requested is not None:
         options["outputs"] = requested
-    return compile_file(mf, **options), values
+    return options, values
 
 
-def run_sweep(spec: SweepSpec, say: Callable[[str], None] | None = None) -> dict[str, np.ndarray]:
-    """The whole sweep: check, load, compile, run, write the table (and the plot). Returns the
-    table (column name -> (N,) array). Raises :class:`SweepOptionError` on a bad option (before
-    any work), :class:`~lagcodegen.errors.SolverError` when every member failed (after writing),
-    and the ensemble's KeyboardInterrupt on Ctrl-C (writing nothing)."""
+def run_plan(plan: Plan, mf, sim, values: dict[str, float], say: Callable[[str], None]) -> dict[str, np.ndarray]:
+    """Run the checked ``plan`` on ``sim`` (compiled from ``mf`` with :func:`compile_options`)
+    and write the table (and the plot); returns the table (column name -> (N,) array). Raises
+    :class:`SweepOptionError` on a ``--plot-y`` the model lacks (before the run),
+    :class:`~lagcodegen.errors.SolverError` when every member failed (after writing), and the
+    ensemble's KeyboardInterrupt on Ctrl-C (writing nothing)."""
+    spec = plan.spec
     quiet = spec.quiet
-    say = say or (lambda msg: None if quiet else print(f"lagcodegen: {msg}", file=sys.stderr, flush=True))
-    plan = check_options(spec)
-    t0 = time.perf_counter()
-    mf = load_source(spec.model).model_file
-    say(f"loaded {spec.model} ({mf.model.n} coordinates) in {time.perf_counter() - t0:.3f} s")
-    check_names(plan, mf)
-    t0 = time.perf_counter()
-    sim, values = _compile(plan, mf)
-    say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s")
     state_names = list(sim.state_names)
     coords = [q.name for q in mf.model.coords]
     speeds = [v.name for v in mf.model.speeds]

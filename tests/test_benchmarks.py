@@ -23,8 +23,8 @@ def finite(value) -> bool:
 
 
 def test_c_harness_times_every_function(tmp_path):
-    from lagcodegen import Scene, build, derive, generate_c
-    chain = build(generate_c(Scene(derive(systems.spring_chain(8, 1e4, name="tb_chain")), sparse_jacobian=True,
+    from lagcodegen import Scene, build_code, derive, generate_c
+    chain = build_code(generate_c(Scene(derive(systems.spring_chain(8, 1e4, name="tb_chain")), sparse_jacobian=True,
                                    prefix="tb_chain")))
     costs = H.c_call_costs(chain.code, tmp_path, SimpleNamespace(repeats=1, c_target=0.005))
     assert set(costs) == {"rhs", "jac", "jac_sparse"} and all(finite(v) and v > 0 for v in costs.values())

@@ -23,8 +23,8 @@ def is_runtime(entry) -> bool:
 def test_second_build_is_a_cache_hit(tmp_path, monkeypatch):
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
     code = generate_c(Scene(derive(systems.pendulum()), prefix="cachehit"))
-    first = lcg.build(code)
-    second = lcg.build(code)
+    first = lcg.build_code(code)
+    second = lcg.build_code(code)
     assert not first.cached and second.cached
     assert first.path == second.path
     entries = [p for p in tmp_path.iterdir() if not is_runtime(p)]
@@ -38,7 +38,7 @@ def test_model_library_joins_each_table_with_its_functions(tmp_path, monkeypatch
     from lagcodegen.build import MODEL_CFLAGS, DEFAULT_CFLAGS
     assert MODEL_CFLAGS != DEFAULT_CFLAGS and "-O1" in MODEL_CFLAGS and "-DLCG_COLD_JACOBIAN" in MODEL_CFLAGS
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
-    built = lcg.build(generate_c(Scene(derive(systems.pendulum()), prefix="unitpend")))
+    built = lcg.build_code(generate_c(Scene(derive(systems.pendulum()), prefix="unitpend")))
     folder = built.path.parent
     assert (folder / "unitpend_unit.c").read_text() == '#include "unitpend.c"\n#include "unitpend_table.c"\n'
     sim = lcg.compile_model(systems.pendulum(), prefix="unitpend")
@@ -49,8 +49,8 @@ def test_model_library_joins_each_table_with_its_functions(tmp_path, monkeypatch
 def test_changed_source_changes_the_key(tmp_path, monkeypatch):
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
     eom = derive(systems.pendulum())
-    a = lcg.build(generate_c(Scene(eom, prefix="keyed")))
-    b = lcg.build(generate_c(Scene(eom, prefix="keyed", outputs=["energy"])))
+    a = lcg.build_code(generate_c(Scene(eom, prefix="keyed")))
+    b = lcg.build_code(generate_c(Scene(eom, prefix="keyed", outputs=["energy"])))
     assert a.path != b.path
 
 
@@ -59,7 +59,7 @@ def test_compiler_failure_raises_with_compiler_output(tmp_path, monkeypatch):
     code = generate_c(Scene(derive(systems.pendulum()), prefix="broken"))
     code.files[code.source_name] += "\nthis is not C;\n"
     with pytest.raises(CompileError) as info:
-        lcg.build(code)
+        lcg.build_code(code)
     assert "error" in info.value.output and "broken.c" in info.value.output
     assert "compiler output" in str(info.value)
     assert not [p for p in tmp_path.iterdir() if not p.name.startswith(".")]  # nothing published
@@ -70,7 +70,7 @@ def test_missing_compiler_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setenv("LAGCODEGEN_CACHE", str(tmp_path))
     code = generate_c(Scene(derive(systems.pendulum()), prefix="nocc"))
     with pytest.raises(CompileError, match="no-such-cc"):
-        lcg.build(code, cc="no-such-cc")
+        lcg.build_code(code, cc="no-such-cc")
 
 
 def test_two_processes_building_the_same_model_both_succeed(tmp_path):
@@ -124,7 +124,7 @@ import warnings  # noqa: E402
 
 from lagcodegen import LagcodegenError, ModelError  # noqa: E402
 
-build_module = importlib.import_module("lagcodegen.build")  # (lagcodegen.build is the function)
+build_module = importlib.import_module("lagcodegen.build")
 cache_module = importlib.import_module("lagcodegen.cache")
 
 OTHER_UID = 54321
@@ -132,7 +132,7 @@ OTHER_UID = 54321
 
 def fresh_build(prefix, **options):
     """A small native=False build (fast) of a pendulum under ``prefix``."""
-    return lcg.build(generate_c(Scene(derive(systems.pendulum()), prefix=prefix, jacobian=False)),
+    return lcg.build_code(generate_c(Scene(derive(systems.pendulum()), prefix=prefix, jacobian=False)),
                      native=False, **options)
 
 
@@ -268,7 +268,7 @@ def test_module_that_does_not_import_is_never_published(tmp_path, monkeypatch):
     code.files["unimportable_extra.c"] = ("extern double lcg_no_such_symbol(double);\n"
                                           "double unimportable_extra(double x) { return lcg_no_such_symbol(x); }\n")
     with pytest.raises(LagcodegenError, match="does not import.*lcg_no_such_symbol"):
-        lcg.build(code, native=False)
+        lcg.build_code(code, native=False)
     assert not list(tmp_path.iterdir())  # neither an entry nor a build folder
 
 

@@ -70,7 +70,7 @@ def test_python_model_manifest_depfile_stamp(tmp_path, run):
     assert stamp.read_text().splitlines() == listed.stdout.splitlines()
     depfile = dep.read_text()
     assert depfile.startswith(f"{stamp}: \\\n")
-    for needed in ("mymodels.py", "mymodels_parts.py", "lagcodegen/cli.py", "model.c.j2", "lagcodegenConfig.cmake"):
+    for needed in ("mymodels.py", "mymodels_parts.py", "lagcodegen/cli/__init__.py", "model.c.j2", "lagcodegenConfig.cmake"):
         assert needed in depfile, needed
     manifest = json.loads((out / "double_pendulum.lagcodegen.json").read_text())
     assert set(manifest["inputs"]["files"]) == {"mymodels.py", "mymodels_parts.py"}

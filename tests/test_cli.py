@@ -364,3 +364,47 @@ def test_progress_lines_name_the_stages(tmp_path, capsys, monkeypatch):
     assert main(["sweep", str(EXAMPLES / "pendulum.toml"), "--grid", "g=9.7:9.9:3", "-o", str(tmp_path / "s.csv"),
                  "--t-end", "0.1", "--progress", "-q"]) == 0
     assert "lagcodegen: derive 1/1 coordinates" in capsys.readouterr().err
+
+
+def test_model_paths_are_read_by_the_loader_of_their_suffix(tmp_path, capsys):
+    """One dispatch (modelfile.load_model_path) for every command: a .toml file (any case of the
+    suffix) is a TOML model file; another suffix is refused naming the ones known, exit 1."""
+    import lagcodegen as lcg
+    from lagcodegen.cli import main
+    from lagcodegen.modelfile import LOADERS, load_model_path
+    assert ".toml" in LOADERS
+    upper = tmp_path / "P.TOML"
+    upper.write_text((EXAMPLES / "pendulum.toml").read_text())
+    mf = load_model_path(upper)
+    assert [q.name for q in mf.model.coords] == ["theta"] and mf.path == upper
+    other = tmp_path / "pendulum.txt"
+    other.write_text((EXAMPLES / "pendulum.toml").read_text())
+    with pytest.raises(lcg.ModelError, match=r"pendulum.txt: not a model file .*\.toml"):
+        load_model_path(other)
+    for command in (["info"], ["simulate", "-o", str(tmp_path / "r.csv")], ["generate", "-o", str(tmp_path / "g")],
+                    ["sweep", "--grid", "g=1:2:2", "-o", str(tmp_path / "s.csv")]):
+        assert main([command[0], str(other), *command[1:], "-q"] if command[0] != "info" else ["info", str(other)]) == 1
+        assert "pendulum.txt: not a model file" in capsys.readouterr().err
+    assert not any(tmp_path.glob("r.csv")) and not (tmp_path / "g").exists()
+
+
+def test_generate_writes_what_the_api_renders(tmp_path):
+    """`generate` writes lagcodegen.generate_file's files (plus the manifest), with the command
+    line applied to the file's settings: the same texts from Python as from the command line."""
+    import dataclasses
+
+    import lagcodegen as lcg
+    from lagcodegen.cli import main
+    model = EXAMPLES / "cartesian_pendulum.toml"
+    for flags, settings, kwargs in [
+            ([], {}, {}),
+            (["--formulation", "minimal", "--fold-all"], {"formulation": "minimal", "runtime_parameters": []}, {}),
+            (["--bundle", "--lang", "fortran", "--set", "g=1.5"], {}, {"bundle": True, "lang": "fortran"})]:
+        out = tmp_path / f"gen{len(flags)}"
+        assert main(["generate", str(model), "-o", str(out), "-q", *flags]) == 0
+        mf = lcg.modelfile.load_model_path(model)
+        parameters = {**mf.simulation.parameters, **({"g": 1.5} if "--set" in flags else {})}
+        mf = dataclasses.replace(mf, simulation=dataclasses.replace(mf.simulation, parameters=parameters, **settings))
+        files = lcg.generate_file(mf, **kwargs)
+        written = {p.name: p.read_text() for p in out.iterdir() if not p.name.endswith(".lagcodegen.json")}
+        assert written == files and files

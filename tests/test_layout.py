@@ -14,7 +14,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "lagcodegen"
 STAGES = [
     ("errors", "version"),
     ("codes", "runtime"),
-    ("util", "hooks", "progress"),
+    ("util", "progress"),
     ("animation", "notebook"),
     ("result",),
     ("model",),
@@ -29,9 +29,8 @@ STAGES = [
     ("fmu",),
     ("solvers",),
     ("simulation",),
-    ("api",),
     ("sweep",),
-    ("legacy",),
+    ("api",),
     ("cli",),
     ("__main__", "__init__"),
 ]

@@ -3,7 +3,7 @@
 An :class:`Event` is a scalar expression e(q, q', t, p, lambda) whose zero crossings the
 solvers locate (CVODE's CVodeRootInit/CVodeGetRootInfo in the constrained CVODE driver,
 IDARootInit in the IDA driver, the ``eventsfn`` of scikit-sundae on that backend). Every
-inequality constraint g_k(q, t) >= 0 of a :class:`~lagcodegen.constraints.ConstrainedSystem`
+inequality constraint g_k(q, t) >= 0 of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem`
 (eq. 4.3) becomes the event ``ineq_<k>`` (direction -1, terminal): the moment the
 inequality would start to be violated. Event expressions may use the Lagrange multipliers
 ``lambda_<j>`` (eq. 4.5), e.g. a normal force that drops to zero.
@@ -12,7 +12,7 @@ Occurrences are reported in ``Result.events`` (a list of :class:`EventRecord`); 
 event stops the run and its state is appended as the last row of the result.
 
 Switched runs (a first system until a terminal event, then a second one) are
-:func:`lagcodegen.solvers.hybrid.simulate_with_switch`.
+:func:`lagcodegen.simulation.hybrid.simulate_with_switch`.
 """
 
 from __future__ import annotations

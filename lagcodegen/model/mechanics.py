@@ -43,9 +43,9 @@ from sympy.core.function import AppliedUndef
 from ..errors import ModelError
 from .model import Model
 
-#: sympy.physics.mechanics and .vector, bound by _physics() on first use: importing them costs
-#: about 0.8 s (the package pulls in sympy's unit systems), which every other use of lagcodegen
-#: (the command line, model files, lagcodegen's own models) does without.
+#: sympy.physics.mechanics and .vector, bound by _physics() on first use: importing them is slow
+#: (the package pulls in sympy's unit systems), which every other use of lagcodegen (the command
+#: line, model files, lagcodegen's own models) does without.
 Particle = RigidBody = dynamicsymbols = Point = ReferenceFrame = Vector = partial_velocity = ActuatorBase = None
 
 

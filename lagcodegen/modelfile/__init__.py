@@ -66,7 +66,7 @@ A build step can describe a model without writing Python::
     atol = 1e-10
     max_steps = 1000000                   # step budget of the whole run (1 to 2**31 - 1)
     initial = { theta1 = 1.0, theta2 = 0.5, theta1_dot = 0.0 }
-    outputs = ["energy", "positions"]     # scene outputs (see lagcodegen.scene.Scene)
+    outputs = ["energy", "positions"]     # scene outputs (see lagcodegen.formulation.scene.Scene)
     runtime_parameters = ["g"]            # default: every parameter stays adjustable
     parameters = { g = 1.62 }             # overrides of the parameter defaults
     jacobian = true
@@ -90,10 +90,10 @@ Parameter values, ``initial`` values and ``t_start``/``t_end``/``rtol``/``atol``
 constant expressions too (``"pi/2"``).
 
 With a ``[constraints]`` table, :attr:`ModelFile.constrained` is the
-:class:`~lagcodegen.constraints.ConstrainedSystem` (constraint j, holonomic ones first, has the
-multiplier ``lambda_<j>``, counted from 0), :attr:`ModelFile.events` the ``[[events]]`` as
-:class:`~lagcodegen.events.Event` items, and :meth:`ModelFile.compile`/:meth:`ModelFile.simulate`
-go through :func:`lagcodegen.dae.compile_constrained`. Constrained runs output the requested
+:class:`~lagcodegen.theory.constraints.ConstrainedSystem` (constraint j, holonomic ones first,
+has the multiplier ``lambda_<j>``, counted from 0), :attr:`ModelFile.events` the ``[[events]]``
+as :class:`~lagcodegen.model.events.Event` items, and :func:`lagcodegen.compile_file` goes
+through :func:`lagcodegen.compile_constrained`. Constrained runs output the requested
 outputs (default: energy) plus ``lambda`` (not in minimal coordinates), ``residuals`` and, with
 inequality constraints, ``inequalities``.
 
@@ -108,15 +108,18 @@ the loader validates against; ``docs/model-files.md`` is generated from it
 The package, one job a module: :mod:`.schema` (the tables and keys as data),
 :mod:`.expressions` (the expression whitelist),
 :mod:`.locate` (finding the line of a problem in the TOML text), :mod:`.values` (typed values
-read with located errors), :mod:`.loader` (the sections, into a Model and its settings) and
-:mod:`.document` (the loaded :class:`ModelFile` and how it runs).
+read with located errors), :mod:`.loader` (the sections, into a Model and its settings),
+:mod:`.document` (the loaded :class:`ModelFile` and how it runs) and :mod:`.formats` (the
+loader of a path by its suffix: :func:`load_model_path`, the one entry of the command line).
 """
 
 from ..theory.constraints import FORMULATIONS
 from .document import ModelFile, SimulationSettings, constrained_method, constrained_outputs
 from .expressions import FUNCTIONS, ExpressionError, parse_expression
+from .formats import LOADERS, load_model_path
 from .loader import load_model, loads_model
 from .locate import ModelFileError
 
-__all__ = ["FORMULATIONS", "FUNCTIONS", "ExpressionError", "ModelFile", "ModelFileError", "SimulationSettings",
-           "constrained_method", "constrained_outputs", "load_model", "loads_model", "parse_expression"]
+__all__ = ["FORMULATIONS", "FUNCTIONS", "LOADERS", "ExpressionError", "ModelFile", "ModelFileError",
+           "SimulationSettings", "constrained_method", "constrained_outputs", "load_model", "load_model_path",
+           "loads_model", "parse_expression"]

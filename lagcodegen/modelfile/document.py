@@ -1,8 +1,9 @@
 """A loaded model file, and how it runs.
 
 One job: the result of loading. :class:`ModelFile` (the model, its [constraints] and
-[[events]], its :class:`SimulationSettings`) compiles and simulates what the file describes;
-:func:`constrained_outputs` and :func:`constrained_method` say how a constrained run goes.
+[[events]], its :class:`SimulationSettings`) runs what the file describes once compiled
+(:func:`lagcodegen.compile_file`); :func:`constrained_outputs` and :func:`constrained_method`
+say how a constrained run goes.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from .. import hooks
 from ..derivation import derive
 from ..errors import ModelError
 from ..model.events import Event
@@ -81,24 +81,16 @@ class ModelFile:
         except ModelError as exc:
             raise _Locator(self.source, str(self.path)).error(("model", "coordinates"), str(exc)) from None
 
-    def compile(self, **options: Any) -> Any:
-        """:func:`lagcodegen.compile_model` with this file's scene settings (``options`` override).
+    def simulate(self, compiled: Any, **options: Any) -> Result:
+        """Run the simulation the file describes on ``compiled``, the model compiled with this
+        file's settings (:func:`lagcodegen.compile_file`).
 
-        With constraints: :func:`lagcodegen.dae.compile_constrained` with the file's formulation,
-        Baumgarte parameters, projection, events and outputs (see :func:`constrained_outputs`);
-        ``options`` (``formulation=...``, ``lang=...``, ``outputs=...``) override.
+        Parameter overrides are passed for its run-time parameters only. Constrained files
+        integrate with BDF where the formulation needs it (``ggl``, index-1 with projection),
+        else with ``method``; the result has the events found in ``Result.events``. ``options``
+        (``method=...``, ``rtol=...``, ``backend=...``, ...) override.
         """
-        return hooks.call("compile_file", self, **options)
-
-    def simulate(self, compiled: Any = None, **options: Any) -> Result:
-        """Run the simulation the file describes (compiling first unless ``compiled`` is given).
-
-        A given ``compiled`` model should come from :meth:`compile`: parameter overrides are
-        passed for its run-time parameters only. Constrained files integrate with BDF where the
-        formulation needs it (``ggl``, index-1 with projection), else with ``method``; the
-        result has the events found in ``Result.events``.
-        """
-        cm = compiled if compiled is not None else self.compile()
+        cm = compiled
         s = self.simulation
         q0, v0 = self.initial_state()
         method = s.method

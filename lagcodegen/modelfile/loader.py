@@ -293,7 +293,7 @@ class _Loader(_Reader):
                                    label="energy.dissipation")
 
     def builtin_outputs(self) -> list[str]:
-        """Output names a scene provides by itself (see :class:`lagcodegen.scene.Scene`)."""
+        """Output names a scene provides by itself (see :class:`lagcodegen.formulation.scene.Scene`)."""
         assert self.model is not None
         names = list(OUTPUT_GROUPS) + [f"p_{q.name}" for q in self.model.coords]
         names += [f"{pt.name}_{axis}" for pt in self.model.points.values() for axis in "xyz"[:pt.dim]]

@@ -8,7 +8,7 @@ A :class:`ConstrainedSystem` adds constraints to a :class:`~lagcodegen.model.Mod
 * nonholonomic (Pfaffian) constraints A_j . q' + A0_j = 0, the nonintegrable differential form
   of eq. 4.3 divided by dt;
 * inequality constraints g_k(q, t) >= 0 (eq. 4.3, left), which are *monitored* (their crossing
-  of zero is a root-finding event, see :mod:`lagcodegen.events`), not enforced.
+  of zero is a root-finding event, see :mod:`lagcodegen.model.events`), not enforced.
 
 Every equality constraint j contributes a constraint force R_j = lambda_j A_j (sec. 4.3) and
 the equations of motion become (eq. 4.5)
@@ -20,7 +20,8 @@ where gamma = -(d/dt)(A q' + A0) with q'' excluded: gamma_j = -(sum_i d(A_j q' +
 exerts; for a pendulum written as f = x^2 + y^2 - l^2 (A = (2x, 2y), pointing away from the
 pivot) the rod tension is T = -2 l lambda = -lambda |A|.
 
-The system is only described here; :mod:`lagcodegen.dae` generates and integrates the code.
+The system is only described here; :func:`lagcodegen.compile_constrained` generates, compiles
+and integrates its code.
 """
 
 from __future__ import annotations

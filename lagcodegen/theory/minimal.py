@@ -1,14 +1,16 @@
 """Minimal coordinates: holonomic constraints solved symbolically and eliminated (formulation "minimal").
 
 :func:`solve_constraints` solves f(q, t) = 0 (eq. 4.1) for some coordinates with sympy (every
-branch), :func:`reduced_model` substitutes a branch into the model's positions and energies,
-and :class:`lagcodegen.solvers.minimal.MinimalSimulation` compiles the unconstrained model of
-the branch the initial state lies on. Symbolic only: nothing here compiles.
+branch), :func:`closest_branch` finds the branch a state lies on and :func:`reduced_model`
+substitutes a branch into the model's positions and energies; :func:`lagcodegen.compile_constrained`
+(formulation "minimal") compiles the unconstrained model of the branch the initial state lies
+on. Symbolic only: nothing here compiles.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Mapping, Sequence
 
 import sympy as sp
@@ -58,6 +60,28 @@ def solve_constraints(system: ConstrainedSystem, eliminate: Sequence | None = No
     raise ModelError("minimal coordinates: sympy cannot solve the holonomic constraints "
                      f"{', '.join(f'{f} = 0' for f in system.holonomic)} for any set of {J} coordinate(s) "
                      f"(tried {', '.join(tried)}); use formulation 'index1' or 'ggl'")
+
+
+def closest_branch(system: ConstrainedSystem, eliminated: Sequence, branches: Sequence[Mapping],
+                   q: Sequence[float], t: float, values: Mapping[str, float]) -> tuple[int, float]:
+    """(index, distance) of the solution branch nearest the coordinates ``q`` (all n of them) at
+    time ``t`` with the parameter values ``values`` (by name): the distance is the largest
+    difference between an eliminated coordinate of ``q`` and its branch expression. Branches
+    that are not real there are skipped; (-1, inf) when none is. The caller decides whether the
+    distance is small enough (a state on the constraints lies on its branch to rounding)."""
+    model = system.model
+    subs = {**{s: q[i] for i, s in enumerate(model.coords)}, model.t: t,
+            **{s: values[s.name] for s in model.params}}
+    best, err = -1, math.inf
+    for b, sol in enumerate(branches):
+        try:
+            e = max(abs(complex(sp.sympify(sol[qe]).xreplace(subs).evalf()) - q[model.index(qe)])
+                    for qe in eliminated)
+        except (TypeError, ValueError):
+            continue
+        if e < err:
+            best, err = b, e
+    return best, err
 
 
 def reduced_model(system: ConstrainedSystem, solution: Mapping, name: str | None = None) -> Model:

@@ -30,7 +30,6 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .. import hooks
 from ..derivation import EquationsOfMotion, derive, to_se
 from ..errors import DerivationError, LagcodegenError, ModelError
 from ..model.model import Model
@@ -231,20 +230,7 @@ class RouthReduction:
             out[C.name] = val.real
         return out
 
-    # ------------------------------------------------------------ compile and simulate
-    def compile(self, outputs: Sequence[str] = ("jacobi_h",), *, jacobian: bool = True,
-                runtime_parameters: Sequence[str] | None = None, values: Mapping[str, float] | None = None,
-                prefix: str | None = None, native: bool = True, verbose: bool = False):
-        """Generate and build the reduced system (:func:`lagcodegen.api.compile_reduction`).
-
-        The integrals C_i always stay run-time parameters. The outputs ``<q_i>_dot`` (the
-        ignorable velocities, eq. 3.11) come first, then ``outputs``; ``jacobi_h`` is the
-        conserved h of eq. 3.12.
-        """
-        return hooks.call("compile_reduction", self, outputs, jacobian=jacobian,
-                          runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
-                          verbose=verbose)
-
+    # ------------------------------------------------------------ simulate (compiled by lagcodegen.compile_reduction)
     def initial_state(self, cm, q0, v0=None, t0: float = 0.0,
                       params: Mapping[str, float] | None = None) -> tuple[np.ndarray, dict[str, float]]:
         """Reduced state y0 = (q_r, q_r', q_i) and run-time parameters (with the C_i) from a full state."""
@@ -282,7 +268,7 @@ class RouthReduction:
         integrals C_i are computed from them (eq. 3.8) and passed as run-time parameters;
         the state is y0 = (q_r, q_r', q_i). The Result's ``q`` holds every coordinate
         (ignorable ones as quadrature states, eq. 3.11) and its ``parameters`` the C_i.
-        ``options`` go to :meth:`CompiledModel.simulate <lagcodegen.solvers.compiled.CompiledModel.simulate>`.
+        ``options`` go to :meth:`CompiledModel.simulate <lagcodegen.simulation.ode.CompiledModel.simulate>`.
         """
         times = np.asarray(t, dtype=float).ravel()
         y0, run = self.initial_state(cm, q0, v0, float(times[0]) if times.size else 0.0, params)

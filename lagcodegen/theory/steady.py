@@ -15,7 +15,7 @@ the equations are polynomial in the coordinates, or in sin q and cos q of angle-
 coordinates (q -> (sin q, cos q) with sin^2 + cos^2 = 1), for at most two coordinates; and
 always numerically (``scipy.optimize.root``) from a grid of starting points. Every real root,
 polished by Newton's method and de-duplicated, is reported with its linear stability
-(:mod:`lagcodegen.linearize`). A root must have a small residual and a small Newton
+(:mod:`lagcodegen.theory.linearize`). A root must have a small residual and a small Newton
 correction (so that F -> 0 at infinity, as for the Kepler problem, is no root), and a
 regular mass matrix.
 """
@@ -327,7 +327,7 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
     Parameters
     ----------
     system:
-        A :class:`~lagcodegen.routhian.RouthReduction`, or equations (or a Model) of a full
+        A :class:`~lagcodegen.theory.routhian.RouthReduction`, or equations (or a Model) of a full
         system: with ignorable coordinates it is reduced first, without any its steady
         motions are its equilibria.
     integrals:

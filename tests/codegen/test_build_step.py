@@ -117,7 +117,7 @@ def reference():
     """lagcodegen's own CVODE solution of the same scene, to 1e-12."""
     mf = load_model(EXAMPLES / "pendulum.toml")
     scene = Scene(mf.derive(), outputs=["energy"], runtime_parameters=["g"], values={"l": L}, prefix="pend")
-    res = lcg.build(generate_c(scene)).simulate([0.0, T_END], q0=[THETA0], params={"g": G}, rtol=1e-12,
+    res = lcg.build_code(generate_c(scene)).simulate([0.0, T_END], q0=[THETA0], params={"g": G}, rtol=1e-12,
                                                  atol=1e-12)
     return res.y[-1]
 

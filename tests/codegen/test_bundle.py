@@ -39,7 +39,7 @@ def references(scenes):
     refs = {}
     for name, scene in scenes.items():
         s = SETUPS[name]
-        cm = lcg.build(generate_c(scene))
+        cm = lcg.build_code(generate_c(scene))
         for key, params in (("default", s["params"]), ("other", {**s["params"], **s["other"]})):
             res = cm.simulate([0.0, s["t_end"]], y0=s["y0"], params=params, rtol=1e-10, atol=1e-12)
             refs[name, key] = res.y[-1]

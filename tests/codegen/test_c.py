@@ -156,8 +156,8 @@ def test_constants_are_printed_exactly():
 
 def test_folded_and_runtime_parameters_give_the_same_numbers():
     eom = derive(systems.double_pendulum())
-    folded = lcg.build(generate_c(Scene(eom, runtime_parameters=[], values={"m2": 2.5}, prefix="dpf")))
-    runtime = lcg.build(generate_c(Scene(eom, prefix="dpr")))
+    folded = lcg.build_code(generate_c(Scene(eom, runtime_parameters=[], values={"m2": 2.5}, prefix="dpf")))
+    runtime = lcg.build_code(generate_c(Scene(eom, prefix="dpr")))
     y = np.array([0.4, -1.1, 0.3, 0.8])
     p = runtime.parameter_vector({"m2": 2.5})
     np.testing.assert_allclose(folded.rhs(0.0, y), runtime.rhs(0.0, y, p), rtol=1e-14)
@@ -166,7 +166,7 @@ def test_folded_and_runtime_parameters_give_the_same_numbers():
 
 @pytest.mark.parametrize("name", sorted(MODELS))
 def test_jacobian_matches_central_differences(name):
-    cm = lcg.build(code_for(name, prefix=f"fd_{name}"))
+    cm = lcg.build_code(code_for(name, prefix=f"fd_{name}"))
     rng = np.random.default_rng(1)
     y = rng.uniform(0.2, 1.0, cm.ny)
     J = cm.jac(0.3, y)
@@ -179,7 +179,7 @@ def test_jacobian_matches_central_differences(name):
 def test_rhs_matches_symbolic_solve():
     # The numeric M q'' = F solve equals sympy's solution of the same linear system.
     eom = derive(systems.double_pendulum())
-    cm = lcg.build(generate_c(Scene(eom, prefix="dp_sym")))
+    cm = lcg.build_code(generate_c(Scene(eom, prefix="dp_sym")))
     y = [0.7, -0.2, 1.3, 0.4]
     subs = dict(zip(eom.q + eom.qd, y))
     subs.update({s: v for s, v in eom.parameters.items()})
@@ -194,7 +194,7 @@ def test_mass_matrix_that_is_not_positive_definite_uses_lu():
     model.kinetic_energy(-model.dot(x) ** 2 / 2 + model.dot(y) ** 2 / 2 + model.dot(x) * model.dot(y) / 4)
     model.potential_energy(x**2 / 2 + y**2 / 2 + x * y / 3)
     eom = derive(model)
-    cm = lcg.build(generate_c(Scene(eom)))
+    cm = lcg.build_code(generate_c(Scene(eom)))
     state = np.array([0.3, -0.5, 0.1, 0.2])
     M = np.array(eom.M, dtype=float)
     F = np.array(eom.F.subs(dict(zip(eom.q + eom.qd, state))), dtype=float).ravel()

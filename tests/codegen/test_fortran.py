@@ -109,8 +109,8 @@ def assert_same(a, b, what):
 
 
 def builds(eom, tag):
-    c = lcg.build(generate_c(Scene(eom, outputs=OUTPUTS, prefix=f"c_{tag}")))
-    f = lcg.build(generate_fortran(Scene(eom, outputs=OUTPUTS, prefix=f"f_{tag}")))
+    c = lcg.build_code(generate_c(Scene(eom, outputs=OUTPUTS, prefix=f"c_{tag}")))
+    f = lcg.build_code(generate_fortran(Scene(eom, outputs=OUTPUTS, prefix=f"f_{tag}")))
     return c, f
 
 
@@ -145,8 +145,8 @@ def test_c_and_fortran_agree_to_round_off(fc, eoms, name):
 
 def test_quadrature_states_agree(fc):
     eom = quadrature_eom()
-    cm = lcg.build(generate_c(Scene(eom, prefix="cz")))
-    fm = lcg.build(generate_fortran(Scene(eom, prefix="fz")))
+    cm = lcg.build_code(generate_c(Scene(eom, prefix="cz")))
+    fm = lcg.build_code(generate_fortran(Scene(eom, prefix="fz")))
     assert fm.ny == 3
     y = np.array([0.7, -0.4, 0.2])
     assert_same(cm.rhs(0.3, y), fm.rhs(0.3, y), "rhs")
@@ -187,15 +187,15 @@ def test_error_codes_match_the_c_backend(fc):
     indef = derive(m)
     for gen in (generate_c, generate_fortran):
         tag = "c" if gen is generate_c else "f"
-        cm = lcg.build(gen(Scene(sing, prefix=f"sing_{tag}")), native=False)
+        cm = lcg.build_code(gen(Scene(sing, prefix=f"sing_{tag}")), native=False)
         with pytest.raises(lcg.SingularMassMatrixError):
             cm.rhs(0.0, [0.0, 1.0])
         with pytest.raises(lcg.SingularMassMatrixError):
             cm.jac(0.0, [0.0, 1.0])
-        cm = lcg.build(gen(Scene(blow, prefix=f"blow_{tag}")), native=False)
+        cm = lcg.build_code(gen(Scene(blow, prefix=f"blow_{tag}")), native=False)
         with pytest.raises(lcg.SolverError, match="not finite"):
             cm.rhs(0.0, [0.0, 1.0])
-        cm = lcg.build(gen(Scene(indef, prefix=f"indef_{tag}")), native=False)
+        cm = lcg.build_code(gen(Scene(indef, prefix=f"indef_{tag}")), native=False)
         state = np.array([0.3, -0.5, 0.1, 0.2])
         M = np.array(indef.M, dtype=float)
         F = np.array(indef.F.subs(dict(zip(indef.q + indef.qd, state))), dtype=float).ravel()
@@ -244,7 +244,7 @@ def test_fortran_programs_use_the_module(tmp_path, fc):
     run = subprocess.run(["./caller"], cwd=tmp_path, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     values = np.array([float(v) for v in run.stdout.split()])
-    cm = lcg.build(generate_c(Scene(eom, outputs=["energy"], prefix="dp_caller")))
+    cm = lcg.build_code(generate_c(Scene(eom, outputs=["energy"], prefix="dp_caller")))
     y = [0.4, -1.1, 0.3, 0.8]
     expected = np.concatenate([cm.rhs(0.5, y), cm.jac(0.5, y).ravel(order="F"), cm.outputs(0.5, y)])
     np.testing.assert_allclose(values, expected, rtol=1e-15, atol=1e-15)
@@ -253,14 +253,14 @@ def test_fortran_programs_use_the_module(tmp_path, fc):
 def test_long_sums_are_split_in_c_order(tmp_path, fc, monkeypatch):
     # Statements too long for Fortran's 255 continuation lines become running partial sums
     # (target = a + b; target = target + c ...): the same additions in the same order.
-    import lagcodegen.fortran as fortran
+    import lagcodegen.codegen.fortran as fortran
     monkeypatch.setattr(fortran, "_MAX_CONTINUATIONS", 1)
     eom = derive(systems.n_link_pendulum(3))
     code = generate_fortran(Scene(eom, outputs=["energy"], prefix="split3"))
     src = strict_compile(fc, code, tmp_path)
     assert re.search(r"\n *(F\(1\)) = \1 [-+] ", src) and re.search(r"\n *(G\(1, 1\)) = \1 [-+] ", src)
-    cm = lcg.build(generate_c(Scene(eom, outputs=["energy"], prefix="split3c")))
-    fm = lcg.build(code)
+    cm = lcg.build_code(generate_c(Scene(eom, outputs=["energy"], prefix="split3c")))
+    fm = lcg.build_code(code)
     y = np.array([0.3, -0.2, 0.9, 0.1, 0.4, -0.7])
     assert_same(cm.rhs(0.0, y), fm.rhs(0.0, y), "rhs")
     assert_same(cm.jac(0.0, y), fm.jac(0.0, y), "jac")

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import lagcodegen.codegen.c as cmod
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, derive, generate_c, systems
 
-bmod = importlib.import_module("lagcodegen.build")  # the module (lagcodegen.build is also the function)
+bmod = importlib.import_module("lagcodegen.build")
 
 from helpers import STRICT_CFLAGS
 
@@ -55,13 +55,13 @@ def test_split_sources_compile_with_strict_warnings_whole_and_in_parts(tmp_path,
 
 @pytest.mark.parametrize("form", ["none", "tangent"])
 def test_split_build_gives_the_values_of_the_uncut_source(monkeypatch, small_groups, form):
-    """build() compiles a split source as split_parts objects (forced to 2 here, whatever the
+    """build_code() compiles a split source as split_parts objects (forced to 2 here, whatever the
     cores): rhs and jac equal those of the same program printed without groups."""
     monkeypatch.setattr(bmod, "split_parts", lambda groups: min(groups, 2))
-    split = build(generate_c(scene(6, form, f"sb_{form}")), native=False)
+    split = build_code(generate_c(scene(6, form, f"sb_{form}")), native=False)
     assert split.code.split
     monkeypatch.setattr(cmod, "SPLIT_MIN_CHARS", 10 ** 12)
-    whole = build(generate_c(scene(6, form, f"sw_{form}")), native=False)
+    whole = build_code(generate_c(scene(6, form, f"sw_{form}")), native=False)
     assert not whole.code.split and "LCG_PART" not in whole.code.files[whole.code.source_name]
     rng = np.random.default_rng(3)
     for _ in range(5):

@@ -6,7 +6,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, compile_reduction, derive, generate_c, systems
 from lagcodegen.build import driver_sources, find_sundials
 from lagcodegen.errors import LagcodegenError
 from lagcodegen.formulation.scene import band_order, bandwidths
@@ -25,7 +25,7 @@ def chain_initial(n: int) -> tuple[list[float], list[float]]:
 @pytest.fixture(scope="module")
 def chain():
     eom = derive(systems.spring_chain(8, 1e4, name="tb_chain"))
-    return build(generate_c(Scene(eom, sparse_jacobian=True, prefix="tb_chain")))
+    return build_code(generate_c(Scene(eom, sparse_jacobian=True, prefix="tb_chain")))
 
 
 def sparse_as_dense(cm, t, y):
@@ -57,14 +57,14 @@ def test_sparse_jacobian_matches_dense(which, chain):
     if which == "chain":
         cm = chain
     elif which == "double":  # full M: factor once, solve the nonzero columns
-        cm = build(generate_c(Scene(derive(systems.double_pendulum("tb_dbl")), sparse_jacobian=True,
+        cm = build_code(generate_c(Scene(derive(systems.double_pendulum("tb_dbl")), sparse_jacobian=True,
                                     prefix="tb_dbl")))
     elif which == "routh":  # quadrature state
         from lagcodegen.theory.routhian import reduce
         red = reduce(systems.spherical_pendulum("tb_sph"))
-        cm = build(generate_c(Scene(red.eom, sparse_jacobian=True, prefix="tb_sph_routh")))
+        cm = build_code(generate_c(Scene(red.eom, sparse_jacobian=True, prefix="tb_sph_routh")))
     else:
-        cm = build(generate_c(Scene(derive(systems.damped_pendulum("tb_damped")), sparse_jacobian=True,
+        cm = build_code(generate_c(Scene(derive(systems.damped_pendulum("tb_damped")), sparse_jacobian=True,
                                     runtime_parameters=["g"], prefix="tb_damped")))
     rng = np.random.default_rng(1)
     for _ in range(3):
@@ -91,7 +91,7 @@ def test_sparse_code_and_band_driver_compile_strictly(tmp_path, cc, jacobian, sp
                                    dict(jacobian=False)])
 def test_band_solver_agrees_with_dense(scene):
     n = 8
-    cm = build(generate_c(Scene(derive(systems.spring_chain(n, 1e4, name="tb_band")), outputs=["energy"],
+    cm = build_code(generate_c(Scene(derive(systems.spring_chain(n, 1e4, name="tb_band")), outputs=["energy"],
                                 prefix="tb_band_" + "_".join(f"{k}{int(v)}" for k, v in scene.items()), **scene)))
     q0, v0 = chain_initial(n)
     t = np.linspace(0.0, 5.0, 51)
@@ -107,7 +107,7 @@ def test_band_solver_agrees_with_dense(scene):
 def test_band_solver_with_quadratures_and_explicit_bandwidths():
     from lagcodegen.theory.routhian import reduce
     red = reduce(systems.spherical_pendulum("tb_sph2"))
-    cm = red.compile(outputs=("jacobi_h",), prefix="tb_sph2_routh")
+    cm = compile_reduction(red, outputs=("jacobi_h",), prefix="tb_sph2_routh")
     kw = dict(q0=[0.8, 0.0], v0=[0.3, 2.0], rtol=1e-10, atol=1e-12)
     dense = red.simulate(cm, [0, 5], **kw)
     band = red.simulate(cm, [0, 5], linear_solver="band", **kw)

@@ -10,7 +10,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from lagcodegen import Scene, build, derive, generate_c, systems
+from lagcodegen import Scene, build_code, derive, generate_c, systems
 from lagcodegen.errors import ModelError
 from lagcodegen.formulation.kernels import model_blocks
 from lagcodegen.formulation.scene import auto_jacobian_form
@@ -49,7 +49,7 @@ SIMULATED = ("double_pendulum", "spring_chain")
 
 def compiled(name, form, tag=""):
     make, opts = CASES[name]
-    return build(generate_c(Scene(make(), jacobian_form=form, prefix=f"tg_{name}_{form}{tag}", **opts)),
+    return build_code(generate_c(Scene(make(), jacobian_form=form, prefix=f"tg_{name}_{form}{tag}", **opts)),
                  native=name in SIMULATED)
 
 
@@ -207,10 +207,10 @@ def test_program_form_rhs_equals_the_one_function_form(monkeypatch):
     against the same scene printed as one function (symengine's elimination), to round-off."""
     import lagcodegen.codegen.c as cmod
     eom = derive(systems.n_link_pendulum(18, name="tg_prog"))  # >= PROGRAM_MIN_OPS operations
-    program = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_pieces")), native=False)
+    program = build_code(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_pieces")), native=False)
     assert "NOINLINE void values" in program.code.files[program.code.source_name]
     monkeypatch.setattr(cmod, "PROGRAM_MIN_OPS", 10 ** 9)
-    single = build(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_single")), native=False)
+    single = build_code(generate_c(Scene(eom, jacobian=False, prefix="tg_prog_single")), native=False)
     assert "NOINLINE" not in single.code.files[single.code.source_name]
     rng = np.random.default_rng(11)
     for _ in range(3):

@@ -501,7 +501,7 @@ def test_pendulum_file_compiles_and_simulates():
 
 def test_model_file_simulate_uses_its_settings():
     mf = load_model(EXAMPLES / "central_potential.toml")
-    res = mf.simulate()
+    res = mf.simulate(lagcodegen.compile_file(mf))
     assert res.success and res.t[-1] == pytest.approx(mf.simulation.t_end)
     assert np.ptp(res.outputs["energy"]) < 1e-6
     assert np.ptp(res.outputs["angular_momentum"]) < 1e-6
@@ -510,7 +510,7 @@ def test_model_file_simulate_uses_its_settings():
 
     moon = loads_model(BASE + '\n[simulation]\nruntime_parameters = ["g"]\nparameters = { g = 1.62, m = 3 }\n'
                        "initial = { theta = 0.1 }\n", "moon.toml")
-    res = moon.simulate()
+    res = moon.simulate(lagcodegen.compile_file(moon))
     assert res.parameters == {"g": 1.62}
     omega = np.sqrt(1.62 / 1.0)  # small oscillation: theta ~ 0.1 cos(omega t)
     assert res["theta"][-1] == pytest.approx(0.1 * np.cos(omega * res.t[-1]), abs=2e-3)
@@ -676,7 +676,7 @@ outputs = ["energy", "constraint_forces", "R_0_x", "g_0", "lambda_0"]
 
 def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
     mf = load_model(EXAMPLES / "sliding_off_sphere.toml")
-    res = mf.simulate()
+    res = mf.simulate(lagcodegen.compile_file(mf))
     assert res.success and res.formulation == "index1"
     (ev,) = res.events
     v0, g, R = mf.simulation.initial["x_dot"], 9.81, 1.0
@@ -800,7 +800,7 @@ def test_max_steps_in_the_simulation_table():
     mf = loads_model(BASE + "\n[simulation]\nmax_steps = 5\n")
     assert mf.simulation.max_steps == 5
     with pytest.raises(lagcodegen.SolverError, match="max_steps = 5"):
-        mf.simulate()
+        mf.simulate(lagcodegen.compile_file(mf))
 
 
 def test_messages_show_a_bounded_excerpt_of_a_long_input():

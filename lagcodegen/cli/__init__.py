@@ -1,0 +1,98 @@
+"""The ``lagcodegen`` command (also ``python -m lagcodegen``): :func:`main` parses the command
+line and runs one command, a module each (:mod:`.generate`, :mod:`.simulate`, :mod:`.info`,
+:mod:`.sweep`; what they share in :mod:`.common`), and turns what went wrong into an exit code.
+
+One job: the command line, from the options (each checked before any work) to the exit code;
+the pipeline runs in :mod:`lagcodegen.api`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from .. import progress
+from ..buildstep import cmake_dir
+from ..errors import CompileError, LagcodegenError, SolverError
+from ..util import Terminated, sigterm_raises
+from ..version import __version__
+from . import generate, info, simulate, sweep
+from .common import EXIT_COMPILE, EXIT_INPUT, EXIT_SOLVER, EXIT_USAGE, UsageError
+
+#: The commands, in the order ``lagcodegen --help`` lists them.
+COMMANDS = (simulate, generate, info, sweep)
+
+DESCRIPTION = """Lagrangian mechanics to C and Fortran: derive a model's equations of motion from
+a model file (TOML, or FILE.py:FUNCTION), write its C or Fortran sources, or compile and
+integrate it. `lagcodegen COMMAND --help` describes each command.
+
+    lagcodegen simulate examples/double_pendulum.toml -o out/dp.csv --plot out/dp.png
+    lagcodegen generate examples/double_pendulum.toml -o dp_bundle --bundle
+    lagcodegen info examples/pendulum.toml
+    lagcodegen sweep examples/pendulum.toml --grid g=9.7:9.9:101 -o g.csv
+
+exit codes:
+    0  success
+    1  bad model or input (the message names the file, key and token)
+    2  bad command line
+    3  the C compiler failed
+    4  the integration failed
+    5  generate --check: the output folder is out of date
+  130  interrupted (Ctrl-C); 143: terminated (SIGTERM). No partial output file is left."""
+
+
+class _CMakeDir(argparse.Action):
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(cmake_dir())
+        parser.exit()
+
+
+def parser() -> argparse.ArgumentParser:
+    """The parser of the whole command line, one subparser per command."""
+    ap = argparse.ArgumentParser(prog="lagcodegen", description=DESCRIPTION,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"lagcodegen {__version__}")
+    ap.add_argument("--cmake-dir", action=_CMakeDir, nargs=0,
+                    help="print the folder of lagcodegen's CMake package (for lagcodegen_DIR) and exit")
+    sub = ap.add_subparsers(dest="command", required=True)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return ap
+
+
+def _show_progress(args) -> bool:
+    """--progress/--no-progress; by default on when stderr is a terminal and -q is not given."""
+    if getattr(args, "progress", None) is not None:
+        return args.progress
+    try:
+        return sys.stderr.isatty() and not getattr(args, "quiet", False)
+    except (AttributeError, ValueError):
+        return False
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
+    args = parser().parse_args(argv)
+    try:
+        # SIGTERM: the atomic writers remove their temporary files
+        with sigterm_raises(), progress.enabled(_show_progress(args)):
+            return args.func(args)
+    except UsageError as exc:
+        print(f"lagcodegen: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except CompileError as exc:
+        print(f"lagcodegen: error: {exc}", file=sys.stderr)
+        return EXIT_COMPILE
+    except SolverError as exc:
+        print(f"lagcodegen: integration failed: {exc}", file=sys.stderr)
+        return EXIT_SOLVER
+    except (LagcodegenError, OSError) as exc:
+        print(f"lagcodegen: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C: runs stop within about a second; results are written only when complete
+        print("lagcodegen: interrupted", file=sys.stderr)
+        return 130
+    except Terminated:  # SIGTERM: as Ctrl-C, no partial output left behind
+        print("lagcodegen: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM

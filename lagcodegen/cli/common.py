@@ -1,0 +1,144 @@
+"""What the commands share: exit codes, progress lines, the options that shape a model's code,
+and the command line applied to a loaded model file's settings.
+
+One job: turning command-line options into the settings the api takes (each checked before
+any work); the commands call :mod:`lagcodegen.api` for everything else.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import difflib
+import sys
+import time
+
+from ..buildstep import ModelSource, load_source, split_python_spec
+from ..modelfile import FORMULATIONS, ModelFile
+from ..util import EXCERPT, excerpt
+
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
+
+#: The help of the model argument of every command.
+MODEL_HELP = ("model file (.toml), or FILE.py:FUNCTION (executes FILE.py; FUNCTION() returns a Model, a "
+              "ConstrainedSystem or a ModelFile)")
+
+
+class UsageError(Exception):
+    """A bad command-line option (exit 2), found before any work."""
+
+
+def say(msg: str, quiet: bool) -> None:
+    """A progress line on stderr (none with -q)."""
+    if not quiet:
+        print(f"lagcodegen: {msg}", file=sys.stderr, flush=True)
+
+
+def csv(text: str | None) -> list[str] | None:
+    """The items of a comma-separated option, or None when it is not given."""
+    if text is None:
+        return None
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+def _name(name: str) -> str:
+    """A name given on the command line, as it is, or an excerpt if it is long."""
+    return name if len(name) <= EXCERPT else excerpt(name)
+
+
+def assignments(items: list[str] | None) -> dict[str, float]:
+    """The NAME=VALUE pairs of --set."""
+    out = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise UsageError(f"--set expects NAME=VALUE, got {excerpt(item)}")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise UsageError(f"--set {_name(name.strip())}: {excerpt(value)} is not a number") from None
+    return out
+
+
+def check_parameter_names(mf: ModelFile, args) -> None:
+    """Every --set names a parameter of the loaded model (exit 2 otherwise), checked before any
+    derivation: a misspelt name must not be ignored."""
+    params = [p.name for p in mf.model.params]
+    for name in assignments(getattr(args, "set", None)):
+        if name not in params:
+            close = difflib.get_close_matches(name, params, n=1) or [p for p in params if p.lower() == name.lower()]
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise UsageError(f"--set {_name(name)}: not a parameter of {mf.model.name}{hint} "
+                             f"(parameters: {', '.join(params) or 'none'})")
+
+
+def load(spec: str, quiet: bool) -> ModelSource:
+    """The model named on the command line (:func:`lagcodegen.buildstep.load_source`: a model file
+    by its suffix, or FILE.py:FUNCTION), with a progress line."""
+    t0 = time.perf_counter()
+    source = load_source(spec)
+    kind = "executed" if split_python_spec(spec) else "loaded"
+    say(f"{kind} {spec} ({source.model_file.model.n} coordinates) in {time.perf_counter() - t0:.3f} s", quiet)
+    return source
+
+
+def apply_options(mf: ModelFile, args) -> ModelFile:
+    """``mf`` with its ``[simulation]`` settings overridden by the command line (outputs,
+    run-time and folded parameters, --set values, Jacobian, formulation, times, tolerances, step
+    budget). Options a command lacks leave the setting as it is. Says what a formulation other
+    than index1 leaves out of the file's settings."""
+    s = mf.simulation
+    changes: dict = {}
+    if getattr(args, "outputs", None) is not None:
+        changes["outputs"] = csv(args.outputs)
+    if getattr(args, "fold_all", False):
+        changes["runtime_parameters"] = []
+    elif getattr(args, "runtime_parameters", None) is not None:
+        changes["runtime_parameters"] = csv(args.runtime_parameters)
+    changes["parameters"] = {**s.parameters, **assignments(getattr(args, "set", None))}
+    if getattr(args, "no_jacobian", False):
+        changes["jacobian"] = False
+    for name in ("t_end", "n_out", "rtol", "atol", "max_steps"):
+        if getattr(args, name, None) is not None:
+            changes[name] = getattr(args, name)
+    quiet = getattr(args, "quiet", False)
+    formulation = getattr(args, "formulation", None)
+    if mf.constrained is None:
+        if formulation:
+            say("--formulation ignored: the file has no [constraints]", quiet)
+    else:
+        formulation = formulation or s.formulation or "index1"
+        changes["formulation"] = formulation
+        if formulation != "index1":
+            dropped = [name for name, used in (("baumgarte", s.baumgarte not in ((0.0, 0.0), "auto")),
+                                               ("projection", s.projection)) if used]
+            if dropped:
+                say(f"formulation {formulation}: ignoring the file's {' and '.join(dropped)} (index1 only)", quiet)
+            changes.update(baumgarte=(0.0, 0.0), projection=False)
+        system = mf.constrained
+        say(f"{system.J} equality constraint(s), {len(system.inequalities)} inequality constraint(s), "
+            f"{len(mf.events)} event(s); formulation {formulation}", quiet)
+    return dataclasses.replace(mf, simulation=dataclasses.replace(s, **changes))
+
+
+def add_formulation_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--formulation", choices=list(FORMULATIONS),
+                   help="files with [constraints]: the formulation instead of the file's (index1, ggl, minimal)")
+
+
+def add_progress_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="a line on stderr naming the running stage (derive, formulate, cse, compile) and how "
+                        "far it is, once a stage lasts a second (default: when stderr is a terminal and "
+                        "without -q)")
+
+
+def add_scene_options(p: argparse.ArgumentParser) -> None:
+    """The options that shape the model's code (outputs, parameters, Jacobian), -q, --progress."""
+    p.add_argument("--outputs", help="comma-separated outputs (energy, momenta, positions, ...)")
+    p.add_argument("--runtime-parameters", help="comma-separated parameters kept adjustable")
+    p.add_argument("--fold-all", action="store_true", help="fold every parameter as a constant")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter value (repeatable)")
+    p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    add_progress_option(p)
