@@ -25,6 +25,7 @@ from .errors import (CompileError, DerivationError, LagcodegenError, ModelError,
                      SingularMassMatrixError, SolverError)
 from .model import events, mechanics, outputs, systems  # noqa: F401
 from .model.model import Model  # noqa: F401
+from .model.bodies import Joint, Link, Placement  # noqa: F401
 from .model.events import Event  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
 from .theory import constraints, energy, forces, linearize as _linearize_module, minimal, routhian, steady  # noqa: F401
