@@ -49,15 +49,20 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from ..errors import ModelError
+from ..model.bodies import Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem
 from .urdfxml import (ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
-__all__ = ["load", "loads", "build", "bodies", "FRICTION", "MIMIC", "URDFError", "RobotDescription", "parse", "read"]
+__all__ = ["load", "loads", "build", "bodies", "FORMS", "FRICTION", "MIMIC", "URDFError", "RobotDescription", "parse", "read"]
 
 #: What :func:`build` does with Coulomb friction (``<dynamics friction>``).
 FRICTION = ("ignore", "smooth")
+#: How :func:`build` states the bodies: "tree" as links (:meth:`Model.link`, evaluated along the
+#: tree), "closed" as rigid bodies with their world poses multiplied out (:meth:`Model.rigid_body`).
+FORMS = ("tree", "closed")
 #: What :func:`build` does with ``<mimic>`` joints.
 MIMIC = ("error", "independent")
 
@@ -185,10 +190,65 @@ def _matrix(a: np.ndarray) -> sp.Matrix:
     return sp.Matrix(a.shape[0], a.shape[1] if a.ndim == 2 else 1, [num(x) for x in a.ravel()])
 
 
+def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
+    """Identifiers for the joints (coordinate names) and links of ``tree``: the URDF names, with
+    characters other than letters, digits and _ replaced by _."""
+    out: dict[str, str] = {}
+    taken: dict[str, str] = {}
+    for b in tree:
+        for original in (b.joint.name, b.joint.child):
+            ident = _identifier(original)
+            if taken.get(ident, original) != original:
+                raise URDFError(f"names {taken[ident]!r} and {original!r} both become the identifier {ident!r}",
+                                robot.filename, b.joint.line, f"joint {b.joint.name!r}")
+            taken[ident] = original
+            out[original] = ident
+    return out
+
+
+def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
+    coords = {}
+    kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic}
+    for b in tree:
+        j = b.joint
+        I = b.inertia
+        link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent],
+                          joint=kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)),
+                          origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
+                          mass=float(b.mass), com=tuple(float(x) for x in b.com),
+                          inertia=(I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
+        coords[j.name] = link.coordinates[0]
+    return coords
+
+
+def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+    """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`, world poses multiplied
+    out body by body); the coordinate of each joint."""
+    coords = {b.joint.name: model.coordinate(names[b.joint.name]) for b in tree}
+    poses: dict[str | None, tuple[sp.Matrix, sp.Matrix]] = {None: (sp.eye(3), sp.zeros(3, 1))}
+    for b in tree:
+        j, q = b.joint, coords[b.joint.name]
+        R0, p0 = poses[b.parent]
+        R = R0 * _matrix(b.rotation)
+        p = p0 + R0 * _matrix(b.xyz)
+        if j.type == "prismatic":
+            p = p + R * _matrix(np.array(j.axis)) * q
+        else:
+            R = R * _rotation_about(j.axis, q)
+        poses[j.child] = (R, p)
+        if b.mass > 0 or np.any(b.inertia):
+            model.rigid_body(names[j.child], sp.Float(b.mass), _matrix(b.inertia), p + R * _matrix(b.com), R)
+    return coords
+
+
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
           limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
-          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error") -> Model | ConstrainedSystem:
+          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
+          form: str = "tree") -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
+    if form not in FORMS:
+        raise URDFError(f"form must be one of {', '.join(FORMS)}, got {form!r}", robot.filename, None, "")
     if mimic not in MIMIC:
         raise URDFError(f"mimic must be one of {', '.join(MIMIC)}, got {mimic!r}", robot.filename, None, "")
     locked = _locked(robot, lock)
@@ -225,23 +285,11 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
     g = None
     if np.any(gvec != 0):
         g = model.parameter("gravity_g" if "g" in robot.joints else "g", float(np.linalg.norm(gvec)))
-    coords = {b.joint.name: model.coordinate(b.joint.name) for b in tree}
-
-    # World pose of each body frame, body by body from the base (closed form).
-    poses: dict[str | None, tuple[sp.Matrix, sp.Matrix]] = {None: (sp.eye(3), sp.zeros(3, 1))}
-    for b in tree:
-        j, q = b.joint, coords[b.joint.name]
-        R0, p0 = poses[b.parent]
-        R = R0 * _matrix(b.rotation)
-        p = p0 + R0 * _matrix(b.xyz)
-        if j.type == "prismatic":
-            p = p + R * _matrix(np.array(j.axis)) * q
-        else:
-            R = R * _rotation_about(j.axis, q)
-        poses[j.child] = (R, p)
-        if b.mass > 0 or np.any(b.inertia):
-            model.rigid_body(j.child if j.child.isidentifier() else _identifier(j.child), sp.Float(b.mass),
-                             _matrix(b.inertia), p + R * _matrix(b.com), R)
+    names = _names(robot, tree)
+    try:
+        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names)
+    except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
+        raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
     if g is not None:
         model.gravity(g, up=[sp.Float(float(x)) for x in -gvec / np.linalg.norm(gvec)])
 
@@ -276,7 +324,8 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
 
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
          limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
-         lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error") -> Model | ConstrainedSystem:
+         lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
+         form: str = "tree") -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
 
@@ -287,10 +336,13 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     ``lock``: joints held fixed, as ``{name: position}`` or names (at 0): merged like fixed
     joints (e.g. a gripper's fingers);
     ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"independent"`` makes them
-    coordinates of their own (Pinocchio's default reading).
+    coordinates of their own (Pinocchio's default reading);
+    ``form``: ``"tree"`` (default) states the bodies as links of a tree (:meth:`Model.link`),
+    ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:
+    the same equations, but closed forms that grow fast with the number of joints).
     """
     return build(read(path), name=name, gravity=gravity, limits=limits, friction=friction,
-                 friction_velocity=friction_velocity, lock=lock, mimic=mimic)
+                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form)
 
 
 def loads(text: str | bytes, *, filename: str = "<string>", **options) -> Model | ConstrainedSystem:
