@@ -47,9 +47,12 @@ from .solvers.options import CVODE, IDA, Taylor  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build, compile_constrained, compile_model,  # noqa: F401
                   compile_reduction)
 from . import modelfile  # noqa: F401
+from .modelfile import urdf  # noqa: F401
 
 from . import legacy as _legacy  # noqa: E402
 
 # The module paths of lagcodegen 0.1 (``from lagcodegen.dae import compile_constrained``, ...).
 _legacy.install(_sys.modules[__name__])
 dae = _sys.modules[f"{__name__}.dae"]
+# lagcodegen.urdf is lagcodegen.modelfile.urdf (``import lagcodegen.urdf`` works too).
+_sys.modules.setdefault(f"{__name__}.urdf", urdf)

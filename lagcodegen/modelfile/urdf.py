@@ -22,7 +22,7 @@ What the model holds:
 * ``<dynamics friction=f>`` (Coulomb friction): ``friction="ignore"`` (default) leaves it out
   with a warning naming the joints; ``friction="smooth"`` adds the generalized force
   Q_i = -f q_i' / sqrt(q_i'^2 + v_s^2) (a smooth sign function, ``v_s = friction_velocity``,
-  default 1e-3 rad/s or m/s: |Q_i| is within 1 % of f once |q_i'| > 7 v_s);
+  default 1e-3 rad/s or m/s: |Q_i| is within 1 % of f once |q_i'| > 8 v_s);
 * with ``limits=True``, the ``<limit lower upper>`` of each revolute and prismatic joint as two
   inequality constraints q_i - lower >= 0 and upper - q_i >= 0 (eq. 4.3; monitored, not
   enforced; joints whose lower equals upper are left out).

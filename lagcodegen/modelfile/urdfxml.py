@@ -205,12 +205,14 @@ class _Reader:
         return None if value is None else self._float(el, attr, what, value)
 
     def _float(self, el, attr, what, value: str) -> float:
+        whole = el.get(attr)
+        token = "" if value.strip() == whole.strip() else f": {value!r}"
         try:
             x = float(value)
         except ValueError:
-            raise self.error(el, what, f"attribute {attr}={value!r} is not a number") from None
+            raise self.error(el, what, f"attribute {attr}={whole!r}{token} is not a number") from None
         if not math.isfinite(x):
-            raise self.error(el, what, f"attribute {attr}={value!r} is not finite")
+            raise self.error(el, what, f"attribute {attr}={whole!r}{token} is not finite")
         return x
 
     def vector(self, el: ET.Element | None, attr: str, what: str, default) -> tuple[float, float, float]:
