@@ -24,6 +24,7 @@ import sympy as sp
 
 from . import progress
 from .errors import DerivationError, ModelError
+from .model.mechanics import as_model
 from .model.model import Model, Particle, PlanarBody, RigidBody
 
 
@@ -358,7 +359,10 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
     only want the energies and momenta, e.g. to explain why a reduction is impossible).
 
     Reports the stage "derive" (:mod:`lagcodegen.progress`), one step per coordinate.
+
+    A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.mechanics.as_model`.
     """
+    model = as_model(model, unset=1.0)
     with progress.stage("derive", total=model.n, unit="coordinates") as stage:
         return _derive(model, check, stage)
 
