@@ -33,7 +33,7 @@ from typing import Mapping
 
 from .errors import ModelError
 from .model import Model
-from .modelfile import ModelFile, SimulationSettings, load_model
+from .modelfile import ModelFile, SimulationSettings, load_model, urdf
 from .theory.constraints import ConstrainedSystem
 from .util import atomic_write
 from .version import __version__
@@ -69,10 +69,13 @@ def split_python_spec(spec: str) -> tuple[str, str] | None:
 
 
 def load_source(spec: str) -> ModelSource:
-    """The model named by ``spec``: a TOML model file, or ``file.py:function`` (executes the file)."""
+    """The model named by ``spec``: a TOML model file, a URDF robot (``.urdf``), or
+    ``file.py:function`` (executes the file)."""
     python = split_python_spec(spec)
     if python is None:
         path = Path(spec)
+        if path.suffix.lower() == ".urdf":  # a URDF robot (lagcodegen.urdf)
+            return ModelSource(_model_file(urdf.load(path), path, spec), path.name, [path.resolve()])
         return ModelSource(load_model(path), path.name, [path.resolve()])
     return load_python_model(*python)
 

@@ -63,6 +63,8 @@ FRICTION = ("ignore", "smooth")
 #: How :func:`build` states the bodies: "tree" as links (:meth:`Model.link`, evaluated along the
 #: tree), "closed" as rigid bodies with their world poses multiplied out (:meth:`Model.rigid_body`).
 FORMS = ("tree", "closed")
+#: The form :func:`load` uses unless told.
+DEFAULT_FORM = "closed"
 #: What :func:`build` does with ``<mimic>`` joints.
 MIMIC = ("error", "independent")
 
@@ -245,7 +247,7 @@ def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
           limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
           lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-          form: str = "tree") -> Model | ConstrainedSystem:
+          form: str = DEFAULT_FORM) -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
     if form not in FORMS:
         raise URDFError(f"form must be one of {', '.join(FORMS)}, got {form!r}", robot.filename, None, "")
@@ -325,7 +327,7 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
          limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-         form: str = "tree") -> Model | ConstrainedSystem:
+         form: str = DEFAULT_FORM) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
 
@@ -337,9 +339,10 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     joints (e.g. a gripper's fingers);
     ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"independent"`` makes them
     coordinates of their own (Pinocchio's default reading);
-    ``form``: ``"tree"`` (default) states the bodies as links of a tree (:meth:`Model.link`),
+    ``form``: ``"tree"`` states the bodies as links of a tree (:meth:`Model.link`),
     ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:
-    the same equations, but closed forms that grow fast with the number of joints).
+    the same equations, but closed forms that grow fast with the number of joints); default
+    :data:`DEFAULT_FORM`.
     """
     return build(read(path), name=name, gravity=gravity, limits=limits, friction=friction,
                  friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form)
