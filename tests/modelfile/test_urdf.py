@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import symengine as se
+import sympy as sp
 
 import lagcodegen as lcg
 from lagcodegen import urdf
@@ -166,6 +167,49 @@ def test_branched_quadruped_agrees_with_pinocchio(form):
     if parents is not None:
         assert None in parents and len([lk for lk in model.links if lk.parent is None]) == 4
     assert compare_with_pinocchio(file, model, pin.buildModelFromUrdf(str(file)), states=3) < 1e-12
+
+
+TREES = ["panda_description/urdf/panda.urdf", "ur_description/urdf/ur5_robot.urdf",
+         "solo_description/robots/solo12.urdf", "anymal_b_simple_description/robots/anymal.urdf",
+         "examples/ur_like_arm.urdf"]
+
+
+@pytest.mark.parametrize("path", TREES)
+def test_tree_links_are_pinocchios_joints_placements_and_inertias(path):
+    """form="tree": each link's joint placement in its parent, its mass, centre of mass and
+    inertia (fixed links merged) are Pinocchio's jointPlacements and inertias, and the links'
+    world poses at random q are Pinocchio's forward kinematics (oMi)."""
+    file = EXAMPLES.parent / path if path.startswith("examples/") else ROBOTS / path
+    model = urdf.load(file, form="tree", mimic="independent")
+    pin_model = pin.buildModelFromUrdf(str(file))
+    assert len(model.links) == model.n == pin_model.njoints - 1
+    worst = 0.0
+    for link in model.links:
+        jid = pin_model.getJointId(link.joint.name)
+        parent = pin_model.parents[jid]
+        assert (link.parent is None) == (parent == 0)
+        if link.parent is not None:
+            assert link.parent.joint.name == pin_model.names[parent]
+        placement, inertia = pin_model.jointPlacements[jid], pin_model.inertias[jid]
+        ours = [np.array(link.origin.rotation.tolist(), dtype=float), np.array(link.origin.translation, dtype=float).ravel(),
+                float(link.mass), np.array(link.com, dtype=float), np.array(link.inertia.tolist(), dtype=float)]
+        theirs = [placement.rotation, placement.translation, inertia.mass, inertia.lever, inertia.inertia]
+        worst = max(worst, *(np.abs(a - b).max() / max(np.abs(b).max(), 1.0) for a, b in zip(ours, theirs)))
+    assert worst < 1e-14
+    data = pin_model.createData()
+    rng = np.random.default_rng(5)
+    poses = sp.lambdify(model.coords, [sp.Matrix.hstack(*link.pose()) for link in model.links])
+    for _ in range(3):
+        q = rng.uniform(-np.pi, np.pi, model.n)
+        qp = pin.neutral(pin_model)
+        for c, qi in zip(model.coords, q):
+            j = pin_model.joints[pin_model.getJointId(c.name)]
+            qp[j.idx_q:j.idx_q + j.nq] = (np.cos(qi), np.sin(qi)) if j.nq == 2 else qi
+        pin.forwardKinematics(pin_model, data, qp)
+        for link, pose in zip(model.links, poses(*q)):
+            oMi = data.oMi[pin_model.getJointId(link.joint.name)]
+            np.testing.assert_allclose(np.array(pose, dtype=float), np.hstack([oMi.rotation, oMi.translation[:, None]]),
+                                       atol=1e-13)
 
 
 def test_locked_joints_agree_with_pinocchio_reduced_model():
