@@ -9,12 +9,22 @@ What the model holds:
 * one generalized coordinate per movable joint (``revolute``, ``continuous``, ``prismatic``),
   named after the joint: the angle (rad) about, or the displacement (m) along, the joint axis,
   zero at the joint's ``origin``; continuous joints are angles too (Pinocchio writes them as a
-  (cos, sin) pair);
+  (cos, sin) pair). Names are the URDF's with characters other than letters, digits and ``_``
+  made ``_`` (two names that become one are an error); the coordinates come depth first from
+  the root, siblings in file order;
+* the bodies as links of a tree (``form="tree"``: :meth:`Model.link`, the placements and
+  inertias of :mod:`lagcodegen.model.bodies`, evaluated along the tree by the derivation) or
+  as rigid bodies whose world poses are multiplied out (``form="closed"``:
+  :meth:`Model.rigid_body`, the same equations as closed forms, which grow fast with the
+  number of joints);
+* a fixed base (the root link does not move), or with ``floating=True`` a free joint
+  ``root_joint`` between the world and the root (x, y, z and Z-Y-X Euler angles; URDF
+  ``floating`` joints become free joints too);
 * the links' inertials: mass, centre of mass and the inertia about it, turned from the axes of
   the inertial ``origin`` into the link's axes (I_link = R I R^T, R from its ``rpy``);
 * links attached by ``fixed`` joints merged into their parent (masses added, centres of mass
   combined, inertias moved by the parallel-axis theorem), the placements of the joints
-  beyond them composed; the root link and whatever is fixed to it stay put (a fixed base);
+  beyond them composed;
 * gravity: the parameter ``g`` (default 9.81, or the norm of ``gravity``) along ``-z`` or
   along the direction of ``gravity``; ``gravity=(0, 0, 0)`` leaves it out;
 * ``<dynamics damping=c>``: viscous joint damping, the Rayleigh dissipation D = c/2 q_i'^2
@@ -33,9 +43,8 @@ Refused with a :class:`~lagcodegen.modelfile.urdfxml.URDFError` naming the file 
 ``mimic`` joints unless ``mimic="independent"`` (then they are coordinates of their own, as
 Pinocchio's ``buildModelFromUrdf`` reads them by default) or locked (a coupled joint is a
 constraint, not a coordinate: write the coupling as a holonomic constraint of a
-:class:`ConstrainedSystem`), ``planar`` and ``floating`` joints, a URDF without any movable
-joint. Meshes, visuals, collisions, materials, transmissions
-and Gazebo tags are ignored.
+:class:`ConstrainedSystem`), ``planar`` joints, a URDF without any movable joint. Meshes,
+visuals, collisions, materials, transmissions and Gazebo tags are ignored.
 """
 
 from __future__ import annotations
@@ -56,7 +65,8 @@ from ..theory.constraints import ConstrainedSystem
 from .urdfxml import (ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
-__all__ = ["load", "loads", "build", "bodies", "FORMS", "FRICTION", "MIMIC", "URDFError", "RobotDescription", "parse", "read"]
+__all__ = ["load", "loads", "build", "bodies", "DEFAULT_FORM", "FORMS", "FRICTION", "MIMIC", "URDFError",
+           "RobotDescription", "parse", "read"]
 
 #: What :func:`build` does with Coulomb friction (``<dynamics friction>``).
 FRICTION = ("ignore", "smooth")
@@ -125,9 +135,10 @@ def _axis_rotation(axis, angle: float) -> np.ndarray:
     return np.cos(angle) * np.eye(3) + np.sin(angle) * ux + (1 - np.cos(angle)) * np.outer(u, u)
 
 
-def bodies(robot: RobotDescription, locked: dict | None = None) -> list[Body]:
+def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | None = None) -> list[Body]:
     """The moving bodies of ``robot``, fixed joints (and the ``locked`` joints, name -> position)
-    merged, depth first from the root."""
+    merged, depth first from the root; with ``floating``, the root (and what is welded to it)
+    is the first body, on a free joint of that name."""
     out: list[Body] = []
     locked = locked or {}
 
@@ -167,29 +178,14 @@ def bodies(robot: RobotDescription, locked: dict | None = None) -> list[Body]:
         for j, R, p in movable:
             walk(j.child, j, body_link if joint is not None else None, R, p)
 
-    walk(robot.root, None, None, np.eye(3), np.zeros(3))
+    root_joint = None if floating is None else Joint(floating, "floating", "", robot.root)
+    walk(robot.root, root_joint, None, np.eye(3), np.zeros(3))
     return out
 
 
 def _identifier(name: str) -> str:
     ident = re.sub(r"\W", "_", name)
     return ident if ident.isidentifier() else f"robot_{ident}"
-
-
-def _rotation_about(axis: Sequence[float], angle: sp.Expr) -> sp.Matrix:
-    """Rodrigues: R = cos(a) 1 + sin(a) [u]x + (1 - cos(a)) u u^T for the unit axis u."""
-    u = sp.Matrix([sp.Float(a) if a not in (0.0, 1.0, -1.0) else sp.Integer(int(a)) for a in axis])
-    c, s = sp.cos(angle), sp.sin(angle)
-    ux = sp.Matrix([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-    return c * sp.eye(3) + s * ux + (1 - c) * (u * u.T)
-
-
-def _matrix(a: np.ndarray) -> sp.Matrix:
-    """A float array as a sympy matrix, exact 0 and +-1 kept as integers (they fold away)."""
-    def num(x: float):
-        return sp.Integer(int(x)) if x in (0.0, 1.0, -1.0) else sp.Float(float(x))
-    a = np.asarray(a, dtype=float)
-    return sp.Matrix(a.shape[0], a.shape[1] if a.ndim == 2 else 1, [num(x) for x in a.ravel()])
 
 
 def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
@@ -215,8 +211,9 @@ def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, s
     for b in tree:
         j = b.joint
         I = b.inertia
-        link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent],
-                          joint=kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)),
+        joint = (Joint_.free(names[j.name]) if j.type == "floating"
+                 else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
+        link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
                           origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
                           mass=float(b.mass), com=tuple(float(x) for x in b.com),
                           inertia=(I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
@@ -225,30 +222,31 @@ def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, s
 
 
 def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
-    """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`, world poses multiplied
-    out body by body); the coordinate of each joint."""
-    coords = {b.joint.name: model.coordinate(names[b.joint.name]) for b in tree}
-    poses: dict[str | None, tuple[sp.Matrix, sp.Matrix]] = {None: (sp.eye(3), sp.zeros(3, 1))}
-    for b in tree:
-        j, q = b.joint, coords[b.joint.name]
-        R0, p0 = poses[b.parent]
-        R = R0 * _matrix(b.rotation)
-        p = p0 + R0 * _matrix(b.xyz)
-        if j.type == "prismatic":
-            p = p + R * _matrix(np.array(j.axis)) * q
-        else:
-            R = R * _rotation_about(j.axis, q)
-        poses[j.child] = (R, p)
+    """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`): the world pose of each
+    (:meth:`Link.pose` of the same tree stated as links in a scratch model, whose coordinates
+    are the same symbols) multiplied out; the coordinate of each joint."""
+    scratch = Model(model.name)
+    _links(scratch, tree, names)
+    for c in scratch.coords:
+        model.coordinate(c.name)
+    coords = {}
+    for b, link in zip(tree, scratch.links):
+        coords[b.joint.name] = link.coordinates[0]
         if b.mass > 0 or np.any(b.inertia):
-            model.rigid_body(names[j.child], sp.Float(b.mass), _matrix(b.inertia), p + R * _matrix(b.com), R)
+            model.rigid_body(names[b.joint.child], link.mass, link.inertia, link.com_position(), link.rotation())
     return coords
 
 
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
           limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
           lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-          form: str = DEFAULT_FORM) -> Model | ConstrainedSystem:
+          form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
+    root_joint = "root_joint" if floating is True else (floating or None)
+    if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
+                                   or root_joint in robot.joints):
+        raise URDFError(f"floating must be True or the name of the free joint (an identifier that names no joint of "
+                        f"the robot), got {floating!r}", robot.filename, None, "")
     if form not in FORMS:
         raise URDFError(f"form must be one of {', '.join(FORMS)}, got {form!r}", robot.filename, None, "")
     if mimic not in MIMIC:
@@ -273,12 +271,12 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
         if j.mimic is not None and mimic == "error":
             raise err(j, f"mimic joints are not supported: {j.name!r} follows {j.mimic.joint!r} "
                          f"({j.mimic.multiplier} * {j.mimic.joint} + {j.mimic.offset}), a constraint rather than a "
-                         "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as Pinocchio "
-                         f"reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling as a holonomic "
+                         "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as "
+                         f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling as a holonomic "
                          "constraint of a ConstrainedSystem")
-        if j.type in ("planar", "floating"):
-            raise err(j, f"{j.type} joints are not supported (revolute, continuous, prismatic and fixed are)")
-    tree = bodies(robot, locked)
+        if j.type == "planar":
+            raise err(j, "planar joints are not supported (revolute, continuous, prismatic, fixed and floating are)")
+    tree = bodies(robot, locked, root_joint)
     if not tree:
         raise URDFError("the robot has no movable joint (revolute, continuous or prismatic): nothing moves",
                         robot.filename, None, f"robot {robot.name!r}")
@@ -327,7 +325,7 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
          limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-         form: str = DEFAULT_FORM) -> Model | ConstrainedSystem:
+         form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
 
@@ -342,10 +340,14 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     ``form``: ``"tree"`` states the bodies as links of a tree (:meth:`Model.link`),
     ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:
     the same equations, but closed forms that grow fast with the number of joints); default
-    :data:`DEFAULT_FORM`.
+    :data:`DEFAULT_FORM`;
+    ``floating``: True puts the root link on a free joint ``root_joint`` (a string names it):
+    six coordinates ``<name>_x, _y, _z`` (the root frame's origin in the world) and the Z-Y-X
+    Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at pitch = +-pi/2, see
+    :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world.
     """
     return build(read(path), name=name, gravity=gravity, limits=limits, friction=friction,
-                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form)
+                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating)
 
 
 def loads(text: str | bytes, *, filename: str = "<string>", **options) -> Model | ConstrainedSystem:

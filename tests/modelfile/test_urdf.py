@@ -47,8 +47,9 @@ def test_two_link_arm_mass_matrix_and_gravity_match_the_closed_form(form):
         q = rng.uniform(-np.pi, np.pi, 2)
         M, F = evaluate(q, np.zeros(2))
         c = np.cos(q[1])
-        M_ref = np.array([[I1 + I2 + m1 * c1**2 + m2 * (l1**2 + c2**2 + 2 * l1 * c2 * c), I2 + m2 * (c2**2 + l1 * c2 * c)],
-                          [I2 + m2 * (c2**2 + l1 * c2 * c), I2 + m2 * c2**2]])
+        M12 = I2 + m2 * (c2**2 + l1 * c2 * c)
+        M_ref = np.array([[I1 + I2 + m1 * c1**2 + m2 * (l1**2 + c2**2 + 2 * l1 * c2 * c), M12],
+                          [M12, I2 + m2 * c2**2]])
         np.testing.assert_allclose(M, M_ref, rtol=1e-13, atol=0)
         # Hanging along -z, a rotation q about +y swings the rods towards -x: the centre of mass of
         # rod 1 sits at z = -c1 cos q1, so V = -m1 g c1 cos q1 - m2 g (l1 cos q1 + c2 cos(q1 + q2)).
@@ -191,7 +192,8 @@ def test_tree_links_are_pinocchios_joints_placements_and_inertias(path):
         if link.parent is not None:
             assert link.parent.joint.name == pin_model.names[parent]
         placement, inertia = pin_model.jointPlacements[jid], pin_model.inertias[jid]
-        ours = [np.array(link.origin.rotation.tolist(), dtype=float), np.array(link.origin.translation, dtype=float).ravel(),
+        ours = [np.array(link.origin.rotation.tolist(), dtype=float),
+                np.array(link.origin.translation, dtype=float).ravel(),
                 float(link.mass), np.array(link.com, dtype=float), np.array(link.inertia.tolist(), dtype=float)]
         theirs = [placement.rotation, placement.translation, inertia.mass, inertia.lever, inertia.inertia]
         worst = max(worst, *(np.abs(a - b).max() / max(np.abs(b).max(), 1.0) for a, b in zip(ours, theirs)))
@@ -210,6 +212,66 @@ def test_tree_links_are_pinocchios_joints_placements_and_inertias(path):
             oMi = data.oMi[pin_model.getJointId(link.joint.name)]
             np.testing.assert_allclose(np.array(pose, dtype=float), np.hstack([oMi.rotation, oMi.translation[:, None]]),
                                        atol=1e-13)
+
+
+def _euler_maps():
+    """For the free joint's R = Rz(yaw) Ry(pitch) Rx(roll): R, E (omega_body = E (yaw', pitch',
+    roll')) and their time derivatives, as numpy functions of (angles, angle rates)."""
+    a, ad = sp.symbols("yaw pitch roll"), sp.symbols("yaw_d pitch_d roll_d")
+    yaw, pitch, roll = a
+    E = sp.Matrix([[-sp.sin(pitch), 0, 1],
+                   [sp.sin(roll) * sp.cos(pitch), sp.cos(roll), 0],
+                   [sp.cos(roll) * sp.cos(pitch), -sp.sin(roll), 0]])
+    R = sp.rot_axis3(-yaw) * sp.rot_axis2(-pitch) * sp.rot_axis1(-roll)  # sympy's rot_axis rotate frames
+    dot = lambda X: sum((X.diff(x) * xd for x, xd in zip(a, ad)), sp.zeros(3, 3))  # noqa: E731
+    return [sp.lambdify([*a, *ad], X) for X in (R, E, dot(R), dot(E))]
+
+
+@pytest.mark.parametrize("path", ["double_pendulum_description/urdf/double_pendulum.urdf",
+                                  "examples/ur_like_arm.urdf"])
+def test_floating_base_agrees_with_pinocchio_free_flyer(path):
+    """floating=True: the root on a free joint (x, y, z, Z-Y-X Euler angles) against Pinocchio's
+    free flyer (position, quaternion; velocity (R^T p', omega) in the body frame): with
+    v = J(q) q', M = J^T M_pin J and q'' = J^-1 (a_pin - J' q')."""
+    file = EXAMPLES.parent / path if path.startswith("examples/") else ROBOTS / path
+    model = urdf.load(file, form="closed", floating=True)
+    names = [c.name for c in model.coords]
+    assert names[:6] == ["root_joint_x", "root_joint_y", "root_joint_z", "root_joint_yaw", "root_joint_pitch",
+                         "root_joint_roll"]
+    robot_description = urdf.read(file)
+    pin_model = pin.buildModelFromUrdf(str(file), pin.JointModelFreeFlyer())
+    data = pin_model.createData()
+    evaluate = numeric(model)
+    R_f, E_f, Rd_f, Ed_f = _euler_maps()
+    n = model.n
+    legs = [pin_model.joints[pin_model.getJointId(c)] for c in names[6:]]
+    damping = np.array([getattr(robot_description.joints[c].dynamics, "damping", 0.0) for c in names[6:]])
+    P = np.zeros((n, n))  # our order -> Pinocchio's
+    P[list(range(6)) + [j.idx_v for j in legs], range(n)] = 1
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        q, v = rng.uniform(-1.2, 1.2, n), rng.normal(size=n)
+        angles = (*q[3:6], *v[3:6])
+        R = np.array(R_f(*angles), dtype=float)
+        J, Jd = np.eye(n), np.zeros((n, n))
+        J[:3, :3], J[3:6, 3:6] = R.T, np.array(E_f(*angles), dtype=float)
+        Jd[:3, :3], Jd[3:6, 3:6] = np.array(Rd_f(*angles), dtype=float).T, np.array(Ed_f(*angles), dtype=float)
+        J, Jd = P @ J, P @ Jd
+        qp = pin.neutral(pin_model)
+        quaternion = pin.Quaternion(R)
+        qp[:7] = [*q[:3], quaternion.x, quaternion.y, quaternion.z, quaternion.w]
+        tau = np.zeros(n)
+        for i, j in enumerate(legs):
+            qp[j.idx_q:j.idx_q + j.nq] = (np.cos(q[6 + i]), np.sin(q[6 + i])) if j.nq == 2 else q[6 + i]
+            tau[j.idx_v] = -damping[i] * v[6 + i]
+        M, F = evaluate(q, v)
+        M_pin = pin.crba(pin_model, data, qp)
+        M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
+        M_ref = J.T @ M_pin @ J
+        a_pin = pin.aba(pin_model, data, qp, J @ v, tau)
+        qdd_ref = np.linalg.solve(J, a_pin - Jd @ v)
+        assert np.abs(M - M_ref).max() < 1e-12 * np.abs(M_ref).max()
+        assert np.abs(np.linalg.solve(M, F) - qdd_ref).max() < 1e-11 * np.abs(qdd_ref).max()
 
 
 def test_locked_joints_agree_with_pinocchio_reduced_model():
