@@ -272,8 +272,8 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
             raise err(j, f"mimic joints are not supported: {j.name!r} follows {j.mimic.joint!r} "
                          f"({j.mimic.multiplier} * {j.mimic.joint} + {j.mimic.offset}), a constraint rather than a "
                          "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as "
-                         f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling as a holonomic "
-                         "constraint of a ConstrainedSystem")
+                         f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling "
+                         "as a holonomic constraint of a ConstrainedSystem")
         if j.type == "planar":
             raise err(j, "planar joints are not supported (revolute, continuous, prismatic, fixed and floating are)")
     tree = bodies(robot, locked, root_joint)
