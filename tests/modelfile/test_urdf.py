@@ -33,6 +33,12 @@ def numeric(model):
     return evaluate
 
 
+def test_lagcodegen_urdf_is_the_modelfile_module():
+    import lagcodegen.urdf as module
+    from lagcodegen.modelfile import urdf as inner
+    assert module is inner is urdf and module.load is inner.load
+
+
 # ------------------------------------------------------------------ physics
 @pytest.mark.parametrize("form", FORMS)
 def test_two_link_arm_mass_matrix_and_gravity_match_the_closed_form(form):
