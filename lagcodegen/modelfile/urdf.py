@@ -74,7 +74,7 @@ FRICTION = ("ignore", "smooth")
 #: tree), "closed" as rigid bodies with their world poses multiplied out (:meth:`Model.rigid_body`).
 FORMS = ("tree", "closed")
 #: The form :func:`load` uses unless told.
-DEFAULT_FORM = "closed"
+DEFAULT_FORM = "tree"
 #: What :func:`build` does with ``<mimic>`` joints.
 MIMIC = ("error", "independent")
 

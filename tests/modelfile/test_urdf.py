@@ -16,7 +16,7 @@ from lagcodegen.errors import ModelError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 #: The ways a URDF robot can be stated (urdf.FORMS) whose equations are checked here.
-FORMS = ["closed"]
+FORMS = ["closed", "tree"]
 
 
 def numeric(model):
@@ -86,9 +86,9 @@ def test_coulomb_friction_ignored_with_a_warning_or_smoothed():
       <link name="disc"><inertial><mass value="2"/>
         <inertia ixx="0.01" iyy="0.01" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
     with pytest.warns(UserWarning, match=r"Coulomb friction of joint\(s\) spin ignored"):
-        ignored = urdf.loads(text, form="closed")
+        ignored = urdf.loads(text)
     assert not ignored.generalized_forces
-    smooth = urdf.loads(text, form="closed", friction="smooth", friction_velocity=0.01)
+    smooth = urdf.loads(text, friction="smooth", friction_velocity=0.01)
     evaluate = numeric(smooth)
     for v in (-2.0, -0.01, 0.003, 0.5):
         _, F = evaluate(np.array([0.0]), np.array([v]))
@@ -107,14 +107,14 @@ def test_limits_become_inequality_constraints():
 
 
 def test_gravity_option_direction_and_parameter():
-    model = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(0, 0, -1.62), form="closed")
+    model = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(0, 0, -1.62))
     assert {s.name: v for s, v in model.params.items()} == {"g": pytest.approx(1.62)}
     _, F = numeric(model)(np.array([0.5, 0.0]), np.zeros(2))
     assert F[0] == pytest.approx(-(2.0 * 1.62 * 0.5 + 1.5 * 1.62 * 1.4) * np.sin(0.5), rel=1e-13)
-    sideways = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(9.81, 0, 0), form="closed")
+    sideways = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(9.81, 0, 0))
     _, F = numeric(sideways)(np.zeros(2), np.zeros(2))  # pulled along +x: the arm swings to +x
     assert F[0] == pytest.approx(-(2.0 * 9.81 * 0.5 + 1.5 * 9.81 * 1.4), rel=1e-13)
-    weightless = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(0, 0, 0), form="closed")
+    weightless = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(0, 0, 0))
     assert not weightless.params and weightless.gravity_spec is None
 
 
@@ -172,10 +172,20 @@ def test_arms_agree_with_pinocchio(path, form):
     assert compare_with_pinocchio(file, model, pin.buildModelFromUrdf(str(file))) < 1e-12
 
 
-@pytest.mark.parametrize("form", FORMS)
-def test_branched_quadruped_agrees_with_pinocchio(form):
-    """solo12: four legs of three joints on a fixed trunk (a tree, not a chain)."""
-    file = ROBOTS / "solo_description" / "robots" / "solo12.urdf"
+def test_panda_agrees_with_pinocchio():
+    """The Franka Panda (7 arm joints, 2 finger joints read as independent coordinates as
+    Pinocchio does), as a tree (the closed form takes minutes to evaluate numerically)."""
+    file = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
+    model = urdf.load(file, mimic="independent")
+    assert compare_with_pinocchio(file, model, pin.buildModelFromUrdf(str(file))) < 1e-12
+
+
+@pytest.mark.parametrize("robot_path, form", [("solo_description/robots/solo12.urdf", "closed"),
+                                              ("solo_description/robots/solo12.urdf", "tree"),
+                                              ("anymal_b_simple_description/robots/anymal.urdf", "tree")])
+def test_branched_quadruped_agrees_with_pinocchio(robot_path, form):
+    """solo12 and ANYmal: four legs of three joints on a fixed trunk (a tree, not a chain)."""
+    file = ROBOTS / robot_path
     model = urdf.load(file, form=form)
     assert model.n == 12
     parents = {lk.parent.name if lk.parent else None for lk in model.links} if model.links else None
@@ -241,14 +251,16 @@ def _euler_maps():
     return [sp.lambdify([*a, *ad], X) for X in (R, E, dot(R), dot(E))]
 
 
-@pytest.mark.parametrize("path", ["double_pendulum_description/urdf/double_pendulum.urdf",
-                                  "examples/ur_like_arm.urdf"])
-def test_floating_base_agrees_with_pinocchio_free_flyer(path):
+@pytest.mark.parametrize("path, form", [("double_pendulum_description/urdf/double_pendulum.urdf", "closed"),
+                                        ("double_pendulum_description/urdf/double_pendulum.urdf", "tree"),
+                                        ("examples/ur_like_arm.urdf", "tree"),
+                                        ("solo_description/robots/solo12.urdf", "tree")])
+def test_floating_base_agrees_with_pinocchio_free_flyer(path, form):
     """floating=True: the root on a free joint (x, y, z, Z-Y-X Euler angles) against Pinocchio's
     free flyer (position, quaternion; velocity (R^T p', omega) in the body frame): with
     v = J(q) q', M = J^T M_pin J and q'' = J^-1 (a_pin - J' q')."""
     file = EXAMPLES.parent / path if path.startswith("examples/") else ROBOTS / path
-    model = urdf.load(file, form="closed", floating=True)
+    model = urdf.load(file, form=form, floating=True)
     names = [c.name for c in model.coords]
     assert names[:6] == ["root_joint_x", "root_joint_y", "root_joint_z", "root_joint_yaw", "root_joint_pitch",
                          "root_joint_roll"]
@@ -291,7 +303,7 @@ def test_floating_base_agrees_with_pinocchio_free_flyer(path):
 def test_locked_joints_agree_with_pinocchio_reduced_model():
     """UR5 with the elbow locked at 0.4 rad: Pinocchio's buildReducedModel at the same position."""
     file = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"
-    model = urdf.load(file, lock={"elbow_joint": 0.4}, form="closed")
+    model = urdf.load(file, lock={"elbow_joint": 0.4})
     assert "elbow_joint" not in [c.name for c in model.coords] and model.n == 5
     full = pin.buildModelFromUrdf(str(file))
     q_ref = pin.neutral(full)
@@ -413,7 +425,7 @@ def test_dummy_links_and_point_masses_are_accepted():
                  '<joint name="k" type="fixed"><parent link="b"/><child link="c"/></joint>'
                  '<link name="c"><inertial><mass value="0"/><inertia ixx="1e-6" iyy="1e-6" izz="1e-6" ixy="1e-6" '
                  'ixz="1e-6" iyz="1e-6"/></inertial></link>')
-    model = urdf.loads(text, form="closed")
+    model = urdf.loads(text)
     M, _ = numeric(model)(np.zeros(1), np.zeros(1))
     # the massless link's inertia adds izz = 1e-6 (no parallel-axis term without mass)
     np.testing.assert_allclose(M, [[1 * 0.2**2 + 1e-6]], rtol=1e-14)
