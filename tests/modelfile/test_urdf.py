@@ -429,3 +429,24 @@ def test_dummy_links_and_point_masses_are_accepted():
     M, _ = numeric(model)(np.zeros(1), np.zeros(1))
     # the massless link's inertia adds izz = 1e-6 (no parallel-axis term without mass)
     np.testing.assert_allclose(M, [[1 * 0.2**2 + 1e-6]], rtol=1e-14)
+
+
+def test_compiled_panda_right_side_agrees_with_pinocchio_aba():
+    """The Panda arm (fingers locked) compiled to C: its right side q'' at random states is
+    Pinocchio's ABA on the reduced model (joint damping 0.003 as the torque -c q')."""
+    file = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
+    fingers = ["panda_finger_joint1", "panda_finger_joint2"]
+    sim = lcg.compile_model(urdf.load(file, lock=fingers), jacobian=False)
+    assert sim.n == 7
+    full = pin.buildModelFromUrdf(str(file))
+    reduced = pin.buildReducedModel(full, [full.getJointId(name) for name in fingers], pin.neutral(full))
+    assert list(reduced.names)[1:] == [c for c in sim.state_names[:7]]
+    data = reduced.createData()
+    damping = np.array([urdf.read(file).joints[name].dynamics.damping for name in sim.state_names[:7]])
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        q, v = rng.uniform(-2, 2, 7), rng.normal(size=7)
+        a = sim.rhs(0.0, np.concatenate([q, v]))
+        a_pin = pin.aba(reduced, data, q, v, -damping * v)
+        np.testing.assert_array_equal(a[:7], v)
+        assert np.abs(a[7:] - a_pin).max() < 1e-12 * np.abs(a_pin).max()
