@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import symengine as se
 
 from .. import progress
+from ..errors import ModelError
 from ..model.model import RESERVED_PREFIX
 from ..model.treedynamics import recorded
 from .scene import Scene
@@ -221,6 +222,10 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
     sub = symbol_map(scene)
     # A rigid-body tree's DAGs: one substitution sharing subexpressions across the kernels.
     subst = substitute_shared if eom.tree is not None else substitute_all
+    if eom.tree is not None and scene.jacobian:
+        raise ModelError(f"model {model.name!r}: the expanded Jacobian of a rigid-body tree is not generated (its "
+                         "entries would be derivatives of the tree's DAGs): use the C backend's tangent form "
+                         "(jacobian_form 'auto' or 'tangent') or jacobian=False")
     if eom.tree is not None:
         rhs = tree_rhs(eom, sub)
         for _ in range(n):
