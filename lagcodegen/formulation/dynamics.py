@@ -10,7 +10,7 @@ import symengine as se
 
 from ..errors import ModelError
 from ..model.treedynamics import recorded_inverse_dynamics
-from .kernels import Block, symbol_map
+from .kernels import Block, substitute_all, symbol_map
 from .scene import Scene
 
 
@@ -28,7 +28,7 @@ def inverse_dynamics_block(scene: Scene) -> Block:
     a = [se.Symbol(f"a[{i}]") for i in range(n)]
     defs, tau = recorded_inverse_dynamics(model, q, qd, a)
     M_rest, F_rest = eom.tree.rest
-    block = Block(defs=[(sym, e.xreplace(sub)) for sym, e in defs])
+    block = Block(defs=list(zip([sym for sym, _ in defs], substitute_all(sub, [e for _, e in defs]))))
     for i in range(n):
         rest = se.Add(*(se.sympify(M_rest[i][j]) * a[j] for j in range(n) if M_rest[i][j] != 0))
         block.add(("tau", i), se.sympify(rest - se.sympify(F_rest[i]) + tau[i]).xreplace(sub))

@@ -268,7 +268,7 @@ def tree_rhs(eom, sub: dict) -> Block:
     qd = [se.Symbol(s.name) for s in model.speeds]
     defs, Mt, bias = recorded(model, q, qd)
     M_rest, F_rest = eom.tree.rest
-    block = Block(defs=[(sym, e.xreplace(sub)) for sym, e in defs])
+    block = Block(defs=list(zip([sym for sym, _ in defs], substitute_all(sub, [e for _, e in defs]))))
 
     def c(e):
         return se.sympify(e).xreplace(sub)

@@ -34,6 +34,12 @@ from .bodies import Placement
 ZERO = se.Integer(0)
 ONE = se.Integer(1)
 
+#: Trees of at least this many moving frames take their mass matrix in world coordinates
+#: (:meth:`TreeDynamics.mass_matrix_world`: 6 products per pair of joints, against a spatial
+#: transform per pair in body coordinates, which folds better on small robots with axis-aligned
+#: placements).
+WORLD_CRBA_MIN_NODES = 10
+
 
 def _se(e, what: str):
     try:
@@ -367,8 +373,95 @@ class TreeDynamics:
         return comp
 
     def mass_matrix(self) -> list:
-        """M (n x n list of rows) by composite rigid bodies (Featherstone's algorithm 6.2);
-        entries outside the tree's coordinates are zero."""
+        """M (n x n list of rows) by composite rigid bodies; entries outside the tree's
+        coordinates are zero. Up to WORLD_CRBA_MIN_NODES moving frames in body coordinates
+        (:meth:`mass_matrix_local`), above in world coordinates (:meth:`mass_matrix_world`)."""
+        if len(self.nodes) >= WORLD_CRBA_MIN_NODES:
+            return self.mass_matrix_world()
+        return self.mass_matrix_local()
+
+    def world_poses(self) -> list:
+        """(E, x) of every node: its axes (rows of a 3x3 list) and origin in world coordinates."""
+        out = []
+        for k, nd in enumerate(self.nodes):
+            p = self.origin(k)
+            cols = [nd.up([ONE if i == j else ZERO for i in range(3)]) for j in range(3)]  # R columns
+            R = [[cols[j][i] for j in range(3)] for i in range(3)]
+            if nd.parent < 0:
+                out.append((R, p))
+                continue
+            Ep, xp = out[nd.parent]
+            E = [[add(*(mul(Ep[i][m], R[m][j]) for m in range(3))) for j in range(3)] for i in range(3)]
+            out.append((E, vadd(xp, matvec(Ep, p))))
+        return out
+
+    def mass_matrix_world(self) -> list:
+        """M by composite rigid bodies in world coordinates: each body's inertia moved to the world
+        frame once, composite inertias summed tips to base (plain sums there), the joints' motion
+        subspaces S_j = (u, x x u) (revolute) or (0, u) (prismatic) in world coordinates, and
+        M_ij = S_i . (I^c_j S_j) for i an ancestor of j (or i = j): 6 products per pair instead
+        of a spatial transform per pair (Featherstone's algorithm 6.2 in one frame)."""
+        M = [[ZERO] * self.n for _ in range(self.n)]
+        poses = self.world_poses()
+        comp: list = [None] * len(self.nodes)
+        for k, nd in enumerate(self.nodes):
+            if nd.inertia is None:
+                continue
+            E, x = poses[k]
+            m, h, Io = nd.inertia
+            hr = matvec(E, h)
+            cols = [matvec(E, [Io[0][j], Io[1][j], Io[2][j]]) for j in range(3)]
+            rows = [matvec(E, [cols[j][i] for j in range(3)]) for i in range(3)]
+            IoR = [[rows[j][i] for j in range(3)] for i in range(3)]
+            xx, hx = dot(x, x), dot(hr, x)
+            I = [[None] * 3 for _ in range(3)]
+            for i in range(3):
+                for j in range(i, 3):
+                    e = add(IoR[i][j], neg(mul(m, mul(x[i], x[j]))), neg(mul(hr[i], x[j])), neg(mul(x[i], hr[j])))
+                    if i == j:
+                        e = add(e, mul(m, xx), mul(se.Integer(2), hx))
+                    I[i][j] = I[j][i] = e
+            comp[k] = [[m], [[t] for t in vadd(hr, scale(m, x))], [[[I[i][j]] for j in range(3)] for i in range(3)]]
+        for k in reversed(range(len(self.nodes))):  # composite: plain sums in one frame
+            nd = self.nodes[k]
+            if comp[k] is None or nd.parent < 0:
+                continue
+            c = [add(*comp[k][0]), [add(*t) for t in comp[k][1]], [[add(*t) for t in row] for row in comp[k][2]]]
+            comp[k] = [[c[0]], [[t] for t in c[1]], [[[t] for t in row] for row in c[2]]]
+            if comp[nd.parent] is None:
+                comp[nd.parent] = [[c[0]], [[t] for t in c[1]], [[[t] for t in row] for row in c[2]]]
+            else:
+                pc = comp[nd.parent]
+                pc[0].append(c[0])
+                for t, v in zip(pc[1], c[1]):
+                    t.append(v)
+                for prow, row in zip(pc[2], c[2]):
+                    for t, v in zip(prow, row):
+                        t.append(v)
+        S = []
+        for k, nd in enumerate(self.nodes):
+            E, x = poses[k]
+            u = matvec(E, nd.axis)
+            S.append((u, cross(x, u)) if nd.kind == "R" else ([ZERO] * 3, u))
+        for k, nd in enumerate(self.nodes):
+            if comp[k] is None:
+                continue
+            m = add(*comp[k][0])
+            h = [add(*t) for t in comp[k][1]]
+            Io = [[add(*t) for t in row] for row in comp[k][2]]
+            w, v = S[k]
+            n, f = self.apply_inertia((m, h, Io), w, v)
+            i = nd.coord
+            j = k
+            while j >= 0:
+                sj = S[j]
+                M[self.nodes[j].coord][i] = M[i][self.nodes[j].coord] = add(dot(sj[0], n), dot(sj[1], f))
+                j = self.nodes[j].parent
+        return M
+
+    def mass_matrix_local(self) -> list:
+        """M by composite rigid bodies in body coordinates (Featherstone's algorithm 6.2): the
+        composite inertia's force I^c_i S_i carried to every ancestor by spatial transforms."""
         M = [[ZERO] * self.n for _ in range(self.n)]
         comp = self.composite_inertias()
         for k, nd in enumerate(self.nodes):

@@ -175,6 +175,14 @@ def test_branched_tree_matches_pinocchio():
     check_against_pinocchio(*build(6, kinds="RRP", parents=[-1, 0, 1, 1, 0, 4], seed=5))
 
 
+def test_large_branched_tree_takes_the_world_frame_mass_matrix():
+    from lagcodegen.model import treedynamics
+    parents = [-1, 0, 1, 2, 3, 2, 5, 0, 7, 8, 8, 10]  # depth-first: branches at links 0, 2 and 8
+    m, pm = build(len(parents), kinds="RRPR", parents=parents, seed=22)
+    assert len(parents) >= treedynamics.WORLD_CRBA_MIN_NODES
+    check_against_pinocchio(m, pm, states=20, seed=23)
+
+
 def test_fixed_joint_is_merged_into_its_parent():
     rng = np.random.default_rng(6)
     m = lcg.Model("fixed")
