@@ -24,6 +24,7 @@ from .errors import (CompileError, DerivationError, LagcodegenError, ModelError,
                      SingularMassMatrixError, SolverError)
 from .model import systems  # noqa: F401
 from .model.model import Model  # noqa: F401
+from .model.bodies import Joint, Link, Placement  # noqa: F401
 from .model.events import Event  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
 from .theory.constraints import ConstrainedSystem  # noqa: F401
@@ -41,3 +42,4 @@ from .api import (AUTO_JACOBIAN_MAX_N, build_code, compile_constrained, compile_
                   compile_model, compile_reduction, generate_file, run_sweep)
 from . import modelfile, progress  # noqa: F401
 from .fmu import export_fmu  # noqa: F401
+from .modelfile import urdf  # noqa: F401  (the URDF reader, lagcodegen.modelfile.urdf)

@@ -25,6 +25,7 @@ from .derivation import EquationsOfMotion, derive
 from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
+from .model.mechanics import as_model
 from .model.model import Model
 from .modelfile import ModelFile, constrained_outputs
 from .simulation.constrained import ConstrainedSimulation
@@ -56,6 +57,9 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options;
     ``lang``: "c" or "fortran", the language of the generated model code).
 
+    ``model`` may be a ``sympy.physics.mechanics.System`` whose speeds are q'
+    (:func:`lagcodegen.model.mechanics.from_system`); ``values`` then gives every parameter's value.
+
     ``jacobian=None`` emits the analytic Jacobian for models with at most
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.
 
@@ -64,6 +68,7 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
+    model = as_model(model, parameters=values)  # a sympy.physics.mechanics.System: its values are needed
     with _progress.enabled(progress):
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,

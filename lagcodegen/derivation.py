@@ -11,6 +11,14 @@ The derivation runs on symengine (fast), and every result is offered as sympy ob
       F_i  = dL/dq_i - sum_j (d^2 L / dq_i' dq_j) q_j' - d^2 L / dq_i' dt - dD/dq_i' + Q_i.
 
 M is never inverted symbolically: generated code solves M q'' = F numerically.
+
+Links of rigid-body trees (:meth:`Model.link`) are not differentiated: their M, their share of F
+(the bias C q' + g, with a minus sign), of T, V and the momenta come from the tree's recursions
+(:mod:`lagcodegen.model.treedynamics`) as symengine expressions that keep the tree (DAGs: each
+body's kinematics once, shared), added to the closed-form terms of the model's other elements.
+Their sympy views (:attr:`EquationsOfMotion.M`, ...) expand the DAG into a tree, so above
+:data:`SYMPY_VIEW_MAX_OPS` operations they are refused with a message; the generated code never
+needs them.
 """
 
 from __future__ import annotations
@@ -24,7 +32,14 @@ import sympy as sp
 
 from . import progress
 from .errors import DerivationError, ModelError
+from .model.mechanics import as_model
 from .model.model import Model, Particle, PlanarBody, RigidBody
+from .model.treedynamics import TreeDynamics
+
+#: The sympy views of an EquationsOfMotion whose expressions count more nodes than this
+#: when written out as trees ( a rigid-body tree's expressions are DAGs
+#: whose written-out size grows exponentially with depth) are refused with a ModelError.
+SYMPY_VIEW_MAX_OPS = 200_000
 
 
 def to_se(expr, what: str = "expression"):
@@ -42,6 +57,39 @@ def to_sp(expr):
 
 def _sp_matrix(rows) -> sp.Matrix:
     return sp.Matrix([[to_sp(e) for e in row] for row in rows])
+
+
+def _tree_nodes(exprs, limit: int) -> int:
+    """Nodes of ``exprs`` written out as trees (DAG-safe; stops above ``limit``)."""
+    memo: dict = {}
+    total = 0
+    for e in exprs:
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                memo[x] = 1 + sum(memo[a] for a in x.args)
+            elif x not in memo:
+                stack.append((x, True))
+                stack.extend((a, False) for a in x.args if a not in memo)
+        total += memo[e]
+        if total > limit:
+            break
+    return total
+
+
+def _viewable(eom, what: str, *exprs) -> None:
+    """Refuse a sympy view of a rigid-body tree's DAG expressions that would be too large."""
+    if eom.tree is None:
+        return
+    flat = [e for x in exprs for e in (x if isinstance(x, list) else [x])]
+    flat = [e for x in flat for e in (x if isinstance(x, list) else [x])]
+    ops = _tree_nodes(flat, SYMPY_VIEW_MAX_OPS)
+    if ops > SYMPY_VIEW_MAX_OPS:
+        raise ModelError(f"{what} of model {eom.model.name!r} is kept as a program along its rigid-body tree; "
+                         f"written out for sympy it would count more than {ops} nodes (more than "
+                         f"SYMPY_VIEW_MAX_OPS = {SYMPY_VIEW_MAX_OPS}): use the symengine fields (M_se, F_se, ...) "
+                         "or the generated code")
 
 
 @dataclass
@@ -64,6 +112,7 @@ class EquationsOfMotion:
     dhdt_se: object = None  # dh/dt along solutions (eq. 3.6 with non-potential forces)
     quadratures: list = field(default_factory=list)  # (state name, symengine rate): extra states z' = rate
     derivation_seconds: float = 0.0
+    tree: object = None  # treedynamics.TreeDynamics of the model's links (None: no links)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------ symbols
@@ -92,11 +141,13 @@ class EquationsOfMotion:
     @cached_property
     def T(self) -> sp.Expr:
         """Kinetic energy T(q, q', t) (eq. 2.2)."""
+        _viewable(self, 'T', self.T_se)
         return to_sp(self.T_se)
 
     @cached_property
     def V(self) -> sp.Expr:
         """Potential energy V(q, t) (eq. 2.7), including the velocity-free part of generalized potentials."""
+        _viewable(self, 'V', self.V_se)
         return to_sp(self.V_se)
 
     @cached_property
@@ -112,6 +163,7 @@ class EquationsOfMotion:
     @cached_property
     def D(self) -> sp.Expr:
         """Rayleigh dissipation function (eq. 3.15)."""
+        _viewable(self, 'D', self.D_se)
         return to_sp(self.D_se)
 
     @cached_property
@@ -123,21 +175,25 @@ class EquationsOfMotion:
     def momenta(self) -> sp.Matrix:
         """Generalized (canonical) momenta p_i = dL/dq_i'; equal to dT/dq_i' (eq. 2.3) unless a
         generalized potential depends on the velocities (then e.g. m v + e A)."""
+        _viewable(self, 'momenta', self.p_se)
         return sp.Matrix([to_sp(e) for e in self.p_se])
 
     @cached_property
     def M(self) -> sp.Matrix:
         """Mass matrix (symmetric), M_ij = d^2 L / dq_i' dq_j'."""
+        _viewable(self, 'M', self.M_se)
         return _sp_matrix(self.M_se)
 
     @cached_property
     def F(self) -> sp.Matrix:
         """Right side of M q'' = F (eq. 3.16)."""
+        _viewable(self, 'F', self.F_se)
         return sp.Matrix([to_sp(e) for e in self.F_se])
 
     @cached_property
     def h(self) -> sp.Expr:
         """Jacobi energy function h = sum_i q_i' dL/dq_i' - L (eq. 3.5)."""
+        _viewable(self, 'h', self.h_se)
         return to_sp(self.h_se)
 
     @cached_property
@@ -146,6 +202,7 @@ class EquationsOfMotion:
 
         For D homogeneous quadratic in the velocities, sum_i q_i' dD/dq_i' = 2 D.
         """
+        _viewable(self, 'dhdt', self.dhdt_se)
         return to_sp(self.dhdt_se)
 
     @property
@@ -368,7 +425,10 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
     only want the energies and momenta, e.g. to explain why a reduction is impossible).
 
     Reports the stage "derive" (:mod:`lagcodegen.progress`), one step per coordinate.
+
+    A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
     """
+    model = as_model(model, unset=1.0)
     with progress.stage("derive", total=model.n, unit="coordinates") as stage:
         return _derive(model, check, stage)
 
@@ -397,6 +457,9 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
     used = L.free_symbols | D.free_symbols
     for Qi in Q:
         used |= Qi.free_symbols
+    tree = TreeDynamics(model, eng.q, eng.qd) if model.links else None
+    if tree is not None:
+        used |= {eng.q[nd.coord] for nd in tree.nodes}
     for q, qd in zip(eng.q, eng.qd):
         if q not in used and qd not in used:
             raise ModelError(f"coordinate {q.name!r} appears nowhere in T, V, D or the forces")
@@ -423,17 +486,47 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
         p.append(pi)  # eq. 2.3
         F.append(Fi)
         stage.advance()
-    if check and all(M[i][j] == 0 for i in range(n) for j in range(n)):
+    if check and tree is None and all(M[i][j] == 0 for i in range(n) for j in range(n)):
         raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
-    for i in range(n if check else 0):
+    for i in range(n if check and tree is None else 0):
         if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
             raise DerivationError(
                 f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
                 f"{model.speeds[i].name!r}")
     h = sum((v * pi for v, pi in zip(eng.qd, p)), se.Integer(0)) - L  # eq. 3.5
     dhdt = -se.diff(L, eng.t) + sum((v * (Qi - se.diff(D, v)) for v, Qi in zip(eng.qd, Q)), se.Integer(0))
+    if tree is not None:
+        T, V, h = _add_tree(tree, eng, M, F, p, T, V, h)
+        for i in range(n if check else 0):
+            if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
+                raise DerivationError(
+                    f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
+                    f"{model.speeds[i].name!r} (a joint whose links beyond it have no mass or inertia)")
     eom = EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
-                            h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start)
+                            h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start,
+                            tree=tree)
     eom._cache["positions"] = {pt.name: eng.vec(pt.position, f"position of {pt.name!r}")
                                for pt in model.points.values()}
     return eom
+
+
+def _add_tree(tree: TreeDynamics, eng: _Engine, M: list, F: list, p: list, T, V, h):
+    """Add the links' terms (:mod:`lagcodegen.model.treedynamics`) in place to M (composite rigid
+    bodies), F (minus the recursive Newton-Euler bias at q'' = 0, gravity included) and the
+    momenta p = M q' (eq. 2.3); return T, V and h with the links' T and V (h = T + V for them:
+    their T is homogeneous quadratic in q' and nothing of theirs depends on t, eq. 3.5)."""
+    n = len(M)
+    tree.rest = ([list(row) for row in M], list(F))  # the closed-form terms, for the kernels
+    Mt = tree.mass_matrix()
+    bias = tree.rnea()
+    for i in range(n):
+        for j in range(i, n):
+            if Mt[i][j] != 0:
+                M[i][j] = M[j][i] = Mt[i][j] if M[i][j] == 0 else se.Add(M[i][j], Mt[i][j])
+        if bias[i] != 0:
+            F[i] = se.Add(F[i], -bias[i])
+        terms = [Mt[i][j] * eng.qd[j] for j in range(n) if Mt[i][j] != 0]
+        if terms:
+            p[i] = se.Add(p[i], *terms)
+    Tt, Vt = tree.kinetic_energy(), tree.potential_energy()
+    return se.Add(T, Tt), se.Add(V, Vt), se.Add(h, Tt, Vt)

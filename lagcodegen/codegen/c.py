@@ -16,7 +16,7 @@ from itertools import accumulate
 
 import symengine as se
 
-from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, count_ops, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
@@ -404,7 +404,7 @@ def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple
     statements (after common-subexpression elimination, the temporaries in an array ``x``):
     returns (the definitions, a list; the statements of the caller: allocation, calls
     ``name<k>(args)``, free)."""
-    if se.count_ops(*block.exprs) > BLOCK_CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
+    if count_ops(block.exprs) > BLOCK_CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
         prog, targets = build_program(block, 0, cse=False)
         nv = len(prog)
         pieces = _value_pieces(prog, [(0, nv)], {prog.index(a) for _, a in targets} - {None})[0]
@@ -433,9 +433,9 @@ def print_block_pieces(block: Block, name: str, params: str, args: str) -> tuple
 def use_program(scene: Scene, rhs: Block) -> bool:
     """True if the right-hand side is printed in program form: with the tangent Jacobian (they
     share its values), or from PROGRAM_MIN_OPS operations on."""
-    if scene.jacobian and scene.resolved_jacobian_form() == "tangent":
+    if scene.jacobian and scene.resolved_jacobian_form() == "tangent" or rhs.defs:
         return True
-    return bool(rhs.exprs) and se.count_ops(*rhs.exprs) >= PROGRAM_MIN_OPS
+    return bool(rhs.exprs) and count_ops(rhs.exprs) >= PROGRAM_MIN_OPS
 
 
 def generate_c(scene: Scene) -> GeneratedCode:

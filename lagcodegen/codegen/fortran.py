@@ -372,7 +372,8 @@ class FortranBlock:
 
 def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple[str, ...] = (),
                        optional: tuple[str, ...] = (), renames: dict[str, tuple[str, int]] | None = None,
-                       indent: int = 2, what: str = "expression", scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
+                       indent: int = 2, what: str = "expression", scalars: tuple[str, ...] = ("t",),
+                       defs=()) -> FortranBlock:
     """Fortran statements assigning ``exprs`` to ``targets`` after common-subexpression elimination.
 
     ``exprs`` are in the C backend's symbols (``y[i]``, ``p[k]``, ``t``); the elimination and
@@ -390,6 +391,7 @@ def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple
     libm: set[str] = set()
     if exprs:
         repl, reduced = se.cse(list(exprs))
+        repl = list(defs) + list(repl)  # a rigid-body tree's program first (kernels.tree_rhs)
         temps = [str(sym) for sym, _ in repl]
         local = set(temps)
         writer = _FortranWriter(local | set(scalars), renames)
@@ -484,8 +486,13 @@ def print_block(block: Block, what: str, dummies: tuple[str, ...], optional: tup
         targets.append(text)
         if after:
             mirror.append(after)
-    return emit_fortran_block(targets, block.exprs, mirror, dummies=dummies, optional=optional, renames=renames,
-                              what=what, scalars=scalars)
+    exprs, defs = block.exprs, ()
+    if block.defs:  # a rigid-body tree's temporaries __mb<k>, renamed mb<k> (Fortran names start with a letter)
+        ren = {sym: se.Symbol(sym.name[2:]) for sym, _ in block.defs}
+        defs = [(ren[sym], se.sympify(e).xreplace(ren)) for sym, e in block.defs]
+        exprs = [se.sympify(e).xreplace(ren) for e in exprs]
+    return emit_fortran_block(targets, exprs, mirror, dummies=dummies, optional=optional, renames=renames,
+                              what=what, scalars=scalars, defs=defs)
 
 
 def generate(scene: Scene) -> GeneratedCode:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ..errors import ModelError
 from ..formulation.scene import Scene
 from . import c, fortran
+from .dynamics import inverse_dynamics_files
 from .record import GeneratedCode
 
 #: The language modules by name: each has generate(scene) -> GeneratedCode,
@@ -17,7 +18,10 @@ def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
     """The model code of ``scene`` in ``lang``: "c" (:func:`.c.generate_c`) or "fortran"
     (:func:`.fortran.generate_fortran`, same functions and the same header)."""
     check_language(lang)
-    return LANGUAGE_MODULES[lang].generate(scene)
+    code = LANGUAGE_MODULES[lang].generate(scene)
+    if scene.eom.tree is not None:  # a rigid-body tree: its inverse dynamics in C (.dynamics)
+        code.files.update(inverse_dynamics_files(scene, code))
+    return code
 
 
 def check_language(lang: str) -> None:

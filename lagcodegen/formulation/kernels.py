@@ -15,7 +15,9 @@ from dataclasses import dataclass, field
 import symengine as se
 
 from .. import progress
+from ..errors import ModelError
 from ..model.model import RESERVED_PREFIX
+from ..model.treedynamics import recorded
 from .scene import Scene
 
 #: A common-subexpression elimination of at least this many operations (symengine's count_ops,
@@ -27,9 +29,51 @@ from .scene import Scene
 ISOLATE_CSE_OPS = 50_000
 
 
+#: :func:`count_ops` asks symengine only below this many nodes of the expressions written out
+#: as trees.
+TREE_NODES_LIMIT = 5_000_000
+
+
+def tree_nodes(exprs, limit: int = TREE_NODES_LIMIT) -> int:
+    """The number of nodes of ``exprs`` written out as trees (each shared subexpression counted
+    once per use), computed over the distinct nodes (linear in a DAG's size); stops counting
+    above ``limit``."""
+    memo: dict = {}
+    total = 0
+    for e in exprs:
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                memo[x] = 1 + sum(memo[a] for a in x.args)
+            elif x not in memo:
+                args = x.args
+                if not args:
+                    memo[x] = 1
+                else:
+                    stack.append((x, True))
+                    stack.extend((a, False) for a in args if a not in memo)
+        total += memo[e]
+        if total > limit:
+            break
+    return total
+
+
+def count_ops(exprs) -> int:
+    """symengine's count_ops of ``exprs``, safe on DAGs: the expressions of a rigid-body tree
+    (:mod:`lagcodegen.model.treedynamics`) share their subexpressions, and count_ops walks them
+    as trees (exponential in the tree's depth). Above TREE_NODES_LIMIT tree nodes the tree node
+    count stands for it (an over-estimate: every threshold compared with it is passed)."""
+    exprs = list(exprs)
+    if not exprs:
+        return 0
+    nodes = tree_nodes(exprs)
+    return se.count_ops(*exprs) if nodes <= TREE_NODES_LIMIT else nodes
+
+
 def cse_cost(exprs) -> int:
     """The measure of :data:`ISOLATE_CSE_OPS`: operations plus 10 per expression."""
-    return se.count_ops(*exprs) + 10 * len(exprs) if exprs else 0
+    return count_ops(exprs) + 10 * len(exprs) if exprs else 0
 
 
 def cse(exprs) -> tuple[list, list]:
@@ -52,6 +96,9 @@ class Block:
 
     targets: list = field(default_factory=list)
     exprs: list = field(default_factory=list)
+    #: Temporaries (symbol, expression) computed in order before the targets (a rigid-body tree's
+    #: program, :func:`lagcodegen.model.treedynamics.recorded`): the exprs may use them.
+    defs: list = field(default_factory=list)
 
     def __bool__(self) -> bool:
         return bool(self.exprs)
@@ -61,7 +108,7 @@ class Block:
         self.exprs.append(expr)
 
     def __add__(self, other: "Block") -> "Block":
-        return Block(self.targets + other.targets, self.exprs + other.exprs)
+        return Block(self.targets + other.targets, self.exprs + other.exprs, self.defs + other.defs)
 
 
 def symbol_map(scene: Scene) -> dict:
@@ -107,6 +154,32 @@ def substitute_all(sub: dict, exprs) -> list:
     return list(se.DenseMatrix(len(exprs), 1, exprs).xreplace(sub))
 
 
+def substitute_shared(sub: dict, exprs) -> list:
+    """``exprs`` with the substitution ``sub`` applied, every distinct subexpression once across
+    all of them: the result shares its subexpressions as the input does (a rigid-body tree's
+    DAGs, :mod:`lagcodegen.model.treedynamics`; symengine's xreplace shares within one
+    expression only, and copies compared later cost time exponential in the tree's depth)."""
+    memo: dict = dict(sub)
+    out = []
+    for e in exprs:
+        e = se.sympify(e)
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                args = x.args
+                new = [memo[a] for a in args]
+                memo[x] = x if all(a is b for a, b in zip(new, args)) else x.func(*new)
+            elif x not in memo:
+                if not x.args:
+                    memo[x] = x
+                else:
+                    stack.append((x, True))
+                    stack.extend((a, False) for a in x.args if a not in memo)
+        out.append(memo[e])
+    return out
+
+
 def residual_derivatives(eom):
     """d r_i / d y_j for r = M a - F (eq. 3.16 as a residual), y = (q, q'), with the
     accelerations a as the symbols ``a[i]``: a function (i, j) -> symengine expression in the
@@ -147,12 +220,23 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
     n = model.n
     c = substituter(scene)
     sub = symbol_map(scene)
-    mass = Block()
-    for i in range(n):  # row by row: a loop point for progress
-        for j, e in enumerate(substitute_all(sub, eom.M_se[i][i:]), start=i):
-            mass.add(("M", i, j), e)
-        stage.advance()
-    rhs = mass + Block([("F", i) for i in range(n)], substitute_all(sub, eom.F_se))
+    # A rigid-body tree's DAGs: one substitution sharing subexpressions across the kernels.
+    subst = substitute_shared if eom.tree is not None else substitute_all
+    if eom.tree is not None and scene.jacobian:
+        raise ModelError(f"model {model.name!r}: the expanded Jacobian of a rigid-body tree is not generated (its "
+                         "entries would be derivatives of the tree's DAGs): use the C backend's tangent form "
+                         "(jacobian_form 'auto' or 'tangent') or jacobian=False")
+    if eom.tree is not None:
+        rhs = tree_rhs(eom, sub)
+        for _ in range(n):
+            stage.advance()
+    else:
+        mass = Block()
+        for i in range(n):  # row by row: a loop point for progress
+            for j, e in enumerate(subst(sub, eom.M_se[i][i:]), start=i):
+                mass.add(("M", i, j), e)
+            stage.advance()
+        rhs = mass + Block([("F", i) for i in range(n)], subst(sub, eom.F_se))
     for k, (_, rate) in enumerate(eom.quadratures):
         rhs.add(("ydot", 2 * n + k), c(rate))
     blocks = {"rhs": rhs}
@@ -169,8 +253,31 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
                 jac.add(("Z", k, j), c(se.diff(rate, var)))
         blocks["jac"] = jac
     outputs = scene.output_list()
-    blocks["out"] = Block([("out", k) for k in range(len(outputs))], substitute_all(sub, [o.expr for o in outputs]))
+    blocks["out"] = Block([("out", k) for k in range(len(outputs))], subst(sub, [o.expr for o in outputs]))
     return blocks
+
+
+def tree_rhs(eom, sub: dict) -> Block:
+    """The right-hand side kernel of a model with a rigid-body tree: the tree's program
+    (:func:`lagcodegen.model.treedynamics.recorded`: composite rigid bodies for M, recursive
+    Newton-Euler for the bias) as the block's temporaries, plus the closed-form terms of the
+    model's other elements; targets as :func:`model_blocks`' ("M", i, j), ("F", i)."""
+    model = eom.model
+    n = model.n
+    q = [se.Symbol(s.name) for s in model.coords]
+    qd = [se.Symbol(s.name) for s in model.speeds]
+    defs, Mt, bias = recorded(model, q, qd)
+    M_rest, F_rest = eom.tree.rest
+    block = Block(defs=list(zip([sym for sym, _ in defs], substitute_all(sub, [e for _, e in defs]))))
+
+    def c(e):
+        return se.sympify(e).xreplace(sub)
+    for i in range(n):
+        for j in range(i, n):
+            block.add(("M", i, j), c(M_rest[i][j] + Mt[i][j]))
+    for i in range(n):
+        block.add(("F", i), c(F_rest[i] - bias[i]))
+    return block
 
 
 @dataclass

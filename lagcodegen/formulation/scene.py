@@ -128,6 +128,8 @@ class Scene:
         """``jacobian_form`` with "auto" resolved (:func:`auto_jacobian_form`)."""
         if self.jacobian_form != "auto":
             return self.jacobian_form
+        if self.eom.tree is not None:  # a rigid-body tree's program: differentiated as a program
+            return "tangent"
         return auto_jacobian_form(self.eom.model.n)
 
     @property

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import symengine as se
 
 from ..errors import ModelError
-from .kernels import Block, cse as eliminate
+from .kernels import Block, count_ops, cse as eliminate
 
 #: Choices of Scene.jacobian_form: "expanded" (kernels.model_blocks: symbolic dr/dy),
 #: "tangent" (this module).
@@ -219,9 +219,12 @@ def build_program(rhs: Block, n: int, cse: bool | None = None) -> tuple[Program,
     block has at most :data:`CSE_MAX_OPS` operations)."""
     prog = Program(n)
     exprs = list(rhs.exprs)
-    if cse is None:
-        cse = se.count_ops(*exprs) <= CSE_MAX_OPS if exprs else False
     known: dict = {}
+    for sym, e in rhs.defs:  # a program already (a rigid-body tree's): no elimination
+        known[sym] = prog.atom(e, known)
+        cse = False
+    if cse is None:
+        cse = count_ops(exprs) <= CSE_MAX_OPS if exprs else False
     if cse and exprs:
         repl, exprs = eliminate(exprs)
         for sym, e in repl:

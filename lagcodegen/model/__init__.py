@@ -4,4 +4,5 @@ events (:mod:`.events`), the catalogue of outputs (:mod:`.outputs`), models writ
 
 from ..util import check_finite  # noqa: F401
 from .events import Event, EventRecord  # noqa: F401
+from .bodies import Joint, Link, Placement  # noqa: F401
 from .model import Model, Particle, PlanarBody, Point, RigidBody  # noqa: F401

@@ -5,7 +5,11 @@ Users of sympy's mechanics package can bring their models as they are:
 * :func:`from_lagrangian` takes a Lagrangian L(q(t), q'(t), t), for example built by
   ``sympy.physics.mechanics.Lagrangian(N, *bodies)`` or written by hand;
 * :func:`from_bodies` takes the inertial frame and the bodies themselves, and keeps the
-  kinetic and potential energies apart (so energy outputs are exact).
+  kinetic and potential energies apart (so energy outputs are exact);
+* :func:`from_system` takes a ``sympy.physics.mechanics.System`` built with joints
+  (``PinJoint``, ``PrismaticJoint``, ``SphericalJoint``, ...), its bodies, loads and actuators,
+  when its generalized speeds are the coordinates' time derivatives (u = q'). :func:`as_model`
+  lets :func:`lagcodegen.derive` and :func:`lagcodegen.compile_model` take such a System.
 
 Supported sympy.physics.mechanics objects:
 
@@ -21,9 +25,11 @@ Supported sympy.physics.mechanics objects:
   a torque on frame B gives Q_i = T . dw_B/dq_i', the same as ``LagrangesMethod``;
 * a Rayleigh dissipation function in q'(t) (eq. 3.15).
 
-Not supported: constraint equations (``hol_coneqs``/``nonhol_coneqs``), generalized speeds
-u(t) other than q'(t) (``KanesMethod`` style), and ``JointsMethod``/``System`` objects (pass
-their bodies and coordinates instead).
+Not supported: constraint equations (``hol_coneqs``/``nonhol_coneqs``, a System's holonomic
+and nonholonomic constraints), generalized speeds u(t) other than q'(t) (a ``KanesMethod`` with
+kinematic equations such as u = w . b_z for a ball joint), and ``KanesMethod`` /
+``LagrangesMethod`` / ``JointsMethod`` objects themselves (pass the ``System``, or the bodies and
+coordinates to :func:`from_bodies`, or the Lagrangian to :func:`from_lagrangian`).
 
 Conversion: q_i(t) becomes the plain symbol named like q_i, q_i'(t) the symbol
 ``<name>_dot`` (:meth:`Model.dot`), time the model's ``t``. Every other free symbol is a
@@ -35,6 +41,7 @@ coordinate) is an error, as is a parameter without a value.
 
 from __future__ import annotations
 
+import warnings
 from typing import Iterable, Mapping, Sequence
 
 import sympy as sp
@@ -47,21 +54,27 @@ from .model import Model
 #: (the package pulls in sympy's unit systems), which every other use of lagcodegen (the command
 #: line, model files, lagcodegen's own models) does without.
 Particle = RigidBody = dynamicsymbols = Point = ReferenceFrame = Vector = partial_velocity = ActuatorBase = None
+System = None
 
 
 def _physics() -> None:
     """Import sympy.physics.mechanics and .vector into this module's names (once)."""
     global Particle, RigidBody, dynamicsymbols, Point, ReferenceFrame, Vector, partial_velocity, ActuatorBase
+    global System
     if Particle is not None:
         return
     from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
+    try:  # System exists from sympy 1.13 on
+        from sympy.physics.mechanics import System
+    except ImportError:  # pragma: no cover - older sympy
+        System = None
     from sympy.physics.vector import Point, ReferenceFrame, Vector, partial_velocity
     try:  # actuators exist from sympy 1.13 on
         from sympy.physics.mechanics.actuator import ActuatorBase
     except ImportError:  # pragma: no cover - older sympy
         ActuatorBase = None
 
-__all__ = ["from_lagrangian", "from_bodies"]
+__all__ = ["from_lagrangian", "from_bodies", "from_system", "as_model"]
 
 #: A value given for a parameter: by symbol or by name.
 ParameterValues = Mapping[sp.Symbol | str, float]
@@ -195,6 +208,185 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
     return model
 
 
+def from_system(system, *, parameters: ParameterValues | None = None, dissipation=None, name: str = "model",
+                unset: float | None = None) -> Model:
+    """A :class:`Model` from a ``sympy.physics.mechanics.System`` whose speeds are q'.
+
+    The system's coordinates (``system.q``) become the model's, in order; its bodies
+    (``system.bodies``: ``RigidBody`` and ``Particle``) give T = sum of
+    ``body.kinetic_energy(system.frame)`` and V = sum of ``body.potential_energy``, as in
+    :func:`from_bodies`; each body's mass centre, seen from ``system.fixed_point`` in
+    ``system.frame``'s axes, is a model point named like the body (``positions`` outputs). Its
+    loads (``system.loads``, e.g. from ``apply_uniform_gravity``) and the loads of its actuators
+    (``system.actuators``, ``to_loads()``) are generalized forces Q_i = F . dv_P/dq_i' (eq. 2.6)
+    or T . dw_B/dq_i', except a force that is constant in ``system.frame`` (gravity): it
+    becomes the potential V = -F . r_P, r_P the point's position from ``system.fixed_point``,
+    so that energy outputs hold the gravitational energy too (the same generalized force).
+
+    The speeds must be the coordinates' time derivatives: each of ``system.u`` either is a
+    q_i'(t) itself (joints made with ``speeds=q.diff(t)``), or the kinematic differential
+    equations ``system.kdes`` say u_j = q_i' (the joints' default u_j - q_i' = 0 of
+    ``PinJoint`` and ``PrismaticJoint``). Otherwise (a ``SphericalJoint``'s angular-velocity
+    speeds, any u_j = f(q, q') other than q_i') a :class:`ModelError` says what the kinematic
+    equations give and how to make the speeds q' instead. Constraints (holonomic,
+    nonholonomic, dependent or auxiliary speeds) are refused.
+
+    ``parameters``: the value of every other free symbol (by symbol or name; its default as a
+    model parameter); ``unset``: the value given to symbols missing from ``parameters`` (None:
+    they are an error). ``dissipation``: a Rayleigh function D(q, q', t) in the coordinates'
+    dynamicsymbols (eq. 3.15); ``name``: the model's name.
+    """
+    _physics()
+    if System is None or not isinstance(system, System):
+        raise ModelError(f"from_system needs a sympy.physics.mechanics.System, got {type(system).__name__}")
+    for what, items in (("holonomic constraints", system.holonomic_constraints),
+                        ("nonholonomic constraints", system.nonholonomic_constraints),
+                        ("dependent coordinates", system.q_dep), ("dependent speeds", system.u_dep),
+                        ("auxiliary speeds", system.u_aux)):
+        if len(items):
+            raise ModelError(f"from_system: the System has {what} ({', '.join(map(str, items))}); lagcodegen "
+                             "takes constrained systems as a ConstrainedSystem of a Model: convert the unconstrained "
+                             "System and add the constraints there (lagcodegen.ConstrainedSystem)")
+    q = list(system.q)
+    if not q:
+        raise ModelError("from_system: the System has no coordinates (add joints or coordinates)")
+    imp = _Importer(q, time=None, name=name)
+    imp.set_speeds(_speeds_of(system, imp))
+    frame, origin = system.frame, system.fixed_point
+
+    energies: list[tuple[str, sp.Expr, sp.Expr]] = []
+    positions: list[tuple[str, sp.Matrix]] = []
+    for body in system.bodies:
+        try:
+            T = body.kinetic_energy(frame)
+        except ValueError as exc:
+            raise ModelError(f"kinetic energy of body {body.name!r} in frame {frame.name}: {exc}") from None
+        T = imp.convert(T, f"kinetic energy of body {body.name!r}")
+        V = imp.convert(body.potential_energy, f"potential energy of body {body.name!r}")
+        energies.append((body.name, T, V))
+        try:
+            r = body.masscenter.pos_from(origin).to_matrix(frame)
+        except ValueError:
+            continue  # no position known: no point output for it
+        r = r.applyfunc(lambda c, b=body: imp.convert(c, f"position of body {body.name!r}"))
+        if any(c.free_symbols & set(imp.model.coords) for c in r):  # the ground needs no output
+            positions.append((body.name, r))
+
+    loads = _loads(list(system.loads) + [load for act in system.actuators for load in act.to_loads()])
+    potentials: list[tuple[str, sp.Expr]] = []
+    forces = []
+    for location, vector in loads:
+        V = _constant_force_potential(location, vector, frame, origin, imp)
+        if V is None:
+            forces.append((location, vector))
+        else:
+            potentials.append((f"V[force at {location.name}]", V))
+    D_conv = None if dissipation is None else imp.convert(dissipation, "the dissipation function")
+    Q_conv = imp.generalized_forces(forces, frame)
+
+    exprs = [e for _, T, V in energies for e in (T, V)] + [V for _, V in potentials]
+    exprs += [c for _, r in positions for c in r]
+    exprs += ([] if D_conv is None else [D_conv]) + [Q for _, _, Q in Q_conv]
+    subs = imp.declare_parameters(exprs, parameters, unset=unset)
+    model = imp.model
+    for body_name, T, V in energies:
+        if T != 0:
+            model.kinetic_energy(T.xreplace(subs), label=f"T[{body_name}]")
+        if V != 0:
+            model.potential_energy(V.xreplace(subs), label=f"V[{body_name}]")
+    for label, V in potentials:
+        if V != 0:
+            model.potential_energy(V.xreplace(subs), label=label)
+    for body_name, r in positions:
+        model.point(body_name, r.xreplace(subs))
+    imp.add_loads(Q_conv, subs)
+    if D_conv is not None:
+        model.dissipation(D_conv.xreplace(subs), label="D")
+    model.validate()
+    return model
+
+
+def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | None = None):
+    """``obj`` itself unless it is a ``sympy.physics.mechanics.System``: then its
+    :func:`from_system` model (``parameters``, ``unset`` as there). Anything else is returned
+    as it is (the caller checks it); other sympy.physics objects (``KanesMethod``,
+    ``LagrangesMethod``, ...) are a ModelError saying what to pass instead.
+
+    :func:`lagcodegen.derive` calls it with ``unset=1.0``: the derived equations are symbolic,
+    the free symbols stay symbols, and their placeholder default 1.0 is announced by a
+    warning; :func:`lagcodegen.compile_model` passes its ``values`` as ``parameters`` and no
+    ``unset`` (a compiled model needs every value). sympy.physics.mechanics is imported only
+    when ``obj`` comes from it."""
+    module = type(obj).__module__ or ""
+    if not module.startswith("sympy.physics"):
+        return obj
+    _physics()
+    if System is not None and isinstance(obj, System):
+        return from_system(obj, parameters=parameters, unset=unset)
+    kind = type(obj).__name__
+    hint = {"KanesMethod": "pass the System it came from, or its bodies and loads to mechanics.from_bodies",
+            "LagrangesMethod": "pass the System it came from, or its Lagrangian and coordinates to "
+                               "mechanics.from_lagrangian"}.get(kind, "pass a System, or use mechanics.from_bodies / "
+                                                                      "from_lagrangian")
+    raise ModelError(f"a sympy.physics.mechanics {kind} is not a model lagcodegen derives: {hint}")
+
+
+def _speeds_of(system, imp: "_Importer") -> dict:
+    """{u_j(t): q_i'(t)} for the speeds of ``system`` that are not written as q_i'(t) themselves;
+    a ModelError when a speed is not the time derivative of one coordinate."""
+    t = imp.time
+    qdots = [sp.Derivative(f, t) for f in imp.functions]
+    u = list(system.u)
+    if len(u) != len(qdots):
+        raise ModelError(f"from_system: the System has {len(qdots)} coordinates but {len(u)} speeds; lagcodegen's "
+                         "speeds are the coordinates' time derivatives q' (one per coordinate)")
+    kdes = [k for k in system.kdes if k != 0]
+    solution: dict = {}
+    if kdes:
+        try:
+            found = sp.solve(kdes, qdots, dict=True)
+        except (NotImplementedError, ValueError):
+            found = []
+        if len(found) != 1:
+            raise ModelError(f"from_system: the kinematic differential equations {kdes} cannot be solved for "
+                             f"{', '.join(map(str, qdots))} one way; lagcodegen needs speeds u = q'")
+        solution = found[0]
+    mapping = {}
+    bad = []
+    for qd in qdots:
+        if qd in u:
+            continue
+        value = solution.get(qd)
+        if value is None or value not in u or value in mapping:
+            bad.append(f"{qd} = {value if value is not None else '(not given)'}")
+            continue
+        mapping[value] = qd
+    if bad:
+        raise ModelError("from_system: the System's speeds are not the coordinates' time derivatives (its kinematic "
+                         f"differential equations give {'; '.join(bad)}); lagcodegen's equations (eq. 3.16) are in q': "
+                         "make each joint's speeds the time derivatives of its coordinates (e.g. "
+                         "PinJoint(..., coordinates=q1, speeds=q1.diff(t)); for a SphericalJoint, speeds=[q.diff(t) "
+                         "for q in its coordinates]), or keep kinematic equations u_i - q_i' = 0 (PinJoint's and "
+                         "PrismaticJoint's default)")
+    return mapping
+
+
+def _constant_force_potential(location, vector, frame, origin, imp: "_Importer"):
+    """V = -F . r for a force F constant in ``frame`` at a point whose position r from ``origin``
+    is known (gravity); None for anything else (torques, forces that vary, points without a
+    position)."""
+    if not isinstance(location, Point):
+        return None
+    try:
+        F = vector.to_matrix(frame)
+        r = location.pos_from(origin).to_matrix(frame)
+    except ValueError:
+        return None
+    if any(c.has(imp.time) or c.atoms(AppliedUndef) or c.atoms(sp.Derivative) for c in F):
+        return None
+    return imp.convert(-(F.T * r)[0], f"potential of the force at point {location.name}")
+
+
 # ---------------------------------------------------------------------- helpers
 def _fname(f: AppliedUndef) -> str:
     """The name of an undefined function such as the dynamicsymbol theta(t)."""
@@ -266,6 +458,14 @@ class _Importer:
         self.coords = dict(zip(self.functions, coords))
         self.velocities = {sp.Derivative(f, self.time): self.model.dot(c) for f, c in self.coords.items()}
         self.taken = {s.name for s in self.model.coords} | {s.name for s in self.model.speeds}
+        self.speed_subs: dict = {}  # generalized speeds u_j(t) that are q_i'(t) -> q_i'(t)
+        self.partial_speeds = list(self.velocities)  # the speeds of the partial velocities, by coordinate
+
+    def set_speeds(self, mapping: dict) -> None:
+        """Take the speeds u_j(t) of ``mapping`` ({u_j(t): q_i'(t)}) as the velocities q_i'."""
+        self.speed_subs = dict(mapping)
+        by_qdot = {qd: u for u, qd in mapping.items()}
+        self.partial_speeds = [by_qdot.get(qd, qd) for qd in self.velocities]
 
     # -------------------------------------------------------------- expressions
     def convert(self, expr, what: str) -> sp.Expr:
@@ -276,6 +476,8 @@ class _Importer:
             expr = sp.sympify(expr, strict=True)
         except (sp.SympifyError, TypeError) as exc:
             raise ModelError(f"{what} is not a sympy expression: {expr!r}") from exc
+        if self.speed_subs:
+            expr = expr.xreplace(self.speed_subs)
         clash = sorted(s.name for s in expr.free_symbols - {self.time} if s.name in self.taken)
         if clash:
             raise ModelError(f"{what} uses symbol(s) {', '.join(clash)} whose names are taken by the "
@@ -305,11 +507,13 @@ class _Importer:
                              f"or substitute it")
         return expr
 
-    def declare_parameters(self, exprs: Iterable[sp.Expr], values: ParameterValues | None) -> dict:
+    def declare_parameters(self, exprs: Iterable[sp.Expr], values: ParameterValues | None,
+                           unset: float | None = None) -> dict:
         """Declare every free symbol of ``exprs`` that is not q, q' or t as a parameter.
 
-        Parameters are declared in the order of ``values``. Returns the substitution taking
-        the user's symbols to the model's parameter symbols.
+        Parameters are declared in the order of ``values`` (then the ``unset`` ones, by name).
+        Returns the substitution taking the user's symbols to the model's parameter symbols.
+        ``unset``: the value of symbols ``values`` misses (None: an error names them).
         """
         known = self.model.known_symbols()
         by_name: dict[str, sp.Symbol] = {}
@@ -328,6 +532,11 @@ class _Importer:
                 raise ModelError(f"parameter {key_name!r} is given twice")
             given[key_name] = value
         missing = sorted(set(by_name) - set(given))
+        if missing and unset is not None:
+            warnings.warn(f"parameter(s) {', '.join(missing)} have no value: their default is {unset} until one is "
+                          f"given", stacklevel=4)
+            given.update(dict.fromkeys(missing, unset))
+            missing = []
         if missing:
             raise ModelError(f"no value given for parameter(s) {', '.join(missing)} "
                              f"(pass parameters={{{missing[0]!r}: <value>, ...}})")
@@ -348,7 +557,7 @@ class _Importer:
             return []
         if not isinstance(frame, ReferenceFrame):
             raise ModelError("forces need the inertial frame: pass frame=<ReferenceFrame>")
-        qdots = list(self.velocities)
+        qdots = self.partial_speeds
         out = []
         for location, vector in loads:
             if isinstance(location, Point):

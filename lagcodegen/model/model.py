@@ -8,7 +8,9 @@ A :class:`Model` holds what the user states about a system, in sympy terms:
   from eq. 2.2 of the notes) or the kinetic energy T directly,
 * potentials V(q, t) (gravity, springs, or given directly; eq. 2.7),
 * Cartesian forces at points, mapped to generalized forces by eq. 2.6,
-* Rayleigh dissipation D (eq. 3.15) and non-potential generalized forces Q* (eq. 3.16).
+* Rayleigh dissipation D (eq. 3.15) and non-potential generalized forces Q* (eq. 3.16),
+* trees of rigid links joined by joints (:meth:`Model.link`, :mod:`.bodies`), whose M and F the
+  derivation evaluates along the tree.
 
 Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equations.
 """
@@ -23,6 +25,7 @@ from typing import Iterable, Sequence
 import sympy as sp
 
 from ..errors import ModelError
+from .bodies import Joint, Link, Placement, make_link
 from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.check_finite)
 
 #: Names a coordinate or parameter may not take (they name other things).
@@ -169,6 +172,7 @@ class Model:
     gravity_spec: tuple | None = None  # (g, unit "up" vector)
     outputs: dict = field(default_factory=dict)  # name -> expression (user outputs)
     inputs: list = field(default_factory=list)  # names of the parameters that are input signals u(t)
+    links: list = field(default_factory=list)  # rigid links of trees (bodies.Link), parents first
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -299,6 +303,62 @@ class Model:
         body = RigidBody(name, mass, inertia, pt, R)
         self.bodies.append(body)
         return body
+
+    # ------------------------------------------------------------------ trees of links
+    def link(self, name: str, *, parent: "str | Link | None" = None, joint: Joint | None = None,
+             origin: Placement | None = None, mass=0, com: Sequence = (0, 0, 0),
+             inertia: Sequence = (0, 0, 0, 0, 0, 0)) -> Link:
+        """A rigid link of a tree (:mod:`lagcodegen.model.bodies`), attached to ``parent`` (a link
+        or its name; None: the world) by ``joint`` (default: fixed) whose frame sits at ``origin``
+        in the parent's frame (URDF's joint origin). ``mass``, ``com`` and ``inertia`` (ixx, iyy,
+        izz, ixy, ixz, iyz about the centre of mass, in the link frame) as URDF's inertial.
+
+        The joint's coordinates are declared here, named after the joint (a 1-dof joint: its
+        name; spherical/free: :data:`~lagcodegen.model.bodies.JOINT_COORDINATES` suffixes).
+        Gravity (:meth:`gravity`) acts on links too. The kinetic energy of the links is
+        T = 1/2 q'^T M(q) q' with M evaluated along the tree by the derivation.
+        """
+        _check_name(name, "link")
+        if any(lk.name == name for lk in self.links) or name in self.points:
+            raise ModelError(f"link {name!r} is declared twice (or is a point's name)")
+        if isinstance(parent, str):
+            found = [lk for lk in self.links if lk.name == parent]
+            if not found:
+                raise ModelError(f"link {name!r}: no parent link named {parent!r} (declare parents first)")
+            parent = found[0]
+        elif parent is not None and (not isinstance(parent, Link) or parent not in self.links):
+            raise ModelError(f"link {name!r}: parent must be the name of a link of this model or None, got {parent!r}")
+        if joint is not None and isinstance(joint, Joint):
+            if any(lk.joint.name == joint.name for lk in self.links):
+                raise ModelError(f"link {name!r}: joint name {joint.name!r} is used twice")
+            for cname in joint.coordinate_names:
+                _check_name(cname, "coordinate")
+                self._check_free(cname)
+        lk = make_link(name, parent, joint, origin, mass, com, inertia, ())
+        for what, e in ([("origin", e) for e in lk.origin.free_symbols()] + [("mass", lk.mass)]
+                        + [("com", c) for c in lk.com] + [("inertia", c) for c in lk.inertia]):
+            bad = sp.sympify(e).free_symbols - set(self.params)
+            if bad:
+                raise ModelError(f"{what} of link {name!r} uses symbols that are not parameters: "
+                                 f"{', '.join(sorted(s.name for s in bad))}")
+        coords = self.coordinates(list(lk.joint.coordinate_names)) if lk.joint.coordinate_names else ()
+        lk.coordinates = tuple(coords)
+        if parent is not None:
+            parent.children.append(lk)
+        self.links.append(lk)
+        return lk
+
+    def point_on(self, link: "str | Link", xyz: Sequence, name: str) -> Point:
+        """A named point fixed in ``link`` at ``xyz`` (link frame): its world position
+        (:meth:`Link.position_of`) serves springs, dampers, forces, particles and outputs."""
+        if isinstance(link, str):
+            found = [lk for lk in self.links if lk.name == link]
+            if not found:
+                raise ModelError(f"point_on: no link named {link!r}")
+            link = found[0]
+        if not isinstance(link, Link) or link not in self.links:
+            raise ModelError(f"point_on: {link!r} is not a link of this model")
+        return self.point(name, link.position_of(xyz))
 
     # ------------------------------------------------------------------ energies
     def kinetic_energy(self, T, label: str = "T") -> None:
@@ -456,12 +516,12 @@ class Model:
             self.check_symbols(self.gravity_spec[0], "gravity", allow_speeds=False)
             if self.gravity_spec[1] is not None:
                 self.check_symbols(self.gravity_spec[1], "gravity 'up' vector", allow_speeds=False)
-            if not self.bodies:
+            if not self.bodies and not self.links:
                 raise ModelError("gravity() acts on the model's bodies, but it has none (T was given "
                                  "directly): add the gravitational potential with potential_energy()")
         for name, expr in self.outputs.items():
             self.check_symbols(expr, f"output {name!r}")
-        if not self.bodies and not self.kinetic_terms:
+        if not self.bodies and not self.kinetic_terms and not self.links:
             raise ModelError(f"model {self.name!r} has no kinetic energy: add bodies or kinetic_energy()")
 
     # ------------------------------------------------------------------ notebooks

@@ -18,10 +18,12 @@ from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem
 from .document import ModelFile, SimulationSettings
 from .loader import load_model
+from .urdf import load as load_urdf
 
 #: Suffix (lower case, with the dot) -> loader of a model file with that suffix.
 LOADERS: dict[str, Callable[[Path], Any]] = {
     ".toml": load_model,
+    ".urdf": load_urdf,  # a robot: its movable joints as coordinates (lagcodegen.modelfile.urdf)
 }
 
 

@@ -1,0 +1,377 @@
+"""Rigid-body trees: placements, joints and links, stated the way robot descriptions state them.
+
+A *link* is a rigid body attached to a parent link (or to the world) by a *joint*. As in URDF,
+the joint frame sits at a fixed :class:`Placement` (``origin``) in the parent link's frame; the
+joint then moves the link's frame relative to the joint frame (a rotation about, or a
+translation along, the joint axis given in the joint frame), and the link's frame *is* the
+moved joint frame. The link's inertial data are given in its own frame: mass, centre of mass
+``com`` and the inertia tensor about the centre of mass (``ixx, iyy, izz, ixy, ixz, iyz``).
+
+Joints (:class:`Joint`) and the coordinates they bring (declared on the model, named after the
+joint):
+
+* ``revolute``/``continuous``: one angle, named exactly as the joint (Pinocchio represents a
+  continuous joint by the pair (cos, sin); here it is the angle itself);
+* ``prismatic``: one displacement along the axis, named as the joint;
+* ``fixed``: none (the link is rigidly attached: the derivation merges it into its parent);
+* ``spherical``: three intrinsic Z-Y-X (yaw-pitch-roll) Euler angles ``<name>_yaw``,
+  ``<name>_pitch``, ``<name>_roll``: R = Rz(yaw) Ry(pitch) Rx(roll). Singular (gimbal lock: the
+  mass matrix loses rank) at pitch = +-pi/2;
+* ``free``: the translation of the joint frame's origin in the parent frame ``<name>_x``,
+  ``<name>_y``, ``<name>_z``, then the spherical joint's three angles (same singularity).
+
+Their velocities are the coordinates' time derivatives (q', as everywhere in lagcodegen): a
+spherical joint's angular velocity is E(q) q', not a vector of its own.
+
+Nothing is derived here: the model only records the tree (:attr:`Model.links
+<lagcodegen.model.model.Model>`); :mod:`lagcodegen.derivation` recognises it and evaluates
+M(q) and F(q, q', t) of eq. 3.16 along the tree (composite rigid bodies and recursive
+Newton-Euler). The world pose of a link (:meth:`Link.rotation`, :meth:`Link.position_of`) is
+available in sympy for points, springs, dampers and forces attached to links.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import sympy as sp
+
+from ..errors import ModelError
+
+#: Numeric rotation entries this close to 0 or +-1 are taken as exactly 0 or +-1 (cos(pi/2) in
+#: double precision is 6e-17): constants fold, and the change is below a rounding error.
+SNAP = 1e-14
+
+
+def _expr(value, what: str) -> sp.Expr:
+    if isinstance(value, str):
+        raise ModelError(f"{what} must be a number or a sympy expression, got the string {value!r}")
+    try:
+        e = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError):
+        raise ModelError(f"{what} is not a number or symbolic expression: {value!r}") from None
+    if not isinstance(e, sp.Expr) or e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
+        raise ModelError(f"{what} is not a finite scalar: {value!r}")
+    return e
+
+
+def _snap(e: sp.Expr) -> sp.Expr:
+    if e.is_Number and not e.is_Integer:
+        x = float(e)
+        for target in (0, 1, -1):
+            if abs(x - target) < SNAP:
+                return sp.Integer(target)
+    return e
+
+
+def _vector3(value, what: str) -> tuple:
+    try:
+        comps = list(value)
+    except TypeError:
+        raise ModelError(f"{what} must be 3 components, got {value!r}") from None
+    if len(comps) != 3:
+        raise ModelError(f"{what} must have 3 components, got {len(comps)}")
+    return tuple(_expr(c, f"{what}[{i}]") for i, c in enumerate(comps))
+
+
+def _rot_x(a):
+    c, s = _snap(sp.cos(a)), _snap(sp.sin(a))
+    return sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rot_y(a):
+    c, s = _snap(sp.cos(a)), _snap(sp.sin(a))
+    return sp.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rot_z(a):
+    c, s = _snap(sp.cos(a)), _snap(sp.sin(a))
+    return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+_AXIS_ROT = {"x": _rot_x, "y": _rot_y, "z": _rot_z}
+
+
+def axis_rotation(axis: Sequence, angle) -> sp.Matrix:
+    """The rotation by ``angle`` about the unit vector ``axis`` (Rodrigues' formula:
+    R = cos a 1 + sin a [u]x + (1 - cos a) u u^T)."""
+    u = sp.Matrix(axis)
+    c, s = _snap(sp.cos(angle)), _snap(sp.sin(angle))
+    ux = sp.Matrix([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return (c * sp.eye(3) + s * ux + (1 - c) * u * u.T).applyfunc(lambda e: _snap(sp.expand(e)) if e.is_number else e)
+
+
+def _unit(axis, what: str) -> tuple:
+    a = _vector3(axis, what)
+    if all(c.is_number for c in a):
+        norm = sp.sqrt(sum(c**2 for c in a))
+        if norm == 0 or abs(float(norm)) < 1e-300:
+            raise ModelError(f"{what} is the zero vector")
+        if abs(float(norm) - 1) > 1e-12:
+            a = tuple(c / norm for c in a)
+        a = tuple(_snap(sp.nsimplify(c) if c.is_Float and float(c) in (0.0, 1.0, -1.0) else c) for c in a)
+    return a
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A rigid placement: a rotation (3x3, the axes of the placed frame in the reference frame)
+    and a translation (the placed frame's origin in the reference frame). Entries are numbers
+    or sympy expressions of the model's parameters.
+
+    ``Placement(xyz=(x, y, z), rpy=(roll, pitch, yaw))`` is URDF's ``<origin>``: R = Rz(yaw)
+    Ry(pitch) Rx(roll); ``Placement(xyz=..., rotation=R)`` takes the matrix itself;
+    :meth:`axis_angle` and :meth:`euler` build the rotation from an axis and angle or from an
+    Euler-angle set."""
+
+    rotation: sp.ImmutableMatrix
+    translation: sp.ImmutableMatrix
+
+    def __init__(self, xyz: Sequence = (0, 0, 0), rpy: Sequence | None = None, *, rotation=None):
+        if rpy is not None and rotation is not None:
+            raise ModelError("Placement: give rpy or rotation, not both")
+        t = _vector3(xyz, "placement xyz")
+        if rotation is not None:
+            rows = rotation.tolist() if isinstance(rotation, sp.MatrixBase) else [list(r) for r in rotation]
+            if len(rows) != 3 or any(len(r) != 3 for r in rows):
+                raise ModelError("Placement: rotation must be a 3x3 matrix")
+            R = sp.Matrix([[_snap(_expr(c, f"rotation[{i}][{j}]")) for j, c in enumerate(r)]
+                           for i, r in enumerate(rows)])
+            if all(c.is_number for c in R):
+                err = max(abs(float(c)) for c in (R.T * R - sp.eye(3)))
+                if err > 1e-9 or float(R.det()) < 0:
+                    raise ModelError(f"Placement: rotation is not a proper rotation matrix (|R^T R - 1| = {err:.3g})")
+        elif rpy is not None:
+            r, p, y = _vector3(rpy, "placement rpy")
+            R = _rot_z(y) * _rot_y(p) * _rot_x(r)
+            R = R.applyfunc(lambda e: _snap(sp.expand(e)) if e.is_number else e)
+        else:
+            R = sp.eye(3)
+        object.__setattr__(self, "rotation", sp.ImmutableMatrix(R))
+        object.__setattr__(self, "translation", sp.ImmutableMatrix([_snap(c) if c.is_Float and abs(float(c)) < SNAP
+                                                                     else c for c in t]))
+
+    @classmethod
+    def axis_angle(cls, axis: Sequence, angle, *, xyz: Sequence = (0, 0, 0)) -> "Placement":
+        """The rotation by ``angle`` about ``axis`` (normalized), placed at ``xyz``."""
+        return cls(xyz, rotation=axis_rotation(_unit(axis, "Placement axis"), _expr(angle, "Placement angle")))
+
+    @classmethod
+    def euler(cls, angles: Sequence, sequence: str = "ZYX", *, xyz: Sequence = (0, 0, 0)) -> "Placement":
+        """The rotation of an Euler-angle set: ``sequence`` of three axis letters, upper case for
+        intrinsic rotations (about the moving axes: "ZYX" is R = Rz(a0) Ry(a1) Rx(a2)), lower
+        case for extrinsic ones (about the fixed axes: "xyz" is R = Rz(a2) Ry(a1) Rx(a0), URDF's
+        roll-pitch-yaw)."""
+        if (not isinstance(sequence, str) or len(sequence) != 3 or not (sequence.isupper() or sequence.islower())
+                or any(ch not in "xyz" for ch in sequence.lower())
+                or sequence[0].lower() == sequence[1].lower() or sequence[1].lower() == sequence[2].lower()):
+            raise ModelError(f"Placement.euler: sequence must be three axis letters, all upper case (intrinsic) "
+                             f"or all lower case (extrinsic), no axis twice in a row, got {sequence!r}")
+        a = [_expr(x, f"Euler angle {i}") for i, x in enumerate(angles)]
+        if len(a) != 3:
+            raise ModelError(f"Placement.euler: three angles needed, got {len(a)}")
+        mats = [_AXIS_ROT[ch.lower()](x) for ch, x in zip(sequence, a)]
+        R = mats[0] * mats[1] * mats[2] if sequence.isupper() else mats[2] * mats[1] * mats[0]
+        return cls(xyz, rotation=R.applyfunc(lambda e: _snap(sp.expand(e)) if e.is_number else e))
+
+    def __mul__(self, other: "Placement") -> "Placement":
+        """The composition: ``other`` given in the frame placed by ``self``."""
+        if not isinstance(other, Placement):
+            return NotImplemented
+        R = (self.rotation * other.rotation).applyfunc(lambda e: _snap(sp.expand(e)) if e.is_number else e)
+        t = self.translation + self.rotation * other.translation
+        out = Placement.__new__(Placement)
+        object.__setattr__(out, "rotation", sp.ImmutableMatrix(R))
+        object.__setattr__(out, "translation", sp.ImmutableMatrix(t))
+        return out
+
+    def is_identity(self) -> bool:
+        return self.rotation == sp.eye(3) and all(c == 0 for c in self.translation)
+
+    def free_symbols(self) -> set:
+        return set(self.rotation.free_symbols) | set(self.translation.free_symbols)
+
+
+#: Joint kinds and the suffixes of the coordinates they bring ("" : the joint's name itself).
+JOINT_COORDINATES = {
+    "revolute": ("",),
+    "continuous": ("",),
+    "prismatic": ("",),
+    "fixed": (),
+    "spherical": ("_yaw", "_pitch", "_roll"),
+    "free": ("_x", "_y", "_z", "_yaw", "_pitch", "_roll"),
+}
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between a parent link and its child. Build with :meth:`revolute`,
+    :meth:`continuous`, :meth:`prismatic`, :meth:`fixed`, :meth:`spherical`, :meth:`free`."""
+
+    kind: str
+    name: str
+    axis: tuple = (0, 0, 1)
+
+    def __post_init__(self):
+        if self.kind not in JOINT_COORDINATES:
+            raise ModelError(f"joint kind {self.kind!r} is unknown (known: {', '.join(JOINT_COORDINATES)})")
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ModelError(f"joint name {self.name!r} is not a valid identifier")
+
+    @classmethod
+    def revolute(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
+        """A rotation about ``axis`` (joint frame, normalized); coordinate: the angle, named ``name``."""
+        return cls("revolute", name, _unit(axis, f"axis of joint {name!r}"))
+
+    @classmethod
+    def continuous(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
+        """A revolute joint without limits (URDF's continuous); the coordinate is the angle."""
+        return cls("continuous", name, _unit(axis, f"axis of joint {name!r}"))
+
+    @classmethod
+    def prismatic(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
+        """A translation along ``axis`` (joint frame, normalized); coordinate: the displacement."""
+        return cls("prismatic", name, _unit(axis, f"axis of joint {name!r}"))
+
+    @classmethod
+    def fixed(cls, name: str) -> "Joint":
+        """A rigid attachment (no coordinate)."""
+        return cls("fixed", name)
+
+    @classmethod
+    def spherical(cls, name: str) -> "Joint":
+        """A ball joint: Z-Y-X Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at
+        pitch = +-pi/2)."""
+        return cls("spherical", name)
+
+    @classmethod
+    def free(cls, name: str) -> "Joint":
+        """Six degrees of freedom: the translation ``<name>_x, _y, _z`` of the joint frame in the
+        parent frame, then the spherical joint's angles ``<name>_yaw, _pitch, _roll`` (singular at
+        pitch = +-pi/2)."""
+        return cls("free", name)
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """The names of the coordinates this joint brings to the model."""
+        return tuple(self.name + s for s in JOINT_COORDINATES[self.kind])
+
+    def steps(self, coords: Sequence) -> list[tuple[str, tuple, object]]:
+        """The joint as elementary motions in order, (kind "R" or "P", unit axis, coordinate):
+        a spherical joint is three rotations about the moving z, y, x axes, a free joint three
+        translations along the joint frame's axes followed by those rotations."""
+        ex, ey, ez = (1, 0, 0), (0, 1, 0), (0, 0, 1)
+        if self.kind in ("revolute", "continuous"):
+            return [("R", self.axis, coords[0])]
+        if self.kind == "prismatic":
+            return [("P", self.axis, coords[0])]
+        if self.kind == "spherical":
+            return [("R", ez, coords[0]), ("R", ey, coords[1]), ("R", ex, coords[2])]
+        if self.kind == "free":
+            return [("P", ex, coords[0]), ("P", ey, coords[1]), ("P", ez, coords[2]),
+                    ("R", ez, coords[3]), ("R", ey, coords[4]), ("R", ex, coords[5])]
+        return []
+
+
+def _inertia(value, what: str) -> sp.ImmutableMatrix:
+    if isinstance(value, sp.MatrixBase) or (hasattr(value, "__len__") and len(value) == 3
+                                            and all(hasattr(r, "__len__") for r in value)):
+        rows = value.tolist() if isinstance(value, sp.MatrixBase) else [list(r) for r in value]
+        if len(rows) != 3 or any(len(r) != 3 for r in rows):
+            raise ModelError(f"{what} must be (ixx, iyy, izz, ixy, ixz, iyz) or a symmetric 3x3 matrix")
+        I = sp.Matrix([[_expr(c, f"{what}[{i}][{j}]") for j, c in enumerate(r)] for i, r in enumerate(rows)])
+        if I != I.T:
+            raise ModelError(f"{what} is not symmetric")
+        return sp.ImmutableMatrix(I)
+    try:
+        comps = list(value)
+    except TypeError:
+        raise ModelError(f"{what} must be (ixx, iyy, izz, ixy, ixz, iyz)") from None
+    if len(comps) == 3:
+        comps = comps + [0, 0, 0]
+    if len(comps) != 6:
+        raise ModelError(f"{what} must be (ixx, iyy, izz, ixy, ixz, iyz) (or the three principal moments), "
+                         f"got {len(comps)} values")
+    ixx, iyy, izz, ixy, ixz, iyz = (_expr(c, f"{what}[{i}]") for i, c in enumerate(comps))
+    return sp.ImmutableMatrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+@dataclass(eq=False)
+class Link:
+    """A rigid body of a tree: its joint to ``parent`` (None: the world), the joint frame's
+    ``origin`` in the parent frame, its coordinates, and its inertial data in its own frame
+    (``mass``, centre of mass ``com``, ``inertia`` about the centre of mass).
+
+    :meth:`rotation`, :meth:`position` and :meth:`position_of` give its world pose in sympy
+    (products of the rotations from the root: use them for points, springs and forces attached
+    to links; the derivation never expands them)."""
+
+    name: str
+    parent: "Link | None"
+    joint: Joint
+    origin: Placement
+    mass: sp.Expr
+    com: tuple
+    inertia: sp.ImmutableMatrix
+    coordinates: tuple
+    children: list = field(default_factory=list, repr=False)
+    _pose: tuple | None = field(default=None, repr=False)
+
+    def local_pose(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """(R, p): the link frame's axes and origin in the parent frame, in sympy."""
+        R, p = sp.Matrix(self.origin.rotation), sp.Matrix(self.origin.translation)
+        for kind, axis, q in self.joint.steps(self.coordinates):
+            if kind == "R":
+                R = R * axis_rotation(axis, q)
+            else:
+                p = p + R * sp.Matrix(axis) * q
+        return R, p
+
+    def pose(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """(R, x): the link frame's axes and origin in world coordinates (forward kinematics)."""
+        if self._pose is None:
+            R, p = self.local_pose()
+            if self.parent is not None:
+                Rp, xp = self.parent.pose()
+                R, p = Rp * R, xp + Rp * p
+            self._pose = (R, p)
+        return self._pose
+
+    def rotation(self) -> sp.Matrix:
+        """The world rotation of the link frame (its axes in world coordinates)."""
+        return self.pose()[0]
+
+    def position(self) -> sp.Matrix:
+        """The world position of the link frame's origin."""
+        return self.pose()[1]
+
+    def position_of(self, xyz: Sequence) -> sp.Matrix:
+        """The world position of the point with coordinates ``xyz`` in the link frame."""
+        R, x = self.pose()
+        return x + R * sp.Matrix(_vector3(xyz, f"point of link {self.name!r}"))
+
+    def com_position(self) -> sp.Matrix:
+        """The world position of the centre of mass."""
+        return self.position_of(self.com)
+
+    @property
+    def root(self) -> "Link":
+        return self if self.parent is None else self.parent.root
+
+
+def make_link(name: str, parent: "Link | None", joint: Joint | None, origin: Placement | None, mass, com,
+              inertia, coordinates: tuple) -> Link:
+    """A :class:`Link` with its arguments checked (called by :meth:`Model.link`)."""
+    if joint is None:
+        joint = Joint.fixed(f"{name}_joint")
+    if not isinstance(joint, Joint):
+        raise ModelError(f"link {name!r}: joint must be a Joint (Joint.revolute(...), ...), got {joint!r}")
+    origin = Placement() if origin is None else origin
+    if not isinstance(origin, Placement):
+        raise ModelError(f"link {name!r}: origin must be a Placement, got {origin!r}")
+    m = _expr(mass, f"mass of link {name!r}")
+    if m.is_number and m < 0:
+        raise ModelError(f"mass of link {name!r} is negative ({m})")
+    return Link(name, parent, joint, origin, m, _vector3(com, f"com of link {name!r}"),
+                _inertia(inertia, f"inertia of link {name!r}"), coordinates)

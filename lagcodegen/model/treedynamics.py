@@ -1,0 +1,544 @@
+"""The recursions of a rigid-body tree (Featherstone, Rigid Body Dynamics Algorithms, 2008) as
+symengine expressions that keep the tree: each body's rotation, velocity, acceleration and force
+is built once, from its parent's (or children's), and shared by every expression that needs it
+(a DAG: never expanded; sin and cos of each joint angle built once). Constants fold while the
+expressions are built: zero and unit entries of placements, axis-aligned joint axes.
+
+* forward kinematics, base to tips: omega_i = E^T omega_p + S_i q'_i, v_i likewise;
+* recursive Newton-Euler (:meth:`TreeDynamics.rnea`): accelerations with gravity as the base's
+  acceleration g up, f_i = I_i a_i + v_i x* I_i v_i, tau_i = S_i^T f_i tips to base; with
+  q'' = 0 it is the bias C(q, q') q' + g(q), so that F = Q - bias in M q'' = F (eq. 3.16);
+* composite rigid bodies (:meth:`TreeDynamics.mass_matrix`): M_ij = S_i^T I^c_i X S_j;
+* T = 1/2 sum v_i . I_i v_i (= 1/2 q'^T M q', eq. 2.2), V = g sum m_i (up . x_G,i) (eq. 2.7).
+
+Spatial vectors are pairs of 3-vectors in body coordinates at the body frame's origin: motion
+(omega, v), force (n, f); a spatial inertia is (m, h = m c, I_o = I_G + m (|c|^2 1 - c c^T)).
+Fixed joints are merged into their parent (their inertia moved into the parent's frame);
+spherical and free joints are chains of elementary rotations and translations through massless
+frames (:meth:`lagcodegen.model.bodies.Joint.steps`).
+
+One job: the tree's recursions; :mod:`lagcodegen.derivation` adds them to the closed-form terms
+of the model's other elements.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import symengine as se
+import sympy as sp
+
+from ..errors import ModelError
+from .bodies import Placement
+
+ZERO = se.Integer(0)
+ONE = se.Integer(1)
+
+#: Trees of at least this many moving frames take their mass matrix in world coordinates
+#: (:meth:`TreeDynamics.mass_matrix_world`: 6 products per pair of joints, against a spatial
+#: transform per pair in body coordinates, which folds better on small robots with axis-aligned
+#: placements).
+WORLD_CRBA_MIN_NODES = 10
+
+
+def _se(e, what: str):
+    try:
+        return se.sympify(e)
+    except Exception as exc:  # symengine raises several types
+        raise ModelError(f"{what} cannot be handled by the derivation engine: {e} ({exc})") from None
+
+
+def _is0(x) -> bool:
+    return x.is_Number and x == 0
+
+
+#: While a list, every expression built here is named by a temporary symbol ``__mb<k>`` and
+#: recorded as (symbol, expression) in order (:func:`recorded`): the tree as a straight-line
+#: program of small statements rather than as a DAG.
+_RECORD: list | None = None
+
+
+def _named(e):
+    if _RECORD is None or not e.args:
+        return e
+    sym = se.Symbol(f"__mb{len(_RECORD)}")
+    _RECORD.append((sym, e))
+    return sym
+
+
+def mul(a, b):
+    """a b with 0 and 1 folded."""
+    if _is0(a) or _is0(b):
+        return ZERO
+    if a.is_Number and a == 1:
+        return b
+    if b.is_Number and b == 1:
+        return a
+    return _named(a * b)
+
+
+def add(*terms):
+    """The sum of ``terms`` with zeros dropped (one Add node)."""
+    kept = [t for t in terms if not _is0(t)]
+    if not kept:
+        return ZERO
+    return kept[0] if len(kept) == 1 else _named(se.Add(*kept))
+
+
+def neg(a):
+    return ZERO if _is0(a) else _named(-a)
+
+
+def dot(a, b):
+    return add(*(mul(x, y) for x, y in zip(a, b)))
+
+
+def cross(a, b):
+    return [add(mul(a[1], b[2]), neg(mul(a[2], b[1]))),
+            add(mul(a[2], b[0]), neg(mul(a[0], b[2]))),
+            add(mul(a[0], b[1]), neg(mul(a[1], b[0])))]
+
+
+def vadd(*vs):
+    return [add(*(v[k] for v in vs)) for k in range(3)]
+
+
+def scale(s, v):
+    return [mul(s, x) for x in v]
+
+
+def matvec(R, x, transpose: bool = False):
+    """R x (or R^T x) for a 3x3 matrix of constants given as rows."""
+    out = []
+    for i in range(3):
+        terms = []
+        for k in range(3):
+            r = R[k][i] if transpose else R[i][k]
+            if _is0(r) or _is0(x[k]):
+                continue
+            terms.append(x[k] if r == 1 else neg(x[k]) if r == -1 else mul(r, x[k]))
+        out.append(add(*terms))
+    return out
+
+
+@dataclass
+class Node:
+    """A moving frame of the tree: ``parent`` (index, -1: the world), the fixed placement of its
+    joint frame in the parent frame (``R_T`` rows, ``p_T``), the elementary joint (``kind`` "R"
+    or "P", unit ``axis`` in the joint frame, coordinate index ``coord``), and its inertia
+    (m, h, I_o) in its own frame (zeros: massless)."""
+
+    parent: int
+    R_T: list
+    p_T: list
+    kind: str
+    axis: list
+    coord: int
+    inertia: tuple | None = None
+
+    # --- the joint's rotation R_J applied to vectors (axis-aligned axes: a plane rotation)
+    def setup(self, q, c, s):
+        self.q, self.c, self.s = q, c, s
+        self.aligned = None
+        nz = [k for k in range(3) if not _is0(self.axis[k])]
+        if len(nz) == 1 and self.axis[nz[0]] in (ONE, -ONE):
+            k = nz[0]
+            self.aligned = (k, self.axis[k] == ONE)
+        self.identity_T = all((self.R_T[i][j] == (ONE if i == j else ZERO)) for i in range(3) for j in range(3))
+
+    def joint_rot(self, x, transpose: bool):
+        """R_J x (R_J^T x with ``transpose``) for a revolute node; x itself for a prismatic one."""
+        if self.kind == "P":
+            return list(x)
+        c, s = self.c, self.s
+        if self.aligned is not None:
+            k, positive = self.aligned
+            if positive == transpose:
+                s = neg(s)
+            i, j = (k + 1) % 3, (k + 2) % 3
+            out = list(x)
+            out[i] = add(mul(c, x[i]), neg(mul(s, x[j])))
+            out[j] = add(mul(s, x[i]), mul(c, x[j]))
+            return out
+        # Rodrigues: R x = c x + s (a x x) + (1 - c)(a . x) a
+        a = self.axis
+        axx = cross(a, x)
+        if transpose:
+            axx = [neg(t) for t in axx]
+        ax = mul(add(ONE, neg(c)), dot(a, x))
+        return [add(mul(c, x[k]), mul(s, axx[k]), mul(ax, a[k])) for k in range(3)]
+
+    def down(self, x):
+        """R^T x: a parent-frame vector in this frame's coordinates (R = R_T R_J)."""
+        y = list(x) if self.identity_T else matvec(self.R_T, x, transpose=True)
+        return self.joint_rot(y, transpose=True)
+
+    def up(self, x):
+        """R x: this frame's vector in parent-frame coordinates."""
+        y = self.joint_rot(x, transpose=False)
+        return y if self.identity_T else matvec(self.R_T, y)
+
+
+class TreeDynamics:
+    """The recursions of the model's links (module docstring) over symengine symbols ``q``, ``qd``
+    (lists in the model's coordinate order)."""
+
+    def __init__(self, model, q: list, qd: list):
+        self.model = model
+        self.n = len(q)
+        self.q, self.qd = q, qd
+        index = {c.name: i for i, c in enumerate(model.coords)}
+        self.nodes: list[Node] = []
+        anchors: dict = {}  # link name -> (node index, Placement of the link frame in that node)
+        masses: dict = {}   # node index -> list of (m, c, I_G) in node coordinates (sympy)
+        for link in model.links:
+            if link.parent is None:
+                node, place = -1, link.origin
+            else:
+                node, place = anchors[link.parent.name]
+                place = place * link.origin
+            for kind, axis, coord in link.joint.steps(link.coordinates):
+                R = [[_se(place.rotation[i, j], f"origin of {link.name!r}") for j in range(3)] for i in range(3)]
+                p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
+                self.nodes.append(Node(node, R, p, kind, [se.Integer(int(a)) if sp.sympify(a).is_Integer
+                                                          else _se(a, f"axis of {link.joint.name!r}") for a in axis],
+                                       index[coord.name]))
+                node, place = len(self.nodes) - 1, Placement()
+            anchors[link.name] = (node, place)
+            if node >= 0 and link.mass != 0:
+                c = place.translation + place.rotation * sp.Matrix(link.com)
+                IG = place.rotation * sp.Matrix(link.inertia) * place.rotation.T
+                masses.setdefault(node, []).append((link.mass, c, IG))
+        self.coord_node = {}
+        for k, nd in enumerate(self.nodes):
+            qk = q[nd.coord]
+            nd.setup(qk, _named(se.cos(qk)), _named(se.sin(qk)))
+            self.coord_node[nd.coord] = k
+        for k, items in masses.items():
+            m = sum((it[0] for it in items), sp.Integer(0))
+            h = sum((it[0] * it[1] for it in items), sp.zeros(3, 1))
+            Io = sum((it[2] + it[0] * ((it[1].T * it[1])[0] * sp.eye(3) - it[1] * it[1].T) for it in items),
+                     sp.zeros(3, 3))
+            Io = Io.applyfunc(lambda e: sp.expand(e) if e.is_number else e)
+            self.nodes[k].inertia = (_se(m, "mass"), [_se(x, "mass") for x in h],
+                                     [[_se(Io[i, j], "inertia") for j in range(3)] for i in range(3)])
+        self.children: list[list[int]] = [[] for _ in self.nodes]
+        for k, nd in enumerate(self.nodes):
+            if nd.parent >= 0:
+                self.children[nd.parent].append(k)
+        self._velocities = None
+
+    # ------------------------------------------------------------------ kinematics
+    def origin(self, k: int):
+        """The node's origin in its parent frame: p_T (+ R_T a q for a prismatic joint)."""
+        nd = self.nodes[k]
+        if nd.kind == "P":
+            d = scale(nd.q, nd.axis)
+            return vadd(nd.p_T, d if nd.identity_T else matvec(nd.R_T, d))
+        return nd.p_T
+
+    def velocities(self) -> list[tuple[list, list]]:
+        """(omega_i, v_i) of every node in its own coordinates."""
+        if self._velocities is None:
+            out = []
+            for k, nd in enumerate(self.nodes):
+                if nd.parent < 0:
+                    w, v = [ZERO] * 3, [ZERO] * 3
+                else:
+                    wp, vp = out[nd.parent]
+                    w, v = nd.down(wp), nd.down(vadd(vp, cross(wp, self.origin(k))))
+                Sq = scale(self.qd[nd.coord], nd.axis)
+                if nd.kind == "R":
+                    w = vadd(w, Sq)
+                else:
+                    v = vadd(v, Sq)
+                out.append((w, v))
+            self._velocities = out
+        return self._velocities
+
+    @staticmethod
+    def apply_inertia(inertia, w, v):
+        """I (omega, v) = (I_o omega + h x v, m v - h x omega)."""
+        m, h, Io = inertia
+        return (vadd([dot(row, w) for row in Io], cross(h, v)), vadd(scale(m, v), [neg(x) for x in cross(h, w)]))
+
+    def gravity_acceleration(self):
+        """The base's acceleration g up (gravity as a fictitious acceleration), in world axes."""
+        spec = self.model.gravity_spec
+        if spec is None:
+            return [ZERO] * 3
+        g, up = spec
+        if up is None:
+            up = sp.Matrix([0, 0, 1])
+        if len(up) != 3:
+            raise ModelError(f"gravity 'up' has {len(up)} components; links move in 3-D")
+        g = _se(g, "gravity")
+        return [mul(g, _se(u, "gravity up")) for u in up]
+
+    # ------------------------------------------------------------------ dynamics
+    def rnea(self, qdd: list | None = None, velocities: bool = True, gravity: bool = True) -> list:
+        """tau = RNEA(q, q', q'') per coordinate (zero for coordinates outside the tree): the
+        generalized forces the joints need for accelerations ``qdd`` (None: zero) under
+        gravity (M q'' + C q' + g, Featherstone's algorithm 5.1)."""
+        vel = self.velocities() if velocities else [([ZERO] * 3, [ZERO] * 3) for _ in self.nodes]
+        acc = []
+        force = []
+        a0 = self.gravity_acceleration() if gravity else [ZERO] * 3
+        for k, nd in enumerate(self.nodes):
+            w, v = vel[k]
+            if nd.parent < 0:
+                al, a = [ZERO] * 3, nd.down(a0)
+            else:
+                alp, ap = acc[nd.parent]
+                al, a = nd.down(alp), nd.down(vadd(ap, cross(alp, self.origin(k))))
+            if velocities:
+                Sq = scale(self.qd[nd.coord], nd.axis)
+                if nd.kind == "R":  # c_J = v x S q'
+                    al, a = vadd(al, cross(w, Sq)), vadd(a, cross(v, Sq))
+                else:
+                    a = vadd(a, cross(w, Sq))
+            if qdd is not None:
+                Sa = scale(qdd[nd.coord], nd.axis)
+                if nd.kind == "R":
+                    al = vadd(al, Sa)
+                else:
+                    a = vadd(a, Sa)
+            acc.append((al, a))
+            if nd.inertia is None:
+                force.append(([], []))
+                continue
+            n, f = self.apply_inertia(nd.inertia, al, a)
+            terms_n, terms_f = [[x] for x in n], [[x] for x in f]
+            if velocities:
+                nm, lm = self.apply_inertia(nd.inertia, w, v)
+                for t, x in zip(terms_n, vadd(cross(w, nm), cross(v, lm))):
+                    t.append(x)
+                for t, x in zip(terms_f, cross(w, lm)):
+                    t.append(x)
+            force.append((terms_n, terms_f))
+        tau = [ZERO] * self.n
+        for k in reversed(range(len(self.nodes))):
+            nd = self.nodes[k]
+            tn, tf = force[k]
+            if not tn:
+                continue
+            n, f = [add(*t) for t in tn], [add(*t) for t in tf]
+            tau[nd.coord] = dot(nd.axis, n if nd.kind == "R" else f)
+            if nd.parent >= 0:
+                Rf = nd.up(f)
+                Rn = vadd(nd.up(n), cross(self.origin(k), Rf))
+                pn, pf = force[nd.parent]
+                if not pn:
+                    pn, pf = [[] for _ in range(3)], [[] for _ in range(3)]
+                    force[nd.parent] = (pn, pf)
+                for t, x in zip(pn, Rn):
+                    t.append(x)
+                for t, x in zip(pf, Rf):
+                    t.append(x)
+        return tau
+
+    def _inertia_up(self, k: int, inertia):
+        """A node's (composite) inertia expressed in its parent's frame, about its origin."""
+        nd = self.nodes[k]
+        m, h, Io = inertia
+        p = self.origin(k)
+        hr = nd.up(h)
+        cols = [nd.up([Io[0][j], Io[1][j], Io[2][j]]) for j in range(3)]  # R Io (columns)
+        rows = [nd.up([cols[j][i] for j in range(3)]) for i in range(3)]  # R (R Io)^T = R Io R^T (columns)
+        IoR = [[rows[j][i] for j in range(3)] for i in range(3)]
+        pp, hp = dot(p, p), dot(hr, p)
+        out = [[None] * 3 for _ in range(3)]
+        for i in range(3):
+            for j in range(i, 3):
+                e = add(IoR[i][j], neg(mul(m, mul(p[i], p[j]))), neg(mul(hr[i], p[j])), neg(mul(p[i], hr[j])))
+                if i == j:
+                    e = add(e, mul(m, pp), mul(se.Integer(2), hp))
+                out[i][j] = out[j][i] = e
+        return m, vadd(hr, scale(m, p)), out
+
+    def composite_inertias(self) -> list:
+        """I^c_i: the inertia of node i and all its descendants, in node i's frame."""
+        comp: list = [nd.inertia for nd in self.nodes]
+        for k in reversed(range(len(self.nodes))):
+            nd = self.nodes[k]
+            if comp[k] is None or nd.parent < 0:
+                continue
+            m, h, Io = self._inertia_up(k, comp[k])
+            if comp[nd.parent] is None:
+                comp[nd.parent] = (m, h, Io)
+            else:
+                pm, ph, pI = comp[nd.parent]
+                comp[nd.parent] = (add(pm, m), vadd(ph, h), [[add(pI[i][j], Io[i][j]) for j in range(3)]
+                                                             for i in range(3)])
+        return comp
+
+    def mass_matrix(self) -> list:
+        """M (n x n list of rows) by composite rigid bodies; entries outside the tree's
+        coordinates are zero. Up to WORLD_CRBA_MIN_NODES moving frames in body coordinates
+        (:meth:`mass_matrix_local`), above in world coordinates (:meth:`mass_matrix_world`)."""
+        if len(self.nodes) >= WORLD_CRBA_MIN_NODES:
+            return self.mass_matrix_world()
+        return self.mass_matrix_local()
+
+    def world_poses(self) -> list:
+        """(E, x) of every node: its axes (rows of a 3x3 list) and origin in world coordinates."""
+        out = []
+        for k, nd in enumerate(self.nodes):
+            p = self.origin(k)
+            cols = [nd.up([ONE if i == j else ZERO for i in range(3)]) for j in range(3)]  # R columns
+            R = [[cols[j][i] for j in range(3)] for i in range(3)]
+            if nd.parent < 0:
+                out.append((R, p))
+                continue
+            Ep, xp = out[nd.parent]
+            E = [[add(*(mul(Ep[i][m], R[m][j]) for m in range(3))) for j in range(3)] for i in range(3)]
+            out.append((E, vadd(xp, matvec(Ep, p))))
+        return out
+
+    def mass_matrix_world(self) -> list:
+        """M by composite rigid bodies in world coordinates: each body's inertia moved to the world
+        frame once, composite inertias summed tips to base (plain sums there), the joints' motion
+        subspaces S_j = (u, x x u) (revolute) or (0, u) (prismatic) in world coordinates, and
+        M_ij = S_i . (I^c_j S_j) for i an ancestor of j (or i = j): 6 products per pair instead
+        of a spatial transform per pair (Featherstone's algorithm 6.2 in one frame)."""
+        M = [[ZERO] * self.n for _ in range(self.n)]
+        poses = self.world_poses()
+        comp: list = [None] * len(self.nodes)
+        for k, nd in enumerate(self.nodes):
+            if nd.inertia is None:
+                continue
+            E, x = poses[k]
+            m, h, Io = nd.inertia
+            hr = matvec(E, h)
+            cols = [matvec(E, [Io[0][j], Io[1][j], Io[2][j]]) for j in range(3)]
+            rows = [matvec(E, [cols[j][i] for j in range(3)]) for i in range(3)]
+            IoR = [[rows[j][i] for j in range(3)] for i in range(3)]
+            xx, hx = dot(x, x), dot(hr, x)
+            I = [[None] * 3 for _ in range(3)]
+            for i in range(3):
+                for j in range(i, 3):
+                    e = add(IoR[i][j], neg(mul(m, mul(x[i], x[j]))), neg(mul(hr[i], x[j])), neg(mul(x[i], hr[j])))
+                    if i == j:
+                        e = add(e, mul(m, xx), mul(se.Integer(2), hx))
+                    I[i][j] = I[j][i] = e
+            comp[k] = [[m], [[t] for t in vadd(hr, scale(m, x))], [[[I[i][j]] for j in range(3)] for i in range(3)]]
+        for k in reversed(range(len(self.nodes))):  # composite: plain sums in one frame
+            nd = self.nodes[k]
+            if comp[k] is None or nd.parent < 0:
+                continue
+            c = [add(*comp[k][0]), [add(*t) for t in comp[k][1]], [[add(*t) for t in row] for row in comp[k][2]]]
+            comp[k] = [[c[0]], [[t] for t in c[1]], [[[t] for t in row] for row in c[2]]]
+            if comp[nd.parent] is None:
+                comp[nd.parent] = [[c[0]], [[t] for t in c[1]], [[[t] for t in row] for row in c[2]]]
+            else:
+                pc = comp[nd.parent]
+                pc[0].append(c[0])
+                for t, v in zip(pc[1], c[1]):
+                    t.append(v)
+                for prow, row in zip(pc[2], c[2]):
+                    for t, v in zip(prow, row):
+                        t.append(v)
+        S = []
+        for k, nd in enumerate(self.nodes):
+            E, x = poses[k]
+            u = matvec(E, nd.axis)
+            S.append((u, cross(x, u)) if nd.kind == "R" else ([ZERO] * 3, u))
+        for k, nd in enumerate(self.nodes):
+            if comp[k] is None:
+                continue
+            m = add(*comp[k][0])
+            h = [add(*t) for t in comp[k][1]]
+            Io = [[add(*t) for t in row] for row in comp[k][2]]
+            w, v = S[k]
+            n, f = self.apply_inertia((m, h, Io), w, v)
+            i = nd.coord
+            j = k
+            while j >= 0:
+                sj = S[j]
+                M[self.nodes[j].coord][i] = M[i][self.nodes[j].coord] = add(dot(sj[0], n), dot(sj[1], f))
+                j = self.nodes[j].parent
+        return M
+
+    def mass_matrix_local(self) -> list:
+        """M by composite rigid bodies in body coordinates (Featherstone's algorithm 6.2): the
+        composite inertia's force I^c_i S_i carried to every ancestor by spatial transforms."""
+        M = [[ZERO] * self.n for _ in range(self.n)]
+        comp = self.composite_inertias()
+        for k, nd in enumerate(self.nodes):
+            if comp[k] is None:
+                continue
+            m, h, Io = comp[k]
+            if nd.kind == "R":
+                n, f = [dot(row, nd.axis) for row in Io], cross(nd.axis, h)
+            else:
+                n, f = cross(h, nd.axis), scale(m, nd.axis)
+            i = nd.coord
+            M[i][i] = dot(nd.axis, n if nd.kind == "R" else f)
+            j = k
+            while self.nodes[j].parent >= 0:
+                f2 = self.nodes[j].up(f)
+                n = vadd(self.nodes[j].up(n), cross(self.origin(j), f2))
+                f = f2
+                j = self.nodes[j].parent
+                pj = self.nodes[j]
+                M[pj.coord][i] = M[i][pj.coord] = dot(pj.axis, n if pj.kind == "R" else f)
+        return M
+
+    def kinetic_energy(self):
+        """T = 1/2 sum omega . n + v . l with (n, l) = I (omega, v) (eq. 2.2)."""
+        terms = []
+        for nd, (w, v) in zip(self.nodes, self.velocities()):
+            if nd.inertia is not None:
+                nm, lm = self.apply_inertia(nd.inertia, w, v)
+                terms += [dot(w, nm), dot(v, lm)]
+        return mul(se.Rational(1, 2), add(*terms))
+
+    def potential_energy(self):
+        """V = g sum (m_i height_i + up_i . h_i), heights of the node origins along ``up`` (eq. 2.7)."""
+        spec = self.model.gravity_spec
+        if spec is None:
+            return ZERO
+        a0 = self.gravity_acceleration()  # g up
+        ups, heights, terms = [], [], []
+        for k, nd in enumerate(self.nodes):
+            if nd.parent < 0:
+                up_p, h_p = a0, ZERO
+            else:
+                up_p, h_p = ups[nd.parent], heights[nd.parent]
+            height = add(h_p, dot(up_p, self.origin(k)))
+            up = nd.down(up_p)
+            ups.append(up)
+            heights.append(height)
+            if nd.inertia is not None:
+                m, h, _ = nd.inertia
+                terms += [mul(m, height), dot(up, h)]
+        # links fixed to the world: constant potential, left out
+        return add(*terms)
+
+
+def recorded(model, q: list, qd: list) -> tuple[list, list, list]:
+    """The tree's M and bias (:meth:`TreeDynamics.mass_matrix`, :meth:`TreeDynamics.rnea` at
+    q'' = 0) as a straight-line program: (definitions [(temporary, expression)] in order, M,
+    bias), every expression small (over q, q', parameters, numbers and earlier temporaries).
+    The generated code evaluates this program; the DAG form (the same values) serves the
+    symbolic consumers."""
+    global _RECORD
+    _RECORD = []
+    try:
+        tree = TreeDynamics(model, q, qd)
+        M = tree.mass_matrix()
+        bias = tree.rnea()
+        return _RECORD, M, bias
+    finally:
+        _RECORD = None
+
+
+def recorded_inverse_dynamics(model, q: list, qd: list, qdd: list) -> tuple[list, list]:
+    """tau = RNEA(q, q', q'') of the tree as a straight-line program: (definitions, tau)."""
+    global _RECORD
+    _RECORD = []
+    try:
+        tau = TreeDynamics(model, q, qd).rnea(qdd)
+        return _RECORD, tau
+    finally:
+        _RECORD = None

@@ -1,0 +1,355 @@
+"""URDF robots as lagcodegen models: :func:`load` a file, :func:`loads` a string.
+
+One job: turn the checked :class:`~lagcodegen.modelfile.urdfxml.RobotDescription` of a URDF file
+into a :class:`~lagcodegen.model.Model` (or, with ``limits=True``, a
+:class:`~lagcodegen.theory.constraints.ConstrainedSystem`).
+
+What the model holds:
+
+* one generalized coordinate per movable joint (``revolute``, ``continuous``, ``prismatic``),
+  named after the joint: the angle (rad) about, or the displacement (m) along, the joint axis,
+  zero at the joint's ``origin``; continuous joints are angles too (Pinocchio writes them as a
+  (cos, sin) pair). Names are the URDF's with characters other than letters, digits and ``_``
+  made ``_`` (two names that become one are an error); the coordinates come depth first from
+  the root, siblings in file order;
+* the bodies as links of a tree (``form="tree"``: :meth:`Model.link`, the placements and
+  inertias of :mod:`lagcodegen.model.bodies`, evaluated along the tree by the derivation) or
+  as rigid bodies whose world poses are multiplied out (``form="closed"``:
+  :meth:`Model.rigid_body`, the same equations as closed forms, which grow fast with the
+  number of joints);
+* a fixed base (the root link does not move), or with ``floating=True`` a free joint
+  ``root_joint`` between the world and the root (x, y, z and Z-Y-X Euler angles; URDF
+  ``floating`` joints become free joints too);
+* the links' inertials: mass, centre of mass and the inertia about it, turned from the axes of
+  the inertial ``origin`` into the link's axes (I_link = R I R^T, R from its ``rpy``);
+* links attached by ``fixed`` joints merged into their parent (masses added, centres of mass
+  combined, inertias moved by the parallel-axis theorem), the placements of the joints
+  beyond them composed;
+* gravity: the parameter ``g`` (default 9.81, or the norm of ``gravity``) along ``-z`` or
+  along the direction of ``gravity``; ``gravity=(0, 0, 0)`` leaves it out;
+* ``<dynamics damping=c>``: viscous joint damping, the Rayleigh dissipation D = c/2 q_i'^2
+  (eq. 3.15), i.e. a generalized force -c q_i';
+* ``<dynamics friction=f>`` (Coulomb friction): ``friction="ignore"`` (default) leaves it out
+  with a warning naming the joints; ``friction="smooth"`` adds the generalized force
+  Q_i = -f q_i' / sqrt(q_i'^2 + v_s^2) (a smooth sign function, ``v_s = friction_velocity``,
+  default 1e-3 rad/s or m/s: |Q_i| is within 1 % of f once |q_i'| > 8 v_s);
+* with ``limits=True``, the ``<limit lower upper>`` of each revolute and prismatic joint as two
+  inequality constraints q_i - lower >= 0 and upper - q_i >= 0 (eq. 4.3; monitored, not
+  enforced; joints whose lower equals upper are left out).
+
+``lock={joint: position}`` holds joints fixed (merged like fixed joints at that position).
+
+Refused with a :class:`~lagcodegen.modelfile.urdfxml.URDFError` naming the file and element:
+``mimic`` joints unless ``mimic="independent"`` (then they are coordinates of their own, as
+Pinocchio's ``buildModelFromUrdf`` reads them by default) or locked (a coupled joint is a
+constraint, not a coordinate: write the coupling as a holonomic constraint of a
+:class:`ConstrainedSystem`), ``planar`` joints, a URDF without any movable joint. Meshes,
+visuals, collisions, materials, transmissions and Gazebo tags are ignored.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from ..errors import ModelError
+from ..model.bodies import Joint as Joint_, Placement
+from ..model.model import Model
+from ..theory.constraints import ConstrainedSystem
+from .urdfxml import (ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
+                      rpy_matrix)
+
+__all__ = ["load", "loads", "build", "bodies", "DEFAULT_FORM", "FORMS", "FRICTION", "MIMIC", "URDFError",
+           "RobotDescription", "parse", "read"]
+
+#: What :func:`build` does with Coulomb friction (``<dynamics friction>``).
+FRICTION = ("ignore", "smooth")
+#: How :func:`build` states the bodies: "tree" as links (:meth:`Model.link`, evaluated along the
+#: tree), "closed" as rigid bodies with their world poses multiplied out (:meth:`Model.rigid_body`).
+FORMS = ("tree", "closed")
+#: The form :func:`load` uses unless told.
+DEFAULT_FORM = "tree"
+#: What :func:`build` does with ``<mimic>`` joints.
+MIMIC = ("error", "independent")
+
+
+def _locked(robot: RobotDescription, lock) -> dict[str, float]:
+    """The joints to hold fixed, name -> position (a bare name: at 0)."""
+    if isinstance(lock, str):
+        lock = [lock]
+    items = lock.items() if isinstance(lock, Mapping) else ((name, 0.0) for name in lock)
+    out = {}
+    for jname, value in items:
+        j = robot.joints.get(jname)
+        if j is None:
+            raise URDFError(f"lock: no joint named {jname!r}", robot.filename, None, "")
+        if j.type not in ONE_DOF:
+            raise URDFError(f"lock: joint {jname!r} is {j.type}, not revolute, continuous or prismatic",
+                            robot.filename, j.line, f"joint {jname!r}")
+        try:
+            out[jname] = float(value)
+        except (TypeError, ValueError):
+            raise URDFError(f"lock: position of joint {jname!r} must be a number, got {value!r}",
+                            robot.filename, j.line, f"joint {jname!r}") from None
+    return out
+
+
+@dataclass(frozen=True)
+class Body:
+    """A moving body of the tree after merging fixed joints: the movable ``joint`` that carries
+    it, its ``parent`` body (None: the fixed base), the joint frame's placement (``rotation``,
+    ``xyz``) in the parent body's frame, and the merged inertial in the body's frame."""
+
+    joint: Joint
+    parent: str | None
+    rotation: np.ndarray
+    xyz: np.ndarray
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray  # about the centre of mass, body axes
+
+
+def _merge(pieces: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass, centre of mass, inertia about it) of rigidly joined (mass, com, inertia) pieces:
+    masses add, the centre of mass is their mean, the parallel-axis theorem moves each inertia."""
+    mass = sum(m for m, _, _ in pieces)
+    if mass == 0:
+        return 0.0, np.zeros(3), sum((I for _, _, I in pieces), np.zeros((3, 3)))
+    com = sum(m * c for m, c, _ in pieces) / mass
+    inertia = np.zeros((3, 3))
+    for m, c, I in pieces:
+        d = c - com
+        inertia += I + m * (d @ d * np.eye(3) - np.outer(d, d))
+    return mass, com, (inertia + inertia.T) / 2
+
+
+def _axis_rotation(axis, angle: float) -> np.ndarray:
+    u = np.array(axis, dtype=float)
+    ux = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return np.cos(angle) * np.eye(3) + np.sin(angle) * ux + (1 - np.cos(angle)) * np.outer(u, u)
+
+
+def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | None = None) -> list[Body]:
+    """The moving bodies of ``robot``, fixed joints (and the ``locked`` joints, name -> position)
+    merged, depth first from the root; with ``floating``, the root (and what is welded to it)
+    is the first body, on a free joint of that name."""
+    out: list[Body] = []
+    locked = locked or {}
+
+    def pose(j: Joint) -> tuple[np.ndarray, np.ndarray]:
+        R, p = rpy_matrix(j.rpy), np.array(j.xyz, dtype=float)
+        if j.name in locked and j.type == "prismatic":
+            p = p + R @ np.array(j.axis) * locked[j.name]
+        elif j.name in locked:
+            R = R @ _axis_rotation(j.axis, locked[j.name])
+        return R, p
+
+    def inertial_piece(link: str, R: np.ndarray, p: np.ndarray):
+        inertial: Inertial | None = robot.links[link].inertial
+        if inertial is None or (inertial.mass == 0 and not np.any(inertial.inertia)):
+            return None
+        return (inertial.mass, p + R @ np.array(inertial.xyz, dtype=float),
+                R @ inertial.inertia_in_link_frame() @ R.T)
+
+    def walk(body_link: str, joint: Joint | None, parent: str | None, R0: np.ndarray, p0: np.ndarray) -> None:
+        # the links welded to body_link by fixed joints, with their poses in the body frame
+        welded = [(body_link, np.eye(3), np.zeros(3))]
+        movable: list[tuple[Joint, np.ndarray, np.ndarray]] = []
+        k = 0
+        while k < len(welded):
+            link, R, p = welded[k]
+            k += 1
+            for j in robot.children(link):
+                Rj, pj = pose(j)
+                if j.type == "fixed" or j.name in locked:
+                    welded.append((j.child, R @ Rj, p + R @ pj))
+                else:
+                    movable.append((j, R @ Rj, p + R @ pj))
+        if joint is not None:
+            pieces = [pc for pc in (inertial_piece(link, R, p) for link, R, p in welded) if pc is not None]
+            mass, com, inertia = _merge(pieces) if pieces else (0.0, np.zeros(3), np.zeros((3, 3)))
+            out.append(Body(joint, parent, R0, p0, mass, com, inertia))
+        for j, R, p in movable:
+            walk(j.child, j, body_link if joint is not None else None, R, p)
+
+    root_joint = None if floating is None else Joint(floating, "floating", "", robot.root)
+    walk(robot.root, root_joint, None, np.eye(3), np.zeros(3))
+    return out
+
+
+def _identifier(name: str) -> str:
+    ident = re.sub(r"\W", "_", name)
+    return ident if ident.isidentifier() else f"robot_{ident}"
+
+
+def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
+    """Identifiers for the joints (coordinate names) and links of ``tree``: the URDF names, with
+    characters other than letters, digits and _ replaced by _."""
+    out: dict[str, str] = {}
+    taken: dict[str, str] = {}
+    for b in tree:
+        for original in (b.joint.name, b.joint.child):
+            ident = _identifier(original)
+            if taken.get(ident, original) != original:
+                raise URDFError(f"names {taken[ident]!r} and {original!r} both become the identifier {ident!r}",
+                                robot.filename, b.joint.line, f"joint {b.joint.name!r}")
+            taken[ident] = original
+            out[original] = ident
+    return out
+
+
+def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
+    coords = {}
+    kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic}
+    for b in tree:
+        j = b.joint
+        I = b.inertia
+        joint = (Joint_.free(names[j.name]) if j.type == "floating"
+                 else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
+        link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
+                          origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
+                          mass=float(b.mass), com=tuple(float(x) for x in b.com),
+                          inertia=(I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]))
+        coords[j.name] = link.coordinates[0]
+    return coords
+
+
+def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+    """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`): the world pose of each
+    (:meth:`Link.pose` of the same tree stated as links in a scratch model, whose coordinates
+    are the same symbols) multiplied out; the coordinate of each joint."""
+    scratch = Model(model.name)
+    _links(scratch, tree, names)
+    for c in scratch.coords:
+        model.coordinate(c.name)
+    coords = {}
+    for b, link in zip(tree, scratch.links):
+        coords[b.joint.name] = link.coordinates[0]
+        if b.mass > 0 or np.any(b.inertia):
+            model.rigid_body(names[b.joint.child], link.mass, link.inertia, link.com_position(), link.rotation())
+    return coords
+
+
+def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
+          limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
+          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
+          form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
+    """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
+    root_joint = "root_joint" if floating is True else (floating or None)
+    if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
+                                   or root_joint in robot.joints):
+        raise URDFError(f"floating must be True or the name of the free joint (an identifier that names no joint of "
+                        f"the robot), got {floating!r}", robot.filename, None, "")
+    if form not in FORMS:
+        raise URDFError(f"form must be one of {', '.join(FORMS)}, got {form!r}", robot.filename, None, "")
+    if mimic not in MIMIC:
+        raise URDFError(f"mimic must be one of {', '.join(MIMIC)}, got {mimic!r}", robot.filename, None, "")
+    locked = _locked(robot, lock)
+    if friction not in FRICTION:
+        raise URDFError(f"friction must be one of {', '.join(FRICTION)}, got {friction!r}", robot.filename, None, "")
+    if not (isinstance(friction_velocity, (int, float)) and friction_velocity > 0):
+        raise URDFError(f"friction_velocity must be a positive number, got {friction_velocity!r}",
+                        robot.filename, None, "")
+    gvec = np.array(gravity, dtype=float)
+    if gvec.shape != (3,) or not np.all(np.isfinite(gvec)):
+        raise URDFError(f"gravity must be 3 finite numbers, got {gravity!r}", robot.filename, None, "")
+
+    def err(j: Joint, message: str) -> URDFError:
+        return URDFError(message, robot.filename, j.line, f"joint {j.name!r}")
+
+    for jname in robot.order:
+        j = robot.joints[jname]
+        if j.name in locked:
+            continue
+        if j.mimic is not None and mimic == "error":
+            raise err(j, f"mimic joints are not supported: {j.name!r} follows {j.mimic.joint!r} "
+                         f"({j.mimic.multiplier} * {j.mimic.joint} + {j.mimic.offset}), a constraint rather than a "
+                         "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as "
+                         f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling "
+                         "as a holonomic constraint of a ConstrainedSystem")
+        if j.type == "planar":
+            raise err(j, "planar joints are not supported (revolute, continuous, prismatic, fixed and floating are)")
+    tree = bodies(robot, locked, root_joint)
+    if not tree:
+        raise URDFError("the robot has no movable joint (revolute, continuous or prismatic): nothing moves",
+                        robot.filename, None, f"robot {robot.name!r}")
+
+    model = Model(_identifier(name or robot.name))
+    g = None
+    if np.any(gvec != 0):
+        g = model.parameter("gravity_g" if "g" in robot.joints else "g", float(np.linalg.norm(gvec)))
+    names = _names(robot, tree)
+    try:
+        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names)
+    except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
+        raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
+    if g is not None:
+        model.gravity(g, up=[sp.Float(float(x)) for x in -gvec / np.linalg.norm(gvec)])
+
+    damping = [(b.joint, coords[b.joint.name]) for b in tree
+               if b.joint.dynamics is not None and b.joint.dynamics.damping > 0]
+    if damping:
+        model.dissipation(sum((sp.Float(j.dynamics.damping) / 2 * model.dot(q) ** 2 for j, q in damping),
+                              sp.Integer(0)), label="joint damping")
+    rubbing = [(b.joint, coords[b.joint.name]) for b in tree
+               if b.joint.dynamics is not None and b.joint.dynamics.friction > 0]
+    if rubbing and friction == "ignore":
+        warnings.warn(f"{robot.filename}: Coulomb friction of joint(s) {', '.join(j.name for j, _ in rubbing)} "
+                      "ignored (pass friction='smooth' to model it)", stacklevel=3)
+    elif rubbing:
+        vs = sp.Float(friction_velocity)
+        for j, q in rubbing:
+            v = model.dot(q)
+            model.generalized_force(q, -sp.Float(j.dynamics.friction) * v / sp.sqrt(v**2 + vs**2),
+                                    label=f"Coulomb friction of {j.name}")
+    model.validate()
+    if not limits:
+        return model
+    inequalities = []
+    for b in tree:
+        j, q = b.joint, coords[b.joint.name]
+        lim = j.limit
+        if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None or lim.lower == lim.upper:
+            continue
+        inequalities += [q - sp.Float(lim.lower), sp.Float(lim.upper) - q]
+    return ConstrainedSystem(model, inequalities=inequalities)
+
+
+def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
+         limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
+         lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
+         form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
+    """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
+    ``limits=True``).
+
+    ``name``: the model's name (default: the ``<robot name>``, made an identifier);
+    ``gravity``: the gravitational acceleration vector in the root link's frame (m/s^2);
+    ``limits``: joint limits as inequality constraints (eq. 4.3);
+    ``friction``, ``friction_velocity``: Coulomb friction, see the module docstring;
+    ``lock``: joints held fixed, as ``{name: position}`` or names (at 0): merged like fixed
+    joints (e.g. a gripper's fingers);
+    ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"independent"`` makes them
+    coordinates of their own (Pinocchio's default reading);
+    ``form``: ``"tree"`` states the bodies as links of a tree (:meth:`Model.link`),
+    ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:
+    the same equations, but closed forms that grow fast with the number of joints); default
+    :data:`DEFAULT_FORM`;
+    ``floating``: True puts the root link on a free joint ``root_joint`` (a string names it):
+    six coordinates ``<name>_x, _y, _z`` (the root frame's origin in the world) and the Z-Y-X
+    Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at pitch = +-pi/2, see
+    :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world.
+    """
+    return build(read(path), name=name, gravity=gravity, limits=limits, friction=friction,
+                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating)
+
+
+def loads(text: str | bytes, *, filename: str = "<string>", **options) -> Model | ConstrainedSystem:
+    """As :func:`load`, for URDF text (``filename`` names it in error messages)."""
+    return build(parse(text, filename=filename), **options)
