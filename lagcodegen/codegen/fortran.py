@@ -6,20 +6,17 @@ function is ``bind(C, name="<prefix>_...")`` with exactly the C signature, so C 
 the native CVODE driver and the cffi module of :func:`lagcodegen.build` call it exactly like
 the C version, and :func:`lagcodegen.build` compiles the ``.f90`` with gfortran.
 
-The arithmetic is the C backend's, operation for operation. The expressions go through the
-same symbol renaming (:func:`lagcodegen.codegen._symbol_map`: ``y[i]``, ``p[k]``, the
-Jacobian's ``a[i]``), the same common-subexpression elimination (symengine ``cse``) and the
-C backend's own expression printer (:func:`lagcodegen.codegen.c_expr`); the C text of each
-expression is then parsed and printed as Fortran with the same evaluation tree: ``y[i]`` ->
-``y(i+1)``, ``a[i]`` -> ``ydot(N+i+1)``, ``pow(a, b)`` -> ``a**b`` (gfortran calls the same
-``pow``, and turns ``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``), every number a
-double-precision literal with 17 significant digits (``0.69999999999999996d0``; integers
-too, so no integer division can arise), ``fabs`` -> ``abs``, C's boolean arithmetic and ``?:`` -> ``merge``,
-``==``/``!=`` on reals -> ``<=``/``>=`` tests (same result, NaN included), C99 functions
-without a Fortran intrinsic (``cbrt``, ``expm1``, ...) called from libm through
-``bind(C)`` interfaces. The solve of M q'' = F (Cholesky, LU with partial pivoting as
-fallback; singular -> 1, non-finite -> 2) and the Jacobian reusing one factorization are
-written out in the template as in the C one. With gcc and gfortran at the same optimization
+The arithmetic is the C backend's, operation for operation: both print the same operation tree
+(:mod:`lagcodegen.codegen.ir`, built once from the same symbol renaming and the same
+common-subexpression elimination), :class:`FortranPrinter` as Fortran: ``y[i]`` -> ``y(i+1)``,
+``a[i]`` -> ``ydot(N+i+1)``, powers ``a**b`` (gfortran calls the same ``pow``, and turns
+``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``), every number a double-precision
+literal with 17 significant digits (``0.69999999999999996d0``; integers too, so no integer
+division can arise), truth values and conditionals as ``merge``, equality tests on reals as
+``<=``/``>=`` tests (same result, NaN included), C99 functions without a Fortran intrinsic
+(``cbrt``, ``floor``, ...) called from libm through ``bind(C)`` interfaces. The solve of
+M q'' = F (Cholesky, LU with partial pivoting as fallback; singular -> 1, non-finite -> 2) and
+the Jacobian reusing one factorization are written out in the template as in the C one. With gcc and gfortran at the same optimization
 level the results are bit-identical to the C backend's where neither compiler contracts
 a*b + c into fused multiply-adds (x86-64 without -march; elsewhere use -ffp-contract=off).
 
@@ -46,7 +43,7 @@ import symengine as se
 from ..errors import ModelError
 from ..formulation.kernels import Block, model_blocks
 from ..formulation.scene import Scene
-from .c import c_expr
+from . import ir
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
@@ -58,30 +55,20 @@ _MAX_CONTINUATIONS = 200
 #: Code lines are wrapped at this column (free form allows 132).
 _LINE = 100
 
-# ----------------------------------------------------------------------------- C -> Fortran
-_TOKEN = re.compile(r"""\s*(?:
-      (?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)(?P<suffix>[A-Za-z_]\w*)?
-    | (?P<id>[A-Za-z_]\w*)
-    | (?P<op>&&|\|\||==|!=|<=|>=|[-+*/()\[\],?:<>!])
-    )""", re.X)
-
-#: C99 <math.h> constants (the literal texts of glibc's macros: the same doubles as in C).
-_C_CONSTANTS = {
-    "M_E": "2.7182818284590452354", "M_LOG2E": "1.4426950408889634074", "M_LOG10E": "0.43429448190325182765",
-    "M_LN2": "0.69314718055994530942", "M_LN10": "2.30258509299404568402", "M_PI": "3.14159265358979323846",
-    "M_PI_2": "1.57079632679489661923", "M_PI_4": "0.78539816339744830962", "M_1_PI": "0.31830988618379067154",
-    "M_2_PI": "0.63661977236758134308", "M_2_SQRTPI": "1.12837916709551257390",
-    "M_SQRT2": "1.41421356237309504880", "M_SQRT1_2": "0.70710678118654752440",
-}
-#: C math functions with a Fortran 2008 intrinsic of the same meaning.
+#: The tree's math functions with a Fortran 2008 intrinsic of the same meaning (neutral name -> Fortran).
 _INTRINSICS = {name: name for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh",
-                                       "tanh", "asinh", "acosh", "atanh", "exp", "log", "log10", "sqrt", "erf",
-                                       "erfc", "hypot")}
-_INTRINSICS.update(fabs="abs", fmax="max", fmin="min", tgamma="gamma", lgamma="log_gamma", copysign="sign")
-#: C99 functions without a Fortran intrinsic: called from libm through a bind(C) interface
-#: (name -> number of arguments).
-_LIBM = {"cbrt": 1, "expm1": 1, "log1p": 1, "exp2": 1, "log2": 1, "fmod": 2, "trunc": 1, "round": 1,
-         "floor": 1, "ceil": 1}
+                                       "tanh", "asinh", "acosh", "atanh", "exp", "log", "sqrt", "erf", "erfc",
+                                       "abs", "max", "min", "gamma")}
+_INTRINSICS.update(loggamma="log_gamma")
+#: The tree's functions without a Fortran intrinsic: called from the C math library through a
+#: bind(C) interface (neutral name -> (C name, number of arguments)).
+_LIBM = {"cbrt": ("cbrt", 1), "floor": ("floor", 1), "ceiling": ("ceil", 1), "truncate": ("trunc", 1)}
+#: Arities of the C math library functions the module may bind (C name -> number of arguments).
+_LIBM_ARITY = dict(_LIBM.values())
+#: Fortran 2008 keywords and intrinsic names the generated code must not use for its own variables.
+RESERVED = frozenset(("program", "module", "function", "subroutine", "end", "if", "then", "else", "do", "call",
+                      "real", "integer", "logical", "implicit", "none", "intent", "in", "out", "inout", "value",
+                      "bind", "use", "contains", "return", "result", "merge", "associate", "interface"))
 
 
 def fortran_real(value: float) -> str:
@@ -96,215 +83,150 @@ def fortran_real(value: float) -> str:
 
 
 def fortran_name(name: str, renames: dict[str, tuple[str, int]] | None = None) -> str:
-    """The Fortran spelling of a C-named array element: ``y[3]`` -> ``y(4)``; with ``renames``
+    """The Fortran spelling of a kernel symbol: ``y[3]`` -> ``y(4)``; with ``renames``
     ``{"a": ("ydot", 2)}``, ``a[0]`` -> ``ydot(3)``. Other names are unchanged."""
-    m = re.fullmatch(r"([A-Za-z_]\w*)\[(\d+)\]", name)
-    if not m:
+    node = ir.symbol_node(name)
+    if isinstance(node, ir.Name):
         return name
-    array, offset = (renames or {}).get(m.group(1), (m.group(1), 0))
-    return f"{array}({int(m.group(2)) + offset + 1})"
-
-
-class _CParser:
-    """Parser of the C expressions the C backend prints (C99 operators, calls, ``a[i]``)."""
-
-    def __init__(self, text: str):
-        self.text = text
-        self.tokens = []
-        pos = 0
-        while pos < len(text):
-            m = _TOKEN.match(text, pos)
-            if m is None or m.end() == pos:
-                if text[pos:].strip() == "":
-                    break
-                raise ModelError(f"cannot translate C expression to Fortran (at {text[pos:pos + 20]!r}): {text}")
-            if m.group("suffix"):
-                raise ModelError(f"cannot translate C number {m.group(0).strip()!r} to Fortran: {text}")
-            kind = "num" if m.group("num") else "id" if m.group("id") else "op"
-            self.tokens.append((kind, m.group(kind)))
-            pos = m.end()
-        self.i = 0
-
-    def parse(self):
-        node = self.ternary()
-        if self.i != len(self.tokens):
-            raise self.error()
-        return node
-
-    def error(self):
-        near = " ".join(v for _, v in self.tokens[self.i:self.i + 5])
-        return ModelError(f"cannot translate C expression to Fortran (near {near!r}): {self.text}")
-
-    def peek(self):
-        return self.tokens[self.i][1] if self.i < len(self.tokens) else None
-
-    def take(self, value=None):
-        if self.i >= len(self.tokens) or (value is not None and self.tokens[self.i][1] != value):
-            raise self.error()
-        self.i += 1
-        return self.tokens[self.i - 1]
-
-    def ternary(self):
-        cond = self.binary(0)
-        if self.peek() == "?":
-            self.take("?")
-            a = self.ternary()
-            self.take(":")
-            return ("?", cond, a, self.ternary())
-        return cond
-
-    _LEVELS = (("||",), ("&&",), ("==", "!="), ("<", ">", "<=", ">="), ("+", "-"), ("*", "/"))
-
-    def binary(self, level):
-        if level == len(self._LEVELS):
-            return self.unary()
-        node = self.binary(level + 1)
-        while self.peek() in self._LEVELS[level]:
-            op = self.take()[1]
-            node = ("bin", op, node, self.binary(level + 1))
-        return node
-
-    def unary(self):
-        if self.peek() in ("-", "+", "!"):
-            op = self.take()[1]
-            return ("un", op, self.unary())
-        return self.primary()
-
-    def primary(self):
-        kind, value = self.take()
-        if kind == "num":
-            return ("num", value)
-        if kind == "id":
-            if self.peek() == "(":
-                self.take("(")
-                args = []
-                if self.peek() != ")":
-                    args.append(self.ternary())
-                    while self.peek() == ",":
-                        self.take(",")
-                        args.append(self.ternary())
-                self.take(")")
-                return ("call", value, args)
-            if self.peek() == "[":
-                self.take("[")
-                kind, index = self.take()
-                if kind != "num" or not index.isdigit():
-                    raise self.error()
-                self.take("]")
-                return ("idx", value, int(index))
-            return ("id", value)
-        if value == "(":
-            node = self.ternary()
-            self.take(")")
-            return node
-        self.i -= 1
-        raise self.error()
+    return FortranPrinter(renames).doprint(node)
 
 
 _ATOM, _POW, _MUL, _NEG, _ADD, _REL, _NOT, _AND, _OR = 9, 8, 7, 6, 5, 4, 3, 2, 1
-_LOGICAL_OPS = ("<", ">", "<=", ">=", "==", "!=", "&&", "||")
+_TRUTH = (ir.Compare, ir.Logic, ir.Not)
 
 
-class _FortranWriter:
-    """Fortran text of parsed C expressions, keeping C's evaluation tree.
+class FortranPrinter(ir.Printer):
+    """Fortran 2008 text of :mod:`lagcodegen.codegen.ir` trees, with the tree's evaluation order
+    (one ``_print_<Node>`` per node kind, returning (text, precedence)).
 
-    ``names``: plain identifiers allowed (CSE temporaries, ``t``); ``renames``: arrays printed
-    under another name and offset. Calls of libm functions without a Fortran intrinsic are
-    recorded in ``libm``.
+    Every number is a double-precision literal with 17 significant digits (integers too, so no
+    integer division can arise); ``pow`` is ``**`` (gfortran calls the same ``pow``, and turns
+    ``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``); a negated left operand of ``*``
+    or ``/`` is hoisted (``-a*b`` is ``-(a*b)`` in Fortran: the same double, rounding is
+    symmetric); truth values in arithmetic and conditionals are ``merge``; ``==``/``!=`` on
+    reals are ``<=``/``>=`` tests (the same result, NaN included; gfortran -Wcompare-reals).
+    Elements are 1-based, arrays renamed by ``renames`` ({array: (name, offset)}); calls of C
+    math functions without an intrinsic are recorded in ``libm``.
     """
 
-    def __init__(self, names, renames=None):
-        self.names = set(names)
+    def __init__(self, renames: dict | None = None):
         self.renames = dict(renames or {})
         self.libm: set[str] = set()
+
+    def doprint(self, node) -> str:
+        return self.number(node)[0]
+
+    def number(self, node) -> tuple[str, int]:
+        if isinstance(node, _TRUTH):
+            return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
+        return getattr(self, "_print_" + type(node).__name__)(node)
 
     @staticmethod
     def paren(text_prec, minimum):
         text, prec = text_prec
         return text if prec >= minimum else f"({text})"
 
-    def number(self, node):
-        kind = node[0]
-        if kind == "num":
-            return fortran_real(float(node[1])), _ATOM
-        if kind == "id":
-            name = node[1]
-            if name in _C_CONSTANTS:
-                return fortran_real(float(_C_CONSTANTS[name])), _ATOM
-            if name not in self.names:
-                raise ModelError(f"cannot translate identifier {name!r} to Fortran")
-            return name, _ATOM
-        if kind == "idx":
-            return fortran_name(f"{node[1]}[{node[2]}]", self.renames), _ATOM
-        if kind == "call":
-            return self.call(node[1], node[2])
-        if kind == "?":
-            return f"merge({self.number(node[2])[0]}, {self.number(node[3])[0]}, {self.logical(node[1])[0]})", _ATOM
-        if kind == "un":
-            op, arg = node[1], node[2]
-            if op == "!":
-                return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
-            if op == "+":
-                return self.number(arg)
-            return "-" + self.paren(self.number(arg), _MUL), _NEG
-        op, left, right = node[1], node[2], node[3]
-        if op in _LOGICAL_OPS:
-            return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
-        if op in ("+", "-"):
+    def _negated(self, text: str) -> tuple[str, int]:
+        return "-" + text, _NEG
+
+    def _print_Number(self, node: ir.Number):
+        if math.copysign(1.0, node.value) < 0:
+            return self._negated(fortran_real(-node.value))
+        return fortran_real(node.value), _ATOM
+
+    def _print_Integer(self, node: ir.Integer):
+        if node.value < 0:
+            return self._negated(fortran_real(-node.value))
+        return fortran_real(node.value), _ATOM
+
+    def _print_Ratio(self, node: ir.Ratio):
+        num = ir.Integer(node.num)
+        return self._print_BinOp(ir.BinOp("/", num, ir.Integer(node.den)))
+
+    def _print_Name(self, node: ir.Name):
+        return node.name, _ATOM
+
+    def _print_Element(self, node: ir.Element):
+        index = node.index if isinstance(node.index, tuple) else (node.index,)
+        array, offset = self.renames.get(node.array, (node.array, 0))
+        if len(index) == 1:
+            return f"{array}({index[0] + offset + 1})", _ATOM
+        return f"{array}({', '.join(str(k + 1) for k in index)})", _ATOM
+
+    def _print_Neg(self, node: ir.Neg):
+        return "-" + self.paren(self.number(node.arg), _MUL), _NEG
+
+    def _print_BinOp(self, node: ir.BinOp):
+        op, left, right = node.op, node.left, node.right
+        if op in "+-":
             return f"{self.paren(self.number(left), _ADD)} {op} {self.paren(self.number(right), _MUL)}", _ADD
-        # * and /: a negated left operand is hoisted (-a*b is -(a*b) in Fortran: the same
-        # double, as rounding is symmetric); the right operand keeps C's grouping.
         ltext, lprec = self.number(left)
         rtext = self.paren(self.number(right), _POW)
         if lprec == _NEG:
             return f"{ltext}{op}{rtext}", _NEG
         return f"{self.paren((ltext, lprec), _MUL)}{op}{rtext}", _MUL
 
-    def call(self, name, args):
-        texts = [self.number(a)[0] for a in args]
-        if name == "pow" and len(args) == 2:
-            base = self.paren(self.number(args[0]), _ATOM)
-            return f"{base}**{self.paren(self.number(args[1]), _ATOM)}", _POW
-        if name in _INTRINSICS:
-            return f"{_INTRINSICS[name]}({', '.join(texts)})", _ATOM
-        if name in _LIBM and len(args) == _LIBM[name]:
+    def _print_Power(self, node: ir.Power):
+        base = self.paren(self.number(node.base), _ATOM)
+        return f"{base}**{self.paren(self.number(node.exp), _ATOM)}", _POW
+
+    def _print_Call(self, node: ir.Call):
+        texts = [self.number(a)[0] for a in node.args]
+        if node.func in _INTRINSICS:
+            return f"{_INTRINSICS[node.func]}({', '.join(texts)})", _ATOM
+        if node.func in _LIBM and len(node.args) == _LIBM[node.func][1]:
+            name = _LIBM[node.func][0]
             self.libm.add(name)
             return f"libm_{name}({', '.join(texts)})", _ATOM
-        raise ModelError(f"the C function {name!r} has no Fortran translation")
+        raise ModelError(f"the function {node.func!r} has no Fortran translation")
 
-    def logical(self, node):
-        if node[0] == "un" and node[1] == "!":
-            return f".not. {self.paren(self.logical(node[2]), _ATOM)}", _NOT
-        if node[0] != "bin" or node[1] not in _LOGICAL_OPS:
-            x = self.number(node)[0]  # C truth of a number: x != 0 (NaN is true)
+    def _print_Select(self, node: ir.Select):
+        text = self.number(node.default)[0]
+        for cond, value in reversed(node.cases):
+            text = f"merge({self.number(value)[0]}, {text}, {self.logical(cond)[0]})"
+        return text, _ATOM
+
+    def _print_Sign(self, node: ir.Sign):
+        x, zero = node.arg, ir.Number(0.0)
+        return self.number(ir.Select(((ir.Compare("==", x, zero), zero),),
+                                     ir.Select(((ir.Compare("<", x, zero), ir.Neg(ir.Number(1.0))),),
+                                               ir.Number(1.0))))
+
+    def logical(self, node) -> tuple[str, int]:
+        """The Fortran logical expression of a truth value (C's truth of a number: x != 0, NaN true)."""
+        if isinstance(node, ir.Not):
+            return f".not. {self.paren(self.logical(node.arg), _ATOM)}", _NOT
+        if isinstance(node, ir.Logic):
+            prec = _AND if node.op == "and" else _OR
+            word = ".and." if node.op == "and" else ".or."
+            text = self.paren(self.logical(node.args[0]), prec)
+            for arg in node.args[1:]:
+                text = f"{text} {word} {self.paren(self.logical(arg), prec + 1)}"
+            return text, prec
+        if not isinstance(node, ir.Compare):
+            x = self.number(node)[0]
             return f"(.not. ({x} <= 0.0d0 .and. {x} >= 0.0d0))", _ATOM
-        op, left, right = node[1], node[2], node[3]
-        if op in ("&&", "||"):
-            prec = _AND if op == "&&" else _OR
-            word = ".and." if op == "&&" else ".or."
-            return (f"{self.paren(self.logical(left), prec)} {word} "
-                    f"{self.paren(self.logical(right), prec + 1)}"), prec
-        a = self.paren(self.number(left), _ADD)
-        b = self.paren(self.number(right), _ADD)
-        if op == "==":  # no equality test on reals (gfortran -Wcompare-reals); NaN compares false
+        a = self.paren(self.number(node.left), _ADD)
+        b = self.paren(self.number(node.right), _ADD)
+        if node.op == "==":  # no equality test on reals (gfortran -Wcompare-reals); NaN compares false
             return f"({a} <= {b} .and. {a} >= {b})", _ATOM
-        if op == "!=":
+        if node.op == "!=":
             return f"(.not. ({a} <= {b} .and. {a} >= {b}))", _ATOM
-        return f"{a} {op} {b}", _REL
+        return f"{a} {node.op} {b}", _REL
 
 
 def _chain(node, ops):
     """Operands of the left-associative chain ``((a op b) op c) ...`` rooted at ``node``,
     as [(None, a), (op, b), (op, c), ...]."""
     items = []
-    while node[0] == "bin" and node[1] in ops:
-        items.append((node[1], node[3]))
-        node = node[2]
+    while isinstance(node, ir.BinOp) and node.op in ops:
+        items.append((node.op, node.right))
+        node = node.left
     items.append((None, node))
     return items[::-1]
 
 
-def _statements(writer: _FortranWriter, target: str, node) -> list[str]:
+def _statements(writer: FortranPrinter, target: str, node) -> list[str]:
     """``target = <node>``; a sum (or product) too long for one statement becomes running
     partial results in the same order, ``target = a + b``, ``target = target + c``, ... (the
     same additions as the single C statement)."""
@@ -370,53 +292,49 @@ class FortranBlock:
     libm: tuple[str, ...] = ()
 
 
-def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple[str, ...] = (),
-                       optional: tuple[str, ...] = (), renames: dict[str, tuple[str, int]] | None = None,
-                       indent: int = 2, what: str = "expression", scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
-    """Fortran statements assigning ``exprs`` to ``targets`` after common-subexpression elimination.
+def fortran_block(statements: list, dummies: tuple[str, ...] = (), optional: tuple[str, ...] = (),
+                  renames: dict[str, tuple[str, int]] | None = None, indent: int = 2, what: str = "expression",
+                  scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
+    """The Fortran statements of the assignments ``statements`` (:class:`lagcodegen.codegen.ir.Assign`).
 
-    ``exprs`` are in the C backend's symbols (``y[i]``, ``p[k]``, ``t``); the elimination and
-    the printed expressions are those of :func:`lagcodegen.codegen.emit_block`, translated.
-    ``after``: statements appended verbatim (e.g. mirrored mass-matrix entries).
-    ``dummies``: the dummy arguments the statements may reference (any other free symbol is
-    an error); those of ``optional`` they do not reference are listed in ``unused`` for a
-    no-op ``associate`` (gfortran -Wunused-dummy-argument). ``scalars``: the dummies that are
-    scalars (referenced by name, e.g. ``t``, ``cj``) rather than arrays.
+    Local temporaries are declared ``real(c_double)``; an assignment to two targets (the mirrored
+    entries of the mass matrix) assigns the first, and the second after every statement.
+    ``dummies``: the dummy arguments the statements may reference (any other symbol is an
+    error); those of ``optional`` they do not reference are listed in ``unused`` for a no-op
+    ``associate`` (gfortran -Wunused-dummy-argument). ``scalars``: the dummies that are scalars
+    (referenced by name, e.g. ``t``, ``cj``) rather than arrays.
     """
     pad = _INDENT * indent
     used: set[str] = set()
     lines: list[str] = []
-    temps: list[str] = []
-    libm: set[str] = set()
-    if exprs:
-        repl, reduced = se.cse(list(exprs))
-        temps = [str(sym) for sym, _ in repl]
-        local = set(temps)
-        writer = _FortranWriter(local | set(scalars), renames)
-        pairs = [(str(sym), e) for sym, e in repl] + list(zip(targets, reduced))
-        for target, expr in pairs:
-            for s in se.sympify(expr).free_symbols:
-                if s.name in local:
-                    continue
-                owner = fortran_name(s.name, renames).split("(")[0]
-                if owner not in dummies:
-                    raise ModelError(f"{what}: symbol {s.name!r} is neither a coordinate, a velocity, a "
-                                     "parameter nor the time t; it cannot be emitted")
-                used.add(owner)
-            text = c_expr(expr)
-            try:
-                node = _CParser(text).parse()
-                statements = _statements(writer, target, node)
-            except ModelError as exc:
-                raise ModelError(f"{what}: {exc}") from None
-            for statement in statements:
+    after: list[str] = []
+    writer = FortranPrinter(renames)
+    temps = [st.targets[0].name for st in statements if st.local]
+    local = set(temps)
+    for st in statements:
+        for leaf in ir.walk(st.value):
+            if isinstance(leaf, ir.Name) and leaf.name not in local:
+                owner, name = leaf.name, leaf.name
+            elif isinstance(leaf, ir.Element):
+                owner, name = writer.renames.get(leaf.array, (leaf.array, 0))[0], f"{leaf.array}[{leaf.index}]"
+            else:
+                continue
+            if owner not in dummies:
+                raise ModelError(f"{what}: symbol {name!r} is neither a coordinate, a velocity, a "
+                                 "parameter nor the time t; it cannot be emitted")
+            used.add(owner)
+        target = writer.doprint(st.targets[0])
+        try:
+            for statement in _statements(writer, target, st.value):
                 lines += _wrap(statement, pad)
-        libm = writer.libm
+        except ModelError as exc:
+            raise ModelError(f"{what}: {exc}") from None
+        after += [f"{writer.doprint(t)} = {target}" for t in st.targets[1:]]
     lines += [pad + line for line in after]
     decls = [f"{pad}real(c_double) :: {', '.join(temps[k:k + 10])}" for k in range(0, len(temps), 10)]
     unused = ", ".join(f"unused_{d} => {d}" if d in scalars else f"unused_{d} => {d}(1:0)"
                        for d in optional if d not in used)
-    return FortranBlock("\n".join(decls), "\n".join(lines), unused, tuple(sorted(libm)))
+    return FortranBlock("\n".join(decls), "\n".join(lines), unused, tuple(sorted(writer.libm)))
 
 
 def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
@@ -456,7 +374,7 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
     libm = sorted(set(rhs.libm) | set(jac.libm if jac else ()) | set(out.libm))
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm])
+        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM_ARITY[name]) for name in libm])
     return code
 
 
@@ -465,27 +383,16 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
 DAE_SUFFIX = "_dae_err_projection"
 
 
-def _fortran_target(target: tuple) -> tuple[str, str | None]:
-    """The Fortran spelling of a target of :class:`lagcodegen.formulation.kernels.Block`
-    (0-based C indices -> 1-based; ``jac`` is (row, column)), and the mirrored assignment of
-    an off-diagonal mass-matrix entry."""
-    name, *ix = target
-    text = f"{name}({', '.join(str(k + 1) for k in ix)})"
-    if name == "M" and ix[0] != ix[1]:
-        return text, f"M({ix[1] + 1}, {ix[0] + 1}) = {text}"
-    return text, None
-
-
 def print_block(block: Block, what: str, dummies: tuple[str, ...], optional: tuple[str, ...] = (),
-                       renames: dict | None = None, scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
-    targets, mirror = [], []
-    for target in block.targets:
-        text, after = _fortran_target(target)
-        targets.append(text)
-        if after:
-            mirror.append(after)
-    return emit_fortran_block(targets, block.exprs, mirror, dummies=dummies, optional=optional, renames=renames,
-                              what=what, scalars=scalars)
+                renames: dict | None = None, scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
+    """The Fortran statements of a kernel :class:`Block` (:func:`fortran_block`), after the
+    common-subexpression elimination the C backend applies to it."""
+    try:
+        statements = ir.block_statements(block, se.cse)
+    except ModelError as exc:
+        raise ModelError(f"{what}: {exc}") from None
+    return fortran_block(statements, dummies=dummies, optional=optional, renames=renames, what=what,
+                         scalars=scalars)
 
 
 def generate(scene: Scene) -> GeneratedCode:
@@ -524,7 +431,7 @@ def generate_constrained_fortran_source(cb, ctx: dict) -> str:
     )
     libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
     text = environment().get_template("fortran/dae.f90.j2").render(
-        **ctx, blk=blocks, libm=[(name, _LIBM[name]) for name in libm])
+        **ctx, blk=blocks, libm=[(name, _LIBM_ARITY[name]) for name in libm])
     lines = []
     for line in text.split("\n"):  # long associate lists of unused arguments
         stripped = line.lstrip()
