@@ -19,7 +19,7 @@ from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
-from . import ir
+from . import ir, program
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
@@ -178,25 +178,18 @@ CHUNK_CHARS = 8000
 PROGRAM_MIN_OPS = 6000
 
 
-def _chunks(items: list, size=len) -> list[list]:
-    """``items`` in pieces of at most CHUNK_STATEMENTS items or CHUNK_CHARS of ``size``."""
-    out, cur, total = [], [], 0
-    for item in items:
-        n = size(item)
-        if cur and (len(cur) >= CHUNK_STATEMENTS or total + n > CHUNK_CHARS):
-            out.append(cur)
-            cur, total = [], 0
-        cur.append(item)
-        total += n
-    if cur:
-        out.append(cur)
-    return out
+def _measure() -> program.Measure:
+    """The C text sizes the program form's pieces are cut by (CHUNK_STATEMENTS, CHUNK_CHARS)."""
+    printer = CPrinter(_layout())
+    return program.Measure(statement=lambda st: len(c_statement(printer, st)),
+                           value=lambda k, tree: len(str(k)) + 1 + len(printer.doprint(tree)),
+                           statements=CHUNK_STATEMENTS, chars=CHUNK_CHARS)
 
 
 @dataclasses.dataclass
 class CFunction:
-    """A static C function of the program form: ``void name(params)`` whose body casts the
-    unused-looking parameters to void and runs ``lines``."""
+    """A C function of the program form: ``void name(params)`` whose body casts every parameter
+    to void (some pieces read only a few) and runs ``lines``."""
 
     name: str
     params: list  # (declaration, name)
@@ -210,162 +203,18 @@ class CFunction:
         return f"{self.head(storage)}\n{{\n{_INDENT}{casts}\n" + "\n".join(self.lines) + "\n}"
 
 
-def _params(*decls: str) -> list:
-    """C parameter declarations with their names: "double M[][N]" -> ("double M[][N]", "M")."""
-    out = []
-    for d in decls:
-        name = d.split("[", 1)[0].replace("*", " ").split()[-1]
-        out.append((d, name))
-    return out
+#: The parameters of the program form's pieces by kind (declaration, name).
+_PIECE_PARAMS = {
+    "values": [("double t", "t"), ("const double *y", "y"), ("const double *p", "p"), ("double *v", "v")],
+    "tangent": [("double t", "t"), ("const double *y", "y"), ("const double *p", "p"), ("const double *v", "v"),
+                ("const double *a", "a"), ("double *w", "w"), ("double *g", "g"), ("double *jz", "jz"),
+                ("double *s", "s")],
+    "mass": [("const double *y", "y"), ("const double *p", "p"), ("const double *v", "v"), ("double M[][N]", "M")],
+}
 
 
-def _functions(name: str, params: list, pieces: list[list[str]]) -> list[CFunction]:
-    """Functions ``name<k>(params)``, one per piece of statements."""
-    return [CFunction(f"{name}{k}", params, chunk) for k, chunk in enumerate(pieces)]
-
-
-def _value_pieces(prog, ranges: list[tuple[int, int]], outside: set) -> list[list[list[str]]]:
-    """The statements computing the program's values, per range of ``ranges`` in pieces (lists of
-    lines). A value read by one statement only (and not in ``outside``: the values the targets
-    and the tangent code read) is written into that statement; a value read only within its
-    piece is a local ``u<k>``; the others are stored in ``v``."""
-    nv = len(prog)
-    consumers: list[list[int]] = [[] for _ in range(nv)]
-    for j in range(nv):
-        for u in prog.exprs[j].free_symbols:
-            k = prog.index(u)
-            if k is not None:
-                consumers[k].append(j)
-    inline = [len(consumers[k]) == 1 and k not in outside for k in range(nv)]
-    full: list = [None] * nv
-    for k in range(nv):
-        e = prog.exprs[k]
-        sub = {u: full[i] for u in e.free_symbols if (i := prog.index(u)) is not None and inline[i]}
-        full[k] = e.xreplace(sub) if sub else e
-    printer = CPrinter()
-    trees = {k: ir.expression(full[k]) for k in range(nv) if not inline[k]}
-    # Pieces by the size of the statement's text with the values in v (as "k: text").
-    sizes = {k: len(str(k)) + 1 + len(printer.doprint(trees[k])) for k in trees}
-    piece: dict[int, int] = {}
-    out, count = [], 0
-    for start, stop in ranges:
-        chunks = _chunks([k for k in range(start, stop) if not inline[k]], sizes.__getitem__)
-        for chunk in chunks:
-            for k in chunk:
-                piece[k] = count
-            count += 1
-        out.append(chunks)
-
-    def where(j):  # the statement that computes value j (j itself, or the one it is written into)
-        while inline[j]:
-            j = consumers[j][0]
-        return j
-    local = {k for k in piece if k not in outside and all(piece[where(j)] == piece[k] for j in consumers[k])}
-
-    def ref(node):
-        if isinstance(node, ir.Element) and node.array == "v" and node.index in local:
-            return ir.Name(f"u{node.index}")
-        return None
-    result = []
-    for chunks in out:
-        pieces = []
-        for chunk in chunks:
-            lines = []
-            for k in chunk:
-                value = ir.substitute(trees[k], ref)
-                target = ir.Name(f"u{k}") if k in local else ir.Element("v", k)
-                lines.append(c_statement(printer, ir.Assign((target,), value, local=k in local)))
-            pieces.append(lines)
-        result.append(pieces)
-    return result
-
-
-def _rhs_target(target: tuple) -> tuple:
-    kind, *idx = target
-    if kind == "ydot":
-        return (ir.Element("ydot", idx[0]),)
-    return ir.target_nodes(target)
-
-
-def _op_statement(op: tuple, value: ir.Node) -> ir.Assign:
-    """The statement of a tangent operation (kind, k, e) with the tree ``value`` of e: the local
-    tangent d<k> =, w[k] +=, g[k] +=, jz[k] =."""
-    kind, k, _ = op
-    if kind == "d":
-        return ir.Assign((ir.Name(f"d{k}"),), value, local=True)
-    if kind in ("w", "g"):
-        return ir.Assign((ir.Element(kind, k),), value, accumulate=True)
-    return ir.Assign((ir.Element("jz", k),), value)
-
-
-def _column_lines(ops: list, printer: CPrinter) -> tuple[list[str], set, bool]:
-    """The statements of a column's narrow operations; when they fill more than one piece, the
-    local tangents d<k> live in the scratch array s (they cross the pieces). Also returns the
-    values v[k] they read, and whether s is used."""
-    trees = [ir.expression(op[2]) for op in ops]
-    statements = [_op_statement(op, t) for op, t in zip(ops, trees)]
-    reads = set().union(*(ir.elements(t, "v") for t in trees)) if trees else set()
-    lines = [c_statement(printer, st) for st in statements]
-    crossing = len(_chunks(lines)) > 1
-    if crossing:
-        slot = {f"d{k}": ir.Element("s", i) for i, k in enumerate(k for kind, k, _ in ops if kind == "d")}
-
-        def scratch(node):
-            return slot.get(node.name) if isinstance(node, ir.Name) else None
-        lines = []
-        for st in statements:
-            target = st.targets[0]
-            if st.local:
-                target = slot[target.name]
-            lines.append(c_statement(printer, ir.Assign((target,), ir.substitute(st.value, scratch),
-                                                        accumulate=st.accumulate)))
-    return lines, reads, crossing
-
-
-def _w_index(symbol) -> int | None:
-    node = ir.symbol_node(symbol.name)
-    return node.index if isinstance(node, ir.Element) and node.array == "w" else None
-
-
-def _wide_pieces(ops: list, acc: set, shared: set, nw: int, printer: CPrinter) -> tuple[list[list[str]], set]:
-    """The wide operations of a block in pieces. The column code has added the narrow parts of
-    the tangents in ``acc`` to w[i]; the tangent of wide value i is assigned to w[nw + i] (or to
-    a local ``wl<i>`` if only its own piece reads it, and it is not ``shared`` with other blocks):
-    tangent = w[i] (if in acc) + the wide terms. Also returns the values v[k] they read."""
-    trees = [ir.expression(op[2]) for op in ops]
-    sizes = [len(c_statement(printer, _op_statement(op, t))) for op, t in zip(ops, trees)]
-    chunks = _chunks(list(range(len(ops))), sizes.__getitem__)
-    piece = {j: c for c, chunk in enumerate(chunks) for j in chunk}
-    define = {op[1]: j for j, op in enumerate(ops) if op[0] == "w"}
-    readers: dict[int, set] = {}
-    for j, op in enumerate(ops):
-        for u in op[2].free_symbols:
-            if (i := _w_index(u)) is not None:
-                readers.setdefault(i, set()).add(piece[j])
-    local = {i for i, j in define.items() if i not in shared and readers.get(i, set()) <= {piece[j]}}
-
-    def value(i):
-        return ir.Name(f"wl{i}") if i in local else ir.Element("w", nw + i)
-
-    def ref(node):
-        return value(node.index) if isinstance(node, ir.Element) and node.array == "w" else None
-    out = []
-    reads = set()
-    for chunk in chunks:
-        lines = []
-        for j in chunk:
-            kind, i, _ = ops[j]
-            reads |= ir.elements(trees[j], "v")
-            tree = ir.substitute(trees[j], ref)
-            if kind == "w":
-                if i in acc:
-                    tree = ir.plus(ir.Element("w", i), tree)
-                st = ir.Assign((value(i),), tree, local=i in local)
-            else:
-                st = _op_statement(ops[j], tree)
-            lines.append(c_statement(printer, st))
-        out.append(lines)
-    return out, reads
+def _c_function(piece: program.Piece, printer: CPrinter, params: list | None = None) -> CFunction:
+    return CFunction(piece.name, params or _PIECE_PARAMS[piece.kind], [c_statement(printer, st) for st in piece.statements])
 
 
 #: Program-form sources whose pieces hold more than this many characters are cut into groups of
@@ -400,100 +249,29 @@ def _group_pieces(functions: list[CFunction]) -> tuple[str, str, int]:
     return text, protos, len(groups)
 
 
-def _ranges(indices: list[int]) -> list[int]:
-    """Sorted ``indices`` as [start, stop) pairs, flattened."""
-    out: list[int] = []
-    for i in sorted(set(indices)):
-        if out and out[-1] == i:
-            out[-1] = i + 1
-        else:
-            out += [i, i + 1]
-    return out
-
-
-_VALUE_PARAMS = _params("double t", "const double *y", "const double *p", "double *v")
-_TANGENT_PARAMS = _params("double t", "const double *y", "const double *p", "const double *v", "const double *a",
-                          "double *w", "double *g", "double *jz", "double *s")
-
-
 def print_program(prog, targets: list, tangent: TangentProgram | None = None) -> dict:
-    """The C pieces of the program form (templates/c/model.c.j2): the right-hand side's values
-    ``v[k]`` computed by static functions of at most CHUNK_STATEMENTS statements each (shared by
-    rhs and jac), and with ``tangent`` the Jacobian's: the values only its partial derivatives
-    need, one function per column of dr/dy with its narrow statements, and the wide statements
-    of each group (:mod:`lagcodegen.formulation.tangent`)."""
+    """The C text of the program form (templates/c/model.c.j2; :func:`lagcodegen.codegen.program.program_form`):
+    the right-hand side's values ``v[k]`` computed by static functions of at most
+    CHUNK_STATEMENTS statements each (shared by rhs and jac), and with ``tangent`` the Jacobian's
+    pieces and the tables of the pieces each column runs and the accumulators it zeroes."""
     pad = _INDENT
-    printer = CPrinter()
-    n_rhs = prog.n_rhs or len(prog)
-    ctx = dict(nv=max(1, len(prog)), nw=1, ns=1, groups=[], jac_calls=[])
-    outside = {prog.index(a) for _, a in targets} - {None}
-    functions: list[CFunction] = []
+    printer = CPrinter(_layout())
+    form = program.program_form(prog, targets, tangent, _measure())
+    ctx = dict(nv=form.nv, nw=form.nw, ns=form.ns, groups=[], jac_calls=[])
     if tangent is not None:
-        nscratch = 1
-        pieces: list[str] = []
-        ncol = 2 * tangent.n
-        calls: list[list[int]] = [[] for _ in range(ncol)]
-        resets: list[list[int]] = [[] for _ in range(ncol)]
-
-        def add(more, columns):
-            functions.extend(more)
-            for f in more:
-                for c in columns:
-                    calls[c].append(len(pieces))
-                pieces.append(f.name)
-        for gi, g in enumerate(tangent.groups):
-            for c, ops in g.columns.items():
-                lines, reads, crossing = _column_lines(ops, printer)
-                outside |= reads
-                if crossing:
-                    nscratch = max(nscratch, sum(op[0] == "d" for op in ops))
-                add(_functions(f"column{c}_", _TANGENT_PARAMS, _chunks(lines)), [c])
-            acc = {k for ops in g.columns.values() for kind, k, _ in ops if kind == "w"}
-            owner: dict[int, int] = {}
-            for bi, (_, lo, hi, _) in enumerate(g.blocks):
-                owner.update((k, bi) for k in range(lo, hi))
-            shared = set()
-            for bi, (_, _, _, ops) in enumerate(g.blocks):  # read by another block: kept in w
-                shared |= {i for op in ops for u in op[2].free_symbols
-                           if (i := _w_index(u)) is not None and owner.get(i) != bi}
-            for bi, (cols, lo, hi, ops) in enumerate(g.blocks):
-                # Wide values with only narrow operands have no operation: their tangent is w[i].
-                ops = [("w", i, se.Integer(0)) for i in range(lo, hi)
-                       if i in acc and all(op[1] != i for op in ops if op[0] == "w")] + ops
-                wide, reads = _wide_pieces(ops, acc, shared, g.nw, printer)
-                outside |= reads
-                add(_functions(f"wide{gi}_{bi}_", _TANGENT_PARAMS, wide), sorted(cols))
-                for c in cols:
-                    resets[c] += [g.nw + i for i in range(lo, hi) if i in shared]
-            for c, ops in g.columns.items():
-                resets[c] += sorted({k for kind, k, _ in ops if kind == "w"})
-            ctx["nw"] = max(ctx["nw"], g.nw)
-        ctx["pieces"] = _int_rows([]) if not pieces else ",\n".join(f"{pad}{f}" for f in pieces)
-        ctx["call_start"] = _int_rows([0] + list(accumulate(len(c) for c in calls)))
-        ctx["calls"] = _int_rows([k for c in calls for k in c] or [0])
-        ranges = [_ranges(r) for r in resets]
-        ctx["reset_start"] = _int_rows([0] + list(accumulate(len(r) for r in ranges)))
-        ctx["resets"] = _int_rows([x for r in ranges for x in r] or [0])
-        ctx["npieces"] = len(pieces)
-        ctx["ns"] = nscratch
-        rhs_pieces, extra_pieces = _value_pieces(prog, [(0, n_rhs), (n_rhs, len(prog))], outside)
-    else:
-        rhs_pieces, extra_pieces = _value_pieces(prog, [(0, n_rhs)], outside)[0], []
-    values = _functions("values", _VALUE_PARAMS, rhs_pieces)
-    partials = _functions("partials", _VALUE_PARAMS, extra_pieces)
-    rhs_calls = [f.name for f in values]
+        names = [p.name for p in form.tangent]
+        ctx["pieces"] = _int_rows([]) if not names else ",\n".join(f"{pad}{f}" for f in names)
+        ctx["call_start"] = _int_rows([0] + list(accumulate(len(c) for c in form.calls)))
+        ctx["calls"] = _int_rows([k for c in form.calls for k in c] or [0])
+        ctx["reset_start"] = _int_rows([0] + list(accumulate(len(r) for r in form.resets)))
+        ctx["resets"] = _int_rows([x for r in form.resets for x in r] or [0])
+        ctx["npieces"] = len(names)
     empty = f"{pad}v[0] = 0.0; /* no values: v is read initialized */"
-    ctx["rhs_values"] = "\n".join(f"{pad}{f}(t, y, p, v);" for f in rhs_calls) or empty
-    ctx["jac_values"] = "\n".join(f"{pad}{f}(t, y, p, v);" for f in rhs_calls + [f.name for f in partials]) or empty
-    # M in pieces of its own too: hundreds of stores into the caller's M cost gcc seconds there.
-    mass_lines = [c_statement(printer, ir.Assign(ir.target_nodes(t), ir.expression(a)))
-                  for t, a in targets if t[0] == "M"]
-    mass = _functions("mass", _params("const double *y", "const double *p", "const double *v", "double M[][N]"),
-                      _chunks(mass_lines))
-    ctx["mass"] = "\n".join(f"{pad}{f.name}(y, p, v, M);" for f in mass)
-    ctx["rhs_targets"] = "\n".join([ctx["mass"]] + [c_statement(printer, ir.Assign(_rhs_target(t), ir.expression(a)))
-                                                     for t, a in targets if t[0] != "M"])
-    ctx["functions"] = values + partials + functions + mass
+    ctx["rhs_values"] = "\n".join(f"{pad}{f.name}(t, y, p, v);" for f in form.values) or empty
+    ctx["jac_values"] = "\n".join(f"{pad}{f.name}(t, y, p, v);" for f in form.values + form.partials) or empty
+    ctx["mass"] = "\n".join(f"{pad}{f.name}(y, p, v, M);" for f in form.mass)
+    ctx["rhs_targets"] = "\n".join([ctx["mass"]] + [c_statement(printer, st) for st in form.targets])
+    ctx["functions"] = [_c_function(piece, printer) for piece in form.pieces]
     return ctx
 
 
@@ -504,32 +282,16 @@ BLOCK_CSE_MAX_OPS = 400_000
 
 def print_block_pieces(block: Block, name: str, before: list, after: list, scratch: str,
                        error: str) -> tuple[list, str]:
-    """A kernel :class:`Block` as static functions ``name<k>(before, double *<scratch>, after)`` of at
-    most CHUNK_STATEMENTS statements (after common-subexpression elimination, the temporaries in
-    the array ``scratch``): returns (the functions; the statements of the caller: allocation,
-    calls ``name<k>(...)``, free; ``return error`` when the allocation fails)."""
+    """A kernel :class:`Block` as static functions ``name<k>(before, double *<array>, after)`` of
+    at most CHUNK_STATEMENTS statements (:func:`lagcodegen.codegen.program.block_pieces`: the
+    temporaries in the array ``scratch``): returns (the functions; the statements of the caller:
+    allocation, calls ``name<k>(...)``, free; ``return error`` when the allocation fails).
+    ``before``, ``after``: (declaration, name) of the other parameters."""
     printer = CPrinter(_layout())
-    if se.count_ops(*block.exprs) > BLOCK_CSE_MAX_OPS:  # symengine's elimination takes minutes: hash-consing
-        prog, targets = build_program(block, 0, cse=False)
-        nv = len(prog)
-        array = "v"
-        pieces = _value_pieces(prog, [(0, nv)], {prog.index(a) for _, a in targets} - {None})[0]
-        pieces += _chunks([c_statement(printer, ir.Assign(ir.target_nodes(t), ir.expression(a))) for t, a in targets])
-        size = max(nv, 1)
-    else:
-        array = scratch
-        repl, reduced = cse(block.exprs)
-
-        def temp(node):
-            return ir.Element(scratch, int(node.name[1:])) if isinstance(node, ir.Name) else None
-        lines = [c_statement(printer, ir.Assign((temp(ir.Name(str(sym))),), ir.substitute(ir.expression(e), temp)))
-                 for sym, e in repl]
-        lines += [c_statement(printer, ir.Assign(ir.target_nodes(t), ir.substitute(ir.expression(e), temp)))
-                  for t, e in zip(block.targets, reduced)]
-        pieces = _chunks(lines)
-        size = max([int(str(sym)[1:]) + 1 for sym, _ in repl] or [1])
-    params = _params(*before, f"double *{array}", *after)
-    functions = _functions(name, params, pieces)
+    pieces, array, size = program.block_pieces(block, scratch, _measure(), cse, BLOCK_CSE_MAX_OPS)
+    params = [*before, (f"double *{array}", array), *after]
+    functions = [CFunction(f"{name}{k}", params, [c_statement(printer, st) for st in statements])
+                 for k, statements in enumerate(pieces)]
     args = ", ".join(n for _, n in params)
     calls = [f"{_INDENT}double *{array} = (double *)malloc({size} * sizeof(double));",
              f"{_INDENT}if ({array} == NULL)", f"{_INDENT * 2}return {error};"]
@@ -561,8 +323,8 @@ def generate_c(scene: Scene) -> GeneratedCode:
     jac = print_block(blocks["jac"]) if "jac" in blocks and not extra["program"] else ""
     if "jac" in blocks and extra["program"]:  # a large expanded Jacobian: in pieces too
         nz = len(scene.eom.quadratures)
-        params = ["double t", "const double *y", "const double *p", "const double *a", "double M[][N]",
-                  "double G[][N]"] + (["double Z[][2 * N]"] if nz else [])
+        params = [("double t", "t"), ("const double *y", "y"), ("const double *p", "p"), ("const double *a", "a"),
+                  ("double M[][N]", "M"), ("double G[][N]", "G")] + ([("double Z[][2 * N]", "Z")] if nz else [])
         defs, jac = print_block_pieces(blocks["jac"], "jacobian", params[:4], params[4:], "x",
                                        f"{code.prefix.upper()}_ERR_MEMORY")
         extra["program"]["functions"] += defs
