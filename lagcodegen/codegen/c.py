@@ -19,7 +19,7 @@ from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
-from . import ir, program
+from . import ir, lowering, program
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
@@ -141,7 +141,7 @@ class CPrinter(ir.Printer):
 def c_expr(expr, resolve=None) -> str:
     """C99 text of a symengine expression (:func:`lagcodegen.codegen.ir.expression` printed by
     :class:`CPrinter`): symengine's C text, with every constant exact."""
-    return CPrinter().doprint(ir.expression(expr, resolve))
+    return CPrinter().doprint(lowering.expression(expr, resolve))
 
 
 def c_statement(printer: CPrinter, st: ir.Assign, pad: str = _INDENT) -> str:
@@ -163,7 +163,7 @@ def _layout(ng: int = 0) -> dict:
 def print_block(block: Block, ng: int = 0) -> str:
     """The C statements of a kernel :class:`Block` (after common-subexpression elimination)."""
     printer = CPrinter(_layout(ng))
-    return "\n".join(c_statement(printer, st) for st in ir.block_statements(block, cse))
+    return "\n".join(c_statement(printer, st) for st in lowering.block_statements(block, cse))
 
 
 #: The program form's pieces: at most this many statements or characters per C function, so that
@@ -363,16 +363,7 @@ def _add_sparse_jacobian(scene: Scene, code: GeneratedCode, env) -> None:
     code.sparse_jacobian = True
 
 
-def generate(scene: Scene) -> GeneratedCode:
-    """The language interface of :mod:`lagcodegen.codegen`: :func:`generate_c`."""
-    return generate_c(scene)
-
-
-def check_prefix(prefix: str, suffix: str = "") -> None:
-    """Every C identifier prefix is usable in C (Fortran limits the length)."""
-
-
-def constrained_source(cb, ctx: dict) -> dict[str, str]:
+def _constrained_source(cb, ctx: dict) -> dict[str, str]:
     """``<prefix>_dae.c``: the constrained kernels (:func:`lagcodegen.formulation.constrained.constrained_blocks`)."""
     b = cb.blocks
     text = environment().get_template("c/dae.c.j2").render(
@@ -380,3 +371,22 @@ def constrained_source(cb, ctx: dict) -> dict[str, str]:
         out=print_block(b["out"]), root_block=print_block(b["roots"]), ggl_res=print_block(b["ggl_res"]),
         ggl_jac_block=print_block(b["ggl_jac"], cb.ng))
     return {f"{ctx['prefix']}_dae.c": text}
+
+
+class CBackend:
+    """The C99 backend (registered as "c" in :mod:`lagcodegen.codegen.languages`): prints the
+    operation tree with :class:`CPrinter` through templates/c/model.c.j2, dae.c.j2, jac_sparse.c.j2."""
+
+    name = "c"
+    printer = CPrinter
+
+    def generate(self, scene: Scene) -> GeneratedCode:
+        """The model code of ``scene``: :func:`generate_c`."""
+        return generate_c(scene)
+
+    def check_prefix(self, prefix: str, suffix: str = "") -> None:
+        """Every C identifier prefix is usable in C (Fortran limits the length)."""
+
+    def constrained_source(self, cb, ctx: dict) -> dict[str, str]:
+        """``<prefix>_dae.c``: the constrained kernels (:func:`lagcodegen.formulation.constrained.constrained_blocks`)."""
+        return _constrained_source(cb, ctx)

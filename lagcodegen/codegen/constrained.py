@@ -21,7 +21,7 @@ from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, cons
 from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
 from ..version import __version__
-from .languages import LANGUAGE_MODULES
+from .languages import backend
 from .record import DaeLayout
 from .templates import environment
 
@@ -41,9 +41,7 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
 
     Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
     """
-    if lang not in LANGUAGE_MODULES:
-        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGE_MODULES)})")
-    language = LANGUAGE_MODULES[lang]
+    language = backend(lang)
     model = system.model
     eom = derive(model)
     if eom.quadratures:

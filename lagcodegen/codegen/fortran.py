@@ -43,7 +43,7 @@ import symengine as se
 from ..errors import ModelError
 from ..formulation.kernels import Block, model_blocks
 from ..formulation.scene import Scene
-from . import ir
+from . import ir, lowering
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
@@ -388,21 +388,11 @@ def print_block(block: Block, what: str, dummies: tuple[str, ...], optional: tup
     """The Fortran statements of a kernel :class:`Block` (:func:`fortran_block`), after the
     common-subexpression elimination the C backend applies to it."""
     try:
-        statements = ir.block_statements(block, se.cse)
+        statements = lowering.block_statements(block, se.cse)
     except ModelError as exc:
         raise ModelError(f"{what}: {exc}") from None
     return fortran_block(statements, dummies=dummies, optional=optional, renames=renames, what=what,
                          scalars=scalars)
-
-
-def generate(scene: Scene) -> GeneratedCode:
-    """The language interface of :mod:`lagcodegen.codegen`: :func:`generate_fortran`."""
-    return generate_fortran(scene)
-
-
-def constrained_source(cb, ctx: dict) -> dict[str, str]:
-    """``<prefix>_dae.f90``: :func:`generate_constrained_fortran_source`."""
-    return {f"{ctx['prefix']}_dae.f90": generate_constrained_fortran_source(cb, ctx)}
 
 
 def generate_constrained_fortran_source(cb, ctx: dict) -> str:
@@ -440,3 +430,24 @@ def generate_constrained_fortran_source(cb, ctx: dict) -> str:
         else:
             lines.append(line)
     return "\n".join(lines)
+
+
+class FortranBackend:
+    """The Fortran 2008 backend (registered as "fortran" in :mod:`lagcodegen.codegen.languages`):
+    prints the operation tree with :class:`FortranPrinter` through templates/fortran/model.f90.j2
+    and dae.f90.j2, every function bound to the C backend's name and signature."""
+
+    name = "fortran"
+    printer = FortranPrinter
+
+    def generate(self, scene: Scene) -> GeneratedCode:
+        """The model code of ``scene``: :func:`generate_fortran`."""
+        return generate_fortran(scene)
+
+    def check_prefix(self, prefix: str, suffix: str = "_err_singular_mass") -> None:
+        """Fortran names start with a letter and have at most 63 characters: :func:`check_prefix`."""
+        check_prefix(prefix, suffix)
+
+    def constrained_source(self, cb, ctx: dict) -> dict[str, str]:
+        """``<prefix>_dae.f90``: :func:`generate_constrained_fortran_source`."""
+        return {f"{ctx['prefix']}_dae.f90": generate_constrained_fortran_source(cb, ctx)}

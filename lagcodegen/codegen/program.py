@@ -20,7 +20,7 @@ from typing import Callable
 
 import symengine as se
 
-from . import ir
+from . import ir, lowering
 
 
 @dataclass
@@ -105,7 +105,7 @@ def _value_pieces(prog, ranges: list[tuple[int, int]], outside: set, measure: Me
         e = prog.exprs[k]
         sub = {u: full[i] for u in e.free_symbols if (i := prog.index(u)) is not None and inline[i]}
         full[k] = e.xreplace(sub) if sub else e
-    trees = {k: ir.expression(full[k]) for k in range(nv) if not inline[k]}
+    trees = {k: lowering.expression(full[k]) for k in range(nv) if not inline[k]}
     piece: dict[int, int] = {}
     out, count = [], 0
     for start, stop in ranges:
@@ -151,7 +151,7 @@ def _column(ops: list, measure: Measure) -> tuple[list[list], set, int]:
     """The pieces of a column's narrow operations; when they fill more than one piece, the local
     tangents d<k> live in the scratch array s (they cross the pieces). Also returns the values
     v[k] they read and the scratch size (0 without)."""
-    trees = [ir.expression(op[2]) for op in ops]
+    trees = [lowering.expression(op[2]) for op in ops]
     statements = [op_statement(op, t) for op, t in zip(ops, trees)]
     reads = set().union(*(ir.elements(t, "v") for t in trees)) if trees else set()
     if len(measure.chunks(statements, measure.statement)) == 1:
@@ -175,7 +175,7 @@ def _wide(ops: list, acc: set, shared: set, nw: int, measure: Measure) -> tuple[
     the tangents in ``acc`` to w[i]; the tangent of wide value i is assigned to w[nw + i] (or to
     a local ``wl<i>`` if only its own piece reads it, and it is not ``shared`` with other blocks):
     tangent = w[i] (if in acc) + the wide terms. Also returns the values v[k] they read."""
-    trees = [ir.expression(op[2]) for op in ops]
+    trees = [lowering.expression(op[2]) for op in ops]
     sizes = [measure.statement(op_statement(op, t)) for op, t in zip(ops, trees)]
     chunks = measure.chunks(list(range(len(ops))), sizes.__getitem__)
     piece = {j: c for c, chunk in enumerate(chunks) for j in chunk}
@@ -202,7 +202,7 @@ def _wide(ops: list, acc: set, shared: set, nw: int, measure: Measure) -> tuple[
             tree = ir.substitute(trees[j], ref)
             if kind == "w":
                 if i in acc:
-                    tree = ir.plus(ir.Element("w", i), tree)
+                    tree = lowering.plus(ir.Element("w", i), tree)
                 statements.append(ir.Assign((value(i),), tree, local=i in local))
             else:
                 statements.append(op_statement(ops[j], tree))
@@ -285,9 +285,9 @@ def program_form(prog, targets: list, tangent, measure: Measure) -> ProgramForm:
     form.values = _named("values", "values", rhs_pieces)
     form.partials = _named("partials", "values", extra)
     # M in pieces of its own too: hundreds of stores into the caller's M cost gcc seconds there.
-    mass = [ir.Assign(ir.target_nodes(t), ir.expression(a)) for t, a in targets if t[0] == "M"]
+    mass = [ir.Assign(ir.target_nodes(t), lowering.expression(a)) for t, a in targets if t[0] == "M"]
     form.mass = _named("mass", "mass", measure.chunks(mass, measure.statement))
-    form.targets = [ir.Assign(rhs_target(t), ir.expression(a)) for t, a in targets if t[0] != "M"]
+    form.targets = [ir.Assign(rhs_target(t), lowering.expression(a)) for t, a in targets if t[0] != "M"]
     return form
 
 
@@ -299,15 +299,15 @@ def block_pieces(block, scratch: str, measure: Measure, eliminate, cse_max_ops: 
     if se.count_ops(*block.exprs) > cse_max_ops:  # symengine's elimination takes minutes: hash-consing
         prog, targets = build_program(block, 0, cse=False)
         pieces = _value_pieces(prog, [(0, len(prog))], {prog.index(a) for _, a in targets} - {None}, measure)[0]
-        pieces += measure.chunks([ir.Assign(ir.target_nodes(t), ir.expression(a)) for t, a in targets],
+        pieces += measure.chunks([ir.Assign(ir.target_nodes(t), lowering.expression(a)) for t, a in targets],
                                  measure.statement)
         return pieces, "v", max(len(prog), 1)
     repl, reduced = eliminate(block.exprs)
 
     def temp(node):
         return ir.Element(scratch, int(node.name[1:])) if isinstance(node, ir.Name) else None
-    statements = [ir.Assign((temp(ir.Name(str(sym))),), ir.substitute(ir.expression(e), temp)) for sym, e in repl]
-    statements += [ir.Assign(ir.target_nodes(t), ir.substitute(ir.expression(e), temp))
+    statements = [ir.Assign((temp(ir.Name(str(sym))),), ir.substitute(lowering.expression(e), temp)) for sym, e in repl]
+    statements += [ir.Assign(ir.target_nodes(t), ir.substitute(lowering.expression(e), temp))
                    for t, e in zip(block.targets, reduced)]
     size = max([int(str(sym)[1:]) + 1 for sym, _ in repl] or [1])
     return measure.chunks(statements, measure.statement), scratch, size
