@@ -166,16 +166,11 @@ def print_block(block: Block, ng: int = 0) -> str:
     return "\n".join(c_statement(printer, st) for st in lowering.block_statements(block, cse))
 
 
-#: The program form's pieces: at most this many statements or characters per C function, so that
-#: the compiler's time grows like the code's size (gcc's register allocation and dead-store
-#: elimination grow much faster on one long function).
-CHUNK_STATEMENTS = 120
-CHUNK_CHARS = 8000
-
-#: The right-hand side of a scene without the tangent Jacobian is printed in program form
-#: (:func:`lagcodegen.formulation.tangent.build_program`, pieces of at most CHUNK_STATEMENTS)
-#: from this many operations (symengine's count_ops) on; smaller ones as one function, as before.
-PROGRAM_MIN_OPS = 6000
+#: The C backend's program-form thresholds (:mod:`lagcodegen.codegen.program`): pieces of at most
+#: CHUNK_STATEMENTS statements or CHUNK_CHARS characters; program form from PROGRAM_MIN_OPS operations.
+CHUNK_STATEMENTS = program.CHUNK_STATEMENTS
+CHUNK_CHARS = program.CHUNK_CHARS
+PROGRAM_MIN_OPS = program.PROGRAM_MIN_OPS
 
 
 def _measure() -> program.Measure:
@@ -300,16 +295,14 @@ def print_block_pieces(block: Block, name: str, before: list, after: list, scrat
 
 
 def use_program(scene: Scene, rhs: Block) -> bool:
-    """True if the right-hand side is printed in program form: with the tangent Jacobian (they
-    share its values), or from PROGRAM_MIN_OPS operations on."""
-    if scene.jacobian and scene.resolved_jacobian_form() == "tangent":
-        return True
-    return bool(rhs.exprs) and se.count_ops(*rhs.exprs) >= PROGRAM_MIN_OPS
+    """True if the right-hand side is printed in program form (:func:`lagcodegen.codegen.program.use_program`
+    with PROGRAM_MIN_OPS)."""
+    return program.use_program(scene, rhs, PROGRAM_MIN_OPS)
 
 
 def generate_c(scene: Scene) -> GeneratedCode:
     """Render the C header and source of ``scene`` (functions: rhs, jac if asked, outputs if any)."""
-    tangent = scene.jacobian and scene.resolved_jacobian_form() == "tangent"
+    tangent = program.tangent_jacobian(scene)
     blocks = model_blocks(dataclasses.replace(scene, jacobian=False) if tangent else scene)
     code = new_code(scene)
     ctx = header_context(scene, code)
@@ -329,10 +322,10 @@ def generate_c(scene: Scene) -> GeneratedCode:
                                        f"{code.prefix.upper()}_ERR_MEMORY")
         extra["program"]["functions"] += defs
     if extra["program"]:
-        program = extra["program"]
-        program["functions"], program["prototypes"], program["groups"] = _group_pieces(program["functions"])
-        if program["groups"] > 1:
-            code.split[code.source_name] = program["groups"]
+        form = extra["program"]
+        form["functions"], form["prototypes"], form["groups"] = _group_pieces(form["functions"])
+        if form["groups"] > 1:
+            code.split[code.source_name] = form["groups"]
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx, program=extra["program"])
     code.files[code.source_name] = env.get_template("c/model.c.j2").render(
         **ctx, rhs=None if extra["program"] else print_block(blocks["rhs"]),

@@ -34,16 +34,19 @@ native CVODE and IDA drivers.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
+from itertools import accumulate
 
 import symengine as se
 
 from ..errors import ModelError
 from ..formulation.kernels import Block, model_blocks
 from ..formulation.scene import Scene
-from . import ir, lowering
+from ..formulation.tangent import build_program, tangent_program
+from . import ir, lowering, program
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
@@ -346,35 +349,162 @@ def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
                          f"at most {longest} characters (letters, digits, underscores)")
 
 
+# ----------------------------------------------------------------------------- program form
+#: The arrays and scalars the program form's pieces may take, in the order of their arguments
+#: (:mod:`lagcodegen.codegen.program`); M is the n x n mass matrix, the others 1-D.
+_PIECE_ARGS = ("t", "y", "p", "v", "a", "w", "g", "jz", "s", "M")
+
+
+def _measure() -> program.Measure:
+    """The Fortran text sizes the program form's pieces are cut by."""
+    printer = FortranPrinter()
+    return program.Measure(
+        statement=lambda st: len(printer.doprint(st.targets[0])) + 3 + len(printer.doprint(_value(st))),
+        value=lambda k, tree: len(str(k)) + 1 + len(printer.doprint(tree)),
+        statements=program.CHUNK_STATEMENTS, chars=program.CHUNK_CHARS)
+
+
+def _value(st: ir.Assign):
+    """The value a statement assigns (``target + value`` for an accumulation)."""
+    return ir.BinOp("+", st.targets[0], st.value) if st.accumulate else st.value
+
+
+def _arrays(statements: list) -> tuple[set, set]:
+    """(read, written) arrays and scalars of ``statements`` other than their local temporaries."""
+    local = {st.targets[0].name for st in statements if st.local}
+    read, written = set(), set()
+    for st in statements:
+        for leaf in ir.walk(_value(st)):
+            if isinstance(leaf, ir.Element):
+                read.add(leaf.array)
+            elif isinstance(leaf, ir.Name) and leaf.name not in local:
+                read.add(leaf.name)
+        if not st.local:
+            written |= {t.array for t in st.targets}
+    return read, written
+
+
+@dataclass
+class _Subroutine:
+    """A piece of the program form as a module subroutine: its text, its arguments and the libm
+    functions it calls."""
+
+    name: str
+    args: list
+    text: str
+    libm: tuple
+
+    def call(self, actual: dict | None = None) -> str:
+        """``call name(args)`` with the actual arguments ``actual`` ({dummy: text}, default the same names)."""
+        actual = actual or {}
+        return f"call {self.name}({', '.join(actual.get(a, a) for a in self.args)})"
+
+
+def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
+    """The subroutine of a piece: arguments only those its statements use (no unused dummies),
+    arrays assumed-size (M n x n), intent(inout) where written."""
+    statements = [ir.Assign(st.targets, _value(st), local=st.local) for st in piece.statements]
+    read, written = _arrays(statements)
+    args = [a for a in _PIECE_ARGS if a in read | written]
+    block = fortran_block(statements, dummies=_PIECE_ARGS, indent=2, what=what)
+    lines = [f"  recursive subroutine {piece.name}({', '.join(args)})"]
+    for a in args:
+        intent = "inout" if a in written else "in"
+        shape = "" if a == "t" else "(n, n)" if a == "M" else "(*)"
+        lines.append(f"    real(c_double), intent({intent}) :: {a}{shape}")
+    if block.decls:
+        lines.append(block.decls)
+    lines += [block.code, f"  end subroutine {piece.name}"]
+    return _Subroutine(piece.name, args, "\n".join(lines), block.libm)
+
+
+def _int_array(name: str, values: list[int]) -> str:
+    """``integer, parameter :: name(k) = [...]`` wrapped in lines of 16 values."""
+    values = values or [0]
+    rows = [", ".join(str(v) for v in values[k:k + 16]) for k in range(0, len(values), 16)]
+    body = ", &\n      ".join(rows)
+    return f"  integer, parameter :: {name}({len(values)}) = [ &\n      {body}]"
+
+
+def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
+    """The template context of the program form (templates/fortran/model.f90.j2): the piece
+    subroutines, the calls of rhs and jac, the right-hand side's targets, and with ``tangent``
+    the tables of the pieces each column runs (``run_piece`` dispatches on a piece's number)."""
+    form = program.program_form(prog, targets, tangent, _measure())
+    subs = {p.name: _subroutine(p, f"{prefix} program form") for p in form.pieces}
+    pad = _INDENT * 2
+    ctx = dict(nv=form.nv, nw=form.nw, ns=form.ns)
+    ctx["rhs_calls"] = "\n".join(pad + subs[p.name].call() for p in form.values + form.mass)
+    ctx["jac_calls"] = "\n".join(pad + subs[p.name].call() for p in form.values + form.partials + form.mass)
+    targets_block = fortran_block(form.targets, dummies=("t", "y", "p", "v"), what=f"{prefix}_rhs")
+    ctx["rhs_targets"] = targets_block.code
+    read = set().union(*(subs[p.name].args for p in form.values + form.mass)) | _arrays(form.targets)[0]
+    ctx["rhs_unused"] = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                                  for d in ("t", "p") if d not in read)
+    libm = set(targets_block.libm)
+    for sub in subs.values():
+        libm |= set(sub.libm)
+    ctx["libm"] = libm
+    ctx["subroutines"] = "\n\n".join(sub.text for sub in subs.values())
+    if tangent is not None:
+        cases = []
+        used = set()
+        for k, piece in enumerate(form.tangent):
+            sub = subs[piece.name]
+            used |= set(sub.args)
+            cases.append(f"    case ({k})\n      {sub.call()}")
+        ctx["npieces"] = len(form.tangent)
+        ctx["cases"] = "\n".join(cases)
+        dispatch = ("t", "y", "p", "v", "a", "w", "g", "jz", "s")
+        ctx["run_unused"] = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                                      for d in dispatch if d not in used)
+        ctx["call_start"] = _int_array("call_start", [0] + list(accumulate(len(c) for c in form.calls)))
+        ctx["calls"] = _int_array("calls", [k for c in form.calls for k in c])
+        ctx["reset_start"] = _int_array("reset_start", [0] + list(accumulate(len(r) for r in form.resets)))
+        ctx["resets"] = _int_array("resets", [x for r in form.resets for x in r])
+    ctx["jac_unused"] = ""  # the tangent Jacobian passes every argument to run_piece
+    return ctx
+
+
 def generate_fortran(scene: Scene) -> GeneratedCode:
     """Render ``<prefix>.f90`` (module ``<prefix>_mod``) and the C header ``<prefix>.h`` of ``scene``.
 
     The functions are those of :func:`lagcodegen.generate_c` (rhs; jac if the scene asks for
     the Jacobian; outputs if it has any), bound to the same C names and signatures, computed
-    from the same expression blocks (:func:`lagcodegen.formulation.kernels.model_blocks`).
-    The Jacobian is always the expanded form (``model_blocks``' symbolic dr/dy, code growing
-    like n^3): ``Scene.jacobian_form`` ("tangent", or "auto" above
-    :data:`~lagcodegen.formulation.scene.EXPANDED_JACOBIAN_MAX_N` coordinates) chooses only the
-    C backend's form.
+    from the same expression blocks (:func:`lagcodegen.formulation.kernels.model_blocks`) and
+    in the same forms: a large right-hand side in program form (module subroutines of at most
+    :data:`~lagcodegen.codegen.program.CHUNK_STATEMENTS` statements,
+    :func:`lagcodegen.codegen.program.program_form`), the Jacobian in tangent form when
+    ``Scene.jacobian_form`` resolves to "tangent" (:mod:`lagcodegen.formulation.tangent`), else
+    expanded (``model_blocks``' symbolic dr/dy).
     """
     check_prefix(scene.prefix)
     n = scene.eom.n
-    blocks = model_blocks(scene)
-
-    rhs = print_block(blocks["rhs"], f"{scene.prefix}_rhs", ("t", "y", "p"), ("t", "p"))
+    tangent = program.tangent_jacobian(scene)
+    blocks = model_blocks(dataclasses.replace(scene, jacobian=False) if tangent else scene)
+    what = scene.prefix
+    prog = None
+    rhs = None
+    if program.use_program(scene, blocks["rhs"]):
+        built = build_program(blocks["rhs"], n)
+        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built) if tangent else None
+        prog = _program_context(built[0], built[1], tp, what)
+    else:
+        rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
-    if scene.jacobian:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
-        jac = print_block(blocks["jac"], f"{scene.prefix}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
+    if scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
+        jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
                           renames={"a": ("ydot", n)})
-    out = print_block(blocks["out"], f"{scene.prefix}_outputs", ("t", "y", "p"), ("t", "y", "p"))
+    out = print_block(blocks["out"], f"{what}_outputs", ("t", "y", "p"), ("t", "y", "p"))
 
     code = new_code(scene)
     ctx = header_context(scene, code)
     env = environment()
-    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
-    libm = sorted(set(rhs.libm) | set(jac.libm if jac else ()) | set(out.libm))
+    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx, program=prog)
+    libm = set(out.libm) | set(jac.libm if jac else ()) | set(rhs.libm if rhs else ()) | set(prog["libm"] if prog else ())
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM_ARITY[name]) for name in libm])
+        **ctx, rhs=rhs, jac=jac, out=out, program=prog, tangent=tangent,
+        libm=[(name, _LIBM_ARITY[name]) for name in sorted(libm)])
     return code
 
 

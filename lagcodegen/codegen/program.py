@@ -22,6 +22,30 @@ import symengine as se
 
 from . import ir, lowering
 
+#: The program form's pieces: at most this many statements or characters per function, so that
+#: the compiler's time grows like the code's size (gcc's register allocation and dead-store
+#: elimination grow much faster on one long function).
+CHUNK_STATEMENTS = 120
+CHUNK_CHARS = 8000
+
+#: The right-hand side of a scene without the tangent Jacobian is printed in program form
+#: (:func:`lagcodegen.formulation.tangent.build_program`, pieces of at most CHUNK_STATEMENTS)
+#: from this many operations (symengine's count_ops) on; smaller ones as one function.
+PROGRAM_MIN_OPS = 6000
+
+
+def tangent_jacobian(scene) -> bool:
+    """True if the scene's Jacobian is printed in tangent form (:mod:`lagcodegen.formulation.tangent`)."""
+    return bool(scene.jacobian) and scene.resolved_jacobian_form() == "tangent"
+
+
+def use_program(scene, rhs, min_ops: int = PROGRAM_MIN_OPS) -> bool:
+    """True if the right-hand side ``rhs`` is printed in program form: with the tangent Jacobian
+    (they share its values), or from ``min_ops`` operations on."""
+    if tangent_jacobian(scene):
+        return True
+    return bool(rhs.exprs) and se.count_ops(*rhs.exprs) >= min_ops
+
 
 @dataclass
 class Measure:
