@@ -43,9 +43,10 @@ from itertools import accumulate
 import symengine as se
 
 from ..errors import ModelError
-from ..formulation.kernels import Block, model_blocks
+from ..formulation.kernels import Block, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import build_program, tangent_program
+from ..version import __version__
 from . import ir, lowering, program
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
@@ -501,11 +502,39 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     ctx = header_context(scene, code)
     env = environment()
     code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx, program=prog)
-    libm = set(out.libm) | set(jac.libm if jac else ()) | set(rhs.libm if rhs else ()) | set(prog["libm"] if prog else ())
+    code.jac_pattern = scene.jacobian_pattern()
+    sparse = _sparse_context(scene, code, env) if scene.sparse_jacobian else None
+    libm = set(out.libm) | set(jac.libm if jac else ()) | set(rhs.libm if rhs else ())
+    libm |= set(prog["libm"] if prog else ()) | set(sparse["block"].libm if sparse else ())
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, program=prog, tangent=tangent,
+        **ctx, rhs=rhs, jac=jac, out=out, program=prog, tangent=tangent, sparse=sparse,
         libm=[(name, _LIBM_ARITY[name]) for name in sorted(libm)])
     return code
+
+
+def _sparse_context(scene: Scene, code: GeneratedCode, env) -> dict:
+    """The sparse Jacobian ``<prefix>_jac_sparse`` in the module (the kernel of
+    :func:`lagcodegen.formulation.kernels.sparse_jacobian`), its structure as the C symbols
+    ``<prefix>_jac_colptr``/``_rowind``, and the C backend's header ``<prefix>_sparse.h``."""
+    sj = sparse_jacobian(scene, code.jac_pattern)
+    n = scene.eom.n
+    block = print_block(sj.block, f"{code.prefix}_jac_sparse", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
+                        renames={"a": ("ydot", n)})
+    pad = _INDENT * 2
+
+    def values(xs):
+        xs = list(xs) or [0]
+        return ", &\n      ".join(", ".join(str(v) for v in xs[k:k + 16]) for k in range(0, len(xs), 16))
+    ctx = dict(nnz=len(sj.entries), colptr=values(sj.colptr), rowind=values(i for i, _ in sj.entries),
+               diagonal=sj.diagonal, block=block, nsolve=len(sj.solve_cols), solve_cols=values(sj.solve_cols),
+               after="\n".join(f"{pad}vals({k + 1}) = -G({i + 1}, {j + 1})" for k, j, i in sj.copies))
+    header = env.get_template("c/jac_sparse.h.j2").render(prefix=code.prefix, PREFIX=code.prefix.upper(),
+                                                          version=__version__, model_name=code.model_name,
+                                                          nnz=len(sj.entries))
+    code.files[f"{code.prefix}_sparse.h"] = header
+    code.cffi_headers.append(f"{code.prefix}_sparse.h")
+    code.sparse_jacobian = True
+    return ctx
 
 
 # ----------------------------------------------------------------------------- constrained systems
