@@ -15,6 +15,7 @@ from itertools import accumulate
 
 import symengine as se
 
+from ..errors import ModelError
 from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
@@ -91,6 +92,8 @@ class CPrinter(ir.Printer):
         return f"{_print_double(node.num)}/{_print_double(node.den)}"
 
     def _print_Name(self, node: ir.Name) -> str:
+        if node.name in self.RESERVED:
+            raise ModelError(f"the symbol {node.name!r} is a C keyword; rename it")
         return node.name
 
     def _print_Element(self, node: ir.Element) -> str:
@@ -270,9 +273,8 @@ def print_program(prog, targets: list, tangent: TangentProgram | None = None) ->
     return ctx
 
 
-#: A block printed by print_block_pieces (the expanded Jacobian of a large model) with more operations
-#: than this is hash-consed (lagcodegen.formulation.tangent.build_program) rather than eliminated.
-BLOCK_CSE_MAX_OPS = 400_000
+#: The C backend's threshold of :func:`lagcodegen.codegen.program.block_pieces` (hash-consing above it).
+BLOCK_CSE_MAX_OPS = program.BLOCK_CSE_MAX_OPS
 
 
 def print_block_pieces(block: Block, name: str, before: list, after: list, scratch: str,

@@ -43,7 +43,7 @@ from itertools import accumulate
 import symengine as se
 
 from ..errors import ModelError
-from ..formulation.kernels import Block, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import build_program, tangent_program
 from ..version import __version__
@@ -69,12 +69,6 @@ _INTRINSICS.update(loggamma="log_gamma")
 _LIBM = {"cbrt": ("cbrt", 1), "floor": ("floor", 1), "ceiling": ("ceil", 1), "truncate": ("trunc", 1)}
 #: Arities of the C math library functions the module may bind (C name -> number of arguments).
 _LIBM_ARITY = dict(_LIBM.values())
-#: Fortran 2008 keywords and intrinsic names the generated code must not use for its own variables.
-RESERVED = frozenset(("program", "module", "function", "subroutine", "end", "if", "then", "else", "do", "call",
-                      "real", "integer", "logical", "implicit", "none", "intent", "in", "out", "inout", "value",
-                      "bind", "use", "contains", "return", "result", "merge", "associate", "interface"))
-
-
 def fortran_real(value: float) -> str:
     """A double-precision Fortran literal of ``value`` with 17 significant digits."""
     text = f"{float(value):.17g}"
@@ -113,6 +107,12 @@ class FortranPrinter(ir.Printer):
     math functions without an intrinsic are recorded in ``libm``.
     """
 
+    #: Fortran 2008 keywords and names of the generated module that no variable of the code may take.
+    RESERVED = frozenset(("program", "module", "function", "subroutine", "end", "if", "then", "else", "do", "call",
+                          "real", "integer", "logical", "implicit", "none", "intent", "in", "out", "inout", "value",
+                          "bind", "use", "contains", "return", "result", "merge", "associate", "interface", "factor",
+                          "solve", "n", "nz", "ny", "nv", "nw", "ns", "nout", "nnz"))
+
     def __init__(self, renames: dict | None = None):
         self.renames = dict(renames or {})
         self.libm: set[str] = set()
@@ -148,6 +148,8 @@ class FortranPrinter(ir.Printer):
         return self._print_BinOp(ir.BinOp("/", num, ir.Integer(node.den)))
 
     def _print_Name(self, node: ir.Name):
+        if node.name.lower() in self.RESERVED:
+            raise ModelError(f"the symbol {node.name!r} is a Fortran keyword or a name of the module; rename it")
         return node.name, _ATOM
 
     def _print_Element(self, node: ir.Element):
@@ -353,7 +355,8 @@ def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
 # ----------------------------------------------------------------------------- program form
 #: The arrays and scalars the program form's pieces may take, in the order of their arguments
 #: (:mod:`lagcodegen.codegen.program`); M is the n x n mass matrix, the others 1-D.
-_PIECE_ARGS = ("t", "y", "p", "v", "a", "w", "g", "jz", "s", "M")
+_PIECE_ARGS = ("t", "y", "p", "v", "a", "w", "g", "jz", "s", "x", "M", "G", "Z")
+_SHAPES = {"t": "", "M": "(n, n)", "G": "(n, 2 * n)", "Z": "(nz, 2 * n)"}
 
 
 def _measure() -> program.Measure:
@@ -411,7 +414,7 @@ def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
     lines = [f"  recursive subroutine {piece.name}({', '.join(args)})"]
     for a in args:
         intent = "inout" if a in written else "in"
-        shape = "" if a == "t" else "(n, n)" if a == "M" else "(*)"
+        shape = _SHAPES.get(a, "(*)")
         lines.append(f"    real(c_double), intent({intent}) :: {a}{shape}")
     if block.decls:
         lines.append(block.decls)
@@ -467,6 +470,27 @@ def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
     return ctx
 
 
+def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
+    """The expanded Jacobian of a program-form model in pieces (:func:`lagcodegen.codegen.program.block_pieces`:
+    subroutines ``jacobian<k>``, the temporaries in an allocated array): the body of ``<prefix>_jac``
+    as a :class:`FortranBlock`; the subroutines join the program form's."""
+    pieces, array, size = program.block_pieces(block, "x", _measure(), cse)
+    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac")
+            for k, statements in enumerate(pieces)]
+    prog["subroutines"] += "\n\n" + "\n\n".join(sub.text for sub in subs)
+    prog["libm"] = set(prog["libm"]).union(*(sub.libm for sub in subs))
+    pad = _INDENT * 2
+    used = set().union(*(sub.args for sub in subs))
+    used |= {"ydot"} if "a" in used else set()  # a = ydot(n+1:2n)
+    code = [f"{pad}allocate ({array}({size}), stat=stat)", f"{pad}if (stat /= 0) then",
+            f"{pad}  rc = {what}_err_memory", f"{pad}  return", f"{pad}end if"]
+    code += [pad + sub.call({"a": "ydot(n + 1:2 * n)"}) for sub in subs]
+    decls = f"{pad}real(c_double), allocatable :: {array}(:)\n{pad}integer :: stat"
+    unused = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                       for d in ("t", "y", "ydot", "p") if d not in used)
+    return FortranBlock(decls, "\n".join(code), unused, ())
+
+
 def generate_fortran(scene: Scene) -> GeneratedCode:
     """Render ``<prefix>.f90`` (module ``<prefix>_mod``) and the C header ``<prefix>.h`` of ``scene``.
 
@@ -493,7 +517,9 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     else:
         rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
-    if scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
+    if scene.jacobian and not tangent and prog:  # a large expanded Jacobian: in pieces too
+        jac = _jacobian_pieces(blocks["jac"], prog, what)
+    elif scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
         jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
                           renames={"a": ("ydot", n)})
     out = print_block(blocks["out"], f"{what}_outputs", ("t", "y", "p"), ("t", "y", "p"))

@@ -20,7 +20,7 @@ from typing import Callable
 import symengine as se
 
 from ..errors import ModelError
-from .ir import (Assign, BinOp, Call, Compare, Integer, Logic, Name, Neg, Node, Not, Number, Power,
+from .ir import (FUNCTIONS, Assign, BinOp, Call, Compare, Integer, Logic, Name, Neg, Node, Not, Number, Power,
                  Ratio, Select, Sign, symbol_node, target_nodes)
 
 _CLASS_FUNCTION = {"Abs": "abs", "Max": "max", "Min": "min"}
@@ -232,9 +232,8 @@ class _Builder:
         t = _type(e)
         method = getattr(self, "_" + t, None)
         if method is None:
-            if t in ("Sin", "Cos", "Tan", "ASin", "ACos", "ATan", "ATan2", "Sinh", "Cosh", "Tanh", "ASinh", "ACosh",
-                     "ATanh", "Log", "Erf", "Erfc", "Gamma", "LogGamma", "Floor", "Ceiling", "Abs", "Truncate"):
-                name = _CLASS_FUNCTION.get(type(e).__name__, type(e).__name__)
+            name = _CLASS_FUNCTION.get(type(e).__name__, type(e).__name__)
+            if name in FUNCTIONS:
                 return Call(name, tuple(self.build(a) for a in e.args))
             raise ModelError(f"cannot generate code for {e} ({type(e).__name__} is not supported)")
         return method(e)

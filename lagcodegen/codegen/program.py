@@ -33,18 +33,23 @@ CHUNK_CHARS = 8000
 #: from this many operations (symengine's count_ops) on; smaller ones as one function.
 PROGRAM_MIN_OPS = 6000
 
+#: A block in pieces (:func:`block_pieces`: the expanded Jacobian of a large model) with more
+#: operations than this is hash-consed (:func:`lagcodegen.formulation.tangent.build_program`)
+#: rather than eliminated.
+BLOCK_CSE_MAX_OPS = 400_000
+
 
 def tangent_jacobian(scene) -> bool:
     """True if the scene's Jacobian is printed in tangent form (:mod:`lagcodegen.formulation.tangent`)."""
     return bool(scene.jacobian) and scene.resolved_jacobian_form() == "tangent"
 
 
-def use_program(scene, rhs, min_ops: int = PROGRAM_MIN_OPS) -> bool:
+def use_program(scene, rhs, min_ops: int | None = None) -> bool:
     """True if the right-hand side ``rhs`` is printed in program form: with the tangent Jacobian
-    (they share its values), or from ``min_ops`` operations on."""
+    (they share its values), or from ``min_ops`` (default :data:`PROGRAM_MIN_OPS`) operations on."""
     if tangent_jacobian(scene):
         return True
-    return bool(rhs.exprs) and se.count_ops(*rhs.exprs) >= min_ops
+    return bool(rhs.exprs) and se.count_ops(*rhs.exprs) >= (PROGRAM_MIN_OPS if min_ops is None else min_ops)
 
 
 @dataclass
@@ -315,12 +320,14 @@ def program_form(prog, targets: list, tangent, measure: Measure) -> ProgramForm:
     return form
 
 
-def block_pieces(block, scratch: str, measure: Measure, eliminate, cse_max_ops: int) -> tuple[list, str, int]:
+def block_pieces(block, scratch: str, measure: Measure, eliminate,
+                 cse_max_ops: int | None = None) -> tuple[list, str, int]:
     """A kernel block as pieces of statements (after common-subexpression elimination, the
     temporaries in the array ``scratch``; above ``cse_max_ops`` operations hash-consed into a
-    program whose values are in the array ``v`` instead): (pieces, the array, its size)."""
+    program whose values are in the array ``v`` instead; default :data:`BLOCK_CSE_MAX_OPS`):
+    (pieces, the array, its size)."""
     from ..formulation.tangent import build_program
-    if se.count_ops(*block.exprs) > cse_max_ops:  # symengine's elimination takes minutes: hash-consing
+    if se.count_ops(*block.exprs) > (BLOCK_CSE_MAX_OPS if cse_max_ops is None else cse_max_ops):  # symengine's elimination takes minutes: hash-consing
         prog, targets = build_program(block, 0, cse=False)
         pieces = _value_pieces(prog, [(0, len(prog))], {prog.index(a) for _, a in targets} - {None}, measure)[0]
         pieces += measure.chunks([ir.Assign(ir.target_nodes(t), lowering.expression(a)) for t, a in targets],

@@ -113,3 +113,29 @@ def test_sparse_jacobian_matches_c(fc, tmp_path, which):
         Jf = sparse_as_dense(fm, 0.3, y)
         assert_same(sparse_as_dense(cm, 0.3, y), Jf, "sparse jac")
         np.testing.assert_allclose(Jf, fm.jac(0.3, y), rtol=1e-12, atol=1e-12)  # against the dense Jacobian
+
+
+@pytest.mark.parametrize("hashed", [False, True])
+def test_expanded_jacobian_in_pieces_matches_c(fc, tmp_path, monkeypatch, hashed):
+    # A program-form model with the expanded Jacobian: its block in pieces (the temporaries in an
+    # allocated array), or hash-consed into a program of its own (hashed).
+    import lagcodegen.codegen.c as cmod
+    for module in (program, cmod):
+        monkeypatch.setattr(module, "PROGRAM_MIN_OPS", 0)
+        monkeypatch.setattr(module, "CHUNK_STATEMENTS", 7)
+        if hashed:
+            monkeypatch.setattr(module, "BLOCK_CSE_MAX_OPS", 0)
+    eom = derive(systems.n_link_pendulum(3, name="fe3"))
+    fcode = generate_fortran(Scene(eom, jacobian_form="expanded", prefix="fe3_f"))
+    src = fcode.files["fe3_f.f90"]
+    jac_body = src.split("function fe3_f_jac(")[1]
+    assert "subroutine jacobian1(" in src and "call jacobian0(" in jac_body
+    assert ("allocate (v(" in jac_body) == hashed and ("allocate (x(" in jac_body) != hashed
+    strict(fc, fcode, tmp_path)
+    cm = lcg.build(generate_c(Scene(eom, jacobian_form="expanded", prefix="fe3_c")), native=False)
+    fm = lcg.build(fcode, native=False)
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        y = rng.uniform(-1.0, 1.0, cm.ny)
+        assert_same(cm.rhs(0.1, y), fm.rhs(0.1, y), "rhs")
+        assert_same(cm.jac(0.1, y), fm.jac(0.1, y), "expanded jac in pieces")
