@@ -90,7 +90,6 @@ def fortran_name(name: str, renames: dict[str, tuple[str, int]] | None = None) -
 
 
 _ATOM, _POW, _MUL, _NEG, _ADD, _REL, _NOT, _AND, _OR = 9, 8, 7, 6, 5, 4, 3, 2, 1
-_TRUTH = (ir.Compare, ir.Logic, ir.Not)
 
 
 class FortranPrinter(ir.Printer):
@@ -121,9 +120,13 @@ class FortranPrinter(ir.Printer):
         return self.number(node)[0]
 
     def number(self, node) -> tuple[str, int]:
-        if isinstance(node, _TRUTH):
-            return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
         return getattr(self, "_print_" + type(node).__name__)(node)
+
+    def _truth(self, node) -> tuple[str, int]:
+        """A truth value in arithmetic: 1 or 0 (C's value of a comparison)."""
+        return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
+
+    _print_Compare = _print_Logic = _print_Not = _truth
 
     @staticmethod
     def paren(text_prec, minimum):
