@@ -1,11 +1,12 @@
-"""C code generation: a :class:`~lagcodegen.formulation.scene.Scene` rendered through the jinja2 templates.
+"""The C99 backend: a :class:`~lagcodegen.formulation.scene.Scene` rendered through the jinja2 templates.
 
 Expressions are reduced by common-subexpression elimination (symengine's ``cse``, which
-matches sympy's) and printed by symengine's C printer (sympy's C99 printer gives the same
-text but costs 90% of the generation time of a 20-link pendulum), with every floating-point
-constant printed to 17 significant digits. The symbols of the model are renamed
-to array elements before elimination: q_i -> y[i], q_i' -> y[n+i], run-time parameter k ->
-p[k]; folded parameters become numbers (printed with 17 significant digits, exact doubles).
+matches sympy's), turned into the operation tree (:mod:`.lowering`) and printed by
+:class:`CPrinter`: the text symengine's own C printer writes, with every floating-point constant
+exact (the shortest text that reads back the same double). The symbols of the model are renamed
+to array elements before elimination: q_i -> y[i], q_i' -> y[n+i], run-time parameter k -> p[k];
+folded parameters become numbers. Large right-hand sides, the tangent Jacobian and large
+expanded Jacobians are printed in pieces (:mod:`.program`); the sparse Jacobian in its own files.
 """
 
 from __future__ import annotations

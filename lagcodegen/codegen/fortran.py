@@ -8,7 +8,7 @@ the C version, and :func:`lagcodegen.build` compiles the ``.f90`` with gfortran.
 
 The arithmetic is the C backend's, operation for operation: both print the same operation tree
 (:mod:`lagcodegen.codegen.ir`, built once from the same symbol renaming and the same
-common-subexpression elimination), :class:`FortranPrinter` as Fortran: ``y[i]`` -> ``y(i+1)``,
+common-subexpression elimination), :class:`~.fortran_printer.FortranPrinter` as Fortran: ``y[i]`` -> ``y(i+1)``,
 ``a[i]`` -> ``ydot(N+i+1)``, powers ``a**b`` (gfortran calls the same ``pow``, and turns
 ``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``), every number a double-precision
 literal with 17 significant digits (``0.69999999999999996d0``; integers too, so no integer
@@ -19,6 +19,13 @@ M q'' = F (Cholesky, LU with partial pivoting as fallback; singular -> 1, non-fi
 the Jacobian reusing one factorization are written out in the template as in the C one. With gcc and gfortran at the same optimization
 level the results are bit-identical to the C backend's where neither compiler contracts
 a*b + c into fused multiply-adds (x86-64 without -march; elsewhere use -ffp-contract=off).
+
+The forms are the C backend's too (:mod:`lagcodegen.codegen.program`): a large right-hand side
+in program form (module subroutines of at most CHUNK_STATEMENTS statements, the values in an
+allocated array), the tangent Jacobian (its pieces dispatched by ``run_piece`` from the C
+backend's tables), a large expanded Jacobian in pieces, and the sparse Jacobian
+``<prefix>_jac_sparse`` with ``<prefix>_jac_colptr``/``_rowind`` as ``bind(C)`` variables
+behind the C backend's ``<prefix>_sparse.h``.
 
 Constrained systems: :func:`generate_constrained_fortran_source` renders ``<prefix>_dae.f90``
 (module ``<prefix>_dae_mod``, templates/fortran/dae.f90.j2), every function of the C
