@@ -2,9 +2,10 @@
 (:mod:`.c`) or Fortran 2008 (:mod:`.fortran`) through the jinja2 templates, the cffi
 declarations (:mod:`.cffi_decl`) and the bundles for other projects' builds (:mod:`.bundle`).
 
-A language is a module with ``generate(scene)``, ``check_prefix(prefix, suffix)`` and
-``constrained_source(blocks, ctx)``, registered in :mod:`.languages`; callers name a language
-and never test for one.
+Both print one operation tree (:mod:`.ir`; the program form laid out by :mod:`.program`). A
+language is a backend class with ``generate(scene)``, ``check_prefix(prefix, suffix)`` and
+``constrained_source(blocks, ctx)``, registered by name in :mod:`.languages`; callers name a
+language and never test for one.
 """
 
 from .c import generate_c  # noqa: F401

@@ -21,7 +21,8 @@ from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, cons
 from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
 from ..version import __version__
-from .languages import LANGUAGE_MODULES
+from .ir import deep_recursion
+from .languages import backend, generate_code
 from .record import DaeLayout
 from .templates import environment
 
@@ -36,14 +37,12 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
 
     ``lang``: ``"c"`` (``<prefix>.c``, ``<prefix>_dae.c``, C99) or ``"fortran"`` (``<prefix>.f90``
     and ``<prefix>_dae.f90``, Fortran 2008 modules whose functions are bound to the same C
-    names and signatures, see :func:`lagcodegen.fortran.generate_constrained_fortran_source`);
+    names and signatures, see :func:`lagcodegen.codegen.fortran.FortranBackend.constrained_source`);
     the headers are the same C files in both cases.
 
     Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
     """
-    if lang not in LANGUAGE_MODULES:
-        raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGE_MODULES)})")
-    language = LANGUAGE_MODULES[lang]
+    language = backend(lang)
     model = system.model
     eom = derive(model)
     if eom.quadratures:
@@ -51,7 +50,7 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     scene = Scene(eom, jacobian=False, outputs=(), runtime_parameters=runtime_parameters,
                   values=dict(values or {}), prefix=prefix)
     language.check_prefix(scene.prefix, suffix="_dae_err_projection")
-    code = language.generate(scene)
+    code = generate_code(scene, lang)
     cb = constrained_blocks(system, scene, ggl=ggl, ggl_jacobian=ggl_jacobian, outputs=outputs, events=events)
     n, J, JH, ng = cb.n, cb.J, cb.JH, cb.ng
     outs, evs = cb.outputs, cb.events
@@ -65,7 +64,8 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
                roots_use_lam=cb.roots_use_lam)
     env = environment()
     files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
-    files.update(language.constrained_source(cb, ctx))
+    with deep_recursion():
+        files.update(language.constrained_source(cb, ctx))
     code.files.update(files)
     code.dae = DaeLayout(nq=n, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
                          nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian))

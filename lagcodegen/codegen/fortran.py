@@ -6,22 +6,26 @@ function is ``bind(C, name="<prefix>_...")`` with exactly the C signature, so C 
 the native CVODE driver and the cffi module of :func:`lagcodegen.build` call it exactly like
 the C version, and :func:`lagcodegen.build` compiles the ``.f90`` with gfortran.
 
-The arithmetic is the C backend's, operation for operation. The expressions go through the
-same symbol renaming (:func:`lagcodegen.codegen._symbol_map`: ``y[i]``, ``p[k]``, the
-Jacobian's ``a[i]``), the same common-subexpression elimination (symengine ``cse``) and the
-C backend's own expression printer (:func:`lagcodegen.codegen.c_expr`); the C text of each
-expression is then parsed and printed as Fortran with the same evaluation tree: ``y[i]`` ->
-``y(i+1)``, ``a[i]`` -> ``ydot(N+i+1)``, ``pow(a, b)`` -> ``a**b`` (gfortran calls the same
-``pow``, and turns ``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``), every number a
-double-precision literal with 17 significant digits (``0.69999999999999996d0``; integers
-too, so no integer division can arise), ``fabs`` -> ``abs``, C's boolean arithmetic and ``?:`` -> ``merge``,
-``==``/``!=`` on reals -> ``<=``/``>=`` tests (same result, NaN included), C99 functions
-without a Fortran intrinsic (``cbrt``, ``expm1``, ...) called from libm through
-``bind(C)`` interfaces. The solve of M q'' = F (Cholesky, LU with partial pivoting as
-fallback; singular -> 1, non-finite -> 2) and the Jacobian reusing one factorization are
-written out in the template as in the C one. With gcc and gfortran at the same optimization
+The arithmetic is the C backend's, operation for operation: both print the same operation tree
+(:mod:`lagcodegen.codegen.ir`, built once from the same symbol renaming and the same
+common-subexpression elimination), :class:`~.fortran_printer.FortranPrinter` as Fortran: ``y[i]`` -> ``y(i+1)``,
+``a[i]`` -> ``ydot(N+i+1)``, powers ``a**b`` (gfortran calls the same ``pow``, and turns
+``x**2.0d0`` into ``x*x`` as gcc does with ``pow(x, 2)``), every number a double-precision
+literal with 17 significant digits (``0.69999999999999996d0``; integers too, so no integer
+division can arise), truth values and conditionals as ``merge``, equality tests on reals as
+``<=``/``>=`` tests (same result, NaN included), C99 functions without a Fortran intrinsic
+(``cbrt``, ``floor``, ...) called from libm through ``bind(C)`` interfaces. The solve of
+M q'' = F (Cholesky, LU with partial pivoting as fallback; singular -> 1, non-finite -> 2) and
+the Jacobian reusing one factorization are written out in the template as in the C one. With gcc and gfortran at the same optimization
 level the results are bit-identical to the C backend's where neither compiler contracts
 a*b + c into fused multiply-adds (x86-64 without -march; elsewhere use -ffp-contract=off).
+
+The forms are the C backend's too (:mod:`lagcodegen.codegen.program`): a large right-hand side
+in program form (module subroutines of at most CHUNK_STATEMENTS statements, the values in an
+allocated array), the tangent Jacobian (its pieces dispatched by ``run_piece`` from the C
+backend's tables), a large expanded Jacobian in pieces, and the sparse Jacobian
+``<prefix>_jac_sparse`` with ``<prefix>_jac_colptr``/``_rowind`` as ``bind(C)`` variables
+behind the C backend's ``<prefix>_sparse.h``.
 
 Constrained systems: :func:`generate_constrained_fortran_source` renders ``<prefix>_dae.f90``
 (module ``<prefix>_dae_mod``, templates/fortran/dae.f90.j2), every function of the C
@@ -37,388 +41,25 @@ native CVODE and IDA drivers.
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import re
 from dataclasses import dataclass
+from itertools import accumulate
 
 import symengine as se
 
 from ..errors import ModelError
-from ..formulation.kernels import Block, model_blocks
+from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
-from .c import c_expr
+from ..formulation.tangent import build_program, tangent_program
+from ..version import __version__
+from . import ir, lowering, program
+from .fortran_printer import INDENT, LIBM_ARITY, LINE, FortranBlock, FortranPrinter, fortran_block, wrap
 from .record import GeneratedCode, header_context, new_code
 from .templates import environment
 
-_INDENT = "  "
 #: Longest public Fortran name is <prefix>_err_singular_mass; Fortran names have <= 63 characters.
 MAX_PREFIX = 63 - len("_err_singular_mass")
-#: Fortran 2008 allows 255 continuation lines per statement; longer sums are split before that.
-_MAX_CONTINUATIONS = 200
-#: Code lines are wrapped at this column (free form allows 132).
-_LINE = 100
-
-# ----------------------------------------------------------------------------- C -> Fortran
-_TOKEN = re.compile(r"""\s*(?:
-      (?P<num>(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)(?P<suffix>[A-Za-z_]\w*)?
-    | (?P<id>[A-Za-z_]\w*)
-    | (?P<op>&&|\|\||==|!=|<=|>=|[-+*/()\[\],?:<>!])
-    )""", re.X)
-
-#: C99 <math.h> constants (the literal texts of glibc's macros: the same doubles as in C).
-_C_CONSTANTS = {
-    "M_E": "2.7182818284590452354", "M_LOG2E": "1.4426950408889634074", "M_LOG10E": "0.43429448190325182765",
-    "M_LN2": "0.69314718055994530942", "M_LN10": "2.30258509299404568402", "M_PI": "3.14159265358979323846",
-    "M_PI_2": "1.57079632679489661923", "M_PI_4": "0.78539816339744830962", "M_1_PI": "0.31830988618379067154",
-    "M_2_PI": "0.63661977236758134308", "M_2_SQRTPI": "1.12837916709551257390",
-    "M_SQRT2": "1.41421356237309504880", "M_SQRT1_2": "0.70710678118654752440",
-}
-#: C math functions with a Fortran 2008 intrinsic of the same meaning.
-_INTRINSICS = {name: name for name in ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh",
-                                       "tanh", "asinh", "acosh", "atanh", "exp", "log", "log10", "sqrt", "erf",
-                                       "erfc", "hypot")}
-_INTRINSICS.update(fabs="abs", fmax="max", fmin="min", tgamma="gamma", lgamma="log_gamma", copysign="sign")
-#: C99 functions without a Fortran intrinsic: called from libm through a bind(C) interface
-#: (name -> number of arguments).
-_LIBM = {"cbrt": 1, "expm1": 1, "log1p": 1, "exp2": 1, "log2": 1, "fmod": 2, "trunc": 1, "round": 1,
-         "floor": 1, "ceil": 1}
-
-
-def fortran_real(value: float) -> str:
-    """A double-precision Fortran literal of ``value`` with 17 significant digits."""
-    text = f"{float(value):.17g}"
-    if not math.isfinite(float(value)):
-        raise ModelError(f"non-finite constant {value} in generated code")
-    mantissa, _, exponent = text.partition("e")
-    if "." not in mantissa:
-        mantissa += ".0"
-    return f"{mantissa}d{exponent or '0'}"
-
-
-def fortran_name(name: str, renames: dict[str, tuple[str, int]] | None = None) -> str:
-    """The Fortran spelling of a C-named array element: ``y[3]`` -> ``y(4)``; with ``renames``
-    ``{"a": ("ydot", 2)}``, ``a[0]`` -> ``ydot(3)``. Other names are unchanged."""
-    m = re.fullmatch(r"([A-Za-z_]\w*)\[(\d+)\]", name)
-    if not m:
-        return name
-    array, offset = (renames or {}).get(m.group(1), (m.group(1), 0))
-    return f"{array}({int(m.group(2)) + offset + 1})"
-
-
-class _CParser:
-    """Parser of the C expressions the C backend prints (C99 operators, calls, ``a[i]``)."""
-
-    def __init__(self, text: str):
-        self.text = text
-        self.tokens = []
-        pos = 0
-        while pos < len(text):
-            m = _TOKEN.match(text, pos)
-            if m is None or m.end() == pos:
-                if text[pos:].strip() == "":
-                    break
-                raise ModelError(f"cannot translate C expression to Fortran (at {text[pos:pos + 20]!r}): {text}")
-            if m.group("suffix"):
-                raise ModelError(f"cannot translate C number {m.group(0).strip()!r} to Fortran: {text}")
-            kind = "num" if m.group("num") else "id" if m.group("id") else "op"
-            self.tokens.append((kind, m.group(kind)))
-            pos = m.end()
-        self.i = 0
-
-    def parse(self):
-        node = self.ternary()
-        if self.i != len(self.tokens):
-            raise self.error()
-        return node
-
-    def error(self):
-        near = " ".join(v for _, v in self.tokens[self.i:self.i + 5])
-        return ModelError(f"cannot translate C expression to Fortran (near {near!r}): {self.text}")
-
-    def peek(self):
-        return self.tokens[self.i][1] if self.i < len(self.tokens) else None
-
-    def take(self, value=None):
-        if self.i >= len(self.tokens) or (value is not None and self.tokens[self.i][1] != value):
-            raise self.error()
-        self.i += 1
-        return self.tokens[self.i - 1]
-
-    def ternary(self):
-        cond = self.binary(0)
-        if self.peek() == "?":
-            self.take("?")
-            a = self.ternary()
-            self.take(":")
-            return ("?", cond, a, self.ternary())
-        return cond
-
-    _LEVELS = (("||",), ("&&",), ("==", "!="), ("<", ">", "<=", ">="), ("+", "-"), ("*", "/"))
-
-    def binary(self, level):
-        if level == len(self._LEVELS):
-            return self.unary()
-        node = self.binary(level + 1)
-        while self.peek() in self._LEVELS[level]:
-            op = self.take()[1]
-            node = ("bin", op, node, self.binary(level + 1))
-        return node
-
-    def unary(self):
-        if self.peek() in ("-", "+", "!"):
-            op = self.take()[1]
-            return ("un", op, self.unary())
-        return self.primary()
-
-    def primary(self):
-        kind, value = self.take()
-        if kind == "num":
-            return ("num", value)
-        if kind == "id":
-            if self.peek() == "(":
-                self.take("(")
-                args = []
-                if self.peek() != ")":
-                    args.append(self.ternary())
-                    while self.peek() == ",":
-                        self.take(",")
-                        args.append(self.ternary())
-                self.take(")")
-                return ("call", value, args)
-            if self.peek() == "[":
-                self.take("[")
-                kind, index = self.take()
-                if kind != "num" or not index.isdigit():
-                    raise self.error()
-                self.take("]")
-                return ("idx", value, int(index))
-            return ("id", value)
-        if value == "(":
-            node = self.ternary()
-            self.take(")")
-            return node
-        self.i -= 1
-        raise self.error()
-
-
-_ATOM, _POW, _MUL, _NEG, _ADD, _REL, _NOT, _AND, _OR = 9, 8, 7, 6, 5, 4, 3, 2, 1
-_LOGICAL_OPS = ("<", ">", "<=", ">=", "==", "!=", "&&", "||")
-
-
-class _FortranWriter:
-    """Fortran text of parsed C expressions, keeping C's evaluation tree.
-
-    ``names``: plain identifiers allowed (CSE temporaries, ``t``); ``renames``: arrays printed
-    under another name and offset. Calls of libm functions without a Fortran intrinsic are
-    recorded in ``libm``.
-    """
-
-    def __init__(self, names, renames=None):
-        self.names = set(names)
-        self.renames = dict(renames or {})
-        self.libm: set[str] = set()
-
-    @staticmethod
-    def paren(text_prec, minimum):
-        text, prec = text_prec
-        return text if prec >= minimum else f"({text})"
-
-    def number(self, node):
-        kind = node[0]
-        if kind == "num":
-            return fortran_real(float(node[1])), _ATOM
-        if kind == "id":
-            name = node[1]
-            if name in _C_CONSTANTS:
-                return fortran_real(float(_C_CONSTANTS[name])), _ATOM
-            if name not in self.names:
-                raise ModelError(f"cannot translate identifier {name!r} to Fortran")
-            return name, _ATOM
-        if kind == "idx":
-            return fortran_name(f"{node[1]}[{node[2]}]", self.renames), _ATOM
-        if kind == "call":
-            return self.call(node[1], node[2])
-        if kind == "?":
-            return f"merge({self.number(node[2])[0]}, {self.number(node[3])[0]}, {self.logical(node[1])[0]})", _ATOM
-        if kind == "un":
-            op, arg = node[1], node[2]
-            if op == "!":
-                return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
-            if op == "+":
-                return self.number(arg)
-            return "-" + self.paren(self.number(arg), _MUL), _NEG
-        op, left, right = node[1], node[2], node[3]
-        if op in _LOGICAL_OPS:
-            return f"merge(1.0d0, 0.0d0, {self.logical(node)[0]})", _ATOM
-        if op in ("+", "-"):
-            return f"{self.paren(self.number(left), _ADD)} {op} {self.paren(self.number(right), _MUL)}", _ADD
-        # * and /: a negated left operand is hoisted (-a*b is -(a*b) in Fortran: the same
-        # double, as rounding is symmetric); the right operand keeps C's grouping.
-        ltext, lprec = self.number(left)
-        rtext = self.paren(self.number(right), _POW)
-        if lprec == _NEG:
-            return f"{ltext}{op}{rtext}", _NEG
-        return f"{self.paren((ltext, lprec), _MUL)}{op}{rtext}", _MUL
-
-    def call(self, name, args):
-        texts = [self.number(a)[0] for a in args]
-        if name == "pow" and len(args) == 2:
-            base = self.paren(self.number(args[0]), _ATOM)
-            return f"{base}**{self.paren(self.number(args[1]), _ATOM)}", _POW
-        if name in _INTRINSICS:
-            return f"{_INTRINSICS[name]}({', '.join(texts)})", _ATOM
-        if name in _LIBM and len(args) == _LIBM[name]:
-            self.libm.add(name)
-            return f"libm_{name}({', '.join(texts)})", _ATOM
-        raise ModelError(f"the C function {name!r} has no Fortran translation")
-
-    def logical(self, node):
-        if node[0] == "un" and node[1] == "!":
-            return f".not. {self.paren(self.logical(node[2]), _ATOM)}", _NOT
-        if node[0] != "bin" or node[1] not in _LOGICAL_OPS:
-            x = self.number(node)[0]  # C truth of a number: x != 0 (NaN is true)
-            return f"(.not. ({x} <= 0.0d0 .and. {x} >= 0.0d0))", _ATOM
-        op, left, right = node[1], node[2], node[3]
-        if op in ("&&", "||"):
-            prec = _AND if op == "&&" else _OR
-            word = ".and." if op == "&&" else ".or."
-            return (f"{self.paren(self.logical(left), prec)} {word} "
-                    f"{self.paren(self.logical(right), prec + 1)}"), prec
-        a = self.paren(self.number(left), _ADD)
-        b = self.paren(self.number(right), _ADD)
-        if op == "==":  # no equality test on reals (gfortran -Wcompare-reals); NaN compares false
-            return f"({a} <= {b} .and. {a} >= {b})", _ATOM
-        if op == "!=":
-            return f"(.not. ({a} <= {b} .and. {a} >= {b}))", _ATOM
-        return f"{a} {op} {b}", _REL
-
-
-def _chain(node, ops):
-    """Operands of the left-associative chain ``((a op b) op c) ...`` rooted at ``node``,
-    as [(None, a), (op, b), (op, c), ...]."""
-    items = []
-    while node[0] == "bin" and node[1] in ops:
-        items.append((node[1], node[3]))
-        node = node[2]
-    items.append((None, node))
-    return items[::-1]
-
-
-def _statements(writer: _FortranWriter, target: str, node) -> list[str]:
-    """``target = <node>``; a sum (or product) too long for one statement becomes running
-    partial results in the same order, ``target = a + b``, ``target = target + c``, ... (the
-    same additions as the single C statement)."""
-    text = writer.number(node)[0]
-    if len(text) < _MAX_CONTINUATIONS * (_LINE - 20):
-        return [f"{target} = {text}"]
-    for ops in (("+", "-"), ("*", "/")):
-        items = _chain(node, ops)
-        if len(items) > 1:
-            break
-    else:
-        raise ModelError(f"an expression for {target} is too long for one Fortran statement")
-    lines, acc, size = [], None, 0
-    for op, operand in items:
-        part = writer.number(operand)
-        if acc is not None and size + len(part[0]) > (_MAX_CONTINUATIONS // 2) * (_LINE - 20):
-            lines.append(f"{target} = {acc}")
-            acc, size = target, len(target)
-        if acc is None:
-            acc = part[0] if ops[0] == "+" else writer.paren(part, _MUL)
-        else:
-            acc = f"{acc} {op} {writer.paren(part, _MUL)}" if ops[0] == "+" else f"{acc}{op}{writer.paren(part, _POW)}"
-        size += len(part[0]) + 3
-    lines.append(f"{target} = {acc}")
-    return lines
-
-
-def _wrap(line: str, pad: str) -> list[str]:
-    """Free-form continuation lines (``&``) of at most _LINE columns, split between tokens."""
-    out, first = [], True
-    while True:
-        lead = pad if first else pad + "    "
-        room = _LINE - len(lead) - 2
-        if len(line) <= room + 2:
-            out.append(lead + line)
-            return out
-        cut = -1
-        # Split after a space (between terms) if one is near the end, else after a comma,
-        # a lone * or /, or "(".
-        for allowed in (" ", " ,*/("):
-            for k in range(room, room // 2 if allowed == " " else 0, -1):
-                c, nxt, prev = line[k - 1], line[k], line[k - 2] if k >= 2 else ""
-                if c in allowed and (c not in "*/" or (nxt not in "*=/" and prev not in "*/")):
-                    cut = k
-                    break
-            if cut > 0:
-                break
-        if cut <= 0:
-            raise ModelError(f"cannot wrap Fortran line: {line[:80]}...")
-        out.append(lead + line[:cut].rstrip() + " &")
-        line = line[cut:].lstrip()
-        first = False
-
-
-@dataclass
-class FortranBlock:
-    """Declarations, statements, the dummy arguments the statements do not reference, and the
-    libm functions they call."""
-
-    decls: str
-    code: str
-    unused: str  # associate list, e.g. "unused_t => t, unused_p => p(1:0)"; "" if all are used
-    libm: tuple[str, ...] = ()
-
-
-def emit_fortran_block(targets: list[str], exprs: list, after=(), dummies: tuple[str, ...] = (),
-                       optional: tuple[str, ...] = (), renames: dict[str, tuple[str, int]] | None = None,
-                       indent: int = 2, what: str = "expression", scalars: tuple[str, ...] = ("t",),
-                       defs=()) -> FortranBlock:
-    """Fortran statements assigning ``exprs`` to ``targets`` after common-subexpression elimination.
-
-    ``exprs`` are in the C backend's symbols (``y[i]``, ``p[k]``, ``t``); the elimination and
-    the printed expressions are those of :func:`lagcodegen.codegen.emit_block`, translated.
-    ``after``: statements appended verbatim (e.g. mirrored mass-matrix entries).
-    ``dummies``: the dummy arguments the statements may reference (any other free symbol is
-    an error); those of ``optional`` they do not reference are listed in ``unused`` for a
-    no-op ``associate`` (gfortran -Wunused-dummy-argument). ``scalars``: the dummies that are
-    scalars (referenced by name, e.g. ``t``, ``cj``) rather than arrays.
-    """
-    pad = _INDENT * indent
-    used: set[str] = set()
-    lines: list[str] = []
-    temps: list[str] = []
-    libm: set[str] = set()
-    if exprs:
-        repl, reduced = se.cse(list(exprs))
-        repl = list(defs) + list(repl)  # a rigid-body tree's program first (kernels.tree_rhs)
-        temps = [str(sym) for sym, _ in repl]
-        local = set(temps)
-        writer = _FortranWriter(local | set(scalars), renames)
-        pairs = [(str(sym), e) for sym, e in repl] + list(zip(targets, reduced))
-        for target, expr in pairs:
-            for s in se.sympify(expr).free_symbols:
-                if s.name in local:
-                    continue
-                owner = fortran_name(s.name, renames).split("(")[0]
-                if owner not in dummies:
-                    raise ModelError(f"{what}: symbol {s.name!r} is neither a coordinate, a velocity, a "
-                                     "parameter nor the time t; it cannot be emitted")
-                used.add(owner)
-            text = c_expr(expr)
-            try:
-                node = _CParser(text).parse()
-                statements = _statements(writer, target, node)
-            except ModelError as exc:
-                raise ModelError(f"{what}: {exc}") from None
-            for statement in statements:
-                lines += _wrap(statement, pad)
-        libm = writer.libm
-    lines += [pad + line for line in after]
-    decls = [f"{pad}real(c_double) :: {', '.join(temps[k:k + 10])}" for k in range(0, len(temps), 10)]
-    unused = ", ".join(f"unused_{d} => {d}" if d in scalars else f"unused_{d} => {d}(1:0)"
-                       for d in optional if d not in used)
-    return FortranBlock("\n".join(decls), "\n".join(lines), unused, tuple(sorted(libm)))
 
 
 def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
@@ -430,36 +71,215 @@ def check_prefix(prefix: str, suffix: str = "_err_singular_mass") -> None:
                          f"at most {longest} characters (letters, digits, underscores)")
 
 
+# ----------------------------------------------------------------------------- program form
+#: The arrays and scalars the program form's pieces may take, in the order of their arguments
+#: (:mod:`lagcodegen.codegen.program`); M is the n x n mass matrix, the others 1-D.
+_PIECE_ARGS = ("t", "y", "p", "v", "a", "w", "g", "jz", "s", "x", "M", "G", "Z")
+_SHAPES = {"t": "", "M": "(n, n)", "G": "(n, 2 * n)", "Z": "(nz, 2 * n)"}
+
+
+def _measure() -> program.Measure:
+    """The Fortran text sizes the program form's pieces are cut by."""
+    printer = FortranPrinter()
+    return program.Measure(
+        statement=lambda st: len(printer.doprint(st.targets[0])) + 3 + len(printer.doprint(_value(st))),
+        value=lambda k, tree: len(str(k)) + 1 + len(printer.doprint(tree)),
+        statements=program.CHUNK_STATEMENTS, chars=program.CHUNK_CHARS)
+
+
+def _value(st: ir.Assign):
+    """The value a statement assigns (``target + value`` for an accumulation)."""
+    return ir.BinOp("+", st.targets[0], st.value) if st.accumulate else st.value
+
+
+def _arrays(statements: list) -> tuple[set, set]:
+    """(read, written) arrays and scalars of ``statements`` other than their local temporaries."""
+    local = {st.targets[0].name for st in statements if st.local}
+    read, written = set(), set()
+    for st in statements:
+        for leaf in ir.walk(_value(st)):
+            if isinstance(leaf, ir.Element):
+                read.add(leaf.array)
+            elif isinstance(leaf, ir.Name) and leaf.name not in local:
+                read.add(leaf.name)
+        if not st.local:
+            written |= {t.array for t in st.targets}
+    return read, written
+
+
+@dataclass
+class _Subroutine:
+    """A piece of the program form as a module subroutine: its text, its arguments and the libm
+    functions it calls."""
+
+    name: str
+    args: list
+    text: str
+    libm: tuple
+
+    def call(self, actual: dict | None = None) -> str:
+        """``call name(args)`` with the actual arguments ``actual`` ({dummy: text}, default the same names)."""
+        actual = actual or {}
+        return f"call {self.name}({', '.join(actual.get(a, a) for a in self.args)})"
+
+
+def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
+    """The subroutine of a piece: arguments only those its statements use (no unused dummies),
+    arrays assumed-size (M n x n), intent(inout) where written."""
+    statements = [ir.Assign(st.targets, _value(st), local=st.local) for st in piece.statements]
+    read, written = _arrays(statements)
+    args = [a for a in _PIECE_ARGS if a in read | written]
+    block = fortran_block(statements, dummies=_PIECE_ARGS, indent=2, what=what)
+    lines = [f"  recursive subroutine {piece.name}({', '.join(args)})"]
+    for a in args:
+        intent = "inout" if a in written else "in"
+        shape = _SHAPES.get(a, "(*)")
+        lines.append(f"    real(c_double), intent({intent}) :: {a}{shape}")
+    if block.decls:
+        lines.append(block.decls)
+    lines += [block.code, f"  end subroutine {piece.name}"]
+    return _Subroutine(piece.name, args, "\n".join(lines), block.libm)
+
+
+def _int_array(name: str, values: list[int]) -> str:
+    """``integer, parameter :: name(k) = [...]`` wrapped in lines of 16 values."""
+    values = values or [0]
+    rows = [", ".join(str(v) for v in values[k:k + 16]) for k in range(0, len(values), 16)]
+    body = ", &\n      ".join(rows)
+    return f"  integer, parameter :: {name}({len(values)}) = [ &\n      {body}]"
+
+
+def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
+    """The template context of the program form (templates/fortran/model.f90.j2): the piece
+    subroutines, the calls of rhs and jac, the right-hand side's targets, and with ``tangent``
+    the tables of the pieces each column runs (``run_piece`` dispatches on a piece's number)."""
+    form = program.program_form(prog, targets, tangent, _measure())
+    subs = {p.name: _subroutine(p, f"{prefix} program form") for p in form.pieces}
+    pad = INDENT * 2
+    ctx = dict(nv=form.nv, nw=form.nw, ns=form.ns)
+    ctx["rhs_calls"] = "\n".join(pad + subs[p.name].call() for p in form.values + form.mass)
+    ctx["jac_calls"] = "\n".join(pad + subs[p.name].call() for p in form.values + form.partials + form.mass)
+    targets_block = fortran_block(form.targets, dummies=("t", "y", "p", "v"), what=f"{prefix}_rhs")
+    ctx["rhs_targets"] = targets_block.code
+    read = set().union(*(subs[p.name].args for p in form.values + form.mass)) | _arrays(form.targets)[0]
+    ctx["rhs_unused"] = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                                  for d in ("t", "p") if d not in read)
+    libm = set(targets_block.libm)
+    for sub in subs.values():
+        libm |= set(sub.libm)
+    ctx["libm"] = libm
+    ctx["subroutines"] = "\n\n".join(sub.text for sub in subs.values())
+    if tangent is not None:
+        cases = []
+        used = set()
+        for k, piece in enumerate(form.tangent):
+            sub = subs[piece.name]
+            used |= set(sub.args)
+            cases.append(f"    case ({k})\n      {sub.call()}")
+        ctx["npieces"] = len(form.tangent)
+        ctx["cases"] = "\n".join(cases)
+        dispatch = ("t", "y", "p", "v", "a", "w", "g", "jz", "s")
+        ctx["run_unused"] = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                                      for d in dispatch if d not in used)
+        ctx["call_start"] = _int_array("call_start", [0] + list(accumulate(len(c) for c in form.calls)))
+        ctx["calls"] = _int_array("calls", [k for c in form.calls for k in c])
+        ctx["reset_start"] = _int_array("reset_start", [0] + list(accumulate(len(r) for r in form.resets)))
+        ctx["resets"] = _int_array("resets", [x for r in form.resets for x in r])
+    ctx["jac_unused"] = ""  # the tangent Jacobian passes every argument to run_piece
+    return ctx
+
+
+def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
+    """The expanded Jacobian of a program-form model in pieces (:func:`lagcodegen.codegen.program.block_pieces`:
+    subroutines ``jacobian<k>``, the temporaries in an allocated array): the body of ``<prefix>_jac``
+    as a :class:`FortranBlock`; the subroutines join the program form's."""
+    pieces, array, size = program.block_pieces(block, "x", _measure(), cse)
+    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac")
+            for k, statements in enumerate(pieces)]
+    prog["subroutines"] += "\n\n" + "\n\n".join(sub.text for sub in subs)
+    prog["libm"] = set(prog["libm"]).union(*(sub.libm for sub in subs))
+    pad = INDENT * 2
+    used = set().union(*(sub.args for sub in subs))
+    used |= {"ydot"} if "a" in used else set()  # a = ydot(n+1:2n)
+    code = [f"{pad}allocate ({array}({size}), stat=stat)", f"{pad}if (stat /= 0) then",
+            f"{pad}  rc = {what}_err_memory", f"{pad}  return", f"{pad}end if"]
+    code += [pad + sub.call({"a": "ydot(n + 1:2 * n)"}) for sub in subs]
+    decls = f"{pad}real(c_double), allocatable :: {array}(:)\n{pad}integer :: stat"
+    unused = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
+                       for d in ("t", "y", "ydot", "p") if d not in used)
+    return FortranBlock(decls, "\n".join(code), unused, ())
+
+
 def generate_fortran(scene: Scene) -> GeneratedCode:
     """Render ``<prefix>.f90`` (module ``<prefix>_mod``) and the C header ``<prefix>.h`` of ``scene``.
 
     The functions are those of :func:`lagcodegen.generate_c` (rhs; jac if the scene asks for
     the Jacobian; outputs if it has any), bound to the same C names and signatures, computed
-    from the same expression blocks (:func:`lagcodegen.formulation.kernels.model_blocks`).
-    The Jacobian is always the expanded form (``model_blocks``' symbolic dr/dy, code growing
-    like n^3): ``Scene.jacobian_form`` ("tangent", or "auto" above
-    :data:`~lagcodegen.formulation.scene.EXPANDED_JACOBIAN_MAX_N` coordinates) chooses only the
-    C backend's form.
+    from the same expression blocks (:func:`lagcodegen.formulation.kernels.model_blocks`) and
+    in the same forms: a large right-hand side in program form (module subroutines of at most
+    :data:`~lagcodegen.codegen.program.CHUNK_STATEMENTS` statements,
+    :func:`lagcodegen.codegen.program.program_form`), the Jacobian in tangent form when
+    ``Scene.jacobian_form`` resolves to "tangent" (:mod:`lagcodegen.formulation.tangent`), else
+    expanded (``model_blocks``' symbolic dr/dy).
     """
     check_prefix(scene.prefix)
     n = scene.eom.n
-    blocks = model_blocks(scene)
-
-    rhs = print_block(blocks["rhs"], f"{scene.prefix}_rhs", ("t", "y", "p"), ("t", "p"))
+    tangent = program.tangent_jacobian(scene)
+    blocks = model_blocks(dataclasses.replace(scene, jacobian=False) if tangent else scene)
+    what = scene.prefix
+    prog = None
+    rhs = None
+    if program.use_program(scene, blocks["rhs"]):
+        built = build_program(blocks["rhs"], n)
+        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built) if tangent else None
+        prog = _program_context(built[0], built[1], tp, what)
+    else:
+        rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
-    if scene.jacobian:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
-        jac = print_block(blocks["jac"], f"{scene.prefix}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
+    if scene.jacobian and not tangent and prog:  # a large expanded Jacobian: in pieces too
+        jac = _jacobian_pieces(blocks["jac"], prog, what)
+    elif scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
+        jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
                           renames={"a": ("ydot", n)})
-    out = print_block(blocks["out"], f"{scene.prefix}_outputs", ("t", "y", "p"), ("t", "y", "p"))
+    out = print_block(blocks["out"], f"{what}_outputs", ("t", "y", "p"), ("t", "y", "p"))
 
     code = new_code(scene)
     ctx = header_context(scene, code)
     env = environment()
-    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
-    libm = sorted(set(rhs.libm) | set(jac.libm if jac else ()) | set(out.libm))
+    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx, program=prog)
+    code.jac_pattern = scene.jacobian_pattern()
+    sparse = _sparse_context(scene, code, env) if scene.sparse_jacobian else None
+    libm = set(out.libm) | set(jac.libm if jac else ()) | set(rhs.libm if rhs else ())
+    libm |= set(prog["libm"] if prog else ()) | set(sparse["block"].libm if sparse else ())
     code.files[f"{code.prefix}.f90"] = env.get_template("fortran/model.f90.j2").render(
-        **ctx, rhs=rhs, jac=jac, out=out, libm=[(name, _LIBM[name]) for name in libm])
+        **ctx, rhs=rhs, jac=jac, out=out, program=prog, tangent=tangent, sparse=sparse,
+        libm=[(name, LIBM_ARITY[name]) for name in sorted(libm)])
     return code
+
+
+def _sparse_context(scene: Scene, code: GeneratedCode, env) -> dict:
+    """The sparse Jacobian ``<prefix>_jac_sparse`` in the module (the kernel of
+    :func:`lagcodegen.formulation.kernels.sparse_jacobian`), its structure as the C symbols
+    ``<prefix>_jac_colptr``/``_rowind``, and the C backend's header ``<prefix>_sparse.h``."""
+    sj = sparse_jacobian(scene, code.jac_pattern)
+    n = scene.eom.n
+    block = print_block(sj.block, f"{code.prefix}_jac_sparse", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
+                        renames={"a": ("ydot", n)})
+    pad = INDENT * 2
+
+    def values(xs):
+        xs = list(xs) or [0]
+        return ", &\n      ".join(", ".join(str(v) for v in xs[k:k + 16]) for k in range(0, len(xs), 16))
+    ctx = dict(nnz=len(sj.entries), colptr=values(sj.colptr), rowind=values(i for i, _ in sj.entries),
+               diagonal=sj.diagonal, block=block, nsolve=len(sj.solve_cols), solve_cols=values(sj.solve_cols),
+               after="\n".join(f"{pad}vals({k + 1}) = -G({i + 1}, {j + 1})" for k, j, i in sj.copies))
+    header = env.get_template("c/jac_sparse.h.j2").render(prefix=code.prefix, PREFIX=code.prefix.upper(),
+                                                          version=__version__, model_name=code.model_name,
+                                                          nnz=len(sj.entries))
+    code.files[f"{code.prefix}_sparse.h"] = header
+    code.cffi_headers.append(f"{code.prefix}_sparse.h")
+    code.sparse_jacobian = True
+    return ctx
 
 
 # ----------------------------------------------------------------------------- constrained systems
@@ -467,42 +287,16 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
 DAE_SUFFIX = "_dae_err_projection"
 
 
-def _fortran_target(target: tuple) -> tuple[str, str | None]:
-    """The Fortran spelling of a target of :class:`lagcodegen.formulation.kernels.Block`
-    (0-based C indices -> 1-based; ``jac`` is (row, column)), and the mirrored assignment of
-    an off-diagonal mass-matrix entry."""
-    name, *ix = target
-    text = f"{name}({', '.join(str(k + 1) for k in ix)})"
-    if name == "M" and ix[0] != ix[1]:
-        return text, f"M({ix[1] + 1}, {ix[0] + 1}) = {text}"
-    return text, None
-
-
 def print_block(block: Block, what: str, dummies: tuple[str, ...], optional: tuple[str, ...] = (),
-                       renames: dict | None = None, scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
-    targets, mirror = [], []
-    for target in block.targets:
-        text, after = _fortran_target(target)
-        targets.append(text)
-        if after:
-            mirror.append(after)
-    exprs, defs = block.exprs, ()
-    if block.defs:  # a rigid-body tree's temporaries __mb<k>, renamed mb<k> (Fortran names start with a letter)
-        ren = {sym: se.Symbol(sym.name[2:]) for sym, _ in block.defs}
-        defs = [(ren[sym], se.sympify(e).xreplace(ren)) for sym, e in block.defs]
-        exprs = [se.sympify(e).xreplace(ren) for e in exprs]
-    return emit_fortran_block(targets, exprs, mirror, dummies=dummies, optional=optional, renames=renames,
-                              what=what, scalars=scalars, defs=defs)
-
-
-def generate(scene: Scene) -> GeneratedCode:
-    """The language interface of :mod:`lagcodegen.codegen`: :func:`generate_fortran`."""
-    return generate_fortran(scene)
-
-
-def constrained_source(cb, ctx: dict) -> dict[str, str]:
-    """``<prefix>_dae.f90``: :func:`generate_constrained_fortran_source`."""
-    return {f"{ctx['prefix']}_dae.f90": generate_constrained_fortran_source(cb, ctx)}
+                renames: dict | None = None, scalars: tuple[str, ...] = ("t",)) -> FortranBlock:
+    """The Fortran statements of a kernel :class:`Block` (:func:`fortran_block`), after the
+    common-subexpression elimination the C backend applies to it."""
+    try:
+        statements = lowering.block_statements(block, se.cse)
+    except ModelError as exc:
+        raise ModelError(f"{what}: {exc}") from None
+    return fortran_block(statements, dummies=dummies, optional=optional, renames=renames, what=what,
+                         scalars=scalars)
 
 
 def generate_constrained_fortran_source(cb, ctx: dict) -> str:
@@ -531,12 +325,33 @@ def generate_constrained_fortran_source(cb, ctx: dict) -> str:
     )
     libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
     text = environment().get_template("fortran/dae.f90.j2").render(
-        **ctx, blk=blocks, libm=[(name, _LIBM[name]) for name in libm])
+        **ctx, blk=blocks, libm=[(name, LIBM_ARITY[name]) for name in libm])
     lines = []
     for line in text.split("\n"):  # long associate lists of unused arguments
         stripped = line.lstrip()
-        if len(line) > _LINE and "!" not in line:
-            lines += _wrap(stripped, line[:len(line) - len(stripped)])
+        if len(line) > LINE and "!" not in line:
+            lines += wrap(stripped, line[:len(line) - len(stripped)])
         else:
             lines.append(line)
     return "\n".join(lines)
+
+
+class FortranBackend:
+    """The Fortran 2008 backend (registered as "fortran" in :mod:`lagcodegen.codegen.languages`):
+    prints the operation tree with :class:`FortranPrinter` through templates/fortran/model.f90.j2
+    and dae.f90.j2, every function bound to the C backend's name and signature."""
+
+    name = "fortran"
+    printer = FortranPrinter
+
+    def generate(self, scene: Scene) -> GeneratedCode:
+        """The model code of ``scene``: :func:`generate_fortran`."""
+        return generate_fortran(scene)
+
+    def check_prefix(self, prefix: str, suffix: str = "_err_singular_mass") -> None:
+        """Fortran names start with a letter and have at most 63 characters: :func:`check_prefix`."""
+        check_prefix(prefix, suffix)
+
+    def constrained_source(self, cb, ctx: dict) -> dict[str, str]:
+        """``<prefix>_dae.f90``: :func:`generate_constrained_fortran_source`."""
+        return {f"{ctx['prefix']}_dae.f90": generate_constrained_fortran_source(cb, ctx)}

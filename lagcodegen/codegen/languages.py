@@ -1,30 +1,46 @@
-"""The registry of languages the model code can be generated in."""
+"""The registry of languages the model code can be generated in: a name -> its backend class.
+
+A backend class (:class:`.c.CBackend`, :class:`.fortran.FortranBackend`) has ``generate(scene)``
+-> :class:`~.record.GeneratedCode`, ``check_prefix(prefix, suffix)`` and
+``constrained_source(blocks, ctx)`` -> {file name: text}, and prints the operation tree of
+:mod:`.ir` (and the program form of :mod:`.program`) with its own printer class. Adding a
+language is one backend module with its printer and backend class, its templates, and one line
+here.
+"""
 
 from __future__ import annotations
 
 from ..errors import ModelError
 from ..formulation.scene import Scene
-from . import c, fortran
+from .c import CBackend
 from .dynamics import inverse_dynamics_files
+from .fortran import FortranBackend
+from .ir import deep_recursion
 from .record import GeneratedCode
 
-#: The language modules by name: each has generate(scene) -> GeneratedCode,
-#: check_prefix(prefix, suffix) and constrained_source(blocks, ctx) -> {file name: text}.
-LANGUAGE_MODULES = {"c": c, "fortran": fortran}
-LANGUAGES = tuple(LANGUAGE_MODULES)
+#: The backend classes by language name.
+BACKENDS = {cls.name: cls for cls in (CBackend, FortranBackend)}
+LANGUAGES = tuple(BACKENDS)
+
+
+def backend(lang: str):
+    """The backend of ``lang`` (an instance of its class); ModelError naming the choices if unknown."""
+    check_language(lang)
+    return BACKENDS[lang]()
 
 
 def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
     """The model code of ``scene`` in ``lang``: "c" (:func:`.c.generate_c`) or "fortran"
-    (:func:`.fortran.generate_fortran`, same functions and the same header)."""
-    check_language(lang)
-    code = LANGUAGE_MODULES[lang].generate(scene)
-    if scene.eom.tree is not None:  # a rigid-body tree: its inverse dynamics in C (.dynamics)
-        code.files.update(inverse_dynamics_files(scene, code))
+    (:func:`.fortran.generate_fortran`, same functions and the same header); a rigid-body tree's
+    inverse dynamics comes with both, in C (:mod:`.dynamics`)."""
+    with deep_recursion():
+        code = backend(lang).generate(scene)
+        if scene.eom.tree is not None:
+            code.files.update(inverse_dynamics_files(scene, code))
     return code
 
 
 def check_language(lang: str) -> None:
     """Raise ModelError unless ``lang`` names a registered language."""
-    if not isinstance(lang, str) or lang not in LANGUAGE_MODULES:
+    if not isinstance(lang, str) or lang not in BACKENDS:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")

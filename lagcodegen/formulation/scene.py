@@ -74,12 +74,13 @@ class Scene:
         order; structurally zero entries are never computed. The native driver uses it with
         ``linear_solver="band"``.
     jacobian_form:
-        How the C code computes the dense Jacobian: ``"expanded"`` (every entry of dr/dy,
-        r = M q'' - F, as its own expression: code growing like n^3 for a dense coupling),
+        How the generated code (C and Fortran alike) computes the dense Jacobian: ``"expanded"``
+        (every entry of dr/dy, r = M q'' - F, as its own expression: code growing like n^3 for
+        a dense coupling),
         ``"tangent"`` (forward-mode differentiation of the right-hand side's program: the
         statements that depend on few columns specialized per column, the others shared by all
         columns; code growing like n^2; :mod:`lagcodegen.formulation.tangent`) or ``"auto"``
-        (:func:`auto_jacobian_form`). The Fortran backend always emits the expanded form.
+        (:func:`auto_jacobian_form`).
     """
 
     eom: EquationsOfMotion

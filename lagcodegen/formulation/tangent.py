@@ -34,7 +34,7 @@ chain; its run time is the sparse cost (like the expanded form) for the narrow p
 forward sweep for the wide part. Column j of the Jacobian is then -M^-1 g for the accelerations
 and dz'/dy_j for the quadrature rates. Everything here is language-neutral (symengine expressions
 in the array symbols ``y[i]``, ``p[k]``, ``t``, ``v[k]``, ``a[i]``, ``w[i]`` and the local
-tangents ``d<k>``); :mod:`lagcodegen.codegen.c` prints it.
+tangents ``d<k>``); :mod:`lagcodegen.codegen.program` lays it out as pieces for every backend.
 """
 
 from __future__ import annotations

@@ -253,8 +253,8 @@ def test_fortran_programs_use_the_module(tmp_path, fc):
 def test_long_sums_are_split_in_c_order(tmp_path, fc, monkeypatch):
     # Statements too long for Fortran's 255 continuation lines become running partial sums
     # (target = a + b; target = target + c ...): the same additions in the same order.
-    import lagcodegen.codegen.fortran as fortran
-    monkeypatch.setattr(fortran, "_MAX_CONTINUATIONS", 1)
+    import lagcodegen.codegen.fortran_printer as fortran_printer
+    monkeypatch.setattr(fortran_printer, "MAX_CONTINUATIONS", 1)
     eom = derive(systems.n_link_pendulum(3))
     code = generate_fortran(Scene(eom, outputs=["energy"], prefix="split3"))
     src = strict_compile(fc, code, tmp_path)
