@@ -210,9 +210,9 @@ def write_pin_files(pm, states, folder: Path) -> None:
             ax = tuple(jm.extract().axis)
         X, Y = pm.jointPlacements[j], pm.inertias[j]
         I = Y.inertia
-        vals = [pm.parents[j] - 1, kind, *ax, *X.rotation.ravel(), *X.translation, Y.mass, *Y.lever,
+        vals = [*ax, *X.rotation.ravel(), *X.translation, Y.mass, *Y.lever,
                 I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]]
-        lines.append(" ".join(repr(float(x)) for x in vals))
+        lines.append(f"{pm.parents[j] - 1} {kind} " + " ".join(repr(float(x)) for x in vals))
     (folder / "pin_model.txt").write_text("\n".join(lines) + "\n")
     (folder / "pin_states.txt").write_text("\n".join(" ".join(repr(float(x)) for x in np.r_[q, v]) for q, v in states))
 
@@ -277,7 +277,7 @@ def main() -> None:
             row["cpp_pin"] = None
             if exe is not None and Path(exe).exists():
                 r = subprocess.run([str(exe), f"{tmp}/pin_model.txt", f"{tmp}/pin_states.txt", str(args.target)],
-                                   capture_output=True, text=True)
+                                   capture_output=True, text=True, timeout=600)
                 if r.returncode == 0:
                     row["cpp_pin"] = float(r.stdout.split()[0])
             rows.append(row)
