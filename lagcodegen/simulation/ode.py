@@ -4,6 +4,7 @@ y = (q, q', z), on any registered solver family that integrates an ODE."""
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import math
 from pathlib import Path
@@ -168,6 +169,35 @@ class CompiledModel(CompiledReprMixin):
         rc = self.c_outputs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
         check_rc(rc, t, "outputs")
         return out
+
+    def inverse_dynamics(self, q, v, a, *, t: float = 0.0, params=None) -> np.ndarray:
+        """tau = M(q) a - F(q, v, t) (eq. 3.16 solved for the generalized forces that give the
+        accelerations ``a`` at the state (q, q' = ``v``)), for models with a rigid-body tree: the
+        generated ``<prefix>_inverse_dynamics`` (recursive Newton-Euler, O(n)). With v = a = 0 it is
+        the static load -F(q, 0, t), e.g. the gravity torques a controller compensates."""
+        fn = self._inverse_dynamics_function()
+        n = self.n
+        y = np.concatenate([c_vector(q, n, "q"), c_vector(v, n, "v"), np.zeros(self.ny - 2 * n)])
+        acc = c_vector(a, n, "a")
+        p = self._defaults if params is None else self.parameter_vector(params)
+        tau = np.empty(n)
+        dp = ctypes.POINTER(ctypes.c_double)
+        rc = fn(float(t), y.ctypes.data_as(dp), acc.ctypes.data_as(dp), p.ctypes.data_as(dp), tau.ctypes.data_as(dp))
+        check_rc(rc, t, "inverse dynamics")
+        return tau
+
+    def _inverse_dynamics_function(self):
+        name = f"{self.code.prefix}_inverse_dynamics"
+        if f"{self.code.prefix}_dynamics.c" not in self.code.files:
+            raise LagcodegenError(f"model {self.code.model_name!r} has no inverse dynamics function (only models "
+                                  "with a rigid-body tree, Model.link, have one)")
+        if self._library is None:
+            raise LagcodegenError("inverse_dynamics needs the model library of a native build (build_code(..., "
+                                  "native=True), the default of compile_model)")
+        fn = getattr(self._library, name)
+        dp = ctypes.POINTER(ctypes.c_double)
+        fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_double, dp, dp, dp, dp]
+        return fn
 
     @attaches_drawing
     def simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
