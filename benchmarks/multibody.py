@@ -55,7 +55,7 @@ m, pm = MB.panda() if args["model"] == "panda" else MB.chain(args["n"])
 n = m.n
 t0 = time.perf_counter(); eom = lcg.derive(m); t1 = time.perf_counter()
 code = lcg.generate_code(lcg.Scene(eom, jacobian=False)); t2 = time.perf_counter()
-sim = lcg.build(code); t3 = time.perf_counter()
+sim = lcg.build_code(code); t3 = time.perf_counter()
 csize = sum(len(v) for k, v in code.files.items() if k.endswith(".c") and "dynamics" not in k)
 rng = np.random.default_rng(1)
 data = pm.createData()

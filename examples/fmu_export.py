@@ -31,7 +31,7 @@ for version in (2, 3):
 # The reference: lagcodegen's CVODE at a tight tolerance.
 t = np.linspace(0.0, T_END, 501)
 q0, v0 = mf.initial_state()
-ref = mf.compile().simulate(t, q0=q0, v0=v0, rtol=1e-12, atol=1e-14)
+ref = lcg.compile_file(mf).simulate(t, q0=q0, v0=v0, rtol=1e-12, atol=1e-14)
 
 runs = {}
 names = ["theta1", "theta2", "energy"]

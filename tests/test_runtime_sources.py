@@ -23,7 +23,9 @@ from lagcodegen.codegen import signatures as sig
 from lagcodegen.codegen.cffi_decl import runtime_cdef, taylor_runtime_cdef
 from lagcodegen.codes import FLAG_TEXT, NONFINITE_CAUSES, SOLVER_FLAG_TEXT, Flag, ModelCode, c_header, \
     model_error_flag
-from lagcodegen.solvers import base, control, cvode, ensemble_result, ida
+from lagcodegen.solvers import base, control, ensemble_result
+from lagcodegen.solvers.cvode import native as cvode
+from lagcodegen.solvers.ida import native as ida
 from lagcodegen.solvers.taylor.emit import runtime_sources as taylor_runtime_sources
 
 from helpers import STRICT_CFLAGS

@@ -101,7 +101,7 @@ expr = "F"
 def test_model_file_inputs_section():
     mf = lcg.modelfile.loads_model(FILE, "forced.toml")
     assert mf.model.inputs == ["F"] and mf.model.params[sp.Symbol("F")] == 0.25
-    cm = mf.compile(runtime_parameters=[])
+    cm = lcg.compile_file(mf, runtime_parameters=[])
     assert cm.param_names == ["F"]
 
 
