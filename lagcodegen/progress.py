@@ -344,14 +344,19 @@ def isolated(fn: Callable, *args: Any) -> Any:
     if not can_isolate():
         return fn(*args)
     read_end, write_end = os.pipe()
-    with warnings.catch_warnings():  # Python >= 3.12 warns about fork() beside other threads
-        warnings.simplefilter("ignore", DeprecationWarning)
-        pid = os.fork()
-    if pid == 0:  # pragma: no cover - the child (coverage does not follow it)
-        _child(write_end, read_end, fn, args)
-    os.close(write_end)
+    pid = 0
     chunks = []
+    # Everything from the fork on is inside the try: a Ctrl-C that lands before the wait (while
+    # catch_warnings exits, say) must kill the child too, or it would run on for hours holding
+    # the caller's inherited pipes.
     try:
+        with warnings.catch_warnings():  # Python >= 3.12 warns about fork() beside other threads
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child (coverage does not follow it); never returns
+            _child(write_end, read_end, fn, args)
+        os.close(write_end)
+        write_end = -1
         while True:
             data = os.read(read_end, 1 << 20)  # a signal handler that raises ends the wait here
             if not data:
@@ -359,10 +364,13 @@ def isolated(fn: Callable, *args: Any) -> Any:
             chunks.append(data)
         _, status = os.waitpid(pid, 0)
     except BaseException:
-        _kill(pid)
+        if pid:
+            _kill(pid)
         raise
     finally:
         os.close(read_end)
+        if write_end >= 0:
+            os.close(write_end)
     if os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGINT:
         raise KeyboardInterrupt  # Ctrl-C reached the child first (one process group)
     try:
