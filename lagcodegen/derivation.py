@@ -34,7 +34,7 @@ from . import progress
 from .errors import DerivationError, ModelError
 from .model.mechanics import as_model
 from .model.model import Model, Particle, PlanarBody, RigidBody
-from .model.treedynamics import TreeDynamics
+from .model.treedynamics import TreeDynamics, tree_nodes
 
 #: The sympy views of an EquationsOfMotion whose expressions count more nodes than this
 #: when written out as trees ( a rigid-body tree's expressions are DAGs
@@ -59,32 +59,13 @@ def _sp_matrix(rows) -> sp.Matrix:
     return sp.Matrix([[to_sp(e) for e in row] for row in rows])
 
 
-def _tree_nodes(exprs, limit: int) -> int:
-    """Nodes of ``exprs`` written out as trees (DAG-safe; stops above ``limit``)."""
-    memo: dict = {}
-    total = 0
-    for e in exprs:
-        stack = [(e, False)]
-        while stack:
-            x, done = stack.pop()
-            if done:
-                memo[x] = 1 + sum(memo[a] for a in x.args)
-            elif x not in memo:
-                stack.append((x, True))
-                stack.extend((a, False) for a in x.args if a not in memo)
-        total += memo[e]
-        if total > limit:
-            break
-    return total
-
-
 def _viewable(eom, what: str, *exprs) -> None:
     """Refuse a sympy view of a rigid-body tree's DAG expressions that would be too large."""
     if eom.tree is None:
         return
     flat = [e for x in exprs for e in (x if isinstance(x, list) else [x])]
     flat = [e for x in flat for e in (x if isinstance(x, list) else [x])]
-    ops = _tree_nodes(flat, SYMPY_VIEW_MAX_OPS)
+    ops = tree_nodes(flat, SYMPY_VIEW_MAX_OPS)
     if ops > SYMPY_VIEW_MAX_OPS:
         raise ModelError(f"{what} of model {eom.model.name!r} is kept as a program along its rigid-body tree; "
                          f"written out for sympy it would count more than {ops} nodes (more than "

@@ -319,3 +319,62 @@ def test_the_job_rule_catches_a_long_module_without_one():
     assert job_problem('"""Loading a model file: the TOML document, section by section, into a Model."""\n'
                        + body) is None
     assert job_problem('"""Short."""\n' + "x = 1\n" * 10) is None
+
+
+# ----------------------------------------------------------------------------- backends as peers
+def backend_files() -> dict[str, set[Path]]:
+    """The files of each registered language backend (lagcodegen.codegen.languages.BACKENDS): the
+    module of its backend class and of its printer class."""
+    from lagcodegen.codegen.languages import BACKENDS
+    import inspect
+    out: dict[str, set[Path]] = {}
+    for name, cls in BACKENDS.items():
+        files = {Path(inspect.getfile(cls))}
+        printer = getattr(cls, "printer", None)
+        if printer is not None:
+            files.add(Path(inspect.getfile(printer)))
+        module = inspect.getmodule(cls)
+        for obj in vars(module).values():  # the printer class the backend module uses
+            if inspect.isclass(obj) and obj.__name__.endswith("Printer") and obj.__module__.startswith("lagcodegen"):
+                files.add(Path(inspect.getfile(obj)))
+        out[name] = files
+    return out
+
+
+def text_parsing_problems(tree: ast.AST, others: set[str]) -> list[str]:
+    """Why a backend module's ``tree`` parses printed text or leans on another backend: an import of
+    another backend's module (``others``: their stems), ``re.sub/subn/findall/finditer/search`` or a
+    ``str.replace`` (only ``dataclasses.replace``, a record, is allowed)."""
+    problems = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level >= 1:
+            names = {(node.module or "").split(".")[-1]} | {a.name for a in node.names}
+            if names & others:
+                problems.append(f"imports another backend's module {sorted(names & others)}")
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            owner = node.func.value
+            if node.func.attr in ("sub", "subn", "findall", "finditer", "search") and \
+                    isinstance(owner, ast.Name) and owner.id == "re":
+                problems.append(f"re.{node.func.attr} (line {node.lineno})")
+            if node.func.attr == "replace" and not (isinstance(owner, ast.Name) and owner.id == "dataclasses"):
+                problems.append(f"str.replace (line {node.lineno})")
+    return problems
+
+
+def test_backends_are_peers_that_never_parse_printed_text():
+    """No text-parsing step between backends: each registered backend prints the operation tree
+    itself (no import of another backend, no regular expression or str.replace on printed text)."""
+    files = backend_files()
+    assert set(files) >= {"c", "fortran"}
+    for lang, paths in files.items():
+        others = {p.stem for k, ps in files.items() if k != lang for p in ps} - {p.stem for p in paths}
+        for path in paths:
+            problems = text_parsing_problems(ast.parse(path.read_text()), others)
+            assert not problems, f"backend {lang!r}, {path.name}: {problems}"
+
+
+def test_the_peer_rule_catches_text_parsing():
+    code = "from .c import c_expr\nimport re\ny = re.sub('x', 'y', c_expr(e)).replace('a', 'b')\n"
+    problems = text_parsing_problems(ast.parse(code), {"c"})
+    assert len(problems) == 3 and "another backend" in problems[0]
+    assert text_parsing_problems(ast.parse("import dataclasses\nr = dataclasses.replace(r, a=1)\n"), {"c"}) == []

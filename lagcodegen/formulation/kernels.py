@@ -17,7 +17,7 @@ import symengine as se
 from .. import progress
 from ..errors import ModelError
 from ..model.model import RESERVED_PREFIX
-from ..model.treedynamics import recorded
+from ..model.treedynamics import recorded, tree_nodes
 from .scene import Scene
 
 #: A common-subexpression elimination of at least this many operations (symengine's count_ops,
@@ -34,31 +34,6 @@ ISOLATE_CSE_OPS = 50_000
 TREE_NODES_LIMIT = 5_000_000
 
 
-def tree_nodes(exprs, limit: int = TREE_NODES_LIMIT) -> int:
-    """The number of nodes of ``exprs`` written out as trees (each shared subexpression counted
-    once per use), computed over the distinct nodes (linear in a DAG's size); stops counting
-    above ``limit``."""
-    memo: dict = {}
-    total = 0
-    for e in exprs:
-        stack = [(e, False)]
-        while stack:
-            x, done = stack.pop()
-            if done:
-                memo[x] = 1 + sum(memo[a] for a in x.args)
-            elif x not in memo:
-                args = x.args
-                if not args:
-                    memo[x] = 1
-                else:
-                    stack.append((x, True))
-                    stack.extend((a, False) for a in args if a not in memo)
-        total += memo[e]
-        if total > limit:
-            break
-    return total
-
-
 def count_ops(exprs) -> int:
     """symengine's count_ops of ``exprs``, safe on DAGs: the expressions of a rigid-body tree
     (:mod:`lagcodegen.model.treedynamics`) share their subexpressions, and count_ops walks them
@@ -67,7 +42,7 @@ def count_ops(exprs) -> int:
     exprs = list(exprs)
     if not exprs:
         return 0
-    nodes = tree_nodes(exprs)
+    nodes = tree_nodes(exprs, TREE_NODES_LIMIT)
     return se.count_ops(*exprs) if nodes <= TREE_NODES_LIMIT else nodes
 
 

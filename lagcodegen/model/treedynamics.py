@@ -41,6 +41,27 @@ ONE = se.Integer(1)
 WORLD_CRBA_MIN_NODES = 10
 
 
+def tree_nodes(exprs, limit: int) -> int:
+    """The number of nodes of ``exprs`` written out as trees (each shared subexpression counted
+    once per use), computed over the distinct nodes (linear in a DAG's size); stops counting
+    above ``limit``. The measure of what a tree's DAG expressions would cost as closed forms."""
+    memo: dict = {}
+    total = 0
+    for e in exprs:
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                memo[x] = 1 + sum(memo[a] for a in x.args)
+            elif x not in memo:
+                stack.append((x, True))
+                stack.extend((a, False) for a in x.args if a not in memo)
+        total += memo[e]
+        if total > limit:
+            break
+    return total
+
+
 def _se(e, what: str):
     try:
         return se.sympify(e)

@@ -1,50 +1,21 @@
 """The backends are peers printing one operation tree: no backend imports or parses another's
 output, each printer has a method per node kind, and the tree's C text is symengine's own."""
 
-import ast
 import random
 import re
 import typing
-from pathlib import Path
 
 import numpy as np
 import pytest
 import symengine as se
 
-import lagcodegen
 from lagcodegen import ModelError
 from lagcodegen.codegen import ir, lowering
 from lagcodegen.codegen.c import CPrinter, c_expr
 from lagcodegen.codegen.fortran import FortranPrinter
 from lagcodegen.codegen.languages import BACKENDS, backend, generate_code
 
-CODEGEN = Path(lagcodegen.__file__).parent / "codegen"
-BACKEND_MODULES = {"c": ("c.py",), "fortran": ("fortran.py", "fortran_printer.py")}
-
-
-def tree(name):
-    return ast.parse((CODEGEN / name).read_text())
-
-
-@pytest.mark.parametrize("lang", sorted(BACKEND_MODULES))
-def test_no_backend_imports_another(lang):
-    others = {Path(f).stem for k, files in BACKEND_MODULES.items() if k != lang for f in files}
-    for name in BACKEND_MODULES[lang]:
-        for node in ast.walk(tree(name)):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                names = {node.module} if node.module else {a.name for a in node.names}
-                assert not names & others, f"{name} imports {names & others}"
-
-
-@pytest.mark.parametrize("lang", sorted(BACKEND_MODULES))
-def test_no_regular_expression_or_replace_on_printed_text(lang):
-    for node in (n for name in BACKEND_MODULES[lang] for n in ast.walk(tree(name))):
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
-            owner = node.func.value
-            if node.func.attr in ("sub", "subn", "findall", "finditer", "search"):
-                assert not (isinstance(owner, ast.Name) and owner.id == "re"), f"re.{node.func.attr} in {lang}"
-            if node.func.attr == "replace":  # only dataclasses.replace (a record), never str.replace
-                assert isinstance(owner, ast.Name) and owner.id == "dataclasses", f"str.replace in {lang}"
+# No backend imports another or parses printed text: tests/test_layout.py (every registered backend).
 
 
 def test_every_printer_prints_every_node_kind():
