@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 from itertools import accumulate
 
-
 from ..errors import ModelError
 from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
