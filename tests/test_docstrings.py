@@ -21,6 +21,7 @@ PACKAGE = ROOT / "lagcodegen"
 CHECKED = [
     "__init__.py", "__main__.py", "api.py", "sweep.py", "cli", "model", "modelfile", "theory", "derivation.py",
     "result.py", "util.py", "progress.py", "cache.py", "buildstep.py", "errors.py", "version.py",
+    "codegen", "formulation", "solvers", "simulation", "build.py", "codes.py", "fmu", "animation.py", "notebook.py",
 ]
 
 #: A cited name: lagcodegen followed by dotted identifiers, not part of a file name such as

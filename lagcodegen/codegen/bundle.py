@@ -1,10 +1,10 @@
 """Embeddable bundles: the generated model code plus build files, examples and a README.
 
 :func:`write_bundle` writes, into one folder, everything a C or Fortran project needs to use
-a :class:`~lagcodegen.scene.Scene` without lagcodegen:
+a :class:`~lagcodegen.formulation.scene.Scene` without lagcodegen:
 
 * the model: ``<prefix>.h`` and ``<prefix>.c`` (C99) or ``<prefix>.f90`` (Fortran 2008
-  module ``<prefix>_mod`` with C bindings, see :mod:`lagcodegen.fortran`);
+  module ``<prefix>_mod`` with C bindings, see :mod:`lagcodegen.codegen.fortran`);
 * ``Makefile``: the static library ``lib<prefix>.a``, ``make rk4``, ``make check`` (runs the
   RK4 example), ``make cvode`` (the SUNDIALS example, on request);
 * ``CMakeLists.txt``: the same library and RK4 example; the SUNDIALS example only if
@@ -13,7 +13,7 @@ a :class:`~lagcodegen.scene.Scene` without lagcodegen:
 * ``cvode_example.c`` (``sundials_example=True``): the same with SUNDIALS CVODE;
 * ``README.md``: how to call each function, array layouts, return codes.
 
-Constrained systems (:class:`~lagcodegen.constraints.ConstrainedSystem`, index-1 formulation):
+Constrained systems (:class:`~lagcodegen.theory.constraints.ConstrainedSystem`, index-1 formulation):
 :func:`render_constrained_bundle`, or :func:`write_bundle` given the system instead of a scene,
 bundles ``<prefix>_dae.h`` with ``<prefix>_dae.c`` or ``<prefix>_dae.f90`` (augmented-system
 solve, index-1 right-hand side, residuals, projection, outputs; optionally events and the GGL
@@ -186,7 +186,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
                               baumgarte: tuple[float, float] | str = "auto", y0: Sequence[float] | None = None,
                               params: Mapping[str, float] | None = None, t_start: float = 0.0,
                               t_end: float = 10.0, steps: int | None = None) -> dict[str, str]:
-    """The files of the bundle of a :class:`~lagcodegen.constraints.ConstrainedSystem` in the
+    """The files of the bundle of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` in the
     index-1 formulation (name -> text), rendered in memory.
 
     The library is ``<prefix>_dae.h`` with ``<prefix>_dae.c`` (C99) or ``<prefix>_dae.f90``
@@ -198,7 +198,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     onto the constraints; Baumgarte parameters ``baumgarte`` = (alpha, beta) by default, or with
     ``"auto"`` alpha = beta = ``<prefix>_natural_rate`` at the initial state; others and per-step
     projection on its command line). There is no SUNDIALS example (the native
-    drivers of :mod:`lagcodegen.dae` are written against lagcodegen's own SUNDIALS declarations).
+    drivers of :func:`lagcodegen.build.runtime` are written against lagcodegen's own SUNDIALS declarations).
 
     ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
     :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
@@ -294,7 +294,7 @@ def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[
 def write_bundle(scene, directory: str | os.PathLike, lang: str = "c", sundials_example: bool | None = None,
                  **options) -> list[Path]:
     """Render the bundle of ``scene`` (see :func:`render_bundle` for ``options``), or of a
-    :class:`~lagcodegen.constraints.ConstrainedSystem` in the index-1 formulation (see
+    :class:`~lagcodegen.theory.constraints.ConstrainedSystem` in the index-1 formulation (see
     :func:`render_constrained_bundle`), and write it into ``directory``. Returns the paths of
     all bundle files, in name order. ``sundials_example``: default True for a scene; constrained
     bundles have none."""

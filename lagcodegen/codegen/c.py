@@ -141,7 +141,7 @@ class CPrinter(ir.Printer):
 
 
 def c_expr(expr, resolve=None) -> str:
-    """C99 text of a symengine expression (:func:`lagcodegen.codegen.ir.expression` printed by
+    """C99 text of a symengine expression (:func:`lagcodegen.codegen.lowering.expression` printed by
     :class:`CPrinter`): symengine's C text, with every constant exact."""
     return CPrinter().doprint(lowering.expression(expr, resolve))
 

@@ -6,7 +6,7 @@ GGL residual, from the kernels of :mod:`lagcodegen.formulation.constrained`.
 for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + cj dF/dy' for
 IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
 to the same C names, evaluating the same operations). The native drivers are not part of a
-model's code: they are model-independent (templates/c/lcg_cvc.c.j2, lcg_ida.c.j2), compiled once
+model's code: they are model-independent (lagcodegen/runtime/lcg_cvc.c, lcg_ida.c), compiled once
 into the runtime (:func:`lagcodegen.build.runtime`), and call a model through its function table
 ``<prefix>_dae_table.c`` (lcg_dae_model.h), which the build adds (:func:`lagcodegen.build.dae_table_source`).
 """

@@ -1,10 +1,10 @@
 """Fortran 2008 code generation: the C backend's functions as a module with C bindings.
 
-:func:`generate_fortran` renders a :class:`~lagcodegen.scene.Scene` into ``<prefix>.f90``
+:func:`generate_fortran` renders a :class:`~lagcodegen.formulation.scene.Scene` into ``<prefix>.f90``
 (module ``<prefix>_mod``) and ``<prefix>.h``, the C backend's header, unchanged. Every
 function is ``bind(C, name="<prefix>_...")`` with exactly the C signature, so C programs,
-the native CVODE driver and the cffi module of :func:`lagcodegen.build` call it exactly like
-the C version, and :func:`lagcodegen.build` compiles the ``.f90`` with gfortran.
+the native CVODE driver and the cffi module of :func:`lagcodegen.build.build` call it exactly like
+the C version, and :func:`lagcodegen.build.build` compiles the ``.f90`` with gfortran.
 
 The arithmetic is the C backend's, operation for operation: both print the same operation tree
 (:mod:`lagcodegen.codegen.ir`, built once from the same symbol renaming and the same

@@ -6,8 +6,8 @@ for the GGL formulation, the DAE residual F(t, y, y') and its Jacobian dF/dy + c
 IDA; with ``lang="fortran"`` the same functions come from templates/fortran/dae.f90.j2 (bound
 to the same C names, evaluating the same operations: :func:`constrained_blocks` builds the
 expression blocks once for both languages). The native drivers are model-independent C
-(templates/c/lcg_cvc.c.j2, lcg_ida.c.j2), compiled once into the runtime, and reach a model's
-functions through its table (lcg_dae_model.h); :mod:`lagcodegen.dae` compiles and runs them.
+(lagcodegen/runtime/lcg_cvc.c, lcg_ida.c), compiled once into the runtime, and reach a model's
+functions through its table (lcg_dae_model.h); :func:`lagcodegen.compile_constrained` compiles and runs them.
 """
 
 from __future__ import annotations
