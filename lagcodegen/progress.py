@@ -344,17 +344,24 @@ def isolated(fn: Callable, *args: Any) -> Any:
     if not can_isolate():
         return fn(*args)
     read_end, write_end = os.pipe()
-    pid = 0
+    pid = -1  # no child yet
     chunks = []
-    # Everything from the fork on is inside the try: a Ctrl-C that lands before the wait (while
-    # catch_warnings exits, say) must kill the child too, or it would run on for hours holding
-    # the caller's inherited pipes.
+    # Everything from the fork on is inside the try: a Ctrl-C that lands before the wait must kill
+    # the child too, or it would run on for hours holding the caller's inherited pipes. Around the
+    # fork itself Ctrl-C is held back: the fork hooks run Python code (logging releases its lock in
+    # os.register_at_fork's after_in_parent), and an exception raised there is printed and
+    # dropped, so the KeyboardInterrupt would be lost; held back, it is raised right after.
     try:
-        with warnings.catch_warnings():  # Python >= 3.12 warns about fork() beside other threads
-            warnings.simplefilter("ignore", DeprecationWarning)
-            pid = os.fork()
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+        try:
+            with warnings.catch_warnings():  # Python >= 3.12 warns about fork() beside other threads
+                warnings.simplefilter("ignore", DeprecationWarning)
+                pid = os.fork()
+        finally:
+            if pid != 0:  # the parent (or no fork at all): a held-back Ctrl-C is raised now
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
         if pid == 0:  # pragma: no cover - the child (coverage does not follow it); never returns
-            _child(write_end, read_end, fn, args)
+            _child(write_end, read_end, fn, args, held)
         os.close(write_end)
         write_end = -1
         while True:
@@ -364,7 +371,7 @@ def isolated(fn: Callable, *args: Any) -> Any:
             chunks.append(data)
         _, status = os.waitpid(pid, 0)
     except BaseException:
-        if pid:
+        if pid > 0:
             _kill(pid)
         raise
     finally:
@@ -382,12 +389,18 @@ def isolated(fn: Callable, *args: Any) -> Any:
     raise value
 
 
-def _child(write_end: int, read_end: int, fn: Callable, args) -> None:  # pragma: no cover - in the child
-    """Compute ``fn(*args)`` and write the pickled (ok, value) pair; never returns."""
+#: Signals held back while :func:`isolated` forks (their Python handlers raise).
+_HELD_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+def _child(write_end: int, read_end: int, fn: Callable, args, mask) -> None:  # pragma: no cover - in the child
+    """Compute ``fn(*args)`` and write the pickled (ok, value) pair; never returns. ``mask``: the
+    signal mask to restore once Ctrl-C and SIGTERM have their default actions here."""
     try:
         os.close(read_end)
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # the parent decides what Ctrl-C means
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         try:
             payload = pickle.dumps((True, fn(*args)), protocol=pickle.HIGHEST_PROTOCOL)
         except BaseException as exc:
