@@ -106,10 +106,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined,
     (void)stopTime;
     if (c == NULL)
         return fmi2Error;
-    if (toleranceDefined)
-        lcg_fmu_set_tolerance(c->core, tolerance);
-    c->core->t = startTime;
-    c->core->valid = 0;
+    lcg_fmu_experiment(c->core, toleranceDefined, tolerance, startTime);
     return fmi2OK;
 }
 
@@ -275,8 +272,7 @@ fmi2Status fmi2SetTime(fmi2Component comp, fmi2Real time)
     lcg_fmi2 *c = (lcg_fmi2 *)comp;
     if (c == NULL)
         return fmi2Error;
-    c->core->t = time;
-    c->core->valid = 0;
+    lcg_fmu_set_time(c->core, time);
     return fmi2OK;
 }
 
@@ -285,9 +281,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component comp, const fmi2Real x[], size_
     lcg_fmi2 *c = (lcg_fmi2 *)comp;
     if (c == NULL || nx != (size_t)c->core->m->nx || (nx > 0 && x == NULL))
         return refuse(comp, "fmi2SetContinuousStates: wrong number of states");
-    if (nx > 0)
-        memcpy(c->core->x, x, nx * sizeof(double));
-    c->core->valid = 0;
+    lcg_fmu_set_states(c->core, x);
     return fmi2OK;
 }
 
@@ -362,8 +356,8 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
         return fmi2Error;
     if (!(communicationStepSize >= 0.0))
         return refuse(comp, "fmi2DoStep: the communication step size is negative");
-    c->core->t = currentCommunicationPoint;
-    return lcg_fmu_step(c->core, currentCommunicationPoint + communicationStepSize) == 0 ? fmi2OK : fail(c);
+    return lcg_fmu_step(c->core, currentCommunicationPoint, currentCommunicationPoint + communicationStepSize) == 0
+               ? fmi2OK : fail(c);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component comp)

@@ -144,10 +144,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     (void)stopTime;
     if (c == NULL)
         return fmi3Error;
-    if (toleranceDefined)
-        lcg_fmu_set_tolerance(c->core, tolerance);
-    c->core->t = startTime;
-    c->core->valid = 0;
+    lcg_fmu_experiment(c->core, toleranceDefined, tolerance, startTime);
     return fmi3OK;
 }
 
@@ -512,8 +509,7 @@ fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time)
     lcg_fmi3 *c = (lcg_fmi3 *)instance;
     if (c == NULL)
         return fmi3Error;
-    c->core->t = time;
-    c->core->valid = 0;
+    lcg_fmu_set_time(c->core, time);
     return fmi3OK;
 }
 
@@ -523,9 +519,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 cont
     lcg_fmi3 *c = (lcg_fmi3 *)instance;
     if (c == NULL || nContinuousStates != (size_t)c->core->m->nx || (nContinuousStates > 0 && !continuousStates))
         return refuse(instance, "fmi3SetContinuousStates: wrong number of states");
-    if (nContinuousStates > 0)
-        memcpy(c->core->x, continuousStates, nContinuousStates * sizeof(double));
-    c->core->valid = 0;
+    lcg_fmu_set_states(c->core, continuousStates);
     return fmi3OK;
 }
 
@@ -619,8 +613,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return fmi3Error;
     if (!(communicationStepSize >= 0.0))
         return refuse(instance, "fmi3DoStep: the communication step size is negative");
-    c->core->t = currentCommunicationPoint;
-    code = lcg_fmu_step(c->core, currentCommunicationPoint + communicationStepSize);
+    code = lcg_fmu_step(c->core, currentCommunicationPoint, currentCommunicationPoint + communicationStepSize);
     if (eventHandlingNeeded != NULL)
         *eventHandlingNeeded = fmi3False;
     if (terminateSimulation != NULL)

@@ -77,8 +77,14 @@ int lcg_fmu_set(lcg_fmu_instance *inst, unsigned int vr, double value);
 int lcg_fmu_start(lcg_fmu_instance *inst);
 /* Evaluate the derivatives and outputs at (t, x, p) unless they are current: 0 or -1. */
 int lcg_fmu_eval(lcg_fmu_instance *inst);
-/* Integrate from inst->t to t_end with the inputs held (Co-Simulation): 0 or -1. */
-int lcg_fmu_step(lcg_fmu_instance *inst, double t_end);
+/* Integrate from t_start to t_end with the inputs held (Co-Simulation): 0 or -1. */
+int lcg_fmu_step(lcg_fmu_instance *inst, double t_start, double t_end);
+/* The experiment: the start time and, when tolerance_defined, the tolerance (lcg_fmu_set_tolerance). */
+void lcg_fmu_experiment(lcg_fmu_instance *inst, int tolerance_defined, double rtol, double t_start);
+/* The time (Model Exchange): derivatives and outputs are evaluated again when read. */
+void lcg_fmu_set_time(lcg_fmu_instance *inst, double t);
+/* The continuous states x (m->nx values; Model Exchange). */
+void lcg_fmu_set_states(lcg_fmu_instance *inst, const double *x);
 
 #ifdef __cplusplus
 }

@@ -210,11 +210,32 @@ static int ode_rhs(void *data, double t, const double *y, double *ydot)
     return inst->m->rhs(t, y, inst->p, ydot);
 }
 
-int lcg_fmu_step(lcg_fmu_instance *inst, double t_end)
+void lcg_fmu_experiment(lcg_fmu_instance *inst, int tolerance_defined, double rtol, double t_start)
+{
+    if (tolerance_defined)
+        lcg_fmu_set_tolerance(inst, rtol);
+    lcg_fmu_set_time(inst, t_start);
+}
+
+void lcg_fmu_set_time(lcg_fmu_instance *inst, double t)
+{
+    inst->t = t;
+    inst->valid = 0;
+}
+
+void lcg_fmu_set_states(lcg_fmu_instance *inst, const double *x)
+{
+    if (inst->m->nx > 0)
+        memcpy(inst->x, x, (size_t)inst->m->nx * sizeof(double));
+    inst->valid = 0;
+}
+
+int lcg_fmu_step(lcg_fmu_instance *inst, double t_start, double t_end)
 {
     const lcg_fmu_model *m = inst->m;
     int code;
 
+    inst->t = t_start;
     if (!inst->started && lcg_fmu_start(inst) != 0)
         return -1;
     inst->valid = 0;
