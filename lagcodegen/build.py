@@ -354,23 +354,25 @@ def runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
 
 
 def driver_runtime(label: str, key_texts: list[str], render, cdef: str, header: str, libs: list[str],
-                   cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+                   cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS, units: tuple[str, ...] = ()):
     """A model-independent driver as a cffi module of its own, built into the cache once per
     lagcodegen version, compiler, flags and Python (as :func:`runtime`; e.g. the Taylor driver,
     :mod:`lagcodegen.solvers.taylor`): ``render()`` returns its sources (called only to build),
     ``key_texts`` what they are rendered from, ``cdef`` its interface, ``header`` the header the
-    wrapper includes, ``libs`` what it links. Not memoized: the caller keeps the module."""
+    wrapper includes, ``libs`` what it links, ``units`` the C files compiled (empty: every ``.c``
+    of the sources; a unit may include another C file, which then is not compiled on its own).
+    Not memoized: the caller keeps the module."""
     cc = cc or os.environ.get("CC") or "cc"
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
     key = cache_key([__version__, f"cache format {CACHE_FORMAT}", f"{label} runtime", compiler_id(cc),
-                     " ".join(cflags), " ".join(libs), ext, cdef, sys.version, header, *key_texts])
+                     " ".join(cflags), " ".join(libs), ext, cdef, sys.version, header, *units, *key_texts])
     modname = f"_lcg_{label}_runtime_{key}"
 
     def make(tmp: Path) -> Path:
         sources = render()
         _write(tmp, sources)
         wrapper = _cffi_module(tmp, modname, cdef, [header])
-        c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
+        c_files = [wrapper] + (list(units) or sorted(n for n in sources if n.endswith(".c")))
         _compile_shared(tmp, c_files, [], f"{modname}{ext}", cc, cflags, [_python_include()], libs,
                         f"the lagcodegen {label} runtime")
         return tmp / f"{modname}{ext}"

@@ -1,0 +1,328 @@
+/* lcg_cvode_stepper.c -- lagcodegen's runtime: the CVODE integration that lives between calls
+ * (see lcg_cvode_stepper.h).
+ *
+ * One translation unit with the run driver lcg_cvode.c, included here, so that CVODE calls the
+ * driver's own right-hand side and Jacobian callbacks (dense, band in the interleaved order,
+ * sparse into dense, run control, non-finite values reported as recoverable) with the same
+ * options; a grid from a fresh stepper gives the numbers of lcg_cvode_solve on the same times.
+ * The module built from this file replaces lcg_cvode.c's own. */
+#include "lcg_cvode.c"
+
+#include "lcg_cvode_stepper.h"
+
+/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
+#define CV_ONE_STEP 2
+int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
+int CVodeClearStopTime(void *cvode_mem);
+
+struct lcg_cvode_stepper {
+    const lcg_model *m;
+    lcg_cvode_options opt;      /* the caller's, atol_vec pointing at atol below */
+    lcg_cvode_stats st;         /* of the last call */
+    user_data data;             /* what the callbacks see (lcg_cvode.c) */
+    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
+    double *seen;               /* time, state and parameters as the last call left them */
+    double *atol;               /* ny, or NULL */
+    int restart;                /* CVodeReInit before the next step (after a failure) */
+    SUNContext ctx;
+    void *mem;
+    N_Vector yv, abstol;
+    SUNMatrix A;
+    SUNLinearSolver LS;
+    SUNNonlinearSolver NLS;
+};
+
+void lcg_cvode_stepper_free(lcg_cvode_stepper *s)
+{
+    if (s == NULL)
+        return;
+    if (s->mem != NULL)
+        CVodeFree(&s->mem);
+    if (s->LS != NULL)
+        SUNLinSolFree(s->LS);
+    if (s->NLS != NULL)
+        SUNNonlinSolFree(s->NLS);
+    if (s->A != NULL)
+        SUNMatDestroy(s->A);
+    if (s->abstol != NULL)
+        N_VDestroy(s->abstol);
+    if (s->yv != NULL)
+        N_VDestroy(s->yv);
+    if (s->ctx != NULL)
+        SUNContext_Free(&s->ctx);
+    free(s->data.yb);
+    free(s->data.fb);
+    free(s->data.vals);
+    free(s->data.jd);
+    free(s->seen);
+    free(s->atol);
+    free(s);
+}
+
+lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s)
+{
+    return &s->st;
+}
+
+/* The caller's state into CVODE's vector (interleaved for the band solver). */
+static void cs_load(lcg_cvode_stepper *s)
+{
+    double *yv = N_VGetArrayPointer(s->yv);
+    int i;
+
+    if (s->opt.linear_solver == 1)
+        scatter(s->m, s->y, yv);
+    else
+        for (i = 0; i < s->m->ny; ++i)
+            yv[i] = s->y[i];
+}
+
+/* CVODE's vector into the caller's state. */
+static void cs_store(lcg_cvode_stepper *s, double *y)
+{
+    double *yv = N_VGetArrayPointer(s->yv);
+    int i;
+
+    if (s->opt.linear_solver == 1)
+        gather(s->m, yv, y);
+    else
+        for (i = 0; i < s->m->ny; ++i)
+            y[i] = yv[i];
+}
+
+/* 1 if the nt times t are finite and do not decrease. */
+static int cs_increasing(int nt, const double *t)
+{
+    int k;
+
+    for (k = 0; k < nt; ++k)
+        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
+            return 0;
+    return 1;
+}
+
+static void cs_remember(lcg_cvode_stepper *s)
+{
+    int i, n = 1 + s->m->ny + s->m->np;
+
+    for (i = 0; i < n; ++i)
+        s->seen[i] = s->tv[i];
+}
+
+/* The options of lcg_cvode_solve, on the stepper's CVODE memory: 0 or a negative flag. */
+static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
+{
+    const lcg_model *m = s->m;
+    const lcg_cvode_options *opt = &s->opt;
+    int i, flag, ny = m->ny, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
+    int use_jac = opt->jacobian && (m->jac != NULL || m->jac_sparse != NULL);
+
+    if (band && (opt->mupper < 0 || opt->mlower < 0 || opt->mupper >= ny || opt->mlower >= ny)) {
+        snprintf(message, size, "band solver: bandwidths mu = %ld, ml = %ld out of range", opt->mupper,
+                 opt->mlower);
+        return LCG_FLAG_BAD_INPUT;
+    }
+    s->yv = N_VNew_Serial(ny, s->ctx);
+    s->mem = CVodeCreate(opt->method, s->ctx);
+    if (!fixedpoint)
+        s->A = band ? SUNBandMatrix(ny, opt->mupper, opt->mlower, s->ctx) : SUNDenseMatrix(ny, ny, s->ctx);
+    if (band && ((s->data.yb = (double *)malloc(sizeof(double) * (size_t)ny)) == NULL
+                 || (s->data.fb = (double *)malloc(sizeof(double) * (size_t)ny)) == NULL))
+        return LCG_FLAG_NOMEM;
+    if (use_jac && m->jac_sparse != NULL && (band || m->jac == NULL)
+        && (s->data.vals = (double *)malloc(sizeof(double) * (size_t)(m->jac_nnz > 0 ? m->jac_nnz : 1))) == NULL)
+        return LCG_FLAG_NOMEM;
+    if (use_jac && band && m->jac_sparse == NULL
+        && (s->data.jd = (double *)malloc(sizeof(double) * (size_t)ny * (size_t)ny)) == NULL)
+        return LCG_FLAG_NOMEM;
+    if (s->yv == NULL || s->mem == NULL || (s->A == NULL && !fixedpoint))
+        return LCG_FLAG_NOMEM;
+    if (!fixedpoint && (s->LS = band ? SUNLinSol_Band(s->yv, s->A, s->ctx) : SUNLinSol_Dense(s->yv, s->A, s->ctx))
+        == NULL)
+        return LCG_FLAG_NOMEM;
+    cs_load(s);
+    if ((flag = CVodeInit(s->mem, band ? rhs_band : rhs, s->tv[0], s->yv)) < 0)
+        return flag;
+    if (opt->atol_vec != NULL) {
+        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
+            return LCG_FLAG_NOMEM;
+        for (i = 0; i < ny; ++i)
+            N_VGetArrayPointer(s->abstol)[band ? to_band(m->nq, i) : i] = opt->atol_vec[i];
+        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
+    } else {
+        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
+    }
+    if (flag < 0)
+        return flag;
+    CVodeSetUserData(s->mem, &s->data);
+    if (fixedpoint) {
+        if ((s->NLS = SUNNonlinSol_FixedPoint(s->yv, 0, s->ctx)) == NULL)
+            return LCG_FLAG_NOMEM;
+        if ((flag = CVodeSetNonlinearSolver(s->mem, s->NLS)) < 0)
+            return flag;
+    } else {
+        if ((flag = CVodeSetLinearSolver(s->mem, s->LS, s->A)) < 0)
+            return flag;
+        if (use_jac && (flag = CVodeSetJacFn(s->mem, band ? jac_band : jac)) < 0)
+            return flag;
+    }
+    CVodeSetMaxHnilWarns(s->mem, -1);
+    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(s->mem, opt->max_order)) < 0)
+        return flag;
+    if (opt->first_step > 0 && (flag = CVodeSetInitStep(s->mem, opt->first_step)) < 0)
+        return flag;
+    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(s->mem, opt->max_step)) < 0)
+        return flag;
+    if (opt->min_step > 0 && (flag = CVodeSetMinStep(s->mem, opt->min_step)) < 0)
+        return flag;
+    return CVodeSetMaxNumSteps(s->mem, opt->max_steps);
+}
+
+lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
+                                         char *message, size_t size)
+{
+    lcg_cvode_stepper *s;
+    int i, flag, n;
+
+    if (m == NULL || m->abi != LCG_MODEL_ABI || m->rhs == NULL || m->ny != 2 * m->nq + m->nz) {
+        snprintf(message, size, "the model table is missing or of another layout");
+        return NULL;
+    }
+    if (opt == NULL || mem == NULL || opt->max_steps < 1 || !isfinite(mem[0])) {
+        snprintf(message, size, "bad options (max_steps >= 1) or a non-finite time");
+        return NULL;
+    }
+    s = (lcg_cvode_stepper *)calloc(1, sizeof *s);
+    if (s == NULL) {
+        snprintf(message, size, "out of memory");
+        return NULL;
+    }
+    n = 1 + m->ny + m->np;
+    s->m = m;
+    s->opt = *opt;
+    s->opt.cancel = NULL;
+    s->tv = mem;
+    s->y = mem + 1;
+    s->p = s->y + m->ny;
+    s->seen = (double *)malloc(sizeof(double) * (size_t)n);
+    if (opt->atol_vec != NULL && (s->atol = (double *)malloc(sizeof(double) * (size_t)m->ny)) != NULL) {
+        for (i = 0; i < m->ny; ++i)
+            s->atol[i] = opt->atol_vec[i];
+        s->opt.atol_vec = s->atol;
+    }
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || SUNContext_Create(0, &s->ctx) != 0) {
+        snprintf(message, size, "out of memory");
+        lcg_cvode_stepper_free(s);
+        return NULL;
+    }
+    SUNContext_ClearErrHandlers(s->ctx);
+    SUNContext_PushErrHandler(s->ctx, record_error, &s->st);
+    s->data.m = m;
+    s->data.p = s->p;
+    s->data.st = &s->st;
+    flag = cs_setup(s, message, size);
+    if (flag < 0) {
+        if (message[0] == '\0' || flag == LCG_FLAG_NOMEM)
+            snprintf(message, size, flag == LCG_FLAG_NOMEM ? "out of memory creating the CVODE solver"
+                     : "CVODE setup failed (flag %d): %s", flag, s->st.message);
+        lcg_cvode_stepper_free(s);
+        return NULL;
+    }
+    cs_remember(s);
+    return s;
+}
+
+int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
+                              int one_step)
+{
+    const lcg_model *m = s->m;
+    lcg_cvode_stats *st = &s->st;
+    const lcg_cvode_options *opt = &s->opt;
+    user_data *d = &s->data;
+    double t = s->tv[0], tret = t;
+    int i, k = 0, flag = 0, ny = m->ny, n = 1 + m->ny + m->np;
+
+    st->flag = st->model_error = st->nt_done = 0;
+    st->message[0] = '\0';
+    d->nonfinite = 0;
+    watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
+        || !cs_increasing(nt, tout)) {
+        snprintf(st->message, sizeof st->message,
+                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
+                 "grid's times are not finite and increasing from there", t_end, t);
+        flag = LCG_FLAG_BAD_INPUT;
+        goto out;
+    }
+    for (i = 0; i < n && !s->restart; ++i)
+        if (s->tv[i] != s->seen[i])
+            s->restart = 1; /* the caller set the time, the state or the parameters */
+    if (s->restart) {
+        cs_load(s);
+        if ((flag = CVodeReInit(s->mem, t, s->yv)) < 0)
+            goto out;
+        s->restart = 0;
+    }
+    while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
+        for (i = 0; i < ny; ++i)
+            yout[(long)k * ny + i] = s->y[i];
+        st->nt_done = ++k;
+    }
+    if (one_step) {
+        if (isfinite(t_end))
+            flag = CVodeSetStopTime(s->mem, t_end);
+        else
+            flag = CVodeClearStopTime(s->mem);
+        /* tout only hints the first step's size after a (re)start; the stop time bounds the step */
+        if (flag >= 0 && t_end > t)
+            flag = CVode(s->mem, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), s->yv, &tret, CV_ONE_STEP);
+    } else if (nt == 0) {
+        if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
+            flag = CVode(s->mem, t_end, s->yv, &tret, CV_NORMAL);
+    } else if (k < nt) {
+        if ((flag = CVodeSetStopTime(s->mem, t_end)) < 0)
+            goto out;
+        for (; k < nt; ++k) {
+            if (WATCH_TICK(&d->w))
+                break;
+            flag = CVode(s->mem, tout[k], s->yv, &tret, CV_NORMAL);
+            if (flag < 0)
+                break;
+            cs_store(s, yout + (long)k * ny);
+            st->nt_done = k + 1;
+        }
+    }
+    if (tret > t || flag < 0) {
+        cs_store(s, s->y);
+        s->tv[0] = tret;
+    }
+
+out:
+    flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
+    if (d->nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
+        st->model_error = LCG_ERR_NONFINITE;
+        st->t_reached = d->t_nonfinite;
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    } else if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR) {
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    }
+    if (flag < 0)
+        s->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    CVodeGetNumSteps(s->mem, &st->nsteps);
+    CVodeGetNumRhsEvals(s->mem, &st->nrhs);
+    CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
+    CVodeGetNumJacEvals(s->mem, &st->njac);
+    CVodeGetNumErrTestFails(s->mem, &st->netfails);
+    CVodeGetNumNonlinSolvConvFails(s->mem, &st->nncfails);
+    CVodeGetLastStep(s->mem, &st->h_last);
+    if (st->model_error == 0)
+        st->t_reached = s->tv[0];
+    cs_remember(s);
+    st->flag = flag < 0 ? flag : 0;
+    return st->flag;
+}
+
+int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end)
+{
+    return lcg_cvode_stepper_advance(s, t_end, 0, NULL, NULL, 0);
+}
