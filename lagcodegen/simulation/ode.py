@@ -23,6 +23,7 @@ from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
 from ..solvers.registry import resolve
 from ..util import c_vector, check_finite, output_times
 from .ensemble import ensemble_ode
+from .integrator import Integrator
 
 
 def check_rc(rc: int, t: float, what: str) -> None:
@@ -255,6 +256,29 @@ class CompiledModel(CompiledReprMixin):
             raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]),
                       flag=res.status, result=res)
         return res
+
+    def integrator(self, *, q0=None, v0=None, y0=None, z0=None, t0: float = 0.0, params: dict | None = None,
+                   solver=None, rtol: float = 1e-8, atol=1e-10, events=(), **options) -> Integrator:
+        """An integration that lives between calls (:class:`~lagcodegen.simulation.integrator.Integrator`):
+        ``propagate_until``, ``propagate_for``, ``propagate_grid``, ``step``; ``state``, ``params``
+        (inputs among them) and ``time`` readable and writable in place.
+
+        The initial state, parameters, tolerances and options as in :meth:`simulate` (``t0``: the
+        initial time), resolved once by :func:`lagcodegen.solvers.registry.resolve`; ``method``
+        "taylor" (events located on each step's polynomial) or "adams"/"bdf" (CVODE; no events on
+        an unconstrained model). ``max_steps`` is the step budget of one call.
+        """
+        y = initial_state(self, q0, v0, y0, z0)
+        if not all(map(math.isfinite, y.tolist())):
+            raise LagcodegenError("the initial state has non-finite values")
+        p = self.parameter_vector(params)
+        t0 = check_finite(t0, "t0")
+        rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
+        family = resolve("ode", solver, options, self.n, rtol)
+        mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
+        stepper = family.runner("ode", "stepper")(self, mem, rtol, atol_arr, events)
+        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
+                          family=stepper.family)
 
     def check_initial_outputs(self, t0: float, y: np.ndarray, p: np.ndarray) -> None:
         """Raise SolverError naming every output that is not finite at the initial state (each

@@ -14,6 +14,7 @@ from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
 from ..family import Family, choice
 from . import ensemble, native
+from .stepper import CVODEStepper
 
 BACKENDS = ("native", "sksundae")
 
@@ -112,6 +113,17 @@ class CVODE(Family):
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
         return res
+
+    def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
+        """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
+        the face): CVODE memory made once (:mod:`.stepper`); ``max_steps`` is the budget of one call."""
+        if events:
+            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
+                                  "a plain scene has no root finding)")
+        if self.backend != "native":
+            raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
+        opts = self._ode_options(cm, mem[1:1 + cm.ny], mem[1 + cm.ny:], True)
+        return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver."""

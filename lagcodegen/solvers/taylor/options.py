@@ -10,6 +10,7 @@ from ...result import Result
 from ..family import Family
 from .ensemble import run_taylor_ensemble
 from .run import run_taylor
+from .stepper import TaylorStepper
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -37,6 +38,14 @@ class Taylor(Family):
         step's polynomial."""
         return run_taylor(cm, t, y, p, rtol=rtol, atol=atol, max_step=self.max_step, max_steps=int(self.max_steps),
                           order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
+
+    def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> TaylorStepper:
+        """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
+        the face): the jet's storage and workspace made once (:mod:`.stepper`); ``events`` located
+        on each step's polynomial; ``max_steps`` is the budget of one call."""
+        return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
+                             max_steps=int(self.max_steps), order=self.order, events=tuple(events),
+                             max_events=self.max_events, max_wall=float(self.max_wall))
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``."""

@@ -1,0 +1,122 @@
+"""The CVODE family's stepper: the C state of an integrator object
+(:class:`lagcodegen.simulation.integrator.Integrator`) on CVODE, the runtime's
+``lcg_cvode_stepper`` (lagcodegen/runtime/lcg_cvode_stepper.c: CVODE memory made once, the run
+driver's own callbacks).
+
+The stepper runs in a module of its own (:func:`stepper_runtime`, built once per installation
+and SUNDIALS version): one translation unit with the run driver ``lcg_cvode.c``, whose callbacks
+it shares."""
+
+from __future__ import annotations
+
+import functools
+import os
+
+import numpy as np
+
+from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...errors import LagcodegenError
+from ...runtime import sources as runtime_files
+from ..base import METHODS
+from ..control import POLL_EVERY, install
+
+#: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
+STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h")
+
+STEPPER_CDEF = """
+typedef struct lcg_cvode_stepper lcg_cvode_stepper;
+lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
+                                         char *message, size_t size);
+void lcg_cvode_stepper_free(lcg_cvode_stepper *s);
+lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s);
+int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
+                              int one_step);
+int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end);
+"""
+
+
+def stepper_cdef() -> str:
+    """The stepper module's interface: the model table, the CVODE driver's structs, the stepper's
+    functions (lcg_cvode_stepper.h) and the poll callback."""
+    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), STEPPER_CDEF, POLL_CDEF])
+
+
+@functools.lru_cache(maxsize=4)
+def _stepper_runtime(cc: str, cflags: tuple[str, ...]):
+    sundials = find_sundials()
+    link = sundials.link_args(("cvode", "core"))
+
+    def render() -> dict[str, str]:
+        return {**runtime_sources(sundials), **runtime_files(STEPPER_FILES)}
+
+    texts = [f"{name}\0{text}" for name, text in sorted(render().items())]
+    return driver_runtime("cvode_stepper", [sundials.version, sundials.sunindextype, *texts], render, stepper_cdef(),
+                          "lcg_cvode_stepper.h", [*link, "-lm", "-pthread"], cc, cflags,
+                          units=("lcg_cvode_stepper.c",))
+
+
+def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The CVODE stepper's module (cffi; lcg_cvode_stepper.c with the driver it includes), built
+    into the cache once per lagcodegen version, compiler, flags, Python and SUNDIALS."""
+    return _stepper_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+
+
+class CVODEStepper:
+    """The C stepper of a compiled scene's ODE on CVODE, on ``mem`` = (t, y, p), a float64 array
+    the caller keeps. ``opts``: the driver's options as the family resolves them
+    (:meth:`lagcodegen.solvers.cvode.CVODE._ode_options`)."""
+
+    family = "cvode"
+    events = ()
+
+    def __init__(self, cm, mem: np.ndarray, *, rtol: float, atol, method: str, jacobian: bool, max_steps: int,
+                 first_step: float, max_step: float, min_step: float, max_order: int, band=None,
+                 fixedpoint: bool = False, max_wall: float = 0.0):
+        if cm.table is None:
+            raise LagcodegenError("the integrator object on CVODE needs the model library of a native build "
+                                  "(build_code(..., native=True), the default of compile_model)")
+        rt = stepper_runtime()
+        ffi, lib = rt.ffi, rt.lib
+        self.ffi, self.lib, self.rt = ffi, lib, rt
+        self.cm = cm  # keeps the model's library open
+        table = ffi.cast("const lcg_model *", int(cm.ffi.cast("uintptr_t", cm.table)))
+        opt = ffi.new("lcg_cvode_options *")
+        opt.method = METHODS[method]
+        opt.jacobian = int(jacobian)
+        opt.rtol = rtol
+        atol_keep = None
+        if isinstance(atol, float):
+            opt.atol, opt.atol_vec = atol, ffi.NULL
+        else:
+            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (cm.ny,)))
+            opt.atol = float(atol_keep.min())
+            opt.atol_vec = ffi.from_buffer("double[]", atol_keep)
+        opt.max_steps = max_steps
+        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
+        opt.linear_solver = 1 if band else 2 if fixedpoint else 0
+        opt.mupper, opt.mlower = band if band else (0, 0)
+        opt.poll = install(rt)
+        opt.poll_every = POLL_EVERY
+        opt.max_wall = max_wall
+        msg = ffi.new("char[]", 512)
+        handle = lib.lcg_cvode_stepper_new(table, opt, ffi.from_buffer("double[]", mem), msg, 512)
+        del atol_keep  # copied by the stepper
+        if handle == ffi.NULL:
+            raise LagcodegenError(f"CVODE integrator: {ffi.string(msg).decode(errors='replace')}")
+        self.handle = handle
+        self.stats = lib.lcg_cvode_stepper_stats(handle)
+        self.until = functools.partial(lib.lcg_cvode_stepper_until, handle)
+        self.advance = functools.partial(lib.lcg_cvode_stepper_advance, handle)
+
+    def free(self) -> None:
+        """Free the C stepper (once)."""
+        handle, self.handle = self.handle, None
+        if handle is not None:
+            self.lib.lcg_cvode_stepper_free(handle)
+
+    def stats_dict(self) -> dict:
+        st = self.stats
+        return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "jac_evals": st.njac,
+                "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "h_last": st.h_last,
+                "t_reached": st.t_reached, "model_error": st.model_error}
