@@ -117,3 +117,14 @@ def test_taylor_runtime_one_link():
     assert finite(rows[0]["per_model_us"]) and finite(rows[0]["runtime_us"]) and rows[0]["ratio"] > 0
     cold = tr.build_times(1, 1)
     assert [r["kind"] for r in cold] == ["per-model", "runtime"] and all(finite(r["total"]) for r in cold)
+
+
+def test_integrator_overhead_pendulum():
+    """benchmarks/integrator_overhead.py: every call measured on both families, overheads computed."""
+    import integrator_overhead as io
+    sim = io.lcg.compile_model(io.systems.n_link_pendulum(1, name="ovh_test"))
+    rows = []
+    for method in ("taylor", "adams"):
+        rows += io.rows_of("pendulum", 1, method, 1e-3, io.measure(sim, method, 1e-3, rounds=1, batch=0.002))
+    assert {r["call"] for r in rows} == {"propagate_for", "closed loop", "propagate_grid", "step", "simulate"}
+    assert all(finite(r["call_us"]) and r["call_us"] > 0 and finite(r["overhead_us"]) for r in rows)

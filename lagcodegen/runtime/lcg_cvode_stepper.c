@@ -326,3 +326,13 @@ int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end)
 {
     return lcg_cvode_stepper_advance(s, t_end, 0, NULL, NULL, 0);
 }
+
+int lcg_cvode_stepper_grid(lcg_cvode_stepper *s, int nt, const double *tout, double *yout)
+{
+    return lcg_cvode_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
+}
+
+int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit)
+{
+    return lcg_cvode_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
+}

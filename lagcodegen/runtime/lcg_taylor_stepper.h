@@ -41,4 +41,10 @@ int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, cons
 /* The same, to t_end without a grid: the call of propagate_until. */
 int lcg_taylor_stepper_until(lcg_taylor_stepper *s, double t_end);
 
+/* The same over the grid tout[0..nt-1] (t_end = tout[nt-1]; nt >= 1): the call of propagate_grid. */
+int lcg_taylor_stepper_grid(lcg_taylor_stepper *s, int nt, const double *tout, double *yout);
+
+/* One step ending at t_limit at the latest (HUGE_VAL: no limit): the call of step. */
+int lcg_taylor_stepper_step(lcg_taylor_stepper *s, double t_limit);
+
 #endif

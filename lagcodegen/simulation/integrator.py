@@ -27,6 +27,7 @@ from ..solvers.base import message
 _BAD_INPUT = int(Flag.BAD_INPUT)
 _CANCELLED = int(Flag.CANCELLED)
 _INF = math.inf
+_F64 = np.dtype(np.float64)
 
 
 def _closed(*args):
@@ -55,9 +56,10 @@ class Integrator:
         self._params = mem[1 + ny:]
         self._ny = ny
         self._until = stepper.until
-        self._advance = stepper.advance
+        self._grid = stepper.grid
+        self._step = stepper.step
         self._ffi = stepper.ffi
-        self._null = stepper.ffi.NULL
+        self._t = stepper.ffi.from_buffer("double[]", mem)  # mem[0] read and written as a Python float
         self._from_buffer = stepper.ffi.from_buffer
         self._ne = len(stepper.events)
         self.events: list[EventRecord] = []  # the events located by the last call
@@ -103,7 +105,7 @@ class Integrator:
     @property
     def time(self) -> float:
         """The current time; setting it restarts the integration there."""
-        return float(self._mem[0])
+        return self._t[0]
 
     @time.setter
     def time(self, value: float) -> None:
@@ -113,7 +115,7 @@ class Integrator:
             raise LagcodegenError(f"time must be a number, got {value!r:.60}") from None
         if not math.isfinite(v):
             raise LagcodegenError(f"time must be finite, got {value!r}")
-        self._mem[0] = v
+        self._t[0] = v
 
     @staticmethod
     def _values(value, size: int, what: str, names) -> np.ndarray:
@@ -144,7 +146,7 @@ class Integrator:
     def propagate_for(self, dt: float) -> EventRecord | None:
         """Advance by ``dt`` >= 0 (see :meth:`propagate_until`)."""
         try:
-            flag = self._until(self._mem[0] + dt)
+            flag = self._until(self._t[0] + dt)
         except TypeError:
             raise LagcodegenError(f"dt must be a number, got {dt!r:.60}") from None
         if flag:
@@ -153,27 +155,35 @@ class Integrator:
             return self._collect()
         return None
 
-    def propagate_grid(self, times) -> np.ndarray:
+    def propagate_grid(self, times, *, out: np.ndarray | None = None) -> np.ndarray:
         """Advance to ``times[-1]`` and return the states at ``times`` (increasing, from :attr:`time`
-        on; a time equal to :attr:`time` gives the current state), one row each. A terminal event
-        stops it: the rows reached (see :attr:`stopped_by`)."""
-        if type(times) is not np.ndarray or times.dtype != np.float64 or times.ndim != 1 \
-                or not times.flags.c_contiguous:
+        on; a time equal to :attr:`time` gives the current state), one row each (into ``out``, a
+        C-contiguous float64 array of shape (len(times), ny), if given). A terminal event stops it:
+        the rows reached (see :attr:`stopped_by`)."""
+        if type(times) is not np.ndarray or times.dtype is not _F64 or times.ndim != 1:
             times = self._times(times)
         nt = times.shape[0]
-        if nt == 0:
-            raise LagcodegenError("propagate_grid needs at least one time")
-        yout = np.empty((nt, self._ny))
+        if out is None:
+            out = np.empty((nt, self._ny))
+        elif type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny):
+            raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
         fb = self._from_buffer
-        flag = self._advance(times[nt - 1], nt, fb("double[]", times), fb("double[]", yout), 0)
+        try:
+            flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
+        except (ValueError, BufferError):  # not contiguous
+            if not out.flags.c_contiguous:
+                raise LagcodegenError("out must be C-contiguous") from None
+            return self.propagate_grid(np.ascontiguousarray(times), out=out)
         if flag:
+            if nt == 0:
+                raise LagcodegenError("propagate_grid needs at least one time")
             self._failed(flag)
         if self._ne:
             self._collect()
             done = self._stepper.stats.nt_done
             if done < nt:
-                return yout[:done]
-        return yout
+                return out[:done]
+        return out
 
     @staticmethod
     def _times(times) -> np.ndarray:
@@ -189,14 +199,14 @@ class Integrator:
         """One step of the integrator (Taylor: one step of its rule; CVODE: one internal step),
         ending at ``t_limit`` at the latest; returns the new :attr:`time`."""
         try:
-            flag = self._advance(t_limit, 0, self._null, self._null, 1)
+            flag = self._step(t_limit)
         except TypeError:
             raise LagcodegenError(f"t_limit must be a number, got {t_limit!r:.60}") from None
         if flag:
             self._failed(flag)
         if self._ne:
             self._collect()
-        return float(self._mem[0])
+        return self._t[0]
 
     # ------------------------------------------------------------------ outcome
     @property
@@ -229,13 +239,13 @@ class Integrator:
         name = "Taylor" if self.family == "taylor" else "CVODE"
         text = message(flag, st.model_error, detail, name, t=st.t_reached)
         cls = SingularMassMatrixError if st.model_error == 1 else SolverError
-        raise cls(text, t=float(self._mem[0]), flag=flag)
+        raise cls(text, t=self._t[0], flag=flag)
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
         """Free the C memory now (idempotent); later calls raise LagcodegenError. The views stay
         readable (they belong to this object's array)."""
-        self._until = self._advance = _closed
+        self._until = self._grid = self._step = _closed
         self._finalizer()
 
     @property

@@ -284,3 +284,17 @@ def test_stepper_sources_compile_strictly(tmp_path, cc):
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name[:-2] + ".o"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
+
+
+def test_grid_takes_any_sequence_and_fills_out(double_pendulum):
+    with double_pendulum.integrator(q0=[1.0, 0.5], method="taylor", **TOL) as a, \
+            double_pendulum.integrator(q0=[1.0, 0.5], method="taylor", **TOL) as b:
+        strided = np.linspace(0.0, 2.0, 21)[::2]       # not contiguous
+        out = np.empty((11, 4))
+        rows = a.propagate_grid(strided, out=out)
+        assert rows is out
+        np.testing.assert_array_equal(rows, b.propagate_grid(list(strided)))
+        with pytest.raises(LagcodegenError, match="shape"):
+            a.propagate_grid([2.5, 3.0], out=np.empty((3, 4)))
+        with pytest.raises(LagcodegenError, match="at least one"):
+            a.propagate_grid([])

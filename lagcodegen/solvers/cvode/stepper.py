@@ -33,6 +33,8 @@ lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s);
 int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
                               int one_step);
 int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end);
+int lcg_cvode_stepper_grid(lcg_cvode_stepper *s, int nt, const double *tout, double *yout);
+int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit);
 """
 
 
@@ -108,6 +110,8 @@ class CVODEStepper:
         self.stats = lib.lcg_cvode_stepper_stats(handle)
         self.until = functools.partial(lib.lcg_cvode_stepper_until, handle)
         self.advance = functools.partial(lib.lcg_cvode_stepper_advance, handle)
+        self.grid = functools.partial(lib.lcg_cvode_stepper_grid, handle)
+        self.step = functools.partial(lib.lcg_cvode_stepper_step, handle)
 
     def free(self) -> None:
         """Free the C stepper (once)."""

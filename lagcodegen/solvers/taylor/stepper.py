@@ -36,6 +36,8 @@ lcg_taylor_stats *lcg_taylor_stepper_stats(lcg_taylor_stepper *s);
 int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, const double *tout, double *yout,
                                int one_step);
 int lcg_taylor_stepper_until(lcg_taylor_stepper *s, double t_end);
+int lcg_taylor_stepper_grid(lcg_taylor_stepper *s, int nt, const double *tout, double *yout);
+int lcg_taylor_stepper_step(lcg_taylor_stepper *s, double t_limit);
 """
 
 
@@ -115,6 +117,8 @@ class TaylorStepper:
         self.stats = lib.lcg_taylor_stepper_stats(handle)
         self.until = functools.partial(lib.lcg_taylor_stepper_until, handle)
         self.advance = functools.partial(lib.lcg_taylor_stepper_advance, handle)
+        self.grid = functools.partial(lib.lcg_taylor_stepper_grid, handle)
+        self.step = functools.partial(lib.lcg_taylor_stepper_step, handle)
         self.order = int(self.stats.order)
 
     def free(self) -> None:
