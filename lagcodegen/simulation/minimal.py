@@ -162,6 +162,33 @@ class MinimalSimulation(_Base):
         res.events = []
         return res
 
+    def integrator(self, *, q0=None, v0=None, t0: float = 0.0, params: Mapping | None = None, solver=None,
+                   rtol: float = 1e-8, atol=1e-10, initial: str = "check", ic_tol: float = 1e-8, **options):
+        """An integrator object (:meth:`CompiledModel.integrator
+        <lagcodegen.simulation.ode.CompiledModel.integrator>`) on the branch ``q0`` lies on: q0/v0
+        for all n coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``); its
+        state and parameters are those of the branch's model (the remaining coordinates,
+        :attr:`state_names`)."""
+        model = self.system.model
+        names = [q.name for q in model.coords]
+        q = state_vector(q0, names, "q0")
+        v = state_vector(v0, names, "v0")
+        t0 = check_finite(t0, "t0")
+        vals = {**{s.name: v_ for s, v_ in model.params.items()}, **self._values}
+        for k, val in (params or {}).items():
+            if k not in self.param_names:
+                raise LagcodegenError(f"{k!r} is not a run-time parameter (run-time parameters: "
+                                      f"{', '.join(self.param_names) or 'none'})")
+            vals[k] = check_finite(val, f"parameter {k!r}")
+        if initial == "check":
+            self.system.check_initial(q, v, vals, t0=t0, tol=ic_tol)
+        elif initial not in ("project", "none"):
+            raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
+        cm = self.compiled_branch(self._branch_for(q, t0, vals, ic_tol if initial == "check" else np.inf))
+        idx = [model.index(qr) for qr in self.remaining]
+        return cm.integrator(q0=q[idx], v0=v[idx], t0=t0, params={k: vals[k] for k in cm.param_names},
+                             solver=solver, rtol=rtol, atol=atol, **options)
+
     def ensemble(self, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
                  progress=None, chunk_size=None, initial: str = "check", ic_tol: float = 1e-8, **options):
         """N runs in one call per solution branch into the generated C (see

@@ -17,7 +17,7 @@ from lagcodegen.build import find_sundials, runtime_sources
 from lagcodegen.model.events import Event
 from lagcodegen.solvers.taylor.emit import runtime_sources as taylor_runtime_sources
 
-from helpers import STRICT_CFLAGS
+from helpers import STRICT_CFLAGS, TH0, cartesian_pendulum, pendulum_q0
 
 METHODS = ["taylor", "adams", "bdf"]
 TOL = dict(rtol=1e-10, atol=1e-12)
@@ -298,3 +298,20 @@ def test_grid_takes_any_sequence_and_fills_out(double_pendulum):
             a.propagate_grid([2.5, 3.0], out=np.empty((3, 4)))
         with pytest.raises(LagcodegenError, match="at least one"):
             a.propagate_grid([])
+
+
+def test_minimal_coordinates_integrator_follows_the_pendulum_angle():
+    """The Cartesian pendulum in minimal coordinates (x kept, y eliminated) through the integrator:
+    x(t) = l sin(theta(t)) of the angle model, and its grid is simulate()'s bit for bit."""
+    sim = lcg.compile_constrained(cartesian_pendulum("cpend_integ"), "minimal")
+    angle = lcg.compile_model(systems.pendulum())
+    times = np.linspace(0.0, 3.0, 31)
+    ref = angle.simulate(times, q0=[TH0], rtol=1e-12, atol=1e-14)
+    with sim.integrator(q0=pendulum_q0(), v0=[0, 0], method="taylor", **TOL) as integ:
+        assert integ.state_names == sim.state_names == ["x", "x_dot"]
+        rows = integ.propagate_grid(times)
+    assert np.max(np.abs(rows[:, 0] - np.sin(ref["theta"]))) < 1e-8
+    np.testing.assert_array_equal(rows, sim.simulate(times, q0=pendulum_q0(), v0=[0, 0], method="taylor",
+                                                     **TOL).y)
+    with pytest.raises(LagcodegenError):
+        sim.integrator(q0=[0.5, 0.5], v0=[0, 0])  # off the constraint
