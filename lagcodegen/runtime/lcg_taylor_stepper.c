@@ -209,7 +209,7 @@ int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, cons
         st->nt_done = ++kout;
     }
 
-    while (kout < nt || (nt == 0 && (one_step ? taken == 0 : thi + tlo < t_end))) {
+    while (kout < nt || (nt == 0 && (!one_step || taken == 0) && thi + tlo < t_end)) {
         double h, rem, sum, bb;
         int end = 0, nroot = 0, e, j;
 

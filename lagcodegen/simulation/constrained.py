@@ -51,18 +51,21 @@ import functools
 import math
 from typing import Mapping
 
+import numpy as np
+
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.constrained import ConstrainedCodeInfo
 from ..result import Result
-from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions
+from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, tolerances
 from ..solvers.control import POLL_EVERY
 from ..solvers.cvode.native import CVC_OPTIONS
 from ..solvers.ida.native import ALGEBRAIC_ATOL, IDA_OPTIONS
 from ..solvers.registry import resolve
 from ..theory.constraints import ConstrainedSystem
-from ..util import output_times
+from ..util import check_finite, output_times
 from .constrained_functions import ConstrainedFunctions
 from .ensemble import ensemble_constrained
+from .integrator import Integrator
 from .ode import CompiledModel
 
 #: Events structs (with their buffers, max_events x NY values) kept for reuse per simulation and
@@ -150,6 +153,34 @@ class ConstrainedSimulation(ConstrainedFunctions):
             t_end = res.stats.get("t_reached", res.t[-1] if res.t.size else t[0])
             raise cls(res.message, t=t_end, flag=res.status, result=res)
         return res
+
+    def integrator(self, *, q0=None, v0=None, t0: float = 0.0, params: Mapping | None = None, solver=None,
+                   rtol: float = 1e-8, atol=1e-10, events: bool | None = None, initial: str = "check",
+                   ic_tol: float = 1e-8, **options) -> Integrator:
+        """An integration of the index-1 form that lives between calls
+        (:class:`~lagcodegen.simulation.integrator.Integrator`: ``propagate_until``,
+        ``propagate_for``, ``propagate_grid``, ``step``; ``state`` = (q, q') and ``params`` writable
+        in place). The initial state is checked or projected as in :meth:`simulate`; ``events``
+        (None or True: the compiled events) are located on the way and a terminal one stops a
+        call; the options are simulate's (CVODE: ``method``, ``baumgarte``, ``projection``, budgets;
+        ``max_steps`` per call). A written state off the constraints is pulled back by the
+        stabilization (or projected, with ``projection``). The GGL form (IDA) has no integrator
+        object."""
+        if self._ggl:
+            raise LagcodegenError("the integrator object of a constrained system integrates its index-1 form on "
+                                  "CVODE (compile_constrained(system, 'index1')); the GGL form on IDA has none")
+        family = resolve(self.formulation, solver, options)
+        if q0 is None:
+            raise LagcodegenError("q0 is required")
+        t0 = check_finite(t0, "t0")
+        roots = self._roots(events)
+        p = self._default_p if params is None else self.parameter_vector(params)
+        y0, _, _ = self._initial_values(t0, q0, v0, p, initial, ic_tol, False)
+        rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
+        mem = np.concatenate([[t0], y0, p])  # (t, y, p): the memory the C stepper works on
+        stepper = family.runner("index1", "stepper")(self, mem, rtol, atol_arr, roots)
+        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
+                          family=stepper.family)
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""

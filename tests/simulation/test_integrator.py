@@ -9,6 +9,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from scipy.special import ellipk
 
 import lagcodegen as lcg
 import lagcodegen.runtime as runtime_package
@@ -160,6 +161,7 @@ def test_step_advances_monotonically_along_the_solution(double_pendulum, method)
         assert integ.stats["steps"] >= 1
         last = integ.step(t_limit=times[-1] + 1e-3)   # bounded step
         assert times[-1] < last <= times[-1] + 1e-3
+        assert integ.step(t_limit=last) == last       # nothing left before the limit: no step
     ref = double_pendulum.simulate(np.array(times[:31]), q0=[1.0, 0.5], method=method, **TOL)
     assert np.max(np.abs(np.array(states) - ref.y[1:])) < 1e-7
 
@@ -276,11 +278,11 @@ def test_integrator_does_not_pickle(double_pendulum):
 # ---------------------------------------------------------------------- the C
 def test_stepper_sources_compile_strictly(tmp_path, cc):
     sources = {**runtime_sources(find_sundials()), **taylor_runtime_sources(),
-               **runtime_package.sources(["lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_taylor_stepper.c",
-                                          "lcg_taylor_stepper.h"])}
+               **runtime_package.sources(["lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_cvc_stepper.c",
+                                          "lcg_cvc_stepper.h", "lcg_taylor_stepper.c", "lcg_taylor_stepper.h"])}
     for name, text in sources.items():
         (tmp_path / name).write_text(text)
-    for name in ("lcg_cvode_stepper.c", "lcg_taylor_stepper.c"):
+    for name in ("lcg_cvode_stepper.c", "lcg_cvc_stepper.c", "lcg_taylor_stepper.c"):
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name[:-2] + ".o"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
@@ -315,3 +317,50 @@ def test_minimal_coordinates_integrator_follows_the_pendulum_angle():
                                                      **TOL).y)
     with pytest.raises(LagcodegenError):
         sim.integrator(q0=[0.5, 0.5], v0=[0, 0])  # off the constraint
+
+
+@pytest.fixture(scope="module")
+def cpend_index1():
+    cs = cartesian_pendulum("cpend_integ1")
+    x = cs.model.coords[0]
+    return lcg.compile_constrained(cs, "index1", outputs=["energy"], events=[Event("x_zero", x, -1)])
+
+
+def test_index1_integrator_is_simulate_and_stops_at_a_quarter_period(cpend_index1):
+    """The Cartesian pendulum's index-1 form on CVODE: a grid equals simulate() bit for bit; the
+    terminal event x = 0 (downward) stops propagate_until at a quarter of the exact period."""
+    sim = cpend_index1
+    times = np.linspace(0.0, 0.4, 9)
+    ref = sim.simulate(times, q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12)
+    with sim.integrator(q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12) as integ:
+        assert integ.state_names == sim.state_names
+        np.testing.assert_array_equal(integ.propagate_grid(times), ref.y)
+        quarter = math.sqrt(1.0 / 9.81) * ellipk(math.sin(TH0 / 2) ** 2)
+        stop = integ.propagate_until(5.0)
+        assert stop is integ.stopped_by and stop.name == "x_zero" and stop.terminal
+        assert stop.t == pytest.approx(quarter, abs=1e-7)
+        assert integ.time == stop.t and abs(integ.state[0]) < 1e-8
+        assert integ.stats["alpha"] > 0  # "auto" Baumgarte: the natural rate at the start
+        for _ in range(3):  # steps go on past the event
+            assert integ.step() > stop.t
+
+
+def test_index1_integrator_pieces_and_parameter_write(cpend_index1):
+    """Pieces to tolerance; g written in place: the period follows sqrt(l/g)."""
+    sim = cpend_index1
+    with sim.integrator(q0=pendulum_q0(0.2), v0=[0, 0], rtol=1e-10, atol=1e-12, events=False) as integ:
+        ref = sim.simulate(np.array([0.0, 1.0]), q0=pendulum_q0(0.2), v0=[0, 0], rtol=1e-10, atol=1e-12,
+                           events=False)
+        for t in np.linspace(0.1, 1.0, 10):
+            integ.propagate_until(t)
+        assert np.max(np.abs(integ.state - ref.y[-1])) < 1e-7
+    with sim.integrator(q0=pendulum_q0(0.2), v0=[0, 0], rtol=1e-10, atol=1e-12) as integ:
+        integ.params = {"g": 4 * 9.81}  # quarter period halves
+        stop = integ.propagate_until(5.0)
+        assert stop.t == pytest.approx(0.5 * math.sqrt(1.0 / 9.81) * ellipk(math.sin(0.1) ** 2), abs=1e-7)
+
+
+def test_ggl_has_no_integrator_and_says_so():
+    sim = lcg.compile_constrained(cartesian_pendulum("cpend_integ_ggl"), "ggl")
+    with pytest.raises(LagcodegenError, match="index-1"):
+        sim.integrator(q0=pendulum_q0(), v0=[0, 0])

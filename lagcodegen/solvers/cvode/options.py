@@ -14,7 +14,7 @@ from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
 from ..family import Family, choice
 from . import ensemble, native
-from .stepper import CVODEStepper
+from .stepper import CVCStepper, CVODEStepper
 
 BACKENDS = ("native", "sksundae")
 
@@ -171,6 +171,21 @@ class CVODE(Family):
             res.stats.update(alpha=alpha, beta=beta)
         res.stats["projection"] = projection
         return res
+
+    def stepper_index1(self, sim, mem, rtol: float, atol, roots: bool) -> CVCStepper:
+        """The C state of an integrator object on the index-1 form of ``sim`` (``mem`` = (t, y, p),
+        y a consistent state; checked by the face): CVODE memory made once with this object's
+        stabilization, projection and root finding (:mod:`.stepper`); ``max_steps`` is the budget of
+        one call."""
+        if self.backend != "native":
+            raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
+        ny = 2 * sim.n
+        method, projection, alpha, beta = self.index1_settings(sim, float(mem[0]), mem[1:1 + ny], mem[1 + ny:])
+        return CVCStepper(sim, mem, rtol=rtol, atol=atol, method=method, alpha=alpha, beta=beta, projection=projection,
+                          proj_tol=self.proj_tol, proj_maxit=self.proj_maxit, roots=roots,
+                          max_events=10_000 if self.max_events is None else self.max_events,
+                          max_steps=int(self.max_steps), first_step=self.first_step, max_step=self.max_step,
+                          min_step=self.min_step, max_order=self.max_order, max_wall=float(self.max_wall))
 
     def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Members (consistent initial states, rows of Y) of an index-1 system in one native call."""

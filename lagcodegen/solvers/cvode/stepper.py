@@ -1,11 +1,12 @@
-"""The CVODE family's stepper: the C state of an integrator object
+"""The CVODE family's steppers: the C state of an integrator object
 (:class:`lagcodegen.simulation.integrator.Integrator`) on CVODE, the runtime's
-``lcg_cvode_stepper`` (lagcodegen/runtime/lcg_cvode_stepper.c: CVODE memory made once, the run
-driver's own callbacks).
+``lcg_cvode_stepper`` (the ODE of a scene; lagcodegen/runtime/lcg_cvode_stepper.c) and
+``lcg_cvc_stepper`` (the index-1 form of a constrained system; lcg_cvc_stepper.c): CVODE memory
+made once, the run drivers' own callbacks.
 
-The stepper runs in a module of its own (:func:`stepper_runtime`, built once per installation
-and SUNDIALS version): one translation unit with the run driver ``lcg_cvode.c``, whose callbacks
-it shares."""
+Each stepper runs in a module of its own (:func:`stepper_runtime`, built once per installation
+and SUNDIALS version): one translation unit with its run driver (``lcg_cvode.c``,
+``lcg_cvc.c``), whose callbacks it shares."""
 
 from __future__ import annotations
 
@@ -15,10 +16,10 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
-from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
-from ..base import METHODS
+from ..base import METHODS, NativeEvents
 from ..control import POLL_EVERY, install
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
@@ -44,24 +45,51 @@ def stepper_cdef() -> str:
     return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), STEPPER_CDEF, POLL_CDEF])
 
 
-@functools.lru_cache(maxsize=4)
-def _stepper_runtime(cc: str, cflags: tuple[str, ...]):
+#: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
+CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h")
+
+CVC_STEPPER_CDEF = """
+typedef struct lcg_cvc_stepper lcg_cvc_stepper;
+lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
+                                     lcg_events *ev, char *message, size_t size);
+void lcg_cvc_stepper_free(lcg_cvc_stepper *s);
+lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s);
+int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end);
+int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout);
+int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit);
+"""
+
+
+def cvc_stepper_cdef() -> str:
+    """The index-1 stepper module's interface: the constrained model table and events record, the
+    index-1 driver's structs, the stepper's functions (lcg_cvc_stepper.h) and the poll callback."""
+    return "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), CVC_STEPPER_CDEF, POLL_CDEF])
+
+
+#: kind -> (files, cdef, header, unit) of the steppers' modules
+_KINDS = {"cvode": (STEPPER_FILES, stepper_cdef, "lcg_cvode_stepper.h", "lcg_cvode_stepper.c"),
+          "cvc": (CVC_STEPPER_FILES, cvc_stepper_cdef, "lcg_cvc_stepper.h", "lcg_cvc_stepper.c")}
+
+
+@functools.lru_cache(maxsize=8)
+def _stepper_runtime(kind: str, cc: str, cflags: tuple[str, ...]):
+    files, cdef, header, unit = _KINDS[kind]
     sundials = find_sundials()
     link = sundials.link_args(("cvode", "core"))
 
     def render() -> dict[str, str]:
-        return {**runtime_sources(sundials), **runtime_files(STEPPER_FILES)}
+        return {**runtime_sources(sundials), **runtime_files(files)}
 
     texts = [f"{name}\0{text}" for name, text in sorted(render().items())]
-    return driver_runtime("cvode_stepper", [sundials.version, sundials.sunindextype, *texts], render, stepper_cdef(),
-                          "lcg_cvode_stepper.h", [*link, "-lm", "-pthread"], cc, cflags,
-                          units=("lcg_cvode_stepper.c",))
+    return driver_runtime(f"{kind}_stepper", [sundials.version, sundials.sunindextype, *texts], render, cdef(),
+                          header, [*link, "-lm", "-pthread"], cc, cflags, units=(unit,))
 
 
-def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
-    """The CVODE stepper's module (cffi; lcg_cvode_stepper.c with the driver it includes), built
-    into the cache once per lagcodegen version, compiler, flags, Python and SUNDIALS."""
-    return _stepper_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+def stepper_runtime(kind: str = "cvode", cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The module of the CVODE stepper ``kind`` ("cvode": the ODE of a scene, "cvc": the index-1
+    form of a constrained system; cffi, the stepper's C with the driver it includes), built into
+    the cache once per lagcodegen version, compiler, flags, Python and SUNDIALS."""
+    return _stepper_runtime(kind, cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
 class CVODEStepper:
@@ -78,7 +106,7 @@ class CVODEStepper:
         if cm.table is None:
             raise LagcodegenError("the integrator object on CVODE needs the model library of a native build "
                                   "(build_code(..., native=True), the default of compile_model)")
-        rt = stepper_runtime()
+        rt = stepper_runtime("cvode")
         ffi, lib = rt.ffi, rt.lib
         self.ffi, self.lib, self.rt = ffi, lib, rt
         self.cm = cm  # keeps the model's library open
@@ -124,3 +152,70 @@ class CVODEStepper:
         return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "jac_evals": st.njac,
                 "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "h_last": st.h_last,
                 "t_reached": st.t_reached, "model_error": st.model_error}
+
+
+class CVCStepper:
+    """The C stepper of a constrained system's index-1 form on CVODE (``lcg_cvc_stepper``), on
+    ``mem`` = (t, y, p) with y = (q, q'), a float64 array the caller keeps; ``roots``: locate the
+    compiled events (recorded per call, at most ``max_events``)."""
+
+    family = "cvode"
+
+    def __init__(self, sim, mem: np.ndarray, *, rtol: float, atol, method: str, alpha: float, beta: float,
+                 projection: bool, proj_tol: float, proj_maxit: int, roots: bool, max_events: int, max_steps: int,
+                 first_step: float, max_step: float, min_step: float, max_order: int, max_wall: float = 0.0):
+        rt = stepper_runtime("cvc")
+        ffi, lib = rt.ffi, rt.lib
+        self.ffi, self.lib, self.rt = ffi, lib, rt
+        self.sim = sim  # keeps the model's library open
+        ny = 2 * sim.n
+        table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
+        opt = ffi.new("lcg_cvc_options *")
+        opt.method = METHODS[method]
+        opt.rtol = rtol
+        atol_keep = None
+        if isinstance(atol, float):
+            opt.atol, opt.atol_vec = atol, ffi.NULL
+        else:
+            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ny,)))
+            opt.atol = float(atol_keep.min())
+            opt.atol_vec = ffi.from_buffer("double[]", atol_keep)
+        opt.max_steps = max_steps
+        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
+        opt.alpha, opt.beta = alpha, beta
+        opt.projection, opt.proj_tol, opt.proj_maxit, opt.proj_err = int(projection), proj_tol, proj_maxit, 1
+        opt.roots = int(roots)
+        opt.poll = install(rt)
+        opt.poll_every = POLL_EVERY
+        opt.max_wall = max_wall
+        self.events = list(sim.info.events) if roots else []
+        self._native = NativeEvents(ffi, "lcg_events", self.events, ny, max_events) if self.events else None
+        msg = ffi.new("char[]", 512)
+        handle = lib.lcg_cvc_stepper_new(table, opt, ffi.from_buffer("double[]", mem),
+                                         self._native.struct if self._native else ffi.NULL, msg, 512)
+        del atol_keep  # copied by the stepper
+        if handle == ffi.NULL:
+            raise LagcodegenError(f"CVODE (index-1) integrator: {ffi.string(msg).decode(errors='replace')}")
+        self.handle = handle
+        self.stats = lib.lcg_cvc_stepper_stats(handle)
+        self.until = functools.partial(lib.lcg_cvc_stepper_until, handle)
+        self.grid = functools.partial(lib.lcg_cvc_stepper_grid, handle)
+        self.step = functools.partial(lib.lcg_cvc_stepper_step, handle)
+
+    def free(self) -> None:
+        """Free the C stepper (once)."""
+        handle, self.handle = self.handle, None
+        if handle is not None:
+            self.lib.lcg_cvc_stepper_free(handle)
+
+    def stats_dict(self) -> dict:
+        st = self.stats
+        return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "error_test_fails": st.netfails,
+                "nonlinear_conv_fails": st.nncfails, "projections": st.nproj, "root_evals": st.ngevals,
+                "alpha": st.alpha, "beta": st.beta, "h_last": st.h_last, "t_reached": st.t_reached,
+                "model_error": st.model_error}
+
+    def event_arrays(self):
+        """(count, terminated, (t, y, which, direction)) of the last call's events."""
+        ev = self._native
+        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)

@@ -1,0 +1,335 @@
+/* lcg_cvc_stepper.c -- lagcodegen's runtime: the index-1 integration of a constrained system that
+ * lives between calls (see lcg_cvc_stepper.h).
+ *
+ * One translation unit with the run driver lcg_cvc.c, included here, so that CVODE calls the
+ * driver's own right-hand side (the augmented system with Baumgarte terms), projection and root
+ * functions with the same options; a grid from a fresh stepper gives the numbers of
+ * lcg_cvc_solve on the same times. The module built from this file replaces lcg_cvc.c's own. */
+#include "lcg_cvc.c"
+
+#include "lcg_cvc_stepper.h"
+
+/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
+#define CV_ONE_STEP 2
+int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
+int CVodeClearStopTime(void *cvode_mem);
+
+struct lcg_cvc_stepper {
+    const lcg_dae_model *m;
+    lcg_cvc_options opt;        /* the caller's, atol_vec pointing at atol below */
+    lcg_cvc_stats st;           /* of the last call */
+    user_data data;             /* what the callbacks see (lcg_cvc.c) */
+    lcg_events *ev;             /* the caller's record, or NULL */
+    int roots_on;
+    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
+    double *seen;               /* time, state and parameters as the last call left them */
+    double *atol;               /* ny, or NULL */
+    int restart;                /* CVodeReInit before the next step (after a failure) */
+    SUNContext ctx;
+    void *mem;
+    N_Vector yv, abstol;
+    SUNMatrix A;
+    SUNLinearSolver LS;
+};
+
+void lcg_cvc_stepper_free(lcg_cvc_stepper *s)
+{
+    if (s == NULL)
+        return;
+    if (s->mem != NULL)
+        CVodeFree(&s->mem);
+    if (s->LS != NULL)
+        SUNLinSolFree(s->LS);
+    if (s->A != NULL)
+        SUNMatDestroy(s->A);
+    if (s->abstol != NULL)
+        N_VDestroy(s->abstol);
+    if (s->yv != NULL)
+        N_VDestroy(s->yv);
+    if (s->ctx != NULL)
+        SUNContext_Free(&s->ctx);
+    free(s->data.ynew);
+    free(s->data.info);
+    free(s->seen);
+    free(s->atol);
+    free(s);
+}
+
+lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s)
+{
+    return &s->st;
+}
+
+/* 1 if the nt times t are finite and do not decrease. */
+static int cc_increasing(int nt, const double *t)
+{
+    int k;
+
+    for (k = 0; k < nt; ++k)
+        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
+            return 0;
+    return 1;
+}
+
+static void cc_remember(lcg_cvc_stepper *s)
+{
+    int i, n = 1 + s->m->ny + s->m->np;
+
+    for (i = 0; i < n; ++i)
+        s->seen[i] = s->tv[i];
+}
+
+/* The options of lcg_cvc_solve, on the stepper's CVODE memory: 0 or a negative flag. */
+static int cc_setup(lcg_cvc_stepper *s)
+{
+    const lcg_dae_model *m = s->m;
+    const lcg_cvc_options *opt = &s->opt;
+    int i, flag, ny = m->ny;
+
+    s->yv = N_VNew_Serial(ny, s->ctx);
+    s->mem = CVodeCreate(opt->method, s->ctx);
+    s->A = SUNDenseMatrix(ny, ny, s->ctx);
+    if (opt->projection && (s->data.ynew = (double *)malloc(sizeof(double) * (size_t)ny)) == NULL)
+        return LCG_FLAG_NOMEM;
+    if (s->roots_on && (s->data.info = (int *)malloc(sizeof(int) * (size_t)m->nroot)) == NULL)
+        return LCG_FLAG_NOMEM;
+    if (s->yv == NULL || s->mem == NULL || s->A == NULL || (s->LS = SUNLinSol_Dense(s->yv, s->A, s->ctx)) == NULL)
+        return LCG_FLAG_NOMEM;
+    for (i = 0; i < ny; ++i)
+        N_VGetArrayPointer(s->yv)[i] = s->y[i];
+    if ((flag = CVodeInit(s->mem, rhs, s->tv[0], s->yv)) < 0)
+        return flag;
+    if (opt->atol_vec != NULL) {
+        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
+            return LCG_FLAG_NOMEM;
+        for (i = 0; i < ny; ++i)
+            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
+        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
+    } else {
+        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
+    }
+    if (flag < 0)
+        return flag;
+    CVodeSetUserData(s->mem, &s->data);
+    if ((flag = CVodeSetLinearSolver(s->mem, s->LS, s->A)) < 0)
+        return flag;
+    if (opt->projection) {
+        if ((flag = CVodeSetProjFn(s->mem, proj)) < 0)
+            return flag;
+        if ((flag = CVodeSetProjErrEst(s->mem, opt->proj_err ? 1 : 0)) < 0)
+            return flag;
+    }
+    if (s->roots_on) {
+        if ((flag = CVodeRootInit(s->mem, m->nroot, roots)) < 0)
+            return flag;
+        if (s->ev->rootdir != NULL && (flag = CVodeSetRootDirection(s->mem, (int *)s->ev->rootdir)) < 0)
+            return flag;
+        CVodeSetNoInactiveRootWarn(s->mem);
+    }
+    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(s->mem, opt->max_order)) < 0)
+        return flag;
+    if (opt->first_step > 0 && (flag = CVodeSetInitStep(s->mem, opt->first_step)) < 0)
+        return flag;
+    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(s->mem, opt->max_step)) < 0)
+        return flag;
+    if (opt->min_step > 0 && (flag = CVodeSetMinStep(s->mem, opt->min_step)) < 0)
+        return flag;
+    return CVodeSetMaxNumSteps(s->mem, opt->max_steps);
+}
+
+lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
+                                     lcg_events *ev, char *message, size_t size)
+{
+    lcg_cvc_stepper *s;
+    int i, flag;
+
+    if (!lcg_dae_check(m, message, size))
+        return NULL;
+    if (opt == NULL || mem == NULL || opt->max_steps < 1 || !isfinite(mem[0])) {
+        snprintf(message, size, "bad options (max_steps >= 1) or a non-finite time");
+        return NULL;
+    }
+    s = (lcg_cvc_stepper *)calloc(1, sizeof *s);
+    if (s == NULL) {
+        snprintf(message, size, "out of memory");
+        return NULL;
+    }
+    s->m = m;
+    s->opt = *opt;
+    s->opt.cancel = NULL;
+    s->ev = ev;
+    s->roots_on = opt->roots && ev != NULL && m->nroot > 0;
+    s->tv = mem;
+    s->y = mem + 1;
+    s->p = s->y + m->ny;
+    s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
+    if (opt->atol_vec != NULL && (s->atol = (double *)malloc(sizeof(double) * (size_t)m->ny)) != NULL) {
+        for (i = 0; i < m->ny; ++i)
+            s->atol[i] = opt->atol_vec[i];
+        s->opt.atol_vec = s->atol;
+    }
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || SUNContext_Create(0, &s->ctx) != 0) {
+        snprintf(message, size, "out of memory");
+        lcg_cvc_stepper_free(s);
+        return NULL;
+    }
+    SUNContext_ClearErrHandlers(s->ctx);
+    SUNContext_PushErrHandler(s->ctx, record_error, &s->st);
+    s->data.crhs = m->crhs;
+    s->data.m = m;
+    s->data.p = s->p;
+    s->data.alpha = opt->alpha;
+    s->data.beta = opt->beta;
+    if (opt->alpha < 0.0 || opt->beta < 0.0) { /* "auto": the rate of the fastest motion at the start */
+        double rate = 0.0;
+        if (m->natural_rate(mem[0], s->y, s->p, &rate) != LCG_DAE_OK)
+            rate = 0.0;
+        if (opt->alpha < 0.0)
+            s->data.alpha = rate;
+        if (opt->beta < 0.0)
+            s->data.beta = rate;
+    }
+    s->data.proj_tol = opt->proj_tol;
+    s->data.proj_maxit = opt->proj_maxit > 0 ? opt->proj_maxit : 10;
+    s->data.st = &s->st;
+    flag = cc_setup(s);
+    if (flag < 0) {
+        snprintf(message, size, flag == LCG_FLAG_NOMEM ? "out of memory creating the CVODE solver"
+                 : "CVODE setup failed (flag %d): %s", flag, s->st.message);
+        lcg_cvc_stepper_free(s);
+        return NULL;
+    }
+    s->st.alpha = s->data.alpha;
+    s->st.beta = s->data.beta;
+    cc_remember(s);
+    return s;
+}
+
+/* CVode towards tout (task CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop
+ * set at a terminal one (and, in one-step mode, at any event: the step ends there). */
+static int cc_solve(lcg_cvc_stepper *s, double tout, int task, double *tret, int *stop)
+{
+    const lcg_dae_model *m = s->m;
+    int flag;
+
+    for (;;) {
+        flag = CVode(s->mem, tout, s->yv, tret, task);
+        if (flag == CV_ROOT_RETURN && s->roots_on) {
+            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yv), m->nroot, m->ny, s->data.info)) {
+                s->ev->terminated = 1;
+                *stop = 1;
+                return 0;
+            }
+            if (task == CV_ONE_STEP)
+                return 0;
+            continue;
+        }
+        return flag;
+    }
+}
+
+int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const double *tout, double *yout,
+                            int one_step)
+{
+    const lcg_dae_model *m = s->m;
+    lcg_cvc_stats *st = &s->st;
+    const lcg_cvc_options *opt = &s->opt;
+    user_data *d = &s->data;
+    double t = s->tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
+    int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
+
+    st->flag = st->model_error = st->nt_done = 0;
+    st->message[0] = '\0';
+    if (s->ev != NULL) {
+        s->ev->n_events = 0;
+        s->ev->terminated = 0;
+    }
+    watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
+        || !cc_increasing(nt, tout)) {
+        snprintf(st->message, sizeof st->message,
+                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
+                 "grid's times are not finite and increasing from there", t_end, t);
+        flag = LCG_FLAG_BAD_INPUT;
+        goto out;
+    }
+    for (i = 0; i < n && !s->restart; ++i)
+        if (s->tv[i] != s->seen[i])
+            s->restart = 1; /* the caller set the time, the state or the parameters */
+    if (s->restart) {
+        for (i = 0; i < ny; ++i)
+            yv[i] = s->y[i];
+        if ((flag = CVodeReInit(s->mem, t, s->yv)) < 0)
+            goto out;
+        s->restart = 0;
+    }
+    while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
+        for (i = 0; i < ny; ++i)
+            yout[(long)k * ny + i] = s->y[i];
+        st->nt_done = ++k;
+    }
+    if (one_step) {
+        flag = isfinite(t_end) ? CVodeSetStopTime(s->mem, t_end) : CVodeClearStopTime(s->mem);
+        /* tout only hints the first step's size after a (re)start; the stop time bounds the step */
+        if (flag >= 0 && t_end > t)
+            flag = cc_solve(s, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), CV_ONE_STEP, &tret, &stop);
+    } else if (nt == 0) {
+        if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
+            flag = cc_solve(s, t_end, CV_NORMAL, &tret, &stop);
+    } else if (k < nt) {
+        if ((flag = CVodeSetStopTime(s->mem, t_end)) < 0)
+            goto out;
+        for (; k < nt && !stop; ++k) {
+            if (WATCH_TICK(&d->w))
+                break;
+            flag = cc_solve(s, tout[k], CV_NORMAL, &tret, &stop);
+            if (flag < 0 || stop)
+                break;
+            for (i = 0; i < ny; ++i)
+                yout[(long)k * ny + i] = yv[i];
+            st->nt_done = k + 1;
+        }
+    }
+    if (tret > t || flag < 0) {
+        for (i = 0; i < ny; ++i)
+            s->y[i] = yv[i];
+        s->tv[0] = tret;
+    }
+
+out:
+    flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
+    if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR)
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    if (flag < 0)
+        s->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    CVodeGetNumSteps(s->mem, &st->nsteps);
+    CVodeGetNumRhsEvals(s->mem, &st->nrhs);
+    CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
+    CVodeGetNumErrTestFails(s->mem, &st->netfails);
+    CVodeGetNumNonlinSolvConvFails(s->mem, &st->nncfails);
+    CVodeGetLastStep(s->mem, &st->h_last);
+    if (opt->projection)
+        CVodeGetNumProjEvals(s->mem, &st->nproj);
+    if (s->roots_on)
+        CVodeGetNumGEvals(s->mem, &st->ngevals);
+    if (st->model_error == 0)
+        st->t_reached = s->tv[0];
+    cc_remember(s);
+    st->flag = flag < 0 ? flag : 0;
+    return st->flag;
+}
+
+int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end)
+{
+    return lcg_cvc_stepper_advance(s, t_end, 0, NULL, NULL, 0);
+}
+
+int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout)
+{
+    return lcg_cvc_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
+}
+
+int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit)
+{
+    return lcg_cvc_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
+}
