@@ -157,28 +157,32 @@ class ConstrainedSimulation(ConstrainedFunctions):
     def integrator(self, *, q0=None, v0=None, t0: float = 0.0, params: Mapping | None = None, solver=None,
                    rtol: float = 1e-8, atol=1e-10, events: bool | None = None, initial: str = "check",
                    ic_tol: float = 1e-8, **options) -> Integrator:
-        """An integration of the index-1 form that lives between calls
-        (:class:`~lagcodegen.simulation.integrator.Integrator`: ``propagate_until``,
-        ``propagate_for``, ``propagate_grid``, ``step``; ``state`` = (q, q') and ``params`` writable
-        in place). The initial state is checked or projected as in :meth:`simulate`; ``events``
-        (None or True: the compiled events) are located on the way and a terminal one stops a
-        call; the options are simulate's (CVODE: ``method``, ``baumgarte``, ``projection``, budgets;
-        ``max_steps`` per call). A written state off the constraints is pulled back by the
-        stabilization (or projected, with ``projection``). The GGL form (IDA) has no integrator
-        object."""
-        if self._ggl:
-            raise LagcodegenError("the integrator object of a constrained system integrates its index-1 form on "
-                                  "CVODE (compile_constrained(system, 'index1')); the GGL form on IDA has none")
+        """An integration that lives between calls (:class:`~lagcodegen.simulation.integrator.Integrator`:
+        ``propagate_until``, ``propagate_for``, ``propagate_grid``, ``step``; ``state`` = (q, q')
+        and ``params`` writable in place): the index-1 form on CVODE or the GGL form on IDA.
+
+        The initial state is checked or projected as in :meth:`simulate`; ``events`` (None or
+        True: the compiled events) are located on the way and a terminal one stops a call; the
+        options are simulate's (``max_steps`` per call). A written state: index-1 integrates
+        from it (the stabilization, or ``projection``, pulls it back onto the constraints); GGL
+        projects it onto the constraints and computes consistent multipliers before the next
+        step (``Integrator.multipliers``: the GGL unknowns lambda, mu).
+        """
         family = resolve(self.formulation, solver, options)
         if q0 is None:
             raise LagcodegenError("q0 is required")
         t0 = check_finite(t0, "t0")
         roots = self._roots(events)
         p = self._default_p if params is None else self.parameter_vector(params)
-        y0, _, _ = self._initial_values(t0, q0, v0, p, initial, ic_tol, False)
-        rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
+        y0, yy0, yp0 = self._initial_values(t0, q0, v0, p, initial, ic_tol, self._ggl)
         mem = np.concatenate([[t0], y0, p])  # (t, y, p): the memory the C stepper works on
-        stepper = family.runner("index1", "stepper")(self, mem, rtol, atol_arr, roots)
+        if self._ggl:
+            if yy0 is None:
+                yy0, yp0 = self._ggl_initial(t0, y0, p)
+            stepper = family.runner("ggl", "stepper")(self, mem, yy0, yp0, rtol, atol, roots)
+        else:
+            rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
+            stepper = family.runner("index1", "stepper")(self, mem, rtol, atol_arr, roots)
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 

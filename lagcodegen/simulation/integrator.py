@@ -208,6 +208,15 @@ class Integrator:
             self._collect()
         return self._t[0]
 
+    @property
+    def multipliers(self) -> np.ndarray:
+        """The GGL form's multipliers (lambda, then mu) at :attr:`time` (a copy); IDA only."""
+        if self._stepper.handle is None:
+            _closed()
+        if not hasattr(self._stepper, "multipliers"):
+            raise LagcodegenError("multipliers are unknowns of the GGL form only (compile_constrained(..., 'ggl'))")
+        return self._stepper.multipliers()
+
     # ------------------------------------------------------------------ outcome
     @property
     def stats(self) -> dict:
@@ -223,8 +232,8 @@ class Integrator:
         for k in range(min(count, tt.shape[0])):
             i = int(which[k])
             ev = events[i]
-            recs.append(EventRecord(ev.name, i, float(tt[k]), yy[k].copy(), int(direction[k]), ev.terminal,
-                                    self.state_names))
+            recs.append(EventRecord(ev.name, i, float(tt[k]), yy[k, :self._ny].copy(), int(direction[k]),
+                                    ev.terminal, self.state_names))
         self.events = recs
         self.stopped_by = recs[-1] if terminated and recs else None
         return self.stopped_by
@@ -236,7 +245,7 @@ class Integrator:
             control.raise_pending()
         if flag == _BAD_INPUT:
             raise LagcodegenError(detail or "bad arguments")
-        name = "Taylor" if self.family == "taylor" else "CVODE"
+        name = {"taylor": "Taylor", "ida": "IDA"}.get(self.family, "CVODE")
         text = message(flag, st.model_error, detail, name, t=st.t_reached)
         cls = SingularMassMatrixError if st.model_error == 1 else SolverError
         raise cls(text, t=self._t[0], flag=flag)

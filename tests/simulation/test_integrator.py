@@ -279,10 +279,11 @@ def test_integrator_does_not_pickle(double_pendulum):
 def test_stepper_sources_compile_strictly(tmp_path, cc):
     sources = {**runtime_sources(find_sundials()), **taylor_runtime_sources(),
                **runtime_package.sources(["lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_cvc_stepper.c",
-                                          "lcg_cvc_stepper.h", "lcg_taylor_stepper.c", "lcg_taylor_stepper.h"])}
+                                          "lcg_cvc_stepper.h", "lcg_ida_stepper.c", "lcg_ida_stepper.h",
+                                          "lcg_taylor_stepper.c", "lcg_taylor_stepper.h"])}
     for name, text in sources.items():
         (tmp_path / name).write_text(text)
-    for name in ("lcg_cvode_stepper.c", "lcg_cvc_stepper.c", "lcg_taylor_stepper.c"):
+    for name in ("lcg_cvode_stepper.c", "lcg_cvc_stepper.c", "lcg_ida_stepper.c", "lcg_taylor_stepper.c"):
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name[:-2] + ".o"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
@@ -360,7 +361,47 @@ def test_index1_integrator_pieces_and_parameter_write(cpend_index1):
         assert stop.t == pytest.approx(0.5 * math.sqrt(1.0 / 9.81) * ellipk(math.sin(0.1) ** 2), abs=1e-7)
 
 
-def test_ggl_has_no_integrator_and_says_so():
-    sim = lcg.compile_constrained(cartesian_pendulum("cpend_integ_ggl"), "ggl")
-    with pytest.raises(LagcodegenError, match="index-1"):
-        sim.integrator(q0=pendulum_q0(), v0=[0, 0])
+@pytest.fixture(scope="module")
+def cpend_ggl():
+    cs = cartesian_pendulum("cpend_integ_ggl")
+    x = cs.model.coords[0]
+    return lcg.compile_constrained(cs, "ggl", outputs=["energy", "lambda"], events=[Event("x_zero", x, -1)])
+
+
+def test_ggl_integrator_is_simulate_and_its_multiplier_is_the_rod_tension(cpend_ggl):
+    """The GGL form on IDA: a grid equals simulate() bit for bit; lambda gives the rod tension
+    T = m (g cos(theta) + l theta'^2) = -2 l lambda of the angle model; the terminal event stops
+    at a quarter of the exact period."""
+    sim = cpend_ggl
+    times = np.linspace(0.0, 0.4, 9)
+    ref = sim.simulate(times, q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12)
+    with sim.integrator(q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12) as integ:
+        assert integ.family == "ida"
+        np.testing.assert_array_equal(integ.propagate_grid(times), ref.y)
+        x, y, xd, yd = integ.state
+        th, thd = math.atan2(x, -y), (x * yd - y * xd)  # l = 1
+        tension = 9.81 * math.cos(th) + thd ** 2
+        assert -2.0 * integ.multipliers[0] == pytest.approx(tension, rel=1e-6)
+        stop = integ.propagate_until(5.0)
+        quarter = math.sqrt(1.0 / 9.81) * ellipk(math.sin(TH0 / 2) ** 2)
+        assert stop is not None and stop.name == "x_zero" and stop.t == pytest.approx(quarter, abs=1e-7)
+        assert integ.time == stop.t and len(stop.y) == 4
+
+
+def test_ggl_integrator_projects_a_written_state_onto_the_constraint(cpend_ggl):
+    with cpend_ggl.integrator(q0=pendulum_q0(), v0=[0, 0], rtol=1e-10, atol=1e-12, events=False) as integ:
+        integ.propagate_until(0.2)
+        integ.state[:] = [0.3, -0.99, 0.0, 0.0]   # off the circle x^2 + y^2 = 1
+        integ.propagate_for(0.1)
+        x, y, xd, yd = integ.state
+        assert x * x + y * y == pytest.approx(1.0, abs=1e-9)
+        assert x * xd + y * yd == pytest.approx(0.0, abs=1e-8)
+        ref = cpend_ggl.simulate(np.array([0.2, 0.3]), q0=[0.3, -0.99], v0=[0, 0], initial="project", rtol=1e-10,
+                                 atol=1e-12, events=False)
+        assert np.max(np.abs(integ.state - ref.y[-1])) < 1e-7
+        for _ in range(3):
+            integ.step()
+        assert integ.time > 0.3
+    with pytest.raises(LagcodegenError, match="multipliers"):
+        with lcg.compile_model(systems.pendulum()).integrator(q0=[0.1]) as other:
+            other.multipliers

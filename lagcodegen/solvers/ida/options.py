@@ -15,6 +15,7 @@ from ..base import _DOUBLE, tolerances
 from ..family import Family, choice
 from . import ensemble, native
 from .native import ALGEBRAIC_ATOL
+from .stepper import IDAStepper
 
 BACKENDS = ("native", "sksundae")
 
@@ -90,6 +91,21 @@ class IDA(Family):
         from .. import sksundae
         return sksundae.solve_ggl(sim, t, yy0, yp0, p, rtol, atol_arr, bool(jacobian), roots, self.max_steps,
                                   self.first_step, self.max_step, self.min_step, self.max_order)
+
+    def stepper_ggl(self, sim, mem, yy0, yp0, rtol, atol, roots: bool) -> IDAStepper:
+        """The C state of an integrator object on the GGL form of ``sim`` (``mem`` = (t, y, p), the
+        unknowns' initial values (yy0, yp0); checked by the face): IDA memory made once
+        (:mod:`.stepper`); ``max_steps`` is the budget of one call."""
+        if self.backend != "native":
+            raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
+        jacobian = self._jacobian(sim)
+        rtol, atol_arr = self.tolerances(sim, rtol, atol)
+        return IDAStepper(sim, mem, yy0, yp0, rtol=rtol, atol=atol_arr, suppress_alg=bool(self.suppress_alg),
+                          jacobian=bool(jacobian), roots=roots,
+                          max_events=10_000 if self.max_events is None else self.max_events,
+                          max_steps=int(self.max_steps), first_step=self.first_step, max_step=self.max_step,
+                          min_step=self.min_step, max_order=self.max_order,
+                          stop_at_outputs=bool(self.stop_at_outputs), max_wall=float(self.max_wall))
 
     def ensemble_ggl(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Members (rows (yy0, yp0) of Y) of the GGL form of ``sim`` in one native call."""

@@ -1,0 +1,396 @@
+/* lcg_ida_stepper.c -- lagcodegen's runtime: the GGL integration of a constrained system on IDA
+ * that lives between calls (see lcg_ida_stepper.h).
+ *
+ * One translation unit with the run driver lcg_ida.c, included here, so that IDA calls the
+ * driver's own residual, Jacobian and root functions with the same options and the same
+ * IDACalcIC start; a grid from a fresh stepper gives the numbers of lcg_ida_solve on the same
+ * times. The module built from this file (with lcg_cvc.c, which lcg_ida.c calls) replaces
+ * lcg_ida.c's own. */
+#include "lcg_ida.c"
+
+#include "lcg_ida_stepper.h"
+
+/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
+#define IDA_ONE_STEP 2
+int IDAClearStopTime(void *ida_mem);
+
+struct lcg_ida_stepper {
+    const lcg_dae_model *m;
+    lcg_ida_options opt;        /* the caller's, atol_vec pointing at atol below */
+    lcg_ida_stats st;           /* of the last call */
+    user_data data;             /* what the callbacks see (lcg_ida.c) */
+    lcg_events *ev;             /* the caller's record, or NULL */
+    int roots_on;
+    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
+    double *seen;               /* time, state and parameters as the last call left them */
+    double *atol;               /* ng, or NULL */
+    int restart;                /* new initial values before the next step (a write, a failure) */
+    int need_ic;                /* IDACalcIC before the next step */
+    SUNContext ctx;
+    void *mem;
+    N_Vector yy, yp, id, abstol, ictol;
+    SUNMatrix A;
+    SUNLinearSolver LS;
+};
+
+void lcg_ida_stepper_free(lcg_ida_stepper *s)
+{
+    if (s == NULL)
+        return;
+    if (s->mem != NULL)
+        IDAFree(&s->mem);
+    if (s->LS != NULL)
+        SUNLinSolFree(s->LS);
+    if (s->A != NULL)
+        SUNMatDestroy(s->A);
+    if (s->abstol != NULL)
+        N_VDestroy(s->abstol);
+    if (s->ictol != NULL)
+        N_VDestroy(s->ictol);
+    if (s->id != NULL)
+        N_VDestroy(s->id);
+    if (s->yp != NULL)
+        N_VDestroy(s->yp);
+    if (s->yy != NULL)
+        N_VDestroy(s->yy);
+    if (s->ctx != NULL)
+        SUNContext_Free(&s->ctx);
+    free(s->data.info);
+    free(s->seen);
+    free(s->atol);
+    free(s);
+}
+
+lcg_ida_stats *lcg_ida_stepper_stats(lcg_ida_stepper *s)
+{
+    return &s->st;
+}
+
+const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s)
+{
+    return N_VGetArrayPointer(s->yy);
+}
+
+/* 1 if the nt times t are finite and do not decrease. */
+static int is_increasing(int nt, const double *t)
+{
+    int k;
+
+    for (k = 0; k < nt; ++k)
+        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
+            return 0;
+    return 1;
+}
+
+static void is_remember(lcg_ida_stepper *s)
+{
+    int i, n = 1 + s->m->ny + s->m->np;
+
+    for (i = 0; i < n; ++i)
+        s->seen[i] = s->tv[i];
+}
+
+/* The run's tolerances (after IDACalcIC's own): 0 or a negative flag. */
+static int is_tolerances(lcg_ida_stepper *s)
+{
+    return s->abstol != NULL ? IDASVtolerances(s->mem, s->opt.rtol, s->abstol)
+                             : IDASStolerances(s->mem, s->opt.rtol, s->opt.atol);
+}
+
+/* The options of lcg_ida_solve, on the stepper's IDA memory: 0 or a negative flag. */
+static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
+{
+    const lcg_dae_model *m = s->m;
+    const lcg_ida_options *opt = &s->opt;
+    int i, flag, ny = m->ny, ng = m->ng;
+
+    s->yy = N_VNew_Serial(ng, s->ctx);
+    s->yp = N_VNew_Serial(ng, s->ctx);
+    s->id = N_VNew_Serial(ng, s->ctx);
+    s->ictol = N_VNew_Serial(ng, s->ctx);
+    s->mem = IDACreate(s->ctx);
+    s->A = SUNDenseMatrix(ng, ng, s->ctx);
+    if (s->roots_on && (s->data.info = (int *)malloc(sizeof(int) * (size_t)m->nroot)) == NULL)
+        return LCG_FLAG_NOMEM_IDA;
+    if (s->yy == NULL || s->yp == NULL || s->id == NULL || s->ictol == NULL || s->mem == NULL || s->A == NULL
+        || (s->LS = SUNLinSol_Dense(s->yy, s->A, s->ctx)) == NULL)
+        return LCG_FLAG_NOMEM_IDA;
+    for (i = 0; i < ng; ++i) {
+        N_VGetArrayPointer(s->yy)[i] = yy0[i];
+        N_VGetArrayPointer(s->yp)[i] = yp0[i];
+        N_VGetArrayPointer(s->id)[i] = i < ny ? 1.0 : 0.0; /* q, v differential; lambda, mu algebraic */
+        N_VGetArrayPointer(s->ictol)[i] = i >= ny ? opt->ic_alg_atol
+                                          : (opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol);
+    }
+    if ((flag = IDAInit(s->mem, res, s->tv[0], s->yy, s->yp)) < 0)
+        return flag;
+    if (opt->atol_vec != NULL) {
+        if ((s->abstol = N_VNew_Serial(ng, s->ctx)) == NULL)
+            return LCG_FLAG_NOMEM_IDA;
+        for (i = 0; i < ng; ++i)
+            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
+    }
+    if ((flag = is_tolerances(s)) < 0)
+        return flag;
+    IDASetUserData(s->mem, &s->data);
+    if ((flag = IDASetId(s->mem, s->id)) < 0)
+        return flag;
+    if (opt->suppress_alg && (flag = IDASetSuppressAlg(s->mem, 1)) < 0)
+        return flag;
+    if ((flag = IDASetLinearSolver(s->mem, s->LS, s->A)) < 0)
+        return flag;
+    if (opt->jacobian && m->ggl_jac != NULL && (flag = IDASetJacFn(s->mem, jac)) < 0)
+        return flag;
+    if (s->roots_on) {
+        if ((flag = IDARootInit(s->mem, m->nroot, roots)) < 0)
+            return flag;
+        if (s->ev->rootdir != NULL && (flag = IDASetRootDirection(s->mem, (int *)s->ev->rootdir)) < 0)
+            return flag;
+        IDASetNoInactiveRootWarn(s->mem);
+    }
+    if (opt->max_order > 0 && (flag = IDASetMaxOrd(s->mem, opt->max_order)) < 0)
+        return flag;
+    if (opt->first_step > 0 && (flag = IDASetInitStep(s->mem, opt->first_step)) < 0)
+        return flag;
+    if (opt->max_step > 0 && (flag = IDASetMaxStep(s->mem, opt->max_step)) < 0)
+        return flag;
+    if (opt->min_step > 0 && (flag = IDASetMinStep(s->mem, opt->min_step)) < 0)
+        return flag;
+    return IDASetMaxNumSteps(s->mem, opt->max_steps);
+}
+
+lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
+                                     const double *yy0, const double *yp0, lcg_events *ev, char *message,
+                                     size_t size)
+{
+    lcg_ida_stepper *s;
+    int i, flag;
+
+    if (!lcg_dae_check(m, message, size))
+        return NULL;
+    if (m->ggl_res == NULL) {
+        snprintf(message, size, "the model was compiled without the GGL residual");
+        return NULL;
+    }
+    if (opt == NULL || mem == NULL || yy0 == NULL || yp0 == NULL || opt->max_steps < 1 || !isfinite(mem[0])) {
+        snprintf(message, size, "bad options (max_steps >= 1) or a non-finite time");
+        return NULL;
+    }
+    s = (lcg_ida_stepper *)calloc(1, sizeof *s);
+    if (s == NULL) {
+        snprintf(message, size, "out of memory");
+        return NULL;
+    }
+    s->m = m;
+    s->opt = *opt;
+    s->opt.cancel = NULL;
+    s->ev = ev;
+    s->roots_on = opt->roots && ev != NULL && m->nroot > 0;
+    s->tv = mem;
+    s->y = mem + 1;
+    s->p = s->y + m->ny;
+    s->need_ic = opt->calc_ic;
+    s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
+    if (opt->atol_vec != NULL && (s->atol = (double *)malloc(sizeof(double) * (size_t)m->ng)) != NULL) {
+        for (i = 0; i < m->ng; ++i)
+            s->atol[i] = opt->atol_vec[i];
+        s->opt.atol_vec = s->atol;
+    }
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || SUNContext_Create(0, &s->ctx) != 0) {
+        snprintf(message, size, "out of memory");
+        lcg_ida_stepper_free(s);
+        return NULL;
+    }
+    SUNContext_ClearErrHandlers(s->ctx);
+    SUNContext_PushErrHandler(s->ctx, record_error, &s->st);
+    s->data.res = m->ggl_res;
+    s->data.m = m;
+    s->data.p = s->p;
+    s->data.st = &s->st;
+    flag = is_setup(s, yy0, yp0);
+    if (flag < 0) {
+        snprintf(message, size, flag == LCG_FLAG_NOMEM_IDA ? "out of memory creating the IDA solver"
+                 : "IDA setup failed (flag %d): %s", flag, s->st.message);
+        lcg_ida_stepper_free(s);
+        return NULL;
+    }
+    for (i = 0; i < m->ny; ++i)
+        s->y[i] = yy0[i];
+    is_remember(s);
+    return s;
+}
+
+/* IDASolve towards tout (task IDA_NORMAL or IDA_ONE_STEP), recording the events met on the way;
+ * *stop set at a terminal one (and, in one-step mode, at any event: the step ends there). */
+static int is_solve(lcg_ida_stepper *s, double tout, int task, double *tret, int *stop)
+{
+    const lcg_dae_model *m = s->m;
+    int flag;
+
+    for (;;) {
+        flag = IDASolve(s->mem, tout, tret, s->yy, s->yp, task);
+        if (flag == IDA_ROOT_RETURN && s->roots_on) {
+            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yy), m->nroot, m->ng, s->data.info)) {
+                s->ev->terminated = 1;
+                *stop = 1;
+                return 0;
+            }
+            if (task == IDA_ONE_STEP)
+                return 0;
+            continue;
+        }
+        return flag;
+    }
+}
+
+/* Restart at the caller's (t, y, p): y projected onto the constraints, lambda, mu and yy' from the
+ * augmented system, IDACalcIC before the next step. 0, -22 (no consistent state there) or an IDA flag. */
+static int is_restart(lcg_ida_stepper *s)
+{
+    const lcg_dae_model *m = s->m;
+    double *yy = N_VGetArrayPointer(s->yy);
+    int i, rc;
+
+    rc = lcg_dae_initial_state(m, s->tv[0], s->y, s->p, 2, 1e-8, 0, yy, N_VGetArrayPointer(s->yp));
+    if (rc != 0) {
+        snprintf(s->st.message, sizeof s->st.message,
+                 "no consistent state at the written time, state and parameters (the projection onto the "
+                 "constraints failed or the augmented matrix is singular)");
+        return LCG_FLAG_BAD_INPUT;
+    }
+    for (i = 0; i < m->ny; ++i)
+        s->y[i] = yy[i];
+    s->need_ic = s->opt.calc_ic;
+    return IDAReInit(s->mem, s->tv[0], s->yy, s->yp);
+}
+
+/* IDACalcIC towards tout1 with loose tolerances on lambda, mu, then the run's (as lcg_ida_solve). */
+static int is_calc_ic(lcg_ida_stepper *s, double tout1)
+{
+    int flag;
+
+    if ((flag = IDASVtolerances(s->mem, s->opt.rtol, s->ictol)) < 0)
+        return flag;
+    flag = IDACalcIC(s->mem, IDA_YA_YDP_INIT, tout1);
+    s->st.ic_flag = flag;
+    if (flag < 0)
+        return flag;
+    if ((flag = IDAGetConsistentIC(s->mem, s->yy, s->yp)) < 0)
+        return flag;
+    if ((flag = is_tolerances(s)) < 0)
+        return flag;
+    s->need_ic = 0;
+    return IDAReInit(s->mem, s->tv[0], s->yy, s->yp);
+}
+
+int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const double *tout, double *yout,
+                            int one_step)
+{
+    const lcg_dae_model *m = s->m;
+    lcg_ida_stats *st = &s->st;
+    const lcg_ida_options *opt = &s->opt;
+    user_data *d = &s->data;
+    double t = s->tv[0], tret = t, tout1, *yv = N_VGetArrayPointer(s->yy);
+    int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
+
+    st->flag = st->model_error = st->nt_done = 0;
+    st->message[0] = '\0';
+    if (s->ev != NULL) {
+        s->ev->n_events = 0;
+        s->ev->terminated = 0;
+    }
+    watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
+        || !is_increasing(nt, tout)) {
+        snprintf(st->message, sizeof st->message,
+                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
+                 "grid's times are not finite and increasing from there", t_end, t);
+        flag = LCG_FLAG_BAD_INPUT;
+        goto out;
+    }
+    for (i = 0; i < n && !s->restart; ++i)
+        if (s->tv[i] != s->seen[i])
+            s->restart = 1; /* the caller set the time, the state or the parameters */
+    if (s->restart) {
+        if ((flag = is_restart(s)) < 0)
+            goto out;
+        s->restart = 0;
+    }
+    while (k < nt && tout[k] <= t)
+        ++k;
+    tout1 = k < nt ? tout[k] : (isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)));
+    if (s->need_ic && tout1 > t && (flag = is_calc_ic(s, tout1)) < 0)
+        goto out;
+    for (i = 0; i < ny; ++i)
+        s->y[i] = yv[i];
+    for (k = 0; k < nt && tout[k] <= t; ++k) { /* grid times at the current time: the current state */
+        for (i = 0; i < ny; ++i)
+            yout[(long)k * ny + i] = s->y[i];
+        st->nt_done = k + 1;
+    }
+    if (one_step) {
+        flag = isfinite(t_end) ? IDASetStopTime(s->mem, t_end) : IDAClearStopTime(s->mem);
+        if (flag >= 0 && t_end > t)
+            flag = is_solve(s, tout1, IDA_ONE_STEP, &tret, &stop);
+    } else if (nt == 0) {
+        if (t_end > t && (flag = IDASetStopTime(s->mem, t_end)) >= 0)
+            flag = is_solve(s, t_end, IDA_NORMAL, &tret, &stop);
+    } else if (k < nt) {
+        if ((flag = IDASetStopTime(s->mem, t_end)) < 0)
+            goto out;
+        for (; k < nt && !stop; ++k) {
+            if (WATCH_TICK(&d->w))
+                break;
+            /* as lcg_ida_solve: step values at the output times if asked */
+            if (opt->stop_at_outputs && (flag = IDASetStopTime(s->mem, tout[k])) < 0)
+                break;
+            flag = is_solve(s, tout[k], IDA_NORMAL, &tret, &stop);
+            if (flag < 0 || stop)
+                break;
+            for (i = 0; i < ny; ++i)
+                yout[(long)k * ny + i] = yv[i];
+            st->nt_done = k + 1;
+        }
+    }
+    if (tret > t || flag < 0) {
+        for (i = 0; i < ny; ++i)
+            s->y[i] = yv[i];
+        s->tv[0] = tret;
+    }
+
+out:
+    flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
+    if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR)
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    if (flag < 0 && flag != LCG_FLAG_BAD_INPUT)
+        s->restart = 1; /* IDA's state after a failure: start again from the last state reached */
+    IDAGetNumSteps(s->mem, &st->nsteps);
+    IDAGetNumResEvals(s->mem, &st->nres);
+    IDAGetNumLinResEvals(s->mem, &st->nres_dq);
+    IDAGetNumJacEvals(s->mem, &st->njac);
+    IDAGetNumErrTestFails(s->mem, &st->netfails);
+    IDAGetNumNonlinSolvConvFails(s->mem, &st->nncfails);
+    IDAGetLastStep(s->mem, &st->h_last);
+    if (s->roots_on)
+        IDAGetNumGEvals(s->mem, &st->ngevals);
+    if (st->model_error == 0)
+        st->t_reached = s->tv[0];
+    is_remember(s);
+    st->flag = flag < 0 ? flag : 0;
+    return st->flag;
+}
+
+int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end)
+{
+    return lcg_ida_stepper_advance(s, t_end, 0, NULL, NULL, 0);
+}
+
+int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout)
+{
+    return lcg_ida_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
+}
+
+int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit)
+{
+    return lcg_ida_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
+}

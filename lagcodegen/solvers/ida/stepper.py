@@ -1,0 +1,134 @@
+"""The IDA family's stepper: the C state of an integrator object
+(:class:`lagcodegen.simulation.integrator.Integrator`) on the GGL form of a constrained system,
+the runtime's ``lcg_ida_stepper`` (lagcodegen/runtime/lcg_ida_stepper.c: IDA memory made once, the
+run driver's own residual, Jacobian and root functions, its IDACalcIC start).
+
+The stepper runs in a module of its own (:func:`stepper_runtime`, built once per installation
+and SUNDIALS version): one translation unit with the run driver ``lcg_ida.c``, plus ``lcg_cvc.c``
+(the table check and consistent initial state the driver calls)."""
+
+from __future__ import annotations
+
+import functools
+import os
+
+import numpy as np
+
+from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...errors import LagcodegenError
+from ...runtime import sources as runtime_files
+from ..base import NativeEvents
+from ..control import POLL_EVERY, install
+from .native import ALGEBRAIC_ATOL
+
+#: The stepper's files of lagcodegen/runtime/ (lcg_ida_stepper.c includes lcg_ida.c).
+STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h")
+
+STEPPER_CDEF = """
+typedef struct lcg_ida_stepper lcg_ida_stepper;
+lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
+                                     const double *yy0, const double *yp0, lcg_events *ev, char *message,
+                                     size_t size);
+void lcg_ida_stepper_free(lcg_ida_stepper *s);
+lcg_ida_stats *lcg_ida_stepper_stats(lcg_ida_stepper *s);
+const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s);
+int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end);
+int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout);
+int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit);
+"""
+
+
+def stepper_cdef() -> str:
+    """The stepper module's interface: the model tables and events record, the IDA driver's
+    structs, the stepper's functions (lcg_ida_stepper.h) and the poll callback."""
+    return "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("ida"), STEPPER_CDEF, POLL_CDEF])
+
+
+@functools.lru_cache(maxsize=4)
+def _stepper_runtime(cc: str, cflags: tuple[str, ...]):
+    sundials = find_sundials()
+    link = sundials.link_args(("ida", "core"))
+
+    def render() -> dict[str, str]:
+        return {**runtime_sources(sundials), **runtime_files(STEPPER_FILES)}
+
+    texts = [f"{name}\0{text}" for name, text in sorted(render().items())]
+    return driver_runtime("ida_stepper", [sundials.version, sundials.sunindextype, *texts], render, stepper_cdef(),
+                          "lcg_ida_stepper.h", [*sundials.link_args(("cvode", "ida", "core")), "-lm", "-pthread"],
+                          cc, cflags, units=("lcg_cvc.c", "lcg_ida_stepper.c"))
+
+
+def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The IDA stepper's module (cffi; lcg_ida_stepper.c with the driver it includes, and
+    lcg_cvc.c), built into the cache once per lagcodegen version, compiler, flags, Python and
+    SUNDIALS."""
+    return _stepper_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+
+
+class IDAStepper:
+    """The C stepper of a constrained system's GGL form on IDA (``lcg_ida_stepper``), on ``mem`` =
+    (t, y, p) with y = (q, v), a float64 array the caller keeps, from the initial values (yy0,
+    yp0) of the unknowns (q, v, lambda, mu); ``roots``: locate the compiled events."""
+
+    family = "ida"
+
+    def __init__(self, sim, mem: np.ndarray, yy0: np.ndarray, yp0: np.ndarray, *, rtol: float, atol: np.ndarray,
+                 suppress_alg: bool, jacobian: bool, roots: bool, max_events: int, max_steps: int, first_step: float,
+                 max_step: float, min_step: float, max_order: int, stop_at_outputs: bool, max_wall: float = 0.0):
+        rt = stepper_runtime()
+        ffi, lib = rt.ffi, rt.lib
+        self.ffi, self.lib, self.rt = ffi, lib, rt
+        self.sim = sim  # keeps the model's library open
+        ng = sim.info.ng
+        table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
+        atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ng,)))
+        opt = ffi.new("lcg_ida_options *")
+        opt.rtol, opt.atol, opt.atol_vec = rtol, float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
+        opt.max_steps = max_steps
+        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
+        opt.suppress_alg, opt.jacobian, opt.calc_ic, opt.ic_alg_atol = int(suppress_alg), int(jacobian), 1, ALGEBRAIC_ATOL
+        opt.roots, opt.stop_at_outputs = int(roots), int(stop_at_outputs)
+        opt.poll = install(rt)
+        opt.poll_every = POLL_EVERY
+        opt.max_wall = max_wall
+        self.events = list(sim.info.events) if roots else []
+        self._native = NativeEvents(ffi, "lcg_events", self.events, ng, max_events) if self.events else None
+        msg = ffi.new("char[]", 512)
+        yy0 = np.ascontiguousarray(yy0, dtype=float)
+        yp0 = np.ascontiguousarray(yp0, dtype=float)
+        handle = lib.lcg_ida_stepper_new(table, opt, ffi.from_buffer("double[]", mem), ffi.from_buffer("double[]", yy0),
+                                         ffi.from_buffer("double[]", yp0),
+                                         self._native.struct if self._native else ffi.NULL, msg, 512)
+        del atol_keep  # copied by the stepper
+        if handle == ffi.NULL:
+            raise LagcodegenError(f"IDA integrator: {ffi.string(msg).decode(errors='replace')}")
+        self.handle = handle
+        self.stats = lib.lcg_ida_stepper_stats(handle)
+        self.until = functools.partial(lib.lcg_ida_stepper_until, handle)
+        self.grid = functools.partial(lib.lcg_ida_stepper_grid, handle)
+        self.step = functools.partial(lib.lcg_ida_stepper_step, handle)
+        self._unknowns = np.frombuffer(ffi.buffer(lib.lcg_ida_stepper_unknowns(handle), 8 * ng), dtype=float)
+        self.n_state = 2 * sim.n
+
+    def free(self) -> None:
+        """Free the C stepper (once)."""
+        handle, self.handle = self.handle, None
+        if handle is not None:
+            self._unknowns = None
+            self.lib.lcg_ida_stepper_free(handle)
+
+    def multipliers(self) -> np.ndarray:
+        """lambda (and mu) of the current unknowns, a copy."""
+        return self._unknowns[self.n_state:].copy()
+
+    def stats_dict(self) -> dict:
+        st = self.stats
+        return {"steps": st.nsteps, "residual_evals": st.nres + st.nres_dq, "jac_evals": st.njac,
+                "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "root_evals": st.ngevals,
+                "ic_flag": st.ic_flag, "h_last": st.h_last, "t_reached": st.t_reached, "model_error": st.model_error}
+
+    def event_arrays(self):
+        """(count, terminated, (t, y, which, direction)) of the last call's events."""
+        ev = self._native
+        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)
