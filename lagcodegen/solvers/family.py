@@ -119,8 +119,9 @@ class Family:
                                   f"that {FACES.get(face, face)} does not take")
 
     def runner(self, face: str, what: str = "run"):
-        """The bound method that runs ``face`` (``what``: "run" or "ensemble"); the object was
-        checked against the face when resolved (:func:`~.registry.resolve`)."""
+        """The bound method that runs ``face`` (``what``: "run", "ensemble" or "stepper", the C
+        state of an integrator object); the object was checked against the face when resolved
+        (:func:`~.registry.resolve`)."""
         method = getattr(self, f"{what}_{face}", None)
         if method is None:
             raise LagcodegenError(f"{self.name} has no {what} runner for {FACES.get(face, face)}")
