@@ -220,6 +220,8 @@ lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_opt
     s->data.m = m;
     s->data.p = s->p;
     s->data.st = &s->st;
+    s->data.mu = opt->mupper; /* band solver: the bandwidths the Jacobian is copied within */
+    s->data.ml = opt->mlower;
     flag = cs_setup(s, message, size);
     if (flag < 0) {
         if (message[0] == '\0' || flag == LCG_FLAG_NOMEM)

@@ -405,3 +405,17 @@ def test_ggl_integrator_projects_a_written_state_onto_the_constraint(cpend_ggl):
     with pytest.raises(LagcodegenError, match="multipliers"):
         with lcg.compile_model(systems.pendulum()).integrator(q0=[0.1]) as other:
             other.multipliers
+
+
+@pytest.mark.parametrize("method,options", [("taylor", {"max_step": 0.05}), ("taylor", {"order": 12}),
+                                            ("adams", {"linear_solver": "fixedpoint"}),
+                                            ("bdf", {"linear_solver": "band"}), ("bdf", {"jacobian": False}),
+                                            ("adams", {"max_order": 3, "max_step": 0.05})])
+def test_options_and_per_state_atol_resolve_as_in_simulate(double_pendulum, method, options):
+    atol = np.array([1e-11, 1e-11, 1e-9, 1e-9])
+    times = np.linspace(0.0, 2.0, 21)
+    ref = double_pendulum.simulate(times, q0=[1.0, 0.5], method=method, rtol=1e-9, atol=atol, **options)
+    with double_pendulum.integrator(q0=[1.0, 0.5], method=method, rtol=1e-9, atol=atol, **options) as integ:
+        np.testing.assert_array_equal(integ.propagate_grid(times), ref.y)
+    with pytest.raises(LagcodegenError, match="baumgarte"):  # an option the ODE does not take, named
+        double_pendulum.integrator(q0=[1.0, 0.5], method=method, baumgarte=(1, 1))
