@@ -419,3 +419,14 @@ def test_options_and_per_state_atol_resolve_as_in_simulate(double_pendulum, meth
         np.testing.assert_array_equal(integ.propagate_grid(times), ref.y)
     with pytest.raises(LagcodegenError, match="baumgarte"):  # an option the ODE does not take, named
         double_pendulum.integrator(q0=[1.0, 0.5], method=method, baumgarte=(1, 1))
+
+
+@pytest.mark.parametrize("form,options", [("index1", {"method": "bdf", "projection": True}),
+                                          ("index1", {"baumgarte": (5.0, 5.0), "max_step": 0.02}),
+                                          ("ggl", {"stop_at_outputs": True}), ("ggl", {"jacobian": False})])
+def test_constrained_options_resolve_as_in_simulate(cpend_index1, cpend_ggl, form, options):
+    sim = cpend_index1 if form == "index1" else cpend_ggl
+    times = np.linspace(0.0, 0.3, 7)
+    ref = sim.simulate(times, q0=pendulum_q0(), v0=[0, 0], rtol=1e-9, atol=1e-11, **options)
+    with sim.integrator(q0=pendulum_q0(), v0=[0, 0], rtol=1e-9, atol=1e-11, **options) as integ:
+        np.testing.assert_array_equal(integ.propagate_grid(times), ref.y)
