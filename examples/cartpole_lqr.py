@@ -79,8 +79,9 @@ def main() -> None:
     t, ys, forces = run()
     th = ys[:, 1]
     inside = int(np.argmax(np.abs(th) < 0.05))
-    print(f"within 0.05 rad of upright from t = {t[inside]:.3f} s on (max |th| after: {np.max(np.abs(th[inside:])):.4f} "
-          f"rad); final th {th[-1]:.1e} rad, x {ys[-1, 0]:.1e} m; max |F| {np.max(np.abs(forces)):.1f} N")
+    print(f"within 0.05 rad of upright from t = {t[inside]:.3f} s on (max |th| after: "
+          f"{np.max(np.abs(th[inside:])):.4f} rad); final th {th[-1]:.1e} rad, x {ys[-1, 0]:.1e} m; "
+          f"max |F| {np.max(np.abs(forces)):.1f} N")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -87,7 +87,8 @@ class IDAStepper:
         opt.rtol, opt.atol, opt.atol_vec = rtol, float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
         opt.max_steps = max_steps
         opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
-        opt.suppress_alg, opt.jacobian, opt.calc_ic, opt.ic_alg_atol = int(suppress_alg), int(jacobian), 1, ALGEBRAIC_ATOL
+        opt.suppress_alg, opt.jacobian = int(suppress_alg), int(jacobian)
+        opt.calc_ic, opt.ic_alg_atol = 1, ALGEBRAIC_ATOL
         opt.roots, opt.stop_at_outputs = int(roots), int(stop_at_outputs)
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
