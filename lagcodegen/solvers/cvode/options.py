@@ -14,6 +14,7 @@ from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
 from ..family import Family, choice
 from . import ensemble, native
+from .events import compiled_events
 
 BACKENDS = ("native", "sksundae")
 
@@ -40,7 +41,7 @@ class CVODE(Family):
     faces = ("ode", "index1")
     only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
             "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
-            "max_events": ("index1",)}
+            "max_events": ("index1", "ode")}
 
     method: str | None = None
     backend: str = "native"
@@ -94,20 +95,24 @@ class CVODE(Family):
         return opts
 
     def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
-        """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values)."""
-        if events:
-            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
-                                  "a plain scene has no root finding; constrained systems have events on CVODE "
-                                  "and IDA)")
+        """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values);
+        ``events`` located by CVODE's root finding on their compiled functions
+        (:func:`.events.compiled_events`)."""
+        compiled = compiled_events(cm, events)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
         if self.backend == "native":
             if not cm.native:
                 raise LagcodegenError("this module was built without the native driver (build(native=False))")
-            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
+            if compiled is not None and compiled.table is None:
+                raise LagcodegenError("events on the native CVODE driver need a model built for the runtime "
+                                      "(build(code, native=True) of plain C code)")
+            max_events = 10_000 if self.max_events is None else self.max_events
+            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall),
+                                       events=compiled, max_events=max_events, **opts)
         from ..sksundae import solve_sksundae
-        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, **opts)
+        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, events=compiled, **opts)
         # its outputs are evaluated after the run, where nothing fails: check the first row
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
