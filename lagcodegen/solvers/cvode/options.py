@@ -118,14 +118,17 @@ class CVODE(Family):
             cm.check_initial_outputs(t[0], y, p)
         return res
 
-    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
-        """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver."""
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
+        """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
+        located in each member (:func:`.events.compiled_events`)."""
         self._native_only()
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
+        compiled = compiled_events(cm, events)
         opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
+        max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
-                                     save=save, progress=progress)
+                                     save=save, progress=progress, events=compiled, max_events=max_events)
 
     # ------------------------------------------------------------------ index-1 constrained systems
     def index1_settings(self, sim, t0: float, y0, p, native_backend: bool = True):
