@@ -229,7 +229,7 @@ def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, threads=None, sav
     members grouped by the solution branch of the constraints their initial state lies on (one
     ensemble call per branch); the outputs ``residuals``/``g_*``/``gdot_*`` computed in Python by
     ``simulate`` are not part of ensembles."""
-    sim.check_events(options.get("events"))
+    roots = sim.check_events(options.get("events"))
     t = output_times(t)
     n_mem, Q, V, names = _qv(sim, q0, v0, params)
     model = sim.system.model
@@ -253,6 +253,8 @@ def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, threads=None, sav
             rejected[i] = f"{FLAG_TEXT[REJECTED]}: {exc}"
     parts, like = [], None
     ode_options = {k: v for k, v in options.items() if k != "events"}
+    if roots:
+        ode_options["events"] = sim.events
     for b in sorted(set(branch.tolist()) - {-1}):
         idx = np.flatnonzero(branch == b)
         cm = sim.compiled_branch(b)
