@@ -736,7 +736,8 @@ def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
      "events[0].name", "inequality"),
     (CBASE + '\n[[events]]\nexpr = "y"\n', N_CBASE + 2, "events[0]", "'name'"),
     (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\ndir = 1\n', N_CBASE + 5, "events[0].dir", "'dir'"),
-    (BASE + '\n[[events]]\nname = "e"\nexpr = "theta"\n', N_BASE + 2, "events[0]", "[constraints]"),
+    (BASE + '\n[[events]]\nname = "e"\nexpr = "thetta"\n', N_BASE + 4, "events[0].expr", "'thetta'"),
+    (BASE + '\n[[events]]\nname = "e"\nexpr = "theta"\ndirection = -2\n', N_BASE + 5, "events[0].direction", "-2"),
     # [simulation]: formulation and its options
     (CBASE + '\n[simulation]\nformulation = "index2"\n', N_CBASE + 3, "simulation.formulation", "'index2'"),
     (CBASE + '\n[simulation]\nformulation = 1\n', N_CBASE + 3, "simulation.formulation", "integer"),
@@ -755,8 +756,6 @@ def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
     (CBASE + '\n[simulation]\nformulation = "minimal"\noutputs = ["energy", "lambda"]\n', N_CBASE + 4,
      "simulation.outputs[1]", "'lambda'"),
     (CBASE + '\n[simulation]\noutputs = ["lambda_1"]\n', N_CBASE + 3, "simulation.outputs[0]", "'lambda_1'"),
-    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\n\n[simulation]\nformulation = "minimal"\n', N_CBASE + 7,
-     "simulation.formulation", "minimal"),
     # the multipliers' names are reserved
     (CBASE.replace("m = 1.0", "m = 1.0\nlambda_0 = 2"), 9, "parameters.lambda_0", "'lambda_0'"),
 ])
