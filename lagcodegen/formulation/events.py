@@ -42,6 +42,10 @@ def scene_events(scene: Scene, events: Iterable = ()) -> list[Event]:
                 sub = {s: sp.sympify(outputs[name]) for name, s in names.items() if name in outputs}
                 if sub:
                     expr = expr.xreplace(sub)
+            # numbers of the text in double precision, as everywhere in the generated code
+            floats = {f: sp.Float(float(f)) for f in expr.atoms(sp.Float) if f._prec > 53}
+            if floats:
+                expr = expr.xreplace(floats)
         resolved.append(Event(ev.name, expr, ev.direction, ev.terminal))
     return event_list(_Quadratures(scene.eom), resolved)
 

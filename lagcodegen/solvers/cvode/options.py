@@ -99,6 +99,8 @@ class CVODE(Family):
         ``events`` located by CVODE's root finding on their compiled functions
         (:func:`.events.compiled_events`)."""
         compiled = compiled_events(cm, events)
+        if compiled is not None:  # a value that is not finite at the start: named here
+            compiled.values(float(t[0]), y, p)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
