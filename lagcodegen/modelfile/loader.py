@@ -413,7 +413,8 @@ class _Loader(_Reader):
         if self.system is not None:
             extra = {lam.name: lam for lam in self.system.multipliers}
         else:  # the scene's outputs stand for their expressions (lagcodegen.formulation.events)
-            extra = {name: sp.Symbol(name) for name in self.model.outputs if name not in self.symbols}
+            names = [n for n in self.builtin_outputs() if n not in ("momenta", "positions")] + list(self.model.outputs)
+            extra = {name: sp.Symbol(name) for name in names if name not in self.symbols}
         expr = self.expr([*path, "expr"], entry["expr"], velocities=True, extra=extra)
         direction = entry.get("direction", 0)
         if isinstance(direction, bool) or direction not in DIRECTIONS:

@@ -171,7 +171,8 @@ SCHEMA: tuple[Table, ...] = (
           "and constrained files, minimal coordinates too), found in the result's events.",
           keys=(Key("name", "identifier", "the event's name", required=True),
                 Key("expr", "expression", "the root function in q, q', t and the parameters; constrained files: the "
-                    "multipliers lambda_<j> too (not in minimal coordinates), others: the names of the [outputs]",
+                    "multipliers lambda_<j> too (not in minimal coordinates), others: output names (energy, p_<q>, <point>_x, "
+                    "[outputs])",
                     required=True),
                 Key("direction", "integer", "-1 decreasing, 0 both, 1 increasing", default="0"),
                 Key("terminal", "boolean", "stop the run at the event", default="true")),
