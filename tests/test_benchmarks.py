@@ -117,3 +117,15 @@ def test_taylor_runtime_one_link():
     assert finite(rows[0]["per_model_us"]) and finite(rows[0]["runtime_us"]) and rows[0]["ratio"] > 0
     cold = tr.build_times(1, 1)
     assert [r["kind"] for r in cold] == ["per-model", "runtime"] and all(finite(r["total"]) for r in cold)
+
+
+def test_events_every_contender_finds_the_crossings():
+    import events
+    import lagcodegen as lcg
+    sim = lcg.compile_model(systems.pendulum("tb_events"))
+    exact = events.exact_crossings()
+    for name, run in events.contenders(sim).items():
+        found = run(1e-8)
+        if found is not None:  # the run without events finds nothing
+            assert len(found) == len(exact) == 15, name
+            assert max(abs(found - exact) / exact) < 1e-5, name

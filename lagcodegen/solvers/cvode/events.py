@@ -35,6 +35,7 @@ class CompiledEvents:
         self._fn = fn
         self._dp = dp
         self.table = None
+        self._ffi = cm.ffi
         if cm.table is not None:  # the runtime's driver takes the table
             ffi = cm.ffi
             self.table = ffi.new("lcg_ode_roots *")
@@ -54,9 +55,14 @@ class CompiledEvents:
         raises LagcodegenError naming the event."""
         out = np.empty(len(self.events)) if out is None else out
         y = np.ascontiguousarray(y, dtype=float)
-        dp = self._dp
-        rc = self._fn(float(t), y.ctypes.data_as(dp), p.ctypes.data_as(dp) if p.size else None,
-                      out.ctypes.data_as(dp))
+        if self.table is not None:  # through cffi: a few us where ctypes takes tens
+            fb = self._ffi.from_buffer
+            rc = self.table.roots(float(t), fb("double[]", y), fb("double[]", p) if p.size else self._ffi.NULL,
+                                  fb("double[]", out))
+        else:
+            dp = self._dp
+            rc = self._fn(float(t), y.ctypes.data_as(dp), p.ctypes.data_as(dp) if p.size else None,
+                          out.ctypes.data_as(dp))
         if rc == ERR_NONFINITE:
             bad = [e.name for e, v in zip(self.events, out) if not np.isfinite(v)]
             raise LagcodegenError(f"event function{'s' if len(bad) > 1 else ''} {', '.join(bad)} not finite at "
@@ -86,6 +92,13 @@ def compiled_events(cm, events) -> CompiledEvents | None:
     events = list(events or ())
     if not events:
         return None
+    try:  # the events as given (checking them takes sympy milliseconds; a run with events, tens of us)
+        given = ("cvode-events given", tuple(events))
+        found = cm.solver_state.get(given)
+    except TypeError:  # unhashable items (dicts, lists): checked every time
+        given, found = None, None
+    if found is not None:
+        return found
     scene = scene_of(cm)
     checked = scene_events(scene, events)
     key = ("cvode-events", tuple(checked))
@@ -95,4 +108,6 @@ def compiled_events(cm, events) -> CompiledEvents | None:
         library, path, _ = plain_library(f"the event functions of model {cm.code.model_name!r}",
                                          f"{cm.code.prefix}_events", sources)
         found = cm.solver_state[key] = CompiledEvents(cm, checked, library, path)
+    if given is not None:
+        cm.solver_state[given] = found
     return found
