@@ -128,3 +128,15 @@ def test_integrator_overhead_pendulum():
         rows += io.rows_of("pendulum", 1, method, 1e-3, io.measure(sim, method, 1e-3, rounds=1, batch=0.002))
     assert {r["call"] for r in rows} == {"propagate_for", "closed loop", "propagate_grid", "step", "simulate"}
     assert all(finite(r["call_us"]) and r["call_us"] > 0 and finite(r["overhead_us"]) for r in rows)
+
+
+def test_events_every_contender_finds_the_crossings():
+    import events
+    import lagcodegen as lcg
+    sim = lcg.compile_model(systems.pendulum("tb_events"))
+    exact = events.exact_crossings()
+    for name, run in events.contenders(sim).items():
+        found = run(1e-8)
+        if found is not None:  # the run without events finds nothing
+            assert len(found) == len(exact) == 15, name
+            assert max(abs(found - exact) / exact) < 1e-5, name

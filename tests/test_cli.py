@@ -408,3 +408,36 @@ def test_generate_writes_what_the_api_renders(tmp_path):
         files = lcg.generate_file(mf, **kwargs)
         written = {p.name: p.read_text() for p in out.iterdir() if not p.name.endswith(".lagcodegen.json")}
         assert written == files and files
+
+
+def test_simulate_and_info_report_the_events_of_a_plain_file(tmp_path):
+    """A file without constraints with [[events]]: info shows them, simulate locates them (CVODE)
+    and reports each; the terminal one ends the written trajectory."""
+    from scipy.special import ellipk
+    text = (EXAMPLES / "pendulum.toml").read_text() + """
+[[events]]
+name = "down"
+expr = "theta"
+direction = -1
+terminal = false
+
+[[events]]
+name = "stop"
+expr = "p_theta"
+direction = 1
+"""
+    text = text.replace('method = "adams"', 'method = "adams"\nrtol = 1e-12\natol = 1e-14')
+    path = tmp_path / "pendulum_events.toml"
+    path.write_text(text)
+    info = run("info", path)
+    assert info.returncode == 0, info.stderr
+    assert "event down (decreasing): zero of" in info.stdout and "event stop (increasing, terminal)" in info.stdout
+    proc = run("simulate", path, "-o", tmp_path / "e.csv")
+    assert proc.returncode == 0, proc.stderr
+    T = 4 * ellipk(np.sin(0.5) ** 2) / np.sqrt(9.81)  # theta0 = 1: down at T/4, p_theta rises through 0 at T/2
+    lines = [ln.split(": ", 1)[1] for ln in proc.stderr.splitlines() if ln.startswith("lagcodegen: event ")]
+    assert [ln.split()[1] for ln in lines] == ["down", "stop"]
+    assert float(lines[0].split()[5]) == pytest.approx(T / 4, rel=1e-9)
+    assert "terminal: run stopped" in lines[1] and float(lines[1].split()[5]) == pytest.approx(T / 2, rel=1e-9)
+    data = np.loadtxt(tmp_path / "e.csv", delimiter=",", skiprows=1)
+    assert data[-1, 0] == pytest.approx(T / 2, rel=1e-9)

@@ -52,6 +52,7 @@ def run(args) -> int:
         print(show(sp.simplify(expr) if simplify else expr))
     if mf.constrained is not None:
         _info_constrained(mf, eom, show, simplify)
+    _info_events(mf, show)
     return EXIT_OK
 
 
@@ -91,6 +92,10 @@ def _info_constrained(mf, eom, show, simplify: bool) -> None:
         print("\nand the constraints at acceleration level, A q'' - gamma = 0 (gamma = -(d/dt)(A q' + A0) "
               "without q''):")
         print(show(acc.applyfunc(simp)))
+
+
+def _info_events(mf, show) -> None:
+    """The file's [[events]] (every kind of model)."""
     for ev in mf.events:
         direction = {-1: "decreasing", 0: "either direction", 1: "increasing"}[ev.direction]
         print(f"\nevent {ev.name} ({direction}{', terminal' if ev.terminal else ''}): zero of")

@@ -26,8 +26,8 @@ over its [simulation] times, and write the trajectory (states and outputs at eve
 time) as CSV or NPZ, with a PNG plot if asked. Options override the file's [simulation]
 settings.
 
-Model files with [constraints] run in the file's formulation (--formulation overrides); the
-events found and the largest constraint residual are reported.
+Model files with [constraints] run in the file's formulation (--formulation overrides) and
+report the largest constraint residual; the events found are reported for every file.
 
     lagcodegen simulate examples/double_pendulum.toml -o out/dp.csv --plot out/dp.png"""
 
@@ -96,12 +96,12 @@ def run(args) -> int:
     run_kind = f" ({sim.formulation}, {res.method})" if mf.constrained is not None else ""
     say(f"integrated t = {res.t[0]:g}..{res.t[-1]:g}{run_kind} in {time.perf_counter() - t0:.4f} s: "
         f"{res.stats.get('steps')} steps, {res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
-    if mf.constrained is None:
-        return write_result(res, args)
     for ev in res.events:
         state = ", ".join(f"{k} = {v:.10g}" for k, v in ev.q.items())
         say(f"event {ev.name} at t = {ev.t:.12g} (direction {ev.direction:+d}"
             f"{', terminal: run stopped' if ev.terminal else ''}): {state}", args.quiet)
+    if mf.constrained is None:
+        return write_result(res, args)
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))

@@ -50,7 +50,10 @@ def runtime_cdef() -> str:
 int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
 int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double *y, const double *p,
-                      double *out);""", _solve_many("cvode"), constrained_runtime_cdef(), POLL_CDEF])
+                      double *out);""", _solve_many("cvode"), constrained_runtime_cdef(), """
+int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st, lcg_events *ev);""", POLL_CDEF])
 
 
 def model_cdef(code: GeneratedCode, native: bool) -> str:

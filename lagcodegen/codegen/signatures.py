@@ -343,9 +343,10 @@ TAYLOR_EVENTS = Struct("lcg_taylor_events", (
         "function which[k], direction[k]. Only the first max_events are stored; n_events counts them all.")
 
 
-def ensemble(name: str, model: str, yp0: bool = False, events: bool = False) -> Struct:
+def ensemble(name: str, model: str, yp0: bool = False, events: bool = False, roots: bool = False) -> Struct:
     """The ensemble struct of a driver (lcg_pool.h): ``model`` the type of the model's table,
-    ``yp0`` an initial yp0 per member (IDA), ``events`` root finding."""
+    ``yp0`` an initial yp0 per member (IDA), ``events`` root finding, ``roots`` the event
+    functions beside the model's table (:data:`ODE_ROOTS`; the ODE of a scene)."""
     fields = [
         Field("model", f"const {model} *", "the model every member integrates"),
         Field("nmem", "long"), Field("nthreads", "int"),
@@ -373,6 +374,8 @@ def ensemble(name: str, model: str, yp0: bool = False, events: bool = False) -> 
             Field("max_events", "int", "events kept per member run (root finding; 0: 64)"),
             Field("rootdir", "const int *", "NROOT directions of the event functions (0: both), or NULL"),
             Field("terminal", "const int *", "NROOT flags: the event ends the run, or NULL (all terminal)")]
+    if roots:
+        fields.append(Field("roots", "const lcg_ode_roots *", "NULL, or the event functions every member locates"))
     fields += [
         Field("poll", "int (*)(void *data, long done, long total)",
               "NULL, or called from the calling thread about every poll_every s with the members done; "
@@ -387,6 +390,16 @@ def ensemble(name: str, model: str, yp0: bool = False, events: bool = False) -> 
         "taken in turn from a shared counter; each member is a run of the single-run solver with its own solver "
         "context, so its numbers are those of the same run alone). Arrays are by member; NULL where not wanted. "
         "The caller presets flag[i] (e.g. -82: never started)."))
+
+
+#: The event functions of an ODE run (the CVODE driver of a scene, lcg_cvode_solve_events): generated
+#: apart from the model (a library per set of events), so that a model's code is the same with or
+#: without events.
+ODE_ROOTS = Struct("lcg_ode_roots", (
+    Field("nroot", "int", "event functions"),
+    Field("roots", "int (*)(double t, const double *y, const double *p, double *gout)",
+          "gout[nroot] = the event functions at (t, y) with the parameters p; 0 or a model error code")),
+    doc="The event functions of an ODE run: their number and the function computing them.")
 
 
 @dataclass(frozen=True)
@@ -406,7 +419,8 @@ class Driver:
 #: The model-independent drivers: CVODE (ODEs), index-1 CVODE and GGL IDA (constrained; their
 #: events record: "dae"), Taylor.
 DRIVERS = {d.name: d for d in (
-    Driver("cvode", "lcg_model.h", (CVODE_OPTIONS, CVODE_STATS, ensemble("lcg_cvode_ensemble", "lcg_model"))),
+    Driver("cvode", "lcg_model.h", (CVODE_OPTIONS, CVODE_STATS, ODE_ROOTS,
+                                    ensemble("lcg_cvode_ensemble", "lcg_model", events=True, roots=True))),
     Driver("dae", "lcg_dae_model.h", (EVENTS,)),
     Driver("cvc", "lcg_dae_types.h", (CVC_OPTIONS, CVC_STATS,
                                       ensemble("lcg_cvc_ensemble", "lcg_dae_model", events=True))),

@@ -51,9 +51,9 @@ A build step can describe a model without writing Python::
     inequalities = ["y + 2*l"]            # g(q, t) >= 0: monitored (terminal event ineq_<k>)
     integrable = "error"                  # or "allow" (keep an integrable Pfaffian row)
 
-    [[events]]                            # constrained files: root functions
+    [[events]]                            # root functions, every kind of model
     name = "leave"
-    expr = "lambda_0"                     # q, <coord>_dot, t, parameters, multipliers lambda_<j>
+    expr = "lambda_0"                     # q, <coord>_dot, t, parameters, multipliers lambda_<j> (or outputs)
     direction = -1                        # -1 decreasing, 0 both, 1 increasing (default 0)
     terminal = true                       # default true
 
@@ -91,11 +91,12 @@ constant expressions too (``"pi/2"``).
 
 With a ``[constraints]`` table, :attr:`ModelFile.constrained` is the
 :class:`~lagcodegen.theory.constraints.ConstrainedSystem` (constraint j, holonomic ones first,
-has the multiplier ``lambda_<j>``, counted from 0), :attr:`ModelFile.events` the ``[[events]]``
-as :class:`~lagcodegen.model.events.Event` items, and :func:`lagcodegen.compile_file` goes
+has the multiplier ``lambda_<j>``, counted from 0), and :func:`lagcodegen.compile_file` goes
 through :func:`lagcodegen.compile_constrained`. Constrained runs output the requested
 outputs (default: energy) plus ``lambda`` (not in minimal coordinates), ``residuals`` and, with
-inequality constraints, ``inequalities``.
+inequality constraints, ``inequalities``. :attr:`ModelFile.events` holds the ``[[events]]`` of
+every kind of file as :class:`~lagcodegen.model.events.Event` items: compiled in for
+constrained files, handed to each run (:meth:`ModelFile.simulate`) for the others.
 
 Every problem raises :class:`ModelFileError` (a :class:`~lagcodegen.errors.ModelError`)
 naming the file, the line when it can be found, the key path (``particles[1].position[0]``)

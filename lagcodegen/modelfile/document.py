@@ -87,7 +87,8 @@ class ModelFile:
 
         Parameter overrides are passed for its run-time parameters only. Constrained files
         integrate with BDF where the formulation needs it (``ggl``, index-1 with projection),
-        else with ``method``; the result has the events found in ``Result.events``. ``options``
+        else with ``method``; the file's events (every kind of model) are located and found in
+        ``Result.events``. ``options``
         (``method=...``, ``rtol=...``, ``backend=...``, ...) override.
         """
         cm = compiled
@@ -102,6 +103,8 @@ class ModelFile:
             params={k: v for k, v in s.parameters.items() if k in cm.param_names})
         if s.max_steps is not None:
             kwargs["max_steps"] = s.max_steps
+        if self.constrained is None and self.events:  # compiled in for constrained files
+            kwargs["events"] = list(self.events)
         kwargs.update(options)
         return cm.simulate(self.times(), **kwargs)
 

@@ -130,10 +130,6 @@ class _Loader(_Reader):
         if "constraints" in data:
             self.load_constraints(self.table(["constraints"], data["constraints"]))
         events = self.tables(["events"], data.get("events", []))
-        if events and self.system is None:
-            raise self.error(["events", 0], "events need a [constraints] table: they are located by the "
-                             "constrained solvers (give the constraints, or inequalities = [...] only)",
-                             token="events", needle="events")
         for i, entry in enumerate(events):
             self.events.append(self.load_event(["events", i], entry))
         simulation = self.load_simulation(self.table(["simulation"], data.get("simulation", {})))
@@ -401,19 +397,25 @@ class _Loader(_Reader):
         return tuple(A), A0
 
     def load_event(self, path: list[_Key], entry: dict) -> Event:
-        """[[events]]: name, expr (q, q', t, parameters, lambda_<j>), direction, terminal."""
-        assert self.system is not None
+        """[[events]]: name, expr (q, q', t, parameters; constrained files: lambda_<j>; others: the
+        names of the [outputs]), direction, terminal."""
+        assert self.model is not None
         self.fields(path, entry, **schema.keys("events"))
         name = self.string([*path, "name"], entry["name"])
         if not name.isidentifier():
             raise self.error([*path, "name"], f"event name {excerpt(name)} must be an identifier", token=name)
-        taken = [f"ineq_{k}" for k in range(len(self.system.inequalities))] + [e.name for e in self.events]
+        inequalities = self.system.inequalities if self.system is not None else []
+        taken = [f"ineq_{k}" for k in range(len(inequalities))] + [e.name for e in self.events]
         if name in taken:
             what = "is used twice" if name in (e.name for e in self.events) else \
                 "is taken by the event of an inequality constraint"
             raise self.error([*path, "name"], f"event name {excerpt(name)} {what}", token=name)
-        multipliers = {lam.name: lam for lam in self.system.multipliers}
-        expr = self.expr([*path, "expr"], entry["expr"], velocities=True, extra=multipliers)
+        if self.system is not None:
+            extra = {lam.name: lam for lam in self.system.multipliers}
+        else:  # the scene's outputs stand for their expressions (lagcodegen.formulation.events)
+            names = [n for n in self.builtin_outputs() if n not in ("momenta", "positions")] + list(self.model.outputs)
+            extra = {name: sp.Symbol(name) for name in names if name not in self.symbols}
+        expr = self.expr([*path, "expr"], entry["expr"], velocities=True, extra=extra)
         direction = entry.get("direction", 0)
         if isinstance(direction, bool) or direction not in DIRECTIONS:
             raise self.error([*path, "direction"], f"must be -1 (decreasing), 0 (both) or 1 (increasing), got "
@@ -558,9 +560,6 @@ class _Loader(_Reader):
             if s.projection:
                 raise self.error([*sim, "method"], f"projection onto the constraints needs method \"bdf\" (CVODE "
                                  f"projects with BDF only), got {s.method!r}", token=s.method)
-        if s.formulation == "minimal" and (self.events or self.system.inequalities):
-            raise self.error([*sim, "formulation"], "formulation 'minimal' has no events or inequality constraints "
-                             "(the plain CVODE driver has no root finding): use 'index1' or 'ggl'", token="minimal")
 
     def load_initial(self, table: dict) -> dict[str, float]:
         assert self.model is not None

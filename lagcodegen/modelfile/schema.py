@@ -167,9 +167,13 @@ SCHEMA: tuple[Table, ...] = (
         Key("integrable", "string", '"error" refuses an integrable Pfaffian row, "allow" keeps it',
             default='"error"'),
     ), maps_to="ConstrainedSystem"),
-    Table("events", "array", "Root functions located by the constrained solvers (files with [constraints]).",
+    Table("events", "array", "Root functions located by every solver and formulation (CVODE, IDA, Taylor; plain "
+          "and constrained files, minimal coordinates too), found in the result's events.",
           keys=(Key("name", "identifier", "the event's name", required=True),
-                Key("expr", "expression", "the root function in q, q', t, parameters and lambda_<j>", required=True),
+                Key("expr", "expression", "the root function in q, q', t and the parameters; constrained files: the "
+                    "multipliers lambda_<j> too (not in minimal coordinates), others: output names (energy, p_<q>, <point>_x, "
+                    "[outputs])",
+                    required=True),
                 Key("direction", "integer", "-1 decreasing, 0 both, 1 increasing", default="0"),
                 Key("terminal", "boolean", "stop the run at the event", default="true")),
           maps_to="Event"),

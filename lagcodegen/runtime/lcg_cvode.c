@@ -8,9 +8,15 @@
  *
  * With the band solver CVODE integrates the interleaved state (q_1, q_1', q_2, q_2', ..., z),
  * which keeps the couplings of chain-like systems near the diagonal; the model functions
- * and the caller's arrays keep the order y = (q, q', z). */
+ * and the caller's arrays keep the order y = (q, q', z).
+ *
+ * Events (lcg_cvode_solve_events): CVODE's root finding (CVodeRootInit) on event functions
+ * generated apart from the model (lcg_ode_roots), each with its direction and terminal flag
+ * (lcg_events); a root found again within rounding of the run's start time (a run restarted
+ * from the state of an event) is not reported. */
 #include "lcg_control.h" /* first: POSIX */
 
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -41,6 +47,8 @@ typedef struct {
     double *jd;         /* band solver with a dense Jacobian: the Jacobian in the model's order */
     int nonfinite;      /* the last model call computed a non-finite value, at t_nonfinite */
     double t_nonfinite;
+    const lcg_ode_roots *r; /* event functions, or NULL */
+    int *info;          /* root finding: the roots found (r->nroot), or NULL */
 } user_data;
 
 /* Position in the interleaved (band solver) order of model state i (n coordinates), and back. */
@@ -171,6 +179,55 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
     return 0;
 }
 
+/* CVRootFn: the event functions at (t, y) (the model's order). */
+static int roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
+{
+    user_data *d = (user_data *)data;
+    const double *ym = N_VGetArrayPointer(y);
+    int rc;
+
+    if (d->yb != NULL) { /* band solver: the interleaved order back to the model's */
+        gather(d->m, ym, d->yb);
+        ym = d->yb;
+    }
+    rc = d->r->roots(t, ym, d->p, gout);
+    if (rc != LCG_OK) {
+        d->st->model_error = rc;
+        d->st->t_reached = t;
+        return -1;
+    }
+    return 0;
+}
+
+/* The roots CVODE returned at t (state y, model's order) into ev, except those within rounding of
+ * the start time t0 (found again where a run restarts from an event's state); returns 1 if one of
+ * the recorded roots is terminal. */
+static int record_roots(void *mem, lcg_events *ev, double t, double t0, double h, const double *y, int nroot,
+                        int ny, int *info)
+{
+    int i, k, stop = 0;
+
+    if (CVodeGetRootInfo(mem, info) < 0)
+        return 1;
+    if (t - t0 <= 100.0 * DBL_EPSILON * (fabs(t0) + fabs(h)))
+        return 0;
+    for (i = 0; i < nroot; ++i) {
+        if (info[i] == 0)
+            continue;
+        if (ev->n_events < ev->max_events) {
+            ev->t[ev->n_events] = t;
+            for (k = 0; k < ny; ++k)
+                ev->y[(long)ev->n_events * ny + k] = y[k];
+            ev->which[ev->n_events] = i;
+            ev->direction[ev->n_events] = info[i];
+        }
+        ev->n_events++;
+        if (ev->terminal == NULL || ev->terminal[i])
+            stop = 1;
+    }
+    return stop;
+}
+
 static int fill_outputs(const lcg_model *m, double t, const double *y, const double *p, double *out)
 {
     return m->outputs != NULL ? m->outputs(t, y, p, out) : LCG_OK;
@@ -194,6 +251,14 @@ int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double 
 int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st)
 {
+    return lcg_cvode_solve_events(m, NULL, p, y0, nt, tout, yout, out, opt, st, NULL);
+}
+
+/* lcg_cvode_solve with the events r (NULL: none) located and recorded into ev; see lcg_cvode.h. */
+int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st, lcg_events *ev)
+{
     SUNContext ctx = NULL;
     void *mem = NULL;
     N_Vector y = NULL, abstol = NULL;
@@ -204,7 +269,7 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
     double *yv, *ym;
     long nst = 0;
     int k, i, flag = 0, rc, ny, nout, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
-    int use_jac;
+    int use_jac, roots_on = r != NULL && ev != NULL && r->nroot > 0 && r->roots != NULL;
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -222,6 +287,12 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
     data.nonfinite = 0;
     data.t_nonfinite = 0.0;
     data.yb = data.fb = data.vals = data.jd = NULL;
+    data.r = r;
+    data.info = NULL;
+    if (ev != NULL) {
+        ev->n_events = 0;
+        ev->terminated = 0;
+    }
     watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     data.mu = opt->mupper;
     data.ml = opt->mlower;
@@ -239,6 +310,10 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
         A = band ? SUNBandMatrix(ny, opt->mupper, opt->mlower, ctx) : SUNDenseMatrix(ny, ny, ctx);
     if (band && ((data.yb = (double *)malloc(sizeof(double) * (size_t)ny)) == NULL
                  || (data.fb = (double *)malloc(sizeof(double) * (size_t)ny)) == NULL)) {
+        flag = LCG_FLAG_NOMEM;
+        goto done;
+    }
+    if (roots_on && (data.info = (int *)malloc(sizeof(int) * (size_t)r->nroot)) == NULL) {
         flag = LCG_FLAG_NOMEM;
         goto done;
     }
@@ -305,6 +380,13 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
             goto done;
     }
     CVodeSetMaxHnilWarns(mem, -1); /* no "t + h = t" warnings on stdout: failures are reported */
+    if (roots_on) {
+        if ((flag = CVodeRootInit(mem, r->nroot, roots)) < 0)
+            goto done;
+        if (ev->rootdir != NULL && (flag = CVodeSetRootDirection(mem, (int *)ev->rootdir)) < 0)
+            goto done;
+        CVodeSetNoInactiveRootWarn(mem);
+    }
     if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
         goto done;
     if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
@@ -320,9 +402,23 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
         double tret = tout[k - 1];
         if (WATCH_TICK(&data.w))
             goto done;
-        LCG_STEP_BUDGET(CVode);
-        flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
-        st->t_reached = tret;
+        for (;;) {
+            LCG_STEP_BUDGET(CVode);
+            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
+            st->t_reached = tret;
+            if (flag == CV_ROOT_RETURN && roots_on) {
+                double h = 0.0;
+                if (band)
+                    gather(m, yv, data.yb);
+                CVodeGetLastStep(mem, &h);
+                if (record_roots(mem, ev, tret, tout[0], h, ym, r->nroot, ny, data.info)) {
+                    ev->terminated = 1;
+                    goto done;
+                }
+                continue;
+            }
+            break;
+        }
         if (flag < 0)
             goto done;
         if (band)
@@ -373,6 +469,7 @@ done:
     free(data.fb);
     free(data.vals);
     free(data.jd);
+    free(data.info);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
@@ -384,12 +481,27 @@ done:
 #define LCG_POOL_OPTIONS lcg_cvode_options
 #define LCG_POOL_STATS lcg_cvode_stats
 #define LCG_POOL_SOLVE_MANY lcg_cvode_solve_many
+#define LCG_POOL_EVENTS lcg_events
 #include "lcg_pool.h"
 
 static int pool_member(lcg_cvode_ensemble *e, const double *pi, const double *y0i, const double *yp0i,
                        const lcg_cvode_options *o, lcg_cvode_stats *st, double *yout, double *out, pool_scratch *s)
 {
+    int rc;
+
     (void)yp0i;
-    (void)s;
-    return lcg_cvode_solve(e->model, pi, y0i, e->nt, e->tout, yout, out, o, st);
+    if (e->roots == NULL)
+        return lcg_cvode_solve(e->model, pi, y0i, e->nt, e->tout, yout, out, o, st);
+    rc = lcg_cvode_solve_events(e->model, e->roots, pi, y0i, e->nt, e->tout, yout, out, o, st, &s->evs);
+    s->ev_n = s->evs.n_events;
+    s->ev_term = s->evs.terminated;
+    if (s->evs.terminated && s->evs.n_events > 0 && s->evs.n_events <= s->maxev) {
+        int j;
+        s->ylast = s->evs.y + (long)(s->evs.n_events - 1) * NROW;
+        s->tlast = s->evs.t[s->evs.n_events - 1];
+        if (fill_outputs(e->model, s->tlast, s->ylast, pi, s->olast) != LCG_OK)
+            for (j = 0; j < NOUTD; ++j)
+                s->olast[j] = NAN;
+    }
+    return rc;
 }

@@ -6,6 +6,7 @@
 #define LCG_CVODE_H
 
 #include "lcg_cvode_types.h" /* the structs, rendered from lagcodegen/codegen/signatures.py */
+#include "lcg_dae_types.h"   /* lcg_events: the events found */
 
 /* Integrate model m from tout[0] with y(tout[0]) = y0 and write yout[k*ny + i] = y_i(tout[k]),
  * out[k*nout + j] = output j at tout[k] (nt output times, increasing).
@@ -14,8 +15,17 @@
 int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
 
-/* The members of e (model e->model), each a run of lcg_cvode_solve with the options opt, over a
- * pthread pool (NROW = ny state values per row). Returns 0, -80 cancelled or -20 out of memory. */
+/* lcg_cvode_solve with root finding on the event functions r (NULL: none): the events found, in time
+ * order, into ev (its rootdir and terminal flags apply; NULL: none recorded); a terminal event ends
+ * the run (ev->terminated = 1; the rows of yout are those of the output times before it). A root
+ * within rounding of tout[0] is not reported (a run restarted from the state of an event). */
+int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st, lcg_events *ev);
+
+/* The members of e (model e->model), each a run of lcg_cvode_solve (lcg_cvode_solve_events with the
+ * events e->roots unless NULL) with the options opt, over a pthread pool (NROW = ny state values per
+ * row). Returns 0, -80 cancelled or -20 out of memory. */
 int lcg_cvode_solve_many(lcg_cvode_ensemble *e, const lcg_cvode_options *opt);
 
 /* out[k*nout + j] = output j of model m at (t[k], y[k*ny ...]) for k < nt. */

@@ -11,6 +11,7 @@ the same run alone; ``executor=`` splits them into chunks (:func:`lagcodegen.sol
 
 from __future__ import annotations
 
+import inspect
 from typing import Mapping
 
 import numpy as np
@@ -141,16 +142,20 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
                  executor=None, progress=None, chunk_size=None, options: dict) -> EnsembleResult:
     """:meth:`CompiledModel.ensemble <lagcodegen.simulation.ode.CompiledModel.ensemble>`."""
     solver, rtol, atol, events, options = run_keywords(options)
-    if events:
-        raise LagcodegenError("ensembles of a scene have no events (simulate(method='taylor', events=...) runs "
-                              "one member with them)")
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
     family = resolve("ode", solver, options, cm.n, float(rtol))
+    runner = family.runner("ode", "ensemble")
+    more = {}
+    if events:
+        if "events" not in inspect.signature(runner).parameters:
+            raise LagcodegenError(f"{family.name} ensembles have no events: events in every member run on CVODE "
+                                  "(simulate(method='taylor', events=...) runs one member with them)")
+        more["events"] = list(events)
     if executor is not None:
         return run_chunks(cm, executor, chunk_size, n_mem, t, dict(y0=Y), P, threads, save,
-                          dict(solver=family, rtol=rtol, atol=atol))
-    return family.runner("ode", "ensemble")(cm, t, Y, P, rtol, atol, threads=threads, save=save, progress=progress)
+                          dict(solver=family, rtol=rtol, atol=atol, **more))
+    return runner(cm, t, Y, P, rtol, atol, threads=threads, save=save, progress=progress, **more)
 
 
 # ---------------------------------------------------------------------- constrained systems
@@ -224,7 +229,7 @@ def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, threads=None, sav
     members grouped by the solution branch of the constraints their initial state lies on (one
     ensemble call per branch); the outputs ``residuals``/``g_*``/``gdot_*`` computed in Python by
     ``simulate`` are not part of ensembles."""
-    sim.check_events(options.get("events"))
+    roots = sim.check_events(options.get("events"))
     t = output_times(t)
     n_mem, Q, V, names = _qv(sim, q0, v0, params)
     model = sim.system.model
@@ -248,6 +253,8 @@ def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, threads=None, sav
             rejected[i] = f"{FLAG_TEXT[REJECTED]}: {exc}"
     parts, like = [], None
     ode_options = {k: v for k, v in options.items() if k != "events"}
+    if roots:
+        ode_options["events"] = sim.events
     for b in sorted(set(branch.tolist()) - {-1}):
         idx = np.flatnonzero(branch == b)
         cm = sim.compiled_branch(b)

@@ -16,6 +16,7 @@ from ..codegen.languages import generate_code
 from ..derivation import derive
 from ..errors import LagcodegenError, ModelError
 from ..formulation.scene import Scene
+from ..model.events import event_list
 from ..model.model import Model
 from ..result import Result
 from ..theory.constraints import ConstrainedSystem
@@ -30,7 +31,10 @@ class MinimalSimulation(_Base):
     """Constrained system integrated in minimal coordinates (holonomic constraints eliminated).
 
     The solution branch (e.g. y = -sqrt(l^2 - x^2) or +sqrt) is chosen at simulate time from q0;
-    each branch is compiled once. Multipliers are not available in this formulation.
+    each branch is compiled once. Multipliers are not available in this formulation. Events (and
+    the inequality constraints, as the terminal events ``ineq_<k>``) are located by the CVODE
+    driver's root finding on the branch's model, where an eliminated coordinate (or its velocity)
+    in an expression is the branch's output of that name.
     """
 
     formulation = "minimal"
@@ -41,9 +45,13 @@ class MinimalSimulation(_Base):
         self.lang = lang
         self._init_args = (system, outputs, tuple(events), runtime_parameters, values, prefix, eliminate, verbose,
                            lang)
-        if list(events) or system.inequalities:
-            raise ModelError("minimal coordinates: events and inequality constraints need formulation 'index1' "
-                             "or 'ggl' (the plain CVODE driver has no root finding)")
+        self.events = event_list(system, events)
+        lam = {s.name for s in getattr(system, "multipliers", [])}
+        for ev in self.events:
+            used = sorted(s.name for s in ev.expr.free_symbols if s.name in lam)
+            if used:
+                raise ModelError(f"event {ev.name!r} uses the multiplier(s) {', '.join(used)}: minimal coordinates have "
+                                 "no Lagrange multipliers (use formulation 'index1' or 'ggl')")
         self.eliminated, self.branches = solve_constraints(system, eliminate)
         self.remaining = [q for q in system.model.coords if q not in self.eliminated]
         outputs = ("energy", "residuals") if outputs is None else tuple(outputs)
@@ -127,10 +135,11 @@ class MinimalSimulation(_Base):
         ``"project"`` keeps the remaining coordinates and velocities and recomputes the
         eliminated ones. ``solver`` and ``options`` are those of the ODE of a compiled scene
         (:meth:`CompiledModel.simulate <lagcodegen.simulation.ode.CompiledModel.simulate>`);
-        minimal coordinates have no events (``events`` None or False) and no Baumgarte
+        ``events`` None or True locates the compiled events (the ``events`` of the constructor and
+        the inequality constraints), False none; minimal coordinates have no Baumgarte
         stabilization or projection (they have no drift to correct): such options raise.
         """
-        self.check_events(events)
+        roots = self.check_events(events)
         t = output_times(t)
         model = self.system.model
         names = [q.name for q in model.coords]
@@ -154,12 +163,13 @@ class MinimalSimulation(_Base):
         run_params = {k: vals[k] for k in cm.param_names}
         start = time.perf_counter()
         res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver, rtol=rtol, atol=atol,
-                          raise_on_error=raise_on_error, **options)
+                          raise_on_error=raise_on_error, events=self.events if roots else (), **options)
         res.stats["wall_time"] = time.perf_counter() - start
         res.stats["branch"] = b
         self._add_residuals(res, vals)
         res.formulation = "minimal"
-        res.events = []
+        if res.events is None:
+            res.events = []
         return res
 
     def integrator(self, *, q0=None, v0=None, t0: float = 0.0, params: Mapping | None = None, solver=None,
@@ -198,13 +208,15 @@ class MinimalSimulation(_Base):
                                 progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                 options=options)
 
-    @staticmethod
-    def check_events(events) -> None:
-        """Raise unless ``events`` (of simulate or ensemble) asks for nothing: minimal coordinates
-        have no events (their plain CVODE driver has no root finding)."""
-        if events is not None and events is not False:
-            raise LagcodegenError(f"events={events!r:.60}: minimal coordinates have no events (compile with "
-                                  "formulation 'index1' or 'ggl')")
+    def check_events(self, events) -> bool:
+        """Whether a run locates the compiled events (``events`` of simulate or ensemble: None or
+        True, the compiled ones; False, none); anything else raises."""
+        if events is None or events is True:
+            return bool(self.events)
+        if events is False:
+            return False
+        raise LagcodegenError(f"events={events!r:.60}: the events of a constrained system are compiled in "
+                              "(compile_constrained(events=...)); events= of a run is True or False")
 
     def __reduce__(self):
         """Pickled by its constructor's arguments (the branches are compiled again, from the cache)."""

@@ -223,8 +223,11 @@ class CompiledModel(CompiledReprMixin):
         rtol, atol:
             Tolerances (``atol`` a scalar or one value per state).
         events:
-            Taylor only: :class:`~lagcodegen.model.events.Event` items (expressions in q, q', t
-            and the parameters) located by root finding on each step's polynomial.
+            :class:`~lagcodegen.model.events.Event` items (name, expression in q, q', z, t, the
+            parameters and the names of the scene's outputs, direction, terminal), located on
+            every family: CVODE's root finding on their compiled functions (native and
+            scikit-sundae), the Taylor method on each step's polynomial. Found in ``Result.events``
+            (time, state, direction); a terminal event ends the run with its state as the last row.
         raise_on_error:
             Raise :class:`SolverError` on failure (default); otherwise return the partial result
             with a negative ``status``.

@@ -40,8 +40,11 @@ def _columns(save, state_cols: list, output_names: list, extra: dict) -> tuple[l
 def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P: np.ndarray, nrow: int,
                nout: int, state_names: list, output_names: list, row_names: list, save, threads,
                progress, poll, YP0=None, events=None, max_events: int = 64, extra_outputs=None,
-               method: str = "", formulation: str = "", n_coordinates=None, param_names=()) -> EnsembleResult:
-    """One call of a driver's solve-many function ``fn`` over the members Y0 (N, *), P."""
+               method: str = "", formulation: str = "", n_coordinates=None, param_names=(),
+               roots=None) -> EnsembleResult:
+    """One call of a driver's solve-many function ``fn`` over the members Y0 (N, *), P; ``roots``:
+    the event functions of an ODE ensemble (an ``lcg_ode_roots *``) with ``events`` their
+    directions and terminal flags."""
     n_mem, nt = Y0.shape[0], t.shape[0]
     extra_outputs = extra_outputs or {}
     names, cols = _columns(save, row_names, output_names, extra_outputs)
@@ -93,6 +96,8 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
         e.max_events = max_events
         e.rootdir = buf("int[]", rootdir)
         e.terminal = buf("int[]", terminal)
+    if roots is not None:
+        e.roots = roots
     bar = Progress(n_mem, show=progress)
     handle = ffi.new_handle(bar)
     if poll != ffi.NULL:

@@ -22,7 +22,10 @@ from .ida.native import ALGEBRAIC_ATOL
 
 
 def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                    min_step, max_order) -> Result:
+                    min_step, max_order, events=None) -> Result:
+    """An ODE run of ``cm`` on scikit-sundae's CVODE; ``events``
+    (:class:`~lagcodegen.solvers.cvode.events.CompiledEvents`): its ``eventsfn`` on the same
+    compiled event functions as the native driver's root finding."""
     from sksundae.cvode import CVODE
 
     ffi, ny = cm.ffi, cm.ny
@@ -55,7 +58,9 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
         options["max_order"] = max_order
     if jacobian:
         options["jacfn"] = jacfn
-    soln = _budgeted_solve(CVODE(rhsfn, **options), t, (y0,), max_steps)
+    if events is not None:
+        options.update(_ode_events(events, p))
+    soln = _budgeted_solve(CVODE(rhsfn, **options), t, (y0,), max_steps, options.get("eventsfn"))
     done = len(soln.t)
     y = np.asarray(soln.y, dtype=float).reshape(done, ny)
     outs = np.full((done, cm.code.nout), np.nan)
@@ -84,10 +89,55 @@ def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_
         status = status if status < 0 else -3
         text = message(status, state["model_error"], text, t=state["t"] if state["model_error"] else None)
         stats["t_reached"] = state["t"] if state["model_error"] else soln.t_reached
-    return Result(t=np.asarray(soln.t, dtype=float), y=y, state_names=list(cm.state_names),
-                  outputs={k: outs[:, i] for i, k in enumerate(cm.output_names)}, stats=stats,
-                  status=status if status < 0 else 0, message=text if status < 0 else "success",
-                  backend="sksundae", method=method)
+    res = Result(t=np.asarray(soln.t, dtype=float), y=y, state_names=list(cm.state_names),
+                 outputs={k: outs[:, i] for i, k in enumerate(cm.output_names)}, stats=stats,
+                 status=status if status < 0 else 0, message=text if status < 0 else "success",
+                 backend="sksundae", method=method)
+    if events is not None:
+        res.events = _event_records(soln, events.events, ny, cm.state_names, float(t[0]), float(t[-1]))
+        res.stats["events"] = len(res.events)
+    return res
+
+
+def _ode_events(events, p) -> dict:
+    """scikit-sundae's ``eventsfn`` on the compiled event functions of an ODE run (``events``:
+    :class:`~lagcodegen.solvers.cvode.events.CompiledEvents`); a value that is not finite is NaN."""
+    p = np.ascontiguousarray(p, dtype=float)
+
+    def eventsfn(tt, y, out):
+        try:
+            out[:] = events.values(tt, y, p)
+        except LagcodegenError:
+            out[:] = np.nan
+
+    eventsfn.terminal = [bool(e.terminal) for e in events.events]
+    eventsfn.direction = [int(e.direction) for e in events.events]
+    return {"eventsfn": eventsfn, "num_events": len(events.events)}
+
+
+def _event_records(soln, evs, ny: int, state_names, t0: float, t_end: float) -> list[EventRecord]:
+    """The EventRecords of a scikit-sundae solution; roots within rounding of the start ``t0`` (a
+    run restarted from an event's state) are left out, as the native driver does, and so are the
+    repeats of a root that the interpolating calls at output times report again."""
+    recs = []
+    if getattr(soln, "t_events", None) is None:
+        return recs
+    eps = np.finfo(float).eps
+    last: dict = {}
+    for k, te in enumerate(np.atleast_1d(soln.t_events)):
+        te = float(te)
+        if te - t0 <= 100 * eps * (abs(t0) + abs(t_end - t0)):
+            continue
+        info = np.atleast_2d(soln.i_events)[k]
+        yk = np.atleast_2d(soln.y_events)[k]
+        for i in np.flatnonzero(info):
+            if i in last and abs(te - last[i]) <= 1000 * eps * (abs(te) + abs(t_end - t0)):
+                continue  # the same root, located again (CVODE's root tolerance is 100 eps (|t| + |h|))
+            last[i] = te
+            ev = evs[i]
+            recs.append(EventRecord(ev.name, int(i), float(te), np.array(yk[:ny], dtype=float),
+                                    int(np.sign(info[i])), ev.terminal, list(state_names)))
+    return recs
 
 
 def _budgeted_solve(solver, t, initial: tuple, max_steps: int, eventsfn=None) -> SimpleNamespace:

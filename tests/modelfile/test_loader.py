@@ -736,7 +736,8 @@ def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
      "events[0].name", "inequality"),
     (CBASE + '\n[[events]]\nexpr = "y"\n', N_CBASE + 2, "events[0]", "'name'"),
     (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\ndir = 1\n', N_CBASE + 5, "events[0].dir", "'dir'"),
-    (BASE + '\n[[events]]\nname = "e"\nexpr = "theta"\n', N_BASE + 2, "events[0]", "[constraints]"),
+    (BASE + '\n[[events]]\nname = "e"\nexpr = "thetta"\n', N_BASE + 4, "events[0].expr", "'thetta'"),
+    (BASE + '\n[[events]]\nname = "e"\nexpr = "theta"\ndirection = -2\n', N_BASE + 5, "events[0].direction", "-2"),
     # [simulation]: formulation and its options
     (CBASE + '\n[simulation]\nformulation = "index2"\n', N_CBASE + 3, "simulation.formulation", "'index2'"),
     (CBASE + '\n[simulation]\nformulation = 1\n', N_CBASE + 3, "simulation.formulation", "integer"),
@@ -755,8 +756,6 @@ def test_model_file_simulate_leaves_the_sphere_at_two_thirds():
     (CBASE + '\n[simulation]\nformulation = "minimal"\noutputs = ["energy", "lambda"]\n', N_CBASE + 4,
      "simulation.outputs[1]", "'lambda'"),
     (CBASE + '\n[simulation]\noutputs = ["lambda_1"]\n', N_CBASE + 3, "simulation.outputs[0]", "'lambda_1'"),
-    (CBASE + '\n[[events]]\nname = "e"\nexpr = "y"\n\n[simulation]\nformulation = "minimal"\n', N_CBASE + 7,
-     "simulation.formulation", "minimal"),
     # the multipliers' names are reserved
     (CBASE.replace("m = 1.0", "m = 1.0\nlambda_0 = 2"), 9, "parameters.lambda_0", "'lambda_0'"),
 ])
@@ -820,3 +819,66 @@ def test_messages_show_a_bounded_excerpt_of_a_long_input():
     assert "...'" in str(info.value) and "zeta" in str(info.value) and len(str(info.value)) < 300
     # short inputs: the message as before
     assert "unknown name 'zeta' in 'theta*zeta'" in str(load_error(BASE.replace('mass = "m"', 'mass = "theta*zeta"')))
+
+
+# ============================================================================ events of every kind of file
+def test_events_of_a_plain_file_are_located_on_cvode_and_taylor():
+    """A pendulum file with [[events]] (no constraints): theta = 0 decreasing at T/4, 5T/4, ...
+    (T = 4 K(k) sqrt(l/g), k = sin(theta0/2)); an event on an output name (the bob's height)."""
+    from scipy.special import ellipk
+    mf = loads_model(BASE + """
+[outputs]
+height = "l - l*cos(theta)"
+
+[[events]]
+name = "down"
+expr = "theta"
+direction = -1
+terminal = false
+
+[[events]]
+name = "low"
+expr = "bob_y + 0.5*l"
+direction = 1
+terminal = false
+
+[simulation]
+t_end = 10.0
+rtol = 1e-12
+atol = 1e-14
+initial = { theta = 2.0 }
+outputs = ["height"]
+""")
+    assert mf.constrained is None and [e.name for e in mf.events] == ["down", "low"]
+    T = 4 * ellipk(np.sin(1.0) ** 2) * np.sqrt(1.0 / 9.81)
+    cm = lagcodegen.compile_file(mf)
+    for method in ("adams", "taylor"):
+        res = mf.simulate(cm, method=method)
+        down = np.array([e.t for e in res.events if e.name == "down"])
+        expect = T / 4 + T * np.arange(len(down))
+        assert len(down) == int((10.0 - T / 4) // T) + 1 and np.abs(down - expect).max() < 1e-9 * expect.max()
+        low = [e for e in res.events if e.name == "low"]  # cos(theta) = 1/2 while rising
+        assert low and all(abs(np.cos(e.q["theta"]) - 0.5) < 1e-9 and e.direction == 1 for e in low)
+    with pytest.raises(ModelFileError, match="events\\[0\\].expr.*'heigth'"):
+        loads_model(BASE + '\n[[events]]\nname = "e"\nexpr = "heigth"\n')
+
+
+def test_events_and_inequalities_of_a_file_in_minimal_coordinates():
+    mf = loads_model(CBASE.replace('holonomic = ["x**2 + y**2 - l**2"]',
+                                   'holonomic = ["x**2 + y**2 - l**2"]\ninequalities = ["x + 0.35*l"]') + """
+[[events]]
+name = "cross"
+expr = "x"
+terminal = false
+
+[simulation]
+formulation = "minimal"
+t_end = 3.0
+initial = { x = 0.4, y = -0.916515138991168 }
+""")
+    sim = lagcodegen.compile_file(mf)
+    res = mf.simulate(sim)  # x: 0.4 -> 0 (cross) -> -0.35 (the inequality ends the run) -> -0.4
+    assert res.formulation == "minimal" and [e.name for e in res.events] == ["cross", "ineq_0"]
+    cross, stop = res.events
+    assert abs(cross.q["x"]) < 1e-7 and not cross.terminal
+    assert stop.terminal and abs(stop.q["x"] + 0.35) < 1e-7 and res.t[-1] == stop.t < 3.0

@@ -9,9 +9,13 @@ from ..base import METHODS, native_options, tolerances
 from ..ensemble_run import event_arrays, run_native
 
 
-def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, threads, save, progress):
+def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, threads, save, progress, events=None,
+                 max_events: int = 64):
     """The members (rows of Y, P) of the ODE of ``cm``; ``opts`` the resolved driver options
-    (:meth:`CVODE._ode_options <lagcodegen.solvers.cvode.CVODE>`)."""
+    (:meth:`CVODE._ode_options <lagcodegen.solvers.cvode.CVODE>`); ``events``
+    (:class:`~.events.CompiledEvents`) located in every member (its stats ``events`` and
+    ``terminated``; a terminal event's time and state are the member's ``t_reached`` and final
+    state)."""
     rtol, atol_arr = tolerances(rtol, atol, cm.ny)
     band = opts.get("band")
     keep: list = []
@@ -25,7 +29,9 @@ def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, thread
     return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, t=t, Y0=Y, P=P,
                       nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
                       row_names=cm.state_names, save=save, threads=threads, progress=progress, poll=cm.poll,
-                      method=opts["method"], n_coordinates=cm.n, param_names=cm.param_names)
+                      method=opts["method"], n_coordinates=cm.n, param_names=cm.param_names,
+                      events=None if events is None else (events.directions, events.terminal),
+                      max_events=max_events, roots=None if events is None else events.table)
 
 
 def ensemble_index1(sim, t, Y, P, rtol, atol, family, method: str, projection: bool, alpha: float, beta: float,

@@ -17,8 +17,8 @@ from ...errors import LagcodegenError
 from ...formulation.scene import band_order
 from ...formulation.scene import bandwidths as widths
 from ...result import Result
-from ..base import (METHODS, SINGULAR_AUGMENTED, message, native_options, native_stats, pooled_stats,
-                   reached_rows)
+from ..base import (METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats,
+                   pooled_stats, reached_rows)
 from ..control import CANCELLED, POLL_EVERY, raise_pending
 
 
@@ -58,9 +58,11 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0) -> Result:
+                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, events=None,
+                 max_events: int = 10_000) -> Result:
     """An ODE run of a compiled scene: one call of the native driver (``lcg_cvode_solve``) over all
-    output times."""
+    output times; with ``events`` (:class:`~.events.CompiledEvents`), ``lcg_cvode_solve_events``
+    locates them (CVODE's root finding; a terminal event's state is the run's last row)."""
     ffi = cm.ffi
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
@@ -75,8 +77,15 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     opt.poll_every = POLL_EVERY
     opt.max_wall = max_wall
     st = ffi.new(cm.stats_type)
-    flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
-                           ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
+    found = None
+    if events is not None:
+        found = NativeEvents(ffi, "lcg_events", events.events, cm.ny, max_events)
+        flag = cm.lib.lcg_cvode_solve_events(cm.table, events.table, cm.c_params(p), ffi.from_buffer("double[]", y0),
+                                             nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
+                                             ffi.from_buffer("double[]", out), opt, st, found.struct)
+    else:
+        flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
+                               ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
@@ -87,10 +96,30 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     if flag == TOO_MUCH_WORK and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
         text = (f"the step size fell below the resolution of t at t = {st.t_reached:.17g} (is the solution "
                 f"singular there?); {text}")
-    return Result(t=t, y=yout, state_names=list(cm.state_names),
-                  outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
-                  stats=native_stats(ffi, st), status=int(flag), message=text,
-                  backend="native", method=method)
+    res = Result(t=t, y=yout, state_names=list(cm.state_names),
+                 outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
+                 stats=native_stats(ffi, st), status=int(flag), message=text,
+                 backend="native", method=method)
+    if found is not None:
+        res.events = found.records(cm.state_names, cm.ny)
+        res.stats["events"] = int(found.struct.n_events)
+        if found.terminated and res.events:
+            add_event_row(cm, res, res.events[-1], p)
+    return res
+
+
+def add_event_row(cm, res: Result, rec, p) -> None:
+    """The state of the terminal event ``rec`` that ended an ODE run appended to ``res`` as its last
+    row, with its outputs (NaN where they are not finite), as the Taylor driver's runs have it."""
+    if res.t.size and rec.t <= res.t[-1]:
+        return
+    try:
+        o = cm.outputs(rec.t, rec.y, p)
+    except LagcodegenError:
+        o = np.full(len(res.outputs), np.nan)
+    res.t = np.append(res.t, rec.t)
+    res.y = np.vstack([res.y, np.asarray(rec.y, dtype=float)[None, :]])
+    res.outputs = {name: np.append(v, o[i]) for i, (name, v) in enumerate(res.outputs.items())}
 
 
 #: The fields of the index-1 driver's options that vary between runs and their pack format

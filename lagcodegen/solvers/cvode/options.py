@@ -15,6 +15,7 @@ from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerance
 from ..family import Family, choice
 from . import ensemble, native
 from .stepper import CVCStepper, CVODEStepper
+from .events import compiled_events
 
 BACKENDS = ("native", "sksundae")
 
@@ -41,7 +42,7 @@ class CVODE(Family):
     faces = ("ode", "index1")
     only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
             "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
-            "max_events": ("index1",)}
+            "max_events": ("index1", "ode")}
 
     method: str | None = None
     backend: str = "native"
@@ -95,20 +96,26 @@ class CVODE(Family):
         return opts
 
     def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
-        """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values)."""
-        if events:
-            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
-                                  "a plain scene has no root finding; constrained systems have events on CVODE "
-                                  "and IDA)")
+        """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values);
+        ``events`` located by CVODE's root finding on their compiled functions
+        (:func:`.events.compiled_events`)."""
+        compiled = compiled_events(cm, events)
+        if compiled is not None:  # a value that is not finite at the start: named here
+            compiled.values(float(t[0]), y, p)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
         if self.backend == "native":
             if not cm.native:
                 raise LagcodegenError("this module was built without the native driver (build(native=False))")
-            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
+            if compiled is not None and compiled.table is None:
+                raise LagcodegenError("events on the native CVODE driver need a model built for the runtime "
+                                      "(build(code, native=True) of plain C code)")
+            max_events = 10_000 if self.max_events is None else self.max_events
+            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall),
+                                       events=compiled, max_events=max_events, **opts)
         from ..sksundae import solve_sksundae
-        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, **opts)
+        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, events=compiled, **opts)
         # its outputs are evaluated after the run, where nothing fails: check the first row
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
@@ -118,21 +125,24 @@ class CVODE(Family):
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
         the face): CVODE memory made once (:mod:`.stepper`); ``max_steps`` is the budget of one call."""
         if events:
-            raise LagcodegenError("events on an unconstrained model need method='taylor' (the CVODE driver of "
-                                  "a plain scene has no root finding)")
+            raise LagcodegenError("the CVODE integrator object of an unconstrained model does not locate events "
+                                  "yet: use method='taylor', or simulate(..., events=...) on CVODE")
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
         opts = self._ode_options(cm, mem[1:1 + cm.ny], mem[1 + cm.ny:], True)
         return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
 
-    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
-        """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver."""
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
+        """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
+        located in each member (:func:`.events.compiled_events`)."""
         self._native_only()
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
+        compiled = compiled_events(cm, events)
         opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
+        max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
-                                     save=save, progress=progress)
+                                     save=save, progress=progress, events=compiled, max_events=max_events)
 
     # ------------------------------------------------------------------ index-1 constrained systems
     def index1_settings(self, sim, t0: float, y0, p, native_backend: bool = True):

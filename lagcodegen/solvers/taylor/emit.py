@@ -31,7 +31,8 @@ from ...runtime import source as runtime_file
 from ...runtime import sources as runtime_files
 from ...formulation.kernels import Block, substituter
 from ...formulation.scene import Scene
-from ...model.events import Event, event_list
+from ...formulation.events import scene_events
+from ...model.events import Event
 from ...version import __version__
 # ------------------------------------------------------------------------------------------
 from .decompose import Const, Decomposition, decompose
@@ -98,8 +99,9 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
 
 def check_events(scene: Scene, events=()) -> list[Event]:
     """``events`` as :class:`Event` s whose expressions use only the model's symbols
-    (coordinates, velocities, parameters, t): :func:`lagcodegen.model.events.event_list`."""
-    return event_list(scene.eom, events)
+    (coordinates, velocities, parameters, t) and the names of its outputs:
+    :func:`lagcodegen.formulation.events.scene_events`, as on CVODE."""
+    return scene_events(scene, events)
 
 
 def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None = None, *,
