@@ -12,7 +12,7 @@ import pytest
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.api import compile_constrained
+from lagcodegen.api import compile_constrained, compile_file
 from lagcodegen.derivation import derive
 from lagcodegen.errors import LagcodegenError, ModelError
 
@@ -233,3 +233,23 @@ def test_plain_inequality_keeps_its_terminal_event():
     assert res.impacts is None
     assert res.events[-1].name == "ineq_0"
     assert res.events[-1].t == pytest.approx(math.sqrt(2 / G), rel=1e-10)
+
+
+def test_model_file_contact_runs_like_the_python_system():
+    from pathlib import Path
+
+    from lagcodegen.modelfile import ModelFileError, load_model, loads_model
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml"
+    mf = load_model(path)
+    assert mf.constrained.restitution == [0.8]
+    res = mf.simulate(compile_file(mf))
+    t1 = math.sqrt(2 / G)
+    first = [r.t for r in res.impacts.select("bounce")][:3]
+    exact = [t1 + 2 * t1 * 0.8 * (1 - 0.8**k) / 0.2 for k in range(3)]
+    assert np.max(np.abs(np.array(first) / exact - 1)) < 1e-9
+    assert res["lambda_ineq_0"][-1] == pytest.approx(G, rel=1e-9)
+    with pytest.raises(ModelFileError, match="restitution"):
+        loads_model(path.read_text().replace("restitution = 0.8", "restitution = 1.8"))
+    with pytest.raises(ModelFileError, match="unknown key"):
+        loads_model(path.read_text().replace("restitution = 0.8", "restituion = 0.8"))
