@@ -160,6 +160,48 @@ def test_rocking_block_impact_ratio_on_a_frictionless_floor():
     assert first.impulse == pytest.approx(-b * (w_plus + w_minus), rel=1e-6)
 
 
+def test_housner_rocking_block_on_no_slip_corners():
+    # Rough corners (Inequality(..., tangent=x of the corner): no slip while touching): the block
+    # pivots on one corner; at phi = 0 the other corner hits plastically (the first one's impulse
+    # would pull: released), and the angular momentum about the new corner is kept:
+    # w+/w- = 1 - 2 m R^2 sin^2 a / I_0 = 1 - 1.5 sin^2 a with I_0 = (4/3) m R^2 (Housner 1963)
+    b, h, phi0 = 0.2, 0.6, 0.1
+    m = lcg.Model("housner")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(m=1.0, b=b, h=h, g=G)
+    mass, B, H = sp.symbols("m b h")
+    m.planar_body("block", mass, mass * (B**2 + H**2) / 3, (x, y), phi)
+    m.gravity(sp.Symbol("g"))
+    corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
+               (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
+                                                    for cx, cy in corners])
+    sim = compile_constrained(system, "index1", outputs=["energy"])
+    # leaning on the left corner, which stays at x = -b
+    q0 = [-b + b * math.cos(phi0) - h * math.sin(phi0), h * math.cos(phi0) + b * math.sin(phi0), phi0]
+    res = sim.simulate(np.linspace(0, 1.0, 101), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    sticks = res.impacts.select("stick")
+    assert [r.contact for r in sticks[:2]] == [1, 0]
+    t_hit = sticks[0].t
+    assert [(r.contact, r.kind) for r in res.impacts if r.t == t_hit] == [(0, "release"), (1, "stick")]
+    # before the impact the left corner does not move: x_L = -b, y_L = 0
+    before = res.t < t_hit
+    xl = res["x"] - b * np.cos(res["phi"]) + h * np.sin(res["phi"])
+    assert np.max(np.abs(xl[before] + b)) < 1e-9
+    # the time to fall back: the pendulum about the corner, I_0 phi'' = m g R sin(a - phi), from rest
+    R, a = math.hypot(b, h), math.atan2(b, h)
+    I0 = 4 / 3 * R**2
+    from scipy.integrate import quad
+    fall = quad(lambda p: 1 / math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a - p)) / I0), 0, phi0,
+                limit=200)[0]
+    assert t_hit == pytest.approx(fall, rel=1e-7)
+    dt = 1e-9
+    near = sim.simulate(np.array([0.0, t_hit - dt, t_hit + dt]), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    w_minus, w_plus = near["phi_dot"][1], near["phi_dot"][2]
+    assert w_minus == pytest.approx(-math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a)) / I0), rel=1e-7)
+    assert w_plus / w_minus == pytest.approx(1 - 1.5 * math.sin(a) ** 2, rel=1e-7)
+
+
 def test_double_pendulum_hitting_a_wall_loses_1_minus_e2_of_its_normal_approach_energy():
     m = lcg.Model("dpwall")
     th1, th2 = m.coordinates("th1 th2")

@@ -462,7 +462,7 @@ def c_header(driver: Driver, version: str) -> str:
 #: <prefix>_impact.c): the contacts' gaps, the index-1 right-hand side with the persistent
 #: contacts held, the impact; read by the impact driver (lcg_imp.c).
 IMP_TABLE = Struct("lcg_imp_model", (
-    *(Field(n, "int") for n in ("abi", "nq", "nj", "nk")),
+    *(Field(n, "int") for n in ("abi", "nq", "nj", "nk", "nrow")),
     _fn("gaps", "double t, const double *y, const double *p, double *g, double *w"),
     _fn("crhs", "double t, const double *y, const double *p, double alpha, double beta, const int *active, "
                 "double *ydot, double *lam"),

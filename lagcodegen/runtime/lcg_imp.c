@@ -139,7 +139,7 @@ static int impact(imp_data *d, double t, double *y, const int *hit, const double
 {
     const lcg_imp_model *im = d->im;
     int nk = im->nk, nj = im->nj, ny = 2 * im->nq, k, rc, iter, changed = 0;
-    double *eff = s, *wm = eff + nk, *P = wm + nk, *ynew = P + nj + nk, *gk = d->gk, *wk = d->wk;
+    double *eff = s, *wm = eff + nk, *P = wm + nk, *ynew = P + im->nrow, *gk = d->gk, *wk = d->wk;
     double gap_tol = set[2];
     int *plastic = rows + nk;
 
@@ -235,7 +235,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
     *n_rec = 0;
-    if (im == NULL || im->abi != LCG_IMP_MODEL_ABI || im->dae == NULL || im->nk < 1
+    if (im == NULL || im->abi != LCG_IMP_MODEL_ABI || im->dae == NULL || im->nk < 1 || im->nrow < im->nj + im->nk
         || im->dae->abi != LCG_DAE_MODEL_ABI || im->nq != im->dae->nq || im->nj != im->dae->nj) {
         snprintf(st->message, sizeof st->message, "the contact table is unusable (lcg_imp_model version %d, "
                      "this driver reads version %d)", im != NULL ? im->abi : -1, LCG_IMP_MODEL_ABI);
@@ -252,9 +252,9 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         ev->n_events = 0;
         ev->terminated = 0;
     }
-    /* doubles: lam[nr], gk[nk], wk[nk], ydot scratch[ny], last[nk], impact scratch
-     * (eff[nk], wm[nk], P[nr], ynew[ny]); ints: info[nall], hit[nk], dirs[nall], rows[2 nk] */
-    buf = (double *)malloc(sizeof(double) * (size_t)(nr + 3 * nk + ny + 2 * nk + nr + ny + nk));
+    /* doubles: lam[nrow], gk[nk], wk[nk], ydot scratch[ny], last[nk], impact scratch
+     * (eff[nk], wm[nk], P[nrow], ynew[ny]); ints: info[nall], hit[nk], dirs[nall], rows[2 nk] */
+    buf = (double *)malloc(sizeof(double) * (size_t)(im->nrow + 3 * nk + ny + 2 * nk + im->nrow + ny + nk));
     ibuf = (int *)malloc(sizeof(int) * (size_t)(2 * nall + 3 * nk));
     if (buf == NULL || ibuf == NULL) {
         free(buf);
@@ -262,8 +262,8 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         snprintf(st->message, sizeof st->message, "out of memory");
         return st->flag = LCG_FLAG_NOMEM;
     }
-    data.lam = buf;
-    data.gk = data.lam + nr;
+    data.lam = buf; /* nrow multipliers; the first nr (equality rows, contacts) are reported */
+    data.gk = data.lam + im->nrow;
     data.wk = data.gk + nk;
     ydot = data.wk + nk; /* = gk + 2 nk, as roots() expects */
     last = ydot + ny;

@@ -73,13 +73,22 @@ class Inequality:
     q'+ = q'- + M^-1 A^T P with A q'+ + A0 = -e (A q'- + A0) (Newton's law), P >= 0 the impulse
     (the notes' Lambda = -P in q'+ = q'- - M^-1 A^T Lambda). ``restitution=None`` keeps the
     meaning of a plain expression: the terminal event ``ineq_<k>`` where g reaches 0.
+
+    ``tangent`` (optional, with a restitution): a rough contact that does not slip. While the
+    contact touches (in an impact and in persistent contact) the velocity of the expression
+    ``tangent(q, t)`` (e.g. the horizontal position of the touching point) is held at zero too:
+    a second row T = d tangent/dq with its own impulse and multiplier (unbounded friction; the
+    contact is released by its normal multiplier only). Without it contacts are frictionless.
     """
 
     expr: object
     restitution: float | None = None
+    tangent: object = None
 
     def __post_init__(self):
         e = self.restitution
+        if self.tangent is not None and e is None:
+            raise ModelError(f"Inequality({self.expr!r}): a tangent (no-slip contact) needs a restitution")
         if e is None:
             return
         if isinstance(e, bool) or not isinstance(e, (int, float, np.floating, np.integer)):
@@ -262,12 +271,18 @@ class ConstrainedSystem:
         self.inequalities: list[sp.Expr] = []
         #: per inequality: its coefficient of restitution, or None (a monitored inequality)
         self.restitution: list[float | None] = []
+        #: per inequality: the no-slip tangent expression of a rough contact, or None
+        self.tangents: list[sp.Expr | None] = []
         for k, g in enumerate(inequalities):
             what = f"inequality constraint {k}"
-            e = None
+            e = tangent = None
             if isinstance(g, Inequality):
-                g, e = g.expr, g.restitution
+                g, e, tangent = g.expr, g.restitution, g.tangent
             self.restitution.append(e)
+            if tangent is not None:
+                tangent = _expr(tangent, f"{what}, tangent")
+                model.check_symbols(tangent, f"{what}, tangent", allow_speeds=False)
+            self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
             self.inequalities.append(g)
