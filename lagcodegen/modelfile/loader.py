@@ -370,18 +370,23 @@ class _Loader(_Reader):
 
     def load_inequality(self, path: list[_Key], value: object):
         """An inequality g(q, t) >= 0: an expression (monitored: the terminal event ineq_<k>) or a
-        contact ``{ expr = "...", restitution = e }`` (impacts with Newton's law, 0 <= e <= 1)."""
+        contact ``{ expr = "...", restitution = e }`` (impacts with Newton's law, 0 <= e <= 1;
+        ``tangent = "..."``: no slip along that expression while touching)."""
         if not isinstance(value, dict):
             return self.expr(path, value)
-        self.fields(path, value, required=("expr",), optional=("restitution",))
+        self.fields(path, value, required=("expr",), optional=("restitution", "tangent"))
         expr = self.expr([*path, "expr"], value["expr"])
         e = value.get("restitution")
+        tangent = self.expr([*path, "tangent"], value["tangent"]) if "tangent" in value else None
         if e is None:
+            if tangent is not None:
+                raise self.error([*path, "tangent"], "a tangent (no-slip contact) needs a restitution",
+                                 token="tangent")
             return Inequality(expr)
         if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0 <= e <= 1:
             raise self.error([*path, "restitution"], f"must be a number in [0, 1] (Newton's law w+ = -e w-), got "
                              f"{excerpt(e)}", token=repr(e))
-        return Inequality(expr, restitution=float(e))
+        return Inequality(expr, restitution=float(e), tangent=tangent)
 
     def load_pfaffian(self, path: list[_Key], entry: dict) -> tuple[tuple, sp.Expr]:
         """A nonholonomic constraint: ``{A = [...], A0 = ...}`` or ``{coefficients = {q = ...}, A0 = ...}``."""
