@@ -29,6 +29,7 @@ t1 = math.sqrt(2 * h0 / g)
 bounces = res.impacts.select("bounce")
 print(f"{len(bounces)} bounces, then persistent contact at t = {res.impacts.select('stick')[0].t:.7f} "
       f"(accumulation time t1 (1 + e)/(1 - e) = {t1 * (1 + e) / (1 - e):.7f})")
+print(f"accumulation time extrapolated from the impacts: {res.impacts.accumulation_time(0):.10f}")
 worst = max(abs(r.t / (t1 + 2 * t1 * e * (1 - e**k) / (1 - e)) - 1) for k, r in enumerate(bounces[:20]))
 print(f"impact times, first 20: largest relative error {worst:.1e}")
 apex = [r.w_after**2 / (2 * g) for r in bounces[:5]]

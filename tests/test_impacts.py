@@ -64,6 +64,7 @@ def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
     assert len(sticks) == 1
     assert t_zeno - 2 * (speed / e) / (G * (1 - e)) - 1e-9 <= sticks[0].t <= t_zeno + 1e-9
     assert res.impacts.final_modes == {0: "contact"}
+    assert res.impacts.accumulation_time(0) == pytest.approx(t_zeno, rel=1e-9)
     # resting: y = 0, the multiplier m g (A = dy/dy = 1, lambda A = m g up)
     after = res.t > t_zeno + 1e-3
     assert np.max(np.abs(res["lambda_ineq_0"][after] - G)) < 1e-9
@@ -89,6 +90,33 @@ def test_ball_released_when_the_floor_would_pull():
     releases = res.impacts.select("release")
     assert releases, res.impacts.records
     assert releases[0].t == pytest.approx((G + 1) / 20, rel=1e-8)
+
+
+def test_particle_leaves_the_sphere_in_the_same_run():
+    # the sphere x^2 + y^2 >= R^2 as a contact: the particle starts on top at rest relative to
+    # it (persistent contact, multiplier > 0), is released where the multiplier turns negative,
+    # at cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on in the same call
+    m = lcg.Model("sphere_contact")
+    x, y = m.coordinates("x y")
+    m.parameters(R=1.0, g=G, m=1.0)
+    m.particle("p", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    contact = lcg.Inequality(x**2 + y**2 - sp.Symbol("R") ** 2, restitution=0.0)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    v0 = 1e-3
+    res = sim.simulate(np.linspace(0, 3.2, 321), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert [r.kind for r in res.impacts] == ["release"]
+    t_off = res.impacts[0].t
+    at = sim.simulate(np.array([0.0, t_off]), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert at["y"][-1] == pytest.approx((2 + v0**2 / G) / 3, rel=1e-8)
+    assert np.all(res["lambda_ineq_0"][res.t > t_off] == 0.0)
+    assert np.all(res["lambda_ineq_0"][res.t < t_off] > 0.0)
+    assert np.max(np.abs(res["energy"] - res["energy"][0])) < 1e-8
+    # free flight after leaving: a parabola from the release state
+    tau = res.t[res.t > t_off + 0.1] - t_off
+    yq = at["y"][-1] + at["y_dot"][-1] * tau - G / 2 * tau**2
+    assert np.max(np.abs(res["y"][res.t > t_off + 0.1] - yq)) < 1e-7
+    assert res.impacts.final_modes == {0: "free"}
 
 
 def test_newtons_cradle_passes_the_velocity_to_the_last_ball():

@@ -35,8 +35,19 @@ starts in persistent contact if its multiplier is positive there.
 
 **Result.** ``Result.impacts`` (:class:`ContactLog`) lists every impact, switch to persistent
 contact and release with its time, contact, kind, impulse and normal velocities before and
-after; ``Result.outputs["lambda_ineq_<k>"]`` is the multiplier of contact k at the output times
-(0 while free).
+after, the final modes, and the accumulation (Zeno) time extrapolated from the impacts
+(:meth:`ContactLog.accumulation_time`); ``Result.outputs["lambda_ineq_<k>"]`` is the multiplier
+of contact k at the output times (0 while free).
+
+**No slip.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent`` is a
+rough contact: its tangential row d tangent/dq is held with it (in impacts: tangential velocity
+to zero; in persistent contact: a multiplier of either sign, unbounded friction), e.g. the corners
+of Housner's rocking block. Active rows that are dependent (a block resting flat on two no-slip
+corners) are solved with a small regularization of the multiplier block (see the generated
+``solve_active``).
+
+Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
+projection, ensembles, Fortran model code.
 """
 
 from __future__ import annotations
@@ -134,6 +145,29 @@ class ContactLog:
     def times(self) -> np.ndarray:
         """Times of the impacts (bounces and switches into persistent contact)."""
         return np.array([r.t for r in self.records if r.kind in ("bounce", "stick")])
+
+    def accumulation_time(self, contact: int, *, resolved: float = 1e-4) -> float | None:
+        """Where the impacts of ``contact`` accumulate (Zeno), extrapolated from three consecutive
+        impacts as a geometric sequence of flight times: t_inf = t_n + d_n r / (1 - r) with
+        d_n = t_n - t_(n-1), r = d_n / d_(n-1) (exact for a ball on a flat floor, where r = e).
+        The last three impacts whose flights are at least ``resolved`` times the first flight
+        are used: the last impacts, slower than the tolerances resolve, locate their roots only
+        to about atol / speed. None with fewer than three such impacts or flights that do not
+        shrink."""
+        times = [r.t for r in self.records if r.contact == contact and r.kind in ("bounce", "stick")]
+        if len(times) < 3:
+            return None
+        first = times[1] - times[0]
+        n = len(times) - 1
+        while n >= 2 and not (times[n] - times[n - 1] >= resolved * first):
+            n -= 1
+        if n < 2:
+            return None
+        d1, d2 = times[n - 1] - times[n - 2], times[n] - times[n - 1]
+        if not (0 < d2 < d1):
+            return None
+        ratio = d2 / d1
+        return times[n] + d2 * ratio / (1 - ratio)
 
     @property
     def impulses(self) -> np.ndarray:
