@@ -140,7 +140,9 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         Default for projection onto the constraints after each CVODE step (index-1 only).
     events:
         :class:`~lagcodegen.model.events.Event` items (name, expression, direction, terminal); the
-        expressions may use ``lambda_<j>``. Inequality constraints are added as events.
+        expressions may use ``lambda_<j>``. Inequality constraints are added as events; contacts
+        (:class:`~lagcodegen.theory.constraints.Inequality` with a restitution) are impacts instead
+        (index1 only; :mod:`lagcodegen.simulation.constrained_impacts`).
     jacobian:
         GGL: generate the residual Jacobian dF/dy + cj dF/dy' (else IDA's difference quotients).
     eliminate:
