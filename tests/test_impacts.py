@@ -323,3 +323,25 @@ def test_model_file_contact_runs_like_the_python_system():
         loads_model(path.read_text().replace("restitution = 0.8", "restitution = 1.8"))
     with pytest.raises(ModelFileError, match="unknown key"):
         loads_model(path.read_text().replace("restitution = 0.8", "restituion = 0.8"))
+
+
+def test_generate_and_bundle_of_a_contact_file(tmp_path):
+    from pathlib import Path
+
+    from lagcodegen.api import generate_file
+    from lagcodegen.modelfile import load_model
+
+    mf = load_model(Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml")
+    files = generate_file(mf)
+    assert {"bouncing_ball_impact.c", "bouncing_ball_dae_table.c", "lcg_imp_model.h"} <= set(files)
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    import subprocess
+    for name in ("bouncing_ball_impact.c", "bouncing_ball_dae.c", "bouncing_ball_dae_table.c"):
+        proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", name, "-o",
+                               "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    with pytest.raises(ModelError, match="bundles of systems with contacts"):
+        generate_file(mf, bundle=True)
+    with pytest.raises(ModelError, match="in C only"):
+        generate_file(mf, lang="fortran")
