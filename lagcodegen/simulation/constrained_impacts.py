@@ -67,7 +67,6 @@ from ..errors import LagcodegenError
 from ..result import Result
 from ..runtime import sources as runtime_files
 from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
-from ..version import __version__
 
 #: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...).
 KINDS = ("bounce", "stick", "release", "contact_impulse")
