@@ -73,23 +73,30 @@ def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
 
 
 def test_ball_released_when_the_floor_would_pull():
-    # a floor that accelerates downwards faster than gravity, y >= -a t^2/2 with a > g: the
-    # resting ball leaves it at once when the multiplier turns negative
+    # a moving floor y_f(t) with y_f'' = 1 - 20 t: the ball resting on it is pushed with the
+    # multiplier lambda = m (g + y_f'') = m (g + 1 - 20 t), released where that turns negative,
+    # at t = (g + 1) / 20, then flies freely above the floor (which accelerates downwards
+    # faster than g)
     m = lcg.Model("lift")
     (y,) = m.coordinates("y")
     m.parameters(g=G, m=1.0)
     m.particle("b", sp.Symbol("m"), (0, y))
     m.gravity(sp.Symbol("g"))
     t = m.t
-    # the floor decelerates: y_f = t - t^2 (upwards 1, deceleration 2 < g until t = 0.5): released
-    # where lambda = m (g + y_f'') = m (g - 2) ... stays positive; use y_f'' = -20 after a ramp
-    floor = 0.5 * t**2 - sp.Rational(10, 3) * t**3  # y_f'' = 1 - 20 t: lambda = m (g + 1 - 20 t)
+    floor = 0.5 * t**2 - sp.Rational(10, 3) * t**3
     sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - floor, restitution=0.5)]),
                               "index1")
     res = sim.simulate(np.linspace(0, 0.8, 81), q0=[0.0], v0=[0.0], rtol=1e-11, atol=1e-13)
     releases = res.impacts.select("release")
     assert releases, res.impacts.records
     assert releases[0].t == pytest.approx((G + 1) / 20, rel=1e-8)
+    t_off = releases[0].t
+    before, after = res.t < t_off, res.t > t_off
+    assert np.all(np.abs(res["lambda_ineq_0"][before] - (G + 1 - 20 * res.t[before])) < 1e-8)
+    assert np.all(res["lambda_ineq_0"][after] == 0.0)
+    tt = res.t[after]
+    assert np.all(res["y"][after] > 0.5 * tt**2 - 10 / 3 * tt**3)
+    assert len(res.impacts) == 1
 
 
 def test_particle_leaves_the_sphere_in_the_same_run():
