@@ -140,7 +140,9 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         Default for projection onto the constraints after each CVODE step (index-1 only).
     events:
         :class:`~lagcodegen.model.events.Event` items (name, expression, direction, terminal); the
-        expressions may use ``lambda_<j>``. Inequality constraints are added as events.
+        expressions may use ``lambda_<j>``. Inequality constraints are added as events; contacts
+        (:class:`~lagcodegen.theory.constraints.Inequality` with a restitution) are impacts instead
+        (index1 only; :mod:`lagcodegen.simulation.constrained_impacts`).
     jacobian:
         GGL: generate the residual Jacobian dF/dy + cj dF/dy' (else IDA's difference quotients).
     eliminate:
@@ -290,7 +292,12 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
                                          y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end)
     code, _ = generate_constrained(system, ggl=ggl, ggl_jacobian=s.jacobian, outputs=outputs, events=list(mf.events),
                                    runtime_parameters=runtime, values=folded, prefix=prefix, lang=lang)
-    return {name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_dae.")}
+    files = {name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_dae.")}
+    if system.contacts:  # the contact functions with their table, and what they include and link to
+        files.update({name: text for name, text in _build.dae_table_source(code).items()})
+        files[f"{code.prefix}_impact.c"] = code.files[f"{code.prefix}_impact.c"]
+        files["lcg_imp_model.h"] = code.files["lcg_imp_model.h"]
+    return files
 
 
 def _minimal_scene(mf: ModelFile, outputs: Sequence[str], folded: Mapping[str, float], prefix: str | None,

@@ -37,6 +37,9 @@ class Result:
     events: list = field(default_factory=list)  # events found by root finding (lagcodegen.model.events.EventRecord)
     formulation: str = ""  # constrained systems: "index1", "ggl" or "minimal"
     model_name: str = ""  # the model's name (plot titles), set by the compiled model
+    # constrained systems with contacts: their impacts, switches and releases
+    # (lagcodegen.simulation.constrained_impacts.ContactLog), else None
+    impacts: object = None
     # how the model is drawn (lagcodegen.animation.Drawing, or a callable making one on first use)
     drawing: object = field(default=None, repr=False, compare=False)
 

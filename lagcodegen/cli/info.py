@@ -77,8 +77,11 @@ def _info_constrained(mf, eom, show, simplify: bool) -> None:
         expr = sum((a * v for a, v in zip(row.A, model.speeds)), sp.Integer(0)) + row.A0
         print(show(simp(expr)))
     for k, g in enumerate(system.inequalities):
-        print(f"\ninequality constraint {k} (eq. 4.3): ineq_{k}(q, t) >= 0 (terminal event ineq_{k}, "
-              f"decreasing) with ineq_{k} =")
+        e = system.restitution[k]
+        what = (f"terminal event ineq_{k}, decreasing" if e is None else
+                f"contact: impacts with restitution {e:g}, persistent contact with multiplier lambda_ineq_{k}"
+                + ("" if system.tangents[k] is None else f", no slip along {system.tangents[k]}"))
+        print(f"\ninequality constraint {k} (eq. 4.3): ineq_{k}(q, t) >= 0 ({what}) with ineq_{k} =")
         print(show(simp(g)))
     if system.J:
         coords = ", ".join(q.name for q in model.coords)

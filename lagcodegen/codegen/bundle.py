@@ -210,6 +210,10 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
+    if getattr(system, "contacts", None):
+        raise ModelError("bundles of systems with contacts (Inequality with a restitution) are not made: their "
+                         "impacts need the impact driver of the runtime (compile_constrained runs them); "
+                         "generate gives the model's C with <prefix>_impact.c")
     stab = check_baumgarte(baumgarte, "bundle baumgarte")
     auto = stab == BAUMGARTE_AUTO
     alpha, beta = (-1.0, -1.0) if auto else stab  # negative: the example's "auto"

@@ -17,10 +17,12 @@ from typing import Iterable, Sequence
 
 from ..derivation import derive
 from ..errors import ModelError
-from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, constrained_blocks
+from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, constrained_blocks, impact_blocks
 from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
+from ..runtime import source as runtime_source
 from ..version import __version__
+from .c import print_block
 from .ir import deep_recursion
 from .languages import backend, generate_code
 from .record import DaeLayout
@@ -66,12 +68,33 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
     with deep_recursion():
         files.update(language.constrained_source(cb, ctx))
+    if system.contacts:
+        if lang != "c":
+            raise ModelError(f"inequality constraints with a restitution (contacts) are generated in C only, "
+                             f"not lang={lang!r}")
+        if ggl:
+            raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
+                             "formulation (formulation='index1'), not GGL")
+        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx)
+        files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
     code.dae = DaeLayout(nq=n, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
                          nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian))
     info = ConstrainedCodeInfo(pre, n, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
-                               dict(scene.folded), lang)
+                               dict(scene.folded), lang, tuple(system.contacts))
     return code, info
+
+
+def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
+    """``<prefix>_impact.c`` (templates/c/impact.c.j2): the contact functions and their table
+    ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver."""
+    blocks = impact_blocks(system, scene)
+    contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
+                         + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None else "")
+                         for k in system.contacts)
+    return environment().get_template("c/impact.c.j2").render(
+        **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
+        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"])
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

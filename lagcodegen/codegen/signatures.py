@@ -471,3 +471,15 @@ def c_header(driver: Driver, version: str) -> str:
     parts += [c_struct(s) for s in driver.structs]
     parts.append(f"#endif /* {guard} */\n")
     return "\n\n".join(parts)
+
+#: The contact table of a constrained model with contacts (lagcodegen/runtime/lcg_imp_model.h,
+#: <prefix>_impact.c): the contacts' gaps, the index-1 right-hand side with the persistent
+#: contacts held, the impact; read by the impact driver (lcg_imp.c).
+IMP_TABLE = Struct("lcg_imp_model", (
+    *(Field(n, "int") for n in ("abi", "nq", "nj", "nk", "nrow")),
+    _fn("gaps", "double t, const double *y, const double *p, double *g, double *w"),
+    _fn("crhs", "double t, const double *y, const double *p, double alpha, double beta, const int *active, "
+                "double *ydot, double *lam"),
+    _fn("impact", "double t, const double *y, const double *p, const int *active, const double *e, double *ynew, "
+                  "double *P"),
+    Field("dae", "const lcg_dae_model *")))

@@ -122,6 +122,7 @@ class ConstrainedCodeInfo:
     ggl_jac: bool
     folded: dict = field(default_factory=dict)  # parameters folded into the code, with their values
     lang: str = "c"  # language of the model functions ("c" or "fortran"); the drivers are C
+    contacts: tuple = ()  # indices of the inequalities with a restitution (<prefix>_impact.c)
 
 
 @dataclass
@@ -225,6 +226,67 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
             blocks["ggl_jac"] = Block(targets, exprs)
     return ConstrainedBlocks(scene, n, J, JH, ng, blocks, outs, evs, _uses([e for _, e in outs], sym.lam),
                              _uses(root_exprs, sym.lam))
+
+
+def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
+    """The expression blocks of the contact code of ``system`` (templates/c/impact.c.j2): ``mf``
+    (M, F) and ``rows``: for the equality rows r < J the rows A_r, s_r = A_r q' + A0_r, h_r = f_r
+    (holonomic) and gamma_r (as :func:`constrained_blocks`), then for each contact k (an
+    inequality g_k >= 0 with a restitution, eq. 4.3) the row J + k: G_k = dg_k/dq,
+    w_k = G_k q' + dg_k/dt, h = g_k and gamma = -d/dt w_k with q'' excluded; then for each rough
+    contact (a ``tangent``) its tangential row, h = 0. Also returns ``tangent_of`` (the contact,
+    0..NC-1, of each tangential row) as ``blocks["tangent_of"]``."""
+    sym = ConstrainedSymbols(system, scene.eom)
+    n, J, JH = sym.n, sym.J, sym.JH
+    base = symbol_map(scene)
+
+    def c(e):
+        return se.sympify(e).xreplace(base)
+
+    mf_t, mf_e = [], []
+    for i in range(n):
+        for j in range(i, n):
+            mf_t.append(("M", i, j))
+            mf_e.append(c(sym.M[i][j]))
+    for i in range(n):
+        mf_t.append(("F", i))
+        mf_e.append(c(sym.F[i]))
+    rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
+    heights = list(sym.f) + [se.Integer(0)] * (J - JH)
+    def row(g):
+        G = [se.diff(g, q) for q in sym.q]
+        w = sum((a * v for a, v in zip(G, sym.v)), se.Integer(0)) + se.diff(g, sym.t)
+        d = se.diff(w, sym.t)
+        for q, v in zip(sym.q, sym.v):
+            d = d + se.diff(w, q) * v
+        return G, w, -d
+
+    tangent_of = []
+    for k in system.contacts:
+        g = to_se(system.inequalities[k], f"inequality constraint {k}")
+        G, w, gam = row(g)
+        rows.append(G)
+        vals.append(w)
+        heights.append(g)
+        gammas.append(gam)
+    for i, k in enumerate(system.contacts):
+        tangent = system.tangents[k]
+        if tangent is None:
+            continue
+        G, w, gam = row(to_se(tangent, f"inequality constraint {k}, tangent"))
+        rows.append(G)
+        vals.append(w)
+        heights.append(se.Integer(0))
+        gammas.append(gam)
+        tangent_of.append(i)
+    targets, exprs = [], []
+    for r, row in enumerate(rows):
+        for i in range(n):
+            targets.append(("R", r, i))
+            exprs.append(c(row[i]))
+        targets += [("s", r), ("h", r), ("gam", r)]
+        exprs += [c(vals[r]), c(heights[r]), c(gammas[r])]
+    return {"mf": Block(mf_t, mf_e), "rows": Block(targets, exprs), "tangent_of": tangent_of}
 
 
 #: Languages of the generated constrained code (the native drivers are C in both cases).

@@ -5,7 +5,8 @@ solvers locate (CVODE's CVodeRootInit/CVodeGetRootInfo in the constrained CVODE 
 IDARootInit in the IDA driver, the ``eventsfn`` of scikit-sundae on that backend). Every
 inequality constraint g_k(q, t) >= 0 of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem`
 (eq. 4.3) becomes the event ``ineq_<k>`` (direction -1, terminal): the moment the
-inequality would start to be violated. Event expressions may use the Lagrange multipliers
+inequality would start to be violated; those with a coefficient of restitution
+(:class:`~lagcodegen.theory.constraints.Inequality`) are contacts with impacts instead. Event expressions may use the Lagrange multipliers
 ``lambda_<j>`` (eq. 4.5), e.g. a normal force that drops to zero.
 
 Occurrences are reported in ``Result.events`` (a list of :class:`EventRecord`); a terminal
@@ -86,7 +87,9 @@ def event_list(system, events: Iterable = ()) -> list[Event]:
     and the multipliers ``lambda_<j>`` of ``system`` (if any), nothing else.
     """
     model = system.model
-    out = [Event(f"ineq_{k}", g, -1, True) for k, g in enumerate(getattr(system, "inequalities", []))]
+    restitution = getattr(system, "restitution", None) or [None] * len(getattr(system, "inequalities", []))
+    out = [Event(f"ineq_{k}", g, -1, True) for k, g in enumerate(getattr(system, "inequalities", []))
+           if restitution[k] is None]  # contacts (a restitution) are impacts, not events
     names = {e.name for e in out}
     allowed = model.known_symbols() | set(getattr(system, "multipliers", []))
     for k, item in enumerate(events):

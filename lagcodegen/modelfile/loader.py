@@ -23,7 +23,7 @@ from ..errors import ModelError
 from ..model.events import DIRECTIONS, Event
 from ..model.model import Model
 from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS, OUTPUT_GROUPS
-from ..theory.constraints import FORMULATIONS, ConstrainedSystem
+from ..theory.constraints import FORMULATIONS, ConstrainedSystem, Inequality
 from ..util import excerpt
 from .document import ModelFile, SimulationSettings, constrained_method, constrained_outputs
 from .expressions import FUNCTIONS, ExpressionError, parse_expression
@@ -328,7 +328,7 @@ class _Loader(_Reader):
             holonomic.append(f)
         nonholonomic = [self.load_pfaffian([*path, "nonholonomic", i], entry) for i, entry in
                         enumerate(self.tables([*path, "nonholonomic"], table.get("nonholonomic", [])))]
-        inequalities = [self.expr([*path, "inequalities", i], value) for i, value in
+        inequalities = [self.load_inequality([*path, "inequalities", i], value) for i, value in
                         enumerate(self.array([*path, "inequalities"], table.get("inequalities", [])))]
         integrable = "error"
         if "integrable" in table:
@@ -363,6 +363,26 @@ class _Loader(_Reader):
                 where = [*path, kind, int(m.group(2))]
             message = str(exc).replace("pass integrable='allow'", 'set integrable = "allow" in [constraints]')
             raise self.error(where, message, token=_format_key(where)) from None
+
+    def load_inequality(self, path: list[_Key], value: object):
+        """An inequality g(q, t) >= 0: an expression (monitored: the terminal event ineq_<k>) or a
+        contact ``{ expr = "...", restitution = e }`` (impacts with Newton's law, 0 <= e <= 1;
+        ``tangent = "..."``: no slip along that expression while touching)."""
+        if not isinstance(value, dict):
+            return self.expr(path, value)
+        self.fields(path, value, required=("expr",), optional=("restitution", "tangent"))
+        expr = self.expr([*path, "expr"], value["expr"])
+        e = value.get("restitution")
+        tangent = self.expr([*path, "tangent"], value["tangent"]) if "tangent" in value else None
+        if e is None:
+            if tangent is not None:
+                raise self.error([*path, "tangent"], "a tangent (no-slip contact) needs a restitution",
+                                 token="tangent")
+            return Inequality(expr)
+        if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0 <= e <= 1:
+            raise self.error([*path, "restitution"], f"must be a number in [0, 1] (Newton's law w+ = -e w-), got "
+                             f"{excerpt(e)}", token=repr(e))
+        return Inequality(expr, restitution=float(e), tangent=tangent)
 
     def load_pfaffian(self, path: list[_Key], entry: dict) -> tuple[tuple, sp.Expr]:
         """A nonholonomic constraint: ``{A = [...], A0 = ...}`` or ``{coefficients = {q = ...}, A0 = ...}``."""

@@ -162,8 +162,9 @@ SCHEMA: tuple[Table, ...] = (
         Key("holonomic", "expressions", "f(q, t) = 0 (eq. 4.1)", default="none"),
         Key("nonholonomic", "array of tables", "A . q' + A0 = 0 (eq. 4.3), each {A = [...], A0 = ...} or "
             "{coefficients = {q = ...}, A0 = ...} (see [constraints].nonholonomic)", default="none"),
-        Key("inequalities", "expressions", "g(q, t) >= 0, monitored by the terminal events ineq_<k>",
-            default="none"),
+        Key("inequalities", "expressions or tables", "g(q, t) >= 0, monitored by the terminal events ineq_<k>; "
+            "a table { expr = \"...\", restitution = e } is a contact with impacts instead (Newton's law, "
+            "0 <= e <= 1; index-1 formulation; tangent = \"...\": no slip along it while touching)", default="none"),
         Key("integrable", "string", '"error" refuses an integrable Pfaffian row, "allow" keeps it',
             default='"error"'),
     ), maps_to="ConstrainedSystem"),

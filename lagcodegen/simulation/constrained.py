@@ -53,7 +53,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
+from ..errors import LagcodegenError, ModelError, SingularMassMatrixError, SolverError
 from ..formulation.constrained import ConstrainedCodeInfo
 from ..result import Result
 from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, tolerances
@@ -64,6 +64,7 @@ from ..solvers.registry import resolve
 from ..theory.constraints import ConstrainedSystem
 from ..util import check_finite, output_times
 from .constrained_functions import ConstrainedFunctions
+from .constrained_impacts import ContactOptions, ImpactRunner
 from .ensemble import ensemble_constrained
 from .integrator import Integrator
 from .ode import CompiledModel
@@ -106,11 +107,12 @@ class ConstrainedSimulation(ConstrainedFunctions):
         self.cvc_stats_pool: list = []  # the drivers' statistics structs free for reuse
         self.ida_stats_pool: list = []
         self._default_parameters = dict(zip(self.param_names, self._default_p))  # Result.parameters
+        self._impact_runner = None  # the impact driver on this model (systems with contacts), made on first use
 
     # ------------------------------------------------------------------ simulate
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
                  atol=1e-10, events: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
-                 raise_on_error: bool = True, **options) -> Result:
+                 raise_on_error: bool = True, contacts: ContactOptions | None = None, **options) -> Result:
         """Integrate from t[0] and return the trajectory at the times ``t``.
 
         ``q0``/``v0``: initial coordinates and velocities (arrays or dicts by name), checked or
@@ -127,6 +129,12 @@ class ConstrainedSimulation(ConstrainedFunctions):
         made into that object by :func:`lagcodegen.solvers.registry.resolve`; an option the
         formulation's family does not have raises LagcodegenError naming it.
 
+        Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
+        restitution) run on the impact driver (:mod:`.constrained_impacts`: impacts, persistent
+        contact and release in one call; CVODE, native backend, no projection); ``contacts``
+        (:class:`~.constrained_impacts.ContactOptions`) sets how contacts switch, and
+        ``res.impacts`` lists what happened.
+
         Output times are served by the integrator's interpolation (GGL with
         ``stop_at_outputs``: exact steps): ``t = (t0, t1)`` (1001 output times) takes the steps
         that ``[t0, t1]`` takes, up to CVODE's estimate of the first step, which looks at the
@@ -139,7 +147,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         roots = self._roots(events)
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, self._ggl)
-        if self._ggl:
+        if self.info.contacts:
+            res = self._run_contacts(family, t, y0, p, rtol, atol, roots, contacts)
+        elif self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t[0], y0, p)
             res = family.runner("ggl")(self, t, yy0, yp0, p, rtol, atol, roots)
@@ -168,6 +178,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         projects it onto the constraints and computes consistent multipliers before the next
         step (``Integrator.multipliers``: the GGL unknowns lambda, mu).
         """
+        if self.info.contacts:
+            raise LagcodegenError("the integrator object does not run systems with contacts (impacts with "
+                                  "restitution): use simulate(), whose impact driver applies the jumps")
         family = resolve(self.formulation, solver, options)
         if q0 is None:
             raise LagcodegenError("q0 is required")
@@ -185,6 +198,32 @@ class ConstrainedSimulation(ConstrainedFunctions):
             stepper = family.runner("index1", "stepper")(self, mem, rtol, atol_arr, roots)
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
+
+    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts) -> Result:
+        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`)."""
+        if contacts is None:
+            contacts = ContactOptions()
+        elif not isinstance(contacts, ContactOptions):
+            raise LagcodegenError(f"contacts must be a ContactOptions, got {type(contacts).__name__}")
+        if getattr(family, "backend", None) != "native":
+            raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
+        method, projection, alpha, beta = family.index1_settings(self, float(t[0]), y0, p)
+        if projection:
+            raise LagcodegenError("systems with contacts run without projection (projection=False; Baumgarte "
+                                  "stabilization holds the constraints and the persistent contacts)")
+        runner = self._impact_runner
+        if runner is None:
+            runner = self._impact_runner = ImpactRunner(self)
+        g, _ = runner.gaps(float(t[0]), y0, p)
+        bad = [f"g_{k} = {v:.3g}" for k, v in zip(runner.contacts, g) if not v >= -1e-9]
+        if bad:
+            raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
+                             "(inequality constraints g >= 0)")
+        max_events = 10_000 if family.max_events is None else family.max_events
+        return runner.run(t, y0, p, method=method, rtol=rtol, atol=atol, alpha=alpha, beta=beta, roots=roots,
+                          max_events=max_events, max_steps=family.max_steps, first_step=family.first_step,
+                          max_step=family.max_step, min_step=family.min_step, max_order=family.max_order,
+                          max_wall=float(family.max_wall), contacts=contacts)
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""
@@ -219,6 +258,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble` for the arguments, and
         :meth:`simulate` for ``options`` (``max_wall``: per member). Members whose initial state is
         rejected get status -84."""
+        if self.info.contacts:
+            raise LagcodegenError("ensembles of systems with contacts are not supported: run the members with "
+                                  "simulate (each a call of the impact driver)")
         return ensemble_constrained(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
                                     progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                     options=options)

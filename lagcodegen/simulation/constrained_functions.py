@@ -70,7 +70,8 @@ class ConstrainedFunctions(_Base):
         self._n = system.model.n
         self._state_names = list(cm.state_names[: 2 * self._n])
         self._coord_names = [q.name for q in system.model.coords]
-        self._nineq = len(system.inequalities)
+        # the monitored inequalities: the first root functions (contacts have none)
+        self._nineq = len(system.inequalities) - len(system.contacts)
         self._ggl = ggl
         self._mu_names = [f"mu_{k}" for k in range(info.JH)]
         self._double_array = self.ffi.typeof("double[]")
@@ -264,7 +265,7 @@ class ConstrainedFunctions(_Base):
             g, s = self.residuals(t0, y, p)
             if any(not abs(x) <= tol for x in g) or any(not abs(x) <= tol for x in s):
                 return False
-            n_ineq = len(self.system.inequalities)
+            n_ineq = self._nineq
             if n_ineq and any(not x >= -tol for x in self.roots(t0, y, p)[:n_ineq]):
                 return False
             self.kkt(t0, y, p)

@@ -7,8 +7,11 @@ A :class:`ConstrainedSystem` adds constraints to a :class:`~lagcodegen.model.Mod
   A0_j = df_j/dt;
 * nonholonomic (Pfaffian) constraints A_j . q' + A0_j = 0, the nonintegrable differential form
   of eq. 4.3 divided by dt;
-* inequality constraints g_k(q, t) >= 0 (eq. 4.3, left), which are *monitored* (their crossing
-  of zero is a root-finding event, see :mod:`lagcodegen.model.events`), not enforced.
+* inequality constraints g_k(q, t) >= 0 (eq. 4.3, left): a plain expression is *monitored* (its
+  crossing of zero is a root-finding event, see :mod:`lagcodegen.model.events`), not enforced;
+  an :class:`Inequality` with a coefficient of restitution is a contact that is enforced by
+  impacts (velocity jumps, Newton's law) and, in persistent contact, as the holonomic
+  constraint g_k = 0 with its multiplier (:mod:`lagcodegen.simulation.constrained_impacts`).
 
 Every equality constraint j contributes a constraint force R_j = lambda_j A_j (sec. 4.3) and
 the equations of motion become (eq. 4.5)
@@ -58,6 +61,42 @@ def _expr(value, what: str) -> sp.Expr:
     if not isinstance(expr, sp.Expr):
         raise ModelError(f"{what} is not a scalar expression: {value!r}")
     return expr
+
+
+@dataclass(frozen=True)
+class Inequality:
+    """An inequality constraint g(q, t) >= 0 (eq. 4.3) that is a contact with impacts.
+
+    ``restitution`` e (0 <= e <= 1): when g reaches 0 with a closing normal velocity
+    w = A q' + A0 < 0 (A = dg/dq, A0 = dg/dt), the velocities jump by the impulse of the
+    constraint force lambda A (sec. 4.3, eq. 4.5 integrated over the impact):
+    q'+ = q'- + M^-1 A^T P with A q'+ + A0 = -e (A q'- + A0) (Newton's law), P >= 0 the impulse
+    (the notes' Lambda = -P in q'+ = q'- - M^-1 A^T Lambda). ``restitution=None`` keeps the
+    meaning of a plain expression: the terminal event ``ineq_<k>`` where g reaches 0.
+
+    ``tangent`` (optional, with a restitution): a rough contact that does not slip. While the
+    contact touches (in an impact and in persistent contact) the velocity of the expression
+    ``tangent(q, t)`` (e.g. the horizontal position of the touching point) is held at zero too:
+    a second row T = d tangent/dq with its own impulse and multiplier (unbounded friction; the
+    contact is released by its normal multiplier only). Without it contacts are frictionless.
+    """
+
+    expr: object
+    restitution: float | None = None
+    tangent: object = None
+
+    def __post_init__(self):
+        e = self.restitution
+        if self.tangent is not None and e is None:
+            raise ModelError(f"Inequality({self.expr!r}): a tangent (no-slip contact) needs a restitution")
+        if e is None:
+            return
+        if isinstance(e, bool) or not isinstance(e, (int, float, np.floating, np.integer)):
+            raise ModelError(f"Inequality({self.expr!r}): restitution must be a number in [0, 1], got {e!r}")
+        if not (0.0 <= float(e) <= 1.0):
+            raise ModelError(f"Inequality({self.expr!r}): restitution must be in [0, 1] (Newton's law "
+                             f"A q'+ = -e A q'-), got {e!r}")
+        object.__setattr__(self, "restitution", float(e))
 
 
 @dataclass(frozen=True)
@@ -182,7 +221,10 @@ class ConstrainedSystem:
         just ``A`` (then A0 = 0).
     inequalities:
         Expressions g_k(q, t) meaning g_k >= 0 (eq. 4.3). They are monitored through
-        root-finding events (event ``ineq_<k>``, terminal, direction -1), not enforced.
+        root-finding events (event ``ineq_<k>``, terminal, direction -1), not enforced. An
+        :class:`Inequality` with a ``restitution`` is a contact instead: enforced by impacts
+        and persistent contact (index-1 formulation; see
+        :mod:`lagcodegen.simulation.constrained_impacts`), no event.
     integrable:
         ``"error"`` (default): a nonholonomic constraint that passes the Frobenius test is
         rejected ("integrable: it is holonomic"); ``"allow"``: keep it as a Pfaffian
@@ -227,8 +269,20 @@ class ConstrainedSystem:
             self.nonholonomic.append((A, A0))
 
         self.inequalities: list[sp.Expr] = []
+        #: per inequality: its coefficient of restitution, or None (a monitored inequality)
+        self.restitution: list[float | None] = []
+        #: per inequality: the no-slip tangent expression of a rough contact, or None
+        self.tangents: list[sp.Expr | None] = []
         for k, g in enumerate(inequalities):
             what = f"inequality constraint {k}"
+            e = tangent = None
+            if isinstance(g, Inequality):
+                g, e, tangent = g.expr, g.restitution, g.tangent
+            self.restitution.append(e)
+            if tangent is not None:
+                tangent = _expr(tangent, f"{what}, tangent")
+                model.check_symbols(tangent, f"{what}, tangent", allow_speeds=False)
+            self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
             self.inequalities.append(g)
@@ -305,6 +359,12 @@ class ConstrainedSystem:
     def J(self) -> int:
         """Number of equality constraints (holonomic + nonholonomic)."""
         return self.n_holonomic + self.n_nonholonomic
+
+    @property
+    def contacts(self) -> list[int]:
+        """Indices k of the inequalities that are contacts (an :class:`Inequality` with a
+        restitution): enforced by impacts, not events."""
+        return [k for k, e in enumerate(self.restitution) if e is not None]
 
     @property
     def dof(self) -> int:

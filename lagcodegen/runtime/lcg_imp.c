@@ -1,0 +1,471 @@
+/* lcg_imp.c -- lagcodegen's runtime, compiled as it is.
+ *
+ * The native CVODE driver of constrained models with contacts: inequality constraints
+ * g_k(q, t) >= 0 (notes, eq. 4.3) with a coefficient of restitution e_k, through the model's
+ * contact table (lcg_imp_model.h) and its constrained table (lcg_dae_model.h). Each contact is
+ * free (g_k > 0: root function g_k, decreasing) or in persistent contact (g_k = 0 held as a
+ * holonomic constraint with its multiplier lambda_k, eq. 4.5: root function lambda_k,
+ * decreasing). The right-hand side is the index-1 system of the equality constraints and the
+ * contacts in persistent contact (m->crhs of the contact table).
+ *
+ * Where a free contact reaches g_k = 0 with a closing normal velocity w_k < 0, the run stops at
+ * the located root, the velocities jump (im->impact: M dv = R^T P, Newton's law
+ * w_k+ = -e_k w_k- on every contact that touches (g <= gap_tol) and closes, the equality rows and
+ * the persistent contacts kept at zero velocity, all solved together), CVODE is reinitialized at
+ * the new state and the run goes on in the same call. A contact whose impulse comes out negative
+ * (it would pull) is left out and the impact solved again without it (the active set of the
+ * linear complementarity problem, by elimination, at most nk + 1 solves). A contact whose rebound
+ * speed e_k |w_k-| is at most contact_speed, or that hit again within min_flight of its last
+ * impact (accumulating impacts, Zeno), gets e_k = 0 and turns into persistent contact; a
+ * persistent contact is released where its multiplier becomes negative. The model's own events
+ * (m->roots: monitored inequalities, user events) are recorded as by lcg_cvc.c. */
+#include "lcg_control.h" /* first: POSIX */
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sundials_api.h"
+#include "lcg_imp.h"
+
+#define LCG_STATS lcg_cvc_stats
+#include "lcg_sundials.h"
+
+/* CVODE's reinitialization (cvode.h; not among the declarations the other drivers share). */
+int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
+
+/* Fields of one record of rec[]: t, contact, kind, impulse, w before, w after. */
+#define REC 6
+
+typedef struct {
+    const lcg_imp_model *im;
+    const lcg_dae_model *m;
+    const double *p;
+    double alpha, beta;
+    int *active;  /* nk: 1 in persistent contact */
+    double *lam;  /* nj + nk multipliers (scratch) */
+    double *gk, *wk; /* nk (scratch) */
+    lcg_cvc_stats *st;
+    watch w;
+} imp_data;
+
+static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
+{
+    imp_data *d = (imp_data *)data;
+    int rc;
+
+    if (WATCH_TICK(&d->w))
+        return -1;
+    rc = d->im->crhs(t, N_VGetArrayPointer(y), d->p, d->alpha, d->beta, d->active, N_VGetArrayPointer(ydot),
+                     d->lam);
+    if (rc == LCG_DAE_ERR_SINGULAR) {
+        d->st->model_error = rc;
+        d->st->t_reached = t;
+        return -1;
+    }
+    return rc == LCG_DAE_OK ? 0 : 1;
+}
+
+/* Contact roots first (g_k free, lambda_k in persistent contact), then the model's events. */
+static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
+{
+    imp_data *d = (imp_data *)data;
+    const double *y = N_VGetArrayPointer(yv);
+    double *ydot = NULL;
+    int k, rc, nk = d->im->nk, nj = d->im->nj, any = 0;
+
+    rc = d->im->gaps(t, y, d->p, d->gk, d->wk);
+    for (k = 0; k < nk; ++k)
+        any |= d->active[k];
+    if (rc == LCG_DAE_OK && any) {
+        ydot = d->gk + 2 * nk; /* scratch of ny values after gk, wk */
+        rc = d->im->crhs(t, y, d->p, d->alpha, d->beta, d->active, ydot, d->lam);
+    }
+    if (rc == LCG_DAE_OK && d->m->nroot > 0)
+        rc = d->m->roots(t, y, NULL, d->p, gout + nk);
+    if (rc != LCG_DAE_OK) {
+        d->st->model_error = rc;
+        d->st->t_reached = t;
+        return -1;
+    }
+    for (k = 0; k < nk; ++k)
+        gout[k] = d->active[k] ? d->lam[nj + k] : d->gk[k];
+    return 0;
+}
+
+/* Add CVODE's counters (reset by CVodeReInit) to c: steps, rhs, rhs of difference quotients,
+ * Jacobians, linear setups, error test failures, nonlinear iterations, their failures. */
+static void add_counts(void *mem, long *c)
+{
+    long v;
+
+    CVodeGetNumSteps(mem, &v);
+    c[0] += v;
+    CVodeGetNumRhsEvals(mem, &v);
+    c[1] += v;
+    CVodeGetNumLinRhsEvals(mem, &v);
+    c[2] += v;
+    CVodeGetNumJacEvals(mem, &v);
+    c[3] += v;
+    CVodeGetNumLinSolvSetups(mem, &v);
+    c[4] += v;
+    CVodeGetNumErrTestFails(mem, &v);
+    c[5] += v;
+    CVodeGetNumNonlinSolvIters(mem, &v);
+    c[6] += v;
+    CVodeGetNumNonlinSolvConvFails(mem, &v);
+    c[7] += v;
+}
+
+static void record(double *rec, int max_rec, int *n_rec, double t, int k, int kind, double P, double wm, double wp)
+{
+    if (*n_rec < max_rec) {
+        double *r = rec + (long)(*n_rec) * REC;
+        r[0] = t;
+        r[1] = k;
+        r[2] = kind;
+        r[3] = P;
+        r[4] = wm;
+        r[5] = wp;
+    }
+    (*n_rec)++;
+}
+
+/* The impact at (t, y) of the free contacts that touch and close (and those that hit[]): the
+ * velocities of y replaced. s: scratch (see lcg_imp_solve). Returns LCG_DAE_OK or a model error. */
+static int impact(imp_data *d, double t, double *y, const int *hit, const double *e, const double *set,
+                  double *last, double *s, int *rows, double *rec, int max_rec, int *n_rec)
+{
+    const lcg_imp_model *im = d->im;
+    int nk = im->nk, nj = im->nj, ny = 2 * im->nq, k, rc, iter, changed = 0;
+    double *eff = s, *wm = eff + nk, *P = wm + nk, *ynew = P + im->nrow, *gk = d->gk, *wk = d->wk;
+    double gap_tol = set[2];
+    int *plastic = rows + nk;
+
+    rc = im->gaps(t, y, d->p, gk, wk);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < nk; ++k) {
+        wm[k] = wk[k];
+        rows[k] = d->active[k] || ((hit[k] || gk[k] <= gap_tol) && wk[k] < 0.0);
+        plastic[k] = d->active[k] || e[k] * fabs(wk[k]) <= set[0] || t - last[k] < set[1];
+        eff[k] = plastic[k] ? 0.0 : e[k];
+        changed |= rows[k] && !d->active[k];
+    }
+    if (!changed)
+        return LCG_DAE_OK;
+    for (iter = 0; iter <= nk; ++iter) {
+        int worst = -1;
+        rc = im->impact(t, y, d->p, rows, eff, ynew, P);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (k = 0; k < nk; ++k)
+            if (rows[k] && P[nj + k] < 0.0 && (worst < 0 || P[nj + k] < P[nj + worst]))
+                worst = k;
+        if (worst < 0)
+            break;
+        rows[worst] = 0; /* it would pull: not part of the impact (a persistent contact is released) */
+        if (d->active[worst]) {
+            d->active[worst] = 0;
+            record(rec, max_rec, n_rec, t, worst, LCG_IMP_RELEASE, 0.0, wm[worst], wm[worst]);
+        }
+    }
+    rc = im->gaps(t, ynew, d->p, gk, wk);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < nk; ++k) {
+        if (!rows[k])
+            continue;
+        if (d->active[k]) {
+            if (P[nj + k] != 0.0)
+                record(rec, max_rec, n_rec, t, k, LCG_IMP_CONTACT_IMPULSE, P[nj + k], wm[k], wk[k]);
+            continue;
+        }
+        last[k] = t;
+        d->active[k] = plastic[k];
+        record(rec, max_rec, n_rec, t, k, plastic[k] ? LCG_IMP_STICK : LCG_IMP_BOUNCE, P[nj + k], wm[k], wk[k]);
+    }
+    for (k = 0; k < ny; ++k)
+        y[k] = ynew[k];
+    return LCG_DAE_OK;
+}
+
+/* Persistent contacts whose multiplier is negative at (t, y) are released (recorded). */
+static int release_pulling(imp_data *d, double t, const double *y, double *ydot, double *rec, int max_rec,
+                           int *n_rec)
+{
+    int k, rc, again = 1, nk = d->im->nk, nj = d->im->nj;
+
+    while (again) {
+        again = 0;
+        rc = d->im->crhs(t, y, d->p, d->alpha, d->beta, d->active, ydot, d->lam);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (k = 0; k < nk; ++k)
+            if (d->active[k] && d->lam[nj + k] < 0.0) {
+                d->active[k] = 0;
+                record(rec, max_rec, n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                again = 1;
+                break;
+            }
+    }
+    return LCG_DAE_OK;
+}
+
+/* Integrate with impacts; see lcg_imp.h. */
+int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
+                  double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
+                  const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
+                  lcg_events *ev)
+{
+    SUNContext ctx = NULL;
+    void *mem = NULL;
+    N_Vector y = NULL;
+    SUNMatrix A = NULL;
+    SUNLinearSolver LS = NULL;
+    imp_data data;
+    const lcg_dae_model *m;
+    double *yv, *buf = NULL, *last, *scratch, *ydot;
+    int *ibuf = NULL, *info, *hit, *dirs, *rows;
+    long nst = 0;
+    long base[8] = {0, 0, 0, 0, 0, 0, 0, 0}; /* the counters of the segments before the last CVodeReInit */
+    int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, quiet = 0;
+
+    memset(st, 0, sizeof *st);
+    st->t_reached = tout[0];
+    *n_rec = 0;
+    if (im == NULL || im->abi != LCG_IMP_MODEL_ABI || im->dae == NULL || im->nk < 1 || im->nrow < im->nj + im->nk
+        || im->dae->abi != LCG_DAE_MODEL_ABI || im->nq != im->dae->nq || im->nj != im->dae->nj) {
+        snprintf(st->message, sizeof st->message, "the contact table is unusable (lcg_imp_model version %d, "
+                     "this driver reads version %d)", im != NULL ? im->abi : -1, LCG_IMP_MODEL_ABI);
+        return st->flag = LCG_FLAG_BAD_INPUT;
+    }
+    m = im->dae;
+    ny = m->ny;
+    nk = im->nk;
+    nj = im->nj;
+    nr = nj + nk;
+    nroot = (opt->roots && ev != NULL) ? m->nroot : 0;
+    nall = nk + nroot;
+    if (ev != NULL) {
+        ev->n_events = 0;
+        ev->terminated = 0;
+    }
+    /* doubles: lam[nrow], gk[nk], wk[nk], ydot scratch[ny], last[nk], impact scratch
+     * (eff[nk], wm[nk], P[nrow], ynew[ny]); ints: info[nall], hit[nk], dirs[nall], rows[2 nk] */
+    buf = (double *)malloc(sizeof(double) * (size_t)(im->nrow + 3 * nk + ny + 2 * nk + im->nrow + ny + nk));
+    ibuf = (int *)malloc(sizeof(int) * (size_t)(2 * nall + 3 * nk));
+    if (buf == NULL || ibuf == NULL) {
+        free(buf);
+        free(ibuf);
+        snprintf(st->message, sizeof st->message, "out of memory");
+        return st->flag = LCG_FLAG_NOMEM;
+    }
+    data.lam = buf; /* nrow multipliers; the first nr (equality rows, contacts) are reported */
+    data.gk = data.lam + im->nrow;
+    data.wk = data.gk + nk;
+    ydot = data.wk + nk; /* = gk + 2 nk, as roots() expects */
+    last = ydot + ny;
+    scratch = last + nk;
+    info = ibuf;
+    hit = info + nall;
+    dirs = hit + nk;
+    rows = dirs + nall;
+    for (k = 0; k < nk; ++k) {
+        last[k] = -HUGE_VAL;
+        hit[k] = 0;
+        active[k] = active[k] != 0;
+    }
+    for (i = 0; i < nall; ++i)
+        dirs[i] = i < nk ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
+
+    data.im = im;
+    data.m = m;
+    data.p = p;
+    data.active = active;
+    data.st = st;
+    data.alpha = opt->alpha;
+    data.beta = opt->beta;
+    if (opt->alpha < 0.0 || opt->beta < 0.0) { /* "auto": the rate of the fastest motion at y0 */
+        double rate = 0.0;
+        if (m->natural_rate(tout[0], y0, p, &rate) != LCG_DAE_OK)
+            rate = 0.0;
+        if (opt->alpha < 0.0)
+            data.alpha = rate;
+        if (opt->beta < 0.0)
+            data.beta = rate;
+    }
+    st->alpha = data.alpha;
+    st->beta = data.beta;
+    watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (SUNContext_Create(0, &ctx) != 0) {
+        free(buf);
+        free(ibuf);
+        snprintf(st->message, sizeof st->message, "SUNContext_Create failed");
+        return st->flag = LCG_FLAG_NOMEM;
+    }
+    SUNContext_ClearErrHandlers(ctx);
+    SUNContext_PushErrHandler(ctx, record_error, st);
+
+    y = N_VNew_Serial(ny, ctx);
+    mem = CVodeCreate(opt->method, ctx);
+    A = SUNDenseMatrix(ny, ny, ctx);
+    if (y == NULL || mem == NULL || A == NULL) {
+        flag = LCG_FLAG_NOMEM;
+        goto done;
+    }
+    LS = SUNLinSol_Dense(y, A, ctx);
+    yv = N_VGetArrayPointer(y);
+    for (i = 0; i < ny; ++i)
+        yv[i] = y0[i];
+    /* the contacts the initial state rests on (touching, at rest, pushing) start in persistent contact */
+    rc = im->gaps(tout[0], yv, p, data.gk, data.wk);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    for (k = 0; k < nk; ++k)
+        if (!active[k] && data.gk[k] <= set[2] && fabs(data.wk[k]) <= set[0])
+            active[k] = 1;
+    rc = release_pulling(&data, tout[0], yv, ydot, rec, 0, &quiet);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+
+    rc = m->coutputs(tout[0], yv, NULL, p, out);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    for (i = 0; i < ny; ++i)
+        yout[i] = yv[i];
+    for (i = 0; i < nr; ++i)
+        lamout[i] = data.lam[i];
+    st->nt_done = 1;
+
+    if ((flag = CVodeInit(mem, rhs, tout[0], y)) < 0)
+        goto done;
+    if ((flag = CVodeSStolerances(mem, opt->rtol, opt->atol)) < 0)
+        goto done;
+    CVodeSetUserData(mem, &data);
+    if ((flag = CVodeSetLinearSolver(mem, LS, A)) < 0)
+        goto done;
+    if ((flag = CVodeRootInit(mem, nall, roots)) < 0)
+        goto done;
+    if ((flag = CVodeSetRootDirection(mem, dirs)) < 0)
+        goto done;
+    CVodeSetNoInactiveRootWarn(mem);
+    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
+        goto done;
+    if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
+        goto done;
+    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(mem, opt->max_step)) < 0)
+        goto done;
+    if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
+        goto done;
+    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+        goto done;
+
+    for (k = 1; k < nt; ++k) {
+        double tret = tout[k - 1];
+        if (WATCH_TICK(&data.w))
+            goto done;
+        for (;;) {
+            CVodeGetNumSteps(mem, &nst);
+            if (base[0] + nst >= opt->max_steps) {
+                flag = -1;
+                snprintf(st->message, sizeof st->message,
+                         "the step budget max_steps = %ld is used up before t = %.17g", opt->max_steps, tout[k]);
+                goto done;
+            }
+            CVodeSetMaxNumSteps(mem, opt->max_steps - base[0] - nst);
+            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
+            st->t_reached = tret;
+            if (flag == CV_ROOT_RETURN) {
+                int j, stop = 0, any = 0;
+                if (CVodeGetRootInfo(mem, info) < 0)
+                    goto done;
+                for (j = nk; j < nall; ++j) { /* the model's events */
+                    if (info[j] == 0)
+                        continue;
+                    if (ev->n_events < ev->max_events) {
+                        ev->t[ev->n_events] = tret;
+                        for (i = 0; i < ny; ++i)
+                            ev->y[(long)ev->n_events * ny + i] = yv[i];
+                        ev->which[ev->n_events] = j - nk;
+                        ev->direction[ev->n_events] = info[j];
+                    }
+                    ev->n_events++;
+                    if (ev->terminal == NULL || ev->terminal[j - nk])
+                        stop = 1;
+                }
+                if (stop) {
+                    ev->terminated = 1;
+                    flag = CV_ROOT_RETURN;
+                    goto done;
+                }
+                for (j = 0; j < nk; ++j) {
+                    hit[j] = info[j] != 0 && !active[j];
+                    if (info[j] != 0 && active[j]) { /* the multiplier crosses zero: release */
+                        active[j] = 0;
+                        record(rec, max_rec, n_rec, tret, j, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                        any = 1;
+                    }
+                    any |= hit[j];
+                }
+                if (any) {
+                    rc = impact(&data, tret, yv, hit, e, set, last, scratch, rows, rec, max_rec, n_rec);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    rc = release_pulling(&data, tret, yv, ydot, rec, max_rec, n_rec);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    for (j = 0; j < nk; ++j)
+                        hit[j] = 0;
+                    add_counts(mem, base);
+                    if ((flag = CVodeReInit(mem, tret, y)) < 0)
+                        goto done;
+                    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+                        goto done;
+                }
+                if (tret >= tout[k])
+                    break;
+                continue;
+            }
+            break;
+        }
+        if (flag < 0)
+            goto done;
+        for (i = 0; i < ny; ++i)
+            yout[(long)k * ny + i] = yv[i];
+        rc = im->crhs(tret, yv, p, data.alpha, data.beta, active, ydot, data.lam);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        for (i = 0; i < nr; ++i)
+            lamout[(long)k * nr + i] = data.lam[i];
+        rc = m->coutputs(tret, yv, NULL, p, out + (long)k * m->nout);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        st->nt_done = k + 1;
+    }
+
+done:
+    flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
+    if (mem != NULL) {
+        add_counts(mem, base);
+        st->nsteps = base[0];
+        st->nrhs = base[1];
+        st->nrhs_dq = base[2];
+        st->njac = base[3];
+        st->nlinsetups = base[4];
+        st->netfails = base[5];
+        st->nniters = base[6];
+        st->nncfails = base[7];
+        CVodeGetLastStep(mem, &st->h_last);
+        CVodeGetNumGEvals(mem, &st->ngevals);
+        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
+            CVodeGetCurrentTime(mem, &st->t_reached);
+    }
+    st->flag = flag;
+    LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
+    CVodeFree(&mem);
+    if (LS != NULL)
+        SUNLinSolFree(LS);
+    if (A != NULL)
+        SUNMatDestroy(A);
+    if (y != NULL)
+        N_VDestroy(y);
+    free(buf);
+    free(ibuf);
+    SUNContext_Free(&ctx);
+    return flag < 0 ? flag : 0;
+}

@@ -1,0 +1,34 @@
+/* lcg_imp.h -- lagcodegen's runtime: the native CVODE driver of constrained models with
+ * contacts (inequality constraints with a coefficient of restitution; impacts and persistent
+ * contact), model-independent: it takes a model's contact table (lcg_imp_model.h). */
+#ifndef LCG_IMP_H
+#define LCG_IMP_H
+
+#include "lcg_imp_model.h"
+#include "lcg_cvc_types.h" /* lcg_cvc_options, lcg_cvc_stats, lcg_events */
+
+/* The kinds of the contact records. */
+#define LCG_IMP_BOUNCE 0           /* an impact after which the contact stays free */
+#define LCG_IMP_STICK 1            /* an impact that ends in persistent contact (e = 0) */
+#define LCG_IMP_RELEASE 2          /* persistent contact released (its multiplier turned negative) */
+#define LCG_IMP_CONTACT_IMPULSE 3  /* the impulse a persistent contact took in another's impact */
+
+/* Integrate model im (y = (q, q'), index-1 with the equality constraints and the contacts in
+ * persistent contact; Baumgarte opt->alpha, opt->beta, negative: the natural rate at y0) from
+ * tout[0], y(tout[0]) = y0; yout[k*ny + i], out[k*nout + j] (the constrained table's outputs) and
+ * lamout[k*(nj + nk) + r] (the multipliers of the equality rows and of the contacts, 0 for free
+ * ones) at the times tout. e[nk]: the coefficients of restitution; set: [0] contact_speed (a
+ * rebound at most this fast, or a resting start, is persistent contact), [1] min_flight (an
+ * impact within this time of the contact's last one is persistent contact: accumulation), [2]
+ * gap_tol (contacts with g <= gap_tol take part in an impact). active[nk]: in, the contacts that
+ * start in persistent contact (those touching at rest are added); out, the final modes. rec:
+ * max_rec records of 6 values (t, contact, kind, impulse P, w before, w after), *n_rec their
+ * number (may exceed max_rec). ev: the model's events (opt->roots), may be NULL. Returns 0, a
+ * negative CVODE flag, -22 a table of another layout, -80 cancelled, -81 out of time, or
+ * -100 - (model error code). Projection (opt->projection) and atol_vec are not used. */
+int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
+                  double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
+                  const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
+                  lcg_events *ev);
+
+#endif

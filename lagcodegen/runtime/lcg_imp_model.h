@@ -1,0 +1,50 @@
+/* lcg_imp_model.h -- lagcodegen's runtime.
+ *
+ * The table of a constrained model's contact functions (<prefix>_impact.c, generated for systems
+ * with inequality constraints g_k(q, t) >= 0 that have a coefficient of restitution): what the
+ * model-independent impact driver (lcg_imp.c) needs besides the constrained table lcg_dae_model.
+ * Rows r = 0..nj-1 are the equality constraints A q' + A0 = 0 (eq. 4.2, 4.3), rows nj + k the
+ * contacts G_k q' + G0_k with G_k = dg_k/dq, G0_k = dg_k/dt, the rows after them (up to nrow)
+ * the tangential rows of no-slip contacts, held with their contact. Pure C99; no other
+ * dependency. */
+#ifndef LCG_IMP_MODEL_H
+#define LCG_IMP_MODEL_H
+
+#include "lcg_dae_model.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Layout version of lcg_imp_model: the driver refuses a table of another version. */
+#define LCG_IMP_MODEL_ABI 1
+
+typedef struct lcg_imp_model {
+    int abi; /* LCG_IMP_MODEL_ABI */
+    int nq;  /* coordinates */
+    int nj;  /* equality constraints */
+    int nk;  /* contacts */
+    int nrow; /* rows: nj + nk + the tangential rows of no-slip contacts */
+    /* g[nk] = g_k(q, t), w[nk] = G_k q' + G0_k (the normal velocities) */
+    int (*gaps)(double t, const double *y, const double *p, double *g, double *w);
+    /* ydot[2 nq] = (q', q'') and lam[nrow] from [M R^T; R 0] [q''; -lam] = [F; gamma - stab] with
+     * the rows R of the equality constraints and of the contacts with active[k] != 0 (the others:
+     * lam = 0); Baumgarte stab = 2 alpha s + beta^2 g (holonomic rows, contacts), alpha s
+     * (nonholonomic and tangential rows) */
+    int (*crhs)(double t, const double *y, const double *p, double alpha, double beta, const int *active,
+                double *ydot, double *lam);
+    /* the impact of the contacts with active[k] != 0: ynew[2 nq] = (q, q' + dv) with
+     * M dv = R^T P, R_r dv = -s_r (equality rows: back onto A q' + A0 = 0), G_k dv = -(1 + e_k) w_k
+     * (contacts: Newton's law w+ = -e w-; tangential rows: T dv = -T q'); P[nrow] the impulses
+     * (0 for inactive contacts) */
+    int (*impact)(double t, const double *y, const double *p, const int *active, const double *e, double *ynew,
+                  double *P);
+    /* the model's constrained table (its outputs and events) */
+    const lcg_dae_model *dae;
+} lcg_imp_model;
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* LCG_IMP_MODEL_H */

@@ -1,0 +1,293 @@
+"""Impact runs of constrained systems with contacts: inequality constraints g_k(q, t) >= 0
+(notes, eq. 4.3) given as :class:`~lagcodegen.theory.constraints.Inequality` with a coefficient
+of restitution e_k, integrated by the runtime's impact driver (lagcodegen/runtime/lcg_imp.c) in
+one call.
+
+**Impact law.** When a free contact reaches g_k = 0 with a closing normal velocity
+w_k = G_k q' + G0_k < 0 (G_k = dg_k/dq, G0_k = dg_k/dt), the run stops at the located root and
+the velocities jump by the impulses of the constraint forces lambda A (sec. 4.3; eq. 4.5
+integrated over an impact of zero duration, where the bounded forces F contribute nothing):
+
+    M (q'+ - q'-) = R^T P,   w_k+ = -e_k w_k-  (Newton's law, every contact that takes part),
+    A q'+ + A0 = 0 (equality rows), w_j+ = 0 (contacts already in persistent contact),
+
+solved together in the generated C (``<prefix>_impact.c``: the augmented matrix
+[M R^T; R 0] factored numerically by LU; M is never inverted symbolically). With the notes'
+Lambda = -P this is q'+ = q'- - M^-1 A^T Lambda. P_k >= 0 is the impulse of contact k in the sign
+of its multiplier (positive: the contact pushes). Contacts take part when they touch
+(g_k <= ``gap_tol``) and close (w_k < 0). Simultaneous contacts are solved jointly; a contact
+whose impulse comes out negative is dropped and the system solved again without it (the active
+set of the linear complementarity problem of the impact, found by elimination; at most
+n_contacts + 1 solves). Limits: Newton's law on the joint system is the simultaneous-impact
+law, which is not the sequence of pairwise impacts: for chains in contact at the same instant
+(a cradle whose balls touch) it does not reproduce the pairwise result (let small gaps separate
+the impacts, as the cradle example does); after the joint solve a dropped contact may still
+close (it is then hit again at once, as the next impact); no friction (impulses act along
+G_k only).
+
+**Persistent contact.** A contact whose rebound speed e_k |w_k-| is at most ``contact_speed``,
+or that is hit again within ``min_flight`` of its previous impact (accumulating impacts, Zeno),
+takes a plastic impact (e_k = 0) and then holds g_k = 0 as a holonomic constraint with its
+multiplier (the index-1 formulation, eq. 4.5, Baumgarte stabilized as the equality rows);
+it is released where the multiplier turns negative (root finding on lambda_k, as the particle
+leaving the sphere). A contact that touches at rest at the start (|w_k| <= ``contact_speed``)
+starts in persistent contact if its multiplier is positive there.
+
+**Result.** ``Result.impacts`` (:class:`ContactLog`) lists every impact, switch to persistent
+contact and release with its time, contact, kind, impulse and normal velocities before and
+after, the final modes, and the accumulation (Zeno) time extrapolated from the impacts
+(:meth:`ContactLog.accumulation_time`); ``Result.outputs["lambda_ineq_<k>"]`` is the multiplier
+of contact k at the output times (0 while free).
+
+**No slip.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent`` is a
+rough contact: its tangential row d tangent/dq is held with it (in impacts: tangential velocity
+to zero; in persistent contact: a multiplier of either sign, unbounded friction), e.g. the corners
+of Housner's rocking block. Active rows that are dependent (a block resting flat on two no-slip
+corners) are solved with a small regularization of the multiplier block (see the generated
+``solve_active``).
+
+Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
+projection, ensembles, Fortran model code.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..build import DEFAULT_CFLAGS, config_header, driver_runtime, find_sundials, generated_headers, types_headers
+from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, driver_cdef
+from ..codegen.signatures import IMP_TABLE, cffi_struct
+from ..errors import LagcodegenError
+from ..result import Result
+from ..runtime import sources as runtime_files
+from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
+
+#: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...).
+KINDS = ("bounce", "stick", "release", "contact_impulse")
+
+#: The files of lagcodegen/runtime/ the impact driver is compiled from.
+RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h",
+                 "lcg_sundials.h", "sundials_api.h")
+
+_CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE), """
+int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
+                  double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
+                  const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
+                  lcg_events *ev);"""])
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactOptions:
+    """How contacts switch between impacts and persistent contact (see the module docstring).
+
+    ``contact_speed``: a rebound at most this fast (in the units of w = G q' + G0) is a plastic
+    impact into persistent contact; ``min_flight``: an impact within this time of the contact's
+    previous one is one too (accumulation); ``gap_tol``: contacts with g <= gap_tol take part in
+    an impact; ``max_records``: records kept at most."""
+
+    contact_speed: float = 1e-6
+    min_flight: float = 1e-9
+    gap_tol: float = 1e-9
+    max_records: int = 100_000
+
+    def __post_init__(self):
+        for name in ("contact_speed", "min_flight", "gap_tol"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0 <= v < float("inf")):
+                raise LagcodegenError(f"ContactOptions: {name} must be a finite number >= 0, got {v!r}")
+        if isinstance(self.max_records, bool) or not isinstance(self.max_records, int) or self.max_records < 1:
+            raise LagcodegenError(f"ContactOptions: max_records must be a positive integer, got {self.max_records!r}")
+
+
+@dataclass(frozen=True)
+class ImpactRecord:
+    """One contact record: ``t``, ``contact`` (index k of the inequality g_k >= 0), ``kind`` (one
+    of :data:`KINDS`), ``impulse`` P_k (>= 0: the contact pushes; the notes' Lambda = -P), and the
+    normal velocity w_k = G_k q' + G0_k before and after."""
+
+    t: float
+    contact: int
+    kind: str
+    impulse: float
+    w_before: float
+    w_after: float
+
+
+@dataclass
+class ContactLog:
+    """The contact records of a run, in time order (``records``), with column views."""
+
+    records: list = field(default_factory=list)
+    final_modes: dict = field(default_factory=dict)  # contact k -> "free" or "contact" at the end
+    truncated: bool = False  # more records than ContactOptions.max_records
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def __iter__(self):
+        return iter(self.records)
+
+    def __getitem__(self, i):
+        return self.records[i]
+
+    def select(self, kind: str | None = None, contact: int | None = None) -> list:
+        """The records of one kind and/or contact."""
+        return [r for r in self.records if (kind is None or r.kind == kind) and (contact is None or r.contact == contact)]
+
+    @property
+    def times(self) -> np.ndarray:
+        """Times of the impacts (bounces and switches into persistent contact)."""
+        return np.array([r.t for r in self.records if r.kind in ("bounce", "stick")])
+
+    def accumulation_time(self, contact: int, *, resolved: float = 1e-4) -> float | None:
+        """Where the impacts of ``contact`` accumulate (Zeno), extrapolated from three consecutive
+        impacts as a geometric sequence of flight times: t_inf = t_n + d_n r / (1 - r) with
+        d_n = t_n - t_(n-1), r = d_n / d_(n-1) (exact for a ball on a flat floor, where r = e).
+        The last three impacts whose flights are at least ``resolved`` times the first flight
+        are used: the last impacts, slower than the tolerances resolve, locate their roots only
+        to about atol / speed. None with fewer than three such impacts or flights that do not
+        shrink."""
+        times = [r.t for r in self.records if r.contact == contact and r.kind in ("bounce", "stick")]
+        if len(times) < 3:
+            return None
+        first = times[1] - times[0]
+        n = len(times) - 1
+        while n >= 2 and not (times[n] - times[n - 1] >= resolved * first):
+            n -= 1
+        if n < 2:
+            return None
+        d1, d2 = times[n - 1] - times[n - 2], times[n] - times[n - 1]
+        if not (0 < d2 < d1):
+            return None
+        ratio = d2 / d1
+        return times[n] + d2 * ratio / (1 - ratio)
+
+    @property
+    def impulses(self) -> np.ndarray:
+        return np.array([r.impulse for r in self.records if r.kind in ("bounce", "stick")])
+
+
+@functools.lru_cache(maxsize=4)
+def _runtime(cc: str, cflags: tuple[str, ...]):
+    sundials = find_sundials()
+
+    def render() -> dict[str, str]:
+        return {**runtime_files(RUNTIME_FILES), "lcg_config.h": config_header(sundials), **generated_headers(),
+                **types_headers(("dae", "cvc"))}
+
+    texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
+    return driver_runtime("impacts", texts, render, _CDEF, "lcg_imp.h",
+                          [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags)
+
+
+def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The impact driver (lagcodegen/runtime/lcg_imp.c) as a cffi module of its own, built into
+    the cache once per lagcodegen version, compiler, flags and Python."""
+    return _runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+
+
+class ImpactRunner:
+    """The impact driver bound to one compiled constrained system with contacts (its contact
+    table ``<prefix>_imp_model_table()`` from the model's library)."""
+
+    def __init__(self, sim):
+        info = sim.info
+        if not info.contacts:
+            raise LagcodegenError("this constrained system has no contacts (Inequality with a restitution)")
+        self.sim = sim
+        self.rt = rt = impact_runtime()
+        self.ffi = ffi = rt.ffi
+        library = sim.compiled._library  # the model library (ctypes), kept open by the compiled model
+        getter = getattr(library, f"{info.prefix}_imp_model_table")
+        getter.restype = ctypes.c_void_p
+        getter.argtypes = []
+        self.table = ffi.cast("const lcg_imp_model *", getter())
+        dae_addr = int(sim.ffi.cast("uintptr_t", sim.table))
+        self.dae = ffi.cast("const lcg_dae_model *", dae_addr)
+        if self.table.nk != len(info.contacts) or self.table.nq != sim.n or self.table.dae != self.dae:
+            raise LagcodegenError(f"the contact table of {info.prefix!r} does not match its code")
+        self.contacts = list(info.contacts)
+        self.restitution = np.array([sim.system.restitution[k] for k in self.contacts], dtype=float)
+
+    def gaps(self, t: float, y, p) -> tuple[np.ndarray, np.ndarray]:
+        """(g_k, w_k) of the contacts at (t, y)."""
+        ffi = self.ffi
+        nk = len(self.contacts)
+        g, w = np.empty(nk), np.empty(nk)
+        y = np.ascontiguousarray(y, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        rc = self.table.gaps(float(t), ffi.from_buffer("double[]", y), ffi.from_buffer("double[]", p) if p.size
+                             else ffi.NULL, ffi.from_buffer("double[]", g), ffi.from_buffer("double[]", w))
+        if rc:
+            raise LagcodegenError(f"the contact gaps are not finite at t = {t}")
+        return g, w
+
+    def run(self, t, y0, p, *, method: str, rtol: float, atol: float, alpha: float, beta: float, roots: bool,
+            max_events: int, max_steps: int, first_step: float, max_step: float, min_step: float, max_order: int,
+            max_wall: float, contacts: ContactOptions) -> Result:
+        sim, ffi = self.sim, self.ffi
+        nk, nj = len(self.contacts), sim.info.J
+        nr = nj + nk
+        ny, nt = 2 * sim.n, t.size
+        if not (type(atol) is float or isinstance(atol, (int, float))):
+            raise LagcodegenError("runs with contacts take a scalar atol")
+        yout = np.empty((nt, ny))
+        out = np.empty((nt, sim.n_out_columns))
+        lamout = np.zeros((nt, max(nr, 1)))
+        rec = np.empty((contacts.max_records, 6))
+        active = np.zeros(nk, dtype=np.intc)
+        n_rec = ffi.new("int *")
+        opt = ffi.new("lcg_cvc_options *")
+        opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
+        opt.max_steps, opt.first_step, opt.max_step, opt.min_step = int(max_steps), first_step, max_step, min_step
+        opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(max_order), alpha, beta, int(roots), max_wall
+        st = ffi.new("lcg_cvc_stats *")
+        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, max_events) if roots and sim.info.events \
+            else None
+        settings = np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol])
+        fb = ffi.from_buffer
+        p = np.ascontiguousarray(p, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        start = time.perf_counter()
+        flag = self.rt.lib.lcg_imp_solve(
+            self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), nt, fb("double[]", t),
+            fb("double[]", yout), fb("double[]", out), fb("double[]", lamout), opt, fb("double[]", self.restitution),
+            fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
+            events.struct if events else ffi.NULL)
+        wall = time.perf_counter() - start
+        done = st.nt_done
+        recs = events.records(sim.state_names, ny) if events else []
+        tt, yy, oo, ll = t[:done].copy(), yout[:done].copy(), out[:done].copy(), lamout[:done].copy()
+        if events and events.terminated and recs and (not tt.size or recs[-1].t > tt[-1]):
+            ev = recs[-1]
+            tt = np.append(tt, ev.t)
+            yy = np.vstack([yy, ev.y[None, :]])
+            try:
+                o = sim.outputs(ev.t, ev.y, p)
+            except LagcodegenError:
+                o = np.full(oo.shape[1], np.nan)
+            oo = np.vstack([oo, np.resize(o, (1, oo.shape[1]))])
+            ll = np.vstack([ll, np.full((1, ll.shape[1]), np.nan)])
+        stats = native_stats(ffi, st)
+        stats["wall_time"] = wall
+        text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(
+            errors="replace"), "CVODE", SINGULAR_AUGMENTED)
+        outputs = dict(zip(sim.info.output_names, oo.T))
+        for i, k in enumerate(self.contacts):
+            outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
+        count = int(n_rec[0])
+        log = ContactLog([ImpactRecord(float(r[0]), self.contacts[int(r[1])], KINDS[int(r[2])], float(r[3]),
+                                       float(r[4]), float(r[5])) for r in rec[: min(count, contacts.max_records)]],
+                         {k: "contact" if active[i] else "free" for i, k in enumerate(self.contacts)},
+                         count > contacts.max_records)
+        stats["impacts"] = len(log.times)
+        res = Result(t=tt, y=yy, state_names=sim.state_names, outputs=outputs, stats=stats, status=int(flag),
+                     message=text, backend="native", method=method, events=recs)
+        res.impacts = log
+        return res

@@ -1,0 +1,354 @@
+"""Contacts with restitution (lagcodegen.Inequality): impacts, persistent contact and release on
+the impact driver, checked against independent facts (closed-form bouncing ball, momentum and
+energy of a cradle, the impact ratio of a rocking block, Newton's law and the energy loss of the
+normal approach energy of a double pendulum hitting a wall)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import lagcodegen as lcg
+from lagcodegen.api import compile_constrained, compile_file
+from lagcodegen.derivation import derive
+from lagcodegen.errors import LagcodegenError, ModelError
+
+G = 9.81
+
+
+def _ball(e: float):
+    m = lcg.Model("ball")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=e)]),
+                               "index1", outputs=["energy"])
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return _ball(0.8)
+
+
+def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
+    e, h0 = 0.8, 1.0
+    t1 = math.sqrt(2 * h0 / G)
+    speed = 1e-6
+    res = ball.simulate(np.linspace(0, 6, 6001), q0=[h0], v0=[0.0], rtol=1e-12, atol=1e-14,
+                        contacts=lcg.ContactOptions(contact_speed=speed))
+    bounces = res.impacts.select("bounce")
+    assert len(bounces) >= 20
+    # impact k at t1 + 2 t1 e (1 - e^k) / (1 - e); rebound speed e^(k+1) sqrt(2 g h0)
+    k = np.arange(20)
+    t_exact = t1 + 2 * t1 * e * (1 - e**k) / (1 - e)
+    t_found = np.array([r.t for r in bounces[:20]])
+    assert np.max(np.abs(t_found / t_exact - 1)) < 1e-9
+    w_after = np.array([r.w_after for r in bounces[:20]])
+    assert np.max(np.abs(w_after / (e ** (k + 1) * math.sqrt(2 * G * h0)) - 1)) < 1e-9
+    # Newton's law and the impulse m (1 + e) |w-| of each impact
+    for r in bounces[:20]:
+        assert r.w_after == pytest.approx(-e * r.w_before, rel=1e-12)
+        assert r.impulse == pytest.approx(-(1 + e) * r.w_before, rel=1e-12)
+    # apex heights h0 e^(2k): the maximum of y between impacts k-1 and k, from the velocity after
+    # impact k-1 (apex = w+^2 / 2g) and checked on the output grid where an apex falls on it
+    apex = w_after**2 / (2 * G)
+    assert np.max(np.abs(apex / (h0 * e ** (2 * (k + 1))) - 1)) < 1e-9
+    # accumulation (Zeno) at t1 (1 + e) / (1 - e): persistent contact begins before it, by at most
+    # the flight left after a rebound of speed <= contact_speed / e, 2 (speed / e) / (g (1 - e))
+    t_zeno = t1 * (1 + e) / (1 - e)
+    sticks = res.impacts.select("stick")
+    assert len(sticks) == 1
+    assert t_zeno - 2 * (speed / e) / (G * (1 - e)) - 1e-9 <= sticks[0].t <= t_zeno + 1e-9
+    assert res.impacts.final_modes == {0: "contact"}
+    assert res.impacts.accumulation_time(0) == pytest.approx(t_zeno, rel=1e-9)
+    # resting: y = 0, the multiplier m g (A = dy/dy = 1, lambda A = m g up)
+    after = res.t > t_zeno + 1e-3
+    assert np.max(np.abs(res["lambda_ineq_0"][after] - G)) < 1e-9
+    assert np.max(np.abs(res["y"][after])) < 1e-9
+    assert np.all(res["lambda_ineq_0"][res.t < sticks[0].t] == 0.0)
+
+
+def test_ball_released_when_the_floor_would_pull():
+    # a moving floor y_f(t) with y_f'' = 1 - 20 t: the ball resting on it is pushed with the
+    # multiplier lambda = m (g + y_f'') = m (g + 1 - 20 t), released where that turns negative,
+    # at t = (g + 1) / 20, then flies freely above the floor (which accelerates downwards
+    # faster than g)
+    m = lcg.Model("lift")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    t = m.t
+    floor = 0.5 * t**2 - sp.Rational(10, 3) * t**3
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - floor, restitution=0.5)]),
+                              "index1")
+    res = sim.simulate(np.linspace(0, 0.8, 81), q0=[0.0], v0=[0.0], rtol=1e-11, atol=1e-13)
+    releases = res.impacts.select("release")
+    assert releases, res.impacts.records
+    assert releases[0].t == pytest.approx((G + 1) / 20, rel=1e-8)
+    t_off = releases[0].t
+    before, after = res.t < t_off, res.t > t_off
+    assert np.all(np.abs(res["lambda_ineq_0"][before] - (G + 1 - 20 * res.t[before])) < 1e-8)
+    assert np.all(res["lambda_ineq_0"][after] == 0.0)
+    tt = res.t[after]
+    assert np.all(res["y"][after] > 0.5 * tt**2 - 10 / 3 * tt**3)
+    assert len(res.impacts) == 1
+
+
+def test_particle_leaves_the_sphere_in_the_same_run():
+    # the sphere x^2 + y^2 >= R^2 as a contact: the particle starts on top at rest relative to
+    # it (persistent contact, multiplier > 0), is released where the multiplier turns negative,
+    # at cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on in the same call
+    m = lcg.Model("sphere_contact")
+    x, y = m.coordinates("x y")
+    m.parameters(R=1.0, g=G, m=1.0)
+    m.particle("p", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    contact = lcg.Inequality(x**2 + y**2 - sp.Symbol("R") ** 2, restitution=0.0)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    v0 = 1e-3
+    res = sim.simulate(np.linspace(0, 3.2, 321), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert [r.kind for r in res.impacts] == ["release"]
+    t_off = res.impacts[0].t
+    at = sim.simulate(np.array([0.0, t_off]), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert at["y"][-1] == pytest.approx((2 + v0**2 / G) / 3, rel=1e-8)
+    assert np.all(res["lambda_ineq_0"][res.t > t_off] == 0.0)
+    assert np.all(res["lambda_ineq_0"][res.t < t_off] > 0.0)
+    assert np.max(np.abs(res["energy"] - res["energy"][0])) < 1e-8
+    # free flight after leaving: a parabola from the release state
+    tau = res.t[res.t > t_off + 0.1] - t_off
+    yq = at["y"][-1] + at["y_dot"][-1] * tau - G / 2 * tau**2
+    assert np.max(np.abs(res["y"][res.t > t_off + 0.1] - yq)) < 1e-7
+    assert res.impacts.final_modes == {0: "free"}
+
+
+def test_newtons_cradle_passes_the_velocity_to_the_last_ball():
+    m = lcg.Model("cradle")
+    xs = m.coordinates("x1 x2 x3")
+    m.parameters(m=1.0, d=0.1)
+    for i, x in enumerate(xs):
+        m.particle(f"b{i}", sp.Symbol("m"), (x, 0))
+    d = sp.Symbol("d")
+    ineqs = [lcg.Inequality(xs[1] - xs[0] - d, restitution=1.0), lcg.Inequality(xs[2] - xs[1] - d, restitution=1.0)]
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), "index1", outputs=["energy"])
+    gap = 1e-3
+    res = sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0],
+                       rtol=1e-12, atol=1e-14)
+    v = res.y[-1, 3:]
+    assert abs(v[0]) < 1e-12 and abs(v[1]) < 1e-12 and abs(v[2] - 1.0) < 1e-12
+    assert [r.contact for r in res.impacts] == [0, 1]
+    assert [r.kind for r in res.impacts] == ["bounce", "bounce"]
+    assert res.impacts[0].t == pytest.approx(gap, rel=1e-10)
+    assert res.impacts[1].t == pytest.approx(2 * gap, rel=1e-10)
+    momentum = res.y[:, 3:].sum(axis=1)
+    assert np.max(np.abs(momentum - 1.0)) < 1e-12
+    assert np.max(np.abs(res["energy"] - 0.5)) < 1e-12
+
+
+def _rocking_block():
+    m = lcg.Model("block")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(m=1.0, b=0.2, h=0.6, g=G)
+    mass, b, h = sp.symbols("m b h")
+    m.planar_body("block", mass, mass * (b**2 + h**2) / 3, (x, y), phi)
+    m.gravity(sp.Symbol("g"))
+    # heights of the bottom corners (-b, -h) (contact 0) and (b, -h) (contact 1), rotated by phi
+    left = y - b * sp.sin(phi) - h * sp.cos(phi)
+    right = y + b * sp.sin(phi) - h * sp.cos(phi)
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(left, restitution=0.0),
+                                                    lcg.Inequality(right, restitution=0.0)])
+    return compile_constrained(system, "index1", outputs=["energy"])
+
+
+def test_rocking_block_impact_ratio_on_a_frictionless_floor():
+    # The block (half-width b, half-height h, I_c = m R^2 / 3) leans on its left corner at rest and
+    # falls back; at phi = 0 the right corner hits plastically and the left one lifts off.
+    # Frictionless contacts: no horizontal impulse, so from the angular momentum about the centre
+    # and the vertical momentum (I_c + m b^2) w+ = (I_c - m b^2) w-, the ratio
+    # (1 - 3 sin^2 a) / (1 + 3 sin^2 a) with sin a = b / R (Housner's block, which does not slip,
+    # has 1 - 1.5 sin^2 a; this model's contacts have no friction).
+    b, h, phi0 = 0.2, 0.6, 0.1
+    sim = _rocking_block()
+    y0 = h * math.cos(phi0) + b * math.sin(phi0)  # on the left corner
+    res = sim.simulate(np.linspace(0, 1.0, 101), q0=[0.0, y0, phi0], v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    first = res.impacts.select("stick")[0]
+    assert first.contact == 1
+    t_hit = first.t
+    # the impulse of the left corner would pull: it is left out of the impact and released
+    assert [(r.contact, r.kind, r.t) for r in res.impacts if r.t <= t_hit] == [(0, "release", t_hit),
+                                                                                (1, "stick", t_hit)]
+    assert np.max(np.abs(res["x"])) < 1e-12  # no horizontal force
+    dt = 1e-9
+    near = sim.simulate(np.array([0.0, t_hit - dt, t_hit + dt]), q0=[0.0, y0, phi0], v0=[0.0, 0.0, 0.0],
+                        rtol=1e-12, atol=1e-14)
+    w_minus, w_plus = near["phi_dot"][1], near["phi_dot"][2]
+    # w- from the energy: m g (y0 - h) = 1/2 (m b^2 + I_c) w-^2 (vy = b w on the left corner at phi = 0)
+    Ic = (b**2 + h**2) / 3
+    assert abs(w_minus) == pytest.approx(math.sqrt(2 * G * (y0 - h) / (b**2 + Ic)), rel=1e-7)
+    sin2 = b**2 / (b**2 + h**2)
+    assert w_plus / w_minus == pytest.approx((1 - 3 * sin2) / (1 + 3 * sin2), rel=1e-7)
+    # the impulse of the right corner: m (vy+ - vy-) = m b (w+ + w-) ... with vy- = b w-, vy+ = -b w+
+    assert first.impulse == pytest.approx(-b * (w_plus + w_minus), rel=1e-6)
+
+
+def test_housner_rocking_block_on_no_slip_corners():
+    # Rough corners (Inequality(..., tangent=x of the corner): no slip while touching): the block
+    # pivots on one corner; at phi = 0 the other corner hits plastically (the first one's impulse
+    # would pull: released), and the angular momentum about the new corner is kept:
+    # w+/w- = 1 - 2 m R^2 sin^2 a / I_0 = 1 - 1.5 sin^2 a with I_0 = (4/3) m R^2 (Housner 1963)
+    b, h, phi0 = 0.2, 0.6, 0.1
+    m = lcg.Model("housner")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(m=1.0, b=b, h=h, g=G)
+    mass, B, H = sp.symbols("m b h")
+    m.planar_body("block", mass, mass * (B**2 + H**2) / 3, (x, y), phi)
+    m.gravity(sp.Symbol("g"))
+    corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
+               (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
+                                                    for cx, cy in corners])
+    sim = compile_constrained(system, "index1", outputs=["energy"])
+    # leaning on the left corner, which stays at x = -b
+    q0 = [-b + b * math.cos(phi0) - h * math.sin(phi0), h * math.cos(phi0) + b * math.sin(phi0), phi0]
+    res = sim.simulate(np.linspace(0, 1.0, 101), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    sticks = res.impacts.select("stick")
+    assert [r.contact for r in sticks[:2]] == [1, 0]
+    t_hit = sticks[0].t
+    assert [(r.contact, r.kind) for r in res.impacts if r.t == t_hit] == [(0, "release"), (1, "stick")]
+    # before the impact the left corner does not move: x_L = -b, y_L = 0
+    before = res.t < t_hit
+    xl = res["x"] - b * np.cos(res["phi"]) + h * np.sin(res["phi"])
+    assert np.max(np.abs(xl[before] + b)) < 1e-9
+    # the time to fall back: the pendulum about the corner, I_0 phi'' = m g R sin(a - phi), from rest
+    R, a = math.hypot(b, h), math.atan2(b, h)
+    I0 = 4 / 3 * R**2
+    from scipy.integrate import quad
+    fall = quad(lambda p: 1 / math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a - p)) / I0), 0, phi0,
+                limit=200)[0]
+    assert t_hit == pytest.approx(fall, rel=1e-7)
+    dt = 1e-9
+    near = sim.simulate(np.array([0.0, t_hit - dt, t_hit + dt]), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    w_minus, w_plus = near["phi_dot"][1], near["phi_dot"][2]
+    assert w_minus == pytest.approx(-math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a)) / I0), rel=1e-7)
+    assert w_plus / w_minus == pytest.approx(1 - 1.5 * math.sin(a) ** 2, rel=1e-7)
+
+
+def test_double_pendulum_hitting_a_wall_loses_1_minus_e2_of_its_normal_approach_energy():
+    m = lcg.Model("dpwall")
+    th1, th2 = m.coordinates("th1 th2")
+    m.parameters(m1=1.0, m2=0.7, l1=1.0, l2=0.8, g=G, d=0.9)
+    m1, m2, l1, l2, d = sp.symbols("m1 m2 l1 l2 d")
+    x1, y1 = l1 * sp.sin(th1), -l1 * sp.cos(th1)
+    x2, y2 = x1 + l2 * sp.sin(th2), y1 - l2 * sp.cos(th2)
+    m.particle("p1", m1, (x1, y1))
+    m.particle("p2", m2, (x2, y2))
+    m.gravity(sp.Symbol("g"))
+    e = 0.6
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(d - x2, restitution=e)])  # wall at x = d
+    sim = compile_constrained(system, "index1", outputs=["energy"])
+    res = sim.simulate(np.linspace(0, 3, 301), q0=[-0.8, -1.2], v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
+    hits = res.impacts.select("bounce")
+    assert len(hits) >= 2
+    # the mass matrix from the derivation (sympy), G = dg/dq, at each impact state
+    eom = derive(m)
+    vals = {s: v for s, v in m.params.items()}
+    g_expr = d - x2
+    Gq = [sp.diff(g_expr, q) for q in (th1, th2)]
+    Mf = sp.lambdify((th1, th2), eom.M.subs(vals))
+    Gf = sp.lambdify((th1, th2), sp.Matrix([Gq]).subs(vals))
+    for r in hits[:2]:
+        k = np.searchsorted(res.t, r.t)  # energy is constant between impacts: compare around it
+        E_before, E_after = res["energy"][k - 1], res["energy"][k]
+        assert r.w_after == pytest.approx(-e * r.w_before, rel=1e-10)
+        # the state at the impact: integrate to it (the jump changes only velocities)
+        at = sim.simulate(np.array([0.0, r.t]), q0=[-0.8, -1.2], v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
+        q = at.y[-1, :2]
+        M = np.array(Mf(*q), dtype=float)
+        Gr = np.array(Gf(*q), dtype=float).reshape(1, 2)
+        normal_energy = 0.5 * r.w_before**2 / (Gr @ np.linalg.solve(M, Gr.T)).item()
+        assert E_before - E_after == pytest.approx((1 - e**2) * normal_energy, rel=1e-7)
+
+
+def test_contact_input_errors():
+    with pytest.raises(ModelError, match="restitution must be in"):
+        lcg.Inequality(sp.Symbol("y"), restitution=1.5)
+    with pytest.raises(ModelError, match="restitution must be a number"):
+        lcg.Inequality(sp.Symbol("y"), restitution="high")
+    with pytest.raises(LagcodegenError, match="contact_speed"):
+        lcg.ContactOptions(contact_speed=-1.0)
+    m = lcg.Model("ball2")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.5)])
+    with pytest.raises(ModelError, match="not GGL"):
+        compile_constrained(system, "ggl")
+    sim = compile_constrained(system, "index1")
+    with pytest.raises(ModelError, match="violated"):
+        sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
+    with pytest.raises(LagcodegenError, match="projection"):
+        sim.simulate((0, 1), q0=[0.5], v0=[0.0], projection=True)
+    with pytest.raises(LagcodegenError, match="ensembles"):
+        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])
+
+
+def test_plain_inequality_keeps_its_terminal_event():
+    # an expression without restitution is still the terminal event ineq_0 (no contact code)
+    m = lcg.Model("ball3")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y)]), "index1")
+    assert not any(name.endswith("_impact.c") for name in sim.compiled.code.files)
+    res = sim.simulate((0, 2), q0=[1.0], v0=[0.0], rtol=1e-12, atol=1e-14)
+    assert res.impacts is None
+    assert res.events[-1].name == "ineq_0"
+    assert res.events[-1].t == pytest.approx(math.sqrt(2 / G), rel=1e-10)
+
+
+def test_model_file_contact_runs_like_the_python_system():
+    from pathlib import Path
+
+    from lagcodegen.modelfile import ModelFileError, load_model, loads_model
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml"
+    mf = load_model(path)
+    assert mf.constrained.restitution == [0.8]
+    res = mf.simulate(compile_file(mf))
+    t1 = math.sqrt(2 / G)
+    first = [r.t for r in res.impacts.select("bounce")][:3]
+    exact = [t1 + 2 * t1 * 0.8 * (1 - 0.8**k) / 0.2 for k in range(3)]
+    assert np.max(np.abs(np.array(first) / exact - 1)) < 1e-9
+    assert res["lambda_ineq_0"][-1] == pytest.approx(G, rel=1e-9)
+    with pytest.raises(ModelFileError, match="restitution"):
+        loads_model(path.read_text().replace("restitution = 0.8", "restitution = 1.8"))
+    with pytest.raises(ModelFileError, match="unknown key"):
+        loads_model(path.read_text().replace("restitution = 0.8", "restituion = 0.8"))
+
+
+def test_generate_and_bundle_of_a_contact_file(tmp_path):
+    from pathlib import Path
+
+    from lagcodegen.api import generate_file
+    from lagcodegen.modelfile import load_model
+
+    mf = load_model(Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml")
+    files = generate_file(mf)
+    assert {"bouncing_ball_impact.c", "bouncing_ball_dae_table.c", "lcg_imp_model.h"} <= set(files)
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    import subprocess
+    for name in ("bouncing_ball_impact.c", "bouncing_ball_dae.c", "bouncing_ball_dae_table.c"):
+        proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", name, "-o",
+                               "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+    with pytest.raises(ModelError, match="bundles of systems with contacts"):
+        generate_file(mf, bundle=True)
+    with pytest.raises(ModelError, match="in C only"):
+        generate_file(mf, lang="fortran")
