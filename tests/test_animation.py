@@ -212,3 +212,35 @@ def test_a_spinning_top_draws_its_body_axes(tmp_path):
     anim.draw(2)
     assert np.array_equal(anim.data(anim.axes_lines["top.x"]), np.vstack([c[2], tr["top.x"][2]]))
     assert Image.open(res.animate(tmp_path / "top.gif", frames=6)).n_frames == 6
+
+
+@pytest.fixture(scope="module")
+def cartesian_double_pendulum():
+    """Two bobs in Cartesian coordinates held by two rods written as constraints: the
+    unconstrained model's geometry has no rods, the runs keep both."""
+    m = lcg.Model("cartesian_double_pendulum")
+    x1, y1, x2, y2 = m.coordinates("x1 y1 x2 y2")
+    m.particle("bob1", 1.0, (x1, y1))
+    m.particle("bob2", 1.0, (x2, y2))
+    m.gravity(9.81)
+    system = lcg.ConstrainedSystem(m, holonomic=[x1**2 + y1**2 - 1, (x2 - x1)**2 + (y2 - y1)**2 - 0.25])
+    a, b = 0.3, -0.2  # small swings: minimal coordinates stay on one branch (no square root at 0)
+    q0 = [np.sin(a), -np.cos(a), np.sin(a) + 0.5 * np.sin(b), -np.cos(a) - 0.5 * np.cos(b)]
+    return system, q0
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_constrained_runs_draw_the_rods_their_constraints_keep(cartesian_double_pendulum, formulation, tmp_path):
+    system, q0 = cartesian_double_pendulum
+    res = lcg.compile_constrained(system, formulation).simulate(T, q0=q0, v0=[0.0] * 4, rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert sorted(d.links) == [("bob1", "bob2"), ("origin", "bob1")]  # bob2 swings: no rod to the origin
+    assert d.pivots == {"origin": (0.0, 0.0)}
+    tracks = res.tracks()
+    assert np.allclose(np.hypot(*tracks["bob1"].T), 1.0, atol=1e-6)  # the rod lengths of the constraints
+    assert np.allclose(np.hypot(*(tracks["bob2"] - tracks["bob1"]).T), 0.5, atol=1e-6)
+    assert np.allclose(tracks["bob2"][:, 0], res["x2"]) and np.allclose(tracks["bob2"][:, 1], res["y2"])
+    assert res.model_name == "cartesian_double_pendulum"
+    gif = res.animate(tmp_path / f"{formulation}.gif", frames=5)
+    assert Image.open(gif).n_frames == 5
+    assert sorted(pickle.loads(pickle.dumps(res)).drawn().links) == sorted(d.links)

@@ -16,6 +16,7 @@ drawing (made on first use, once per compiled model) and the model's name, so th
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from typing import Callable
 
@@ -23,7 +24,7 @@ import numpy as np
 import symengine as se
 import sympy as sp
 
-from ..animation import Drawing
+from ..animation import Drawing, resolve
 from ..derivation import to_se
 from ..model.model import PlanarBody, RigidBody
 from .scene import Scene
@@ -31,6 +32,9 @@ from .scene import Scene
 #: Random states of the rigid-link test, and its relative tolerance.
 LINK_SAMPLES = 5
 LINK_RTOL = 1e-9
+#: Relative tolerance of a distance kept over a constrained run (its constraint residuals are
+#: about the tolerances of the integration, far above the unconstrained model's LINK_RTOL).
+RUN_LINK_RTOL = 1e-4
 #: Name of the origin when it is drawn as a pivot.
 ORIGIN = "origin"
 #: Length of the axes drawn on bodies, as a fraction of the largest distance of a point from the
@@ -150,9 +154,15 @@ def _stored(drawing: Drawing | None) -> Drawing | None:
     return drawing
 
 
+def _code(cm):
+    """The generated code of a compiled model, or of the model under a constrained one."""
+    code = getattr(cm, "code", None)
+    return code if code is not None else getattr(getattr(cm, "compiled", None), "code", None)
+
+
 def deferred_drawing(cm) -> DeferredDrawing | None:
     """The deferred drawing of a compiled model (one per model), None without its scene."""
-    scene = getattr(getattr(cm, "code", None), "scene", None)
+    scene = getattr(_code(cm), "scene", None)
     if not isinstance(scene, Scene):
         return None
     cached = cm.__dict__.get("_lcg_drawing")
@@ -171,7 +181,60 @@ def attaches_drawing(simulate: Callable) -> Callable:
         if getattr(res, "drawing", "absent") is None:
             res.drawing = deferred_drawing(self)
         if hasattr(res, "model_name") and not res.model_name:
-            res.model_name = getattr(getattr(self, "code", None), "model_name", "") or ""
+            res.model_name = getattr(_code(self), "model_name", "") or ""
+        return res
+
+    return wrapped
+
+
+def with_run_links(drawing: Drawing, t: np.ndarray, y: np.ndarray, parameters: dict) -> Drawing:
+    """``drawing`` with the links that a run of a constrained system keeps: two points (or a point
+    and the origin) whose distance stays constant over the run (to :data:`RUN_LINK_RTOL`), such
+    as a pendulum's rod written as a constraint x^2 + y^2 = l^2, which the unconstrained model's
+    geometry (:func:`drawing_of`) cannot show."""
+    if drawing.evaluate is None or len(t) < 2:
+        return drawing
+    at = drawing.evaluate(t, y, parameters)
+    names = [p for p in drawing.points if p in at]
+    links = list(drawing.links)
+    pivots = dict(drawing.pivots)
+    linked = set(links) | {(b, a) for a, b in links}
+
+    def kept(a: np.ndarray, b: np.ndarray) -> bool:
+        d = np.linalg.norm(a - b, axis=1)
+        return bool(d.min() > 0 and np.ptp(d) <= RUN_LINK_RTOL * d.max())
+
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            if (a, b) not in linked and drawing.points[a] == drawing.points[b] and kept(at[a], at[b]):
+                links.append((a, b))
+    for p in names:
+        if p not in drawing.fixed and (ORIGIN, p) not in linked and kept(at[p], np.zeros_like(at[p])):
+            pivots[ORIGIN] = (0.0,) * drawing.points[p]
+            links.append((ORIGIN, p))
+    return dataclasses.replace(drawing, links=links, pivots=pivots)
+
+
+def keep_run_links(res) -> None:
+    """Make the drawing of the result ``res`` of a constrained run (if it has one) draw the links
+    its run keeps (:func:`with_run_links`), once it is drawn."""
+    base = res.drawing
+    if base is not None:
+        res.drawing = DeferredDrawing(lambda: with_run_links(resolve(base), res.t, res.y, res.parameters))
+
+
+def attaches_run_drawing(simulate: Callable) -> Callable:
+    """Decorate a constrained system's ``simulate``: as :func:`attaches_drawing`, the result's
+    drawing being the unconstrained model's plus the links the run keeps (:func:`with_run_links`)."""
+
+    @functools.wraps(simulate)
+    def wrapped(self, *args, **kwargs):
+        res = simulate(self, *args, **kwargs)
+        if getattr(res, "drawing", "absent") is None:
+            res.drawing = deferred_drawing(self)
+            keep_run_links(res)
+        if hasattr(res, "model_name") and not res.model_name:
+            res.model_name = getattr(_code(self), "model_name", "") or ""
         return res
 
     return wrapped

@@ -53,6 +53,7 @@ from typing import Mapping
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.constrained import ConstrainedCodeInfo
+from ..formulation.drawing import attaches_run_drawing
 from ..result import Result
 from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions
 from ..solvers.control import POLL_EVERY
@@ -105,6 +106,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         self._default_parameters = dict(zip(self.param_names, self._default_p))  # Result.parameters
 
     # ------------------------------------------------------------------ simulate
+    @attaches_run_drawing
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
                  atol=1e-10, events: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
                  raise_on_error: bool = True, **options) -> Result:
