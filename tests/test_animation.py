@@ -244,3 +244,40 @@ def test_constrained_runs_draw_the_rods_their_constraints_keep(cartesian_double_
     gif = res.animate(tmp_path / f"{formulation}.gif", frames=5)
     assert Image.open(gif).n_frames == 5
     assert sorted(pickle.loads(pickle.dumps(res)).drawn().links) == sorted(d.links)
+
+
+def test_rigid_body_trees_draw_joints_centres_of_mass_and_frame_axes(tmp_path):
+    """The two-link arm of examples/two_link_arm.urdf (rods hanging along -z, joints about y):
+    joints and centres of mass where the forward kinematics put them, lines along the tree."""
+    from pathlib import Path
+    arm = lcg.urdf.load(Path(__file__).resolve().parents[1] / "examples" / "two_link_arm.urdf")
+    res = lcg.compile_model(arm).simulate(T, q0=[0.7, -0.4], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert sorted(d.links) == [("forearm", "forearm.com"), ("upper_arm", "forearm"), ("upper_arm", "upper_arm.com")]
+    tr = res.tracks()
+    q1, q2 = res[arm.coords[0].name], res[arm.coords[1].name]
+    zero = np.zeros_like(q1)
+    assert np.allclose(tr["upper_arm"], 0.0, atol=1e-14) and "upper_arm" in d.fixed  # the shoulder
+    assert np.allclose(tr["upper_arm.com"], np.column_stack([-0.5 * np.sin(q1), zero, -0.5 * np.cos(q1)]))
+    assert np.allclose(tr["forearm"], np.column_stack([-np.sin(q1), zero, -np.cos(q1)]))  # the elbow
+    assert np.allclose(tr["forearm.com"], np.column_stack([-np.sin(q1) - 0.4 * np.sin(q1 + q2), zero,
+                                                           -np.cos(q1) - 0.4 * np.cos(q1 + q2)]))
+    # frame axes on the bodies: the forearm's z axis points from its elbow to its centre of mass' opposite
+    tip = tr["forearm.z"] - tr["forearm.com"]
+    along = (tr["forearm"] - tr["forearm.com"]) / 0.4
+    assert np.allclose(tip / np.linalg.norm(tip, axis=1)[:, None], along)
+    assert Image.open(res.animate(tmp_path / "arm.gif", frames=4)).n_frames == 4
+
+
+def test_a_top_on_a_ball_joint_is_drawn_from_its_link(tmp_path):
+    m = lcg.Model("top")
+    m.link("top", joint=lcg.Joint.spherical("pivot"), mass=1.0, com=(0, 0, 0.3), inertia=(0.02, 0.02, 0.04))
+    m.gravity(9.81)
+    res = lcg.compile_model(m).simulate(T, q0=[0.0, 0.2, 0.0], v0=[0.0, 0.0, 30.0], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert d.links == [("top", "top.com")] and d.fixed == ("top",) and d.dim == 3
+    tr = res.tracks()
+    assert np.allclose(np.linalg.norm(tr["top.com"], axis=1), 0.3)  # the centre of mass stays 0.3 from the pivot
+    tip = tr["top.z"] - tr["top.com"]  # the symmetry axis runs through the pivot
+    assert np.allclose(np.cross(tip, tr["top.com"]), 0.0, atol=1e-12)
+    assert Image.open(res.animate(tmp_path / "top.gif", frames=4)).n_frames == 4

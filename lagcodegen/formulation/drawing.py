@@ -5,8 +5,10 @@ Links are read from the model's geometry: two points (or a point and the origin,
 of a pendulum) are joined when their distance is the same in every configuration, a rod or a
 rigid body between them. The test is numerical: the distance at a few random states (q in
 [-2, 2], t in [0, 1], the scene's parameter values) constant to 1e-9 relative. Points that no
-coordinate or time moves are drawn as fixed pivots. Bodies carry short axes (a rigid body its
-three body axes, the columns of R; a planar body the direction of its angle), their length
+coordinate or time moves are drawn as fixed pivots. The links of rigid-body trees are drawn
+from the tree: each joint joined to its children's joints and to its own centre of mass.
+Bodies carry short axes (a rigid body its three body axes, the columns of R; a planar body the
+direction of its angle; a tree link its frame's axes), their length
 :data:`AXIS_FRACTION` of the model's size, so that a rotation shows.
 
 :func:`attaches_drawing` decorates a compiled model's ``simulate``: every result gets a deferred
@@ -48,13 +50,19 @@ def drawing_of(scene: Scene) -> Drawing:
     model = eom.model
     names = list(model.points)
     dims = {p: model.points[p].dim for p in names}
+    located = {p: eom.position(p) for p in names}
+    tree_points, tree_links = link_points(model)  # the joints and centres of mass of tree links
+    for p, position in tree_points.items():
+        dims[p] = 3
+        located[p] = [to_se(c, f"position of {p!r}") for c in position]
+    names += list(tree_points)
     sub = scene.substitutions()
     coords = [se.Symbol(q.name) for q in model.coords]
     params = [se.Symbol(name) for name in scene.runtime_parameters]
     t = se.Symbol(model.t.name)
     directions = body_directions(model)  # (tip name, body point, axis letter, direction expressions)
-    exprs = [c for p in names for c in eom.position(p)] + [to_se(c, f"axis of {body!r}")
-                                                          for _, body, _, d in directions for c in d]
+    exprs = [c for p in names for c in located[p]] + [to_se(c, f"axis of {body!r}")
+                                                     for _, body, _, d in directions for c in d]
     exprs = [c.xreplace(sub) if sub else c for c in exprs]
     if not exprs:
         return Drawing(model.name, {})
@@ -84,13 +92,15 @@ def drawing_of(scene: Scene) -> Drawing:
         d = np.linalg.norm(a - b, axis=1)
         return bool(d.min() > 0 and np.ptp(d) <= LINK_RTOL * (1 + d.max()))
 
-    for i, a in enumerate(names):
-        for b in names[i + 1:]:
+    loose = [p for p in names if p not in tree_points]  # the tree's links come from the tree
+    for i, a in enumerate(loose):
+        for b in loose[i + 1:]:
             if dims[a] == dims[b] and not (a in fixed and b in fixed) and rigid(at[a], at[b]):
                 links.append((a, b))
+    links += tree_links
     pivots: dict[str, tuple[float, ...]] = {}
     fixed_at_origin = [p for p in fixed if np.abs(at[p][0]).max() <= LINK_RTOL]
-    for p in names:
+    for p in loose:
         if p in fixed:
             continue
         origin = np.zeros_like(at[p])
@@ -114,12 +124,35 @@ def drawing_of(scene: Scene) -> Drawing:
                    {tip: (body, axis) for tip, body, axis, _ in directions})
 
 
+def link_points(model) -> tuple[dict[str, list], list[tuple[str, str]]]:
+    """The points drawn for the links of rigid-body trees (:meth:`lagcodegen.model.Model.link`),
+    as sympy world positions: each link's joint frame origin (named as the link) and, where it
+    is elsewhere, its centre of mass (``<link>.com``); and the lines between them: each joint to
+    its children's joints and to its own centre of mass."""
+    points: dict[str, list] = {}
+    lines: list[tuple[str, str]] = []
+    for lk in model.links:
+        points[lk.name] = list(lk.position())
+        if lk.parent is not None:
+            lines.append((lk.parent.name, lk.name))
+        if any(c != 0 for c in lk.com):
+            points[f"{lk.name}.com"] = list(lk.com_position())
+            lines.append((lk.name, f"{lk.name}.com"))
+    return points, lines
+
+
 def body_directions(model) -> list[tuple[str, str, str, list]]:
     """The axes drawn on the model's bodies: (tip name ``<body>.<axis>``, the body's point, the
     axis letter, the axis' unit direction as sympy expressions): a rigid body's three body axes
     in world coordinates (the columns of its orientation R), a planar body's (cos, sin) of its
-    angle."""
+    angle, a tree link's frame axes (the columns of its world rotation) at its centre of mass."""
     out = []
+    for lk in model.links:
+        if lk.mass != 0:
+            at = f"{lk.name}.com" if any(c != 0 for c in lk.com) else lk.name
+            R = lk.rotation()
+            for k, axis in enumerate("xyz"):
+                out.append((f"{lk.name}.{axis}", at, axis, list(R[:, k])))
     for body in model.bodies:
         if isinstance(body, RigidBody):
             for k, axis in enumerate("xyz"):
