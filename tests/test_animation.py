@@ -281,3 +281,32 @@ def test_a_top_on_a_ball_joint_is_drawn_from_its_link(tmp_path):
     tip = tr["top.z"] - tr["top.com"]  # the symmetry axis runs through the pivot
     assert np.allclose(np.cross(tip, tr["top.com"]), 0.0, atol=1e-12)
     assert Image.open(res.animate(tmp_path / "top.gif", frames=4)).n_frames == 4
+
+
+def test_springs_are_drawn_between_their_ends(tmp_path):
+    """A bob hanging from a fixed anchor by a spring (no rod: its length changes), and a second
+    spring to a wall given as a bare position."""
+    m = lcg.Model("spring_pendulum")
+    x, y = m.coordinates("x y")
+    m.point("anchor", (0, 0))
+    m.particle("bob", 1.0, (x, y))
+    m.spring("anchor", "bob", 40.0, rest_length=1.0)
+    m.spring("bob", (2, -1), 5.0)
+    m.gravity(9.81)
+    res = lcg.compile_model(m).simulate(T, q0=[0.3, -1.2], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert d.springs == [("anchor", "bob"), ("bob", "spring1.b")]
+    assert d.links == [] and set(d.fixed) == {"anchor", "spring1.b"}  # the spring's length varies: no rod
+    tracks = res.tracks()
+    assert np.allclose(tracks["spring1.b"], [2.0, -1.0])
+    anim = Animator(d, res.t, tracks, res.t[[0, 20]])
+    anim.draw(1)
+    line = anim.data(anim.springs[("anchor", "bob")])
+    assert np.allclose(line[0], [0.0, 0.0]) and np.allclose(line[-1], tracks["bob"][20])  # from the anchor to the bob
+    length = np.linalg.norm(tracks["bob"][20])
+    axis = tracks["bob"][20] / length
+    along = line @ axis
+    assert np.all(np.diff(along) > 0) and along[-1] == pytest.approx(length)  # a zigzag along the spring
+    across = line - np.outer(along, axis)
+    assert np.max(np.linalg.norm(across, axis=1)) > 0.02 * length  # ... of some width
+    assert Image.open(res.animate(tmp_path / "spring.gif", frames=4)).n_frames == 4

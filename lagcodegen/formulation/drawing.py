@@ -5,7 +5,8 @@ Links are read from the model's geometry: two points (or a point and the origin,
 of a pendulum) are joined when their distance is the same in every configuration, a rod or a
 rigid body between them. The test is numerical: the distance at a few random states (q in
 [-2, 2], t in [0, 1], the scene's parameter values) constant to 1e-9 relative. Points that no
-coordinate or time moves are drawn as fixed pivots. The links of rigid-body trees are drawn
+coordinate or time moves are drawn as fixed pivots. Springs are drawn between their ends (an
+end given as a position, not a named point, becomes a point of its own). The links of rigid-body trees are drawn
 from the tree: each joint joined to its children's joints and to its own centre of mass.
 Bodies carry short axes (a rigid body its three body axes, the columns of R; a planar body the
 direction of its angle; a tree link its frame's axes), their length
@@ -56,6 +57,17 @@ def drawing_of(scene: Scene) -> Drawing:
         dims[p] = 3
         located[p] = [to_se(c, f"position of {p!r}") for c in position]
     names += list(tree_points)
+    springs: list[tuple[str, str]] = []
+    for i, (_, pa, pb) in enumerate(model.springs):  # ends at unnamed positions become points of their own
+        ends = []
+        for end, pt in (("a", pa), ("b", pb)):
+            name = pt.name if model.points.get(pt.name) is pt else f"spring{i}.{end}"
+            if name not in dims:
+                names.append(name)
+                dims[name] = pt.dim
+                located[name] = [to_se(c, f"position of {name!r}") for c in pt.position]
+            ends.append(name)
+        springs.append((ends[0], ends[1]))
     sub = scene.substitutions()
     coords = [se.Symbol(q.name) for q in model.coords]
     params = [se.Symbol(name) for name in scene.runtime_parameters]
@@ -121,7 +133,7 @@ def drawing_of(scene: Scene) -> Drawing:
         return out
 
     return Drawing(model.name, dims, links, pivots, fixed, evaluate,
-                   {tip: (body, axis) for tip, body, axis, _ in directions})
+                   {tip: (body, axis) for tip, body, axis, _ in directions}, springs)
 
 
 def link_points(model) -> tuple[dict[str, list], list[tuple[str, str]]]:
