@@ -87,3 +87,20 @@ def test_pages_name_no_machine_paths():
         text = page.read_text(encoding="utf-8")
         found = re.findall(r"(?:/work/|/tmp/|/root/|/home/\w+|[A-Z]:\\\\)", text)
         assert not found, f"{page.name}: {found}"
+
+
+def test_the_gallery_page_shows_every_example_and_its_pictures():
+    """tools/gallery.py's page (the pictures themselves are drawn by the site's build in .ci/run)."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tools"))
+    try:
+        import gallery
+    finally:
+        sys.path.remove(str(ROOT / "tools"))
+    examples = sorted(p for p in (ROOT / "examples").iterdir() if p.suffix in (".toml", ".urdf", ".py"))
+    entries = [gallery.Entry(p.name, gallery._title_of_script(p) if p.suffix == ".py" else
+                             gallery._title_of_model_file(p), f"run {p.name}", [f"{p.stem}.png"]) for p in examples]
+    assert all(len(e.title.split()) >= 4 and "<!--" not in e.title and "#" not in e.title for e in entries)
+    text = gallery.page(entries)
+    for e in entries:
+        assert f"### {e.name}\n\n{e.title}\n" in text and f"(gallery/{e.pictures[0]})" in text

@@ -1,6 +1,6 @@
 """Draw the examples gallery: every example script in examples/ is run in an empty folder and the
-pictures it writes are collected; every model file in examples/ is simulated as `lagcodegen
-simulate` would and drawn (its plot, and an animation of the mechanism).
+pictures it writes are collected; every model file (TOML, URDF) in examples/ is simulated as
+`lagcodegen simulate` would and drawn (its plot, and an animation of the mechanism).
 
     python tools/gallery.py OUT        # OUT/gallery.md and the pictures in OUT/gallery/
 
@@ -42,6 +42,11 @@ def _title_of_script(path: Path) -> str:
 
 
 def _title_of_model_file(path: Path) -> str:
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".urdf":  # its first XML comment
+        start, end = text.find("<!--"), text.find("-->")
+        comment = text[start + 4:end] if 0 <= start < end else path.stem
+        return " ".join(comment.split()).split(". ")[0].rstrip(".") + "."  # its first sentence
     lines = []
     for line in path.read_text(encoding="utf-8").splitlines():
         if not line.startswith("#"):
@@ -90,7 +95,7 @@ def draw(out: Path) -> list[Entry]:
     """Run every example into ``out`` (pictures) and return the entries of the gallery page."""
     out.mkdir(parents=True, exist_ok=True)
     entries = []
-    for path in sorted(EXAMPLES.glob("*.toml")):
+    for path in sorted([*EXAMPLES.glob("*.toml"), *EXAMPLES.glob("*.urdf")]):
         entries.append(Entry(path.name, _title_of_model_file(path),
                              f"lagcodegen simulate examples/{path.name} -o out/{path.stem}.csv "
                              f"--plot out/{path.stem}.png", _draw_model_file(path, out)))
@@ -107,7 +112,7 @@ def page(entries: list[Entry], folder: str = "gallery") -> str:
              "`examples/` folder of the source tree (`python tools/gallery.py OUT` draws them again).",
              "Model files are simulated as `lagcodegen simulate` does and animated with `res.animate`;",
              "the scripts run as they are and write their own pictures.", ""]
-    for kind, suffix in (("Model files", ".toml"), ("Scripts", ".py")):
+    for kind, suffix in (("Model files", ".toml"), ("Robots (URDF)", ".urdf"), ("Scripts", ".py")):
         parts += [f"## {kind}", ""]
         for e in entries:
             if not e.name.endswith(suffix):
