@@ -31,6 +31,9 @@ from .util import atomic_write
 MAX_FRAMES = 5000
 #: Default length of an animation in seconds of wall-clock playback (shorter runs play in real time).
 DEFAULT_DURATION = 10.0
+#: A spring's zigzags, and their half-width as a fraction of half the picture's extent.
+SPRING_COILS = 8
+SPRING_WIDTH = 0.04
 #: Suffixes :func:`animate` writes.
 FORMATS = (".gif", ".mp4", ".html")
 
@@ -44,6 +47,7 @@ class Drawing:
     fixed positions drawn as squares (a pendulum's suspension); ``fixed``: points that never
     move (drawn as pivots); ``body_axes``: tips of the axes drawn on bodies, tip name -> (the
     body's point, axis letter "x", "y" or "z"), so that a body's rotation shows (a top's spin);
+    ``springs``: pairs of names (points or pivots) joined by a spring, drawn as a zigzag;
     ``evaluate(t, y, parameters)``: the positions {name: (N, dim)} of the points and axis tips at
     the states ``y`` (N rows) and times ``t`` (N) with the run-time ``parameters`` (name ->
     value), or None (then the points' positions must be among the result's outputs, and no axes
@@ -57,6 +61,7 @@ class Drawing:
     fixed: tuple[str, ...] = ()
     evaluate: Callable | None = field(default=None, repr=False, compare=False)
     body_axes: dict[str, tuple[str, str]] = field(default_factory=dict)
+    springs: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def dim(self) -> int:
@@ -176,6 +181,10 @@ class Animator:
         for a, b in drawing.links:
             (line,) = self.ax.plot(*([[0, 0]] * self.dim), color="0.25", lw=2, zorder=2, animated=True)
             self.links[(a, b)] = line
+        self.springs = {}
+        for a, b in drawing.springs:
+            (line,) = self.ax.plot(*([[0, 0]] * self.dim), color="tab:olive", lw=1.2, zorder=2, animated=True)
+            self.springs[(a, b)] = line
         self.axes_lines = {}
         for tip, (body, axis) in drawing.body_axes.items():
             if tip in self.full and body in self.full:
@@ -208,6 +217,7 @@ class Animator:
             allp = np.zeros((1, self.dim))
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-9) * 1.1
+        self.spring_width = SPRING_WIDTH * half
         ax = self.ax
         ax.set_xlim(centre[0] - half, centre[0] + half)
         ax.set_ylim(centre[1] - half, centre[1] + half)
@@ -240,6 +250,8 @@ class Animator:
         """Frame ``k``: every artist updated; returns them."""
         for (a, b), line in self.links.items():
             self._set(line, np.vstack([self.position(a, k), self.position(b, k)]))
+        for (a, b), line in self.springs.items():
+            self._set(line, zigzag(self.position(a, k), self.position(b, k), self.spring_width))
         for tip, line in self.axes_lines.items():
             self._set(line, np.vstack([self.frames[self.drawing.body_axes[tip][0]][k], self.frames[tip][k]]))
         for p, line in self.points.items():
@@ -250,7 +262,7 @@ class Animator:
             sel = (self.t >= first) & (self.t <= tk)
             self._set(line, np.vstack([self.full[p][sel], self.frames[p][k][None, :]]))
         self.clock.set_text(f"t = {tk:.3g}")
-        return [*self.links.values(), *self.axes_lines.values(), *self.points.values(), *self.trails.values(),
+        return [*self.links.values(), *self.springs.values(), *self.axes_lines.values(), *self.points.values(), *self.trails.values(),
                 self.clock]
 
     def render(self, k: int) -> np.ndarray:
@@ -276,6 +288,26 @@ class Animator:
         if self.dim == 3:
             return np.column_stack(line.get_data_3d())
         return np.column_stack(line.get_data())
+
+
+def zigzag(a: np.ndarray, b: np.ndarray, width: float, coils: int = SPRING_COILS) -> np.ndarray:
+    """The points (2 coils + 4, dim) of a spring drawn from ``a`` to ``b``: straight ends of a
+    tenth of its length each, ``coils`` zigzags of half-width ``width`` between them,
+    perpendicular to a-b (in 3-D, in the plane of a-b and the axis it is least aligned with)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    d = b - a
+    length = float(np.linalg.norm(d))
+    if length == 0.0 or not np.isfinite(length):
+        return np.vstack([a, b])
+    u = d / length
+    other = np.zeros_like(u)
+    other[int(np.argmin(np.abs(u)))] = 1.0
+    n = other - u * float(other @ u)
+    n /= np.linalg.norm(n)
+    s = np.linspace(0.1, 0.9, 2 * coils + 1)
+    side = np.where(np.arange(s.size) % 2 == 1, 1.0, 0.0) * np.where(np.arange(s.size) % 4 == 1, 1.0, -1.0)
+    middle = a + np.outer(s, d) + np.outer(side * width, n)
+    return np.vstack([a, middle, b])
 
 
 @contextlib.contextmanager

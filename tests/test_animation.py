@@ -212,3 +212,101 @@ def test_a_spinning_top_draws_its_body_axes(tmp_path):
     anim.draw(2)
     assert np.array_equal(anim.data(anim.axes_lines["top.x"]), np.vstack([c[2], tr["top.x"][2]]))
     assert Image.open(res.animate(tmp_path / "top.gif", frames=6)).n_frames == 6
+
+
+@pytest.fixture(scope="module")
+def cartesian_double_pendulum():
+    """Two bobs in Cartesian coordinates held by two rods written as constraints: the
+    unconstrained model's geometry has no rods, the runs keep both."""
+    m = lcg.Model("cartesian_double_pendulum")
+    x1, y1, x2, y2 = m.coordinates("x1 y1 x2 y2")
+    m.particle("bob1", 1.0, (x1, y1))
+    m.particle("bob2", 1.0, (x2, y2))
+    m.gravity(9.81)
+    system = lcg.ConstrainedSystem(m, holonomic=[x1**2 + y1**2 - 1, (x2 - x1)**2 + (y2 - y1)**2 - 0.25])
+    a, b = 0.3, -0.2  # small swings: minimal coordinates stay on one branch (no square root at 0)
+    q0 = [np.sin(a), -np.cos(a), np.sin(a) + 0.5 * np.sin(b), -np.cos(a) - 0.5 * np.cos(b)]
+    return system, q0
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_constrained_runs_draw_the_rods_their_constraints_keep(cartesian_double_pendulum, formulation, tmp_path):
+    system, q0 = cartesian_double_pendulum
+    res = lcg.compile_constrained(system, formulation).simulate(T, q0=q0, v0=[0.0] * 4, rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert sorted(d.links) == [("bob1", "bob2"), ("origin", "bob1")]  # bob2 swings: no rod to the origin
+    assert d.pivots == {"origin": (0.0, 0.0)}
+    tracks = res.tracks()
+    assert np.allclose(np.hypot(*tracks["bob1"].T), 1.0, atol=1e-6)  # the rod lengths of the constraints
+    assert np.allclose(np.hypot(*(tracks["bob2"] - tracks["bob1"]).T), 0.5, atol=1e-6)
+    assert np.allclose(tracks["bob2"][:, 0], res["x2"]) and np.allclose(tracks["bob2"][:, 1], res["y2"])
+    assert res.model_name == "cartesian_double_pendulum"
+    gif = res.animate(tmp_path / f"{formulation}.gif", frames=5)
+    assert Image.open(gif).n_frames == 5
+    assert sorted(pickle.loads(pickle.dumps(res)).drawn().links) == sorted(d.links)
+
+
+def test_rigid_body_trees_draw_joints_centres_of_mass_and_frame_axes(tmp_path):
+    """The two-link arm of examples/two_link_arm.urdf (rods hanging along -z, joints about y):
+    joints and centres of mass where the forward kinematics put them, lines along the tree."""
+    from pathlib import Path
+    arm = lcg.urdf.load(Path(__file__).resolve().parents[1] / "examples" / "two_link_arm.urdf")
+    res = lcg.compile_model(arm).simulate(T, q0=[0.7, -0.4], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert sorted(d.links) == [("forearm", "forearm.com"), ("upper_arm", "forearm"), ("upper_arm", "upper_arm.com")]
+    tr = res.tracks()
+    q1, q2 = res[arm.coords[0].name], res[arm.coords[1].name]
+    zero = np.zeros_like(q1)
+    assert np.allclose(tr["upper_arm"], 0.0, atol=1e-14) and "upper_arm" in d.fixed  # the shoulder
+    assert np.allclose(tr["upper_arm.com"], np.column_stack([-0.5 * np.sin(q1), zero, -0.5 * np.cos(q1)]))
+    assert np.allclose(tr["forearm"], np.column_stack([-np.sin(q1), zero, -np.cos(q1)]))  # the elbow
+    assert np.allclose(tr["forearm.com"], np.column_stack([-np.sin(q1) - 0.4 * np.sin(q1 + q2), zero,
+                                                           -np.cos(q1) - 0.4 * np.cos(q1 + q2)]))
+    # frame axes on the bodies: the forearm's z axis points from its elbow to its centre of mass' opposite
+    tip = tr["forearm.z"] - tr["forearm.com"]
+    along = (tr["forearm"] - tr["forearm.com"]) / 0.4
+    assert np.allclose(tip / np.linalg.norm(tip, axis=1)[:, None], along)
+    assert Image.open(res.animate(tmp_path / "arm.gif", frames=4)).n_frames == 4
+
+
+def test_a_top_on_a_ball_joint_is_drawn_from_its_link(tmp_path):
+    m = lcg.Model("top")
+    m.link("top", joint=lcg.Joint.spherical("pivot"), mass=1.0, com=(0, 0, 0.3), inertia=(0.02, 0.02, 0.04))
+    m.gravity(9.81)
+    res = lcg.compile_model(m).simulate(T, q0=[0.0, 0.2, 0.0], v0=[0.0, 0.0, 30.0], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert d.links == [("top", "top.com")] and d.fixed == ("top",) and d.dim == 3
+    tr = res.tracks()
+    assert np.allclose(np.linalg.norm(tr["top.com"], axis=1), 0.3)  # the centre of mass stays 0.3 from the pivot
+    tip = tr["top.z"] - tr["top.com"]  # the symmetry axis runs through the pivot
+    assert np.allclose(np.cross(tip, tr["top.com"]), 0.0, atol=1e-12)
+    assert Image.open(res.animate(tmp_path / "top.gif", frames=4)).n_frames == 4
+
+
+def test_springs_are_drawn_between_their_ends(tmp_path):
+    """A bob hanging from a fixed anchor by a spring (no rod: its length changes), and a second
+    spring to a wall given as a bare position."""
+    m = lcg.Model("spring_pendulum")
+    x, y = m.coordinates("x y")
+    m.point("anchor", (0, 0))
+    m.particle("bob", 1.0, (x, y))
+    m.spring("anchor", "bob", 40.0, rest_length=1.0)
+    m.spring("bob", (2, -1), 5.0)
+    m.gravity(9.81)
+    res = lcg.compile_model(m).simulate(T, q0=[0.3, -1.2], rtol=1e-10, atol=1e-12)
+    d = res.drawn()
+    assert d.springs == [("anchor", "bob"), ("bob", "spring1.b")]
+    assert d.links == [] and set(d.fixed) == {"anchor", "spring1.b"}  # the spring's length varies: no rod
+    tracks = res.tracks()
+    assert np.allclose(tracks["spring1.b"], [2.0, -1.0])
+    anim = Animator(d, res.t, tracks, res.t[[0, 20]])
+    anim.draw(1)
+    line = anim.data(anim.springs[("anchor", "bob")])
+    assert np.allclose(line[0], [0.0, 0.0]) and np.allclose(line[-1], tracks["bob"][20])  # from the anchor to the bob
+    length = np.linalg.norm(tracks["bob"][20])
+    axis = tracks["bob"][20] / length
+    along = line @ axis
+    assert np.all(np.diff(along) > 0) and along[-1] == pytest.approx(length)  # a zigzag along the spring
+    across = line - np.outer(along, axis)
+    assert np.max(np.linalg.norm(across, axis=1)) > 0.02 * length  # ... of some width
+    assert Image.open(res.animate(tmp_path / "spring.gif", frames=4)).n_frames == 4

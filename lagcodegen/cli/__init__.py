@@ -9,6 +9,7 @@ the pipeline runs in :mod:`lagcodegen.api`.
 from __future__ import annotations
 
 import argparse
+import re
 import signal
 import sys
 
@@ -23,9 +24,10 @@ from .common import EXIT_COMPILE, EXIT_INPUT, EXIT_SOLVER, EXIT_USAGE, UsageErro
 #: The commands, in the order ``lagcodegen --help`` lists them.
 COMMANDS = (simulate, generate, info, sweep)
 
-DESCRIPTION = """Lagrangian mechanics to C and Fortran: derive a model's equations of motion from
-a model file (TOML, or FILE.py:FUNCTION), write its C or Fortran sources, or compile and
-integrate it. `lagcodegen COMMAND --help` describes each command.
+DESCRIPTION = """Lagrangian mechanics to C and Fortran: derive a model's equations of motion
+(Lagrange's equations, M q'' = F) from a model file (TOML, a URDF robot, or FILE.py:FUNCTION),
+write their C or Fortran sources, or compile and integrate them. `lagcodegen COMMAND --help`
+describes each command.
 
     lagcodegen simulate examples/double_pendulum.toml -o out/dp.csv --plot out/dp.png
     lagcodegen generate examples/double_pendulum.toml -o dp_bundle --bundle
@@ -71,9 +73,43 @@ def _show_progress(args) -> bool:
         return False
 
 
+#: A negative number as argparse would not take it for an option's value ("-1e-6", "-inf").
+_NEGATIVE = re.compile(r"-(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|inf|infinity|nan)", re.I)
+
+
+def _valued_options(ap: argparse.ArgumentParser) -> set[str]:
+    """The option strings (of ``ap`` and its commands) that take one value."""
+    out = set()
+    for action in ap._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                out |= _valued_options(sub)
+        elif action.option_strings and action.nargs is None:
+            out.update(action.option_strings)
+    return out
+
+
+def join_negative_values(ap: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with ``--rtol -1e-6`` written ``--rtol=-1e-6``: argparse reads a value that starts
+    with "-" and is not a plain decimal as an unknown option ("expected one argument"), where the
+    command's own check says what is wrong with the number."""
+    valued = _valued_options(ap)
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        if argv[i] in valued and i + 1 < len(argv) and _NEGATIVE.fullmatch(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
-    args = parser().parse_args(argv)
+    ap = parser()
+    args = ap.parse_args(join_negative_values(ap, sys.argv[1:] if argv is None else list(argv)))
     try:
         # SIGTERM: the atomic writers remove their temporary files
         with sigterm_raises(), progress.enabled(_show_progress(args)):

@@ -14,10 +14,13 @@ from .common import EXIT_OK, MODEL_HELP, load
 
 HELP = "print a model file's energies, momenta and equations of motion"
 
-DESCRIPTION = """Print the model's coordinates and parameters, its kinetic and potential energies,
-dissipation, momenta, mass matrix and force vector (M q'' = F). Model files with [constraints]
-also show the constraints, their differential form and the equations with multipliers; and
-the events.
+DESCRIPTION = """Print what lagcodegen derives from the model: its coordinates and parameters, the
+kinetic energy T (eq. 2.2 of the notes), the potential energy V (eq. 2.7), the Rayleigh
+dissipation function D (eq. 3.15) if any, the generalized momenta p = dL/dq' (eq. 2.3), and
+Lagrange's equations as the mass matrix M and force vector F of M q'' = F (eq. 3.16).
+Model files with [constraints] also show each constraint (eqs. 4.1, 4.3), their differential
+form A dq + A0 dt = 0 (eq. 4.2), Lagrange's equations with multipliers (eq. 4.5) and the
+constraints at acceleration level; then the events.
 
     lagcodegen info examples/double_pendulum.toml --latex"""
 

@@ -7,29 +7,40 @@ One job: the simulate command's options, progress lines and output files.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import difflib
 import math
 import time
 from pathlib import Path
 
 import numpy as np
+import sympy as sp
 
+from ..animation import FORMATS, ffmpeg_available
 from ..api import compile_file
 from ..modelfile.loader import MAX_STEPS
-from ..util import output_problem
+from ..theory.energy import is_natural
+from ..util import atomic_binary, excerpt, output_problem
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_scene_options,
-                     apply_options, assignments, check_parameter_names, load, say)
+                     apply_options, assignments, check_parameter_names, csv, load, say)
 
 HELP = "compile a model file and integrate it; write the result as CSV or NPZ (and a PNG plot)"
 
-DESCRIPTION = """Derive, generate and compile the model, integrate it from the file's initial state
-over its [simulation] times, and write the trajectory (states and outputs at every output
-time) as CSV or NPZ, with a PNG plot if asked. Options override the file's [simulation]
-settings.
+DESCRIPTION = """Derive Lagrange's equations of the model (M q'' = F, eq. 3.16 of the notes),
+generate and compile them, integrate them from the file's initial state over its [simulation]
+times, and write the trajectory (states and outputs at every output time) as CSV or NPZ; with
+--plot a PNG plot, with --animate a picture of the mechanism moving. Options override the
+file's [simulation] settings; --initial changes single initial values.
 
 Model files with [constraints] run in the file's formulation (--formulation overrides) and
-report the largest constraint residual; the events found are reported for every file.
+report the largest constraint residual; the events found are reported for every file. When the
+energy is an output, its relative change over the run is reported: a drift (an error of the integration) for a
+model that conserves it, a change it may have for a model with dissipation, forces, inputs or
+explicit time dependence.
 
-    lagcodegen simulate examples/double_pendulum.toml -o out/dp.csv --plot out/dp.png"""
+    lagcodegen simulate examples/double_pendulum.toml -o out/dp.csv --plot out/dp.png
+    lagcodegen simulate examples/pendulum.toml -o out/p.csv --initial theta=2.5 --animate out/p.gif
+    lagcodegen simulate examples/central_potential.toml -o out/orbit.csv --plot out/orbit.png --plot-xy body_x,body_y"""
 
 
 def add_parser(sub) -> None:
@@ -37,7 +48,21 @@ def add_parser(sub) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     s.add_argument("model", help=MODEL_HELP)
     s.add_argument("-o", "--output", required=True, help="result file (.csv or .npz)")
-    s.add_argument("--plot", help="also save a PNG plot")
+    s.add_argument("--plot", metavar="PNG", help="also save a plot: the coordinates and the requested outputs "
+                                                 "against time, a panel each (kinds of output share one)")
+    s.add_argument("--plot-y", metavar="NAMES",
+                   help="with --plot: the columns to plot against time, comma-separated; NAME+NAME shares a "
+                        "panel (e.g. theta1+theta2,energy)")
+    s.add_argument("--plot-xy", metavar="X,Y",
+                   help="with --plot: column Y against column X instead of against time (e.g. bob_x,bob_y: "
+                        "the bob's path; r,r_dot: a phase portrait); or a point's name: its path in the plane")
+    s.add_argument("--animate", metavar="FILE",
+                   help="also draw the mechanism moving (its points, bodies and rods) into FILE: .gif, .mp4 "
+                        "(needs ffmpeg) or .html (a player for the browser)")
+    s.add_argument("--initial", metavar="NAME=VALUE,...", action="append",
+                   help="initial values by coordinate name, velocities as <q>_dot (e.g. theta=0.3,theta_dot=0); "
+                        "they replace the file's [simulation] initial values of those names, the others keep "
+                        "the file's (0 where it has none); repeatable")
     s.add_argument("--t-end", type=float, help="end time (default: the file's t_end)")
     s.add_argument("--n-out", type=int, help="number of output times (at least 2)")
     s.add_argument("--method", choices=["adams", "bdf", "taylor", "auto"],
@@ -69,6 +94,22 @@ def check_args(args) -> None:
     if args.max_steps is not None and args.max_steps > MAX_STEPS:
         raise UsageError(f"--max-steps {args.max_steps}: give at most {MAX_STEPS} steps")
     assignments(args.set)  # NAME=VALUE pairs; the names are checked against the model once it is loaded
+    initial_values(args.initial)
+    if (args.plot_y or args.plot_xy) and not args.plot:
+        raise UsageError(f"--plot-{'y' if args.plot_y else 'xy'} chooses what --plot draws: give --plot FILE.png too")
+    if args.plot_y and args.plot_xy:
+        raise UsageError("give --plot-y (against time) or --plot-xy (one column against another), not both")
+    if args.plot_xy is not None and (len(csv(args.plot_xy)) not in (1, 2) or "+" in args.plot_xy):
+        raise UsageError(f"--plot-xy {excerpt(args.plot_xy)}: give two column names X,Y or one point's name")
+    if args.animate is not None:
+        if Path(args.animate).is_dir():
+            raise UsageError(f"--animate {excerpt(args.animate)}: is a folder; give a file name ending in "
+                             f"{', '.join(FORMATS)}")
+        if Path(args.animate).suffix.lower() not in FORMATS:
+            raise UsageError(f"--animate {excerpt(args.animate)}: give a file ending in {', '.join(FORMATS)}")
+        if Path(args.animate).suffix.lower() == ".mp4" and not ffmpeg_available():
+            raise UsageError(f"--animate {excerpt(args.animate)}: an MP4 needs ffmpeg, which is not installed; "
+                             "give a .gif or .html file")
     for name in ("t_end", "rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and (value > 0 if name == "t_end" else value >= 0)):
@@ -80,7 +121,7 @@ def run(args) -> int:
     check_args(args)
     mf = load(args.model, args.quiet).model_file
     check_parameter_names(mf, args)
-    mf = apply_options(mf, args)
+    mf = apply_initial(apply_options(mf, args), initial_values(args.initial))
     t0 = time.perf_counter()
     sim = compile_file(mf, verbose=not args.quiet)
     formulation = f" ({sim.formulation})" if mf.constrained is not None else ""
@@ -91,8 +132,12 @@ def run(args) -> int:
         options["method"] = args.method
     if mf.constrained is not None:
         options["initial"] = "project" if args.project_initial else "check"
+    known = getattr(sim, "output_names", None)
+    if known is not None:  # else (minimal coordinates) the columns are known after the run, before any file
+        check_columns(args, [*sim.state_names, *known])
     t0 = time.perf_counter()
     res = mf.simulate(sim, **options)
+    check_columns(args, [*res.state_names, *res.outputs])
     run_kind = f" ({sim.formulation}, {res.method})" if mf.constrained is not None else ""
     say(f"integrated t = {res.t[0]:g}..{res.t[-1]:g}{run_kind} in {time.perf_counter() - t0:.4f} s: "
         f"{res.stats.get('steps')} steps, {res.stats.get('rhs_evals')} RHS evaluations", args.quiet)
@@ -101,18 +146,93 @@ def run(args) -> int:
         say(f"event {ev.name} at t = {ev.t:.12g} (direction {ev.direction:+d}"
             f"{', terminal: run stopped' if ev.terminal else ''}): {state}", args.quiet)
     if mf.constrained is None:
-        return write_result(res, args)
+        return write_result(res, args, None, not_conserved(mf))
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
         say(f"largest constraint residual: max |{worst}| = {float(np.max(np.abs(res[worst]))):.3e}", args.quiet)
     coords = [q.name for q in mf.model.coords]  # minimal coordinates: the eliminated ones are outputs
     plotted = [c for c in coords if c in res.state_names or c in res.outputs]
-    return write_result(res, args, plotted + [k for k in res.outputs if k.startswith("lambda_")])
+    return write_result(res, args, plotted + [k for k in res.outputs if k.startswith("lambda_")], not_conserved(mf))
 
 
-def write_result(res, args, plotted: list[str] | None = None) -> int:
-    """Save the result (CSV/NPZ), the plot if asked, and report the drift of the energy."""
+def initial_values(items: list[str] | None) -> dict[str, float]:
+    """The NAME=VALUE pairs of --initial (each option comma-separated)."""
+    out = {}
+    for item in items or []:
+        for pair in csv(item):
+            name, sep, value = pair.partition("=")
+            if not sep or not name.strip():
+                raise UsageError(f"--initial expects NAME=VALUE pairs separated by commas, got {excerpt(pair)}")
+            try:
+                number = float(value)
+            except ValueError:
+                raise UsageError(f"--initial {name.strip()}: {excerpt(value)} is not a number") from None
+            if not math.isfinite(number):
+                raise UsageError(f"--initial {name.strip()}: give a finite number, got {excerpt(value)}")
+            out[name.strip()] = number
+    return out
+
+
+def apply_initial(mf, values: dict[str, float]):
+    """``mf`` with --initial's values over its [simulation] initial values; every name must be a
+    coordinate or a velocity ``<q>_dot`` of the model (exit 2 otherwise)."""
+    if not values:
+        return mf
+    names = [q.name for q in mf.model.coords] + [v.name for v in mf.model.speeds]
+    for name in values:
+        if name not in names:
+            close = difflib.get_close_matches(name, names, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise UsageError(f"--initial {excerpt(name)}: not a coordinate or velocity of {mf.model.name}{hint} "
+                             f"(coordinates: {', '.join(names[:len(names) // 2])}; velocities: <q>_dot)")
+    s = mf.simulation
+    return dataclasses.replace(mf, simulation=dataclasses.replace(s, initial={**s.initial, **values}))
+
+
+def check_columns(args, columns: list[str]) -> None:
+    """The names of --plot-y and --plot-xy are columns of the result (or, for --plot-xy, one
+    point's name); exit 2 naming the unknown one."""
+    wanted = [n for item in csv(args.plot_y) or [] for n in item.split("+")]
+    xy = csv(args.plot_xy) or []
+    if len(xy) == 2:
+        wanted += xy
+    for name in wanted:
+        if name not in columns:
+            close = difflib.get_close_matches(name, columns, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise UsageError(f"--plot-{'xy' if name in xy else 'y'} {excerpt(name)}: not a column of the result"
+                             f"{hint} (columns: {', '.join(columns)})")
+
+
+def not_conserved(mf) -> str | None:
+    """Why the energy T + V of the model file's system may change along a run (dissipation,
+    forces, inputs, a time-dependent Lagrangian or constraints), or None when it is conserved
+    (eq. 3.7: h = T + V for a natural system with no explicit t, and dh/dt = 0 without
+    non-potential forces, eq. 3.6)."""
+    model = mf.model
+    t = model.t
+    if model.dissipation_terms:
+        return "dissipation"
+    if model.cartesian_forces or model.generalized_forces:
+        return "applied forces"
+    if model.inputs:
+        return "inputs"
+    if model.generalized_potential_terms:
+        return "a velocity-dependent potential"
+    if any(t in sp.sympify(V).free_symbols for _, V in model.potential_terms) or not is_natural(model):
+        return "a Lagrangian that depends on time"
+    system = mf.constrained
+    if system is not None and (any(t in sp.sympify(f).free_symbols for f in system.holonomic)
+                               or any(sp.sympify(A0) != 0 or any(t in sp.sympify(a).free_symbols for a in A)
+                                      for A, A0 in system.nonholonomic)):
+        return "constraints that depend on time"
+    return None
+
+
+def write_result(res, args, plotted: list[str] | None = None, nonconservative: str | None = None) -> int:
+    """Save the result (CSV/NPZ), the plot and the animation if asked, and report the drift of
+    the energy (or, for a model that does not conserve it, how much it changed and why)."""
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
     res.save(out)
@@ -120,8 +240,47 @@ def write_result(res, args, plotted: list[str] | None = None) -> int:
     if args.plot:
         plot = Path(args.plot)
         plot.parent.mkdir(parents=True, exist_ok=True)
-        res.plot(plot, plotted)
+        xy = csv(args.plot_xy)
+        if xy and len(xy) == 2:
+            column_plot(res, xy[0], xy[1], plot)
+        elif xy:
+            res.plot(plot, xy=xy[0])
+        else:
+            what = [item.split("+") for item in csv(args.plot_y)] if args.plot_y else plotted
+            res.plot(plot, what)
         say(f"wrote {plot}", args.quiet)
+    if args.animate:
+        movie = Path(args.animate)
+        movie.parent.mkdir(parents=True, exist_ok=True)
+        res.animate(movie)
+        say(f"wrote {movie}", args.quiet)
     if "energy" in res.outputs:
-        say(f"energy drift over the run: {res.drift('energy'):.3e} (relative)", args.quiet)
+        if nonconservative is None:
+            say(f"energy drift over the run: {res.drift('energy'):.3e} (relative)", args.quiet)
+        else:
+            say(f"energy changed over the run by {res.drift('energy'):.3e} (relative), as it may: the model has "
+                f"{nonconservative}", args.quiet)
     return EXIT_OK
+
+
+def column_plot(res, x: str, y: str, path: Path) -> None:
+    """Column ``y`` of ``res`` against column ``x`` (:func:`column_figure`), saved as PNG at ``path``."""
+    with atomic_binary(path) as fh:
+        column_figure(res, x, y).savefig(fh, format="png", dpi=100)
+
+
+def column_figure(res, x: str, y: str):
+    """The figure of column ``y`` of ``res`` against column ``x``, titled with the model's name;
+    a point's path (``<p>_x``, ``<p>_y``) in true proportions."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 5))
+    ax = fig.add_subplot()
+    ax.plot(res[x], res[y], lw=0.8)
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(res.title())
+    ax.grid(alpha=0.3)
+    if x.endswith("_x") and y.endswith("_y") and x[:-2] == y[:-2]:  # a point's path: true proportions
+        ax.set_aspect("equal", adjustable="datalim")
+    return fig

@@ -173,6 +173,7 @@ class Model:
     outputs: dict = field(default_factory=dict)  # name -> expression (user outputs)
     inputs: list = field(default_factory=list)  # names of the parameters that are input signals u(t)
     links: list = field(default_factory=list)  # rigid links of trees (bodies.Link), parents first
+    springs: list = field(default_factory=list)  # (label, Point a, Point b) of spring(): what pictures draw
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -401,6 +402,7 @@ class Model:
         sq = (d.T * d)[0]
         V = k / 2 * sq if L0 == 0 else k / 2 * (sp.sqrt(sq) - L0) ** 2
         self.potential_terms.append((label or f"spring {pa.name}-{pb.name}", V))
+        self.springs.append((label or f"spring {pa.name}-{pb.name}", pa, pb))
 
     def force(self, point, vector, label: str | None = None) -> None:
         """A Cartesian force F(q, q', t) applied at a point; mapped by eq. 2.6."""

@@ -55,6 +55,7 @@ import numpy as np
 
 from ..errors import LagcodegenError, ModelError, SingularMassMatrixError, SolverError
 from ..formulation.constrained import ConstrainedCodeInfo
+from ..formulation.drawing import attaches_run_drawing
 from ..result import Result
 from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, tolerances
 from ..solvers.control import POLL_EVERY
@@ -110,6 +111,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         self._impact_runner = None  # the impact driver on this model (systems with contacts), made on first use
 
     # ------------------------------------------------------------------ simulate
+    @attaches_run_drawing
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
                  atol=1e-10, events: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
                  raise_on_error: bool = True, contacts: ContactOptions | None = None, **options) -> Result:

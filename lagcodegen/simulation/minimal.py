@@ -15,6 +15,7 @@ from ..build import build
 from ..codegen.languages import generate_code
 from ..derivation import derive
 from ..errors import LagcodegenError, ModelError
+from ..formulation.drawing import keep_run_links
 from ..formulation.scene import Scene
 from ..model.events import event_list
 from ..model.model import Model
@@ -168,6 +169,8 @@ class MinimalSimulation(_Base):
         res.stats["branch"] = b
         self._add_residuals(res, vals)
         res.formulation = "minimal"
+        res.model_name = model.name  # titles name the system, not its reduced model
+        keep_run_links(res)  # the rods that the reduced model's geometry hides (square roots)
         if res.events is None:
             res.events = []
         return res

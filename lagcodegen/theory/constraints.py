@@ -231,6 +231,8 @@ class ConstrainedSystem:
         constraint (the equations are still correct, the constraint is just not
         nonholonomic).
 
+    Notes
+    -----
     Constraint j (holonomic ones first, then the nonholonomic ones) has the multiplier
     ``lambda_<j>`` (symbols in :attr:`multipliers`).
     """
