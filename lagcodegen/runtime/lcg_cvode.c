@@ -228,6 +228,34 @@ static int record_roots(void *mem, lcg_events *ev, double t, double t0, double h
     return stop;
 }
 
+/* Root finding on CVODE's memory: the event functions of d->r with ev's directions. 0 or a negative
+ * CVODE flag. (The run driver and the stepper, lcg_cvode_stepper.c, set it up here.) */
+static int roots_init(void *mem, const user_data *d, const lcg_events *ev)
+{
+    int flag;
+
+    if ((flag = CVodeRootInit(mem, d->r->nroot, roots)) < 0)
+        return flag;
+    if (ev->rootdir != NULL && (flag = CVodeSetRootDirection(mem, (int *)ev->rootdir)) < 0)
+        return flag;
+    CVodeSetNoInactiveRootWarn(mem);
+    return 0;
+}
+
+/* At CVODE's root return at t with its vector yv (interleaved for the band solver): the roots into
+ * ev (record_roots, t0 the time CVODE started from); returns 1 if one of them is terminal. */
+static int roots_found(void *mem, user_data *d, lcg_events *ev, double t, double t0, const double *yv)
+{
+    double h = 0.0;
+
+    if (d->yb != NULL) { /* band solver: the interleaved order back to the model's */
+        gather(d->m, yv, d->yb);
+        yv = d->yb;
+    }
+    CVodeGetLastStep(mem, &h);
+    return record_roots(mem, ev, t, t0, h, yv, d->r->nroot, d->m->ny, d->info);
+}
+
 static int fill_outputs(const lcg_model *m, double t, const double *y, const double *p, double *out)
 {
     return m->outputs != NULL ? m->outputs(t, y, p, out) : LCG_OK;
@@ -380,13 +408,8 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
             goto done;
     }
     CVodeSetMaxHnilWarns(mem, -1); /* no "t + h = t" warnings on stdout: failures are reported */
-    if (roots_on) {
-        if ((flag = CVodeRootInit(mem, r->nroot, roots)) < 0)
-            goto done;
-        if (ev->rootdir != NULL && (flag = CVodeSetRootDirection(mem, (int *)ev->rootdir)) < 0)
-            goto done;
-        CVodeSetNoInactiveRootWarn(mem);
-    }
+    if (roots_on && (flag = roots_init(mem, &data, ev)) < 0)
+        goto done;
     if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
         goto done;
     if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
@@ -407,11 +430,7 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
             flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
             st->t_reached = tret;
             if (flag == CV_ROOT_RETURN && roots_on) {
-                double h = 0.0;
-                if (band)
-                    gather(m, yv, data.yb);
-                CVodeGetLastStep(mem, &h);
-                if (record_roots(mem, ev, tret, tout[0], h, ym, r->nroot, ny, data.info)) {
+                if (roots_found(mem, &data, ev, tret, tout[0], yv)) {
                     ev->terminated = 1;
                     goto done;
                 }

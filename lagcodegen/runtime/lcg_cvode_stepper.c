@@ -5,6 +5,8 @@
  * driver's own right-hand side and Jacobian callbacks (dense, band in the interleaved order,
  * sparse into dense, run control, non-finite values reported as recoverable) with the same
  * options; a grid from a fresh stepper gives the numbers of lcg_cvode_solve on the same times.
+ * Events: the driver's root finding (roots_init, roots_found), recorded per call; a root within
+ * rounding of the time CVODE (re)started from is not reported, as in lcg_cvode_solve_events.
  * The module built from this file replaces lcg_cvode.c's own. */
 #include "lcg_cvode.c"
 
@@ -24,6 +26,9 @@ struct lcg_cvode_stepper {
     double *seen;               /* time, state and parameters as the last call left them */
     double *atol;               /* ny, or NULL */
     int restart;                /* CVodeReInit before the next step (after a failure) */
+    double t_start;             /* the time of the last CVodeInit / CVodeReInit */
+    lcg_events *ev;             /* the caller's record of the events found, or NULL */
+    int roots_on;               /* root finding on the event functions data.r */
     SUNContext ctx;
     void *mem;
     N_Vector yv, abstol;
@@ -54,6 +59,7 @@ void lcg_cvode_stepper_free(lcg_cvode_stepper *s)
     free(s->data.fb);
     free(s->data.vals);
     free(s->data.jd);
+    free(s->data.info);
     free(s->seen);
     free(s->atol);
     free(s);
@@ -135,6 +141,8 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
     if (use_jac && band && m->jac_sparse == NULL
         && (s->data.jd = (double *)malloc(sizeof(double) * (size_t)ny * (size_t)ny)) == NULL)
         return LCG_FLAG_NOMEM;
+    if (s->roots_on && (s->data.info = (int *)malloc(sizeof(int) * (size_t)s->data.r->nroot)) == NULL)
+        return LCG_FLAG_NOMEM;
     if (s->yv == NULL || s->mem == NULL || (s->A == NULL && !fixedpoint))
         return LCG_FLAG_NOMEM;
     if (!fixedpoint && (s->LS = band ? SUNLinSol_Band(s->yv, s->A, s->ctx) : SUNLinSol_Dense(s->yv, s->A, s->ctx))
@@ -167,6 +175,8 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
             return flag;
     }
     CVodeSetMaxHnilWarns(s->mem, -1);
+    if (s->roots_on && (flag = roots_init(s->mem, &s->data, s->ev)) < 0)
+        return flag;
     if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(s->mem, opt->max_order)) < 0)
         return flag;
     if (opt->first_step > 0 && (flag = CVodeSetInitStep(s->mem, opt->first_step)) < 0)
@@ -180,6 +190,13 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
 
 lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
                                          char *message, size_t size)
+{
+    return lcg_cvode_stepper_new_events(m, NULL, opt, mem, NULL, message, size);
+}
+
+lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_ode_roots *r,
+                                                const lcg_cvode_options *opt, double *mem, lcg_events *ev,
+                                                char *message, size_t size)
 {
     lcg_cvode_stepper *s;
     int i, flag, n;
@@ -222,6 +239,10 @@ lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_opt
     s->data.st = &s->st;
     s->data.mu = opt->mupper; /* band solver: the bandwidths the Jacobian is copied within */
     s->data.ml = opt->mlower;
+    s->data.r = r;
+    s->ev = ev;
+    s->roots_on = r != NULL && ev != NULL && r->nroot > 0 && r->roots != NULL;
+    s->t_start = mem[0];
     flag = cs_setup(s, message, size);
     if (flag < 0) {
         if (message[0] == '\0' || flag == LCG_FLAG_NOMEM)
@@ -234,6 +255,31 @@ lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_opt
     return s;
 }
 
+/* CVode towards tout (task CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop set
+ * at a terminal one. In one-step mode the step ends at an event recorded (a root found again at the
+ * start, not reported, does not end it). */
+static int cs_solve(lcg_cvode_stepper *s, double tout, int task, double *tret, int *stop)
+{
+    int flag;
+    int before;
+
+    for (;;) {
+        flag = CVode(s->mem, tout, s->yv, tret, task);
+        if (flag == CV_ROOT_RETURN && s->roots_on) {
+            before = s->ev->n_events;
+            if (roots_found(s->mem, &s->data, s->ev, *tret, s->t_start, N_VGetArrayPointer(s->yv))) {
+                s->ev->terminated = 1;
+                *stop = 1;
+                return 0;
+            }
+            if (task == CV_ONE_STEP && s->ev->n_events > before)
+                return 0;
+            continue;
+        }
+        return flag;
+    }
+}
+
 int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
                               int one_step)
 {
@@ -242,11 +288,15 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
     const lcg_cvode_options *opt = &s->opt;
     user_data *d = &s->data;
     double t = s->tv[0], tret = t;
-    int i, k = 0, flag = 0, ny = m->ny, n = 1 + m->ny + m->np;
+    int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
 
     st->flag = st->model_error = st->nt_done = 0;
     st->message[0] = '\0';
     d->nonfinite = 0;
+    if (s->ev != NULL) {
+        s->ev->n_events = 0;
+        s->ev->terminated = 0;
+    }
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
         || !cs_increasing(nt, tout)) {
@@ -264,6 +314,7 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
         if ((flag = CVodeReInit(s->mem, t, s->yv)) < 0)
             goto out;
         s->restart = 0;
+        s->t_start = t;
     }
     while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
         for (i = 0; i < ny; ++i)
@@ -277,18 +328,18 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
             flag = CVodeClearStopTime(s->mem);
         /* tout only hints the first step's size after a (re)start; the stop time bounds the step */
         if (flag >= 0 && t_end > t)
-            flag = CVode(s->mem, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), s->yv, &tret, CV_ONE_STEP);
+            flag = cs_solve(s, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {
         if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
-            flag = CVode(s->mem, t_end, s->yv, &tret, CV_NORMAL);
+            flag = cs_solve(s, t_end, CV_NORMAL, &tret, &stop);
     } else if (k < nt) {
         if ((flag = CVodeSetStopTime(s->mem, t_end)) < 0)
             goto out;
         for (; k < nt; ++k) {
             if (WATCH_TICK(&d->w))
                 break;
-            flag = CVode(s->mem, tout[k], s->yv, &tret, CV_NORMAL);
-            if (flag < 0)
+            flag = cs_solve(s, tout[k], CV_NORMAL, &tret, &stop);
+            if (flag < 0 || stop)
                 break;
             cs_store(s, yout + (long)k * ny);
             st->nt_done = k + 1;

@@ -268,8 +268,8 @@ class CompiledModel(CompiledReprMixin):
 
         The initial state, parameters, tolerances and options as in :meth:`simulate` (``t0``: the
         initial time), resolved once by :func:`lagcodegen.solvers.registry.resolve`; ``method``
-        "taylor" (events located on each step's polynomial) or "adams"/"bdf" (CVODE; no events on
-        an unconstrained model). ``max_steps`` is the step budget of one call.
+        "taylor" (events located on each step's polynomial) or "adams"/"bdf" (CVODE's root finding,
+        as simulate's). ``max_steps`` is the step budget of one call.
         """
         y = initial_state(self, q0, v0, y0, z0)
         if not all(map(math.isfinite, y.tolist())):

@@ -195,10 +195,21 @@ def test_terminal_event_stops_propagate_and_is_reported(double_pendulum):
         assert stop2 is None or stop2.t > stop.t + 0.1
 
 
-def test_events_of_the_cvode_integrator_are_refused_with_a_clear_error(double_pendulum):
+@pytest.mark.parametrize("method", ["adams", "bdf"])
+def test_terminal_event_stops_the_cvode_integrator_as_simulate(double_pendulum, method):
+    """CVODE's integrator object stops at the terminal event where simulate(events=) on CVODE does
+    (more in test_integrator_events.py)."""
     q1 = double_pendulum.code.scene.eom.q[0]
-    with pytest.raises(LagcodegenError, match="method='taylor'"):
-        double_pendulum.integrator(q0=[1.0, 0.5], method="adams", events=[Event("e", q1)])
+    ev = Event("q1_zero", q1, direction=-1)
+    ref = double_pendulum.simulate([0, 5], q0=[1.0, 0.5], method=method, events=[ev], **TOL)
+    with double_pendulum.integrator(q0=[1.0, 0.5], method=method, events=[ev], **TOL) as integ:
+        stop = integ.propagate_until(5.0)
+        assert stop is not None and stop is integ.stopped_by and ref.events[-1].terminal
+        assert stop.name == "q1_zero" and stop.direction == -1
+        assert stop.t == pytest.approx(ref.events[-1].t, rel=1e-8)
+        assert integ.time == stop.t and abs(integ.state[0]) < 1e-8
+        stop2 = integ.propagate_until(5.0)
+        assert stop2 is None or stop2.t > stop.t + 0.1
 
 
 # ---------------------------------------------------------------------- bad input

@@ -123,14 +123,21 @@ class CVODE(Family):
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
-        the face): CVODE memory made once (:mod:`.stepper`); ``max_steps`` is the budget of one call."""
-        if events:
-            raise LagcodegenError("the CVODE integrator object of an unconstrained model does not locate events "
-                                  "yet: use method='taylor', or simulate(..., events=...) on CVODE")
+        the face): CVODE memory made once (:mod:`.stepper`); ``max_steps`` is the budget of one call;
+        ``events`` located by CVODE's root finding on their compiled functions, as in :meth:`run_ode`."""
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
-        opts = self._ode_options(cm, mem[1:1 + cm.ny], mem[1 + cm.ny:], True)
-        return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), **opts)
+        y, p = mem[1:1 + cm.ny], mem[1 + cm.ny:]
+        compiled = compiled_events(cm, events)
+        if compiled is not None:
+            if compiled.table is None:
+                raise LagcodegenError("events on the CVODE integrator object need a model built for the runtime "
+                                      "(build(code, native=True) of plain C code)")
+            compiled.values(float(mem[0]), y, p)  # a value that is not finite at the start: named here
+        opts = self._ode_options(cm, y, p, True)
+        max_events = 10_000 if self.max_events is None else self.max_events
+        return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), events=compiled,
+                            max_events=max_events, **opts)
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``

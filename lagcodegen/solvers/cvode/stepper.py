@@ -29,6 +29,9 @@ STEPPER_CDEF = """
 typedef struct lcg_cvode_stepper lcg_cvode_stepper;
 lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
                                          char *message, size_t size);
+lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_ode_roots *r,
+                                                const lcg_cvode_options *opt, double *mem, lcg_events *ev,
+                                                char *message, size_t size);
 void lcg_cvode_stepper_free(lcg_cvode_stepper *s);
 lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s);
 int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
@@ -40,9 +43,9 @@ int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit);
 
 
 def stepper_cdef() -> str:
-    """The stepper module's interface: the model table, the CVODE driver's structs, the stepper's
-    functions (lcg_cvode_stepper.h) and the poll callback."""
-    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), STEPPER_CDEF, POLL_CDEF])
+    """The stepper module's interface: the model table, the CVODE driver's structs, the events
+    record, the stepper's functions (lcg_cvode_stepper.h) and the poll callback."""
+    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), driver_cdef("dae"), STEPPER_CDEF, POLL_CDEF])
 
 
 #: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
@@ -95,14 +98,15 @@ def stepper_runtime(kind: str = "cvode", cc: str | None = None, cflags: tuple[st
 class CVODEStepper:
     """The C stepper of a compiled scene's ODE on CVODE, on ``mem`` = (t, y, p), a float64 array
     the caller keeps. ``opts``: the driver's options as the family resolves them
-    (:meth:`lagcodegen.solvers.cvode.CVODE._ode_options`)."""
+    (:meth:`lagcodegen.solvers.cvode.CVODE._ode_options`); ``events``: compiled event functions
+    (:class:`~.events.CompiledEvents`, or None) located by CVODE's root finding and recorded per
+    call (at most ``max_events``)."""
 
     family = "cvode"
-    events = ()
 
     def __init__(self, cm, mem: np.ndarray, *, rtol: float, atol, method: str, jacobian: bool, max_steps: int,
                  first_step: float, max_step: float, min_step: float, max_order: int, band=None,
-                 fixedpoint: bool = False, max_wall: float = 0.0):
+                 fixedpoint: bool = False, max_wall: float = 0.0, events=None, max_events: int = 10_000):
         if cm.table is None:
             raise LagcodegenError("the integrator object on CVODE needs the model library of a native build "
                                   "(build_code(..., native=True), the default of compile_model)")
@@ -129,8 +133,14 @@ class CVODEStepper:
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
         opt.max_wall = max_wall
+        self.compiled = events  # keeps the event functions' library open
+        self.events = list(events.events) if events is not None else []
+        self._native = NativeEvents(ffi, "lcg_events", self.events, cm.ny, max_events) if self.events else None
+        roots = ffi.cast("const lcg_ode_roots *", int(cm.ffi.cast("uintptr_t", events.table))) if self.events \
+            else ffi.NULL
         msg = ffi.new("char[]", 512)
-        handle = lib.lcg_cvode_stepper_new(table, opt, ffi.from_buffer("double[]", mem), msg, 512)
+        handle = lib.lcg_cvode_stepper_new_events(table, roots, opt, ffi.from_buffer("double[]", mem),
+                                                  self._native.struct if self._native else ffi.NULL, msg, 512)
         del atol_keep  # copied by the stepper
         if handle == ffi.NULL:
             raise LagcodegenError(f"CVODE integrator: {ffi.string(msg).decode(errors='replace')}")
@@ -152,6 +162,11 @@ class CVODEStepper:
         return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "jac_evals": st.njac,
                 "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "h_last": st.h_last,
                 "t_reached": st.t_reached, "model_error": st.model_error}
+
+    def event_arrays(self):
+        """(count, terminated, (t, y, which, direction)) of the last call's events."""
+        ev = self._native
+        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)
 
 
 class CVCStepper:
