@@ -11,6 +11,7 @@
  * and the caller's arrays keep the order y = (q, q', z). */
 #include "lcg_control.h" /* first: POSIX */
 
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -41,7 +42,20 @@ typedef struct {
     double *jd;         /* band solver with a dense Jacobian: the Jacobian in the model's order */
     int nonfinite;      /* the last model call computed a non-finite value, at t_nonfinite */
     double t_nonfinite;
+    const lcg_inputs *in; /* input tables (lcg_inputs.h), or NULL */
+    double *pin;        /* inputs: p with the inputs' slots set at the evaluation time */
+    double key;         /* inputs: the time of the last restart (the run's start at first) */
+    double tb;          /* inputs: the next restart time (HUGE_VAL: none) */
 } user_data;
+
+/* The run-time parameters at t: p, with the inputs' slots from their tables when there are any. */
+static const double *params_at(user_data *d, double t)
+{
+    if (d->in == NULL)
+        return d->p;
+    lcg_inputs_apply(d->in, t, t >= d->tb, d->pin);
+    return d->pin;
+}
 
 /* Position in the interleaved (band solver) order of model state i (n coordinates), and back. */
 static int to_band(int n, int i)
@@ -90,7 +104,7 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 
     if (WATCH_TICK(&d->w))
         return -1; /* stop: cancelled or out of time */
-    return model_status(d, d->m->rhs(t, N_VGetArrayPointer(y), d->p, N_VGetArrayPointer(ydot)), t);
+    return model_status(d, d->m->rhs(t, N_VGetArrayPointer(y), params_at(d, t), N_VGetArrayPointer(ydot)), t);
 }
 
 static int rhs_band(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
@@ -101,7 +115,7 @@ static int rhs_band(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
     if (WATCH_TICK(&d->w))
         return -1;
     gather(d->m, N_VGetArrayPointer(y), d->yb);
-    rc = d->m->rhs(t, d->yb, d->p, d->fb);
+    rc = d->m->rhs(t, d->yb, params_at(d, t), d->fb);
     scatter(d->m, d->fb, N_VGetArrayPointer(ydot));
     return model_status(d, rc, t);
 }
@@ -118,8 +132,8 @@ static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *data, 
     (void)tmp2;
     (void)tmp3;
     if (m->jac != NULL)
-        return model_status(d, m->jac(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), d->p, Jd), t);
-    rc = m->jac_sparse(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), d->p, d->vals);
+        return model_status(d, m->jac(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), params_at(d, t), Jd), t);
+    rc = m->jac_sparse(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), params_at(d, t), d->vals);
     if (rc != LCG_OK)
         return model_status(d, rc, t);
     for (j = 0; j < m->ny; ++j)
@@ -142,7 +156,7 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
     gather(m, N_VGetArrayPointer(y), d->yb);
     gather(m, N_VGetArrayPointer(fy), d->fb);
     if (m->jac_sparse != NULL) {
-        rc = m->jac_sparse(t, d->yb, d->fb, d->p, d->vals);
+        rc = m->jac_sparse(t, d->yb, d->fb, params_at(d, t), d->vals);
         if (rc != LCG_OK)
             return model_status(d, rc, t);
         for (j = 0; j < m->ny; ++j) {
@@ -156,7 +170,7 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
         }
         return 0;
     }
-    rc = m->jac(t, d->yb, d->fb, d->p, d->jd);
+    rc = m->jac(t, d->yb, d->fb, params_at(d, t), d->jd);
     if (rc != LCG_OK)
         return model_status(d, rc, t);
     for (j = 0; j < m->ny; ++j) {
@@ -169,6 +183,54 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
         }
     }
     return 0;
+}
+
+/* Add CVODE's counters since its last (re)initialization to st's. */
+static void add_counts(void *mem, lcg_cvode_stats *st)
+{
+    long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    CVodeGetNumSteps(mem, &c[0]);
+    CVodeGetNumRhsEvals(mem, &c[1]);
+    CVodeGetNumLinRhsEvals(mem, &c[2]);
+    CVodeGetNumJacEvals(mem, &c[3]);
+    CVodeGetNumLinSolvSetups(mem, &c[4]);
+    CVodeGetNumErrTestFails(mem, &c[5]);
+    CVodeGetNumNonlinSolvIters(mem, &c[6]);
+    CVodeGetNumNonlinSolvConvFails(mem, &c[7]);
+    st->nsteps += c[0];
+    st->nrhs += c[1];
+    st->nrhs_dq += c[2];
+    st->njac += c[3];
+    st->nlinsetups += c[4];
+    st->netfails += c[5];
+    st->nniters += c[6];
+    st->nncfails += c[7];
+}
+
+/* The step budget (LCG_STEP_BUDGET(CVodeTotal)) over the whole run: the steps of the segments
+ * before the last restart are in st->nsteps (0 without inputs until the run ends). */
+#define CVodeTotalGetNumSteps(mem, n) (CVodeGetNumSteps(mem, n), *(n) += st->nsteps)
+#define CVodeTotalSetMaxNumSteps CVodeSetMaxNumSteps
+
+/* b within rounding of a (a <= b): CVODE cannot step from a to b. */
+static int too_close(double a, double b)
+{
+    return b - a <= 4.0 * DBL_EPSILON * (fabs(a) > fabs(b) ? fabs(a) : fabs(b));
+}
+
+/* At the breakpoint *tb the run has reached (state y): start afresh there (the history of the
+ * multistep method ends at a jump or kink of an input), on the next segment's pieces, with the stop
+ * time at the next breakpoint or tend. The counters so far go to st (CVodeReInit resets them). */
+static int restart_at(void *mem, user_data *d, N_Vector y, double *tb, double tend)
+{
+    int flag;
+
+    add_counts(mem, d->st);
+    d->key = *tb;
+    if ((flag = CVodeReInit(mem, *tb, y)) < 0)
+        return flag;
+    *tb = d->tb = lcg_inputs_next_break(d->in, *tb);
+    return CVodeSetStopTime(mem, *tb < tend ? *tb : tend);
 }
 
 static int fill_outputs(const lcg_model *m, double t, const double *y, const double *p, double *out)
@@ -190,9 +252,11 @@ int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double 
 }
 
 /* Integrate model m from tout[0] with y(tout[0]) = y0; yout[k*ny + i] = y_i(tout[k]),
- * out[k*nout + j] = output j at tout[k]. Returns 0, or a negative CVODE flag / -100 - model error. */
-int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
-                    double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st)
+ * out[k*nout + j] = output j at tout[k]; in: input tables or NULL. Returns 0, or a negative CVODE
+ * flag / -100 - model error. */
+int lcg_cvode_solve_inputs(const lcg_model *m, const double *p, const lcg_inputs *in, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -204,7 +268,9 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
     double *yv, *ym;
     long nst = 0;
     int k, i, flag = 0, rc, ny, nout, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
-    int use_jac;
+    int use_jac, restart = in != NULL && in->nbreak > 0;
+    double tb = HUGE_VAL; /* inputs: the next restart time */
+    const double *pk;     /* the parameters of an output row */
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -222,6 +288,19 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
     data.nonfinite = 0;
     data.t_nonfinite = 0.0;
     data.yb = data.fb = data.vals = data.jd = NULL;
+    data.in = in;
+    data.pin = NULL;
+    data.key = tout[0];
+    data.tb = HUGE_VAL;
+    if (in != NULL) {
+        if (lcg_inputs_check(in, m->np, st->message, sizeof st->message) != 0)
+            return st->flag = LCG_FLAG_BAD_INPUT;
+        if ((data.pin = (double *)malloc(sizeof(double) * (size_t)(m->np > 0 ? m->np : 1))) == NULL)
+            return st->flag = LCG_FLAG_NOMEM;
+        for (i = 0; i < m->np; ++i)
+            data.pin[i] = p[i];
+        tb = lcg_inputs_next_break(in, tout[0]);
+    }
     watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     data.mu = opt->mupper;
     data.ml = opt->mlower;
@@ -266,7 +345,12 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
         for (i = 0; i < ny; ++i)
             yv[i] = y0[i];
 
-    rc = fill_outputs(m, tout[0], y0, p, out);
+    pk = p;
+    if (in != NULL) {
+        lcg_inputs_apply(in, tout[0], 0, data.pin);
+        pk = data.pin;
+    }
+    rc = fill_outputs(m, tout[0], y0, pk, out);
     LCG_MODEL_ERROR(LCG_OK);
     for (i = 0; i < ny; ++i)
         yout[i] = y0[i];
@@ -313,38 +397,51 @@ int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int n
         goto done;
     if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
         goto done;
-    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+    data.tb = tb;
+    if (nt > 1 && (flag = CVodeSetStopTime(mem, tb < tout[nt - 1] ? tb : tout[nt - 1])) < 0)
         goto done;
 
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
         if (WATCH_TICK(&data.w))
             goto done;
-        LCG_STEP_BUDGET(CVode);
-        flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
-        st->t_reached = tret;
-        if (flag < 0)
-            goto done;
+        while (tb < tout[k]) { /* inputs with restart: a breakpoint before the next output time */
+            if (!too_close(data.key, tb)) {
+                LCG_STEP_BUDGET(CVodeTotal);
+                flag = CVode(mem, tb, y, &tret, CV_NORMAL);
+                st->t_reached = tret;
+                if (flag < 0)
+                    goto done;
+            }
+            if ((flag = restart_at(mem, &data, y, &tb, tout[nt - 1])) < 0)
+                goto done;
+        }
+        if (restart && too_close(data.key, tout[k])) {
+            tret = tout[k]; /* an output time a rounding error after the restart: the restart's state */
+        } else {
+            LCG_STEP_BUDGET(CVodeTotal);
+            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
+            st->t_reached = tret;
+            if (flag < 0)
+                goto done;
+        }
         if (band)
             gather(m, yv, data.yb);
         for (i = 0; i < ny; ++i)
             yout[(long)k * ny + i] = ym[i];
-        rc = fill_outputs(m, tret, ym, p, out + (long)k * nout);
+        if (in != NULL)
+            lcg_inputs_apply(in, tret, 0, data.pin); /* the signal's value at the output time */
+        rc = fill_outputs(m, tret, ym, pk, out + (long)k * nout);
         LCG_MODEL_ERROR(LCG_OK);
         st->nt_done = k + 1;
+        if (tb == tout[k] && k < nt - 1 && (flag = restart_at(mem, &data, y, &tb, tout[nt - 1])) < 0)
+            goto done;
     }
 
 done:
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
     if (mem != NULL) {
-        CVodeGetNumSteps(mem, &st->nsteps);
-        CVodeGetNumRhsEvals(mem, &st->nrhs);
-        CVodeGetNumLinRhsEvals(mem, &st->nrhs_dq);
-        CVodeGetNumJacEvals(mem, &st->njac);
-        CVodeGetNumLinSolvSetups(mem, &st->nlinsetups);
-        CVodeGetNumErrTestFails(mem, &st->netfails);
-        CVodeGetNumNonlinSolvIters(mem, &st->nniters);
-        CVodeGetNumNonlinSolvConvFails(mem, &st->nncfails);
+        add_counts(mem, st);
         CVodeGetLastStep(mem, &st->h_last);
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
@@ -373,8 +470,15 @@ done:
     free(data.fb);
     free(data.vals);
     free(data.jd);
+    free(data.pin);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
+}
+
+int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
+                    double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st)
+{
+    return lcg_cvode_solve_inputs(m, p, NULL, y0, nt, tout, yout, out, opt, st);
 }
 
 #define COUNTS(c, st) (c[0] = (st)->nsteps, c[1] = (st)->nrhs + (st)->nrhs_dq, c[2] = (st)->njac, \
@@ -389,7 +493,10 @@ done:
 static int pool_member(lcg_cvode_ensemble *e, const double *pi, const double *y0i, const double *yp0i,
                        const lcg_cvode_options *o, lcg_cvode_stats *st, double *yout, double *out, pool_scratch *s)
 {
+    const lcg_inputs *in = NULL;
     (void)yp0i;
     (void)s;
-    return lcg_cvode_solve(e->model, pi, y0i, e->nt, e->tout, yout, out, o, st);
+    if (e->inputs != NULL) /* the member's own tables: its row of p (lcg_cvode_ensemble) */
+        in = e->inputs + (e->p_stride > 0 ? (pi - e->p) / e->p_stride : 0);
+    return lcg_cvode_solve_inputs(e->model, pi, in, y0i, e->nt, e->tout, yout, out, o, st);
 }

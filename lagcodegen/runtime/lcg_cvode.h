@@ -6,6 +6,7 @@
 #define LCG_CVODE_H
 
 #include "lcg_cvode_types.h" /* the structs, rendered from lagcodegen/codegen/signatures.py */
+#include "lcg_inputs.h"
 
 /* Integrate model m from tout[0] with y(tout[0]) = y0 and write yout[k*ny + i] = y_i(tout[k]),
  * out[k*nout + j] = output j at tout[k] (nt output times, increasing).
@@ -13,6 +14,13 @@
  * cancelled, -81 the wall-clock limit max_wall reached, or -100 - (model error code). */
 int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
+
+/* lcg_cvode_solve with the input tables in (NULL: none; see lcg_inputs.h): p[slot] of each table
+ * follows its table; with in->restart the run stops at every breakpoint and restarts there
+ * (CVodeReInit). -22 for tables that do not fit the model (st->message says why). */
+int lcg_cvode_solve_inputs(const lcg_model *m, const double *p, const lcg_inputs *in, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st);
 
 /* The members of e (model e->model), each a run of lcg_cvode_solve with the options opt, over a
  * pthread pool (NROW = ny state values per row). Returns 0, -80 cancelled or -20 out of memory. */
