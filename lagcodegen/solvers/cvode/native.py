@@ -58,9 +58,10 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0) -> Result:
+                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, inputs=None) -> Result:
     """An ODE run of a compiled scene: one call of the native driver (``lcg_cvode_solve``) over all
-    output times."""
+    output times; with ``inputs`` (:class:`~lagcodegen.solvers.inputs.InputSet`), of
+    ``lcg_cvode_solve_inputs``, which sets the inputs' parameters from their tables in C."""
     ffi = cm.ffi
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
@@ -75,8 +76,12 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     opt.poll_every = POLL_EVERY
     opt.max_wall = max_wall
     st = ffi.new(cm.stats_type)
-    flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
-                           ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
+    args = (ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
+            ffi.from_buffer("double[]", out), opt, st)
+    if inputs:
+        flag = cm.lib.lcg_cvode_solve_inputs(cm.table, cm.c_params(p), inputs.struct(ffi, keep), *args)
+    else:
+        flag = cm.native_solve(cm.c_params(p), *args)
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
