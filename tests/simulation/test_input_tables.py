@@ -148,6 +148,8 @@ def test_bad_inputs_are_named(sim):
         lcg.Table([0.0, 1.0], [0.0, 1.0], kind="spline")
     with pytest.raises(LagcodegenError, match="Taylor does not take them"):
         sim.simulate(t, q0=[0.0], inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, method="taylor")
+    with pytest.raises(LagcodegenError, match="input tables need backend='native'"):
+        sim.simulate(t, q0=[0.0], inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, backend="sksundae")
     with pytest.raises(LagcodegenError, match="input 'F': 2 tables for 3 members"):
         sim.ensemble(t, q0=np.zeros((3, 1)), inputs={"F": [([0.0], [1.0]), ([0.0], [2.0])]})
     plain = lcg.compile_model(lcg.systems.pendulum())
