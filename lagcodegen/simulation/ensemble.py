@@ -154,8 +154,8 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
     if sets is not None:
         run = getattr(family, "ensemble_ode_inputs", None)
         if run is None:
-            raise LagcodegenError(f"input tables are interpolated by the native CVODE driver; {family.name} ensembles "
-                                  "do not take them (use method='adams' or 'bdf')")
+            raise LagcodegenError(f"input tables are interpolated by the native CVODE driver; {family.name} "
+                                  "ensembles do not take them (use method='adams' or 'bdf')")
         if executor is not None:
             raise LagcodegenError("ensembles with input tables run in this process (executor= is not supported)")
         return run(cm, t, Y, P, rtol, atol, sets, threads=threads, save=save, progress=progress)

@@ -233,7 +233,8 @@ class CompiledModel(CompiledReprMixin):
             :class:`~lagcodegen.solvers.inputs.Table` or a pair (times, values) (linear), computed
             in C at each evaluation time; the integrator stops and restarts where an input jumps or
             kinks (``Table(restart=...)``; their number in ``res.stats["restarts"]``). Native
-            CVODE only (Taylor and scikit-sundae refuse).
+            CVODE, and Taylor (each input a cubic of t in the jet, the run split at every
+            breakpoint); scikit-sundae refuses them.
         options:
             The family's fields as keywords, made into the family object by
             :func:`lagcodegen.solvers.registry.resolve`: ``method`` "adams", "bdf", "taylor" or
@@ -318,11 +319,10 @@ def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
     ``run_ode_inputs``); the restarts inside the run in ``stats["restarts"]``."""
     run = getattr(family, "run_ode_inputs", None)
     if run is None:
-        raise LagcodegenError(f"input tables ({', '.join(map(repr, tables.names))}) are interpolated by the native "
-                              f"CVODE driver; {family.name} does not take them (use method='adams' or 'bdf')")
+        raise LagcodegenError(f"input tables ({', '.join(map(repr, tables.names))}): {family.name} does not take "
+                              "them (native CVODE and Taylor do)")
     if events:
-        raise LagcodegenError("events with input tables: not supported (the CVODE driver of a plain scene has no "
-                              "root finding)")
+        raise LagcodegenError("events with input tables: not supported")
     res = run(cm, t, y, p, rtol, atol, tables)
     res.stats["restarts"] = int(tables.restarts_in(float(t[0]), float(t[-1])).size)
     return res

@@ -6,6 +6,7 @@ without the restarts; ensembles with a table per member; bad tables and names re
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
@@ -103,6 +104,27 @@ def test_linear_and_cubic_tables_of_a_sampled_sine(sim, kind, n, tol):
         assert res.stats["restarts"] == n - 2
 
 
+def test_taylor_takes_each_tables_piece_on_each_segment(sim):
+    """Taylor: the input is a cubic of t in the jet, the run split at every breakpoint, so a step
+    force costs nothing (the step response to rounding, in a handful of steps) and sampled sines
+    agree with the CVODE driver's runs of the same tables."""
+    t = np.linspace(0.0, 10.0, 201)
+    tab = lcg.Table([0.0, 1.3], [0.0, 2.0], kind="zoh")
+    res = sim.simulate(t, q0=[0.0], inputs={"F": tab}, rtol=1e-12, atol=1e-14, method="taylor")
+    assert np.max(np.abs(res["x"] - step_response(t, 1.3, 2.0))) < 1e-13
+    assert np.array_equal(res.t, t) and np.array_equal(res["force"], np.where(t >= 1.3, 2.0, 0.0))
+    assert res.stats["restarts"] == 1 and res.stats["steps"] < 40
+    w, tt = 1.3, np.linspace(0.0, 20.0, 101)
+    for kind, n, tol in (("linear", 501, 2e-4), ("cubic", 201, 1e-6)):
+        ts = np.linspace(0.0, 20.0, n)
+        tab = lcg.Table(ts, np.sin(w * ts), kind=kind)
+        tay = sim.simulate(tt, q0=[0.0], inputs={"F": tab}, rtol=1e-12, atol=1e-14, method="taylor")
+        cvode = sim.simulate(tt, q0=[0.0], inputs={"F": tab}, rtol=1e-12, atol=1e-14)
+        assert np.max(np.abs(tay["x"] - sine_response(tt, w))) < tol
+        assert np.max(np.abs(tay["x"] - cvode["x"])) < 1e-9
+        assert np.allclose(tay["force"], tab(tt), rtol=0, atol=1e-14)
+
+
 def test_table_values_and_restart_times():
     tab = lcg.Table([0.0, 1.0, 2.0], [1.0, 3.0, 3.0], kind="linear")
     assert tab(np.array([-1.0, 0.5, 1.0, 1.5, 5.0])).tolist() == [1.0, 2.0, 3.0, 3.0, 3.0]
@@ -146,8 +168,11 @@ def test_bad_inputs_are_named(sim):
         sim.simulate(t, q0=[0.0], inputs={"G": ([0.0, 1.0], [0.0, 1.0])})
     with pytest.raises(LagcodegenError, match="kind must be one of zoh, linear, cubic"):
         lcg.Table([0.0, 1.0], [0.0, 1.0], kind="spline")
-    with pytest.raises(LagcodegenError, match="Taylor does not take them"):
-        sim.simulate(t, q0=[0.0], inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, method="taylor")
+    with pytest.raises(LagcodegenError, match="events with input tables"):
+        sim.simulate(t, q0=[0.0], inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, method="taylor",
+                     events=[lcg.Event("x0", sp.Symbol("x"))])
+    with pytest.raises(LagcodegenError, match="ensembles do not take them"):
+        sim.ensemble(t, q0=np.zeros((2, 1)), inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, method="taylor")
     with pytest.raises(LagcodegenError, match="input tables need backend='native'"):
         sim.simulate(t, q0=[0.0], inputs={"F": ([0.0, 1.0], [0.0, 1.0])}, backend="sksundae")
     with pytest.raises(LagcodegenError, match="input 'F': 2 tables for 3 members"):
