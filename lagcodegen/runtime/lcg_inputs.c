@@ -66,6 +66,32 @@ int lcg_inputs_check(const lcg_inputs *in, int np, char *message, size_t size)
     return 0;
 }
 
+int lcg_input_table_fill(lcg_input_table *tab, int slot, int n, const double *t, const double *v, int kind,
+                         double *c)
+{
+    int k;
+
+    if (n < 1 || (kind != 0 && kind != 1))
+        return -22;
+    for (k = 1; k < n; ++k)
+        if (!(t[k] > t[k - 1]))
+            return -22;
+    for (k = 0; k < 4 * (n + 1); ++k)
+        c[k] = 0.0;
+    c[0] = v[0];         /* before t[0]: the first value */
+    c[4 * n] = v[n - 1]; /* from t[n-1] on: the last */
+    for (k = 1; k < n; ++k) {
+        c[4 * k] = v[k - 1];
+        if (kind == 1)
+            c[4 * k + 1] = (v[k] - v[k - 1]) / (t[k] - t[k - 1]);
+    }
+    tab->slot = slot;
+    tab->n = n;
+    tab->t = t;
+    tab->c = c;
+    return 0;
+}
+
 int lcg_input_piece(const lcg_input_table *tab, double t)
 {
     return count_below(tab->t, tab->n, t, 0);

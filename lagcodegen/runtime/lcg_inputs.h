@@ -23,6 +23,12 @@
  * n >= 1, times finite and increasing, coefficients finite); else -22 with the reason in message. */
 int lcg_inputs_check(const lcg_inputs *in, int np, char *message, size_t size);
 
+/* Fill tab (slot, n breakpoints t[], coefficients into c[4 (n + 1)], which tab keeps pointing
+ * to, as it does to t) with the zero-order hold (kind 0) or the linear interpolation (kind 1) of
+ * the values v[] at t[]. Returns 0, or -22 for n < 1, times not increasing or an unknown kind. */
+int lcg_input_table_fill(lcg_input_table *tab, int slot, int n, const double *t, const double *v, int kind,
+                         double *c);
+
 /* The piece of tab that holds t: the number of breakpoints <= t (0 .. n). */
 int lcg_input_piece(const lcg_input_table *tab, double t);
 
