@@ -39,6 +39,9 @@ def cartpole() -> lcg.Model:
     m.gravity(g)
     m.generalized_force(x, F)
     m.output("force", F)
+    for name, unit in (("x", "m"), ("theta", "rad"), ("M", "kg"), ("m", "kg"), ("l", "m"), ("g", "m/s2"),
+                       ("F", "N")):
+        m.unit(name, unit)  # carried into the FMU's modelDescription
     return m
 
 

@@ -155,7 +155,8 @@ def _assemble(code, table: VariableTable, *, fmi_version: int, x_start: Sequence
     c_files = sorted(n for n in files if n.endswith(".c")) + [MODEL_TABLE]
     # The token digests everything but itself: the model's code, the glue, the variables.
     token = _token([f"fmi {fmi_version}", *(f"{k}\0{v}" for k, v in sorted(files.items())),
-                    repr(table.variables), repr(sorted(header.items()))])
+                    repr(table.variables), repr(sorted(header.items())),
+                    *([repr([v.unit for v in table.variables])] if any(v.unit for v in table.variables) else [])])
     params = [v.name for v in table.of_kind("parameter", "input")]
     ctx = dict(version=__version__, identifier=identifier, model_name=header["model_name"], token=token,
                prefix=code.prefix, nx=table.nx, np=table.np, nout=table.nout,

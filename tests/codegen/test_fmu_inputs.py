@@ -32,6 +32,62 @@ def test_cartpole_fmu_with_a_force_table_agrees_with_simulate(tmp_path):
         assert diff[version, "ModelExchange", 1e-10] < diff[version, "ModelExchange", 1e-8] / 10
 
 
+def test_units_stated_by_the_model_reach_the_model_description(tmp_path):
+    """Model.unit (and [units] in a model file): the coordinates', velocities', derivatives',
+    parameters' and inputs' units in both FMI versions, declared in UnitDefinitions; FMPy
+    validates them."""
+    import fmpy
+    from fmpy.validation import validate_fmu
+
+    import lagcodegen as lcg
+    example = load_example()
+    for version in (2, 3):
+        path = lcg.export_fmu(example.cartpole(), tmp_path / f"cp{version}.fmu", fmi_version=version,
+                              outputs=["force"])
+        assert validate_fmu(str(path)) == []
+        md = fmpy.read_model_description(str(path))
+        units = {v.name: v.unit for v in md.modelVariables}
+        assert (units["x"], units["x_dot"], units["der(x)"], units["der(x_dot)"]) == ("m", "m/s", "m/s", "m/s2")
+        assert (units["theta_dot"], units["M"], units["g"], units["F"]) == ("rad/s", "kg", "m/s2", "N")
+        assert units["force"] is None and units["time"] is None
+        assert sorted(u.name for u in md.unitDefinitions) == ["N", "kg", "m", "m/s", "m/s2", "rad", "rad/s",
+                                                              "rad/s2"]
+    text = """
+[model]
+name = "slider"
+coordinates = ["x"]
+
+[parameters]
+m = 2.0
+
+[inputs]
+F = 0.0
+
+[units]
+x = "m"
+m = "kg"
+F = "N"
+
+[[particles]]
+name = "body"
+mass = "m"
+position = ["x", 0]
+
+[[generalized_forces]]
+coordinate = "x"
+expr = "F"
+"""
+    mf = lcg.modelfile.loads_model(text, "slider.toml")
+    assert mf.model.units == {"x": "m", "m": "kg", "F": "N"}
+    path = lcg.export_fmu(mf, tmp_path / "slider.fmu")
+    assert {v.name: v.unit for v in fmpy.read_model_description(str(path)).modelVariables}["der(x_dot)"] == "m/s2"
+    with pytest.raises(lcg.modelfile.ModelFileError, match="not a coordinate, parameter or input"):
+        lcg.modelfile.loads_model(text.replace('F = "N"', 'G = "N"'), "slider.toml")
+    plain = lcg.export_fmu(lcg.modelfile.loads_model(text.replace('[units]\nx = "m"\nm = "kg"\nF = "N"\n', ""),
+                                                     "slider.toml"), tmp_path / "plain.fmu")
+    assert all(v.unit is None for v in fmpy.read_model_description(str(plain)).modelVariables)
+
+
 def test_the_fmpy_signal_is_the_tables_hold():
     """The structured array handed to FMPy holds the same values as the Table between its times."""
     import lagcodegen as lcg
