@@ -17,7 +17,7 @@ from ..api import compile_file
 from ..modelfile.loader import MAX_STEPS
 from ..util import output_problem
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_scene_options,
-                     apply_options, assignments, check_parameter_names, load, say)
+                     apply_options, assignments, check_parameter_names, input_tables, load, say)
 
 HELP = "compile a model file and integrate it; write the result as CSV or NPZ (and a PNG plot)"
 
@@ -53,6 +53,9 @@ def add_parser(sub) -> None:
     s.add_argument("--project-initial", action="store_true",
                    help="files with [constraints]: project the initial state onto the constraints instead of "
                         "requiring it to satisfy them")
+    s.add_argument("--input", action="append", metavar="NAME=FILE[:KIND]",
+                   help="an input's table: FILE has two columns t, value; KIND linear (default), zoh or cubic "
+                        "(repeatable)")
     add_scene_options(s)
     s.set_defaults(func=run)
 
@@ -69,6 +72,7 @@ def check_args(args) -> None:
     if args.max_steps is not None and args.max_steps > MAX_STEPS:
         raise UsageError(f"--max-steps {args.max_steps}: give at most {MAX_STEPS} steps")
     assignments(args.set)  # NAME=VALUE pairs; the names are checked against the model once it is loaded
+    args.input_tables = input_tables(args.input)
     for name in ("t_end", "rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and (value > 0 if name == "t_end" else value >= 0)):
@@ -91,6 +95,8 @@ def run(args) -> int:
         options["method"] = args.method
     if mf.constrained is not None:
         options["initial"] = "project" if args.project_initial else "check"
+    if args.input_tables:
+        options["inputs"] = args.input_tables
     t0 = time.perf_counter()
     res = mf.simulate(sim, **options)
     run_kind = f" ({sim.formulation}, {res.method})" if mf.constrained is not None else ""
