@@ -66,7 +66,8 @@ def input_tables(items: list[str] | None) -> dict:
             raise UsageError(f"--input {_name(name)}: cannot read {excerpt(path)} as two columns t, value: "
                              f"{excerpt(str(exc))}") from None
         if rows.shape[1] != 2:
-            raise UsageError(f"--input {_name(name)}: {excerpt(path)} has {rows.shape[1]} columns, expected 2 (t, value)")
+            raise UsageError(f"--input {_name(name)}: {excerpt(path)} has {rows.shape[1]} columns, expected 2 "
+                             "(t, value)")
         try:
             out[name] = Table(rows[:, 0], rows[:, 1], kind=kind, name=f"--input {_name(name)}")
         except LagcodegenError as exc:
