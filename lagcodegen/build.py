@@ -121,12 +121,14 @@ def compiler_id(cc: str) -> str:
 #: (lcg_cvc.c), IDA for the GGL form (lcg_ida.c); each lcg_<name>.c with its header lcg_<name>.h,
 #: and its structs in lcg_<name>_types.h (signatures.DRIVERS[name]).
 SUNDIALS_DRIVERS = ("cvode", "cvc", "ida")
+#: The input tables the drivers read (lcg_inputs.h; structs in lcg_inputs_types.h).
+INPUTS_FILES = ("lcg_inputs.h", "lcg_inputs.c")
 #: The runtime's C files and the headers its cffi module includes.
 RUNTIME_C_FILES = tuple(f"lcg_{d}.c" for d in SUNDIALS_DRIVERS)
 RUNTIME_HEADERS = tuple(f"lcg_{d}.h" for d in SUNDIALS_DRIVERS)
 #: Every file of lagcodegen/runtime/ the runtime is compiled from: the drivers and what they share.
 RUNTIME_FILES = ("lcg_model.h", "lcg_dae_model.h", "lcg_control.h", "lcg_pool.h", "lcg_sundials.h", "sundials_api.h",
-                 *RUNTIME_HEADERS, *RUNTIME_C_FILES)
+                 *RUNTIME_HEADERS, *RUNTIME_C_FILES, *INPUTS_FILES)
 #: The headers of a model's function table (its library compiles them with its table).
 TABLE_FILES = ("lcg_model.h",)
 DAE_TABLE_FILES = ("lcg_model.h", "lcg_dae_model.h")
@@ -151,7 +153,7 @@ def generated_headers() -> dict[str, str]:
 
 #: The drivers whose structs the runtime's generated headers declare (lcg_<name>_types.h; "dae":
 #: the events record of the constrained drivers).
-RUNTIME_DRIVERS = ("dae", *SUNDIALS_DRIVERS)
+RUNTIME_DRIVERS = ("dae", *SUNDIALS_DRIVERS, "inputs")
 
 
 def types_headers(names=RUNTIME_DRIVERS) -> dict[str, str]:
@@ -336,7 +338,7 @@ def _runtime_module(cc: str, cflags: tuple[str, ...]):
     def make(tmp: Path) -> Path:
         _write(tmp, runtime_sources(sundials))
         wrapper = _cffi_module(tmp, modname, cdef, list(RUNTIME_HEADERS))
-        _compile_shared(tmp, [wrapper, *RUNTIME_C_FILES], [], f"{modname}{ext}", cc, cflags,
+        _compile_shared(tmp, [wrapper, *RUNTIME_C_FILES, *INPUTS_FILES[1:]], [], f"{modname}{ext}", cc, cflags,
                         [_python_include()], [*link, "-lm", "-pthread"], "the lagcodegen runtime", parallel=True)
         return tmp / f"{modname}{ext}"
 

@@ -81,6 +81,8 @@ class SweepSpec:
     project_initial: bool = False
     outputs: str | None = None
     quiet: bool = False
+    #: input tables shared by every member (name -> Table or (times, values); CLI: --input)
+    inputs: Any = None
 
 
 @dataclass
@@ -322,6 +324,8 @@ def run_plan(plan: Plan, mf, sim, values: dict[str, float], say: Callable[[str],
                                    atol=spec.atol if spec.atol is not None else s.atol)
     if spec.max_steps is not None:
         options["max_steps"] = spec.max_steps
+    if spec.inputs:
+        options["inputs"] = spec.inputs
     if mf.constrained is not None:
         options["method"] = spec.method or constrained_method(sim.formulation, getattr(sim, "projection", False),
                                                               s.method)

@@ -46,6 +46,35 @@ def _name(name: str) -> str:
     return name if len(name) <= EXCERPT else excerpt(name)
 
 
+def input_tables(items: list[str] | None) -> dict:
+    """The tables of --input NAME=FILE[:KIND] (FILE: two columns t, value, whitespace or commas;
+    KIND: linear (default), zoh or cubic), as simulate(inputs=...) takes them."""
+    import numpy as np
+
+    from ..errors import LagcodegenError
+    from ..solvers.inputs import KINDS, Table
+    out = {}
+    for item in items or []:
+        name, sep, rest = item.partition("=")
+        name = name.strip()
+        path, _, kind = rest.rpartition(":") if rest.rsplit(":", 1)[-1] in KINDS else (rest, "", "linear")
+        if not sep or not name or not path:
+            raise UsageError(f"--input expects NAME=FILE[:{'|'.join(KINDS)}], got {excerpt(item)}")
+        try:
+            rows = np.loadtxt(path, delimiter="," if path.endswith(".csv") else None, ndmin=2)
+        except (OSError, ValueError) as exc:
+            raise UsageError(f"--input {_name(name)}: cannot read {excerpt(path)} as two columns t, value: "
+                             f"{excerpt(str(exc))}") from None
+        if rows.shape[1] != 2:
+            raise UsageError(f"--input {_name(name)}: {excerpt(path)} has {rows.shape[1]} columns, expected 2 "
+                             "(t, value)")
+        try:
+            out[name] = Table(rows[:, 0], rows[:, 1], kind=kind, name=f"--input {_name(name)}")
+        except LagcodegenError as exc:
+            raise UsageError(str(exc)) from None
+    return out
+
+
 def assignments(items: list[str] | None) -> dict[str, float]:
     """The NAME=VALUE pairs of --set."""
     out = {}

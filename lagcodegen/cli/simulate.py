@@ -22,7 +22,7 @@ from ..modelfile.loader import MAX_STEPS
 from ..theory.energy import is_natural
 from ..util import atomic_binary, excerpt, output_problem
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_scene_options,
-                     apply_options, assignments, check_parameter_names, csv, load, say)
+                     apply_options, assignments, check_parameter_names, csv, input_tables, load, say)
 
 HELP = "compile a model file and integrate it; write the result as CSV or NPZ (and a PNG plot)"
 
@@ -78,6 +78,9 @@ def add_parser(sub) -> None:
     s.add_argument("--project-initial", action="store_true",
                    help="files with [constraints]: project the initial state onto the constraints instead of "
                         "requiring it to satisfy them")
+    s.add_argument("--input", action="append", metavar="NAME=FILE[:KIND]",
+                   help="an input's table: FILE has two columns t, value; KIND linear (default), zoh or cubic "
+                        "(repeatable)")
     add_scene_options(s)
     s.set_defaults(func=run)
 
@@ -110,6 +113,7 @@ def check_args(args) -> None:
         if Path(args.animate).suffix.lower() == ".mp4" and not ffmpeg_available():
             raise UsageError(f"--animate {excerpt(args.animate)}: an MP4 needs ffmpeg, which is not installed; "
                              "give a .gif or .html file")
+    args.input_tables = input_tables(args.input)
     for name in ("t_end", "rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not (math.isfinite(value) and (value > 0 if name == "t_end" else value >= 0)):
@@ -135,6 +139,8 @@ def run(args) -> int:
     known = getattr(sim, "output_names", None)
     if known is not None:  # else (minimal coordinates) the columns are known after the run, before any file
         check_columns(args, [*sim.state_names, *known])
+    if args.input_tables:
+        options["inputs"] = args.input_tables
     t0 = time.perf_counter()
     res = mf.simulate(sim, **options)
     check_columns(args, [*res.state_names, *res.outputs])

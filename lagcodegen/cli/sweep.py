@@ -10,7 +10,7 @@ import argparse
 
 from ..api import run_sweep
 from ..sweep import SweepOptionError, SweepSpec
-from .common import EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_progress_option
+from .common import EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_progress_option, input_tables
 
 HELP = "run one ensemble over a grid or a random sample of parameters and initial values; write a table"
 
@@ -56,6 +56,9 @@ def add_parser(sub) -> None:
     p.add_argument("--project-initial", action="store_true",
                    help="files with [constraints]: project each member's initial state onto the constraints")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.add_argument("--input", action="append", metavar="NAME=FILE[:KIND]",
+                   help="an input's table, the same for every member: FILE has two columns t, value; KIND linear "
+                        "(default), zoh or cubic (repeatable)")
     add_progress_option(p)
     p.set_defaults(func=run)
 
@@ -63,7 +66,10 @@ def add_parser(sub) -> None:
 def spec_from_namespace(args) -> SweepSpec:
     """A :class:`SweepSpec` from an argparse namespace with the same attribute names."""
     names = SweepSpec.__dataclass_fields__
-    return SweepSpec(**{k: getattr(args, k) for k in names if hasattr(args, k) and getattr(args, k) is not None})
+    spec = {k: getattr(args, k) for k in names if hasattr(args, k) and getattr(args, k) is not None}
+    if getattr(args, "input", None):
+        spec["inputs"] = input_tables(args.input)
+    return SweepSpec(**spec)
 
 
 def run(args) -> int:

@@ -34,6 +34,7 @@ import os
 from pathlib import Path
 from typing import Mapping, Sequence
 
+from ..codes import c_header as codes_header
 from ..errors import ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
@@ -43,6 +44,7 @@ from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
 from .record import GeneratedCode
+from .signatures import DRIVERS, c_header as types_header
 from .templates import environment
 
 #: The CVODE example's methods: name -> (CVODE constant, text).
@@ -128,6 +130,12 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
              ("rk4_example.c", "fixed-step RK4 integration, CSV on stdout; needs only a C compiler")]
     if sundials_example:
         table.append(("cvode_example.c", "the same with SUNDIALS CVODE (built by CMake when SUNDIALS is found)"))
+    inputs = [(name, code.param_names.index(name)) for name in code.input_names] if not fortran else []
+    if inputs:
+        table += [("lcg_inputs.h", "input tables: a piecewise cubic per input, setting its slot of p (C99 + libm)"),
+                  ("lcg_inputs.c", "their functions"),
+                  ("lcg_inputs_types.h", "their structs (with lcg_model.h, lcg_codes.h)"),
+                  ("inputs_example.c", "RK4 with the inputs read from tables (`make inputs_example`)")]
     table.append(("README.md", "this file"))
     y_values = _initial_state(code, y0)
     ctx = dict(
@@ -140,7 +148,10 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
         y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
         steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table,
-        cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1])
+        cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1], inputs=inputs)
+    if inputs:
+        ctx.update(input_names=[name for name, _ in inputs], input_slots=[s for _, s in inputs],
+                   max_h=_c_double((t_end - t_start) / steps))
     integrators, skipped, extra = [], [], {}
     for name, sources in (INTEGRATORS.items() if not fortran else ()):
         try:
@@ -164,8 +175,19 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     files["rk4_example.c"] = env.get_template("bundle/rk4_example.c.j2").render(**ctx)
     if sundials_example:
         files["cvode_example.c"] = env.get_template("bundle/cvode_example.c.j2").render(**ctx)
+    if inputs:
+        files.update(inputs_files())
+        files["inputs_example.c"] = env.get_template("bundle/inputs_example.c.j2").render(**ctx)
     files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
     return files
+
+
+def inputs_files() -> dict[str, str]:
+    """The runtime's input tables as a bundle ships them: ``lcg_inputs.h``/``.c`` as they are,
+    their structs ``lcg_inputs_types.h`` and what that includes (``lcg_model.h``, ``lcg_codes.h``)."""
+    from .. import runtime
+    return {**runtime.sources(("lcg_inputs.h", "lcg_inputs.c", "lcg_model.h")), "lcg_codes.h": codes_header(),
+            "lcg_inputs_types.h": types_header(DRIVERS["inputs"], __version__)}
 
 
 def _checked_span(t_start, t_end, steps) -> tuple[float, float, int]:

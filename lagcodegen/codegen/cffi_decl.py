@@ -46,14 +46,17 @@ def runtime_cdef() -> str:
     """The model-independent runtime module: the model table, the CVODE driver taking it
     (lcg_cvode.h), its ensembles, the batch of outputs, the constrained drivers
     (:func:`constrained_runtime_cdef`) and the poll callback."""
-    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), """
+    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("inputs"), driver_cdef("cvode"), """
 int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
                     double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st);
 int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double *y, const double *p,
                       double *out);""", _solve_many("cvode"), constrained_runtime_cdef(), """
 int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
                            const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
-                           lcg_cvode_stats *st, lcg_events *ev);""", POLL_CDEF])
+                           lcg_cvode_stats *st, lcg_events *ev);
+int lcg_cvode_solve_inputs(const lcg_model *m, const double *p, const lcg_inputs *in, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st);""", POLL_CDEF])
 
 
 def model_cdef(code: GeneratedCode, native: bool) -> str:

@@ -343,10 +343,30 @@ TAYLOR_EVENTS = Struct("lcg_taylor_events", (
         "function which[k], direction[k]. Only the first max_events are stored; n_events counts them all.")
 
 
-def ensemble(name: str, model: str, yp0: bool = False, events: bool = False, roots: bool = False) -> Struct:
+#: One input signal of a model as a table (lcg_inputs.h): a piecewise cubic over its breakpoints.
+INPUT_TABLE = Struct("lcg_input_table", (
+    Field("slot", "int", "the run-time parameter p[slot] the input is"),
+    Field("n", "int", "breakpoints (at least 1)"),
+    Field("t", "const double *", "n increasing breakpoint times"),
+    Field("c", "const double *", "4 (n + 1) coefficients: piece k is c[4k] + c[4k+1] s + c[4k+2] s^2 + c[4k+3] s^3, "
+          "s = t - t_(k-1) (t_0 for k = 0)")),
+    doc="An input u(t) = p[slot] given by a table: piece 0 before t_0, piece k (0 < k < n) on [t_(k-1), t_k), "
+        "piece n from t_(n-1) on.")
+#: The input tables of a run.
+INPUTS = Struct("lcg_inputs", (
+    Field("count", "int", "tables"),
+    Field("tables", "const lcg_input_table *", "count tables, each its own slot"),
+    Field("nbreak", "int", "restart times: the driver stops at each and starts afresh (CVodeReInit)"),
+    Field("breaks", "const double *", "nbreak increasing restart times (where an input jumps or kinks)")),
+    doc="The input tables of a run: the driver sets p[slot] of each from its table at every evaluation time.")
+
+
+def ensemble(name: str, model: str, yp0: bool = False, events: bool = False, roots: bool = False,
+             inputs: bool = False) -> Struct:
     """The ensemble struct of a driver (lcg_pool.h): ``model`` the type of the model's table,
     ``yp0`` an initial yp0 per member (IDA), ``events`` root finding, ``roots`` the event
-    functions beside the model's table (:data:`ODE_ROOTS`; the ODE of a scene)."""
+    functions beside the model's table (:data:`ODE_ROOTS`; the ODE of a scene), ``inputs`` input
+    tables per member (lcg_inputs.h)."""
     fields = [
         Field("model", f"const {model} *", "the model every member integrates"),
         Field("nmem", "long"), Field("nthreads", "int"),
@@ -376,6 +396,9 @@ def ensemble(name: str, model: str, yp0: bool = False, events: bool = False, roo
             Field("terminal", "const int *", "NROOT flags: the event ends the run, or NULL (all terminal)")]
     if roots:
         fields.append(Field("roots", "const lcg_ode_roots *", "NULL, or the event functions every member locates"))
+    if inputs:
+        fields += [Field("inputs", "const lcg_inputs *", "NULL, or the input tables of member i: inputs[i] (p_stride > "
+                         "0), inputs[0] (p_stride 0)")]
     fields += [
         Field("poll", "int (*)(void *data, long done, long total)",
               "NULL, or called from the calling thread about every poll_every s with the members done; "
@@ -419,8 +442,10 @@ class Driver:
 #: The model-independent drivers: CVODE (ODEs), index-1 CVODE and GGL IDA (constrained; their
 #: events record: "dae"), Taylor.
 DRIVERS = {d.name: d for d in (
-    Driver("cvode", "lcg_model.h", (CVODE_OPTIONS, CVODE_STATS, ODE_ROOTS,
-                                    ensemble("lcg_cvode_ensemble", "lcg_model", events=True, roots=True))),
+    Driver("inputs", "lcg_model.h", (INPUT_TABLE, INPUTS)),
+    Driver("cvode", "lcg_inputs_types.h", (CVODE_OPTIONS, CVODE_STATS, ODE_ROOTS,
+                                           ensemble("lcg_cvode_ensemble", "lcg_model", events=True, roots=True,
+                                                    inputs=True))),
     Driver("dae", "lcg_dae_model.h", (EVENTS,)),
     Driver("cvc", "lcg_dae_types.h", (CVC_OPTIONS, CVC_STATS,
                                       ensemble("lcg_cvc_ensemble", "lcg_dae_model", events=True))),

@@ -45,6 +45,14 @@ def _deps(refs, index=None) -> str | None:
     return " ".join(str(index[r] if index else r) for r in refs)
 
 
+def _unit_definitions(table: VariableTable) -> str:
+    """The UnitDefinitions element declaring every unit the variables state ("" when none do)."""
+    units = sorted({v.unit for v in table.variables if v.unit})
+    if not units:
+        return ""
+    return "  <UnitDefinitions>\n" + "".join(f"    <Unit{_attrs(name=u)}/>\n" for u in units) + "  </UnitDefinitions>\n"
+
+
 def _experiment(h: Header) -> str:
     stop = None if h.stop_time is None else _num(h.stop_time)
     return f"  <DefaultExperiment{_attrs(startTime=_num(h.start_time), stopTime=stop, tolerance=_num(h.tolerance))}/>\n"
@@ -75,6 +83,8 @@ def _fmi2_variable(v: Variable) -> str:
         head = _attrs(name=v.name, valueReference=v.vr, description=desc, causality="output",
                       variability="continuous", initial="calculated")
         real = "<Real/>"
+    if v.unit:
+        real = real.replace("<Real", f"<Real{_attrs(unit=v.unit)}", 1)
     return f"    <ScalarVariable{head}>\n      {real}\n    </ScalarVariable>\n"
 
 
@@ -93,6 +103,7 @@ def model_description_fmi2(table: VariableTable, h: Header, source_files: list[s
            f"<fmiModelDescription{root}>\n",
            f"  <ModelExchange{common}>\n    <SourceFiles>\n{files}    </SourceFiles>\n  </ModelExchange>\n",
            f"  <CoSimulation{common}{cs}>\n    <SourceFiles>\n{files}    </SourceFiles>\n  </CoSimulation>\n",
+           _unit_definitions(table),
            '  <LogCategories>\n    <Category name="logStatusError"/>\n  </LogCategories>\n',
            _experiment(h),
            "  <ModelVariables>\n"]
@@ -140,6 +151,8 @@ def _fmi3_variable(v: Variable) -> str:
     else:
         attrs = _attrs(name=v.name, valueReference=v.vr, description=desc, causality="output",
                        variability="continuous", initial="calculated")
+    if v.unit:
+        attrs += _attrs(unit=v.unit)
     return f"    <Float64{attrs}/>\n"
 
 
@@ -155,6 +168,7 @@ def model_description_fmi3(table: VariableTable, h: Header) -> str:
            f"<fmiModelDescription{root}>\n",
            f"  <ModelExchange{common}/>\n",
            f"  <CoSimulation{common}{cs}/>\n",
+           _unit_definitions(table),
            '  <LogCategories>\n    <Category name="logStatusError"/>\n  </LogCategories>\n',
            _experiment(h),
            "  <ModelVariables>\n"]

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import tempfile
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -119,8 +120,11 @@ def runtime_object(fmi_version: int, cc: str) -> Path:
         for name, text in files.items():
             (tmp / name).write_text(text)
         c_files = sorted(n for n in files if n.endswith(".c"))
-        for name in c_files:
-            _run([cc, *FMU_CFLAGS, "-c", name, "-o", name[:-2] + ".o"], tmp, "the FMU runtime")
+        # one compiler per file, all at once (the runtime's files are independent): on two cores
+        # about half the time of one after the other
+        with ThreadPoolExecutor(max_workers=max(1, min(len(c_files), os.cpu_count() or 1))) as pool:
+            list(pool.map(lambda name: _run([cc, *FMU_CFLAGS, "-c", name, "-o", name[:-2] + ".o"], tmp,
+                                            "the FMU runtime"), c_files))
         _run([cc, "-r", *[n[:-2] + ".o" for n in c_files], "-o", filename], tmp, "the FMU runtime")
         return tmp / filename
 
@@ -151,7 +155,8 @@ def _assemble(code, table: VariableTable, *, fmi_version: int, x_start: Sequence
     c_files = sorted(n for n in files if n.endswith(".c")) + [MODEL_TABLE]
     # The token digests everything but itself: the model's code, the glue, the variables.
     token = _token([f"fmi {fmi_version}", *(f"{k}\0{v}" for k, v in sorted(files.items())),
-                    repr(table.variables), repr(sorted(header.items()))])
+                    repr(table.variables), repr(sorted(header.items())),
+                    *([repr([v.unit for v in table.variables])] if any(v.unit for v in table.variables) else [])])
     params = [v.name for v in table.of_kind("parameter", "input")]
     ctx = dict(version=__version__, identifier=identifier, model_name=header["model_name"], token=token,
                prefix=code.prefix, nx=table.nx, np=table.np, nout=table.nout,

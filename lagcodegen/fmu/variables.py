@@ -11,7 +11,7 @@ states and inputs of its expression.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import symengine as se
@@ -31,6 +31,7 @@ class Variable:
     derivative_of: int | None = None  # derivatives: the value reference of the state
     dependencies: tuple[int, ...] | None = None  # value references (states, inputs); None: not listed
     description: str = ""
+    unit: str = field(default="", repr=False)  # "": none stated (the FMU's token digests stated units apart)
 
 
 @dataclass
@@ -108,18 +109,34 @@ def variable_table(scene: Scene, *, x_start: Sequence[float], tunable: set[str])
     param_rows = [(name, defaults[k], "input" if name in inputs else "parameter",
                    "tunable" if name in tunable else "fixed", "") for k, name in enumerate(params)]
     output_rows = [(out.name, deps_of(_symbols(out.expr))) for out in outputs]
-    return build_table(state_names, x_start, derivative_deps, param_rows, output_rows)
+    return build_table(state_names, x_start, derivative_deps, param_rows, output_rows, units=stated_units(model))
+
+
+def stated_units(model) -> dict[str, str]:
+    """The units of the FMU's variables from the model's (:meth:`Model.unit`): a coordinate's,
+    its velocity's and derivatives' ("<unit>/s", "<unit>/s2"), the parameters' and inputs'."""
+    units = {}
+    for q, v in zip(model.coords, model.speeds):
+        u = model.units.get(q.name)
+        if u:
+            units.update({q.name: u, v.name: f"{u}/s", f"der({q.name})": f"{u}/s", f"der({v.name})": f"{u}/s2"})
+    units.update({s.name: model.units[s.name] for s in model.params if s.name in model.units})
+    return units
 
 
 def build_table(state_names: list[str], x_start: list[float], derivative_deps: list[tuple[int, ...] | None],
                 params: list[tuple[str, float, str, str, str]],
-                outputs: list[tuple[str, tuple[int, ...] | None]]) -> VariableTable:
+                outputs: list[tuple[str, tuple[int, ...] | None]], units: dict | None = None) -> VariableTable:
     """The table in value-reference order: ``params`` rows are (name, start, "parameter" or
     "input", "tunable" or "fixed", description), ``outputs`` rows (name, dependencies); None
-    dependencies are not listed (the variable depends on every state and input)."""
+    dependencies are not listed (the variable depends on every state and input); ``units``:
+    variable name -> unit, where stated."""
     nx = len(state_names)
     table = VariableTable(nx=nx, np=len(params), nout=len(outputs))
-    add = table.variables.append
+    units = units or {}
+
+    def add(v: Variable) -> None:
+        table.variables.append(v if v.name not in units else replace(v, unit=units[v.name]))
     add(Variable("time", 0, "time", description="time"))
     for k, name in enumerate(state_names):
         add(Variable(name, 1 + k, "state", start=float(x_start[k])))

@@ -174,6 +174,7 @@ class Model:
     inputs: list = field(default_factory=list)  # names of the parameters that are input signals u(t)
     links: list = field(default_factory=list)  # rigid links of trees (bodies.Link), parents first
     springs: list = field(default_factory=list)  # (label, Point a, Point b) of spring(): what pictures draw
+    units: dict = field(default_factory=dict)  # coordinate / parameter / input name -> unit ("m", "kg")
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -452,6 +453,19 @@ class Model:
         sym = self.parameter(name, check_finite(default, f"input {name!r}"))
         self.inputs.append(name)
         return sym
+
+    def unit(self, name: str, unit: str) -> None:
+        """State the unit of the coordinate, parameter or input ``name`` (a string such as "m",
+        "rad", "kg", "N"). It is documentation, not checked: FMUs (lagcodegen.export_fmu) carry
+        it in their modelDescription, the velocity q' and the derivatives in "<unit>/s" and
+        "<unit>/s2"."""
+        names = {q.name for q in self.coords} | {s.name for s in self.params}
+        if name not in names:
+            raise ModelError(f"unit for {name!r}: not a coordinate, parameter or input of model {self.name!r}")
+        if not isinstance(unit, str) or not unit or any(c.isspace() or c in "\"'<>&" for c in unit):
+            raise ModelError(f"unit of {name!r} must be a non-empty string without spaces, quotes or <>&, "
+                             f"got {unit!r}")
+        self.units[name] = unit
 
     # ------------------------------------------------------------------ checks
     def known_symbols(self) -> set:

@@ -14,6 +14,9 @@ A build step can describe a model without writing Python::
     [inputs]                              # input signals u(t): name = default value; used in
     F = 0.0                               # expressions as parameters are (Model.input)
 
+    [units]                               # optional units (documentation; FMUs carry them):
+    theta1 = "rad"                        # name of a coordinate, parameter or input = "unit"
+
     [[points]]                            # optional named points (anchors, attachment points)
     name = "anchor"
     position = [0, 0]

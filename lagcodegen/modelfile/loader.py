@@ -112,6 +112,7 @@ class _Loader(_Reader):
         self.load_model_table(self.table(["model"], data["model"]))
         self.load_parameters(self.table(["parameters"], data.get("parameters", {})))
         self.load_inputs(self.table(["inputs"], data.get("inputs", {})))
+        self.load_units(self.table(["units"], data.get("units", {})))
         for section, loader in (("points", self.load_point), ("particles", self.load_particle),
                                 ("planar_bodies", self.load_planar_body), ("rigid_bodies", self.load_rigid_body)):
             for i, entry in enumerate(self.tables([section], data.get(section, []))):
@@ -181,6 +182,15 @@ class _Loader(_Reader):
             number = self.constant(path, value)
             with self.at(path, needle=name):
                 self.symbols[name] = self.model.input(name, number)
+
+    def load_units(self, table: dict) -> None:
+        """[units]: name = "unit" (of a coordinate, parameter or input, :meth:`Model.unit`)."""
+        assert self.model is not None
+        for name, value in table.items():
+            path = ["units", name]
+            unit = self.string(path, value)
+            with self.at(path, needle=name):
+                self.model.unit(name, unit)
 
     def load_point(self, path: list[_Key], entry: dict) -> None:
         assert self.model is not None

@@ -100,6 +100,9 @@ SCHEMA: tuple[Table, ...] = (
     Table("inputs", "map", "Input signals u(t): name = default value. An input enters like a parameter that "
           "varies in time (piecewise constant: no du/dt terms); it stays a run-time parameter, set by "
           "`simulate(params=...)` or by an FMU importer.", entry_type="constant", maps_to="Model.input(name, default)"),
+    Table("units", "map", "Units of coordinates, parameters and inputs: name = \"unit\" (\"m\", \"rad\", \"kg\"). "
+          "Documentation only (not checked); FMUs carry them in their modelDescription (velocities and "
+          "derivatives in \"<unit>/s\", \"<unit>/s2\").", entry_type="string", maps_to="Model.unit(name, unit)"),
     Table("points", "array", "Named points: anchors and attachment points of springs, dampers and forces.",
           keys=(Key("name", "identifier", "the point's name", required=True),
                 Key("position", "vector", "its position x(q, t)", required=True)),

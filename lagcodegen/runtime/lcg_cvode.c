@@ -49,7 +49,20 @@ typedef struct {
     double t_nonfinite;
     const lcg_ode_roots *r; /* event functions, or NULL */
     int *info;          /* root finding: the roots found (r->nroot), or NULL */
+    const lcg_inputs *in; /* input tables (lcg_inputs.h), or NULL */
+    double *pin;        /* inputs: p with the inputs' slots set at the evaluation time */
+    double key;         /* inputs: the time of the last restart (the run's start at first) */
+    double tb;          /* inputs: the next restart time (HUGE_VAL: none) */
 } user_data;
+
+/* The run-time parameters at t: p, with the inputs' slots from their tables when there are any. */
+static const double *params_at(user_data *d, double t)
+{
+    if (d->in == NULL)
+        return d->p;
+    lcg_inputs_apply(d->in, t, t >= d->tb, d->pin);
+    return d->pin;
+}
 
 /* Position in the interleaved (band solver) order of model state i (n coordinates), and back. */
 static int to_band(int n, int i)
@@ -98,7 +111,7 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 
     if (WATCH_TICK(&d->w))
         return -1; /* stop: cancelled or out of time */
-    return model_status(d, d->m->rhs(t, N_VGetArrayPointer(y), d->p, N_VGetArrayPointer(ydot)), t);
+    return model_status(d, d->m->rhs(t, N_VGetArrayPointer(y), params_at(d, t), N_VGetArrayPointer(ydot)), t);
 }
 
 static int rhs_band(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
@@ -109,7 +122,7 @@ static int rhs_band(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
     if (WATCH_TICK(&d->w))
         return -1;
     gather(d->m, N_VGetArrayPointer(y), d->yb);
-    rc = d->m->rhs(t, d->yb, d->p, d->fb);
+    rc = d->m->rhs(t, d->yb, params_at(d, t), d->fb);
     scatter(d->m, d->fb, N_VGetArrayPointer(ydot));
     return model_status(d, rc, t);
 }
@@ -126,8 +139,8 @@ static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *data, 
     (void)tmp2;
     (void)tmp3;
     if (m->jac != NULL)
-        return model_status(d, m->jac(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), d->p, Jd), t);
-    rc = m->jac_sparse(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), d->p, d->vals);
+        return model_status(d, m->jac(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), params_at(d, t), Jd), t);
+    rc = m->jac_sparse(t, N_VGetArrayPointer(y), N_VGetArrayPointer(fy), params_at(d, t), d->vals);
     if (rc != LCG_OK)
         return model_status(d, rc, t);
     for (j = 0; j < m->ny; ++j)
@@ -150,7 +163,7 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
     gather(m, N_VGetArrayPointer(y), d->yb);
     gather(m, N_VGetArrayPointer(fy), d->fb);
     if (m->jac_sparse != NULL) {
-        rc = m->jac_sparse(t, d->yb, d->fb, d->p, d->vals);
+        rc = m->jac_sparse(t, d->yb, d->fb, params_at(d, t), d->vals);
         if (rc != LCG_OK)
             return model_status(d, rc, t);
         for (j = 0; j < m->ny; ++j) {
@@ -164,7 +177,7 @@ static int jac_band(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *d
         }
         return 0;
     }
-    rc = m->jac(t, d->yb, d->fb, d->p, d->jd);
+    rc = m->jac(t, d->yb, d->fb, params_at(d, t), d->jd);
     if (rc != LCG_OK)
         return model_status(d, rc, t);
     for (j = 0; j < m->ny; ++j) {
@@ -190,7 +203,7 @@ static int roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
         gather(d->m, ym, d->yb);
         ym = d->yb;
     }
-    rc = d->r->roots(t, ym, d->p, gout);
+    rc = d->r->roots(t, ym, params_at(d, t), gout);
     if (rc != LCG_OK) {
         d->st->model_error = rc;
         d->st->t_reached = t;
@@ -256,6 +269,53 @@ static int roots_found(void *mem, user_data *d, lcg_events *ev, double t, double
     return record_roots(mem, ev, t, t0, h, yv, d->r->nroot, d->m->ny, d->info);
 }
 
+/* Add CVODE's counters since its last (re)initialization to st's. */
+static void add_counts(void *mem, lcg_cvode_stats *st)
+{
+    long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    CVodeGetNumSteps(mem, &c[0]);
+    CVodeGetNumRhsEvals(mem, &c[1]);
+    CVodeGetNumLinRhsEvals(mem, &c[2]);
+    CVodeGetNumJacEvals(mem, &c[3]);
+    CVodeGetNumLinSolvSetups(mem, &c[4]);
+    CVodeGetNumErrTestFails(mem, &c[5]);
+    CVodeGetNumNonlinSolvIters(mem, &c[6]);
+    CVodeGetNumNonlinSolvConvFails(mem, &c[7]);
+    st->nsteps += c[0];
+    st->nrhs += c[1];
+    st->nrhs_dq += c[2];
+    st->njac += c[3];
+    st->nlinsetups += c[4];
+    st->netfails += c[5];
+    st->nniters += c[6];
+    st->nncfails += c[7];
+}
+
+/* The steps of the whole run (for the step budget, advance): those of the segments before the last
+ * restart are in st->nsteps (0 without inputs until the run ends). */
+#define CVodeTotalGetNumSteps(mem, n) (CVodeGetNumSteps(mem, n), *(n) += st->nsteps)
+
+/* b within rounding of a (a <= b): CVODE cannot step from a to b. */
+static int too_close(double a, double b)
+{
+    return b - a <= 4.0 * DBL_EPSILON * (fabs(a) > fabs(b) ? fabs(a) : fabs(b));
+}
+
+/* At the breakpoint *tb the run has reached (state y): start afresh there (the history of the
+ * multistep method ends at a jump or kink of an input), on the next segment's pieces, with the stop
+ * time at the next breakpoint or tend. The counters so far go to st (CVodeReInit resets them). */
+static int restart_at(void *mem, user_data *d, N_Vector y, double *tb, double tend)
+{
+    int flag;
+
+    add_counts(mem, d->st);
+    d->key = *tb;
+    if ((flag = CVodeReInit(mem, *tb, y)) < 0)
+        return flag;
+    *tb = d->tb = lcg_inputs_next_break(d->in, *tb);
+    return CVodeSetStopTime(mem, *tb < tend ? *tb : tend);
+}
+
 static int fill_outputs(const lcg_model *m, double t, const double *y, const double *p, double *out)
 {
     return m->outputs != NULL ? m->outputs(t, y, p, out) : LCG_OK;
@@ -274,18 +334,43 @@ int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double 
     return LCG_OK;
 }
 
-/* Integrate model m from tout[0] with y(tout[0]) = y0; yout[k*ny + i] = y_i(tout[k]),
- * out[k*nout + j] = output j at tout[k]. Returns 0, or a negative CVODE flag / -100 - model error. */
-int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
-                    double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st)
+/* CVode towards target (the root returns of the events on the way recorded into ev and stepped
+ * over): a negative CVODE flag, ADVANCE_TERMINAL at a terminal event (its time in *tret), or 0. */
+#define ADVANCE_TERMINAL 1
+static int advance(void *mem, user_data *d, const lcg_cvode_options *opt, lcg_events *ev, int roots_on,
+                   double target, N_Vector y, double *tret, const double *yv)
 {
-    return lcg_cvode_solve_events(m, NULL, p, y0, nt, tout, yout, out, opt, st, NULL);
+    lcg_cvode_stats *st = d->st;
+    long nst = 0;
+    int flag;
+
+    for (;;) { /* the step budget (max_steps) over the whole run, restarts included */
+        CVodeTotalGetNumSteps(mem, &nst);
+        if (nst >= opt->max_steps) {
+            snprintf(st->message, sizeof st->message, "the step budget max_steps = %ld is used up before t = %.17g",
+                     opt->max_steps, target);
+            return -1;
+        }
+        CVodeSetMaxNumSteps(mem, opt->max_steps - nst);
+        flag = CVode(mem, target, y, tret, CV_NORMAL);
+        st->t_reached = *tret;
+        if (flag == CV_ROOT_RETURN && roots_on) {
+            if (roots_found(mem, d, ev, *tret, d->key, yv)) {
+                ev->terminated = 1;
+                return ADVANCE_TERMINAL;
+            }
+            continue;
+        }
+        return flag < 0 ? flag : 0;
+    }
 }
 
-/* lcg_cvode_solve with the events r (NULL: none) located and recorded into ev; see lcg_cvode.h. */
-int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
-                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
-                           lcg_cvode_stats *st, lcg_events *ev)
+/* Integrate model m from tout[0] with y(tout[0]) = y0; yout[k*ny + i] = y_i(tout[k]),
+ * out[k*nout + j] = output j at tout[k]; r: event functions (NULL: none) located and recorded into
+ * ev; in: input tables (NULL: none). Returns 0, or a negative CVODE flag / -100 - model error. */
+static int solve(const lcg_model *m, const lcg_ode_roots *r, const double *p, const lcg_inputs *in,
+                 const double *y0, int nt, const double *tout, double *yout, double *out,
+                 const lcg_cvode_options *opt, lcg_cvode_stats *st, lcg_events *ev)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -295,9 +380,11 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
     SUNNonlinearSolver NLS = NULL;
     user_data data;
     double *yv, *ym;
-    long nst = 0;
     int k, i, flag = 0, rc, ny, nout, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
     int use_jac, roots_on = r != NULL && ev != NULL && r->nroot > 0 && r->roots != NULL;
+    int restart = in != NULL && in->nbreak > 0;
+    double tb = HUGE_VAL; /* inputs: the next restart time */
+    const double *pk;     /* the parameters of an output row */
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -320,6 +407,19 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
     if (ev != NULL) {
         ev->n_events = 0;
         ev->terminated = 0;
+    }
+    data.in = in;
+    data.pin = NULL;
+    data.key = tout[0];
+    data.tb = HUGE_VAL;
+    if (in != NULL) {
+        if (lcg_inputs_check(in, m->np, st->message, sizeof st->message) != 0)
+            return st->flag = LCG_FLAG_BAD_INPUT;
+        if ((data.pin = (double *)malloc(sizeof(double) * (size_t)(m->np > 0 ? m->np : 1))) == NULL)
+            return st->flag = LCG_FLAG_NOMEM;
+        for (i = 0; i < m->np; ++i)
+            data.pin[i] = p[i];
+        tb = lcg_inputs_next_break(in, tout[0]);
     }
     watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     data.mu = opt->mupper;
@@ -369,7 +469,12 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
         for (i = 0; i < ny; ++i)
             yv[i] = y0[i];
 
-    rc = fill_outputs(m, tout[0], y0, p, out);
+    pk = p;
+    if (in != NULL) {
+        lcg_inputs_apply(in, tout[0], 0, data.pin);
+        pk = data.pin;
+    }
+    rc = fill_outputs(m, tout[0], y0, pk, out);
     LCG_MODEL_ERROR(LCG_OK);
     for (i = 0; i < ny; ++i)
         yout[i] = y0[i];
@@ -418,48 +523,44 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
         goto done;
     if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
         goto done;
-    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+    data.tb = tb;
+    if (nt > 1 && (flag = CVodeSetStopTime(mem, tb < tout[nt - 1] ? tb : tout[nt - 1])) < 0)
         goto done;
 
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
         if (WATCH_TICK(&data.w))
             goto done;
-        for (;;) {
-            LCG_STEP_BUDGET(CVode);
-            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
-            st->t_reached = tret;
-            if (flag == CV_ROOT_RETURN && roots_on) {
-                if (roots_found(mem, &data, ev, tret, tout[0], yv)) {
-                    ev->terminated = 1;
+        while (tb < tout[k]) { /* inputs with restart: a breakpoint before the next output time */
+            if (!too_close(data.key, tb)) {
+                if ((flag = advance(mem, &data, opt, ev, roots_on, tb, y, &tret, yv)) < 0 || flag == ADVANCE_TERMINAL)
                     goto done;
-                }
-                continue;
             }
-            break;
+            if ((flag = restart_at(mem, &data, y, &tb, tout[nt - 1])) < 0)
+                goto done;
         }
-        if (flag < 0)
+        if (restart && too_close(data.key, tout[k])) {
+            tret = tout[k]; /* an output time a rounding error after the restart: the restart's state */
+        } else if ((flag = advance(mem, &data, opt, ev, roots_on, tout[k], y, &tret, yv)) < 0 || flag == ADVANCE_TERMINAL) {
             goto done;
+        }
         if (band)
             gather(m, yv, data.yb);
         for (i = 0; i < ny; ++i)
             yout[(long)k * ny + i] = ym[i];
-        rc = fill_outputs(m, tret, ym, p, out + (long)k * nout);
+        if (in != NULL)
+            lcg_inputs_apply(in, tret, 0, data.pin); /* the signal's value at the output time */
+        rc = fill_outputs(m, tret, ym, pk, out + (long)k * nout);
         LCG_MODEL_ERROR(LCG_OK);
         st->nt_done = k + 1;
+        if (tb == tout[k] && k < nt - 1 && (flag = restart_at(mem, &data, y, &tb, tout[nt - 1])) < 0)
+            goto done;
     }
 
 done:
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
     if (mem != NULL) {
-        CVodeGetNumSteps(mem, &st->nsteps);
-        CVodeGetNumRhsEvals(mem, &st->nrhs);
-        CVodeGetNumLinRhsEvals(mem, &st->nrhs_dq);
-        CVodeGetNumJacEvals(mem, &st->njac);
-        CVodeGetNumLinSolvSetups(mem, &st->nlinsetups);
-        CVodeGetNumErrTestFails(mem, &st->netfails);
-        CVodeGetNumNonlinSolvIters(mem, &st->nniters);
-        CVodeGetNumNonlinSolvConvFails(mem, &st->nncfails);
+        add_counts(mem, st);
         CVodeGetLastStep(mem, &st->h_last);
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
@@ -489,8 +590,31 @@ done:
     free(data.vals);
     free(data.jd);
     free(data.info);
+    free(data.pin);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
+}
+
+int lcg_cvode_solve(const lcg_model *m, const double *p, const double *y0, int nt, const double *tout,
+                    double *yout, double *out, const lcg_cvode_options *opt, lcg_cvode_stats *st)
+{
+    return solve(m, NULL, p, NULL, y0, nt, tout, yout, out, opt, st, NULL);
+}
+
+/* lcg_cvode_solve with the events r (NULL: none) located and recorded into ev; see lcg_cvode.h. */
+int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const double *p, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st, lcg_events *ev)
+{
+    return solve(m, r, p, NULL, y0, nt, tout, yout, out, opt, st, ev);
+}
+
+/* lcg_cvode_solve with the input tables in (NULL: none); see lcg_cvode.h. */
+int lcg_cvode_solve_inputs(const lcg_model *m, const double *p, const lcg_inputs *in, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st)
+{
+    return solve(m, NULL, p, in, y0, nt, tout, yout, out, opt, st, NULL);
 }
 
 #define COUNTS(c, st) (c[0] = (st)->nsteps, c[1] = (st)->nrhs + (st)->nrhs_dq, c[2] = (st)->njac, \
@@ -506,12 +630,15 @@ done:
 static int pool_member(lcg_cvode_ensemble *e, const double *pi, const double *y0i, const double *yp0i,
                        const lcg_cvode_options *o, lcg_cvode_stats *st, double *yout, double *out, pool_scratch *s)
 {
+    const lcg_inputs *in = NULL;
     int rc;
 
     (void)yp0i;
+    if (e->inputs != NULL) /* the member's own tables: its row of p (lcg_cvode_ensemble) */
+        in = e->inputs + (e->p_stride > 0 ? (pi - e->p) / e->p_stride : 0);
     if (e->roots == NULL)
-        return lcg_cvode_solve(e->model, pi, y0i, e->nt, e->tout, yout, out, o, st);
-    rc = lcg_cvode_solve_events(e->model, e->roots, pi, y0i, e->nt, e->tout, yout, out, o, st, &s->evs);
+        return solve(e->model, NULL, pi, in, y0i, e->nt, e->tout, yout, out, o, st, NULL);
+    rc = solve(e->model, e->roots, pi, in, y0i, e->nt, e->tout, yout, out, o, st, &s->evs);
     s->ev_n = s->evs.n_events;
     s->ev_term = s->evs.terminated;
     if (s->evs.terminated && s->evs.n_events > 0 && s->evs.n_events <= s->maxev) {

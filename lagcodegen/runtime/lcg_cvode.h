@@ -7,6 +7,7 @@
 
 #include "lcg_cvode_types.h" /* the structs, rendered from lagcodegen/codegen/signatures.py */
 #include "lcg_dae_types.h"   /* lcg_events: the events found */
+#include "lcg_inputs.h"
 
 /* Integrate model m from tout[0] with y(tout[0]) = y0 and write yout[k*ny + i] = y_i(tout[k]),
  * out[k*nout + j] = output j at tout[k] (nt output times, increasing).
@@ -23,9 +24,16 @@ int lcg_cvode_solve_events(const lcg_model *m, const lcg_ode_roots *r, const dou
                            const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
                            lcg_cvode_stats *st, lcg_events *ev);
 
-/* The members of e (model e->model), each a run of lcg_cvode_solve (lcg_cvode_solve_events with the
- * events e->roots unless NULL) with the options opt, over a pthread pool (NROW = ny state values per
- * row). Returns 0, -80 cancelled or -20 out of memory. */
+/* lcg_cvode_solve with the input tables in (NULL: none; see lcg_inputs.h): p[slot] of each table
+ * follows its table; with in->restart the run stops at every breakpoint and restarts there
+ * (CVodeReInit). -22 for tables that do not fit the model (st->message says why). */
+int lcg_cvode_solve_inputs(const lcg_model *m, const double *p, const lcg_inputs *in, const double *y0, int nt,
+                           const double *tout, double *yout, double *out, const lcg_cvode_options *opt,
+                           lcg_cvode_stats *st);
+
+/* The members of e (model e->model), each a run of lcg_cvode_solve (with the events e->roots unless
+ * NULL, the member's input tables e->inputs unless NULL) with the options opt, over a pthread pool
+ * (NROW = ny state values per row). Returns 0, -80 cancelled or -20 out of memory. */
 int lcg_cvode_solve_many(lcg_cvode_ensemble *e, const lcg_cvode_options *opt);
 
 /* out[k*nout + j] = output j of model m at (t[k], y[k*ny ...]) for k < nt. */

@@ -60,6 +60,7 @@ typedef int (*CVLsJacFn)(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix Jac, 
 
 void *CVodeCreate(int lmm, SUNContext sunctx);
 int CVodeInit(void *cvode_mem, CVRhsFn f, sunrealtype t0, N_Vector y0);
+int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
 int CVodeSStolerances(void *cvode_mem, sunrealtype reltol, sunrealtype abstol);
 int CVodeSVtolerances(void *cvode_mem, sunrealtype reltol, N_Vector abstol);
 int CVodeSetUserData(void *cvode_mem, void *user_data);

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import LagcodegenError
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
+from ..solvers.inputs import member_sets
 from ..solvers.registry import resolve
 from ..util import output_times
 
@@ -139,12 +140,25 @@ def ode_states(cm, q0, v0, y0, z0, params) -> tuple[int, np.ndarray, np.ndarray]
 
 # ---------------------------------------------------------------------- the ODE of a compiled scene
 def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, threads=None, save="final",
-                 executor=None, progress=None, chunk_size=None, options: dict) -> EnsembleResult:
+                 executor=None, progress=None, chunk_size=None, options: dict, inputs=None) -> EnsembleResult:
     """:meth:`CompiledModel.ensemble <lagcodegen.simulation.ode.CompiledModel.ensemble>`."""
+    options = dict(options)
+    inputs = options.pop("inputs", inputs)
     solver, rtol, atol, events, options = run_keywords(options)
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
     family = resolve("ode", solver, options, cm.n, float(rtol))
+    sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name)
+    if sets is not None:
+        if events:
+            raise LagcodegenError("events with input tables: not supported")
+        run = getattr(family, "ensemble_ode_inputs", None)
+        if run is None:
+            raise LagcodegenError(f"input tables are interpolated by the native CVODE driver; {family.name} "
+                                  "ensembles do not take them (use method='adams' or 'bdf')")
+        if executor is not None:
+            raise LagcodegenError("ensembles with input tables run in this process (executor= is not supported)")
+        return run(cm, t, Y, P, rtol, atol, sets, threads=threads, save=save, progress=progress)
     runner = family.runner("ode", "ensemble")
     more = {}
     if events:

@@ -22,6 +22,7 @@ from ..solvers import control
 from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
 from ..solvers.registry import resolve
 from ..util import c_vector, check_finite, output_times
+from ..solvers.inputs import input_set
 from .ensemble import ensemble_ode
 from .integrator import Integrator
 
@@ -231,6 +232,13 @@ class CompiledModel(CompiledReprMixin):
         raise_on_error:
             Raise :class:`SolverError` on failure (default); otherwise return the partial result
             with a negative ``status``.
+        inputs (in ``options``):
+            Input signals by name (the model's ``Model.input``): a
+            :class:`~lagcodegen.solvers.inputs.Table` or a pair (times, values) (linear), computed
+            in C at each evaluation time; the integrator stops and restarts where an input jumps or
+            kinks (``Table(restart=...)``; their number in ``res.stats["restarts"]``). Native
+            CVODE, and Taylor (each input a cubic of t in the jet, the run split at every
+            breakpoint); scikit-sundae refuses them.
         options:
             The family's fields as keywords, made into the family object by
             :func:`lagcodegen.solvers.registry.resolve`: ``method`` "adams", "bdf", "taylor" or
@@ -240,6 +248,7 @@ class CompiledModel(CompiledReprMixin):
             whole run), ``max_step``, ``first_step``, ``min_step``, ``max_wall``; a keyword the
             family does not have raises LagcodegenError naming it.
         """
+        inputs = options.pop("inputs", None)
         t = output_times(t)
         y = initial_state(self, q0, v0, y0, z0)
         if not all(map(math.isfinite, y.tolist())):
@@ -247,7 +256,11 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
-        res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
+        tables = input_set(self.code.input_names, self.param_names, inputs, self.code.model_name)
+        if tables:
+            res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
+        else:
+            res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         if not res.success and res.t.size <= 1:  # failed at the start: say which value it was
@@ -312,7 +325,9 @@ class CompiledModel(CompiledReprMixin):
         once the run lasts 2 s); ``executor``: a concurrent.futures executor or a
         dask.distributed Client, which runs chunks of ``chunk_size`` members each. ``options``:
         those of :meth:`simulate` (solver, rtol, atol, method, max_steps, ...; ``max_wall``: the
-        wall-clock limit of each member in seconds). Returns
+        wall-clock limit of each member in seconds). ``inputs``: input name -> one
+        :class:`~lagcodegen.solvers.inputs.Table` (or (times, values)) for every member, or a list
+        of one per member (native CVODE). Returns
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult`; Ctrl-C raises
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` (a KeyboardInterrupt)
         holding what finished.
@@ -324,6 +339,20 @@ class CompiledModel(CompiledReprMixin):
         """Pickled by its generated sources (never the .so, which links SUNDIALS by an absolute
         path): unpickling rebuilds from the receiving process's cache (memoized per process)."""
         return rebuild_compiled, (pickle_code(self.code), bool(self.native))
+
+
+def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
+    """A run of ``cm`` driven by input ``tables`` on a family that takes them (its
+    ``run_ode_inputs``); the restarts inside the run in ``stats["restarts"]``."""
+    run = getattr(family, "run_ode_inputs", None)
+    if run is None:
+        raise LagcodegenError(f"input tables ({', '.join(map(repr, tables.names))}): {family.name} does not take "
+                              "them (native CVODE and Taylor do)")
+    if events:
+        raise LagcodegenError("events with input tables: not supported")
+    res = run(cm, t, y, p, rtol, atol, tables)
+    res.stats["restarts"] = int(tables.restarts_in(float(t[0]), float(t[-1])).size)
+    return res
 
 
 def pickle_code(code: GeneratedCode) -> GeneratedCode:

@@ -41,10 +41,11 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
                nout: int, state_names: list, output_names: list, row_names: list, save, threads,
                progress, poll, YP0=None, events=None, max_events: int = 64, extra_outputs=None,
                method: str = "", formulation: str = "", n_coordinates=None, param_names=(),
-               roots=None) -> EnsembleResult:
+               roots=None, setup=None) -> EnsembleResult:
     """One call of a driver's solve-many function ``fn`` over the members Y0 (N, *), P; ``roots``:
     the event functions of an ODE ensemble (an ``lcg_ode_roots *``) with ``events`` their
-    directions and terminal flags."""
+    directions and terminal flags; ``setup(e, keep)``: sets further fields of the ensemble struct
+    ``e`` (arrays kept in ``keep``)."""
     n_mem, nt = Y0.shape[0], t.shape[0]
     extra_outputs = extra_outputs or {}
     names, cols = _columns(save, row_names, output_names, extra_outputs)
@@ -65,6 +66,8 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
     t = np.ascontiguousarray(t, dtype=float)
     e.nt = nt
     e.tout = buf("double[]", t)
+    if setup is not None:
+        setup(e, keep)
     final = np.empty((n_mem, nrow + nout))
     e.final = buf("double[]", final)
     traj = None

@@ -105,8 +105,8 @@ def test_generated_code_and_driver_clean_under_sanitizers(tmp_path, cc, name):
             .replace("PARAMS", f"((const double[]){{{params}}})"))
     (tmp_path / "main.c").write_text(main)
     cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
-           "main.c", code.source_name, f"{code.prefix}_table.c", "lcg_cvode.c", "-o", "main", "-pthread",
-           *sundials.link_args(), "-lm"]
+           "main.c", code.source_name, f"{code.prefix}_table.c", "lcg_cvode.c", "lcg_inputs.c", "-o", "main",
+           "-pthread", *sundials.link_args(), "-lm"]
     proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,

@@ -81,7 +81,7 @@ def test_sparse_code_and_band_driver_compile_strictly(tmp_path, cc, jacobian, sp
     code.write(tmp_path)
     for name, text in driver_sources(code, find_sundials()).items():
         (tmp_path / name).write_text(text)
-    for src in [n for n in code.files if n.endswith(".c")] + ["lcg_cvode.c", "tb_strict_table.c"]:
+    for src in [n for n in code.files if n.endswith(".c")] + ["lcg_cvode.c", "lcg_inputs.c", "tb_strict_table.c"]:
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", src + ".o"], cwd=tmp_path,
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr

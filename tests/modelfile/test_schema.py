@@ -20,6 +20,7 @@ BLOCKS = {
     "model": '[model]\nname = "every"\ncoordinates = ["x", "y", "phi"]\n',
     "parameters": "[parameters]\nk = 2.0\n",
     "inputs": "[inputs]\nu = 0.0\n",
+    "units": '[units]\nx = "m"\nk = "N/m"\nu = "N"\n',
     "points": '[[points]]\nname = "anchor"\nposition = [0, 0]\n',
     "particles": '[[particles]]\nname = "bob"\nmass = 1\nposition = ["x", "y"]\n',
     "planar_bodies": '[[planar_bodies]]\nname = "plate"\nmass = 1\ninertia = 0.1\nposition = ["x", 0]\n'

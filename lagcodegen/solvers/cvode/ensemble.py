@@ -5,17 +5,20 @@ single-run drivers get it (members bit-identical to single runs), and one call o
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..base import METHODS, native_options, tolerances
+from ..inputs import fill_inputs
 from ..ensemble_run import event_arrays, run_native
 
 
 def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, threads, save, progress, events=None,
-                 max_events: int = 64):
+                 max_events: int = 64, inputs=None):
     """The members (rows of Y, P) of the ODE of ``cm``; ``opts`` the resolved driver options
     (:meth:`CVODE._ode_options <lagcodegen.solvers.cvode.CVODE>`); ``events``
     (:class:`~.events.CompiledEvents`) located in every member (its stats ``events`` and
     ``terminated``; a terminal event's time and state are the member's ``t_reached`` and final
-    state)."""
+    state); ``inputs``: one :class:`~lagcodegen.solvers.inputs.InputSet` per member, or None."""
     rtol, atol_arr = tolerances(rtol, atol, cm.ny)
     band = opts.get("band")
     keep: list = []
@@ -26,7 +29,13 @@ def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, thread
                          linear_solver=1 if band else 2 if opts.get("fixedpoint") else 0,
                          mupper=band[0] if band else 0, mlower=band[1] if band else 0)
     opt.max_wall = max_wall
-    return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, t=t, Y0=Y, P=P,
+    setup = None
+    if inputs is not None:
+        P = np.ascontiguousarray(np.broadcast_to(P, (Y.shape[0], cm.code.np)))  # each member its row (and tables)
+
+        def setup(e, keep):
+            e.inputs = fill_inputs(cm.ffi, inputs, keep)
+    return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, t=t, Y0=Y, P=P, setup=setup,
                       nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
                       row_names=cm.state_names, save=save, threads=threads, progress=progress, poll=cm.poll,
                       method=opts["method"], n_coordinates=cm.n, param_names=cm.param_names,

@@ -59,10 +59,12 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
 
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                  min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, events=None,
-                 max_events: int = 10_000) -> Result:
+                 max_events: int = 10_000, inputs=None) -> Result:
     """An ODE run of a compiled scene: one call of the native driver (``lcg_cvode_solve``) over all
     output times; with ``events`` (:class:`~.events.CompiledEvents`), ``lcg_cvode_solve_events``
-    locates them (CVODE's root finding; a terminal event's state is the run's last row)."""
+    locates them (CVODE's root finding; a terminal event's state is the run's last row); with
+    ``inputs`` (:class:`~lagcodegen.solvers.inputs.InputSet`), ``lcg_cvode_solve_inputs`` sets the
+    inputs' parameters from their tables in C."""
     ffi = cm.ffi
     nt = t.size
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
@@ -78,14 +80,17 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     opt.max_wall = max_wall
     st = ffi.new(cm.stats_type)
     found = None
+    args = (ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
+            ffi.from_buffer("double[]", out), opt, st)
+    if events is not None and inputs:
+        raise LagcodegenError("events with input tables: not supported")
     if events is not None:
         found = NativeEvents(ffi, "lcg_events", events.events, cm.ny, max_events)
-        flag = cm.lib.lcg_cvode_solve_events(cm.table, events.table, cm.c_params(p), ffi.from_buffer("double[]", y0),
-                                             nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
-                                             ffi.from_buffer("double[]", out), opt, st, found.struct)
+        flag = cm.lib.lcg_cvode_solve_events(cm.table, events.table, cm.c_params(p), *args, found.struct)
+    elif inputs:
+        flag = cm.lib.lcg_cvode_solve_inputs(cm.table, cm.c_params(p), inputs.struct(ffi, keep), *args)
     else:
-        flag = cm.native_solve(cm.c_params(p), ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t),
-                               ffi.from_buffer("double[]", yout), ffi.from_buffer("double[]", out), opt, st)
+        flag = cm.native_solve(cm.c_params(p), *args)
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done

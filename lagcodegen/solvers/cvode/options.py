@@ -139,6 +139,18 @@ class CVODE(Family):
         return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), events=compiled,
                             max_events=max_events, **opts)
 
+    def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
+        """A run of the ODE of ``cm`` driven by the input tables ``inputs``
+        (:class:`~lagcodegen.solvers.inputs.InputSet`), interpolated in C by the native driver."""
+        if self.backend != "native":
+            raise LagcodegenError("input tables need backend='native' (the tables are interpolated in the native "
+                                  "CVODE driver)")
+        if not cm.native or cm.table is None:
+            raise LagcodegenError("input tables need the native driver (build(native=True), the default)")
+        opts = self._ode_options(cm, y, inputs.apply(p, t[0]), True)
+        return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), inputs=inputs,
+                                   **opts)
+
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
         located in each member (:func:`.events.compiled_events`)."""
@@ -150,6 +162,16 @@ class CVODE(Family):
         max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
                                      save=save, progress=progress, events=compiled, max_events=max_events)
+
+    def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
+        """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables
+        ``inputs[i]``, in one call of the native driver."""
+        self._native_only()
+        if not cm.native or cm.native_solve_many is None:
+            raise LagcodegenError("this module was built without the native driver (build(native=False))")
+        opts = self._ode_options(cm, Y[0], inputs[0].apply(P if P.ndim == 1 else P[0], t[0]), True)
+        return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
+                                     save=save, progress=progress, inputs=inputs)
 
     # ------------------------------------------------------------------ index-1 constrained systems
     def index1_settings(self, sim, t0: float, y0, p, native_backend: bool = True):

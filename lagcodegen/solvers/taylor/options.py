@@ -47,6 +47,13 @@ class Taylor(Family):
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))
 
+    def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
+        """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
+        in the jet, the run split at the tables' breakpoints (:mod:`.inputs`)."""
+        from .inputs import run_taylor_inputs
+        return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
+                                 max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
+
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``."""
         return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
