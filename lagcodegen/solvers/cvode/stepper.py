@@ -45,7 +45,8 @@ int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit);
 def stepper_cdef() -> str:
     """The stepper module's interface: the model table, the CVODE driver's structs, the events
     record, the stepper's functions (lcg_cvode_stepper.h) and the poll callback."""
-    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("cvode"), driver_cdef("dae"), STEPPER_CDEF, POLL_CDEF])
+    return "\n".join([MODEL_TABLE_CDEF, driver_cdef("inputs"), driver_cdef("cvode"), driver_cdef("dae"), STEPPER_CDEF,
+                      POLL_CDEF])
 
 
 #: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
@@ -69,14 +70,15 @@ def cvc_stepper_cdef() -> str:
     return "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), CVC_STEPPER_CDEF, POLL_CDEF])
 
 
-#: kind -> (files, cdef, header, unit) of the steppers' modules
-_KINDS = {"cvode": (STEPPER_FILES, stepper_cdef, "lcg_cvode_stepper.h", "lcg_cvode_stepper.c"),
-          "cvc": (CVC_STEPPER_FILES, cvc_stepper_cdef, "lcg_cvc_stepper.h", "lcg_cvc_stepper.c")}
+#: kind -> (files, cdef, header, units) of the steppers' modules (units: the C files compiled; the
+#: stepper's own includes its run driver; lcg_cvode.c reads input tables, lcg_inputs.c)
+_KINDS = {"cvode": (STEPPER_FILES, stepper_cdef, "lcg_cvode_stepper.h", ("lcg_cvode_stepper.c", "lcg_inputs.c")),
+          "cvc": (CVC_STEPPER_FILES, cvc_stepper_cdef, "lcg_cvc_stepper.h", ("lcg_cvc_stepper.c",))}
 
 
 @functools.lru_cache(maxsize=8)
 def _stepper_runtime(kind: str, cc: str, cflags: tuple[str, ...]):
-    files, cdef, header, unit = _KINDS[kind]
+    files, cdef, header, units = _KINDS[kind]
     sundials = find_sundials()
     link = sundials.link_args(("cvode", "core"))
 
@@ -85,7 +87,7 @@ def _stepper_runtime(kind: str, cc: str, cflags: tuple[str, ...]):
 
     texts = [f"{name}\0{text}" for name, text in sorted(render().items())]
     return driver_runtime(f"{kind}_stepper", [sundials.version, sundials.sunindextype, *texts], render, cdef(),
-                          header, [*link, "-lm", "-pthread"], cc, cflags, units=(unit,))
+                          header, [*link, "-lm", "-pthread"], cc, cflags, units=units)
 
 
 def stepper_runtime(kind: str = "cvode", cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
