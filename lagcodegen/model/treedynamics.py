@@ -599,6 +599,22 @@ class TreeDynamics:
         return add(*terms)
 
 
+def _live(defs: list, outputs: list) -> list:
+    """The definitions that ``outputs`` read, directly or through other definitions, in order
+    (the recursions compute a few quantities no output needs: a composite inertia's entries
+    that no joint axis reads, ...); the others would be dead code (unused variables in C)."""
+    need = set()
+    for e in outputs:
+        need |= se.sympify(e).free_symbols
+    out = []
+    for sym, e in reversed(defs):
+        if sym in need:
+            need |= e.free_symbols
+            out.append((sym, e))
+    out.reverse()
+    return out
+
+
 def recorded(model, q: list, qd: list) -> tuple[list, list, list]:
     """The tree's M and bias (:meth:`TreeDynamics.mass_matrix`, :meth:`TreeDynamics.rnea` at
     q'' = 0) as a straight-line program: (definitions [(temporary, expression)] in order, M,
@@ -611,7 +627,7 @@ def recorded(model, q: list, qd: list) -> tuple[list, list, list]:
         tree = TreeDynamics(model, q, qd)
         M = tree.mass_matrix()
         bias = tree.rnea()
-        return _RECORD, M, bias
+        return _live(_RECORD, [e for row in M for e in row] + bias), M, bias
     finally:
         _RECORD = None
 
@@ -622,6 +638,6 @@ def recorded_inverse_dynamics(model, q: list, qd: list, qdd: list) -> tuple[list
     _RECORD = []
     try:
         tau = TreeDynamics(model, q, qd).rnea(qdd)
-        return _RECORD, tau
+        return _live(_RECORD, tau), tau
     finally:
         _RECORD = None
