@@ -191,3 +191,35 @@ def test_bundle_of_a_tree_builds_strictly_and_matches_cvode(tmp_path, tools, lan
     ref = lcg.build_code(lcg.generate_code(scene)).simulate([0, 2.0], y0=y0, rtol=1e-11, atol=1e-12)
     assert final[0] == 2.0
     np.testing.assert_allclose(final[1:5], ref.y[-1], rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("n,jacobian", [(2, True), (12, False)])
+def test_tree_sources_compile_strictly(tmp_path, n, jacobian):
+    """Every C file of a tree model (the program form, the tangent Jacobian, the inverse dynamics;
+    at 12 links the pieces cut into parts) compiles with -Wall -Wextra -Werror -std=c99 -pedantic."""
+    from helpers import STRICT_CFLAGS
+    if n == 2:
+        model = arm_tree("strict")
+    else:
+        model = lcg.Model("strict12")
+        model.gravity(G)
+        parent = None
+        for i in range(n):
+            parent = model.link(f"l{i}", parent=parent, joint=lcg.Joint.revolute(f"j{i}", [(1, 0, 0), (0, 1, 0),
+                                                                                          (0.6, 0, 0.8)][i % 3]),
+                                origin=lcg.Placement((0.1, 0.05 * i, -0.3), rpy=(0.1 * i, -0.2, 0.3)), mass=1.0 + 0.1 * i,
+                                com=(0.02, -0.01, -0.15), inertia=(0.02, 0.03, 0.01, 0.001, -0.002, 0.0015)).name
+    code = lcg.generate_code(Scene(derive(model), jacobian=jacobian))
+    assert any(name.endswith("_dynamics.c") for name in code.files)
+    for name, text in code.files.items():
+        (tmp_path / name).write_text(text)
+    for name in code.files:
+        if not name.endswith(".c"):
+            continue
+        parts = code.split.get(name, 1)
+        for flags in ([[]] if parts == 1 else [[f"-DLCG_PARTS={parts}", f"-DLCG_PART={k}"] for k in range(parts)]):
+            proc = subprocess.run(["cc", *STRICT_CFLAGS, "-O0", *flags, "-c", name, "-o", "x.o"], cwd=tmp_path,
+                                  capture_output=True, text=True, timeout=600)
+            assert proc.returncode == 0, proc.stderr[-3000:]
+    if n == 12:
+        assert code.split, "a 12-link tree's program is cut into parts"
