@@ -29,13 +29,16 @@ TIP_Y = 0.9  # the constraint: the tip of the second link on the vertical plane 
 Q0 = (0.45, 1.1)  # (a, b) with the tip at y ~ 0.9 (set exactly by tip_state)
 
 
-def arm_tree(name="arm"):
+def arm_tree(name="arm", exact=False):
+    """The arm as a tree of links (``exact``: its data as rationals, for symbolic checks)."""
+    x = (lambda v: sp.nsimplify(v, rational=True)) if exact else (lambda v: v)
     m = lcg.Model(name)
     g, = m.parameters(g=G)
     m.gravity(g)
-    m.link("l1", joint=lcg.Joint.revolute("a", (1, 0, 0)), mass=M1, com=C1, inertia=I1)
-    m.link("l2", parent="l1", joint=lcg.Joint.revolute("b", (1, 0, 0)), origin=lcg.Placement((0, 0, -L1)),
-           mass=M2, com=C2, inertia=I2)
+    m.link("l1", joint=lcg.Joint.revolute("a", (1, 0, 0)), mass=x(M1), com=tuple(map(x, C1)),
+           inertia=tuple(map(x, I1)))
+    m.link("l2", parent="l1", joint=lcg.Joint.revolute("b", (1, 0, 0)), origin=lcg.Placement((0, 0, -x(L1))),
+           mass=x(M2), com=tuple(map(x, C2)), inertia=tuple(map(x, I2)))
     return m
 
 
@@ -223,3 +226,64 @@ def test_tree_sources_compile_strictly(tmp_path, n, jacobian):
             assert proc.returncode == 0, proc.stderr[-3000:]
     if n == 12:
         assert code.split, "a 12-link tree's program is cut into parts"
+
+
+# ---------------------------------------------------------------------- theory on trees
+def test_minimal_coordinates_of_a_constrained_tree_follow_index1():
+    """Formulation "minimal" on the tree with its joints geared (b = -2 a) solves the constraint
+    for one angle and turns the links into rigid bodies at their world poses: the same motion
+    as index-1 on the tree, and h conserved."""
+    def geared(name):
+        m = arm_tree(name)
+        a, b = m.coords
+        return ConstrainedSystem(m, holonomic=[b + 2 * a])
+    q0, v0 = [0.3, -0.6], [0.5, -1.0]
+    ref = compile_constrained(geared("gear1"), "index1").simulate(T_OUT, q0=q0, v0=v0, rtol=1e-11, atol=1e-12)
+    res = compile_constrained(geared("gear"), "minimal", outputs=["energy"]).simulate(T_OUT, q0=q0, v0=v0,
+                                                                                     rtol=1e-11, atol=1e-12)
+    for k, name in enumerate(("a", "b")):
+        assert np.abs(res[name] - ref.y[:, k]).max() < 1e-7
+        assert np.abs(res[f"{name}_dot"] - ref.y[:, 2 + k]).max() < 1e-6
+    assert np.ptp(res["a"]) > 0.2
+    e = res["energy"]
+    assert np.abs(e - e[0]).max() < 1e-8 * max(1.0, abs(e[0]))
+
+
+def test_energy_theory_counts_the_links():
+    from lagcodegen.theory.energy import check_jacobi, is_natural, kinetic_split
+    model = arm_tree("theory", exact=True)
+    eom = derive(model)
+    assert is_natural(model)
+    split = kinetic_split(eom)
+    assert split.natural
+    vals = {s: 0.3 + 0.1 * k for k, s in enumerate(sorted(split.alpha.free_symbols | eom.M.free_symbols,
+                                                           key=lambda s: s.name))}
+    assert sp.simplify(split.T2 - eom.T) == 0
+    np.testing.assert_allclose(np.array(split.alpha.subs(vals), dtype=float), np.array(eom.M.subs(vals), dtype=float),
+                               rtol=1e-12, atol=1e-14)
+    check = check_jacobi(eom)
+    assert check.holds and check.conserved and check.equals_T_plus_V and check.lagrangian
+    moving = arm_tree("moving")
+    moving.links[1].origin = lcg.Placement((0, 0, -L1 + 0.1 * sp.sin(moving.t)))
+    assert not is_natural(moving)
+
+
+def test_jacobi_h_of_a_ur_like_arm_is_conserved_over_ten_seconds():
+    """Free motion of the six-joint arm from examples/ur_like_arm.urdf (its joint damping set to
+    zero): h stays within the integrator's tolerance, on CVODE and on Taylor."""
+    import re
+    from pathlib import Path
+
+    from lagcodegen import urdf
+    text = (Path(__file__).resolve().parents[2] / "examples" / "ur_like_arm.urdf").read_text()
+    text = re.sub(r'damping="[^"]*"', 'damping="0"', text)
+    model = urdf.loads(text, filename="ur_like_arm.urdf")
+    sim = lcg.compile_model(model, jacobian=False, outputs=["jacobi_h"])
+    n = model.n
+    q0, v0 = np.linspace(-0.8, 0.9, n), np.linspace(1.0, -0.5, n)
+    for method, tol in (("cvode", 1e-11), ("taylor", 1e-12)):
+        opts = {} if method == "cvode" else {"method": "taylor"}
+        res = sim.simulate(np.linspace(0, 10, 201), q0=q0, v0=v0, rtol=tol, atol=tol, **opts)
+        h = res["jacobi_h"]
+        assert np.ptp(res.y[:, 0]) > 0.5  # it moved
+        assert np.abs(h - h[0]).max() <= 1e-7 * max(1.0, abs(h[0])), method
