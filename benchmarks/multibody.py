@@ -5,7 +5,8 @@ Pinocchio.
 Each row is built in a fresh Python process that reports derive, generate (C code, no Jacobian)
 and build (``lagcodegen.build``) wall times, bytes of generated C, the peak resident memory of
 the process and of its compilers (ru_maxrss), the error of the accelerations against Pinocchio's
-ABA (relative to the infinity norm of the reference, max over 20 random states), the forward
+ABA (the URDF's joint damping, which lagcodegen takes as Rayleigh dissipation, given to ABA as
+the torques -d q'; relative to the infinity norm of the reference, max over 20 random states), the forward
 dynamics per call from Python (``sim.rhs`` against ``pin.aba``, medians of timeit blocks) and in
 a C loop (the generated ``<prefix>_rhs`` called from a small C program, benchmarks/_harness.py,
 the model compiled with lagcodegen's flags). Pinocchio's ABA in a C++ loop is
@@ -63,7 +64,7 @@ states = [(rng.uniform(-2, 2, n), rng.uniform(-1, 1, n)) for _ in range(20)]
 err = 0.0
 for q, v in states:
     a = sim.rhs(0.0, np.r_[q, v])[n:]
-    ref = pin.aba(pm, data, q, v, np.zeros(n))
+    ref = pin.aba(pm, data, q, v, -np.asarray(pm.damping) * v)  # the URDF's joint damping as torques
     err = max(err, float(np.abs(a - ref).max() / np.abs(ref).max()))
 y = np.r_[states[0][0], states[0][1]]
 q, v, z = states[0][0], states[0][1], np.zeros(n)

@@ -104,7 +104,8 @@ class CPrinter(ir.Printer):
 
     # -- operations
     def _print_Neg(self, node: ir.Neg) -> str:
-        return "-" + self._paren(node.arg, _UNARY)
+        text = self._paren(node.arg, _UNARY)
+        return f"-({text})" if text.startswith("-") else "-" + text  # never "--": C's decrement
 
     def _print_BinOp(self, node: ir.BinOp) -> str:
         level = _ADD if node.op in "+-" else _MUL

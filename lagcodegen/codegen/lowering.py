@@ -63,8 +63,29 @@ def _sign(a, b) -> int:
     return (a > b) - (a < b)
 
 
+#: Products and sums already taken apart (:func:`_mul_dict`, :func:`_add_dict`) within one
+#: :func:`expression`: sorting a sum's terms compares each product several times. Cleared per
+#: expression and when full.
+_PARTS: dict = {}
+_PARTS_MAX = 1 << 16
+
+
+def _memo(f):
+    def parts(e) -> tuple:
+        key = (f, e)
+        hit = _PARTS.get(key)
+        if hit is None:
+            if len(_PARTS) >= _PARTS_MAX:
+                _PARTS.clear()
+            hit = _PARTS[key] = f(e)
+        return hit
+    parts.__doc__ = f.__doc__
+    return parts
+
+
+@_memo
 def _mul_dict(e) -> tuple:
-    """(coefficient, [(base, exponent)] in the product's dictionary order). A factor that is a
+    """(coefficient, ((base, exponent), ...) in the product's dictionary order). A factor that is a
     power with exponent 1 in the dictionary (a product built without simplification) stays one."""
     (coef,) = e.as_coefficients_dict().values()
     powers = e.as_powers_dict()
@@ -76,14 +97,15 @@ def _mul_dict(e) -> tuple:
             items.append(tuple(a.args))
         else:
             items.append((a, se.Integer(1)))
-    return coef, items
+    return coef, tuple(items)
 
 
+@_memo
 def _add_dict(e) -> tuple:
-    """(constant, [(term, coefficient)]) of a sum, terms unordered."""
+    """(constant, ((term, coefficient), ...)) of a sum, terms unordered."""
     d = e.as_coefficients_dict()
     one = se.Integer(1)
-    return d[one], [(k, v) for k, v in d.items() if not (k == one and k.is_Number)]
+    return d[one], tuple((k, v) for k, v in d.items() if not (k == one and k.is_Number))
 
 
 def _keyed(items: list) -> list:
@@ -211,6 +233,8 @@ def negate_first(node: Node) -> Node:
     of a product or quotient chain, else to the whole node."""
     if isinstance(node, BinOp) and node.op in "*/":
         return BinOp(node.op, negate_first(node.left), node.right)
+    if isinstance(node, Neg):  # a value written into its reader (a recorded program's) may be one
+        return node.arg
     return Neg(node)
 
 class _Builder:
@@ -306,7 +330,7 @@ class _Builder:
 
     def _Add(self, e):
         coef, items = _add_dict(e)
-        items.sort(key=_ORDER_KEY)
+        items = sorted(items, key=_ORDER_KEY)
         node = None if _is_int(coef, 0) else self.build(coef)
         for key, c in items:
             k = self.build(key)
@@ -388,6 +412,7 @@ def expression(expr, resolve: Callable[[str], Node | None] | None = None) -> Nod
     on ``resolve``.
     """
     expr = se.sympify(expr)
+    _PARTS.clear()
     numbers = [a for a in expr.atoms(se.RealDouble, se.Integer)
                if isinstance(a, se.RealDouble) or abs(int(a)) > _INT_MAX]
     table = {}
@@ -399,6 +424,92 @@ def expression(expr, resolve: Callable[[str], Node | None] | None = None) -> Nod
             table[name] = Number(float(a))
         expr = expr.xreplace(placeholders)
     return _Builder(resolve, table).build(expr)
+
+def _number_node(e) -> Node | None:
+    t = _type(e)
+    if t == "Integer":
+        v = int(e)
+        return Integer(v) if abs(v) <= _INT_MAX else Number(float(v))
+    if t == "Rational":
+        return Ratio(*_number_value(e))
+    if t == "RealDouble":
+        return Number(float(e))
+    return None
+
+
+_UNARY_FUNCTIONS = frozenset(("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "log"))
+
+
+def statement(expr, resolve: Callable[[str], Node | None] | None = None) -> Node:
+    """The tree of one statement of a straight-line program (a sum of numbers times operands, a
+    product, a power or a function of operands: :meth:`lagcodegen.formulation.tangent.Program.atom`),
+    its operations in the order of the statement's own arguments (no reordering: the operands
+    may be trees written into it by ``resolve``, as :func:`expression`'s). Anything else is
+    :func:`expression`'s."""
+    def leaf(a) -> Node | None:
+        if a.is_Symbol:
+            name = a.name
+            node = resolve(name) if resolve is not None else None
+            return node if node is not None else symbol_node(name)
+        return _number_node(a) if a.is_Number else None
+
+    def product(args) -> Node | None:
+        first, num, den, negate = None, [], [], False
+        for a in args:
+            if a.is_Number:
+                if _is_int(a, -1):
+                    negate = not negate
+                    continue
+                if _is_int(a, 1):
+                    continue
+            elif a.is_Pow:
+                base, exp = a.args
+                b = leaf(base)
+                if b is None or not exp.is_Number or base == se.E:
+                    return None
+                if _is_int(exp, -1):
+                    den.append(b)
+                    continue
+                f = (Call("sqrt", (b,)) if exp == _HALF else Call("cbrt", (b,)) if exp == _THIRD
+                     else Power(b, _number_node(exp)))
+                if first is None:
+                    first = f
+                else:
+                    num.append(("*", f))
+                continue
+            f = leaf(a)
+            if f is None:
+                return None
+            if first is None:
+                first = f
+            else:
+                num.append(("*", f))
+        node = _chain(first if first is not None else Integer(1), num)
+        if negate:
+            node = negate_first(node)
+        if den:
+            node = BinOp("/", node, _chain(den[0], [("*", d) for d in den[1:]]))
+        return node
+
+    def term(a) -> Node | None:
+        return product(a.args) if a.is_Mul else product((a,))
+
+    node = None
+    if expr.is_Add:
+        for a in expr.args:
+            t = term(a)
+            if t is None:
+                node = None
+                break
+            node = t if node is None else _plus(node, t)
+    elif expr.is_Mul or expr.is_Pow:
+        node = term(expr)
+    elif type(expr).__name__ in _UNARY_FUNCTIONS:
+        arg = leaf(expr.args[0])
+        if arg is not None:
+            node = Call(type(expr).__name__, (arg,))
+    return node if node is not None else expression(expr, resolve)
+
 
 def block_statements(block, eliminate: Callable) -> list[Assign]:
     """The assignments of a kernel :class:`~lagcodegen.formulation.kernels.Block` after

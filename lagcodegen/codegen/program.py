@@ -130,12 +130,15 @@ def _value_pieces(prog, ranges: list[tuple[int, int]], outside: set, measure: Me
             if k is not None:
                 consumers[k].append(j)
     inline = [len(consumers[k]) == 1 and k not in outside for k in range(nv)]
-    full: list = [None] * nv
-    for k in range(nv):
-        e = prog.exprs[k]
-        sub = {u: full[i] for u in e.free_symbols if (i := prog.index(u)) is not None and inline[i]}
-        full[k] = e.xreplace(sub) if sub else e
-    trees = {k: lowering.expression(full[k]) for k in range(nv) if not inline[k]}
+    if getattr(prog, "recorded", False):
+        trees = _recorded_trees(prog, inline)
+    else:
+        full: list = [None] * nv
+        for k in range(nv):
+            e = prog.exprs[k]
+            sub = {u: full[i] for u in e.free_symbols if (i := prog.index(u)) is not None and inline[i]}
+            full[k] = e.xreplace(sub) if sub else e
+        trees = {k: lowering.expression(full[k]) for k in range(nv) if not inline[k]}
     piece: dict[int, int] = {}
     out, count = [], 0
     for start, stop in ranges:
@@ -164,6 +167,28 @@ def _value_pieces(prog, ranges: list[tuple[int, int]], outside: set, measure: Me
                                      ir.substitute(trees[k], ref), local=k in local) for k in chunk])
         result.append(pieces)
     return result
+
+
+def _recorded_trees(prog, inline: list) -> dict:
+    """The operation trees of a recorded program's values (``Program.recorded``,
+    :class:`lagcodegen.formulation.tangent.Program`) that are not written into their reader:
+    each value's statement lowered once (:func:`lagcodegen.codegen.lowering.statement`), a value
+    read once (``inline``) written into its reader as its tree (no symengine expression is built
+    for the combination, and its operations stay grouped as the program computed them)."""
+    done: dict = {}
+
+    def resolve(name: str):
+        if name.startswith("v["):
+            return done.get(int(name[2:-1]))
+        return None
+    trees = {}
+    for k, e in enumerate(prog.exprs):
+        tree = lowering.statement(e, resolve)
+        if inline[k]:
+            done[k] = tree
+        else:
+            trees[k] = tree
+    return trees
 
 
 def op_statement(op: tuple, value: ir.Node) -> ir.Assign:

@@ -17,7 +17,7 @@ import symengine as se
 from .. import progress
 from ..errors import ModelError
 from ..model.model import RESERVED_PREFIX
-from ..model.treedynamics import recorded, tree_nodes
+from ..model.treedynamics import recorded, substitute_shared, tree_nodes
 from .scene import Scene
 
 #: A common-subexpression elimination of at least this many operations (symengine's count_ops,
@@ -127,32 +127,6 @@ def substitute_all(sub: dict, exprs) -> list:
     if not sub or not exprs:
         return exprs
     return list(se.DenseMatrix(len(exprs), 1, exprs).xreplace(sub))
-
-
-def substitute_shared(sub: dict, exprs) -> list:
-    """``exprs`` with the substitution ``sub`` applied, every distinct subexpression once across
-    all of them: the result shares its subexpressions as the input does (a rigid-body tree's
-    DAGs, :mod:`lagcodegen.model.treedynamics`; symengine's xreplace shares within one
-    expression only, and copies compared later cost time exponential in the tree's depth)."""
-    memo: dict = dict(sub)
-    out = []
-    for e in exprs:
-        e = se.sympify(e)
-        stack = [(e, False)]
-        while stack:
-            x, done = stack.pop()
-            if done:
-                args = x.args
-                new = [memo[a] for a in args]
-                memo[x] = x if all(a is b for a, b in zip(new, args)) else x.func(*new)
-            elif x not in memo:
-                if not x.args:
-                    memo[x] = x
-                else:
-                    stack.append((x, True))
-                    stack.extend((a, False) for a in x.args if a not in memo)
-        out.append(memo[e])
-    return out
 
 
 def residual_derivatives(eom):

@@ -17,6 +17,7 @@ import symengine as se
 
 from ..derivation import EquationsOfMotion, to_se
 from ..errors import ModelError
+from ..model.treedynamics import dag_dependencies, substitute_shared
 from ..model.outputs import OUTPUT_GROUPS
 from ..util import check_finite
 
@@ -231,15 +232,23 @@ class Scene:
             e = se.sympify(e)
             return e.xreplace(sub) if sub else e
 
-        def deps(e) -> set[int]:
-            return {index[s] for s in e.free_symbols if s in index}
+        if eom.tree is not None:  # DAGs: every distinct subexpression visited once
+            deps = dag_dependencies(index)
+        else:
+            def deps(e) -> set[int]:
+                return {index[s] for s in e.free_symbols if s in index}
 
-        M = [[expr(eom.M_se[i][j]) for j in range(n)] for i in range(n)]
+        if eom.tree is not None:  # one substitution sharing the DAGs' subexpressions across the entries
+            flat = substitute_shared(sub, [e for row in eom.M_se for e in row] + list(eom.F_se))
+            M, F = [flat[i * n:(i + 1) * n] for i in range(n)], flat[n * n:]
+        else:
+            M = [[expr(eom.M_se[i][j]) for j in range(n)] for i in range(n)]
+            F = [expr(e) for e in eom.F_se]
         nonzero = [[M[i][j] != 0 for j in range(n)] for i in range(n)]
         # dr_i/dy_j with r = M a - F (a generic): F_i and the nonzero entries of row i of M.
         dr = []
         for i in range(n):
-            d = deps(expr(eom.F_se[i]))
+            d = deps(F[i])
             for k in range(n):
                 if nonzero[i][k]:
                     d |= deps(M[i][k])

@@ -87,6 +87,10 @@ class Program:
         self._state = {se.Symbol(f"y[{i}]"): i for i in range(2 * n)}
         self.n_rhs = 0
         self.partials: list = []
+        #: Built from a recorded program (a rigid-body tree's, :attr:`Block.defs`): its values are
+        #: small statements meant to be evaluated one by one (the backends lower each value once
+        #: and write a value read once into its reader as an operation tree, never re-expanded).
+        self.recorded = False
 
     def __len__(self) -> int:
         return len(self.exprs)
@@ -223,6 +227,7 @@ def build_program(rhs: Block, n: int, cse: bool | None = None) -> tuple[Program,
     for sym, e in rhs.defs:  # a program already (a rigid-body tree's): no elimination
         known[sym] = prog.atom(e, known)
         cse = False
+        prog.recorded = True
     if cse is None:
         cse = count_ops(exprs) <= CSE_MAX_OPS if exprs else False
     if cse and exprs:

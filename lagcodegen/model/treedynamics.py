@@ -62,6 +62,60 @@ def tree_nodes(exprs, limit: int) -> int:
     return total
 
 
+def substitute_shared(sub: dict, exprs) -> list:
+    """``exprs`` with the substitution ``sub`` applied, every distinct subexpression once across
+    all of them: the result shares its subexpressions as the input does (the DAGs built here;
+    symengine's xreplace shares within one
+    expression only, and copies compared later cost time exponential in the tree's depth)."""
+    memo: dict = dict(sub)
+    out = []
+    for e in exprs:
+        e = se.sympify(e)
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                args = x.args
+                new = [memo[a] for a in args]
+                memo[x] = x if all(a is b for a, b in zip(new, args)) else x.func(*new)
+            elif x not in memo:
+                if not x.args:
+                    memo[x] = x
+                else:
+                    stack.append((x, True))
+                    stack.extend((a, False) for a in x.args if a not in memo)
+        out.append(memo[e])
+    return out
+
+
+def dag_dependencies(index: dict):
+    """deps(e): the indices (``index``: symbol -> index) of the symbols in ``e``, memoized over
+    the distinct subexpressions of every expression asked about (a rigid-body tree's DAGs, whose
+    ``free_symbols`` walks every path: exponential in the tree's depth)."""
+    memo: dict = {}
+    empty: frozenset = frozenset()
+
+    def deps(e) -> set[int]:
+        stack = [(e, False)]
+        while stack:
+            x, done = stack.pop()
+            if done:
+                out = empty
+                for a in x.args:
+                    d = memo[a]
+                    if d and not d <= out:
+                        out = out | d
+                memo[x] = out
+            elif x not in memo:
+                if not x.args:
+                    memo[x] = frozenset((index[x],)) if x in index else empty
+                else:
+                    stack.append((x, True))
+                    stack.extend((a, False) for a in x.args if a not in memo)
+        return set(memo[e])
+    return deps
+
+
 def _se(e, what: str):
     try:
         return se.sympify(e)
@@ -210,39 +264,47 @@ class TreeDynamics:
         self.q, self.qd = q, qd
         index = {c.name: i for i, c in enumerate(model.coords)}
         self.nodes: list[Node] = []
-        anchors: dict = {}  # link name -> (node index, Placement of the link frame in that node)
-        masses: dict = {}   # node index -> list of (m, c, I_G) in node coordinates (sympy)
+        # link name -> (node index, Placement of the link frame in that node; None: the identity)
+        anchors: dict = {}
+        masses: dict = {}   # node index -> list of (m, c, I_G) in node coordinates (symengine)
         for link in model.links:
             if link.parent is None:
                 node, place = -1, link.origin
             else:
                 node, place = anchors[link.parent.name]
-                place = place * link.origin
+                place = link.origin if place is None else place * link.origin
             for kind, axis, coord in link.joint.steps(link.coordinates):
-                R = [[_se(place.rotation[i, j], f"origin of {link.name!r}") for j in range(3)] for i in range(3)]
-                p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
+                if place is None:  # the next elementary motion of a spherical or free joint
+                    R, p = [[ONE if i == j else ZERO for j in range(3)] for i in range(3)], [ZERO] * 3
+                else:
+                    R = [[_se(place.rotation[i, j], f"origin of {link.name!r}") for j in range(3)] for i in range(3)]
+                    p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
                 self.nodes.append(Node(node, R, p, kind, [se.Integer(int(a)) if sp.sympify(a).is_Integer
                                                           else _se(a, f"axis of {link.joint.name!r}") for a in axis],
                                        index[coord.name]))
-                node, place = len(self.nodes) - 1, Placement()
+                node, place = len(self.nodes) - 1, None
             anchors[link.name] = (node, place)
             if node >= 0 and link.mass != 0:
-                c = place.translation + place.rotation * sp.Matrix(link.com)
-                IG = place.rotation * sp.Matrix(link.inertia) * place.rotation.T
-                masses.setdefault(node, []).append((link.mass, c, IG))
+                com = se.DenseMatrix(3, 1, [_se(c, "centre of mass") for c in link.com])
+                IG = se.DenseMatrix(3, 3, [_se(c, "inertia") for c in sp.Matrix(link.inertia)])
+                if place is not None:
+                    R = se.DenseMatrix(3, 3, [_se(c, "placement") for c in place.rotation])
+                    com = se.DenseMatrix(3, 1, [_se(c, "placement") for c in place.translation]) + R * com
+                    IG = R * IG * R.T
+                masses.setdefault(node, []).append((_se(link.mass, "mass"), com, IG))
+        for k, items in masses.items():
+            m = se.Add(*(it[0] for it in items))
+            h = [se.Add(*(it[0] * it[1][i] for it in items)) for i in range(3)]
+            Io = [[se.Add(*(it[2][i, j] + it[0] * ((it[1].T * it[1])[0, 0] * (1 if i == j else 0)
+                                                      - it[1][i] * it[1][j]) for it in items))
+                   for j in range(3)] for i in range(3)]
+            Io = [[se.expand(e) if not e.free_symbols else e for e in row] for row in Io]
+            self.nodes[k].inertia = (m, h, Io)
         self.coord_node = {}
         for k, nd in enumerate(self.nodes):
             qk = q[nd.coord]
             nd.setup(qk, _named(se.cos(qk)), _named(se.sin(qk)))
             self.coord_node[nd.coord] = k
-        for k, items in masses.items():
-            m = sum((it[0] for it in items), sp.Integer(0))
-            h = sum((it[0] * it[1] for it in items), sp.zeros(3, 1))
-            Io = sum((it[2] + it[0] * ((it[1].T * it[1])[0] * sp.eye(3) - it[1] * it[1].T) for it in items),
-                     sp.zeros(3, 3))
-            Io = Io.applyfunc(lambda e: sp.expand(e) if e.is_number else e)
-            self.nodes[k].inertia = (_se(m, "mass"), [_se(x, "mass") for x in h],
-                                     [[_se(Io[i, j], "inertia") for j in range(3)] for i in range(3)])
         self.children: list[list[int]] = [[] for _ in self.nodes]
         for k, nd in enumerate(self.nodes):
             if nd.parent >= 0:
@@ -537,6 +599,22 @@ class TreeDynamics:
         return add(*terms)
 
 
+def _live(defs: list, outputs: list) -> list:
+    """The definitions that ``outputs`` read, directly or through other definitions, in order
+    (the recursions compute a few quantities no output needs: a composite inertia's entries
+    that no joint axis reads, ...); the others would be dead code (unused variables in C)."""
+    need = set()
+    for e in outputs:
+        need |= se.sympify(e).free_symbols
+    out = []
+    for sym, e in reversed(defs):
+        if sym in need:
+            need |= e.free_symbols
+            out.append((sym, e))
+    out.reverse()
+    return out
+
+
 def recorded(model, q: list, qd: list) -> tuple[list, list, list]:
     """The tree's M and bias (:meth:`TreeDynamics.mass_matrix`, :meth:`TreeDynamics.rnea` at
     q'' = 0) as a straight-line program: (definitions [(temporary, expression)] in order, M,
@@ -549,7 +627,7 @@ def recorded(model, q: list, qd: list) -> tuple[list, list, list]:
         tree = TreeDynamics(model, q, qd)
         M = tree.mass_matrix()
         bias = tree.rnea()
-        return _RECORD, M, bias
+        return _live(_RECORD, [e for row in M for e in row] + bias), M, bias
     finally:
         _RECORD = None
 
@@ -560,6 +638,6 @@ def recorded_inverse_dynamics(model, q: list, qd: list, qdd: list) -> tuple[list
     _RECORD = []
     try:
         tau = TreeDynamics(model, q, qd).rnea(qdd)
-        return _RECORD, tau
+        return _live(_RECORD, tau), tau
     finally:
         _RECORD = None

@@ -122,11 +122,16 @@ def is_natural(model: Model) -> bool:
     """The remark after eq. 2.2: the map q -> x has no explicit t (dx/dt = 0 at fixed q).
 
     Checked on what carries kinetic energy: every body's position, and the angle (planar
-    bodies) or orientation (rigid bodies). Massless points (spring anchors, force points) do
-    not enter T and are not looked at. Kinetic energy given directly has no map x(q, t): it
-    counts as natural when its own T1 and T0 vanish.
+    bodies) or orientation (rigid bodies); for the links of a rigid-body tree (:meth:`Model.link`)
+    their placements and inertial data (the joints move with q alone). Massless points (spring
+    anchors, force points) do not enter T and are not looked at. Kinetic energy given directly
+    has no map x(q, t): it counts as natural when its own T1 and T0 vanish.
     """
     t = model.t
+    for link in model.links:
+        data = [link.mass, *link.com, *link.inertia, *link.origin.rotation, *link.origin.translation]
+        if any(sp.sympify(e).has(t) for e in data):
+            return False
     for body in model.bodies:
         exprs = list(body.point.position)
         if isinstance(body, PlanarBody):

@@ -86,6 +86,9 @@ def closest_branch(system: ConstrainedSystem, eliminated: Sequence, branches: Se
 
 def reduced_model(system: ConstrainedSystem, solution: Mapping, name: str | None = None) -> Model:
     """A new Model in the remaining coordinates, with the solved ones substituted everywhere.
+    The links of a rigid-body tree become rigid bodies (:meth:`Model.rigid_body`) at their
+    world poses (:meth:`lagcodegen.model.bodies.Link.pose`): the joint coordinates no longer
+    move a tree of their own once some are solved for.
 
     Eliminated velocities become d/dt of their solutions; a generalized force Q*_e on an
     eliminated coordinate is mapped by virtual work (Q*_r += Q*_e dq_e/dq_r). The eliminated
@@ -118,6 +121,11 @@ def reduced_model(system: ConstrainedSystem, solution: Mapping, name: str | None
         elif isinstance(body, RigidBody):
             new.rigid_body(body.name, S(body.mass), body.inertia.applyfunc(S), V(body.point.position),
                            body.orientation.applyfunc(S))
+    for link in old.links:  # a tree's links as rigid bodies in closed form (their world poses multiplied out)
+        if link.mass != 0:
+            body_points.add(link.name)
+            new.rigid_body(link.name, S(link.mass), link.inertia.applyfunc(S), V(link.com_position()),
+                           link.rotation().applyfunc(S))
     for pname, pt in old.points.items():
         if pname not in body_points:
             new.point(pname, V(pt.position))
