@@ -362,14 +362,31 @@ def _trig(kind: str, arg):
     return se.sin(arg) if kind == "sin" else se.cos(arg)
 
 
+#: Powers of a sine or cosine up to this exponent are linearized as products of their factors
+#: (``sin(x)**2 -> (1 - cos(2 x))/2``, so that ``sin(x)**2 + cos(x)**2`` cancels to 1).
+MAX_TRIG_POWER = 4
+
+
+def _trig_powers_expanded(factors) -> list:
+    """``factors`` with each sin/cos to a small positive integer power as that many factors."""
+    out = []
+    for f in factors:
+        if (isinstance(f, se.Pow) and isinstance(f.args[0], (se.sin, se.cos)) and isinstance(f.args[1], se.Integer)
+                and 1 < int(f.args[1]) <= MAX_TRIG_POWER):
+            out += [f.args[0]] * int(f.args[1])
+        else:
+            out.append(f)
+    return out
+
+
 def linearize_trig(expr):
-    """Expand ``expr`` and turn every product of sines and cosines (each to the first power)
-    into a sum of sines and cosines of sums and differences of their arguments."""
+    """Expand ``expr`` and turn every product of sines and cosines (small integer powers
+    included) into a sum of sines and cosines of sums and differences of their arguments."""
     e = se.expand(expr)
     terms = e.args if isinstance(e, se.Add) else (e,)
     out = []
     for term in terms:
-        factors = term.args if isinstance(term, se.Mul) else (term,)
+        factors = _trig_powers_expanded(term.args if isinstance(term, se.Mul) else (term,))
         trig = [f for f in factors if isinstance(f, (se.sin, se.cos))]
         if len(trig) < 2:
             out.append(term)
