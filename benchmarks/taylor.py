@@ -1,39 +1,54 @@
-"""Work-precision of the generated Taylor integrator against heyoka and CVODE Adams (issue 11).
+"""Work-precision of the generated Taylor integrator against heyoka at its fastest (issues 11, 23).
 
-Scenes: the planar n-link pendulum (unit masses and lengths, g = 9.81) for n in 1, 2, 3, 5, 10,
-20, every angle q_i = 0.1 or 1.0 rad at rest, t in [0, 10]. Error: max over the state (angles
-and angular velocities) of |y(10) - ref(10)|, the reference from heyoka in long double
+Scenes: the planar n-link pendulum (unit masses and lengths, g = 9.81) for n in 1, 2, 3, 5 (10 in
+the full run), every angle q_i = 0.1 or 1.0 rad at rest, t in [0, 10]. Error: max over the state
+(angles and angular velocities) of |y(10) - ref(10)|, the reference from heyoka in long double
 (80-bit) at tolerance 1e-19 (compact mode for n >= 5), checked against a second reference at
 1e-17 (their difference is printed: errors below ~10x it are not resolved).
 
-Contenders in one run, rounds interleaved (each round times every contender once per
+Contenders in one process, rounds interleaved (each round times every contender once per
 tolerance, so load drift hits all alike; medians over the rounds):
 
-* ``taylor``  lagcodegen ``simulate(method="taylor")``, rtol = atol = tol;
-* ``adams``   lagcodegen ``simulate(method="adams")`` (native CVODE, generated Jacobian up to
-              n = 8), rtol = atol = tol;
-* ``heyoka``  heyoka 7's ``taylor_adaptive`` on ``heyoka.lagrangian`` of the same Lagrangian,
-              tol = tol (compact mode for n >= 10, as its JIT takes seconds otherwise);
-              timed: reset the state, ``propagate_until(10)``.
+* ``taylor``   lagcodegen ``simulate(method="taylor")``, rtol = atol = tol, outputs at t = 0, 5
+               and 10 (its Python wrapper included);
+* ``hy-lagr``  heyoka 7's ``taylor_adaptive`` on ``heyoka.lagrangian`` of the pendulum's
+               Lagrangian (heyoka eliminates the mass matrix symbolically);
+* ``hy-expl``  heyoka on the explicit system q'' = M^-1 F, M and F written out in closed form
+               (M_ij = (n - max(i, j)) cos(q_i - q_j)) and M eliminated by hand (symbolic Gaussian
+               elimination without pivoting: M is positive definite);
+* ``taylor-m`` the same integrator called through its compiled module's own ``simulate`` (what
+               ``simulate()`` calls after checking its inputs): the C run plus a thin wrapper,
+               for the share of ``simulate()``'s Python layers (not a target contender);
+* ``adams``    lagcodegen ``simulate(method="adams")`` (full run only).
 
-Both lagcodegen contenders return the state at t = 0, 5 and 10 through ``simulate()`` (its
-Python wrapper included); heyoka integrates to t = 10 only. Build costs are reported apart:
-gcc (a cold build of the Taylor module and of the CVODE module) and heyoka's JIT (construction
-of the integrator). Targets (issue 11): taylor <= 1.0x heyoka for n <= 5 at errors 1e-6..1e-12;
-the best lagcodegen method <= 0.5x heyoka for n >= 10; taylor >= 3x faster than Adams at
-n <= 5, errors <= 1e-8.
+Clock: ``--clock cpu`` (default) times each run by the CPU time of the calling thread
+(``time.thread_time``), which a loaded machine's preemption does not inflate; ``--clock wall``
+by ``time.perf_counter``. The output names the clock.
+
+Both heyoka forms run in default mode for n <= 5 and in compact mode beyond (default mode's JIT
+takes minutes there), tol = tol; timed: reset the state and the time, ``propagate_until(10)``.
+The target of issue 23 is measured against the FASTER heyoka form at each error (the tables
+name it): lagcodegen at most 0.7x heyoka for n <= 5 at errors 1e-4..1e-12, at most 0.4x for
+n >= 10. Times are compared at EQUAL ACHIEVED ERROR: log time interpolated against log error
+along each contender's tolerance sweep.
+
+Beside the times: steps, microseconds per step and the operation counts of one order of the
+jet (lagcodegen: the elementary operations of its decomposition plus the convolutions of the
+mass matrix; heyoka: the length of ``taylor_adaptive.decomposition``). Build costs (gcc; heyoka's
+JIT) are reported apart. A measuring instrument: it asserts nothing.
 
 Outputs: the tables on stdout (progress on stderr); with --out DIR: taylor.txt, taylor.csv and
-a PNG per case, taylor_n<N>_q<q0>.png. A measuring instrument: it asserts nothing.
+a PNG per case, taylor_n<N>_q<q0>.png.
 
 Usage::
 
-    python benchmarks/taylor.py [--quick] [--out DIR] [--ns 1,2,3] [--rounds R]
+    python benchmarks/taylor.py [--quick] [--out DIR] [--ns 1,2,3] [--q0s 0.1,1.0] [--rounds R]
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import math
 import sys
 import tempfile
@@ -46,17 +61,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _harness as H  # noqa: E402
 
 import lagcodegen as lcg  # noqa: E402
+from lagcodegen.solvers.taylor.run import taylor_module  # noqa: E402
 
 T_END = 10.0
 G = 9.81
+TARGETS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
+HEYOKA_FORMS = ("hy-lagr", "hy-expl")
 
 
-def heyoka_pendulum(n: int, fp_type=float, tol: float = 0.0, compact: bool = False, q0: float = 0.1):
-    """heyoka's integrator of the n-link pendulum (Lagrangian -> heyoka.lagrangian), state
-    ordered (q_1..q_n, v_1..v_n) as lagcodegen's."""
+def _pendulum_vars(n: int):
     import heyoka as hy
-    qs = [hy.make_vars(f"q{k}") for k in range(n)]
-    vs = [hy.make_vars(f"v{k}") for k in range(n)]
+    return [hy.make_vars(f"q{k}") for k in range(n)], [hy.make_vars(f"v{k}") for k in range(n)]
+
+
+def heyoka_lagrangian_system(n: int):
+    """(system, permutation to (q, v) order) of heyoka.lagrangian on the pendulum's Lagrangian."""
+    import heyoka as hy
+    qs, vs = _pendulum_vars(n)
     x = y = xd = yd = hy.expression(0.0)
     T = V = hy.expression(0.0)
     for q, v in zip(qs, vs):
@@ -66,7 +87,47 @@ def heyoka_pendulum(n: int, fp_type=float, tol: float = 0.0, compact: bool = Fal
         V = V + G * y
     sys_ = hy.lagrangian(T - V, qs, vs)
     order = {str(lhs): k for k, (lhs, _) in enumerate(sys_)}
-    perm = [order[f"q{k}"] for k in range(n)] + [order[f"v{k}"] for k in range(n)]
+    return sys_, [order[f"q{k}"] for k in range(n)] + [order[f"v{k}"] for k in range(n)]
+
+
+def heyoka_explicit_system(n: int):
+    """(system, identity permutation) of q'' = M^-1 F in closed form: unit masses and lengths,
+    M_ij = (n - max(i, j)) cos(q_i - q_j), F_i = -g (n - i) sin q_i - sum_j (n - max(i, j))
+    sin(q_i - q_j) v_j^2 (0-based i), M eliminated symbolically (Gaussian elimination; M is
+    positive definite, no pivoting)."""
+    import heyoka as hy
+    qs, vs = _pendulum_vars(n)
+
+    def w(i, j):
+        return float(n - max(i, j))
+
+    A = [[hy.expression(w(i, i)) if i == j else w(i, j) * hy.cos(qs[i] - qs[j]) for j in range(n)] for i in range(n)]
+    b = []
+    for i in range(n):
+        f = -G * float(n - i) * hy.sin(qs[i])
+        for j in range(n):
+            if j != i:
+                f = f - w(i, j) * hy.sin(qs[i] - qs[j]) * (vs[j] * vs[j])
+        b.append(f)
+    for k in range(n):
+        for i in range(k + 1, n):
+            ratio = A[i][k] / A[k][k]
+            for j in range(k + 1, n):
+                A[i][j] = A[i][j] - ratio * A[k][j]
+            b[i] = b[i] - ratio * b[k]
+    acc = [None] * n
+    for i in reversed(range(n)):
+        s = b[i]
+        for j in range(i + 1, n):
+            s = s - A[i][j] * acc[j]
+        acc[i] = s / A[i][i]
+    return [(q, v) for q, v in zip(qs, vs)] + [(v, a) for v, a in zip(vs, acc)], list(range(2 * n))
+
+
+def heyoka_integrator(form: str, n: int, tol: float, q0: float, fp_type=float, compact: bool = False):
+    """(taylor_adaptive, permutation to (q, v)) of heyoka's ``form`` ("hy-lagr"/"hy-expl")."""
+    import heyoka as hy
+    sys_, perm = heyoka_lagrangian_system(n) if form == "hy-lagr" else heyoka_explicit_system(n)
     state = np.zeros(2 * n, dtype=fp_type)
     state[perm[:n]] = q0
     kw = dict(tol=fp_type(tol)) if tol else {}
@@ -76,87 +137,133 @@ def heyoka_pendulum(n: int, fp_type=float, tol: float = 0.0, compact: bool = Fal
 
 
 def reference(n: int, q0: float, tol: float) -> np.ndarray:
-    ta, perm = heyoka_pendulum(n, np.longdouble, tol, compact=n >= 5, q0=q0)
+    ta, perm = heyoka_integrator("hy-lagr", n, tol, q0, np.longdouble, compact=n >= 5)
     ta.propagate_until(np.longdouble(T_END))
     return np.array(ta.state[perm], dtype=np.longdouble)
 
 
-def run_case(n: int, q0: float, tols, rounds: int, out: Path | None) -> list[dict]:
+def our_operations(sim) -> dict:
+    """Operations of one order of lagcodegen's jet: counts by kind, convolutions of M."""
+    d = taylor_module(sim).decomposition
+    kinds = collections.Counter(op.kind for op in d.ops)
+    conv = sum(1 for row in d.M for entry in row if isinstance(entry, int))
+    text = " ".join(f"{k} {v}" for k, v in sorted(kinds.items()))
+    return dict(ops=len(d.ops), conv=conv, kinds=text, cost=d.cost)
+
+
+class Heyokas:
+    """heyoka's integrators of one n, both forms, every tolerance: built once (their JIT is the
+    expensive part), reset for each state."""
+
+    def __init__(self, n: int, tols):
+        self.compact = n > 5
+        self.by = {}
+        self.jit = {}
+        self.size = {}
+        for form in HEYOKA_FORMS:
+            start = time.perf_counter()
+            for tol in tols:
+                self.by[(form, tol)] = heyoka_integrator(form, n, tol, 0.0, compact=self.compact)
+            self.jit[form] = (time.perf_counter() - start) / len(tols)
+            self.size[form] = len(self.by[(form, tols[0])][0].decomposition)
+
+    def runner(self, form: str, tol: float, n: int, q0: float):
+        ta, perm = self.by[(form, tol)]
+        state0 = np.zeros(2 * n)
+        state0[perm[:n]] = q0
+
+        def run():
+            ta.time = 0.0
+            ta.state[:] = state0
+            outcome = ta.propagate_until(T_END)
+            return np.array(ta.state)[perm], outcome[3]
+        return run
+
+
+def run_case(n: int, q0: float, tols, rounds: int, heyokas: Heyokas, sim, with_adams: bool,
+             out: Path | None, clock=time.thread_time) -> tuple[list, list]:
     H.progress("taylor", f"n = {n}, q0 = {q0}: references")
     ref = reference(n, q0, 1e-19)
     ref_unc = float(np.max(np.abs(ref - reference(n, q0, 1e-17))))
-    model = lcg.systems.n_link_pendulum(n, name=f"tb{n}")
     t = np.array([0.0, T_END / 2, T_END])
     y0 = np.concatenate([np.full(n, q0), np.zeros(n)])
 
-    with tempfile.TemporaryDirectory() as cold, H.cache_at(Path(cold)):
-        start = time.perf_counter()
-        sim = lcg.compile_model(model)
-        build_cvode = time.perf_counter() - start
-        start = time.perf_counter()
-        sim.simulate(t, y0=y0, method="taylor")  # builds the Taylor module
-        build_taylor = time.perf_counter() - start
-
-        compact = n >= 10
-        start = time.perf_counter()
-        hy_ta, perm = heyoka_pendulum(n, float, 1e-8, compact=compact, q0=q0)
-        jit = time.perf_counter() - start
-        hy_by_tol = {}
-        for tol in tols:
-            hy_by_tol[tol] = heyoka_pendulum(n, float, tol, compact=compact, q0=q0)[0]
-        hy_state0 = np.array(hy_ta.state)
-
-        def lcg_run(method, tol):
+    def lcg_runner(method, tol):
+        def run():
             res = sim.simulate(t, y0=y0, method=method, rtol=tol, atol=tol, raise_on_error=False)
-            return res.y[-1] if res.success else None, res.stats.get("steps")
+            return (res.y[-1] if res.success else None), res.stats.get("steps")
+        return run
 
-        def hy_run(tol):
-            ta = hy_by_tol[tol]
-            ta.time = 0.0
-            ta.state[:] = hy_state0
-            outcome = ta.propagate_until(T_END)
-            return np.array(ta.state)[perm], outcome[3]
+    tm = taylor_module(sim)
+    p = np.array(sim.code.scene.default_parameters(), dtype=float)
 
-        contenders = {
-            "taylor": lambda tol: lcg_run("taylor", tol),
-            "adams": lambda tol: lcg_run("adams", tol),
-            "heyoka": hy_run,
-        }
-        times = {(c, tol): [] for c in contenders for tol in tols}
-        results = {}
-        for r in range(rounds):
-            for tol in tols:
-                for name, fn in contenders.items():
-                    start = time.perf_counter()
-                    state, steps = fn(tol)
-                    times[(name, tol)].append(time.perf_counter() - start)
-                    results[(name, tol)] = (state, steps)
-        rows = []
-        for name in contenders:
-            for tol in tols:
-                state, steps = results[(name, tol)]
-                err = float(np.max(np.abs(np.asarray(state, dtype=np.longdouble) - ref))) if state is not None \
-                    else float("nan")
-                sec = float(np.median(times[(name, tol)]))
-                rows.append(dict(n=n, q0=q0, contender=name, tol=tol, error=err, seconds=sec, steps=steps,
-                                 us_per_step=1e6 * sec / steps if steps else None))
+    def module_runner(tol):
+        def run():
+            res = tm.simulate(t, y0, p, rtol=tol, atol=tol)
+            return (res.y[-1] if res.status == 0 else None), res.stats.get("steps")
+        return run
+
+    contenders = {"taylor": lambda tol: lcg_runner("taylor", tol), "taylor-m": module_runner}
+    if with_adams:
+        contenders["adams"] = lambda tol: lcg_runner("adams", tol)
+    for form in HEYOKA_FORMS:
+        contenders[form] = lambda tol, form=form: heyokas.runner(form, tol, n, q0)
+    runs = {(c, tol): make(tol) for c, make in contenders.items() for tol in tols}
+    for run in runs.values():  # warm-up (first calls allocate)
+        run()
+    H.progress("taylor", f"n = {n}, q0 = {q0}: {rounds} rounds")
+    times = {key: [] for key in runs}
+    results = {}
+    for _ in range(rounds):
+        for tol in tols:
+            for name in contenders:
+                run = runs[(name, tol)]
+                start = clock()
+                results[(name, tol)] = run()
+                times[(name, tol)].append(clock() - start)
+    rows = []
+    for name in contenders:
+        for tol in tols:
+            state, steps = results[(name, tol)]
+            err = float(np.max(np.abs(np.asarray(state, dtype=np.longdouble) - ref))) if state is not None \
+                else float("nan")
+            sec = float(np.median(times[(name, tol)]))
+            rows.append(dict(n=n, q0=q0, contender=name, tol=tol, error=err, seconds=sec, steps=steps,
+                             us_per_step=1e6 * sec / steps if steps else None))
     curves = {name: [(r["error"], r["seconds"]) for r in rows if r["contender"] == name] for name in contenders}
     summary = []
-    for target in (1e-4, 1e-6, 1e-8, 1e-10, 1e-12):
+    for target in TARGETS:
         at = {name: H.time_at(curves[name], target)[0] for name in contenders}
-        best = min((v for k, v in at.items() if k != "heyoka" and v), default=None)
-        summary.append(dict(n=n, q0=q0, target=target, taylor=at["taylor"], adams=at["adams"], heyoka=at["heyoka"],
-                            taylor_vs_heyoka=at["taylor"] / at["heyoka"] if at["taylor"] and at["heyoka"] else None,
-                            best_vs_heyoka=best / at["heyoka"] if best and at["heyoka"] else None,
-                            adams_vs_taylor=at["adams"] / at["taylor"] if at["adams"] and at["taylor"] else None))
-    builds = dict(n=n, q0=q0, gcc_cvode=build_cvode, gcc_taylor=build_taylor, heyoka_jit=jit, ref_unc=ref_unc)
+        hy = {form: at[form] for form in HEYOKA_FORMS if at[form]}
+        faster = min(hy, key=hy.get) if hy else None
+        row = dict(n=n, q0=q0, target=target, taylor=at["taylor"], hy_lagr=at["hy-lagr"], hy_expl=at["hy-expl"],
+                   faster=faster, ratio=at["taylor"] / hy[faster] if at["taylor"] and faster else None,
+                   taylor_m=at["taylor-m"], ratio_m=at["taylor-m"] / hy[faster] if at["taylor-m"] and faster else None)
+        if with_adams:
+            row["adams"] = at["adams"]
+        summary.append(row)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        H.work_precision_plot(out / f"taylor_n{n}_q{q0}.png",
-                              f"{n}-link pendulum, q0 = {q0}, t in [0, 10] (gcc {build_taylor:.2f} s, "
-                              f"heyoka JIT {jit:.2f} s)", {k: v for k, v in curves.items()},
-                              "max |error| of the final state", ref_unc)
-    return rows, summary, builds
+        H.work_precision_plot(out / f"taylor_n{n}_q{q0}.png", f"{n}-link pendulum, q0 = {q0}, t in [0, 10]",
+                              curves, "max |error| of the final state", ref_unc)
+    for r in summary:
+        r["ref_unc"] = ref_unc
+    return rows, summary
+
+
+def ratio_grid(summaries, key: str = "ratio") -> str:
+    """The issue's table: lagcodegen / faster heyoka at equal achieved error, by n, state, error."""
+    head = "| n | state | " + " | ".join(f"{t:.0e}" for t in TARGETS) + " |"
+    lines = [head, "|" + "---|" * (2 + len(TARGETS))]
+    keys = sorted({(s["n"], s["q0"]) for s in summaries})
+    for n, q0 in keys:
+        cells = []
+        for target in TARGETS:
+            s = next((s for s in summaries if (s["n"], s["q0"], s["target"]) == (n, q0, target)), None)
+            cells.append("-" if s is None or s[key] is None else
+                         f"{s[key]:.2f} ({'L' if s['faster'] == 'hy-lagr' else 'E'})")
+        lines.append(f"| {n} | q = {q0} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def energy_drift(periods: int, tol: float) -> list[dict]:
@@ -178,46 +285,86 @@ def energy_drift(periods: int, tol: float) -> list[dict]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="n = 1, 2, 3; q0 = 1.0; 3 tolerances; 3 rounds")
+    ap.add_argument("--quick", action="store_true", help="n = 1, 2, 3; q0 = 1.0; 3 tolerances; 3 rounds; no Adams")
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--ns", default=None, help="comma-separated n (default 1,2,3,5,10,20)")
+    ap.add_argument("--ns", default=None, help="comma-separated n (default 1,2,3,5,10)")
+    ap.add_argument("--q0s", default=None, help="comma-separated initial angles (default 0.1,1.0)")
+    ap.add_argument("--tols", default=None, help="comma-separated tolerances (default 1e-4..1e-13)")
     ap.add_argument("--rounds", type=int, default=None)
+    ap.add_argument("--no-adams", action="store_true", help="leave CVODE Adams out of the full run")
+    ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
+                    help="time runs by the calling thread's CPU time (default) or by wall time")
     args = ap.parse_args(argv)
-    ns = [int(x) for x in args.ns.split(",")] if args.ns else ([1, 2, 3] if args.quick else [1, 2, 3, 5, 10, 20])
-    q0s = [1.0] if args.quick else [0.1, 1.0]
-    tols = [1e-5, 1e-8, 1e-11] if args.quick else [10.0 ** -k for k in range(4, 14)]
+    clock = time.thread_time if args.clock == "cpu" else time.perf_counter
+    ns = [int(x) for x in args.ns.split(",")] if args.ns else ([1, 2, 3] if args.quick else [1, 2, 3, 5, 10])
+    q0s = [float(x) for x in args.q0s.split(",")] if args.q0s else ([1.0] if args.quick else [0.1, 1.0])
+    tols = ([float(x) for x in args.tols.split(",")] if args.tols else
+            [1e-4, 1e-8, 1e-12] if args.quick else [10.0 ** -k for k in range(4, 14)])
     rounds = args.rounds or (3 if args.quick else 7)
+    with_adams = not (args.quick or args.no_adams)
     load0 = H.load_average()
-    all_rows, summaries, builds = [], [], []
+    all_rows, summaries, builds, ops = [], [], [], []
     for n in ns:
-        for q0 in q0s:
-            rows, summary, build = run_case(n, q0, tols, rounds, args.out)
-            all_rows += rows
-            summaries += summary
-            builds.append(build)
-    lines = H.machine_lines("benchmarks/taylor.py: Taylor vs heyoka vs Adams", (load0, H.load_average()))
-    lines += ["", "runs (median wall time over rounds; error: max |y(10) - ref(10)| over the state)",
+        with tempfile.TemporaryDirectory() as cold, H.cache_at(Path(cold)):
+            H.progress("taylor", f"n = {n}: builds")
+            start = time.perf_counter()
+            sim = lcg.compile_model(lcg.systems.n_link_pendulum(n, name=f"tb{n}"))
+            build_cvode = time.perf_counter() - start
+            start = time.perf_counter()
+            sim.simulate(np.array([0.0, 1e-3]), y0=np.zeros(2 * n), method="taylor")  # builds the Taylor module
+            build_taylor = time.perf_counter() - start
+            heyokas = Heyokas(n, tols)
+            ours = our_operations(sim)
+            for q0 in q0s:
+                rows, summary = run_case(n, q0, tols, rounds, heyokas, sim, with_adams, args.out, clock)
+                all_rows += rows
+                summaries += summary
+        builds.append(dict(n=n, gcc_cvode=build_cvode, gcc_taylor=build_taylor, jit_lagr=heyokas.jit["hy-lagr"],
+                           jit_expl=heyokas.jit["hy-expl"], mode="compact" if heyokas.compact else "default"))
+        ops.append(dict(n=n, ours=ours["ops"] + ours["conv"], ops=ours["ops"], conv=ours["conv"], kinds=ours["kinds"],
+                        hy_lagr=heyokas.size["hy-lagr"], hy_expl=heyokas.size["hy-expl"]))
+    load1 = H.load_average()
+    lines = H.machine_lines("benchmarks/taylor.py: lagcodegen's Taylor integrator vs heyoka (both forms)",
+                            (load0, load1))
+    clock_text = "CPU time of the calling thread" if args.clock == "cpu" else "wall time"
+    lines += [f"clock:    {clock_text}; medians over {rounds} interleaved rounds",
+              "", "runs (median time over interleaved rounds; error: max |y(10) - ref(10)| over the state)",
               H.format_table([("n", "n", "{}"), ("q0", "q0", "{}"), ("contender", "contender", "{}"),
                               ("tol", "tol", "{:.0e}"), ("error", "error", "{:.2e}"), ("seconds", "time [s]", "{:.3e}"),
                               ("steps", "steps", "{}"), ("us_per_step", "us/step", "{:.3f}")], all_rows),
-              "", "time at equal achieved error (log-log interpolation; ratios < 1: the first is faster)",
+              "", "operations per order of the jet (lagcodegen: elementary operations + convolutions of M;"
+              " heyoka: len(taylor_adaptive.decomposition))",
+              H.format_table([("n", "n", "{}"), ("ours", "lagcodegen", "{}"), ("ops", "ops", "{}"),
+                              ("conv", "M conv.", "{}"), ("kinds", "kinds", "{}"), ("hy_lagr", "hy-lagr", "{}"),
+                              ("hy_expl", "hy-expl", "{}")], ops),
+              "", "time at equal achieved error (log-log interpolation); ratio = taylor / the faster heyoka form",
               H.format_table([("n", "n", "{}"), ("q0", "q0", "{}"), ("target", "error", "{:.0e}"),
-                              ("taylor", "taylor [s]", "{:.2e}"), ("adams", "adams [s]", "{:.2e}"),
-                              ("heyoka", "heyoka [s]", "{:.2e}"), ("taylor_vs_heyoka", "taylor/heyoka", "{:.2f}"),
-                              ("best_vs_heyoka", "best/heyoka", "{:.2f}"), ("adams_vs_taylor", "adams/taylor", "{:.1f}")],
-                             summaries),
-              "", "build cost (cold gcc builds; heyoka's JIT at construction), reference uncertainty",
-              H.format_table([("n", "n", "{}"), ("q0", "q0", "{}"), ("gcc_cvode", "gcc CVODE [s]", "{:.2f}"),
-                              ("gcc_taylor", "gcc Taylor [s]", "{:.2f}"), ("heyoka_jit", "heyoka JIT [s]", "{:.2f}"),
-                              ("ref_unc", "ref. unc.", "{:.1e}")], builds)]
-    drift = energy_drift(1000 if args.quick else 10000, 1e-10)
-    lines += ["", "energy drift of the pendulum (q0 = 1 rad) over many periods, rtol = atol = 1e-10",
-              H.format_table([("method", "method", "{}"), ("periods", "periods", "{}"), ("drift", "rel. drift", "{:.2e}"),
-                              ("steps", "steps", "{}"), ("seconds", "time [s]", "{:.3f}")], drift)]
+                              ("taylor", "taylor [s]", "{:.2e}"), ("hy_lagr", "hy-lagr [s]", "{:.2e}"),
+                              ("hy_expl", "hy-expl [s]", "{:.2e}")]
+                             + ([("adams", "adams [s]", "{:.2e}")] if with_adams else [])
+                             + [("faster", "faster heyoka", "{}"), ("ratio", "taylor/faster", "{:.2f}"),
+                                ("ratio_m", "taylor-m/faster", "{:.2f}"),
+                                ("ref_unc", "ref. unc.", "{:.1e}")], summaries),
+              "", "the target table: taylor / faster heyoka form at equal achieved error "
+              "(L: hy.lagrangian faster, E: explicit form faster; target <= 0.7 for n <= 5, <= 0.4 beyond)",
+              ratio_grid(summaries),
+              "", "the same through the compiled module's own simulate (taylor-m: C run + thin wrapper)",
+              ratio_grid(summaries, "ratio_m"),
+              "", "build cost (cold gcc builds; heyoka's JIT per integrator, mean over the tolerances)",
+              H.format_table([("n", "n", "{}"), ("gcc_cvode", "gcc CVODE [s]", "{:.2f}"),
+                              ("gcc_taylor", "gcc Taylor [s]", "{:.2f}"), ("mode", "heyoka mode", "{}"),
+                              ("jit_lagr", "JIT hy-lagr [s]", "{:.2f}"), ("jit_expl", "JIT hy-expl [s]", "{:.2f}")],
+                             builds)]
+    if not args.quick:
+        drift = energy_drift(10000, 1e-10)
+        lines += ["", "energy drift of the pendulum (q0 = 1 rad) over many periods, rtol = atol = 1e-10",
+                  H.format_table([("method", "method", "{}"), ("periods", "periods", "{}"),
+                                  ("drift", "rel. drift", "{:.2e}"), ("steps", "steps", "{}"),
+                                  ("seconds", "time [s]", "{:.3f}")], drift)]
     text = "\n".join(lines)
     print(text)
     if args.out is not None:
-        H.write_report(args.out, "taylor", text, all_rows + summaries + builds)
+        H.write_report(args.out, "taylor", text, all_rows + summaries + builds + ops)
     return 0
 
 

@@ -140,3 +140,27 @@ def test_events_every_contender_finds_the_crossings():
         if found is not None:  # the run without events finds nothing
             assert len(found) == len(exact) == 15, name
             assert max(abs(found - exact) / exact) < 1e-5, name
+
+
+def test_taylor_benchmark_heyoka_forms_agree_with_lagcodegen():
+    """benchmarks/taylor.py: the explicit system q'' = M^-1 F eliminated by hand and heyoka's own
+    Lagrangian form are the same dynamics (final states agree), and so is lagcodegen's Taylor
+    integrator of its own derivation; the operation counts are read."""
+    pytest.importorskip("heyoka")
+    import numpy as np
+    import lagcodegen as lcg
+    import taylor as tb
+    n, q0, t_end = 3, 1.0, 2.0
+    states = []
+    for form in tb.HEYOKA_FORMS:
+        ta, perm = tb.heyoka_integrator(form, n, 1e-14, q0)
+        ta.propagate_until(t_end)
+        states.append(np.array(ta.state)[perm])
+    sim = lcg.compile_model(lcg.systems.n_link_pendulum(n, name="tbq3"))
+    res = sim.simulate(np.array([0.0, t_end]), y0=np.r_[np.full(n, q0), np.zeros(n)], method="taylor",
+                       rtol=1e-13, atol=1e-13)
+    assert np.abs(states[0] - states[1]).max() < 1e-10
+    assert np.abs(res.y[-1] - states[0]).max() < 1e-9
+    assert np.abs(states[0]).max() > 0.5  # it moved
+    ops = tb.our_operations(sim)
+    assert ops["conv"] == n * (n - 1) and ops["ops"] > 0 and "sincos" in ops["kinds"]

@@ -488,3 +488,46 @@ def test_runtime_refuses_a_table_of_another_version_and_keeps_max_wall():
     ens = sim.ensemble((0.0, 1e7), q0=[[1.0], [0.5]], method="taylor", max_wall=0.05, rtol=1e-12, atol=1e-12,
                        max_steps=10**9, threads=1)
     assert list(ens.status) == [-81, -81]
+
+
+def test_fused_products_give_the_same_jets_and_runs_bit_for_bit(monkeypatch):
+    """Products used by one linear combination only are summed in its loop ("dot"), and the mass
+    matrix's convolutions of a row share one loop: the same sums in the same order, so the jet and
+    a whole run equal those of the unfused operations to the last bit."""
+    from lagcodegen.solvers.taylor import runner
+    cases = [(lcg.systems.n_link_pendulum(3, name="fused3"), [0.4, -0.3, 0.2, 0.1, 0.5, -0.2]),
+             (all_operations_model(), [0.3, -0.4])]
+    for model, y0 in cases:
+        sc = Scene(derive(model), jacobian=False)
+        fused, plain = decompose(sc), decompose(sc, fuse=False)
+        assert any(op.kind == "dot" for op in fused.ops)
+        assert sum(op.kind == "mul" for op in fused.ops) < sum(op.kind == "mul" for op in plain.ops)
+        assert fused.cost == pytest.approx(plain.cost)
+        a = build_taylor(sc)
+        monkeypatch.setattr(runner, "decompose", lambda *args, **kw: decompose(*args, fuse=False, **kw))
+        b = build_taylor(sc)
+        monkeypatch.undo()
+        assert a.decomposition.ops != b.decomposition.ops
+        p = np.array(sc.default_parameters(), dtype=float)
+        y0 = np.array(y0)
+        assert np.array_equal(a.jet(0.7, y0, p, 12), b.jet(0.7, y0, p, 12))
+        t = np.linspace(0.0, 3.0, 7)
+        ra, rb = (m.simulate(t, y0, p, rtol=1e-10, atol=1e-10) for m in (a, b))
+        assert ra.status == rb.status == 0 and ra.stats["steps"] > 5
+        assert np.array_equal(ra.y, rb.y)
+
+
+def test_sine_and_cosine_squares_cancel_in_the_mass_matrix():
+    """sin(q)^2 + cos(q)^2 of a Cartesian derivation is linearized to 1: the n-link pendulum's
+    mass matrix has a constant diagonal (M_ii = n - i for unit masses and lengths) and
+    convolutions only for its off-diagonal entries."""
+    from lagcodegen.solvers.taylor.decompose import Const, linearize_trig
+    import symengine as se
+    x = se.Symbol("x")
+    assert se.expand(linearize_trig(3 * se.sin(x) ** 2 + 3 * se.cos(x) ** 2) - 3) == 0
+    assert se.expand(linearize_trig(se.sin(x) ** 2) - (se.Rational(1, 2) - se.cos(2 * x) / 2)) == 0
+    n = 5
+    d = decompose(Scene(derive(lcg.systems.n_link_pendulum(n)), jacobian=False))
+    assert all(isinstance(d.M[i][i], Const) for i in range(n))
+    assert sum(isinstance(e, int) for row in d.M for e in row) == n * (n - 1)
+    assert not any(op.kind == "sqr" and "sin(" in d.labels.get(op.out[0], "") for op in d.ops)

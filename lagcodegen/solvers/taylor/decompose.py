@@ -43,7 +43,7 @@ NON_ANALYTIC = ("Abs", "sign", "Piecewise", "Max", "Min", "floor", "ceiling", "H
 
 #: Relative cost per order of each operation kind (a convolution of length k counts 1),
 #: used to choose between the forms of the expressions.
-COST = {"cst": 0.0, "lin": 0.1, "mul": 1.0, "sqr": 0.5, "div": 1.0, "cdiv": 1.0, "sincos": 2.0,
+COST = {"cst": 0.0, "dot": 0.0, "lin": 0.1, "mul": 1.0, "sqr": 0.5, "div": 1.0, "cdiv": 1.0, "sincos": 2.0,
         "sinhcosh": 2.0, "exp": 1.0, "log": 1.0, "pow": 2.0, "sqrt": 0.5, "tan": 1.0}
 
 #: Integer powers up to this exponent become products (no division by the base); higher ones
@@ -72,6 +72,9 @@ class Op:
     ``exp``       out = exp x                 ``log``   out = log x
     ``pow``       out = x^const (const not a small integer or half-integer)
     ``sqrt``      out = sqrt x                ``tan``   out = (tan x, tan^2 x)
+    ``dot``       out = sum coefs[i] * t_i + const, t_i = args[i] or, where ``pairs[i]`` is a
+                  pair of rows (x, y), the product x * y: a ``lin`` with the products used
+                  only there computed in its own loop (:func:`fuse_products`)
     """
 
     kind: str
@@ -80,6 +83,7 @@ class Op:
     coefs: tuple = ()
     const: object = None
     expr: object = None
+    pairs: tuple = ()
 
 
 @dataclass
@@ -362,14 +366,31 @@ def _trig(kind: str, arg):
     return se.sin(arg) if kind == "sin" else se.cos(arg)
 
 
+#: Powers of a sine or cosine up to this exponent are linearized as products of their factors
+#: (``sin(x)**2 -> (1 - cos(2 x))/2``, so that ``sin(x)**2 + cos(x)**2`` cancels to 1).
+MAX_TRIG_POWER = 4
+
+
+def _trig_powers_expanded(factors) -> list:
+    """``factors`` with each sin/cos to a small positive integer power as that many factors."""
+    out = []
+    for f in factors:
+        if (isinstance(f, se.Pow) and isinstance(f.args[0], (se.sin, se.cos)) and isinstance(f.args[1], se.Integer)
+                and 1 < int(f.args[1]) <= MAX_TRIG_POWER):
+            out += [f.args[0]] * int(f.args[1])
+        else:
+            out.append(f)
+    return out
+
+
 def linearize_trig(expr):
-    """Expand ``expr`` and turn every product of sines and cosines (each to the first power)
-    into a sum of sines and cosines of sums and differences of their arguments."""
+    """Expand ``expr`` and turn every product of sines and cosines (small integer powers
+    included) into a sum of sines and cosines of sums and differences of their arguments."""
     e = se.expand(expr)
     terms = e.args if isinstance(e, se.Add) else (e,)
     out = []
     for term in terms:
-        factors = term.args if isinstance(term, se.Mul) else (term,)
+        factors = _trig_powers_expanded(term.args if isinstance(term, se.Mul) else (term,))
         trig = [f for f in factors if isinstance(f, (se.sin, se.cos))]
         if len(trig) < 2:
             out.append(term)
@@ -467,18 +488,51 @@ def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: 
     return decomposition
 
 
+def fuse_products(d: Decomposition) -> Decomposition:
+    """``d`` with each product (``mul``) whose row only one linear combination uses folded into
+    that combination, which becomes a ``dot``: the products' Cauchy sums share one loop over
+    the orders (one loop instead of one per product; each product summed in the same order as
+    alone, so the jet is the same to the last bit)."""
+    uses: dict[int, int] = {}
+
+    def use(entry):
+        if isinstance(entry, int) and not isinstance(entry, bool):
+            uses[entry] = uses.get(entry, 0) + 1
+
+    for op in d.ops:
+        for r in op.args:
+            use(r)
+    for entry in [e for row in d.M for e in row] + list(d.F) + list(d.rates) + list(d.events):
+        use(entry)
+    products = {op.out[0]: op for op in d.ops if op.kind == "mul"}
+    fused: set[int] = set()
+    ops = []
+    for op in d.ops:
+        if op.kind == "lin" and any(uses.get(r) == 1 and r in products for r in op.args):
+            pairs = tuple(products[r].args if uses.get(r) == 1 and r in products else None for r in op.args)
+            fused |= {r for r, pair in zip(op.args, pairs) if pair is not None}
+            op = Op("dot", op.out, op.args, op.coefs, op.const, op.expr, pairs)
+        ops.append(op)
+    d.ops = [op for op in ops if op.out[0] not in fused]
+    d.cost = cost(d)
+    return d
+
+
 def cost(d: Decomposition) -> float:
     """Work per order, in convolutions: the operations plus the mass-matrix convolution
     sum_j M_[j] a_[k-j] (none for constant entries)."""
     total = sum(COST[op.kind] * (len(op.args) if op.kind == "lin" else 1) for op in d.ops)
+    total += sum(COST["lin"] * len(op.args) + COST["mul"] * sum(p is not None for p in op.pairs)
+                 for op in d.ops if op.kind == "dot")
     total += sum(1.0 for row in d.M for entry in row if isinstance(entry, int))
     return total
 
 
-def decompose(scene: Scene, events=(), form: str | None = None) -> Decomposition:
+def decompose(scene: Scene, events=(), form: str | None = None, fuse: bool = True) -> Decomposition:
     """The elementary operations of ``scene`` (M, F, quadrature rates) and of the ``events``
     (objects with ``name`` and ``expr``), in the cheaper of the two forms (``form``:
-    "derived" or "trig-linearized" to force one)."""
+    "derived" or "trig-linearized" to force one); ``fuse``: products used by one linear
+    combination only computed in its loop (:func:`fuse_products`)."""
     eom = scene.eom
     n, nz = eom.model.n, len(eom.quadratures)
     exprs, time_symbol, state = scene_expressions(scene, events)
@@ -493,4 +547,4 @@ def decompose(scene: Scene, events=(), form: str | None = None) -> Decomposition
         d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where, names)
         if best is None or d.cost < best.cost:
             best = d
-    return best
+    return fuse_products(best) if fuse else best

@@ -79,6 +79,7 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
     """The template context of ``taylor.h.j2``/``taylor.c.j2``."""
     n = d.n
     conv = [(i, d.M[i][j], j) for i in range(n) for j in range(n) if isinstance(d.M[i][j], int)]
+    conv_rows = [(i, [(m, j) for i2, m, j in conv if i2 == i]) for i in range(n) if any(c[0] == i for c in conv)]
     const_lines = [f"c[{k}] = {c_expr(e)};" for k, e in enumerate(d.consts)]
     kinds = {op.kind for op in d.ops}
     c = substituter(scene)
@@ -89,7 +90,7 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
         outputs_block=print_block(Block([("out", k) for k in range(len(outs))], [c(o.expr) for o in outs])),
         ops=d.ops, chunks=[d.ops[k:k + CHUNK] for k in range(0, len(d.ops), CHUNK)] or [[]], chunk_size=CHUNK,
         kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,
-        M=d.M, F=d.F, rates=d.rates, conv=conv, time_row=d.time_row,
+        M=d.M, F=d.F, rates=d.rates, conv=conv, conv_rows=conv_rows, time_row=d.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
         table=False, outputs_name=f"{scene.prefix}_taylor_outputs",
         events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
