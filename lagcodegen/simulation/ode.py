@@ -201,8 +201,7 @@ class CompiledModel(CompiledReprMixin):
 
     @attaches_drawing
     def simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
-                 rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True,
-                 sensitivities=None, sensitivity_errcon: bool = True, **options) -> Result:
+                 rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True, **options) -> Result:
         """Integrate the scene and return the trajectory at the times ``t``.
 
         Parameters
@@ -228,12 +227,6 @@ class CompiledModel(CompiledReprMixin):
         raise_on_error:
             Raise :class:`SolverError` on failure (default); otherwise return the partial result
             with a negative ``status``.
-        sensitivities:
-            Forward sensitivities (CVODE, native): names of run-time parameters and initial values
-            (``"<q>(0)"``, ``"<q>_dot(0)"``); the result's :meth:`~lagcodegen.result.Result.sensitivity`
-            gives d(state or output)/d(name) at every output time
-            (:mod:`lagcodegen.solvers.cvode.sensitivity`). ``sensitivity_errcon``: the
-            sensitivities in the error test (default True; CVODES's errconS).
         options:
             The family's fields as keywords, made into the family object by
             :func:`lagcodegen.solvers.registry.resolve`: ``method`` "adams", "bdf", "taylor" or
@@ -250,14 +243,7 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
-        if sensitivities is not None:
-            if events:
-                raise LagcodegenError("events are not located in a run with sensitivities")
-            from ..solvers.cvode.sensitivity import run as run_sensitivities
-            res = run_sensitivities(family, self, t, y, p, rtol, atol_arr, sensitivities,
-                                    errcon=bool(sensitivity_errcon))
-        else:
-            res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
+        res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         if not res.success and res.t.size <= 1:  # failed at the start: say which value it was

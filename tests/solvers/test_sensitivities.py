@@ -169,7 +169,7 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         osc.simulate(t, q0=[1.0], sensitivities=["k", "k"])
     with pytest.raises(LagcodegenError, match="at least one"):
         osc.simulate(t, q0=[1.0], sensitivities=[])
-    with pytest.raises(LagcodegenError, match="on CVODE"):
+    with pytest.raises(LagcodegenError, match="'sensitivities' is not an option of Taylor"):
         osc.simulate(t, q0=[1.0], method="taylor", sensitivities=["k"])
     with pytest.raises(LagcodegenError, match="linear_solver 'band'"):
         osc.simulate(t, q0=[1.0], linear_solver="band", sensitivities=["k"])
@@ -183,6 +183,11 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         res.sensitivity("v", "k")
     with pytest.raises(LagcodegenError, match="no sensitivities"):
         osc.simulate(t, q0=[1.0]).sensitivity("x", "k")
+    with pytest.raises(LagcodegenError, match="ensembles do not compute sensitivities"):
+        osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"])
+    # the same run from a solver object
+    obj = osc.simulate(t, q0=[1.0], solver=lcg.CVODE(sensitivities=("k",), sensitivity_errcon=True))
+    assert np.array_equal(obj.sensitivities, res.sensitivities)
 
 
 def test_rigid_body_tree_is_refused():
