@@ -117,3 +117,19 @@ def test_taylor_runtime_one_link():
     assert finite(rows[0]["per_model_us"]) and finite(rows[0]["runtime_us"]) and rows[0]["ratio"] > 0
     cold = tr.build_times(1, 1)
     assert [r["kind"] for r in cold] == ["per-model", "runtime"] and all(finite(r["total"]) for r in cold)
+
+
+def test_sensitivities_tiny():
+    """benchmarks/sensitivities.py: accuracy against central differences, cost ratios and the fit
+    comparison run on the double pendulum (p = 1) and the damped pendulum."""
+    import sensitivities as sb
+    import lagcodegen as lcg
+    model = systems.double_pendulum(name="tb_sens_dp")
+    sim = lcg.compile_model(model)
+    acc = sb.accuracy_rows("dp", model, sim, [1], quick=True)
+    assert acc[0]["vs_central"] < 1e-5
+    assert acc[0]["vs_casadi"] is None or acc[0]["vs_casadi"] < 1e-5
+    rows, _ = sb.cost_rows("dp", model, sim, [1], rounds=1)
+    assert all(finite(rows[0][k]) and rows[0][k] > 0 for k in ("plain_ms", "sens_ms", "ratio", "ratio_errcon_off"))
+    fits = sb.fit_rows(1)
+    assert abs(fits[0]["l"] - 1.0) < 0.01 and abs(fits[1]["c"] - 0.3) < 0.01 and fits[0]["speedup"] > 0
