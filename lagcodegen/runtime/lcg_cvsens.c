@@ -14,6 +14,8 @@
  * _generic_SUNLinearSolver and its operations table is declared here, and checked at run time
  * before use (the context's place in the struct, and that SUNLinSolSetup calls this file's
  * setup); another layout ends the run with LCG_FLAG_BAD_INPUT and a message, never a crash. */
+#include "lcg_control.h" /* first: POSIX */
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -79,6 +81,7 @@ typedef struct {
     double *f0, *f1, *y1, *vals; /* scratch */
     int nonfinite;
     double t_nonfinite;
+    watch w;            /* Ctrl-C (the poll callback), the wall-clock limit */
 } sens_data;
 
 static int model_status(sens_data *d, int rc, double t)
@@ -99,6 +102,8 @@ static int aug_rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
     sens_data *d = (sens_data *)data;
     const int ny = d->m->ny;
     double *yv = N_VGetArrayPointer(y), *fv = N_VGetArrayPointer(ydot);
+    if (WATCH_TICK(&d->w))
+        return -1; /* stop: cancelled or out of time */
     return model_status(d, d->sens_rhs(t, yv, d->p, d->ns, d->which, yv + ny, fv, fv + ny), t);
 }
 
@@ -296,6 +301,7 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
     data.jacobian = opt->jacobian;
     data.st = st;
     data.gamma = 0.0;
+    watch_init(&data.w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     LCG_CREATE_CONTEXT(LCG_FLAG_NOMEM);
 
     data.J = (double *)malloc(sizeof(double) * (size_t)ny * (size_t)ny);
@@ -376,6 +382,8 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
 
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
+        if (WATCH_TICK(&data.w))
+            goto done;
         LCG_STEP_BUDGET(CVode);
         flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
         st->t_reached = tret;
@@ -397,6 +405,7 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
     }
 
 done:
+    flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
     if (mem != NULL) {
         CVodeGetNumSteps(mem, &st->nsteps);
         CVodeGetNumRhsEvals(mem, &st->nrhs);

@@ -28,6 +28,10 @@ typedef struct lcg_cvsens_options {
     int jacobian;          /* 1: the model's Jacobian in the Newton matrix, 0: difference quotients */
     int max_order;         /* 0: CVODE's default */
     double first_step, max_step, min_step; /* 0: CVODE's defaults */
+    int (*poll)(void *data, long done, long total); /* called every poll_every s (nonzero: stop); NULL: none */
+    void *poll_data;
+    double poll_every;
+    double max_wall;       /* wall-clock limit in seconds (0: none) */
 } lcg_cvsens_options;
 
 typedef struct lcg_cvsens_stats {
@@ -43,7 +47,8 @@ typedef struct lcg_cvsens_stats {
 /* Integrate model m with ns sensitivity directions from tout[0]: y(tout[0]) = y0, s(tout[0]) = s0
  * (ns*ny). Writes yout[k*ny + i], sout[(k*ns + j)*ny + i], out[k*nout + c] and
  * dout[(k*ns + j)*nout + c] at the nt output times. Returns 0, a negative CVODE flag,
- * LCG_FLAG_BAD_INPUT, LCG_FLAG_NOMEM or LCG_MODEL_ERROR_FLAG(rc). */
+ * LCG_FLAG_BAD_INPUT, LCG_FLAG_NOMEM, LCG_FLAG_CANCELLED (poll), LCG_FLAG_TIMED_OUT (max_wall) or
+ * LCG_MODEL_ERROR_FLAG(rc). */
 int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
                      int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,

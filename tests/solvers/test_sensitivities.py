@@ -215,3 +215,42 @@ def test_generated_and_runtime_c_compile_strictly(tmp_path, cc):
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert "lcg_cvsens_solve" in runtime_files(["lcg_cvsens.h"])["lcg_cvsens.h"]
+
+
+def test_max_wall_and_ctrl_c_stop_a_long_run(tmp_path, dp):
+    """The sensitivity driver's run control: max_wall ends a run of hours with flag -81, SIGINT
+    raises KeyboardInterrupt within seconds (a bound, not a measurement)."""
+    import os
+    import signal
+    import sys
+    import textwrap
+    from pathlib import Path
+    res = dp.simulate([0.0, 1e7], q0=[1.0, 1.0], sensitivities=["l1"], max_wall=0.3, raise_on_error=False)
+    assert res.status == -81 and "max_wall" in res.message
+    root = Path(__file__).resolve().parents[2]
+    script = tmp_path / "long.py"
+    script.write_text(textwrap.dedent("""
+        import sys
+        import lagcodegen as lcg
+        sim = lcg.compile_model(lcg.systems.double_pendulum())
+        sim.simulate([0.0, 1.0], q0=[1.0, 1.0], sensitivities=["l1"])
+        print("ready", flush=True)
+        try:
+            sim.simulate([0.0, 1e7], q0=[1.0, 1.0], sensitivities=["l1"])
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            sys.exit(130)
+    """))
+    env = dict(os.environ, PYTHONPATH=str(root))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        import time
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=60)[1]
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err

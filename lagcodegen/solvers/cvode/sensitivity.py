@@ -20,15 +20,16 @@ import time
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
-from ...codegen.cffi_decl import MODEL_TABLE_CDEF
+from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF
 from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from ...errors import LagcodegenError
 from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message
+from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 
 #: The runtime files of the sensitivity driver.
-FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_sundials.h", "sundials_api.h")
+FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
 
 CDEF = MODEL_TABLE_CDEF + """
 typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int ns, const int *which,
@@ -43,6 +44,10 @@ typedef struct lcg_cvsens_options {
     int jacobian;
     int max_order;
     double first_step, max_step, min_step;
+    int (*poll)(void *data, long done, long total);
+    void *poll_data;
+    double poll_every;
+    double max_wall;
 } lcg_cvsens_options;
 typedef struct lcg_cvsens_stats {
     long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
@@ -57,7 +62,7 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
                      int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
                      lcg_cvsens_stats *st);
-"""
+""" + POLL_CDEF
 
 #: The statistics of a sensitivity run (Result.stats).
 STATS = ("nsteps", "nrhs", "nlinsetups", "netfails", "nniters", "nncfails", "njac", "nfactor", "nblock_solves",
@@ -96,6 +101,7 @@ class SensitivityFunctions:
         sources = sensitivity_source(scene, prefix)
         self.library, self.path, _ = plain_library("sensitivity functions", f"{prefix}_sens", sources)
         self.rt = sens_runtime()
+        self.poll = install(self.rt)  # Ctrl-C during a run
         ffi = self.rt.ffi
         self.rhs = ffi.cast("lcg_sens_rhs_fn", ctypes.cast(getattr(self.library, f"{prefix}_sens_rhs"),
                                                             ctypes.c_void_p).value)
@@ -160,7 +166,7 @@ def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
 def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names, *, rtol: float, atol: np.ndarray,
                         method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
                         max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
-                        min_step: float = 0.0) -> Result:
+                        min_step: float = 0.0, max_wall: float = 0.0) -> Result:
     """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
     ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
     time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names."""
@@ -185,6 +191,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     opt.jacobian = int(bool(jacobian))
     opt.max_order = int(max_order)
     opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
+    opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(max_wall)
     st = ffi.new("lcg_cvsens_stats *")
     fb = ffi.from_buffer
     p_ptr = fb("double[]", p) if p.size else ffi.NULL
@@ -193,6 +200,8 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
                                 fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout),
                                 fb("double[]", sout), fb("double[]", out), fb("double[]", dout), opt, st)
     wall = time.perf_counter() - start
+    if flag == CANCELLED:
+        raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
     stats = {k: getattr(st, k) for k in STATS}
     stats["wall_time"] = wall
@@ -217,9 +226,8 @@ def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, at
     if family.linear_solver != "dense":
         raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
                               f"{family.linear_solver!r} does not apply (leave it 'dense')")
-    if family.max_wall:
-        raise LagcodegenError("max_wall is not supported with sensitivities")
     opts = family._ode_options(cm, y, p, True)
     return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
-                               first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"])
+                               first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
+                               max_wall=float(family.max_wall))
