@@ -201,8 +201,11 @@ def test_rigid_body_tree_is_refused():
 
 
 def test_generated_and_runtime_c_compile_strictly(tmp_path, cc):
-    for model in (lcg.systems.double_pendulum(), lcg.systems.damped_pendulum(), oscillator()):
-        scene = lcg.Scene(lcg.derive(model), outputs=["energy"])
+    scenes = [lcg.Scene(lcg.derive(model), outputs=["energy"])
+              for model in (lcg.systems.double_pendulum(), lcg.systems.damped_pendulum(), oscillator())]
+    # no run-time parameter, no output: the arrays of size zero are avoided
+    scenes.append(lcg.Scene(lcg.derive(lcg.systems.pendulum("p0")), runtime_parameters=[], outputs=[]))
+    for scene in scenes:
         for name, text in sensitivity_source(scene, scene.prefix).items():
             (tmp_path / name).write_text(text)
             proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name + ".o"], cwd=tmp_path,
