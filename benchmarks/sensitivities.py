@@ -119,13 +119,16 @@ def accuracy_rows(label, model, sim, ps, quick):
     y0 = np.concatenate([np.full(sim.n, Q0), np.zeros(sim.n)])
     if J is not None:
         ref_ca = np.array(J(y0, sim.parameter_vector()))
+    refs: dict = {}
     for p in ps:
         names = directions(sim, p)
         res = sim.simulate(t, q0=np.full(sim.n, Q0), rtol=1e-8, atol=1e-10, sensitivities=names)
         worst_fd, worst_ca = 0.0, None
         for j, name in enumerate(names[: (2 if quick else 3)]):
-            H.progress("accuracy", f"{label} p={p} {name}: central differences")
-            ref = central(sim, t, name)
+            if name not in refs:
+                H.progress("accuracy", f"{label} {name}: central differences")
+                refs[name] = central(sim, t, name)
+            ref = refs[name]
             worst_fd = max(worst_fd, float(np.max(np.abs(res.sensitivities[:, j, :2 * sim.n] - ref))
                                             / np.max(np.abs(ref))))
         if ref_ca is not None:
