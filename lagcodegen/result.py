@@ -42,9 +42,9 @@ class Result:
     #: forward sensitivities (nt, ns, nvalues): d(value)/d(direction) at every output time, with
     #: sensitivity_names the directions and sensitivity_values the states then the outputs
     #: (:meth:`sensitivity`); None without ``simulate(..., sensitivities=[...])``
-    sensitivities: np.ndarray | None = field(default=None, repr=False)
-    sensitivity_names: list = field(default_factory=list)
-    sensitivity_values: list = field(default_factory=list)
+    sensitivities: np.ndarray | None = field(default=None, repr=False, compare=False)
+    sensitivity_names: list = field(default_factory=list, compare=False)
+    sensitivity_values: list = field(default_factory=list, compare=False)
 
     def set_sensitivities(self, names: list, values: list, array: np.ndarray) -> None:
         """Attach the forward sensitivities ``array`` (nt, len(names), len(values))."""
