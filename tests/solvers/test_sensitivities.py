@@ -290,3 +290,37 @@ def test_routhian_reduction_with_a_quadrature_state():
     # a quadrature state's initial value moves it one for one, nothing else
     assert np.allclose(res.sensitivity("phi", "phi(0)"), 1.0)
     assert np.allclose(res.sensitivity("r", "phi(0)"), 0.0)
+
+
+def test_double_pendulum_against_heyoka_variational_equations(dp):
+    """heyoka's variational equations (var_ode_sys, first order, with respect to the parameters)
+    of the double pendulum's Lagrangian written here, integrated by its Taylor method at
+    tolerance 1e-15 (compact mode: its JIT takes minutes otherwise): d(theta1, theta2, theta1', theta2')/d(l1, l2,
+    m1, m2, g) at t = 2.5."""
+    hy = pytest.importorskip("heyoka")
+    q1, q2, v1, v2 = hy.make_vars("q1", "q2", "v1", "v2")
+    l1, l2, m1, m2, g = (hy.par[k] for k in range(5))
+    x1, y1 = l1 * hy.sin(q1), -l1 * hy.cos(q1)
+    x2, y2 = x1 + l2 * hy.sin(q2), y1 - l2 * hy.cos(q2)
+    xd1, yd1 = l1 * hy.cos(q1) * v1, l1 * hy.sin(q1) * v1
+    xd2, yd2 = xd1 + l2 * hy.cos(q2) * v2, yd1 + l2 * hy.sin(q2) * v2
+    T = 0.5 * m1 * (xd1 * xd1 + yd1 * yd1) + 0.5 * m2 * (xd2 * xd2 + yd2 * yd2)
+    V = m1 * g * y1 + m2 * g * y2
+    sys_ = hy.lagrangian(T - V, [q1, q2], [v1, v2])
+    order = [str(lhs) for lhs, _ in sys_]
+    vsys = hy.var_ode_sys(sys_, hy.var_args.params, order=1)
+    y0 = {"q1": 1.0, "q2": -0.5, "v1": 0.2, "v2": 0.1}
+    pv = [1.2, 0.8, 1.0, 1.5, 9.81]
+    ta = hy.taylor_adaptive(vsys, [y0[name] for name in order], pars=pv, tol=1e-15, compact_mode=True)
+    T_END = 2.5
+    ta.propagate_until(T_END)
+    ns = len(order)
+    ref = np.array(ta.state[ns:]).reshape(ns, 5)  # row: state (heyoka's order), column: parameter
+    ref = ref[[order.index(k) for k in ("q1", "q2", "v1", "v2")]]
+    res = dp.simulate(np.array([0.0, T_END]), y0=[y0[k] for k in ("q1", "q2", "v1", "v2")],
+                      params=dict(zip(["l1", "l2", "m1", "m2", "g"], pv)), rtol=1e-8, atol=1e-10,
+                      sensitivities=["l1", "l2", "m1", "m2", "g"])
+    got = res.sensitivities[-1, :, :4].T
+    assert np.max(np.abs(got - ref)) < 1e-6 * np.max(np.abs(ref))
+    # and the trajectory itself
+    assert np.max(np.abs(res.y[-1] - np.array(ta.state[:ns])[[order.index(k) for k in ("q1", "q2", "v1", "v2")]])) < 1e-7
