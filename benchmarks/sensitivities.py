@@ -27,7 +27,7 @@ sensitivities.csv. A measuring instrument: it asserts nothing.
 
 Usage::
 
-    python benchmarks/sensitivities.py [--quick] [--out DIR] [--rounds R]
+    python benchmarks/sensitivities.py [--quick] [--out DIR] [--rounds R] [--max-n 5]
 """
 
 from __future__ import annotations
@@ -49,11 +49,11 @@ T_END = 10.0
 Q0 = 0.5
 
 
-def scenes(quick: bool):
+def scenes(quick: bool, max_n: int = 10):
     out = [("double pendulum", lcg.systems.double_pendulum())]
     if not quick:
-        out += [("chain n=5", lcg.systems.n_link_pendulum(5, name="sens_chain5", shared_parameters=False)),
-                ("chain n=10", lcg.systems.n_link_pendulum(10, name="sens_chain10", shared_parameters=False))]
+        out += [(f"chain n={n}", lcg.systems.n_link_pendulum(n, name=f"sens_chain{n}", shared_parameters=False))
+                for n in (5, 10) if n <= max_n]
     return out
 
 
@@ -230,12 +230,13 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small configuration (under 2 minutes)")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--rounds", type=int, default=None)
+    ap.add_argument("--max-n", type=int, default=10, help="largest chain (5 or 10; the double pendulum always)")
     args = ap.parse_args(argv)
     rounds = args.rounds or (5 if args.quick else 21)
     ps_all = [1, 3] if args.quick else [1, 3, 10]
     load0 = H.load_average()
     acc, cost, cas = [], [], []
-    for label, model in scenes(args.quick):
+    for label, model in scenes(args.quick, args.max_n):
         H.progress("build", label)
         sim = lcg.compile_model(model)
         nd = len(sim.param_names) + sim.n
