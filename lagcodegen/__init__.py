@@ -6,7 +6,8 @@ The pipeline, one subpackage per stage, imports running one way (down this list)
     Routhian, steady motion, linearization, constraints, minimal coordinates) -> formulation
     (Scene, language-neutral kernels) -> codegen (C, Fortran, cffi declarations, bundles)
     -> build (cffi module, cache) -> fmu (FMU export) -> solvers (CVODE, IDA, Taylor; scikit-sundae)
-    -> simulation (compiled ODE, constrained and minimal faces, hybrid runs) -> sweep -> api -> cli
+    -> simulation (compiled ODE, constrained and minimal faces, hybrid runs) -> sweep -> fitting
+    (parameters from measured trajectories, with sensitivities) -> api -> cli
 
 Quick start::
 
@@ -40,6 +41,7 @@ from .solvers.registry import CVODE, IDA, Taylor  # noqa: F401
 from .solvers.inputs import Table  # noqa: F401
 from .simulation.ode import CompiledModel, simulate  # noqa: F401
 from .simulation.hybrid import simulate_with_switch  # noqa: F401
+from .fitting import FitResult, fit  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build_code, compile_constrained, compile_file,  # noqa: F401
                   compile_model, compile_reduction, generate_file, run_sweep)
 from . import modelfile, progress  # noqa: F401

@@ -42,6 +42,32 @@ class Result:
     impacts: object = None
     # how the model is drawn (lagcodegen.animation.Drawing, or a callable making one on first use)
     drawing: object = field(default=None, repr=False, compare=False)
+    #: forward sensitivities (nt, ns, nvalues): d(value)/d(direction) at every output time, with
+    #: sensitivity_names the directions and sensitivity_values the states then the outputs
+    #: (:meth:`sensitivity`); None without ``simulate(..., sensitivities=[...])``
+    sensitivities: np.ndarray | None = field(default=None, repr=False, compare=False)
+    sensitivity_names: list = field(default_factory=list, compare=False)
+    sensitivity_values: list = field(default_factory=list, compare=False)
+
+    def set_sensitivities(self, names: list, values: list, array: np.ndarray) -> None:
+        """Attach the forward sensitivities ``array`` (nt, len(names), len(values))."""
+        self.sensitivities = array
+        self.sensitivity_names = list(names)
+        self.sensitivity_values = list(values)
+
+    def sensitivity(self, value: str, direction: str) -> np.ndarray:
+        """d value / d direction at every output time: ``value`` a state or output name,
+        ``direction`` one of the run's sensitivity directions (a run-time parameter, or an
+        initial value "<q>(0)", "<q>_dot(0)")."""
+        if self.sensitivities is None:
+            raise LagcodegenError("this result has no sensitivities: run simulate(..., sensitivities=[...])")
+        if direction not in self.sensitivity_names:
+            raise LagcodegenError(f"{direction!r} is not a sensitivity direction of this run "
+                                  f"({', '.join(self.sensitivity_names)})")
+        if value not in self.sensitivity_values:
+            raise LagcodegenError(f"{value!r} is neither a state nor an output of this run "
+                                  f"({', '.join(self.sensitivity_values)})")
+        return self.sensitivities[:, self.sensitivity_names.index(direction), self.sensitivity_values.index(value)]
 
     @property
     def success(self) -> bool:

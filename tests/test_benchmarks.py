@@ -164,3 +164,19 @@ def test_taylor_benchmark_heyoka_forms_agree_with_lagcodegen():
     assert np.abs(states[0]).max() > 0.5  # it moved
     ops = tb.our_operations(sim)
     assert ops["conv"] == n * (n - 1) and ops["ops"] > 0 and "sincos" in ops["kinds"]
+
+
+def test_sensitivities_tiny():
+    """benchmarks/sensitivities.py: accuracy against central differences, cost ratios and the fit
+    comparison run on the double pendulum (p = 1) and the damped pendulum."""
+    import sensitivities as sb
+    import lagcodegen as lcg
+    model = systems.double_pendulum(name="tb_sens_dp")
+    sim = lcg.compile_model(model)
+    acc = sb.accuracy_rows("dp", model, sim, [1], quick=True)
+    assert acc[0]["vs_central"] < 1e-5
+    assert acc[0]["vs_casadi"] is None or acc[0]["vs_casadi"] < 1e-5
+    rows, _ = sb.cost_rows("dp", model, sim, [1], rounds=1)
+    assert all(finite(rows[0][k]) and rows[0][k] > 0 for k in ("plain_ms", "sens_ms", "ratio", "ratio_errcon_off"))
+    fits = sb.fit_rows(1)
+    assert abs(fits[0]["l"] - 1.0) < 0.01 and abs(fits[1]["c"] - 0.3) < 0.01 and fits[0]["speedup"] > 0

@@ -30,6 +30,7 @@ STAGES = [
     ("solvers",),
     ("simulation",),
     ("sweep",),
+    ("fitting",),
     ("api",),
     ("cli",),
     ("__main__", "__init__"),

@@ -1,6 +1,6 @@
 """The ``lagcodegen`` command (also ``python -m lagcodegen``): :func:`main` parses the command
 line and runs one command, a module each (:mod:`.generate`, :mod:`.simulate`, :mod:`.info`,
-:mod:`.sweep`; what they share in :mod:`.common`), and turns what went wrong into an exit code.
+:mod:`.sweep`, :mod:`.fit`; what they share in :mod:`.common`), and turns what went wrong into an exit code.
 
 One job: the command line, from the options (each checked before any work) to the exit code;
 the pipeline runs in :mod:`lagcodegen.api`.
@@ -18,11 +18,11 @@ from ..buildstep import cmake_dir
 from ..errors import CompileError, LagcodegenError, SolverError
 from ..util import Terminated, sigterm_raises
 from ..version import __version__
-from . import generate, info, simulate, sweep
+from . import fit, generate, info, simulate, sweep
 from .common import EXIT_COMPILE, EXIT_INPUT, EXIT_SOLVER, EXIT_USAGE, UsageError
 
 #: The commands, in the order ``lagcodegen --help`` lists them.
-COMMANDS = (simulate, generate, info, sweep)
+COMMANDS = (simulate, generate, info, sweep, fit)
 
 DESCRIPTION = """Lagrangian mechanics to C and Fortran: derive a model's equations of motion
 (Lagrange's equations, M q'' = F) from a model file (TOML, a URDF robot, or FILE.py:FUNCTION),
@@ -33,6 +33,7 @@ describes each command.
     lagcodegen generate examples/double_pendulum.toml -o dp_bundle --bundle
     lagcodegen info examples/pendulum.toml
     lagcodegen sweep examples/pendulum.toml --grid g=9.7:9.9:101 -o g.csv
+    lagcodegen fit model.toml data.csv --fit l,c -o fit.csv --plot fit.png
 
 exit codes:
     0  success

@@ -34,7 +34,10 @@ class CVODE(Family):
     Index-1 constrained systems (eq. 4.5): ``baumgarte`` ("auto" or (alpha, beta); None: the
     compiled default), ``projection`` onto the constraints after each step (None: the compiled
     default; BDF only), ``proj_tol``, ``proj_maxit``, ``max_events`` (events kept; None: 10000 in
-    a run, 64 per ensemble member).
+    a run, 64 per ensemble member). Forward sensitivities of the ODE of a scene (native):
+    ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
+    ``"<q>_dot(0)"``; :mod:`.sensitivity`), ``sensitivity_errcon`` the sensitivities in the error
+    test (default True, CVODES's errconS).
     """
 
     name = "CVODE"
@@ -42,7 +45,7 @@ class CVODE(Family):
     faces = ("ode", "index1")
     only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
             "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
-            "max_events": ("index1", "ode")}
+            "max_events": ("index1", "ode"), "sensitivities": ("ode",), "sensitivity_errcon": ("ode",)}
 
     method: str | None = None
     backend: str = "native"
@@ -57,9 +60,17 @@ class CVODE(Family):
     proj_tol: float = 1e-12
     proj_maxit: int = 10
     max_events: int | None = None
+    sensitivities: tuple[str, ...] | None = None
+    sensitivity_errcon: bool = True
 
     def __post_init__(self):
         super().__post_init__()
+        if self.sensitivities is not None:
+            names = (self.sensitivities,) if isinstance(self.sensitivities, str) else self.sensitivities
+            try:
+                object.__setattr__(self, "sensitivities", tuple(names))
+            except TypeError:
+                raise LagcodegenError(f"sensitivities must be a list of names, got {names!r}") from None
         if self.method is not None:
             choice("method", self.method, tuple(METHODS))
         choice("backend", self.backend, BACKENDS)
@@ -102,6 +113,12 @@ class CVODE(Family):
         compiled = compiled_events(cm, events)
         if compiled is not None:  # a value that is not finite at the start: named here
             compiled.values(float(t[0]), y, p)
+        if self.sensitivities is not None:
+            if compiled is not None:
+                raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
+                                      "events, or locate the events in a run of their own)")
+            from .sensitivity import run
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon))
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
@@ -155,6 +172,9 @@ class CVODE(Family):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
         located in each member (:func:`.events.compiled_events`)."""
         self._native_only()
+        if self.sensitivities is not None:
+            raise LagcodegenError("ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) "
+                                  "per member")
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         compiled = compiled_events(cm, events)

@@ -1,0 +1,170 @@
+"""``lagcodegen fit``: run-time parameters (and initial values) of a model file fitted to measured
+data (:func:`lagcodegen.fitting.fit`, the exact Jacobian from forward sensitivities); the
+estimates written as CSV, with a PNG of the data against the fitted trajectory if asked.
+
+One job: the fit command's options, its data file, progress lines and output files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..api import compile_file
+from ..errors import LagcodegenError
+from ..fitting import fit
+from ..util import atomic_binary, atomic_write
+from .common import (EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
+                     load, say)
+
+HELP = "fit run-time parameters of a model file to measured data (CSV); write the estimates (and a PNG)"
+
+DESCRIPTION = """Fit the parameters named by --fit (run-time parameters, or initial values written
+'<coordinate>(0)' / '<coordinate>_dot(0)') so that the model's states or outputs match the data:
+a CSV file whose header is 't' and the observed names (states or outputs of the model), one row
+per time (the first time is the initial time of the run, from the file's initial state). Starting
+values: the file's parameter values (--set overrides) and initial state. Least squares with the
+exact Jacobian from forward sensitivities; the estimates with their standard errors (from the
+residual variance) are printed and, with -o, written as CSV (name,estimate,stderr).
+
+    lagcodegen fit model.toml data.csv --fit l,c -o fit.csv --plot fit.png"""
+
+
+def add_parser(sub) -> None:
+    s = sub.add_parser("fit", help=HELP, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("model", help=MODEL_HELP)
+    s.add_argument("data", help="measured data: CSV with a header 't,<name>,...'")
+    s.add_argument("--fit", required=True, help="comma-separated names to fit (parameters, '<q>(0)', '<q>_dot(0)')")
+    s.add_argument("--observe", help="comma-separated data columns to fit (default: every column but t)")
+    s.add_argument("--sigma", type=float, help="standard deviation of the measurements (default 1: the "
+                                               "standard errors then come from the residuals alone)")
+    s.add_argument("-o", "--output", help="write the estimates as CSV (name,estimate,stderr)")
+    s.add_argument("--plot", help="save a PNG of the data against the fitted trajectory")
+    s.add_argument("--rtol", type=float, help="relative tolerance (default: the file's)")
+    s.add_argument("--atol", type=float, help="absolute tolerance (default: the file's)")
+    add_scene_options(s)
+    s.set_defaults(func=run)
+
+
+def check_args(args) -> None:
+    """Every option of ``fit`` checked before any work (exit 2 on a bad one)."""
+    for name in (args.output, args.plot):
+        if name is not None and not Path(name).parent.exists():
+            raise UsageError(f"{name}: its folder does not exist")
+    if args.plot is not None and not args.plot.lower().endswith(".png"):
+        raise UsageError(f"--plot {args.plot}: give a .png file")
+    if not csv(args.fit):
+        raise UsageError("--fit: name at least one parameter")
+    if args.sigma is not None and not (math.isfinite(args.sigma) and args.sigma > 0):
+        raise UsageError(f"--sigma {args.sigma}: give a positive number")
+    for name in ("rtol", "atol"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value >= 0):
+            raise UsageError(f"--{name} {value}: give a finite non-negative number")
+    if not Path(args.data).is_file():
+        raise UsageError(f"{args.data}: no such data file")
+
+
+def read_data(path: str) -> tuple[list[str], np.ndarray]:
+    """(header, rows) of the data CSV; LagcodegenError naming the file and what is wrong."""
+    text = Path(path).read_text()
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise LagcodegenError(f"{path}: no data")
+    header = [h.strip() for h in lines[0].split(",")]
+    if not header or header[0] != "t" or len(header) < 2:
+        raise LagcodegenError(f"{path}: the header must be 't' followed by observed names, got {lines[0]!r}")
+    try:
+        rows = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
+    except ValueError as exc:
+        raise LagcodegenError(f"{path}: not a table of numbers ({exc})") from None
+    if rows.shape[1] != len(header) or rows.shape[0] < 2:
+        raise LagcodegenError(f"{path}: expected at least two rows of {len(header)} numbers, got {rows.shape}")
+    return header, rows
+
+
+def run(args) -> int:
+    check_args(args)
+    header, rows = read_data(args.data)
+    mf = load(args.model, args.quiet).model_file
+    check_parameter_names(mf, args)
+    mf = apply_options(mf, args)
+    names = csv(args.fit)
+    observe = csv(args.observe) or header[1:]
+    missing = [o for o in observe if o not in header]
+    if missing:
+        raise UsageError(f"--observe {','.join(missing)}: not a column of {args.data} ({', '.join(header)})")
+    if mf.constrained is not None:
+        raise UsageError("fit: models with [constraints] are not fitted (sensitivities of the ODE formulations only)")
+    t0 = time.perf_counter()
+    sim = compile_file(mf, verbose=not args.quiet)
+    say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s", args.quiet)
+    s = mf.simulation
+    q0, v0 = mf.initial_state()
+    values = {p.name: float(v) for p, v in mf.model.params.items()}
+    values.update(s.parameters)
+    start = {}
+    for name in names:
+        if name in values:
+            start[name] = values[name]
+        elif name.endswith("_dot(0)") and name[:-7] in [q.name for q in mf.model.coords]:
+            start[name] = v0[[q.name for q in mf.model.coords].index(name[:-7])]
+        elif name.endswith("(0)") and name[:-3] in [q.name for q in mf.model.coords]:
+            start[name] = q0[[q.name for q in mf.model.coords].index(name[:-3])]
+        else:
+            raise UsageError(f"--fit {name}: neither a parameter of {mf.model.name} nor an initial value "
+                             "('<coordinate>(0)', '<coordinate>_dot(0)')")
+    fixed = {k: v for k, v in s.parameters.items() if k in sim.param_names and k not in names}
+    t = rows[:, 0]
+    data = rows[:, [header.index(o) for o in observe]]
+    t0 = time.perf_counter()
+    result = fit(sim, t, data, params=start, observe=observe, sigma=args.sigma, fixed=fixed, q0=q0, v0=v0,
+                 rtol=args.rtol if args.rtol is not None else s.rtol,
+                 atol=args.atol if args.atol is not None else s.atol)
+    say(f"fitted {', '.join(names)} to {data.size} values in {time.perf_counter() - t0:.3f} s: "
+        f"{result.iterations} iterations, cost {result.cost:.6g}, cond(J^T J) {result.condition:.3g}", args.quiet)
+    for name in names:
+        print(f"{name} = {result.params[name]:.12g} +- {result.stderr[name]:.3g}")
+    if args.output:
+        lines = ["name,estimate,stderr"] + [f"{n},{result.params[n]!r},{result.stderr[n]!r}" for n in names]
+        atomic_write(Path(args.output), "\n".join(lines) + "\n")
+        say(f"wrote {args.output}", args.quiet)
+    if args.plot:
+        _plot(sim, mf, result, t, data, observe, q0, v0, fixed, args.plot)
+        say(f"wrote {args.plot}", args.quiet)
+    return EXIT_OK
+
+
+def _plot(sim, mf, result, t, data, observe, q0, v0, fixed, path) -> None:
+    """PNG: the data (points) against the fitted trajectory (line), a panel per observed name."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    params = {**fixed, **{k: v for k, v in result.params.items() if k in sim.param_names}}
+    coords = [q.name for q in mf.model.coords]
+    q0, v0 = list(q0), list(v0)
+    for k, v in result.params.items():
+        if k.endswith("_dot(0)") and k[:-7] in coords:
+            v0[coords.index(k[:-7])] = v
+        elif k.endswith("(0)") and k[:-3] in coords:
+            q0[coords.index(k[:-3])] = v
+    fine = np.linspace(t[0], t[-1], max(1001, 4 * t.size))
+    res = sim.simulate(fine, q0=q0, v0=v0, params=params, rtol=mf.simulation.rtol, atol=mf.simulation.atol)
+    fig = Figure(figsize=(8, 2.2 * len(observe) + 1))
+    axes = fig.subplots(len(observe), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, name, col in zip(axes, observe, data.T):
+        ax.plot(t, col, ".", ms=3, label="data")
+        ax.plot(fine, res[name], lw=1.0, label="fit")
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right")
+    axes[0].set_title(f"{mf.model.name}: " + ", ".join(f"{k} = {v:.6g}" for k, v in result.params.items()))
+    axes[-1].set_xlabel("t")
+    FigureCanvasAgg(fig)
+    with atomic_binary(Path(path)) as fh:
+        fig.savefig(fh, format="png", dpi=100)

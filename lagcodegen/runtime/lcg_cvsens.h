@@ -1,0 +1,57 @@
+/* lcg_cvsens.h -- lagcodegen's runtime: CVODE with forward sensitivities.
+ *
+ * The state y (ny values) and ns sensitivity blocks s_j = dy/dtheta_j integrated together as one
+ * ODE by CVODE, the right-hand side of both from the model's generated <prefix>_sens_rhs (one
+ * factorization of the mass matrix per call), the Newton systems solved block by block with the
+ * states' matrix I - gamma J (J = df/dy of the model's table: its Jacobian, or difference
+ * quotients of its right-hand side): the simultaneous corrector of CVODES with the off-diagonal
+ * blocks of the augmented Jacobian dropped from the Newton matrix. Model-independent: compiled
+ * once per installation and SUNDIALS version. */
+#ifndef LCG_CVSENS_H
+#define LCG_CVSENS_H
+
+#include "lcg_model.h"
+
+/* ydot = f(t, y, p), sdot[j*ny + i] = d ydot_i / d theta_j (which[j]: the run-time parameter
+ * index of direction j, -1 for an initial value). Returns LCG_OK or a model error code. */
+typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                               const double *s, double *ydot, double *sdot);
+/* dout[j*nout + k] = d output_k / d theta_j at (t, y, s). */
+typedef int (*lcg_sens_out_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                               const double *s, double *dout);
+
+typedef struct lcg_cvsens_options {
+    int method;            /* 1 Adams, 2 BDF */
+    double rtol;
+    const double *atol;    /* ny (1 + ns) absolute tolerances: states, then each sensitivity block */
+    long max_steps;        /* steps over the whole run */
+    int jacobian;          /* 1: the model's Jacobian in the Newton matrix, 0: difference quotients */
+    int max_order;         /* 0: CVODE's default */
+    double first_step, max_step, min_step; /* 0: CVODE's defaults */
+    int (*poll)(void *data, long done, long total); /* called every poll_every s (nonzero: stop); NULL: none */
+    void *poll_data;
+    double poll_every;
+    double max_wall;       /* wall-clock limit in seconds (0: none) */
+} lcg_cvsens_options;
+
+typedef struct lcg_cvsens_stats {
+    long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
+    long njac;             /* Jacobians of the states evaluated */
+    long nfactor;          /* factorizations of I - gamma J */
+    long nblock_solves;    /* block solves (one per block per linear solve) */
+    double h_last, t_reached;
+    int nt_done, model_error, flag;
+    char message[256];
+} lcg_cvsens_stats;
+
+/* Integrate model m with ns sensitivity directions from tout[0]: y(tout[0]) = y0, s(tout[0]) = s0
+ * (ns*ny). Writes yout[k*ny + i], sout[(k*ns + j)*ny + i], out[k*nout + c] and
+ * dout[(k*ns + j)*nout + c] at the nt output times. Returns 0, a negative CVODE flag,
+ * LCG_FLAG_BAD_INPUT, LCG_FLAG_NOMEM, LCG_FLAG_CANCELLED (poll), LCG_FLAG_TIMED_OUT (max_wall) or
+ * LCG_MODEL_ERROR_FLAG(rc). */
+int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
+                     int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
+                     double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
+                     lcg_cvsens_stats *st);
+
+#endif

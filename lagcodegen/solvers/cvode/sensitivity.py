@@ -1,0 +1,233 @@
+"""Forward sensitivities on CVODE: the model's sensitivity functions (``<prefix>_sens.c``,
+:mod:`lagcodegen.codegen.sensitivity`) compiled on first use per compiled model, and one call of
+the runtime's sensitivity driver (``lagcodegen/runtime/lcg_cvsens.c``: the augmented ODE with
+the states' Newton matrix reused for every sensitivity block, CVODES's simultaneous corrector).
+
+Directions: a run-time parameter by its name, a coordinate's initial value ``"<q>(0)"``, its
+initial velocity ``"<q>_dot(0)"`` (also ``"<state>(0)"`` for any state name). Error control on
+the sensitivities (``errcon``, CVODES's errconS) is on by default: the sensitivities enter
+CVODE's error test and Newton convergence test with the states' tolerances; off, they are left
+out of both (weights ~1e-300) and are then only as accurate as the steps chosen for the states.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import os
+import time
+
+import numpy as np
+
+from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
+from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF
+from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
+from ...errors import LagcodegenError
+from ...result import Result
+from ...runtime import sources as runtime_files
+from ..base import METHODS, message
+from ..control import CANCELLED, POLL_EVERY, install, raise_pending
+
+#: The runtime files of the sensitivity driver.
+FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
+
+CDEF = MODEL_TABLE_CDEF + """
+typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                               const double *s, double *ydot, double *sdot);
+typedef int (*lcg_sens_out_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                               const double *s, double *dout);
+typedef struct lcg_cvsens_options {
+    int method;
+    double rtol;
+    const double *atol;
+    long max_steps;
+    int jacobian;
+    int max_order;
+    double first_step, max_step, min_step;
+    int (*poll)(void *data, long done, long total);
+    void *poll_data;
+    double poll_every;
+    double max_wall;
+} lcg_cvsens_options;
+typedef struct lcg_cvsens_stats {
+    long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
+    long njac;
+    long nfactor;
+    long nblock_solves;
+    double h_last, t_reached;
+    int nt_done, model_error, flag;
+    char message[256];
+} lcg_cvsens_stats;
+int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
+                     int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
+                     double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
+                     lcg_cvsens_stats *st);
+""" + POLL_CDEF
+
+#: The statistics of a sensitivity run (Result.stats).
+STATS = ("nsteps", "nrhs", "nlinsetups", "netfails", "nniters", "nncfails", "njac", "nfactor", "nblock_solves",
+         "h_last", "t_reached", "model_error")
+
+
+def _sources() -> dict[str, str]:
+    from ...build import config_header, generated_headers
+    return {**runtime_files(FILES), "lcg_config.h": config_header(find_sundials()), **generated_headers()}
+
+
+@functools.lru_cache(maxsize=4)
+def _runtime(cc: str, cflags: tuple[str, ...]):
+    sundials = find_sundials()
+    texts = [f"{k}\0{v}" for k, v in sorted(_sources().items())]
+    return driver_runtime("cvsens", texts, _sources, CDEF, "lcg_cvsens.h",
+                          [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags)
+
+
+def sens_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
+    """The sensitivity driver's cffi module (``lcg_cvsens_solve``), built once per installation."""
+    return _runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
+
+
+class SensitivityFunctions:
+    """The compiled ``<prefix>_sens_rhs`` and ``<prefix>_sens_outputs`` of a compiled model, as
+    function pointers of the driver's module (``rt``); ``library`` keeps the library open."""
+
+    def __init__(self, cm):
+        code = cm.code
+        scene = getattr(code, "scene", None)
+        if scene is None or cm.table is None:
+            raise LagcodegenError("sensitivities need a compiled model of a scene on the native runtime "
+                                  "(compile_model(...), native build)")
+        prefix = code.prefix
+        sources = sensitivity_source(scene, prefix)
+        self.library, self.path, _ = plain_library("sensitivity functions", f"{prefix}_sens", sources)
+        self.rt = sens_runtime()
+        self.poll = install(self.rt)  # Ctrl-C during a run
+        ffi = self.rt.ffi
+        self.rhs = ffi.cast("lcg_sens_rhs_fn", ctypes.cast(getattr(self.library, f"{prefix}_sens_rhs"),
+                                                            ctypes.c_void_p).value)
+        self.out = ffi.cast("lcg_sens_out_fn", ctypes.cast(getattr(self.library, f"{prefix}_sens_outputs"),
+                                                            ctypes.c_void_p).value)
+        table_address = int(cm.ffi.cast("uintptr_t", cm.table))
+        self.table = ffi.cast("const lcg_model *", table_address)
+        self.prototypes = (SENS_RHS.format(prefix=prefix), SENS_OUTPUTS.format(prefix=prefix))
+
+
+def functions(cm) -> SensitivityFunctions:
+    """The sensitivity functions of ``cm``, built on first use (kept in ``cm.solver_state``)."""
+    fns = cm.solver_state.get("sensitivities")
+    if fns is None:
+        fns = cm.solver_state["sensitivities"] = SensitivityFunctions(cm)
+    return fns
+
+
+def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(names, which, s0) of the directions ``names``: which[j] the run-time parameter index
+    (-1 for an initial value), s0 (ns, ny) the initial sensitivities (unit vectors for initial
+    values, zero for parameters). Unknown or repeated names raise LagcodegenError."""
+    if isinstance(names, str):
+        names = [names]
+    names = list(names)
+    if not names:
+        raise LagcodegenError("sensitivities: give at least one parameter or initial value")
+    params = list(cm.param_names)
+    states = list(cm.state_names)
+    n = cm.n
+    coords = states[:n]
+    which, s0 = [], np.zeros((len(names), cm.ny))
+    for j, name in enumerate(names):
+        if not isinstance(name, str):
+            raise LagcodegenError(f"sensitivities: {name!r} is not a name")
+        if names.index(name) != j:
+            raise LagcodegenError(f"sensitivities: {name!r} is given twice")
+        if name in params:
+            which.append(params.index(name))
+            continue
+        if name.endswith("(0)"):
+            base = name[:-3]
+            if base.endswith("_dot") and base[:-4] in coords:
+                i = n + coords.index(base[:-4])
+            elif base in states:
+                i = states.index(base)
+            else:
+                raise LagcodegenError(f"sensitivities: {name!r} names no initial value (coordinates: "
+                                      f"{', '.join(coords)}; write '<coordinate>(0)' or '<coordinate>_dot(0)')")
+            which.append(-1)
+            s0[j, i] = 1.0
+            continue
+        folded = getattr(cm.code, "folded", {}) or {}
+        if name in folded:
+            raise LagcodegenError(f"sensitivities: parameter {name!r} is folded into the code as a constant; list it "
+                                  "in the scene's runtime_parameters")
+        raise LagcodegenError(f"sensitivities: {name!r} is neither a run-time parameter ({', '.join(params) or 'none'})"
+                              f" nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
+    return names, np.array(which, dtype=np.intc), s0
+
+
+def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names, *, rtol: float, atol: np.ndarray,
+                        method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
+                        max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
+                        min_step: float = 0.0, max_wall: float = 0.0) -> Result:
+    """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
+    ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
+    time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names."""
+    if method not in ("adams", "bdf"):
+        raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
+    names, which, s0 = directions(cm, names)
+    fns = functions(cm)
+    ffi, lib = fns.rt.ffi, fns.rt.lib
+    ns, ny, nt = len(names), cm.ny, t.size
+    nout = cm.code.nout
+    atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+    atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
+    yout = np.empty((nt, ny))
+    sout = np.empty((nt, ns, ny))
+    out = np.empty((nt, max(nout, 1)))
+    dout = np.empty((nt, ns, max(nout, 1)))
+    opt = ffi.new("lcg_cvsens_options *")
+    opt.method = METHODS[method]
+    opt.rtol = rtol
+    opt.atol = ffi.from_buffer("double[]", atol_all)
+    opt.max_steps = int(max_steps)
+    opt.jacobian = int(bool(jacobian))
+    opt.max_order = int(max_order)
+    opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
+    opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(max_wall)
+    st = ffi.new("lcg_cvsens_stats *")
+    fb = ffi.from_buffer
+    p_ptr = fb("double[]", p) if p.size else ffi.NULL
+    start = time.perf_counter()
+    flag = lib.lcg_cvsens_solve(fns.table, fns.rhs, fns.out, p_ptr, ns, fb("int[]", which), fb("double[]", y0),
+                                fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout),
+                                fb("double[]", sout), fb("double[]", out), fb("double[]", dout), opt, st)
+    wall = time.perf_counter() - start
+    if flag == CANCELLED:
+        raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
+    done = st.nt_done
+    stats = {k: getattr(st, k) for k in STATS}
+    stats["wall_time"] = wall
+    detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
+    text = "success" if flag >= 0 else message(flag, st.model_error, detail, t=st.t_reached)
+    sl = slice(0, done)
+    res = Result(t=t[sl].copy(), y=yout[sl].copy(), state_names=list(cm.state_names),
+                 outputs={k: out[sl, i].copy() for i, k in enumerate(cm.output_names)}, stats=stats,
+                 status=int(flag), message=text, backend="native", method=method)
+    res.set_sensitivities(names, list(cm.state_names) + list(cm.output_names),
+                          np.concatenate([sout[sl], dout[sl, :, :nout]], axis=2))
+    return res
+
+
+def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
+        errcon: bool = True) -> Result:
+    """A sensitivity run of ``cm`` with the options of the resolved solver ``family`` (a
+    :class:`~lagcodegen.solvers.cvode.CVODE` on the native backend with the dense Newton solver:
+    the block solver of the sensitivity driver replaces it)."""
+    if family.backend != "native":
+        raise LagcodegenError("sensitivities need backend='native'")
+    if family.linear_solver != "dense":
+        raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
+                              f"{family.linear_solver!r} does not apply (leave it 'dense')")
+    opts = family._ode_options(cm, y, p, True)
+    return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
+                               jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
+                               first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
+                               max_wall=float(family.max_wall))
