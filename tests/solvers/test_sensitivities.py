@@ -185,6 +185,10 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         osc.simulate(t, q0=[1.0]).sensitivity("x", "k")
     with pytest.raises(LagcodegenError, match="ensembles do not compute sensitivities"):
         osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"])
+    with pytest.raises(LagcodegenError, match="sensitivities with events"):
+        osc.simulate(t, q0=[1.0], sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
+    with pytest.raises(LagcodegenError, match="integrator object does not compute sensitivities"):
+        osc.integrator(q0=[1.0], method="adams", sensitivities=["k"])
     # the same run from a solver object
     obj = osc.simulate(t, q0=[1.0], solver=lcg.CVODE(sensitivities=("k",), sensitivity_errcon=True))
     assert np.array_equal(obj.sensitivities, res.sensitivities)

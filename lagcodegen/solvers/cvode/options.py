@@ -144,6 +144,9 @@ class CVODE(Family):
         ``events`` located by CVODE's root finding on their compiled functions, as in :meth:`run_ode`."""
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
+        if self.sensitivities is not None:
+            raise LagcodegenError("the integrator object does not compute sensitivities: use simulate(..., "
+                                  "sensitivities=[...])")
         y, p = mem[1:1 + cm.ny], mem[1 + cm.ny:]
         compiled = compiled_events(cm, events)
         if compiled is not None:
@@ -159,6 +162,9 @@ class CVODE(Family):
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
         (:class:`~lagcodegen.solvers.inputs.InputSet`), interpolated in C by the native driver."""
+        if self.sensitivities is not None:
+            raise LagcodegenError("sensitivities with input tables: not supported (the sensitivity equations treat "
+                                  "every run-time parameter as a constant)")
         if self.backend != "native":
             raise LagcodegenError("input tables need backend='native' (the tables are interpolated in the native "
                                   "CVODE driver)")
