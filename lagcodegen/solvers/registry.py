@@ -47,12 +47,19 @@ def family_class(face: str, method: str | None) -> type[Family]:
 _CACHE: dict = {}
 
 
+def _kind(value):
+    """The type of an option's value (of each item of a tuple) in the key of :data:`_CACHE`: values
+    equal across types (2 and 2.0, 1 and True) resolve differently (``order=2.0`` is refused)."""
+    kind = type(value)
+    return tuple(map(_kind, value)) if kind is tuple else kind
+
+
 def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8) -> Family:
     """The family object of a run on ``face`` ("ode", "index1", "ggl"): ``solver`` (a family
     object or None) with ``options`` (the run's other keywords: method, linear_solver, ...)
     applied, checked against the face. ``n`` and ``rtol`` choose the family of ``method="auto"``."""
     try:
-        key = (face, solver, tuple(options.items()), n, rtol)
+        key = (face, solver, tuple(options.items()), tuple(map(_kind, options.values())), n, rtol)
         hit = _CACHE.get(key)
     except TypeError:  # unhashable values (arrays): resolved every time
         key = hit = None

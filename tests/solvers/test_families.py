@@ -137,6 +137,30 @@ def test_an_object_and_its_keyword_spelling_run_the_same_numbers(pend):
         assert np.array_equal(ens.member(0).y, a.y)  # simulate and ensemble resolve alike
 
 
+def test_cached_resolutions_do_not_leak_between_runs_with_other_options(pend, monkeypatch):
+    """The resolutions kept between calls (per keyword set) and the per-module option structs give
+    every run what a fresh model and an empty cache give it, whichever run came before."""
+    t = np.linspace(0, 4, 9)
+    runs = [dict(method="taylor", rtol=1e-10), dict(method="adams", rtol=1e-6), dict(method="taylor", rtol=1e-5),
+            dict(method="taylor", rtol=1e-5, max_steps=3), dict(method="bdf", rtol=1e-8, max_steps=5),
+            dict(method="bdf", rtol=1e-8), dict(method="taylor", rtol=1e-10, order=6),
+            dict(method="taylor", rtol=1e-10), dict(method="adams", rtol=1e-6, atol=1e-3)]
+    again = [pend.simulate(t, q0=[1.0], raise_on_error=False, **kw) for kw in runs + runs[::-1]]
+    for kw, res in zip(runs + runs[::-1], again):
+        monkeypatch.setattr(registry, "_CACHE", {})
+        fresh = lcg.compile_model(lcg.systems.pendulum(), outputs=["energy"])  # its own solver state
+        ref = fresh.simulate(t, q0=[1.0], raise_on_error=False, **kw)
+        assert res.status == ref.status and res.method == ref.method, kw
+        assert res.t.shape == ref.t.shape and np.array_equal(res.y, ref.y), kw
+        assert res.stats["steps"] == ref.stats["steps"], kw
+    budgets = [r.status for r in again[3:5]]
+    assert min(budgets) < 0 and again[2].status == 0  # the step budgets did take effect
+    # values equal across types are not one key: order=2.0 is refused after order=2 ran
+    pend.simulate(t, q0=[1.0], method="taylor", order=2, raise_on_error=False)
+    with pytest.raises(LagcodegenError, match="order must be an integer"):
+        pend.simulate(t, q0=[1.0], method="taylor", order=2.0)
+
+
 def test_runs_refuse_what_their_family_cannot_do_before_running(pend):
     with pytest.raises(LagcodegenError, match="'linear_solver' is not an option of Taylor"):
         pend.simulate([0, 1], q0=[1.0], method="taylor", linear_solver="band")
