@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import operator
 import os
 import signal
 import tempfile
@@ -141,7 +142,7 @@ def output_times(t) -> np.ndarray:
     elif t.size <= 64:  # a Python pass is cheaper than numpy's on a few values
         times = t.tolist()
         ok = len(times) >= 2 and math.isfinite(times[0]) and math.isfinite(times[-1]) \
-            and all(a < b for a, b in zip(times, times[1:]))
+            and all(map(operator.lt, times, times[1:]))
     else:
         ok = math.isfinite(t[0]) and math.isfinite(t[-1]) and bool((t[1:] > t[:-1]).all())
     if not ok:
@@ -168,6 +169,15 @@ def state_values(val, names: list[str], what: str) -> list[float]:
     a list of finite floats; ModelError names what is wrong (unknown names, length, values)."""
     if val is None:
         return [0.0] * len(names)
+    if type(val) is list or type(val) is tuple:  # the common case: no abstract-class check
+        if len(val) == len(names):
+            try:
+                out = [float(x) for x in val]
+            except (TypeError, ValueError):
+                raise ModelError(f"{what} must be numbers, got {val!r:.60}") from None
+            if not all(map(math.isfinite, out)):
+                raise ModelError(f"{what} has non-finite values")
+            return out
     if isinstance(val, Mapping):
         unknown = set(val) - set(names)
         if unknown:

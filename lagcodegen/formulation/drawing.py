@@ -207,6 +207,9 @@ def _code(cm):
 
 def deferred_drawing(cm) -> DeferredDrawing | None:
     """The deferred drawing of a compiled model (one per model), None without its scene."""
+    cached = cm.__dict__.get("_lcg_drawing")
+    if cached is not None:  # made from the model's scene on an earlier call
+        return cached
     scene = getattr(_code(cm), "scene", None)
     if not isinstance(scene, Scene):
         return None

@@ -256,7 +256,8 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
-        tables = input_set(self.code.input_names, self.param_names, inputs, self.code.model_name)
+        tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
+                                                       self.code.model_name)
         if tables:
             res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
         else:
