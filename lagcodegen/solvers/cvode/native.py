@@ -11,13 +11,14 @@ import time
 import numpy as np
 
 from ...codegen.signatures import CVC_OPTIONS as CVC_STRUCT
+from ...codegen.signatures import CVODE_OPTIONS as CVODE_STRUCT
 from ...codegen.signatures import pack_format
 from ...codes import TOO_MUCH_WORK
 from ...errors import LagcodegenError
 from ...formulation.scene import band_order
 from ...formulation.scene import bandwidths as widths
 from ...result import Result
-from ..base import (METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_options, native_stats,
+from ..base import (METHODS, SINGULAR_AUGMENTED, NativeEvents, PreparedOptions, message, native_stats,
                    pooled_stats, reached_rows)
 from ..control import CANCELLED, POLL_EVERY, raise_pending
 
@@ -57,6 +58,23 @@ def _probe_pattern(cm, y, p) -> np.ndarray:
     return pattern
 
 
+#: The fields of the CVODE driver's options that vary between ODE runs and their pack format
+#: (PreparedOptions; the format from the struct's declaration, lagcodegen.codegen.signatures).
+_CVODE_VARYING = ("method", "jacobian", "rtol", "max_steps", "first_step", "max_step", "min_step", "max_order",
+                  "linear_solver", "mupper", "mlower", "max_wall")
+CVODE_RUN_OPTIONS = (_CVODE_VARYING, pack_format(CVODE_STRUCT, _CVODE_VARYING))
+
+
+def ode_options(cm) -> PreparedOptions:
+    """The options structs of ``cm``'s CVODE driver kept for reuse across its ODE runs (one per
+    distinct set of values; made on first use)."""
+    prepared = cm.solver_state.get("cvode_options")
+    if prepared is None:
+        prepared = cm.solver_state["cvode_options"] = PreparedOptions(
+            cm.ffi, cm.options_type, *CVODE_RUN_OPTIONS, poll=cm.poll, poll_every=POLL_EVERY)
+    return prepared
+
+
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                  min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, events=None,
                  max_events: int = 10_000, inputs=None) -> Result:
@@ -70,14 +88,9 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, max(cm.code.nout, 1)))
     keep: list = []
-    opt = native_options(ffi, cm.options_type, atol, keep, method=METHODS[method], jacobian=int(jacobian),
-                         rtol=rtol, max_steps=max_steps, first_step=first_step, max_step=max_step,
-                         min_step=min_step, max_order=max_order,
-                         linear_solver=1 if band else 2 if fixedpoint else 0,
-                         mupper=band[0] if band else 0, mlower=band[1] if band else 0)
-    opt.poll = cm.poll
-    opt.poll_every = POLL_EVERY
-    opt.max_wall = max_wall
+    opt = ode_options(cm).get(atol, METHODS[method], int(jacobian), rtol, max_steps, first_step, max_step, min_step,
+                              max_order, 1 if band else 2 if fixedpoint else 0, band[0] if band else 0,
+                              band[1] if band else 0, max_wall)
     st = ffi.new(cm.stats_type)
     found = None
     args = (ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
