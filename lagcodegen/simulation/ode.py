@@ -251,7 +251,8 @@ class CompiledModel(CompiledReprMixin):
         inputs = options.pop("inputs", None)
         t = output_times(t)
         y = initial_state(self, q0, v0, y0, z0)
-        if not all(map(math.isfinite, y.tolist())):
+        # q0, v0, z0 were checked finite one by one (ModelError naming which); y0 as a whole here
+        if y0 is not None and not all(map(math.isfinite, y.tolist())):
             raise LagcodegenError("the initial state has non-finite values")
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import functools
+import operator
 import os
 
 import numpy as np
@@ -40,6 +41,11 @@ from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 from .decompose import Decomposition, decompose
 from .emit import (P_MAX, check_events, jet_sources, runtime_key_texts, runtime_sources, taylor_cdef,
                    taylor_sources)
+
+#: The statistics struct's fields a run reads, in one call.
+_STATS = operator.attrgetter("nsteps", "njet", "order", "nroot", "t_reached", "h_last", "h_min", "h_max",
+                             "model_error", "nt_done")
+
 
 def message(flag: int, model_error: int, detail: str) -> str:
     """The text of a driver flag (:data:`lagcodegen.solvers.base.FLAG_TEXT` ["Taylor"])."""
@@ -223,11 +229,10 @@ class TaylorModule:
                            buf("double[]", out), opt, st, ev)
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
-        njet = st.njet
-        stats = {"steps": st.nsteps, "rhs_evals": njet, "jet_evals": njet, "order": st.order,
-                 "root_searches": st.nroot, "t_reached": st.t_reached, "h_last": st.h_last, "h_min": st.h_min,
-                 "h_max": st.h_max, "model_error": st.model_error}
-        done = st.nt_done
+        nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error, done = _STATS(st)
+        stats = {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used,
+                 "root_searches": nroot, "t_reached": t_reached, "h_last": h_last, "h_min": h_min,
+                 "h_max": h_max, "model_error": model_error}
         t = t_out
         if done < nt:
             t, yout, out = t_out[:done].copy(), yout[:done], out[:done]
