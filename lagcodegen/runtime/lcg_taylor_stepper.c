@@ -213,6 +213,16 @@ int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, cons
         double h, rem, sum, bb;
         int end = 0, nroot = 0, e, j;
 
+        /* Grid and end times within rounding of the current time (a step ended there): its state,
+         * as the run driver (templates/taylor/_driver.j2) does; no step below the resolution of t. */
+        while (kout < nt && (tout[kout] - thi) - tlo <= 4.0 * DBL_EPSILON * fabs(thi)) {
+            for (i = 0; i < NY; ++i)
+                yout[(long)kout * NY + i] = y[i];
+            st->nt_done = ++kout;
+        }
+        if (nt > 0 ? kout == nt : (t_end - thi) - tlo <= 4.0 * DBL_EPSILON * fabs(thi))
+            break;
+
         if (taken >= opt->max_steps) {
             snprintf(st->message, sizeof st->message,
                      "the step budget max_steps = %ld of one call is used up before t = %.17g", opt->max_steps,

@@ -166,6 +166,20 @@ def test_step_advances_monotonically_along_the_solution(double_pendulum, method)
     assert np.max(np.abs(np.array(states) - ref.y[1:])) < 1e-7
 
 
+@pytest.mark.parametrize("method", ["taylor", "adams"])
+def test_end_and_grid_times_within_rounding_of_the_current_time_take_its_state(double_pendulum, method):
+    """An end or grid time one or two ulps past the integrator's time (a step ended there) gives
+    the state there, not a step below the resolution of t (the Taylor stepper failed on it)."""
+    with double_pendulum.integrator(q0=[1.0, 0.5], method=method, **TOL) as integ:
+        for _ in range(5):
+            integ.step()
+        t, state = integ.time, integ.state.copy()
+        integ.propagate_until(np.nextafter(np.nextafter(t, 1e9), 1e9))
+        assert abs(integ.time - t) <= 4 * np.spacing(t) and np.allclose(integ.state, state, rtol=0, atol=1e-14)
+        out = integ.propagate_grid(np.array([integ.time, np.nextafter(integ.time, 1e9)]))
+        assert np.allclose(out, state, rtol=0, atol=1e-14)
+
+
 def test_taylor_steps_are_the_steps_of_simulate(double_pendulum):
     """step() takes the run driver's steps: 40 of them end where simulate's 40th step ends."""
     with double_pendulum.integrator(q0=[1.0, 0.5], method="taylor", **TOL) as integ:
