@@ -329,7 +329,9 @@ class CompiledModel(CompiledReprMixin):
         those of :meth:`simulate` (solver, rtol, atol, method, max_steps, ...; ``max_wall``: the
         wall-clock limit of each member in seconds). ``inputs``: input name -> one
         :class:`~lagcodegen.solvers.inputs.Table` (or (times, values)) for every member, or a list
-        of one per member (native CVODE). Returns
+        of one per member (native CVODE). ``sensitivities`` (native CVODE, no events): each
+        member's forward sensitivities, bit-identical to its run alone, in the result's
+        ``sensitivities`` / ``sensitivity(value, direction)`` by member. Returns
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult`; Ctrl-C raises
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` (a KeyboardInterrupt)
         holding what finished.

@@ -183,8 +183,8 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         res.sensitivity("v", "k")
     with pytest.raises(LagcodegenError, match="no sensitivities"):
         osc.simulate(t, q0=[1.0]).sensitivity("x", "k")
-    with pytest.raises(LagcodegenError, match="ensembles do not compute sensitivities"):
-        osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"])
+    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported in ensembles"):
+        osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
     with pytest.raises(LagcodegenError, match="sensitivities with events"):
         osc.simulate(t, q0=[1.0], sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
     with pytest.raises(LagcodegenError, match="integrator object does not compute sensitivities"):

@@ -178,16 +178,33 @@ class CVODE(Family):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
         located in each member (:func:`.events.compiled_events`)."""
         self._native_only()
-        if self.sensitivities is not None:
-            raise LagcodegenError("ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) "
-                                  "per member")
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         compiled = compiled_events(cm, events)
+        if self.sensitivities is not None:
+            return self._ensemble_sensitivities(cm, t, Y, P, rtol, atol, compiled, threads=threads, save=save,
+                                                progress=progress)
         opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
         max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
                                      save=save, progress=progress, events=compiled, max_events=max_events)
+
+    def _ensemble_sensitivities(self, cm, t, Y, P, rtol, atol, compiled, *, threads, save, progress):
+        """Members with forward sensitivities (:mod:`.sensitivity_ensemble`), each a run of the
+        sensitivity driver as :meth:`run_ode` makes it."""
+        from .sensitivity import check_family
+        from .sensitivity_ensemble import ensemble_sensitivities
+        if compiled is not None:
+            raise LagcodegenError("sensitivities with events: not supported in ensembles (run the members with "
+                                  "simulate(..., events=..., sensitivities=[...]))")
+        check_family(self)
+        opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
+        return ensemble_sensitivities(cm, t, Y, P, rtol, atol, self.sensitivities, threads=threads, save=save,
+                                      progress=progress, method=opts["method"],
+                                      errcon=bool(self.sensitivity_errcon), jacobian=opts["jacobian"],
+                                      max_steps=opts["max_steps"], max_order=opts["max_order"],
+                                      first_step=opts["first_step"], max_step=opts["max_step"],
+                                      min_step=opts["min_step"], max_wall=float(self.max_wall))
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables

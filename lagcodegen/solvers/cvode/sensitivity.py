@@ -231,3 +231,13 @@ def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, at
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
                                first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
                                max_wall=float(family.max_wall))
+
+
+def check_family(family) -> None:
+    """Refuse the options of ``family`` (a CVODE object) that the sensitivity driver does not take
+    (as :func:`run` does)."""
+    if family.backend != "native":
+        raise LagcodegenError("sensitivities need backend='native'")
+    if family.linear_solver != "dense":
+        raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
+                              f"{family.linear_solver!r} does not apply (leave it 'dense')")
