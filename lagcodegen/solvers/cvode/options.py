@@ -113,12 +113,10 @@ class CVODE(Family):
         compiled = compiled_events(cm, events)
         if compiled is not None:  # a value that is not finite at the start: named here
             compiled.values(float(t[0]), y, p)
-        if self.sensitivities is not None:
-            if compiled is not None:
-                raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
-                                      "events, or locate the events in a run of their own)")
+        if self.sensitivities is not None:  # events: their times' sensitivities too (.sensitivity_events)
             from .sensitivity import run
-            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon))
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon),
+                       events=compiled)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
