@@ -142,9 +142,6 @@ class CVODE(Family):
         ``events`` located by CVODE's root finding on their compiled functions, as in :meth:`run_ode`."""
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
-        if self.sensitivities is not None:
-            raise LagcodegenError("the integrator object does not compute sensitivities: use simulate(..., "
-                                  "sensitivities=[...])")
         y, p = mem[1:1 + cm.ny], mem[1 + cm.ny:]
         compiled = compiled_events(cm, events)
         if compiled is not None:
@@ -154,8 +151,20 @@ class CVODE(Family):
             compiled.values(float(mem[0]), y, p)  # a value that is not finite at the start: named here
         opts = self._ode_options(cm, y, p, True)
         max_events = 10_000 if self.max_events is None else self.max_events
+        if self.sensitivities is not None:  # the sensitivity driver's stepper (.sensitivity_stepper)
+            return self._sensitivity_stepper(cm, mem, rtol, atol, opts, compiled, max_events)
         return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), events=compiled,
                             max_events=max_events, **opts)
+
+    def _sensitivity_stepper(self, cm, mem, rtol, atol, opts, compiled, max_events):
+        from .sensitivity import check_family
+        from .sensitivity_stepper import CVSensStepper
+        check_family(self)
+        return CVSensStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
+                             method=opts["method"], jacobian=opts["jacobian"], max_steps=opts["max_steps"],
+                             first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
+                             max_order=opts["max_order"], max_wall=float(self.max_wall), events=compiled,
+                             max_events=max_events)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
