@@ -37,7 +37,8 @@ class CVODE(Family):
     a run, 64 per ensemble member). Forward sensitivities of the ODE of a scene (native):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``; :mod:`.sensitivity`), ``sensitivity_errcon`` the sensitivities in the error
-    test (default True, CVODES's errconS).
+    test (default True, CVODES's errconS); in runs with events (:mod:`.sensitivity_events`),
+    ensembles (:mod:`.sensitivity_ensemble`) and the integrator object (:mod:`.sensitivity_stepper`).
     """
 
     name = "CVODE"
