@@ -4,7 +4,9 @@ each member's states and sensitivities are bit-identical to the same run alone; 
 spread over ``threads`` Python threads (the driver runs without the GIL) and gathered into one
 :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult` whose ``sensitivities`` (N, ns,
 nvalues) hold each member's at its last output time (``sensitivity_trajectories`` (N, nt, ns,
-nvalues) with ``save`` other than "final")."""
+nvalues) with ``save`` other than "final"). Ctrl-C raises
+:class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` holding the members that
+finished (the others NOT_RUN)."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..control import NOT_RUN, Progress
-from ..ensemble_result import COUNT_NAMES, EnsembleResult
+from ..ensemble_result import COUNT_NAMES, EnsembleInterrupted, EnsembleResult
 from ..ensemble_run import _columns, default_threads
 from .sensitivity import directions, functions, solve_sensitivities
 
@@ -70,24 +72,37 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
                 traj[i, :rows] = full[:, cols]
                 sens_traj[i, :rows] = res.sensitivities
 
+    def result() -> EnsembleResult:
+        stats = dict(counts)
+        stats["wall"] = wall
+        res = EnsembleResult(t=t, state_names=list(cm.state_names), output_names=list(cm.output_names),
+                             status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=ny, stats=stats,
+                             messages=messages, columns=cols_names, traj=traj, params=P,
+                             param_names=list(cm.param_names), method=driver.get("method", ""), n_coordinates=cm.n)
+        res.set_sensitivities(names, values, sens, sens_traj)
+        return res
+
     n_threads = default_threads(n_mem) if threads is None else max(1, int(threads))
+    pool = ThreadPoolExecutor(max_workers=n_threads) if n_threads > 1 else None
+    futures = []
     try:
-        if n_threads == 1:
+        if pool is None:
             for i in range(n_mem):
                 member(i)
                 bar.update(i + 1, n_mem)
         else:
-            with ThreadPoolExecutor(max_workers=n_threads) as pool:
-                for done, fut in enumerate([pool.submit(member, i) for i in range(n_mem)], 1):
-                    fut.result()
-                    bar.update(done, n_mem)
+            futures = [pool.submit(member, i) for i in range(n_mem)]
+            for done, fut in enumerate(futures, 1):
+                fut.result()
+                bar.update(done, n_mem)
+    except KeyboardInterrupt:  # Ctrl-C: the members not started stay NOT_RUN; those running finish
+        for fut in futures:
+            fut.cancel()
+        if pool is not None:
+            pool.shutdown(wait=True)
+        raise EnsembleInterrupted(result()) from None
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
         bar.close(int(np.count_nonzero(status != NOT_RUN)))
-    stats = dict(counts)
-    stats["wall"] = wall
-    res = EnsembleResult(t=t, state_names=list(cm.state_names), output_names=list(cm.output_names), status=status,
-                         t_reached=t_reached, nt_done=nt_done, final=final, nrow=ny, stats=stats, messages=messages,
-                         columns=cols_names, traj=traj, params=P, param_names=list(cm.param_names),
-                         method=driver.get("method", ""), n_coordinates=cm.n)
-    res.set_sensitivities(names, values, sens, sens_traj)
-    return res
+    return result()
