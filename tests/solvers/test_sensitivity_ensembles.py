@@ -66,3 +66,30 @@ def test_executor_chunks_carry_sensitivities(pend):
     ref = pend.ensemble(t, q0=q0, save="trajectory", sensitivities=["l"])
     assert np.array_equal(ens.sensitivity_trajectories, ref.sensitivity_trajectories)
     assert np.array_equal(ens.sensitivities, ref.sensitivities)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_ctrl_c_keeps_the_members_that_finished(pend, monkeypatch, threads):
+    """A KeyboardInterrupt while member 2 runs (as the driver raises it after Ctrl-C): an
+    EnsembleInterrupted holding members 0 and 1 as they finished, member 2 and, on one thread, the
+    rest never run (-82)."""
+    from lagcodegen.solvers.cvode import sensitivity_ensemble
+    from lagcodegen.solvers.ensemble_result import EnsembleInterrupted
+    real = sensitivity_ensemble.solve_sensitivities
+
+    def interrupted(cm, t, y0, *args, **kw):
+        if y0[0] == 0.3:
+            raise KeyboardInterrupt
+        return real(cm, t, y0, *args, **kw)
+
+    monkeypatch.setattr(sensitivity_ensemble, "solve_sensitivities", interrupted)
+    t = np.linspace(0.0, 1.0, 11)
+    with pytest.raises(EnsembleInterrupted) as info:
+        pend.ensemble(t, q0=np.array([[0.1], [0.2], [0.3], [0.4]]), threads=threads, sensitivities=["l"])
+    part = info.value.result
+    assert list(part.status[:3]) == [0, 0, -82]
+    alone = pend.simulate(t, q0=[0.2], sensitivities=["l"])
+    assert np.array_equal(part.sensitivities[1], alone.sensitivities[-1])
+    assert np.isnan(part.sensitivities[2]).all()
+    if threads == 1:
+        assert part.status[3] == -82
