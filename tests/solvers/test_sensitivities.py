@@ -183,8 +183,6 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         res.sensitivity("v", "k")
     with pytest.raises(LagcodegenError, match="no sensitivities"):
         osc.simulate(t, q0=[1.0]).sensitivity("x", "k")
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported in ensembles"):
-        osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
     # events (tests/solvers/test_sensitivity_events.py): x = cos(w t) crosses 0 at t = pi / (2 w),
     # w = sqrt(k/m): dt/dk = -t / (2 k)
     hit = osc.simulate(t, q0=[1.0], sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))]).events[-1]

@@ -79,11 +79,30 @@ def test_recording_events_leave_the_sensitivities_as_they_are(pend):
     assert abs(second.t_sensitivity["l"] / first.t_sensitivity["l"] - second.t / first.t) < 1e-6
 
 
+def test_ensemble_members_stop_at_their_events(pend):
+    """Members with a terminal event: final state, sensitivities and t_reached those of the event
+    (bit-identical to each run alone), the trajectory the output times before it."""
+    t = np.linspace(0.0, 1.0, 11)
+    ev = lcg.Event("bottom", TH, -1, True)
+    q0 = np.array([[0.1], [0.2], [-0.3]])  # the last one starts below zero: no downward crossing
+    ens = pend.ensemble(t, q0=q0, events=[ev], save="trajectory", sensitivities=["l", "theta(0)"])
+    assert list(ens.stats["events"]) == [1, 1, 0] and list(ens.stats["terminated"]) == [1, 1, 0]
+    for i in range(3):
+        alone = pend.simulate(t, q0=q0[i], events=[ev], sensitivities=["l", "theta(0)"])
+        assert ens.t_reached[i] == alone.t[-1]
+        assert np.array_equal(ens.y[i], alone.y[-1]) and np.array_equal(ens.sensitivities[i], alone.sensitivities[-1])
+        rows = int(ens.nt_done[i])
+        assert rows == (t <= alone.t[-1]).sum() and np.isnan(ens.sensitivity_trajectories[i, rows:]).all()
+        assert np.array_equal(ens.sensitivity_trajectories[i, :rows], alone.sensitivities[:rows])
+    # the quarter period at amplitude 0.1: (pi/2) sqrt(l/g) (1 + a^2/16 + 11 a^4/3072 + O(a^6))
+    a = 0.1
+    assert ens.t_reached[0] == pytest.approx(0.5 * np.pi * np.sqrt(1 / 9.81) * (1 + a ** 2 / 16 + 11 * a ** 4 / 3072),
+                                             rel=1e-6)
+
+
 def test_refusals(pend):
     t = np.linspace(0.0, 1.0, 3)
     ev = lcg.Event("bottom", TH, -1, True)
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported in ensembles"):
-        pend.ensemble(t, q0=np.array([[0.1], [0.2]]), events=[ev], sensitivities=["l"])
     with pytest.raises(LagcodegenError, match="'sensitivities' is not an option of Taylor"):
         pend.simulate(t, q0=[0.1], events=[ev], method="taylor", sensitivities=["l"])
 

@@ -202,9 +202,6 @@ class CVODE(Family):
         sensitivity driver as :meth:`run_ode` makes it."""
         from .sensitivity import check_family
         from .sensitivity_ensemble import ensemble_sensitivities
-        if compiled is not None:
-            raise LagcodegenError("sensitivities with events: not supported in ensembles (run the members with "
-                                  "simulate(..., events=..., sensitivities=[...]))")
         check_family(self)
         opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
         return ensemble_sensitivities(cm, t, Y, P, rtol, atol, self.sensitivities, threads=threads, save=save,
@@ -212,7 +209,8 @@ class CVODE(Family):
                                       errcon=bool(self.sensitivity_errcon), jacobian=opts["jacobian"],
                                       max_steps=opts["max_steps"], max_order=opts["max_order"],
                                       first_step=opts["first_step"], max_step=opts["max_step"],
-                                      min_step=opts["min_step"], max_wall=float(self.max_wall))
+                                      min_step=opts["min_step"], max_wall=float(self.max_wall), events=compiled,
+                                      max_events=64 if self.max_events is None else self.max_events)
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables

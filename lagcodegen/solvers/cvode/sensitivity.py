@@ -231,6 +231,7 @@ def add_events(cm, fns, res: Result, found: SensEvents, names, which, p) -> None
     from .native import add_event_row
     res.events = found.records(cm, fns, names, which, p)
     res.stats["events"] = int(found.struct.n_events)
+    res.stats["terminated"] = int(found.terminated)
     if found.terminated and res.events:
         rows = res.t.size
         add_event_row(cm, res, res.events[-1], p)

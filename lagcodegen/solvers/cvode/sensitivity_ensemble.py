@@ -29,8 +29,11 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
                            threads, save, progress, **driver) -> EnsembleResult:
     """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (checked
     once); ``driver``: the keywords of :func:`solve_sensitivities` (method, errcon, jacobian,
-    budgets). A member that fails keeps its rows up to the last output time it reached: its
-    ``final`` row and sensitivities are that time's (``t_reached`` the solver's time)."""
+    budgets, events: located in every member, counted in its stats ``events`` and ``terminated``;
+    a terminal event's time, state and sensitivities are the member's ``t_reached``, final row
+    and final sensitivities, its trajectory the output times before it). A member that fails
+    keeps its rows up to the last output time it reached: its ``final`` row and sensitivities
+    are that time's (``t_reached`` the solver's time)."""
     names = directions(cm, names)[0]
     functions(cm)  # built once, before the threads start
     n_mem, nt, ny, nout = Y.shape[0], t.shape[0], cm.ny, cm.code.nout
@@ -56,11 +59,16 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
                                   atol=atol, **driver)
         wall[i] = time.perf_counter() - start
         rows = res.t.size
+        grid = min(rows, t.size)  # the rows at output times (a terminal event's row follows them)
+        while grid and res.t[grid - 1] != t[grid - 1]:
+            grid -= 1
         status[i] = res.status
-        nt_done[i] = rows
+        nt_done[i] = grid
         t_reached[i] = res.stats["t_reached"] if res.status < 0 else res.t[-1]
         for k, s in _COUNTS.items():
             counts[k][i] = res.stats[s]
+        counts["events"][i] = res.stats.get("events", 0)
+        counts["terminated"][i] = res.stats.get("terminated", 0)
         if res.status < 0:
             messages[i] = res.message
         if rows:
@@ -69,8 +77,8 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
             sens[i] = res.sensitivities[-1]
             if traj is not None:
                 full = np.column_stack([res.y, *(res.outputs[k] for k in cm.output_names)])
-                traj[i, :rows] = full[:, cols]
-                sens_traj[i, :rows] = res.sensitivities
+                traj[i, :grid] = full[:grid, cols]
+                sens_traj[i, :grid] = res.sensitivities[:grid]
 
     def result() -> EnsembleResult:
         stats = dict(counts)
