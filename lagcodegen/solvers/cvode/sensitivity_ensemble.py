@@ -19,6 +19,7 @@ from ..control import NOT_RUN, Progress
 from ..ensemble_result import COUNT_NAMES, EnsembleInterrupted, EnsembleResult
 from ..ensemble_run import _columns, default_threads
 from .sensitivity import directions, functions, solve_sensitivities
+from .sensitivity_events import gradients
 
 #: The sensitivity driver's statistics behind the ensemble's per-member counts (COUNT_NAMES).
 _COUNTS = {"steps": "nsteps", "rhs_evals": "nrhs", "jac_evals": "njac", "err_test_fails": "netfails",
@@ -36,6 +37,8 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
     are that time's (``t_reached`` the solver's time)."""
     names = directions(cm, names)[0]
     functions(cm)  # built once, before the threads start
+    if driver.get("events") is not None:
+        gradients(cm, driver["events"])  # the event functions' derivatives too
     n_mem, nt, ny, nout = Y.shape[0], t.shape[0], cm.ny, cm.code.nout
     values = list(cm.state_names) + list(cm.output_names)
     cols_names, cols = _columns(save, list(cm.state_names), list(cm.output_names), {})
