@@ -14,6 +14,7 @@ from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
 from ..family import Family, choice
 from . import ensemble, native
+from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
 from .events import compiled_events
 
@@ -137,6 +138,18 @@ class CVODE(Family):
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
         return res
+
+    def prepared_ode(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
+        (:class:`.prepared.PreparedCVODERun`): what ``simulate()``'s fast path calls; ``fixed`` the
+        members every result shares. None where a run needs more than the native driver's call
+        (sensitivities, scikit-sundae, bandwidths probed at the initial state)."""
+        if self.backend != "native" or self.sensitivities is not None or not cm.native or cm.native_solve is None:
+            return None
+        if self.linear_solver == "band" and self.bandwidths is None and getattr(cm.code, "jac_pattern", None) is None:
+            return None
+        opts = self._ode_options(cm, None, None, True)
+        return PreparedCVODERun(cm, rtol=rtol, atol=atol, max_wall=float(self.max_wall), fixed=fixed, **opts)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
