@@ -61,6 +61,7 @@ class Integrator:
         self._ffi = stepper.ffi
         self._t = stepper.ffi.from_buffer("double[]", mem)  # mem[0] read and written as a Python float
         self._from_buffer = stepper.ffi.from_buffer
+        self._last_arrays = [(None, None), (None, None)]  # propagate_grid's times and out, and their cdata
         self._ne = len(stepper.events)
         self.events: list[EventRecord] = []  # the events located by the last call
         self.stopped_by: EventRecord | None = None  # the terminal event that ended the last call, or None
@@ -165,11 +166,13 @@ class Integrator:
         nt = times.shape[0]
         if out is None:
             out = np.empty((nt, self._ny))
+            out_ptr = self._from_buffer("double[]", out)
         elif type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny):
             raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
-        fb = self._from_buffer
+        else:
+            out_ptr = None
         try:
-            flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
+            flag = self._grid(nt, self._pointer(times, 0), out_ptr if out_ptr is not None else self._pointer(out, 1))
         except (ValueError, BufferError):  # not contiguous
             if not out.flags.c_contiguous:
                 raise LagcodegenError("out must be C-contiguous") from None
@@ -184,6 +187,17 @@ class Integrator:
             if done < nt:
                 return out[:done]
         return out
+
+    def _pointer(self, arr: np.ndarray, slot: int):
+        """The cdata of ``arr`` for the C call, kept while the same array comes back (a caller's
+        preallocated times and ``out`` cost no conversion; the cdata holds the array, so no other
+        array can take its place at the same address)."""
+        last = self._last_arrays[slot]
+        if last[0] is arr:
+            return last[1]
+        ptr = self._from_buffer("double[]", arr)
+        self._last_arrays[slot] = (arr, ptr)
+        return ptr
 
     @staticmethod
     def _times(times) -> np.ndarray:
