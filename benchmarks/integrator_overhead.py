@@ -12,11 +12,16 @@ on the Taylor integrator and on CVODE (Adams), each call advancing by dt (1 ms: 
 * ``closed loop``    ``integ.params[k] = u; integ.propagate_for(dt)`` (a parameter written in place,
                      u = g (1 + 1e-3 q) new at every call: the Taylor stepper recomputes its run
                      constants, CVODE restarts) against the C call after the same write;
-* ``propagate_grid`` ``integ.propagate_grid(times)`` over 10 times spanning dt, against the C call
-                     with preallocated arrays;
+* ``propagate_grid`` ``integ.propagate_grid(times)`` over 10 times spanning dt (a new times array
+                     and a new result array each call), against the C call with preallocated arrays;
+* ``propagate_grid, out=``  the same with preallocated arrays, as the C call has them
+                     (``np.add(integ.time, offsets, out=times); integ.propagate_grid(times, out=rows)``);
 * ``step``           ``integ.step()`` against the C call of one step;
 * ``simulate``       ``sim.simulate(np.array([0, dt]), y0=..., method=...)`` against the run
-                     driver called through cffi with prepared arguments.
+                     driver called through cffi with prepared arguments (after the first call with
+                     these options: the fast path);
+* ``simulate, full path``  the same call on the full path (every option resolved and checked each
+                     call, ``CompiledModel._simulate``): what every call cost before the fast path.
 
 The Python overhead of a call is its time minus the C work, the C work being the C call minus
 the cffi no-op (so the cffi call's own cost counts as overhead). Targets of the small-systems
@@ -24,7 +29,7 @@ issue: at most 2 us for the integrator object, 8 us for ``simulate()`` at n = 1.
 
 Usage::
 
-    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N]
+    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N] [--methods taylor,adams,bdf]
 """
 
 from __future__ import annotations
@@ -61,6 +66,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--quick", action="store_true", help="n = 1 only, 5 rounds (< 2 min)")
     ap.add_argument("--out", metavar="DIR", type=Path, help="write integrator_overhead.txt and .csv")
     ap.add_argument("--rounds", type=int, help="rounds per median (default 15; quick 5)")
+    ap.add_argument("--methods", default="taylor,adams", help="comma-separated: taylor, adams, bdf (default "
+                    "taylor,adams)")
     ap.add_argument("--batch", type=float, default=0.02, help="seconds per timed batch (default 0.02)")
     return ap.parse_args(argv)
 
@@ -87,7 +94,7 @@ def raw_driver(sim, method: str, dt: float):
         ffi = sim.ffi
         yout, out = np.empty((2, sim.ny)), np.empty((2, 1))
         opt = ffi.new(f"{sim.options_type} *")
-        opt.method, opt.jacobian = 1, int(bool(sim.code.jacobian))
+        opt.method, opt.jacobian = {"adams": 1, "bdf": 2}[method], int(bool(sim.code.jacobian))
         opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = TOL, TOL, ffi.NULL, 1_000_000
         st = ffi.new(sim.stats_type)
         args = (sim.c_params(p), ffi.from_buffer("double[]", y0), 2, ffi.from_buffer("double[]", t),
@@ -126,6 +133,8 @@ def cases(sim, method: str, dt: float) -> dict:
     gr_tp = gr_ffi.from_buffer("double[]", gr_times)
     gr_yp = gr_ffi.from_buffer("double[]", gr_yout)
     gr_i = integ("grid")
+    gro_i = integ("grid_out")
+    gro_times, gro_rows = np.empty(grid_n), np.empty((grid_n, sim.ny))
     st_c = integ("step_c")
     st_step = st_c._stepper.step
     st_i = integ("step")
@@ -139,6 +148,10 @@ def cases(sim, method: str, dt: float) -> dict:
 
     def grid():
         return gr_i.propagate_grid(gr_i.time + offsets)
+
+    def grid_out():
+        np.add(gro_i.time, offsets, out=gro_times)
+        return gro_i.propagate_grid(gro_times, out=gro_rows)
 
     def closed_c():
         cl_c_mem[k_par] = g0 * (1 + 1e-3 * cl_c_mem[1])
@@ -156,10 +169,12 @@ def cases(sim, method: str, dt: float) -> dict:
         "closed loop": closed,
         "C call, grid": c_grid,
         "propagate_grid": grid,
+        "propagate_grid, out=": grid_out,
         "C call, one step": lambda: st_step(INF),
         "step": st_i.step,
         "run driver": raw,
         "simulate": lambda: sim.simulate(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL),
+        "simulate, full path": lambda: sim._simulate(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL),
     }
     return fns, objs
 
@@ -193,13 +208,14 @@ def rows_of(label: str, n: int, method: str, dt: float, timed) -> list[dict]:
     med, best = timed
     noop = med["cffi no-op"]
     pairs = [("propagate_for", "C call"), ("closed loop", "C call, input written"),
-             ("propagate_grid", "C call, grid"), ("step", "C call, one step"), ("simulate", "run driver")]
+             ("propagate_grid", "C call, grid"), ("propagate_grid, out=", "C call, grid"), ("step", "C call, one step"),
+             ("simulate", "run driver"), ("simulate, full path", "run driver")]
     rows = []
     for call, c_call in pairs:
         c_work = med[c_call] - noop
         overhead = med[call] - c_work
         best_overhead = best[call] - (best[c_call] - best["cffi no-op"])
-        target = TARGET_SIMULATE_US if call == "simulate" else TARGET_INTEGRATOR_US
+        target = TARGET_SIMULATE_US if call.startswith("simulate") else TARGET_INTEGRATOR_US
         rows.append(dict(model=label, n=n, method=method, dt=dt, call=call, call_us=med[call], c_call_us=med[c_call],
                          cffi_noop_us=noop, c_work_us=c_work, overhead_us=overhead,
                          wrapper_us=med[call] - med[c_call], best_overhead_us=best_overhead, target_us=target,
@@ -219,7 +235,7 @@ def main(argv=None) -> int:
     for label, model in models:
         progress(f"{label}: compile")
         sim = lcg.compile_model(model)
-        for method in ("taylor", "adams"):
+        for method in args.methods.split(","):
             for dt in dts:
                 progress(f"{label}: {method}, dt = {dt:g}: {rounds} rounds")
                 rows += rows_of(label, sim.n, method, dt, measure(sim, method, dt, rounds, args.batch))

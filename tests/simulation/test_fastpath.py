@@ -189,3 +189,17 @@ def test_fast_runs_from_several_threads(double_pendulum, method):
     for a, b in zip(got, serial):
         assert isinstance(a, LazyResult)
         assert_same(a, b)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_fast_path_of_a_model_without_outputs(method):
+    cm = lcg.compile_model(systems.pendulum())
+    assert cm.code.nout == 0
+    t = np.linspace(0.0, 2.0, 11)
+    cm.simulate(t, q0=[2.0], method=method)
+    fast = cm.simulate(t, q0=[2.0], method=method)
+    assert isinstance(fast, LazyResult) and fast.outputs == {}
+    assert_same(fast, cm._simulate(t, q0=[2.0], method=method))
+    # the pendulum is symmetric: the run from -q0 is the mirror image of the run from q0
+    np.testing.assert_allclose(fast.y[:, 0], cm.simulate(t, q0=[-2.0], method=method).y[:, 0] * -1, rtol=0,
+                               atol=1e-6)

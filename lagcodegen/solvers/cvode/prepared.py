@@ -42,7 +42,9 @@ class PreparedCVODERun:
         self.ffi = cm.ffi
         self.stats_type = cm.stats_type
         self.ny = cm.ny
-        self.nout = max(cm.code.nout, 1)
+        self.nout = cm.code.nout
+        empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
+        self.no_out = (empty, cm.ffi.from_buffer("double[]", empty))
         self.fixed = dict(fixed, backend="native", method=method)
         self.maker = CVODEResultMaker(cm.ffi, cm.state_names, cm.output_names, cm.param_names)
 
@@ -51,9 +53,13 @@ class PreparedCVODERun:
         fb = ffi.from_buffer
         nt = t.shape[0]
         yout = np.empty((nt, self.ny))
-        out = np.empty((nt, self.nout))
+        if self.nout:
+            out = np.empty((nt, self.nout))
+            out_ptr = fb("double[]", out)
+        else:
+            out, out_ptr = self.no_out
         st = ffi.new(self.stats_type)
-        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), fb("double[]", out), self.opt, st)
+        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st)
         if flag >= 0 and st.nt_done >= nt:
             return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, "success")
         if flag == CANCELLED:
