@@ -61,7 +61,7 @@ class Integrator:
         self._ffi = stepper.ffi
         self._t = stepper.ffi.from_buffer("double[]", mem)  # mem[0] read and written as a Python float
         self._from_buffer = stepper.ffi.from_buffer
-        self._last_arrays = [(None, None), (None, None)]  # propagate_grid's times and out, and their cdata
+        self._last_arrays = ((None, None), (None, None))  # propagate_grid's times and out, and their cdata
         self._ne = len(stepper.events)
         self.events: list[EventRecord] = []  # the events located by the last call
         self.stopped_by: EventRecord | None = None  # the terminal event that ended the last call, or None
@@ -164,17 +164,29 @@ class Integrator:
         if type(times) is not np.ndarray or times.dtype is not _F64 or times.ndim != 1:
             times = self._times(times)
         nt = times.shape[0]
-        if out is None:
-            out = np.empty((nt, self._ny))
-            out_ptr = self._from_buffer("double[]", out)
-        elif type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny):
+        if out is not None and (type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny)):
             raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
-        else:
-            out_ptr = None
+        fb = self._from_buffer
         try:
-            flag = self._grid(nt, self._pointer(times, 0), out_ptr if out_ptr is not None else self._pointer(out, 1))
+            # the cdata of the caller's arrays kept while the same arrays come back (preallocated
+            # times and out cost no conversion; the cdata holds its array, so no other array can
+            # take its place at the same address)
+            last_times, last_out = self._last_arrays
+            times_ptr = last_times[1] if times is last_times[0] else None
+            if times_ptr is None:
+                times_ptr = fb("double[]", times)
+                self._last_arrays = ((times, times_ptr), last_out)
+            if out is None:
+                out = np.empty((nt, self._ny))
+                out_ptr = fb("double[]", out)
+            elif out is last_out[0]:
+                out_ptr = last_out[1]
+            else:
+                out_ptr = fb("double[]", out)
+                self._last_arrays = (self._last_arrays[0], (out, out_ptr))
+            flag = self._grid(nt, times_ptr, out_ptr)
         except (ValueError, BufferError):  # not contiguous
-            if not out.flags.c_contiguous:
+            if out is not None and not out.flags.c_contiguous:
                 raise LagcodegenError("out must be C-contiguous") from None
             return self.propagate_grid(np.ascontiguousarray(times), out=out)
         if flag:
@@ -187,17 +199,6 @@ class Integrator:
             if done < nt:
                 return out[:done]
         return out
-
-    def _pointer(self, arr: np.ndarray, slot: int):
-        """The cdata of ``arr`` for the C call, kept while the same array comes back (a caller's
-        preallocated times and ``out`` cost no conversion; the cdata holds the array, so no other
-        array can take its place at the same address)."""
-        last = self._last_arrays[slot]
-        if last[0] is arr:
-            return last[1]
-        ptr = self._from_buffer("double[]", arr)
-        self._last_arrays[slot] = (arr, ptr)
-        return ptr
 
     @staticmethod
     def _times(times) -> np.ndarray:
