@@ -177,8 +177,10 @@ def cases(sim, method: str, dt: float) -> dict:
         "step": st_i.step,
         "run driver": raw,
         "simulate": lambda: sim.simulate(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL),
-        "simulate, full path": lambda: sim._simulate(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL),
     }
+    full_path = getattr(sim, "_simulate", None)  # absent before the fast path: simulate() was the full path
+    if full_path is not None:
+        fns["simulate, full path"] = lambda: full_path(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL)
     return fns, objs
 
 
@@ -215,6 +217,8 @@ def rows_of(label: str, n: int, method: str, dt: float, timed) -> list[dict]:
              ("simulate", "run driver"), ("simulate, full path", "run driver")]
     rows = []
     for call, c_call in pairs:
+        if call not in med:
+            continue
         c_work = med[c_call] - noop
         overhead = med[call] - c_work
         best_overhead = best[call] - (best[c_call] - best["cffi no-op"])
