@@ -29,7 +29,8 @@ issue: at most 2 us for the integrator object, 8 us for ``simulate()`` at n = 1.
 
 Usage::
 
-    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N] [--methods taylor,adams,bdf] [--clock cpu|wall]
+    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N] [--methods taylor,adams,bdf]
+                                             [--clock cpu|wall]
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ import dataclasses
 from ..result import Result
 
 #: The members made on first access: their makers' method names, or a plain empty list.
-LAZY = {"state_names": "state_names_of", "stats": "stats", "outputs": "outputs", "parameters": "parameters", "events": None,
-        "sensitivity_names": None, "sensitivity_values": None}
+LAZY = {"state_names": "state_names_of", "stats": "stats", "outputs": "outputs", "parameters": "parameters",
+        "events": None, "sensitivity_names": None, "sensitivity_values": None}
 _FIELDS = tuple(f.name for f in dataclasses.fields(Result))
 
 
@@ -60,13 +60,13 @@ class LazyResult(Result):
         value = d[name] = [] if how is None else getattr(maker, how)(d["_raw"])
         return value
 
-    def fields(self) -> dict:
-        """Every field of the Result, the lazy ones made."""
+    def materialized(self) -> dict:
+        """Every field of the Result by name, the lazy ones made."""
         return {name: getattr(self, name) for name in _FIELDS}
 
     def __reduce__(self):
         """Copied and pickled as a plain Result with every member made."""
-        return _plain_result, (self.fields(),)
+        return _plain_result, (self.materialized(),)
 
     def __reduce_ex__(self, protocol):
         return self.__reduce__()
