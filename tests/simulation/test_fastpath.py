@@ -203,3 +203,24 @@ def test_fast_path_of_a_model_without_outputs(method):
     # the pendulum is symmetric: the run from -q0 is the mirror image of the run from q0
     np.testing.assert_allclose(fast.y[:, 0], cm.simulate(t, q0=[-2.0], method=method).y[:, 0] * -1, rtol=0,
                                atol=1e-6)
+
+
+def test_runs_a_prepared_run_does_not_honour_take_the_full_path(double_pendulum):
+    """Sensitivities (a CVODE field the prepared run does not compute) and scikit-sundae stay on
+    the full path on every call; a family with a field set beyond those its prepared run honours
+    prepares none."""
+    from lagcodegen.solvers.cvode import CVODE
+    from lagcodegen.solvers.taylor import Taylor
+    cm = double_pendulum
+    t = np.linspace(0.0, 0.5, 6)
+    solver = CVODE(sensitivities=("g",))
+    for _ in range(2):
+        res = cm.simulate(t, q0=[0.3, 0.1], solver=solver)
+        assert type(res) is Result and res.sensitivities is not None
+        assert np.all(np.isfinite(res.sensitivity("theta1", "g")))
+    for _ in range(2):
+        res = cm.simulate(t, q0=[0.3, 0.1], backend="sksundae")
+        assert type(res) is Result and res.backend == "sksundae"
+    assert Taylor().defaults_beside(frozenset()) and CVODE().defaults_beside(frozenset())
+    assert not Taylor(order=3).defaults_beside(frozenset({"max_steps"}))
+    assert Taylor(order=3).defaults_beside(frozenset({"order"}))

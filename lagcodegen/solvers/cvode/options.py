@@ -19,6 +19,11 @@ from .stepper import CVCStepper, CVODEStepper
 from .events import compiled_events
 
 BACKENDS = ("native", "sksundae")
+#: The fields a prepared ODE run honours (the index-1 ones are refused on the ODE by check_face;
+#: max_events: a prepared run has no events; sensitivity_errcon: nor sensitivities).
+_PREPARED = frozenset(("max_steps", "max_step", "max_wall", "method", "backend", "max_order", "first_step",
+                       "min_step", "linear_solver", "bandwidths", "jacobian", "max_events", "sensitivities",
+                       "sensitivity_errcon", "baumgarte", "projection", "proj_tol", "proj_maxit"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -143,8 +148,10 @@ class CVODE(Family):
         """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
         (:class:`.prepared.PreparedCVODERun`): what ``simulate()``'s fast path calls; ``fixed`` the
         members every result shares. None where a run needs more than the native driver's call
-        (sensitivities, scikit-sundae, bandwidths probed at the initial state)."""
-        if self.backend != "native" or self.sensitivities is not None or not cm.native or cm.native_solve is None:
+        (sensitivities, scikit-sundae, bandwidths probed at the initial state, a field it does not
+        know set: a field added later takes the full path until the prepared run honours it)."""
+        if self.backend != "native" or self.sensitivities is not None or not cm.native or cm.native_solve is None \
+                or not self.defaults_beside(_PREPARED):
             return None
         if self.linear_solver == "band" and self.bandwidths is None and getattr(cm.code, "jac_pattern", None) is None:
             return None

@@ -14,6 +14,10 @@ from .prepared import PreparedTaylorRun
 from .stepper import TaylorStepper
 
 
+#: The fields a prepared run honours (max_events: a prepared run has no events).
+_PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events"))
+
+
 @dataclass(frozen=True, kw_only=True)
 class Taylor(Family):
     """The generated Taylor-series integrator of a scene (libm only, no SUNDIALS; the model's jet
@@ -51,7 +55,10 @@ class Taylor(Family):
     def prepared_ode(self, cm, rtol: float, atol, fixed: dict):
         """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
         (:class:`.prepared.PreparedTaylorRun`): what ``simulate()``'s fast path calls; ``fixed``
-        the members every result shares."""
+        the members every result shares. None when a field it does not know is set (a field
+        added later takes the full path until the prepared run honours it)."""
+        if not self.defaults_beside(_PREPARED):
+            return None
         return PreparedTaylorRun(taylor_module(cm), rtol=rtol, atol=atol, max_step=float(self.max_step),
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
                                  fixed=fixed)
