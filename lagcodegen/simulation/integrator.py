@@ -168,23 +168,19 @@ class Integrator:
             raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
         fb = self._from_buffer
         try:
-            # the cdata of the caller's arrays kept while the same arrays come back (preallocated
-            # times and out cost no conversion; the cdata holds its array, so no other array can
-            # take its place at the same address)
-            last_times, last_out = self._last_arrays
-            times_ptr = last_times[1] if times is last_times[0] else None
-            if times_ptr is None:
-                times_ptr = fb("double[]", times)
-                self._last_arrays = ((times, times_ptr), last_out)
-            if out is None:
+            if out is None:  # new arrays: converted as they come
                 out = np.empty((nt, self._ny))
-                out_ptr = fb("double[]", out)
-            elif out is last_out[0]:
-                out_ptr = last_out[1]
+                flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
             else:
-                out_ptr = fb("double[]", out)
-                self._last_arrays = (self._last_arrays[0], (out, out_ptr))
-            flag = self._grid(nt, times_ptr, out_ptr)
+                # the caller's preallocated arrays: their cdata kept while the same arrays come back
+                # (no conversion per call; the cdata holds its array, so no other array can take
+                # its place at the same address)
+                (last_times, times_ptr), (last_out, out_ptr) = self._last_arrays
+                if times is not last_times or out is not last_out:
+                    times_ptr = times_ptr if times is last_times else fb("double[]", times)
+                    out_ptr = out_ptr if out is last_out else fb("double[]", out)
+                    self._last_arrays = ((times, times_ptr), (out, out_ptr))
+                flag = self._grid(nt, times_ptr, out_ptr)
         except (ValueError, BufferError):  # not contiguous
             if out is not None and not out.flags.c_contiguous:
                 raise LagcodegenError("out must be C-contiguous") from None
