@@ -12,11 +12,16 @@ on the Taylor integrator and on CVODE (Adams), each call advancing by dt (1 ms: 
 * ``closed loop``    ``integ.params[k] = u; integ.propagate_for(dt)`` (a parameter written in place,
                      u = g (1 + 1e-3 q) new at every call: the Taylor stepper recomputes its run
                      constants, CVODE restarts) against the C call after the same write;
-* ``propagate_grid`` ``integ.propagate_grid(times)`` over 10 times spanning dt, against the C call
-                     with preallocated arrays;
+* ``propagate_grid`` ``integ.propagate_grid(times)`` over 10 times spanning dt (a new times array
+                     and a new result array each call), against the C call with preallocated arrays;
+* ``propagate_grid, out=``  the same with preallocated arrays, as the C call has them
+                     (``np.add(integ.time, offsets, out=times); integ.propagate_grid(times, out=rows)``);
 * ``step``           ``integ.step()`` against the C call of one step;
 * ``simulate``       ``sim.simulate(np.array([0, dt]), y0=..., method=...)`` against the run
-                     driver called through cffi with prepared arguments.
+                     driver called through cffi with prepared arguments (after the first call with
+                     these options: the fast path);
+* ``simulate, full path``  the same call on the full path (every option resolved and checked each
+                     call, ``CompiledModel._simulate``): what every call cost before the fast path.
 
 The Python overhead of a call is its time minus the C work, the C work being the C call minus
 the cffi no-op (so the cffi call's own cost counts as overhead). Targets of the small-systems
@@ -24,7 +29,8 @@ issue: at most 2 us for the integrator object, 8 us for ``simulate()`` at n = 1.
 
 Usage::
 
-    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N]
+    python benchmarks/integrator_overhead.py [--quick] [--out DIR] [--rounds N] [--methods taylor,adams,bdf]
+                                             [--clock cpu|wall]
 """
 
 from __future__ import annotations
@@ -61,6 +67,11 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--quick", action="store_true", help="n = 1 only, 5 rounds (< 2 min)")
     ap.add_argument("--out", metavar="DIR", type=Path, help="write integrator_overhead.txt and .csv")
     ap.add_argument("--rounds", type=int, help="rounds per median (default 15; quick 5)")
+    ap.add_argument("--methods", default="taylor,adams", help="comma-separated: taylor, adams, bdf (default "
+                    "taylor,adams)")
+    ap.add_argument("--clock", choices=("cpu", "wall"), default="wall",
+                    help="time batches by wall time (default) or by the CPU time of the calling thread, which a "
+                         "loaded machine's preemption does not inflate")
     ap.add_argument("--batch", type=float, default=0.02, help="seconds per timed batch (default 0.02)")
     return ap.parse_args(argv)
 
@@ -87,7 +98,7 @@ def raw_driver(sim, method: str, dt: float):
         ffi = sim.ffi
         yout, out = np.empty((2, sim.ny)), np.empty((2, 1))
         opt = ffi.new(f"{sim.options_type} *")
-        opt.method, opt.jacobian = 1, int(bool(sim.code.jacobian))
+        opt.method, opt.jacobian = {"adams": 1, "bdf": 2}[method], int(bool(sim.code.jacobian))
         opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = TOL, TOL, ffi.NULL, 1_000_000
         st = ffi.new(sim.stats_type)
         args = (sim.c_params(p), ffi.from_buffer("double[]", y0), 2, ffi.from_buffer("double[]", t),
@@ -126,6 +137,8 @@ def cases(sim, method: str, dt: float) -> dict:
     gr_tp = gr_ffi.from_buffer("double[]", gr_times)
     gr_yp = gr_ffi.from_buffer("double[]", gr_yout)
     gr_i = integ("grid")
+    gro_i = integ("grid_out")
+    gro_times, gro_rows = np.empty(grid_n), np.empty((grid_n, sim.ny))
     st_c = integ("step_c")
     st_step = st_c._stepper.step
     st_i = integ("step")
@@ -139,6 +152,10 @@ def cases(sim, method: str, dt: float) -> dict:
 
     def grid():
         return gr_i.propagate_grid(gr_i.time + offsets)
+
+    def grid_out():
+        np.add(gro_i.time, offsets, out=gro_times)
+        return gro_i.propagate_grid(gro_times, out=gro_rows)
 
     def closed_c():
         cl_c_mem[k_par] = g0 * (1 + 1e-3 * cl_c_mem[1])
@@ -156,22 +173,26 @@ def cases(sim, method: str, dt: float) -> dict:
         "closed loop": closed,
         "C call, grid": c_grid,
         "propagate_grid": grid,
+        "propagate_grid, out=": grid_out,
         "C call, one step": lambda: st_step(INF),
         "step": st_i.step,
         "run driver": raw,
         "simulate": lambda: sim.simulate(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL),
     }
+    full_path = getattr(sim, "_simulate", None)  # absent before the fast path: simulate() was the full path
+    if full_path is not None:
+        fns["simulate, full path"] = lambda: full_path(t_sim, y0=y0, method=method, rtol=TOL, atol=TOL)
     return fns, objs
 
 
-def measure(sim, method: str, dt: float, rounds: int, batch: float) -> dict:
+def measure(sim, method: str, dt: float, rounds: int, batch: float, clock=time.perf_counter) -> dict:
     fns, objs = cases(sim, method, dt)
     counts = {}
     for name, fn in fns.items():  # warm up, and calls per batch of about `batch` seconds
         fn()
-        start = time.perf_counter()
+        start = clock()
         k = 0
-        while time.perf_counter() - start < batch / 4:
+        while clock() - start < batch / 4:
             fn()
             k += 1
         counts[name] = max(1, int(4 * k))
@@ -179,10 +200,10 @@ def measure(sim, method: str, dt: float, rounds: int, batch: float) -> dict:
     for _ in range(rounds):  # interleaved: machine noise hits every variant alike
         for name, fn in fns.items():
             k = counts[name]
-            start = time.perf_counter()
+            start = clock()
             for _ in range(k):
                 fn()
-            times[name].append((time.perf_counter() - start) / k)
+            times[name].append((clock() - start) / k)
     for integ in objs.values():
         integ.close()
     return ({name: 1e6 * statistics.median(v) for name, v in times.items()},
@@ -193,13 +214,16 @@ def rows_of(label: str, n: int, method: str, dt: float, timed) -> list[dict]:
     med, best = timed
     noop = med["cffi no-op"]
     pairs = [("propagate_for", "C call"), ("closed loop", "C call, input written"),
-             ("propagate_grid", "C call, grid"), ("step", "C call, one step"), ("simulate", "run driver")]
+             ("propagate_grid", "C call, grid"), ("propagate_grid, out=", "C call, grid"), ("step", "C call, one step"),
+             ("simulate", "run driver"), ("simulate, full path", "run driver")]
     rows = []
     for call, c_call in pairs:
+        if call not in med:
+            continue
         c_work = med[c_call] - noop
         overhead = med[call] - c_work
         best_overhead = best[call] - (best[c_call] - best["cffi no-op"])
-        target = TARGET_SIMULATE_US if call == "simulate" else TARGET_INTEGRATOR_US
+        target = TARGET_SIMULATE_US if call.startswith("simulate") else TARGET_INTEGRATOR_US
         rows.append(dict(model=label, n=n, method=method, dt=dt, call=call, call_us=med[call], c_call_us=med[c_call],
                          cffi_noop_us=noop, c_work_us=c_work, overhead_us=overhead,
                          wrapper_us=med[call] - med[c_call], best_overhead_us=best_overhead, target_us=target,
@@ -210,6 +234,8 @@ def rows_of(label: str, n: int, method: str, dt: float, timed) -> list[dict]:
 def main(argv=None) -> int:
     args = parse_args(argv)
     rounds = args.rounds or (5 if args.quick else 15)
+    clock = time.thread_time if args.clock == "cpu" else time.perf_counter
+    clock_text = "CPU time of the calling thread" if args.clock == "cpu" else "wall time"
     load_start = H.load_average()
     models = [("pendulum", systems.n_link_pendulum(1, name="ovh_pendulum"))]
     if not args.quick:
@@ -219,10 +245,10 @@ def main(argv=None) -> int:
     for label, model in models:
         progress(f"{label}: compile")
         sim = lcg.compile_model(model)
-        for method in ("taylor", "adams"):
+        for method in args.methods.split(","):
             for dt in dts:
                 progress(f"{label}: {method}, dt = {dt:g}: {rounds} rounds")
-                rows += rows_of(label, sim.n, method, dt, measure(sim, method, dt, rounds, args.batch))
+                rows += rows_of(label, sim.n, method, dt, measure(sim, method, dt, rounds, args.batch, clock))
     columns = [("model", "model", "{}"), ("method", "method", "{}"), ("dt", "dt [s]", "{:g}"),
                ("call", "call", "{}"), ("call_us", "call [us]", "{:.2f}"), ("c_call_us", "C call [us]", "{:.2f}"),
                ("cffi_noop_us", "cffi no-op [us]", "{:.2f}"), ("overhead_us", "Python overhead [us]", "{:.2f}"),
@@ -232,7 +258,8 @@ def main(argv=None) -> int:
     text = "\n".join(H.machine_lines("Integrator object and simulate(): per-call Python overhead",
                                      (load_start, H.load_average()))
                      + [f"rtol = atol = {TOL:g}, q0 = {Q0} at rest; medians of {rounds} interleaved rounds of "
-                        f"batches of about {args.batch:g} s; overhead = call - (C call - cffi no-op) of the medians "
+                        f"batches of about {args.batch:g} s ({clock_text}); overhead = call - (C call - cffi no-op) "
+                        "of the medians "
                         "(and of each variant's fastest round: on a loaded machine the medians carry its noise)", "",
                         H.format_table(columns, rows)])
     print(text)

@@ -61,6 +61,7 @@ class Integrator:
         self._ffi = stepper.ffi
         self._t = stepper.ffi.from_buffer("double[]", mem)  # mem[0] read and written as a Python float
         self._from_buffer = stepper.ffi.from_buffer
+        self._last_arrays = ((None, None), (None, None))  # propagate_grid's times and out, and their cdata
         self._ne = len(stepper.events)
         self.events: list[EventRecord] = []  # the events located by the last call
         self.stopped_by: EventRecord | None = None  # the terminal event that ended the last call, or None
@@ -163,15 +164,25 @@ class Integrator:
         if type(times) is not np.ndarray or times.dtype is not _F64 or times.ndim != 1:
             times = self._times(times)
         nt = times.shape[0]
-        if out is None:
-            out = np.empty((nt, self._ny))
-        elif type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny):
+        if out is not None and (type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny)):
             raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
         fb = self._from_buffer
         try:
-            flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
+            if out is None:  # new arrays: converted as they come
+                out = np.empty((nt, self._ny))
+                flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
+            else:
+                # the caller's preallocated arrays: their cdata kept while the same arrays come back
+                # (no conversion per call; the cdata holds its array, so no other array can take
+                # its place at the same address)
+                (last_times, times_ptr), (last_out, out_ptr) = self._last_arrays
+                if times is not last_times or out is not last_out:
+                    times_ptr = times_ptr if times is last_times else fb("double[]", times)
+                    out_ptr = out_ptr if out is last_out else fb("double[]", out)
+                    self._last_arrays = ((times, times_ptr), (out, out_ptr))
+                flag = self._grid(nt, times_ptr, out_ptr)
         except (ValueError, BufferError):  # not contiguous
-            if not out.flags.c_contiguous:
+            if out is not None and not out.flags.c_contiguous:
                 raise LagcodegenError("out must be C-contiguous") from None
             return self.propagate_grid(np.ascontiguousarray(times), out=out)
         if flag:

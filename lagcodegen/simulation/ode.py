@@ -19,11 +19,12 @@ from ..formulation.drawing import attaches_drawing
 from ..notebook import CompiledReprMixin
 from ..result import Result
 from ..solvers import control
-from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
+from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
 from ..util import c_vector, check_finite, output_times
 from ..solvers.inputs import input_set
 from .ensemble import ensemble_ode
+from .fastpath import FastRuns, finish_run
 from .integrator import Integrator
 from .sensitivity_integrator import SensitivityIntegrator
 
@@ -63,6 +64,7 @@ class CompiledModel(CompiledReprMixin):
         self.poll = control.install(module)  # the drivers' poll callback (Ctrl-C, progress)
         self._defaults = np.array(code.param_defaults, dtype=float)
         self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
+        self._fast_runs = FastRuns()  # simulate()'s prepared runs by option values (fastpath)
 
     def _bind_table(self, table) -> None:
         """The model functions through its table, the runtime's CVODE driver applied to it."""
@@ -202,7 +204,6 @@ class CompiledModel(CompiledReprMixin):
         fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_double, dp, dp, dp, dp]
         return fn
 
-    @attaches_drawing
     def simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
                  rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True, **options) -> Result:
         """Integrate the scene and return the trajectory at the times ``t``.
@@ -248,7 +249,25 @@ class CompiledModel(CompiledReprMixin):
             ("native", "sksundae"), ``max_order``, ``order`` (Taylor), ``max_steps`` (steps over the
             whole run), ``max_step``, ``first_step``, ``min_step``, ``max_wall``; a keyword the
             family does not have raises LagcodegenError naming it.
+
+        A call with the option values (types included) of an earlier one takes the fast path
+        (:mod:`.fastpath`): its family's run prepared once, the result's statistics, outputs and
+        parameters by name made when first read; the same checks and errors, bit-identical results.
         """
+        if not events:
+            fast = self._fast_runs.get(solver, rtol, atol, options)
+            if fast is not None:
+                return fast(self, t, q0, v0, y0, z0, params, raise_on_error)
+        res = self._simulate(t, q0, v0, y0=y0, z0=z0, params=params, solver=solver, rtol=rtol, atol=atol,
+                             events=events, raise_on_error=raise_on_error, **options)
+        if not events and options.get("inputs") is None:
+            self._fast_runs.learn(self, solver, rtol, atol, options)
+        return res
+
+    @attaches_drawing
+    def _simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,
+                  rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True, **options) -> Result:
+        """:meth:`simulate` on the full path: every option resolved and checked on this call."""
         inputs = options.pop("inputs", None)
         t = output_times(t)
         y = initial_state(self, q0, v0, y0, z0)
@@ -266,15 +285,7 @@ class CompiledModel(CompiledReprMixin):
             res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
-        if not res.success and res.t.size <= 1:  # failed at the start: say which value it was
-            self.check_initial_outputs(t[0], y, p)
-            if res.stats.get("model_error") == 1:
-                check_initial_mass_matrix(self, t[0], y, p)
-        if raise_on_error and not res.success:
-            cls = SingularMassMatrixError if res.stats.get("model_error") == 1 else SolverError
-            raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t[0]),
-                      flag=res.status, result=res)
-        return res
+        return finish_run(self, res, t[0], y, p, raise_on_error)
 
     def integrator(self, *, q0=None, v0=None, y0=None, z0=None, t0: float = 0.0, params: dict | None = None,
                    solver=None, rtol: float = 1e-8, atol=1e-10, events=(), **options) -> Integrator:

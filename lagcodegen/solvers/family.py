@@ -118,6 +118,11 @@ class Family:
             raise LagcodegenError(f"{', '.join(map(repr, wrong))}: option{'s' if len(wrong) > 1 else ''} of {self.name} "
                                   f"that {FACES.get(face, face)} does not take")
 
+    def defaults_beside(self, names: frozenset[str]) -> bool:
+        """Whether every field not in ``names`` has its default value (a caller that honours only
+        ``names`` may then stand in for the family's own runner)."""
+        return all(_same(getattr(self, name), f.default) for name, f in self.fields().items() if name not in names)
+
     def runner(self, face: str, what: str = "run"):
         """The bound method that runs ``face`` (``what``: "run", "ensemble" or "stepper", the C
         state of an integrator object); the object was checked against the face when resolved

@@ -75,6 +75,25 @@ def ode_options(cm) -> PreparedOptions:
     return prepared
 
 
+def ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order, band=None,
+               fixedpoint=False, max_wall=0.0):
+    """The options struct of an ODE run of ``cm`` on the native driver (from :func:`ode_options`:
+    shared, never written)."""
+    return ode_options(cm).get(atol, METHODS[method], int(jacobian), rtol, max_steps, first_step, max_step, min_step,
+                               max_order, 1 if band else 2 if fixedpoint else 0, band[0] if band else 0,
+                               band[1] if band else 0, max_wall)
+
+
+def run_message(ffi, flag: int, st) -> str:
+    """The message of an ODE run of the native driver that ended with ``flag`` (statistics ``st``)."""
+    detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
+    text = message(flag, st.model_error, detail, t=st.t_reached)
+    if flag == TOO_MUCH_WORK and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
+        text = (f"the step size fell below the resolution of t at t = {st.t_reached:.17g} (is the solution "
+                f"singular there?); {text}")
+    return text
+
+
 def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
                  min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, events=None,
                  max_events: int = 10_000, inputs=None) -> Result:
@@ -88,9 +107,8 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, max(cm.code.nout, 1)))
     keep: list = []
-    opt = ode_options(cm).get(atol, METHODS[method], int(jacobian), rtol, max_steps, first_step, max_step, min_step,
-                              max_order, 1 if band else 2 if fixedpoint else 0, band[0] if band else 0,
-                              band[1] if band else 0, max_wall)
+    opt = ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order, band,
+                     fixedpoint, max_wall)
     st = ffi.new(cm.stats_type)
     found = None
     args = (ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
@@ -107,13 +125,9 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
-    detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     if done < nt:
         t, yout, out = t[:done].copy(), yout[:done].copy(), out[:done].copy()
-    text = message(flag, st.model_error, detail, t=st.t_reached)
-    if flag == TOO_MUCH_WORK and st.t_reached + st.h_last == st.t_reached:  # steps that no longer advance t
-        text = (f"the step size fell below the resolution of t at t = {st.t_reached:.17g} (is the solution "
-                f"singular there?); {text}")
+    text = run_message(ffi, flag, st)
     res = Result(t=t, y=yout, state_names=list(cm.state_names),
                  outputs={k: out[:, i] for i, k in enumerate(cm.output_names)},
                  stats=native_stats(ffi, st), status=int(flag), message=text,

@@ -14,10 +14,16 @@ from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
 from ..family import Family, choice
 from . import ensemble, native
+from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
 from .events import compiled_events
 
 BACKENDS = ("native", "sksundae")
+#: The fields a prepared ODE run honours (the index-1 ones are refused on the ODE by check_face;
+#: max_events: a prepared run has no events; sensitivity_errcon: nor sensitivities).
+_PREPARED = frozenset(("max_steps", "max_step", "max_wall", "method", "backend", "max_order", "first_step",
+                       "min_step", "linear_solver", "bandwidths", "jacobian", "max_events", "sensitivities",
+                       "sensitivity_errcon", "baumgarte", "projection", "proj_tol", "proj_maxit"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,6 +142,20 @@ class CVODE(Family):
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
         return res
+
+    def prepared_ode(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
+        (:class:`.prepared.PreparedCVODERun`): what ``simulate()``'s fast path calls; ``fixed`` the
+        members every result shares. None where a run needs more than the native driver's call
+        (sensitivities, scikit-sundae, bandwidths probed at the initial state, a field it does not
+        know set: a field added later takes the full path until the prepared run honours it)."""
+        if self.backend != "native" or self.sensitivities is not None or not cm.native or cm.native_solve is None \
+                or not self.defaults_beside(_PREPARED):
+            return None
+        if self.linear_solver == "band" and self.bandwidths is None and getattr(cm.code, "jac_pattern", None) is None:
+            return None
+        opts = self._ode_options(cm, None, None, True)
+        return PreparedCVODERun(cm, rtol=rtol, atol=atol, max_wall=float(self.max_wall), fixed=fixed, **opts)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by

@@ -9,8 +9,13 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ..family import Family
 from .ensemble import run_taylor_ensemble
-from .run import run_taylor
+from .run import run_taylor, taylor_module
+from .prepared import PreparedTaylorRun
 from .stepper import TaylorStepper
+
+
+#: The fields a prepared run honours (max_events: a prepared run has no events).
+_PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -46,6 +51,17 @@ class Taylor(Family):
         return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))
+
+    def prepared_ode(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
+        (:class:`.prepared.PreparedTaylorRun`): what ``simulate()``'s fast path calls; ``fixed``
+        the members every result shares. None when a field it does not know is set (a field
+        added later takes the full path until the prepared run honours it)."""
+        if not self.defaults_beside(_PREPARED):
+            return None
+        return PreparedTaylorRun(taylor_module(cm), rtol=rtol, atol=atol, max_step=float(self.max_step),
+                                 max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
+                                 fixed=fixed)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t

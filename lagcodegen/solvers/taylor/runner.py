@@ -47,6 +47,13 @@ _STATS = operator.attrgetter("nsteps", "njet", "order", "nroot", "t_reached", "h
                              "model_error", "nt_done")
 
 
+def run_stats(st) -> dict:
+    """Result.stats of a Taylor run from its statistics struct ``st``."""
+    nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error, _ = _STATS(st)
+    return {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used, "root_searches": nroot,
+            "t_reached": t_reached, "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error}
+
+
 def message(flag: int, model_error: int, detail: str) -> str:
     """The text of a driver flag (:data:`lagcodegen.solvers.base.FLAG_TEXT` ["Taylor"])."""
     return base_message(flag, model_error, detail, "Taylor")
@@ -229,10 +236,8 @@ class TaylorModule:
                            buf("double[]", out), opt, st, ev)
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
-        nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error, done = _STATS(st)
-        stats = {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used,
-                 "root_searches": nroot, "t_reached": t_reached, "h_last": h_last, "h_min": h_min,
-                 "h_max": h_max, "model_error": model_error}
+        stats = run_stats(st)
+        done = st.nt_done
         t = t_out
         if done < nt:
             t, yout, out = t_out[:done].copy(), yout[:done], out[:done]
@@ -246,18 +251,41 @@ class TaylorModule:
         return res
 
     def _set_options(self, rtol, atol, max_step, max_steps, order) -> None:
-        opt = self._opt
+        atol_vec = self._write_options(self._opt, rtol, atol, max_step, max_steps, order)
+        if atol_vec is not None:
+            self._atol = atol_vec
+
+    def _write_options(self, opt, rtol, atol, max_step, max_steps, order):
+        """Write the run's options into ``opt``; returns the array ``opt.atol_vec`` points into
+        (to be kept alive with ``opt``), or None for a scalar ``atol``."""
         opt.rtol = rtol
+        atol_vec = None
         if isinstance(atol, float):
             opt.atol = atol
             opt.atol_vec = self.ffi.NULL
         else:
-            self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (self.ny,)))
-            opt.atol = float(self._atol.min())
-            opt.atol_vec = self._buf("double[]", self._atol)
+            atol_vec = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (self.ny,)))
+            opt.atol = float(atol_vec.min())
+            opt.atol_vec = self._buf("double[]", atol_vec)
         opt.max_steps = max_steps
         opt.max_step = max_step
         opt.order = order or 0
+        return atol_vec
+
+    def options_struct(self, *, rtol: float, atol, max_step: float, max_steps: int, order: int | None,
+                       max_wall: float):
+        """A new options struct of these values, as :meth:`simulate` sets its own (which is left
+        alone), for a caller that keeps it across runs; returns (struct, the array its atol_vec
+        points into or None), both to be kept together."""
+        if max_wall and self.table is None:
+            raise LagcodegenError("max_wall needs the Taylor runtime's driver (build_taylor(runtime=True))")
+        opt = self.ffi.new(self.types[0])
+        atol_vec = self._write_options(opt, rtol, atol, max_step, max_steps, order)
+        if self.table is not None:
+            opt.poll = self._opt.poll
+            opt.poll_every = self._opt.poll_every
+            opt.max_wall = max_wall
+        return opt, atol_vec
 
     def _events_struct(self, max_events: int):
         keep = (np.empty(max_events), np.empty((max_events, self.ny)), np.empty(max_events, dtype=np.intc),

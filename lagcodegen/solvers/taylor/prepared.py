@@ -1,0 +1,71 @@
+"""A prepared Taylor run (:class:`PreparedTaylorRun`): the run of :meth:`.runner.TaylorModule.simulate`
+with its options fixed once (its own options struct, made when prepared), so that a call is the
+driver's C call on the caller's arrays and a :class:`~lagcodegen.solvers.lazy_result.LazyResult`
+(the fast path of ``simulate()``, :mod:`lagcodegen.simulation.fastpath`). Bit-identical to
+:meth:`~.runner.TaylorModule.simulate` with the same values: the same driver, options and arrays.
+
+Reentrant: each call has its own statistics struct and result arrays; the options struct is
+never written once made."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..control import CANCELLED, raise_pending
+from ..lazy_result import ResultMaker, lazy_result
+from .runner import TaylorModule, message, run_stats
+
+
+class TaylorResultMaker(ResultMaker):
+    """The members of a Taylor run's LazyResult (``raw`` = (stats struct, outputs, parameters))."""
+
+    def stats(self, raw) -> dict:
+        return run_stats(raw[0])
+
+
+class PreparedTaylorRun:
+    """Runs of ``module`` (no events) with the options given, from the caller's checked arrays:
+    ``run(t, t_ptr, y_ptr, p, p_ptr)`` with ``t`` contiguous increasing float64 times, ``y_ptr``
+    the cdata of ny finite initial values, ``p`` the parameters, and ``*_ptr`` the cdata of each
+    (``p_ptr`` NULL without parameters).
+    ``fixed``: the members every result shares (backend, method, n_coordinates, model_name,
+    drawing)."""
+
+    def __init__(self, module: TaylorModule, *, rtol: float, atol, max_step: float, max_steps: int,
+                 order: int | None, max_wall: float, fixed: dict):
+        if module.events:
+            raise ValueError("a prepared Taylor run has no events")
+        self.module = module
+        self.opt, self._atol = module.options_struct(rtol=rtol, atol=atol, max_step=max_step, max_steps=max_steps,
+                                                     order=order, max_wall=max_wall)
+        self.fixed = dict(fixed, backend="native", method="taylor")
+        self.maker = TaylorResultMaker(module.state_names, module.output_names, module.param_names)
+        self.ffi = ffi = module.ffi
+        self.null = ffi.NULL
+        self.solve = module._solve
+        self.ny, self.nout, self.stats_type = module.ny, module.nout, module.types[1]
+        empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
+        self.no_out = (empty, ffi.from_buffer("double[]", empty))
+
+    def __call__(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
+        ffi = self.ffi
+        fb = ffi.from_buffer
+        nt = t.shape[0]
+        yout = np.empty((nt, self.ny))
+        if self.nout:
+            out = np.empty((nt, self.nout))
+            out_ptr = fb("double[]", out)
+        else:
+            out, out_ptr = self.no_out
+        st = ffi.new(self.stats_type)
+        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, self.null)
+        if flag == 0 and st.nt_done >= nt:
+            return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, 0, "success")
+        if flag == CANCELLED:
+            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
+        done = st.nt_done
+        if done < nt:
+            t, yout, out = t[:done].copy(), yout[:done], out[:done]
+        text = "success" if flag == 0 else message(flag, st.model_error,
+                                                   ffi.string(st.message).decode(errors="replace"))
+        return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
