@@ -145,11 +145,17 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     if roots:
         raise LagcodegenError("sensitivities with events: not supported (run the sensitivities with events=False, "
                               "or locate the events in a run of their own)")
-    method, projection, alpha, beta = family.index1_settings(sim, float(t[0]), y0, p, native_backend=False)
+    method, projection, alpha, beta = family.index1_settings(sim, float(t[0]), y0, p)
     if projection:
         raise LagcodegenError("sensitivities of index-1 runs with projection onto the constraints are not computed "
                               "(the projection after each step is not differentiated): run them with "
                               "projection=False, where Baumgarte stabilization holds the constraints")
+    if alpha < 0 or beta < 0:  # "auto": the natural rate at the initial state, as the native driver takes it
+        try:
+            rate = sim.natural_rate(float(t[0]), y0, p)
+        except LagcodegenError:  # the run reports the model's error at its first step
+            rate = 0.0
+        alpha, beta = (rate if alpha < 0 else alpha), (rate if beta < 0 else beta)
     names, which, s0 = directions(sim, family.sensitivities)
     fns = functions(sim)
     ffi, lib = fns.rt.ffi, fns.rt.lib
