@@ -145,8 +145,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
 
         ``sensitivities`` (index-1, CVODE): forward sensitivities of the states and outputs (the
         multipliers ``lambda_<j>`` included) with respect to run-time parameters and initial values
-        (``"<q>(0)"``, ``"<q>_dot(0)"``), in ``res.sensitivity(value, direction)``; without events
-        or projection, the initial ones through the initial projection onto the constraints
+        (``"<q>(0)"``, ``"<q>_dot(0)"``), in ``res.sensitivity(value, direction)``; without events;
+        Baumgarte stabilization and projection differentiated as the run applies them, the
+        initial ones through the initial projection onto the constraints
         (:mod:`lagcodegen.solvers.cvode.sensitivity_constrained`).
         """
         if self._ggl and (options.get("sensitivities") is not None

@@ -9,8 +9,12 @@ Directions as for the ODE (:mod:`.sensitivity`): a run-time parameter, ``"<q>(0)
 ``"<q>_dot(0)"``. Drift: the run integrates the Baumgarte-stabilized index-1 equations (eq. 4.5)
 with the run's alpha, beta ("auto": the natural rate at the initial state, as the plain run),
 and the sensitivities are the exact derivatives of that ODE, so their own constraint residuals
-(G S_q + df/dp and its velocity form) are damped by the same rates. Projection after each step
-(``projection=True``) is not differentiated: such runs are refused. The initial sensitivities
+(G S_q + df/dp and its velocity form) are damped by the same rates. With ``projection=True``
+(BDF) the state is projected onto the constraints after each step as in the plain run
+(CVodeSetProjFn: Gauss-Newton on the positions, then the velocities) and every sensitivity
+block through that projection linearized at the projected state (the initial projection's
+formula below), so that G S_q + df/dp = 0 and its velocity form hold after every step; the error
+estimate is projected block by block onto the tangent spaces. The initial sensitivities
 are those of the projection onto the constraints simulate() applies to the initial state
 (``initial="check"`` or ``"project"``; ``"none"``: unit vectors): a direction that leaves the
 constraints is projected back onto them, and a parameter of the constraints moves the initial
@@ -56,6 +60,7 @@ class ConstrainedSensitivityFunctions:
 
         self.rhs = ffi.cast("lcg_sens_rhs_fn", address("csens_rhs"))
         self.out = ffi.cast("lcg_sens_out_fn", address("csens_outputs"))
+        self.project = ffi.cast("lcg_sens_proj_fn", address("csens_project"))
         getter = getattr(lib, f"{prefix}_csens_model_table")
         getter.restype, getter.argtypes = ctypes.c_void_p, []
         self.table = ffi.cast("const lcg_model *", getter())
@@ -146,10 +151,6 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
         raise LagcodegenError("sensitivities with events: not supported (run the sensitivities with events=False, "
                               "or locate the events in a run of their own)")
     method, projection, alpha, beta = family.index1_settings(sim, float(t[0]), y0, p)
-    if projection:
-        raise LagcodegenError("sensitivities of index-1 runs with projection onto the constraints are not computed "
-                              "(the projection after each step is not differentiated): run them with "
-                              "projection=False, where Baumgarte stabilization holds the constraints")
     if alpha < 0 or beta < 0:  # "auto": the natural rate at the initial state, as the native driver takes it
         try:
             rate = sim.natural_rate(float(t[0]), y0, p)
@@ -162,7 +163,7 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     n = sim.n
     ny, ns, nt = 2 * n, len(names), t.size
     nout = len(sim.output_names)
-    p_ext = np.concatenate([np.asarray(p, dtype=float), [alpha, beta]])
+    p_ext = np.concatenate([np.asarray(p, dtype=float), [alpha, beta, family.proj_tol, family.proj_maxit]])
     if initial in ("check", "project"):
         s0 = fns.initial(float(t[0]), y0, p_ext, which, s0)
     rtol, atol = tolerances(rtol, atol, ny)
@@ -182,6 +183,8 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     opt.max_order = int(family.max_order)
     opt.first_step, opt.max_step, opt.min_step = family.first_step, family.max_step, family.min_step
     opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(family.max_wall)
+    if projection:
+        opt.project = fns.project
     st = ffi.new("lcg_cvsens_stats *")
     fb = ffi.from_buffer
     y0 = np.ascontiguousarray(y0, dtype=float)
@@ -195,7 +198,7 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
     done = st.nt_done
     stats = {k: getattr(st, k) for k in STATS}
-    stats.update(wall_time=wall, alpha=alpha, beta=beta)
+    stats.update(wall_time=wall, alpha=alpha, beta=beta, projection=projection)
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     text = "success" if flag >= 0 else message(flag, st.model_error, detail, t=st.t_reached)
     sl = slice(0, done)
