@@ -273,3 +273,18 @@ def test_generated_c_compiles_strictly(tmp_path, cc):
             proc = subprocess.run([cc, *STRICT_CFLAGS, "-O2", "-c", name, "-o", name + ".o"], cwd=tmp_path,
                                   capture_output=True, text=True)
             assert proc.returncode == 0, proc.stderr
+
+
+def test_rigid_body_tree_is_refused():
+    """A constrained rigid-body tree (M and F are programs, not expressions): refused by name."""
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.errors import ModelError
+    from lagcodegen.theory.constraints import ConstrainedSystem
+    m = lcg.Model("sens_arm")
+    m.link("a", joint=lcg.Joint.revolute("s", (0, 1, 0)), mass=1, com=(0.5, 0, 0), inertia=(1, 1, 1))
+    m.gravity(9.81)
+    system = ConstrainedSystem(m, inequalities=[m.coords[0] + 3])
+    code, info = generate_constrained(system)
+    assert code.scene.eom.tree is not None
+    with pytest.raises(ModelError, match="rigid-body tree"):
+        constrained_sensitivity_source(system, code.scene, info.output_names, code.prefix)
