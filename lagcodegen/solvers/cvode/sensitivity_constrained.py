@@ -34,7 +34,7 @@ from ...codegen.sensitivity_constrained import constrained_sensitivity_source
 from ...errors import LagcodegenError, ModelError
 from ...result import Result
 from ...runtime import sources as runtime_files
-from ..base import METHODS, message
+from ..base import METHODS, message, tolerances
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 from .sensitivity import STATS, sens_runtime
 
@@ -140,8 +140,6 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
                initial: str) -> Result:
     """A sensitivity run of the index-1 form of ``sim`` from the consistent state ``y0`` with the
     options of ``family`` (a :class:`~lagcodegen.solvers.cvode.CVODE`; module docstring)."""
-    from ..base import tolerances
-
     if family.backend != "native":
         raise LagcodegenError("sensitivities need backend='native'")
     if family.linear_solver != "dense":
