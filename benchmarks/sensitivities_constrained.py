@@ -199,6 +199,7 @@ def cost_rows(label, sim, angle, angles0, rounds):
         rows.append(dict(scene=label, p=p, plain_ms=1e3 * med["plain"], sens_ms=1e3 * med[f"p{p}"],
                          ratio=med[f"p{p}"] / med["plain"], cpu_ratio=mcpu[f"p{p}"] / mcpu["plain"],
                          angle_ratio=(med[ang] / med["angle plain"]) if ang in med else None,
+                         angle_cpu_ratio=(mcpu[ang] / mcpu["angle plain"]) if ang in mcpu else None,
                          target=1 + 0.7 * p))
     return rows
 
@@ -229,6 +230,7 @@ def main(argv=None) -> int:
               H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("plain_ms", "plain ms", "{:.3f}"),
                               ("sens_ms", "sens ms", "{:.3f}"), ("ratio", "ratio", "{:.2f}"),
                               ("cpu_ratio", "CPU ratio", "{:.2f}"), ("angle_ratio", "angle ODE ratio", "{:.2f}"),
+                              ("angle_cpu_ratio", "angle ODE CPU ratio", "{:.2f}"),
                               ("target", "target", "{:.1f}")], cost)]
     text = "\n".join(lines)
     print(text)
