@@ -97,6 +97,11 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
     ``options``: those of ``sim.simulate``: the initial state (``q0``, ``v0`` or ``y0``), ``rtol``
     (1e-8), ``atol`` (1e-10), ``method``, ``max_steps``, ...
 
+    ``sim`` may be a compiled constrained system (index-1 formulation or minimal coordinates):
+    its initial state is ``q0``, ``v0`` of every coordinate, projected onto the constraints of
+    each trial's parameters (``initial="project"`` unless given), and the sensitivities are those
+    of that projected start (:mod:`lagcodegen.solvers.cvode.sensitivity_constrained`).
+
     ``experiments``: several runs fitted together, each a mapping with ``t``, ``data`` and any of
     ``q0``, ``v0``, ``y0`` (its initial state), ``sigma``, ``params`` (its own values of run-time
     parameters not fitted); then ``t``, ``data`` and the initial state are not given here.
@@ -118,7 +123,10 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
     observe = [observe] if isinstance(observe, str) else list(observe)
     if not observe:
         raise LagcodegenError("fit: observe at least one state or output")
-    known = list(sim.state_names) + list(getattr(sim, "output_names", []))
+    outputs = getattr(sim, "output_names", None)
+    if outputs is None and hasattr(sim, "compiled_branch"):  # minimal coordinates: a branch's (all the same)
+        outputs = sim.compiled_branch(0).output_names
+    known = list(sim.state_names) + list(outputs or [])
     for name in observe:
         if name not in known:
             raise LagcodegenError(f"fit: {name!r} is neither a state nor an output of the model "
@@ -139,6 +147,8 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
             exps.append(_experiment(sim, observe, e["t"], e["data"], e.get("sigma", sigma),
                                     dict(q0=e.get("q0"), v0=e.get("v0"), y0=e.get("y0"),
                                          params=dict(e.get("params", {})))))
+    if _constrained(sim):  # every trial's initial state projected onto its constraints
+        options.setdefault("initial", "project")
     fixed = dict(fixed or {})
     run_params = [n for n in names if n in sim.param_names]
     for n in fixed:
@@ -170,9 +180,9 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
         for k, e in enumerate(exps):
             p = {**e.start["params"], **fixed, **{n: values[n] for n in run_params}}
             q0_, v0_, y0_ = e.start["q0"], e.start["v0"], e.start["y0"]
-            y = _initial(sim, q0_, v0_, y0_, values, names)
+            start = _start(sim, q0_, v0_, y0_, values, names)
             try:
-                res = sim.simulate(e.t, y0=y, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
+                res = sim.simulate(e.t, **start, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
             except SolverError as exc:
                 raise LagcodegenError(f"fit: the run of experiment {k} failed at parameters "
                                       f"{values}: {exc}") from None
@@ -206,6 +216,37 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
                      cov=cov, residuals=r, iterations=int(out.njev or 0), nfev=int(out.nfev), cost=0.5 * ssr,
                      cost_history=history, condition=cond, status=int(out.status), message=str(out.message),
                      success=bool(out.success), wall_time=wall, residual_variance=s2, experiments=exps)
+
+
+def _constrained(sim) -> bool:
+    """Whether ``sim`` is a compiled constrained system (index-1, GGL or minimal coordinates)."""
+    return getattr(sim, "formulation", None) in ("index1", "ggl", "minimal") and hasattr(sim, "system")
+
+
+def _start(sim, q0, v0, y0, values: dict, names: list) -> dict:
+    """The initial-state keywords of an experiment's run with the fitted initial values of
+    ``values`` put in: ``y0`` for the ODE of a scene; ``q0``, ``v0`` of every coordinate for a
+    constrained system (projected onto the constraints by the run, ``initial="project"``)."""
+    if not _constrained(sim):
+        return {"y0": _initial(sim, q0, v0, y0, values, names)}
+    from .util import state_values
+    if y0 is not None:
+        raise LagcodegenError("fit: give the initial state of a constrained system as q0 and v0 (every coordinate)")
+    coords = [q.name for q in sim.system.model.coords]
+    q = np.array(state_values(q0, coords, "q0"), dtype=float)
+    v = np.array(state_values(v0, coords, "v0"), dtype=float)
+    for name in names:
+        if name in sim.param_names:
+            continue
+        base = name[:-3] if name.endswith("(0)") else None
+        if base is not None and base.endswith("_dot") and base[:-4] in coords:
+            v[coords.index(base[:-4])] = values[name]
+        elif base is not None and base in coords:
+            q[coords.index(base)] = values[name]
+        else:
+            raise LagcodegenError(f"fit: {name!r} is neither a run-time parameter ({', '.join(sim.param_names)}) "
+                                  "nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
+    return {"q0": q, "v0": v}
 
 
 def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:

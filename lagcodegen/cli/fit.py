@@ -27,7 +27,8 @@ HELP = "fit run-time parameters of a model file to measured data (CSV); write th
 DESCRIPTION = """Fit the parameters named by --fit (run-time parameters, or initial values written
 '<coordinate>(0)' / '<coordinate>_dot(0)') so that the model's states or outputs match the data:
 a CSV file whose header is 't' and the observed names (states or outputs of the model), one row
-per time (the first time is the initial time of the run, from the file's initial state). Starting
+per time (the first time is the initial time of the run, from the file's initial state; with
+[constraints], formulation index1 or minimal, projected onto the constraints). Starting
 values: the file's parameter values (--set overrides) and initial state. Least squares with the
 exact Jacobian from forward sensitivities; the estimates with their standard errors (from the
 residual variance) are printed and, with -o, written as CSV (name,estimate,stderr).
@@ -99,8 +100,9 @@ def run(args) -> int:
     missing = [o for o in observe if o not in header]
     if missing:
         raise UsageError(f"--observe {','.join(missing)}: not a column of {args.data} ({', '.join(header)})")
-    if mf.constrained is not None:
-        raise UsageError("fit: models with [constraints] are not fitted (sensitivities of the ODE formulations only)")
+    if mf.constrained is not None and mf.simulation.formulation == "ggl":
+        raise UsageError("fit: models with [constraints] are fitted in the index-1 formulation or in minimal "
+                         "coordinates (formulation = \"index1\" or \"minimal\"), not GGL")
     t0 = time.perf_counter()
     sim = compile_file(mf, verbose=not args.quiet)
     say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s", args.quiet)
@@ -123,7 +125,8 @@ def run(args) -> int:
     t = rows[:, 0]
     data = rows[:, [header.index(o) for o in observe]]
     t0 = time.perf_counter()
-    result = fit(sim, t, data, params=start, observe=observe, sigma=args.sigma, fixed=fixed, q0=q0, v0=v0,
+    extra = {} if mf.constrained is None else {"events": False}  # as for ODE files: the fit locates no events
+    result = fit(sim, t, data, params=start, observe=observe, sigma=args.sigma, fixed=fixed, q0=q0, v0=v0, **extra,
                  rtol=args.rtol if args.rtol is not None else s.rtol,
                  atol=args.atol if args.atol is not None else s.atol)
     say(f"fitted {', '.join(names)} to {data.size} values in {time.perf_counter() - t0:.3f} s: "
@@ -154,7 +157,8 @@ def _plot(sim, mf, result, t, data, observe, q0, v0, fixed, path) -> None:
         elif k.endswith("(0)") and k[:-3] in coords:
             q0[coords.index(k[:-3])] = v
     fine = np.linspace(t[0], t[-1], max(1001, 4 * t.size))
-    res = sim.simulate(fine, q0=q0, v0=v0, params=params, rtol=mf.simulation.rtol, atol=mf.simulation.atol)
+    extra = {} if mf.constrained is None else {"initial": "project"}  # the fitted start, onto its constraints
+    res = sim.simulate(fine, q0=q0, v0=v0, params=params, rtol=mf.simulation.rtol, atol=mf.simulation.atol, **extra)
     fig = Figure(figsize=(8, 2.2 * len(observe) + 1))
     axes = fig.subplots(len(observe), 1, sharex=True, squeeze=False)[:, 0]
     for ax, name, col in zip(axes, observe, data.T):

@@ -80,6 +80,8 @@ typedef struct {
     int have_J;         /* J holds a Jacobian, evaluated at step nst_J after ncf_J convergence failures */
     long nst_J, ncf_J;
     double *f0, *f1, *y1, *vals; /* scratch */
+    lcg_sens_proj_fn project;    /* projection after each step, or NULL */
+    double *ynew;                /* its result (ny (1 + ns)) */
     int nonfinite;
     double t_nonfinite;
     watch w;            /* Ctrl-C (the poll callback), the wall-clock limit */
@@ -169,6 +171,25 @@ static int sens_record(sens_data *d, double t, double t0, const double *yv, long
             stop = 1;
     }
     return stop;
+}
+
+/* CVProjFn: corr = P(ycur) - ycur for the projection of the states and sensitivities; err (if
+ * not NULL) replaced by its linearized projection. */
+static int aug_proj(sunrealtype t, N_Vector ycur, N_Vector corr, sunrealtype epsProj, N_Vector err, void *data)
+{
+    sens_data *d = (sens_data *)data;
+    const double *y = N_VGetArrayPointer(ycur);
+    double *c = N_VGetArrayPointer(corr);
+    long i, total = (long)d->m->ny * (1 + d->ns);
+    int rc;
+    (void)epsProj;
+
+    rc = d->project(t, y, d->p, d->ns, d->which, d->ynew, err != NULL ? N_VGetArrayPointer(err) : NULL);
+    if (rc != LCG_OK)
+        return model_status(d, rc, t);
+    for (i = 0; i < total; ++i)
+        c[i] = d->ynew[i] - y[i];
+    return 0;
 }
 
 /* J = df/dy at (t, y): the model's dense or sparse Jacobian, else forward differences. */
@@ -411,6 +432,11 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     data.f1 = (double *)malloc(sizeof(double) * (size_t)ny);
     data.y1 = (double *)malloc(sizeof(double) * (size_t)ny);
     data.vals = (double *)malloc(sizeof(double) * (size_t)(m->jac_nnz > 0 ? m->jac_nnz : 1));
+    data.project = opt->project;
+    if (data.project != NULL && (data.ynew = (double *)malloc(sizeof(double) * (size_t)total)) == NULL) {
+        flag = LCG_FLAG_NOMEM;
+        goto done;
+    }
     y = N_VNew_Serial((sunindextype)total, ctx);
     abstol = N_VNew_Serial((sunindextype)total, ctx);
     mem = CVodeCreate(opt->method, ctx);
@@ -449,6 +475,12 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     if ((flag = CVodeSetLinearSolver(mem, LS, NULL)) < 0)
         goto done;
     CVodeSetMaxHnilWarns(mem, -1);
+    if (data.project != NULL) {
+        if ((flag = CVodeSetProjFn(mem, aug_proj)) < 0)
+            goto done;
+        if ((flag = CVodeSetProjErrEst(mem, 1)) < 0)
+            goto done;
+    }
     if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
         goto done;
     if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
@@ -537,6 +569,7 @@ done:
     free(data.y1);
     free(data.vals);
     free(data.info);
+    free(data.ynew);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }

@@ -20,6 +20,13 @@ typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int n
 typedef int (*lcg_sens_out_fn)(double t, const double *y, const double *p, int ns, const int *which,
                                const double *s, double *dout);
 
+/* Projection onto a constraint manifold after each step (CVodeSetProjFn; BDF only): ynew (ny (1 +
+ * ns)) the projected state and sensitivities of y (same layout), err (NULL, or the error estimate
+ * of that layout) replaced by its linearized projection. Returns LCG_OK, LCG_ERR_SINGULAR_MASS
+ * (unrecoverable) or another code (recoverable: CVODE retries with a smaller step). */
+typedef int (*lcg_sens_proj_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                                double *ynew, double *err);
+
 typedef struct lcg_cvsens_options {
     int method;            /* 1 Adams, 2 BDF */
     double rtol;
@@ -32,6 +39,7 @@ typedef struct lcg_cvsens_options {
     void *poll_data;
     double poll_every;
     double max_wall;       /* wall-clock limit in seconds (0: none) */
+    lcg_sens_proj_fn project; /* NULL: none; else the projection after each step (method BDF) */
 } lcg_cvsens_options;
 
 typedef struct lcg_cvsens_stats {

@@ -60,6 +60,7 @@ from ..result import Result
 from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, tolerances
 from ..solvers.control import POLL_EVERY
 from ..solvers.cvode.native import CVC_OPTIONS
+from ..solvers.cvode.sensitivity_constrained import run_index1 as run_sensitivities
 from ..solvers.ida.native import ALGEBRAIC_ATOL, IDA_OPTIONS
 from ..solvers.registry import resolve
 from ..theory.constraints import ConstrainedSystem
@@ -141,15 +142,31 @@ class ConstrainedSimulation(ConstrainedFunctions):
         ``stop_at_outputs``: exact steps): ``t = (t0, t1)`` (1001 output times) takes the steps
         that ``[t0, t1]`` takes, up to CVODE's estimate of the first step, which looks at the
         first output interval.
+
+        ``sensitivities`` (index-1, CVODE): forward sensitivities of the states and outputs (the
+        multipliers ``lambda_<j>`` included) with respect to run-time parameters and initial values
+        (``"<q>(0)"``, ``"<q>_dot(0)"``), in ``res.sensitivity(value, direction)``; without events;
+        Baumgarte stabilization and projection differentiated as the run applies them, the
+        initial ones through the initial projection onto the constraints
+        (:mod:`lagcodegen.solvers.cvode.sensitivity_constrained`).
         """
+        if self._ggl and (options.get("sensitivities") is not None
+                          or getattr(solver, "sensitivities", None) is not None):
+            raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
+                                  "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         if q0 is None:
             raise LagcodegenError("q0 is required")
         roots = self._roots(events)
+        sensitivities = getattr(family, "sensitivities", None) is not None
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, self._ggl)
-        if self.info.contacts:
+        if sensitivities and self.info.contacts:
+            raise LagcodegenError("sensitivities of systems with contacts (impacts) are not computed")
+        if sensitivities:
+            res = run_sensitivities(family, self, t, y0, p, rtol, atol, roots=roots, initial=initial)
+        elif self.info.contacts:
             res = self._run_contacts(family, t, y0, p, rtol, atol, roots, contacts)
         elif self._ggl:
             if yy0 is None:

@@ -139,10 +139,16 @@ class MinimalSimulation(_Base):
         ``events`` None or True locates the compiled events (the ``events`` of the constructor and
         the inequality constraints), False none; minimal coordinates have no Baumgarte
         stabilization or projection (they have no drift to correct): such options raise.
+
+        ``sensitivities`` (CVODE): forward sensitivities of the branch's ODE (states: the remaining
+        coordinates; the eliminated ones are outputs and have theirs) with respect to run-time
+        parameters and the remaining coordinates' initial values (``"<q>(0)"``, ``"<q>_dot(0)"``;
+        the eliminated coordinates follow them, as with ``initial="project"``).
         """
         roots = self.check_events(events)
         t = output_times(t)
         model = self.system.model
+        self._check_directions(options.get("sensitivities", getattr(solver, "sensitivities", None)))
         names = [q.name for q in model.coords]
         q = state_vector(q0, names, "q0")
         v = state_vector(v0, names, "v0")
@@ -210,6 +216,21 @@ class MinimalSimulation(_Base):
         return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
                                 progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                 options=options)
+
+    def _check_directions(self, names) -> None:
+        """Sensitivity directions that name an eliminated coordinate's initial value raise: it is
+        a function of the remaining coordinates (the branch's outputs of that name have
+        sensitivities with respect to theirs)."""
+        if names is None:
+            return
+        for name in [names] if isinstance(names, str) else names:
+            if isinstance(name, str) and name.endswith("(0)"):
+                base = name[:-3]
+                base = base[:-4] if base.endswith("_dot") else base
+                if any(q.name == base for q in self.eliminated):
+                    raise LagcodegenError(f"sensitivities: {name!r}: {base} is eliminated in minimal coordinates (a "
+                                          f"function of {', '.join(q.name for q in self.remaining)}); give the "
+                                          "initial values of the remaining coordinates")
 
     def check_events(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble: None or

@@ -40,7 +40,8 @@ class CVODE(Family):
     Index-1 constrained systems (eq. 4.5): ``baumgarte`` ("auto" or (alpha, beta); None: the
     compiled default), ``projection`` onto the constraints after each step (None: the compiled
     default; BDF only), ``proj_tol``, ``proj_maxit``, ``max_events`` (events kept; None: 10000 in
-    a run, 64 per ensemble member). Forward sensitivities of the ODE of a scene (native):
+    a run, 64 per ensemble member). Forward sensitivities of the ODE of a scene and of index-1
+    constrained systems (native; index-1: :mod:`.sensitivity_constrained`):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``; :mod:`.sensitivity`), ``sensitivity_errcon`` the sensitivities in the error
     test (default True, CVODES's errconS); in runs with events (:mod:`.sensitivity_events`),
@@ -52,7 +53,8 @@ class CVODE(Family):
     faces = ("ode", "index1")
     only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
             "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
-            "max_events": ("index1", "ode"), "sensitivities": ("ode",), "sensitivity_errcon": ("ode",)}
+            "max_events": ("index1", "ode"), "sensitivities": ("ode", "index1"),
+            "sensitivity_errcon": ("ode", "index1")}
 
     method: str | None = None
     backend: str = "native"
@@ -287,6 +289,9 @@ class CVODE(Family):
         one call."""
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
+        if self.sensitivities is not None:
+            raise LagcodegenError("the integrator object does not compute sensitivities: use simulate(..., "
+                                  "sensitivities=[...])")
         ny = 2 * sim.n
         method, projection, alpha, beta = self.index1_settings(sim, float(mem[0]), mem[1:1 + ny], mem[1 + ny:])
         return CVCStepper(sim, mem, rtol=rtol, atol=atol, method=method, alpha=alpha, beta=beta, projection=projection,
@@ -298,6 +303,9 @@ class CVODE(Family):
     def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Members (consistent initial states, rows of Y) of an index-1 system in one native call."""
         self._native_only()
+        if self.sensitivities is not None:
+            raise LagcodegenError("ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) "
+                                  "per member")
         method, projection, alpha, beta = self.index1_settings(sim, float(t[0]), None, None)
         max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_index1(sim, t, Y, P, rtol, atol, self, method, projection, alpha, beta, roots,

@@ -37,6 +37,8 @@ typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int n
                                const double *s, double *ydot, double *sdot);
 typedef int (*lcg_sens_out_fn)(double t, const double *y, const double *p, int ns, const int *which,
                                const double *s, double *dout);
+typedef int (*lcg_sens_proj_fn)(double t, const double *y, const double *p, int ns, const int *which,
+                                double *ynew, double *err);
 typedef struct lcg_cvsens_options {
     int method;
     double rtol;
@@ -49,6 +51,7 @@ typedef struct lcg_cvsens_options {
     void *poll_data;
     double poll_every;
     double max_wall;
+    lcg_sens_proj_fn project;
 } lcg_cvsens_options;
 typedef struct lcg_cvsens_stats {
     long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
