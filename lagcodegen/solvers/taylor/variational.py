@@ -177,6 +177,7 @@ class _Tangent:
             (r, c), = lin.items()
             if c == 1:
                 return r
+        prod = self.factor(prod)
         const = None if c0 == 0 else self.constant(c0)
         items = sorted(lin.items())
         args = [r for r, _ in items]
@@ -189,6 +190,27 @@ class _Tangent:
             coefs.append(self.constant(c))
             pairs.append(pr)
         return self.emit("dot", args, coefs, const, pairs)
+
+    def factor(self, prod: dict) -> dict:
+        """Products sharing a row as one product: sum_i c_i x y_i -> x (sum_i c_i y_i), one
+        convolution and a linear combination instead of one convolution per product (the
+        tangent of c x y along a parameter is c' x y + c x dy + c dx y)."""
+        prod = dict(prod)
+        while True:
+            count: dict[int, int] = {}
+            for pair in prod:
+                for r in set(pair):
+                    count[r] = count.get(r, 0) + 1
+            shared = [r for r, m in count.items() if m > 1]
+            if not shared:
+                return prod
+            r = max(shared, key=lambda s: (count[s], -s))
+            partners = [(c, pair[1] if pair[0] == r else pair[0]) for pair, c in prod.items() if r in pair]
+            prod = {pair: c for pair, c in prod.items() if r not in pair}
+            other = self.combo([(c, y) for c, y in partners])
+            if other is not None:  # a row: the partners are rows
+                pair = tuple(sorted((r, other)))
+                prod[pair] = prod.get(pair, se.Integer(0)) + 1
 
     def quotient(self, num, den: int):
         """The entry of num / den (den a row)."""
