@@ -57,9 +57,6 @@ from .decompose import Const, Decomposition, Op, decompose
 from .emit import CHUNK, P_MAX, _jinja
 from .runner import message, taylor_runtime
 
-#: A second factor of 1 in a term of :meth:`_Tangent.combo`.
-_ONE = object()
-
 
 @dataclass
 class VariationalDecomposition:
@@ -157,7 +154,7 @@ class _Tangent:
             for f in factors:
                 if isinstance(f, int) and not isinstance(f, bool):
                     rows.append(f)
-                elif f is not _ONE:
+                else:
                     coef = coef * self.cval(f)
             if coef == 0:
                 continue
@@ -240,12 +237,12 @@ def _tangents(tg: _Tangent, ops: list, T: dict, dconst) -> None:
                 c = op.coefs[i]
                 pair = op.pairs[i] if op.pairs else None
                 if pair is None:
-                    terms += [(tg.cval(c), g(r), _ONE), (1, dconst(c), r)]
+                    terms += [(tg.cval(c), g(r)), (1, dconst(c), r)]
                 else:
                     x, y = pair
                     terms += [(tg.cval(c), x, g(y)), (tg.cval(c), g(x), y), (1, dconst(c), x, y)]
             if op.const is not None:
-                terms.append((1, dconst(op.const), _ONE))
+                terms.append((1, dconst(op.const)))
             T[o] = tg.combo(terms)
         elif k == "mul":
             x, y = op.args
@@ -255,10 +252,10 @@ def _tangents(tg: _Tangent, ops: list, T: dict, dconst) -> None:
             T[o] = tg.combo([(2, x, g(x))])
         elif k == "div":  # u = x/y: du = (dx - u dy)/y
             x, y = op.args
-            T[o] = tg.quotient(tg.combo([(1, g(x), _ONE), (-1, o, g(y))]), y)
+            T[o] = tg.quotient(tg.combo([(1, g(x)), (-1, o, g(y))]), y)
         elif k == "cdiv":  # u = c/y: du = (dc - u dy)/y
             y, = op.args
-            T[o] = tg.quotient(tg.combo([(1, dconst(op.const), _ONE), (-1, o, g(y))]), y)
+            T[o] = tg.quotient(tg.combo([(1, dconst(op.const)), (-1, o, g(y))]), y)
         elif k == "sincos":
             x, = op.args
             s, c = op.out
@@ -277,7 +274,7 @@ def _tangents(tg: _Tangent, ops: list, T: dict, dconst) -> None:
             T[o] = tg.quotient(g(x), x)
         elif k == "sqrt":  # du = dx / (2 u)
             x, = op.args
-            T[o] = tg.quotient(tg.combo([(half, g(x), _ONE)]), o)
+            T[o] = tg.quotient(tg.combo([(half, g(x))]), o)
         elif k == "pow":  # u = x^a: du = a u dx / x + u log(x) da
             x, = op.args
             a = op.const
@@ -285,12 +282,12 @@ def _tangents(tg: _Tangent, ops: list, T: dict, dconst) -> None:
             da = dconst(a)
             if da is not None:
                 logx = tg.emit("log", (x,))
-                dx = tg.combo([(1, dx, _ONE), (1, tg.combo([(1, o, logx)]), da)])
+                dx = tg.combo([(1, dx), (1, tg.combo([(1, o, logx)]), da)])
             T[o] = dx
         elif k == "tan":  # u = tan x, v = u^2: du = (1 + v) dx, dv = 2 u du
             x, = op.args
             u, v = op.out
-            T[u] = tg.combo([(1, g(x), _ONE), (1, v, g(x))])
+            T[u] = tg.combo([(1, g(x)), (1, v, g(x))])
             T[v] = tg.combo([(2, u, T[u])])
         else:  # pragma: no cover - every kind of decompose.Op is handled above
             raise ModelError(f"method='taylor': no tangent of the operation kind {k!r}")
@@ -348,7 +345,7 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
     for j in range(ns):
         T, entry_tangent = Ts[j]
         tg.phase = ops_b
-        R.append([_zero(tg.combo([(1, entry_tangent(F[i]), _ONE)]
+        R.append([_zero(tg.combo([(1, entry_tangent(F[i]))]
                                  + [(-1, entry_tangent(M[i][m]), acc + m) for m in range(n)]))
                   for i in range(n)])
     labels = {remap(r): text for r, text in d.labels.items()}
@@ -421,7 +418,8 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass, direction_names=names,
         dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j]) for j in range(ns)])
     env = _jinja()
-    files = {"lcg_taylor_model.h": env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__, p_max=P_MAX),
+    header = env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__, p_max=P_MAX)
+    files = {"lcg_taylor_model.h": header,
              f"{scene.prefix}_taylor_var.c": env.get_template("taylor/jet_var.c.j2").render(**ctx)}
     return files, v
 
