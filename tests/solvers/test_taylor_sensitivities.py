@@ -52,6 +52,11 @@ def osc():
 
 
 @pytest.fixture(scope="module")
+def gadget_cm():
+    return lcg.compile_model(gadget(), outputs=["energy"], prefix="taylor_sens_gadget")
+
+
+@pytest.fixture(scope="module")
 def dp():
     return lcg.compile_model(lcg.systems.double_pendulum(), outputs=["energy"])
 
@@ -117,11 +122,11 @@ def test_double_pendulum_against_cvode_and_central_differences(dp):
         assert np.max(np.abs(got - cd)) < 1e-6 * np.max(np.abs(cd)), name
 
 
-def test_every_jet_operation_against_cvode():
+def test_every_jet_operation_against_cvode(gadget_cm):
     """The gadget (quotients, exp, log, sqrt, tan, cosh, a parameter exponent, damping, forcing
     in t): Taylor sensitivities along every parameter and two initial values against CVODE's at
     rtol 1e-12, relative 1e-6; the variational program holds a tangent of every kind."""
-    cm = lcg.compile_model(gadget(), outputs=["energy"], prefix="taylor_sens_gadget")
+    cm = gadget_cm
     names = ["a", "b", "c", "w", "x(0)", "y_dot(0)"]
     t = np.linspace(0.0, 4.0, 41)
     kw = dict(q0=[0.4, -0.3], v0=[0.2, 0.5])
@@ -183,10 +188,10 @@ def test_refusals_are_named(osc):
         lcg.Taylor(sensitivities=3)
 
 
-def test_generated_code_compiles_strictly(tmp_path, cc):
+def test_generated_code_compiles_strictly(tmp_path, cc, gadget_cm):
     """The variational jet with every operation kind, with quadratures, without outputs or
     parameters: -Wall -Wextra -Werror -std=c99 -pedantic."""
-    cases = [(lcg.Scene(lcg.derive(gadget()), outputs=["energy"]), [("param", 1), ("state", 3)], ["b", "y_dot(0)"]),
+    cases = [(gadget_cm.code.scene, [("param", 1), ("state", 3)], ["b", "y_dot(0)"]),
              (lcg.Scene(lcg.derive(lcg.systems.double_pendulum()), outputs=[]), [("state", 0)], ["theta1(0)"]),
              (lcg.Scene(lcg.derive(lcg.systems.pendulum("p0")), runtime_parameters=[], outputs=[]), [("state", 1)],
               ["theta_dot(0)"])]
@@ -214,3 +219,64 @@ def test_fit_on_the_taylor_integrator(osc):
     assert abs(fit.params["k"] - k) < 3 * fit.stderr["k"] and fit.stderr["k"] < 0.01
     assert abs(fit.params["x_dot(0)"] - v0) < 3 * fit.stderr["x_dot(0)"]
     assert fit.iterations <= 20
+
+
+SANITIZE_MAIN = r"""
+#include <stdio.h>
+#include <string.h>
+#include "lcg_taylor.h"
+
+const lcg_taylor_model *taylor_sens_gadget_taylor_var_table(void);
+
+int main(void)
+{
+    double p[4] = {0.7, 1.3, 0.4, 2.0}, y0[12] = {0.4, -0.3, 0.2, 0.5, 0, 0, 0, 0, 0, 0, 0, 1};
+    double t[4] = {0.0, 0.5, 1.5, 3.0}, yout[4 * 12], out[4 * 3];
+    lcg_taylor_options opt;
+    lcg_taylor_stats st;
+    int flag, k;
+
+    memset(&opt, 0, sizeof opt);
+    opt.rtol = 1e-10;
+    opt.atol = 1e-12;
+    opt.max_steps = 100000;
+    flag = lcg_taylor_solve(taylor_sens_gadget_taylor_var_table(), p, y0, 4, t, yout, out, &opt, &st, NULL);
+    printf("%d %d", flag, st.nt_done);
+    for (k = 0; k < 4 * 12; ++k)
+        printf(" %.17g", yout[k]);
+    for (k = 0; k < 4 * 3; ++k)
+        printf(" %.17g", out[k]);
+    printf("\n");
+    return flag;
+}
+"""
+
+
+def test_variational_jet_runs_clean_under_sanitizers(tmp_path, cc, gadget_cm):
+    """The gadget's variational jet (directions b and y_dot(0)) driven by lcg_taylor.c under
+    ASan/UBSan: the same states, sensitivities and outputs as the run in this process."""
+    from lagcodegen.solvers.taylor.emit import runtime_sources
+    files, _ = variational_sources(gadget_cm.code.scene, [("param", 1), ("state", 3)], ["b", "y_dot(0)"])
+    files = {**runtime_sources(), **files}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    (tmp_path / "main.c").write_text(SANITIZE_MAIN)
+    # -O0: at -O1 the sanitizers' instrumentation of the jet takes gcc ten times longer
+    san = ["-std=c99", "-g", "-O0", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    sources = [name for name in files if name.endswith(".c")]
+    proc = subprocess.run([cc, *san, "main.c", *sources, "-o", "run", "-lm", "-pthread"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True,
+                         env={"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    flag, done, *values = run.stdout.split()
+    assert int(flag) == 0 and int(done) == 4
+    values = np.array(values, dtype=float)
+    yout, out = values[:48].reshape(4, 12), values[48:].reshape(4, 3)
+    res = gadget_cm.simulate(np.array([0.0, 0.5, 1.5, 3.0]), q0=[0.4, -0.3], v0=[0.2, 0.5], rtol=1e-10, atol=1e-12,
+                      method="taylor", sensitivities=["b", "y_dot(0)"])
+    assert np.allclose(yout[:, :4], res.y, rtol=1e-12, atol=1e-14)
+    assert np.allclose(yout[:, 4:].reshape(4, 2, 4), res.sensitivities[:, :, :4], rtol=1e-12, atol=1e-14)
+    assert np.allclose(out, np.column_stack([res["energy"], res.sensitivities[:, :, 4]]), rtol=1e-12, atol=1e-14)
+    assert np.max(np.abs(yout[:, 4:])) > 0.1  # the sensitivities moved
