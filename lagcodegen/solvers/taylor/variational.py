@@ -121,8 +121,12 @@ class _Tangent:
         if not e.free_symbols:
             if e.is_Number:
                 return e
-            value = float(e)
-            return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
+            try:
+                value = float(e)
+            except (RuntimeError, TypeError, ValueError):
+                value = None
+            if value is not None:
+                return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
         if e not in self.const_memo:
             self.const_memo[e] = Const(len(self.consts))
             self.consts.append(e)
