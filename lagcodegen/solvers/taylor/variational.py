@@ -352,10 +352,28 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
         R.append([_zero(tg.combo([(1, entry_tangent(F[i]))]
                                  + [(-1, entry_tangent(M[i][m]), acc + m) for m in range(n)]))
                   for i in range(n)])
+    ops_a, ops_b = _live(ops_a, ops_b, [e for row in R + dz for e in row])
     labels = {remap(r): text for r, text in d.labels.items()}
     return VariationalDecomposition(base=d, ns=ns, nrows=tg.nrows, ops_a=base_ops + ops_a, ops_b=ops_b,
                                     consts=tg.consts, M=M, F=F, rates=rates, time_row=time_row, R=R, dz=dz,
                                     sacc=sacc, labels=labels)
+
+
+def _live(ops_a: list, ops_b: list, entries: list) -> tuple[list, list]:
+    """The tangent operations ``ops_a``, ``ops_b`` without those whose rows nothing uses (the
+    right-hand sides and rate tangents ``entries`` need them, or a later operation does): the
+    tangent of every operation is built, but the equations need only some (the tangent of a
+    product whose factors were folded elsewhere, of an entry of M that only enters through
+    (dM) q'')."""
+    live = {e for e in entries if _is_row(e)}
+    kept = []
+    for op in reversed(ops_a + ops_b):
+        if any(o in live for o in op.out):
+            kept.append(op)
+            live.update(op.args)
+            live.update(r for pair in op.pairs if pair is not None for r in pair)
+    kept = {id(op) for op in kept}
+    return [op for op in ops_a if id(op) in kept], [op for op in ops_b if id(op) in kept]
 
 
 def _zero(e):
