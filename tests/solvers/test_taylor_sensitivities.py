@@ -1,5 +1,5 @@
-"""Forward sensitivities on the Taylor integrator (lagcodegen.solvers.taylor.variational: jet
-transport of the variational equations): against closed forms (the harmonic oscillator), CVODE's
+"""Forward sensitivities on the Taylor integrator (lagcodegen.solvers.taylor.variational and
+.sensitivity: jet transport of the variational equations): against closed forms (the harmonic oscillator), CVODE's
 sensitivities at tight tolerance (an independent derivation: symbolic derivatives of M and F, a
 BDF/Adams Newton solve), central differences of plain Taylor runs, and a model that uses every
 elementary operation of the jet."""
@@ -13,7 +13,8 @@ import sympy as sp
 import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
 from lagcodegen.solvers.taylor.decompose import decompose
-from lagcodegen.solvers.taylor.variational import variational, variational_sources
+from lagcodegen.solvers.taylor.sensitivity import variational_sources
+from lagcodegen.solvers.taylor.variational import variational
 
 from helpers import STRICT_CFLAGS
 

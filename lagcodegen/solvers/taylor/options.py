@@ -21,7 +21,7 @@ class Taylor(Family):
     ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
-    (:mod:`.variational`, built on first use per set of names); ``sensitivity_errcon`` the
+    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -54,12 +54,12 @@ class Taylor(Family):
                           order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
 
     def _run_sensitivities(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
-        """A run of the states and their sensitivities (:mod:`.variational`)."""
+        """A run of the states and their sensitivities (:mod:`.sensitivity`)."""
         if events:
             raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
                                   "events, or locate the events in a run of their own)")
         from .run import scene_of
-        from .variational import variational_module
+        from .sensitivity import variational_module
         module = variational_module(cm, scene_of(cm), self.sensitivities)
         return module.simulate(t, y, p, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
                                max_step=float(self.max_step), max_steps=int(self.max_steps), order=self.order,
