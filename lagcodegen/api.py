@@ -241,7 +241,8 @@ def compile_file(mf: ModelFile, **options: Any):
 
 
 def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, method: str | None = None,
-                  prefix: str | None = None, report: Callable[[str], None] | None = None) -> dict[str, str]:
+                  prefix: str | None = None, report: Callable[[str], None] | None = None,
+                  sensitivities: bool = False) -> dict[str, str]:
     """The sources of a loaded model file (file name -> text) with its ``[simulation]`` settings
     (outputs, run-time parameters and values, Jacobian; constrained files: formulation,
     Baumgarte parameters, events), in ``lang`` ("c" or "fortran"), rendered in memory.
@@ -253,6 +254,8 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
     (:func:`lagcodegen.codegen.bundle.render_bundle`: Makefile, CMakeLists.txt, examples, README)
     starting from the file's initial state; ``method``: its CVODE example's method (default
     "bdf"). ``report``, if given, is called with a line naming the branch chosen.
+    ``sensitivities``: the bundle of an unconstrained (or minimal-coordinate) model carries the
+    forward sensitivity functions too (:func:`~lagcodegen.codegen.bundle.render_bundle`).
     """
     check_language(lang)
     s = mf.simulation
@@ -268,7 +271,7 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
             return dict(code.files)
         params = {k: v for k, v in values.items() if k in scene.runtime_parameters}
         return render_bundle(scene, lang, y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end, code=code,
-                             method=method or "bdf")
+                             method=method or "bdf", sensitivities=sensitivities)
     system = mf.constrained
     mf.derive()  # errors located in the file
     formulation = s.formulation or "index1"
@@ -283,7 +286,10 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
         keep = [i for i, q in enumerate(system.model.coords) if q not in eliminated]
         return render_bundle(scene, lang, y0=[q0[i] for i in keep] + [v0[i] for i in keep],
                              params={k: v for k, v in params.items() if k in scene.runtime_parameters},
-                             t_start=s.t_start, t_end=s.t_end, code=code)
+                             t_start=s.t_start, t_end=s.t_end, code=code, sensitivities=sensitivities)
+    if sensitivities:
+        raise ModelError(f"sensitivities of constrained systems in the {formulation} formulation are not generated "
+                         "(formulation 'minimal' gives an ODE with them)")
     ggl = formulation == "ggl"
     if bundle:
         return render_constrained_bundle(system, lang, outputs=outputs, events=list(mf.events),

@@ -18,7 +18,7 @@ def test_pages_with_code_are_found():
     names = [p.relative_to(DOCS).as_posix() for p in PAGES]
     for page in ("pictures-and-notebooks.md", "getting-started.md", "howto/constraints.md", "howto/routhian.md",
                  "howto/solvers.md", "howto/ensembles.md", "howto/bundles.md", "howto/rigid-bodies.md",
-                 "howto/fmu.md"):
+                 "howto/fmu.md", "howto/events.md", "howto/integrator.md", "howto/sensitivities.md"):
         assert page in names
 
 

@@ -65,6 +65,9 @@ def add_parser(sub) -> None:
                    help="write a Make-syntax depfile: the stamp (or the manifest) depends on the model's "
                         "input files and on lagcodegen's own files")
     g.add_argument("--stamp", metavar="FILE", help="touch FILE after every successful run")
+    g.add_argument("--sensitivities", action="store_true",
+                   help="--bundle: also the forward sensitivity functions (<prefix>_sens.c, C), their prototypes "
+                        "in <prefix>.h and sens_example.c")
     g.add_argument("--method", choices=["bdf", "adams"],
                    help="--bundle: the CVODE example's method (default bdf); the model code is the same")
     add_formulation_option(g)
@@ -76,7 +79,8 @@ def _options(args) -> dict:
     """The command-line options that shape the generated files (recorded in the manifest)."""
     return {"lang": args.lang, "prefix": args.prefix, "bundle": args.bundle, "outputs": args.outputs,
             "runtime_parameters": args.runtime_parameters, "fold_all": args.fold_all, "set": args.set or [],
-            "no_jacobian": args.no_jacobian, "formulation": args.formulation, "method": args.method}
+            "no_jacobian": args.no_jacobian, "formulation": args.formulation, "method": args.method,
+            **({"sensitivities": True} if args.sensitivities else {})}
 
 
 def _listing(out: Path, names) -> str:
@@ -111,6 +115,8 @@ def run(args) -> int:
         return _generate_fmu(args)
     if not args.output:
         raise UsageError("generate needs -o/--output FOLDER (or --fmu FILE)")
+    if args.sensitivities and not args.bundle:
+        raise UsageError("--sensitivities adds the sensitivity functions to a bundle: give --bundle too")
     if args.check and args.list_outputs:
         print("lagcodegen generate: --check and --list-outputs exclude each other", file=sys.stderr)
         return EXIT_USAGE
@@ -137,7 +143,8 @@ def run(args) -> int:
             return EXIT_OUTDATED
     t0 = time.perf_counter()
     files = generate_file(apply_options(mf, args), lang=args.lang, bundle=args.bundle, method=args.method,
-                          prefix=args.prefix, report=lambda msg: say(msg, args.quiet))
+                          prefix=args.prefix, report=lambda msg: say(msg, args.quiet),
+                          **({"sensitivities": True} if args.sensitivities else {}))
     say(f"derived and generated {len(files)} file(s) in {time.perf_counter() - t0:.3f} s", args.quiet)
     files[manifest] = manifest_text(inputs, options, generator, files)
     if args.list_outputs:

@@ -11,7 +11,11 @@ a :class:`~lagcodegen.formulation.scene.Scene` without lagcodegen:
   ``find_package(SUNDIALS CONFIG)`` succeeds (linking ``SUNDIALS::cvode``);
 * ``rk4_example.c``: a fixed-step RK4 integration that needs nothing but a C compiler;
 * ``cvode_example.c`` (``sundials_example=True``): the same with SUNDIALS CVODE;
-* ``README.md``: how to call each function, array layouts, return codes.
+* ``README.md``: how to call each function, array layouts, return codes;
+* with ``sensitivities=True`` (C): ``<prefix>_sens.c``, the forward sensitivity functions
+  ``<prefix>_sens_rhs`` and ``<prefix>_sens_outputs`` (:mod:`lagcodegen.codegen.sensitivity`),
+  compiled into the library, their prototypes in ``<prefix>.h``, and ``sens_example.c``, an RK4
+  integration of the state with its sensitivities to every run-time parameter and initial value.
 
 Constrained systems (:class:`~lagcodegen.theory.constraints.ConstrainedSystem`, index-1 formulation):
 :func:`render_constrained_bundle`, or :func:`write_bundle` given the system instead of a scene,
@@ -44,6 +48,7 @@ from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
 from .record import GeneratedCode
+from .sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from .signatures import DRIVERS, c_header as types_header
 from .templates import environment
 
@@ -94,7 +99,8 @@ def _parameters(code: GeneratedCode, params: Mapping[str, float] | None) -> list
 def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, *,
                   y0: Sequence[float] | None = None, params: Mapping[str, float] | None = None,
                   t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
-                  code: GeneratedCode | None = None, method: str = "bdf") -> dict[str, str]:
+                  code: GeneratedCode | None = None, method: str = "bdf",
+                  sensitivities: bool = False) -> dict[str, str]:
     """The files of the bundle of ``scene`` (name -> text), rendered in memory.
 
     ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
@@ -102,7 +108,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     others on their command line): by default q = 0.5, q' = 0, the parameters' defaults, t
     from 0 to 10 and RK4 steps of at most 1e-3. ``code``: the model code, if already generated
     for this scene and language. ``method``: the linear multistep method of the CVODE example,
-    "bdf" or "adams" (the model code is the same for both).
+    "bdf" or "adams" (the model code is the same for both). ``sensitivities``: also the forward
+    sensitivity functions (C bundles; module docstring).
     """
     if isinstance(scene, ConstrainedSystem):
         raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
@@ -136,6 +143,13 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
                   ("lcg_inputs.c", "their functions"),
                   ("lcg_inputs_types.h", "their structs (with lcg_model.h, lcg_codes.h)"),
                   ("inputs_example.c", "RK4 with the inputs read from tables (`make inputs_example`)")]
+    if sensitivities:
+        if fortran:
+            raise ModelError("bundle: the sensitivity functions are C (sensitivities=True needs lang='c')")
+        table += [(f"{code.prefix}_sens.c", "forward sensitivities: the state's and its sensitivities' right-hand "
+                                            "side, the outputs' sensitivities (C99 + libm; in the library)"),
+                  ("sens_example.c", "RK4 of the state and its sensitivities to every parameter and initial "
+                                     "value, CSV on stdout")]
     table.append(("README.md", "this file"))
     y_values = _initial_state(code, y0)
     ctx = dict(
@@ -148,7 +162,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         folded_text=", ".join(f"`{name}` = {_c_double(value)}" for name, value in folded),
         y0=[_c_double(v) for v in y_values], t_start=_c_double(t_start), t_end=_c_double(t_end),
         steps=steps, every=max(1, steps // 100), sundials_example=sundials_example, file_table=table,
-        cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1], inputs=inputs)
+        cvode_method=CVODE_METHODS[method][0], cvode_method_name=CVODE_METHODS[method][1], inputs=inputs,
+        sens=bool(sensitivities))
     if inputs:
         ctx.update(input_names=[name for name, _ in inputs], input_slots=[s for _, s in inputs],
                    max_h=_c_double((t_end - t_start) / steps))
@@ -178,8 +193,37 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     if inputs:
         files.update(inputs_files())
         files["inputs_example.c"] = env.get_template("bundle/inputs_example.c.j2").render(**ctx)
+    if sensitivities:
+        files.update(sensitivity_files(scene, code, env, ctx))
     files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
     return files
+
+
+def sensitivity_files(scene: Scene, code: GeneratedCode, env, ctx: dict) -> dict[str, str]:
+    """The sensitivity part of a C bundle: ``<prefix>_sens.c``, the model header with their
+    prototypes added (before its closing C++ guard), ``sens_example.c``; ``ctx`` gets the
+    example's directions (every run-time parameter, then every initial value)."""
+    prefix = code.prefix
+    sources = sensitivity_source(scene, prefix)
+    header = code.files[code.header_name]
+    guard = "#ifdef __cplusplus\n}"
+    at = header.rfind(guard)
+    if at < 0:
+        raise ModelError(f"bundle: the header {code.header_name} has no closing C++ guard to add the sensitivity "
+                         "prototypes before")
+    PREFIX = prefix.upper()
+    block = (f"/* Forward sensitivities ({prefix}_sens.c): ydot[NY] = f(t, y, p) and sdot[j*NY + i] = d ydot[i] / "
+             f"d theta_j\n * for ns directions with s[j*NY + i] = d y[i] / d theta_j: which[j] = k for the "
+             f"run-time\n * parameter p[k], -1 for an initial value. Returns {PREFIX}_OK, "
+             f"{PREFIX}_ERR_SINGULAR_MASS or\n * {PREFIX}_ERR_NONFINITE. */\n{SENS_RHS.format(prefix=prefix)};\n\n"
+             f"/* dout[j*NOUT + k] = d out[k] / d theta_j at (t, y, s) (NOUT = {code.nout}).\n * Returns {PREFIX}_OK "
+             f"or {PREFIX}_ERR_NONFINITE. */\n{SENS_OUTPUTS.format(prefix=prefix)};\n\n")
+    directions = list(code.param_names) + [f"{name}(0)" for name in code.state_names]
+    ctx.update(ns=len(directions), sens_directions=directions,
+               sens_which=list(range(code.np)) + [-1] * code.ny,
+               sens_rhs=SENS_RHS.format(prefix=prefix), sens_outputs=SENS_OUTPUTS.format(prefix=prefix))
+    return {**sources, code.header_name: header[:at] + block + header[at:],
+            "sens_example.c": env.get_template("bundle/sens_example.c.j2").render(**ctx)}
 
 
 def inputs_files() -> dict[str, str]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
+import symengine as se
 import sympy as sp
 
 from ..derivation import to_se
@@ -84,3 +85,31 @@ def events_block(scene: Scene, events: list[Event]) -> Block:
     c = substituter(scene)
     return Block([("gout", k) for k in range(len(events))],
                  [c(to_se(ev.expr, f"event {ev.name!r}")) for ev in events])
+
+
+def events_gradient_block(scene: Scene, events: list[Event]) -> Block:
+    """The derivatives of the event functions (checked by :func:`scene_events`) for the event
+    times' sensitivities (eq. of :mod:`lagcodegen.solvers.cvode.sensitivity_events`):
+    ``gt[k]`` = dg_k/dt, ``gy[k*ny + i]`` = dg_k/dy_i (y = (q, q', z)), ``gp[k*np + m]`` =
+    dg_k/dp_m over the run-time parameters; the entries that vanish are left out (the generated
+    function zeroes its arrays first). A derivative symengine cannot take in closed form raises
+    ModelError."""
+    eom = scene.eom
+    model = eom.model
+    c = substituter(scene)
+    states = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
+    states += [se.Symbol(name) for name, _ in eom.quadratures]
+    params = [se.Symbol(name) for name in scene.runtime_parameters]
+    time = se.Symbol(model.t.name)
+    ny, npar = len(states), len(params)
+    block = Block()
+    for k, ev in enumerate(events):
+        g = to_se(ev.expr, f"event {ev.name!r}")
+        for key, var in [(("gt", k), time)] + [(("gy", k * ny + i), v) for i, v in enumerate(states)] \
+                + [(("gp", k * npar + m), v) for m, v in enumerate(params)]:
+            e = c(se.diff(g, var))
+            if e.atoms(se.Derivative, se.Subs):
+                raise ModelError(f"event {ev.name!r}: its derivative {e} cannot be taken in closed form")
+            if e != 0:
+                block.add(key, e)
+    return block

@@ -16,6 +16,7 @@
  * setup); another layout ends the run with LCG_FLAG_BAD_INPUT and a message, never a crash. */
 #include "lcg_control.h" /* first: POSIX */
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -82,6 +83,8 @@ typedef struct {
     int nonfinite;
     double t_nonfinite;
     watch w;            /* Ctrl-C (the poll callback), the wall-clock limit */
+    lcg_cvsens_events *ev; /* the event functions and the events found, or NULL */
+    int *info;          /* nroot: CVodeGetRootInfo's */
 } sens_data;
 
 static int model_status(sens_data *d, int rc, double t)
@@ -105,6 +108,67 @@ static int aug_rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
     if (WATCH_TICK(&d->w))
         return -1; /* stop: cancelled or out of time */
     return model_status(d, d->sens_rhs(t, yv, d->p, d->ns, d->which, yv + ny, fv, fv + ny), t);
+}
+
+/* CVRootFn: the event functions at the state part of the augmented vector. */
+static int sens_roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
+{
+    sens_data *d = (sens_data *)data;
+    int rc = d->ev->roots(t, N_VGetArrayPointer(y), d->p, gout);
+
+    if (rc != LCG_OK) {
+        d->st->model_error = rc;
+        d->st->t_reached = t;
+        return -1;
+    }
+    return 0;
+}
+
+/* Root finding on d's CVODE memory with the event functions and directions of d->ev: 0 or a
+ * negative CVODE flag (LCG_FLAG_NOMEM without memory for the root information). */
+static int sens_roots_init(sens_data *d)
+{
+    int flag;
+
+    if ((d->info = (int *)malloc(sizeof(int) * (size_t)d->ev->nroot)) == NULL)
+        return LCG_FLAG_NOMEM;
+    if ((flag = CVodeRootInit(d->mem, d->ev->nroot, sens_roots)) < 0)
+        return flag;
+    if (d->ev->rootdir != NULL && (flag = CVodeSetRootDirection(d->mem, (int *)d->ev->rootdir)) < 0)
+        return flag;
+    CVodeSetNoInactiveRootWarn(d->mem);
+    return 0;
+}
+
+/* The roots CVODE returned at t with the augmented vector yv (total values) into d->ev, except
+ * those within rounding of t0, the time CVODE started from; returns 1 if one of them is terminal. */
+static int sens_record(sens_data *d, double t, double t0, const double *yv, long total)
+{
+    lcg_cvsens_events *ev = d->ev;
+    double h = 0.0;
+    long k;
+    int i, stop = 0;
+
+    if (CVodeGetRootInfo(d->mem, d->info) < 0)
+        return 1;
+    CVodeGetLastStep(d->mem, &h);
+    if (t - t0 <= 100.0 * DBL_EPSILON * (fabs(t0) + fabs(h)))
+        return 0;
+    for (i = 0; i < ev->nroot; ++i) {
+        if (d->info[i] == 0)
+            continue;
+        if (ev->n_events < ev->max_events) {
+            ev->t[ev->n_events] = t;
+            for (k = 0; k < total; ++k)
+                ev->y[(long)ev->n_events * total + k] = yv[k];
+            ev->which[ev->n_events] = i;
+            ev->direction[ev->n_events] = d->info[i];
+        }
+        ev->n_events++;
+        if (ev->terminal == NULL || ev->terminal[i])
+            stop = 1;
+    }
+    return stop;
 }
 
 /* J = df/dy at (t, y): the model's dense or sparse Jacobian, else forward differences. */
@@ -268,16 +332,52 @@ static int ls_solve(SUNLinearSolver S, SUNMatrix Amat, N_Vector x, N_Vector b, d
     return 0;
 }
 
+/* The block solver of this file on the empty solver LS of the context ctx, solving for d: its
+ * layout checked (the context in its place, SUNLinSolSetup calling ours). 0, or LCG_FLAG_BAD_INPUT
+ * with the reason in message. */
+static int ls_attach(SUNLinearSolver LS, SUNContext ctx, sens_data *d, char *message, size_t size)
+{
+    lcg_ls_object *obj = (lcg_ls_object *)LS;
+
+    if (obj->sunctx != ctx || obj->ops == NULL) {
+        snprintf(message, size, "the SUNDIALS %s linear solver object has another layout than "
+                 "the sensitivity driver's (SUNDIALS 7.x)", LCG_SUNDIALS_VERSION);
+        return LCG_FLAG_BAD_INPUT;
+    }
+    obj->content = d;
+    obj->ops->gettype = ls_type;
+    obj->ops->getid = ls_id;
+    obj->ops->setup = ls_setup;
+    obj->ops->solve = ls_solve;
+    d->probe = 1;
+    SUNLinSolSetup(LS, NULL);
+    if (d->probe != 2) {
+        snprintf(message, size, "the SUNDIALS %s linear solver operations have another layout "
+                 "than the sensitivity driver's (SUNDIALS 7.x)", LCG_SUNDIALS_VERSION);
+        return LCG_FLAG_BAD_INPUT;
+    }
+    d->probe = 0;
+    return 0;
+}
+
 int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
                      int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
                      lcg_cvsens_stats *st)
 {
+    return lcg_cvsens_solve_events(m, sens_rhs, sens_out, p, ns, which, y0, s0, nt, tout, yout, sout, out, dout, opt,
+                                   st, NULL);
+}
+
+int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
+                            const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
+                            const double *tout, double *yout, double *sout, double *out, double *dout,
+                            const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev)
+{
     SUNContext ctx = NULL;
     void *mem = NULL;
     N_Vector y = NULL, abstol = NULL;
     SUNLinearSolver LS = NULL;
-    lcg_ls_object *obj;
     sens_data data;
     double *yv;
     long nst = 0, total;
@@ -321,28 +421,8 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
         goto done;
     }
     data.mem = mem;
-    /* The linear solver, its layout checked: the context in its place, SUNLinSolSetup calling ours. */
-    obj = (lcg_ls_object *)LS;
-    if (obj->sunctx != ctx || obj->ops == NULL) {
-        snprintf(st->message, sizeof st->message, "the SUNDIALS %s linear solver object has another layout than "
-                 "the sensitivity driver's (SUNDIALS 7.x)", LCG_SUNDIALS_VERSION);
-        flag = LCG_FLAG_BAD_INPUT;
+    if ((flag = ls_attach(LS, ctx, &data, st->message, sizeof st->message)) < 0)
         goto done;
-    }
-    obj->content = &data;
-    obj->ops->gettype = ls_type;
-    obj->ops->getid = ls_id;
-    obj->ops->setup = ls_setup;
-    obj->ops->solve = ls_solve;
-    data.probe = 1;
-    SUNLinSolSetup(LS, NULL);
-    if (data.probe != 2) {
-        snprintf(st->message, sizeof st->message, "the SUNDIALS %s linear solver operations have another layout "
-                 "than the sensitivity driver's (SUNDIALS 7.x)", LCG_SUNDIALS_VERSION);
-        flag = LCG_FLAG_BAD_INPUT;
-        goto done;
-    }
-    data.probe = 0;
 
     yv = N_VGetArrayPointer(y);
     for (i = 0; i < ny; ++i)
@@ -379,6 +459,12 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
         goto done;
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
+    if (ev != NULL && ev->nroot > 0 && ev->roots != NULL) {
+        ev->n_events = ev->terminated = 0;
+        data.ev = ev;
+        if ((flag = sens_roots_init(&data)) < 0)
+            goto done;
+    }
 
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
@@ -387,6 +473,16 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
         LCG_STEP_BUDGET(CVode);
         flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
         st->t_reached = tret;
+        while (flag == CV_ROOT_RETURN && data.ev != NULL) {
+            if (sens_record(&data, tret, tout[0], yv, total)) {
+                ev->terminated = 1;
+                flag = 0;
+                goto done;
+            }
+            LCG_STEP_BUDGET(CVode);
+            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
+            st->t_reached = tret;
+        }
         if (flag < 0)
             goto done;
         for (i = 0; i < ny; ++i)
@@ -440,6 +536,7 @@ done:
     free(data.f1);
     free(data.y1);
     free(data.vals);
+    free(data.info);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }

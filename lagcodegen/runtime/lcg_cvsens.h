@@ -54,4 +54,32 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
                      lcg_cvsens_stats *st);
 
+/* Events of a run with sensitivities: the event functions (gout[nroot] at (t, y, p); 0 or a model
+ * error code) located by CVODE's root finding on the state part of the augmented vector, and the
+ * events found: event k at t[k] with the augmented vector y[k*ny*(1 + ns) ..] there (the state,
+ * then the ns sensitivity blocks), event function which[k], crossing direction[k]. The events
+ * reset nothing: the sensitivities go on continuously through a non-terminal one; a terminal one
+ * ends the run (terminated = 1). Only the first max_events are stored; n_events counts them all. */
+typedef struct lcg_cvsens_events {
+    int nroot;
+    int (*roots)(double t, const double *y, const double *p, double *gout);
+    const int *rootdir;    /* nroot directions to watch (0 both, +1, -1), or NULL: both */
+    const int *terminal;   /* nroot flags: stop at this event, or NULL: every event stops */
+    int max_events;
+    int n_events;
+    double *t;
+    double *y;             /* max_events rows of ny (1 + ns) values */
+    int *which;
+    int *direction;
+    int terminated;
+} lcg_cvsens_events;
+
+/* lcg_cvsens_solve with the events of ev (NULL: none, as lcg_cvsens_solve). A terminal event ends
+ * the run: the rows of yout, sout, out, dout are those of the output times before it. A root
+ * within rounding of tout[0] is not reported (a run restarted from the state of an event). */
+int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
+                            const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
+                            const double *tout, double *yout, double *sout, double *out, double *dout,
+                            const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev);
+
 #endif

@@ -25,6 +25,7 @@ from ..util import c_vector, check_finite, output_times
 from ..solvers.inputs import input_set
 from .ensemble import ensemble_ode
 from .integrator import Integrator
+from .sensitivity_integrator import SensitivityIntegrator
 
 
 def check_rc(rc: int, t: float, what: str) -> None:
@@ -284,7 +285,10 @@ class CompiledModel(CompiledReprMixin):
         The initial state, parameters, tolerances and options as in :meth:`simulate` (``t0``: the
         initial time), resolved once by :func:`lagcodegen.solvers.registry.resolve`; ``method``
         "taylor" (events located on each step's polynomial) or "adams"/"bdf" (CVODE's root finding,
-        as simulate's). ``max_steps`` is the step budget of one call.
+        as simulate's). ``max_steps`` is the step budget of one call. ``sensitivities`` (CVODE):
+        a :class:`~lagcodegen.simulation.sensitivity_integrator.SensitivityIntegrator` carrying
+        them (``integ.sensitivities``, writable; ``propagate_grid`` returns states and
+        sensitivities).
         """
         y = initial_state(self, q0, v0, y0, z0)
         if not all(map(math.isfinite, y.tolist())):
@@ -295,8 +299,8 @@ class CompiledModel(CompiledReprMixin):
         family = resolve("ode", solver, options, self.n, rtol)
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
         stepper = family.runner("ode", "stepper")(self, mem, rtol, atol_arr, events)
-        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
-                          family=stepper.family)
+        cls = SensitivityIntegrator if getattr(stepper, "with_sensitivities", False) else Integrator
+        return cls(stepper, mem, state_names=self.state_names, param_names=self.param_names, family=stepper.family)
 
     def check_initial_outputs(self, t0: float, y: np.ndarray, p: np.ndarray) -> None:
         """Raise SolverError naming every output that is not finite at the initial state (each
@@ -329,7 +333,9 @@ class CompiledModel(CompiledReprMixin):
         those of :meth:`simulate` (solver, rtol, atol, method, max_steps, ...; ``max_wall``: the
         wall-clock limit of each member in seconds). ``inputs``: input name -> one
         :class:`~lagcodegen.solvers.inputs.Table` (or (times, values)) for every member, or a list
-        of one per member (native CVODE). Returns
+        of one per member (native CVODE). ``sensitivities`` (native CVODE, no events): each
+        member's forward sensitivities, bit-identical to its run alone, in the result's
+        ``sensitivities`` / ``sensitivity(value, direction)`` by member. Returns
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult`; Ctrl-C raises
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` (a KeyboardInterrupt)
         holding what finished.

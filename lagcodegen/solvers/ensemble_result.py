@@ -67,6 +67,35 @@ class EnsembleResult:
     method: str = ""
     formulation: str = ""
     n_coordinates: int | None = None
+    #: forward sensitivities (ensembles run with ``sensitivities=[...]``): (N, ns, nvalues) at each
+    #: member's last output time; (N, nt, ns, nvalues) at every output time with ``save`` other
+    #: than "final"; directions ``sensitivity_names``, values ``sensitivity_values`` (states, outputs)
+    sensitivities: np.ndarray | None = field(default=None, repr=False)
+    sensitivity_trajectories: np.ndarray | None = field(default=None, repr=False)
+    sensitivity_names: list = field(default_factory=list)
+    sensitivity_values: list = field(default_factory=list)
+
+    def set_sensitivities(self, names: list, values: list, final: np.ndarray, trajectories=None) -> None:
+        """Attach the members' sensitivities: ``final`` (N, ns, nvalues), ``trajectories``
+        (N, nt, ns, nvalues) or None."""
+        self.sensitivity_names, self.sensitivity_values = list(names), list(values)
+        self.sensitivities, self.sensitivity_trajectories = final, trajectories
+
+    def sensitivity(self, value: str, direction: str) -> np.ndarray:
+        """d value / d direction by member: (N, nt) at every output time when the trajectories
+        were saved, else (N,) at each member's last output time."""
+        if self.sensitivities is None:
+            raise LagcodegenError("this ensemble has no sensitivities: run ensemble(..., sensitivities=[...])")
+        if direction not in self.sensitivity_names:
+            raise LagcodegenError(f"{direction!r} is not a sensitivity direction of this ensemble "
+                                  f"({', '.join(self.sensitivity_names)})")
+        if value not in self.sensitivity_values:
+            raise LagcodegenError(f"{value!r} is not a state or output of this ensemble "
+                                  f"({', '.join(self.sensitivity_values)})")
+        j, k = self.sensitivity_names.index(direction), self.sensitivity_values.index(value)
+        if self.sensitivity_trajectories is not None:
+            return self.sensitivity_trajectories[:, :, j, k]
+        return self.sensitivities[:, j, k]
 
     # ------------------------------------------------------------------ arrays
     def __len__(self) -> int:
@@ -137,6 +166,10 @@ class EnsembleResult:
             res.parameters = dict(zip(self.param_names, (float(x) for x in p)))
         res.n_coordinates = self.n_coordinates
         res.formulation = self.formulation
+        if self.sensitivities is not None:
+            sens = self.sensitivity_trajectories[i, :rows] if full and self.sensitivity_trajectories is not None \
+                else self.sensitivities[i][None]
+            res.set_sensitivities(self.sensitivity_names, self.sensitivity_values, sens.copy())
         return res
 
     # ------------------------------------------------------------------ files
@@ -195,4 +228,13 @@ class EnsembleResult:
             if out.traj is not None and part.traj is not None:
                 out.traj[idx] = part.traj
             out.messages.update({int(idx[j]): text for j, text in part.messages.items()})
+        if like.sensitivities is not None:
+            final = np.full((n, *like.sensitivities.shape[1:]), np.nan)
+            traj = None if like.sensitivity_trajectories is None else \
+                np.full((n, *like.sensitivity_trajectories.shape[1:]), np.nan)
+            for idx, part in parts:
+                final[np.asarray(idx)] = part.sensitivities
+                if traj is not None:
+                    traj[np.asarray(idx)] = part.sensitivity_trajectories
+            out.set_sensitivities(like.sensitivity_names, like.sensitivity_values, final, traj)
         return out

@@ -183,15 +183,16 @@ def test_unknown_and_folded_names_are_named(osc, dp):
         res.sensitivity("v", "k")
     with pytest.raises(LagcodegenError, match="no sensitivities"):
         osc.simulate(t, q0=[1.0]).sensitivity("x", "k")
-    with pytest.raises(LagcodegenError, match="ensembles do not compute sensitivities"):
-        osc.ensemble(t, q0=np.ones((2, 1)), sensitivities=["k"])
-    with pytest.raises(LagcodegenError, match="sensitivities with events"):
-        osc.simulate(t, q0=[1.0], sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
-    with pytest.raises(LagcodegenError, match="integrator object does not compute sensitivities"):
-        osc.integrator(q0=[1.0], method="adams", sensitivities=["k"])
+    # events (tests/solvers/test_sensitivity_events.py): x = cos(w t) crosses 0 at t = pi / (2 w),
+    # w = sqrt(k/m): dt/dk = -t / (2 k)
+    hit = osc.simulate(t, q0=[1.0], sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))]).events[-1]
+    assert abs(hit.t_sensitivity["k"] + hit.t / 8.0) < 1e-7
     # the same run from a solver object
     obj = osc.simulate(t, q0=[1.0], solver=lcg.CVODE(sensitivities=("k",), sensitivity_errcon=True))
     assert np.array_equal(obj.sensitivities, res.sensitivities)
+    # and from the integrator object (tests/solvers/test_sensitivity_integrator.py)
+    _, S = osc.integrator(q0=[1.0], method="adams", sensitivities=["k"]).propagate_grid(t)
+    assert np.array_equal(S[:, :, 0], res.sensitivities[:, 0, :2])
 
 
 def test_rigid_body_tree_is_refused():

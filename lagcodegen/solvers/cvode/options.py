@@ -37,7 +37,8 @@ class CVODE(Family):
     a run, 64 per ensemble member). Forward sensitivities of the ODE of a scene (native):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``; :mod:`.sensitivity`), ``sensitivity_errcon`` the sensitivities in the error
-    test (default True, CVODES's errconS).
+    test (default True, CVODES's errconS); in runs with events (:mod:`.sensitivity_events`),
+    ensembles (:mod:`.sensitivity_ensemble`) and the integrator object (:mod:`.sensitivity_stepper`).
     """
 
     name = "CVODE"
@@ -113,12 +114,10 @@ class CVODE(Family):
         compiled = compiled_events(cm, events)
         if compiled is not None:  # a value that is not finite at the start: named here
             compiled.values(float(t[0]), y, p)
-        if self.sensitivities is not None:
-            if compiled is not None:
-                raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
-                                      "events, or locate the events in a run of their own)")
+        if self.sensitivities is not None:  # events: their times' sensitivities too (.sensitivity_events)
             from .sensitivity import run
-            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon))
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon),
+                       events=compiled)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
         opts = self._ode_options(cm, y, p, self.backend == "native")
@@ -144,9 +143,6 @@ class CVODE(Family):
         ``events`` located by CVODE's root finding on their compiled functions, as in :meth:`run_ode`."""
         if self.backend != "native":
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
-        if self.sensitivities is not None:
-            raise LagcodegenError("the integrator object does not compute sensitivities: use simulate(..., "
-                                  "sensitivities=[...])")
         y, p = mem[1:1 + cm.ny], mem[1 + cm.ny:]
         compiled = compiled_events(cm, events)
         if compiled is not None:
@@ -156,8 +152,20 @@ class CVODE(Family):
             compiled.values(float(mem[0]), y, p)  # a value that is not finite at the start: named here
         opts = self._ode_options(cm, y, p, True)
         max_events = 10_000 if self.max_events is None else self.max_events
+        if self.sensitivities is not None:  # the sensitivity driver's stepper (.sensitivity_stepper)
+            return self._sensitivity_stepper(cm, mem, rtol, atol, opts, compiled, max_events)
         return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), events=compiled,
                             max_events=max_events, **opts)
+
+    def _sensitivity_stepper(self, cm, mem, rtol, atol, opts, compiled, max_events):
+        from .sensitivity import check_family
+        from .sensitivity_stepper import CVSensStepper
+        check_family(self)
+        return CVSensStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
+                             method=opts["method"], jacobian=opts["jacobian"], max_steps=opts["max_steps"],
+                             first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
+                             max_order=opts["max_order"], max_wall=float(self.max_wall), events=compiled,
+                             max_events=max_events)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
@@ -178,16 +186,31 @@ class CVODE(Family):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
         located in each member (:func:`.events.compiled_events`)."""
         self._native_only()
-        if self.sensitivities is not None:
-            raise LagcodegenError("ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) "
-                                  "per member")
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         compiled = compiled_events(cm, events)
+        if self.sensitivities is not None:
+            return self._ensemble_sensitivities(cm, t, Y, P, rtol, atol, compiled, threads=threads, save=save,
+                                                progress=progress)
         opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
         max_events = 64 if self.max_events is None else self.max_events
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
                                      save=save, progress=progress, events=compiled, max_events=max_events)
+
+    def _ensemble_sensitivities(self, cm, t, Y, P, rtol, atol, compiled, *, threads, save, progress):
+        """Members with forward sensitivities (:mod:`.sensitivity_ensemble`), each a run of the
+        sensitivity driver as :meth:`run_ode` makes it."""
+        from .sensitivity import check_family
+        from .sensitivity_ensemble import ensemble_sensitivities
+        check_family(self)
+        opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
+        return ensemble_sensitivities(cm, t, Y, P, rtol, atol, self.sensitivities, threads=threads, save=save,
+                                      progress=progress, method=opts["method"],
+                                      errcon=bool(self.sensitivity_errcon), jacobian=opts["jacobian"],
+                                      max_steps=opts["max_steps"], max_order=opts["max_order"],
+                                      first_step=opts["first_step"], max_step=opts["max_step"],
+                                      min_step=opts["min_step"], max_wall=float(self.max_wall), events=compiled,
+                                      max_events=64 if self.max_events is None else self.max_events)
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables

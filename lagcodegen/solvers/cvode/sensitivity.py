@@ -27,6 +27,7 @@ from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
+from .sensitivity_events import EVENTS_CDEF, SensEvents
 
 #: The runtime files of the sensitivity driver.
 FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
@@ -62,7 +63,7 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
                      int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
                      lcg_cvsens_stats *st);
-""" + POLL_CDEF
+""" + POLL_CDEF + EVENTS_CDEF
 
 #: The statistics of a sensitivity run (Result.stats).
 STATS = ("nsteps", "nrhs", "nlinsetups", "netfails", "nniters", "nncfails", "njac", "nfactor", "nblock_solves",
@@ -166,10 +167,14 @@ def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
 def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names, *, rtol: float, atol: np.ndarray,
                         method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
                         max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
-                        min_step: float = 0.0, max_wall: float = 0.0) -> Result:
+                        min_step: float = 0.0, max_wall: float = 0.0, events=None,
+                        max_events: int = 10_000) -> Result:
     """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
     ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
-    time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names."""
+    time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names.
+    ``events`` (:class:`~.events.CompiledEvents`): located as in a plain run, each record with
+    its time's sensitivities (:mod:`.sensitivity_events`); a terminal one ends the run with its
+    state as the last row."""
     if method not in ("adams", "bdf"):
         raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
     names, which, s0 = directions(cm, names)
@@ -196,9 +201,11 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     fb = ffi.from_buffer
     p_ptr = fb("double[]", p) if p.size else ffi.NULL
     start = time.perf_counter()
-    flag = lib.lcg_cvsens_solve(fns.table, fns.rhs, fns.out, p_ptr, ns, fb("int[]", which), fb("double[]", y0),
-                                fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout),
-                                fb("double[]", sout), fb("double[]", out), fb("double[]", dout), opt, st)
+    args = (fns.table, fns.rhs, fns.out, p_ptr, ns, fb("int[]", which), fb("double[]", y0),
+            fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout), fb("double[]", sout),
+            fb("double[]", out), fb("double[]", dout), opt, st)
+    found = None if events is None else SensEvents(ffi, events, ny, ns, max_events)
+    flag = lib.lcg_cvsens_solve(*args) if found is None else lib.lcg_cvsens_solve_events(*args, found.struct)
     wall = time.perf_counter() - start
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
@@ -213,11 +220,28 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
                  status=int(flag), message=text, backend="native", method=method)
     res.set_sensitivities(names, list(cm.state_names) + list(cm.output_names),
                           np.concatenate([sout[sl], dout[sl, :, :nout]], axis=2))
+    if found is not None:
+        add_events(cm, fns, res, found, names, which, p)
     return res
 
 
+def add_events(cm, fns, res: Result, found: SensEvents, names, which, p) -> None:
+    """The events of a run into ``res`` (``events``, ``stats["events"]``), the state of a terminal
+    one appended as its last row with its sensitivities."""
+    from .native import add_event_row
+    res.events = found.records(cm, fns, names, which, p)
+    res.stats["events"] = int(found.struct.n_events)
+    res.stats["terminated"] = int(found.terminated)
+    if found.terminated and res.events:
+        rows = res.t.size
+        add_event_row(cm, res, res.events[-1], p)
+        if res.t.size > rows:
+            s, dout = found.event_row(fns, p, which, cm.code.nout)
+            res.sensitivities = np.concatenate([res.sensitivities, np.concatenate([s, dout], axis=1)[None]])
+
+
 def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
-        errcon: bool = True) -> Result:
+        errcon: bool = True, events=None) -> Result:
     """A sensitivity run of ``cm`` with the options of the resolved solver ``family`` (a
     :class:`~lagcodegen.solvers.cvode.CVODE` on the native backend with the dense Newton solver:
     the block solver of the sensitivity driver replaces it)."""
@@ -230,4 +254,15 @@ def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, at
     return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
                                first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
-                               max_wall=float(family.max_wall))
+                               max_wall=float(family.max_wall), events=events,
+                               max_events=10_000 if family.max_events is None else family.max_events)
+
+
+def check_family(family) -> None:
+    """Refuse the options of ``family`` (a CVODE object) that the sensitivity driver does not take
+    (as :func:`run` does)."""
+    if family.backend != "native":
+        raise LagcodegenError("sensitivities need backend='native'")
+    if family.linear_solver != "dense":
+        raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
+                              f"{family.linear_solver!r} does not apply (leave it 'dense')")

@@ -1,0 +1,387 @@
+/* lcg_cvsens_stepper.c -- lagcodegen's runtime: the CVODE integration with forward sensitivities
+ * that lives between calls (see lcg_cvsens_stepper.h).
+ *
+ * One translation unit with the sensitivity driver lcg_cvsens.c, included here, so that CVODE
+ * calls the driver's own augmented right-hand side, block Newton solver (ls_attach, ls_solve: the
+ * states' matrix I - gamma J for every block) and root function with the same options; a grid
+ * from a fresh stepper gives the numbers of lcg_cvsens_solve on the same times. Events: the
+ * driver's root finding (sens_roots_init, sens_record), recorded per call; a root within rounding
+ * of the time CVODE (re)started from is not reported, as in lcg_cvsens_solve_events. The module
+ * built from this file replaces lcg_cvsens.c's own. */
+#include "lcg_cvsens.c"
+
+#include "lcg_cvsens_stepper.h"
+
+/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
+#ifndef CV_ONE_STEP
+#define CV_ONE_STEP 2
+#endif
+int CVodeClearStopTime(void *cvode_mem);
+
+struct lcg_cvsens_stepper {
+    const lcg_model *m;
+    lcg_cvsens_options opt;     /* the caller's, atol pointing at atol below */
+    lcg_cvsens_stats st;        /* of the last call */
+    sens_data data;             /* what the callbacks see (lcg_cvsens.c) */
+    int ns;
+    int *which;                 /* ns: the directions (copied) */
+    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
+    double *s;                  /* the caller's sensitivities (ns*ny) */
+    double *seen;               /* time, state, parameters and sensitivities as the last call left them */
+    double *atol;               /* ny (1 + ns) */
+    long total;                 /* ny (1 + ns): the augmented state */
+    int restart;                /* CVodeReInit before the next step (after a failure) */
+    double t_start;             /* the time of the last CVodeInit / CVodeReInit */
+    lcg_cvsens_events *ev;      /* the caller's event functions and record, or NULL */
+    int roots_on;
+    SUNContext ctx;
+    void *mem;
+    N_Vector yv, abstol;
+    SUNLinearSolver LS;
+};
+
+void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
+{
+    if (x == NULL)
+        return;
+    if (x->mem != NULL)
+        CVodeFree(&x->mem);
+    if (x->LS != NULL) {
+        ((lcg_ls_object *)x->LS)->content = NULL;
+        SUNLinSolFreeEmpty(x->LS);
+    }
+    if (x->abstol != NULL)
+        N_VDestroy(x->abstol);
+    if (x->yv != NULL)
+        N_VDestroy(x->yv);
+    if (x->ctx != NULL)
+        SUNContext_Free(&x->ctx);
+    free(x->data.J);
+    free(x->data.A);
+    free(x->data.piv);
+    free(x->data.f0);
+    free(x->data.f1);
+    free(x->data.y1);
+    free(x->data.vals);
+    free(x->data.info);
+    free(x->which);
+    free(x->seen);
+    free(x->atol);
+    free(x);
+}
+
+lcg_cvsens_stats *lcg_cvsens_stepper_stats(lcg_cvsens_stepper *x)
+{
+    return &x->st;
+}
+
+/* The caller's state and sensitivities into CVODE's vector. */
+static void xs_load(lcg_cvsens_stepper *x)
+{
+    double *yv = N_VGetArrayPointer(x->yv);
+    long i, ny = x->m->ny;
+
+    for (i = 0; i < ny; ++i)
+        yv[i] = x->y[i];
+    for (i = 0; i < ny * x->ns; ++i)
+        yv[ny + i] = x->s[i];
+}
+
+/* CVODE's vector into y (ny values) and s (ns*ny). */
+static void xs_store(lcg_cvsens_stepper *x, double *y, double *s)
+{
+    const double *yv = N_VGetArrayPointer(x->yv);
+    long i, ny = x->m->ny;
+
+    for (i = 0; i < ny; ++i)
+        y[i] = yv[i];
+    for (i = 0; i < ny * x->ns; ++i)
+        s[i] = yv[ny + i];
+}
+
+/* 1 if the nt times t are finite and do not decrease. */
+static int xs_increasing(int nt, const double *t)
+{
+    int k;
+
+    for (k = 0; k < nt; ++k)
+        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
+            return 0;
+    return 1;
+}
+
+static void xs_remember(lcg_cvsens_stepper *x)
+{
+    long i, n = 1 + x->m->ny + x->m->np;
+
+    for (i = 0; i < n; ++i)
+        x->seen[i] = x->tv[i];
+    for (i = 0; i < (long)x->m->ny * x->ns; ++i)
+        x->seen[n + i] = x->s[i];
+}
+
+/* The options of lcg_cvsens_solve on the stepper's CVODE memory: 0 or a negative flag. */
+static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
+{
+    const lcg_model *m = x->m;
+    const lcg_cvsens_options *opt = &x->opt;
+    sens_data *d = &x->data;
+    const size_t ny = (size_t)m->ny;
+    long i;
+    int flag;
+
+    d->J = (double *)malloc(sizeof(double) * ny * ny);
+    d->A = (double *)malloc(sizeof(double) * ny * ny);
+    d->piv = (int *)malloc(sizeof(int) * ny);
+    d->f0 = (double *)malloc(sizeof(double) * ny);
+    d->f1 = (double *)malloc(sizeof(double) * ny);
+    d->y1 = (double *)malloc(sizeof(double) * ny);
+    d->vals = (double *)malloc(sizeof(double) * (size_t)(m->jac_nnz > 0 ? m->jac_nnz : 1));
+    x->yv = N_VNew_Serial((sunindextype)x->total, x->ctx);
+    x->abstol = N_VNew_Serial((sunindextype)x->total, x->ctx);
+    x->mem = CVodeCreate(opt->method, x->ctx);
+    x->LS = SUNLinSolNewEmpty(x->ctx);
+    if (d->J == NULL || d->A == NULL || d->piv == NULL || d->f0 == NULL || d->f1 == NULL || d->y1 == NULL
+        || d->vals == NULL || x->yv == NULL || x->abstol == NULL || x->mem == NULL || x->LS == NULL)
+        return LCG_FLAG_NOMEM;
+    d->mem = x->mem;
+    if ((flag = ls_attach(x->LS, x->ctx, d, message, size)) < 0)
+        return flag;
+    xs_load(x);
+    for (i = 0; i < x->total; ++i)
+        N_VGetArrayPointer(x->abstol)[i] = x->atol[i];
+    if ((flag = CVodeInit(x->mem, aug_rhs, x->tv[0], x->yv)) < 0)
+        return flag;
+    if ((flag = CVodeSVtolerances(x->mem, opt->rtol, x->abstol)) < 0)
+        return flag;
+    CVodeSetUserData(x->mem, d);
+    if ((flag = CVodeSetLinearSolver(x->mem, x->LS, NULL)) < 0)
+        return flag;
+    CVodeSetMaxHnilWarns(x->mem, -1);
+    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(x->mem, opt->max_order)) < 0)
+        return flag;
+    if (opt->first_step > 0 && (flag = CVodeSetInitStep(x->mem, opt->first_step)) < 0)
+        return flag;
+    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(x->mem, opt->max_step)) < 0)
+        return flag;
+    if (opt->min_step > 0 && (flag = CVodeSetMinStep(x->mem, opt->min_step)) < 0)
+        return flag;
+    if (x->roots_on) {
+        d->ev = x->ev;
+        if ((flag = sens_roots_init(d)) < 0)
+            return flag;
+    }
+    return CVodeSetMaxNumSteps(x->mem, opt->max_steps);
+}
+
+lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, int ns, const int *which,
+                                           const lcg_cvsens_options *opt, double *mem, double *s,
+                                           lcg_cvsens_events *ev, char *message, size_t size)
+{
+    lcg_cvsens_stepper *x;
+    long i, n;
+    int flag;
+
+    if (m == NULL || m->abi != LCG_MODEL_ABI || m->rhs == NULL || m->ny != 2 * m->nq + m->nz || sens_rhs == NULL) {
+        snprintf(message, size, "the model table is missing or of another layout");
+        return NULL;
+    }
+    if (opt == NULL || opt->atol == NULL || mem == NULL || ns < 1 || which == NULL || s == NULL
+        || opt->max_steps < 1 || !isfinite(mem[0])) {
+        snprintf(message, size, "bad options (max_steps >= 1, at least one direction) or a non-finite time");
+        return NULL;
+    }
+    x = (lcg_cvsens_stepper *)calloc(1, sizeof *x);
+    if (x == NULL) {
+        snprintf(message, size, "out of memory");
+        return NULL;
+    }
+    n = 1 + m->ny + m->np;
+    x->m = m;
+    x->opt = *opt;
+    x->ns = ns;
+    x->total = (long)m->ny * (1 + ns);
+    x->tv = mem;
+    x->y = mem + 1;
+    x->p = x->y + m->ny;
+    x->s = s;
+    x->which = (int *)malloc(sizeof(int) * (size_t)ns);
+    x->seen = (double *)malloc(sizeof(double) * (size_t)(n + (long)m->ny * ns));
+    x->atol = (double *)malloc(sizeof(double) * (size_t)x->total);
+    if (x->which == NULL || x->seen == NULL || x->atol == NULL || SUNContext_Create(0, &x->ctx) != 0) {
+        snprintf(message, size, "out of memory");
+        lcg_cvsens_stepper_free(x);
+        return NULL;
+    }
+    for (i = 0; i < ns; ++i)
+        x->which[i] = which[i];
+    for (i = 0; i < x->total; ++i)
+        x->atol[i] = opt->atol[i];
+    x->opt.atol = x->atol;
+    SUNContext_ClearErrHandlers(x->ctx);
+    SUNContext_PushErrHandler(x->ctx, record_error, &x->st);
+    x->data.m = m;
+    x->data.sens_rhs = sens_rhs;
+    x->data.p = x->p;
+    x->data.ns = ns;
+    x->data.which = x->which;
+    x->data.jacobian = opt->jacobian;
+    x->data.st = &x->st;
+    x->ev = ev;
+    x->roots_on = ev != NULL && ev->nroot > 0 && ev->roots != NULL;
+    x->t_start = mem[0];
+    message[0] = '\0';
+    flag = xs_setup(x, message, size);
+    if (flag < 0) {
+        if (message[0] == '\0' || flag == LCG_FLAG_NOMEM)
+            snprintf(message, size, flag == LCG_FLAG_NOMEM ? "out of memory creating the CVODE solver"
+                     : "CVODE setup failed (flag %d): %s", flag, x->st.message);
+        lcg_cvsens_stepper_free(x);
+        return NULL;
+    }
+    xs_remember(x);
+    return x;
+}
+
+/* CVode towards tout (CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop set at
+ * a terminal one. In one-step mode the step ends at an event recorded. */
+static int xs_solve(lcg_cvsens_stepper *x, double tout, int task, double *tret, int *stop)
+{
+    int flag, before;
+
+    for (;;) {
+        flag = CVode(x->mem, tout, x->yv, tret, task);
+        if (flag == CV_ROOT_RETURN && x->roots_on) {
+            before = x->ev->n_events;
+            if (sens_record(&x->data, *tret, x->t_start, N_VGetArrayPointer(x->yv), x->total)) {
+                x->ev->terminated = 1;
+                *stop = 1;
+                return 0;
+            }
+            if (task == CV_ONE_STEP && x->ev->n_events > before)
+                return 0;
+            continue;
+        }
+        return flag;
+    }
+}
+
+int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, const double *tout, double *yout,
+                               double *sout, int one_step)
+{
+    const lcg_model *m = x->m;
+    lcg_cvsens_stats *st = &x->st;
+    const lcg_cvsens_options *opt = &x->opt;
+    sens_data *d = &x->data;
+    const long ny = m->ny, nsy = (long)m->ny * x->ns, n = 1 + m->ny + m->np;
+    double t = x->tv[0], tret = t;
+    long i;
+    int k = 0, flag = 0, stop = 0;
+
+    st->flag = st->model_error = st->nt_done = 0;
+    st->message[0] = '\0';
+    d->nonfinite = 0;
+    if (x->ev != NULL) {
+        x->ev->n_events = 0;
+        x->ev->terminated = 0;
+    }
+    watch_init(&d->w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (!(t_end >= t) || nt < 0
+        || (nt > 0 && (tout == NULL || yout == NULL || sout == NULL || tout[0] < t || tout[nt - 1] != t_end))
+        || !xs_increasing(nt, tout)) {
+        snprintf(st->message, sizeof st->message,
+                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
+                 "grid's times are not finite and increasing from there", t_end, t);
+        flag = LCG_FLAG_BAD_INPUT;
+        goto out;
+    }
+    for (i = 0; i < n && !x->restart; ++i)
+        if (x->tv[i] != x->seen[i])
+            x->restart = 1; /* the caller set the time, the state or the parameters */
+    for (i = 0; i < nsy && !x->restart; ++i)
+        if (x->s[i] != x->seen[n + i])
+            x->restart = 1; /* ... or the sensitivities */
+    if (x->restart) {
+        xs_load(x);
+        if ((flag = CVodeReInit(x->mem, t, x->yv)) < 0)
+            goto out;
+        d->have_J = 0; /* as a new run: the states' Jacobian evaluated at the first solve */
+        d->gamma = 0.0;
+        x->restart = 0;
+        x->t_start = t;
+    }
+    while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
+        for (i = 0; i < ny; ++i)
+            yout[(long)k * ny + i] = x->y[i];
+        for (i = 0; i < nsy; ++i)
+            sout[(long)k * nsy + i] = x->s[i];
+        st->nt_done = ++k;
+    }
+    if (one_step) {
+        if (isfinite(t_end))
+            flag = CVodeSetStopTime(x->mem, t_end);
+        else
+            flag = CVodeClearStopTime(x->mem);
+        if (flag >= 0 && t_end > t)
+            flag = xs_solve(x, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), CV_ONE_STEP, &tret, &stop);
+    } else if (nt == 0) {
+        if (t_end > t && (flag = CVodeSetStopTime(x->mem, t_end)) >= 0)
+            flag = xs_solve(x, t_end, CV_NORMAL, &tret, &stop);
+    } else if (k < nt) {
+        if ((flag = CVodeSetStopTime(x->mem, t_end)) < 0)
+            goto out;
+        for (; k < nt; ++k) {
+            if (WATCH_TICK(&d->w))
+                break;
+            flag = xs_solve(x, tout[k], CV_NORMAL, &tret, &stop);
+            if (flag < 0 || stop)
+                break;
+            xs_store(x, yout + (long)k * ny, sout + (long)k * nsy);
+            st->nt_done = k + 1;
+        }
+    }
+    if (tret > t || flag < 0) {
+        xs_store(x, x->y, x->s);
+        x->tv[0] = tret;
+    }
+
+out:
+    flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
+    if (d->nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
+        st->model_error = LCG_ERR_NONFINITE;
+        st->t_reached = d->t_nonfinite;
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    } else if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR) {
+        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    }
+    if (flag < 0)
+        x->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    CVodeGetNumSteps(x->mem, &st->nsteps);
+    CVodeGetNumRhsEvals(x->mem, &st->nrhs);
+    CVodeGetNumLinSolvSetups(x->mem, &st->nlinsetups);
+    CVodeGetNumErrTestFails(x->mem, &st->netfails);
+    CVodeGetNumNonlinSolvIters(x->mem, &st->nniters);
+    CVodeGetNumNonlinSolvConvFails(x->mem, &st->nncfails);
+    CVodeGetLastStep(x->mem, &st->h_last);
+    if (st->model_error == 0)
+        st->t_reached = x->tv[0];
+    xs_remember(x);
+    st->flag = flag < 0 ? flag : 0;
+    return st->flag;
+}
+
+int lcg_cvsens_stepper_until(lcg_cvsens_stepper *x, double t_end)
+{
+    return lcg_cvsens_stepper_advance(x, t_end, 0, NULL, NULL, NULL, 0);
+}
+
+int lcg_cvsens_stepper_grid(lcg_cvsens_stepper *x, int nt, const double *tout, double *yout, double *sout)
+{
+    return lcg_cvsens_stepper_advance(x, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, sout,
+                                      0);
+}
+
+int lcg_cvsens_stepper_step(lcg_cvsens_stepper *x, double t_limit)
+{
+    return lcg_cvsens_stepper_advance(x, t_limit, 0, NULL, NULL, NULL, 1);
+}
