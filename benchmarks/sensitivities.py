@@ -25,12 +25,20 @@ the directions there are).
   (same residuals, start, bounds and tolerances): the damped pendulum's l and c from 200 samples
   of theta with 1% noise (seeded). Target: >= 3x faster.
 
+* Taylor (``--taylor``): ``simulate(method="taylor")`` with p sensitivities (jet transport of the
+  variational equations) against the plain Taylor run (same rtol 1e-8, 201 output times, error
+  control on and off; CPU-time medians of interleaved rounds; target 1 + 0.7 p), and against
+  CVODE's sensitivities (Adams) at equal achieved error: both at rtol 1e-5 .. 1e-12 (atol
+  rtol/100), the error of the sensitivities along the first min(p, 3) directions against
+  CVODE's at rtol 1e-13 (max over states, directions and 21 times of |error| / max |reference|),
+  the CPU time at errors 1e-6 and 1e-8 interpolated in log-log (``H.time_at``).
+
 Outputs: the tables on stdout (progress on stderr); with --out DIR: sensitivities.txt and
 sensitivities.csv. A measuring instrument: it asserts nothing.
 
 Usage::
 
-    python benchmarks/sensitivities.py [--quick] [--out DIR] [--rounds R] [--max-n 5]
+    python benchmarks/sensitivities.py [--quick] [--out DIR] [--rounds R] [--max-n 5] [--taylor]
 """
 
 from __future__ import annotations
@@ -235,13 +243,86 @@ def fit_rows(rounds):
                  l=fe.stderr["l"], c=fe.stderr["c"], speedup=None, cpu_speedup=None)]
 
 
+def _cpu_medians(runs: dict, rounds: int, label: str) -> dict:
+    """Median thread CPU time of each run over interleaved rounds (after one call each)."""
+    for f in runs.values():
+        f()
+    cpu = {k: [] for k in runs}
+    for r in range(rounds):
+        H.progress("taylor", f"{label} round {r + 1}/{rounds}")
+        for k, f in runs.items():
+            start = time.thread_time()
+            f()
+            cpu[k].append(time.thread_time() - start)
+    return {k: statistics.median(v) for k, v in cpu.items()}
+
+
+def taylor_cost_rows(label, sim, ps, rounds):
+    """Taylor with p sensitivities / the plain Taylor run (CPU-time medians)."""
+    t = np.linspace(0.0, T_END, 201)
+    q0 = np.full(sim.n, Q0)
+    kw = dict(q0=q0, rtol=1e-8, atol=1e-10, method="taylor")
+    runs = {"plain": lambda: sim.simulate(t, **kw)}
+    for p in ps:
+        names = directions(sim, p)
+        runs[f"p{p}"] = (lambda names=names: sim.simulate(t, sensitivities=names, **kw))
+        runs[f"p{p} off"] = (lambda names=names: sim.simulate(t, sensitivities=names, sensitivity_errcon=False, **kw))
+    med = _cpu_medians(runs, rounds, label)
+    steps = {k: f().stats["steps"] for k, f in runs.items()}
+    return [dict(scene=label, p=p, plain_ms=1e3 * med["plain"], sens_ms=1e3 * med[f"p{p}"],
+                 ratio=med[f"p{p}"] / med["plain"], ratio_errcon_off=med[f"p{p} off"] / med["plain"],
+                 steps_plain=steps["plain"], steps=steps[f"p{p}"], target=1 + 0.7 * p) for p in ps]
+
+
+def taylor_vs_cvode_rows(label, sim, p, rounds, tolerances=(1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12)):
+    """CPU time of Taylor and CVODE (Adams) sensitivity runs at equal achieved error."""
+    t = np.linspace(0.0, T_END, 21)
+    q0 = np.full(sim.n, Q0)
+    names = directions(sim, p)
+    ref = sim.simulate(t, q0=q0, rtol=1e-13, atol=1e-15, sensitivities=names).sensitivities[:, :, :2 * sim.n]
+    scale = np.max(np.abs(ref), axis=(0, 2))
+    points = {"taylor": [], "adams": []}
+    for tol in tolerances:
+        for method in points:
+            def run(method=method, tol=tol):
+                return sim.simulate(t, q0=q0, rtol=tol, atol=tol / 100, method=method, sensitivities=names)
+            res = run()
+            err = float(np.max(np.max(np.abs(res.sensitivities[:, :, :2 * sim.n] - ref), axis=(0, 2)) / scale))
+            cpu = _cpu_medians({"run": run}, rounds, f"{label} {method} rtol {tol:g}")["run"]
+            points[method].append((err, cpu))
+    rows = []
+    for target in (1e-6, 1e-8):
+        (tt, how_t), (tc, how_c) = H.time_at(points["taylor"], target), H.time_at(points["adams"], target)
+        rows.append(dict(scene=label, p=p, error=target, taylor_ms=None if tt is None else 1e3 * tt,
+                         cvode_ms=None if tc is None else 1e3 * tc,
+                         ratio=None if tt is None or tc is None else tt / tc, how=f"{how_t}/{how_c}"))
+    return rows, points
+
+
+def taylor_lines(cost, equal, rounds) -> list[str]:
+    return ["", f"Taylor (jet transport of the variational equations): a run with p sensitivities / the plain Taylor "
+            f"run (CPU-time medians of {rounds} interleaved rounds; target 1 + 0.7 p):",
+            H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("plain_ms", "plain ms", "{:.3f}"),
+                            ("sens_ms", "sens ms", "{:.3f}"), ("ratio", "ratio", "{:.2f}"),
+                            ("ratio_errcon_off", "ratio (errcon off)", "{:.2f}"), ("steps_plain", "steps plain", "{}"),
+                            ("steps", "steps sens", "{}"), ("target", "target", "{:.1f}")], cost),
+            "", "Taylor against CVODE (Adams) sensitivities at equal achieved error (CPU ms, log-log interpolated; "
+            "how: interp, or bound = every run more accurate):",
+            H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("error", "error", "{:.0e}"),
+                            ("taylor_ms", "Taylor ms", "{:.3f}"), ("cvode_ms", "CVODE ms", "{:.3f}"),
+                            ("ratio", "Taylor/CVODE", "{:.2f}"), ("how", "how", "{}")], equal)]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small configuration (under 2 minutes)")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--rounds", type=int, default=None)
     ap.add_argument("--max-n", type=int, default=10, help="largest chain (5 or 10; the double pendulum always)")
+    ap.add_argument("--taylor", action="store_true", help="the Taylor integrator's sensitivities only")
     args = ap.parse_args(argv)
+    if args.taylor:
+        return taylor_main(args)
     rounds = args.rounds or (5 if args.quick else 21)
     ps_all = [1, 3] if args.quick else [1, 3, 10]
     load0 = H.load_average()
@@ -282,6 +363,28 @@ def main(argv=None) -> int:
     print(text)
     if args.out:
         H.write_report(args.out, "sensitivities", text, acc + cost + cas + fits)
+    return 0
+
+
+def taylor_main(args) -> int:
+    """``--taylor``: the Taylor sections alone."""
+    rounds = args.rounds or (5 if args.quick else 21)
+    ps_all = [1, 3] if args.quick else [1, 3, 10]
+    load0 = H.load_average()
+    cost, equal = [], []
+    for label, model in scenes(args.quick, args.max_n):
+        H.progress("build", label)
+        sim = lcg.compile_model(model)
+        nd = len(sim.param_names) + sim.n
+        ps = sorted({min(p, nd) for p in ps_all})
+        cost += taylor_cost_rows(label, sim, ps, rounds)
+        equal += taylor_vs_cvode_rows(label, sim, min(3, nd), max(3, rounds // 3))[0]
+    lines = H.machine_lines("Forward sensitivities on the Taylor integrator (benchmarks/sensitivities.py --taylor)",
+                            (load0, H.load_average()))
+    text = "\n".join(lines + taylor_lines(cost, equal, rounds))
+    print(text)
+    if args.out:
+        H.write_report(args.out, "sensitivities_taylor", text, cost + equal)
     return 0
 
 

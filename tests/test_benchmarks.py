@@ -181,3 +181,18 @@ def test_sensitivities_tiny():
     assert all(finite(rows[0][k]) and rows[0][k] > 0 for k in ("plain_ms", "sens_ms", "ratio", "ratio_errcon_off"))
     fits = sb.fit_rows(1)
     assert abs(fits[0]["l"] - 1.0) < 0.01 and abs(fits[1]["c"] - 0.3) < 0.01 and fits[0]["speedup"] > 0
+
+
+def test_sensitivities_taylor_tiny():
+    """benchmarks/sensitivities.py --taylor: the Taylor cost ratio and the comparison with CVODE
+    at equal error on the double pendulum (p = 1, two tolerances)."""
+    import sensitivities as sb
+    import lagcodegen as lcg
+    sim = lcg.compile_model(systems.double_pendulum(name="tb_sens_dp"))
+    rows = sb.taylor_cost_rows("dp", sim, [1], rounds=1)
+    assert all(finite(rows[0][k]) and rows[0][k] > 0 for k in ("plain_ms", "sens_ms", "ratio", "ratio_errcon_off"))
+    assert rows[0]["steps"] >= rows[0]["steps_plain"] > 0
+    equal, points = sb.taylor_vs_cvode_rows("dp", sim, 1, 1, tolerances=(1e-6, 1e-9))
+    assert len(equal) == 2 and all(0 < e < 1e-3 for e, _ in points["taylor"] + points["adams"])
+    assert points["taylor"][1][0] < points["taylor"][0][0]  # tighter tolerance, smaller error
+    assert sb.taylor_lines(rows, equal, 1)

@@ -23,7 +23,11 @@ class Taylor(Family):
     """The generated Taylor-series integrator of a scene (libm only, no SUNDIALS; the model's jet
     built on first use): ``order`` of the series (None: from the tolerance, about
     -ln(rtol)/2 + 1); ``max_events``: events kept in a run. It needs no Jacobian, so
-    ``jacobian=`` beside ``method="taylor"`` has no effect."""
+    ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
+    ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
+    ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
+    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names); ``sensitivity_errcon`` the
+    sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
     methods = ("taylor",)
@@ -32,22 +36,49 @@ class Taylor(Family):
 
     order: int | None = None
     max_events: int = 10_000
+    sensitivities: tuple[str, ...] | None = None
+    sensitivity_errcon: bool = True
 
     def __post_init__(self):
         super().__post_init__()
+        if self.sensitivities is not None:
+            names = (self.sensitivities,) if isinstance(self.sensitivities, str) else self.sensitivities
+            try:
+                object.__setattr__(self, "sensitivities", tuple(names))
+            except TypeError:
+                raise LagcodegenError(f"sensitivities must be a list of names, got {names!r}") from None
         if self.order is not None and not (isinstance(self.order, int) and 2 <= self.order):
             raise LagcodegenError(f"Taylor order must be an integer >= 2, got {self.order!r}")
 
     def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
         """A run of the ODE of ``cm`` (inputs checked by the face); ``events`` located on each
         step's polynomial."""
+        if self.sensitivities is not None:
+            return self._run_sensitivities(cm, t, y, p, rtol, atol, events)
         return run_taylor(cm, t, y, p, rtol=rtol, atol=atol, max_step=self.max_step, max_steps=int(self.max_steps),
                           order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
+
+    def _run_sensitivities(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
+        """A run of the states and their sensitivities (:mod:`.sensitivity`)."""
+        if events:
+            raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
+                                  "events, or locate the events in a run of their own)")
+        from .run import scene_of
+        from .sensitivity import variational_module
+        module = variational_module(cm, scene_of(cm), self.sensitivities)
+        return module.simulate(t, y, p, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
+                               max_step=float(self.max_step), max_steps=int(self.max_steps), order=self.order,
+                               max_wall=float(self.max_wall))
+
+    def _no_sensitivities(self, what: str) -> None:
+        if self.sensitivities is not None:
+            raise LagcodegenError(f"{what} do not compute sensitivities: use simulate(..., sensitivities=[...])")
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> TaylorStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
         the face): the jet's storage and workspace made once (:mod:`.stepper`); ``events`` located
         on each step's polynomial; ``max_steps`` is the budget of one call."""
+        self._no_sensitivities("integrator objects")
         return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))
@@ -66,12 +97,14 @@ class Taylor(Family):
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
         in the jet, the run split at the tables' breakpoints (:mod:`.inputs`)."""
+        self._no_sensitivities("runs with input tables")
         from .inputs import run_taylor_inputs
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``."""
+        self._no_sensitivities("ensembles")
         return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
                                    max_step=self.max_step, max_steps=self.max_steps, order=self.order,
                                    max_wall=self.max_wall)

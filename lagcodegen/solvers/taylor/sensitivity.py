@@ -1,0 +1,205 @@
+"""Forward sensitivities on the Taylor integrator: the C code of the variational jet
+(:mod:`.variational`) built on first use per set of directions, and its runs by the Taylor
+runtime's driver.
+
+The generated code (``<prefix>_taylor_var.c``, template taylor/jet_var.c.j2) is specific to the
+set of directions and is built only when sensitivities are asked for: a scene's Taylor code
+without them is unchanged. It presents the augmented system to the model-independent Taylor
+driver through the same table (``lcg_taylor_model``: ny (1 + ns) states, nout (1 + ns)
+outputs: the outputs, then d out / d theta_j = (d out/dy) s_j + d out/dp), so a run is one
+call of ``lcg_taylor_solve``.
+
+Directions: a run-time parameter by its name, ``"<q>(0)"``, ``"<q>_dot(0)"`` (parsed as on
+CVODE). Error control (``errcon``, CVODES's errconS; default on): the sensitivities take part
+in the step-size rule with the states' tolerances (w_i = atol_i + rtol |s_i|); off, their
+weights are infinite, the steps are those of the states alone and the sensitivities are only
+as accurate as those steps make them.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+import time
+
+import numpy as np
+import symengine as se
+
+# --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...build import plain_library
+from ...codegen.c import c_expr, print_block
+from ...codegen.record import header_context, new_code
+from ...errors import LagcodegenError, ModelError
+from ...formulation.kernels import Block, substituter
+from ...formulation.scene import Scene
+from ...result import Result
+from ...version import __version__
+from ..control import CANCELLED, POLL_EVERY, install, raise_pending
+# ------------------------------------------------------------------------------------------
+from .decompose import Decomposition, decompose
+from .emit import CHUNK, P_MAX, _jinja
+from .runner import message, taylor_runtime
+from .variational import VariationalDecomposition, _is_row, variational
+
+
+@dataclass(frozen=True)
+class _Direction:
+    name: str
+    base: int        # first row of its sensitivity of y
+    sacc: int        # first row of its s''
+    R: list
+    dz: list
+
+
+def _outputs_block(scene: Scene, directions: list[tuple[str, int]], ny: int) -> tuple[Block, int]:
+    """The outputs and their sensitivities d out/d theta_j = (d out/dy) s_j + d out/dp (theta_j a
+    parameter): ``out[k]``, then ``out[nout (1 + j) + k]``."""
+    c = substituter(scene)
+    outs = [c(se.sympify(o.expr)) for o in scene.output_list()]
+    nout = len(outs)
+    ys = [se.Symbol(f"y[{i}]") for i in range(ny)]
+    targets, exprs = [("out", k) for k in range(nout)], list(outs)
+    for j, (kind, index) in enumerate(directions):
+        s = [se.Symbol(f"y[{ny * (1 + j) + i}]") for i in range(ny)]
+        for k, o in enumerate(outs):
+            e = sum((se.diff(o, ys[i]) * s[i] for i in range(ny) if o.has(ys[i])), se.Integer(0))
+            if kind == "param":
+                e = e + se.diff(o, se.Symbol(f"p[{index}]"))
+            if e.atoms(se.Derivative, se.Subs):
+                raise ModelError(f"sensitivities of output {scene.output_list()[k].name!r} need derivatives "
+                                 "symengine cannot take in closed form")
+            targets.append(("out", nout * (1 + j) + k))
+            exprs.append(e)
+    return Block(targets, exprs), nout * (1 + len(directions))
+
+
+def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: list[str],
+                        decomposition: Decomposition | None = None) -> tuple[dict[str, str], VariationalDecomposition]:
+    """``{"<prefix>_taylor_var.c": ..., "lcg_taylor_model.h": ...}``: the jet of the states and
+    of their sensitivities along ``directions`` (named ``names``) with its table
+    ``<prefix>_taylor_var_model``; and the :class:`VariationalDecomposition` it prints."""
+    d = decomposition or decompose(scene)
+    v = variational(d, directions)
+    n, ny0, ns = d.n, d.ny, v.ns
+    M = v.M
+    conv = [(i, M[i][j], j) for i in range(n) for j in range(n) if _is_row(M[i][j])]
+    conv_rows = [(i, [(mm, j) for i2, mm, j in conv if i2 == i]) for i in range(n) if any(cc[0] == i for cc in conv)]
+    block, nout = _outputs_block(scene, directions, ny0)
+    ops = v.ops_a + v.ops_b
+    kinds = {op.kind for op in ops}
+    ctx = header_context(scene, new_code(scene))
+    ctx.update(
+        n=n, ny0=ny0, ny=ny0 * (1 + ns), ns=ns, nq=n * (1 + ns), nz=d.nz * (1 + ns), nout=nout, nrows=v.nrows,
+        p_max=P_MAX, acc=v.acc, np=len(scene.runtime_parameters), nbase=len(d.ops),
+        outputs_block=print_block(block) if nout else "",
+        ops_a=v.ops_a, ops_b=v.ops_b,
+        chunks=[v.ops_a[k:k + CHUNK] for k in range(0, len(v.ops_a), CHUNK)],
+        chunks_b=[v.ops_b[k:k + CHUNK] for k in range(0, len(v.ops_b), CHUNK)],
+        kinds=kinds, labels=v.labels, consts=v.consts,
+        const_lines=[f"c[{k}] = {c_expr(e)};" for k, e in enumerate(v.consts)],
+        M=M, F=v.F, rates=v.rates, conv=conv, conv_rows=conv_rows, time_row=v.time_row,
+        mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass, direction_names=names,
+        dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j]) for j in range(ns)])
+    env = _jinja()
+    header = env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__, p_max=P_MAX)
+    files = {"lcg_taylor_model.h": header,
+             f"{scene.prefix}_taylor_var.c": env.get_template("taylor/jet_var.c.j2").render(**ctx)}
+    return files, v
+
+
+# ------------------------------------------------------------------ build and run
+_STATS = ("nsteps", "njet", "order", "nroot", "t_reached", "h_last", "h_min", "h_max", "model_error")
+
+
+class VariationalModule:
+    """The compiled jet of a scene's states and sensitivities along a set of directions, run by
+    the Taylor runtime's driver. Not reentrant (its options struct is reused)."""
+
+    def __init__(self, cm, scene: Scene, names: list[str], directions: list[tuple[str, int]], s0: np.ndarray,
+                 cc: str | None = None, verbose: bool = False):
+        code = cm.code
+        self.names, self.directions, self.s0 = list(names), list(directions), s0
+        self.state_names, self.output_names = list(code.state_names), list(code.output_names)
+        self.n, self.ny, self.nout, self.ns = code.n, code.ny, code.nout, len(names)
+        files, self.decomposition = variational_sources(scene, directions, self.names)
+        rt = self.rt = taylor_runtime(cc)
+        self.library, self.path, _ = plain_library(f"the Taylor sensitivities of model {code.model_name!r}",
+                                                   f"{code.prefix}_taylor_var", files, cc, verbose=verbose)
+        getter = getattr(self.library, f"{code.prefix}_taylor_var_table")
+        getter.restype = ctypes.c_void_p
+        self.table = rt.ffi.cast("const lcg_taylor_model *", getter())
+        nyv = self.ny * (1 + self.ns)
+        if (self.table.ny, self.table.nout, self.table.nrows) != (nyv, self.nout * (1 + self.ns),
+                                                                   self.decomposition.nrows):
+            raise LagcodegenError(f"the Taylor sensitivity library of model {code.model_name!r} ({self.path}) has "
+                                  "another layout than its code")
+        self.opt = rt.ffi.new("lcg_taylor_options *")
+        self.opt.poll = install(rt)
+        self.opt.poll_every = POLL_EVERY
+        self.st = rt.ffi.new("lcg_taylor_stats *")
+
+    def simulate(self, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float, atol, errcon: bool = True,
+                 max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
+                 max_wall: float = 0.0) -> Result:
+        """The trajectory and its sensitivities at ``t`` from y(t[0]) = ``y0``: a Result whose
+        ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction)."""
+        ffi, lib = self.rt.ffi, self.rt.lib
+        ny, ns, nout = self.ny, self.ns, self.nout
+        nyv = ny * (1 + ns)
+        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+        atol_all = np.ascontiguousarray(np.concatenate([atol] + [atol if errcon else np.full(ny, np.inf)] * ns))
+        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
+        nt = t.shape[0]
+        yout = np.empty((nt, nyv))
+        out = np.empty((nt, max(nout * (1 + ns), 1)))
+        opt, st, fb = self.opt, self.st, ffi.from_buffer
+        opt.rtol = rtol
+        opt.atol = float(atol.min())
+        opt.atol_vec = fb("double[]", atol_all)
+        opt.max_steps = int(max_steps)
+        opt.max_step = float(max_step)
+        opt.order = int(order or 0)
+        opt.max_wall = float(max_wall)
+        p = np.ascontiguousarray(p, dtype=float)
+        start = time.perf_counter()
+        flag = lib.lcg_taylor_solve(self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0v), nt,
+                                    fb("double[]", np.ascontiguousarray(t)), fb("double[]", yout),
+                                    fb("double[]", out), opt, st, ffi.NULL)
+        wall = time.perf_counter() - start
+        if flag == CANCELLED:
+            raise_pending()
+        nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error = (getattr(st, k)
+                                                                                         for k in _STATS)
+        stats = {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used, "t_reached": t_reached,
+                 "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error, "wall_time": wall}
+        done = min(int(st.nt_done), nt)
+        sl = slice(0, done)
+        res = Result(t=t[sl].copy(), y=yout[sl, :ny].copy(), state_names=self.state_names,
+                     outputs={name: out[sl, i].copy() for i, name in enumerate(self.output_names)}, stats=stats,
+                     status=flag, message="success" if flag == 0 else message(
+                         flag, st.model_error, ffi.string(st.message).decode(errors="replace")),
+                     backend="native", method="taylor", n_coordinates=self.n)
+        s = yout[sl, ny:].reshape(done, ns, ny)
+        ds = out[sl, nout:nout * (1 + ns)].reshape(done, ns, nout)
+        res.set_sensitivities(self.names, self.state_names + self.output_names, np.concatenate([s, ds], axis=2))
+        return res
+
+
+def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarray]:
+    """(names, directions, s0) of the sensitivity directions ``names`` (run-time parameters,
+    ``"<q>(0)"``, ``"<q>_dot(0)"``; parsed as on CVODE, the same errors)."""
+    from ..cvode.sensitivity import directions
+    names, which, s0 = directions(cm, names)
+    dirs = [("param", int(k)) if k >= 0 else ("state", int(np.argmax(s0[j]))) for j, k in enumerate(which)]
+    return names, dirs, s0
+
+
+def variational_module(cm, scene: Scene, names) -> VariationalModule:
+    """The compiled variational jet of ``cm`` along ``names`` (built once per set of directions,
+    then kept with the compiled model)."""
+    names, dirs, s0 = directions_of(cm, names)
+    key = ("taylor-sensitivities", tuple(names))
+    module = cm.solver_state.get(key)
+    if module is None:
+        module = cm.solver_state[key] = VariationalModule(cm, scene, names, dirs, s0)
+    return module
