@@ -17,7 +17,7 @@ from .stepper import TaylorStepper
 class Taylor(Family):
     """The generated Taylor-series integrator of a scene (libm only, no SUNDIALS; the model's jet
     built on first use): ``order`` of the series (None: from the tolerance, about
-    -ln(rtol)/2 + 1); ``max_events``: events kept in a run. It needs no Jacobian, so
+    -ln(rtol)/2 + 3); ``max_events``: events kept in a run. It needs no Jacobian, so
     ``jacobian=`` beside ``method="taylor"`` has no effect."""
 
     name = "Taylor"
