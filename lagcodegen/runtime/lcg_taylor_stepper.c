@@ -28,7 +28,7 @@ struct lcg_taylor_stepper {
     double t_lo, t_seen;        /* the time's low part (double-double tv[0] + t_lo); tv[0] as the last
                                    call left it */
     double hprev;               /* last whole step (0: none yet), bounds the next one's growth */
-    double fac[2];              /* the step rule's safety factors (tl_safety) */
+    double fac[2];              /* the step rule's safety factors as fac^-k (tl_safety) */
     int order, kmax;
     double *p_start;            /* np: the parameters the workspace's run constants are of */
     double *atol;               /* ny, or NULL */
