@@ -8,7 +8,8 @@
  *   h = s min( min_i (w_i / |y_i,[p]|)^(1/p), min_i (w_i / |y_i,[p-1]|)^(1/(p-1)) ),
  * s = exp(-0.7 / (p - 1)) (see tl_safety for a cap at high order), at most 100 times the
  * previous step and max_step; orders whose coefficients all vanish (polynomial solutions) do
- * not limit it. Order p = ceil(-ln(tol)/2 + 1), tol = rtol (the smallest atol if rtol = 0).
+ * not limit it. Order p = ceil(-ln(tol)/2 + 3) (tl_order), tol = rtol (the smallest atol if
+ * rtol = 0).
  */
 #include "lcg_control.h" /* first: POSIX */
 

@@ -2,8 +2,9 @@
  * calls (see lcg_taylor_stepper.h).
  *
  * One translation unit with the run driver lcg_taylor.c, included here, so that a step is the
- * driver's own: the same step-size rule (tl_step_size, tl_safety, tl_tolerance), the same Horner
- * evaluation (tl_eval), the same event location (tl_roots), the same double-double time. A grid
+ * driver's own: the same order and step-size rule (tl_order, tl_step_size, tl_safety,
+ * tl_tolerance), the same Horner evaluation (tl_eval), the same event location (tl_roots), the
+ * same double-double time. A grid
  * from a fresh stepper therefore takes the steps of lcg_taylor_solve on the same times and gives
  * the same numbers, bit for bit. The module built from this file replaces lcg_taylor.c's own. */
 #include "lcg_taylor.c"
@@ -27,7 +28,7 @@ struct lcg_taylor_stepper {
     double t_lo, t_seen;        /* the time's low part (double-double tv[0] + t_lo); tv[0] as the last
                                    call left it */
     double hprev;               /* last whole step (0: none yet), bounds the next one's growth */
-    double fac[2];              /* the step rule's safety factors (tl_safety) */
+    double fac[2];              /* the step rule's safety factors as fac^-k (tl_safety) */
     int order, kmax;
     double *p_start;            /* np: the parameters the workspace's run constants are of */
     double *atol;               /* ny, or NULL */
@@ -119,11 +120,7 @@ lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_
         s->last[i] = -HUGE_VAL;
     s->t_seen = mem[0];
     tol = tl_tolerance(m, &s->opt);
-    s->order = opt->order > 0 ? opt->order : (int)ceil(-0.5 * log(tol) + 1.0);
-    if (s->order < 2)
-        s->order = 2;
-    if (s->order > P_MAX)
-        s->order = P_MAX;
+    s->order = tl_order(tol, opt->order);
     tl_safety(tol, s->order, s->fac);
     s->kmax = s->order + (NE > 0);
     s->st.order = s->order;

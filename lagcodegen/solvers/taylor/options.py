@@ -22,7 +22,7 @@ _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events
 class Taylor(Family):
     """The generated Taylor-series integrator of a scene (libm only, no SUNDIALS; the model's jet
     built on first use): ``order`` of the series (None: from the tolerance, about
-    -ln(rtol)/2 + 1); ``max_events``: events kept in a run. It needs no Jacobian, so
+    -ln(rtol)/2 + 3); ``max_events``: events kept in a run. It needs no Jacobian, so
     ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations

@@ -213,7 +213,7 @@ class TaylorModule:
 
         Tolerances (per step, per component i): the step keeps the last two terms of the
         Taylor polynomial below w_i = atol_i + rtol |y_i| (Jorba & Zou); the order is
-        ceil(-ln(rtol)/2 + 1) unless ``order`` is given. ``atol``: a scalar or ny values.
+        ceil(-ln(rtol)/2 + 3) unless ``order`` is given. ``atol``: a scalar or ny values.
         """
         ffi, buf = self.ffi, self._buf
         nt = t_out.shape[0]
