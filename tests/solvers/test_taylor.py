@@ -546,3 +546,20 @@ def test_sine_and_cosine_squares_cancel_in_the_mass_matrix():
     assert all(isinstance(d.M[i][i], Const) for i in range(n))
     assert sum(isinstance(e, int) for row in d.M for e in row) == n * (n - 1)
     assert not any(op.kind == "sqr" and "sin(" in d.labels.get(op.out[0], "") for op in d.ops)
+
+
+def test_trig_linearization_leaves_long_products_and_huge_sums_alone():
+    """A product of more than MAX_TRIG_FACTORS sines and cosines stays a product (k factors
+    would become 2^(k-1) terms), and a sum whose expansion exceeds MAX_LINEARIZED_TERMS is
+    returned as given: the closed forms of a six-joint arm's forces (10^4 terms of up to 14
+    such factors) otherwise took minutes to linearize."""
+    import symengine as se
+    from lagcodegen.solvers.taylor.decompose import MAX_LINEARIZED_TERMS, MAX_TRIG_FACTORS, linearize_trig
+    xs = se.symbols(f"x0:{MAX_TRIG_FACTORS + 1}")
+    long_product = se.Mul(*[se.sin(x) for x in xs])
+    assert linearize_trig(long_product) == long_product
+    short = se.Mul(*[se.sin(x) for x in xs[:2]])
+    assert se.expand(linearize_trig(short) - (se.cos(xs[0] - xs[1]) - se.cos(xs[0] + xs[1])) / 2) == 0
+    y = se.Symbol("y")
+    huge = se.Add(*[se.Integer(k) * y ** k * se.sin(y) ** 2 for k in range(1, MAX_LINEARIZED_TERMS + 2)])
+    assert linearize_trig(huge) is huge

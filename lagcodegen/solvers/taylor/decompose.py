@@ -383,16 +383,30 @@ def _trig_powers_expanded(factors) -> list:
     return out
 
 
+#: An expression whose expansion has more terms than this is not linearized (returned as given):
+#: the rigid-body closed forms' forces (thousands of terms, products of up to 14 sines and
+#: cosines: 2^13 sums each) would take minutes, and the derived form is the cheaper there anyway.
+MAX_LINEARIZED_TERMS = 2000
+
+#: A term with more sine and cosine factors than this keeps them as a product (k factors become
+#: 2^(k-1) sines and cosines of sums).
+MAX_TRIG_FACTORS = 6
+
+
 def linearize_trig(expr):
     """Expand ``expr`` and turn every product of sines and cosines (small integer powers
-    included) into a sum of sines and cosines of sums and differences of their arguments."""
+    included) into a sum of sines and cosines of sums and differences of their arguments
+    (``expr`` as given above :data:`MAX_LINEARIZED_TERMS` terms; products of more than
+    :data:`MAX_TRIG_FACTORS` factors kept)."""
     e = se.expand(expr)
     terms = e.args if isinstance(e, se.Add) else (e,)
+    if len(terms) > MAX_LINEARIZED_TERMS:
+        return expr
     out = []
     for term in terms:
         factors = _trig_powers_expanded(term.args if isinstance(term, se.Mul) else (term,))
         trig = [f for f in factors if isinstance(f, (se.sin, se.cos))]
-        if len(trig) < 2:
+        if len(trig) < 2 or len(trig) > MAX_TRIG_FACTORS:
             out.append(term)
             continue
         rest = [f for f in factors if not isinstance(f, (se.sin, se.cos))]
