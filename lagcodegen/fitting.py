@@ -228,8 +228,8 @@ PREPARED_OPTIONS = frozenset(("solver", "method", "max_steps", "max_order", "fir
                               "jacobian", "sensitivity_errcon", "max_wall"))
 
 
-def _prepared_runs(sim, exps: list, observe: list, names: list, fixed: dict, run_params: list, x0: np.ndarray, rtol, atol,
-                   options: dict) -> list | None:
+def _prepared_runs(sim, exps: list, observe: list, names: list, fixed: dict, run_params: list, x0: np.ndarray,
+                   rtol, atol, options: dict) -> list | None:
     """Per experiment (a :class:`~lagcodegen.solvers.cvode.sensitivity.PreparedSensitivities`,
     the columns of the observed names among states and outputs): the runs of the fit with the
     solver resolved, the directions and the driver's arrays made once rather than at every
