@@ -27,8 +27,8 @@ Two forms of the tangent (:func:`sensitivity_form` chooses, with the measured fi
 * *direction* (:func:`direction_tangent`): the right-hand side kernel as a straight-line
   :class:`~lagcodegen.formulation.tangent.Program` (hash-consed, the run-time parameters counted
   as differentiation variables), and per direction ONE forward-mode sweep of it seeded with
-  (dy, dp) = (s, s', e_k): the sweep gives dM and dF, hence g = dM a - dF + ... = (dr/dy) s +
-  dr/dp_k, and M s'' = -g is solved with the factorization that gave q''. Its cost per direction
+  (dy, dp) = (s, s', e_k): the sweep gives dM and dF, hence g = dM a - dF = (dr/dy)(s, s') +
+  dr/dp_k (a held fixed), and M s'' = -g is solved with the factorization that gave q''. Its cost per direction
   is a small multiple of the right-hand side's, independent of the size of dr/dy; it works on
   the recorded programs of rigid-body trees as on closed forms (parameters inside link
   inertias included: they are symbols of the program like any other).
