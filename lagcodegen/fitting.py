@@ -170,6 +170,26 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
                                   f"{x0[i]:g}, got ({a}, {b})")
     history: list = []
     cache: dict = {}
+    prepared = _prepared_runs(sim, exps, observe, names, fixed, run_params, x0, rtol, atol, options)
+
+    def simulated(k, e, initial, p, values):
+        """(model values (nt, observe), their sensitivities (nt, names, observe)) of experiment k
+        from the initial-state keywords ``initial`` (:func:`_start`)."""
+        if prepared is not None:
+            run, columns = prepared[k]
+            flag, _ = run(initial["y0"], sim.parameter_vector(p))
+            if flag >= 0 and run.nt_done == e.t.size:
+                values_ = np.concatenate([run.yout, run.out], axis=1)
+                sens = np.concatenate([run.sout, run.dout], axis=2)
+                return values_[:, columns], sens[:, :, columns]
+            # a failed run: simulate's own checks and message
+        try:
+            res = sim.simulate(e.t, **initial, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
+        except SolverError as exc:
+            raise LagcodegenError(f"fit: the run of experiment {k} failed at parameters "
+                                  f"{values}: {exc}") from None
+        columns = [res.sensitivity_values.index(o) for o in observe]
+        return np.column_stack([res[o] for o in observe]), res.sensitivities[:, :, columns]
 
     def evaluate(x):
         key = x.tobytes()
@@ -180,20 +200,15 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
         for k, e in enumerate(exps):
             p = {**e.start["params"], **fixed, **{n: values[n] for n in run_params}}
             q0_, v0_, y0_ = e.start["q0"], e.start["v0"], e.start["y0"]
-            start = _start(sim, q0_, v0_, y0_, values, names)
-            try:
-                res = sim.simulate(e.t, **start, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
-            except SolverError as exc:
-                raise LagcodegenError(f"fit: the run of experiment {k} failed at parameters "
-                                      f"{values}: {exc}") from None
-            model = np.column_stack([res[o] for o in observe])
+            initial = _start(sim, q0_, v0_, y0_, values, names)
+            model, sens = simulated(k, e, initial, p, values)
             rs.append(((model - e.data) / e.sigma).T.ravel())
-            J = np.stack([res.sensitivities[:, :, res.sensitivity_values.index(o)] / e.sigma[:, [i]]
-                          for i, o in enumerate(observe)])  # (observe, nt, names)
+            J = np.stack([sens[:, :, i] / e.sigma[:, [i]] for i in range(len(observe))])  # (observe, nt, names)
             js.append(J.reshape(-1, len(names)))
         r, J = np.concatenate(rs), np.vstack(js)
         history.append(0.5 * float(r @ r))
-        cache.clear()
+        if len(cache) >= 16:  # the optimizer asks for its best point again at the end: keep a few
+            cache.pop(next(iter(cache)))
         cache[key] = (r, J)
         return r, J
 
@@ -247,6 +262,46 @@ def _start(sim, q0, v0, y0, values: dict, names: list) -> dict:
             raise LagcodegenError(f"fit: {name!r} is neither a run-time parameter ({', '.join(sim.param_names)}) "
                                   "nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
     return {"q0": q, "v0": v}
+
+
+#: The keywords of simulate that a prepared sensitivity run (:func:`_prepared_runs`) takes over;
+#: with any other, every evaluation runs ``simulate`` itself.
+PREPARED_OPTIONS = frozenset(("solver", "method", "max_steps", "max_order", "first_step", "max_step", "min_step",
+                              "jacobian", "sensitivity_errcon", "max_wall"))
+
+
+def _prepared_runs(sim, exps: list, observe: list, names: list, fixed: dict, run_params: list, x0: np.ndarray,
+                   rtol, atol, options: dict) -> list | None:
+    """Per experiment (a :class:`~lagcodegen.solvers.cvode.sensitivity.PreparedSensitivities`,
+    the columns of the observed names among states and outputs): the runs of the fit with the
+    solver resolved, the directions and the driver's arrays made once rather than at every
+    evaluation. None where that does not apply (not a compiled ODE on the native CVODE driver,
+    options beyond :data:`PREPARED_OPTIONS`): the evaluations then call ``simulate``."""
+    from .simulation.ode import CompiledModel
+    from .solvers.base import tolerances
+    from .solvers.cvode import CVODE
+    from .solvers.cvode.sensitivity import prepare
+    from .solvers.registry import resolve
+    if not isinstance(sim, CompiledModel) or set(options) - PREPARED_OPTIONS or not getattr(sim, "native", False):
+        return None
+    opts = dict(options)
+    solver = opts.pop("solver", None)
+    try:
+        rtol_, atol_arr = tolerances(rtol, atol, sim.ny, scalar=True)
+        family = resolve("ode", solver, {**opts, "sensitivities": tuple(names)}, sim.n, rtol_)
+        if not isinstance(family, CVODE) or family.backend != "native" or family.linear_solver != "dense":
+            return None
+        values = dict(zip(names, x0))
+        known = list(sim.state_names) + list(sim.output_names)
+        out = []
+        for e in exps:
+            p = sim.parameter_vector({**e.start["params"], **fixed, **{n: values[n] for n in run_params}})
+            y = _initial(sim, e.start["q0"], e.start["v0"], e.start["y0"], values, names)
+            run = prepare(family, sim, e.t, y, p, rtol_, atol_arr, names, errcon=bool(family.sensitivity_errcon))
+            out.append((run, [known.index(o) for o in observe]))
+        return out
+    except LagcodegenError:  # simulate names the problem at the first evaluation
+        return None
 
 
 def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:

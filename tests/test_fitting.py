@@ -75,3 +75,26 @@ def test_bad_input_is_named(sim):
         lcg.fit(sim, t, d, params={"l": 1.0}, observe=["theta"], q0=[1.0], fixed={"l": 2.0})
     with pytest.raises(LagcodegenError, match="experiment 0 needs"):
         lcg.fit(sim, params={"l": 1.0}, observe=["theta"], experiments=[dict(t=t)])
+
+
+def test_prepared_runs_give_what_simulate_gives(sim, monkeypatch):
+    """The fit's runs prepared once (the solver resolved, the driver's arrays reused) against
+    every evaluation through simulate: the same estimates, covariance and cost history; a run
+    that fails still names the experiment and the parameters."""
+    import lagcodegen.fitting as fitting
+    t = np.linspace(0.0, 5.0, 60)
+    true = {"l": 1.1, "c": 0.25}
+    data = np.column_stack([_data(sim, t, [0.9], true, 0.01, seed=5),
+                            sim.simulate(t, q0=[0.9], params=true)["theta_dot"]])
+    kw = dict(params={"l": 1.0, "c": 0.1, "theta(0)": 0.85}, observe=["theta", "theta_dot"], q0=[0.9], sigma=0.01)
+    fast = lcg.fit(sim, t, data, method="bdf", **kw)
+    monkeypatch.setattr(fitting, "_prepared_runs", lambda *args, **kwargs: None)
+    slow = lcg.fit(sim, t, data, method="bdf", **kw)
+    assert fast.nfev == slow.nfev and fast.iterations == slow.iterations
+    for name in kw["params"]:
+        assert fast.params[name] == pytest.approx(slow.params[name], rel=1e-12, abs=1e-14)
+    assert np.allclose(fast.cov, slow.cov, rtol=1e-10, atol=0)
+    assert np.allclose(fast.cost_history, slow.cost_history, rtol=1e-12, atol=0)
+    monkeypatch.undo()
+    with pytest.raises(LagcodegenError, match="fit: the run of experiment 0 failed at parameters"):
+        lcg.fit(sim, t, data, max_steps=5, **kw)

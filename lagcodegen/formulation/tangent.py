@@ -76,7 +76,7 @@ class Program:
     ``deps[k]``: the columns (indices i < 2n of y) that value k depends on; the other symbols
     (parameters, t, the quadrature states) are constants of the differentiation."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, nparams: int = 0):
         self.n = n
         self.exprs: list = []
         self.deps: list[frozenset] = []
@@ -85,6 +85,9 @@ class Program:
         self._seen: dict = {}    # any expression flattened before -> its atom
         self._index: dict = {}   # value symbol -> k
         self._state = {se.Symbol(f"y[{i}]"): i for i in range(2 * n)}
+        # With ``nparams``, the run-time parameters p[m] are differentiation columns too (2n + m):
+        # the per-direction tangent of the sensitivities (lagcodegen.formulation.sensitivity).
+        self._state.update({se.Symbol(f"p[{m}]"): 2 * n + m for m in range(nparams)})
         self.n_rhs = 0
         self.partials: list = []
         #: Built from a recorded program (a rigid-body tree's, :attr:`Block.defs`): its values are
@@ -217,11 +220,12 @@ class Program:
             k += 1
 
 
-def build_program(rhs: Block, n: int, cse: bool | None = None) -> tuple[Program, list]:
+def build_program(rhs: Block, n: int, cse: bool | None = None, nparams: int = 0) -> tuple[Program, list]:
     """The :class:`Program` of the right-hand side kernel ``rhs`` and its targets as (target,
     atom). ``cse``: start from symengine's common-subexpression elimination (None: when the
-    block has at most :data:`CSE_MAX_OPS` operations)."""
-    prog = Program(n)
+    block has at most :data:`CSE_MAX_OPS` operations). ``nparams``: the run-time parameters
+    p[0] .. p[nparams-1] count as columns of the dependencies (``Program.deps``) too."""
+    prog = Program(n, nparams)
     exprs = list(rhs.exprs)
     known: dict = {}
     for sym, e in rhs.defs:  # a program already (a rigid-body tree's): no elimination

@@ -195,14 +195,20 @@ def test_unknown_and_folded_names_are_named(osc, dp):
     assert np.array_equal(S[:, :, 0], res.sensitivities[:, 0, :2])
 
 
-def test_rigid_body_tree_is_refused():
+def test_rigid_body_tree_has_no_expanded_tangent():
+    """A tree's M and F are programs: the expanded dr/dy is refused, the per-direction sweep of
+    its program is what "auto" generates."""
     m = lcg.Model("arm")
     m.link("a", joint=lcg.Joint.revolute("shoulder", (0, 1, 0)), mass=1, com=(0.5, 0, 0), inertia=(1, 1, 1))
     m.gravity(9.81)
     eom = lcg.derive(m)
     assert eom.tree is not None
     with pytest.raises(ModelError, match="rigid-body tree"):
-        sensitivity_source(lcg.Scene(eom, jacobian=False), "arm")
+        sensitivity_source(lcg.Scene(eom, jacobian=False), "arm", form="expanded")
+    text = sensitivity_source(lcg.Scene(eom, jacobian=False), "arm")["arm_sens.c"]
+    assert "sweep seeded by (s, s')" in text
+    with pytest.raises(ModelError, match="sensitivity form 'tangent'"):
+        sensitivity_source(lcg.Scene(eom, jacobian=False), "arm", form="tangent")
 
 
 def test_generated_and_runtime_c_compile_strictly(tmp_path, cc):

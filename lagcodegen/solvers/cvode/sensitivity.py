@@ -248,11 +248,7 @@ def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, at
     """A sensitivity run of ``cm`` with the options of the resolved solver ``family`` (a
     :class:`~lagcodegen.solvers.cvode.CVODE` on the native backend with the dense Newton solver:
     the block solver of the sensitivity driver replaces it)."""
-    if family.backend != "native":
-        raise LagcodegenError("sensitivities need backend='native'")
-    if family.linear_solver != "dense":
-        raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
-                              f"{family.linear_solver!r} does not apply (leave it 'dense')")
+    check_family(family)
     opts = family._ode_options(cm, y, p, True)
     return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
@@ -269,3 +265,79 @@ def check_family(family) -> None:
     if family.linear_solver != "dense":
         raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
                               f"{family.linear_solver!r} does not apply (leave it 'dense')")
+
+
+class PreparedSensitivities:
+    """Repeated sensitivity runs of one model at the same output times, directions and options
+    with other initial states and parameters (the evaluations of a fit): the directions, the
+    driver's options struct and the output arrays made once, so that a run costs the driver's
+    call and nothing per call in Python beyond it (:func:`solve_sensitivities` makes them anew
+    and builds a :class:`~lagcodegen.result.Result` each time). ``__call__(y0, p)`` runs and
+    returns (flag, message); the arrays ``yout`` (nt, ny), ``sout`` (nt, ns, ny), ``out`` (nt,
+    nout) and ``dout`` (nt, ns, nout) hold the run's values (``nt_done`` rows of them)."""
+
+    def __init__(self, cm, t: np.ndarray, names, *, rtol: float, atol: np.ndarray, method: str = "adams",
+                 errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000, max_order: int = 0,
+                 first_step: float = 0.0, max_step: float = 0.0, min_step: float = 0.0, max_wall: float = 0.0):
+        if method not in ("adams", "bdf"):
+            raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
+        self.names, which, s0 = directions(cm, names)
+        fns = functions(cm)
+        self.fns = fns
+        ffi = fns.rt.ffi
+        ns, ny = len(self.names), cm.ny
+        self.t = np.ascontiguousarray(t, dtype=float)
+        nt = self.t.size
+        self.nout = nout = cm.code.nout
+        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+        self._atol = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
+        self._which = np.ascontiguousarray(which)
+        self._s0 = np.ascontiguousarray(s0)
+        self.yout = np.empty((nt, ny))
+        self.sout = np.empty((nt, ns, ny))
+        self.out = np.empty((nt, max(nout, 1)))
+        self.dout = np.empty((nt, ns, max(nout, 1)))
+        opt = self._opt = ffi.new("lcg_cvsens_options *")
+        opt.method = METHODS[method]
+        opt.rtol = rtol
+        opt.atol = ffi.from_buffer("double[]", self._atol)
+        opt.max_steps = int(max_steps)
+        opt.jacobian = int(bool(jacobian))
+        opt.max_order = int(max_order)
+        opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
+        opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(max_wall)
+        self._st = ffi.new("lcg_cvsens_stats *")
+        fb = ffi.from_buffer
+        self._args = (fb("int[]", self._which), fb("double[]", self._s0), nt, fb("double[]", self.t),
+                      fb("double[]", self.yout), fb("double[]", self.sout), fb("double[]", self.out),
+                      fb("double[]", self.dout), opt, self._st)
+        self.nt_done = 0
+
+    def __call__(self, y0: np.ndarray, p: np.ndarray) -> tuple[int, str]:
+        fns = self.fns
+        ffi, lib = fns.rt.ffi, fns.rt.lib
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        which, s0, nt, t, yout, sout, out, dout, opt, st = self._args
+        flag = lib.lcg_cvsens_solve(fns.table, fns.rhs, fns.out, ffi.from_buffer("double[]", p) if p.size else ffi.NULL,
+                                    len(self.names), which, ffi.from_buffer("double[]", y0), s0, nt, t, yout, sout, out,
+                                    dout, opt, st)
+        if flag == CANCELLED:
+            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
+        self.nt_done = st.nt_done
+        if flag >= 0:
+            return int(flag), "success"
+        detail = ffi.string(st.message).decode(errors="replace")
+        return int(flag), message(flag, st.model_error, detail, t=st.t_reached)
+
+
+def prepare(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
+            errcon: bool = True) -> PreparedSensitivities:
+    """The :class:`PreparedSensitivities` of ``cm`` with the options of the resolved solver
+    ``family`` (as :func:`run`; ``y``, ``p`` a representative initial state and parameters)."""
+    check_family(family)
+    opts = family._ode_options(cm, y, p, True)
+    return PreparedSensitivities(cm, t, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
+                                 jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
+                                 first_step=opts["first_step"], max_step=opts["max_step"],
+                                 min_step=opts["min_step"], max_wall=float(family.max_wall))
