@@ -208,6 +208,10 @@ class CompiledModel(CompiledReprMixin):
                  rtol: float = 1e-8, atol=1e-10, events=(), raise_on_error: bool = True, **options) -> Result:
         """Integrate the scene and return the trajectory at the times ``t``.
 
+        A call with the option values (types included) of an earlier one takes the fast path
+        (:mod:`.fastpath`): its family's run prepared once, the result's statistics, outputs and
+        parameters by name made when first read; the same checks and errors, bit-identical results.
+
         Parameters
         ----------
         t:
@@ -249,10 +253,6 @@ class CompiledModel(CompiledReprMixin):
             ("native", "sksundae"), ``max_order``, ``order`` (Taylor), ``max_steps`` (steps over the
             whole run), ``max_step``, ``first_step``, ``min_step``, ``max_wall``; a keyword the
             family does not have raises LagcodegenError naming it.
-
-        A call with the option values (types included) of an earlier one takes the fast path
-        (:mod:`.fastpath`): its family's run prepared once, the result's statistics, outputs and
-        parameters by name made when first read; the same checks and errors, bit-identical results.
         """
         if not events:
             fast = self._fast_runs.get(solver, rtol, atol, options)
