@@ -128,16 +128,23 @@ def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(names, which, s0) of the directions ``names``: which[j] the run-time parameter index
     (-1 for an initial value), s0 (ns, ny) the initial sensitivities (unit vectors for initial
     values, zero for parameters). Unknown or repeated names raise LagcodegenError."""
+    return parse_directions(names, params=list(cm.param_names), states=list(cm.state_names), n=cm.n, ny=cm.ny,
+                            folded=getattr(cm.code, "folded", {}) or {}, listed_in="the scene's runtime_parameters")
+
+
+def parse_directions(names, *, params: list, states: list, n: int, ny: int, folded, listed_in: str
+                     ) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(names, which, s0) of the directions ``names`` among the run-time parameters ``params``
+    and the initial values of ``states`` (the first n the coordinates, whose velocities follow
+    them in y; s0 has ny columns); a name in ``folded`` is refused as a constant of the code, to
+    be listed in ``listed_in``. Shared by the ODE and the constrained formulations."""
     if isinstance(names, str):
         names = [names]
     names = list(names)
     if not names:
         raise LagcodegenError("sensitivities: give at least one parameter or initial value")
-    params = list(cm.param_names)
-    states = list(cm.state_names)
-    n = cm.n
     coords = states[:n]
-    which, s0 = [], np.zeros((len(names), cm.ny))
+    which, s0 = [], np.zeros((len(names), ny))
     for j, name in enumerate(names):
         if not isinstance(name, str):
             raise LagcodegenError(f"sensitivities: {name!r} is not a name")
@@ -158,10 +165,9 @@ def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
             which.append(-1)
             s0[j, i] = 1.0
             continue
-        folded = getattr(cm.code, "folded", {}) or {}
         if name in folded:
             raise LagcodegenError(f"sensitivities: parameter {name!r} is folded into the code as a constant; list it "
-                                  "in the scene's runtime_parameters")
+                                  f"in {listed_in}")
         raise LagcodegenError(f"sensitivities: {name!r} is neither a run-time parameter ({', '.join(params) or 'none'})"
                               f" nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
     return names, np.array(which, dtype=np.intc), s0

@@ -36,7 +36,7 @@ from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message, tolerances
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
-from .sensitivity import STATS, sens_runtime
+from .sensitivity import STATS, parse_directions, sens_runtime
 
 
 class ConstrainedSensitivityFunctions:
@@ -99,41 +99,9 @@ def directions(sim, names) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(names, which, s0) of the directions ``names`` of ``sim`` (as
     :func:`.sensitivity.directions`: which[j] the run-time parameter index or -1, s0 (ns, 2n) the
     unit vectors of initial values before the projection). Unknown or repeated names raise."""
-    if isinstance(names, str):
-        names = [names]
-    names = list(names)
-    if not names:
-        raise LagcodegenError("sensitivities: give at least one parameter or initial value")
-    params = list(sim.param_names)
     n = sim.n
-    coords = list(sim.state_names[:n])
-    which, s0 = [], np.zeros((len(names), 2 * n))
-    for j, name in enumerate(names):
-        if not isinstance(name, str):
-            raise LagcodegenError(f"sensitivities: {name!r} is not a name")
-        if names.index(name) != j:
-            raise LagcodegenError(f"sensitivities: {name!r} is given twice")
-        if name in params:
-            which.append(params.index(name))
-            continue
-        if name.endswith("(0)"):
-            base = name[:-3]
-            if base.endswith("_dot") and base[:-4] in coords:
-                i = n + coords.index(base[:-4])
-            elif base in coords:
-                i = coords.index(base)
-            else:
-                raise LagcodegenError(f"sensitivities: {name!r} names no initial value (coordinates: "
-                                      f"{', '.join(coords)}; write '<coordinate>(0)' or '<coordinate>_dot(0)')")
-            which.append(-1)
-            s0[j, i] = 1.0
-            continue
-        if name in (sim.info.folded or {}):
-            raise LagcodegenError(f"sensitivities: parameter {name!r} is folded into the code as a constant; list it "
-                                  "in runtime_parameters of compile_constrained")
-        raise LagcodegenError(f"sensitivities: {name!r} is neither a run-time parameter ({', '.join(params) or 'none'})"
-                              f" nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
-    return names, np.array(which, dtype=np.intc), s0
+    return parse_directions(names, params=list(sim.param_names), states=list(sim.state_names[:n]), n=n, ny=2 * n,
+                            folded=sim.info.folded or {}, listed_in="runtime_parameters of compile_constrained")
 
 
 def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: float, atol, *, roots: bool,
