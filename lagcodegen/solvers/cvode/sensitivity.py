@@ -173,6 +173,26 @@ def parse_directions(names, *, params: list, states: list, n: int, ny: int, fold
     return names, np.array(which, dtype=np.intc), s0
 
 
+def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int, errcon: bool, max_steps: int,
+                 jacobian: bool, max_order: int, first_step: float, max_step: float, min_step: float,
+                 max_wall: float):
+    """(the driver's ``lcg_cvsens_options`` struct made by ``ffi`` with the Ctrl-C ``poll`` function, the tolerance array it points to: keep it
+    alive with the struct): the states' absolute tolerances ``atol`` (scalar or ny values) repeated
+    for each of the ns directions, or effectively none for them without ``errcon``."""
+    atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+    atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
+    opt = ffi.new("lcg_cvsens_options *")
+    opt.method = METHODS[method]
+    opt.rtol = rtol
+    opt.atol = ffi.from_buffer("double[]", atol_all)
+    opt.max_steps = int(max_steps)
+    opt.jacobian = int(bool(jacobian))
+    opt.max_order = int(max_order)
+    opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
+    opt.poll, opt.poll_every, opt.max_wall = poll, POLL_EVERY, float(max_wall)
+    return opt, atol_all
+
+
 def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names, *, rtol: float, atol: np.ndarray,
                         method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
                         max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
@@ -191,21 +211,13 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     ffi, lib = fns.rt.ffi, fns.rt.lib
     ns, ny, nt = len(names), cm.ny, t.size
     nout = cm.code.nout
-    atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
-    atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
     yout = np.empty((nt, ny))
     sout = np.empty((nt, ns, ny))
     out = np.empty((nt, max(nout, 1)))
     dout = np.empty((nt, ns, max(nout, 1)))
-    opt = ffi.new("lcg_cvsens_options *")
-    opt.method = METHODS[method]
-    opt.rtol = rtol
-    opt.atol = ffi.from_buffer("double[]", atol_all)
-    opt.max_steps = int(max_steps)
-    opt.jacobian = int(bool(jacobian))
-    opt.max_order = int(max_order)
-    opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
-    opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(max_wall)
+    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
+                                 max_steps=max_steps, jacobian=jacobian, max_order=max_order, first_step=first_step,
+                                 max_step=max_step, min_step=min_step, max_wall=max_wall)
     st = ffi.new("lcg_cvsens_stats *")
     fb = ffi.from_buffer
     p_ptr = fb("double[]", p) if p.size else ffi.NULL
@@ -295,23 +307,16 @@ class PreparedSensitivities:
         self.t = np.ascontiguousarray(t, dtype=float)
         nt = self.t.size
         self.nout = nout = cm.code.nout
-        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
-        self._atol = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
         self._which = np.ascontiguousarray(which)
         self._s0 = np.ascontiguousarray(s0)
         self.yout = np.empty((nt, ny))
         self.sout = np.empty((nt, ns, ny))
         self.out = np.empty((nt, max(nout, 1)))
         self.dout = np.empty((nt, ns, max(nout, 1)))
-        opt = self._opt = ffi.new("lcg_cvsens_options *")
-        opt.method = METHODS[method]
-        opt.rtol = rtol
-        opt.atol = ffi.from_buffer("double[]", self._atol)
-        opt.max_steps = int(max_steps)
-        opt.jacobian = int(bool(jacobian))
-        opt.max_order = int(max_order)
-        opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
-        opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(max_wall)
+        opt, self._atol = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
+                                       max_steps=max_steps, jacobian=jacobian, max_order=max_order,
+                                       first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall)
+        self._opt = opt
         self._st = ffi.new("lcg_cvsens_stats *")
         fb = ffi.from_buffer
         self._args = (fb("int[]", self._which), fb("double[]", self._s0), nt, fb("double[]", self.t),

@@ -34,9 +34,9 @@ from ...codegen.sensitivity_constrained import constrained_sensitivity_source
 from ...errors import LagcodegenError, ModelError
 from ...result import Result
 from ...runtime import sources as runtime_files
-from ..base import METHODS, message, tolerances
-from ..control import CANCELLED, POLL_EVERY, install, raise_pending
-from .sensitivity import STATS, parse_directions, sens_runtime
+from ..base import message, tolerances
+from ..control import CANCELLED, install, raise_pending
+from .sensitivity import STATS, parse_directions, sens_options, sens_runtime
 
 
 class ConstrainedSensitivityFunctions:
@@ -133,22 +133,14 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     if initial in ("check", "project"):
         s0 = fns.initial(float(t[0]), y0, p_ext, which, s0)
     rtol, atol = tolerances(rtol, atol, ny)
-    atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
-    errcon = bool(family.sensitivity_errcon)
-    atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
     yout = np.empty((nt, ny))
     sout = np.empty((nt, ns, ny))
     out = np.empty((nt, max(nout, 1)))
     dout = np.empty((nt, ns, max(nout, 1)))
-    opt = ffi.new("lcg_cvsens_options *")
-    opt.method = METHODS[method]
-    opt.rtol = rtol
-    opt.atol = ffi.from_buffer("double[]", atol_all)
-    opt.max_steps = int(family.max_steps)
-    opt.jacobian = 1
-    opt.max_order = int(family.max_order)
-    opt.first_step, opt.max_step, opt.min_step = family.first_step, family.max_step, family.min_step
-    opt.poll, opt.poll_every, opt.max_wall = fns.poll, POLL_EVERY, float(family.max_wall)
+    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
+                                 errcon=bool(family.sensitivity_errcon), max_steps=family.max_steps, jacobian=True,
+                                 max_order=family.max_order, first_step=family.first_step,
+                                 max_step=family.max_step, min_step=family.min_step, max_wall=family.max_wall)
     if projection:
         opt.project = fns.project
     st = ffi.new("lcg_cvsens_stats *")

@@ -17,9 +17,8 @@ import numpy as np
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
-from ..base import METHODS
-from ..control import POLL_EVERY, install
-from .sensitivity import CDEF, FILES, _sources, directions, functions
+from ..control import install
+from .sensitivity import CDEF, _sources, directions, functions, sens_options
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
@@ -81,17 +80,9 @@ class CVSensStepper:
         self.sout = None  # (nt, ns, ny): where propagate_grid's sensitivities go (set per call)
         table = ffi.cast("const lcg_model *", int(cm.ffi.cast("uintptr_t", cm.table)))
         rhs = ffi.cast("lcg_sens_rhs_fn", int(fns.rt.ffi.cast("uintptr_t", fns.rhs)))
-        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
-        atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
-        opt = ffi.new("lcg_cvsens_options *")
-        opt.method = METHODS[method]
-        opt.rtol = rtol
-        opt.atol = ffi.from_buffer("double[]", atol_all)
-        opt.max_steps = int(max_steps)
-        opt.jacobian = int(bool(jacobian))
-        opt.max_order = int(max_order)
-        opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
-        opt.poll, opt.poll_every, opt.max_wall = install(rt), POLL_EVERY, float(max_wall)
+        opt, atol_all = sens_options(ffi, install(rt), method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
+                                     errcon=errcon, max_steps=max_steps, jacobian=jacobian, max_order=max_order,
+                                     first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall)
         self.compiled = events
         self.events = list(events.events) if events is not None else []
         self._native = SensEvents(ffi, events, ny, ns, max_events) if self.events else None
