@@ -88,11 +88,28 @@ class Taylor(Family):
         (:class:`.prepared.PreparedTaylorRun`): what ``simulate()``'s fast path calls; ``fixed``
         the members every result shares. None when a field it does not know is set (a field
         added later takes the full path until the prepared run honours it)."""
+        if self.sensitivities is not None:
+            return self._prepared_sensitivities(cm, rtol, atol, fixed)
         if not self.defaults_beside(_PREPARED):
             return None
         return PreparedTaylorRun(taylor_module(cm), rtol=rtol, atol=atol, max_step=float(self.max_step),
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
                                  fixed=fixed)
+
+    def _prepared_sensitivities(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` with sensitivities (no events) prepared once
+        (:class:`.prepared_sensitivity.PreparedTaylorSensitivityRun`), or None when a field it does
+        not know is set."""
+        if not self.defaults_beside(_PREPARED | {"sensitivities", "sensitivity_errcon"}):
+            return None
+        from .prepared_sensitivity import PreparedTaylorSensitivityRun
+        from .run import scene_of
+        from .sensitivity import variational_module
+        module = variational_module(cm, scene_of(cm), self.sensitivities)
+        return PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
+                                            max_step=float(self.max_step), max_steps=int(self.max_steps),
+                                            order=self.order, max_wall=float(self.max_wall), fixed=fixed,
+                                            model_ffi=cm.ffi, param_names=cm.param_names)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
