@@ -2,17 +2,17 @@
 option values as an earlier one (solver, rtol, atol and the other keywords, their types included)
 goes from ``simulate()`` straight to a run its family prepared once (the options resolved and
 checked, the driver's options struct made: ``prepared_ode`` of
-:class:`~lagcodegen.solvers.taylor.Taylor` and :class:`~lagcodegen.solvers.cvode.CVODE`, the
-latter with forward sensitivities too, their directions parsed once), and returns a
+:class:`~lagcodegen.solvers.taylor.Taylor` and :class:`~lagcodegen.solvers.cvode.CVODE`,
+both with forward sensitivities too, their directions parsed once), and returns a
 :class:`~lagcodegen.solvers.lazy_result.LazyResult`.
 
 What the call brings anew is checked as on the full path, with the same errors: the output
 times, the initial state (length, dtype, finiteness) and the parameters. Runs with events or
-input tables, and options the families do not prepare (scikit-sundae, Taylor sensitivities, array
-tolerances), take the full path. A list of names (``sensitivities=[...]``) is kept for by its
-names and its type (a list and a tuple of the same names prepare a run each). Both paths call the same C driver with the same options and
-arrays, so their results are bit-identical; a failed run ends in the same checks and errors
-(:func:`finish_run`, shared by both)."""
+input tables, and options the families do not prepare (scikit-sundae, array tolerances), take
+the full path. A list of names (``sensitivities=[...]``) is kept for by its names and its type (a
+list and a tuple of the same names prepare a run each). Both paths call the same C driver with
+the same options and arrays, so their results are bit-identical; a failed run ends in the same
+checks and errors (:func:`finish_run`, shared by both)."""
 
 from __future__ import annotations
 
@@ -68,6 +68,8 @@ def _names_key(solver, rtol, atol, options: dict):
         return key
     except TypeError:
         pass
+    if type(rtol) not in _TOLERANCES or type(atol) not in _TOLERANCES:
+        return None  # array tolerances: the full path
     items = []
     for k, v in options.items():
         if type(v) is list and _names(v):

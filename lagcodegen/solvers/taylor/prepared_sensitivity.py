@@ -34,9 +34,10 @@ class PreparedTaylorSensitivityRun:
     """Runs of the variational jet ``module`` with the options given, from the caller's checked
     arrays: ``run(t, t_ptr, y_ptr, p, p_ptr)`` as
     :class:`lagcodegen.solvers.taylor.prepared.PreparedTaylorRun`'s (the cdata of the caller's
-    model, read here for the initial state of the augmented system)."""
+    model, read here for the initial state of the augmented system). ``atol``: a scalar or ny
+    values."""
 
-    def __init__(self, module: VariationalModule, *, rtol: float, atol: float, errcon: bool, max_step: float,
+    def __init__(self, module: VariationalModule, *, rtol: float, atol, errcon: bool, max_step: float,
                  max_steps: int, order: int | None, max_wall: float, fixed: dict, model_ffi, param_names):
         rt = module.rt
         self.module, self.ffi, self.model_ffi = module, rt.ffi, model_ffi
@@ -46,7 +47,7 @@ class PreparedTaylorSensitivityRun:
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
         opt.rtol = rtol
-        opt.atol = float(atol)
+        opt.atol = float(self._atol[:module.ny].min())
         opt.atol_vec = rt.ffi.from_buffer("double[]", self._atol)
         opt.max_steps = int(max_steps)
         opt.max_step = float(max_step)
