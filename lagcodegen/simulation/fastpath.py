@@ -2,15 +2,17 @@
 option values as an earlier one (solver, rtol, atol and the other keywords, their types included)
 goes from ``simulate()`` straight to a run its family prepared once (the options resolved and
 checked, the driver's options struct made: ``prepared_ode`` of
-:class:`~lagcodegen.solvers.taylor.Taylor` and :class:`~lagcodegen.solvers.cvode.CVODE`), and
-returns a :class:`~lagcodegen.solvers.lazy_result.LazyResult`.
+:class:`~lagcodegen.solvers.taylor.Taylor` and :class:`~lagcodegen.solvers.cvode.CVODE`,
+both with forward sensitivities too, their directions parsed once), and returns a
+:class:`~lagcodegen.solvers.lazy_result.LazyResult`.
 
 What the call brings anew is checked as on the full path, with the same errors: the output
 times, the initial state (length, dtype, finiteness) and the parameters. Runs with events or
-input tables, and options the families do not prepare (scikit-sundae, sensitivities, array
-tolerances), take the full path. Both paths call the same C driver with the same options and
-arrays, so their results are bit-identical; a failed run ends in the same checks and errors
-(:func:`finish_run`, shared by both)."""
+input tables, and options the families do not prepare (scikit-sundae, array tolerances), take
+the full path. A list of names (``sensitivities=[...]``) is kept for by its names and its type (a
+list and a tuple of the same names prepare a run each). Both paths call the same C driver with
+the same options and arrays, so their results are bit-identical; a failed run ends in the same
+checks and errors (:func:`finish_run`, shared by both)."""
 
 from __future__ import annotations
 
@@ -49,6 +51,33 @@ def finish_run(cm, res: Result, t0: float, y: np.ndarray, p: np.ndarray, raise_o
         raise cls(res.message, t=res.stats.get("t_reached", res.t[-1] if res.t.size else t0), flag=res.status,
                   result=res)
     return res
+
+
+def _names(value) -> bool:
+    """A list or tuple of names (e.g. ``sensitivities``): kept for by its tuple of names."""
+    return type(value) in (list, tuple) and all(type(x) is str for x in value)
+
+
+def _names_key(solver, rtol, atol, options: dict):
+    """The key of a call whose option values are scalars or lists or tuples of names, else None:
+    the values as they are where they hash, a list of names as (list, its tuple), so that a list
+    and a tuple of the same names have keys of their own."""
+    key = (solver, rtol, atol, *options.items())
+    try:
+        hash(key)
+        return key
+    except TypeError:
+        pass
+    if type(rtol) not in _TOLERANCES or type(atol) not in _TOLERANCES:
+        return None  # array tolerances: the full path
+    items = []
+    for k, v in options.items():
+        if type(v) is list and _names(v):
+            v = (list, tuple(v))
+        elif type(v) not in _SCALARS and not _names(v):
+            return None
+        items.append((k, v))
+    return (solver, rtol, atol, *items)
 
 
 class FastRun:
@@ -119,8 +148,11 @@ class FastRuns:
         """The prepared run of a call with these values (of the same types), else None."""
         try:
             run = self._runs.get((solver, rtol, atol, *options.items()))
-        except TypeError:  # unhashable values (arrays): the full path
-            return None
+        except TypeError:  # lists of names (sensitivities) by their tuple; other unhashable values: the full path
+            key = _names_key(solver, rtol, atol, options)
+            if key is None:
+                return None
+            run = self._runs.get(key)
         if run is None or type(rtol) is not run.rtol_type or type(atol) is not run.atol_type:
             return None
         for k, kind in run.checks:
@@ -132,9 +164,9 @@ class FastRuns:
         """After a call on the full path that did not raise: prepare its run for the next calls
         with these values, where the family prepares it (else remember that it does not)."""
         if type(rtol) not in _TOLERANCES or type(atol) not in _TOLERANCES \
-                or not all(type(v) in _SCALARS for v in options.values()):
+                or not all(type(v) in _SCALARS or _names(v) for v in options.values()):
             return
-        key = (solver, rtol, atol, *options.items())
+        key = _names_key(solver, rtol, atol, options)
         if key in self._runs:
             return
         rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)

@@ -310,8 +310,11 @@ class CompiledModel(CompiledReprMixin):
         family = resolve("ode", solver, options, self.n, rtol)
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
         stepper = family.runner("ode", "stepper")(self, mem, rtol, atol_arr, events)
-        cls = SensitivityIntegrator if getattr(stepper, "with_sensitivities", False) else Integrator
-        return cls(stepper, mem, state_names=self.state_names, param_names=self.param_names, family=stepper.family)
+        if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)
+            return SensitivityIntegrator(stepper, getattr(stepper, "mem", mem), state_names=self.state_names,
+                                         param_names=self.param_names, family=stepper.family)
+        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
+                          family=stepper.family)
 
     def check_initial_outputs(self, t0: float, y: np.ndarray, p: np.ndarray) -> None:
         """Raise SolverError naming every output that is not finite at the initial state (each

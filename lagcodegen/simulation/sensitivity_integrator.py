@@ -1,7 +1,10 @@
 """The integrator object with forward sensitivities (:class:`SensitivityIntegrator`, made by
-``sim.integrator(..., sensitivities=[...])`` on CVODE): an :class:`~.integrator.Integrator` whose
-C stepper (``lcg_cvsens_stepper``, :mod:`lagcodegen.solvers.cvode.sensitivity_stepper`) carries
-the sensitivities s = dy/dtheta of the directions ``sensitivity_names`` along with the state.
+``sim.integrator(..., sensitivities=[...])``): an :class:`~.integrator.Integrator` whose C
+stepper carries the sensitivities s = dy/dtheta of the directions ``sensitivity_names`` along
+with the state: on CVODE ``lcg_cvsens_stepper`` (:mod:`lagcodegen.solvers.cvode.sensitivity_stepper`),
+on the Taylor method the Taylor stepper on the variational jet
+(:class:`lagcodegen.solvers.taylor.stepper.TaylorSensitivityStepper`, whose memory (t, y, s, p)
+the views are made on; no events).
 
 ``sensitivities`` is a writable (ny, ns) view of the stepper's memory (entry [i, j] = d y_i / d
 theta_j): set it (e.g. to zero, or to unit columns) and the next call restarts from it, as the
@@ -24,6 +27,9 @@ class SensitivityIntegrator(Integrator):
 
     def __init__(self, stepper, mem: np.ndarray, *, state_names, param_names, family: str):
         super().__init__(stepper, mem, state_names=state_names, param_names=param_names, family=family)
+        params_at = getattr(stepper, "params_at", None)
+        if params_at is not None:  # the stepper's memory holds the sensitivities between y and p
+            self._params = mem[params_at:]
         self.sensitivity_names = list(stepper.names)
         self._sens = stepper.sens  # (ns, ny), the C memory
 

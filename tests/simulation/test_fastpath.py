@@ -36,8 +36,13 @@ def assert_same(fast, slow):
     assert fast.parameters == slow.parameters
     assert all(type(v) is type(slow.parameters[k]) for k, v in fast.parameters.items())
     for name in ("state_names", "status", "message", "backend", "method", "n_coordinates", "events", "formulation",
-                 "model_name", "impacts", "sensitivity_names", "sensitivity_values", "sensitivities"):
+                 "model_name", "impacts", "sensitivity_names", "sensitivity_values"):
         assert getattr(fast, name) == getattr(slow, name), name
+    if slow.sensitivities is None:
+        assert fast.sensitivities is None
+    else:
+        np.testing.assert_array_equal(fast.sensitivities, slow.sensitivities)
+        assert fast.sensitivities.shape == slow.sensitivities.shape
     assert fast.drawing is slow.drawing
 
 
@@ -206,21 +211,91 @@ def test_fast_path_of_a_model_without_outputs(method):
 
 
 def test_runs_a_prepared_run_does_not_honour_take_the_full_path(double_pendulum):
-    """Sensitivities (a CVODE field the prepared run does not compute) and scikit-sundae stay on
-    the full path on every call; a family with a field set beyond those its prepared run honours
-    prepares none."""
+    """scikit-sundae stays on the full path on every call; a family with a field set beyond those
+    its prepared run honours prepares none."""
     from lagcodegen.solvers.cvode import CVODE
     from lagcodegen.solvers.taylor import Taylor
     cm = double_pendulum
     t = np.linspace(0.0, 0.5, 6)
-    solver = CVODE(sensitivities=("g",))
-    for _ in range(2):
-        res = cm.simulate(t, q0=[0.3, 0.1], solver=solver)
-        assert type(res) is Result and res.sensitivities is not None
-        assert np.all(np.isfinite(res.sensitivity("theta1", "g")))
     for _ in range(2):
         res = cm.simulate(t, q0=[0.3, 0.1], backend="sksundae")
         assert type(res) is Result and res.backend == "sksundae"
     assert Taylor().defaults_beside(frozenset()) and CVODE().defaults_beside(frozenset())
     assert not Taylor(order=3).defaults_beside(frozenset({"max_steps"}))
     assert Taylor(order=3).defaults_beside(frozenset({"order"}))
+
+
+def assert_same_sensitivities(fast, slow):
+    """assert_same (the sensitivities bit for bit with their names among its fields), the
+    statistics but for the wall time."""
+    fast_stats, slow_stats = dict(fast.stats), dict(slow.stats)
+    assert fast_stats.pop("wall_time") > 0 and slow_stats.pop("wall_time") > 0
+    assert fast_stats == slow_stats
+    kept = slow.stats
+    try:
+        slow.stats = fast.stats
+        assert_same(fast, slow)
+    finally:
+        slow.stats = kept
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_sensitivity_runs_take_the_fast_path_bit_identically(double_pendulum, method):
+    """simulate(sensitivities=[...]) on CVODE and Taylor: the second call with the same names (a list, or the
+    family's tuple) runs the prepared sensitivity run, bit-identical to the full path, with its
+    own arrays; a list and a tuple of the same names do not share a prepared run; the
+    sensitivities themselves agree with central differences of the fast path's own runs."""
+    from lagcodegen.solvers.cvode import CVODE
+    from lagcodegen.solvers.taylor import Taylor
+    cm = double_pendulum
+    names = ["g", "theta1(0)", "theta2_dot(0)"]
+    opts = dict(method=method, rtol=1e-9, atol=1e-9, sensitivities=names)
+    y0 = np.array([0.7, -0.3, 0.1, 0.0])
+    first = cm.simulate(np.array([0.0, 2.0]), y0=y0, **opts)
+    assert type(first) is Result
+    for t in (np.array([0.0, 2.0]), np.linspace(0.0, 3.0, 31)):
+        fast = cm.simulate(t, y0=y0, **opts)
+        assert isinstance(fast, LazyResult) and fast.sensitivities.shape == (t.size, 3, 5)
+        assert_same_sensitivities(fast, cm._simulate(t, y0=y0, **opts))
+    kept = fast.sensitivities.copy()
+    cm.simulate(np.linspace(0.0, 3.0, 31), y0=y0 * 0.5, **opts)
+    np.testing.assert_array_equal(fast.sensitivities, kept)
+    kw = dict(q0=[0.2, 0.4], params={"g": 9.0})
+    assert_same_sensitivities(cm.simulate(np.linspace(0.0, 1.0, 5), **kw, **opts),
+                              cm._simulate(np.linspace(0.0, 1.0, 5), **kw, **opts))
+    # the tuple of the same names is another key: its first call takes the full path
+    as_tuple = dict(opts, sensitivities=tuple(names))
+    assert type(cm.simulate(np.array([0.0, 1.0]), y0=y0, **as_tuple)) is Result
+    assert isinstance(cm.simulate(np.array([0.0, 1.0]), y0=y0, **as_tuple), LazyResult)
+    solver = (Taylor if method == "taylor" else CVODE)(sensitivities=("g",), **({} if method == "taylor" else
+                                                                                 {"method": method}))
+    cm.simulate(np.array([0.0, 1.0]), y0=y0, solver=solver, rtol=1e-9, atol=1e-9)
+    res = cm.simulate(np.array([0.0, 1.0]), y0=y0, solver=solver, rtol=1e-9, atol=1e-9)
+    assert isinstance(res, LazyResult) and res.sensitivity_names == ["g"]
+    # d theta1(T) / d g against central differences of plain fast runs
+    t = np.array([0.0, 1.0])
+    h = 1e-4
+    plain = dict(method=method, rtol=1e-11, atol=1e-11)
+    up = cm.simulate(t, y0=y0, params={"g": 9.81 + h}, **plain).y[-1, 0]
+    down = cm.simulate(t, y0=y0, params={"g": 9.81 - h}, **plain).y[-1, 0]
+    np.testing.assert_allclose(res.sensitivity("theta1", "g")[-1], (up - down) / (2 * h), rtol=1e-5, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_failed_fast_sensitivity_run_fails_as_on_the_full_path(double_pendulum, method):
+    cm = double_pendulum
+    t = np.linspace(0.0, 50.0, 11)
+    opts = dict(q0=[1.0, 2.0], max_steps=20, raise_on_error=False, sensitivities=["g"], method=method)
+    slow = cm._simulate(t, **opts)
+    cm.simulate(t, **opts)
+    fast = cm.simulate(t, **opts)
+    assert isinstance(fast, LazyResult) and not fast.success and fast.status < 0
+    assert 1 <= fast.t.size < t.size and fast.sensitivities.shape[0] == fast.t.size
+    assert_same_sensitivities(fast, slow)
+    with pytest.raises(SolverError) as info:
+        cm.simulate(t, q0=[1.0, 2.0], max_steps=20, sensitivities=["g"], method=method)
+    with pytest.raises(SolverError) as full:
+        cm._simulate(t, q0=[1.0, 2.0], max_steps=20, sensitivities=["g"], method=method)
+    assert str(info.value) == str(full.value)
+    with pytest.raises(LagcodegenError, match="non-finite"):
+        cm.simulate(t, y0=np.array([np.nan, 0.0, 0.0, 0.0]), sensitivities=["g"], method=method)

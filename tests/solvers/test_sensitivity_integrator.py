@@ -1,6 +1,7 @@
-"""The integrator object with forward sensitivities on CVODE (lcg_cvsens_stepper): a fresh
-integrator's grid bit-identical to simulate(..., sensitivities=...), the writable sensitivities
-restarting the run as a new one would, events with their times' sensitivities."""
+"""The integrator object with forward sensitivities on CVODE (lcg_cvsens_stepper) and on the
+Taylor method (the Taylor stepper on the variational jet): a fresh integrator's grid
+bit-identical to simulate(..., sensitivities=...), the writable sensitivities restarting the run
+as a new one would, events with their times' sensitivities (CVODE)."""
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ def _states(res):
     return res.sensitivities[:, :, :len(res.state_names)].transpose(0, 2, 1)
 
 
-@pytest.mark.parametrize("method", ["adams", "bdf"])
+@pytest.mark.parametrize("method", ["adams", "bdf", "taylor"])
 def test_fresh_grid_bit_identical_to_simulate(pend, method):
     t = np.linspace(0.0, 2.0, 41)
     ref = pend.simulate(t, q0=[0.5], v0=[0.2], params={"l": 1.3}, method=method, sensitivities=NAMES)
@@ -35,7 +36,30 @@ def test_fresh_grid_bit_identical_to_simulate(pend, method):
     assert integ.time == 2.0 and np.array_equal(integ.state, ref.y[-1])
     assert np.array_equal(integ.sensitivities, _states(ref)[-1])
     assert integ.sensitivity("theta", "l") == ref.sensitivity("theta", "l")[-1]
-    assert integ.stats["steps"] == ref.stats["nsteps"]
+    assert integ.stats["steps"] == ref.stats["nsteps" if method != "taylor" else "steps"]
+
+
+@pytest.mark.parametrize("method", ["adams", "taylor"])
+def test_written_state_params_and_sensitivities_restart_as_a_new_run(pend, method):
+    """After a first run, the state, a parameter and the sensitivities written: the next grid is
+    the run simulate() makes from there, bit for bit; the views are the C memory's."""
+    integ = pend.integrator(q0=[0.5], method=method, sensitivities=NAMES)
+    integ.propagate_until(0.7)
+    integ.time = 0.0
+    integ.state[:] = [0.3, -0.1]
+    integ.set_param("l", 0.9)
+    assert integ.params[0] == 0.9 and list(integ.param_names).index("l") == 0
+    integ.sensitivities = [[0, 0, 1, 0], [0, 0, 0, 1]]
+    t = np.linspace(0.0, 1.0, 11)
+    y, S = integ.propagate_grid(t)
+    ref = pend.simulate(t, q0=[0.3], v0=[-0.1], params={"l": 0.9}, method=method, sensitivities=NAMES)
+    assert np.array_equal(y, ref.y) and np.array_equal(S, _states(ref))
+    assert np.array_equal(integ.state, ref.y[-1]) and np.array_equal(integ.sensitivities, _states(ref)[-1])
+    # propagate_for and step go on from there with their sensitivities, finite and moving
+    before = integ.sensitivities.copy()
+    integ.propagate_for(0.1)
+    assert integ.step() > 1.1 and np.all(np.isfinite(integ.sensitivities))
+    assert not np.array_equal(before, integ.sensitivities)
 
 
 def test_written_sensitivities_restart_as_a_new_run(pend):
@@ -90,8 +114,8 @@ def test_bad_input_is_named(pend):
         integ.sensitivity("theta", "g")
     with pytest.raises(LagcodegenError, match="time going backward"):
         integ.propagate_until(-1.0)
-    with pytest.raises(LagcodegenError, match="integrator objects do not compute sensitivities"):
-        pend.integrator(q0=[0.5], method="taylor", sensitivities=["l"])  # Taylor: simulate() only
+    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported on the Taylor"):
+        pend.integrator(q0=[0.5], method="taylor", sensitivities=["l"], events=[lcg.Event("z", sp.Symbol("theta"))])
     with pytest.raises(LagcodegenError, match="linear_solver 'band'"):
         pend.integrator(q0=[0.5], method="bdf", linear_solver="band", sensitivities=["l"])
     integ.close()

@@ -20,7 +20,7 @@ from .events import compiled_events
 
 BACKENDS = ("native", "sksundae")
 #: The fields a prepared ODE run honours (the index-1 ones are refused on the ODE by check_face;
-#: max_events: a prepared run has no events; sensitivity_errcon: nor sensitivities).
+#: max_events: a prepared run has no events; sensitivities: their own prepared run).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "method", "backend", "max_order", "first_step",
                        "min_step", "linear_solver", "bandwidths", "jacobian", "max_events", "sensitivities",
                        "sensitivity_errcon", "baumgarte", "projection", "proj_tol", "proj_maxit"))
@@ -147,17 +147,35 @@ class CVODE(Family):
 
     def prepared_ode(self, cm, rtol: float, atol, fixed: dict):
         """The runs of :meth:`run_ode` (no events) with these tolerances prepared once
-        (:class:`.prepared.PreparedCVODERun`): what ``simulate()``'s fast path calls; ``fixed`` the
-        members every result shares. None where a run needs more than the native driver's call
-        (sensitivities, scikit-sundae, bandwidths probed at the initial state, a field it does not
-        know set: a field added later takes the full path until the prepared run honours it)."""
-        if self.backend != "native" or self.sensitivities is not None or not cm.native or cm.native_solve is None \
+        (:class:`.prepared.PreparedCVODERun`; with sensitivities
+        :class:`.prepared_sensitivity.PreparedSensitivityRun`): what ``simulate()``'s fast path
+        calls; ``fixed`` the members every result shares. None where a run needs more than the
+        native driver's call (scikit-sundae, bandwidths probed at the initial state, a field it does
+        not know set: a field added later takes the full path until the prepared run honours it)."""
+        if self.sensitivities is not None:
+            return self._prepared_sensitivities(cm, rtol, atol, fixed)
+        if self.backend != "native" or not cm.native or cm.native_solve is None \
                 or not self.defaults_beside(_PREPARED):
             return None
         if self.linear_solver == "band" and self.bandwidths is None and getattr(cm.code, "jac_pattern", None) is None:
             return None
         opts = self._ode_options(cm, None, None, True)
         return PreparedCVODERun(cm, rtol=rtol, atol=atol, max_wall=float(self.max_wall), fixed=fixed, **opts)
+
+    def _prepared_sensitivities(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` with sensitivities (no events) prepared once
+        (:class:`.prepared_sensitivity.PreparedSensitivityRun`), where the run is the sensitivity
+        driver's call alone (the fields :func:`.sensitivity.check_family` accepts, the dense
+        Newton solver's options); else None."""
+        if self.backend != "native" or self.linear_solver != "dense" or not self.defaults_beside(_PREPARED):
+            return None
+        from .prepared_sensitivity import PreparedSensitivityRun
+        opts = self._ode_options(cm, None, None, True)
+        if opts["method"] not in ("adams", "bdf"):
+            return None
+        return PreparedSensitivityRun(cm, self.sensitivities, rtol=rtol, atol=atol,
+                                      errcon=bool(self.sensitivity_errcon), max_wall=float(self.max_wall),
+                                      fixed=fixed, **opts)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by

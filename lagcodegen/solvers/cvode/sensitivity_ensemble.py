@@ -1,23 +1,14 @@
 """Ensembles with forward sensitivities on CVODE: every member one call of the sensitivity driver
-(:func:`lagcodegen.solvers.cvode.sensitivity.solve_sensitivities`, its own SUNDIALS context), so
-each member's states and sensitivities are bit-identical to the same run alone; the members are
-spread over ``threads`` Python threads (the driver runs without the GIL) and gathered into one
-:class:`~lagcodegen.solvers.ensemble_result.EnsembleResult` whose ``sensitivities`` (N, ns,
-nvalues) hold each member's at its last output time (``sensitivity_trajectories`` (N, nt, ns,
-nvalues) with ``save`` other than "final"). Ctrl-C raises
-:class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` holding the members that
-finished (the others NOT_RUN)."""
+(:func:`lagcodegen.solvers.cvode.sensitivity.solve_sensitivities`, its own SUNDIALS context),
+spread over threads and gathered by :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`
+(each member bit-identical to its run alone; Ctrl-C keeps the members that finished)."""
 
 from __future__ import annotations
 
-import time
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
-from ..control import NOT_RUN, Progress
-from ..ensemble_result import COUNT_NAMES, EnsembleInterrupted, EnsembleResult
-from ..ensemble_run import _columns, default_threads
+from ..ensemble_result import EnsembleResult
+from ..ensemble_sensitivities import ensemble_of_runs
 from .sensitivity import directions, functions, solve_sensitivities
 from .sensitivity_events import gradients
 
@@ -30,90 +21,14 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
                            threads, save, progress, **driver) -> EnsembleResult:
     """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (checked
     once); ``driver``: the keywords of :func:`solve_sensitivities` (method, errcon, jacobian,
-    budgets, events: located in every member, counted in its stats ``events`` and ``terminated``;
-    a terminal event's time, state and sensitivities are the member's ``t_reached``, final row
-    and final sensitivities, its trajectory the output times before it). A member that fails
-    keeps its rows up to the last output time it reached: its ``final`` row and sensitivities
-    are that time's (``t_reached`` the solver's time)."""
+    budgets, events: located in every member, as :func:`ensemble_of_runs` says)."""
     names = directions(cm, names)[0]
     functions(cm)  # built once, before the threads start
     if driver.get("events") is not None:
         gradients(cm, driver["events"])  # the event functions' derivatives too
-    n_mem, nt, ny, nout = Y.shape[0], t.shape[0], cm.ny, cm.code.nout
-    values = list(cm.state_names) + list(cm.output_names)
-    cols_names, cols = _columns(save, list(cm.state_names), list(cm.output_names), {})
-    ns, nv = len(names), ny + nout
-    final = np.full((n_mem, ny + nout), np.nan)
-    traj = np.full((n_mem, nt, len(cols)), np.nan) if cols else None
-    sens = np.full((n_mem, ns, nv), np.nan)
-    sens_traj = np.full((n_mem, nt, ns, nv), np.nan) if cols else None
-    status = np.full(n_mem, NOT_RUN, dtype=np.intc)
-    nt_done = np.zeros(n_mem, dtype=np.intc)
-    t_reached = np.full(n_mem, np.nan)
-    counts = {k: np.zeros(n_mem, dtype=np.dtype("l")) for k in COUNT_NAMES}
-    wall = np.zeros(n_mem)
-    messages: dict = {}
-    bar = Progress(n_mem, show=progress)
 
-    def member(i: int) -> None:
-        p = P if P.ndim == 1 else P[i]
-        start = time.perf_counter()
-        res = solve_sensitivities(cm, t, np.ascontiguousarray(Y[i]), np.ascontiguousarray(p), names, rtol=rtol,
-                                  atol=atol, **driver)
-        wall[i] = time.perf_counter() - start
-        rows = res.t.size
-        grid = min(rows, t.size)  # the rows at output times (a terminal event's row follows them)
-        while grid and res.t[grid - 1] != t[grid - 1]:
-            grid -= 1
-        status[i] = res.status
-        nt_done[i] = grid
-        t_reached[i] = res.stats["t_reached"] if res.status < 0 else res.t[-1]
-        for k, s in _COUNTS.items():
-            counts[k][i] = res.stats[s]
-        counts["events"][i] = res.stats.get("events", 0)
-        counts["terminated"][i] = res.stats.get("terminated", 0)
-        if res.status < 0:
-            messages[i] = res.message
-        if rows:
-            row = np.concatenate([res.y[-1], [res.outputs[k][-1] for k in cm.output_names]])
-            final[i] = row
-            sens[i] = res.sensitivities[-1]
-            if traj is not None:
-                full = np.column_stack([res.y, *(res.outputs[k] for k in cm.output_names)])
-                traj[i, :grid] = full[:grid, cols]
-                sens_traj[i, :grid] = res.sensitivities[:grid]
+    def member_run(y0, p):
+        return solve_sensitivities(cm, t, y0, p, names, rtol=rtol, atol=atol, **driver)
 
-    def result() -> EnsembleResult:
-        stats = dict(counts)
-        stats["wall"] = wall
-        res = EnsembleResult(t=t, state_names=list(cm.state_names), output_names=list(cm.output_names),
-                             status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=ny, stats=stats,
-                             messages=messages, columns=cols_names, traj=traj, params=P,
-                             param_names=list(cm.param_names), method=driver.get("method", ""), n_coordinates=cm.n)
-        res.set_sensitivities(names, values, sens, sens_traj)
-        return res
-
-    n_threads = default_threads(n_mem) if threads is None else max(1, int(threads))
-    pool = ThreadPoolExecutor(max_workers=n_threads) if n_threads > 1 else None
-    futures = []
-    try:
-        if pool is None:
-            for i in range(n_mem):
-                member(i)
-                bar.update(i + 1, n_mem)
-        else:
-            futures = [pool.submit(member, i) for i in range(n_mem)]
-            for done, fut in enumerate(futures, 1):
-                fut.result()
-                bar.update(done, n_mem)
-    except KeyboardInterrupt:  # Ctrl-C: the members not started stay NOT_RUN; those running finish
-        for fut in futures:
-            fut.cancel()
-        if pool is not None:
-            pool.shutdown(wait=True)
-        raise EnsembleInterrupted(result()) from None
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True)
-        bar.close(int(np.count_nonzero(status != NOT_RUN)))
-    return result()
+    return ensemble_of_runs(cm, t, Y, P, names, member_run, counts=_COUNTS, threads=threads, save=save,
+                            progress=progress, method=driver.get("method", ""))

@@ -1,7 +1,9 @@
 """The Taylor family's ensemble runner (``method="taylor"``): the Taylor runtime's
 ``lcg_taylor_solve_many`` (lagcodegen/runtime/lcg_taylor.c) over the jet of the scene, the same
 module :func:`~.run.taylor_module` builds for ``simulate`` (no events). Ctrl-C stops running
-members too; ``max_wall`` limits each member."""
+members too; ``max_wall`` limits each member. With sensitivities
+(:func:`run_taylor_sensitivity_ensemble`), each member is a run of the variational jet
+(:mod:`.prepared_sensitivity`), bit-identical to the same run alone."""
 
 from __future__ import annotations
 
@@ -43,3 +45,32 @@ def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol
                       row_names=cm.state_names, save=save, threads=threads, progress=progress,
                       poll=control.install(tm.module), method="taylor", n_coordinates=cm.n,
                       param_names=cm.param_names)
+
+
+#: The statistics of a Taylor sensitivity run behind the ensemble's per-member counts.
+_SENS_COUNTS = {"steps": "steps", "rhs_evals": "rhs_evals", "model_error": "model_error"}
+
+
+def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progress, rtol=1e-8, atol=1e-10,
+                                    errcon=True, max_step=0.0, max_steps=1_000_000, order=None, max_wall=0.0):
+    """The members (rows of Y, P) with the sensitivities ``names``: each one run of the variational
+    jet (built once, before the threads start) on its own statistics and arrays, gathered by
+    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`."""
+    from ..ensemble_sensitivities import ensemble_of_runs
+    from .prepared_sensitivity import PreparedTaylorSensitivityRun
+    from .run import scene_of
+    from .sensitivity import variational_module
+    module = variational_module(cm, scene_of(cm), names)
+    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
+    run = PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol_arr, errcon=errcon, max_step=float(max_step),
+                                       max_steps=int(max_steps), order=order, max_wall=float(max_wall), fixed={},
+                                       model_ffi=cm.ffi, param_names=cm.param_names)
+    t = np.ascontiguousarray(t, dtype=float)
+    t_ptr = module.rt.ffi.from_buffer("double[]", t)
+    model_buffer = cm.ffi.from_buffer
+
+    def member_run(y0, p):
+        return run(t, t_ptr, model_buffer("double[]", y0), p, None)
+
+    return ensemble_of_runs(cm, t, Y, P, module.names, member_run, counts=_SENS_COUNTS, threads=threads, save=save,
+                            progress=progress, method="taylor")

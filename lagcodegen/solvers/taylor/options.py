@@ -8,10 +8,10 @@ from dataclasses import dataclass
 from ...errors import LagcodegenError
 from ...result import Result
 from ..family import Family
-from .ensemble import run_taylor_ensemble
+from .ensemble import run_taylor_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
 from .prepared import PreparedTaylorRun
-from .stepper import TaylorStepper
+from .stepper import TaylorSensitivityStepper, TaylorStepper
 
 
 #: The fields a prepared run honours (max_events: a prepared run has no events).
@@ -26,7 +26,8 @@ class Taylor(Family):
     ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
-    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names); ``sensitivity_errcon`` the
+    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names), in runs,
+    ensembles and the integrator object (not with events); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -78,7 +79,14 @@ class Taylor(Family):
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
         the face): the jet's storage and workspace made once (:mod:`.stepper`); ``events`` located
         on each step's polynomial; ``max_steps`` is the budget of one call."""
-        self._no_sensitivities("integrator objects")
+        if self.sensitivities is not None:
+            if events:
+                raise LagcodegenError("sensitivities with events: not supported on the Taylor method (run the "
+                                      "sensitivities without events, or use CVODE)")
+            return TaylorSensitivityStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol,
+                                            errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
+                                            max_steps=int(self.max_steps), order=self.order,
+                                            max_wall=float(self.max_wall))
         return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))
@@ -88,11 +96,28 @@ class Taylor(Family):
         (:class:`.prepared.PreparedTaylorRun`): what ``simulate()``'s fast path calls; ``fixed``
         the members every result shares. None when a field it does not know is set (a field
         added later takes the full path until the prepared run honours it)."""
+        if self.sensitivities is not None:
+            return self._prepared_sensitivities(cm, rtol, atol, fixed)
         if not self.defaults_beside(_PREPARED):
             return None
         return PreparedTaylorRun(taylor_module(cm), rtol=rtol, atol=atol, max_step=float(self.max_step),
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
                                  fixed=fixed)
+
+    def _prepared_sensitivities(self, cm, rtol: float, atol, fixed: dict):
+        """The runs of :meth:`run_ode` with sensitivities (no events) prepared once
+        (:class:`.prepared_sensitivity.PreparedTaylorSensitivityRun`), or None when a field it does
+        not know is set."""
+        if not self.defaults_beside(_PREPARED | {"sensitivities", "sensitivity_errcon"}):
+            return None
+        from .prepared_sensitivity import PreparedTaylorSensitivityRun
+        from .run import scene_of
+        from .sensitivity import variational_module
+        module = variational_module(cm, scene_of(cm), self.sensitivities)
+        return PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
+                                            max_step=float(self.max_step), max_steps=int(self.max_steps),
+                                            order=self.order, max_wall=float(self.max_wall), fixed=fixed,
+                                            model_ffi=cm.ffi, param_names=cm.param_names)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
@@ -103,8 +128,14 @@ class Taylor(Family):
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
-        """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``."""
-        self._no_sensitivities("ensembles")
+        """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
+        sensitivities, each member a run of the variational jet (:mod:`.ensemble`)."""
+        if self.sensitivities is not None:
+            return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.sensitivities, threads=threads, save=save,
+                                                   progress=progress, rtol=rtol, atol=atol,
+                                                   errcon=bool(self.sensitivity_errcon), max_step=self.max_step,
+                                                   max_steps=self.max_steps, order=self.order,
+                                                   max_wall=self.max_wall)
         return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
                                    max_step=self.max_step, max_steps=self.max_steps, order=self.order,
                                    max_wall=self.max_wall)

@@ -138,6 +138,14 @@ class VariationalModule:
         self.opt.poll_every = POLL_EVERY
         self.st = rt.ffi.new("lcg_taylor_stats *")
 
+    def tolerances(self, atol, errcon: bool) -> np.ndarray:
+        """The absolute tolerances of the augmented system: the states' ``atol`` (scalar or ny
+        values), then for each direction the same (``errcon``) or infinite (the sensitivities out
+        of the step-size rule)."""
+        ny = self.ny
+        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+        return np.ascontiguousarray(np.concatenate([atol] + [atol if errcon else np.full(ny, np.inf)] * self.ns))
+
     def simulate(self, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float, atol, errcon: bool = True,
                  max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
                  max_wall: float = 0.0) -> Result:
@@ -146,8 +154,8 @@ class VariationalModule:
         ffi, lib = self.rt.ffi, self.rt.lib
         ny, ns, nout = self.ny, self.ns, self.nout
         nyv = ny * (1 + ns)
-        atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
-        atol_all = np.ascontiguousarray(np.concatenate([atol] + [atol if errcon else np.full(ny, np.inf)] * ns))
+        atol_all = self.tolerances(atol, errcon)
+        atol = atol_all[:ny]
         y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
         nt = t.shape[0]
         yout = np.empty((nt, nyv))
@@ -168,10 +176,7 @@ class VariationalModule:
         wall = time.perf_counter() - start
         if flag == CANCELLED:
             raise_pending()
-        nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error = (getattr(st, k)
-                                                                                         for k in _STATS)
-        stats = {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used, "t_reached": t_reached,
-                 "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error, "wall_time": wall}
+        stats = sens_stats(st, wall)
         done = min(int(st.nt_done), nt)
         sl = slice(0, done)
         res = Result(t=t[sl].copy(), y=yout[sl, :ny].copy(), state_names=self.state_names,
@@ -183,6 +188,13 @@ class VariationalModule:
         ds = out[sl, nout:nout * (1 + ns)].reshape(done, ns, nout)
         res.set_sensitivities(self.names, self.state_names + self.output_names, np.concatenate([s, ds], axis=2))
         return res
+
+
+def sens_stats(st, wall: float) -> dict:
+    """Result.stats of a Taylor sensitivity run from its statistics struct ``st`` and its wall time."""
+    nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error = (getattr(st, k) for k in _STATS)
+    return {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used, "t_reached": t_reached,
+            "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error, "wall_time": wall}
 
 
 def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarray]:

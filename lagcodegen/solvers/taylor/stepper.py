@@ -75,19 +75,27 @@ class TaylorStepper:
     def __init__(self, cm, mem: np.ndarray, *, rtol: float, atol, max_step: float, max_steps: int,
                  order: int | None, events=(), max_events: int = 10_000, max_wall: float = 0.0):
         module = taylor_module(cm, tuple(events))  # the jet (built on first use, kept with cm)
+        self.events = module.events
+        self.state_names = module.state_names
+        self._open(module, mem, ny=module.ny, rtol=rtol, atol=atol, max_step=max_step, max_steps=max_steps,
+                   order=order, max_events=max_events, max_wall=max_wall)
+
+    def _open(self, module, mem: np.ndarray, *, ny: int, rtol: float, atol, max_step: float, max_steps: int,
+              order: int | None, max_events: int, max_wall: float) -> None:
+        """The C stepper of ``module`` (a compiled jet: its ``table``, a cdata of the Taylor
+        runtime, with ``ny`` states) on ``mem`` = (t, y (ny values), p); ``atol`` a float or ny
+        values."""
         rt = stepper_runtime()
         ffi, lib = rt.ffi, rt.lib
         self.module, self.ffi, self.lib, self.rt = module, ffi, lib, rt
-        self.events = module.events
-        self.state_names = module.state_names
-        table = ffi.cast("const lcg_taylor_model *", int(module.ffi.cast("uintptr_t", module.table)))
+        table = ffi.cast("const lcg_taylor_model *", int(ffi.cast("uintptr_t", module.table)))
         opt = ffi.new("lcg_taylor_options *")
         opt.rtol = rtol
         if isinstance(atol, float):
             opt.atol, opt.atol_vec = atol, ffi.NULL
             atol_keep = None
         else:
-            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (module.ny,)))
+            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ny,)))
             opt.atol = float(atol_keep.min())
             opt.atol_vec = ffi.from_buffer("double[]", atol_keep)
         opt.max_steps = max_steps
@@ -99,7 +107,7 @@ class TaylorStepper:
         self.ev = ffi.NULL
         self._keep = None
         if self.events:
-            self._keep = (np.empty(max_events), np.empty((max_events, module.ny)), np.empty(max_events, dtype=np.intc),
+            self._keep = (np.empty(max_events), np.empty((max_events, ny)), np.empty(max_events, dtype=np.intc),
                           np.empty(max_events, dtype=np.intc))
             ev = self.ev = ffi.new("lcg_taylor_events *")
             ev.max_events = max_events
@@ -137,3 +145,52 @@ class TaylorStepper:
         """(count, terminated, (t, y, which, direction)) of the last call's events."""
         ev = self.ev
         return int(ev.n_events), bool(ev.terminated), self._keep
+
+
+class TaylorSensitivityStepper(TaylorStepper):
+    """The C stepper of a compiled scene's variational jet along the directions ``names``
+    (:mod:`.sensitivity`): the same runtime stepper on the augmented system, whose memory ``mem``
+    = (t, y, s, p) is its own (s (ns, ny), ``sens``: unit vectors for initial values, zeros for
+    parameters, as a run starts), made from the integrator's (t, y, p) ``face_mem``; the integrator
+    object's views are made on ``mem`` (``params_at``: where p starts). ``grid`` writes the states
+    into the caller's rows and the sensitivities into ``sout`` (nt, ns, ny). No events."""
+
+    with_sensitivities = True  # the integrator object shows them (SensitivityIntegrator)
+
+    def __init__(self, cm, face_mem: np.ndarray, names, *, rtol: float, atol, errcon: bool, max_step: float,
+                 max_steps: int, order: int | None, max_wall: float = 0.0):
+        from .run import scene_of
+        from .sensitivity import variational_module
+        module = variational_module(cm, scene_of(cm), names)
+        ny, ns = cm.ny, module.ns
+        self.events = []
+        self.state_names = module.state_names
+        self.names = list(module.names)
+        self.cm = cm
+        mem = np.empty(face_mem.size + ns * ny)
+        mem[:1 + ny] = face_mem[:1 + ny]
+        mem[1 + ny:1 + ny * (1 + ns)] = module.s0.ravel()
+        mem[1 + ny * (1 + ns):] = face_mem[1 + ny:]
+        self.mem = mem
+        self.sens = mem[1 + ny:1 + ny * (1 + ns)].reshape(ns, ny)  # (ns, ny): a view of the C memory
+        self.params_at = 1 + ny * (1 + ns)
+        self.sout = None  # (nt, ns, ny): where propagate_grid's sensitivities go (set per call)
+        self._open(module, mem, ny=ny * (1 + ns), rtol=rtol, atol=module.tolerances(atol, errcon), max_step=max_step,
+                   max_steps=max_steps, order=order, max_events=0, max_wall=max_wall)
+        self._grid_rows = self.grid
+        self.grid = self._grid_split
+
+    def _grid_split(self, nt, tout, yout) -> int:
+        """The grid call (the integrator's): the augmented rows computed apart, the states copied
+        into ``yout`` (the cdata of nt rows of ny) and the sensitivities into ``sout``."""
+        ny, ns = self.cm.ny, len(self.names)
+        rows = np.empty((max(nt, 0), ny * (1 + ns)))
+        flag = self._grid_rows(nt, tout, self.ffi.from_buffer("double[]", rows))
+        if nt > 0:
+            states = np.frombuffer(self.ffi.buffer(yout, nt * ny * 8), dtype=np.float64).reshape(nt, ny)
+            states[...] = rows[:, :ny]
+            sout = self.sout
+            if sout is None or sout.shape != (nt, ns, ny):
+                sout = self.sout = np.empty((nt, ns, ny))
+            sout[...] = rows[:, ny:].reshape(nt, ns, ny)
+        return flag
