@@ -28,8 +28,10 @@ the directions there are).
   sensitivities are in the error test as ours with errcon on); ours with the same directions and
   two output times. Setup (build, JIT compile, first call) timed apart; medians of interleaved
   rounds (a contender stops after 30 s of calls); each contender's achieved error against ours at
-  rtol 1e-13, itself checked against CasADi at rtol 1e-12. Target: ours at most 0.5x the fastest
-  CasADi configuration (by CPU time), which the printed target line names with its options.
+  rtol 1e-13, itself checked against CasADi at rtol 1e-12; ours also at rtol 1e-6 .. 1e-10 for its
+  CPU time at each CasADi configuration's achieved error (log-log, ``H.time_at``). Target: ours at
+  most 0.5x the fastest CasADi configuration (by CPU time), which the printed target line names
+  with its options.
 * fit: ``lagcodegen.fit`` (exact Jacobian from the sensitivities) against
   ``scipy.optimize.least_squares`` with a 2-point finite-difference Jacobian on ``simulate``
   (same residuals, start, bounds and tolerances): the damped pendulum's l and c from 200 samples
@@ -169,6 +171,9 @@ CASADI_CONFIGS = {
                                           "nonlinear_solver_iteration": "functional"}, "nfwd", True),
 }
 CASADI_QUICK = ("vm-bdf", "vm-adams", "jit-adams")
+#: Ours also at these tolerances (atol rtol / 100) against CasADi: its time at each CasADi
+#: configuration's achieved error, interpolated in log-log.
+OURS_TOLERANCES = (1e-6, 1e-7, 1e-9, 1e-10)
 
 
 def casadi_options(config: CasadiConfig, rtol: float, nfwd: int) -> dict:
@@ -271,7 +276,8 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
     timed apart; then interleaved rounds, a contender leaving once its calls took ``budget`` s
     (at least one timed call each). Achieved error of each against ours at rtol 1e-13 (max over
     directions of max |error| / max |reference|), the reference itself checked against CasADi's
-    (VM, Adams) at rtol 1e-12. A JIT configuration that cannot be built (no C compiler) is left
+    (VM, Adams) at rtol 1e-12; ours also at :data:`OURS_TOLERANCES`, for its CPU time at each
+    contender's error (``equal_error_over``: that time / the contender's). A JIT configuration that cannot be built (no C compiler) is left
     out with a line in ``notes``. Rows: ours first, then each CasADi configuration; [] without
     casadi."""
     dyn = casadi_dynamics(model, sim)
@@ -330,12 +336,27 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
             wall[k].append(time.perf_counter() - start)
     med = {k: statistics.median(v) for k, v in wall.items()}
     mcpu = {k: statistics.median(v) for k, v in cpu.items()}
+    # ours at other tolerances: its CPU time at each contender's achieved error (log-log)
+    points = [(error["ours"], mcpu["ours"])]
+    for tol in OURS_TOLERANCES:
+        def run(tol=tol):
+            return sim.simulate(two, y0=y0, rtol=tol, atol=tol / 100,
+                                sensitivities=names).sensitivities[-1, :, :2 * n]
+        err = direction_error(run(), ref)
+        times = []
+        for _ in range(max(3, rounds)):
+            start_cpu = time.thread_time()
+            run()
+            times.append(time.thread_time() - start_cpu)
+        points.append((err, statistics.median(times)))
     rows = []
     for k in runs:
+        equal, how = H.time_at(points, error[k])
         rows.append(dict(scene=label, p=len(names), contender="ours" if k == "ours" else f"CasADi {k}",
                          config=k, setup_s=setup[k], ms=1e3 * med[k], cpu_ms=1e3 * mcpu[k], calls=len(wall[k]),
                          error=error[k], ref_check=direction_error(check, ref),
                          ours_over=med["ours"] / med[k], cpu_ours_over=mcpu["ours"] / mcpu[k],
+                         equal_error_over=None if equal is None else equal / mcpu[k], equal_how=how,
                          options=repr(options[k]) if k in options else ""))
     return rows
 
@@ -385,8 +406,9 @@ def fastest_casadi(rows) -> list[str]:
         ours = next(r for r in mine if r["config"] == "ours")
         lines.append(f"{scene}: ours / CasADi's fastest ({best['config']}: {CASADI_CONFIGS[best['config']].label}) "
                      f"= {ours['cpu_ms'] / best['cpu_ms']:.2f} CPU, {ours['ms'] / best['ms']:.2f} wall "
-                     f"(target <= 0.5); errors ours {ours['error']:.1e}, CasADi {best['error']:.1e} (the "
-                     f"reference against CasADi vm-adams at rtol 1e-12: {ours['ref_check']:.1e})")
+                     f"(target <= 0.5); errors ours {ours['error']:.1e}, CasADi {best['error']:.1e}; at CasADi's "
+                     f"error {H.fmt_value(best['equal_error_over'], '{:.2f}')} CPU (the reference against CasADi "
+                     f"vm-adams at rtol 1e-12: {ours['ref_check']:.1e})")
         lines.append(f"    its options: integrator(..., \"cvodes\", dae, 0, {T_END:g}, {best['options']})"
                      + (", the Jacobian of the call w.r.t. p" if CASADI_CONFIGS[best["config"]].form == "jacobian"
                         else ", called with x0 = [x0, 0], p = [p, I] (the seeds as columns)"))
@@ -546,12 +568,16 @@ def main(argv=None) -> int:
         lines += ["", "Against CasADi's forward sensitivities (CVODES), all parameters, the state at t = 10, rtol 1e-8 "
                   "(atol 1e-10) for all; error: against ours at rtol 1e-13 (checked against CasADi at rtol 1e-12 "
                   "below); setup: build, JIT compile and first call, apart from the medians; "
-                  "ours/X: ratio of medians (target ours/CasADi <= 0.5 against the fastest):",
+                  "ours/X: ratio of medians (target ours/CasADi <= 0.5 against the fastest); at X's error: ours' CPU time at X's "
+                  f"achieved error (ours at rtol 1e-8 and {', '.join(f'{t:g}' for t in OURS_TOLERANCES)}, log-log "
+                  "interpolated; how: interp, or bound = all ours more accurate) / X's:",
                   H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("contender", "contender", "{}"),
                                   ("setup_s", "setup s", "{:.2f}"), ("ms", "ms", "{:.3f}"),
                                   ("cpu_ms", "CPU ms", "{:.3f}"), ("calls", "calls", "{}"),
                                   ("error", "error", "{:.1e}"),
-                                  ("ours_over", "ours/X", "{:.2f}"), ("cpu_ours_over", "ours/X CPU", "{:.2f}")], cas),
+                                  ("ours_over", "ours/X", "{:.2f}"), ("cpu_ours_over", "ours/X CPU", "{:.2f}"),
+                                  ("equal_error_over", "ours/X CPU, X's error", "{:.2f}"), ("equal_how", "how", "{}")],
+                                 cas),
                   "", "CasADi configurations (options of integrator(..., \"cvodes\", ...) besides abstol, reltol, "
                   "max_num_steps; JIT: jit=True, compiler=\"shell\", jit_options={\"compiler\": "
                   f"\"{H.c_compiler()}\", \"flags\": [\"-O3\"]}}):"]
