@@ -23,8 +23,9 @@ the directions there are).
   its defaults on the SX virtual machine (BDF, the Jacobian of the integrator call), and Adams like
   ours with the forward seeds as ``nfwd`` columns and the block Newton matrix
   (``second_order_correction=False``, as ours), on the virtual machine and JIT-compiled
-  (``jit=True, compiler="shell"``, -O3; left out with a note when no compiler works), with QR or
-  CSparse LU, the Jacobian form, functional iteration. All at rtol 1e-8, atol 1e-10 (CasADi's
+  (``jit=True, compiler="shell"``, -O3; left out with a note when no compiler works), the
+  accelerations by a symbolic Cholesky factor of M or by ``solve(M, F)``, with QR or CSparse LU,
+  the Jacobian form, functional iteration. All at rtol 1e-8, atol 1e-10 (CasADi's
   sensitivities are in the error test as ours with errcon on); ours with the same directions and
   two output times. Setup (build, JIT compile, first call) timed apart; medians of interleaved
   rounds (a contender stops after 30 s of calls); each contender's achieved error against ours at
@@ -108,9 +109,11 @@ def central(sim, t, name, rtol=1e-13, atol=1e-15, h=2e-4) -> np.ndarray:
     return (8 * (runs[1] - runs[-1]) - (runs[2] - runs[-2])) / (12 * step)
 
 
-def casadi_dynamics(model, sim):
-    """The same M q'' = F as CasADi SX expressions (sympy -> casadi; the accelerations by CasADi's
-    symbolic solve): (casadi, x, p, ode), or None without casadi."""
+def casadi_dynamics(model, sim, solve: str = "solve"):
+    """The same M q'' = F as CasADi SX expressions (sympy -> casadi): (casadi, x, p, ode), or None
+    without casadi. The accelerations by ``solve``: "solve" CasADi's symbolic ``solve(M, F)``,
+    "chol" its symbolic Cholesky factor M = R^T R (M is symmetric positive definite) and two
+    triangular solves (fewer operations: 1544 against 2042 for the chain n = 5)."""
     try:
         import casadi as ca
     except ImportError:
@@ -131,7 +134,12 @@ def casadi_dynamics(model, sim):
     Mrows, Frows = M(*vals), F(*vals)
     Mc = ca.vertcat(*[ca.horzcat(*row) for row in Mrows])
     Fc = ca.vertcat(*[row[0] for row in Frows])
-    return ca, x, pp, ca.vertcat(x[n:], ca.solve(Mc, Fc))
+    if solve == "chol":
+        R = ca.chol(Mc)
+        acc = ca.solve(R, ca.solve(R.T, Fc))
+    else:
+        acc = ca.solve(Mc, Fc)
+    return ca, x, pp, ca.vertcat(x[n:], acc)
 
 
 @dataclass(frozen=True)
@@ -141,11 +149,13 @@ class CasadiConfig:
     of an MX call of the integrator w.r.t. p: CasADi builds the forward-sensitivity integrator on
     demand) or "nfwd" (option nfwd = p: the forward seeds are extra columns of x0 and p, one call);
     ``jit`` compiles the integrator's generated functions (the DAE and its derivatives) with the C
-    compiler (``compiler="shell"``, -O3) instead of running them on CasADi's SX virtual machine."""
+    compiler (``compiler="shell"``, -O3) instead of running them on CasADi's SX virtual machine;
+    ``dynamics`` the form of the accelerations (:func:`casadi_dynamics`)."""
     label: str
     options: dict
     form: str
     jit: bool
+    dynamics: str = "chol"
 
 
 #: CasADi's configurations timed in the cost section. CasADi integrates the forward
@@ -153,22 +163,22 @@ class CasadiConfig:
 #: CVODES's error test, like ours with sensitivity_errcon on (fsens_err_con changes no step).
 #: ``second_order_correction=False`` keeps the states' Newton matrix on the diagonal of the
 #: augmented one and nothing below it, as ours does; with it on (CasADi's default) every Newton
-#: iteration also evaluates the directional derivatives of the sensitivity equations.
+#: iteration also evaluates the directional derivatives of the sensitivity equations. The
+#: accelerations by a symbolic Cholesky factor of M (ours factor M numerically), but in vm-bdf
+#: (the configuration of earlier versions of this benchmark) and jit-adams-solve.
+ADAMS_BLOCK = {"linear_multistep_method": "adams", "second_order_correction": False}
 CASADI_CONFIGS = {
-    "vm-bdf": CasadiConfig("VM, defaults (BDF), Jacobian of the call", {}, "jacobian", False),
-    "vm-adams": CasadiConfig("VM, Adams, nfwd, block Newton",
-                             {"linear_multistep_method": "adams", "second_order_correction": False}, "nfwd", False),
-    "jit-adams": CasadiConfig("JIT, Adams, nfwd, block Newton",
-                              {"linear_multistep_method": "adams", "second_order_correction": False}, "nfwd", True),
+    "vm-bdf": CasadiConfig("VM, defaults (BDF), Jacobian of the call, solve(M, F)", {}, "jacobian", False, "solve"),
+    "vm-adams": CasadiConfig("VM, Adams, nfwd, block Newton", ADAMS_BLOCK, "nfwd", False),
+    "jit-adams": CasadiConfig("JIT, Adams, nfwd, block Newton", ADAMS_BLOCK, "nfwd", True),
+    "jit-adams-solve": CasadiConfig("JIT, Adams, nfwd, block Newton, solve(M, F)", ADAMS_BLOCK, "nfwd", True,
+                                    "solve"),
     "jit-adams-csparse": CasadiConfig("JIT, Adams, nfwd, block Newton, CSparse LU",
-                                      {"linear_multistep_method": "adams", "second_order_correction": False,
-                                       "linear_solver": "csparse"}, "nfwd", True),
-    "jit-adams-jacobian": CasadiConfig("JIT, Adams, Jacobian of the call, block Newton",
-                                       {"linear_multistep_method": "adams", "second_order_correction": False},
-                                       "jacobian", True),
+                                      dict(ADAMS_BLOCK, linear_solver="csparse"), "nfwd", True),
+    "jit-adams-jacobian": CasadiConfig("JIT, Adams, Jacobian of the call, block Newton", ADAMS_BLOCK, "jacobian",
+                                       True),
     "jit-adams-functional": CasadiConfig("JIT, Adams, nfwd, functional iteration",
-                                         {"linear_multistep_method": "adams", "second_order_correction": False,
-                                          "nonlinear_solver_iteration": "functional"}, "nfwd", True),
+                                         dict(ADAMS_BLOCK, nonlinear_solver_iteration="functional"), "nfwd", True),
 }
 CASADI_QUICK = ("vm-bdf", "vm-adams", "jit-adams")
 #: Ours also at these tolerances (atol rtol / 100) against CasADi: its time at each CasADi
@@ -229,8 +239,9 @@ def casadi_sensitivity_fn(dyn, sim, rtol: float, config: CasadiConfig):
 def casadi_jacobian(model, sim, rtol: float):
     """CasADi's CVODES integrator of the same M q'' = F (its defaults, SX virtual machine) and a
     function (y0, p) -> d y(T) / d p (ny x np) for the run-time parameters; None without casadi."""
-    dyn = casadi_dynamics(model, sim)
-    return None if dyn is None else casadi_sensitivity_fn(dyn, sim, rtol, CASADI_CONFIGS["vm-bdf"])
+    config = CASADI_CONFIGS["vm-bdf"]
+    dyn = casadi_dynamics(model, sim, config.dynamics)
+    return None if dyn is None else casadi_sensitivity_fn(dyn, sim, rtol, config)
 
 
 def direction_error(s: np.ndarray, ref: np.ndarray) -> float:
@@ -280,8 +291,8 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
     contender's error (``equal_error_over``: that time / the contender's). A JIT configuration that cannot be built (no C compiler) is left
     out with a line in ``notes``. Rows: ours first, then each CasADi configuration; [] without
     casadi."""
-    dyn = casadi_dynamics(model, sim)
-    if dyn is None:
+    dyn = {"chol": casadi_dynamics(model, sim, "chol")}
+    if dyn["chol"] is None:
         return []
     notes = [] if notes is None else notes
     n, names = sim.n, list(sim.param_names)
@@ -294,7 +305,7 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
 
     H.progress("casadi", f"{label}: references")
     ref = sim.simulate(two, y0=y0, rtol=1e-13, atol=1e-15, sensitivities=names).sensitivities[-1, :, :2 * n]
-    check = casadi_sensitivity_fn(dyn, sim, 1e-12, CASADI_CONFIGS["vm-adams"])(y0, pv).T
+    check = casadi_sensitivity_fn(dyn["chol"], sim, 1e-12, CASADI_CONFIGS["vm-adams"])(y0, pv).T
     runs, setup, error, options = {"ours": ours}, {}, {}, {}
     start = time.perf_counter()
     error["ours"] = direction_error(ours(), ref)
@@ -310,7 +321,9 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
         start = time.perf_counter()
         try:
             with in_jit_directory():
-                fn = casadi_sensitivity_fn(dyn, sim, 1e-8, config)
+                if config.dynamics not in dyn:
+                    dyn[config.dynamics] = casadi_dynamics(model, sim, config.dynamics)
+                fn = casadi_sensitivity_fn(dyn[config.dynamics], sim, 1e-8, config)
                 value = fn(y0, pv)
         except Exception as exc:  # noqa: BLE001 -- CasADi raises RuntimeError for a failed JIT
             if not config.jit:
@@ -411,7 +424,9 @@ def fastest_casadi(rows) -> list[str]:
                      f"vm-adams at rtol 1e-12: {ours['ref_check']:.1e})")
         lines.append(f"    its options: integrator(..., \"cvodes\", dae, 0, {T_END:g}, {best['options']})"
                      + (", the Jacobian of the call w.r.t. p" if CASADI_CONFIGS[best["config"]].form == "jacobian"
-                        else ", called with x0 = [x0, 0], p = [p, I] (the seeds as columns)"))
+                        else ", called with x0 = [x0, 0], p = [p, I] (the seeds as columns)")
+                     + ("; ode: the accelerations by R = chol(M), solve(R, solve(R.T, F))"
+                        if CASADI_CONFIGS[best["config"]].dynamics == "chol" else "; ode: the accelerations by solve(M, F)"))
     return lines
 
 
@@ -581,7 +596,8 @@ def main(argv=None) -> int:
                   "", "CasADi configurations (options of integrator(..., \"cvodes\", ...) besides abstol, reltol, "
                   "max_num_steps; JIT: jit=True, compiler=\"shell\", jit_options={\"compiler\": "
                   f"\"{H.c_compiler()}\", \"flags\": [\"-O3\"]}}):"]
-        lines += [f"  {key}: {c.label}; {c.form}; {c.options}" for key, c in CASADI_CONFIGS.items() if key in configs]
+        lines += [f"  {key}: {c.label}; {c.form}; accelerations by {c.dynamics}; {c.options}"
+                  for key, c in CASADI_CONFIGS.items() if key in configs]
         lines += [f"note: {note}" for note in notes]
         lines += ["", *fastest_casadi(cas)]
     lines += ["", "Fit of the damped pendulum's l and c (200 samples, 1% noise; target speedup >= 3):",
