@@ -288,9 +288,9 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
     (at least one timed call each). Achieved error of each against ours at rtol 1e-13 (max over
     directions of max |error| / max |reference|), the reference itself checked against CasADi's
     (VM, Adams) at rtol 1e-12; ours also at :data:`OURS_TOLERANCES`, for its CPU time at each
-    contender's error (``equal_error_over``: that time / the contender's). A JIT configuration that cannot be built (no C compiler) is left
-    out with a line in ``notes``. Rows: ours first, then each CasADi configuration; [] without
-    casadi."""
+    contender's error (``equal_error_over``: that time / the contender's). A JIT configuration
+    that cannot be built (no C compiler) is left out with a line in ``notes``. Rows: ours first,
+    then each CasADi configuration; [] without casadi."""
     dyn = {"chol": casadi_dynamics(model, sim, "chol")}
     if dyn["chol"] is None:
         return []
@@ -426,7 +426,8 @@ def fastest_casadi(rows) -> list[str]:
                      + (", the Jacobian of the call w.r.t. p" if CASADI_CONFIGS[best["config"]].form == "jacobian"
                         else ", called with x0 = [x0, 0], p = [p, I] (the seeds as columns)")
                      + ("; ode: the accelerations by R = chol(M), solve(R, solve(R.T, F))"
-                        if CASADI_CONFIGS[best["config"]].dynamics == "chol" else "; ode: the accelerations by solve(M, F)"))
+                        if CASADI_CONFIGS[best["config"]].dynamics == "chol"
+                        else "; ode: the accelerations by solve(M, F)"))
     return lines
 
 
@@ -583,9 +584,10 @@ def main(argv=None) -> int:
         lines += ["", "Against CasADi's forward sensitivities (CVODES), all parameters, the state at t = 10, rtol 1e-8 "
                   "(atol 1e-10) for all; error: against ours at rtol 1e-13 (checked against CasADi at rtol 1e-12 "
                   "below); setup: build, JIT compile and first call, apart from the medians; "
-                  "ours/X: ratio of medians (target ours/CasADi <= 0.5 against the fastest); at X's error: ours' CPU time at X's "
-                  f"achieved error (ours at rtol 1e-8 and {', '.join(f'{t:g}' for t in OURS_TOLERANCES)}, log-log "
-                  "interpolated; how: interp, or bound = all ours more accurate) / X's:",
+                  "ours/X: ratio of medians (target ours/CasADi <= 0.5 against the fastest); at X's error: ours' "
+                  "CPU time at X's achieved error (ours at rtol 1e-8 and "
+                  f"{', '.join(f'{t:g}' for t in OURS_TOLERANCES)}, log-log interpolated; how: interp, or bound = "
+                  "all ours more accurate) / X's:",
                   H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("contender", "contender", "{}"),
                                   ("setup_s", "setup s", "{:.2f}"), ("ms", "ms", "{:.3f}"),
                                   ("cpu_ms", "CPU ms", "{:.3f}"), ("calls", "calls", "{}"),
