@@ -17,9 +17,22 @@ the directions there are).
   which wall-time medians of short runs do not always absorb; the CPU time is not affected.
 * cost: ``simulate`` with p sensitivities against the plain run (same rtol 1e-8, Adams, 201
   output times), both with sensitivity error control on (the default) and off; medians over
-  interleaved rounds. Target: at most 1 + 0.7 p. CasADi: its forward-sensitivity integration at
-  rtol 1e-8 (the Jacobian function called; median of up to 5 calls within 60 s) against ours with
-  the parameter directions and two output times; target: ours at most 0.5x.
+  interleaved rounds. Target: at most 1 + 0.7 p.
+* against CasADi (``casadi_rows``): d y(10) / d p for all run-time parameters by CasADi's CVODES
+  interface in several configurations (``CASADI_CONFIGS``; --quick: vm-bdf, vm-adams, jit-adams):
+  its defaults on the SX virtual machine (BDF, the Jacobian of the integrator call), and Adams like
+  ours with the forward seeds as ``nfwd`` columns and the block Newton matrix
+  (``second_order_correction=False``, as ours), on the virtual machine and JIT-compiled
+  (``jit=True, compiler="shell"``, -O3; left out with a note when no compiler works), the
+  accelerations by a symbolic Cholesky factor of M or by ``solve(M, F)``, with QR or CSparse LU,
+  the Jacobian form, functional iteration. All at rtol 1e-8, atol 1e-10 (CasADi's
+  sensitivities are in the error test as ours with errcon on); ours with the same directions and
+  two output times. Setup (build, JIT compile, first call) timed apart; medians of interleaved
+  rounds (a contender stops after 30 s of calls); each contender's achieved error against ours at
+  rtol 1e-13, itself checked against CasADi at rtol 1e-12; ours also at rtol 1e-6 .. 1e-10 for its
+  CPU time at each CasADi configuration's achieved error (log-log, ``H.time_at``). Target: ours at
+  most 0.5x the fastest CasADi configuration (by CPU time), which the printed target line names
+  with its options.
 * fit: ``lagcodegen.fit`` (exact Jacobian from the sensitivities) against
   ``scipy.optimize.least_squares`` with a 2-point finite-difference Jacobian on ``simulate``
   (same residuals, start, bounds and tolerances): the damped pendulum's l and c from 200 samples
@@ -44,9 +57,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
+import os
+import shutil
 import statistics
 import sys
+import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -90,9 +109,11 @@ def central(sim, t, name, rtol=1e-13, atol=1e-15, h=2e-4) -> np.ndarray:
     return (8 * (runs[1] - runs[-1]) - (runs[2] - runs[-2])) / (12 * step)
 
 
-def casadi_jacobian(model, sim, rtol: float):
-    """CasADi's CVODES integrator of the same M q'' = F (sympy -> casadi) and the Function giving
-    d y(T) / d p (ny x np) for the run-time parameters; None without casadi."""
+def casadi_dynamics(model, sim, solve: str = "solve"):
+    """The same M q'' = F as CasADi SX expressions (sympy -> casadi): (casadi, x, p, ode), or None
+    without casadi. The accelerations by ``solve``: "solve" CasADi's symbolic ``solve(M, F)``,
+    "chol" its symbolic Cholesky factor M = R^T R (M is symmetric positive definite) and two
+    triangular solves (fewer operations: 1544 against 2042 for the chain n = 5)."""
     try:
         import casadi as ca
     except ImportError:
@@ -106,20 +127,126 @@ def casadi_jacobian(model, sim, rtol: float):
     x = ca.SX.sym("x", 2 * n)
     pp = ca.SX.sym("p", len(prm))
     args = q + v + prm
-    M = sp.lambdify(args, eom.M, modules=[{"sin": ca.sin, "cos": ca.cos, "ImmutableDenseMatrix": lambda rows: rows},
-                                          "math"])
-    F = sp.lambdify(args, eom.F, modules=[{"sin": ca.sin, "cos": ca.cos, "ImmutableDenseMatrix": lambda rows: rows},
-                                          "math"])
+    modules = [{"sin": ca.sin, "cos": ca.cos, "ImmutableDenseMatrix": lambda rows: rows}, "math"]
+    M = sp.lambdify(args, eom.M, modules=modules)
+    F = sp.lambdify(args, eom.F, modules=modules)
     vals = [x[i] for i in range(2 * n)] + [pp[k] for k in range(len(prm))]
     Mrows, Frows = M(*vals), F(*vals)
     Mc = ca.vertcat(*[ca.horzcat(*row) for row in Mrows])
     Fc = ca.vertcat(*[row[0] for row in Frows])
-    acc = ca.solve(Mc, Fc)
-    ode = ca.vertcat(x[n:], acc)
+    if solve == "chol":
+        R = ca.chol(Mc)
+        acc = ca.solve(R, ca.solve(R.T, Fc))
+    else:
+        acc = ca.solve(Mc, Fc)
+    return ca, x, pp, ca.vertcat(x[n:], acc)
+
+
+@dataclass(frozen=True)
+class CasadiConfig:
+    """One way of getting d y(T) / d p from CasADi's CVODES interface: ``options`` of
+    ``integrator(..., "cvodes", ...)`` besides the tolerances; ``form`` "jacobian" (the Jacobian
+    of an MX call of the integrator w.r.t. p: CasADi builds the forward-sensitivity integrator on
+    demand) or "nfwd" (option nfwd = p: the forward seeds are extra columns of x0 and p, one call);
+    ``jit`` compiles the integrator's generated functions (the DAE and its derivatives) with the C
+    compiler (``compiler="shell"``, -O3) instead of running them on CasADi's SX virtual machine;
+    ``dynamics`` the form of the accelerations (:func:`casadi_dynamics`)."""
+    label: str
+    options: dict
+    form: str
+    jit: bool
+    dynamics: str = "chol"
+
+
+#: CasADi's configurations timed in the cost section. CasADi integrates the forward
+#: sensitivities as part of one augmented ODE (x and its p seed columns), so they are always in
+#: CVODES's error test, like ours with sensitivity_errcon on (fsens_err_con changes no step).
+#: ``second_order_correction=False`` keeps the states' Newton matrix on the diagonal of the
+#: augmented one and nothing below it, as ours does; with it on (CasADi's default) every Newton
+#: iteration also evaluates the directional derivatives of the sensitivity equations. The
+#: accelerations by a symbolic Cholesky factor of M (ours factor M numerically), but in vm-bdf
+#: (the configuration of earlier versions of this benchmark) and jit-adams-solve.
+ADAMS_BLOCK = {"linear_multistep_method": "adams", "second_order_correction": False}
+CASADI_CONFIGS = {
+    "vm-bdf": CasadiConfig("VM, defaults (BDF), Jacobian of the call, solve(M, F)", {}, "jacobian", False, "solve"),
+    "vm-adams": CasadiConfig("VM, Adams, nfwd, block Newton", ADAMS_BLOCK, "nfwd", False),
+    "jit-adams": CasadiConfig("JIT, Adams, nfwd, block Newton", ADAMS_BLOCK, "nfwd", True),
+    "jit-adams-solve": CasadiConfig("JIT, Adams, nfwd, block Newton, solve(M, F)", ADAMS_BLOCK, "nfwd", True,
+                                    "solve"),
+    "jit-adams-csparse": CasadiConfig("JIT, Adams, nfwd, block Newton, CSparse LU",
+                                      dict(ADAMS_BLOCK, linear_solver="csparse"), "nfwd", True),
+    "jit-adams-jacobian": CasadiConfig("JIT, Adams, Jacobian of the call, block Newton", ADAMS_BLOCK, "jacobian",
+                                       True),
+    "jit-adams-functional": CasadiConfig("JIT, Adams, nfwd, functional iteration",
+                                         dict(ADAMS_BLOCK, nonlinear_solver_iteration="functional"), "nfwd", True),
+}
+CASADI_QUICK = ("vm-bdf", "vm-adams", "jit-adams")
+#: Ours also at these tolerances (atol rtol / 100) against CasADi: its time at each CasADi
+#: configuration's achieved error, interpolated in log-log.
+OURS_TOLERANCES = (1e-6, 1e-7, 1e-9, 1e-10)
+
+
+def casadi_options(config: CasadiConfig, rtol: float, nfwd: int) -> dict:
+    """The complete options of ``integrator(..., "cvodes", ...)`` for ``config`` at ``rtol``
+    (atol rtol / 100, as ours)."""
+    opts = {"abstol": rtol * 1e-2, "reltol": rtol, "max_num_steps": 1000000, **config.options}
+    if config.form == "nfwd":
+        opts["nfwd"] = nfwd
+    if config.jit:
+        opts.update(jit=True, compiler="shell", jit_options={"compiler": H.c_compiler(), "flags": ["-O3"]})
+    return opts
+
+
+_JIT_DIR: list[str] = []
+
+
+@contextlib.contextmanager
+def in_jit_directory():
+    """Run the block in a temporary folder (removed at exit): CasADi's JIT writes its C sources
+    and libraries into the working directory (and leaves some), not the repository's."""
+    if not _JIT_DIR:
+        folder = tempfile.mkdtemp(prefix="sens_casadi_jit_")
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        _JIT_DIR.append(folder)
+    old = os.getcwd()
+    os.chdir(_JIT_DIR[0])
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
+def casadi_sensitivity_fn(dyn, sim, rtol: float, config: CasadiConfig):
+    """A function (y0, p) -> d y(T) / d p (ny x np) by CasADi's CVODES in ``config``; ``dyn``
+    from :func:`casadi_dynamics`. A JIT configuration compiles here (CasADi raises without a
+    compiler): build it and make its first call inside :func:`in_jit_directory`."""
+    ca, x, pp, ode = dyn
+    ny, np_ = x.numel(), pp.numel()
     integ = ca.integrator("I", "cvodes", {"x": x, "p": pp, "ode": ode}, 0.0, T_END,
-                          {"abstol": rtol * 1e-2, "reltol": rtol, "max_num_steps": 1000000})
-    xf, pf = ca.MX.sym("xf", 2 * n), ca.MX.sym("pf", len(prm))
-    return ca.Function("J", [xf, pf], [ca.jacobian(integ(x0=xf, p=pf)["xf"], pf)])
+                          casadi_options(config, rtol, np_))
+    if config.form == "nfwd":
+        seeds_x, seeds_p = np.zeros((ny, np_)), np.eye(np_)
+
+        def fn(y0, p):
+            out = integ(x0=np.column_stack([y0, seeds_x]), p=np.column_stack([p, seeds_p]))["xf"]
+            return np.array(out)[:, 1:]
+        return fn
+    xf, pf = ca.MX.sym("xf", ny), ca.MX.sym("pf", np_)
+    J = ca.Function("J", [xf, pf], [ca.jacobian(integ(x0=xf, p=pf)["xf"], pf)])
+    return lambda y0, p: np.array(J(y0, p))
+
+
+def casadi_jacobian(model, sim, rtol: float):
+    """CasADi's CVODES integrator of the same M q'' = F (its defaults, SX virtual machine) and a
+    function (y0, p) -> d y(T) / d p (ny x np) for the run-time parameters; None without casadi."""
+    config = CASADI_CONFIGS["vm-bdf"]
+    dyn = casadi_dynamics(model, sim, config.dynamics)
+    return None if dyn is None else casadi_sensitivity_fn(dyn, sim, rtol, config)
+
+
+def direction_error(s: np.ndarray, ref: np.ndarray) -> float:
+    """Max over directions (rows) of max |s - ref| / max |ref| along the direction."""
+    return float(np.max(np.max(np.abs(s - ref), axis=1) / np.max(np.abs(ref), axis=1)))
 
 
 def accuracy_rows(label, model, sim, ps, quick):
@@ -153,7 +280,103 @@ def accuracy_rows(label, model, sim, ps, quick):
     return rows
 
 
-def cost_rows(label, model, sim, ps, rounds):
+def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, budget: float = 30.0):
+    """Ours against CasADi's forward sensitivities in each of ``configs`` (keys of
+    :data:`CASADI_CONFIGS`): all run-time parameters, the state at t = 10, rtol 1e-8 (atol 1e-10)
+    for every contender. Each contender's setup (integrator built, JIT compiled, first call) is
+    timed apart; then interleaved rounds, a contender leaving once its calls took ``budget`` s
+    (at least one timed call each). Achieved error of each against ours at rtol 1e-13 (max over
+    directions of max |error| / max |reference|), the reference itself checked against CasADi's
+    (VM, Adams) at rtol 1e-12; ours also at :data:`OURS_TOLERANCES`, for its CPU time at each
+    contender's error (``equal_error_over``: that time / the contender's). A JIT configuration
+    that cannot be built (no C compiler) is left out with a line in ``notes``. Rows: ours first,
+    then each CasADi configuration; [] without casadi."""
+    dyn = {"chol": casadi_dynamics(model, sim, "chol")}
+    if dyn["chol"] is None:
+        return []
+    notes = [] if notes is None else notes
+    n, names = sim.n, list(sim.param_names)
+    y0 = np.concatenate([np.full(n, Q0), np.zeros(n)])
+    pv = sim.parameter_vector()
+    two = np.array([0.0, T_END])
+
+    def ours():
+        return sim.simulate(two, y0=y0, rtol=1e-8, atol=1e-10, sensitivities=names).sensitivities[-1, :, :2 * n]
+
+    H.progress("casadi", f"{label}: references")
+    ref = sim.simulate(two, y0=y0, rtol=1e-13, atol=1e-15, sensitivities=names).sensitivities[-1, :, :2 * n]
+    check = casadi_sensitivity_fn(dyn["chol"], sim, 1e-12, CASADI_CONFIGS["vm-adams"])(y0, pv).T
+    runs, setup, error, options = {"ours": ours}, {}, {}, {}
+    start = time.perf_counter()
+    error["ours"] = direction_error(ours(), ref)
+    setup["ours"] = time.perf_counter() - start
+    cc = H.c_compiler()
+    for key in configs:
+        config = CASADI_CONFIGS[key]
+        if config.jit and shutil.which(cc) is None:
+            notes.append(f"{label}: CasADi {key} left out: no C compiler {cc!r} for its JIT")
+            H.progress("casadi", notes[-1])
+            continue
+        H.progress("casadi", f"{label}: {key} (build{', JIT' if config.jit else ''}, first call)")
+        start = time.perf_counter()
+        try:
+            with in_jit_directory():
+                if config.dynamics not in dyn:
+                    dyn[config.dynamics] = casadi_dynamics(model, sim, config.dynamics)
+                fn = casadi_sensitivity_fn(dyn[config.dynamics], sim, 1e-8, config)
+                value = fn(y0, pv)
+        except Exception as exc:  # noqa: BLE001 -- CasADi raises RuntimeError for a failed JIT
+            if not config.jit:
+                raise
+            first = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+            notes.append(f"{label}: CasADi {key} left out: its JIT failed ({first[:160]})")
+            H.progress("casadi", notes[-1])
+            continue
+        setup[key] = time.perf_counter() - start
+        error[key] = direction_error(value.T, ref)
+        options[key] = casadi_options(config, 1e-8, len(names))
+        runs[key] = (lambda fn=fn: fn(y0, pv))
+    wall = {k: [] for k in runs}
+    cpu = {k: [] for k in runs}
+    for r in range(rounds):
+        H.progress("casadi", f"{label} round {r + 1}/{rounds}")
+        for k, f in runs.items():
+            if wall[k] and sum(wall[k]) > budget:
+                continue
+            start, start_cpu = time.perf_counter(), time.thread_time()
+            f()
+            cpu[k].append(time.thread_time() - start_cpu)
+            wall[k].append(time.perf_counter() - start)
+    med = {k: statistics.median(v) for k, v in wall.items()}
+    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
+    # ours at other tolerances: its CPU time at each contender's achieved error (log-log)
+    points = [(error["ours"], mcpu["ours"])]
+    for tol in OURS_TOLERANCES:
+        def run(tol=tol):
+            return sim.simulate(two, y0=y0, rtol=tol, atol=tol / 100,
+                                sensitivities=names).sensitivities[-1, :, :2 * n]
+        err = direction_error(run(), ref)
+        times = []
+        for _ in range(max(3, rounds)):
+            start_cpu = time.thread_time()
+            run()
+            times.append(time.thread_time() - start_cpu)
+        points.append((err, statistics.median(times)))
+    rows = []
+    for k in runs:
+        equal, how = H.time_at(points, error[k])
+        rows.append(dict(scene=label, p=len(names), contender="ours" if k == "ours" else f"CasADi {k}",
+                         config=k, setup_s=setup[k], ms=1e3 * med[k], cpu_ms=1e3 * mcpu[k], calls=len(wall[k]),
+                         error=error[k], ref_check=direction_error(check, ref),
+                         ours_over=med["ours"] / med[k], cpu_ours_over=mcpu["ours"] / mcpu[k],
+                         equal_error_over=None if equal is None else equal / mcpu[k], equal_how=how,
+                         options=repr(options[k]) if k in options else ""))
+    return rows
+
+
+def cost_rows(label, model, sim, ps, rounds, casadi=CASADI_QUICK, notes=None):
+    """Cost of p sensitivities against the plain run (rows) and ours against CasADi in the
+    configurations ``casadi`` (:func:`casadi_rows`)."""
     t = np.linspace(0.0, T_END, 201)
     q0 = np.full(sim.n, Q0)
     runs = {"plain": lambda: sim.simulate(t, q0=q0, rtol=1e-8, atol=1e-10)}
@@ -162,18 +385,6 @@ def cost_rows(label, model, sim, ps, rounds):
         runs[f"p{p}"] = (lambda names=names: sim.simulate(t, q0=q0, rtol=1e-8, atol=1e-10, sensitivities=names))
         runs[f"p{p} off"] = (lambda names=names: sim.simulate(t, q0=q0, rtol=1e-8, atol=1e-10, sensitivities=names,
                                                               sensitivity_errcon=False))
-    # CasADi at equal tolerance, parameter directions, the state at T only; ours likewise
-    J = casadi_jacobian(model, sim, 1e-8)
-    y0 = np.concatenate([q0, np.zeros(sim.n)])
-    pv = sim.parameter_vector()
-    two = np.array([0.0, T_END])
-    vs: dict = {}
-    if J is not None:  # timed apart (CasADi's seconds per call would stretch every round)
-        H.progress("cost", f"{label}: CasADi's forward sensitivities")
-        ours = (lambda: sim.simulate(two, y0=y0, rtol=1e-8, atol=1e-10, sensitivities=list(sim.param_names)))
-        ours()
-        vs["casadi"] = H.median_time(lambda: J(y0, pv), 5, budget=60.0)[0]
-        vs["ours vs casadi"] = H.median_time(ours, 5 * rounds)[0]
     for f in runs.values():  # builds, first calls
         f()
     times = {k: [] for k in runs}
@@ -193,11 +404,31 @@ def cost_rows(label, model, sim, ps, rounds):
                          ratio=med[f"p{p}"] / med["plain"], ratio_errcon_off=med[f"p{p} off"] / med["plain"],
                          cpu_ratio=mcpu[f"p{p}"] / mcpu["plain"],
                          cpu_ratio_errcon_off=mcpu[f"p{p} off"] / mcpu["plain"], target=1 + 0.7 * p))
-    casadi = None
-    if J is not None:
-        casadi = dict(scene=label, p=len(sim.param_names), ours_ms=1e3 * vs["ours vs casadi"],
-                      casadi_ms=1e3 * vs["casadi"], ratio=vs["ours vs casadi"] / vs["casadi"], target=0.5)
-    return rows, casadi
+    return rows, casadi_rows(label, model, sim, rounds, casadi, notes)
+
+
+def fastest_casadi(rows) -> list[str]:
+    """The target lines: per scene, ours / the fastest CasADi configuration (by CPU time)."""
+    lines = []
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        mine = [r for r in rows if r["scene"] == scene]
+        theirs = [r for r in mine if r["config"] != "ours"]
+        if not theirs:
+            continue
+        best = min(theirs, key=lambda r: r["cpu_ms"])
+        ours = next(r for r in mine if r["config"] == "ours")
+        lines.append(f"{scene}: ours / CasADi's fastest ({best['config']}: {CASADI_CONFIGS[best['config']].label}) "
+                     f"= {ours['cpu_ms'] / best['cpu_ms']:.2f} CPU, {ours['ms'] / best['ms']:.2f} wall "
+                     f"(target <= 0.5); errors ours {ours['error']:.1e}, CasADi {best['error']:.1e}; at CasADi's "
+                     f"error {H.fmt_value(best['equal_error_over'], '{:.2f}')} CPU (the reference against CasADi "
+                     f"vm-adams at rtol 1e-12: {ours['ref_check']:.1e})")
+        lines.append(f"    its options: integrator(..., \"cvodes\", dae, 0, {T_END:g}, {best['options']})"
+                     + (", the Jacobian of the call w.r.t. p" if CASADI_CONFIGS[best["config"]].form == "jacobian"
+                        else ", called with x0 = [x0, 0], p = [p, I] (the seeds as columns)")
+                     + ("; ode: the accelerations by R = chol(M), solve(R, solve(R.T, F))"
+                        if CASADI_CONFIGS[best["config"]].dynamics == "chol"
+                        else "; ode: the accelerations by solve(M, F)"))
+    return lines
 
 
 def fit_rows(rounds):
@@ -326,17 +557,17 @@ def main(argv=None) -> int:
     rounds = args.rounds or (5 if args.quick else 21)
     ps_all = [1, 3] if args.quick else [1, 3, 10]
     load0 = H.load_average()
-    acc, cost, cas = [], [], []
+    acc, cost, cas, notes = [], [], [], []
+    configs = CASADI_QUICK if args.quick else tuple(CASADI_CONFIGS)
     for label, model in scenes(args.quick, args.max_n):
         H.progress("build", label)
         sim = lcg.compile_model(model)
         nd = len(sim.param_names) + sim.n
         ps = sorted({min(p, nd) for p in ps_all})
         acc += accuracy_rows(label, model, sim, ps, args.quick)
-        rows, c = cost_rows(label, model, sim, ps, rounds)
+        rows, c = cost_rows(label, model, sim, ps, rounds, casadi=configs, notes=notes)
         cost += rows
-        if c:
-            cas.append(c)
+        cas += c
     fits = fit_rows(1 if args.quick else 7)
     lines = H.machine_lines("Forward sensitivities on CVODE (benchmarks/sensitivities.py)", (load0, H.load_average()))
     lines += ["", "Accuracy at rtol 1e-8 (max relative error per direction, worst direction):",
@@ -349,11 +580,28 @@ def main(argv=None) -> int:
                               ("ratio_errcon_off", "ratio (errcon off)", "{:.2f}"),
                               ("cpu_ratio", "CPU ratio", "{:.2f}"), ("cpu_ratio_errcon_off", "CPU ratio (off)", "{:.2f}"),
                               ("target", "target", "{:.1f}")], cost)]
-    if cas:
-        lines += ["", "Against CasADi's forward sensitivities (CVODES), all parameters, state at t = 10, rtol 1e-8 "
-                  "(target ours/CasADi <= 0.5):",
-                  H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("ours_ms", "ours ms", "{:.3f}"),
-                                  ("casadi_ms", "CasADi ms", "{:.3f}"), ("ratio", "ours/CasADi", "{:.2f}")], cas)]
+    if cas or notes:
+        lines += ["", "Against CasADi's forward sensitivities (CVODES), all parameters, the state at t = 10, rtol 1e-8 "
+                  "(atol 1e-10) for all; error: against ours at rtol 1e-13 (checked against CasADi at rtol 1e-12 "
+                  "below); setup: build, JIT compile and first call, apart from the medians; "
+                  "ours/X: ratio of medians (target ours/CasADi <= 0.5 against the fastest); at X's error: ours' "
+                  "CPU time at X's achieved error (ours at rtol 1e-8 and "
+                  f"{', '.join(f'{t:g}' for t in OURS_TOLERANCES)}, log-log interpolated; how: interp, or bound = "
+                  "all ours more accurate) / X's:",
+                  H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("contender", "contender", "{}"),
+                                  ("setup_s", "setup s", "{:.2f}"), ("ms", "ms", "{:.3f}"),
+                                  ("cpu_ms", "CPU ms", "{:.3f}"), ("calls", "calls", "{}"),
+                                  ("error", "error", "{:.1e}"),
+                                  ("ours_over", "ours/X", "{:.2f}"), ("cpu_ours_over", "ours/X CPU", "{:.2f}"),
+                                  ("equal_error_over", "ours/X CPU, X's error", "{:.2f}"), ("equal_how", "how", "{}")],
+                                 cas),
+                  "", "CasADi configurations (options of integrator(..., \"cvodes\", ...) besides abstol, reltol, "
+                  "max_num_steps; JIT: jit=True, compiler=\"shell\", jit_options={\"compiler\": "
+                  f"\"{H.c_compiler()}\", \"flags\": [\"-O3\"]}}):"]
+        lines += [f"  {key}: {c.label}; {c.form}; accelerations by {c.dynamics}; {c.options}"
+                  for key, c in CASADI_CONFIGS.items() if key in configs]
+        lines += [f"note: {note}" for note in notes]
+        lines += ["", *fastest_casadi(cas)]
     lines += ["", "Fit of the damped pendulum's l and c (200 samples, 1% noise; target speedup >= 3):",
               H.format_table([("method", "method", "{}"), ("ms", "ms", "{:.1f}"), ("cpu_ms", "CPU ms", "{:.1f}"),
                               ("iterations", "iterations", "{}"), ("nfev", "nfev", "{}"), ("l", "l", "{:.6f}"),
