@@ -102,6 +102,7 @@ typedef struct {
     int bdf;            /* BDF: solves scaled by 2/(1 + gamma/gammap), as CVODE's dense solver */
     double rtol;
     const double *atol; /* ny: the states' absolute tolerances (also the sensitivities' in their test) */
+    int errcon;         /* the sensitivities in CVODE's error test (their absolute tolerances real) */
     int probe_hit;      /* set by the operations while the layout is checked */
     int have_A;         /* A holds the factors of I - gammap J */
     double gammap, crate, crate_s;
@@ -680,23 +681,26 @@ static int nls_states(sens_data *d, double t, const double *ypred, const double 
 }
 
 /* The sensitivities' iteration from cs = 0 at the converged state ypred + c (cs: their
- * correction, ny ns values after the states'), weights from the predicted sensitivities and the
- * states' tolerances. */
-static int nls_sens(sens_data *d, double t, const double *ypred, const double *zn1, const double *c, double *cs,
-                    double gamma, double rl1, double tol)
+ * correction, ny ns values after the states'). Its weights: those of CVODE's error test (ewt,
+ * after the states') when the sensitivities are in it (errcon, CVODES's ewtS), else from the
+ * predicted sensitivities and the states' tolerances. */
+static int nls_sens(sens_data *d, double t, const double *ypred, const double *zn1, const double *ewt,
+                    const double *c, double *cs, double gamma, double rl1, double tol)
 {
     const int ny = d->m->ny;
     const long nsy = (long)ny * d->ns;
-    double *y = d->ytmp, *s = d->ytmp + ny, *delta = d->ftmp + ny, *w = d->wsens, del, delp = 0.0;
+    double *y = d->ytmp, *s = d->ytmp + ny, *delta = d->ftmp + ny, del, delp = 0.0;
+    const double *w = d->errcon ? ewt + ny : d->wsens;
     long i;
     int j, m, flag;
 
     for (i = 0; i < ny; ++i)
         y[i] = ypred[i] + c[i];
-    for (i = 0; i < nsy; ++i) {
+    for (i = 0; i < nsy; ++i)
         cs[i] = 0.0;
-        w[i] = 1.0 / (d->rtol * fabs(ypred[ny + i]) + d->atol[i % ny]);
-    }
+    if (!d->errcon)
+        for (i = 0; i < nsy; ++i)
+            d->wsens[i] = 1.0 / (d->rtol * fabs(ypred[ny + i]) + d->atol[i % ny]);
     for (m = 0;; ++m) {
         if (WATCH_TICK(&d->w))
             return LCG_CV_RHSFUNC_FAIL; /* stop: cancelled or out of time */
@@ -763,7 +767,7 @@ static int nls_solve(SUNNonlinearSolver S, N_Vector y0, N_Vector ycor, N_Vector 
     for (;;) {
         flag = nls_states(d, t, ypred, zn1, w, c, gamma, rl1, tol, &setup, &jbad, nst, &jcur);
         if (flag == 0 && d->ns > 0)
-            flag = nls_sens(d, t, ypred, zn1, c, c + ny, gamma, rl1, tol);
+            flag = nls_sens(d, t, ypred, zn1, w, c, c + ny, gamma, rl1, tol);
         if (flag == 0) {
             d->last_failed = 0;
             return 0;
@@ -868,6 +872,7 @@ static int corrector_attach(sens_data *d, const lcg_cvsens_options *opt, SUNCont
     d->bdf = opt->method == CV_BDF;
     d->rtol = opt->rtol;
     d->atol = opt->atol;
+    d->errcon = d->ns > 0 && opt->atol[d->m->ny] < 1e200; /* sens_options: 1e300 without errcon */
     corrector_reset(d);
     if (!d->staggered) {
         if ((*LS = SUNLinSolNewEmpty(ctx)) == NULL)
