@@ -23,7 +23,8 @@ BACKENDS = ("native", "sksundae")
 #: max_events: a prepared run has no events; sensitivities: their own prepared run).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "method", "backend", "max_order", "first_step",
                        "min_step", "linear_solver", "bandwidths", "jacobian", "max_events", "sensitivities",
-                       "sensitivity_errcon", "sensitivity_corrector", "baumgarte", "projection", "proj_tol", "proj_maxit"))
+                       "sensitivity_errcon", "sensitivity_corrector", "baumgarte", "projection", "proj_tol",
+                       "proj_maxit"))
 
 
 @dataclass(frozen=True, kw_only=True)
