@@ -13,7 +13,7 @@ sensitivities in the error test (the default) and without.
 
 A measuring instrument: it asserts nothing. Usage::
 
-    python benchmarks/sensitivity_correctors.py [--rounds R] [--quick]
+    python benchmarks/sensitivity_correctors.py [--rounds R] [--quick] [--out DIR]
 """
 
 from __future__ import annotations
@@ -86,24 +86,26 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     rows = []
     load0 = H.load_average()
     for label, model, ps in scenes(args.quick):
         rows += rows_of(label, model, ps, 3 if args.quick else args.rounds)
-    print("\n".join(H.machine_lines("Sensitivity correctors (benchmarks/sensitivity_correctors.py)",
-                                    (load0, H.load_average()))))
-    print()
-    print("Per step: sensitivity RHS (states and every direction), the states' RHS of the staggered Newton")
-    print("iterations (plain run: its RHS), Newton iterations, factorizations; CPU time over the plain run's")
-    print(f"(medians of {args.rounds} interleaved rounds; target 1 + 0.7 p):")
-    print(H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("errcon", "errcon", "{}"),
-                          ("corrector", "corrector", "{}"), ("steps", "steps", "{}"),
-                          ("steps_ratio", "x plain", "{:.2f}"),
-                          ("sens_rhs", "sens RHS", "{:.2f}"), ("states_rhs", "states RHS", "{:.2f}"),
-                          ("nni", "Newton it.", "{:.2f}"), ("jac", "Jacobians", "{}"), ("fact", "factor.", "{:.2f}"),
-                          ("cpu_ms", "CPU ms", "{:.3f}"), ("ratio", "ratio", "{:.2f}"), ("target", "target", "{:.1f}")],
-                         rows))
+    lines = H.machine_lines("Sensitivity correctors (benchmarks/sensitivity_correctors.py)", (load0, H.load_average()))
+    lines += ["", "Per step: sensitivity RHS (states and every direction), the states' RHS of the staggered Newton",
+              "iterations (plain run: its RHS), Newton iterations, factorizations; CPU time over the plain run's",
+              f"(medians of {3 if args.quick else args.rounds} interleaved rounds; target 1 + 0.7 p):"]
+    columns = [("scene", "scene", "{}"), ("p", "p", "{}"), ("errcon", "errcon", "{}"), ("corrector", "corrector", "{}"),
+               ("steps", "steps", "{}"), ("steps_ratio", "x plain", "{:.2f}"), ("sens_rhs", "sens RHS", "{:.2f}"),
+               ("states_rhs", "states RHS", "{:.2f}"), ("nni", "Newton it.", "{:.2f}"), ("jac", "Jacobians", "{}"),
+               ("fact", "factor.", "{:.2f}"), ("cpu_ms", "CPU ms", "{:.3f}"), ("ratio", "ratio", "{:.2f}"),
+               ("target", "target", "{:.1f}")]
+    lines.append(H.format_table(columns, rows))
+    text = "\n".join(lines)
+    print(text)
+    if args.out is not None:
+        H.write_report(args.out, "sensitivity_correctors", text, rows)
     return 0
 
 
