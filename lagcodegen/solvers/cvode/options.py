@@ -181,7 +181,7 @@ class CVODE(Family):
             return None
         return PreparedSensitivityRun(cm, self.sensitivities, rtol=rtol, atol=atol,
                                       errcon=bool(self.sensitivity_errcon), max_wall=float(self.max_wall),
-                                      fixed=fixed, **opts)
+                                      fixed=fixed, corrector=self.sensitivity_corrector, **opts)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
