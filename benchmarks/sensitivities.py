@@ -11,7 +11,8 @@ the directions there are).
   scenes: truncation ~h^4, noise ~rtol/h) at 21 times, and (b) CasADi's forward sensitivities
   (CVODES, the Jacobian of ``casadi.integrator`` w.r.t. the parameters at t = 10; the same M and
   F converted from sympy, rtol 1e-12) for the parameter directions. Max over states and
-  directions of |error| / max |reference| per direction.
+  directions of |error| / max |reference| per direction; with the sensitivities in the error
+  test (the default) and without (``sensitivity_errcon=False``).
 * cost is reported as wall time and as the calling thread's CPU time (``time.thread_time``): on
   a machine loaded beyond its cores a millisecond run is often preempted for a scheduler quantum,
   which wall-time medians of short runs do not always absorb; the CPU time is not affected.
@@ -260,23 +261,27 @@ def accuracy_rows(label, model, sim, ps, quick):
     refs: dict = {}
     for p in ps:
         names = directions(sim, p)
-        res = sim.simulate(t, q0=np.full(sim.n, Q0), rtol=1e-8, atol=1e-10, sensitivities=names)
-        worst_fd, worst_ca = 0.0, None
-        for j, name in enumerate(names[: (2 if quick else 3)]):
-            if name not in refs:
-                H.progress("accuracy", f"{label} {name}: central differences")
-                refs[name] = central(sim, t, name)
-            ref = refs[name]
-            worst_fd = max(worst_fd, float(np.max(np.abs(res.sensitivities[:, j, :2 * sim.n] - ref))
-                                            / np.max(np.abs(ref))))
-        if ref_ca is not None:
-            worst_ca = 0.0
-            for j, name in enumerate(names):
-                if name in sim.param_names:
-                    col = ref_ca[:, sim.param_names.index(name)]
-                    worst_ca = max(worst_ca, float(np.max(np.abs(res.sensitivities[-1, j, :2 * sim.n] - col))
-                                                   / np.max(np.abs(col))))
-        rows.append(dict(scene=label, p=p, vs_central=worst_fd, vs_casadi=worst_ca, steps=res.stats["nsteps"]))
+        row = dict(scene=label, p=p)
+        for errcon, tag in ((True, ""), (False, "_off")):
+            res = sim.simulate(t, q0=np.full(sim.n, Q0), rtol=1e-8, atol=1e-10, sensitivities=names,
+                               sensitivity_errcon=errcon)
+            worst_fd, worst_ca = 0.0, None
+            for j, name in enumerate(names[: (2 if quick else 3)]):
+                if name not in refs:
+                    H.progress("accuracy", f"{label} {name}: central differences")
+                    refs[name] = central(sim, t, name)
+                ref = refs[name]
+                worst_fd = max(worst_fd, float(np.max(np.abs(res.sensitivities[:, j, :2 * sim.n] - ref))
+                                                / np.max(np.abs(ref))))
+            if ref_ca is not None:
+                worst_ca = 0.0
+                for j, name in enumerate(names):
+                    if name in sim.param_names:
+                        col = ref_ca[:, sim.param_names.index(name)]
+                        worst_ca = max(worst_ca, float(np.max(np.abs(res.sensitivities[-1, j, :2 * sim.n] - col))
+                                                       / np.max(np.abs(col))))
+            row.update({f"vs_central{tag}": worst_fd, f"vs_casadi{tag}": worst_ca, f"steps{tag}": res.stats["nsteps"]})
+        rows.append(row)
     return rows
 
 
@@ -572,7 +577,9 @@ def main(argv=None) -> int:
     lines = H.machine_lines("Forward sensitivities on CVODE (benchmarks/sensitivities.py)", (load0, H.load_average()))
     lines += ["", "Accuracy at rtol 1e-8 (max relative error per direction, worst direction):",
               H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("vs_central", "vs central diff.", "{:.1e}"),
-                              ("vs_casadi", "vs CasADi", "{:.1e}"), ("steps", "steps", "{}")], acc),
+                              ("vs_casadi", "vs CasADi", "{:.1e}"), ("steps", "steps", "{}"),
+                              ("vs_central_off", "errcon off: vs central", "{:.1e}"),
+                              ("vs_casadi_off", "vs CasADi", "{:.1e}"), ("steps_off", "steps", "{}")], acc),
               "", f"Cost of a run with p sensitivities / the plain run (medians of {rounds} interleaved rounds; "
               "target 1 + 0.7 p):",
               H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("plain_ms", "plain ms", "{:.3f}"),

@@ -267,7 +267,7 @@ def _start(sim, q0, v0, y0, values: dict, names: list) -> dict:
 #: The keywords of simulate that a prepared sensitivity run (:func:`_prepared_runs`) takes over;
 #: with any other, every evaluation runs ``simulate`` itself.
 PREPARED_OPTIONS = frozenset(("solver", "method", "max_steps", "max_order", "first_step", "max_step", "min_step",
-                              "jacobian", "sensitivity_errcon", "max_wall"))
+                              "jacobian", "sensitivity_errcon", "sensitivity_corrector", "max_wall"))
 
 
 def _prepared_runs(sim, exps: list, observe: list, names: list, fixed: dict, run_params: list, x0: np.ndarray,

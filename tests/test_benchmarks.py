@@ -183,6 +183,18 @@ def test_sensitivities_tiny():
     assert abs(fits[0]["l"] - 1.0) < 0.01 and abs(fits[1]["c"] - 0.3) < 0.01 and fits[0]["speedup"] > 0
 
 
+def test_sensitivity_correctors_tiny():
+    """benchmarks/sensitivity_correctors.py: the counts and the cost of both correctors on the
+    double pendulum (p = 1)."""
+    import sensitivity_correctors as sc
+    rows = sc.rows_of("dp", systems.double_pendulum(name="tb_sens_dp"), (1,), rounds=1)
+    assert [r["corrector"] for r in rows] == ["plain", "staggered", "simultaneous", "staggered", "simultaneous"]
+    assert all(r["steps"] > 10 and finite(r["ratio"]) and r["ratio"] > 0 for r in rows)
+    stag, simu = rows[1], rows[2]
+    assert stag["states_rhs"] >= 1.0 and simu["states_rhs"] is None
+    assert 1.0 <= stag["sens_rhs"] < simu["sens_rhs"]  # the staggered one evaluates the directions less often
+
+
 def test_sensitivities_taylor_tiny():
     """benchmarks/sensitivities.py --taylor: the Taylor cost ratio and the comparison with CVODE
     at equal error on the double pendulum (p = 1, two tolerances)."""

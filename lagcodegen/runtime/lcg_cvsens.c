@@ -3,17 +3,26 @@
  * The augmented ODE (y, s_1, ..., s_ns), s_j = dy/dtheta_j, of a model whose generated
  * <prefix>_sens_rhs evaluates the state's and every direction's right-hand side with one
  * factorization of the mass matrix. CVODE's Newton iteration solves (I - gamma J_aug) x = b with
- * a linear solver of this file (a matrix-embedded SUNLinearSolver): J_aug is block lower
- * triangular, J on its diagonal (J = df/dy of the states) and d(J s_j + df/dp)/dy below; the
- * solver keeps the diagonal only, factors I - gamma J once (LU with partial pivoting) and solves
- * each block with it -- CVODES's simultaneous corrector. The cost of a setup is one Jacobian of
- * the states and one n^3 factorization, whatever ns; a solve costs (1 + ns) n^2.
+ * the matrix of the states alone: J_aug is block lower triangular, J on its diagonal (J = df/dy
+ * of the states) and d(J s_j + df/dp)/dy below; the correctors keep the diagonal only, factor
+ * I - gamma J once (LU with partial pivoting) and solve each block with it. Two correctors:
+ *  - staggered (the default; CVODES's CV_STAGGERED): a nonlinear solver of this file
+ *    (SUNNonlinearSolver) iterates on the states alone with the model table's right-hand side
+ *    until CVODE's convergence test passes, then corrects the sensitivities, linear in s, with
+ *    the same matrix -- one <prefix>_sens_rhs per step when the matrix is fresh. Its matrix
+ *    follows CVODE's rules for the plain run's dense solver (nls_solve).
+ *  - simultaneous (CVODES's CV_SIMULTANEOUS): CVODE's Newton solver on the whole augmented
+ *    system with a linear solver of this file (a matrix-embedded SUNLinearSolver): every
+ *    direction at every iteration, the matrix refactored whenever gamma changes.
+ * The cost of a setup is one Jacobian of the states and one n^3 factorization, whatever ns; a
+ * solve costs (1 + ns) n^2.
  *
- * SUNDIALS ships no struct of a custom linear solver that this runtime could take from a header
- * (scikit-sundae's libraries come without headers): the layout of SUNDIALS 7.x's
- * _generic_SUNLinearSolver and its operations table is declared here, and checked at run time
- * before use (the context's place in the struct, and that SUNLinSolSetup calls this file's
- * setup); another layout ends the run with LCG_FLAG_BAD_INPUT and a message, never a crash. */
+ * SUNDIALS ships no struct of a custom solver that this runtime could take from a header
+ * (scikit-sundae's libraries come without headers): the layouts of SUNDIALS 7.x's
+ * _generic_SUNLinearSolver, _generic_SUNNonlinearSolver and their operations tables are declared
+ * here, and checked at run time before use (the context's place in the struct, and that
+ * SUNDIALS's dispatch reaches this file's operations); another layout ends the run with
+ * LCG_FLAG_BAD_INPUT and a message, never a crash. */
 #include "lcg_control.h" /* first: POSIX */
 
 #include <float.h>
@@ -87,6 +96,21 @@ typedef struct {
     watch w;            /* Ctrl-C (the poll callback), the wall-clock limit */
     lcg_cvsens_events *ev; /* the event functions and the events found, or NULL */
     int *info;          /* nroot: CVodeGetRootInfo's */
+    /* the staggered corrector (nls_*): CVODE's Newton and dense solver rules for the states, then
+     * the sensitivities with the same matrix */
+    int staggered;      /* the corrector of this run: 1 staggered, 0 simultaneous (ls_*) */
+    int bdf;            /* BDF: solves scaled by 2/(1 + gamma/gammap), as CVODE's dense solver */
+    double rtol;
+    const double *atol; /* ny: the states' absolute tolerances (also the sensitivities' in their test) */
+    int errcon;         /* the sensitivities in CVODE's error test (their absolute tolerances real) */
+    int probe_hit;      /* set by the operations while the layout is checked */
+    int have_A;         /* A holds the factors of I - gammap J */
+    double gammap, crate, crate_s;
+    long nstlp, netf_seen;
+    int last_failed;    /* the previous solve ended in a convergence failure */
+    long nls_iters, nls_fails, nsetups, nsens_iters, nrhs_states, nrhs_sens;
+    double *ytmp, *wsens, *ftmp; /* scratch: ny (1 + ns) values */
+    double *Ainv, *xtmp; /* (I - gammap J)^-1 column-major (from the factors), scratch of ny */
 } sens_data;
 
 static int model_status(sens_data *d, int rc, double t)
@@ -381,6 +405,526 @@ static int ls_attach(SUNLinearSolver LS, SUNContext ctx, sens_data *d, char *mes
     return 0;
 }
 
+/* ---- The staggered corrector: a SUNNonlinearSolver of this file (CVODES's CV_STAGGERED). ----
+ * Per step, the Newton iteration converges on the states alone (the model table's right-hand
+ * side, with CVODE's convergence test on the states' weights), then the sensitivities, linear in
+ * s, are corrected with the same matrix: one evaluation of <prefix>_sens_rhs at the converged
+ * state, more only when the convergence test asks for it (a stale matrix). The matrix follows the
+ * rules of CVODE's own Newton solver with its dense linear solver, as in the plain run: a new
+ * factorization of I - gamma J when gamma moved by more than 30 % since the last one, every 20
+ * steps and after a failure (crate, the convergence rate, kept across steps); a new Jacobian on
+ * the first step, every 51 steps and after a convergence failure. The sensitivities' rate
+ * (crate_s, in the same test with weights of the states' tolerances) is kept across new matrices
+ * too: their iteration is linear, and a fresh matrix only makes it contract faster. CVODE's error
+ * test still sees the whole augmented correction.
+ *
+ * SUNDIALS 7.x (sundials_nonlinearsolver.h, 7.9's operations table of 18 entries) declared here
+ * as for the linear solver above, and checked before use: every operation CVODE calls is called
+ * once through SUNDIALS's own dispatch and must land on this file's; another layout ends the run
+ * with LCG_FLAG_BAD_INPUT and a message. */
+#define LCG_NLS_ROOTFIND 0   /* SUNNONLINEARSOLVER_ROOTFIND */
+#define LCG_NLS_CONTINUE 901 /* SUN_NLS_CONTINUE */
+#define LCG_NLS_CONV_RECVR 902 /* SUN_NLS_CONV_RECVR */
+#define LCG_CV_RHSFUNC_FAIL (-8)
+#define LCG_CV_RHSFUNC_RECVR 10
+#define LCG_NLS_MAXCOR 3
+#define LCG_NLS_CRDOWN 0.3
+#define LCG_NLS_RDIV 2.0
+#define LCG_NLS_MSBP 20      /* steps between factorizations (CVODE's msbp) */
+#define LCG_NLS_DGMAX 0.3    /* |gamma/gammap - 1| that asks for a factorization (dgmax_lsetup) */
+#define LCG_NLS_DGMAX_JBAD 0.2
+typedef int (*lcg_nls_fn)(void);
+typedef struct lcg_nls_ops {
+    int (*gettype)(SUNNonlinearSolver);
+    int (*initialize)(SUNNonlinearSolver);
+    int (*setup)(SUNNonlinearSolver, N_Vector, void *);
+    int (*solve)(SUNNonlinearSolver, N_Vector, N_Vector, N_Vector, double, int, void *);
+    int (*free)(SUNNonlinearSolver);
+    int (*setsysfn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setsysfns)(SUNNonlinearSolver, lcg_nls_fn, lcg_nls_fn);
+    int (*setlsetupfn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setlsolvefn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setctestfn)(SUNNonlinearSolver, lcg_nls_fn, void *);
+    int (*setnormfn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setgetupdatenormfn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setgetconvratefn)(SUNNonlinearSolver, lcg_nls_fn);
+    int (*setoptions)(SUNNonlinearSolver, const char *, const char *, int, char **);
+    int (*setmaxiters)(SUNNonlinearSolver, int);
+    int (*getnumiters)(SUNNonlinearSolver, long *);
+    int (*getcuriter)(SUNNonlinearSolver, int *);
+    int (*getnumconvfails)(SUNNonlinearSolver, long *);
+} lcg_nls_ops;
+typedef struct lcg_nls_object {
+    void *content;
+    void *reserved;
+    lcg_nls_ops *ops;
+    SUNContext sunctx;
+} lcg_nls_object;
+
+SUNNonlinearSolver SUNNonlinSolNewEmpty(SUNContext sunctx);
+void SUNNonlinSolFreeEmpty(SUNNonlinearSolver NLS);
+int SUNNonlinSolGetType(SUNNonlinearSolver NLS);
+int SUNNonlinSolInitialize(SUNNonlinearSolver NLS);
+int SUNNonlinSolSolve(SUNNonlinearSolver NLS, N_Vector y0, N_Vector y, N_Vector w, sunrealtype tol,
+                      sunbooleantype callLSetup, void *mem);
+int SUNNonlinSolSetSysFn(SUNNonlinearSolver NLS, lcg_nls_fn SysFn);
+int SUNNonlinSolSetLSetupFn(SUNNonlinearSolver NLS, lcg_nls_fn SetupFn);
+int SUNNonlinSolSetLSolveFn(SUNNonlinearSolver NLS, lcg_nls_fn SolveFn);
+int SUNNonlinSolSetConvTestFn(SUNNonlinearSolver NLS, lcg_nls_fn CTestFn, void *ctest_data);
+int SUNNonlinSolSetMaxIters(SUNNonlinearSolver NLS, int maxiters);
+int SUNNonlinSolGetNumIters(SUNNonlinearSolver NLS, long *niters);
+int SUNNonlinSolGetCurIter(SUNNonlinearSolver NLS, int *iter);
+int SUNNonlinSolGetNumConvFails(SUNNonlinearSolver NLS, long *nconvfails);
+int CVodeGetNumErrTestFails(void *cvode_mem, long int *netfails);
+
+#define NLS_DATA(S) ((sens_data *)((lcg_nls_object *)(S))->content)
+/* An operation of the table: while the layout is checked (d->probe), it records its place k. */
+#define NLS_PROBE(S, k)                      \
+    do {                                     \
+        sens_data *d_ = NLS_DATA(S);         \
+        if (d_ != NULL && d_->probe) {       \
+            d_->probe_hit = (k);             \
+            return 0;                        \
+        }                                    \
+    } while (0)
+
+static int nls_type(SUNNonlinearSolver S)
+{
+    sens_data *d = NLS_DATA(S);
+    if (d != NULL && d->probe) {
+        d->probe_hit = 1;
+        return 77; /* an answer the check recognizes */
+    }
+    return LCG_NLS_ROOTFIND;
+}
+static int nls_initialize(SUNNonlinearSolver S) { NLS_PROBE(S, 2); return 0; }
+static int nls_free(SUNNonlinearSolver S) { NLS_PROBE(S, 5); return 0; }
+/* CVODE's residual, linear solver and convergence test: this solver evaluates its own. */
+static int nls_setsysfn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 6); return 0; }
+static int nls_setsysfns(SUNNonlinearSolver S, lcg_nls_fn f, lcg_nls_fn g) { (void)f; (void)g; NLS_PROBE(S, 7); return 0; }
+static int nls_setlsetupfn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 8); return 0; }
+static int nls_setlsolvefn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 9); return 0; }
+static int nls_setctestfn(SUNNonlinearSolver S, lcg_nls_fn f, void *data) { (void)f; (void)data; NLS_PROBE(S, 10); return 0; }
+static int nls_setnormfn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 11); return 0; }
+static int nls_setupdnormfn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 12); return 0; }
+static int nls_setconvratefn(SUNNonlinearSolver S, lcg_nls_fn f) { (void)f; NLS_PROBE(S, 13); return 0; }
+static int nls_setoptions(SUNNonlinearSolver S, const char *id, const char *file, int argc, char **argv)
+{
+    (void)id; (void)file; (void)argc; (void)argv;
+    NLS_PROBE(S, 14);
+    return 0;
+}
+/* CVODE's NLS_MAXCOR (3) is this solver's own. */
+static int nls_setmaxiters(SUNNonlinearSolver S, int maxiters) { (void)maxiters; NLS_PROBE(S, 15); return 0; }
+/* The iterations and convergence failures of the last solve (CVODE adds them to its counters). */
+static int nls_getnumiters(SUNNonlinearSolver S, long *n)
+{
+    NLS_PROBE(S, 16);
+    *n = NLS_DATA(S)->nls_iters;
+    return 0;
+}
+static int nls_getcuriter(SUNNonlinearSolver S, int *n)
+{
+    NLS_PROBE(S, 17);
+    *n = 0;
+    return 0;
+}
+static int nls_getnumconvfails(SUNNonlinearSolver S, long *n)
+{
+    NLS_PROBE(S, 18);
+    *n = NLS_DATA(S)->nls_fails;
+    return 0;
+}
+
+/* A CVODE flag of a model status (model_status: 0 ok, > 0 recoverable, < 0 stop). */
+static int nls_flag(int status)
+{
+    return status == 0 ? 0 : status > 0 ? LCG_CV_RHSFUNC_RECVR : LCG_CV_RHSFUNC_FAIL;
+}
+
+/* f = the states' right-hand side at (t, y). */
+static int nls_states_rhs(sens_data *d, double t, const double *y, double *f)
+{
+    if (WATCH_TICK(&d->w))
+        return LCG_CV_RHSFUNC_FAIL; /* stop: cancelled or out of time */
+    d->nrhs_states++;
+    return nls_flag(model_status(d, d->m->rhs(t, y, d->p, f), t));
+}
+
+/* d->Ainv = (I - gamma J)^-1 from the factors in d->A, column by column: a block's solve is then
+ * one matrix-vector product (the factorization is refreshed every few steps, the solves are made
+ * 1 + ns times per iteration). */
+static void inverse(sens_data *d)
+{
+    const int n = d->m->ny;
+    int i, j;
+
+    for (j = 0; j < n; ++j) {
+        double *col = d->Ainv + (long)j * n;
+        for (i = 0; i < n; ++i)
+            col[i] = i == j ? 1.0 : 0.0;
+        lu_solve(d, col);
+    }
+}
+
+/* The matrix by CVODE's rules (cvLsSetup): the states' Jacobian at the predicted state y (anew
+ * when jbad), I - gamma J factored. 0, or a CVODE flag (LCG_NLS_CONV_RECVR if singular). */
+static int nls_setup(sens_data *d, double t, const double *y, double gamma, long nst, int jbad, int *jcur)
+{
+    int rc;
+
+    *jcur = 0;
+    if (jbad || !d->have_J) {
+        rc = states_jacobian(d, t, y);
+        if (rc != LCG_OK)
+            return nls_flag(model_status(d, rc, t));
+        d->have_J = 1;
+        d->nst_J = nst;
+        *jcur = 1;
+    }
+    d->nsetups++;
+    d->gammap = gamma;
+    d->crate = 1.0;
+    d->nstlp = nst;
+    d->have_A = factor(d, gamma) == 0;
+    if (!d->have_A) {
+        d->have_J = 0;
+        return LCG_NLS_CONV_RECVR;
+    }
+    inverse(d);
+    return 0;
+}
+
+/* b = A^-1 b for one block, scaled for the gamma of the step as CVODE's dense solver does (BDF). */
+static void nls_lsolve(sens_data *d, double *b, double gamma)
+{
+    const int n = d->m->ny;
+    const double gamrat = gamma / d->gammap, scale = d->bdf && gamrat != 1.0 ? 2.0 / (1.0 + gamrat) : 1.0;
+    double *x = d->xtmp;
+    int i, j;
+
+    for (i = 0; i < n; ++i)
+        x[i] = 0.0;
+    for (j = 0; j < n; ++j) {
+        const double bj = scale * b[j], *col = d->Ainv + (long)j * n;
+        for (i = 0; i < n; ++i)
+            x[i] += bj * col[i];
+    }
+    for (i = 0; i < n; ++i)
+        b[i] = x[i];
+    d->st->nblock_solves++;
+}
+
+static double nls_wrms(const double *x, const double *w, long n)
+{
+    double sum = 0.0;
+    long i;
+
+    for (i = 0; i < n; ++i)
+        sum += (x[i] * w[i]) * (x[i] * w[i]);
+    return sqrt(sum / (double)n);
+}
+
+/* One convergence test of CVODE's (cvNlsConvTest) on the correction of norm del at iteration m
+ * (0 first) with the rate *crate and the last norm *delp: 0 converged, LCG_NLS_CONTINUE, or
+ * LCG_NLS_CONV_RECVR (diverging). */
+static int nls_test(double del, int m, double tol, double *crate, double *delp)
+{
+    if (m > 0)
+        *crate = fmax(LCG_NLS_CRDOWN * *crate, del / *delp);
+    if (del * fmin(1.0, *crate) / tol <= 1.0)
+        return 0;
+    if (m >= 1 && del > LCG_NLS_RDIV * *delp)
+        return LCG_NLS_CONV_RECVR;
+    *delp = del;
+    return LCG_NLS_CONTINUE;
+}
+
+/* The states' Newton iteration from c = 0 (c: their correction to the predicted ypred). */
+static int nls_states(sens_data *d, double t, const double *ypred, const double *zn1, const double *w, double *c,
+                      double gamma, double rl1, double tol, int *setup, int *jbad, long nst, int *jcur)
+{
+    const int ny = d->m->ny;
+    double *y = d->ytmp, *f = d->ftmp, *delta = d->f1, del, delp = 0.0;
+    int i, m, flag;
+
+    for (i = 0; i < ny; ++i) {
+        c[i] = 0.0;
+        y[i] = ypred[i];
+    }
+    if ((flag = nls_states_rhs(d, t, y, f)) != 0)
+        return flag;
+    if (*setup) {
+        flag = nls_setup(d, t, y, gamma, nst, *jbad, jcur);
+        *setup = 0;
+        if (flag != 0)
+            return flag;
+    }
+    for (m = 0;; ++m) {
+        d->nls_iters++;
+        for (i = 0; i < ny; ++i)
+            delta[i] = -(rl1 * zn1[i] + c[i] - gamma * f[i]);
+        nls_lsolve(d, delta, gamma);
+        for (i = 0; i < ny; ++i)
+            c[i] += delta[i];
+        del = nls_wrms(delta, w, ny);
+        flag = nls_test(del, m, tol, &d->crate, &delp);
+        if (flag != LCG_NLS_CONTINUE)
+            return flag;
+        if (m + 1 >= LCG_NLS_MAXCOR)
+            return LCG_NLS_CONV_RECVR;
+        for (i = 0; i < ny; ++i)
+            y[i] = ypred[i] + c[i];
+        if ((flag = nls_states_rhs(d, t, y, f)) != 0)
+            return flag;
+    }
+}
+
+/* The sensitivities' iteration from cs = 0 at the converged state ypred + c (cs: their
+ * correction, ny ns values after the states'). Its weights: those of CVODE's error test (ewt,
+ * after the states') when the sensitivities are in it (errcon, CVODES's ewtS), else from the
+ * predicted sensitivities and the states' tolerances. */
+static int nls_sens(sens_data *d, double t, const double *ypred, const double *zn1, const double *ewt,
+                    const double *c, double *cs, double gamma, double rl1, double tol)
+{
+    const int ny = d->m->ny;
+    const long nsy = (long)ny * d->ns;
+    double *y = d->ytmp, *s = d->ytmp + ny, *delta = d->ftmp + ny, del, delp = 0.0;
+    const double *w = d->errcon ? ewt + ny : d->wsens;
+    long i;
+    int j, m, flag;
+
+    for (i = 0; i < ny; ++i)
+        y[i] = ypred[i] + c[i];
+    for (i = 0; i < nsy; ++i)
+        cs[i] = 0.0;
+    if (!d->errcon)
+        for (i = 0; i < nsy; ++i)
+            d->wsens[i] = 1.0 / (d->rtol * fabs(ypred[ny + i]) + d->atol[i % ny]);
+    for (m = 0;; ++m) {
+        if (WATCH_TICK(&d->w))
+            return LCG_CV_RHSFUNC_FAIL; /* stop: cancelled or out of time */
+        for (i = 0; i < nsy; ++i)
+            s[i] = ypred[ny + i] + cs[i];
+        d->nrhs_sens++;
+        d->nsens_iters++;
+        flag = nls_flag(model_status(d, d->sens_rhs(t, y, d->p, d->ns, d->which, s, d->ftmp, delta), t));
+        if (flag != 0)
+            return flag;
+        for (i = 0; i < nsy; ++i)
+            delta[i] = -(rl1 * zn1[ny + i] + cs[i] - gamma * delta[i]);
+        for (j = 0; j < d->ns; ++j)
+            nls_lsolve(d, delta + (long)j * ny, gamma);
+        for (i = 0; i < nsy; ++i)
+            cs[i] += delta[i];
+        del = nls_wrms(delta, w, nsy);
+        flag = nls_test(del, m, tol, &d->crate_s, &delp);
+        if (flag != LCG_NLS_CONTINUE)
+            return flag;
+        if (m + 1 >= LCG_NLS_MAXCOR)
+            return LCG_NLS_CONV_RECVR;
+    }
+}
+
+/* SUNNonlinSolSolve: the correction c (= ycor, zero on entry) of the augmented state from the
+ * prediction ypred, with CVODE's data of the step (CVodeGetNonlinearSystemData); the states
+ * first, then the sensitivities. Decides on a new matrix as CVODE's cvNls and cvLsSetup do
+ * (callLSetup is always false here: CVODE has no linear solver to set up). */
+static int nls_solve(SUNNonlinearSolver S, N_Vector y0, N_Vector ycor, N_Vector wv, double tol, int callLSetup,
+                     void *mem)
+{
+    sens_data *d = NLS_DATA(S);
+    const int ny = d->m->ny;
+    double t, gamma, rl1, *ypred, *c, *zn1, *w;
+    N_Vector vpred, vyn, vfn, vzn1;
+    void *ud;
+    long nst = 0, netf = 0;
+    int setup, jbad, jcur = 0, flag, other;
+    (void)callLSetup;
+    (void)mem;
+
+    if (d->probe) {
+        d->probe_hit = 4;
+        return 0;
+    }
+    d->nls_iters = d->nls_fails = 0;
+    if (CVodeGetNonlinearSystemData(d->mem, &t, &vpred, &vyn, &vfn, &gamma, &rl1, &vzn1, &ud) != 0)
+        return LCG_CV_RHSFUNC_FAIL;
+    ypred = N_VGetArrayPointer(y0);
+    c = N_VGetArrayPointer(ycor);
+    zn1 = N_VGetArrayPointer(vzn1);
+    w = N_VGetArrayPointer(wv);
+    CVodeGetNumSteps(d->mem, &nst);
+    CVodeGetNumErrTestFails(d->mem, &netf);
+    /* CVODE's cvNls: a new matrix after a failure of either kind, on the first step, every
+     * LCG_NLS_MSBP steps and when gamma moved; the Jacobian (cvLsSetup) after a convergence
+     * failure, on the first step and every LCG_CVSENS_MSBJ steps */
+    other = d->last_failed;
+    setup = !d->have_A || other || netf > d->netf_seen || nst == 0 || nst >= d->nstlp + LCG_NLS_MSBP
+            || fabs(gamma / d->gammap - 1.0) > LCG_NLS_DGMAX;
+    jbad = nst == 0 || nst >= d->nst_J + LCG_CVSENS_MSBJ || other;
+    d->netf_seen = netf;
+    for (;;) {
+        flag = nls_states(d, t, ypred, zn1, w, c, gamma, rl1, tol, &setup, &jbad, nst, &jcur);
+        if (flag == 0 && d->ns > 0)
+            flag = nls_sens(d, t, ypred, zn1, w, c, c + ny, gamma, rl1, tol);
+        if (flag == 0) {
+            d->last_failed = 0;
+            return 0;
+        }
+        d->nls_fails++;
+        if (flag != LCG_NLS_CONV_RECVR || jcur || !d->have_A)
+            break;
+        /* not converged with an old Jacobian: a new one (CVODE's Newton solver retries so,
+         * jbad when gamma is near the matrix's) and the whole correction again */
+        setup = 1;
+        jbad = nst == 0 || nst >= d->nst_J + LCG_CVSENS_MSBJ || fabs(gamma / d->gammap - 1.0) < LCG_NLS_DGMAX_JBAD;
+    }
+    d->last_failed = flag > 0;
+    return flag;
+}
+
+/* The corrector's state and counters for a new run (or a restart of the stepper). */
+static void corrector_reset(sens_data *d)
+{
+    d->have_J = d->have_A = 0;
+    d->gamma = d->gammap = 0.0;
+    d->crate = d->crate_s = 1.0;
+    d->nstlp = d->netf_seen = 0;
+    d->last_failed = 0;
+    d->nsetups = d->nsens_iters = d->nrhs_states = d->nrhs_sens = 0;
+}
+
+/* A function to hand to the setters while the layout is checked (never called). */
+static int nls_dummy(void) { return 0; }
+
+/* The staggered solver on the empty solver NLS of the context ctx, solving for d: its layout
+ * checked (the context in its place; each operation CVODE uses reached through SUNDIALS's
+ * dispatch). 0, or LCG_FLAG_BAD_INPUT with the reason in message. */
+static int nls_attach(SUNNonlinearSolver NLS, SUNContext ctx, sens_data *d, char *message, size_t size)
+{
+    lcg_nls_object *obj = (lcg_nls_object *)NLS;
+    lcg_nls_ops *ops;
+    long n = 0;
+    int k = 0, ok;
+
+    if (obj->sunctx != ctx || obj->ops == NULL) {
+        snprintf(message, size, "the SUNDIALS %s nonlinear solver object has another layout than "
+                 "the sensitivity driver's (SUNDIALS 7.9)", LCG_SUNDIALS_VERSION);
+        return LCG_FLAG_BAD_INPUT;
+    }
+    ops = obj->ops;
+    obj->content = d;
+    ops->gettype = nls_type;
+    ops->initialize = nls_initialize;
+    ops->setup = NULL; /* CVODE calls a setup only if there is one */
+    ops->solve = nls_solve;
+    ops->free = nls_free;
+    ops->setsysfn = nls_setsysfn;
+    ops->setsysfns = nls_setsysfns;
+    ops->setlsetupfn = nls_setlsetupfn;
+    ops->setlsolvefn = nls_setlsolvefn;
+    ops->setctestfn = nls_setctestfn;
+    ops->setnormfn = nls_setnormfn;
+    ops->setgetupdatenormfn = nls_setupdnormfn;
+    ops->setgetconvratefn = nls_setconvratefn;
+    ops->setoptions = nls_setoptions;
+    ops->setmaxiters = nls_setmaxiters;
+    ops->getnumiters = nls_getnumiters;
+    ops->getcuriter = nls_getcuriter;
+    ops->getnumconvfails = nls_getnumconvfails;
+    d->probe = 1;
+    ok = SUNNonlinSolGetType(NLS) == 77 && d->probe_hit == 1;
+#define NLS_CHECK(call, place) (d->probe_hit = 0, (void)(call), d->probe_hit == (place))
+    ok = ok && NLS_CHECK(SUNNonlinSolInitialize(NLS), 2);
+    ok = ok && NLS_CHECK(SUNNonlinSolSolve(NLS, NULL, NULL, NULL, 1.0, 0, NULL), 4);
+    ok = ok && NLS_CHECK(SUNNonlinSolSetSysFn(NLS, nls_dummy), 6);
+    ok = ok && NLS_CHECK(SUNNonlinSolSetLSetupFn(NLS, nls_dummy), 8);
+    ok = ok && NLS_CHECK(SUNNonlinSolSetLSolveFn(NLS, nls_dummy), 9);
+    ok = ok && NLS_CHECK(SUNNonlinSolSetConvTestFn(NLS, nls_dummy, d), 10);
+    ok = ok && NLS_CHECK(SUNNonlinSolSetMaxIters(NLS, LCG_NLS_MAXCOR), 15);
+    ok = ok && NLS_CHECK(SUNNonlinSolGetNumIters(NLS, &n), 16);
+    ok = ok && NLS_CHECK(SUNNonlinSolGetCurIter(NLS, &k), 17);
+    ok = ok && NLS_CHECK(SUNNonlinSolGetNumConvFails(NLS, &n), 18);
+#undef NLS_CHECK
+    d->probe = 0;
+    if (!ok) {
+        obj->content = NULL;
+        snprintf(message, size, "the SUNDIALS %s nonlinear solver operations have another layout "
+                 "than the sensitivity driver's (SUNDIALS 7.9)", LCG_SUNDIALS_VERSION);
+        return LCG_FLAG_BAD_INPUT;
+    }
+    return 0;
+}
+
+/* The corrector that opt chooses (opt->corrector: LCG_CVSENS_STAGGERED, this file's nonlinear
+ * solver; LCG_CVSENS_SIMULTANEOUS, CVODE's Newton solver with this file's block linear solver)
+ * on d's CVODE memory, after CVodeInit: *LS or *NLS made in the context ctx (free them with
+ * corrector_free after CVodeFree). 0, or a negative flag (LCG_FLAG_BAD_INPUT with the reason in
+ * message, LCG_FLAG_NOMEM, or CVODE's). */
+static int corrector_attach(sens_data *d, const lcg_cvsens_options *opt, SUNContext ctx, SUNLinearSolver *LS,
+                            SUNNonlinearSolver *NLS, char *message, size_t size)
+{
+    const long total = (long)d->m->ny * (1 + d->ns);
+    int flag;
+
+    d->staggered = opt->corrector != LCG_CVSENS_SIMULTANEOUS;
+    d->bdf = opt->method == CV_BDF;
+    d->rtol = opt->rtol;
+    d->atol = opt->atol;
+    d->errcon = d->ns > 0 && opt->atol[d->m->ny] < 1e200; /* sens_options: 1e300 without errcon */
+    corrector_reset(d);
+    if (!d->staggered) {
+        if ((*LS = SUNLinSolNewEmpty(ctx)) == NULL)
+            return LCG_FLAG_NOMEM;
+        if ((flag = ls_attach(*LS, ctx, d, message, size)) < 0)
+            return flag;
+        return CVodeSetLinearSolver(d->mem, *LS, NULL);
+    }
+    d->ytmp = (double *)malloc(sizeof(double) * (size_t)total);
+    d->ftmp = (double *)malloc(sizeof(double) * (size_t)total);
+    d->wsens = (double *)malloc(sizeof(double) * (size_t)(total - d->m->ny + 1));
+    d->Ainv = (double *)malloc(sizeof(double) * (size_t)d->m->ny * (size_t)d->m->ny);
+    d->xtmp = (double *)malloc(sizeof(double) * (size_t)d->m->ny);
+    if (d->ytmp == NULL || d->ftmp == NULL || d->wsens == NULL || d->Ainv == NULL || d->xtmp == NULL
+        || (*NLS = SUNNonlinSolNewEmpty(ctx)) == NULL)
+        return LCG_FLAG_NOMEM;
+    if ((flag = nls_attach(*NLS, ctx, d, message, size)) < 0)
+        return flag;
+    return CVodeSetNonlinearSolver(d->mem, *NLS);
+}
+
+/* The statistics of the corrector into st, after CVODE's own: the staggered one's setups, its
+ * evaluations of the states' and the sensitivities' right-hand sides and its sensitivity iterations. */
+static void corrector_stats(const sens_data *d, lcg_cvsens_stats *st)
+{
+    if (!d->staggered)
+        return;
+    st->nlinsetups = d->nsetups;
+    st->nrhs += d->nrhs_sens;
+    st->nrhs_states = d->nrhs_states;
+    st->nsens_iters = d->nsens_iters;
+}
+
+/* Free what corrector_attach made (after CVodeFree). */
+static void corrector_free(sens_data *d, SUNLinearSolver LS, SUNNonlinearSolver NLS)
+{
+    if (LS != NULL) {
+        ((lcg_ls_object *)LS)->content = NULL;
+        SUNLinSolFreeEmpty(LS);
+    }
+    if (NLS != NULL) {
+        ((lcg_nls_object *)NLS)->content = NULL;
+        SUNNonlinSolFreeEmpty(NLS);
+    }
+    free(d->ytmp);
+    free(d->ftmp);
+    free(d->wsens);
+    free(d->Ainv);
+    free(d->xtmp);
+    d->ytmp = d->ftmp = d->wsens = d->Ainv = d->xtmp = NULL;
+}
+
 int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
                      int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
                      double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
@@ -399,6 +943,7 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     void *mem = NULL;
     N_Vector y = NULL, abstol = NULL;
     SUNLinearSolver LS = NULL;
+    SUNNonlinearSolver NLS = NULL;
     sens_data data;
     double *yv;
     long nst = 0, total;
@@ -440,15 +985,12 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     y = N_VNew_Serial((sunindextype)total, ctx);
     abstol = N_VNew_Serial((sunindextype)total, ctx);
     mem = CVodeCreate(opt->method, ctx);
-    LS = SUNLinSolNewEmpty(ctx);
     if (data.J == NULL || data.A == NULL || data.piv == NULL || data.f0 == NULL || data.f1 == NULL
-        || data.y1 == NULL || data.vals == NULL || y == NULL || abstol == NULL || mem == NULL || LS == NULL) {
+        || data.y1 == NULL || data.vals == NULL || y == NULL || abstol == NULL || mem == NULL) {
         flag = LCG_FLAG_NOMEM;
         goto done;
     }
     data.mem = mem;
-    if ((flag = ls_attach(LS, ctx, &data, st->message, sizeof st->message)) < 0)
-        goto done;
 
     yv = N_VGetArrayPointer(y);
     for (i = 0; i < ny; ++i)
@@ -472,7 +1014,7 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     if ((flag = CVodeSVtolerances(mem, opt->rtol, abstol)) < 0)
         goto done;
     CVodeSetUserData(mem, &data);
-    if ((flag = CVodeSetLinearSolver(mem, LS, NULL)) < 0)
+    if ((flag = corrector_attach(&data, opt, ctx, &LS, &NLS, st->message, sizeof st->message)) < 0)
         goto done;
     CVodeSetMaxHnilWarns(mem, -1);
     if (data.project != NULL) {
@@ -542,6 +1084,7 @@ done:
         CVodeGetNumNonlinSolvIters(mem, &st->nniters);
         CVodeGetNumNonlinSolvConvFails(mem, &st->nncfails);
         CVodeGetLastStep(mem, &st->h_last);
+        corrector_stats(&data, st);
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
@@ -553,10 +1096,7 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL) {
-        ((lcg_ls_object *)LS)->content = NULL;
-        SUNLinSolFreeEmpty(LS);
-    }
+    corrector_free(&data, LS, NLS);
     if (abstol != NULL)
         N_VDestroy(abstol);
     if (y != NULL)

@@ -4,8 +4,9 @@
  * ODE by CVODE, the right-hand side of both from the model's generated <prefix>_sens_rhs (one
  * factorization of the mass matrix per call), the Newton systems solved block by block with the
  * states' matrix I - gamma J (J = df/dy of the model's table: its Jacobian, or difference
- * quotients of its right-hand side): the simultaneous corrector of CVODES with the off-diagonal
- * blocks of the augmented Jacobian dropped from the Newton matrix. Model-independent: compiled
+ * quotients of its right-hand side), the off-diagonal blocks of the augmented Jacobian dropped
+ * from the Newton matrix: CVODES's staggered corrector (the states converge first, then the
+ * sensitivities) or its simultaneous one (options.corrector). Model-independent: compiled
  * once per installation and SUNDIALS version. */
 #ifndef LCG_CVSENS_H
 #define LCG_CVSENS_H
@@ -40,13 +41,22 @@ typedef struct lcg_cvsens_options {
     double poll_every;
     double max_wall;       /* wall-clock limit in seconds (0: none) */
     lcg_sens_proj_fn project; /* NULL: none; else the projection after each step (method BDF) */
+    int corrector;         /* LCG_CVSENS_STAGGERED (0) or LCG_CVSENS_SIMULTANEOUS (1) */
 } lcg_cvsens_options;
+
+/* The corrector: staggered (CVODES's CV_STAGGERED: the Newton iteration on the states alone, then
+ * the sensitivities, linear, with the same matrix, usually one evaluation per step) or
+ * simultaneous (CVODES's CV_SIMULTANEOUS: every direction in every Newton iteration). */
+#define LCG_CVSENS_STAGGERED 0
+#define LCG_CVSENS_SIMULTANEOUS 1
 
 typedef struct lcg_cvsens_stats {
     long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
     long njac;             /* Jacobians of the states evaluated */
     long nfactor;          /* factorizations of I - gamma J */
     long nblock_solves;    /* block solves (one per block per linear solve) */
+    long nrhs_states;      /* staggered: the states' right-hand sides of its Newton iterations */
+    long nsens_iters;      /* staggered: its sensitivity iterations (one sens_rhs each, in nrhs) */
     double h_last, t_reached;
     int nt_done, model_error, flag;
     char message[256];

@@ -2,8 +2,9 @@
  * that lives between calls (see lcg_cvsens_stepper.h).
  *
  * One translation unit with the sensitivity driver lcg_cvsens.c, included here, so that CVODE
- * calls the driver's own augmented right-hand side, block Newton solver (ls_attach, ls_solve: the
- * states' matrix I - gamma J for every block) and root function with the same options; a grid
+ * calls the driver's own augmented right-hand side, corrector (corrector_attach: the staggered
+ * nonlinear solver or the block linear solver, the states' matrix I - gamma J for every block)
+ * and root function with the same options; a grid
  * from a fresh stepper gives the numbers of lcg_cvsens_solve on the same times. Events: the
  * driver's root finding (sens_roots_init, sens_record), recorded per call; a root within rounding
  * of the time CVODE (re)started from is not reported, as in lcg_cvsens_solve_events. The module
@@ -38,6 +39,7 @@ struct lcg_cvsens_stepper {
     void *mem;
     N_Vector yv, abstol;
     SUNLinearSolver LS;
+    SUNNonlinearSolver NLS;
 };
 
 void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
@@ -46,10 +48,7 @@ void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
         return;
     if (x->mem != NULL)
         CVodeFree(&x->mem);
-    if (x->LS != NULL) {
-        ((lcg_ls_object *)x->LS)->content = NULL;
-        SUNLinSolFreeEmpty(x->LS);
-    }
+    corrector_free(&x->data, x->LS, x->NLS);
     if (x->abstol != NULL)
         N_VDestroy(x->abstol);
     if (x->yv != NULL)
@@ -140,13 +139,10 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
     x->yv = N_VNew_Serial((sunindextype)x->total, x->ctx);
     x->abstol = N_VNew_Serial((sunindextype)x->total, x->ctx);
     x->mem = CVodeCreate(opt->method, x->ctx);
-    x->LS = SUNLinSolNewEmpty(x->ctx);
     if (d->J == NULL || d->A == NULL || d->piv == NULL || d->f0 == NULL || d->f1 == NULL || d->y1 == NULL
-        || d->vals == NULL || x->yv == NULL || x->abstol == NULL || x->mem == NULL || x->LS == NULL)
+        || d->vals == NULL || x->yv == NULL || x->abstol == NULL || x->mem == NULL)
         return LCG_FLAG_NOMEM;
     d->mem = x->mem;
-    if ((flag = ls_attach(x->LS, x->ctx, d, message, size)) < 0)
-        return flag;
     xs_load(x);
     for (i = 0; i < x->total; ++i)
         N_VGetArrayPointer(x->abstol)[i] = x->atol[i];
@@ -155,7 +151,7 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
     if ((flag = CVodeSVtolerances(x->mem, opt->rtol, x->abstol)) < 0)
         return flag;
     CVodeSetUserData(x->mem, d);
-    if ((flag = CVodeSetLinearSolver(x->mem, x->LS, NULL)) < 0)
+    if ((flag = corrector_attach(d, opt, x->ctx, &x->LS, &x->NLS, message, size)) < 0)
         return flag;
     CVodeSetMaxHnilWarns(x->mem, -1);
     if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(x->mem, opt->max_order)) < 0)
@@ -305,8 +301,7 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
         xs_load(x);
         if ((flag = CVodeReInit(x->mem, t, x->yv)) < 0)
             goto out;
-        d->have_J = 0; /* as a new run: the states' Jacobian evaluated at the first solve */
-        d->gamma = 0.0;
+        corrector_reset(d); /* as a new run: the states' Jacobian evaluated at the first solve */
         x->restart = 0;
         x->t_start = t;
     }
@@ -362,6 +357,7 @@ out:
     CVodeGetNumErrTestFails(x->mem, &st->netfails);
     CVodeGetNumNonlinSolvIters(x->mem, &st->nniters);
     CVodeGetNumNonlinSolvConvFails(x->mem, &st->nncfails);
+    corrector_stats(&x->data, st);
     CVodeGetLastStep(x->mem, &st->h_last);
     if (st->model_error == 0)
         st->t_reached = x->tv[0];

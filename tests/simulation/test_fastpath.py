@@ -299,3 +299,17 @@ def test_a_failed_fast_sensitivity_run_fails_as_on_the_full_path(double_pendulum
     assert str(info.value) == str(full.value)
     with pytest.raises(LagcodegenError, match="non-finite"):
         cm.simulate(t, y0=np.array([np.nan, 0.0, 0.0, 0.0]), sensitivities=["g"], method=method)
+
+
+def test_the_fast_sensitivity_run_honours_the_corrector(double_pendulum):
+    """sensitivity_corrector="simultaneous" on the fast path: bit-identical to its full path, and
+    another run than the staggered default's (different Newton counts)."""
+    cm = double_pendulum
+    t = np.linspace(0.0, 2.0, 11)
+    opts = dict(q0=[0.7, -0.3], rtol=1e-9, atol=1e-9, sensitivities=["g", "l1"], sensitivity_corrector="simultaneous")
+    cm.simulate(t, **opts)
+    fast = cm.simulate(t, **opts)
+    assert isinstance(fast, LazyResult)
+    assert_same_sensitivities(fast, cm._simulate(t, **opts))
+    staggered = cm.simulate(t, **dict(opts, sensitivity_corrector="staggered"))
+    assert staggered.stats["nniters"] != fast.stats["nniters"]

@@ -23,7 +23,8 @@ BACKENDS = ("native", "sksundae")
 #: max_events: a prepared run has no events; sensitivities: their own prepared run).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "method", "backend", "max_order", "first_step",
                        "min_step", "linear_solver", "bandwidths", "jacobian", "max_events", "sensitivities",
-                       "sensitivity_errcon", "baumgarte", "projection", "proj_tol", "proj_maxit"))
+                       "sensitivity_errcon", "sensitivity_corrector", "baumgarte", "projection", "proj_tol",
+                       "proj_maxit"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -44,7 +45,10 @@ class CVODE(Family):
     constrained systems (native; index-1: :mod:`.sensitivity_constrained`):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``; :mod:`.sensitivity`), ``sensitivity_errcon`` the sensitivities in the error
-    test (default True, CVODES's errconS); in runs with events (:mod:`.sensitivity_events`),
+    test (default True, CVODES's errconS), ``sensitivity_corrector`` "staggered" (CVODES's
+    CV_STAGGERED: the Newton iteration converges on the states alone, then the sensitivities are
+    corrected with the same matrix; the default, cheaper) or "simultaneous" (every direction in
+    every Newton iteration); in runs with events (:mod:`.sensitivity_events`),
     ensembles (:mod:`.sensitivity_ensemble`) and the integrator object (:mod:`.sensitivity_stepper`).
     """
 
@@ -54,7 +58,7 @@ class CVODE(Family):
     only = {"linear_solver": ("ode",), "bandwidths": ("ode",), "jacobian": ("ode",), "baumgarte": ("index1",),
             "projection": ("index1",), "proj_tol": ("index1",), "proj_maxit": ("index1",),
             "max_events": ("index1", "ode"), "sensitivities": ("ode", "index1"),
-            "sensitivity_errcon": ("ode", "index1")}
+            "sensitivity_errcon": ("ode", "index1"), "sensitivity_corrector": ("ode", "index1")}
 
     method: str | None = None
     backend: str = "native"
@@ -71,6 +75,7 @@ class CVODE(Family):
     max_events: int | None = None
     sensitivities: tuple[str, ...] | None = None
     sensitivity_errcon: bool = True
+    sensitivity_corrector: str = "staggered"
 
     def __post_init__(self):
         super().__post_init__()
@@ -83,6 +88,7 @@ class CVODE(Family):
         if self.method is not None:
             choice("method", self.method, tuple(METHODS))
         choice("backend", self.backend, BACKENDS)
+        choice("sensitivity_corrector", self.sensitivity_corrector, ("staggered", "simultaneous"))
         choice("linear_solver", self.linear_solver, LINEAR_SOLVERS)
         if self.linear_solver != "dense" and self.backend != "native":
             raise LagcodegenError(f"linear_solver={self.linear_solver!r} needs backend='native'")
@@ -175,7 +181,7 @@ class CVODE(Family):
             return None
         return PreparedSensitivityRun(cm, self.sensitivities, rtol=rtol, atol=atol,
                                       errcon=bool(self.sensitivity_errcon), max_wall=float(self.max_wall),
-                                      fixed=fixed, **opts)
+                                      fixed=fixed, corrector=self.sensitivity_corrector, **opts)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
@@ -205,7 +211,7 @@ class CVODE(Family):
                              method=opts["method"], jacobian=opts["jacobian"], max_steps=opts["max_steps"],
                              first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
                              max_order=opts["max_order"], max_wall=float(self.max_wall), events=compiled,
-                             max_events=max_events)
+                             max_events=max_events, corrector=self.sensitivity_corrector)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
@@ -250,7 +256,8 @@ class CVODE(Family):
                                       max_steps=opts["max_steps"], max_order=opts["max_order"],
                                       first_step=opts["first_step"], max_step=opts["max_step"],
                                       min_step=opts["min_step"], max_wall=float(self.max_wall), events=compiled,
-                                      max_events=64 if self.max_events is None else self.max_events)
+                                      max_events=64 if self.max_events is None else self.max_events,
+                                      corrector=self.sensitivity_corrector)
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables

@@ -39,7 +39,7 @@ class PreparedSensitivityRun:
 
     def __init__(self, cm, names, *, method: str, rtol: float, atol: float, errcon: bool, jacobian: bool,
                  max_steps: int, first_step: float, max_step: float, min_step: float, max_order: int,
-                 max_wall: float, fixed: dict):
+                 max_wall: float, fixed: dict, corrector: str = "staggered"):
         self.names, which, s0 = directions(cm, names)
         self.fns = fns = functions(cm)
         self.ffi = ffi = fns.rt.ffi
@@ -47,7 +47,7 @@ class PreparedSensitivityRun:
         self.opt, self._atol = sens_options(ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=cm.ny,
                                             ns=self.ns, errcon=errcon, max_steps=max_steps, jacobian=jacobian,
                                             max_order=max_order, first_step=first_step, max_step=max_step,
-                                            min_step=min_step, max_wall=max_wall)
+                                            min_step=min_step, max_wall=max_wall, corrector=corrector)
         self._which = np.ascontiguousarray(which)
         self._s0 = np.ascontiguousarray(s0)
         self.which_ptr = ffi.from_buffer("int[]", self._which)

@@ -1,13 +1,16 @@
 """Forward sensitivities on CVODE: the model's sensitivity functions (``<prefix>_sens.c``,
 :mod:`lagcodegen.codegen.sensitivity`) compiled on first use per compiled model, and one call of
 the runtime's sensitivity driver (``lagcodegen/runtime/lcg_cvsens.c``: the augmented ODE with
-the states' Newton matrix reused for every sensitivity block, CVODES's simultaneous corrector).
+the states' Newton matrix reused for every sensitivity block; CVODES's staggered corrector by
+default, its simultaneous one on request: ``corrector``, :data:`CORRECTORS`).
 
 Directions: a run-time parameter by its name, a coordinate's initial value ``"<q>(0)"``, its
 initial velocity ``"<q>_dot(0)"`` (also ``"<state>(0)"`` for any state name). Error control on
 the sensitivities (``errcon``, CVODES's errconS) is on by default: the sensitivities enter
 CVODE's error test and Newton convergence test with the states' tolerances; off, they are left
-out of both (weights ~1e-300) and are then only as accurate as the steps chosen for the states.
+out of the error test (weights ~1e-300) and are then only as accurate as the steps chosen for the
+states (the staggered corrector still iterates them to its convergence test with the states'
+tolerances; the simultaneous one leaves them out of that test too).
 """
 
 from __future__ import annotations
@@ -52,12 +55,15 @@ typedef struct lcg_cvsens_options {
     double poll_every;
     double max_wall;
     lcg_sens_proj_fn project;
+    int corrector;
 } lcg_cvsens_options;
 typedef struct lcg_cvsens_stats {
     long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
     long njac;
     long nfactor;
     long nblock_solves;
+    long nrhs_states;
+    long nsens_iters;
     double h_last, t_reached;
     int nt_done, model_error, flag;
     char message[256];
@@ -70,6 +76,7 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
 
 #: The statistics of a sensitivity run (Result.stats).
 STATS = ("nsteps", "nrhs", "nlinsetups", "netfails", "nniters", "nncfails", "njac", "nfactor", "nblock_solves",
+         "nrhs_states", "nsens_iters",
          "h_last", "t_reached", "model_error")
 
 
@@ -173,12 +180,20 @@ def parse_directions(names, *, params: list, states: list, n: int, ny: int, fold
     return names, np.array(which, dtype=np.intc), s0
 
 
+#: The driver's correctors (lcg_cvsens.h: LCG_CVSENS_STAGGERED, LCG_CVSENS_SIMULTANEOUS).
+CORRECTORS = {"staggered": 0, "simultaneous": 1}
+
+
 def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int, errcon: bool, max_steps: int,
                  jacobian: bool, max_order: int, first_step: float, max_step: float, min_step: float,
-                 max_wall: float):
+                 max_wall: float, corrector: str = "staggered"):
     """(the driver's ``lcg_cvsens_options`` struct made by ``ffi`` with the Ctrl-C ``poll`` function, the tolerance array it points to: keep it
     alive with the struct): the states' absolute tolerances ``atol`` (scalar or ny values) repeated
-    for each of the ns directions, or effectively none for them without ``errcon``."""
+    for each of the ns directions, or effectively none for them without ``errcon``; ``corrector``
+    one of :data:`CORRECTORS`."""
+    if corrector not in CORRECTORS:
+        raise LagcodegenError(f"sensitivity_corrector must be one of {', '.join(map(repr, CORRECTORS))}, "
+                              f"not {corrector!r}")
     atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
     atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
     opt = ffi.new("lcg_cvsens_options *")
@@ -190,6 +205,7 @@ def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int,
     opt.max_order = int(max_order)
     opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
     opt.poll, opt.poll_every, opt.max_wall = poll, POLL_EVERY, float(max_wall)
+    opt.corrector = CORRECTORS[corrector]
     return opt, atol_all
 
 
@@ -197,7 +213,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
                         method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
                         max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
                         min_step: float = 0.0, max_wall: float = 0.0, events=None,
-                        max_events: int = 10_000) -> Result:
+                        max_events: int = 10_000, corrector: str = "staggered") -> Result:
     """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
     ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
     time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names.
@@ -217,7 +233,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     dout = np.empty((nt, ns, max(nout, 1)))
     opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
                                  max_steps=max_steps, jacobian=jacobian, max_order=max_order, first_step=first_step,
-                                 max_step=max_step, min_step=min_step, max_wall=max_wall)
+                                 max_step=max_step, min_step=min_step, max_wall=max_wall, corrector=corrector)
     st = ffi.new("lcg_cvsens_stats *")
     fb = ffi.from_buffer
     p_ptr = fb("double[]", p) if p.size else ffi.NULL
@@ -272,7 +288,8 @@ def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, at
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
                                first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
                                max_wall=float(family.max_wall), events=events,
-                               max_events=10_000 if family.max_events is None else family.max_events)
+                               max_events=10_000 if family.max_events is None else family.max_events,
+                               corrector=family.sensitivity_corrector)
 
 
 def check_family(family) -> None:
@@ -296,7 +313,8 @@ class PreparedSensitivities:
 
     def __init__(self, cm, t: np.ndarray, names, *, rtol: float, atol: np.ndarray, method: str = "adams",
                  errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000, max_order: int = 0,
-                 first_step: float = 0.0, max_step: float = 0.0, min_step: float = 0.0, max_wall: float = 0.0):
+                 first_step: float = 0.0, max_step: float = 0.0, min_step: float = 0.0, max_wall: float = 0.0,
+                 corrector: str = "staggered"):
         if method not in ("adams", "bdf"):
             raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
         self.names, which, s0 = directions(cm, names)
@@ -315,7 +333,8 @@ class PreparedSensitivities:
         self.dout = np.empty((nt, ns, max(nout, 1)))
         opt, self._atol = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
                                        max_steps=max_steps, jacobian=jacobian, max_order=max_order,
-                                       first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall)
+                                       first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall,
+                                       corrector=corrector)
         self._opt = opt
         self._st = ffi.new("lcg_cvsens_stats *")
         fb = ffi.from_buffer
@@ -351,4 +370,5 @@ def prepare(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float
     return PreparedSensitivities(cm, t, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
                                  jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
                                  first_step=opts["first_step"], max_step=opts["max_step"],
-                                 min_step=opts["min_step"], max_wall=float(family.max_wall))
+                                 min_step=opts["min_step"], max_wall=float(family.max_wall),
+                                 corrector=family.sensitivity_corrector)

@@ -140,7 +140,8 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
                                  errcon=bool(family.sensitivity_errcon), max_steps=family.max_steps, jacobian=True,
                                  max_order=family.max_order, first_step=family.first_step,
-                                 max_step=family.max_step, min_step=family.min_step, max_wall=family.max_wall)
+                                 max_step=family.max_step, min_step=family.min_step, max_wall=family.max_wall,
+                                 corrector=family.sensitivity_corrector)
     if projection:
         opt.project = fns.project
     st = ffi.new("lcg_cvsens_stats *")

@@ -67,7 +67,8 @@ class CVSensStepper:
 
     def __init__(self, cm, mem: np.ndarray, names, *, rtol: float, atol, errcon: bool, method: str,
                  jacobian: bool, max_steps: int, first_step: float, max_step: float, min_step: float,
-                 max_order: int, max_wall: float = 0.0, events=None, max_events: int = 10_000):
+                 max_order: int, max_wall: float = 0.0, events=None, max_events: int = 10_000,
+                 corrector: str = "staggered"):
         names, which, s0 = directions(cm, names)
         fns = functions(cm)
         rt = stepper_runtime()
@@ -82,7 +83,8 @@ class CVSensStepper:
         rhs = ffi.cast("lcg_sens_rhs_fn", int(fns.rt.ffi.cast("uintptr_t", fns.rhs)))
         opt, atol_all = sens_options(ffi, install(rt), method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
                                      errcon=errcon, max_steps=max_steps, jacobian=jacobian, max_order=max_order,
-                                     first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall)
+                                     first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall,
+                                     corrector=corrector)
         self.compiled = events
         self.events = list(events.events) if events is not None else []
         self._native = SensEvents(ffi, events, ny, ns, max_events) if self.events else None
