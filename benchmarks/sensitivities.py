@@ -510,9 +510,8 @@ def taylor_cost_rows(label, sim, ps, rounds):
 
 def heyoka_explicit(model, sim):
     """(system, state variables, parameters) of heyoka for q'' = M^-1 F of ``model`` (M and F from
-    sympy, the run-time parameters as heyoka parameters in their order; M eliminated symbolically
-    by Gaussian elimination without pivoting, as benchmarks/taylor.py does: M is positive
-    definite); None without heyoka."""
+    sympy, the run-time parameters as heyoka parameters in their order; M eliminated symbolically,
+    ``H.eliminate``, as benchmarks/taylor.py does); None without heyoka."""
     try:
         import heyoka as hy
     except ImportError:
@@ -531,18 +530,7 @@ def heyoka_explicit(model, sim):
     b = [row[0] for row in sp.lambdify(q + v + prm, eom.F, modules=funcs)(*vals)]
     A = [[hy.expression(e) if isinstance(e, (int, float)) else e for e in row] for row in A]
     b = [hy.expression(e) if isinstance(e, (int, float)) else e for e in b]
-    for k in range(n):
-        for i in range(k + 1, n):
-            ratio = A[i][k] / A[k][k]
-            for j in range(k + 1, n):
-                A[i][j] = A[i][j] - ratio * A[k][j]
-            b[i] = b[i] - ratio * b[k]
-    acc = [None] * n
-    for i in reversed(range(n)):
-        e = b[i]
-        for j in range(i + 1, n):
-            e = e - A[i][j] * acc[j]
-        acc[i] = e / A[i][i]
+    acc = H.eliminate(A, b)
     return [(x, y) for x, y in zip(hq, hv)] + [(y, a) for y, a in zip(hv, acc)], hq, hy
 
 
