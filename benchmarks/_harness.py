@@ -320,6 +320,27 @@ def scipy_solution(fun, t: np.ndarray, y0, method: str, rtol: float, atol, jac=N
     return sol.y.T.copy(), wall, int(sol.nfev)
 
 
+def eliminate(A: list, b: list) -> list:
+    """x with A x = b for a matrix of symbolic expressions (heyoka's, casadi's: anything with + - * /),
+    by Gaussian elimination without pivoting and back substitution: for the positive definite
+    mass matrices of the benchmarks' explicit systems q'' = M^-1 F. ``A`` and ``b`` are
+    overwritten."""
+    n = len(b)
+    for k in range(n):
+        for i in range(k + 1, n):
+            ratio = A[i][k] / A[k][k]
+            for j in range(k + 1, n):
+                A[i][j] = A[i][j] - ratio * A[k][j]
+            b[i] = b[i] - ratio * b[k]
+    x = [None] * n
+    for i in reversed(range(n)):
+        s = b[i]
+        for j in range(i + 1, n):
+            s = s - A[i][j] * x[j]
+        x[i] = s / A[i][i]
+    return x
+
+
 def error_scales(ref: np.ndarray, floor: float = 1e-3) -> np.ndarray:
     """Per-component scales for relative errors: max_t |ref_i|, at least ``floor`` times the
     largest scale (so that a component that stays near zero is measured absolutely)."""

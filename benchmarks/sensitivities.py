@@ -41,7 +41,10 @@ the directions there are).
 
 * Taylor (``--taylor``): ``simulate(method="taylor")`` with p sensitivities (jet transport of the
   variational equations) against the plain Taylor run (same rtol 1e-8, 201 output times, error
-  control on and off; CPU-time medians of interleaved rounds; target 1 + 0.7 p), and against
+  control on and off; CPU-time medians of interleaved rounds; target 1 + 0.7 p) beside the same
+  ratio of heyoka's variational equations (``var_ode_sys``, order 1, along the same directions, on
+  the explicit system q'' = M^-1 F of the same M and F, tolerance 1e-8, ``propagate_grid`` over the
+  same times; with its step counts plain/variational), and against
   CVODE's sensitivities (Adams) at equal achieved error: both at rtol 1e-5 .. 1e-12 (atol
   rtol/100), the error of the sensitivities along the first min(p, 3) directions against
   CVODE's at rtol 1e-13 (max over states, directions and 21 times of |error| / max |reference|),
@@ -510,6 +513,67 @@ def taylor_cost_rows(label, sim, ps, rounds):
                  steps_plain=steps["plain"], steps=steps[f"p{p}"], target=1 + 0.7 * p) for p in ps]
 
 
+def heyoka_explicit(model, sim):
+    """(system, state variables, parameters) of heyoka for q'' = M^-1 F of ``model`` (M and F from
+    sympy, the run-time parameters as heyoka parameters in their order; M eliminated symbolically,
+    ``H.eliminate``, as benchmarks/taylor.py does); None without heyoka."""
+    try:
+        import heyoka as hy
+    except ImportError:
+        return None
+    import sympy as sp
+    eom = lcg.derive(model)
+    n = sim.n
+    q = [sp.Symbol(s.name) for s in model.coords]
+    v = [sp.Symbol(s.name) for s in model.speeds]
+    prm = [sp.Symbol(name) for name in sim.param_names]
+    hq = [hy.make_vars(f"q{k}") for k in range(n)]
+    hv = [hy.make_vars(f"v{k}") for k in range(n)]
+    funcs = [{"sin": hy.sin, "cos": hy.cos, "sqrt": hy.sqrt, "ImmutableDenseMatrix": lambda rows: rows}, "math"]
+    vals = hq + hv + [hy.par[k] for k in range(len(prm))]
+    A = [list(row) for row in sp.lambdify(q + v + prm, eom.M, modules=funcs)(*vals)]
+    b = [row[0] for row in sp.lambdify(q + v + prm, eom.F, modules=funcs)(*vals)]
+    A = [[hy.expression(e) if isinstance(e, (int, float)) else e for e in row] for row in A]
+    b = [hy.expression(e) if isinstance(e, (int, float)) else e for e in b]
+    acc = H.eliminate(A, b)
+    return [(x, y) for x, y in zip(hq, hv)] + [(y, a) for y, a in zip(hv, acc)], hq, hy
+
+
+def heyoka_var_ratios(model, sim, ps, rounds, tol=1e-8):
+    """heyoka's variational equations (``var_ode_sys``, order 1, along the same directions as
+    ours: run-time parameters, initial angles) on the explicit system: its run with p
+    sensitivities / its plain run, each ``propagate_grid`` over the same 201 times at tolerance
+    ``tol`` (CPU-time medians of interleaved rounds, JIT outside the timing; compact mode for
+    n >= 5, plain and variational alike). {p: (ratio, "plain steps/variational steps")}, empty
+    without heyoka."""
+    built = heyoka_explicit(model, sim)
+    if built is None:
+        return {}
+    sys_, hq, hy = built
+    t = np.linspace(0.0, T_END, 201)
+    state0 = [Q0] * sim.n + [0.0] * sim.n
+    pv = list(sim.parameter_vector())
+    compact = sim.n >= 5  # its JIT of the variational chain takes minutes otherwise
+    tas = {"plain": hy.taylor_adaptive(sys_, state0, pars=pv, tol=tol, compact_mode=compact)}
+    for p in ps:
+        args = [hy.par[sim.param_names.index(name)] if name in sim.param_names
+                else hq[sim.state_names.index(name[:-3])] for name in directions(sim, p)]
+        tas[f"p{p}"] = hy.taylor_adaptive(hy.var_ode_sys(sys_, args, order=1), state0, pars=pv, tol=tol,
+                                          compact_mode=compact)
+    runs = {}
+    for key, ta in tas.items():
+        start = np.array(ta.state)
+
+        def run(ta=ta, start=start):
+            ta.time = 0.0
+            ta.state[:] = start
+            return ta.propagate_grid(t)[3]  # its step count
+        runs[key] = run
+    med = _cpu_medians(runs, rounds, "heyoka var_ode_sys")
+    steps = {key: run() for key, run in runs.items()}
+    return {p: (med[f"p{p}"] / med["plain"], f"{steps['plain']}/{steps[f'p{p}']}") for p in ps}
+
+
 def taylor_vs_cvode_rows(label, sim, p, rounds, tolerances=(1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12)):
     """CPU time of Taylor and CVODE (Adams) sensitivity runs at equal achieved error."""
     t = np.linspace(0.0, T_END, 21)
@@ -541,7 +605,9 @@ def taylor_lines(cost, equal, rounds) -> list[str]:
             H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("plain_ms", "plain ms", "{:.3f}"),
                             ("sens_ms", "sens ms", "{:.3f}"), ("ratio", "ratio", "{:.2f}"),
                             ("ratio_errcon_off", "ratio (errcon off)", "{:.2f}"), ("steps_plain", "steps plain", "{}"),
-                            ("steps", "steps sens", "{}"), ("target", "target", "{:.1f}")], cost),
+                            ("steps", "steps sens", "{}"), ("heyoka_ratio", "heyoka var / plain", "{:.2f}"),
+                            ("heyoka_steps", "heyoka steps", "{}"),
+                            ("target", "target", "{:.1f}")], cost),
             "", "Taylor against CVODE (Adams) sensitivities at equal achieved error (CPU ms, log-log interpolated; "
             "how: interp, or bound = every run more accurate):",
             H.format_table([("scene", "scene", "{}"), ("p", "p", "{}"), ("error", "error", "{:.0e}"),
@@ -632,7 +698,12 @@ def taylor_main(args) -> int:
         sim = lcg.compile_model(model)
         nd = len(sim.param_names) + sim.n
         ps = sorted({min(p, nd) for p in ps_all})
-        cost += taylor_cost_rows(label, sim, ps, rounds)
+        rows = taylor_cost_rows(label, sim, ps, rounds)
+        H.progress("heyoka", label)
+        hy_ratio = heyoka_var_ratios(model, sim, ps, rounds)
+        for row in rows:
+            row["heyoka_ratio"], row["heyoka_steps"] = hy_ratio.get(row["p"], (None, None))
+        cost += rows
         equal += taylor_vs_cvode_rows(label, sim, min(3, nd), max(3, rounds // 3))[0]
     lines = H.machine_lines("Forward sensitivities on the Taylor integrator (benchmarks/sensitivities.py --taylor)",
                             (load0, H.load_average()))

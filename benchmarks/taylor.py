@@ -109,18 +109,7 @@ def heyoka_explicit_system(n: int):
             if j != i:
                 f = f - w(i, j) * hy.sin(qs[i] - qs[j]) * (vs[j] * vs[j])
         b.append(f)
-    for k in range(n):
-        for i in range(k + 1, n):
-            ratio = A[i][k] / A[k][k]
-            for j in range(k + 1, n):
-                A[i][j] = A[i][j] - ratio * A[k][j]
-            b[i] = b[i] - ratio * b[k]
-    acc = [None] * n
-    for i in reversed(range(n)):
-        s = b[i]
-        for j in range(i + 1, n):
-            s = s - A[i][j] * acc[j]
-        acc[i] = s / A[i][i]
+    acc = H.eliminate(A, b)
     return [(q, v) for q, v in zip(qs, vs)] + [(v, a) for v, a in zip(vs, acc)], list(range(2 * n))
 
 

@@ -208,3 +208,27 @@ def test_sensitivities_taylor_tiny():
     assert len(equal) == 2 and all(0 < e < 1e-3 for e, _ in points["taylor"] + points["adams"])
     assert points["taylor"][1][0] < points["taylor"][0][0]  # tighter tolerance, smaller error
     assert sb.taylor_lines(rows, equal, 1)
+
+
+def test_sensitivities_heyoka_variational_context():
+    """benchmarks/sensitivities.py --taylor's heyoka column: its explicit system q'' = M^-1 F of the
+    double pendulum has our sensitivities (var_ode_sys along l1 and theta2(0), to 1e-6 at t = 2),
+    and its cost ratio with p sensitivities is measured."""
+    pytest.importorskip("heyoka")
+    import numpy as np
+    import sensitivities as sb
+    import lagcodegen as lcg
+    model = systems.double_pendulum(name="tb_sens_dp")
+    sim = lcg.compile_model(model)
+    sys_, hq, hy = sb.heyoka_explicit(model, sim)
+    ta = hy.taylor_adaptive(hy.var_ode_sys(sys_, [hy.par[sim.param_names.index("l1")], hq[1]], order=1),
+                            [sb.Q0] * 2 + [0.0] * 2, pars=list(sim.parameter_vector()), tol=1e-13)
+    ta.propagate_until(2.0)
+    ref = np.array(ta.state[4:]).reshape(4, 2).T
+    ours = sim.simulate(np.array([0.0, 2.0]), q0=[sb.Q0] * 2, rtol=1e-10, atol=1e-12, method="taylor",
+                        sensitivities=["l1", "theta2(0)"]).sensitivities[-1, :, :4]
+    assert np.max(np.abs(ours - ref)) < 1e-6 * np.max(np.abs(ref))
+    ratios = sb.heyoka_var_ratios(model, sim, [1], rounds=1)
+    ratio, steps = ratios[1]
+    plain, var = map(int, steps.split("/"))
+    assert finite(ratio) and ratio > 0 and var >= plain > 0

@@ -13,6 +13,7 @@ import sympy as sp
 import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
 from lagcodegen.solvers.taylor.decompose import decompose
+from lagcodegen.solvers.taylor.schedule import GROUP, Fused, schedule
 from lagcodegen.solvers.taylor.sensitivity import variational_sources
 from lagcodegen.solvers.taylor.variational import variational
 
@@ -140,6 +141,47 @@ def test_every_jet_operation_against_cvode(gadget_cm):
     v = variational(decompose(cm.code.scene), [("param", 1), ("state", 0)])
     kinds = {op.kind for op in v.ops_a + v.ops_b}
     assert {"div", "cdiv", "dot", "lin", "log"} <= kinds  # log: the tangent of the power in b
+
+
+def test_schedule_keeps_every_dependency(gadget_cm):
+    """The tangent operations in fused levels (schedule): each operation once, each reading only
+    rows written by an earlier item (or outside the tangent program), no loop over GROUP
+    products, and some loops holding several operations."""
+    d = decompose(gadget_cm.code.scene)
+    v = variational(d, [("param", 0), ("param", 1), ("state", 0), ("state", 3)])
+    for ops in (v.ops_a[len(d.ops):], v.ops_b):
+        items = schedule(ops)
+        flat = [op for item in items for op in (item.ops if isinstance(item, Fused) else (item,))]
+        assert sorted(map(id, flat)) == sorted(map(id, ops))
+        written_by_ops = {o for op in ops for o in op.out}
+        done: set = set()
+        for item in items:
+            group = item.ops if isinstance(item, Fused) else (item,)
+            for op in group:
+                reads = set(op.args) | {r for pr in op.pairs if pr is not None for r in pr}
+                assert not (reads & written_by_ops) - done - set(op.out), op
+            done.update(o for op in group for o in op.out)
+            if isinstance(item, Fused):
+                assert all(op.kind == "dot" for op in item.ops) and len(item.pairs) <= GROUP
+    assert any(isinstance(i, Fused) and len(i.ops) > 1 for i in schedule(v.ops_a[len(d.ops):]))
+
+
+def test_fused_loops_give_the_same_numbers(dp, monkeypatch):
+    """The fused tangent loops against the tangent operations one loop each in program order:
+    bit-identical states and sensitivities (each sum added in the same order)."""
+    from lagcodegen.solvers.taylor import sensitivity
+    t = np.linspace(0.0, 3.0, 31)
+    names = ["l1", "m2", "theta2(0)"]
+    fused = dp.simulate(t, q0=[0.5, 0.5], method="taylor", sensitivities=names)
+    names_, dirs, s0 = sensitivity.directions_of(dp, names)
+    monkeypatch.setattr(sensitivity, "schedule", lambda ops, tangent=None: list(ops))
+    monkeypatch.setattr(sensitivity, "GROUP", 1)
+    module = sensitivity.VariationalModule(dp, dp.code.scene, names_, dirs, s0)
+    assert "a0 +=" not in (module.path.parent / "double_pendulum_taylor_var.c").read_text()
+    y0 = np.array([0.5, 0.5, 0.0, 0.0])
+    plain = module.simulate(t, y0, dp.parameter_vector(), rtol=1e-8, atol=1e-10)
+    assert np.array_equal(fused.y, plain.y)
+    assert np.array_equal(fused.sensitivities, plain.sensitivities)
 
 
 def test_quadrature_state_and_outputs_of_a_routhian():

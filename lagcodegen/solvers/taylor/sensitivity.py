@@ -39,6 +39,7 @@ from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 from .decompose import Decomposition, decompose
 from .emit import CHUNK, P_MAX, _jinja
 from .runner import message, taylor_runtime
+from .schedule import GROUP, item_count, schedule
 from .variational import VariationalDecomposition, _is_row, variational
 
 
@@ -73,6 +74,36 @@ def _outputs_block(scene: Scene, directions: list[tuple[str, int]], ny: int) -> 
     return Block(targets, exprs), nout * (1 + len(directions))
 
 
+def _chunks(items: list) -> list[list]:
+    """``items`` (operations, :class:`.schedule.Fused` groups) split into runs of at most CHUNK
+    operations, each printed as a function of its own."""
+    out: list[list] = []
+    size = CHUNK
+    for item in items:
+        if size + item_count(item) > CHUNK:
+            out.append([])
+            size = 0
+        out[-1].append(item)
+        size += item_count(item)
+    return out
+
+
+def _sconv_groups(conv_rows: list, ns: int) -> list[list]:
+    """The sums sum_{j=1..k} M_[j] s''_[k-j] of every direction and row as loops of up to GROUP
+    products: groups of units (direction, row i, its terms [(M row, column)], first
+    accumulator)."""
+    groups: list[list] = []
+    size = GROUP
+    for jd in range(ns):
+        for i, terms in conv_rows:
+            if size + len(terms) > GROUP and size:
+                groups.append([])
+                size = 0
+            groups[-1].append((jd, i, terms, size))
+            size += len(terms)
+    return groups
+
+
 def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: list[str],
                         decomposition: Decomposition | None = None) -> tuple[dict[str, str], VariationalDecomposition]:
     """``{"<prefix>_taylor_var.c": ..., "lcg_taylor_model.h": ...}``: the jet of the states and
@@ -85,6 +116,7 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
     conv = [(i, M[i][j], j) for i in range(n) for j in range(n) if _is_row(M[i][j])]
     conv_rows = [(i, [(mm, j) for i2, mm, j in conv if i2 == i]) for i in range(n) if any(cc[0] == i for cc in conv)]
     block, nout = _outputs_block(scene, directions, ny0)
+    tangent = frozenset(range(ny0, ny0 * (1 + ns))) | frozenset(r for rows in v.sacc for r in rows)
     ops = v.ops_a + v.ops_b
     kinds = {op.kind for op in ops}
     ctx = header_context(scene, new_code(scene))
@@ -93,8 +125,10 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
         p_max=P_MAX, acc=v.acc, np=len(scene.runtime_parameters), nbase=len(d.ops),
         outputs_block=print_block(block) if nout else "",
         ops_a=v.ops_a, ops_b=v.ops_b,
-        chunks=[v.ops_a[k:k + CHUNK] for k in range(0, len(v.ops_a), CHUNK)],
-        chunks_b=[v.ops_b[k:k + CHUNK] for k in range(0, len(v.ops_b), CHUNK)],
+        chunks=_chunks(v.ops_a[:len(d.ops)]) + _chunks(schedule(v.ops_a[len(d.ops):], tangent)),
+        chunks_b=_chunks(schedule(v.ops_b, tangent)),
+        sconv_groups=_sconv_groups(conv_rows, ns),
+        helpers_inline=-(-len(v.ops_a) // CHUNK) - (-len(v.ops_b) // CHUNK) <= 2,
         kinds=kinds, labels=v.labels, consts=v.consts,
         const_lines=[f"c[{k}] = {c_expr(e)};" for k, e in enumerate(v.consts)],
         M=M, F=v.F, rates=v.rates, conv=conv, conv_rows=conv_rows, time_row=v.time_row,
