@@ -80,6 +80,22 @@ def machine_lines(title: str, load: tuple[str, str] | None = None) -> list[str]:
 
 
 # --------------------------------------------------------------------------- timing
+def cpu_medians(runs: dict, rounds: int, label: str, warm: bool = True) -> dict:
+    """Median thread CPU time of each run of ``runs`` (name -> callable) over interleaved rounds
+    (after one call each, unless ``warm`` is False); progress lines tagged ``label``."""
+    if warm:
+        for f in runs.values():
+            f()
+    cpu = {k: [] for k in runs}
+    for r in range(rounds):
+        progress(label, f"round {r + 1}/{rounds}")
+        for k, f in runs.items():
+            start = time.thread_time()
+            f()
+            cpu[k].append(time.thread_time() - start)
+    return {k: statistics.median(v) for k, v in cpu.items()}
+
+
 def median_time(fn, repeats: int, budget: float = float("inf")):
     """Median wall time of ``fn()`` over up to ``repeats`` runs (fewer once ``budget`` seconds
     are spent), and the value of the last run."""

@@ -113,6 +113,21 @@ def central(sim, t, name, rtol=1e-13, atol=1e-15, h=2e-4) -> np.ndarray:
     return (8 * (runs[1] - runs[-1]) - (runs[2] - runs[-2])) / (12 * step)
 
 
+def mass_and_forces(model, sim, funcs: dict, values: list):
+    """M (rows) and F (entries) of ``model`` (sympy) evaluated on another tool's expressions:
+    ``funcs`` its sin, cos, ... (lambdify's modules), ``values`` its expressions for q, q' and the
+    run-time parameters in the scene's order."""
+    import sympy as sp
+    eom = lcg.derive(model)
+    q = [sp.Symbol(s.name) for s in model.coords]
+    v = [sp.Symbol(s.name) for s in model.speeds]
+    prm = [sp.Symbol(name) for name in sim.param_names]
+    modules = [dict(funcs, ImmutableDenseMatrix=lambda rows: rows), "math"]
+    M = sp.lambdify(q + v + prm, eom.M, modules=modules)(*values)
+    F = sp.lambdify(q + v + prm, eom.F, modules=modules)(*values)
+    return [list(row) for row in M], [row[0] for row in F]
+
+
 def casadi_dynamics(model, sim, solve: str = "solve"):
     """The same M q'' = F as CasADi SX expressions (sympy -> casadi): (casadi, x, p, ode), or None
     without casadi. The accelerations by ``solve``: "solve" CasADi's symbolic ``solve(M, F)``,
@@ -122,22 +137,13 @@ def casadi_dynamics(model, sim, solve: str = "solve"):
         import casadi as ca
     except ImportError:
         return None
-    import sympy as sp
-    eom = lcg.derive(model)
-    n = sim.n
-    q = [sp.Symbol(s.name) for s in model.coords]
-    v = [sp.Symbol(s.name) for s in model.speeds]
-    prm = [sp.Symbol(name) for name in sim.param_names]
+    n, npar = sim.n, len(sim.param_names)
     x = ca.SX.sym("x", 2 * n)
-    pp = ca.SX.sym("p", len(prm))
-    args = q + v + prm
-    modules = [{"sin": ca.sin, "cos": ca.cos, "ImmutableDenseMatrix": lambda rows: rows}, "math"]
-    M = sp.lambdify(args, eom.M, modules=modules)
-    F = sp.lambdify(args, eom.F, modules=modules)
-    vals = [x[i] for i in range(2 * n)] + [pp[k] for k in range(len(prm))]
-    Mrows, Frows = M(*vals), F(*vals)
+    pp = ca.SX.sym("p", npar)
+    Mrows, Frows = mass_and_forces(model, sim, {"sin": ca.sin, "cos": ca.cos},
+                                   [x[i] for i in range(2 * n)] + [pp[k] for k in range(npar)])
     Mc = ca.vertcat(*[ca.horzcat(*row) for row in Mrows])
-    Fc = ca.vertcat(*[row[0] for row in Frows])
+    Fc = ca.vertcat(*Frows)
     if solve == "chol":
         R = ca.chol(Mc)
         acc = ca.solve(R, ca.solve(R.T, Fc))
@@ -482,20 +488,6 @@ def fit_rows(rounds):
                  l=fe.stderr["l"], c=fe.stderr["c"], speedup=None, cpu_speedup=None)]
 
 
-def _cpu_medians(runs: dict, rounds: int, label: str) -> dict:
-    """Median thread CPU time of each run over interleaved rounds (after one call each)."""
-    for f in runs.values():
-        f()
-    cpu = {k: [] for k in runs}
-    for r in range(rounds):
-        H.progress("taylor", f"{label} round {r + 1}/{rounds}")
-        for k, f in runs.items():
-            start = time.thread_time()
-            f()
-            cpu[k].append(time.thread_time() - start)
-    return {k: statistics.median(v) for k, v in cpu.items()}
-
-
 def taylor_cost_rows(label, sim, ps, rounds):
     """Taylor with p sensitivities / the plain Taylor run (CPU-time medians)."""
     t = np.linspace(0.0, T_END, 201)
@@ -506,7 +498,7 @@ def taylor_cost_rows(label, sim, ps, rounds):
         names = directions(sim, p)
         runs[f"p{p}"] = (lambda names=names: sim.simulate(t, sensitivities=names, **kw))
         runs[f"p{p} off"] = (lambda names=names: sim.simulate(t, sensitivities=names, sensitivity_errcon=False, **kw))
-    med = _cpu_medians(runs, rounds, label)
+    med = H.cpu_medians(runs, rounds, label)
     steps = {k: f().stats["steps"] for k, f in runs.items()}
     return [dict(scene=label, p=p, plain_ms=1e3 * med["plain"], sens_ms=1e3 * med[f"p{p}"],
                  ratio=med[f"p{p}"] / med["plain"], ratio_errcon_off=med[f"p{p} off"] / med["plain"],
@@ -521,18 +513,11 @@ def heyoka_explicit(model, sim):
         import heyoka as hy
     except ImportError:
         return None
-    import sympy as sp
-    eom = lcg.derive(model)
     n = sim.n
-    q = [sp.Symbol(s.name) for s in model.coords]
-    v = [sp.Symbol(s.name) for s in model.speeds]
-    prm = [sp.Symbol(name) for name in sim.param_names]
     hq = [hy.make_vars(f"q{k}") for k in range(n)]
     hv = [hy.make_vars(f"v{k}") for k in range(n)]
-    funcs = [{"sin": hy.sin, "cos": hy.cos, "sqrt": hy.sqrt, "ImmutableDenseMatrix": lambda rows: rows}, "math"]
-    vals = hq + hv + [hy.par[k] for k in range(len(prm))]
-    A = [list(row) for row in sp.lambdify(q + v + prm, eom.M, modules=funcs)(*vals)]
-    b = [row[0] for row in sp.lambdify(q + v + prm, eom.F, modules=funcs)(*vals)]
+    A, b = mass_and_forces(model, sim, {"sin": hy.sin, "cos": hy.cos, "sqrt": hy.sqrt},
+                           hq + hv + [hy.par[k] for k in range(len(sim.param_names))])
     A = [[hy.expression(e) if isinstance(e, (int, float)) else e for e in row] for row in A]
     b = [hy.expression(e) if isinstance(e, (int, float)) else e for e in b]
     acc = H.eliminate(A, b)
@@ -569,7 +554,7 @@ def heyoka_var_ratios(model, sim, ps, rounds, tol=1e-8):
             ta.state[:] = start
             return ta.propagate_grid(t)[3]  # its step count
         runs[key] = run
-    med = _cpu_medians(runs, rounds, "heyoka var_ode_sys")
+    med = H.cpu_medians(runs, rounds, "heyoka var_ode_sys")
     steps = {key: run() for key, run in runs.items()}
     return {p: (med[f"p{p}"] / med["plain"], f"{steps['plain']}/{steps[f'p{p}']}") for p in ps}
 
@@ -588,7 +573,7 @@ def taylor_vs_cvode_rows(label, sim, p, rounds, tolerances=(1e-5, 1e-6, 1e-7, 1e
                 return sim.simulate(t, q0=q0, rtol=tol, atol=tol / 100, method=method, sensitivities=names)
             res = run()
             err = float(np.max(np.max(np.abs(res.sensitivities[:, :, :2 * sim.n] - ref), axis=(0, 2)) / scale))
-            cpu = _cpu_medians({"run": run}, rounds, f"{label} {method} rtol {tol:g}")["run"]
+            cpu = H.cpu_medians({"run": run}, rounds, f"{label} {method} rtol {tol:g}")["run"]
             points[method].append((err, cpu))
     rows = []
     for target in (1e-6, 1e-8):

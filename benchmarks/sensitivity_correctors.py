@@ -19,9 +19,7 @@ A measuring instrument: it asserts nothing. Usage::
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -55,14 +53,7 @@ def rows_of(label, model, ps, rounds):
                     t, q0=q0, rtol=1e-8, atol=1e-10, sensitivities=names[:p], sensitivity_errcon=e,
                     sensitivity_corrector=c))
     stats = {k: f().stats for k, f in runs.items()}
-    cpu = {k: [] for k in runs}
-    for r in range(rounds):
-        H.progress("correctors", f"{label} round {r + 1}/{rounds}")
-        for k, f in runs.items():
-            start = time.thread_time()
-            f()
-            cpu[k].append(time.thread_time() - start)
-    med = {k: statistics.median(v) for k, v in cpu.items()}
+    med = H.cpu_medians(runs, rounds, f"correctors {label}", warm=False)
     plain = stats["plain"]
     rows = [dict(scene=label, p=0, errcon="-", corrector="plain", steps=plain["steps"], steps_ratio=1.0,
                  sens_rhs=None, states_rhs=plain["rhs_evals"] / plain["steps"],
