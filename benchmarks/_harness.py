@@ -96,6 +96,25 @@ def cpu_medians(runs: dict, rounds: int, label: str, warm: bool = True) -> dict:
     return {k: statistics.median(v) for k, v in cpu.items()}
 
 
+def timed_medians(runs: dict, rounds: int, label: str, budget: float = float("inf")) -> tuple[dict, dict, dict]:
+    """(wall-time medians, thread-CPU-time medians, numbers of timed calls) of each run of ``runs`` (name -> callable)
+    over interleaved rounds (no warm-up call: make them first); a run stops being timed once its
+    wall times add up to ``budget`` seconds. Progress lines tagged ``label``."""
+    wall = {k: [] for k in runs}
+    cpu = {k: [] for k in runs}
+    for r in range(rounds):
+        progress(label, f"round {r + 1}/{rounds}")
+        for k, f in runs.items():
+            if wall[k] and sum(wall[k]) > budget:
+                continue
+            start, start_cpu = time.perf_counter(), time.thread_time()
+            f()
+            cpu[k].append(time.thread_time() - start_cpu)
+            wall[k].append(time.perf_counter() - start)
+    return ({k: statistics.median(v) for k, v in wall.items()}, {k: statistics.median(v) for k, v in cpu.items()},
+            {k: len(v) for k, v in wall.items()})
+
+
 def median_time(fn, repeats: int, budget: float = float("inf")):
     """Median wall time of ``fn()`` over up to ``repeats`` runs (fewer once ``budget`` seconds
     are spent), and the value of the last run."""

@@ -350,19 +350,7 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
         error[key] = direction_error(value.T, ref)
         options[key] = casadi_options(config, 1e-8, len(names))
         runs[key] = (lambda fn=fn: fn(y0, pv))
-    wall = {k: [] for k in runs}
-    cpu = {k: [] for k in runs}
-    for r in range(rounds):
-        H.progress("casadi", f"{label} round {r + 1}/{rounds}")
-        for k, f in runs.items():
-            if wall[k] and sum(wall[k]) > budget:
-                continue
-            start, start_cpu = time.perf_counter(), time.thread_time()
-            f()
-            cpu[k].append(time.thread_time() - start_cpu)
-            wall[k].append(time.perf_counter() - start)
-    med = {k: statistics.median(v) for k, v in wall.items()}
-    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
+    med, mcpu, calls = H.timed_medians(runs, rounds, f"casadi {label}", budget=budget)
     # ours at other tolerances: its CPU time at each contender's achieved error (log-log)
     points = [(error["ours"], mcpu["ours"])]
     for tol in OURS_TOLERANCES:
@@ -380,7 +368,7 @@ def casadi_rows(label, model, sim, rounds, configs=CASADI_QUICK, notes=None, bud
     for k in runs:
         equal, how = H.time_at(points, error[k])
         rows.append(dict(scene=label, p=len(names), contender="ours" if k == "ours" else f"CasADi {k}",
-                         config=k, setup_s=setup[k], ms=1e3 * med[k], cpu_ms=1e3 * mcpu[k], calls=len(wall[k]),
+                         config=k, setup_s=setup[k], ms=1e3 * med[k], cpu_ms=1e3 * mcpu[k], calls=calls[k],
                          error=error[k], ref_check=direction_error(check, ref),
                          ours_over=med["ours"] / med[k], cpu_ours_over=mcpu["ours"] / mcpu[k],
                          equal_error_over=None if equal is None else equal / mcpu[k], equal_how=how,
@@ -401,17 +389,7 @@ def cost_rows(label, model, sim, ps, rounds, casadi=CASADI_QUICK, notes=None):
                                                               sensitivity_errcon=False))
     for f in runs.values():  # builds, first calls
         f()
-    times = {k: [] for k in runs}
-    cpu = {k: [] for k in runs}
-    for r in range(rounds):
-        H.progress("cost", f"{label} round {r + 1}/{rounds}")
-        for k, f in runs.items():
-            start, start_cpu = time.perf_counter(), time.thread_time()
-            f()
-            cpu[k].append(time.thread_time() - start_cpu)
-            times[k].append(time.perf_counter() - start)
-    med = {k: statistics.median(v) for k, v in times.items()}
-    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
+    med, mcpu, _ = H.timed_medians(runs, rounds, f"cost {label}")
     rows = []
     for p in ps:
         rows.append(dict(scene=label, p=p, plain_ms=1e3 * med["plain"], sens_ms=1e3 * med[f"p{p}"],

@@ -31,9 +31,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -182,17 +180,7 @@ def cost_rows(label, sim, angle, angles0, rounds):
                                                                  sensitivities=an))
     for f in runs.values():  # builds, first calls
         f()
-    times = {k: [] for k in runs}
-    cpu = {k: [] for k in runs}
-    for r in range(rounds):
-        H.progress("cost", f"{label} round {r + 1}/{rounds}")
-        for k, f in runs.items():
-            start_wall, start_cpu = time.perf_counter(), time.thread_time()
-            f()
-            cpu[k].append(time.thread_time() - start_cpu)
-            times[k].append(time.perf_counter() - start_wall)
-    med = {k: statistics.median(v) for k, v in times.items()}
-    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
+    med, mcpu, _ = H.timed_medians(runs, rounds, f"cost {label}")
     rows = []
     for p in ps:
         ang = f"angle p{p}"
