@@ -148,3 +148,17 @@ def choice(name: str, value, choices) -> None:
     """Raise LagcodegenError unless ``value`` is one of ``choices``."""
     if value not in choices:
         raise LagcodegenError(f"{name} must be one of {', '.join(map(str, choices))}, got {value!r}")
+
+
+def names_field(obj, name: str) -> None:
+    """Normalize the names field ``name`` of the frozen options object ``obj`` (None kept): one
+    name becomes a 1-tuple, any other iterable a tuple; anything else raises LagcodegenError
+    naming the field."""
+    value = getattr(obj, name)
+    if value is None:
+        return
+    names = (value,) if isinstance(value, str) else value
+    try:
+        object.__setattr__(obj, name, tuple(names))
+    except TypeError:
+        raise LagcodegenError(f"{name} must be a list of names, got {names!r}") from None

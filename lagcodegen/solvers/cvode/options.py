@@ -12,7 +12,7 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
-from ..family import Family, choice
+from ..family import Family, choice, names_field
 from . import ensemble, native
 from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
@@ -79,12 +79,7 @@ class CVODE(Family):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.sensitivities is not None:
-            names = (self.sensitivities,) if isinstance(self.sensitivities, str) else self.sensitivities
-            try:
-                object.__setattr__(self, "sensitivities", tuple(names))
-            except TypeError:
-                raise LagcodegenError(f"sensitivities must be a list of names, got {names!r}") from None
+        names_field(self, "sensitivities")
         if self.method is not None:
             choice("method", self.method, tuple(METHODS))
         choice("backend", self.backend, BACKENDS)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ...errors import LagcodegenError
 from ...result import Result
-from ..family import Family
+from ..family import Family, names_field
 from .ensemble import run_taylor_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
 from .prepared import PreparedTaylorRun
@@ -42,12 +42,7 @@ class Taylor(Family):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.sensitivities is not None:
-            names = (self.sensitivities,) if isinstance(self.sensitivities, str) else self.sensitivities
-            try:
-                object.__setattr__(self, "sensitivities", tuple(names))
-            except TypeError:
-                raise LagcodegenError(f"sensitivities must be a list of names, got {names!r}") from None
+        names_field(self, "sensitivities")
         if self.order is not None and not (isinstance(self.order, int) and 2 <= self.order):
             raise LagcodegenError(f"Taylor order must be an integer >= 2, got {self.order!r}")
 
