@@ -246,19 +246,28 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     wall = time.perf_counter() - start
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
-    done = st.nt_done
+    res = driver_result(cm, ffi, st, flag, wall, method, names, t, yout, sout, out, dout)
+    if found is not None:
+        add_events(cm, fns, res, found, names, which, p)
+    return res
+
+
+def driver_result(model, ffi, st, flag: int, wall: float, method: str, names, t, yout, sout, out, dout) -> Result:
+    """The :class:`~lagcodegen.result.Result` of one call of the sensitivity driver (ODE or
+    index-1 ``model``, its ``state_names`` and ``output_names``): the rows it reached of its
+    arrays, copied, its statistics struct ``st`` (:data:`STATS` and ``wall_time``) and the text
+    of its ``flag``."""
+    nout = len(model.output_names)
     stats = {k: getattr(st, k) for k in STATS}
     stats["wall_time"] = wall
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     text = "success" if flag >= 0 else message(flag, st.model_error, detail, t=st.t_reached)
-    sl = slice(0, done)
-    res = Result(t=t[sl].copy(), y=yout[sl].copy(), state_names=list(cm.state_names),
-                 outputs={k: out[sl, i].copy() for i, k in enumerate(cm.output_names)}, stats=stats,
+    sl = slice(0, st.nt_done)
+    res = Result(t=t[sl].copy(), y=yout[sl].copy(), state_names=list(model.state_names),
+                 outputs={k: out[sl, i].copy() for i, k in enumerate(model.output_names)}, stats=stats,
                  status=int(flag), message=text, backend="native", method=method)
-    res.set_sensitivities(names, list(cm.state_names) + list(cm.output_names),
+    res.set_sensitivities(names, list(model.state_names) + list(model.output_names),
                           np.concatenate([sout[sl], dout[sl, :, :nout]], axis=2))
-    if found is not None:
-        add_events(cm, fns, res, found, names, which, p)
     return res
 
 

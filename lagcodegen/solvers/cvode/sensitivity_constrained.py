@@ -34,9 +34,9 @@ from ...codegen.sensitivity_constrained import constrained_sensitivity_source
 from ...errors import LagcodegenError, ModelError
 from ...result import Result
 from ...runtime import sources as runtime_files
-from ..base import message, tolerances
+from ..base import tolerances
 from ..control import CANCELLED, install, raise_pending
-from .sensitivity import STATS, parse_directions, sens_options, sens_runtime
+from .sensitivity import driver_result, parse_directions, sens_options, sens_runtime
 
 
 class ConstrainedSensitivityFunctions:
@@ -155,17 +155,8 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     wall = time.perf_counter() - start
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
-    done = st.nt_done
-    stats = {k: getattr(st, k) for k in STATS}
-    stats.update(wall_time=wall, alpha=alpha, beta=beta, projection=projection)
-    detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
-    text = "success" if flag >= 0 else message(flag, st.model_error, detail, t=st.t_reached)
-    sl = slice(0, done)
-    res = Result(t=t[sl].copy(), y=yout[sl].copy(), state_names=list(sim.state_names),
-                 outputs={k: out[sl, i].copy() for i, k in enumerate(sim.output_names)}, stats=stats,
-                 status=int(flag), message=text, backend="native", method=method)
-    res.set_sensitivities(names, list(sim.state_names) + list(sim.output_names),
-                          np.concatenate([sout[sl], dout[sl, :, :nout]], axis=2))
+    res = driver_result(sim, ffi, st, flag, wall, method, names, t, yout, sout, out, dout)
+    res.stats.update(alpha=alpha, beta=beta, projection=projection)
     res.events = []
     return res
 
