@@ -271,7 +271,10 @@ TAYLOR_OPTIONS = _options(
     Field("rtol", "double", "relative tolerance of one step"),
     Field("atol", "double", "absolute tolerance of one step, used when atol_vec is NULL"),
     Field("atol_vec", "const double *", "NULL, or ny absolute tolerances"), _MAX_STEPS, _MAX_STEP,
-    Field("order", "int", "0: from the tolerances, else 2..LCG_TAYLOR_ORDER_MAX"))
+    Field("order", "int", "0: from the tolerances, else 2..LCG_TAYLOR_ORDER_MAX"),
+    Field("rel_block", "int", "0: each component's relative tolerance on its own |y_i|; b > 0: the components "
+          "from b on in blocks of b, each block's on its largest |y_i| (a run's sensitivities, one block per "
+          "direction)"))
 
 #: Every counter and record of the drivers' statistics structs, in the order of Result.stats
 #: (``stat``: its key there; the evaluation counts without one are summed by the reader).
@@ -459,7 +462,7 @@ DRIVERS = {d.name: d for d in (
 def standalone(struct: Struct, prefix: str) -> Struct:
     """``struct`` as a model's own driver declares it (``lcg_taylor_options`` ->
     ``<prefix>_taylor_options``; no run-control fields: a standalone driver has none)."""
-    fields = tuple(f for f in struct.fields if f not in CONTROL_FIELDS)
+    fields = tuple(f for f in struct.fields if f not in CONTROL_FIELDS and f.name != "rel_block")
     return Struct(prefix + struct.name[len("lcg"):], fields, struct.doc)
 
 

@@ -101,7 +101,8 @@ typedef struct {
     int staggered;      /* the corrector of this run: 1 staggered, 0 simultaneous (ls_*) */
     int bdf;            /* BDF: solves scaled by 2/(1 + gamma/gammap), as CVODE's dense solver */
     double rtol;
-    const double *atol; /* ny: the states' absolute tolerances (also the sensitivities' in their test) */
+    const double *atol; /* ny (1 + ns) absolute tolerances of the error test (sens_ewt) */
+    double wboost;      /* sqrt(1 + ns): the error weights' factor (sens_ewt) */
     int errcon;         /* the sensitivities in CVODE's error test (their absolute tolerances real) */
     int probe_hit;      /* set by the operations while the layout is checked */
     int have_A;         /* A holds the factors of I - gammap J */
@@ -124,6 +125,56 @@ static int model_status(sens_data *d, int rc, double t)
         return -1;
     }
     return rc == LCG_OK ? 0 : 1;
+}
+
+/* CVODE's error weights of the augmented vector (CVodeWFtolerances, set by sens_tolerances):
+ * the states' 1 / (rtol |y_i| + atol_i) as CVODE's own; a direction's sensitivities
+ * 1 / (rtol max_j |s_j| + atol_i), on the largest of the direction (its components cross zero
+ * where the others are large: on |s_j| alone such a component would ask for atol where the
+ * direction's error is measured against its size); all times sqrt(1 + ns) (d->wboost). CVODE's
+ * error test ||e||_WRMS <= 1 over the ny (1 + ns) values is then
+ *     ||e_y||^2 + sum_k ||e_(s_k)||^2 <= 1
+ * in the blocks' own WRMS norms: the states as strict as in the plain run and each direction
+ * within its tolerance (CVODES's errconS takes the largest block norm; this sum is at most
+ * sqrt(1 + ns) stricter). Without errcon the sensitivities' atol is 1e300: the test of the plain
+ * run. Returns -1 (CVODE's error) where a weight is not positive. */
+static int sens_ewt(N_Vector y, N_Vector ewt, void *data)
+{
+    sens_data *d = (sens_data *)data;
+    const double *yv = N_VGetArrayPointer(y);
+    double *w = N_VGetArrayPointer(ewt);
+    const long ny = d->m->ny;
+    long i, j;
+    int k;
+
+    for (i = 0; i < ny; ++i) {
+        double den = d->rtol * fabs(yv[i]) + d->atol[i];
+        if (!(den > 0.0))
+            return -1;
+        w[i] = d->wboost / den;
+    }
+    for (k = 0; k < d->ns; ++k) {
+        const long b = ny * (1 + k);
+        double scale = 0.0;
+        for (j = 0; j < ny; ++j)
+            scale = fmax(scale, fabs(yv[b + j]));
+        for (j = 0; j < ny; ++j) {
+            double den = d->rtol * scale + d->atol[b + j];
+            if (!(den > 0.0))
+                return -1;
+            w[b + j] = d->wboost / den;
+        }
+    }
+    return 0;
+}
+
+/* The error weights (sens_ewt) on CVODE's memory mem of the run d with the options opt. */
+static int sens_tolerances(sens_data *d, void *mem, const lcg_cvsens_options *opt)
+{
+    d->rtol = opt->rtol;
+    d->atol = opt->atol;
+    d->wboost = sqrt(1.0 + d->ns);
+    return CVodeWFtolerances(mem, sens_ewt);
 }
 
 static int aug_rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
@@ -667,7 +718,7 @@ static int nls_states(sens_data *d, double t, const double *ypred, const double 
         nls_lsolve(d, delta, gamma);
         for (i = 0; i < ny; ++i)
             c[i] += delta[i];
-        del = nls_wrms(delta, w, ny);
+        del = nls_wrms(delta, w, ny) / d->wboost;
         flag = nls_test(del, m, tol, &d->crate, &delp);
         if (flag != LCG_NLS_CONTINUE)
             return flag;
@@ -691,6 +742,7 @@ static int nls_sens(sens_data *d, double t, const double *ypred, const double *z
     const long nsy = (long)ny * d->ns;
     double *y = d->ytmp, *s = d->ytmp + ny, *delta = d->ftmp + ny, del, delp = 0.0;
     const double *w = d->errcon ? ewt + ny : d->wsens;
+    const double wscale = d->errcon ? d->wboost : 1.0; /* the weights of sens_ewt without their factor */
     long i;
     int j, m, flag;
 
@@ -717,7 +769,7 @@ static int nls_sens(sens_data *d, double t, const double *ypred, const double *z
             nls_lsolve(d, delta + (long)j * ny, gamma);
         for (i = 0; i < nsy; ++i)
             cs[i] += delta[i];
-        del = nls_wrms(delta, w, nsy);
+        del = nls_wrms(delta, w, nsy) / wscale;
         flag = nls_test(del, m, tol, &d->crate_s, &delp);
         if (flag != LCG_NLS_CONTINUE)
             return flag;
@@ -870,8 +922,6 @@ static int corrector_attach(sens_data *d, const lcg_cvsens_options *opt, SUNCont
 
     d->staggered = opt->corrector != LCG_CVSENS_SIMULTANEOUS;
     d->bdf = opt->method == CV_BDF;
-    d->rtol = opt->rtol;
-    d->atol = opt->atol;
     d->errcon = d->ns > 0 && opt->atol[d->m->ny] < 1e200; /* sens_options: 1e300 without errcon */
     corrector_reset(d);
     if (!d->staggered) {
@@ -941,7 +991,7 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
-    N_Vector y = NULL, abstol = NULL;
+    N_Vector y = NULL;
     SUNLinearSolver LS = NULL;
     SUNNonlinearSolver NLS = NULL;
     sens_data data;
@@ -983,10 +1033,9 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
         goto done;
     }
     y = N_VNew_Serial((sunindextype)total, ctx);
-    abstol = N_VNew_Serial((sunindextype)total, ctx);
     mem = CVodeCreate(opt->method, ctx);
     if (data.J == NULL || data.A == NULL || data.piv == NULL || data.f0 == NULL || data.f1 == NULL
-        || data.y1 == NULL || data.vals == NULL || y == NULL || abstol == NULL || mem == NULL) {
+        || data.y1 == NULL || data.vals == NULL || y == NULL || mem == NULL) {
         flag = LCG_FLAG_NOMEM;
         goto done;
     }
@@ -997,8 +1046,6 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
         yv[i] = yout[i] = y0[i];
     for (i = 0; i < ny * ns; ++i)
         yv[ny + i] = sout[i] = s0[i];
-    for (i = 0; i < total; ++i)
-        N_VGetArrayPointer(abstol)[i] = opt->atol[i];
     if (m->outputs != NULL) {
         rc = m->outputs(tout[0], yv, p, out);
         LCG_MODEL_ERROR(LCG_OK);
@@ -1011,9 +1058,9 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
 
     if ((flag = CVodeInit(mem, aug_rhs, tout[0], y)) < 0)
         goto done;
-    if ((flag = CVodeSVtolerances(mem, opt->rtol, abstol)) < 0)
-        goto done;
     CVodeSetUserData(mem, &data);
+    if ((flag = sens_tolerances(&data, mem, opt)) < 0)
+        goto done;
     if ((flag = corrector_attach(&data, opt, ctx, &LS, &NLS, st->message, sizeof st->message)) < 0)
         goto done;
     CVodeSetMaxHnilWarns(mem, -1);
@@ -1097,8 +1144,6 @@ done:
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
     corrector_free(&data, LS, NLS);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
     if (y != NULL)
         N_VDestroy(y);
     free(data.J);

@@ -37,7 +37,7 @@ struct lcg_cvsens_stepper {
     int roots_on;
     SUNContext ctx;
     void *mem;
-    N_Vector yv, abstol;
+    N_Vector yv;
     SUNLinearSolver LS;
     SUNNonlinearSolver NLS;
 };
@@ -49,8 +49,6 @@ void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
     if (x->mem != NULL)
         CVodeFree(&x->mem);
     corrector_free(&x->data, x->LS, x->NLS);
-    if (x->abstol != NULL)
-        N_VDestroy(x->abstol);
     if (x->yv != NULL)
         N_VDestroy(x->yv);
     if (x->ctx != NULL)
@@ -126,7 +124,6 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
     const lcg_cvsens_options *opt = &x->opt;
     sens_data *d = &x->data;
     const size_t ny = (size_t)m->ny;
-    long i;
     int flag;
 
     d->J = (double *)malloc(sizeof(double) * ny * ny);
@@ -137,20 +134,17 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
     d->y1 = (double *)malloc(sizeof(double) * ny);
     d->vals = (double *)malloc(sizeof(double) * (size_t)(m->jac_nnz > 0 ? m->jac_nnz : 1));
     x->yv = N_VNew_Serial((sunindextype)x->total, x->ctx);
-    x->abstol = N_VNew_Serial((sunindextype)x->total, x->ctx);
     x->mem = CVodeCreate(opt->method, x->ctx);
     if (d->J == NULL || d->A == NULL || d->piv == NULL || d->f0 == NULL || d->f1 == NULL || d->y1 == NULL
-        || d->vals == NULL || x->yv == NULL || x->abstol == NULL || x->mem == NULL)
+        || d->vals == NULL || x->yv == NULL || x->mem == NULL)
         return LCG_FLAG_NOMEM;
     d->mem = x->mem;
     xs_load(x);
-    for (i = 0; i < x->total; ++i)
-        N_VGetArrayPointer(x->abstol)[i] = x->atol[i];
     if ((flag = CVodeInit(x->mem, aug_rhs, x->tv[0], x->yv)) < 0)
         return flag;
-    if ((flag = CVodeSVtolerances(x->mem, opt->rtol, x->abstol)) < 0)
-        return flag;
     CVodeSetUserData(x->mem, d);
+    if ((flag = sens_tolerances(d, x->mem, opt)) < 0)
+        return flag;
     if ((flag = corrector_attach(d, opt, x->ctx, &x->LS, &x->NLS, message, size)) < 0)
         return flag;
     CVodeSetMaxHnilWarns(x->mem, -1);

@@ -6,6 +6,9 @@
  *
  * Step size (Jorba & Zou): with w_i = atol_i + rtol |y_i(t_n)|,
  *   h = s min( min_i (w_i / |y_i,[p]|)^(1/p), min_i (w_i / |y_i,[p-1]|)^(1/(p-1)) ),
+ * where with options.rel_block = b > 0 the components from b on take the largest |y_j(t_n)| of
+ * their block of b (a run's sensitivities along one direction: a component crossing zero while
+ * the others are large is measured against the direction's size, not asked for atol),
  * s = exp(-0.7 / (p - 1)) (see tl_safety for a cap at high order), at most 100 times the
  * previous step and max_step; orders whose coefficients all vanish (polynomial solutions) do
  * not limit it. Order p = ceil(-ln(tol)/2 + 3) (tl_order), tol = rtol (the smallest atol if

@@ -55,6 +55,7 @@ SUNErrCode SUNNonlinSolFree(SUNNonlinearSolver NLS);
 #define CV_CONV_FAILURE -4
 
 typedef int (*CVRhsFn)(sunrealtype t, N_Vector y, N_Vector ydot, void *user_data);
+typedef int (*CVEwtFn)(N_Vector y, N_Vector ewt, void *user_data);
 typedef int (*CVLsJacFn)(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix Jac, void *user_data,
                          N_Vector tmp1, N_Vector tmp2, N_Vector tmp3);
 
@@ -63,6 +64,7 @@ int CVodeInit(void *cvode_mem, CVRhsFn f, sunrealtype t0, N_Vector y0);
 int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
 int CVodeSStolerances(void *cvode_mem, sunrealtype reltol, sunrealtype abstol);
 int CVodeSVtolerances(void *cvode_mem, sunrealtype reltol, N_Vector abstol);
+int CVodeWFtolerances(void *cvode_mem, CVEwtFn efun);
 int CVodeSetUserData(void *cvode_mem, void *user_data);
 int CVodeSetMaxNumSteps(void *cvode_mem, long int mxsteps);
 int CVodeSetMaxOrd(void *cvode_mem, int maxord);

@@ -130,6 +130,24 @@ def test_error_control_off_takes_no_more_steps(dp):
     assert np.max(np.abs(on.sensitivities - off.sensitivities)) < 1e-4 * scale
 
 
+def test_error_test_blocks(dp):
+    """CVODE's error test on the augmented vector is ||e_y||^2 + sum_k ||e_(s_k)||^2 <= 1 in the
+    blocks' own norms (lcg_cvsens.c, sens_ewt): without error control on the sensitivities, the
+    states' test of the plain run (about its steps: 604 against 639 here; a WRMS norm spread over
+    all 8 blocks took 520), and with it the states and each direction within the tolerance (the
+    states no less accurate than the plain run's)."""
+    t = np.linspace(0.0, 10.0, 11)
+    names = list(dp.param_names) + ["theta1(0)", "theta2(0)"]
+    kw = dict(q0=[0.5, 0.5], rtol=1e-8, atol=1e-10)
+    ref = dp.simulate(t, q0=[0.5, 0.5], rtol=1e-12, atol=1e-14)
+    plain = dp.simulate(t, **kw)
+    off = dp.simulate(t, sensitivities=names, sensitivity_errcon=False, **kw)
+    on = dp.simulate(t, sensitivities=names, **kw)
+    assert 0.9 * plain.stats["steps"] <= off.stats["nsteps"] < on.stats["nsteps"]
+    err_plain = np.max(np.abs(plain.y - ref.y))
+    assert np.max(np.abs(on.y - ref.y)) <= err_plain and np.max(np.abs(off.y - ref.y)) <= 2 * err_plain
+
+
 def test_double_pendulum_against_casadi_cvodes(dp):
     """CasADi's CVODES forward sensitivities (the Jacobian of its integrator) of the double
     pendulum written here by hand: d(theta1, theta2, theta1', theta2')/d(l1, l2, m1, m2, g)."""
@@ -338,5 +356,10 @@ def test_double_pendulum_against_heyoka_variational_equations(dp):
                       params=dict(zip(["l1", "l2", "m1", "m2", "g"], pv)), rtol=1e-8, atol=1e-10, method="taylor",
                       sensitivities=["l1", "l2", "m1", "m2", "g"])
     assert np.max(np.abs(tay.sensitivities[-1, :, :4].T - ref)) < 1e-6 * np.max(np.abs(ref))
-    # and the trajectory itself
-    assert np.max(np.abs(res.y[-1] - np.array(ta.state[:ns])[[order.index(k) for k in ("q1", "q2", "v1", "v2")]])) < 1e-7
+    # and the trajectory itself: the states' error test is the plain run's, so within its error
+    # (8.6e-7 here) and within 100 rtol
+    y_ref = np.array(ta.state[:ns])[[order.index(k) for k in ("q1", "q2", "v1", "v2")]]
+    plain = dp.simulate(np.array([0.0, T_END]), y0=[y0[k] for k in ("q1", "q2", "v1", "v2")],
+                        params=dict(zip(["l1", "l2", "m1", "m2", "g"], pv)), rtol=1e-8, atol=1e-10)
+    err = np.max(np.abs(res.y[-1] - y_ref))
+    assert err <= np.max(np.abs(plain.y[-1] - y_ref)) and err < 1e-6

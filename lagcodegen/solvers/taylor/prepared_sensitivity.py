@@ -52,6 +52,7 @@ class PreparedTaylorSensitivityRun:
         opt.max_steps = int(max_steps)
         opt.max_step = float(max_step)
         opt.order = int(order or 0)
+        opt.rel_block = module.ny  # each direction's sensitivities: one block of the step-size rule
         opt.max_wall = float(max_wall)
         self._s0 = np.ascontiguousarray(np.concatenate([np.zeros(module.ny), module.s0.ravel()]))
         self.values = module.state_names + module.output_names

@@ -201,6 +201,7 @@ class VariationalModule:
         opt.max_steps = int(max_steps)
         opt.max_step = float(max_step)
         opt.order = int(order or 0)
+        opt.rel_block = ny  # each direction's sensitivities: one block of the step-size rule
         opt.max_wall = float(max_wall)
         p = np.ascontiguousarray(p, dtype=float)
         start = time.perf_counter()

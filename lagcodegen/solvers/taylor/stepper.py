@@ -81,10 +81,10 @@ class TaylorStepper:
                    order=order, max_events=max_events, max_wall=max_wall)
 
     def _open(self, module, mem: np.ndarray, *, ny: int, rtol: float, atol, max_step: float, max_steps: int,
-              order: int | None, max_events: int, max_wall: float) -> None:
+              order: int | None, max_events: int, max_wall: float, rel_block: int = 0) -> None:
         """The C stepper of ``module`` (a compiled jet: its ``table``, a cdata of the Taylor
         runtime, with ``ny`` states) on ``mem`` = (t, y (ny values), p); ``atol`` a float or ny
-        values."""
+        values; ``rel_block`` the options' (lcg_taylor_options: the sensitivities' blocks)."""
         rt = stepper_runtime()
         ffi, lib = rt.ffi, rt.lib
         self.module, self.ffi, self.lib, self.rt = module, ffi, lib, rt
@@ -101,6 +101,7 @@ class TaylorStepper:
         opt.max_steps = max_steps
         opt.max_step = max_step
         opt.order = order or 0
+        opt.rel_block = rel_block
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
         opt.max_wall = max_wall
@@ -176,7 +177,7 @@ class TaylorSensitivityStepper(TaylorStepper):
         self.params_at = 1 + ny * (1 + ns)
         self.sout = None  # (nt, ns, ny): where propagate_grid's sensitivities go (set per call)
         self._open(module, mem, ny=ny * (1 + ns), rtol=rtol, atol=module.tolerances(atol, errcon), max_step=max_step,
-                   max_steps=max_steps, order=order, max_events=0, max_wall=max_wall)
+                   max_steps=max_steps, order=order, max_events=0, max_wall=max_wall, rel_block=ny)
         self._grid_rows = self.grid
         self.grid = self._grid_split
 
