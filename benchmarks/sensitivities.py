@@ -289,7 +289,7 @@ def accuracy_rows(label, model, sim, ps, quick):
                         col = ref_ca[:, sim.param_names.index(name)]
                         worst_ca = max(worst_ca, float(np.max(np.abs(res.sensitivities[-1, j, :2 * sim.n] - col))
                                                        / np.max(np.abs(col))))
-            row.update({f"vs_central{tag}": worst_fd, f"vs_casadi{tag}": worst_ca, f"steps{tag}": res.stats["nsteps"]})
+            row.update({f"vs_central{tag}": worst_fd, f"vs_casadi{tag}": worst_ca, f"steps{tag}": res.stats["steps"]})
         rows.append(row)
     return rows
 

@@ -161,7 +161,7 @@ def accuracy_rows(label, sim, angle, angles0, quick: bool):
             pairs.append((angles_of(res, n, name), want))
         worst_a = worst(pairs)
         rows.append(dict(scene=label, projection=projection, p=len(names), vs_central=worst_c, vs_angles=worst_a,
-                         steps=res.stats["nsteps"]))
+                         steps=res.stats["steps"]))
     return rows
 
 

@@ -63,12 +63,12 @@ def rows_of(label, model, ps, rounds):
         for errcon in (True, False):
             for c in CORRECTORS:
                 s = stats[(p, errcon, c)]
-                n = s["nsteps"]
+                n = s["steps"]
                 rows.append(dict(scene=label, p=p, errcon="on" if errcon else "off", corrector=c, steps=n,
-                                 steps_ratio=n / plain["steps"], sens_rhs=s["nrhs"] / n,
-                                 states_rhs=s["nrhs_states"] / n if c == "staggered" else None,
-                                 nni=s["nniters"] / n, jac=s["njac"],
-                                 fact=s["nfactor"] / n, cpu_ms=1e3 * med[(p, errcon, c)],
+                                 steps_ratio=n / plain["steps"], sens_rhs=s["rhs_evals"] / n,
+                                 states_rhs=s["rhs_evals_states"] / n if c == "staggered" else None,
+                                 nni=s["nonlin_iters"] / n, jac=s["jac_evals"],
+                                 fact=s["factorizations"] / n, cpu_ms=1e3 * med[(p, errcon, c)],
                                  ratio=med[(p, errcon, c)] / med["plain"], target=1 + 0.7 * p))
     return rows
 

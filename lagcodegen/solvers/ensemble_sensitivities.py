@@ -21,12 +21,12 @@ from .ensemble_result import COUNT_NAMES, EnsembleInterrupted, EnsembleResult
 from .ensemble_run import _columns, default_threads
 
 
-def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: list, member_run, *, counts: dict,
+def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: list, member_run, *,
                      threads, save, progress, method: str) -> EnsembleResult:
     """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (parsed):
     ``member_run(y0, p)`` one member's run, a :class:`~lagcodegen.result.Result` with its
-    sensitivities (reentrant: called from several threads); ``counts`` the run's statistics
-    behind the ensemble's per-member counts (COUNT_NAMES; those missing count 0). Events
+    sensitivities (reentrant: called from several threads), whose stats give the ensemble's
+    per-member counts (COUNT_NAMES; those a run does not count: 0). Events
     located in a member are counted in its stats ``events`` and ``terminated``; a terminal
     event's time, state and sensitivities are the member's ``t_reached``, final row and final
     sensitivities, its trajectory the output times before it. A member that fails keeps its rows
@@ -60,10 +60,8 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
         status[i] = res.status
         nt_done[i] = grid
         t_reached[i] = res.stats["t_reached"] if res.status < 0 else res.t[-1]
-        for k, s in counts.items():
-            count[k][i] = res.stats.get(s, 0)
-        count["events"][i] = res.stats.get("events", 0)
-        count["terminated"][i] = res.stats.get("terminated", 0)
+        for k in COUNT_NAMES:
+            count[k][i] = res.stats.get(k, 0)
         if res.status < 0:
             messages[i] = res.message
         if rows:

@@ -312,4 +312,4 @@ def test_the_fast_sensitivity_run_honours_the_corrector(double_pendulum):
     assert isinstance(fast, LazyResult)
     assert_same_sensitivities(fast, cm._simulate(t, **opts))
     staggered = cm.simulate(t, **dict(opts, sensitivity_corrector="staggered"))
-    assert staggered.stats["nniters"] != fast.stats["nniters"]
+    assert staggered.stats["nonlin_iters"] != fast.stats["nonlin_iters"]

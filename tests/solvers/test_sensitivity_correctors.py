@@ -60,10 +60,10 @@ def test_staggered_and_simultaneous_agree(dp, method):
         assert np.max(np.abs(a.sensitivities[:, j] - b.sensitivities[:, j])) < 1e-6 * scale[j], NAMES[j]
     assert np.max(np.abs(a.y - b.y)) < 1e-7
     sa, sb = a.stats, b.stats
-    assert sa["nrhs_states"] >= sa["nsteps"] and sb["nrhs_states"] == 0
-    assert sa["nsteps"] <= sa["nsens_iters"] < 2 * sa["nsteps"] and sb["nsens_iters"] == 0
+    assert sa["rhs_evals_states"] >= sa["steps"] and sb["rhs_evals_states"] == 0
+    assert sa["steps"] <= sa["sens_iters"] < 2 * sa["steps"] and sb["sens_iters"] == 0
     # each sensitivity evaluation solves every block once (plus the states' solves)
-    assert sa["nblock_solves"] >= len(NAMES) * sa["nsens_iters"] + sa["nniters"]
+    assert sa["block_solves"] >= len(NAMES) * sa["sens_iters"] + sa["nonlin_iters"]
 
 
 @pytest.mark.parametrize("corrector", ["staggered", "simultaneous"])

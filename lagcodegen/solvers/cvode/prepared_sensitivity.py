@@ -17,7 +17,7 @@ import numpy as np
 
 from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
-from .sensitivity import STATS, directions, functions, message, sens_options
+from .sensitivity import directions, functions, message, sens_options, sens_stats
 
 
 class SensitivityResultMaker(ResultMaker):
@@ -26,7 +26,7 @@ class SensitivityResultMaker(ResultMaker):
 
     def stats(self, raw) -> dict:
         st = raw[0]
-        stats = {k: getattr(st, k) for k in STATS}
+        stats = sens_stats(st)
         stats["wall_time"] = raw[3]
         return stats
 

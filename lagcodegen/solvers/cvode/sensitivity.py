@@ -74,10 +74,17 @@ int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_
                      lcg_cvsens_stats *st);
 """ + POLL_CDEF + EVENTS_CDEF
 
-#: The statistics of a sensitivity run (Result.stats).
-STATS = ("nsteps", "nrhs", "nlinsetups", "netfails", "nniters", "nncfails", "njac", "nfactor", "nblock_solves",
-         "nrhs_states", "nsens_iters",
-         "h_last", "t_reached", "model_error")
+#: The statistics of a sensitivity run: keys of Result.stats (those of the plain runs where they
+#: count the same) -> fields of lcg_cvsens_stats.
+STATS = {"steps": "nsteps", "rhs_evals": "nrhs", "lin_setups": "nlinsetups", "err_test_fails": "netfails",
+         "nonlin_iters": "nniters", "nonlin_conv_fails": "nncfails", "jac_evals": "njac", "factorizations": "nfactor",
+         "block_solves": "nblock_solves", "rhs_evals_states": "nrhs_states", "sens_iters": "nsens_iters",
+         "h_last": "h_last", "t_reached": "t_reached", "model_error": "model_error"}
+
+
+def sens_stats(st) -> dict:
+    """Result.stats of a sensitivity run from its statistics struct ``st`` (:data:`STATS`)."""
+    return {key: getattr(st, field) for key, field in STATS.items()}
 
 
 def _sources() -> dict[str, str]:
@@ -258,7 +265,7 @@ def driver_result(model, ffi, st, flag: int, wall: float, method: str, names, t,
     arrays, copied, its statistics struct ``st`` (:data:`STATS` and ``wall_time``) and the text
     of its ``flag``."""
     nout = len(model.output_names)
-    stats = {k: getattr(st, k) for k in STATS}
+    stats = sens_stats(st)
     stats["wall_time"] = wall
     detail = ffi.string(st.message).decode(errors="replace") if flag < 0 else ""
     text = "success" if flag >= 0 else message(flag, st.model_error, detail, t=st.t_reached)

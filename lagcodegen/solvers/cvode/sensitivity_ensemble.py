@@ -13,10 +13,6 @@ from .sensitivity import directions, functions, solve_sensitivities
 from .sensitivity_events import gradients
 
 #: The sensitivity driver's statistics behind the ensemble's per-member counts (COUNT_NAMES).
-_COUNTS = {"steps": "nsteps", "rhs_evals": "nrhs", "jac_evals": "njac", "err_test_fails": "netfails",
-           "nonlin_conv_fails": "nncfails", "model_error": "model_error"}
-
-
 def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol: float, atol, names, *,
                            threads, save, progress, **driver) -> EnsembleResult:
     """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (checked
@@ -30,5 +26,5 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
     def member_run(y0, p):
         return solve_sensitivities(cm, t, y0, p, names, rtol=rtol, atol=atol, **driver)
 
-    return ensemble_of_runs(cm, t, Y, P, names, member_run, counts=_COUNTS, threads=threads, save=save,
+    return ensemble_of_runs(cm, t, Y, P, names, member_run, threads=threads, save=save,
                             progress=progress, method=driver.get("method", ""))

@@ -47,10 +47,6 @@ def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol
                       param_names=cm.param_names)
 
 
-#: The statistics of a Taylor sensitivity run behind the ensemble's per-member counts.
-_SENS_COUNTS = {"steps": "steps", "rhs_evals": "rhs_evals", "model_error": "model_error"}
-
-
 def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progress, rtol=1e-8, atol=1e-10,
                                     errcon=True, max_step=0.0, max_steps=1_000_000, order=None, max_wall=0.0):
     """The members (rows of Y, P) with the sensitivities ``names``: each one run of the variational
@@ -72,5 +68,5 @@ def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progre
     def member_run(y0, p):
         return run(t, t_ptr, model_buffer("double[]", y0), p, None)
 
-    return ensemble_of_runs(cm, t, Y, P, module.names, member_run, counts=_SENS_COUNTS, threads=threads, save=save,
+    return ensemble_of_runs(cm, t, Y, P, module.names, member_run, threads=threads, save=save,
                             progress=progress, method="taylor")
