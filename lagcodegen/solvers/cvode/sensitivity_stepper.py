@@ -22,7 +22,7 @@ from .sensitivity import CDEF, _sources, directions, functions, sens_options
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
-STEPPER_FILES = ("lcg_cvsens_stepper.c", "lcg_cvsens_stepper.h")
+STEPPER_FILES = ("lcg_cvsens_stepper.c", "lcg_cvsens_stepper.h", "lcg_stepper.h")
 
 STEPPER_CDEF = """
 typedef struct lcg_cvsens_stepper lcg_cvsens_stepper;

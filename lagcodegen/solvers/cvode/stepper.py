@@ -23,7 +23,7 @@ from ..base import METHODS, NativeEvents
 from ..control import POLL_EVERY, install
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
-STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h")
+STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_stepper.h")
 
 STEPPER_CDEF = """
 typedef struct lcg_cvode_stepper lcg_cvode_stepper;
@@ -50,7 +50,7 @@ def stepper_cdef() -> str:
 
 
 #: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
-CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h")
+CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h", "lcg_stepper.h")
 
 CVC_STEPPER_CDEF = """
 typedef struct lcg_cvc_stepper lcg_cvc_stepper;

@@ -23,7 +23,7 @@ from ..control import POLL_EVERY, install
 from .native import ALGEBRAIC_ATOL
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_ida_stepper.c includes lcg_ida.c).
-STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h")
+STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h", "lcg_stepper.h")
 
 STEPPER_CDEF = """
 typedef struct lcg_ida_stepper lcg_ida_stepper;

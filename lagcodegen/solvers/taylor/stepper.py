@@ -25,7 +25,7 @@ from .emit import P_MAX, runtime_key_texts, runtime_sources
 from .run import taylor_module
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_taylor_stepper.c includes lcg_taylor.c).
-STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h")
+STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h", "lcg_stepper.h")
 
 STEPPER_CDEF = """
 typedef struct lcg_taylor_stepper lcg_taylor_stepper;
