@@ -15,6 +15,7 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
+from ...codegen.cffi_decl import header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..control import install
@@ -24,17 +25,8 @@ from .sensitivity_events import SensEvents
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
 STEPPER_FILES = ("lcg_cvsens_stepper.c", "lcg_cvsens_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_cvsens_stepper lcg_cvsens_stepper;
-lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, int ns, const int *which,
-                                           const lcg_cvsens_options *opt, double *mem, double *s,
-                                           lcg_cvsens_events *ev, char *message, size_t size);
-void lcg_cvsens_stepper_free(lcg_cvsens_stepper *st);
-lcg_cvsens_stats *lcg_cvsens_stepper_stats(lcg_cvsens_stepper *st);
-int lcg_cvsens_stepper_until(lcg_cvsens_stepper *st, double t_end);
-int lcg_cvsens_stepper_grid(lcg_cvsens_stepper *st, int nt, const double *tout, double *yout, double *sout);
-int lcg_cvsens_stepper_step(lcg_cvsens_stepper *st, double t_limit);
-"""
+#: The stepper module's interface: the driver's (lcg_cvsens.h), then lcg_cvsens_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_cvsens_stepper.h")
 
 
 @functools.lru_cache(maxsize=4)
@@ -45,7 +37,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
         return {**_sources(), **runtime_files(STEPPER_FILES)}
 
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
-    return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + STEPPER_CDEF,
+    return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + "\n" + STEPPER_CDEF,
                           "lcg_cvsens_stepper.h", [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags,
                           units=("lcg_cvsens_stepper.c",))
 

@@ -16,7 +16,7 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
-from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..base import METHODS, NativeEvents
@@ -25,21 +25,8 @@ from ..control import POLL_EVERY, install
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
 STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_cvode_stepper lcg_cvode_stepper;
-lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
-                                         char *message, size_t size);
-lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_ode_roots *r,
-                                                const lcg_cvode_options *opt, double *mem, lcg_events *ev,
-                                                char *message, size_t size);
-void lcg_cvode_stepper_free(lcg_cvode_stepper *s);
-lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s);
-int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
-                              int one_step);
-int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end);
-int lcg_cvode_stepper_grid(lcg_cvode_stepper *s, int nt, const double *tout, double *yout);
-int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit);
-"""
+#: The stepper's functions: lcg_cvode_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_cvode_stepper.h")
 
 
 def stepper_cdef() -> str:
@@ -52,16 +39,8 @@ def stepper_cdef() -> str:
 #: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
 CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h", "lcg_stepper.h")
 
-CVC_STEPPER_CDEF = """
-typedef struct lcg_cvc_stepper lcg_cvc_stepper;
-lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
-                                     lcg_events *ev, char *message, size_t size);
-void lcg_cvc_stepper_free(lcg_cvc_stepper *s);
-lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s);
-int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end);
-int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout);
-int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit);
-"""
+#: The index-1 stepper's functions: lcg_cvc_stepper.h as it is.
+CVC_STEPPER_CDEF = header_cdef("lcg_cvc_stepper.h")
 
 
 def cvc_stepper_cdef() -> str:

@@ -15,7 +15,7 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
-from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..base import NativeEvents
@@ -25,18 +25,8 @@ from .native import ALGEBRAIC_ATOL
 #: The stepper's files of lagcodegen/runtime/ (lcg_ida_stepper.c includes lcg_ida.c).
 STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_ida_stepper lcg_ida_stepper;
-lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
-                                     const double *yy0, const double *yp0, lcg_events *ev, char *message,
-                                     size_t size);
-void lcg_ida_stepper_free(lcg_ida_stepper *s);
-lcg_ida_stats *lcg_ida_stepper_stats(lcg_ida_stepper *s);
-const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s);
-int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end);
-int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout);
-int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit);
-"""
+#: The stepper's functions: lcg_ida_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_ida_stepper.h")
 
 
 def stepper_cdef() -> str:
