@@ -242,10 +242,12 @@ def test_hand_written_runtime_headers_are_the_cffi_declarations():
     from lagcodegen.solvers.cvode.sensitivity_stepper import STEPPER_CDEF as sens_stepper_cdef
     from lagcodegen.solvers.cvode.stepper import cvc_stepper_cdef, stepper_cdef
     from lagcodegen.solvers.ida.stepper import stepper_cdef as ida_stepper_cdef
+    from lagcodegen.solvers.taylor.stepper import stepper_cdef as taylor_stepper_cdef
     uses = {"lcg_cvsens.h": sens_cdef, "lcg_cvsens_stepper.h": sens_stepper_cdef, "lcg_cvode.h": runtime_cdef(),
             "lcg_cvc.h": runtime_cdef(), "lcg_ida.h": runtime_cdef(), "lcg_taylor.h": taylor_runtime_cdef(),
             "lcg_imp.h": impacts_cdef, "lcg_cvode_stepper.h": stepper_cdef(),
-            "lcg_cvc_stepper.h": cvc_stepper_cdef(), "lcg_ida_stepper.h": ida_stepper_cdef()}
+            "lcg_cvc_stepper.h": cvc_stepper_cdef(), "lcg_ida_stepper.h": ida_stepper_cdef(),
+            "lcg_taylor_stepper.h": taylor_stepper_cdef()}
     for name, cdef in uses.items():
         decl = header_cdef(name)
         assert decl in cdef, name
