@@ -359,17 +359,9 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NULL, A, (N_Vector[]){abstol, y}, 2, &ctx);
     free(data.ynew);
     free(data.info);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

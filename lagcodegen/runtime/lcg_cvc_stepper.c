@@ -30,15 +30,11 @@ struct lcg_cvc_stepper {
 
 void lcg_cvc_stepper_free(lcg_cvc_stepper *s)
 {
-    N_Vector v[2];
-
     if (s == NULL)
         return;
-    v[0] = s->abstol;
-    v[1] = s->yv;
     if (s->mem != NULL)
         CVodeFree(&s->mem);
-    lcg_stepper_sundials_free(s->LS, NULL, s->A, v, 2, &s->ctx);
+    free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->yv}, 2, &s->ctx);
     free(s->data.ynew);
     free(s->data.info);
     free(s->seen);
@@ -132,7 +128,7 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
     s->atol = lcg_stepper_copy(opt->atol_vec, m->ny);
     s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || lcg_stepper_context(&s->ctx, &s->st) != 0) {
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvc_stepper_free(s);
         return NULL;

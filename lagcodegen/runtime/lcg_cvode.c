@@ -575,23 +575,13 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (NLS != NULL)
-        SUNNonlinSolFree(NLS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NLS, A, (N_Vector[]){abstol, y}, 2, &ctx);
     free(data.yb);
     free(data.fb);
     free(data.vals);
     free(data.jd);
     free(data.info);
     free(data.pin);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

@@ -35,15 +35,11 @@ struct lcg_cvode_stepper {
 
 void lcg_cvode_stepper_free(lcg_cvode_stepper *s)
 {
-    N_Vector v[2];
-
     if (s == NULL)
         return;
-    v[0] = s->abstol;
-    v[1] = s->yv;
     if (s->mem != NULL)
         CVodeFree(&s->mem);
-    lcg_stepper_sundials_free(s->LS, s->NLS, s->A, v, 2, &s->ctx);
+    free_solver(s->LS, s->NLS, s->A, (N_Vector[]){s->abstol, s->yv}, 2, &s->ctx);
     free(s->data.yb);
     free(s->data.fb);
     free(s->data.vals);
@@ -188,7 +184,7 @@ lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_od
     s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
     s->atol = lcg_stepper_copy(opt->atol_vec, m->ny);
     s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || lcg_stepper_context(&s->ctx, &s->st) != 0) {
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvode_stepper_free(s);
         return NULL;

@@ -39,16 +39,12 @@ struct lcg_cvsens_stepper {
 
 void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
 {
-    N_Vector v[2];
-
     if (x == NULL)
         return;
-    v[0] = x->abstol;
-    v[1] = x->yv;
     if (x->mem != NULL)
         CVodeFree(&x->mem);
     corrector_free(&x->data, x->LS, x->NLS);
-    lcg_stepper_sundials_free(NULL, NULL, NULL, v, 2, &x->ctx);
+    free_solver(NULL, NULL, NULL, (N_Vector[]){x->abstol, x->yv}, 2, &x->ctx);
     free(x->data.J);
     free(x->data.A);
     free(x->data.piv);
@@ -172,7 +168,7 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     x->which = (int *)malloc(sizeof(int) * (size_t)ns);
     x->seen = (double *)malloc(sizeof(double) * (size_t)(n + (long)m->ny * ns));
     x->atol = lcg_stepper_copy(opt->atol, x->total);
-    if (x->which == NULL || x->seen == NULL || x->atol == NULL || lcg_stepper_context(&x->ctx, &x->st) != 0) {
+    if (x->which == NULL || x->seen == NULL || x->atol == NULL || create_context(&x->ctx, &x->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvsens_stepper_free(x);
         return NULL;

@@ -272,22 +272,8 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM_IDA, "IDA");
     IDAFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (ictol != NULL)
-        N_VDestroy(ictol);
-    if (id != NULL)
-        N_VDestroy(id);
-    if (yp != NULL)
-        N_VDestroy(yp);
-    if (yy != NULL)
-        N_VDestroy(yy);
+    free_solver(LS, NULL, A, (N_Vector[]){abstol, ictol, id, yp, yy}, 5, &ctx);
     free(data.info);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

@@ -32,18 +32,11 @@ struct lcg_ida_stepper {
 
 void lcg_ida_stepper_free(lcg_ida_stepper *s)
 {
-    N_Vector v[5];
-
     if (s == NULL)
         return;
-    v[0] = s->abstol;
-    v[1] = s->ictol;
-    v[2] = s->id;
-    v[3] = s->yp;
-    v[4] = s->yy;
     if (s->mem != NULL)
         IDAFree(&s->mem);
-    lcg_stepper_sundials_free(s->LS, NULL, s->A, v, 5, &s->ctx);
+    free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->ictol, s->id, s->yp, s->yy}, 5, &s->ctx);
     free(s->data.info);
     free(s->seen);
     free(s->atol);
@@ -158,7 +151,7 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
     s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
     s->atol = lcg_stepper_copy(opt->atol_vec, m->ng);
     s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || lcg_stepper_context(&s->ctx, &s->st) != 0) {
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_ida_stepper_free(s);
         return NULL;

@@ -299,14 +299,11 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     st->alpha = data.alpha;
     st->beta = data.beta;
     watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (SUNContext_Create(0, &ctx) != 0) {
+    if (create_context(&ctx, st) != 0) {
         free(buf);
         free(ibuf);
-        snprintf(st->message, sizeof st->message, "SUNContext_Create failed");
         return st->flag = LCG_FLAG_NOMEM;
     }
-    SUNContext_ClearErrHandlers(ctx);
-    SUNContext_PushErrHandler(ctx, record_error, st);
 
     y = N_VNew_Serial(ny, ctx);
     mem = CVodeCreate(opt->method, ctx);
@@ -458,14 +455,8 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NULL, A, &y, 1, &ctx);
     free(buf);
     free(ibuf);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }

@@ -2,8 +2,8 @@
  * (lcg_cvode_stepper.c, lcg_cvsens_stepper.c, lcg_cvc_stepper.c, lcg_ida_stepper.c,
  * lcg_taylor_stepper.c): the caller's memory they work on and how a write to it is seen, the check
  * of a call's times, the start of a call, the grid rows at the current time, and the messages they
- * give; with SUNDIALS (included after lcg_sundials.h) the context, the step limits of the options,
- * the stop time, the counters and the teardown of the solver's objects.
+ * give; with SUNDIALS (included after lcg_sundials.h, whose create_context and free_solver they
+ * use as the drivers do) the step limits of the options, the stop time, the counters.
  *
  * Each stepper is one translation unit with its run driver: include this file after the driver
  * (lcg_control.h first there, then math.h, stdio.h, stdlib.h). Every function here is static
@@ -171,37 +171,6 @@ static inline void lcg_stepper_setup_failed(char *message, size_t size, int flag
 #endif
 int CVodeClearStopTime(void *cvode_mem);
 int IDAClearStopTime(void *ida_mem);
-
-/* The stepper's SUNContext with the driver's record_error (lcg_sundials.h, into the statistics st)
- * as its only error handler: 0, or nonzero if it cannot be made. */
-static inline int lcg_stepper_context(SUNContext *ctx, void *st)
-{
-    if (SUNContext_Create(0, ctx) != 0)
-        return 1;
-    SUNContext_ClearErrHandlers(*ctx);
-    SUNContext_PushErrHandler(*ctx, record_error, st);
-    return 0;
-}
-
-/* The solver's objects freed after CVodeFree / IDAFree, in this order: the linear and nonlinear
- * solvers, the matrix, the nv vectors v, the context (each NULL: nothing). */
-static inline void lcg_stepper_sundials_free(SUNLinearSolver LS, SUNNonlinearSolver NLS, SUNMatrix A, N_Vector *v,
-                                             int nv, SUNContext *ctx)
-{
-    int i;
-
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (NLS != NULL)
-        SUNNonlinSolFree(NLS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    for (i = 0; i < nv; ++i)
-        if (v[i] != NULL)
-            N_VDestroy(v[i]);
-    if (*ctx != NULL)
-        SUNContext_Free(ctx);
-}
 
 /* The step limits of the options on CVODE's memory (each 0: the solver's own), the step budget of
  * one call max_steps last: 0 or a negative flag. */
