@@ -99,8 +99,8 @@ static int cc_setup(lcg_cvc_stepper *s)
             return flag;
         CVodeSetNoInactiveRootWarn(s->mem);
     }
-    return lcg_stepper_cvode_limits(s->mem, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
-                                    opt->max_steps);
+    return lcg_stepper_limits(s->mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
@@ -212,7 +212,7 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
     }
     st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
     if (one_step) {
-        flag = lcg_stepper_cvode_stop(s->mem, t_end);
+        flag = lcg_stepper_stop(s->mem, 0, t_end);
         if (flag >= 0 && t_end > t)
             flag = cc_solve(s, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {

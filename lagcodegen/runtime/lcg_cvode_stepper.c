@@ -148,8 +148,8 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
     CVodeSetMaxHnilWarns(s->mem, -1);
     if (s->roots_on && (flag = roots_init(s->mem, &s->data, s->ev)) < 0)
         return flag;
-    return lcg_stepper_cvode_limits(s->mem, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
-                                    opt->max_steps);
+    return lcg_stepper_limits(s->mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
@@ -262,7 +262,7 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
     }
     st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
     if (one_step) {
-        flag = lcg_stepper_cvode_stop(s->mem, t_end);
+        flag = lcg_stepper_stop(s->mem, 0, t_end);
         if (flag >= 0 && t_end > t)
             flag = cs_solve(s, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {

@@ -133,8 +133,8 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
         if ((flag = sens_roots_init(d)) < 0)
             return flag;
     }
-    return lcg_stepper_cvode_limits(x->mem, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
-                                    opt->max_steps);
+    return lcg_stepper_limits(x->mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, int ns, const int *which,
@@ -253,7 +253,7 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
     lcg_stepper_rows_now(0, nt, tout, t, x->s, nsy, sout);
     st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, x->y, ny, yout);
     if (one_step) {
-        flag = lcg_stepper_cvode_stop(x->mem, t_end);
+        flag = lcg_stepper_stop(x->mem, 0, t_end);
         if (flag >= 0 && t_end > t)
             flag = xs_solve(x, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {

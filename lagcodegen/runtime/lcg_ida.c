@@ -176,13 +176,7 @@ int lcg_ida_solve(const lcg_dae_model *m, const double *p, const double *yy0, co
             goto done;
         IDASetNoInactiveRootWarn(mem);
     }
-    if (opt->max_order > 0 && (flag = IDASetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = IDASetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = IDASetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = IDASetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)
         goto done;

@@ -116,8 +116,8 @@ static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
             return flag;
         IDASetNoInactiveRootWarn(s->mem);
     }
-    return lcg_stepper_ida_limits(s->mem, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
-                                  opt->max_steps);
+    return lcg_stepper_limits(s->mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
@@ -267,7 +267,7 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
         s->y[i] = yv[i];
     st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
     if (one_step) {
-        flag = lcg_stepper_ida_stop(s->mem, t_end);
+        flag = lcg_stepper_stop(s->mem, 1, t_end);
         if (flag >= 0 && t_end > t)
             flag = is_solve(s, tout1, IDA_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {

@@ -345,13 +345,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if ((flag = CVodeSetRootDirection(mem, dirs)) < 0)
         goto done;
     CVodeSetNoInactiveRootWarn(mem);
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;

@@ -3,7 +3,8 @@
  * lcg_taylor_stepper.c): the caller's memory they work on and how a write to it is seen, the check
  * of a call's times, the start of a call, the grid rows at the current time, and the messages they
  * give; with SUNDIALS (included after lcg_sundials.h, whose create_context and free_solver they
- * use as the drivers do) the step limits of the options, the stop time, the counters.
+ * use as the drivers do) the step limits of the options with the budget of a call, the stop time,
+ * the counters.
  *
  * Each stepper is one translation unit with its run driver: include this file after the driver
  * (lcg_control.h first there, then math.h, stdio.h, stdlib.h). Every function here is static
@@ -172,51 +173,25 @@ static inline void lcg_stepper_setup_failed(char *message, size_t size, int flag
 int CVodeClearStopTime(void *cvode_mem);
 int IDAClearStopTime(void *ida_mem);
 
-/* The step limits of the options on CVODE's memory (each 0: the solver's own), the step budget of
- * one call max_steps last: 0 or a negative flag. */
-static inline int lcg_stepper_cvode_limits(void *mem, int max_order, double first_step, double max_step,
-                                           double min_step, long max_steps)
+/* The step limits of the options on the solver's memory (set_step_limits; ida: IDA's, else
+ * CVODE's), then the step budget of one call max_steps: 0 or a negative flag. */
+static inline int lcg_stepper_limits(void *mem, int ida, int max_order, double first_step, double max_step,
+                                     double min_step, long max_steps)
 {
-    int flag;
+    int flag = set_step_limits(mem, ida, max_order, first_step, max_step, min_step);
 
-    if (max_order > 0 && (flag = CVodeSetMaxOrd(mem, max_order)) < 0)
+    if (flag < 0)
         return flag;
-    if (first_step > 0 && (flag = CVodeSetInitStep(mem, first_step)) < 0)
-        return flag;
-    if (max_step > 0 && (flag = CVodeSetMaxStep(mem, max_step)) < 0)
-        return flag;
-    if (min_step > 0 && (flag = CVodeSetMinStep(mem, min_step)) < 0)
-        return flag;
-    return CVodeSetMaxNumSteps(mem, max_steps);
+    return ida ? IDASetMaxNumSteps(mem, max_steps) : CVodeSetMaxNumSteps(mem, max_steps);
 }
 
-/* The same on IDA's memory. */
-static inline int lcg_stepper_ida_limits(void *mem, int max_order, double first_step, double max_step,
-                                         double min_step, long max_steps)
+/* The stop time of a one-step call (ida: on IDA's memory, else CVODE's): t_end, or none without an
+ * end. */
+static inline int lcg_stepper_stop(void *mem, int ida, double t_end)
 {
-    int flag;
-
-    if (max_order > 0 && (flag = IDASetMaxOrd(mem, max_order)) < 0)
-        return flag;
-    if (first_step > 0 && (flag = IDASetInitStep(mem, first_step)) < 0)
-        return flag;
-    if (max_step > 0 && (flag = IDASetMaxStep(mem, max_step)) < 0)
-        return flag;
-    if (min_step > 0 && (flag = IDASetMinStep(mem, min_step)) < 0)
-        return flag;
-    return IDASetMaxNumSteps(mem, max_steps);
-}
-
-/* The stop time of a one-step call on CVODE's memory: t_end, or none without an end. */
-static inline int lcg_stepper_cvode_stop(void *mem, double t_end)
-{
-    return isfinite(t_end) ? CVodeSetStopTime(mem, t_end) : CVodeClearStopTime(mem);
-}
-
-/* The same on IDA's memory. */
-static inline int lcg_stepper_ida_stop(void *mem, double t_end)
-{
-    return isfinite(t_end) ? IDASetStopTime(mem, t_end) : IDAClearStopTime(mem);
+    if (isfinite(t_end))
+        return ida ? IDASetStopTime(mem, t_end) : CVodeSetStopTime(mem, t_end);
+    return ida ? IDAClearStopTime(mem) : CVodeClearStopTime(mem);
 }
 
 /* CVODE's counters since the last (re)start that every CVODE stepper's statistics st keep: steps,

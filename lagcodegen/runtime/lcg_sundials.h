@@ -48,6 +48,25 @@ static inline int create_context(SUNContext *ctx, LCG_STATS *st)
             return st->flag = (nomem);                                               \
     } while (0)
 
+/* The step limits of the options on the solver's memory mem (ida: IDA's, else CVODE's): the
+ * maximum order, the first, largest and smallest step (each 0: the solver's own). 0, or the first
+ * negative flag. */
+static inline int set_step_limits(void *mem, int ida, int max_order, double first_step, double max_step,
+                                  double min_step)
+{
+    int flag;
+
+    if (max_order > 0 && (flag = ida ? IDASetMaxOrd(mem, max_order) : CVodeSetMaxOrd(mem, max_order)) < 0)
+        return flag;
+    if (first_step > 0 && (flag = ida ? IDASetInitStep(mem, first_step) : CVodeSetInitStep(mem, first_step)) < 0)
+        return flag;
+    if (max_step > 0 && (flag = ida ? IDASetMaxStep(mem, max_step) : CVodeSetMaxStep(mem, max_step)) < 0)
+        return flag;
+    if (min_step > 0 && (flag = ida ? IDASetMinStep(mem, min_step) : CVodeSetMinStep(mem, min_step)) < 0)
+        return flag;
+    return 0;
+}
+
 /* After CVodeFree / IDAFree: the solver's objects freed in this order, the linear and nonlinear
  * solvers, the matrix, the nv vectors v (e.g. a compound literal), the context *ctx (each NULL:
  * nothing). */
