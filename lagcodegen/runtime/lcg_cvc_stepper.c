@@ -249,24 +249,10 @@ out:
         CVodeGetNumProjEvals(s->mem, &st->nproj);
     if (s->roots_on)
         CVodeGetNumGEvals(s->mem, &st->ngevals);
-    if (st->model_error == 0)
-        st->t_reached = s->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
     cc_remember(s);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
-int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end)
-{
-    return lcg_cvc_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_cvc_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);
-}
-
-int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit)
-{
-    return lcg_cvc_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_cvc_stepper_until, lcg_cvc_stepper_grid, lcg_cvc_stepper_step */
+LCG_STEPPER_CALLS(cvc)

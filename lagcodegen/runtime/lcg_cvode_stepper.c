@@ -300,24 +300,10 @@ out:
     LCG_STEPPER_CVODE_COUNTS(s->mem, st);
     CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
     CVodeGetNumJacEvals(s->mem, &st->njac);
-    if (st->model_error == 0)
-        st->t_reached = s->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
     cs_remember(s);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
-int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end)
-{
-    return lcg_cvode_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_cvode_stepper_grid(lcg_cvode_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_cvode_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);
-}
-
-int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit)
-{
-    return lcg_cvode_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_cvode_stepper_until, lcg_cvode_stepper_grid, lcg_cvode_stepper_step */
+LCG_STEPPER_CALLS(cvode)

@@ -292,10 +292,8 @@ out:
     CVodeGetNumLinSolvSetups(x->mem, &st->nlinsetups);
     CVodeGetNumNonlinSolvIters(x->mem, &st->nniters);
     corrector_stats(&x->data, st);
-    if (st->model_error == 0)
-        st->t_reached = x->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, x->tv[0]);
     xs_remember(x);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 

@@ -310,24 +310,10 @@ out:
     IDAGetLastStep(s->mem, &st->h_last);
     if (s->roots_on)
         IDAGetNumGEvals(s->mem, &st->ngevals);
-    if (st->model_error == 0)
-        st->t_reached = s->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
     is_remember(s);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
-int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end)
-{
-    return lcg_ida_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_ida_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);
-}
-
-int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit)
-{
-    return lcg_ida_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_ida_stepper_until, lcg_ida_stepper_grid, lcg_ida_stepper_step */
+LCG_STEPPER_CALLS(ida)

@@ -162,6 +162,33 @@ static inline void lcg_stepper_setup_failed(char *message, size_t size, int flag
         }                                                                            \
     } while (0)
 
+/* The end of a call that reached the time t: the statistics st keep it (unless a model error set
+ * the time of the failure) and the call's flag flag (0, or negative). */
+#define LCG_STEPPER_END_CALL(st, flag, t)                                            \
+    do {                                                                             \
+        if ((st)->model_error == 0)                                                  \
+            (st)->t_reached = (t);                                                   \
+        (st)->flag = (flag) < 0 ? (flag) : 0;                                        \
+    } while (0)
+
+/* The calls of the integrator object on lcg_<kind>_stepper_advance(s, t_end, nt, tout, yout,
+ * one_step), defined at file scope (no semicolon after it): lcg_<kind>_stepper_until (to t_end, no
+ * grid: propagate_until), lcg_<kind>_stepper_grid (over the grid tout[0..nt-1], to its last time:
+ * propagate_grid), lcg_<kind>_stepper_step (one step ending at t_limit at the latest: step). */
+#define LCG_STEPPER_CALLS(kind)                                                                        \
+    int lcg_##kind##_stepper_until(lcg_##kind##_stepper *s, double t_end)                               \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, t_end, 0, NULL, NULL, 0);                                \
+    }                                                                                                  \
+    int lcg_##kind##_stepper_grid(lcg_##kind##_stepper *s, int nt, const double *tout, double *yout)    \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);      \
+    }                                                                                                  \
+    int lcg_##kind##_stepper_step(lcg_##kind##_stepper *s, double t_limit)                              \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, t_limit, 0, NULL, NULL, 1);                              \
+    }
+
 #ifdef LCG_SUNDIALS_H
 /* SUNDIALS 7 declarations beyond sundials_api.h's (the run drivers do not need them). */
 #ifndef CV_ONE_STEP

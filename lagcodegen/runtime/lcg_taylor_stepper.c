@@ -330,17 +330,5 @@ done:
     return flag;
 }
 
-int lcg_taylor_stepper_until(lcg_taylor_stepper *s, double t_end)
-{
-    return lcg_taylor_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_taylor_stepper_grid(lcg_taylor_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_taylor_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);
-}
-
-int lcg_taylor_stepper_step(lcg_taylor_stepper *s, double t_limit)
-{
-    return lcg_taylor_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_taylor_stepper_until, lcg_taylor_stepper_grid, lcg_taylor_stepper_step */
+LCG_STEPPER_CALLS(taylor)
