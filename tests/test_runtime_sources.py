@@ -258,3 +258,31 @@ def test_hand_written_runtime_headers_are_the_cffi_declarations():
     fields = [f for f, _ in ffi.typeof("lcg_cvsens_stats").fields]
     assert fields[:3] == ["nsteps", "nrhs", "nlinsetups"] and fields[-1] == "message"
     assert [f for f, _ in ffi.typeof("lcg_cvsens_events").fields][-1] == "terminated"
+
+
+def test_stepper_modules_are_keyed_by_the_shared_stepper_header(monkeypatch):
+    """Each stepper module's cache key follows the text of lcg_stepper.h (and, on SUNDIALS, of
+    lcg_sundials.h): a changed shared header is never served from a stale build."""
+    from lagcodegen.solvers.cvode import sensitivity_stepper, stepper as cvode_stepper
+    from lagcodegen.solvers.ida import stepper as ida_stepper
+    from lagcodegen.solvers.taylor import stepper as taylor_stepper
+    seen = {}
+
+    def capture(label, key_texts, *args, **kwargs):
+        seen[label] = key_texts
+        return label
+
+    builds = [(cvode_stepper, lambda m: m._stepper_runtime.__wrapped__("cvode", "cc", ())),
+              (cvode_stepper, lambda m: m._stepper_runtime.__wrapped__("cvc", "cc", ())),
+              (ida_stepper, lambda m: m._stepper_runtime.__wrapped__("cc", ())),
+              (sensitivity_stepper, lambda m: m._runtime.__wrapped__("cc", ())),
+              (taylor_stepper, lambda m: m._stepper_runtime.__wrapped__("cc", ()))]
+    for module, build in builds:
+        monkeypatch.setattr(module, "driver_runtime", capture)
+        build(module)
+    assert set(seen) == {"cvode_stepper", "cvc_stepper", "ida_stepper", "cvsens_stepper", "taylor_stepper"}
+    shared = "lcg_stepper.h\0" + runtime_package.source("lcg_stepper.h")
+    sundials = "lcg_sundials.h\0" + runtime_package.source("lcg_sundials.h")
+    for label, texts in seen.items():
+        assert shared in texts, label
+        assert label == "taylor_stepper" or sundials in texts, label
