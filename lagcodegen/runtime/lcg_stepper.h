@@ -2,9 +2,9 @@
  * (lcg_cvode_stepper.c, lcg_cvsens_stepper.c, lcg_cvc_stepper.c, lcg_ida_stepper.c,
  * lcg_taylor_stepper.c): the caller's memory they work on and how a write to it is seen, the check
  * of a call's times, the start of a call, the grid rows at the current time, and the messages they
- * give; with SUNDIALS (included after lcg_sundials.h, whose create_context and free_solver they
- * use as the drivers do) the step limits of the options with the budget of a call, the stop time,
- * the counters.
+ * give, the end of a call and the calls on a stepper's advance; with SUNDIALS (included after
+ * lcg_sundials.h, whose create_context, free_solver and set_step_limits they use as the drivers
+ * do) the step limits with the budget of a call, the stop time of a step, the counters.
  *
  * Each stepper is one translation unit with its run driver: include this file after the driver
  * (lcg_control.h first there, then math.h, stdio.h, stdlib.h). Every function here is static
@@ -20,7 +20,7 @@
 
 #include "lcg_codes.h"
 
-/* The stepper struct, zeroed, of size bytes; NULL (with the message) if out of memory. */
+/* The stepper struct, zeroed, of the given bytes; NULL (with the message) if out of memory. */
 static inline void *lcg_stepper_alloc(size_t bytes, char *message, size_t size)
 {
     void *s = calloc(1, bytes);
@@ -30,8 +30,8 @@ static inline void *lcg_stepper_alloc(size_t bytes, char *message, size_t size)
     return s;
 }
 
-/* A copy of the n values x (malloc; the caller's tolerances, directions' data), NULL if out of
- * memory or x is NULL. */
+/* A copy of the n values x (malloc; the caller's absolute tolerances, which the stepper keeps),
+ * NULL if out of memory or x is NULL. */
 static inline double *lcg_stepper_copy(const double *x, long n)
 {
     double *c;
