@@ -211,3 +211,78 @@ def test_model_headers_declare_the_declared_signatures():
     table = sig.cffi_struct(sig.DAE_TABLE)
     for s in sig.DAE_FUNCTIONS.values():
         assert f"int (*{s.name})({', '.join(a.c() for a in s.args)});" in table
+
+
+def test_strip_directives_leaves_the_declarations_cffi_takes():
+    """cffi's cdef takes no preprocessor directives: strip_directives drops each one (the include
+    guard, includes, defines continued over lines, a comment opened on a directive's line) and
+    keeps every declaration as it is."""
+    from lagcodegen.codegen.cffi_decl import strip_directives
+    text = ("/* a header */\n#ifndef X_H\n#define X_H\n\n  #  include \"y.h\" /* the types,\n"
+            " * over two lines */\n#define TWO(a) \\\n    ((a) + \\\n     (a))\n"
+            "typedef struct x { int n; /* count */ double v[4]; } x;\n"
+            "int x_run(const x *s, // the run\n          double t);\n#endif /* X_H */\n")
+    out = strip_directives(text)
+    assert "#" not in out and "include" not in out and "TWO" not in out and "over two lines" not in out
+    assert " ".join(out.split()) == "typedef struct x { int n; double v[4]; } x; int x_run(const x *s, double t);"
+    ffi = cffi.FFI()
+    with pytest.raises(cffi.CDefError):
+        ffi.cdef(text)  # the reason for the helper: cffi refuses the header as it is
+    ffi.cdef(out)
+    assert [(f, t.type.cname) for f, t in ffi.typeof("x").fields] == [("n", "int"), ("v", "double[4]")]
+
+
+def test_hand_written_runtime_headers_are_the_cffi_declarations():
+    """Each hand-written runtime header is declared once: the modules' cdefs hold its text
+    (directives stripped), so a field or prototype changed in the header changes the module's
+    declaration, and cffi checks the layout against the compiled header."""
+    from lagcodegen.codegen.cffi_decl import header_cdef
+    from lagcodegen.simulation.constrained_impacts import _CDEF as impacts_cdef
+    from lagcodegen.solvers.cvode.sensitivity import CDEF as sens_cdef
+    from lagcodegen.solvers.cvode.sensitivity_stepper import STEPPER_CDEF as sens_stepper_cdef
+    from lagcodegen.solvers.cvode.stepper import cvc_stepper_cdef, stepper_cdef
+    from lagcodegen.solvers.ida.stepper import stepper_cdef as ida_stepper_cdef
+    from lagcodegen.solvers.taylor.stepper import stepper_cdef as taylor_stepper_cdef
+    uses = {"lcg_cvsens.h": sens_cdef, "lcg_cvsens_stepper.h": sens_stepper_cdef, "lcg_cvode.h": runtime_cdef(),
+            "lcg_cvc.h": runtime_cdef(), "lcg_ida.h": runtime_cdef(), "lcg_taylor.h": taylor_runtime_cdef(),
+            "lcg_imp.h": impacts_cdef, "lcg_cvode_stepper.h": stepper_cdef(),
+            "lcg_cvc_stepper.h": cvc_stepper_cdef(), "lcg_ida_stepper.h": ida_stepper_cdef(),
+            "lcg_taylor_stepper.h": taylor_stepper_cdef()}
+    for name, cdef in uses.items():
+        decl = header_cdef(name)
+        assert decl in cdef, name
+        assert "lcg_" in decl and "#" not in decl, name
+    # the sensitivity driver's structs: the header's fields, in its order
+    ffi = cffi.FFI()
+    ffi.cdef(sens_cdef)
+    fields = [f for f, _ in ffi.typeof("lcg_cvsens_stats").fields]
+    assert fields[:3] == ["nsteps", "nrhs", "nlinsetups"] and fields[-1] == "message"
+    assert [f for f, _ in ffi.typeof("lcg_cvsens_events").fields][-1] == "terminated"
+
+
+def test_stepper_modules_are_keyed_by_the_shared_stepper_header(monkeypatch):
+    """Each stepper module's cache key follows the text of lcg_stepper.h (and, on SUNDIALS, of
+    lcg_sundials.h): a changed shared header is never served from a stale build."""
+    from lagcodegen.solvers.cvode import sensitivity_stepper, stepper as cvode_stepper
+    from lagcodegen.solvers.ida import stepper as ida_stepper
+    from lagcodegen.solvers.taylor import stepper as taylor_stepper
+    seen = {}
+
+    def capture(label, key_texts, *args, **kwargs):
+        seen[label] = key_texts
+        return label
+
+    builds = [(cvode_stepper, lambda m: m._stepper_runtime.__wrapped__("cvode", "cc", ())),
+              (cvode_stepper, lambda m: m._stepper_runtime.__wrapped__("cvc", "cc", ())),
+              (ida_stepper, lambda m: m._stepper_runtime.__wrapped__("cc", ())),
+              (sensitivity_stepper, lambda m: m._runtime.__wrapped__("cc", ())),
+              (taylor_stepper, lambda m: m._stepper_runtime.__wrapped__("cc", ()))]
+    for module, build in builds:
+        monkeypatch.setattr(module, "driver_runtime", capture)
+        build(module)
+    assert set(seen) == {"cvode_stepper", "cvc_stepper", "ida_stepper", "cvsens_stepper", "taylor_stepper"}
+    shared = "lcg_stepper.h\0" + runtime_package.source("lcg_stepper.h")
+    sundials = "lcg_sundials.h\0" + runtime_package.source("lcg_sundials.h")
+    for label, texts in seen.items():
+        assert shared in texts, label
+        assert label == "taylor_stepper" or sundials in texts, label

@@ -298,13 +298,7 @@ int lcg_cvc_solve(const lcg_dae_model *m, const double *p, const double *y0, int
             goto done;
         CVodeSetNoInactiveRootWarn(mem);
     }
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
@@ -359,17 +353,9 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NULL, A, (N_Vector[]){abstol, y}, 2, &ctx);
     free(data.ynew);
     free(data.info);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

@@ -8,11 +8,7 @@
 #include "lcg_cvc.c"
 
 #include "lcg_cvc_stepper.h"
-
-/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
-#define CV_ONE_STEP 2
-int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
-int CVodeClearStopTime(void *cvode_mem);
+#include "lcg_stepper.h"
 
 struct lcg_cvc_stepper {
     const lcg_dae_model *m;
@@ -38,16 +34,7 @@ void lcg_cvc_stepper_free(lcg_cvc_stepper *s)
         return;
     if (s->mem != NULL)
         CVodeFree(&s->mem);
-    if (s->LS != NULL)
-        SUNLinSolFree(s->LS);
-    if (s->A != NULL)
-        SUNMatDestroy(s->A);
-    if (s->abstol != NULL)
-        N_VDestroy(s->abstol);
-    if (s->yv != NULL)
-        N_VDestroy(s->yv);
-    if (s->ctx != NULL)
-        SUNContext_Free(&s->ctx);
+    free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->yv}, 2, &s->ctx);
     free(s->data.ynew);
     free(s->data.info);
     free(s->seen);
@@ -60,23 +47,9 @@ lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s)
     return &s->st;
 }
 
-/* 1 if the nt times t are finite and do not decrease. */
-static int cc_increasing(int nt, const double *t)
-{
-    int k;
-
-    for (k = 0; k < nt; ++k)
-        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
-            return 0;
-    return 1;
-}
-
 static void cc_remember(lcg_cvc_stepper *s)
 {
-    int i, n = 1 + s->m->ny + s->m->np;
-
-    for (i = 0; i < n; ++i)
-        s->seen[i] = s->tv[i];
+    lcg_stepper_remember(s->seen, s->tv, 1 + s->m->ny + s->m->np, NULL, 0);
 }
 
 /* The options of lcg_cvc_solve, on the stepper's CVODE memory: 0 or a negative flag. */
@@ -126,22 +99,15 @@ static int cc_setup(lcg_cvc_stepper *s)
             return flag;
         CVodeSetNoInactiveRootWarn(s->mem);
     }
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(s->mem, opt->max_order)) < 0)
-        return flag;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(s->mem, opt->first_step)) < 0)
-        return flag;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(s->mem, opt->max_step)) < 0)
-        return flag;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(s->mem, opt->min_step)) < 0)
-        return flag;
-    return CVodeSetMaxNumSteps(s->mem, opt->max_steps);
+    return lcg_stepper_limits(s->mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
                                      lcg_events *ev, char *message, size_t size)
 {
     lcg_cvc_stepper *s;
-    int i, flag;
+    int flag;
 
     if (!lcg_dae_check(m, message, size))
         return NULL;
@@ -149,11 +115,8 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
         snprintf(message, size, "bad options (max_steps >= 1) or a non-finite time");
         return NULL;
     }
-    s = (lcg_cvc_stepper *)calloc(1, sizeof *s);
-    if (s == NULL) {
-        snprintf(message, size, "out of memory");
+    if ((s = (lcg_cvc_stepper *)lcg_stepper_alloc(sizeof *s, message, size)) == NULL)
         return NULL;
-    }
     s->m = m;
     s->opt = *opt;
     s->opt.cancel = NULL;
@@ -163,18 +126,13 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     s->y = mem + 1;
     s->p = s->y + m->ny;
     s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
-    if (opt->atol_vec != NULL && (s->atol = (double *)malloc(sizeof(double) * (size_t)m->ny)) != NULL) {
-        for (i = 0; i < m->ny; ++i)
-            s->atol[i] = opt->atol_vec[i];
-        s->opt.atol_vec = s->atol;
-    }
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || SUNContext_Create(0, &s->ctx) != 0) {
+    s->atol = lcg_stepper_copy(opt->atol_vec, m->ny);
+    s->opt.atol_vec = s->atol;
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvc_stepper_free(s);
         return NULL;
     }
-    SUNContext_ClearErrHandlers(s->ctx);
-    SUNContext_PushErrHandler(s->ctx, record_error, &s->st);
     s->data.crhs = m->crhs;
     s->data.m = m;
     s->data.p = s->p;
@@ -194,8 +152,7 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     s->data.st = &s->st;
     flag = cc_setup(s);
     if (flag < 0) {
-        snprintf(message, size, flag == LCG_FLAG_NOMEM ? "out of memory creating the CVODE solver"
-                 : "CVODE setup failed (flag %d): %s", flag, s->st.message);
+        lcg_stepper_setup_failed(message, size, flag, LCG_FLAG_NOMEM, "CVODE", s->st.message);
         lcg_cvc_stepper_free(s);
         return NULL;
     }
@@ -238,24 +195,14 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
     double t = s->tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
     int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
 
-    st->flag = st->model_error = st->nt_done = 0;
-    st->message[0] = '\0';
-    if (s->ev != NULL) {
-        s->ev->n_events = 0;
-        s->ev->terminated = 0;
-    }
+    LCG_STEPPER_NEW_CALL(st, s->ev);
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
-        || !cc_increasing(nt, tout)) {
-        snprintf(st->message, sizeof st->message,
-                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
-                 "grid's times are not finite and increasing from there", t_end, t);
-        flag = LCG_FLAG_BAD_INPUT;
+    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL, 1)) {
+        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
         goto out;
     }
-    for (i = 0; i < n && !s->restart; ++i)
-        if (s->tv[i] != s->seen[i])
-            s->restart = 1; /* the caller set the time, the state or the parameters */
+    if (!s->restart && lcg_stepper_written(s->seen, s->tv, n, NULL, 0))
+        s->restart = 1; /* the caller set the time, the state or the parameters */
     if (s->restart) {
         for (i = 0; i < ny; ++i)
             yv[i] = s->y[i];
@@ -263,16 +210,11 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
             goto out;
         s->restart = 0;
     }
-    while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
-        for (i = 0; i < ny; ++i)
-            yout[(long)k * ny + i] = s->y[i];
-        st->nt_done = ++k;
-    }
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
     if (one_step) {
-        flag = isfinite(t_end) ? CVodeSetStopTime(s->mem, t_end) : CVodeClearStopTime(s->mem);
-        /* tout only hints the first step's size after a (re)start; the stop time bounds the step */
+        flag = lcg_stepper_stop(s->mem, 0, t_end);
         if (flag >= 0 && t_end > t)
-            flag = cc_solve(s, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), CV_ONE_STEP, &tret, &stop);
+            flag = cc_solve(s, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {
         if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
             flag = cc_solve(s, t_end, CV_NORMAL, &tret, &stop);
@@ -298,38 +240,19 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR)
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    flag = lcg_stepper_model_flag(flag, st->model_error);
     if (flag < 0)
         s->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
-    CVodeGetNumSteps(s->mem, &st->nsteps);
-    CVodeGetNumRhsEvals(s->mem, &st->nrhs);
+    LCG_STEPPER_CVODE_COUNTS(s->mem, st);
     CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
-    CVodeGetNumErrTestFails(s->mem, &st->netfails);
-    CVodeGetNumNonlinSolvConvFails(s->mem, &st->nncfails);
-    CVodeGetLastStep(s->mem, &st->h_last);
     if (opt->projection)
         CVodeGetNumProjEvals(s->mem, &st->nproj);
     if (s->roots_on)
         CVodeGetNumGEvals(s->mem, &st->ngevals);
-    if (st->model_error == 0)
-        st->t_reached = s->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
     cc_remember(s);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
-int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end)
-{
-    return lcg_cvc_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_cvc_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
-}
-
-int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit)
-{
-    return lcg_cvc_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_cvc_stepper_until, lcg_cvc_stepper_grid, lcg_cvc_stepper_step */
+LCG_STEPPER_CALLS(cvc)

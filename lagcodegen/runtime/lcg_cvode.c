@@ -515,13 +515,7 @@ static int solve(const lcg_model *m, const lcg_ode_roots *r, const double *p, co
     CVodeSetMaxHnilWarns(mem, -1); /* no "t + h = t" warnings on stdout: failures are reported */
     if (roots_on && (flag = roots_init(mem, &data, ev)) < 0)
         goto done;
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     data.tb = tb;
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tb < tout[nt - 1] ? tb : tout[nt - 1])) < 0)
@@ -575,23 +569,13 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (NLS != NULL)
-        SUNNonlinSolFree(NLS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NLS, A, (N_Vector[]){abstol, y}, 2, &ctx);
     free(data.yb);
     free(data.fb);
     free(data.vals);
     free(data.jd);
     free(data.info);
     free(data.pin);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

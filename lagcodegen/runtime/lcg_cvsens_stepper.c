@@ -12,12 +12,7 @@
 #include "lcg_cvsens.c"
 
 #include "lcg_cvsens_stepper.h"
-
-/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
-#ifndef CV_ONE_STEP
-#define CV_ONE_STEP 2
-#endif
-int CVodeClearStopTime(void *cvode_mem);
+#include "lcg_stepper.h"
 
 struct lcg_cvsens_stepper {
     const lcg_model *m;
@@ -49,10 +44,7 @@ void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
     if (x->mem != NULL)
         CVodeFree(&x->mem);
     corrector_free(&x->data, x->LS, x->NLS);
-    if (x->yv != NULL)
-        N_VDestroy(x->yv);
-    if (x->ctx != NULL)
-        SUNContext_Free(&x->ctx);
+    free_solver(NULL, NULL, NULL, (N_Vector[]){x->yv}, 1, &x->ctx);
     free(x->data.J);
     free(x->data.A);
     free(x->data.piv);
@@ -96,25 +88,9 @@ static void xs_store(lcg_cvsens_stepper *x, double *y, double *s)
         s[i] = yv[ny + i];
 }
 
-/* 1 if the nt times t are finite and do not decrease. */
-static int xs_increasing(int nt, const double *t)
-{
-    int k;
-
-    for (k = 0; k < nt; ++k)
-        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
-            return 0;
-    return 1;
-}
-
 static void xs_remember(lcg_cvsens_stepper *x)
 {
-    long i, n = 1 + x->m->ny + x->m->np;
-
-    for (i = 0; i < n; ++i)
-        x->seen[i] = x->tv[i];
-    for (i = 0; i < (long)x->m->ny * x->ns; ++i)
-        x->seen[n + i] = x->s[i];
+    lcg_stepper_remember(x->seen, x->tv, 1 + x->m->ny + x->m->np, x->s, (long)x->m->ny * x->ns);
 }
 
 /* The options of lcg_cvsens_solve on the stepper's CVODE memory: 0 or a negative flag. */
@@ -148,20 +124,13 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
     if ((flag = corrector_attach(d, opt, x->ctx, &x->LS, &x->NLS, message, size)) < 0)
         return flag;
     CVodeSetMaxHnilWarns(x->mem, -1);
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(x->mem, opt->max_order)) < 0)
-        return flag;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(x->mem, opt->first_step)) < 0)
-        return flag;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(x->mem, opt->max_step)) < 0)
-        return flag;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(x->mem, opt->min_step)) < 0)
-        return flag;
     if (x->roots_on) {
         d->ev = x->ev;
         if ((flag = sens_roots_init(d)) < 0)
             return flag;
     }
-    return CVodeSetMaxNumSteps(x->mem, opt->max_steps);
+    return lcg_stepper_limits(x->mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, int ns, const int *which,
@@ -181,11 +150,8 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
         snprintf(message, size, "bad options (max_steps >= 1, at least one direction) or a non-finite time");
         return NULL;
     }
-    x = (lcg_cvsens_stepper *)calloc(1, sizeof *x);
-    if (x == NULL) {
-        snprintf(message, size, "out of memory");
+    if ((x = (lcg_cvsens_stepper *)lcg_stepper_alloc(sizeof *x, message, size)) == NULL)
         return NULL;
-    }
     n = 1 + m->ny + m->np;
     x->m = m;
     x->opt = *opt;
@@ -197,19 +163,15 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     x->s = s;
     x->which = (int *)malloc(sizeof(int) * (size_t)ns);
     x->seen = (double *)malloc(sizeof(double) * (size_t)(n + (long)m->ny * ns));
-    x->atol = (double *)malloc(sizeof(double) * (size_t)x->total);
-    if (x->which == NULL || x->seen == NULL || x->atol == NULL || SUNContext_Create(0, &x->ctx) != 0) {
+    x->atol = lcg_stepper_copy(opt->atol, x->total);
+    if (x->which == NULL || x->seen == NULL || x->atol == NULL || create_context(&x->ctx, &x->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvsens_stepper_free(x);
         return NULL;
     }
     for (i = 0; i < ns; ++i)
         x->which[i] = which[i];
-    for (i = 0; i < x->total; ++i)
-        x->atol[i] = opt->atol[i];
     x->opt.atol = x->atol;
-    SUNContext_ClearErrHandlers(x->ctx);
-    SUNContext_PushErrHandler(x->ctx, record_error, &x->st);
     x->data.m = m;
     x->data.sens_rhs = sens_rhs;
     x->data.p = x->p;
@@ -224,8 +186,7 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     flag = xs_setup(x, message, size);
     if (flag < 0) {
         if (message[0] == '\0' || flag == LCG_FLAG_NOMEM)
-            snprintf(message, size, flag == LCG_FLAG_NOMEM ? "out of memory creating the CVODE solver"
-                     : "CVODE setup failed (flag %d): %s", flag, x->st.message);
+            lcg_stepper_setup_failed(message, size, flag, LCG_FLAG_NOMEM, "CVODE", x->st.message);
         lcg_cvsens_stepper_free(x);
         return NULL;
     }
@@ -265,32 +226,17 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
     sens_data *d = &x->data;
     const long ny = m->ny, nsy = (long)m->ny * x->ns, n = 1 + m->ny + m->np;
     double t = x->tv[0], tret = t;
-    long i;
     int k = 0, flag = 0, stop = 0;
 
-    st->flag = st->model_error = st->nt_done = 0;
-    st->message[0] = '\0';
+    LCG_STEPPER_NEW_CALL(st, x->ev);
     d->nonfinite = 0;
-    if (x->ev != NULL) {
-        x->ev->n_events = 0;
-        x->ev->terminated = 0;
-    }
     watch_init(&d->w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || nt < 0
-        || (nt > 0 && (tout == NULL || yout == NULL || sout == NULL || tout[0] < t || tout[nt - 1] != t_end))
-        || !xs_increasing(nt, tout)) {
-        snprintf(st->message, sizeof st->message,
-                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
-                 "grid's times are not finite and increasing from there", t_end, t);
-        flag = LCG_FLAG_BAD_INPUT;
+    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL && sout != NULL, 1)) {
+        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
         goto out;
     }
-    for (i = 0; i < n && !x->restart; ++i)
-        if (x->tv[i] != x->seen[i])
-            x->restart = 1; /* the caller set the time, the state or the parameters */
-    for (i = 0; i < nsy && !x->restart; ++i)
-        if (x->s[i] != x->seen[n + i])
-            x->restart = 1; /* ... or the sensitivities */
+    if (!x->restart && lcg_stepper_written(x->seen, x->tv, n, x->s, nsy))
+        x->restart = 1; /* the caller set the time, the state, the parameters or the sensitivities */
     if (x->restart) {
         xs_load(x);
         if ((flag = CVodeReInit(x->mem, t, x->yv)) < 0)
@@ -299,20 +245,13 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
         x->restart = 0;
         x->t_start = t;
     }
-    while (k < nt && tout[k] <= t) { /* grid times at the current time: the current state */
-        for (i = 0; i < ny; ++i)
-            yout[(long)k * ny + i] = x->y[i];
-        for (i = 0; i < nsy; ++i)
-            sout[(long)k * nsy + i] = x->s[i];
-        st->nt_done = ++k;
-    }
+    /* grid times at the current time: the current state and sensitivities */
+    lcg_stepper_rows_now(0, nt, tout, t, x->s, nsy, sout);
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, x->y, ny, yout);
     if (one_step) {
-        if (isfinite(t_end))
-            flag = CVodeSetStopTime(x->mem, t_end);
-        else
-            flag = CVodeClearStopTime(x->mem);
+        flag = lcg_stepper_stop(x->mem, 0, t_end);
         if (flag >= 0 && t_end > t)
-            flag = xs_solve(x, isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)), CV_ONE_STEP, &tret, &stop);
+            flag = xs_solve(x, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {
         if (t_end > t && (flag = CVodeSetStopTime(x->mem, t_end)) >= 0)
             flag = xs_solve(x, t_end, CV_NORMAL, &tret, &stop);
@@ -340,23 +279,17 @@ out:
         st->model_error = LCG_ERR_NONFINITE;
         st->t_reached = d->t_nonfinite;
         flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    } else if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR) {
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    } else {
+        flag = lcg_stepper_model_flag(flag, st->model_error);
     }
     if (flag < 0)
         x->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
-    CVodeGetNumSteps(x->mem, &st->nsteps);
-    CVodeGetNumRhsEvals(x->mem, &st->nrhs);
+    LCG_STEPPER_CVODE_COUNTS(x->mem, st);
     CVodeGetNumLinSolvSetups(x->mem, &st->nlinsetups);
-    CVodeGetNumErrTestFails(x->mem, &st->netfails);
     CVodeGetNumNonlinSolvIters(x->mem, &st->nniters);
-    CVodeGetNumNonlinSolvConvFails(x->mem, &st->nncfails);
     corrector_stats(&x->data, st);
-    CVodeGetLastStep(x->mem, &st->h_last);
-    if (st->model_error == 0)
-        st->t_reached = x->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, x->tv[0]);
     xs_remember(x);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
@@ -367,8 +300,7 @@ int lcg_cvsens_stepper_until(lcg_cvsens_stepper *x, double t_end)
 
 int lcg_cvsens_stepper_grid(lcg_cvsens_stepper *x, int nt, const double *tout, double *yout, double *sout)
 {
-    return lcg_cvsens_stepper_advance(x, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, sout,
-                                      0);
+    return lcg_cvsens_stepper_advance(x, lcg_stepper_grid_end(nt, tout), nt, tout, yout, sout, 0);
 }
 
 int lcg_cvsens_stepper_step(lcg_cvsens_stepper *x, double t_limit)

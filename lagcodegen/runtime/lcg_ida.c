@@ -176,13 +176,7 @@ int lcg_ida_solve(const lcg_dae_model *m, const double *p, const double *yy0, co
             goto done;
         IDASetNoInactiveRootWarn(mem);
     }
-    if (opt->max_order > 0 && (flag = IDASetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = IDASetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = IDASetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = IDASetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
@@ -272,22 +266,8 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM_IDA, "IDA");
     IDAFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (abstol != NULL)
-        N_VDestroy(abstol);
-    if (ictol != NULL)
-        N_VDestroy(ictol);
-    if (id != NULL)
-        N_VDestroy(id);
-    if (yp != NULL)
-        N_VDestroy(yp);
-    if (yy != NULL)
-        N_VDestroy(yy);
+    free_solver(LS, NULL, A, (N_Vector[]){abstol, ictol, id, yp, yy}, 5, &ctx);
     free(data.info);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }
 

@@ -9,10 +9,7 @@
 #include "lcg_ida.c"
 
 #include "lcg_ida_stepper.h"
-
-/* SUNDIALS 7 declarations beyond sundials_api.h's (the run driver does not need them). */
-#define IDA_ONE_STEP 2
-int IDAClearStopTime(void *ida_mem);
+#include "lcg_stepper.h"
 
 struct lcg_ida_stepper {
     const lcg_dae_model *m;
@@ -39,22 +36,7 @@ void lcg_ida_stepper_free(lcg_ida_stepper *s)
         return;
     if (s->mem != NULL)
         IDAFree(&s->mem);
-    if (s->LS != NULL)
-        SUNLinSolFree(s->LS);
-    if (s->A != NULL)
-        SUNMatDestroy(s->A);
-    if (s->abstol != NULL)
-        N_VDestroy(s->abstol);
-    if (s->ictol != NULL)
-        N_VDestroy(s->ictol);
-    if (s->id != NULL)
-        N_VDestroy(s->id);
-    if (s->yp != NULL)
-        N_VDestroy(s->yp);
-    if (s->yy != NULL)
-        N_VDestroy(s->yy);
-    if (s->ctx != NULL)
-        SUNContext_Free(&s->ctx);
+    free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->ictol, s->id, s->yp, s->yy}, 5, &s->ctx);
     free(s->data.info);
     free(s->seen);
     free(s->atol);
@@ -71,23 +53,9 @@ const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s)
     return N_VGetArrayPointer(s->yy);
 }
 
-/* 1 if the nt times t are finite and do not decrease. */
-static int is_increasing(int nt, const double *t)
-{
-    int k;
-
-    for (k = 0; k < nt; ++k)
-        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
-            return 0;
-    return 1;
-}
-
 static void is_remember(lcg_ida_stepper *s)
 {
-    int i, n = 1 + s->m->ny + s->m->np;
-
-    for (i = 0; i < n; ++i)
-        s->seen[i] = s->tv[i];
+    lcg_stepper_remember(s->seen, s->tv, 1 + s->m->ny + s->m->np, NULL, 0);
 }
 
 /* The run's tolerances (after IDACalcIC's own): 0 or a negative flag. */
@@ -148,15 +116,8 @@ static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
             return flag;
         IDASetNoInactiveRootWarn(s->mem);
     }
-    if (opt->max_order > 0 && (flag = IDASetMaxOrd(s->mem, opt->max_order)) < 0)
-        return flag;
-    if (opt->first_step > 0 && (flag = IDASetInitStep(s->mem, opt->first_step)) < 0)
-        return flag;
-    if (opt->max_step > 0 && (flag = IDASetMaxStep(s->mem, opt->max_step)) < 0)
-        return flag;
-    if (opt->min_step > 0 && (flag = IDASetMinStep(s->mem, opt->min_step)) < 0)
-        return flag;
-    return IDASetMaxNumSteps(s->mem, opt->max_steps);
+    return lcg_stepper_limits(s->mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
+                              opt->max_steps);
 }
 
 lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
@@ -176,11 +137,8 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
         snprintf(message, size, "bad options (max_steps >= 1) or a non-finite time");
         return NULL;
     }
-    s = (lcg_ida_stepper *)calloc(1, sizeof *s);
-    if (s == NULL) {
-        snprintf(message, size, "out of memory");
+    if ((s = (lcg_ida_stepper *)lcg_stepper_alloc(sizeof *s, message, size)) == NULL)
         return NULL;
-    }
     s->m = m;
     s->opt = *opt;
     s->opt.cancel = NULL;
@@ -191,26 +149,20 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
     s->p = s->y + m->ny;
     s->need_ic = opt->calc_ic;
     s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
-    if (opt->atol_vec != NULL && (s->atol = (double *)malloc(sizeof(double) * (size_t)m->ng)) != NULL) {
-        for (i = 0; i < m->ng; ++i)
-            s->atol[i] = opt->atol_vec[i];
-        s->opt.atol_vec = s->atol;
-    }
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || SUNContext_Create(0, &s->ctx) != 0) {
+    s->atol = lcg_stepper_copy(opt->atol_vec, m->ng);
+    s->opt.atol_vec = s->atol;
+    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_ida_stepper_free(s);
         return NULL;
     }
-    SUNContext_ClearErrHandlers(s->ctx);
-    SUNContext_PushErrHandler(s->ctx, record_error, &s->st);
     s->data.res = m->ggl_res;
     s->data.m = m;
     s->data.p = s->p;
     s->data.st = &s->st;
     flag = is_setup(s, yy0, yp0);
     if (flag < 0) {
-        snprintf(message, size, flag == LCG_FLAG_NOMEM_IDA ? "out of memory creating the IDA solver"
-                 : "IDA setup failed (flag %d): %s", flag, s->st.message);
+        lcg_stepper_setup_failed(message, size, flag, LCG_FLAG_NOMEM_IDA, "IDA", s->st.message);
         lcg_ida_stepper_free(s);
         return NULL;
     }
@@ -293,24 +245,14 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
     double t = s->tv[0], tret = t, tout1, *yv = N_VGetArrayPointer(s->yy);
     int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
 
-    st->flag = st->model_error = st->nt_done = 0;
-    st->message[0] = '\0';
-    if (s->ev != NULL) {
-        s->ev->n_events = 0;
-        s->ev->terminated = 0;
-    }
+    LCG_STEPPER_NEW_CALL(st, s->ev);
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[0] < t || tout[nt - 1] != t_end))
-        || !is_increasing(nt, tout)) {
-        snprintf(st->message, sizeof st->message,
-                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
-                 "grid's times are not finite and increasing from there", t_end, t);
-        flag = LCG_FLAG_BAD_INPUT;
+    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL, 1)) {
+        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
         goto out;
     }
-    for (i = 0; i < n && !s->restart; ++i)
-        if (s->tv[i] != s->seen[i])
-            s->restart = 1; /* the caller set the time, the state or the parameters */
+    if (!s->restart && lcg_stepper_written(s->seen, s->tv, n, NULL, 0))
+        s->restart = 1; /* the caller set the time, the state or the parameters */
     if (s->restart) {
         if ((flag = is_restart(s)) < 0)
             goto out;
@@ -318,18 +260,14 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
     }
     while (k < nt && tout[k] <= t)
         ++k;
-    tout1 = k < nt ? tout[k] : (isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t)));
+    tout1 = k < nt ? tout[k] : lcg_stepper_one_step_tout(t, t_end);
     if (s->need_ic && tout1 > t && (flag = is_calc_ic(s, tout1)) < 0)
         goto out;
     for (i = 0; i < ny; ++i)
         s->y[i] = yv[i];
-    for (k = 0; k < nt && tout[k] <= t; ++k) { /* grid times at the current time: the current state */
-        for (i = 0; i < ny; ++i)
-            yout[(long)k * ny + i] = s->y[i];
-        st->nt_done = k + 1;
-    }
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
     if (one_step) {
-        flag = isfinite(t_end) ? IDASetStopTime(s->mem, t_end) : IDAClearStopTime(s->mem);
+        flag = lcg_stepper_stop(s->mem, 1, t_end);
         if (flag >= 0 && t_end > t)
             flag = is_solve(s, tout1, IDA_ONE_STEP, &tret, &stop);
     } else if (nt == 0) {
@@ -360,8 +298,7 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    if (st->model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR)
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
+    flag = lcg_stepper_model_flag(flag, st->model_error);
     if (flag < 0 && flag != LCG_FLAG_BAD_INPUT)
         s->restart = 1; /* IDA's state after a failure: start again from the last state reached */
     IDAGetNumSteps(s->mem, &st->nsteps);
@@ -373,24 +310,10 @@ out:
     IDAGetLastStep(s->mem, &st->h_last);
     if (s->roots_on)
         IDAGetNumGEvals(s->mem, &st->ngevals);
-    if (st->model_error == 0)
-        st->t_reached = s->tv[0];
+    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
     is_remember(s);
-    st->flag = flag < 0 ? flag : 0;
     return st->flag;
 }
 
-int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end)
-{
-    return lcg_ida_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_ida_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
-}
-
-int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit)
-{
-    return lcg_ida_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_ida_stepper_until, lcg_ida_stepper_grid, lcg_ida_stepper_step */
+LCG_STEPPER_CALLS(ida)

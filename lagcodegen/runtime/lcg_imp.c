@@ -299,14 +299,11 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     st->alpha = data.alpha;
     st->beta = data.beta;
     watch_init(&data.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (SUNContext_Create(0, &ctx) != 0) {
+    if (create_context(&ctx, st) != 0) {
         free(buf);
         free(ibuf);
-        snprintf(st->message, sizeof st->message, "SUNContext_Create failed");
         return st->flag = LCG_FLAG_NOMEM;
     }
-    SUNContext_ClearErrHandlers(ctx);
-    SUNContext_PushErrHandler(ctx, record_error, st);
 
     y = N_VNew_Serial(ny, ctx);
     mem = CVodeCreate(opt->method, ctx);
@@ -348,13 +345,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if ((flag = CVodeSetRootDirection(mem, dirs)) < 0)
         goto done;
     CVodeSetNoInactiveRootWarn(mem);
-    if (opt->max_order > 0 && (flag = CVodeSetMaxOrd(mem, opt->max_order)) < 0)
-        goto done;
-    if (opt->first_step > 0 && (flag = CVodeSetInitStep(mem, opt->first_step)) < 0)
-        goto done;
-    if (opt->max_step > 0 && (flag = CVodeSetMaxStep(mem, opt->max_step)) < 0)
-        goto done;
-    if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
+    if ((flag = set_step_limits(mem, 0, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
@@ -458,14 +449,8 @@ done:
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
-    if (LS != NULL)
-        SUNLinSolFree(LS);
-    if (A != NULL)
-        SUNMatDestroy(A);
-    if (y != NULL)
-        N_VDestroy(y);
+    free_solver(LS, NULL, A, &y, 1, &ctx);
     free(buf);
     free(ibuf);
-    SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
 }

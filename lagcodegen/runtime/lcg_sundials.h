@@ -26,17 +26,67 @@ static void record_error(int line, const char *func, const char *file, const cha
              err_code, msg ? msg : "");
 }
 
-/* Create the SUNContext ctx with record_error as its only error handler; nomem: the driver's
- * out-of-memory flag, returned (and stored in st->flag) when the context cannot be made. */
+/* Create the SUNContext *ctx with record_error (into the statistics st) as its only error
+ * handler: 0, or nonzero (with st's message) when it cannot be made. Static inline, as
+ * free_solver: a driver or stepper that does not call it gets no warning. */
+static inline int create_context(SUNContext *ctx, LCG_STATS *st)
+{
+    if (SUNContext_Create(0, ctx) != 0) {
+        snprintf(st->message, sizeof st->message, "SUNContext_Create failed");
+        return 1;
+    }
+    SUNContext_ClearErrHandlers(*ctx);
+    SUNContext_PushErrHandler(*ctx, record_error, st);
+    return 0;
+}
+
+/* Create the SUNContext ctx (create_context); nomem: the driver's out-of-memory flag, returned
+ * (and stored in st->flag) when the context cannot be made. */
 #define LCG_CREATE_CONTEXT(nomem)                                                    \
     do {                                                                             \
-        if (SUNContext_Create(0, &ctx) != 0) {                                       \
-            snprintf(st->message, sizeof st->message, "SUNContext_Create failed");   \
+        if (create_context(&ctx, st) != 0)                                           \
             return st->flag = (nomem);                                               \
-        }                                                                            \
-        SUNContext_ClearErrHandlers(ctx);                                            \
-        SUNContext_PushErrHandler(ctx, record_error, st);                            \
     } while (0)
+
+/* The step limits of the options on the solver's memory mem (ida: IDA's, else CVODE's): the
+ * maximum order, the first, largest and smallest step (each 0: the solver's own). 0, or the first
+ * negative flag. */
+static inline int set_step_limits(void *mem, int ida, int max_order, double first_step, double max_step,
+                                  double min_step)
+{
+    int flag;
+
+    if (max_order > 0 && (flag = ida ? IDASetMaxOrd(mem, max_order) : CVodeSetMaxOrd(mem, max_order)) < 0)
+        return flag;
+    if (first_step > 0 && (flag = ida ? IDASetInitStep(mem, first_step) : CVodeSetInitStep(mem, first_step)) < 0)
+        return flag;
+    if (max_step > 0 && (flag = ida ? IDASetMaxStep(mem, max_step) : CVodeSetMaxStep(mem, max_step)) < 0)
+        return flag;
+    if (min_step > 0 && (flag = ida ? IDASetMinStep(mem, min_step) : CVodeSetMinStep(mem, min_step)) < 0)
+        return flag;
+    return 0;
+}
+
+/* After CVodeFree / IDAFree: the solver's objects freed in this order, the linear and nonlinear
+ * solvers, the matrix, the nv vectors v (e.g. a compound literal), the context *ctx (each NULL:
+ * nothing). */
+static inline void free_solver(SUNLinearSolver LS, SUNNonlinearSolver NLS, SUNMatrix A, const N_Vector *v, int nv,
+                               SUNContext *ctx)
+{
+    int i;
+
+    if (LS != NULL)
+        SUNLinSolFree(LS);
+    if (NLS != NULL)
+        SUNNonlinSolFree(NLS);
+    if (A != NULL)
+        SUNMatDestroy(A);
+    for (i = 0; i < nv; ++i)
+        if (v[i] != NULL)
+            N_VDestroy(v[i]);
+    if (*ctx != NULL)
+        SUNContext_Free(ctx);
+}
 
 /* Before each call of the solver (CVode or IDA): stop with flag -1 once opt->max_steps steps are
  * taken, else allow the steps that are left. */

@@ -10,6 +10,7 @@
 #include "lcg_taylor.c"
 
 #include "lcg_taylor_stepper.h"
+#include "lcg_stepper.h"
 
 /* The model m's sizes again (lcg_taylor.c ends with the ensemble pool's). */
 #undef NROW
@@ -84,11 +85,8 @@ lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_
         snprintf(message, size, "bad options (order must be 0 or 2..%d, max_steps >= 1, max_step >= 0)", P_MAX);
         return NULL;
     }
-    s = (lcg_taylor_stepper *)calloc(1, sizeof *s);
-    if (s == NULL) {
-        snprintf(message, size, "out of memory");
+    if ((s = (lcg_taylor_stepper *)lcg_stepper_alloc(sizeof *s, message, size)) == NULL)
         return NULL;
-    }
     s->m = m;
     s->opt = *opt;
     s->ev = ev;
@@ -100,8 +98,7 @@ lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_
     s->work = calloc(1, TL_WORK_SIZE > 0 ? TL_WORK_SIZE : 1);
     s->last = (double *)malloc(sizeof(double) * (size_t)(NE + NE * (P_MAX + 1) + 1));
     s->which = (int *)malloc(sizeof(int) * (size_t)(2 * NE * (P_MAX + 1) + 1));
-    if (opt->atol_vec != NULL)
-        s->atol = (double *)malloc(sizeof(double) * (size_t)NY);
+    s->atol = lcg_stepper_copy(opt->atol_vec, NY);
     if (s->p_start == NULL || s->X == NULL || s->work == NULL || s->last == NULL || s->which == NULL
         || (opt->atol_vec != NULL && s->atol == NULL)) {
         snprintf(message, size, "out of memory");
@@ -110,11 +107,7 @@ lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_
     }
     s->tau = s->last + NE;
     s->dir = s->which + NE * (P_MAX + 1);
-    if (s->atol != NULL) {
-        for (i = 0; i < NY; ++i)
-            s->atol[i] = opt->atol_vec[i];
-        s->opt.atol_vec = s->atol;
-    }
+    s->opt.atol_vec = s->atol;
     s->opt.cancel = NULL; /* run control per call: poll and max_wall stay */
     for (i = 0; i < NE; ++i)
         s->last[i] = -HUGE_VAL;
@@ -134,17 +127,6 @@ lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_
     return s;
 }
 
-/* 1 if the nt times t are finite and do not decrease. */
-static int ts_increasing(int nt, const double *t)
-{
-    int k;
-
-    for (k = 0; k < nt; ++k)
-        if (!isfinite(t[k]) || (k > 0 && t[k] < t[k - 1]))
-            return 0;
-    return 1;
-}
-
 /* The step loop of lcg_taylor_solve (lagcodegen/templates/taylor/_driver.j2) on the stepper's
  * state, with the same arithmetic in the same order. */
 int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, const double *tout, double *yout,
@@ -161,17 +143,11 @@ int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, cons
     long taken = 0;
     watch wt;
 
+    LCG_STEPPER_NEW_CALL(st, ev);
     st->nsteps = st->njet = st->nroot = 0;
-    st->model_error = 0;
-    st->nt_done = 0;
-    st->message[0] = '\0';
     st->h_last = 0.0;
     st->h_min = HUGE_VAL;
     st->h_max = 0.0;
-    if (ev != NULL) {
-        ev->n_events = 0;
-        ev->terminated = 0;
-    }
     watch_init(&wt, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     if (s->tv[0] != s->t_seen) { /* the caller set the time: a new start */
         s->t_lo = 0.0;
@@ -179,32 +155,22 @@ int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, cons
         for (i = 0; i < NE; ++i)
             last[i] = -HUGE_VAL;
     }
-    for (i = 0; i < m->np; ++i)
-        if (s->p[i] != s->p_start[i]) {
-            rc = ts_start(s); /* the caller set the parameters: their run constants */
-            if (rc != 0) {
-                st->model_error = rc;
-                flag = -100 - rc;
-                goto done;
-            }
-            break;
+    if (lcg_stepper_differ(s->p, s->p_start, m->np)) {
+        rc = ts_start(s); /* the caller set the parameters: their run constants */
+        if (rc != 0) {
+            st->model_error = rc;
+            flag = -100 - rc;
+            goto done;
         }
+    }
     thi = s->tv[0];
     tlo = s->t_lo;
-    if (!(t_end >= thi + tlo) || nt < 0 || (nt > 0 && (tout == NULL || yout == NULL || tout[nt - 1] > t_end))
-        || (nt > 0 && tout[0] < thi) || !ts_increasing(nt, tout)) {
-        snprintf(st->message, sizeof st->message,
-                 "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
-                 "grid's times are not finite and increasing from there", t_end, thi);
-        flag = -22;
+    if (!(t_end >= thi + tlo) || !lcg_stepper_grid_ok(thi, t_end, nt, tout, yout != NULL, 0)) {
+        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, thi);
         goto done;
     }
     /* grid times at the current time: the current state */
-    while (kout < nt && tout[kout] <= thi + tlo) {
-        for (i = 0; i < NY; ++i)
-            yout[(long)kout * NY + i] = y[i];
-        st->nt_done = ++kout;
-    }
+    st->nt_done = kout = lcg_stepper_rows_now(0, nt, tout, thi + tlo, y, NY, yout);
 
     while (kout < nt || (nt == 0 && (!one_step || taken == 0) && thi + tlo < t_end)) {
         double h, rem, sum, bb;
@@ -364,17 +330,5 @@ done:
     return flag;
 }
 
-int lcg_taylor_stepper_until(lcg_taylor_stepper *s, double t_end)
-{
-    return lcg_taylor_stepper_advance(s, t_end, 0, NULL, NULL, 0);
-}
-
-int lcg_taylor_stepper_grid(lcg_taylor_stepper *s, int nt, const double *tout, double *yout)
-{
-    return lcg_taylor_stepper_advance(s, nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL, nt, tout, yout, 0);
-}
-
-int lcg_taylor_stepper_step(lcg_taylor_stepper *s, double t_limit)
-{
-    return lcg_taylor_stepper_advance(s, t_limit, 0, NULL, NULL, 1);
-}
+/* lcg_taylor_stepper_until, lcg_taylor_stepper_grid, lcg_taylor_stepper_step */
+LCG_STEPPER_CALLS(taylor)

@@ -61,7 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..build import DEFAULT_CFLAGS, config_header, driver_runtime, find_sundials, generated_headers, types_headers
-from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, driver_cdef
+from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, driver_cdef, header_cdef
 from ..codegen.signatures import IMP_TABLE, cffi_struct
 from ..errors import LagcodegenError
 from ..result import Result
@@ -75,11 +75,8 @@ KINDS = ("bounce", "stick", "release", "contact_impulse")
 RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h",
                  "lcg_sundials.h", "sundials_api.h")
 
-_CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE), """
-int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
-                  double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
-                  const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
-                  lcg_events *ev);"""])
+_CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE),
+                   header_cdef("lcg_imp.h")])
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -305,7 +305,7 @@ def test_stepper_sources_compile_strictly(tmp_path, cc):
     sources = {**runtime_sources(find_sundials()), **taylor_runtime_sources(),
                **runtime_package.sources(["lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_cvc_stepper.c",
                                           "lcg_cvc_stepper.h", "lcg_ida_stepper.c", "lcg_ida_stepper.h",
-                                          "lcg_taylor_stepper.c", "lcg_taylor_stepper.h"])}
+                                          "lcg_taylor_stepper.c", "lcg_taylor_stepper.h", "lcg_stepper.h"])}
     for name, text in sources.items():
         (tmp_path / name).write_text(text)
     for name in ("lcg_cvode_stepper.c", "lcg_cvc_stepper.c", "lcg_ida_stepper.c", "lcg_taylor_stepper.c"):

@@ -23,56 +23,21 @@ import time
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
-from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF
+from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, header_cdef
 from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from ...errors import LagcodegenError
 from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
-from .sensitivity_events import EVENTS_CDEF, SensEvents
+from .sensitivity_events import SensEvents
 
 #: The runtime files of the sensitivity driver.
 FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
 
-CDEF = MODEL_TABLE_CDEF + """
-typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int ns, const int *which,
-                               const double *s, double *ydot, double *sdot);
-typedef int (*lcg_sens_out_fn)(double t, const double *y, const double *p, int ns, const int *which,
-                               const double *s, double *dout);
-typedef int (*lcg_sens_proj_fn)(double t, const double *y, const double *p, int ns, const int *which,
-                                double *ynew, double *err);
-typedef struct lcg_cvsens_options {
-    int method;
-    double rtol;
-    const double *atol;
-    long max_steps;
-    int jacobian;
-    int max_order;
-    double first_step, max_step, min_step;
-    int (*poll)(void *data, long done, long total);
-    void *poll_data;
-    double poll_every;
-    double max_wall;
-    lcg_sens_proj_fn project;
-    int corrector;
-} lcg_cvsens_options;
-typedef struct lcg_cvsens_stats {
-    long nsteps, nrhs, nlinsetups, netfails, nniters, nncfails;
-    long njac;
-    long nfactor;
-    long nblock_solves;
-    long nrhs_states;
-    long nsens_iters;
-    double h_last, t_reached;
-    int nt_done, model_error, flag;
-    char message[256];
-} lcg_cvsens_stats;
-int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
-                     int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
-                     double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
-                     lcg_cvsens_stats *st);
-""" + POLL_CDEF + EVENTS_CDEF
+#: The driver module's interface: the model table, then lcg_cvsens.h as it is (the sensitivity
+#: functions' types, the options, statistics and events structs, the solve functions), the poll callback.
+CDEF = "\n".join([MODEL_TABLE_CDEF, header_cdef("lcg_cvsens.h"), POLL_CDEF])
 
 #: The statistics of a sensitivity run: keys of Result.stats (those of the plain runs where they
 #: count the same) -> fields of lcg_cvsens_stats.

@@ -1,5 +1,6 @@
-"""Events in runs with forward sensitivities on CVODE: the events struct of the sensitivity
-driver (``lcg_cvsens_solve_events``: root finding on the state part of the augmented ODE), and
+"""Events in runs with forward sensitivities on CVODE: the events record of the sensitivity
+driver (``lcg_cvsens_events`` of lcg_cvsens.h, ``lcg_cvsens_solve_events``: root finding on the
+state part of the augmented ODE), and
 the sensitivities of each event's time from the derivatives of its event function
 (``<prefix>_events_grad.c``, :func:`lagcodegen.codegen.events.events_gradient_source`).
 
@@ -26,27 +27,6 @@ from ...build import plain_library
 from ...codegen.events import events_gradient_function, events_gradient_source
 from ...model.events import EventRecord
 from .events import scene_of
-
-#: The declarations the sensitivity driver's cffi module adds for events (lcg_cvsens.h).
-EVENTS_CDEF = """
-typedef struct lcg_cvsens_events {
-    int nroot;
-    int (*roots)(double t, const double *y, const double *p, double *gout);
-    const int *rootdir;
-    const int *terminal;
-    int max_events;
-    int n_events;
-    double *t;
-    double *y;
-    int *which;
-    int *direction;
-    int terminated;
-} lcg_cvsens_events;
-int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
-                            const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
-                            const double *tout, double *yout, double *sout, double *out, double *dout,
-                            const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev);
-"""
 
 
 class EventGradients:

@@ -15,26 +15,18 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
-from ...errors import LagcodegenError
+from ...codegen.cffi_decl import header_cdef
 from ...runtime import sources as runtime_files
 from ..control import install
+from ..stepper import NativeStepper
 from .sensitivity import CDEF, _sources, directions, functions, sens_options
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
-STEPPER_FILES = ("lcg_cvsens_stepper.c", "lcg_cvsens_stepper.h")
+STEPPER_FILES = ("lcg_cvsens_stepper.c", "lcg_cvsens_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_cvsens_stepper lcg_cvsens_stepper;
-lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, int ns, const int *which,
-                                           const lcg_cvsens_options *opt, double *mem, double *s,
-                                           lcg_cvsens_events *ev, char *message, size_t size);
-void lcg_cvsens_stepper_free(lcg_cvsens_stepper *st);
-lcg_cvsens_stats *lcg_cvsens_stepper_stats(lcg_cvsens_stepper *st);
-int lcg_cvsens_stepper_until(lcg_cvsens_stepper *st, double t_end);
-int lcg_cvsens_stepper_grid(lcg_cvsens_stepper *st, int nt, const double *tout, double *yout, double *sout);
-int lcg_cvsens_stepper_step(lcg_cvsens_stepper *st, double t_limit);
-"""
+#: The stepper module's interface: the driver's (lcg_cvsens.h), then lcg_cvsens_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_cvsens_stepper.h")
 
 
 @functools.lru_cache(maxsize=4)
@@ -45,7 +37,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
         return {**_sources(), **runtime_files(STEPPER_FILES)}
 
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
-    return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + STEPPER_CDEF,
+    return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + "\n" + STEPPER_CDEF,
                           "lcg_cvsens_stepper.h", [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags,
                           units=("lcg_cvsens_stepper.c",))
 
@@ -55,14 +47,16 @@ def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFL
     return _runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
-class CVSensStepper:
+class CVSensStepper(NativeStepper):
     """The C stepper of a compiled scene's ODE with the sensitivities ``names`` on CVODE, on
     ``mem`` = (t, y, p), a float64 array the caller keeps; ``sens`` (ns, ny) the initial
     sensitivities (None: unit vectors for initial values, zeros for parameters, as a run starts).
     ``events`` (:class:`~.events.CompiledEvents` or None) located as in a run, each record with its
-    time's sensitivities."""
+    time's sensitivities (the rows of :meth:`event_arrays`: the state, then the sensitivities)."""
 
     family = "cvode"
+    kind = "cvsens"
+    calls = ("until", "step")
     with_sensitivities = True  # the integrator object shows them (SensitivityIntegrator)
 
     def __init__(self, cm, mem: np.ndarray, names, *, rtol: float, atol, errcon: bool, method: str,
@@ -92,13 +86,8 @@ class CVSensStepper:
         handle = lib.lcg_cvsens_stepper_new(table, rhs, ns, ffi.from_buffer("int[]", which), opt,
                                             ffi.from_buffer("double[]", mem), ffi.from_buffer("double[]", self.sens),
                                             self._native.struct if self._native else ffi.NULL, msg, 512)
-        if handle == ffi.NULL:
-            raise LagcodegenError(f"CVODE integrator with sensitivities: {ffi.string(msg).decode(errors='replace')}")
-        self.handle = handle
+        self._bind(handle, msg, "CVODE integrator with sensitivities")
         self.mem = mem
-        self.stats = lib.lcg_cvsens_stepper_stats(handle)
-        self.until = functools.partial(lib.lcg_cvsens_stepper_until, handle)
-        self.step = functools.partial(lib.lcg_cvsens_stepper_step, handle)
         self._grid = lib.lcg_cvsens_stepper_grid
         self._sout_ptr = ffi.from_buffer
 
@@ -109,24 +98,12 @@ class CVSensStepper:
             sout = self.sout = np.empty((max(nt, 0), len(self.names), self.cm.ny))
         return self._grid(self.handle, nt, tout, yout, self._sout_ptr("double[]", sout))
 
-    def free(self) -> None:
-        """Free the C stepper (once)."""
-        handle, self.handle = self.handle, None
-        if handle is not None:
-            self.lib.lcg_cvsens_stepper_free(handle)
-
     def stats_dict(self) -> dict:
         st = self.stats
         return {"steps": st.nsteps, "rhs_evals": st.nrhs, "error_test_fails": st.netfails,
                 "nonlinear_conv_fails": st.nncfails, "jac_evals": st.njac, "factorizations": st.nfactor,
                 "block_solves": st.nblock_solves, "h_last": st.h_last, "t_reached": st.t_reached,
                 "model_error": st.model_error}
-
-    def event_arrays(self):
-        """(count, terminated, (t, y, which, direction)) of the last call's events (rows: the state,
-        then the sensitivities)."""
-        ev = self._native
-        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)
 
     def event_records(self, state_names) -> list:
         """The last call's events with their times' sensitivities (:class:`SensEvents`)."""

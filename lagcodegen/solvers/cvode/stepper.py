@@ -16,30 +16,18 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
-from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..base import METHODS, NativeEvents
 from ..control import POLL_EVERY, install
+from ..stepper import NativeStepper, tolerance_option
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
-STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h")
+STEPPER_FILES = ("lcg_cvode_stepper.c", "lcg_cvode_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_cvode_stepper lcg_cvode_stepper;
-lcg_cvode_stepper *lcg_cvode_stepper_new(const lcg_model *m, const lcg_cvode_options *opt, double *mem,
-                                         char *message, size_t size);
-lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_ode_roots *r,
-                                                const lcg_cvode_options *opt, double *mem, lcg_events *ev,
-                                                char *message, size_t size);
-void lcg_cvode_stepper_free(lcg_cvode_stepper *s);
-lcg_cvode_stats *lcg_cvode_stepper_stats(lcg_cvode_stepper *s);
-int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
-                              int one_step);
-int lcg_cvode_stepper_until(lcg_cvode_stepper *s, double t_end);
-int lcg_cvode_stepper_grid(lcg_cvode_stepper *s, int nt, const double *tout, double *yout);
-int lcg_cvode_stepper_step(lcg_cvode_stepper *s, double t_limit);
-"""
+#: The stepper's functions: lcg_cvode_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_cvode_stepper.h")
 
 
 def stepper_cdef() -> str:
@@ -50,18 +38,10 @@ def stepper_cdef() -> str:
 
 
 #: The index-1 stepper's files (lcg_cvc_stepper.c includes lcg_cvc.c).
-CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h")
+CVC_STEPPER_FILES = ("lcg_cvc_stepper.c", "lcg_cvc_stepper.h", "lcg_stepper.h")
 
-CVC_STEPPER_CDEF = """
-typedef struct lcg_cvc_stepper lcg_cvc_stepper;
-lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_options *opt, double *mem,
-                                     lcg_events *ev, char *message, size_t size);
-void lcg_cvc_stepper_free(lcg_cvc_stepper *s);
-lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s);
-int lcg_cvc_stepper_until(lcg_cvc_stepper *s, double t_end);
-int lcg_cvc_stepper_grid(lcg_cvc_stepper *s, int nt, const double *tout, double *yout);
-int lcg_cvc_stepper_step(lcg_cvc_stepper *s, double t_limit);
-"""
+#: The index-1 stepper's functions: lcg_cvc_stepper.h as it is.
+CVC_STEPPER_CDEF = header_cdef("lcg_cvc_stepper.h")
 
 
 def cvc_stepper_cdef() -> str:
@@ -97,7 +77,7 @@ def stepper_runtime(kind: str = "cvode", cc: str | None = None, cflags: tuple[st
     return _stepper_runtime(kind, cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
-class CVODEStepper:
+class CVODEStepper(NativeStepper):
     """The C stepper of a compiled scene's ODE on CVODE, on ``mem`` = (t, y, p), a float64 array
     the caller keeps. ``opts``: the driver's options as the family resolves them
     (:meth:`lagcodegen.solvers.cvode.CVODE._ode_options`); ``events``: compiled event functions
@@ -105,6 +85,8 @@ class CVODEStepper:
     call (at most ``max_events``)."""
 
     family = "cvode"
+    kind = "cvode"
+    calls = ("until", "advance", "grid", "step")
 
     def __init__(self, cm, mem: np.ndarray, *, rtol: float, atol, method: str, jacobian: bool, max_steps: int,
                  first_step: float, max_step: float, min_step: float, max_order: int, band=None,
@@ -121,13 +103,7 @@ class CVODEStepper:
         opt.method = METHODS[method]
         opt.jacobian = int(jacobian)
         opt.rtol = rtol
-        atol_keep = None
-        if isinstance(atol, float):
-            opt.atol, opt.atol_vec = atol, ffi.NULL
-        else:
-            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (cm.ny,)))
-            opt.atol = float(atol_keep.min())
-            opt.atol_vec = ffi.from_buffer("double[]", atol_keep)
+        atol_keep = tolerance_option(ffi, opt, atol, cm.ny)
         opt.max_steps = max_steps
         opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
         opt.linear_solver = 1 if band else 2 if fixedpoint else 0
@@ -144,20 +120,7 @@ class CVODEStepper:
         handle = lib.lcg_cvode_stepper_new_events(table, roots, opt, ffi.from_buffer("double[]", mem),
                                                   self._native.struct if self._native else ffi.NULL, msg, 512)
         del atol_keep  # copied by the stepper
-        if handle == ffi.NULL:
-            raise LagcodegenError(f"CVODE integrator: {ffi.string(msg).decode(errors='replace')}")
-        self.handle = handle
-        self.stats = lib.lcg_cvode_stepper_stats(handle)
-        self.until = functools.partial(lib.lcg_cvode_stepper_until, handle)
-        self.advance = functools.partial(lib.lcg_cvode_stepper_advance, handle)
-        self.grid = functools.partial(lib.lcg_cvode_stepper_grid, handle)
-        self.step = functools.partial(lib.lcg_cvode_stepper_step, handle)
-
-    def free(self) -> None:
-        """Free the C stepper (once)."""
-        handle, self.handle = self.handle, None
-        if handle is not None:
-            self.lib.lcg_cvode_stepper_free(handle)
+        self._bind(handle, msg, "CVODE integrator")
 
     def stats_dict(self) -> dict:
         st = self.stats
@@ -165,18 +128,14 @@ class CVODEStepper:
                 "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "h_last": st.h_last,
                 "t_reached": st.t_reached, "model_error": st.model_error}
 
-    def event_arrays(self):
-        """(count, terminated, (t, y, which, direction)) of the last call's events."""
-        ev = self._native
-        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)
 
-
-class CVCStepper:
+class CVCStepper(NativeStepper):
     """The C stepper of a constrained system's index-1 form on CVODE (``lcg_cvc_stepper``), on
     ``mem`` = (t, y, p) with y = (q, q'), a float64 array the caller keeps; ``roots``: locate the
     compiled events (recorded per call, at most ``max_events``)."""
 
     family = "cvode"
+    kind = "cvc"
 
     def __init__(self, sim, mem: np.ndarray, *, rtol: float, atol, method: str, alpha: float, beta: float,
                  projection: bool, proj_tol: float, proj_maxit: int, roots: bool, max_events: int, max_steps: int,
@@ -190,13 +149,7 @@ class CVCStepper:
         opt = ffi.new("lcg_cvc_options *")
         opt.method = METHODS[method]
         opt.rtol = rtol
-        atol_keep = None
-        if isinstance(atol, float):
-            opt.atol, opt.atol_vec = atol, ffi.NULL
-        else:
-            atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ny,)))
-            opt.atol = float(atol_keep.min())
-            opt.atol_vec = ffi.from_buffer("double[]", atol_keep)
+        atol_keep = tolerance_option(ffi, opt, atol, ny)
         opt.max_steps = max_steps
         opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
         opt.alpha, opt.beta = alpha, beta
@@ -211,19 +164,7 @@ class CVCStepper:
         handle = lib.lcg_cvc_stepper_new(table, opt, ffi.from_buffer("double[]", mem),
                                          self._native.struct if self._native else ffi.NULL, msg, 512)
         del atol_keep  # copied by the stepper
-        if handle == ffi.NULL:
-            raise LagcodegenError(f"CVODE (index-1) integrator: {ffi.string(msg).decode(errors='replace')}")
-        self.handle = handle
-        self.stats = lib.lcg_cvc_stepper_stats(handle)
-        self.until = functools.partial(lib.lcg_cvc_stepper_until, handle)
-        self.grid = functools.partial(lib.lcg_cvc_stepper_grid, handle)
-        self.step = functools.partial(lib.lcg_cvc_stepper_step, handle)
-
-    def free(self) -> None:
-        """Free the C stepper (once)."""
-        handle, self.handle = self.handle, None
-        if handle is not None:
-            self.lib.lcg_cvc_stepper_free(handle)
+        self._bind(handle, msg, "CVODE (index-1) integrator")
 
     def stats_dict(self) -> dict:
         st = self.stats
@@ -231,8 +172,3 @@ class CVCStepper:
                 "nonlinear_conv_fails": st.nncfails, "projections": st.nproj, "root_evals": st.ngevals,
                 "alpha": st.alpha, "beta": st.beta, "h_last": st.h_last, "t_reached": st.t_reached,
                 "model_error": st.model_error}
-
-    def event_arrays(self):
-        """(count, terminated, (t, y, which, direction)) of the last call's events."""
-        ev = self._native
-        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)

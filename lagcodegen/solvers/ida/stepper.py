@@ -15,28 +15,18 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
-from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef
-from ...errors import LagcodegenError
+from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...runtime import sources as runtime_files
 from ..base import NativeEvents
 from ..control import POLL_EVERY, install
+from ..stepper import NativeStepper
 from .native import ALGEBRAIC_ATOL
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_ida_stepper.c includes lcg_ida.c).
-STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h")
+STEPPER_FILES = ("lcg_ida_stepper.c", "lcg_ida_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_ida_stepper lcg_ida_stepper;
-lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_options *opt, double *mem,
-                                     const double *yy0, const double *yp0, lcg_events *ev, char *message,
-                                     size_t size);
-void lcg_ida_stepper_free(lcg_ida_stepper *s);
-lcg_ida_stats *lcg_ida_stepper_stats(lcg_ida_stepper *s);
-const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s);
-int lcg_ida_stepper_until(lcg_ida_stepper *s, double t_end);
-int lcg_ida_stepper_grid(lcg_ida_stepper *s, int nt, const double *tout, double *yout);
-int lcg_ida_stepper_step(lcg_ida_stepper *s, double t_limit);
-"""
+#: The stepper's functions: lcg_ida_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_ida_stepper.h")
 
 
 def stepper_cdef() -> str:
@@ -66,12 +56,13 @@ def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFL
     return _stepper_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
-class IDAStepper:
+class IDAStepper(NativeStepper):
     """The C stepper of a constrained system's GGL form on IDA (``lcg_ida_stepper``), on ``mem`` =
     (t, y, p) with y = (q, v), a float64 array the caller keeps, from the initial values (yy0,
     yp0) of the unknowns (q, v, lambda, mu); ``roots``: locate the compiled events."""
 
     family = "ida"
+    kind = "ida"
 
     def __init__(self, sim, mem: np.ndarray, yy0: np.ndarray, yp0: np.ndarray, *, rtol: float, atol: np.ndarray,
                  suppress_alg: bool, jacobian: bool, roots: bool, max_events: int, max_steps: int, first_step: float,
@@ -102,22 +93,12 @@ class IDAStepper:
                                          ffi.from_buffer("double[]", yp0),
                                          self._native.struct if self._native else ffi.NULL, msg, 512)
         del atol_keep  # copied by the stepper
-        if handle == ffi.NULL:
-            raise LagcodegenError(f"IDA integrator: {ffi.string(msg).decode(errors='replace')}")
-        self.handle = handle
-        self.stats = lib.lcg_ida_stepper_stats(handle)
-        self.until = functools.partial(lib.lcg_ida_stepper_until, handle)
-        self.grid = functools.partial(lib.lcg_ida_stepper_grid, handle)
-        self.step = functools.partial(lib.lcg_ida_stepper_step, handle)
+        self._bind(handle, msg, "IDA integrator")
         self._unknowns = np.frombuffer(ffi.buffer(lib.lcg_ida_stepper_unknowns(handle), 8 * ng), dtype=float)
         self.n_state = 2 * sim.n
 
-    def free(self) -> None:
-        """Free the C stepper (once)."""
-        handle, self.handle = self.handle, None
-        if handle is not None:
-            self._unknowns = None
-            self.lib.lcg_ida_stepper_free(handle)
+    def _release(self) -> None:
+        self._unknowns = None  # a view of the C stepper's memory
 
     def multipliers(self) -> np.ndarray:
         """lambda (and mu) of the current unknowns, a copy."""
@@ -128,8 +109,3 @@ class IDAStepper:
         return {"steps": st.nsteps, "residual_evals": st.nres + st.nres_dq, "jac_evals": st.njac,
                 "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "root_evals": st.ngevals,
                 "ic_flag": st.ic_flag, "h_last": st.h_last, "t_reached": st.t_reached, "model_error": st.model_error}
-
-    def event_arrays(self):
-        """(count, terminated, (t, y, which, direction)) of the last call's events."""
-        ev = self._native
-        return int(ev.struct.n_events), ev.terminated, (ev.t, ev.y, ev.which, ev.direction)

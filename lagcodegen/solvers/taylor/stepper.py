@@ -16,7 +16,7 @@ import numpy as np
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...build import DEFAULT_CFLAGS, driver_runtime
-from ...codegen.cffi_decl import POLL_CDEF, TAYLOR_TABLE_CDEF, driver_cdef
+from ...codegen.cffi_decl import POLL_CDEF, TAYLOR_TABLE_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..control import POLL_EVERY, install
@@ -25,20 +25,10 @@ from .emit import P_MAX, runtime_key_texts, runtime_sources
 from .run import taylor_module
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_taylor_stepper.c includes lcg_taylor.c).
-STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h")
+STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h", "lcg_stepper.h")
 
-STEPPER_CDEF = """
-typedef struct lcg_taylor_stepper lcg_taylor_stepper;
-lcg_taylor_stepper *lcg_taylor_stepper_new(const lcg_taylor_model *m, const lcg_taylor_options *opt, double *mem,
-                                           lcg_taylor_events *ev, char *message, size_t size);
-void lcg_taylor_stepper_free(lcg_taylor_stepper *s);
-lcg_taylor_stats *lcg_taylor_stepper_stats(lcg_taylor_stepper *s);
-int lcg_taylor_stepper_advance(lcg_taylor_stepper *s, double t_end, int nt, const double *tout, double *yout,
-                               int one_step);
-int lcg_taylor_stepper_until(lcg_taylor_stepper *s, double t_end);
-int lcg_taylor_stepper_grid(lcg_taylor_stepper *s, int nt, const double *tout, double *yout);
-int lcg_taylor_stepper_step(lcg_taylor_stepper *s, double t_limit);
-"""
+#: The stepper's functions: lcg_taylor_stepper.h as it is.
+STEPPER_CDEF = header_cdef("lcg_taylor_stepper.h")
 
 
 def stepper_cdef() -> str:

@@ -1,0 +1,236 @@
+/* lcg_stepper.h -- lagcodegen's runtime: what the steppers of the integrator object share
+ * (lcg_cvode_stepper.c, lcg_cvsens_stepper.c, lcg_cvc_stepper.c, lcg_ida_stepper.c,
+ * lcg_taylor_stepper.c): the caller's memory they work on and how a write to it is seen, the check
+ * of a call's times, the start of a call, the grid rows at the current time, and the messages they
+ * give, the end of a call and the calls on a stepper's advance; with SUNDIALS (included after
+ * lcg_sundials.h, whose create_context, free_solver and set_step_limits they use as the drivers
+ * do) the step limits with the budget of a call, the stop time of a step, the counters.
+ *
+ * Each stepper is one translation unit with its run driver: include this file after the driver
+ * (lcg_control.h first there, then math.h, stdio.h, stdlib.h). Every function here is static
+ * inline, for the including stepper alone (one it does not use is no warning). The statement macros
+ * work on any stepper's statistics or events record (the same field names in each). */
+#ifndef LCG_STEPPER_H
+#define LCG_STEPPER_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "lcg_codes.h"
+
+/* The stepper struct, zeroed, of the given bytes; NULL (with the message) if out of memory. */
+static inline void *lcg_stepper_alloc(size_t bytes, char *message, size_t size)
+{
+    void *s = calloc(1, bytes);
+
+    if (s == NULL)
+        snprintf(message, size, "out of memory");
+    return s;
+}
+
+/* A copy of the n values x (malloc; the caller's absolute tolerances, which the stepper keeps),
+ * NULL if out of memory or x is NULL. */
+static inline double *lcg_stepper_copy(const double *x, long n)
+{
+    double *c;
+    long i;
+
+    if (x == NULL || (c = (double *)malloc(sizeof(double) * (size_t)(n > 0 ? n : 1))) == NULL)
+        return NULL;
+    for (i = 0; i < n; ++i)
+        c[i] = x[i];
+    return c;
+}
+
+/* 1 if a[i] != b[i] for some i < n (a NaN differs from everything). */
+static inline int lcg_stepper_differ(const double *a, const double *b, long n)
+{
+    long i;
+
+    for (i = 0; i < n; ++i)
+        if (a[i] != b[i])
+            return 1;
+    return 0;
+}
+
+/* The caller's memory as a call leaves it: seen = (mem[0..n-1], extra[0..n_extra-1]), with mem =
+ * (t, y[ny], p[np]) (n = 1 + ny + np) and extra the stepper's further caller memory (the
+ * sensitivities; NULL, 0: none). */
+static inline void lcg_stepper_remember(double *seen, const double *mem, long n, const double *extra, long n_extra)
+{
+    long i;
+
+    for (i = 0; i < n; ++i)
+        seen[i] = mem[i];
+    for (i = 0; i < n_extra; ++i)
+        seen[n + i] = extra[i];
+}
+
+/* 1 if the caller wrote mem or extra since lcg_stepper_remember (the time, the state, the
+ * parameters or the sensitivities): the next call restarts the solver there. */
+static inline int lcg_stepper_written(const double *seen, const double *mem, long n, const double *extra,
+                                      long n_extra)
+{
+    return lcg_stepper_differ(mem, seen, n) || lcg_stepper_differ(extra, seen + n, n_extra);
+}
+
+/* 1 if the grid of a call at time t to t_end is good: nt >= 0, and with nt > 0 the times tout
+ * given (and, outs, the output arrays), finite and not decreasing from t, the last one t_end
+ * (exact_end) or not after it. (t_end >= t is the caller's test: its time may be more than a
+ * double.) */
+static inline int lcg_stepper_grid_ok(double t, double t_end, int nt, const double *tout, int outs, int exact_end)
+{
+    int k;
+
+    if (nt < 0)
+        return 0;
+    if (nt == 0)
+        return 1;
+    if (tout == NULL || !outs || tout[0] < t || (exact_end ? tout[nt - 1] != t_end : tout[nt - 1] > t_end))
+        return 0;
+    for (k = 0; k < nt; ++k)
+        if (!isfinite(tout[k]) || (k > 0 && tout[k] < tout[k - 1]))
+            return 0;
+    return 1;
+}
+
+/* The message of a call whose times go backward (lcg_stepper_grid_ok failed, or t_end < t):
+ * LCG_FLAG_BAD_INPUT. */
+static inline int lcg_stepper_backward(char *message, size_t size, double t_end, double t)
+{
+    snprintf(message, size,
+             "time going backward: the end time %.17g lies before the integrator's time %.17g, or the "
+             "grid's times are not finite and increasing from there", t_end, t);
+    return LCG_FLAG_BAD_INPUT;
+}
+
+/* The end time of a grid call over tout[0..nt-1] (-HUGE_VAL, refused, without a grid). */
+static inline double lcg_stepper_grid_end(int nt, const double *tout)
+{
+    return nt > 0 && tout != NULL ? tout[nt - 1] : -HUGE_VAL;
+}
+
+/* Where a one-step call at time t aims (only a hint of the first step's size after a (re)start;
+ * the stop time t_end bounds the step): t_end, or without an end a little past t. */
+static inline double lcg_stepper_one_step_tout(double t, double t_end)
+{
+    return isfinite(t_end) ? t_end : t + fmax(1.0, 1e-3 * fabs(t));
+}
+
+/* The grid times tout[k..] at the current time t: the current values v (n) into their rows of out
+ * (row length n); returns the index of the first grid time after t. */
+static inline int lcg_stepper_rows_now(int k, int nt, const double *tout, double t, const double *v, long n,
+                                       double *out)
+{
+    long i;
+
+    for (; k < nt && tout[k] <= t; ++k)
+        for (i = 0; i < n; ++i)
+            out[(long)k * n + i] = v[i];
+    return k;
+}
+
+/* A solver's failure while a model function had failed (model_error set): the model's flag
+ * LCG_MODEL_ERROR_FLAG(model_error) instead. */
+static inline int lcg_stepper_model_flag(int flag, int model_error)
+{
+    return model_error != 0 && flag < 0 && flag > LCG_FLAG_MODEL_ERROR ? LCG_MODEL_ERROR_FLAG(model_error) : flag;
+}
+
+/* The message of a failed setup of the solver named solver: flag nomem is out of memory, any other
+ * a failure with the solver's last message detail. */
+static inline void lcg_stepper_setup_failed(char *message, size_t size, int flag, int nomem, const char *solver,
+                                            const char *detail)
+{
+    if (flag == nomem)
+        snprintf(message, size, "out of memory creating the %s solver", solver);
+    else
+        snprintf(message, size, "%s setup failed (flag %d): %s", solver, flag, detail);
+}
+
+/* The start of a call: the statistics st cleared of the last call's flag, model error, rows done
+ * and message, the events record ev (NULL: none) emptied. */
+#define LCG_STEPPER_NEW_CALL(st, ev)                                                 \
+    do {                                                                             \
+        (st)->flag = (st)->model_error = (st)->nt_done = 0;                          \
+        (st)->message[0] = '\0';                                                     \
+        if ((ev) != NULL) {                                                          \
+            (ev)->n_events = 0;                                                      \
+            (ev)->terminated = 0;                                                    \
+        }                                                                            \
+    } while (0)
+
+/* The end of a call that reached the time t: the statistics st keep it (unless a model error set
+ * the time of the failure) and the call's flag flag (0, or negative). */
+#define LCG_STEPPER_END_CALL(st, flag, t)                                            \
+    do {                                                                             \
+        if ((st)->model_error == 0)                                                  \
+            (st)->t_reached = (t);                                                   \
+        (st)->flag = (flag) < 0 ? (flag) : 0;                                        \
+    } while (0)
+
+/* The calls of the integrator object on lcg_<kind>_stepper_advance(s, t_end, nt, tout, yout,
+ * one_step), defined at file scope (no semicolon after it): lcg_<kind>_stepper_until (to t_end, no
+ * grid: propagate_until), lcg_<kind>_stepper_grid (over the grid tout[0..nt-1], to its last time:
+ * propagate_grid), lcg_<kind>_stepper_step (one step ending at t_limit at the latest: step). */
+#define LCG_STEPPER_CALLS(kind)                                                                        \
+    int lcg_##kind##_stepper_until(lcg_##kind##_stepper *s, double t_end)                               \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, t_end, 0, NULL, NULL, 0);                                \
+    }                                                                                                  \
+    int lcg_##kind##_stepper_grid(lcg_##kind##_stepper *s, int nt, const double *tout, double *yout)    \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, lcg_stepper_grid_end(nt, tout), nt, tout, yout, 0);      \
+    }                                                                                                  \
+    int lcg_##kind##_stepper_step(lcg_##kind##_stepper *s, double t_limit)                              \
+    {                                                                                                  \
+        return lcg_##kind##_stepper_advance(s, t_limit, 0, NULL, NULL, 1);                              \
+    }
+
+#ifdef LCG_SUNDIALS_H
+/* SUNDIALS 7 declarations beyond sundials_api.h's (the run drivers do not need them). */
+#ifndef CV_ONE_STEP
+#define CV_ONE_STEP 2
+#endif
+#ifndef IDA_ONE_STEP
+#define IDA_ONE_STEP 2
+#endif
+int CVodeClearStopTime(void *cvode_mem);
+int IDAClearStopTime(void *ida_mem);
+
+/* The step limits of the options on the solver's memory (set_step_limits; ida: IDA's, else
+ * CVODE's), then the step budget of one call max_steps: 0 or a negative flag. */
+static inline int lcg_stepper_limits(void *mem, int ida, int max_order, double first_step, double max_step,
+                                     double min_step, long max_steps)
+{
+    int flag = set_step_limits(mem, ida, max_order, first_step, max_step, min_step);
+
+    if (flag < 0)
+        return flag;
+    return ida ? IDASetMaxNumSteps(mem, max_steps) : CVodeSetMaxNumSteps(mem, max_steps);
+}
+
+/* The stop time of a one-step call (ida: on IDA's memory, else CVODE's): t_end, or none without an
+ * end. */
+static inline int lcg_stepper_stop(void *mem, int ida, double t_end)
+{
+    if (isfinite(t_end))
+        return ida ? IDASetStopTime(mem, t_end) : CVodeSetStopTime(mem, t_end);
+    return ida ? IDAClearStopTime(mem) : CVodeClearStopTime(mem);
+}
+
+/* CVODE's counters since the last (re)start that every CVODE stepper's statistics st keep: steps,
+ * right-hand sides, error test and nonlinear convergence failures, the last step. */
+#define LCG_STEPPER_CVODE_COUNTS(mem, st)                                            \
+    do {                                                                             \
+        CVodeGetNumSteps((mem), &(st)->nsteps);                                      \
+        CVodeGetNumRhsEvals((mem), &(st)->nrhs);                                     \
+        CVodeGetNumErrTestFails((mem), &(st)->netfails);                             \
+        CVodeGetNumNonlinSolvConvFails((mem), &(st)->nncfails);                      \
+        CVodeGetLastStep((mem), &(st)->h_last);                                      \
+    } while (0)
+#endif /* LCG_SUNDIALS_H */
+
+#endif /* LCG_STEPPER_H */
