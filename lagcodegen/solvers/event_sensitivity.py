@@ -75,13 +75,13 @@ def event_records(grad: EventGradients, events, state_names, names, which, p: np
     (module docstring): event ``kinds[e]`` (index into ``events``) at ``times[e]``, crossing in
     ``directions[e]``, the augmented state ``rows[e]`` = (y, s_1 .. s_ns) there; ``names`` the
     directions, ``which[j]`` the run-time parameter of direction j (-1: an initial value);
-    ``ydot(t, y)`` the states' right-hand side."""
+    ``ydot(t, row)`` the states' right-hand side y' at the event's augmented state ``row``."""
     ny, ns = grad.ny, len(names)
     out = []
     for e in range(len(times)):
         t, row, k = float(times[e]), rows[e], int(kinds[e])
         y, s = np.array(row[:ny], dtype=float), np.asarray(row[ny:ny * (1 + ns)], dtype=float).reshape(ns, ny)
-        yd = ydot(t, y)
+        yd = ydot(t, row)
         gt, gy, gp = grad(t, y, p)
         rate = gt[k] + gy[k] @ yd
         dt = np.array([-(gy[k] @ s[j] + (gp[k, which[j]] if which[j] >= 0 else 0.0)) for j in range(ns)])

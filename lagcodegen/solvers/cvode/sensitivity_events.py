@@ -84,9 +84,9 @@ class SensEvents:
         fb = ffi.from_buffer
         ny = self.ny
 
-        def ydot(t, y):
+        def ydot(t, row):
             out = np.empty(ny)
-            fns.rhs(t, fb("double[]", y), fb("double[]", p) if p.size else ffi.NULL, 0, ffi.NULL, ffi.NULL,
+            fns.rhs(t, fb("double[]", np.ascontiguousarray(row[:ny])), fb("double[]", p) if p.size else ffi.NULL, 0, ffi.NULL, ffi.NULL,
                     fb("double[]", out), ffi.NULL)
             return out
 

@@ -26,8 +26,9 @@ class Taylor(Family):
     ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
-    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names), in runs,
-    ensembles and the integrator object (not with events); ``sensitivity_errcon`` the
+    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names and events),
+    in runs (with events too: their times' sensitivities in the records, as on CVODE),
+    ensembles and the integrator object (these two without events); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -55,16 +56,14 @@ class Taylor(Family):
                           order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
 
     def _run_sensitivities(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
-        """A run of the states and their sensitivities (:mod:`.sensitivity`)."""
-        if events:
-            raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
-                                  "events, or locate the events in a run of their own)")
+        """A run of the states and their sensitivities (:mod:`.sensitivity`); ``events`` located
+        on the state part of each step's polynomial, each with its time's sensitivities."""
         from .run import scene_of
         from .sensitivity import variational_module
-        module = variational_module(cm, scene_of(cm), self.sensitivities)
+        module = variational_module(cm, scene_of(cm), self.sensitivities, events)
         return module.simulate(t, y, p, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
                                max_step=float(self.max_step), max_steps=int(self.max_steps), order=self.order,
-                               max_wall=float(self.max_wall))
+                               max_wall=float(self.max_wall), max_events=self.max_events)
 
     def _no_sensitivities(self, what: str) -> None:
         if self.sensitivities is not None:
@@ -76,8 +75,9 @@ class Taylor(Family):
         on each step's polynomial; ``max_steps`` is the budget of one call."""
         if self.sensitivities is not None:
             if events:
-                raise LagcodegenError("sensitivities with events: not supported on the Taylor method (run the "
-                                      "sensitivities without events, or use CVODE)")
+                raise LagcodegenError("sensitivities with events: not supported on the Taylor integrator object "
+                                      "(simulate(method='taylor', sensitivities=..., events=...) runs them, "
+                                      "or use an integrator object on CVODE)")
             return TaylorSensitivityStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol,
                                             errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
                                             max_steps=int(self.max_steps), order=self.order,
