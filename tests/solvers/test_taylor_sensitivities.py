@@ -253,8 +253,6 @@ def test_refusals_are_named(osc):
     t = np.linspace(0, 1, 5)
     with pytest.raises(LagcodegenError, match="'kk' is neither a run-time parameter"):
         osc.simulate(t, q0=[1.0], method="taylor", sensitivities=["kk"])
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported on the Taylor integrator"):
-        osc.integrator(q0=[1.0], method="taylor", sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
     with pytest.raises(LagcodegenError, match="sensitivities must be a list of names"):
         lcg.Taylor(sensitivities=3)
 

@@ -106,8 +106,6 @@ def test_non_terminal_event_leaves_the_sensitivities(pend, runs):
 
 def test_refusals(pend):
     ev = [lcg.Event("bottom", TH, -1, True)]
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported on the Taylor integrator"):
-        pend.integrator(q0=[0.5], method="taylor", sensitivities=["l"], events=ev)
     with pytest.raises(LagcodegenError, match="Taylor ensembles have no events"):
         pend.ensemble(T, q0=np.array([[0.1], [0.2]]), method="taylor", sensitivities=["l"], events=ev)
     with pytest.raises(lcg.ModelError, match="unknown"):

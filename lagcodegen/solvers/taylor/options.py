@@ -27,8 +27,8 @@ class Taylor(Family):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
     (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names and events),
-    in runs (with events too: their times' sensitivities in the records, as on CVODE),
-    ensembles and the integrator object (these two without events); ``sensitivity_errcon`` the
+    in runs and the integrator object (with events too: their times' sensitivities in the
+    records, as on CVODE) and ensembles (without events); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -74,14 +74,11 @@ class Taylor(Family):
         the face): the jet's storage and workspace made once (:mod:`.stepper`); ``events`` located
         on each step's polynomial; ``max_steps`` is the budget of one call."""
         if self.sensitivities is not None:
-            if events:
-                raise LagcodegenError("sensitivities with events: not supported on the Taylor integrator object "
-                                      "(simulate(method='taylor', sensitivities=..., events=...) runs them, "
-                                      "or use an integrator object on CVODE)")
             return TaylorSensitivityStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol,
                                             errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
                                             max_steps=int(self.max_steps), order=self.order,
-                                            max_wall=float(self.max_wall))
+                                            max_wall=float(self.max_wall), events=tuple(events),
+                                            max_events=self.max_events)
         return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))

@@ -273,15 +273,20 @@ class VariationalModule:
             return np.full(self.ny, np.nan)
         return jet[:self.ny, 1].copy()
 
+    def records(self, p: np.ndarray, times, rows, kinds, directions) -> list:
+        """The records of the events the driver stored (event ``kinds[e]`` at ``times[e]``, crossing
+        in ``directions[e]``, the augmented state ``rows[e]``), each with its time's and state's
+        sensitivities (:func:`lagcodegen.solvers.event_sensitivity.event_records`)."""
+        return event_records(self.gradients, self.events, self.state_names, self.names, self.which, p, times, rows,
+                             kinds, directions, lambda t, row: self._ydot(t, row, p))
+
     def _events_into(self, res: Result, ev, keep, p: np.ndarray) -> None:
         """The events of a run into ``res`` (``events`` with their times' sensitivities,
         ``stats["events"]``, ``stats["terminated"]``); a terminal event's state, outputs and their
         sensitivities appended as the last row."""
         count = min(int(ev.n_events), keep[0].shape[0])
         times, rows = keep[0][:count], keep[1][:count]
-        res.events = event_records(self.gradients, self.events, self.state_names, self.names, self.which, p, times,
-                                   rows, keep[2][:count], keep[3][:count],
-                                   lambda t, row: self._ydot(t, row, p))
+        res.events = self.records(p, times, rows, keep[2][:count], keep[3][:count])
         res.stats["events"] = int(ev.n_events)
         res.stats["terminated"] = int(ev.terminated)
         if not (ev.terminated and res.events and (res.t.size == 0 or res.events[-1].t > res.t[-1])):
