@@ -3,7 +3,8 @@
 lagcodegen.solvers.event_sensitivity: the event times' sensitivities): against CVODE's
 sensitivity run with the same events, central differences of the event times of plain Taylor
 runs, and the pendulum's exact scaling law (every crossing time from rest is proportional to
-sqrt(l/g)); a non-terminal event leaves the states and sensitivities as the run without it."""
+sqrt(l/g)); a non-terminal event leaves the states and sensitivities as the run without it;
+ensemble members as their runs alone (the integrator object: test_sensitivity_integrator.py)."""
 
 import subprocess
 
@@ -104,10 +105,27 @@ def test_non_terminal_event_leaves_the_sensitivities(pend, runs):
     assert np.array_equal(tay.sensitivities[:rows], alone.sensitivities[:rows])
 
 
+def test_ensemble_members_are_their_runs_alone(pend):
+    """Members with the events, on 2 threads: event counts, final state, sensitivities and t_reached
+    those of each run alone (bit-identical), the trajectory the output times before a terminal
+    event; the member from -0.3 crosses theta = l/4 upward and back before its bottom crossing."""
+    q0 = np.array([[0.5], [0.3], [-0.3]])
+    ens = pend.ensemble(T, q0=q0, events=events(), save="trajectory", sensitivities=NAMES, method="taylor",
+                        threads=2, **TOL)
+    assert list(ens.stats["events"]) == [2, 2, 3] and list(ens.stats["terminated"]) == [1, 1, 1]
+    for i in range(3):
+        alone = pend.simulate(T, q0=q0[i], events=events(), sensitivities=NAMES, method="taylor", **TOL)
+        assert ens.t_reached[i] == alone.t[-1] == alone.events[-1].t
+        assert np.array_equal(ens.y[i], alone.y[-1]) and np.array_equal(ens.sensitivities[i], alone.sensitivities[-1])
+        rows = int(ens.nt_done[i])
+        assert rows == (T <= alone.t[-1]).sum() and np.isnan(ens.sensitivity_trajectories[i, rows:]).all()
+        assert np.array_equal(ens.sensitivity_trajectories[i, :rows], alone.sensitivities[:rows])
+
+
 def test_refusals(pend):
     ev = [lcg.Event("bottom", TH, -1, True)]
-    with pytest.raises(LagcodegenError, match="Taylor ensembles have no events"):
-        pend.ensemble(T, q0=np.array([[0.1], [0.2]]), method="taylor", sensitivities=["l"], events=ev)
+    with pytest.raises(LagcodegenError, match="Taylor ensembles have no events without sensitivities"):
+        pend.ensemble(T, q0=np.array([[0.1], [0.2]]), method="taylor", events=ev)
     with pytest.raises(lcg.ModelError, match="unknown"):
         pend.simulate(T, q0=[0.5], method="taylor", sensitivities=["l"], events=[lcg.Event("odd", "nope")])
 

@@ -27,8 +27,8 @@ class Taylor(Family):
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
     (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names and events),
-    in runs and the integrator object (with events too: their times' sensitivities in the
-    records, as on CVODE) and ensembles (without events); ``sensitivity_errcon`` the
+    in runs, ensembles and the integrator object, with events too (their times' sensitivities
+    in the records, as on CVODE); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -119,15 +119,20 @@ class Taylor(Family):
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
 
-    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
-        sensitivities, each member a run of the variational jet (:mod:`.ensemble`)."""
+        sensitivities, each member a run of the variational jet (:mod:`.ensemble`), ``events``
+        located in each (without sensitivities: refused, those members run on CVODE)."""
         if self.sensitivities is not None:
             return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.sensitivities, threads=threads, save=save,
                                                    progress=progress, rtol=rtol, atol=atol,
                                                    errcon=bool(self.sensitivity_errcon), max_step=self.max_step,
                                                    max_steps=self.max_steps, order=self.order,
-                                                   max_wall=self.max_wall)
+                                                   max_wall=self.max_wall, events=events,
+                                                   max_events=self.max_events)
+        if events:
+            raise LagcodegenError("Taylor ensembles have no events without sensitivities: events in every member "
+                                  "run on CVODE (simulate(method='taylor', events=...) runs one member with them)")
         return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
                                    max_step=self.max_step, max_steps=self.max_steps, order=self.order,
                                    max_wall=self.max_wall)

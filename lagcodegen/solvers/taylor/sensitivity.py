@@ -186,7 +186,6 @@ class VariationalModule:
         self.opt = rt.ffi.new("lcg_taylor_options *")
         self.opt.poll = install(rt)
         self.opt.poll_every = POLL_EVERY
-        self.st = rt.ffi.new("lcg_taylor_stats *")
 
     def tolerances(self, atol, errcon: bool) -> np.ndarray:
         """The absolute tolerances of the augmented system: the states' ``atol`` (scalar or ny
@@ -203,16 +202,10 @@ class VariationalModule:
         ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction); with events,
         ``events`` (at most ``max_events`` kept) with their times' sensitivities, a terminal one
         the last row (module docstring)."""
-        ffi, lib = self.rt.ffi, self.rt.lib
-        ny, ns, nout = self.ny, self.ns, self.nout
-        nyv = ny * (1 + ns)
+        ny = self.ny
         atol_all = self.tolerances(atol, errcon)
         atol = atol_all[:ny]
-        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
-        nt = t.shape[0]
-        yout = np.empty((nt, nyv))
-        out = np.empty((nt, max(nout * (1 + ns), 1)))
-        opt, st, fb = self.opt, self.st, ffi.from_buffer
+        opt, fb = self.opt, self.rt.ffi.from_buffer
         opt.rtol = rtol
         opt.atol = float(atol.min())
         opt.atol_vec = fb("double[]", atol_all)
@@ -221,6 +214,20 @@ class VariationalModule:
         opt.order = int(order or 0)
         opt.rel_block = ny  # each direction's sensitivities: one block of the step-size rule
         opt.max_wall = float(max_wall)
+        return self.solve(opt, t, y0, p, max_events=max_events)
+
+    def solve(self, opt, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, max_events: int = 10_000) -> Result:
+        """:meth:`simulate` with the options struct ``opt`` made by the caller (kept alive with the
+        array its atol_vec points into): reentrant (its own statistics and events structs), for
+        the members of an ensemble."""
+        ffi, lib = self.rt.ffi, self.rt.lib
+        ny, ns, nout = self.ny, self.ns, self.nout
+        nyv = ny * (1 + ns)
+        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
+        nt = t.shape[0]
+        yout = np.empty((nt, nyv))
+        out = np.empty((nt, max(nout * (1 + ns), 1)))
+        st, fb = ffi.new("lcg_taylor_stats *"), ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)
         ev, keep = self._events_struct(max_events) if self.events else (ffi.NULL, None)
         start = time.perf_counter()
