@@ -22,6 +22,7 @@ from __future__ import annotations
 import ctypes
 from typing import Callable
 
+import cffi
 import numpy as np
 
 from ..build import plain_library
@@ -31,7 +32,8 @@ from ..model.events import EventRecord
 
 class EventGradients:
     """The compiled ``<prefix>_events_grad`` of the checked ``events`` of ``scene`` (``cm`` its
-    compiled model)."""
+    compiled model), called through cffi (a few microseconds where ctypes' pointer arguments take
+    tens)."""
 
     def __init__(self, cm, scene, events: list):
         self.ne = len(events)
@@ -40,21 +42,24 @@ class EventGradients:
                                                    f"{cm.code.prefix}_events_grad",
                                                    events_gradient_source(scene, list(events)))
         fn = getattr(self.library, events_gradient_function(cm.code.prefix))
-        dp = ctypes.POINTER(ctypes.c_double)
-        fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_double, dp, dp, dp, dp, dp]
-        self._fn, self._dp = fn, dp
+        self._ffi = ffi = cffi.FFI()
+        self._fn = ffi.cast("int (*)(double, const double *, const double *, double *, double *, double *)",
+                            ctypes.cast(fn, ctypes.c_void_p).value)
 
     def __call__(self, t: float, y: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(gt (ne,), gy (ne, ny), gp (ne, np)) at (t, y, p); NaN where not finite."""
         gt = np.empty(self.ne)
         gy = np.empty((self.ne, self.ny))
         gp = np.empty((self.ne, max(self.np, 1)))
-        dp = self._dp
-        y = np.ascontiguousarray(y, dtype=float)
-        p = np.ascontiguousarray(p, dtype=float)
-        self._fn(float(t), y.ctypes.data_as(dp), p.ctypes.data_as(dp) if p.size else None, gt.ctypes.data_as(dp),
-                 gy.ctypes.data_as(dp), gp.ctypes.data_as(dp))
+        self.into(t, np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(p, dtype=float), gt, gy, gp)
         return gt, gy, gp[:, :self.np]
+
+    def into(self, t: float, y: np.ndarray, p: np.ndarray, gt: np.ndarray, gy: np.ndarray, gp: np.ndarray) -> None:
+        """:meth:`__call__` into the caller's contiguous float64 arrays gt (ne), gy (ne, ny) and gp
+        (ne, max(np, 1)), from contiguous ``y`` and ``p``."""
+        fb = self._ffi.from_buffer
+        self._fn(float(t), fb("double[]", y), fb("double[]", p) if p.size else self._ffi.NULL, fb("double[]", gt),
+                 fb("double[]", gy), fb("double[]", gp))
 
 
 def event_gradients(cm, scene, events) -> EventGradients:
@@ -77,19 +82,34 @@ def event_records(grad: EventGradients, events, state_names, names, which, p: np
     directions, ``which[j]`` the run-time parameter of direction j (-1: an initial value);
     ``ydot(t, row)`` the states' right-hand side y' at the event's augmented state ``row``."""
     ny, ns = grad.ny, len(names)
+    count = len(times)
+    if not count:
+        return []
+    rows = np.asarray(rows, dtype=float)
+    y = rows[:, :ny].copy()
+    s = rows[:, ny:ny * (1 + ns)].reshape(count, ns, ny)
+    kinds = np.asarray(kinds, dtype=int)
+    yd = np.array([ydot(float(t), row) for t, row in zip(times, rows)]).reshape(count, ny)
+    p = np.ascontiguousarray(p, dtype=float)
+    GT, GY, GP = np.empty((count, grad.ne)), np.empty((count, grad.ne, ny)), np.empty((count, grad.ne, max(grad.np, 1)))
+    for e in range(count):  # the event functions' derivatives at each event
+        grad.into(float(times[e]), y[e], p, GT[e], GY[e], GP[e])
+    at = np.arange(count)
+    gt, gy = GT[at, kinds], GY[at, kinds]  # those of the event function that fired
+    which = np.asarray(which, dtype=int)
+    moved = np.flatnonzero(which >= 0)  # the directions that are parameters: dg/dtheta = dg/dp
+    gp = np.zeros((count, ns))
+    gp[:, moved] = GP[at, kinds][:, which[moved]]
+    rate = gt + np.einsum("ei,ei->e", gy, yd)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dt = -(np.einsum("ei,eji->ej", gy, s) + gp) / rate[:, None]
+    dt[rate == 0.0] = np.nan
+    ys = s + yd[:, None, :] * dt[:, :, None]
     out = []
-    for e in range(len(times)):
-        t, row, k = float(times[e]), rows[e], int(kinds[e])
-        y, s = np.array(row[:ny], dtype=float), np.asarray(row[ny:ny * (1 + ns)], dtype=float).reshape(ns, ny)
-        yd = ydot(t, row)
-        gt, gy, gp = grad(t, y, p)
-        rate = gt[k] + gy[k] @ yd
-        dt = np.array([-(gy[k] @ s[j] + (gp[k, which[j]] if which[j] >= 0 else 0.0)) for j in range(ns)])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dt = dt / rate if rate != 0.0 else np.full(ns, np.nan)
+    for e, (k, dte) in enumerate(zip(kinds.tolist(), dt.tolist())):
         ev = events[k]
-        rec = EventRecord(ev.name, k, t, y, int(directions[e]), ev.terminal, list(state_names))
-        rec.t_sensitivity = dict(zip(names, dt.tolist()))
-        rec.y_sensitivity = {name: s[j] + yd * dt[j] for j, name in enumerate(names)}
+        rec = EventRecord(ev.name, k, float(times[e]), y[e], int(directions[e]), ev.terminal, list(state_names))
+        rec.t_sensitivity = dict(zip(names, dte))
+        rec.y_sensitivity = dict(zip(names, ys[e]))
         out.append(rec)
     return out

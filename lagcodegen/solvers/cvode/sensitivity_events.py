@@ -86,8 +86,8 @@ class SensEvents:
 
         def ydot(t, row):
             out = np.empty(ny)
-            fns.rhs(t, fb("double[]", np.ascontiguousarray(row[:ny])), fb("double[]", p) if p.size else ffi.NULL, 0, ffi.NULL, ffi.NULL,
-                    fb("double[]", out), ffi.NULL)
+            fns.rhs(t, fb("double[]", np.ascontiguousarray(row[:ny])), fb("double[]", p) if p.size else ffi.NULL, 0,
+                    ffi.NULL, ffi.NULL, fb("double[]", out), ffi.NULL)
             return out
 
         return event_records(gradients(cm, self.compiled), self.compiled.events, cm.state_names, names, which, p,

@@ -15,7 +15,9 @@ in its table, so the driver locates them on the state part of the augmented run 
 run (the same rows, one order more of the operations), stores the augmented state at each
 event, and a terminal one ends the run; each record then gets its time's sensitivities from the
 event functions' derivatives (:mod:`lagcodegen.solvers.event_sensitivity`, as on CVODE), and a
-terminal event's state and its sensitivities s(t_e) are the run's last row. Error control (``errcon``, CVODES's errconS; default on): the sensitivities take part
+terminal event's state and its sensitivities s(t_e) are the run's last row.
+
+Error control (``errcon``, CVODES's errconS; default on): the sensitivities take part
 in the step-size rule with the states' tolerances (w_i = atol_i + rtol |s_i|); off, their
 weights are infinite, the steps are those of the states alone and the sensitivities are only
 as accurate as those steps make them.
@@ -257,7 +259,7 @@ class VariationalModule:
         arrays it points into (times, rows (y, s), event indices, directions)."""
         ffi = self.rt.ffi
         fb = ffi.from_buffer
-        keep = (np.full(max_events, np.nan), np.full((max_events, self.ny * (1 + self.ns)), np.nan),
+        keep = (np.empty(max_events), np.empty((max_events, self.ny * (1 + self.ns))),
                 np.zeros(max_events, dtype=np.intc), np.zeros(max_events, dtype=np.intc))
         ev = ffi.new("lcg_taylor_events *")
         ev.max_events = max_events
@@ -329,12 +331,27 @@ def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarr
     return names, dirs, s0
 
 
+def _checked_events(cm, scene: Scene, events) -> tuple:
+    """``events`` checked (:func:`.emit.check_events`), once per compiled model and events as
+    given (checking takes sympy milliseconds, a run with events tens of microseconds)."""
+    try:
+        given = ("taylor-sensitivity events given", tuple(events))
+        found = cm.solver_state.get(given)
+    except TypeError:  # unhashable items (dicts, lists): checked every time
+        given, found = None, None
+    if found is None:
+        found = tuple(check_events(scene, events))
+        if given is not None:
+            cm.solver_state[given] = found
+    return found
+
+
 def variational_module(cm, scene: Scene, names, events=()) -> VariationalModule:
     """The compiled variational jet of ``cm`` along ``names`` with ``events`` (checked here:
     ModelError naming a bad one; built once per set of directions and events, then kept with the
     compiled model)."""
     names, dirs, s0 = directions_of(cm, names)
-    events = tuple(check_events(scene, events)) if events else ()
+    events = _checked_events(cm, scene, events) if events else ()
     key = ("taylor-sensitivities", tuple(names)) + ((events,) if events else ())
     module = cm.solver_state.get(key)
     if module is None:
