@@ -89,7 +89,7 @@ def events_block(scene: Scene, events: list[Event]) -> Block:
 
 def events_gradient_block(scene: Scene, events: list[Event]) -> Block:
     """The derivatives of the event functions (checked by :func:`scene_events`) for the event
-    times' sensitivities (eq. of :mod:`lagcodegen.solvers.cvode.sensitivity_events`):
+    times' sensitivities (eq. of :mod:`lagcodegen.solvers.event_sensitivity`):
     ``gt[k]`` = dg_k/dt, ``gy[k*ny + i]`` = dg_k/dy_i (y = (q, q', z)), ``gp[k*np + m]`` =
     dg_k/dp_m over the run-time parameters; the entries that vanish are left out (the generated
     function zeroes its arrays first). A derivative symengine cannot take in closed form raises

@@ -57,7 +57,7 @@ class EventRecord:
     direction: int
     terminal: bool
     state_names: list = field(default_factory=list)
-    #: runs with sensitivities (CVODE): d t_event / d direction, and the sensitivity of the state at
+    #: runs with sensitivities (CVODE, Taylor): d t_event / d direction, and the sensitivity of the state at
     #: the event, d y(t_event) / d direction = s + y' d t_event / d direction (ny values), by the
     #: run's directions; None otherwise
     t_sensitivity: dict | None = field(default=None, compare=False)

@@ -347,7 +347,7 @@ class CompiledModel(CompiledReprMixin):
         those of :meth:`simulate` (solver, rtol, atol, method, max_steps, ...; ``max_wall``: the
         wall-clock limit of each member in seconds). ``inputs``: input name -> one
         :class:`~lagcodegen.solvers.inputs.Table` (or (times, values)) for every member, or a list
-        of one per member (native CVODE). ``sensitivities`` (native CVODE, no events): each
+        of one per member (native CVODE). ``sensitivities`` (native CVODE or Taylor, events too): each
         member's forward sensitivities, bit-identical to its run alone, in the result's
         ``sensitivities`` / ``sensitivity(value, direction)`` by member. Returns
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleResult`; Ctrl-C raises

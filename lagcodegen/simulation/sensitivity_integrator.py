@@ -4,7 +4,7 @@ stepper carries the sensitivities s = dy/dtheta of the directions ``sensitivity_
 with the state: on CVODE ``lcg_cvsens_stepper`` (:mod:`lagcodegen.solvers.cvode.sensitivity_stepper`),
 on the Taylor method the Taylor stepper on the variational jet
 (:class:`lagcodegen.solvers.taylor.stepper.TaylorSensitivityStepper`, whose memory (t, y, s, p)
-the views are made on; no events).
+the views are made on).
 
 ``sensitivities`` is a writable (ny, ns) view of the stepper's memory (entry [i, j] = d y_i / d
 theta_j): set it (e.g. to zero, or to unit columns) and the next call restarts from it, as the

@@ -8,7 +8,6 @@ import pytest
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen.errors import LagcodegenError
 
 TH = sp.Symbol("theta")
 
@@ -98,13 +97,6 @@ def test_ensemble_members_stop_at_their_events(pend):
     a = 0.1
     assert ens.t_reached[0] == pytest.approx(0.5 * np.pi * np.sqrt(1 / 9.81) * (1 + a ** 2 / 16 + 11 * a ** 4 / 3072),
                                              rel=1e-6)
-
-
-def test_refusals(pend):
-    t = np.linspace(0.0, 1.0, 3)
-    ev = lcg.Event("bottom", TH, -1, True)
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported"):
-        pend.simulate(t, q0=[0.1], events=[ev], method="taylor", sensitivities=["l"])  # Taylor: not yet
 
 
 def test_event_derivatives_compile_strictly(tmp_path, cc):

@@ -235,14 +235,24 @@ def test_a_direction_is_one_block_of_the_step_size_rule(dp):
         assert np.all(np.max(np.abs(s - r), axis=(0, 2)) < 1e-6 * np.max(np.abs(r), axis=(0, 2))), p
 
 
+def test_event_time_of_the_oscillator(osc):
+    """x = cos(w t), w = sqrt(k/m), crosses 0 at t_e = pi/(2 w): dt_e/dk = -pi/(4 w k) = -pi/32 at
+    k = 4, m = 1, and 0 along the amplitude x(0); the run ends there with x's sensitivity
+    (tests/solvers/test_taylor_sensitivity_events.py: against CVODE and central differences)."""
+    t = np.linspace(0, 1, 5)
+    res = osc.simulate(t, q0=[1.0], method="taylor", sensitivities=["k", "x(0)"], rtol=1e-12, atol=1e-14,
+                       events=[lcg.Event("x0", sp.Symbol("x"))])
+    rec, = res.events
+    assert abs(rec.t - np.pi / 4) < 1e-12 and res.t[-1] == rec.t
+    assert abs(rec.t_sensitivity["k"] + np.pi / 32) < 1e-11 and abs(rec.t_sensitivity["x(0)"]) < 1e-12
+    # x(t_e) = 0 whatever k: dx/dk at the fixed time t_e is -x'(t_e) dt_e/dk = -2 pi/32
+    assert abs(res.sensitivity("x", "k")[-1] + 2 * np.pi / 32) < 1e-10
+
+
 def test_refusals_are_named(osc):
     t = np.linspace(0, 1, 5)
     with pytest.raises(LagcodegenError, match="'kk' is neither a run-time parameter"):
         osc.simulate(t, q0=[1.0], method="taylor", sensitivities=["kk"])
-    with pytest.raises(LagcodegenError, match="sensitivities with events"):
-        osc.simulate(t, q0=[1.0], method="taylor", sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
-    with pytest.raises(LagcodegenError, match="sensitivities with events: not supported on the Taylor"):
-        osc.integrator(q0=[1.0], method="taylor", sensitivities=["k"], events=[lcg.Event("x0", sp.Symbol("x"))])
     with pytest.raises(LagcodegenError, match="sensitivities must be a list of names"):
         lcg.Taylor(sensitivities=3)
 

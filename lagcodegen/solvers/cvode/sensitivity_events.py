@@ -1,20 +1,11 @@
 """Events in runs with forward sensitivities on CVODE: the events record of the sensitivity
 driver (``lcg_cvsens_events`` of lcg_cvsens.h, ``lcg_cvsens_solve_events``: root finding on the
 state part of the augmented ODE), and
-the sensitivities of each event's time from the derivatives of its event function
-(``<prefix>_events_grad.c``, :func:`lagcodegen.codegen.events.events_gradient_source`).
-
-At an event g(t_e, y(t_e; theta), theta) = 0; differentiating in a direction theta (implicit
-function theorem) with s = dy/dtheta at fixed time:
-
-    dt_e/dtheta = -(dg/dy s + dg/dtheta) / (dg/dt + dg/dy y'(t_e)),
-
-(dg/dtheta = dg/dp_k for a run-time parameter, 0 for an initial value) and the state at the
-event moves by dy(t_e)/dtheta = s(t_e) + y'(t_e) dt_e/dtheta. The events reset nothing (impacts
-are another driver): s is continuous through a non-terminal event; a terminal event ends the run
-with its state as the last row, whose sensitivities are s(t_e) (at the fixed time t_e, as every
-row's). A crossing where the event function does not move (dg/dt + dg/dy y' = 0) gives an
-infinite time sensitivity: NaN there.
+the records made from what it stored at each event, with their times' sensitivities
+(:mod:`lagcodegen.solvers.event_sensitivity`: the derivatives of the event functions and the
+implicit-function formula, shared with the Taylor family). The events reset nothing: s is
+continuous through a non-terminal event; a terminal one ends the run with its state as the last
+row, whose sensitivities are s(t_e).
 """
 
 from __future__ import annotations
@@ -23,48 +14,15 @@ import ctypes
 
 import numpy as np
 
-from ...build import plain_library
-from ...codegen.events import events_gradient_function, events_gradient_source
 from ...model.events import EventRecord
+from ..event_sensitivity import EventGradients, event_gradients, event_records
 from .events import scene_of
-
-
-class EventGradients:
-    """The compiled ``<prefix>_events_grad`` of one set of compiled events of ``cm``."""
-
-    def __init__(self, cm, compiled):
-        scene = scene_of(cm)
-        self.ne = len(compiled.events)
-        self.ny, self.np = cm.ny, cm.code.np
-        self.library, self.path, _ = plain_library(f"the event derivatives of model {cm.code.model_name!r}",
-                                                   f"{cm.code.prefix}_events_grad",
-                                                   events_gradient_source(scene, compiled.events))
-        fn = getattr(self.library, events_gradient_function(cm.code.prefix))
-        dp = ctypes.POINTER(ctypes.c_double)
-        fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_double, dp, dp, dp, dp, dp]
-        self._fn, self._dp = fn, dp
-
-    def __call__(self, t: float, y: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(gt (ne,), gy (ne, ny), gp (ne, np)) at (t, y, p); NaN where not finite."""
-        gt = np.empty(self.ne)
-        gy = np.empty((self.ne, self.ny))
-        gp = np.empty((self.ne, max(self.np, 1)))
-        dp = self._dp
-        y = np.ascontiguousarray(y, dtype=float)
-        p = np.ascontiguousarray(p, dtype=float)
-        self._fn(float(t), y.ctypes.data_as(dp), p.ctypes.data_as(dp) if p.size else None, gt.ctypes.data_as(dp),
-                 gy.ctypes.data_as(dp), gp.ctypes.data_as(dp))
-        return gt, gy, gp[:, :self.np]
 
 
 def gradients(cm, compiled) -> EventGradients:
     """The event derivatives of ``compiled`` (a :class:`~.events.CompiledEvents` of ``cm``), built
     on first use and kept with the compiled model."""
-    key = ("cvsens-event-gradients", tuple(compiled.events))
-    found = cm.solver_state.get(key)
-    if found is None:
-        found = cm.solver_state[key] = EventGradients(cm, compiled)
-    return found
+    return event_gradients(cm, scene_of(cm), compiled.events)
 
 
 class SensEvents:
@@ -102,28 +60,18 @@ class SensEvents:
         count = min(int(self.struct.n_events), self.t.size)
         if not count:
             return []
-        grad = gradients(cm, self.compiled)
-        ny, ns = self.ny, self.ns
         ffi = fns.rt.ffi
         fb = ffi.from_buffer
-        ydot = np.empty(ny)
-        out = []
-        for e in range(count):
-            t, row, k = float(self.t[e]), self.y[e], int(self.which[e])
-            y, s = row[:ny].copy(), row[ny:].reshape(ns, ny)
-            fns.rhs(t, fb("double[]", y), fb("double[]", p) if p.size else ffi.NULL, 0, ffi.NULL, ffi.NULL,
-                    fb("double[]", ydot), ffi.NULL)
-            gt, gy, gp = grad(t, y, p)
-            rate = gt[k] + gy[k] @ ydot
-            dt = np.array([-(gy[k] @ s[j] + (gp[k, which[j]] if which[j] >= 0 else 0.0)) for j in range(ns)])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dt = dt / rate if rate != 0.0 else np.full(ns, np.nan)
-            ev = self.compiled.events[k]
-            rec = EventRecord(ev.name, k, t, y, int(self.direction[e]), ev.terminal, list(cm.state_names))
-            rec.t_sensitivity = dict(zip(names, dt.tolist()))
-            rec.y_sensitivity = {name: s[j] + ydot * dt[j] for j, name in enumerate(names)}
-            out.append(rec)
-        return out
+        ny = self.ny
+
+        def ydot(t, row):
+            out = np.empty(ny)
+            fns.rhs(t, fb("double[]", np.ascontiguousarray(row[:ny])), fb("double[]", p) if p.size else ffi.NULL, 0,
+                    ffi.NULL, ffi.NULL, fb("double[]", out), ffi.NULL)
+            return out
+
+        return event_records(gradients(cm, self.compiled), self.compiled.events, cm.state_names, names, which, p,
+                             self.t[:count], self.y[:count], self.which[:count], self.direction[:count], ydot)
 
     def event_row(self, fns, p: np.ndarray, which: np.ndarray, nout: int) -> tuple[np.ndarray, np.ndarray]:
         """(s (ns, ny), d outputs (ns, nout)) at the last event recorded (the terminal one)."""

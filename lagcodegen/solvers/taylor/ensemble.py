@@ -3,7 +3,8 @@
 module :func:`~.run.taylor_module` builds for ``simulate`` (no events). Ctrl-C stops running
 members too; ``max_wall`` limits each member. With sensitivities
 (:func:`run_taylor_sensitivity_ensemble`), each member is a run of the variational jet
-(:mod:`.prepared_sensitivity`), bit-identical to the same run alone."""
+(:mod:`.prepared_sensitivity`; with events, :meth:`.sensitivity.VariationalModule.solve`),
+bit-identical to the same run alone."""
 
 from __future__ import annotations
 
@@ -48,15 +49,17 @@ def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol
 
 
 def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progress, rtol=1e-8, atol=1e-10,
-                                    errcon=True, max_step=0.0, max_steps=1_000_000, order=None, max_wall=0.0):
+                                    errcon=True, max_step=0.0, max_steps=1_000_000, order=None, max_wall=0.0,
+                                    events=(), max_events=10_000):
     """The members (rows of Y, P) with the sensitivities ``names``: each one run of the variational
     jet (built once, before the threads start) on its own statistics and arrays, gathered by
-    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`."""
+    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`; ``events`` located in
+    every member (at most ``max_events`` kept per member), each with its time's sensitivities."""
     from ..ensemble_sensitivities import ensemble_of_runs
     from .prepared_sensitivity import PreparedTaylorSensitivityRun
     from .run import scene_of
     from .sensitivity import variational_module
-    module = variational_module(cm, scene_of(cm), names)
+    module = variational_module(cm, scene_of(cm), names, events)
     rtol, atol_arr = tolerances(rtol, atol, cm.ny)
     run = PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol_arr, errcon=errcon, max_step=float(max_step),
                                        max_steps=int(max_steps), order=order, max_wall=float(max_wall), fixed={},
@@ -65,8 +68,12 @@ def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progre
     t_ptr = module.rt.ffi.from_buffer("double[]", t)
     model_buffer = cm.ffi.from_buffer
 
-    def member_run(y0, p):
-        return run(t, t_ptr, model_buffer("double[]", y0), p, None)
+    if module.events:  # the records and a terminal event's row too: the full run with run's options
+        def member_run(y0, p):
+            return module.solve(run.opt, t, y0, p, max_events=max_events)
+    else:
+        def member_run(y0, p):
+            return run(t, t_ptr, model_buffer("double[]", y0), p, None)
 
     return ensemble_of_runs(cm, t, Y, P, module.names, member_run, threads=threads, save=save,
                             progress=progress, method="taylor")

@@ -26,8 +26,9 @@ class Taylor(Family):
     ``jacobian=`` beside ``method="taylor"`` has no effect. Forward sensitivities of a run:
     ``sensitivities`` names of run-time parameters and initial values (``"<q>(0)"``,
     ``"<q>_dot(0)"``), propagated by jet transport of the variational equations
-    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names), in runs,
-    ensembles and the integrator object (not with events); ``sensitivity_errcon`` the
+    (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names and events),
+    in runs, ensembles and the integrator object, with events too (their times' sensitivities
+    in the records, as on CVODE); ``sensitivity_errcon`` the
     sensitivities in the step-size rule (default True, as CVODE's)."""
 
     name = "Taylor"
@@ -55,16 +56,14 @@ class Taylor(Family):
                           order=self.order, events=events, max_events=self.max_events, max_wall=float(self.max_wall))
 
     def _run_sensitivities(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
-        """A run of the states and their sensitivities (:mod:`.sensitivity`)."""
-        if events:
-            raise LagcodegenError("sensitivities with events: not supported (run the sensitivities without "
-                                  "events, or locate the events in a run of their own)")
+        """A run of the states and their sensitivities (:mod:`.sensitivity`); ``events`` located
+        on the state part of each step's polynomial, each with its time's sensitivities."""
         from .run import scene_of
         from .sensitivity import variational_module
-        module = variational_module(cm, scene_of(cm), self.sensitivities)
+        module = variational_module(cm, scene_of(cm), self.sensitivities, events)
         return module.simulate(t, y, p, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
                                max_step=float(self.max_step), max_steps=int(self.max_steps), order=self.order,
-                               max_wall=float(self.max_wall))
+                               max_wall=float(self.max_wall), max_events=self.max_events)
 
     def _no_sensitivities(self, what: str) -> None:
         if self.sensitivities is not None:
@@ -75,13 +74,11 @@ class Taylor(Family):
         the face): the jet's storage and workspace made once (:mod:`.stepper`); ``events`` located
         on each step's polynomial; ``max_steps`` is the budget of one call."""
         if self.sensitivities is not None:
-            if events:
-                raise LagcodegenError("sensitivities with events: not supported on the Taylor method (run the "
-                                      "sensitivities without events, or use CVODE)")
             return TaylorSensitivityStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol,
                                             errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
                                             max_steps=int(self.max_steps), order=self.order,
-                                            max_wall=float(self.max_wall))
+                                            max_wall=float(self.max_wall), events=tuple(events),
+                                            max_events=self.max_events)
         return TaylorStepper(cm, mem, rtol=rtol, atol=atol, max_step=float(self.max_step),
                              max_steps=int(self.max_steps), order=self.order, events=tuple(events),
                              max_events=self.max_events, max_wall=float(self.max_wall))
@@ -122,15 +119,20 @@ class Taylor(Family):
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
 
-    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress):
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
-        sensitivities, each member a run of the variational jet (:mod:`.ensemble`)."""
+        sensitivities, each member a run of the variational jet (:mod:`.ensemble`), ``events``
+        located in each (without sensitivities: refused, those members run on CVODE)."""
         if self.sensitivities is not None:
             return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.sensitivities, threads=threads, save=save,
                                                    progress=progress, rtol=rtol, atol=atol,
                                                    errcon=bool(self.sensitivity_errcon), max_step=self.max_step,
                                                    max_steps=self.max_steps, order=self.order,
-                                                   max_wall=self.max_wall)
+                                                   max_wall=self.max_wall, events=events,
+                                                   max_events=self.max_events)
+        if events:
+            raise LagcodegenError("Taylor ensembles have no events without sensitivities: events in every member "
+                                  "run on CVODE (simulate(method='taylor', events=...) runs one member with them)")
         return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
                                    max_step=self.max_step, max_steps=self.max_steps, order=self.order,
                                    max_wall=self.max_wall)

@@ -10,7 +10,14 @@ outputs: the outputs, then d out / d theta_j = (d out/dy) s_j + d out/dp), so a 
 call of ``lcg_taylor_solve``.
 
 Directions: a run-time parameter by its name, ``"<q>(0)"``, ``"<q>_dot(0)"`` (parsed as on
-CVODE). Error control (``errcon``, CVODES's errconS; default on): the sensitivities take part
+CVODE). Events: the jet of a set of events carries the event functions' rows of the states' jet
+in its table, so the driver locates them on the state part of the augmented run as on a plain
+run (the same rows, one order more of the operations), stores the augmented state at each
+event, and a terminal one ends the run; each record then gets its time's sensitivities from the
+event functions' derivatives (:mod:`lagcodegen.solvers.event_sensitivity`, as on CVODE), and a
+terminal event's state and its sensitivities s(t_e) are the run's last row.
+
+Error control (``errcon``, CVODES's errconS; default on): the sensitivities take part
 in the step-size rule with the states' tolerances (w_i = atol_i + rtol |s_i|); off, their
 weights are infinite, the steps are those of the states alone and the sensitivities are only
 as accurate as those steps make them.
@@ -27,6 +34,7 @@ import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...build import plain_library
+from ..event_sensitivity import event_gradients, event_records
 from ...codegen.c import c_expr, print_block
 from ...codegen.record import header_context, new_code
 from ...errors import LagcodegenError, ModelError
@@ -37,7 +45,7 @@ from ...version import __version__
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
-from .emit import CHUNK, P_MAX, _jinja
+from .emit import CHUNK, P_MAX, _EventInfo, _jinja, check_events
 from .runner import message, taylor_runtime
 from .schedule import GROUP, item_count, schedule
 from .variational import VariationalDecomposition, _is_row, variational
@@ -105,11 +113,14 @@ def _sconv_groups(conv_rows: list, ns: int) -> list[list]:
 
 
 def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: list[str],
-                        decomposition: Decomposition | None = None) -> tuple[dict[str, str], VariationalDecomposition]:
+                        decomposition: Decomposition | None = None,
+                        events=()) -> tuple[dict[str, str], VariationalDecomposition]:
     """``{"<prefix>_taylor_var.c": ..., "lcg_taylor_model.h": ...}``: the jet of the states and
     of their sensitivities along ``directions`` (named ``names``) with its table
-    ``<prefix>_taylor_var_model``; and the :class:`VariationalDecomposition` it prints."""
-    d = decomposition or decompose(scene)
+    ``<prefix>_taylor_var_model``; and the :class:`VariationalDecomposition` it prints. With the
+    checked ``events``, the table has their rows (without: the same text as before events
+    existed here)."""
+    d = decomposition or decompose(scene, events)
     v = variational(d, directions)
     n, ny0, ns = d.n, d.ny, v.ns
     M = v.M
@@ -133,7 +144,9 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
         const_lines=[f"c[{k}] = {c_expr(e)};" for k, e in enumerate(v.consts)],
         M=M, F=v.F, rates=v.rates, conv=conv, conv_rows=conv_rows, time_row=v.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass, direction_names=names,
-        dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j]) for j in range(ns)])
+        dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j]) for j in range(ns)],
+        events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
+                for row, ev in zip(v.events, events)])
     env = _jinja()
     header = env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__, p_max=P_MAX)
     files = {"lcg_taylor_model.h": header,
@@ -146,16 +159,21 @@ _STATS = ("nsteps", "njet", "order", "nroot", "t_reached", "h_last", "h_min", "h
 
 
 class VariationalModule:
-    """The compiled jet of a scene's states and sensitivities along a set of directions, run by
-    the Taylor runtime's driver. Not reentrant (its options struct is reused)."""
+    """The compiled jet of a scene's states and sensitivities along a set of directions (and with
+    a set of checked events: their rows in its table), run by the Taylor runtime's driver. Not
+    reentrant (its options struct is reused)."""
 
     def __init__(self, cm, scene: Scene, names: list[str], directions: list[tuple[str, int]], s0: np.ndarray,
-                 cc: str | None = None, verbose: bool = False):
+                 cc: str | None = None, verbose: bool = False, events=()):
         code = cm.code
         self.names, self.directions, self.s0 = list(names), list(directions), s0
+        self.events = list(events)
+        self.which = np.array([index if kind == "param" else -1 for kind, index in self.directions], dtype=int)
         self.state_names, self.output_names = list(code.state_names), list(code.output_names)
         self.n, self.ny, self.nout, self.ns = code.n, code.ny, code.nout, len(names)
-        files, self.decomposition = variational_sources(scene, directions, self.names)
+        files, self.decomposition = variational_sources(scene, directions, self.names, events=self.events)
+        # the event functions' derivatives for the event times' sensitivities, built with the jet
+        self.gradients = event_gradients(cm, scene, self.events) if self.events else None
         rt = self.rt = taylor_runtime(cc)
         self.library, self.path, _ = plain_library(f"the Taylor sensitivities of model {code.model_name!r}",
                                                    f"{code.prefix}_taylor_var", files, cc, verbose=verbose)
@@ -163,14 +181,13 @@ class VariationalModule:
         getter.restype = ctypes.c_void_p
         self.table = rt.ffi.cast("const lcg_taylor_model *", getter())
         nyv = self.ny * (1 + self.ns)
-        if (self.table.ny, self.table.nout, self.table.nrows) != (nyv, self.nout * (1 + self.ns),
-                                                                   self.decomposition.nrows):
+        if (self.table.ny, self.table.nout, self.table.ne, self.table.nrows) != (
+                nyv, self.nout * (1 + self.ns), len(self.events), self.decomposition.nrows):
             raise LagcodegenError(f"the Taylor sensitivity library of model {code.model_name!r} ({self.path}) has "
                                   "another layout than its code")
         self.opt = rt.ffi.new("lcg_taylor_options *")
         self.opt.poll = install(rt)
         self.opt.poll_every = POLL_EVERY
-        self.st = rt.ffi.new("lcg_taylor_stats *")
 
     def tolerances(self, atol, errcon: bool) -> np.ndarray:
         """The absolute tolerances of the augmented system: the states' ``atol`` (scalar or ny
@@ -182,19 +199,15 @@ class VariationalModule:
 
     def simulate(self, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, rtol: float, atol, errcon: bool = True,
                  max_step: float = 0.0, max_steps: int = 1_000_000, order: int | None = None,
-                 max_wall: float = 0.0) -> Result:
+                 max_wall: float = 0.0, max_events: int = 10_000) -> Result:
         """The trajectory and its sensitivities at ``t`` from y(t[0]) = ``y0``: a Result whose
-        ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction)."""
-        ffi, lib = self.rt.ffi, self.rt.lib
-        ny, ns, nout = self.ny, self.ns, self.nout
-        nyv = ny * (1 + ns)
+        ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction); with events,
+        ``events`` (at most ``max_events`` kept) with their times' sensitivities, a terminal one
+        the last row (module docstring)."""
+        ny = self.ny
         atol_all = self.tolerances(atol, errcon)
         atol = atol_all[:ny]
-        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
-        nt = t.shape[0]
-        yout = np.empty((nt, nyv))
-        out = np.empty((nt, max(nout * (1 + ns), 1)))
-        opt, st, fb = self.opt, self.st, ffi.from_buffer
+        opt, fb = self.opt, self.rt.ffi.from_buffer
         opt.rtol = rtol
         opt.atol = float(atol.min())
         opt.atol_vec = fb("double[]", atol_all)
@@ -203,11 +216,26 @@ class VariationalModule:
         opt.order = int(order or 0)
         opt.rel_block = ny  # each direction's sensitivities: one block of the step-size rule
         opt.max_wall = float(max_wall)
+        return self.solve(opt, t, y0, p, max_events=max_events)
+
+    def solve(self, opt, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, max_events: int = 10_000) -> Result:
+        """:meth:`simulate` with the options struct ``opt`` made by the caller (kept alive with the
+        array its atol_vec points into): reentrant (its own statistics and events structs), for
+        the members of an ensemble."""
+        ffi, lib = self.rt.ffi, self.rt.lib
+        ny, ns, nout = self.ny, self.ns, self.nout
+        nyv = ny * (1 + ns)
+        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
+        nt = t.shape[0]
+        yout = np.empty((nt, nyv))
+        out = np.empty((nt, max(nout * (1 + ns), 1)))
+        st, fb = ffi.new("lcg_taylor_stats *"), ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)
+        ev, keep = self._events_struct(max_events) if self.events else (ffi.NULL, None)
         start = time.perf_counter()
         flag = lib.lcg_taylor_solve(self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0v), nt,
                                     fb("double[]", np.ascontiguousarray(t)), fb("double[]", yout),
-                                    fb("double[]", out), opt, st, ffi.NULL)
+                                    fb("double[]", out), opt, st, ev)
         wall = time.perf_counter() - start
         if flag == CANCELLED:
             raise_pending()
@@ -222,7 +250,69 @@ class VariationalModule:
         s = yout[sl, ny:].reshape(done, ns, ny)
         ds = out[sl, nout:nout * (1 + ns)].reshape(done, ns, nout)
         res.set_sensitivities(self.names, self.state_names + self.output_names, np.concatenate([s, ds], axis=2))
+        if keep is not None:
+            self._events_into(res, ev, keep, p)
         return res
+
+    def _events_struct(self, max_events: int):
+        """A new ``lcg_taylor_events`` for ``max_events`` events of the augmented state, and the
+        arrays it points into (times, rows (y, s), event indices, directions)."""
+        ffi = self.rt.ffi
+        fb = ffi.from_buffer
+        keep = (np.empty(max_events), np.empty((max_events, self.ny * (1 + self.ns))),
+                np.zeros(max_events, dtype=np.intc), np.zeros(max_events, dtype=np.intc))
+        ev = ffi.new("lcg_taylor_events *")
+        ev.max_events = max_events
+        ev.t = fb("double[]", keep[0])
+        ev.y = fb("double[]", keep[1])
+        ev.which = fb("int[]", keep[2])
+        ev.direction = fb("int[]", keep[3])
+        return ev, keep
+
+    def _ydot(self, t: float, row: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """y'(t) of the states from the first-order coefficients of the jet at the augmented state
+        ``row``."""
+        ffi = self.rt.ffi
+        fb = ffi.from_buffer
+        nyv = self.ny * (1 + self.ns)
+        jet = np.empty((nyv, 2))
+        rc = self.rt.lib.lcg_taylor_jet(self.table, float(t), fb("double[]", np.ascontiguousarray(row)),
+                                        fb("double[]", p) if p.size else ffi.NULL, 1, fb("double[]", jet))
+        if rc:
+            return np.full(self.ny, np.nan)
+        return jet[:self.ny, 1].copy()
+
+    def records(self, p: np.ndarray, times, rows, kinds, directions) -> list:
+        """The records of the events the driver stored (event ``kinds[e]`` at ``times[e]``, crossing
+        in ``directions[e]``, the augmented state ``rows[e]``), each with its time's and state's
+        sensitivities (:func:`lagcodegen.solvers.event_sensitivity.event_records`)."""
+        return event_records(self.gradients, self.events, self.state_names, self.names, self.which, p, times, rows,
+                             kinds, directions, lambda t, row: self._ydot(t, row, p))
+
+    def _events_into(self, res: Result, ev, keep, p: np.ndarray) -> None:
+        """The events of a run into ``res`` (``events`` with their times' sensitivities,
+        ``stats["events"]``, ``stats["terminated"]``); a terminal event's state, outputs and their
+        sensitivities appended as the last row."""
+        count = min(int(ev.n_events), keep[0].shape[0])
+        times, rows = keep[0][:count], keep[1][:count]
+        res.events = self.records(p, times, rows, keep[2][:count], keep[3][:count])
+        res.stats["events"] = int(ev.n_events)
+        res.stats["terminated"] = int(ev.terminated)
+        if not (ev.terminated and res.events and (res.t.size == 0 or res.events[-1].t > res.t[-1])):
+            return
+        ny, ns, nout = self.ny, self.ns, self.nout
+        te, row = float(times[-1]), np.ascontiguousarray(rows[-1])
+        out = np.full(max(nout * (1 + ns), 1), np.nan)
+        if nout:
+            ffi = self.rt.ffi
+            fb = ffi.from_buffer
+            self.table.outputs(te, fb("double[]", row), fb("double[]", p) if p.size else ffi.NULL,
+                               fb("double[]", out))
+        res.t = np.append(res.t, te)
+        res.y = np.vstack([res.y, row[None, :ny]])
+        res.outputs = {name: np.append(v, out[i]) for i, (name, v) in enumerate(res.outputs.items())}
+        last = np.concatenate([row[ny:].reshape(ns, ny), out[nout:nout * (1 + ns)].reshape(ns, nout)], axis=1)
+        res.sensitivities = np.concatenate([res.sensitivities, last[None]])
 
 
 def sens_stats(st, wall: float) -> dict:
@@ -241,12 +331,29 @@ def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarr
     return names, dirs, s0
 
 
-def variational_module(cm, scene: Scene, names) -> VariationalModule:
-    """The compiled variational jet of ``cm`` along ``names`` (built once per set of directions,
-    then kept with the compiled model)."""
+def _checked_events(cm, scene: Scene, events) -> tuple:
+    """``events`` checked (:func:`.emit.check_events`), once per compiled model and events as
+    given (checking takes sympy milliseconds, a run with events tens of microseconds)."""
+    try:
+        given = ("taylor-sensitivity events given", tuple(events))
+        found = cm.solver_state.get(given)
+    except TypeError:  # unhashable items (dicts, lists): checked every time
+        given, found = None, None
+    if found is None:
+        found = tuple(check_events(scene, events))
+        if given is not None:
+            cm.solver_state[given] = found
+    return found
+
+
+def variational_module(cm, scene: Scene, names, events=()) -> VariationalModule:
+    """The compiled variational jet of ``cm`` along ``names`` with ``events`` (checked here:
+    ModelError naming a bad one; built once per set of directions and events, then kept with the
+    compiled model)."""
     names, dirs, s0 = directions_of(cm, names)
-    key = ("taylor-sensitivities", tuple(names))
+    events = _checked_events(cm, scene, events) if events else ()
+    key = ("taylor-sensitivities", tuple(names)) + ((events,) if events else ())
     module = cm.solver_state.get(key)
     if module is None:
-        module = cm.solver_state[key] = VariationalModule(cm, scene, names, dirs, s0)
+        module = cm.solver_state[key] = VariationalModule(cm, scene, names, dirs, s0, events=events)
     return module

@@ -144,17 +144,18 @@ class TaylorSensitivityStepper(TaylorStepper):
     = (t, y, s, p) is its own (s (ns, ny), ``sens``: unit vectors for initial values, zeros for
     parameters, as a run starts), made from the integrator's (t, y, p) ``face_mem``; the integrator
     object's views are made on ``mem`` (``params_at``: where p starts). ``grid`` writes the states
-    into the caller's rows and the sensitivities into ``sout`` (nt, ns, ny). No events."""
+    into the caller's rows and the sensitivities into ``sout`` (nt, ns, ny). ``events``: the
+    variational jet's (located on the states' part), each record with its time's sensitivities."""
 
     with_sensitivities = True  # the integrator object shows them (SensitivityIntegrator)
 
     def __init__(self, cm, face_mem: np.ndarray, names, *, rtol: float, atol, errcon: bool, max_step: float,
-                 max_steps: int, order: int | None, max_wall: float = 0.0):
+                 max_steps: int, order: int | None, max_wall: float = 0.0, events=(), max_events: int = 10_000):
         from .run import scene_of
         from .sensitivity import variational_module
-        module = variational_module(cm, scene_of(cm), names)
+        module = variational_module(cm, scene_of(cm), names, events)
         ny, ns = cm.ny, module.ns
-        self.events = []
+        self.events = module.events
         self.state_names = module.state_names
         self.names = list(module.names)
         self.cm = cm
@@ -167,9 +168,17 @@ class TaylorSensitivityStepper(TaylorStepper):
         self.params_at = 1 + ny * (1 + ns)
         self.sout = None  # (nt, ns, ny): where propagate_grid's sensitivities go (set per call)
         self._open(module, mem, ny=ny * (1 + ns), rtol=rtol, atol=module.tolerances(atol, errcon), max_step=max_step,
-                   max_steps=max_steps, order=order, max_events=0, max_wall=max_wall, rel_block=ny)
+                   max_steps=max_steps, order=order, max_events=max_events, max_wall=max_wall, rel_block=ny)
         self._grid_rows = self.grid
         self.grid = self._grid_split
+
+    def event_records(self, state_names) -> list:
+        """The last call's events with their times' sensitivities (rows: the state, then the
+        sensitivities, as the stepper stored them)."""
+        count, _, (tt, yy, which, direction) = self.event_arrays()
+        count = min(count, tt.shape[0])
+        p = np.array(self.mem[self.params_at:])
+        return self.module.records(p, tt[:count], yy[:count], which[:count], direction[:count])
 
     def _grid_split(self, nt, tout, yout) -> int:
         """The grid call (the integrator's): the augmented rows computed apart, the states copied

@@ -44,7 +44,9 @@ class VariationalDecomposition:
     decomposition, shifted by ny ns), the accelerations' tangents s_j'' (``sacc[j]``) and the
     tangent operations. ``ops_a``: the states' operations then the tangents that do not involve
     q''; ``ops_b``: those that do (after the states' solve at each order). ``R[j][i]``: the
-    right-hand side dF_i - (dM a)_i of direction j; ``dz[j][m]``: the tangent of rate m.
+    right-hand side dF_i - (dM a)_i of direction j; ``dz[j][m]``: the tangent of rate m;
+    ``events[e]``: the row of event function e (a row of the states' operations: no tangent of
+    it is needed, the event times' sensitivities come from the event functions' derivatives).
     Entries are rows, :class:`Const` s or symengine numbers (zero: ``se.Integer(0)``).
     """
 
@@ -62,6 +64,7 @@ class VariationalDecomposition:
     dz: list
     sacc: list
     labels: dict = field(default_factory=dict)
+    events: list = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -333,7 +336,7 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
     labels = {remap(r): text for r, text in d.labels.items()}
     return VariationalDecomposition(base=d, ns=ns, nrows=tg.nrows, ops_a=base_ops + ops_a, ops_b=ops_b,
                                     consts=tg.consts, M=M, F=F, rates=rates, time_row=time_row, R=R, dz=dz,
-                                    sacc=sacc, labels=labels)
+                                    sacc=sacc, labels=labels, events=[remap(r) for r in d.events])
 
 
 def _live(ops_a: list, ops_b: list, entries: list) -> tuple[list, list]:
