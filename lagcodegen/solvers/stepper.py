@@ -1,7 +1,8 @@
 """The Python side of a runtime stepper (lagcodegen/runtime/lcg_<kind>_stepper.c, the C state of
 an integrator object) that the families' steppers share: the handle a ``lcg_<kind>_stepper_new``
 call returns, checked, with its statistics and calls bound; freed once; the events of the last
-call; the absolute tolerance option of one or ``n`` values."""
+call, its statistics under the names of the runs' Result.stats; the absolute tolerance option of
+one or ``n`` values."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import functools
 import numpy as np
 
 from ..errors import LagcodegenError
+from .base import native_stats
 
 
 def tolerance_option(ffi, opt, atol, n: int):
@@ -47,6 +49,11 @@ class NativeStepper:
         self.stats = getattr(lib, f"lcg_{self.kind}_stepper_stats")(handle)
         for call in self.calls:
             setattr(self, call, functools.partial(getattr(lib, f"lcg_{self.kind}_stepper_{call}"), handle))
+
+    def stats_dict(self) -> dict:
+        """The last call's statistics, by the keys of a run's Result.stats
+        (:func:`~.base.native_stats`)."""
+        return native_stats(self.ffi, self.stats)
 
     def _release(self) -> None:
         """What the family drops before the C stepper is freed (views of its memory)."""

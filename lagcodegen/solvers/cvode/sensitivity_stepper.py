@@ -19,7 +19,7 @@ from ...codegen.cffi_decl import header_cdef
 from ...runtime import sources as runtime_files
 from ..control import install
 from ..stepper import NativeStepper
-from .sensitivity import CDEF, _sources, directions, functions, sens_options
+from .sensitivity import CDEF, _sources, directions, functions, sens_options, sens_stats
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
@@ -99,11 +99,7 @@ class CVSensStepper(NativeStepper):
         return self._grid(self.handle, nt, tout, yout, self._sout_ptr("double[]", sout))
 
     def stats_dict(self) -> dict:
-        st = self.stats
-        return {"steps": st.nsteps, "rhs_evals": st.nrhs, "error_test_fails": st.netfails,
-                "nonlinear_conv_fails": st.nncfails, "jac_evals": st.njac, "factorizations": st.nfactor,
-                "block_solves": st.nblock_solves, "h_last": st.h_last, "t_reached": st.t_reached,
-                "model_error": st.model_error}
+        return sens_stats(self.stats)
 
     def event_records(self, state_names) -> list:
         """The last call's events with their times' sensitivities (:class:`SensEvents`)."""

@@ -122,12 +122,6 @@ class CVODEStepper(NativeStepper):
         del atol_keep  # copied by the stepper
         self._bind(handle, msg, "CVODE integrator")
 
-    def stats_dict(self) -> dict:
-        st = self.stats
-        return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "jac_evals": st.njac,
-                "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "h_last": st.h_last,
-                "t_reached": st.t_reached, "model_error": st.model_error}
-
 
 class CVCStepper(NativeStepper):
     """The C stepper of a constrained system's index-1 form on CVODE (``lcg_cvc_stepper``), on
@@ -166,9 +160,3 @@ class CVCStepper(NativeStepper):
         del atol_keep  # copied by the stepper
         self._bind(handle, msg, "CVODE (index-1) integrator")
 
-    def stats_dict(self) -> dict:
-        st = self.stats
-        return {"steps": st.nsteps, "rhs_evals": st.nrhs + st.nrhs_dq, "error_test_fails": st.netfails,
-                "nonlinear_conv_fails": st.nncfails, "projections": st.nproj, "root_evals": st.ngevals,
-                "alpha": st.alpha, "beta": st.beta, "h_last": st.h_last, "t_reached": st.t_reached,
-                "model_error": st.model_error}

@@ -104,8 +104,3 @@ class IDAStepper(NativeStepper):
         """lambda (and mu) of the current unknowns, a copy."""
         return self._unknowns[self.n_state:].copy()
 
-    def stats_dict(self) -> dict:
-        st = self.stats
-        return {"steps": st.nsteps, "residual_evals": st.nres + st.nres_dq, "jac_evals": st.njac,
-                "error_test_fails": st.netfails, "nonlinear_conv_fails": st.nncfails, "root_evals": st.ngevals,
-                "ic_flag": st.ic_flag, "h_last": st.h_last, "t_reached": st.t_reached, "model_error": st.model_error}

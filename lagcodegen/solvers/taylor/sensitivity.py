@@ -34,7 +34,6 @@ import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...build import plain_library
-from ..event_sensitivity import event_gradients, event_records
 from ...codegen.c import c_expr, print_block
 from ...codegen.record import header_context, new_code
 from ...errors import LagcodegenError, ModelError
@@ -43,10 +42,11 @@ from ...formulation.scene import Scene
 from ...result import Result
 from ...version import __version__
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
+from ..event_sensitivity import event_gradients, event_records
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
 from .emit import CHUNK, P_MAX, _EventInfo, _jinja, check_events
-from .runner import message, taylor_runtime
+from .runner import message, run_stats, taylor_runtime
 from .schedule import GROUP, item_count, schedule
 from .variational import VariationalDecomposition, _is_row, variational
 
@@ -155,7 +155,6 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
 
 
 # ------------------------------------------------------------------ build and run
-_STATS = ("nsteps", "njet", "order", "nroot", "t_reached", "h_last", "h_min", "h_max", "model_error")
 
 
 class VariationalModule:
@@ -316,10 +315,9 @@ class VariationalModule:
 
 
 def sens_stats(st, wall: float) -> dict:
-    """Result.stats of a Taylor sensitivity run from its statistics struct ``st`` and its wall time."""
-    nsteps, njet, order_used, nroot, t_reached, h_last, h_min, h_max, model_error = (getattr(st, k) for k in _STATS)
-    return {"steps": nsteps, "rhs_evals": njet, "jet_evals": njet, "order": order_used, "t_reached": t_reached,
-            "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error, "wall_time": wall}
+    """Result.stats of a Taylor sensitivity run from its statistics struct ``st`` and its wall
+    time: those of a plain run (:func:`.runner.run_stats`)."""
+    return {**run_stats(st), "wall_time": wall}
 
 
 def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarray]:

@@ -23,6 +23,7 @@ from ..control import POLL_EVERY, install
 # ------------------------------------------------------------------------------------------
 from .emit import P_MAX, runtime_key_texts, runtime_sources
 from .run import taylor_module
+from .runner import run_stats
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_taylor_stepper.c includes lcg_taylor.c).
 STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h", "lcg_stepper.h")
@@ -127,10 +128,7 @@ class TaylorStepper:
             self.lib.lcg_taylor_stepper_free(handle)
 
     def stats_dict(self) -> dict:
-        st = self.stats
-        return {"steps": st.nsteps, "jet_evals": st.njet, "rhs_evals": st.njet, "order": st.order,
-                "root_searches": st.nroot, "h_last": st.h_last, "h_min": st.h_min, "h_max": st.h_max,
-                "t_reached": st.t_reached, "model_error": st.model_error}
+        return run_stats(self.stats)
 
     def event_arrays(self):
         """(count, terminated, (t, y, which, direction)) of the last call's events."""
