@@ -47,7 +47,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
     return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + STEPPER_CDEF,
                           "lcg_cvsens_stepper.h", [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags,
-                          units=("lcg_cvsens_stepper.c",))
+                          units=("lcg_cvsens_stepper.c", "lcg_inputs.c"))  # lcg_cvsens.c calls lcg_inputs.c
 
 
 def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
