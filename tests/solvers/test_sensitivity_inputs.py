@@ -159,3 +159,135 @@ def test_fit_of_a_table_driven_oscillator(sim, table):
     for name, value in (("k", K), ("c", C)):
         assert abs(fit.params[name] - value) < 3 * fit.stderr[name], (name, fit.params[name], fit.stderr[name])
         assert fit.stderr[name] < 0.05 * value
+
+
+SANITIZE_MAIN = r"""
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "lcg_cvsens.h"
+
+int osc_sens_table_sens_rhs(double t, const double *y, const double *p, int ns, const int *which, const double *s,
+                            double *ydot, double *sdot);
+int osc_sens_table_sens_outputs(double t, const double *y, const double *p, int ns, const int *which,
+                                const double *s, double *dout);
+extern const lcg_model osc_sens_table_model;
+
+#define NT 17
+#define NS 3
+static const double P[4] = {1.0, 4.0, 0.4, 123.0}; /* m, k, c, F (F: overwritten by the table) */
+static const double TT[5] = {0.0, 1.0, 2.5, 4.0, 6.0}, TV[5] = {0.0, 1.5, -0.5, 1.0, 1.0};
+static const double BREAKS[3] = {1.0, 2.5, 4.0};
+
+typedef struct { int which[NS]; double yout[NT * 2], sout[NT * NS * 2], out[NT * 2], dout[NT * NS * 2];
+                 int flag; lcg_cvsens_stats st; } job;
+
+static lcg_inputs inputs;
+
+static void *run(void *arg)
+{
+    job *j = (job *)arg;
+    double tout[NT], y0[2] = {0.3, 0.0}, s0[NS * 2], atol[2 * (1 + NS)];
+    lcg_cvsens_options opt;
+    int k;
+    for (k = 0; k < NT; ++k)
+        tout[k] = 0.5 * k;
+    memset(s0, 0, sizeof s0);
+    for (k = 0; k < NS; ++k)
+        if (j->which[k] < 0)
+            s0[2 * k] = 1.0;
+    for (k = 0; k < 2 * (1 + NS); ++k)
+        atol[k] = 1e-12;
+    memset(&opt, 0, sizeof opt);
+    opt.method = 1;
+    opt.rtol = 1e-10;
+    opt.atol = atol;
+    opt.max_steps = 100000;
+    opt.jacobian = 1;
+    j->flag = lcg_cvsens_solve_inputs(&osc_sens_table_model, osc_sens_table_sens_rhs, osc_sens_table_sens_outputs,
+                                      P, &inputs, NS, j->which, y0, s0, NT, tout, j->yout, j->sout, j->out,
+                                      j->dout, &opt, &j->st);
+    return NULL;
+}
+
+int main(void)
+{
+    lcg_input_table tab, bad;
+    double c[4 * 6];
+    job a, b, r;
+    pthread_t ta, tb;
+    int k;
+    if (lcg_input_table_fill(&tab, 3, 5, TT, TV, 1, c) != 0)
+        return 1;
+    inputs.count = 1;
+    inputs.tables = &tab;
+    inputs.nbreak = 3;
+    inputs.breaks = BREAKS;
+    memset(&a, 0, sizeof a);
+    a.which[0] = 1; a.which[1] = 2; a.which[2] = -1;  /* k, c, x(0) */
+    b = a;
+    pthread_create(&ta, NULL, run, &a);  /* two runs at once: each its own copy of p */
+    pthread_create(&tb, NULL, run, &b);
+    pthread_join(ta, NULL);
+    pthread_join(tb, NULL);
+    printf("%d %d %ld %d\n", a.flag, a.st.nt_done, a.st.nsteps,
+           memcmp(a.sout, b.sout, sizeof a.sout) == 0 && memcmp(a.yout, b.yout, sizeof a.yout) == 0);
+    for (k = 0; k < NT * 2; ++k)
+        printf("%.17g ", a.yout[k]);
+    printf("\n");
+    for (k = 0; k < NT * NS * 2; ++k)
+        printf("%.17g ", a.sout[k]);
+    printf("\n");
+    for (k = 0; k < NT * 2; ++k)
+        printf("%.17g ", a.out[k]);
+    printf("\n");
+    r = a;
+    r.which[1] = 3;  /* along F, the input */
+    run(&r);
+    printf("%d %s\n", r.flag, r.st.message);
+    bad = tab;
+    bad.slot = 7;  /* no such parameter */
+    inputs.tables = &bad;
+    r.which[1] = 2;
+    run(&r);
+    printf("%d %s\n", r.flag, r.st.message);
+    return 0;
+}
+"""
+
+
+def test_inputs_path_runs_clean_under_sanitizers(tmp_path, cc, sim):
+    """lcg_cvsens_solve_inputs under ASan/UBSan (leaks too): two runs on two threads at once (the
+    same numbers bit for bit: each its own copy of p) matching simulate's, a direction along the
+    input and a table of a slot out of range refused with LCG_FLAG_BAD_INPUT and the reason."""
+    import subprocess
+
+    from lagcodegen.build import find_sundials, table_source
+    from lagcodegen.codegen.sensitivity import sensitivity_source
+    from lagcodegen.solvers.cvode.sensitivity import _sources
+    files = {**sim.code.files, **table_source(sim.code), **sensitivity_source(sim.code.scene, sim.code.prefix),
+             **_sources(), "main.c": SANITIZE_MAIN}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    units = sorted(n for n in files if n.endswith(".c"))
+    san = ["-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    proc = subprocess.run([cc, *san, "-I.", *units, "-o", "run", *find_sundials().link_args(), "-lm", "-pthread"],
+                          cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    env = {"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stdout + out.stderr
+    head, ys, ss, outs, along, bad = out.stdout.splitlines()
+    flag, done, steps, same = map(int, head.split())
+    assert flag == 0 and done == 17 and steps > 50 and same == 1
+    t = 0.5 * np.arange(17)
+    res = sim.simulate(t, q0=[X0], inputs={"F": lcg.Table(TIMES, VALUES)}, rtol=1e-10, atol=1e-12,
+                       sensitivities=DIRECTIONS)
+    assert np.max(np.abs(np.array(ys.split(), dtype=float).reshape(17, 2) - res.y)) < 1e-9
+    s = np.array(ss.split(), dtype=float).reshape(17, 3, 2)
+    assert np.max(np.abs(s - res.sensitivities[:, :, :2])) < 1e-8
+    assert np.array_equal(np.array(outs.split(), dtype=float).reshape(17, 2)[:, 0], res["force"])
+    assert along.startswith("-22 ") and "direction 1 is along run-time parameter 3" in along
+    assert bad.startswith("-22 ") and "slot 7 out of range" in bad
