@@ -35,6 +35,8 @@ from .sensitivity_events import EVENTS_CDEF, SensEvents
 #: The runtime files of the sensitivity driver.
 FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h",
          "lcg_inputs.h", "lcg_inputs.c")
+#: The C files a unit that includes lcg_cvsens.c (the stepper, lcg_cvsens_stepper.c) compiles beside it.
+LINKED_UNITS = ("lcg_inputs.c",)
 
 CDEF = MODEL_TABLE_CDEF + "\n" + driver_cdef("inputs") + """
 typedef int (*lcg_sens_rhs_fn)(double t, const double *y, const double *p, int ns, const int *which,

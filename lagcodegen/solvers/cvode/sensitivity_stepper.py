@@ -18,7 +18,7 @@ from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..control import install
-from .sensitivity import CDEF, _sources, directions, functions, sens_options
+from .sensitivity import CDEF, LINKED_UNITS, _sources, directions, functions, sens_options
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
@@ -47,7 +47,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
     return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + STEPPER_CDEF,
                           "lcg_cvsens_stepper.h", [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags,
-                          units=("lcg_cvsens_stepper.c", "lcg_inputs.c"))  # lcg_cvsens.c calls lcg_inputs.c
+                          units=("lcg_cvsens_stepper.c", *LINKED_UNITS))
 
 
 def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
