@@ -17,6 +17,11 @@
  * The cost of a setup is one Jacobian of the states and one n^3 factorization, whatever ns; a
  * solve costs (1 + ns) n^2.
  *
+ * Input tables (lcg_cvsens_solve_inputs, lcg_inputs.h): every evaluation of the model's functions
+ * sees p with the inputs' slots at their table values (a copy of p per run), and the run restarts
+ * at the tables' restart times as the plain driver (lcg_cvode.c) does; a direction along an
+ * input's slot is refused, the input being a given signal (du/dtheta = 0 for the others).
+ *
  * SUNDIALS ships no struct of a custom solver that this runtime could take from a header
  * (scikit-sundae's libraries come without headers): the layouts of SUNDIALS 7.x's
  * _generic_SUNLinearSolver, _generic_SUNNonlinearSolver and their operations tables are declared
@@ -112,7 +117,22 @@ typedef struct {
     long nls_iters, nls_fails, nsetups, nsens_iters, nrhs_states, nrhs_sens;
     double *ytmp, *wsens, *ftmp; /* scratch: ny (1 + ns) values */
     double *Ainv, *xtmp; /* (I - gammap J)^-1 column-major (from the factors), scratch of ny */
+    const lcg_inputs *in; /* input tables (lcg_inputs.h), or NULL */
+    double *pin;        /* inputs: p with the inputs' slots set at the evaluation time */
+    double key;         /* inputs: the time of the last restart (the run's start at first) */
+    double tb;          /* inputs: the next restart time (HUGE_VAL: none) */
+    long nst_done;      /* inputs: the steps of the segments before the last restart */
 } sens_data;
+
+/* The run-time parameters at t: p, with the inputs' slots from their tables when there are any
+ * (at the next restart time, the piece that ends there). */
+static const double *params_at(sens_data *d, double t)
+{
+    if (d->in == NULL)
+        return d->p;
+    lcg_inputs_apply(d->in, t, t >= d->tb, d->pin);
+    return d->pin;
+}
 
 static int model_status(sens_data *d, int rc, double t)
 {
@@ -184,14 +204,14 @@ static int aug_rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
     double *yv = N_VGetArrayPointer(y), *fv = N_VGetArrayPointer(ydot);
     if (WATCH_TICK(&d->w))
         return -1; /* stop: cancelled or out of time */
-    return model_status(d, d->sens_rhs(t, yv, d->p, d->ns, d->which, yv + ny, fv, fv + ny), t);
+    return model_status(d, d->sens_rhs(t, yv, params_at(d, t), d->ns, d->which, yv + ny, fv, fv + ny), t);
 }
 
 /* CVRootFn: the event functions at the state part of the augmented vector. */
 static int sens_roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
 {
     sens_data *d = (sens_data *)data;
-    int rc = d->ev->roots(t, N_VGetArrayPointer(y), d->p, gout);
+    int rc = d->ev->roots(t, N_VGetArrayPointer(y), params_at(d, t), gout);
 
     if (rc != LCG_OK) {
         d->st->model_error = rc;
@@ -259,7 +279,7 @@ static int aug_proj(sunrealtype t, N_Vector ycur, N_Vector corr, sunrealtype eps
     int rc;
     (void)epsProj;
 
-    rc = d->project(t, y, d->p, d->ns, d->which, d->ynew, err != NULL ? N_VGetArrayPointer(err) : NULL);
+    rc = d->project(t, y, params_at(d, t), d->ns, d->which, d->ynew, err != NULL ? N_VGetArrayPointer(err) : NULL);
     if (rc != LCG_OK)
         return model_status(d, rc, t);
     for (i = 0; i < total; ++i)
@@ -272,15 +292,16 @@ static int states_jacobian(sens_data *d, double t, const double *y)
 {
     const lcg_model *m = d->m;
     const int ny = m->ny;
+    const double *p = params_at(d, t);
     int rc, i, j, k;
 
-    if ((rc = m->rhs(t, y, d->p, d->f0)) != LCG_OK)
+    if ((rc = m->rhs(t, y, p, d->f0)) != LCG_OK)
         return rc;
     d->st->njac++;
     if (d->jacobian && m->jac != NULL)
-        return m->jac(t, y, d->f0, d->p, d->J);
+        return m->jac(t, y, d->f0, p, d->J);
     if (d->jacobian && m->jac_sparse != NULL) {
-        if ((rc = m->jac_sparse(t, y, d->f0, d->p, d->vals)) != LCG_OK)
+        if ((rc = m->jac_sparse(t, y, d->f0, p, d->vals)) != LCG_OK)
             return rc;
         memset(d->J, 0, sizeof(double) * (size_t)ny * (size_t)ny);
         for (j = 0; j < ny; ++j)
@@ -294,7 +315,7 @@ static int states_jacobian(sens_data *d, double t, const double *y)
         double h = 1.4901161193847656e-08 * (fabs(y[j]) > 1.0 ? fabs(y[j]) : 1.0);
         d->y1[j] = y[j] + h;
         h = d->y1[j] - y[j];
-        rc = m->rhs(t, d->y1, d->p, d->f1);
+        rc = m->rhs(t, d->y1, p, d->f1);
         d->y1[j] = y[j];
         if (rc != LCG_OK)
             return rc;
@@ -599,7 +620,7 @@ static int nls_states_rhs(sens_data *d, double t, const double *y, double *f)
     if (WATCH_TICK(&d->w))
         return LCG_CV_RHSFUNC_FAIL; /* stop: cancelled or out of time */
     d->nrhs_states++;
-    return nls_flag(model_status(d, d->m->rhs(t, y, d->p, f), t));
+    return nls_flag(model_status(d, d->m->rhs(t, y, params_at(d, t), f), t));
 }
 
 /* d->Ainv = (I - gamma J)^-1 from the factors in d->A, column by column: a block's solve is then
@@ -760,7 +781,7 @@ static int nls_sens(sens_data *d, double t, const double *ypred, const double *z
             s[i] = ypred[ny + i] + cs[i];
         d->nrhs_sens++;
         d->nsens_iters++;
-        flag = nls_flag(model_status(d, d->sens_rhs(t, y, d->p, d->ns, d->which, s, d->ftmp, delta), t));
+        flag = nls_flag(model_status(d, d->sens_rhs(t, y, params_at(d, t), d->ns, d->which, s, d->ftmp, delta), t));
         if (flag != 0)
             return flag;
         for (i = 0; i < nsy; ++i)
@@ -836,14 +857,22 @@ static int nls_solve(SUNNonlinearSolver S, N_Vector y0, N_Vector ycor, N_Vector 
     return flag;
 }
 
-/* The corrector's state and counters for a new run (or a restart of the stepper). */
-static void corrector_reset(sens_data *d)
+/* The corrector's matrices and the step counts they were made at, for CVODE starting afresh
+ * (CVodeReInit resets its step and failure counters; the inputs may have changed J): the next
+ * solve evaluates J and factors anew. Its own counters go on. */
+static void corrector_restart(sens_data *d)
 {
     d->have_J = d->have_A = 0;
     d->gamma = d->gammap = 0.0;
     d->crate = d->crate_s = 1.0;
     d->nstlp = d->netf_seen = 0;
     d->last_failed = 0;
+}
+
+/* The corrector's state and counters for a new run (or a restart of the stepper). */
+static void corrector_reset(sens_data *d)
+{
+    corrector_restart(d);
     d->nsetups = d->nsens_iters = d->nrhs_states = d->nrhs_sens = 0;
 }
 
@@ -975,19 +1004,131 @@ static void corrector_free(sens_data *d, SUNLinearSolver LS, SUNNonlinearSolver 
     d->ytmp = d->ftmp = d->wsens = d->Ainv = d->xtmp = NULL;
 }
 
-int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
-                     int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
-                     double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
-                     lcg_cvsens_stats *st)
+/* Add CVODE's counters since its last (re)initialization to st's. */
+static void add_counts(void *mem, lcg_cvsens_stats *st)
 {
-    return lcg_cvsens_solve_events(m, sens_rhs, sens_out, p, ns, which, y0, s0, nt, tout, yout, sout, out, dout, opt,
-                                   st, NULL);
+    long c[6] = {0, 0, 0, 0, 0, 0};
+    CVodeGetNumSteps(mem, &c[0]);
+    CVodeGetNumRhsEvals(mem, &c[1]);
+    CVodeGetNumLinSolvSetups(mem, &c[2]);
+    CVodeGetNumErrTestFails(mem, &c[3]);
+    CVodeGetNumNonlinSolvIters(mem, &c[4]);
+    CVodeGetNumNonlinSolvConvFails(mem, &c[5]);
+    st->nsteps += c[0];
+    st->nrhs += c[1];
+    st->nlinsetups += c[2];
+    st->netfails += c[3];
+    st->nniters += c[4];
+    st->nncfails += c[5];
 }
 
-int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
-                            const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
-                            const double *tout, double *yout, double *sout, double *out, double *dout,
-                            const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev)
+/* b within rounding of a (a <= b): CVODE cannot step from a to b. */
+static int too_close(double a, double b)
+{
+    return b - a <= 4.0 * DBL_EPSILON * (fabs(a) > fabs(b) ? fabs(a) : fabs(b));
+}
+
+/* CVode towards target, the root returns of the events on the way recorded into d->ev and stepped
+ * over, within the step budget of the whole run (restarts included): a negative flag (-1: the
+ * budget used up), ADVANCE_TERMINAL at a terminal event (its time in *tret), or 0. */
+#define ADVANCE_TERMINAL 1
+static int advance(sens_data *d, const lcg_cvsens_options *opt, double target, N_Vector y, double *tret,
+                   long total)
+{
+    lcg_cvsens_stats *st = d->st;
+    long nst = 0;
+    int flag;
+
+    for (;;) {
+        CVodeGetNumSteps(d->mem, &nst);
+        nst += d->nst_done;
+        if (nst >= opt->max_steps) {
+            snprintf(st->message, sizeof st->message, "the step budget max_steps = %ld is used up before t = %.17g",
+                     opt->max_steps, target);
+            return -1;
+        }
+        CVodeSetMaxNumSteps(d->mem, opt->max_steps - nst);
+        flag = CVode(d->mem, target, y, tret, CV_NORMAL);
+        st->t_reached = *tret;
+        if (flag == CV_ROOT_RETURN && d->ev != NULL) {
+            if (sens_record(d, *tret, d->key, N_VGetArrayPointer(y), total))
+                return ADVANCE_TERMINAL;
+            continue;
+        }
+        return flag < 0 ? flag : 0;
+    }
+}
+
+/* At the restart time *tb the run has reached (augmented state y): start afresh there on the
+ * inputs' next pieces (the history of the multistep method ends at a jump or kink of an input;
+ * the sensitivities go on from their values), with the stop time at the next restart time or
+ * tend. CVODE's counters so far go to st (CVodeReInit resets them). */
+static int restart_at(sens_data *d, N_Vector y, double *tb, double tend)
+{
+    long nst = 0;
+    int flag;
+
+    CVodeGetNumSteps(d->mem, &nst);
+    d->nst_done += nst;
+    add_counts(d->mem, d->st);
+    d->key = *tb;
+    if ((flag = CVodeReInit(d->mem, *tb, y)) < 0)
+        return flag;
+    corrector_restart(d);
+    *tb = d->tb = lcg_inputs_next_break(d->in, *tb);
+    return CVodeSetStopTime(d->mem, *tb < tend ? *tb : tend);
+}
+
+/* The inputs of a run (NULL: none) checked against the model and the directions (none along an
+ * input's slot: the input is a given signal), its copy of p made: 0, or a negative flag with the
+ * reason in st->message. */
+static int inputs_init(sens_data *d, const lcg_inputs *in, const double *p, lcg_cvsens_stats *st)
+{
+    const lcg_model *m = d->m;
+    int a, j, i;
+
+    d->in = in;
+    d->tb = HUGE_VAL;
+    if (in == NULL)
+        return 0;
+    if (lcg_inputs_check(in, m->np, st->message, sizeof st->message) != 0)
+        return LCG_FLAG_BAD_INPUT;
+    for (j = 0; j < d->ns; ++j)
+        for (a = 0; a < in->count; ++a)
+            if (d->which[j] == in->tables[a].slot) {
+                snprintf(st->message, sizeof st->message, "sensitivity direction %d is along run-time parameter "
+                         "%d, which input table %d sets (an input is a given signal)", j, d->which[j], a);
+                return LCG_FLAG_BAD_INPUT;
+            }
+    if ((d->pin = (double *)malloc(sizeof(double) * (size_t)(m->np > 0 ? m->np : 1))) == NULL)
+        return LCG_FLAG_NOMEM;
+    for (i = 0; i < m->np; ++i)
+        d->pin[i] = p[i];
+    return 0;
+}
+
+/* The outputs and their sensitivities at (t, yv) into out and dout (nothing without outputs). */
+static int outputs_at(sens_data *d, lcg_sens_out_fn sens_out, double t, const double *yv, double *out, double *dout)
+{
+    const lcg_model *m = d->m;
+    const double *p;
+    int rc;
+
+    if (m->outputs == NULL)
+        return LCG_OK;
+    p = d->in == NULL ? d->p : (lcg_inputs_apply(d->in, t, 0, d->pin), d->pin); /* u at the output time */
+    if ((rc = m->outputs(t, yv, p, out)) != LCG_OK)
+        return rc;
+    if (sens_out != NULL && m->nout > 0)
+        return sens_out(t, yv, p, d->ns, d->which, yv + m->ny, dout);
+    return LCG_OK;
+}
+
+/* The run of lcg_cvsens_solve_events with the input tables in (NULL: none); see lcg_cvsens.h. */
+static int solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
+                 const lcg_inputs *in, int ns, const int *which, const double *y0, const double *s0, int nt,
+                 const double *tout, double *yout, double *sout, double *out, double *dout,
+                 const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -996,8 +1137,9 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     SUNNonlinearSolver NLS = NULL;
     sens_data data;
     double *yv;
-    long nst = 0, total;
-    int k, i, flag = 0, rc, ny;
+    double tb = HUGE_VAL; /* inputs: the next restart time */
+    long total;
+    int k, i, flag = 0, rc, ny, restart = in != NULL && in->nbreak > 0;
 
     memset(st, 0, sizeof *st);
     memset(&data, 0, sizeof data);
@@ -1017,8 +1159,13 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
     data.jacobian = opt->jacobian;
     data.st = st;
     data.gamma = 0.0;
+    data.key = tout[0];
     watch_init(&data.w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
     LCG_CREATE_CONTEXT(LCG_FLAG_NOMEM);
+    if ((flag = inputs_init(&data, in, p, st)) < 0)
+        goto done;
+    if (in != NULL)
+        tb = lcg_inputs_next_break(in, tout[0]);
 
     data.J = (double *)malloc(sizeof(double) * (size_t)ny * (size_t)ny);
     data.A = (double *)malloc(sizeof(double) * (size_t)ny * (size_t)ny);
@@ -1046,14 +1193,8 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
         yv[i] = yout[i] = y0[i];
     for (i = 0; i < ny * ns; ++i)
         yv[ny + i] = sout[i] = s0[i];
-    if (m->outputs != NULL) {
-        rc = m->outputs(tout[0], yv, p, out);
-        LCG_MODEL_ERROR(LCG_OK);
-        if (sens_out != NULL && m->nout > 0) {
-            rc = sens_out(tout[0], yv, p, ns, which, yv + ny, dout);
-            LCG_MODEL_ERROR(LCG_OK);
-        }
-    }
+    rc = outputs_at(&data, sens_out, tout[0], yv, out, dout);
+    LCG_MODEL_ERROR(LCG_OK);
     st->nt_done = 1;
 
     if ((flag = CVodeInit(mem, aug_rhs, tout[0], y)) < 0)
@@ -1078,7 +1219,8 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
         goto done;
     if (opt->min_step > 0 && (flag = CVodeSetMinStep(mem, opt->min_step)) < 0)
         goto done;
-    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+    data.tb = tb;
+    if (nt > 1 && (flag = CVodeSetStopTime(mem, tb < tout[nt - 1] ? tb : tout[nt - 1])) < 0)
         goto done;
     if (ev != NULL && ev->nroot > 0 && ev->roots != NULL) {
         ev->n_events = ev->terminated = 0;
@@ -1091,45 +1233,36 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
         double tret = tout[k - 1];
         if (WATCH_TICK(&data.w))
             goto done;
-        LCG_STEP_BUDGET(CVode);
-        flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
-        st->t_reached = tret;
-        while (flag == CV_ROOT_RETURN && data.ev != NULL) {
-            if (sens_record(&data, tret, tout[0], yv, total)) {
-                ev->terminated = 1;
-                flag = 0;
+        while (tb < tout[k]) { /* inputs with restarts: a restart time before the next output time */
+            if (!too_close(data.key, tb) && (flag = advance(&data, opt, tb, y, &tret, total)) != 0)
+                goto stop;
+            if ((flag = restart_at(&data, y, &tb, tout[nt - 1])) < 0)
                 goto done;
-            }
-            LCG_STEP_BUDGET(CVode);
-            flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
-            st->t_reached = tret;
         }
-        if (flag < 0)
-            goto done;
+        if (restart && too_close(data.key, tout[k]))
+            tret = tout[k]; /* an output time a rounding error after the restart: the restart's state */
+        else if ((flag = advance(&data, opt, tout[k], y, &tret, total)) != 0)
+            goto stop;
         for (i = 0; i < ny; ++i)
             yout[(long)k * ny + i] = yv[i];
         for (i = 0; i < ny * ns; ++i)
             sout[(long)k * ny * ns + i] = yv[ny + i];
-        if (m->outputs != NULL) {
-            rc = m->outputs(tret, yv, p, out + (long)k * m->nout);
-            LCG_MODEL_ERROR(LCG_OK);
-            if (sens_out != NULL && m->nout > 0) {
-                rc = sens_out(tret, yv, p, ns, which, yv + ny, dout + (long)k * ns * m->nout);
-                LCG_MODEL_ERROR(LCG_OK);
-            }
-        }
+        rc = outputs_at(&data, sens_out, tret, yv, out + (long)k * m->nout, dout + (long)k * ns * m->nout);
+        LCG_MODEL_ERROR(LCG_OK);
         st->nt_done = k + 1;
+        if (tb == tout[k] && k < nt - 1 && (flag = restart_at(&data, y, &tb, tout[nt - 1])) < 0)
+            goto done;
     }
 
+stop:
+    if (flag == ADVANCE_TERMINAL) { /* a terminal event: the run ends with the rows before it */
+        ev->terminated = 1;
+        flag = 0;
+    }
 done:
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
     if (mem != NULL) {
-        CVodeGetNumSteps(mem, &st->nsteps);
-        CVodeGetNumRhsEvals(mem, &st->nrhs);
-        CVodeGetNumLinSolvSetups(mem, &st->nlinsetups);
-        CVodeGetNumErrTestFails(mem, &st->netfails);
-        CVodeGetNumNonlinSolvIters(mem, &st->nniters);
-        CVodeGetNumNonlinSolvConvFails(mem, &st->nncfails);
+        add_counts(mem, st);
         CVodeGetLastStep(mem, &st->h_last);
         corrector_stats(&data, st);
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
@@ -1155,6 +1288,31 @@ done:
     free(data.vals);
     free(data.info);
     free(data.ynew);
+    free(data.pin);
     SUNContext_Free(&ctx);
     return flag < 0 ? flag : 0;
+}
+
+int lcg_cvsens_solve(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out, const double *p,
+                     int ns, const int *which, const double *y0, const double *s0, int nt, const double *tout,
+                     double *yout, double *sout, double *out, double *dout, const lcg_cvsens_options *opt,
+                     lcg_cvsens_stats *st)
+{
+    return solve(m, sens_rhs, sens_out, p, NULL, ns, which, y0, s0, nt, tout, yout, sout, out, dout, opt, st, NULL);
+}
+
+int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
+                            const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
+                            const double *tout, double *yout, double *sout, double *out, double *dout,
+                            const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev)
+{
+    return solve(m, sens_rhs, sens_out, p, NULL, ns, which, y0, s0, nt, tout, yout, sout, out, dout, opt, st, ev);
+}
+
+int lcg_cvsens_solve_inputs(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
+                            const double *p, const lcg_inputs *in, int ns, const int *which, const double *y0,
+                            const double *s0, int nt, const double *tout, double *yout, double *sout, double *out,
+                            double *dout, const lcg_cvsens_options *opt, lcg_cvsens_stats *st)
+{
+    return solve(m, sens_rhs, sens_out, p, in, ns, which, y0, s0, nt, tout, yout, sout, out, dout, opt, st, NULL);
 }

@@ -12,6 +12,7 @@
 #define LCG_CVSENS_H
 
 #include "lcg_model.h"
+#include "lcg_inputs.h"
 
 /* ydot = f(t, y, p), sdot[j*ny + i] = d ydot_i / d theta_j (which[j]: the run-time parameter
  * index of direction j, -1 for an initial value). Returns LCG_OK or a model error code. */
@@ -99,5 +100,17 @@ int lcg_cvsens_solve_events(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_se
                             const double *p, int ns, const int *which, const double *y0, const double *s0, int nt,
                             const double *tout, double *yout, double *sout, double *out, double *dout,
                             const lcg_cvsens_options *opt, lcg_cvsens_stats *st, lcg_cvsens_events *ev);
+
+/* lcg_cvsens_solve driven by the input tables in (NULL: none, as lcg_cvsens_solve; see
+ * lcg_inputs.h): p[slot] of each table follows its table in every right-hand side, sensitivity
+ * right-hand side, Jacobian and output evaluation (a copy of p per run: the call is reentrant),
+ * and the run stops at each of in's restart times and starts afresh there (CVodeReInit of the
+ * augmented state: the sensitivities go on continuously, as u does not depend on the directions).
+ * A direction along an input's slot (which[j] == slot) is refused: LCG_FLAG_BAD_INPUT with the
+ * reason in st->message, as for tables that do not fit the model. */
+int lcg_cvsens_solve_inputs(const lcg_model *m, lcg_sens_rhs_fn sens_rhs, lcg_sens_out_fn sens_out,
+                            const double *p, const lcg_inputs *in, int ns, const int *which, const double *y0,
+                            const double *s0, int nt, const double *tout, double *yout, double *sout, double *out,
+                            double *dout, const lcg_cvsens_options *opt, lcg_cvsens_stats *st);
 
 #endif

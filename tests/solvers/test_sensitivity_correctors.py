@@ -128,7 +128,7 @@ def test_solver_object_of_another_layout_is_an_error():
     """The staggered corrector checks the SUNNonlinearSolver's layout before use: an object of
     another SUNDIALS version's layout is refused with LCG_FLAG_BAD_INPUT and a message."""
     from lagcodegen.build import driver_runtime, find_sundials
-    from lagcodegen.solvers.cvode.sensitivity import _sources
+    from lagcodegen.solvers.cvode.sensitivity import LINKED_UNITS, _sources
     sundials = find_sundials()
 
     def render():
@@ -136,7 +136,7 @@ def test_solver_object_of_another_layout_is_an_error():
 
     rt = driver_runtime("cvsens_layout_test", [HARNESS_C, *(f"{k}\0{v}" for k, v in sorted(_sources().items()))],
                         render, HARNESS_H, "harness.h", [*sundials.link_args(("cvode", "core")), "-lm"],
-                        units=("harness.c",))
+                        units=("harness.c", *LINKED_UNITS))
     msg = rt.ffi.new("char[]", 256)
     flag = rt.lib.lcg_test_nls_object_layout(msg, 256)
     text = rt.ffi.string(msg).decode()

@@ -211,14 +211,15 @@ class CVODE(Family):
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
         (:class:`~lagcodegen.solvers.inputs.InputSet`), interpolated in C by the native driver."""
-        if self.sensitivities is not None:
-            raise LagcodegenError("sensitivities with input tables: not supported (the sensitivity equations treat "
-                                  "every run-time parameter as a constant)")
         if self.backend != "native":
             raise LagcodegenError("input tables need backend='native' (the tables are interpolated in the native "
                                   "CVODE driver)")
         if not cm.native or cm.table is None:
             raise LagcodegenError("input tables need the native driver (build(native=True), the default)")
+        if self.sensitivities is not None:  # the sensitivity driver with the tables (.sensitivity)
+            from .sensitivity import run
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon),
+                       inputs=inputs)
         opts = self._ode_options(cm, y, inputs.apply(p, t[0]), True)
         return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), inputs=inputs,
                                    **opts)
@@ -260,6 +261,9 @@ class CVODE(Family):
         self._native_only()
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
+        if self.sensitivities is not None:
+            raise LagcodegenError("sensitivities of an ensemble driven by input tables: not supported (run the "
+                                  "members with simulate(..., inputs=..., sensitivities=[...]))")
         opts = self._ode_options(cm, Y[0], inputs[0].apply(P if P.ndim == 1 else P[0], t[0]), True)
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
                                      save=save, progress=progress, inputs=inputs)

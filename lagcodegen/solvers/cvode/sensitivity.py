@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
-from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, header_cdef
+from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from ...errors import LagcodegenError
 from ...result import Result
@@ -33,11 +33,15 @@ from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 from .sensitivity_events import SensEvents
 
 #: The runtime files of the sensitivity driver.
-FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
+FILES = ("lcg_cvsens.c", "lcg_cvsens.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h", "sundials_api.h",
+         "lcg_inputs.h", "lcg_inputs.c")
+#: The C files a unit that includes lcg_cvsens.c (the stepper, lcg_cvsens_stepper.c) compiles beside it.
+LINKED_UNITS = ("lcg_inputs.c",)
 
-#: The driver module's interface: the model table, then lcg_cvsens.h as it is (the sensitivity
-#: functions' types, the options, statistics and events structs, the solve functions), the poll callback.
-CDEF = "\n".join([MODEL_TABLE_CDEF, header_cdef("lcg_cvsens.h"), POLL_CDEF])
+#: The driver module's interface: the model table and the input tables' structs, then lcg_cvsens.h
+#: as it is (the sensitivity functions' types, the options, statistics and events structs, the
+#: solve functions), the poll callback.
+CDEF = "\n".join([MODEL_TABLE_CDEF, driver_cdef("inputs"), header_cdef("lcg_cvsens.h"), POLL_CDEF])
 
 #: The statistics of a sensitivity run: keys of Result.stats (those of the plain runs where they
 #: count the same) -> fields of lcg_cvsens_stats.
@@ -53,8 +57,9 @@ def sens_stats(st) -> dict:
 
 
 def _sources() -> dict[str, str]:
-    from ...build import config_header, generated_headers
-    return {**runtime_files(FILES), "lcg_config.h": config_header(find_sundials()), **generated_headers()}
+    from ...build import config_header, generated_headers, types_headers
+    return {**runtime_files(FILES), "lcg_config.h": config_header(find_sundials()), **generated_headers(),
+            **types_headers(("inputs",))}
 
 
 @functools.lru_cache(maxsize=4)
@@ -185,16 +190,22 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
                         method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
                         max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
                         min_step: float = 0.0, max_wall: float = 0.0, events=None,
-                        max_events: int = 10_000, corrector: str = "staggered") -> Result:
+                        max_events: int = 10_000, corrector: str = "staggered", inputs=None) -> Result:
     """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
     ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
     time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names.
     ``events`` (:class:`~.events.CompiledEvents`): located as in a plain run, each record with
     its time's sensitivities (:mod:`.sensitivity_events`); a terminal one ends the run with its
-    state as the last row."""
+    state as the last row. ``inputs`` (:class:`~lagcodegen.solvers.inputs.InputSet`): the run
+    driven by these tables (``lcg_cvsens_solve_inputs``), restarted where they jump or kink; no
+    direction may be an input (:func:`check_inputs`)."""
     if method not in ("adams", "bdf"):
         raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
     names, which, s0 = directions(cm, names)
+    if inputs and events is not None:
+        raise LagcodegenError("events with input tables: not supported")
+    if inputs:
+        check_inputs(names, which, inputs)
     fns = functions(cm)
     ffi, lib = fns.rt.ffi, fns.rt.lib
     ns, ny, nt = len(names), cm.ny, t.size
@@ -214,7 +225,13 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
             fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout), fb("double[]", sout),
             fb("double[]", out), fb("double[]", dout), opt, st)
     found = None if events is None else SensEvents(ffi, events, ny, ns, max_events)
-    flag = lib.lcg_cvsens_solve(*args) if found is None else lib.lcg_cvsens_solve_events(*args, found.struct)
+    if inputs:
+        keep: list = []
+        flag = lib.lcg_cvsens_solve_inputs(*args[:4], inputs.struct(ffi, keep), *args[4:])
+    elif found is None:
+        flag = lib.lcg_cvsens_solve(*args)
+    else:
+        flag = lib.lcg_cvsens_solve_events(*args, found.struct)
     wall = time.perf_counter() - start
     if flag == CANCELLED:
         raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
@@ -222,6 +239,17 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     if found is not None:
         add_events(cm, fns, res, found, names, which, p)
     return res
+
+
+def check_inputs(names, which, inputs) -> None:
+    """Refuse a direction along a run-time parameter that an input table of ``inputs``
+    (:class:`~lagcodegen.solvers.inputs.InputSet`) sets: the input is a given signal u(t), not a
+    constant of the run (the other directions see du/dtheta = 0)."""
+    for name, slot in zip(names, which.tolist()):
+        if slot >= 0 and slot in inputs.slots:
+            raise LagcodegenError(f"sensitivities: {name!r} is an input driven by a table in this run (a given "
+                                  "signal u(t), not a parameter of the run); choose other directions or fit the "
+                                  "table's values outside the run")
 
 
 def driver_result(model, ffi, st, flag: int, wall: float, method: str, names, t, yout, sout, out, dout) -> Result:
@@ -259,18 +287,18 @@ def add_events(cm, fns, res: Result, found: SensEvents, names, which, p) -> None
 
 
 def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
-        errcon: bool = True, events=None) -> Result:
+        errcon: bool = True, events=None, inputs=None) -> Result:
     """A sensitivity run of ``cm`` with the options of the resolved solver ``family`` (a
     :class:`~lagcodegen.solvers.cvode.CVODE` on the native backend with the dense Newton solver:
-    the block solver of the sensitivity driver replaces it)."""
+    the block solver of the sensitivity driver replaces it); ``inputs`` its input tables, if any."""
     check_family(family)
-    opts = family._ode_options(cm, y, p, True)
+    opts = family._ode_options(cm, y, p if not inputs else inputs.apply(p, t[0]), True)
     return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
                                jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
                                first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
                                max_wall=float(family.max_wall), events=events,
                                max_events=10_000 if family.max_events is None else family.max_events,
-                               corrector=family.sensitivity_corrector)
+                               corrector=family.sensitivity_corrector, inputs=inputs)
 
 
 def check_family(family) -> None:

@@ -19,7 +19,7 @@ from ...codegen.cffi_decl import header_cdef
 from ...runtime import sources as runtime_files
 from ..control import install
 from ..stepper import NativeStepper
-from .sensitivity import CDEF, _sources, directions, functions, sens_options, sens_stats
+from .sensitivity import CDEF, LINKED_UNITS, _sources, directions, functions, sens_options, sens_stats
 from .sensitivity_events import SensEvents
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvsens_stepper.c includes lcg_cvsens.c).
@@ -39,7 +39,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
     return driver_runtime("cvsens_stepper", [sundials.version, *texts], render, CDEF + "\n" + STEPPER_CDEF,
                           "lcg_cvsens_stepper.h", [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags,
-                          units=("lcg_cvsens_stepper.c",))
+                          units=("lcg_cvsens_stepper.c", *LINKED_UNITS))
 
 
 def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):

@@ -114,7 +114,9 @@ class Taylor(Family):
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
         in the jet, the run split at the tables' breakpoints (:mod:`.inputs`)."""
-        self._no_sensitivities("runs with input tables")
+        if self.sensitivities is not None:
+            raise LagcodegenError("sensitivities of runs with input tables: on CVODE (method 'adams' or 'bdf'), not on "
+                                  "the Taylor integrator yet")
         from .inputs import run_taylor_inputs
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
