@@ -71,14 +71,35 @@ def run_taylor_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, *
                       max_steps: int, order: int | None, max_wall: float = 0.0) -> Result:
     """Integrate ``cm`` with the Taylor method, the inputs from ``tables``
     (:class:`~lagcodegen.solvers.inputs.InputSet`), segment by segment between their breakpoints."""
-    names = tuple(tables.names)
-    module = series_module(cm, names)
+    module = series_module(cm, tuple(tables.names))
+
+    def segment(seg, start, pseg, budget):
+        res = module.simulate(seg, start, pseg, rtol=rtol, atol=atol, max_step=max_step, max_steps=budget,
+                              order=order, max_wall=max_wall)
+        return res, (np.ascontiguousarray(res.y[-1]) if res.t.size else start)
+
+    return run_segments(cm, t, p, tables, np.ascontiguousarray(y, dtype=float), segment,
+                        max_steps=max_steps, output_names=module.output_names)
+
+
+#: The statistics of a segment's run summed over the segments (those a run reports).
+_SUMMED = ("steps", "rhs_evals", "jet_evals", "root_searches", "wall_time")
+
+
+def run_segments(cm, t: np.ndarray, p: np.ndarray, tables, start, segment, *, max_steps: int,
+                 output_names: list) -> Result:
+    """The run of ``cm`` from t[0] to t[-1] split at the breakpoints of ``tables`` inside it:
+    ``segment(times, start, parameters, budget)`` runs one segment from ``start`` at times[0]
+    (its output times inside, then its end) with the parameters :func:`segment_parameters`
+    makes and at most ``budget`` steps, and returns (its Result, the start of the next segment).
+    The rows at the output times ``t``, their sensitivities when the segments' Results have
+    them; statistics summed (steps, evaluations, wall time; h_min, h_max the extremes),
+    ``restarts`` the breakpoints inside."""
     breaks = np.unique(np.concatenate([tab.times for tab in tables.tables]))
     breaks = breaks[(breaks > t[0]) & (breaks < t[-1])]
     edges = np.concatenate([[t[0]], breaks, [t[-1]]])
-    rows_t, rows_y, rows_out = [], [], []
+    rows_t, rows_y, rows_out, rows_s = [], [], [], []
     stats = {"steps": 0, "rhs_evals": 0, "jet_evals": 0, "root_searches": 0}
-    ystart = np.ascontiguousarray(y, dtype=float)
     status, message, last = 0, "success", None
     for i in range(edges.size - 1):
         a, b = float(edges[i]), float(edges[i + 1])
@@ -89,10 +110,13 @@ def run_taylor_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, *
         if budget < 1:
             status, message = -1, f"the step budget max_steps = {max_steps} is used up before t = {b!r}"
             break
-        last = module.simulate(seg, ystart, segment_parameters(p, tables, a), rtol=rtol, atol=atol,
-                               max_step=max_step, max_steps=budget, order=order, max_wall=max_wall)
-        for k in ("steps", "rhs_evals", "jet_evals", "root_searches"):
-            stats[k] += int(last.stats[k])
+        last, start = segment(seg, start, segment_parameters(p, tables, a), budget)
+        for k in _SUMMED:
+            if k in last.stats:
+                stats[k] = stats.get(k, 0) + last.stats[k]
+        for k, pick in (("h_min", min), ("h_max", max)):
+            if k in last.stats:
+                stats[k] = pick(stats.get(k, last.stats[k]), last.stats[k])
         keep = np.ones(last.t.size, dtype=bool)  # the outputs of [a, b) (and b at the end)
         if keep.size:
             keep[0] = bool(np.any(t == a))
@@ -100,12 +124,13 @@ def run_taylor_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, *
             keep[-1] = False  # b: the next segment's first row
         rows_t.append(last.t[keep])
         rows_y.append(last.y[keep])
-        rows_out.append(np.column_stack([last.outputs[n][keep] for n in module.output_names])
-                        if module.output_names else np.empty((int(keep.sum()), 0)))
+        rows_out.append(np.column_stack([last.outputs[n][keep] for n in output_names])
+                        if output_names else np.empty((int(keep.sum()), 0)))
+        if last.sensitivities is not None:
+            rows_s.append(last.sensitivities[keep])
         if last.status != 0:
             status, message = last.status, last.message
             break
-        ystart = np.ascontiguousarray(last.y[-1])
     if last is None:
         raise LagcodegenError("Taylor with input tables: no segment was run")
     tt = np.concatenate(rows_t)
@@ -113,7 +138,9 @@ def run_taylor_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, *
     oo = np.concatenate(rows_out)
     stats.update(order=last.stats["order"], t_reached=last.stats["t_reached"], h_last=last.stats["h_last"],
                  model_error=last.stats["model_error"], restarts=int(edges.size - 2))
-    return Result(t=tt, y=yy, state_names=list(cm.state_names),
-                  outputs={n: oo[:, j] for j, n in enumerate(module.output_names)}, stats=stats, status=status,
-                  message=message, backend="native", method="taylor", n_coordinates=cm.n)
-
+    res = Result(t=tt, y=yy, state_names=list(cm.state_names),
+                 outputs={n: oo[:, j] for j, n in enumerate(output_names)}, stats=stats, status=status,
+                 message=message, backend="native", method="taylor", n_coordinates=cm.n)
+    if rows_s:
+        res.set_sensitivities(last.sensitivity_names, last.sensitivity_values, np.concatenate(rows_s))
+    return res

@@ -113,10 +113,15 @@ class Taylor(Family):
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``: each input a cubic of t
-        in the jet, the run split at the tables' breakpoints (:mod:`.inputs`)."""
+        in the jet, the run split at the tables' breakpoints (:mod:`.inputs`); with sensitivities,
+        the variational jet of those cubics, the states and sensitivities carried across the
+        breakpoints (:mod:`.sensitivity_inputs`)."""
         if self.sensitivities is not None:
-            raise LagcodegenError("sensitivities of runs with input tables: on CVODE (method 'adams' or 'bdf'), not on "
-                                  "the Taylor integrator yet")
+            from .sensitivity_inputs import run_taylor_sensitivity_inputs
+            return run_taylor_sensitivity_inputs(cm, t, y, p, inputs, self.sensitivities, rtol=rtol, atol=atol,
+                                                 errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
+                                                 max_steps=int(self.max_steps), order=self.order,
+                                                 max_wall=float(self.max_wall))
         from .inputs import run_taylor_inputs
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))

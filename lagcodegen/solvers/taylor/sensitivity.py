@@ -175,8 +175,8 @@ class VariationalModule:
         self.gradients = event_gradients(cm, scene, self.events) if self.events else None
         rt = self.rt = taylor_runtime(cc)
         self.library, self.path, _ = plain_library(f"the Taylor sensitivities of model {code.model_name!r}",
-                                                   f"{code.prefix}_taylor_var", files, cc, verbose=verbose)
-        getter = getattr(self.library, f"{code.prefix}_taylor_var_table")
+                                                   f"{scene.prefix}_taylor_var", files, cc, verbose=verbose)
+        getter = getattr(self.library, f"{scene.prefix}_taylor_var_table")
         getter.restype = ctypes.c_void_p
         self.table = rt.ffi.cast("const lcg_taylor_model *", getter())
         nyv = self.ny * (1 + self.ns)
@@ -217,14 +217,36 @@ class VariationalModule:
         opt.max_wall = float(max_wall)
         return self.solve(opt, t, y0, p, max_events=max_events)
 
-    def solve(self, opt, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, max_events: int = 10_000) -> Result:
+    def new_options(self, *, rtol: float, atol, errcon: bool, max_step: float, max_steps: int,
+                    order: int | None, max_wall: float):
+        """A new options struct for :meth:`solve` with the values :meth:`simulate` sets, and the
+        array its atol_vec points into (keep both alive while it is used)."""
+        atol_all = self.tolerances(atol, errcon)
+        opt = self.rt.ffi.new("lcg_taylor_options *")
+        opt.poll = self.opt.poll
+        opt.poll_every = POLL_EVERY
+        opt.rtol = rtol
+        opt.atol = float(atol_all[:self.ny].min())
+        opt.atol_vec = self.rt.ffi.from_buffer("double[]", atol_all)
+        opt.max_steps = int(max_steps)
+        opt.max_step = float(max_step)
+        opt.order = int(order or 0)
+        opt.rel_block = self.ny  # each direction's sensitivities: one block of the step-size rule
+        opt.max_wall = float(max_wall)
+        return opt, atol_all
+
+    def solve(self, opt, t: np.ndarray, y0: np.ndarray, p: np.ndarray, *, max_events: int = 10_000,
+              s0: np.ndarray | None = None) -> Result:
         """:meth:`simulate` with the options struct ``opt`` made by the caller (kept alive with the
         array its atol_vec points into): reentrant (its own statistics and events structs), for
-        the members of an ensemble."""
+        the members of an ensemble. ``s0``: the sensitivities at t[0], (ns, ny) (default: those of
+        the directions at the start of a run)."""
         ffi, lib = self.rt.ffi, self.rt.lib
         ny, ns, nout = self.ny, self.ns, self.nout
         nyv = ny * (1 + ns)
-        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float), self.s0.ravel()]))
+        s_start = self.s0 if s0 is None else s0
+        y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float),
+                                                   np.asarray(s_start, dtype=float).ravel()]))
         nt = t.shape[0]
         yout = np.empty((nt, nyv))
         out = np.empty((nt, max(nout * (1 + ns), 1)))

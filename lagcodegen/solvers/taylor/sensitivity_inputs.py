@@ -1,0 +1,67 @@
+"""Forward sensitivities of Taylor runs driven by input tables: the variational jet
+(:mod:`.variational`, :mod:`.sensitivity`) of the :class:`.inputs.InputSeriesScene` (each input
+a cubic of t whose coefficients are run-time parameters after the scene's: never directions, so
+du/dtheta = 0 along every direction), run segment by segment between the tables' breakpoints as
+:mod:`.inputs` runs the plain jet (:func:`.inputs.run_segments`), the augmented state (y, s)
+carried from one segment to the next: the breakpoints are fixed times, independent of the
+directions, so s is continuous across them even where an input jumps.
+
+A direction along an input the tables drive is refused by name, as on CVODE
+(:func:`lagcodegen.solvers.cvode.sensitivity.check_inputs`). The module of a set of directions
+and inputs is built once and kept with the compiled model; a run makes its own options struct
+(:meth:`.sensitivity.VariationalModule.new_options`), so runs are reentrant (the members of an
+ensemble)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+# --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...result import Result
+# ------------------------------------------------------------------------------------------
+from .inputs import InputSeriesScene, run_segments
+from .run import scene_of
+from .sensitivity import VariationalModule, directions_of
+
+
+def series_variational_module(cm, names, inputs: tuple) -> VariationalModule:
+    """The variational jet of ``cm`` along the directions ``names`` with the inputs ``inputs``
+    (names) as cubics of t (built once per set of directions and inputs, then reused)."""
+    names, dirs, s0 = directions_of(cm, names)
+    key = ("taylor-sensitivities-inputs", tuple(names), tuple(inputs))
+    module = cm.solver_state.get(key)
+    if module is None:
+        scene = scene_of(cm)
+        series = InputSeriesScene(eom=scene.eom, jacobian=False, outputs=list(scene.outputs),
+                                  runtime_parameters=list(scene.runtime_parameters), values=dict(scene.values),
+                                  prefix=f"{scene.prefix}_useries", series_inputs=tuple(inputs))
+        module = cm.solver_state[key] = VariationalModule(cm, series, names, dirs, s0)
+    return module
+
+
+def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, names, *,
+                                  rtol: float, atol, errcon: bool, max_step: float, max_steps: int,
+                                  order: int | None, max_wall: float = 0.0) -> Result:
+    """The trajectory of ``cm`` driven by ``tables`` (:class:`~lagcodegen.solvers.inputs.InputSet`)
+    and its sensitivities along ``names`` (as a Taylor sensitivity run without tables reports
+    them; statistics summed over the segments)."""
+    from ..cvode.sensitivity import check_inputs, directions
+    check_inputs(*directions(cm, names)[:2], tables)  # before anything is built
+    module = series_variational_module(cm, names, tuple(tables.names))
+    opt, keep = module.new_options(rtol=rtol, atol=atol, errcon=errcon, max_step=max_step, max_steps=max_steps,
+                                   order=order, max_wall=max_wall)
+    ny, ns = module.ny, module.ns
+
+    def segment(seg, start, pseg, budget):
+        y0, s0 = start
+        opt.max_steps = int(budget)
+        res = module.solve(opt, seg, y0, pseg, s0=s0)
+        if not res.t.size:
+            return res, start
+        return res, (np.ascontiguousarray(res.y[-1]), np.ascontiguousarray(res.sensitivities[-1, :, :ny]))
+
+    start = (np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(module.s0.reshape(ns, ny)))
+    res = run_segments(cm, np.ascontiguousarray(t, dtype=float), p, tables, start, segment,
+                       max_steps=int(max_steps), output_names=module.output_names)
+    del keep  # the tolerances opt pointed into: alive until here
+    return res

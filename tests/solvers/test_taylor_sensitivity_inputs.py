@@ -1,0 +1,113 @@
+"""Forward sensitivities on the Taylor integrator of runs driven by input tables (the variational
+jet of the inputs' cubics, segment by segment): the forced damped oscillator of
+test_sensitivity_inputs.py, its states and sensitivities to k, c and x(0) against CVODE's
+input-driven sensitivity run, against a second integrator of the variational equations (DOP853
+on the augmented ODE), against central differences of plain Taylor table-driven runs, dx/dx(0)
+against its closed form; a table that jumps (zero-order hold); a direction along the input
+refused; a run stopped by its step budget keeps its rows and their sensitivities together."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import lagcodegen as lcg
+from lagcodegen.errors import LagcodegenError
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_sensitivity_inputs import (C, DIRECTIONS, K, TIMES, VALUES, X0, free_response,  # noqa: E402
+                                     oscillator, variational_reference)
+
+TIGHT = dict(rtol=1e-12, atol=1e-14)
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return lcg.compile_model(oscillator(), outputs=["force", "spring"])
+
+
+@pytest.fixture(scope="module")
+def table():
+    return lcg.Table(TIMES, VALUES, kind="linear")
+
+
+def test_taylor_sensitivities_of_a_table_driven_run(sim, table):
+    t = np.linspace(0.0, 8.0, 161)
+    res = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=DIRECTIONS, **TIGHT)
+    assert res.success and res.method == "taylor" and res.stats["restarts"] == 3  # the kinks at 1, 2.5, 4
+    assert res.sensitivities.shape == (t.size, 3, 4) and res.sensitivity_names == DIRECTIONS
+    assert res.stats["steps"] > 4 and res.stats["jet_evals"] >= res.stats["steps"]
+    # CVODE's input-driven sensitivity run (lcg_cvsens_solve_inputs), a different integrator
+    cv = sim.simulate(t, q0=[X0], inputs={"F": table}, sensitivities=DIRECTIONS, **TIGHT)
+    assert np.array_equal(res.t, cv.t)
+    assert np.max(np.abs(res.y - cv.y)) < 1e-7 * np.max(np.abs(cv.y))
+    for j, name in enumerate(DIRECTIONS):
+        for value in ("x", "x_dot", "spring"):
+            a, b = res.sensitivity(value, name), cv.sensitivity(value, name)
+            assert np.max(np.abs(a - b)) < 1e-7 * np.max(np.abs(b)), (name, value)
+    # DOP853 on the augmented ODE, restarted at the kinks, and the closed form of dx/dx(0)
+    x_ref, s_ref = variational_reference(t, table)
+    assert np.max(np.abs(res["x"] - x_ref)) < 1e-9
+    assert np.max(np.abs(res.sensitivities[:, :, 0] - s_ref)) < 1e-9 * np.max(np.abs(s_ref))
+    assert np.max(np.abs(res.sensitivity("x", "x(0)") - free_response(t))) < 1e-9
+    # the outputs: the force is the table and depends on no direction; d(k x)/dk = x + k dx/dk
+    assert np.allclose(res["force"], table(t), rtol=0, atol=1e-13)
+    assert np.all(res.sensitivity("force", "k") == 0.0)
+    assert np.max(np.abs(res.sensitivity("spring", "k") - (res["x"] + K * res.sensitivity("x", "k")))) < 1e-12
+    # the forced run differs from the free one: the table does act in the sensitivity run
+    free = sim.simulate(t, q0=[X0], method="taylor", sensitivities=["k"], **TIGHT)
+    assert np.max(np.abs(free.sensitivity("x", "k") - s_ref[:, 0])) > 0.1
+
+
+def test_output_times_on_and_off_the_breakpoints(sim, table):
+    t = np.array([0.0, 1.0, 1.7, 2.5, 3.2, 4.0, 7.0])
+    res = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=DIRECTIONS, **TIGHT)
+    x_ref, s_ref = variational_reference(t, table)
+    assert np.array_equal(res.t, t)
+    assert np.max(np.abs(res["x"] - x_ref)) < 1e-9
+    assert np.max(np.abs(res.sensitivities[:, :, 0] - s_ref)) < 1e-9 * np.max(np.abs(s_ref))
+
+
+def test_sensitivities_match_central_differences_of_plain_taylor_runs(sim, table):
+    t = np.linspace(0.0, 8.0, 81)
+    opts = dict(inputs={"F": table}, method="taylor", **TIGHT)
+    res = sim.simulate(t, q0=[X0], sensitivities=DIRECTIONS, **opts)
+    plain = sim.simulate(t, q0=[X0], **opts)
+    assert np.max(np.abs(res["x"] - plain["x"])) < 1e-10
+    for name, base in (("k", K), ("c", C), ("x(0)", X0)):
+        h = 1e-4 * max(abs(base), 1.0)
+        runs = []
+        for sign in (1, -1):
+            if name == "x(0)":
+                runs.append(sim.simulate(t, q0=[X0 + sign * h], **opts))
+            else:
+                runs.append(sim.simulate(t, q0=[X0], params={name: base + sign * h}, **opts))
+        for value in ("x", "x_dot", "spring"):
+            cd = (runs[0][value] - runs[1][value]) / (2 * h)
+            s = res.sensitivity(value, name)
+            assert np.max(np.abs(s - cd)) < 1e-7 * max(np.max(np.abs(cd)), 1.0), (name, value)
+
+
+def test_a_table_that_jumps(sim):
+    """A zero-order-hold force: u jumps at each breakpoint, x and s stay continuous (the jump
+    times do not depend on the directions); Taylor and CVODE agree."""
+    zoh = lcg.Table(TIMES, VALUES, kind="zoh")
+    t = np.linspace(0.0, 7.0, 71)
+    res = sim.simulate(t, q0=[X0], inputs={"F": zoh}, method="taylor", sensitivities=DIRECTIONS, **TIGHT)
+    cv = sim.simulate(t, q0=[X0], inputs={"F": zoh}, sensitivities=DIRECTIONS, **TIGHT)
+    assert res.success and np.allclose(res["force"], zoh(t), rtol=0, atol=0)
+    assert np.max(np.abs(res.sensitivities - cv.sensitivities)) < 1e-7 * np.max(np.abs(cv.sensitivities))
+
+
+def test_refusal_and_step_budget(sim, table):
+    t = np.linspace(0.0, 6.0, 13)
+    with pytest.raises(LagcodegenError, match="'F' is an input driven by a table"):
+        sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k", "F"])
+    # a step budget used up in the third segment: the rows reached with their sensitivities
+    full = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k"], **TIGHT)
+    part = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k"],
+                        max_steps=full.stats["steps"] // 2, raise_on_error=False, **TIGHT)
+    assert part.status < 0 and 0 < part.t.size < t.size
+    assert part.sensitivities.shape == (part.t.size, 1, 4)
+    assert np.array_equal(part.sensitivities, full.sensitivities[:part.t.size])
