@@ -24,8 +24,9 @@ from .ensemble_run import _columns, default_threads
 def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: list, member_run, *,
                      threads, save, progress, method: str) -> EnsembleResult:
     """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (parsed):
-    ``member_run(y0, p)`` one member's run, a :class:`~lagcodegen.result.Result` with its
-    sensitivities (reentrant: called from several threads), whose stats give the ensemble's
+    ``member_run(i, y0, p)`` member i's run, a :class:`~lagcodegen.result.Result` with its
+    sensitivities (reentrant: called from several threads; ``i`` the member's index, for runs
+    that differ by member beyond y0 and p, such as their input tables), whose stats give the ensemble's
     per-member counts (COUNT_NAMES; those a run does not count: 0). Events
     located in a member are counted in its stats ``events`` and ``terminated``; a terminal
     event's time, state and sensitivities are the member's ``t_reached``, final row and final
@@ -51,7 +52,8 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     def member(i: int) -> None:
         p = P if P.ndim == 1 else P[i]
         start = time.perf_counter()
-        res = member_run(np.ascontiguousarray(Y[i]), np.ascontiguousarray(p))
+        y0, p = np.ascontiguousarray(Y[i]), np.ascontiguousarray(p)
+        res = member_run(i, y0, p)
         wall[i] = time.perf_counter() - start
         rows = res.t.size
         grid = min(rows, t.size)  # the rows at output times (a terminal event's row follows them)

@@ -257,14 +257,20 @@ class CVODE(Family):
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables
-        ``inputs[i]``, in one call of the native driver."""
+        ``inputs[i]``, in one call of the native driver; with sensitivities, each member the
+        sensitivity driver's run with its tables (:mod:`.sensitivity_ensemble`)."""
         self._native_only()
         if not cm.native or cm.native_solve_many is None:
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         if self.sensitivities is not None:
-            raise LagcodegenError("sensitivities of an ensemble driven by input tables: not supported (run the "
-                                  "members with simulate(..., inputs=..., sensitivities=[...]))")
+            from .sensitivity import check_family
+            check_family(self)
         opts = self._ode_options(cm, Y[0], inputs[0].apply(P if P.ndim == 1 else P[0], t[0]), True)
+        if self.sensitivities is not None:
+            from .sensitivity_ensemble import ensemble_sensitivities_inputs
+            return ensemble_sensitivities_inputs(self, cm, t, Y, P, rtol, atol, self.sensitivities, inputs,
+                                                 threads=threads, save=save, progress=progress,
+                                                 method=opts["method"])
         return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
                                      save=save, progress=progress, inputs=inputs)
 

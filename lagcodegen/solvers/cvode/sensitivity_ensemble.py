@@ -23,8 +23,31 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol
     if driver.get("events") is not None:
         gradients(cm, driver["events"])  # the event functions' derivatives too
 
-    def member_run(y0, p):
+    def member_run(i, y0, p):
         return solve_sensitivities(cm, t, y0, p, names, rtol=rtol, atol=atol, **driver)
 
     return ensemble_of_runs(cm, t, Y, P, names, member_run, threads=threads, save=save,
                             progress=progress, method=driver.get("method", ""))
+
+
+def ensemble_sensitivities_inputs(family, cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, rtol: float, atol,
+                                  names, inputs: list, *, threads, save, progress, method: str) -> EnsembleResult:
+    """The members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables
+    ``inputs[i]`` (:class:`~lagcodegen.solvers.inputs.InputSet`), with the sensitivities
+    ``names``: each member the run :func:`.sensitivity.run` makes of it alone (the options of the
+    resolved solver ``family``), so its states and sensitivities are bit-identical to that run's.
+    A direction along an input of any member's tables is refused before anything runs."""
+    from ..base import tolerances
+    from .sensitivity import check_inputs, run
+    names, which, _ = directions(cm, names)
+    for tables in inputs:
+        check_inputs(names, which, tables)
+    rtol, atol = tolerances(rtol, atol, cm.ny, scalar=True)  # as simulate() resolves them
+    functions(cm)  # built once, before the threads start
+
+    def member_run(i, y0, p):
+        return run(family, cm, t, y0, p, rtol, atol, names, errcon=bool(family.sensitivity_errcon),
+                   inputs=inputs[i])
+
+    return ensemble_of_runs(cm, t, Y, P, names, member_run, threads=threads, save=save, progress=progress,
+                            method=method)

@@ -69,10 +69,10 @@ def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progre
     model_buffer = cm.ffi.from_buffer
 
     if module.events:  # the records and a terminal event's row too: the full run with run's options
-        def member_run(y0, p):
+        def member_run(i, y0, p):
             return module.solve(run.opt, t, y0, p, max_events=max_events)
     else:
-        def member_run(y0, p):
+        def member_run(i, y0, p):
             return run(t, t_ptr, model_buffer("double[]", y0), p, None)
 
     return ensemble_of_runs(cm, t, Y, P, module.names, member_run, threads=threads, save=save,

@@ -126,6 +126,21 @@ class Taylor(Family):
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
 
+    def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
+        """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables
+        ``inputs[i]``, with sensitivities: each member the run :meth:`run_ode_inputs` makes of it
+        alone (:func:`.sensitivity_inputs.run_taylor_sensitivity_inputs`), bit-identical to it.
+        Without sensitivities refused (those members run on CVODE)."""
+        if self.sensitivities is None:
+            raise LagcodegenError("input tables are interpolated by the native CVODE driver; Taylor ensembles do "
+                                  "not take them without sensitivities (use method='adams' or 'bdf')")
+        from .sensitivity_inputs import run_taylor_sensitivity_inputs_ensemble
+        return run_taylor_sensitivity_inputs_ensemble(cm, t, Y, P, inputs, self.sensitivities, threads=threads,
+                                                      save=save, progress=progress, rtol=rtol, atol=atol,
+                                                      errcon=bool(self.sensitivity_errcon),
+                                                      max_step=float(self.max_step), max_steps=int(self.max_steps),
+                                                      order=self.order, max_wall=float(self.max_wall))
+
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
         sensitivities, each member a run of the variational jet (:mod:`.ensemble`), ``events``

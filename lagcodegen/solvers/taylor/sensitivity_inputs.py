@@ -65,3 +65,29 @@ def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarra
                        max_steps=int(max_steps), output_names=module.output_names)
     del keep  # the tolerances opt pointed into: alive until here
     return res
+
+
+def run_taylor_sensitivity_inputs_ensemble(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, inputs: list, names, *,
+                                           threads, save, progress, rtol: float, atol, errcon: bool,
+                                           max_step: float, max_steps: int, order: int | None,
+                                           max_wall: float = 0.0):
+    """The members (rows of Y, P), member i driven by the input tables ``inputs[i]``, with the
+    sensitivities ``names``: each member :func:`run_taylor_sensitivity_inputs` (its own options
+    struct; the module of every set of inputs built before the threads start), gathered by
+    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`."""
+    from ..base import tolerances
+    from ..cvode.sensitivity import check_inputs, directions
+    from ..ensemble_sensitivities import ensemble_of_runs
+    parsed, which, _ = directions(cm, names)
+    for tables in inputs:
+        check_inputs(parsed, which, tables)
+        series_variational_module(cm, names, tuple(tables.names))
+    rtol, atol = tolerances(rtol, atol, cm.ny, scalar=True)  # as simulate() resolves them
+    t = np.ascontiguousarray(t, dtype=float)
+
+    def member_run(i, y0, p):
+        return run_taylor_sensitivity_inputs(cm, t, y0, p, inputs[i], names, rtol=rtol, atol=atol, errcon=errcon,
+                                             max_step=max_step, max_steps=max_steps, order=order, max_wall=max_wall)
+
+    return ensemble_of_runs(cm, t, Y, P, parsed, member_run, threads=threads, save=save, progress=progress,
+                            method="taylor")
