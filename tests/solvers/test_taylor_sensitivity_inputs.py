@@ -4,7 +4,9 @@ test_sensitivity_inputs.py, its states and sensitivities to k, c and x(0) agains
 input-driven sensitivity run, against a second integrator of the variational equations (DOP853
 on the augmented ODE), against central differences of plain Taylor table-driven runs, dx/dx(0)
 against its closed form; a table that jumps (zero-order hold); a direction along the input
-refused; a run stopped by its step budget keeps its rows and their sensitivities together."""
+refused; a run stopped by its step budget keeps its rows and their sensitivities together.
+Ensembles driven by tables with sensitivities, on CVODE and Taylor: each member bit-identical to
+its run alone."""
 
 import sys
 from pathlib import Path
@@ -104,6 +106,14 @@ def test_refusal_and_step_budget(sim, table):
     t = np.linspace(0.0, 6.0, 13)
     with pytest.raises(LagcodegenError, match="'F' is an input driven by a table"):
         sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k", "F"])
+    # without a table F is a run-time parameter: d x/d F of a constant force; that call, learned by
+    # simulate()'s fast path, is not taken for the same call with a table (refused again)
+    res = sim.simulate(t, q0=[X0], method="taylor", sensitivities=["F"], **TIGHT)
+    assert np.max(np.abs(res.sensitivity("x", "F") - (1 - free_response(t)) / K)) < 1e-10
+    again = sim.simulate(t, q0=[X0], method="taylor", sensitivities=["F"], **TIGHT)
+    assert np.array_equal(again.sensitivities, res.sensitivities)
+    with pytest.raises(LagcodegenError, match="'F' is an input driven by a table"):
+        sim.simulate(t, q0=[X0], method="taylor", sensitivities=["F"], inputs={"F": table}, **TIGHT)
     # a step budget used up in the third segment: the rows reached with their sensitivities
     full = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k"], **TIGHT)
     part = sim.simulate(t, q0=[X0], inputs={"F": table}, method="taylor", sensitivities=["k"],
