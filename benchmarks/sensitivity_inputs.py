@@ -39,15 +39,8 @@ NAMES = ["k", "c", "x(0)"]
 
 
 def oscillator():
-    m = lcg.Model("bench_sens_inputs")
-    x, = m.coordinates("x")
-    mass, k, c = m.parameters(m=M, k=K, c=C)
-    F = m.input("F")
-    m.kinetic_energy(mass * m.dot(x) ** 2 / 2)
-    m.potential_energy(k * x ** 2 / 2)
-    m.dissipation(c * m.dot(x) ** 2 / 2)
-    m.generalized_force(x, F)
-    return m
+    """m x'' + c x' + k x = F, the force F an input (lagcodegen.systems.forced_oscillator)."""
+    return lcg.systems.forced_oscillator("bench_sens_inputs", m=M, k=K, c=C)
 
 
 def reference(t: np.ndarray, table) -> np.ndarray:

@@ -64,6 +64,23 @@ def damped_driven_oscillator(name: str = "oscillator") -> Model:
     return m
 
 
+def forced_oscillator(name: str = "forced_oscillator", m: float = 1.0, k: float = 4.0, c: float = 0.4) -> Model:
+    """Mass on a spring with viscous damping driven by a force F given as an input signal (a table
+    at run time: ``simulate(..., inputs={"F": lcg.Table(...)})``): m x'' + c x' + k x = F.
+    Outputs "force" (F) and "spring" (k x)."""
+    model = Model(name)
+    x, = model.coordinates("x")
+    mass, stiffness, damping = model.parameters(m=m, k=k, c=c)
+    force = model.input("F")
+    model.kinetic_energy(mass * model.dot(x) ** 2 / 2)
+    model.potential_energy(stiffness * x ** 2 / 2)
+    model.dissipation(damping * model.dot(x) ** 2 / 2)
+    model.generalized_force(x, force)
+    model.output("force", force)
+    model.output("spring", stiffness * x)
+    return model
+
+
 def central_potential(name: str = "central", exponent: int = -1) -> Model:
     """Particle in a central potential V = -k/r (exponent -1) or V = k r^exponent/exponent, polar coordinates."""
     m = Model(name)

@@ -17,17 +17,8 @@ WD = W0 * np.sqrt(1 - ZETA ** 2)
 
 
 def oscillator():
-    """m x'' + c x' + k x = F with the force F an input (and the output "force" = F)."""
-    m = lcg.Model("osc_table")
-    x, = m.coordinates("x")
-    mass, k, c = m.parameters(m=M, k=K, c=C)
-    F = m.input("F")
-    m.kinetic_energy(mass * m.dot(x) ** 2 / 2)
-    m.potential_energy(k * x ** 2 / 2)
-    m.dissipation(c * m.dot(x) ** 2 / 2)
-    m.generalized_force(x, F)
-    m.output("force", F)
-    return m
+    """m x'' + c x' + k x = F, the force F an input (lagcodegen.systems.forced_oscillator)."""
+    return lcg.systems.forced_oscillator("osc_table", m=M, k=K, c=C)
 
 
 @pytest.fixture(scope="module")
