@@ -54,6 +54,22 @@ def run_stats(st) -> dict:
             "t_reached": t_reached, "h_last": h_last, "h_min": h_min, "h_max": h_max, "model_error": model_error}
 
 
+def events_struct(ffi, ctype: str, max_events: int, width: int):
+    """A new events struct of the Taylor driver (``ctype``: ``lcg_taylor_events *`` or a
+    standalone driver's) for ``max_events`` events of rows of ``width`` values, and the arrays
+    it points into (times, rows, event indices, directions), to keep while it is used."""
+    keep = (np.empty(max_events), np.empty((max_events, width)), np.zeros(max_events, dtype=np.intc),
+            np.zeros(max_events, dtype=np.intc))
+    buf = ffi.from_buffer
+    ev = ffi.new(ctype)
+    ev.max_events = max_events
+    ev.t = buf("double[]", keep[0])
+    ev.y = buf("double[]", keep[1])
+    ev.which = buf("int[]", keep[2])
+    ev.direction = buf("int[]", keep[3])
+    return ev, keep
+
+
 def message(flag: int, model_error: int, detail: str) -> str:
     """The text of a driver flag (:data:`lagcodegen.solvers.base.FLAG_TEXT` ["Taylor"])."""
     return base_message(flag, model_error, detail, "Taylor")
@@ -288,16 +304,7 @@ class TaylorModule:
         return opt, atol_vec
 
     def _events_struct(self, max_events: int):
-        keep = (np.empty(max_events), np.empty((max_events, self.ny)), np.empty(max_events, dtype=np.intc),
-                np.empty(max_events, dtype=np.intc))
-        buf = self._buf
-        ev = self.ffi.new(self.types[2])
-        ev.max_events = max_events
-        ev.t = buf("double[]", keep[0])
-        ev.y = buf("double[]", keep[1])
-        ev.which = buf("int[]", keep[2])
-        ev.direction = buf("int[]", keep[3])
-        return ev, keep
+        return events_struct(self.ffi, self.types[2], max_events, self.ny)
 
     def _events_into(self, res: Result, ev, keep, p) -> None:
         count = min(int(ev.n_events), keep[0].shape[0])

@@ -46,7 +46,7 @@ from ..event_sensitivity import event_gradients, event_records
 # ------------------------------------------------------------------------------------------
 from .decompose import Decomposition, decompose
 from .emit import CHUNK, P_MAX, _EventInfo, _jinja, check_events
-from .runner import message, run_stats, taylor_runtime
+from .runner import events_struct, message, run_stats, taylor_runtime
 from .schedule import GROUP, item_count, schedule
 from .variational import VariationalDecomposition, _is_row, variational
 
@@ -278,17 +278,7 @@ class VariationalModule:
     def _events_struct(self, max_events: int):
         """A new ``lcg_taylor_events`` for ``max_events`` events of the augmented state, and the
         arrays it points into (times, rows (y, s), event indices, directions)."""
-        ffi = self.rt.ffi
-        fb = ffi.from_buffer
-        keep = (np.empty(max_events), np.empty((max_events, self.ny * (1 + self.ns))),
-                np.zeros(max_events, dtype=np.intc), np.zeros(max_events, dtype=np.intc))
-        ev = ffi.new("lcg_taylor_events *")
-        ev.max_events = max_events
-        ev.t = fb("double[]", keep[0])
-        ev.y = fb("double[]", keep[1])
-        ev.which = fb("int[]", keep[2])
-        ev.direction = fb("int[]", keep[3])
-        return ev, keep
+        return events_struct(self.rt.ffi, "lcg_taylor_events *", max_events, self.ny * (1 + self.ns))
 
     def _ydot(self, t: float, row: np.ndarray, p: np.ndarray) -> np.ndarray:
         """y'(t) of the states from the first-order coefficients of the jet at the augmented state

@@ -23,7 +23,7 @@ from ..control import POLL_EVERY, install
 # ------------------------------------------------------------------------------------------
 from .emit import P_MAX, runtime_key_texts, runtime_sources
 from .run import taylor_module
-from .runner import run_stats
+from .runner import events_struct, run_stats
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_taylor_stepper.c includes lcg_taylor.c).
 STEPPER_FILES = ("lcg_taylor_stepper.c", "lcg_taylor_stepper.h", "lcg_stepper.h")
@@ -99,14 +99,7 @@ class TaylorStepper:
         self.ev = ffi.NULL
         self._keep = None
         if self.events:
-            self._keep = (np.empty(max_events), np.empty((max_events, ny)), np.empty(max_events, dtype=np.intc),
-                          np.empty(max_events, dtype=np.intc))
-            ev = self.ev = ffi.new("lcg_taylor_events *")
-            ev.max_events = max_events
-            ev.t = ffi.from_buffer("double[]", self._keep[0])
-            ev.y = ffi.from_buffer("double[]", self._keep[1])
-            ev.which = ffi.from_buffer("int[]", self._keep[2])
-            ev.direction = ffi.from_buffer("int[]", self._keep[3])
+            self.ev, self._keep = events_struct(ffi, "lcg_taylor_events *", max_events, ny)
         msg = ffi.new("char[]", 512)
         self._mem = mem
         handle = lib.lcg_taylor_stepper_new(table, opt, ffi.from_buffer("double[]", mem), self.ev, msg, 512)
