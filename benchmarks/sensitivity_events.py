@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -75,18 +73,13 @@ def main(argv=None) -> int:
     t_exact, s_exact = exact()
     cases = {(m, rtol): runs(sim, m, rtol) for m in ("bdf", "taylor") for rtol in rtols}
     found = {key: fns["with the event"]() for key, fns in cases.items()}  # builds everything first
-    times = {(key, name): [] for key, fns in cases.items() for name in fns}
-    for _ in range(rounds):  # interleaved: every run once per round
-        for key, fns in cases.items():
-            for name, fn in fns.items():
-                start = time.perf_counter()
-                fn()
-                times[key, name].append(time.perf_counter() - start)
+    med = H.timed_medians({(key, name): fn for key, fns in cases.items() for name, fn in fns.items()}, rounds,
+                          "events")[0]  # wall-time medians of interleaved rounds
     rows = []
     for (method, rtol), res in found.items():
         row = dict(method="CVODE BDF" if method == "bdf" else "Taylor", rtol=rtol, found=len(res.events),
-                   ms_events=1e3 * statistics.median(times[(method, rtol), "with the event"]),
-                   ms_plain=1e3 * statistics.median(times[(method, rtol), "without"]))
+                   ms_events=1e3 * med[(method, rtol), "with the event"],
+                   ms_plain=1e3 * med[(method, rtol), "without"])
         row["ratio"] = row["ms_events"] / row["ms_plain"]
         if len(res.events) == len(t_exact):
             got = np.array([[e.t_sensitivity[n] for n in NAMES] for e in res.events])

@@ -20,9 +20,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -79,20 +77,15 @@ def main(argv=None) -> int:
             cases[method, rtol] = {"sens": lambda o=opts: sim.simulate(t, sensitivities=NAMES, **o),
                                    "plain": lambda o=opts: sim.simulate(t, **o)}
     found = {key: fns["sens"]() for key, fns in cases.items()}  # builds everything first
-    times = {(key, name): [] for key, fns in cases.items() for name in fns}
-    for _ in range(rounds):  # interleaved: every run once per round
-        for key, fns in cases.items():
-            for name, fn in fns.items():
-                start = time.perf_counter()
-                fn()
-                times[key, name].append(time.perf_counter() - start)
+    med = H.timed_medians({(key, name): fn for key, fns in cases.items() for name, fn in fns.items()}, rounds,
+                          "inputs")[0]  # wall-time medians of interleaved rounds
     rows = []
     for (method, rtol), res in found.items():
         err = np.max(np.abs(res.sensitivities[:, :, 0] - s_ref), axis=0) / np.max(np.abs(s_ref), axis=0)
         row = dict(method="CVODE Adams" if method == "adams" else "Taylor", rtol=rtol,
                    max_rel_err=float(np.max(err)), steps=int(res.stats["steps"]),
-                   ms_sens=1e3 * statistics.median(times[(method, rtol), "sens"]),
-                   ms_plain=1e3 * statistics.median(times[(method, rtol), "plain"]))
+                   ms_sens=1e3 * med[(method, rtol), "sens"],
+                   ms_plain=1e3 * med[(method, rtol), "plain"])
         row["ratio"] = row["ms_sens"] / row["ms_plain"]
         rows.append(row)
     lines = H.machine_lines("Sensitivities of table-driven runs: forced oscillator "

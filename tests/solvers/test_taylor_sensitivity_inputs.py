@@ -18,20 +18,11 @@ import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_sensitivity_inputs import (C, DIRECTIONS, K, TIMES, VALUES, X0,  # noqa: E402
-                                     central_differences, free_response, oscillator, variational_reference)
+from test_sensitivity_inputs import (DIRECTIONS, K, TIMES, VALUES, X0,  # noqa: E402
+                                     central_differences, free_response, variational_reference)
+from test_sensitivity_inputs import sim, table  # noqa: E402,F401 (the fixtures: the oscillator compiled, its table)
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
-
-
-@pytest.fixture(scope="module")
-def sim():
-    return lcg.compile_model(oscillator(), outputs=["force", "spring"])
-
-
-@pytest.fixture(scope="module")
-def table():
-    return lcg.Table(TIMES, VALUES, kind="linear")
 
 
 def test_taylor_sensitivities_of_a_table_driven_run(sim, table):
