@@ -2,8 +2,8 @@
 jet of the inputs' cubics, segment by segment): the forced damped oscillator of
 test_sensitivity_inputs.py, its states and sensitivities to k, c and x(0) against CVODE's
 input-driven sensitivity run, against a second integrator of the variational equations (DOP853
-on the augmented ODE), against central differences of plain Taylor table-driven runs, dx/dx(0)
-against its closed form; a table that jumps (zero-order hold); a direction along the input
+on the augmented ODE), dx/dx(0) against its closed form (central differences of plain Taylor
+table-driven runs: test_sensitivity_inputs.py, parametrized by family); a table that jumps (zero-order hold); a direction along the input
 refused; a run stopped by its step budget keeps its rows and their sensitivities together.
 Ensembles driven by tables with sensitivities, on CVODE and Taylor: each member bit-identical to
 its run alone."""
@@ -19,7 +19,7 @@ from lagcodegen.errors import LagcodegenError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_sensitivity_inputs import (DIRECTIONS, K, TIMES, VALUES, X0,  # noqa: E402
-                                     central_differences, free_response, variational_reference)
+                                     free_response, variational_reference)
 from test_sensitivity_inputs import sim, table  # noqa: E402,F401 (the fixtures: the oscillator compiled, its table)
 
 TIGHT = dict(rtol=1e-12, atol=1e-14)
@@ -60,17 +60,6 @@ def test_output_times_on_and_off_the_breakpoints(sim, table):
     assert np.array_equal(res.t, t)
     assert np.max(np.abs(res["x"] - x_ref)) < 1e-9
     assert np.max(np.abs(res.sensitivities[:, :, 0] - s_ref)) < 1e-9 * np.max(np.abs(s_ref))
-
-
-def test_sensitivities_match_central_differences_of_plain_taylor_runs(sim, table):
-    t = np.linspace(0.0, 8.0, 81)
-    opts = dict(inputs={"F": table}, method="taylor", **TIGHT)
-    res = sim.simulate(t, q0=[X0], sensitivities=DIRECTIONS, **opts)
-    plain = sim.simulate(t, q0=[X0], **opts)
-    assert np.max(np.abs(res["x"] - plain["x"])) < 1e-10
-    for (name, value), cd in central_differences(sim, t, opts).items():
-        s = res.sensitivity(value, name)
-        assert np.max(np.abs(s - cd)) < 1e-7 * max(np.max(np.abs(cd)), 1.0), (name, value)
 
 
 def test_a_table_that_jumps(sim):
