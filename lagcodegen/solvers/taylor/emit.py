@@ -1,5 +1,6 @@
 """C text of the Taylor integrator of a scene: the jet (one straight-line body over the
-elementary operations inside a C loop over the orders), the step-size rule, dense output,
+elementary operations inside a C loop over the orders; for a small model, its first orders
+written out before the loop by :mod:`.unroll`), the step-size rule, dense output,
 event root finding and the driver ``<prefix>_taylor_solve``, rendered from the jinja2
 templates in ``templates/taylor``.
 
@@ -36,6 +37,7 @@ from ...model.events import Event
 from ...version import __version__
 # ------------------------------------------------------------------------------------------
 from .decompose import Const, Decomposition, decompose
+from .unroll import MAX_TERMS, terms, unrolled_orders
 
 #: Operations per C function of the jet (one function when they all fit): gcc's time on one
 #: straight-line function grows faster than its length.
@@ -93,6 +95,7 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
         M=d.M, F=d.F, rates=d.rates, conv=conv, conv_rows=conv_rows, time_row=d.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass,
         table=False, outputs_name=f"{scene.prefix}_taylor_outputs",
+        unrolled=unrolled_orders(d, _coef) if len(d.ops) <= CHUNK and terms(d) <= MAX_TERMS else None,  # small jets
         events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
                 for row, ev in zip(d.events, events)])
     return ctx
