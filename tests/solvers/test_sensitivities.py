@@ -194,6 +194,8 @@ def test_unknown_and_folded_names_are_named(osc, dp):
     folded = lcg.compile_model(oscillator(), runtime_parameters=["m"])
     with pytest.raises(LagcodegenError, match="'k' is folded into the code"):
         folded.simulate(t, q0=[1.0], sensitivities=["k"])
+    with pytest.raises(LagcodegenError, match="need atol > 0 in every state component"):
+        osc.simulate(t, q0=[1.0], v0=[0.5], rtol=1e-8, atol=0.0, sensitivities=["k"])  # s_k(0) = 0
     res = osc.simulate(t, q0=[1.0], sensitivities=["k"])
     with pytest.raises(LagcodegenError, match="not a sensitivity direction"):
         res.sensitivity("x", "m")

@@ -172,6 +172,12 @@ def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int,
         raise LagcodegenError(f"sensitivity_corrector must be one of {', '.join(map(repr, CORRECTORS))}, "
                               f"not {corrector!r}")
     atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+    if errcon and ns and not np.all(atol > 0.0):
+        raise LagcodegenError(
+            "sensitivities with error control need atol > 0 in every state component (atol is "
+            f"{np.array2string(atol, separator=', ')}): a direction's error weights are 1/(rtol max|s| + atol), and "
+            "the direction of a parameter starts at s = 0; give atol > 0 (it is also the sensitivities' atol) or "
+            "sensitivity_errcon=False")
     atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
     opt = ffi.new("lcg_cvsens_options *")
     opt.method = METHODS[method]
