@@ -20,7 +20,7 @@ from lagcodegen.solvers.taylor.unroll import MAX_TERMS, UNROLL_ORDERS, pairwise,
 from lagcodegen.solvers.taylor import taylor_code
 from lagcodegen.theory.routhian import reduce as routh_reduce
 
-from .test_taylor import SANITIZE_MAIN, all_operations_model
+from .test_taylor import all_operations_model
 
 MARK = "written out, each Cauchy sum a balanced tree"
 
