@@ -73,6 +73,16 @@ class _Printer:
             return _u(self.deriv[u], j - 1)
         return f"{j}.0 * {_u(u, j)}"
 
+    def scaled(self, u: int, x: int, k: int, sign: str = "") -> str:
+        """sign (1/k) sum_{j=1..k} j u_[j] x_[k-j] (sin/cos, sinh/cosh, exp, tan), its newest term
+        (x_[k-1], of the previous order) split off: sign (1/k) (sum_{j>=2}) + (sign u_[1]/k) x_[k-1],
+        one multiplication and one addition after x_[k-1] instead of the tree's depth."""
+        newest = f"({sign}{self.jterm(u, 1)} * (1.0 / {k})) * {_u(x, k - 1)}"
+        if k == 1:
+            return newest
+        rest = pairwise([f"{self.jterm(u, j)} * {_u(x, k - j)}" for j in range(2, k + 1)])
+        return f"{sign}({rest}) * (1.0 / {k}) + {newest}"
+
     def cauchy(self, a: int, b: int, k: int) -> str:
         return pairwise([f"{_u(a, j)} * {_u(b, k - j)}" for j in range(k + 1)])
 
@@ -114,14 +124,11 @@ class _Printer:
                 f, g = ("sin", "cos") if kind == "sincos" else ("sinh", "cosh")
                 return [f"{_u(s, 0)} = {f}({_u(a[0], 0)});", f"{_u(c, 0)} = {g}({_u(a[0], 0)});"]
             sign = "-" if kind == "sincos" else ""
-            ts = pairwise([f"{self.jterm(a[0], j)} * {_u(c, k - j)}" for j in range(1, k + 1)])
-            tc = pairwise([f"{self.jterm(a[0], j)} * {_u(s, k - j)}" for j in range(1, k + 1)])
-            return [f"{_u(s, k)} = ({ts}) * {inv_k};", f"{_u(c, k)} = {sign}({tc}) * {inv_k};"]
+            return [f"{_u(s, k)} = {self.scaled(a[0], c, k)};", f"{_u(c, k)} = {self.scaled(a[0], s, k, sign)};"]
         if kind == "exp":
             if k == 0:
                 return [f"{_u(o, 0)} = exp({_u(a[0], 0)});"]
-            return [f"{_u(o, k)} = ({pairwise([f'{self.jterm(a[0], j)} * {_u(o, k - j)}' for j in range(1, k + 1)])})"
-                    f" * {inv_k};"]
+            return [f"{_u(o, k)} = {self.scaled(a[0], o, k)};"]
         if kind == "log":
             if k == 0:
                 return [f"{_u(o, 0)} = log({_u(a[0], 0)});"]
@@ -146,8 +153,7 @@ class _Printer:
             t, c = op.out
             if k == 0:
                 return [f"{_u(t, 0)} = tan({_u(a[0], 0)});", f"{_u(c, 0)} = {_u(t, 0)} * {_u(t, 0)};"]
-            s = pairwise([f"{self.jterm(a[0], j)} * {_u(c, k - j)}" for j in range(1, k + 1)])
-            return [f"{_u(t, k)} = {_u(a[0], k)} + ({s}) * {inv_k};", f"{_u(c, k)} = {self._sqr(t, k)};"]
+            return [f"{_u(t, k)} = {_u(a[0], k)} + {self.scaled(a[0], c, k)};", f"{_u(c, k)} = {self._sqr(t, k)};"]
         raise ValueError(f"no unrolled recurrence for operation kind {kind!r}")
 
     def _sqr(self, a: int, k: int) -> str:
