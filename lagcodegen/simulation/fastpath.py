@@ -17,6 +17,7 @@ checks and errors (:func:`finish_run`, shared by both)."""
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from ..util import output_times
 _F64 = np.dtype(np.float64)
 _NDARRAY = np.ndarray
 _ISFINITE = math.isfinite
+_LT = operator.lt
 #: Types of option values a prepared run is kept for (hashable, compared by value).
 _SCALARS = frozenset((str, int, float, bool, type(None)))
 #: Types of rtol and atol a prepared run is kept for (array tolerances take the full path).
@@ -104,9 +106,12 @@ class FastRun:
         self.last = ((None, None), (None, None))
 
     def __call__(self, cm, t, q0, v0, y0, z0, params, raise_on_error: bool) -> Result:
-        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and t.shape[0] == 2 and t.flags.c_contiguous:
-            a, b = t.tolist()  # the common [t0, t1]: output_times' check, without its call
-            if not (a < b and _ISFINITE(a) and _ISFINITE(b)):
+        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and 2 <= t.shape[0] <= 64 and t.flags.c_contiguous:
+            # the common few output times: output_times' check (finite ends, strictly increasing,
+            # so every time finite), without its call
+            times = t.tolist()
+            a, b = times[0], times[-1]
+            if not (a < b and _ISFINITE(a) and _ISFINITE(b) and (len(times) == 2 or all(map(_LT, times, times[1:])))):
                 output_times(t)  # raises its error
         else:
             t = output_times(t)

@@ -239,6 +239,30 @@ def test_non_analytic_expressions_are_refused(expr, name):
                     events=[Event("e", sp.Abs(sp.Symbol("theta")) - 1)])
 
 
+def test_a_run_fills_every_field_of_its_result(pendulum):
+    """TaylorModule.simulate makes its Result positionally (cheaper than by keyword): every field
+    must hold what its name says, the others their defaults."""
+    import dataclasses
+
+    from lagcodegen.result import Result
+    tm, p = pendulum
+    t = np.array([0.0, 0.5, 1.0])
+    res = tm.simulate(t, np.array([0.3, 0.0]), p, rtol=1e-10, atol=1e-10)
+    assert type(res) is Result
+    assert res.t is t and res.y.shape == (3, 2) and res.y[0, 0] == 0.3
+    assert res.state_names == ["theta", "theta_dot"] and list(res.outputs) == ["energy"]
+    assert res.status == 0 and res.message == "success" and res.backend == "native" and res.method == "taylor"
+    assert res.parameters == {} and res.n_coordinates == 1
+    assert [e.name for e in res.events] == ["down"] and res.stats["events"] == 1  # theta = 0 once, falling
+    assert res.stats["steps"] > 0 and res.stats["order"] == math.ceil(-math.log(1e-10) / 2 + 3)
+    assert res.drift("energy") < 1e-9  # the run itself: energy conserved
+    by_keyword = Result(t=t, y=res.y, state_names=res.state_names, outputs=res.outputs, stats=res.stats)
+    for f in dataclasses.fields(Result):
+        if f.name not in ("t", "y", "state_names", "outputs", "stats", "status", "message", "backend", "method",
+                          "parameters", "n_coordinates", "events"):
+            assert getattr(res, f.name) == getattr(by_keyword, f.name), f.name  # defaults
+
+
 def test_singular_mass_matrix_and_max_steps_are_reported(pendulum):
     tm, p = module(lcg.systems.central_potential())
     res = tm.simulate(np.array([0.0, 1.0]), np.array([0.0, 0.0, 0.0, 1.0]), p, rtol=1e-8, atol=1e-8)
