@@ -15,6 +15,8 @@ from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
 from .runner import TaylorModule, message, run_stats
 
+_empty = np.empty
+
 
 class TaylorResultMaker(ResultMaker):
     """The members of a Taylor run's LazyResult (``raw`` = (stats struct, outputs, parameters))."""
@@ -42,22 +44,22 @@ class PreparedTaylorRun:
         self.maker = TaylorResultMaker(module.state_names, module.output_names, module.param_names)
         self.ffi = ffi = module.ffi
         self.null = ffi.NULL
+        self.fb, self.new = ffi.from_buffer, ffi.new  # bound once (a call uses each)
         self.solve = module._solve
         self.ny, self.nout, self.stats_type = module.ny, module.nout, module.types[1]
         empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
         self.no_out = (empty, ffi.from_buffer("double[]", empty))
 
     def __call__(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
-        ffi = self.ffi
-        fb = ffi.from_buffer
+        fb = self.fb
         nt = t.shape[0]
-        yout = np.empty((nt, self.ny))
+        yout = _empty((nt, self.ny))
         if self.nout:
-            out = np.empty((nt, self.nout))
+            out = _empty((nt, self.nout))
             out_ptr = fb("double[]", out)
         else:
             out, out_ptr = self.no_out
-        st = ffi.new(self.stats_type)
+        st = self.new(self.stats_type)
         flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, self.null)
         if flag == 0 and st.nt_done >= nt:
             return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, 0, "success")
@@ -67,5 +69,5 @@ class PreparedTaylorRun:
         if done < nt:
             t, yout, out = t[:done].copy(), yout[:done], out[:done]
         text = "success" if flag == 0 else message(flag, st.model_error,
-                                                   ffi.string(st.message).decode(errors="replace"))
+                                                   self.ffi.string(st.message).decode(errors="replace"))
         return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
