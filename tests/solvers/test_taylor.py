@@ -113,6 +113,26 @@ def test_pendulum_events_against_quarter_periods(pendulum):
     assert all(abs(e.y[0]) < 1e-9 for e in res.events)
 
 
+def test_event_runs_one_after_another_keep_their_own_records(pendulum):
+    """The events struct of a finished run serves the next (its records hold copies): a second
+    run, one with fewer events kept, and the first run again each find their own events, and the
+    first run's records are not changed by the later runs."""
+    tm, p = pendulum
+    t = np.linspace(0.0, 5.0, 3)
+    first = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10)
+    kept = [(e.name, e.t, e.y.copy(), e.direction) for e in first.events]
+    other = tm.simulate(t, np.array([0.5, 0.0]), p, rtol=1e-10, atol=1e-10)  # another amplitude, period
+    few = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10, max_events=2)
+    again = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10)
+    assert len(first.events) > 2 and first.stats["events"] == len(first.events)
+    assert [(e.name, e.t, e.direction) for e in first.events] == [(n, te, d) for n, te, _, d in kept]
+    assert all(np.array_equal(e.y, y) for e, (_, _, y, _) in zip(first.events, kept))
+    assert [(e.name, e.t, e.direction) for e in again.events] == [(n, te, d) for n, te, _, d in kept]
+    assert [(e.name, e.t) for e in few.events] == [(n, te) for n, te, _, _ in kept[:2]]
+    assert few.stats["events"] == first.stats["events"]  # counted beyond those kept
+    assert other.events[0].t != first.events[0].t and all(abs(e.y[0]) < 1e-9 for e in other.events)
+
+
 def test_terminal_event_and_free_fall_is_exact(ball):
     """y(t) = y0 + vy0 t - g t^2/2 is a polynomial: the Taylor series ends, steps are long, the
     hit of the ground at t* = (vy0 + sqrt(vy0^2 + 2 g y0))/g ends the run."""

@@ -185,6 +185,7 @@ class TaylorModule:
         self._empty = np.zeros(1)
         self._no_out = (self._empty, ffi.from_buffer("double[]", self._empty))
         self._ptrs = [None, None, None]
+        self._ev_pool: list = []  # events structs of finished runs (_events_struct)
         self._opt_key = None
         self._atol = None
         self.p_max = P_MAX
@@ -270,6 +271,7 @@ class TaylorModule:
         res = Result(t, yout, self.state_names, outputs, stats, flag, text, "native", "taylor", {}, self.n)
         if keep is not None:
             self._events_into(res, ev, keep, p)
+            self._ev_pool.append((ev, keep))  # read out: the next run may fill it
         return res
 
     def _set_options(self, rtol, atol, max_step, max_steps, order) -> None:
@@ -310,18 +312,26 @@ class TaylorModule:
         return opt, atol_vec
 
     def _events_struct(self, max_events: int):
-        return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        """An events struct for ``max_events`` events and its arrays: a finished run's from the pool
+        (the driver clears its count; the records copy what they keep), else a new one."""
+        try:
+            ev, keep = self._ev_pool.pop()  # atomic: concurrent runs never share one
+        except IndexError:
+            return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        if keep[0].shape[0] != max_events:
+            return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        return ev, keep
 
     def _events_into(self, res: Result, ev, keep, p) -> None:
-        count = min(int(ev.n_events), keep[0].shape[0])
-        recs = []
-        for k in range(count):
-            i = int(keep[2][k])
-            e = self.events[i]
-            recs.append(EventRecord(e.name, i, float(keep[0][k]), keep[1][k].copy(), int(keep[3][k]), e.terminal,
-                                    self.state_names))
+        n_events = int(ev.n_events)
+        count = min(n_events, keep[0].shape[0])
+        events, names, rows = self.events, self.state_names, keep[1]
+        # the arrays read as Python numbers at once (the same values as element by element)
+        recs = [EventRecord(events[i].name, i, tk, rows[k].copy(), dk, events[i].terminal, names)
+                for k, (i, tk, dk) in enumerate(zip(keep[2][:count].tolist(), keep[0][:count].tolist(),
+                                                    keep[3][:count].tolist()))]
         res.events = recs
-        res.stats["events"] = int(ev.n_events)
+        res.stats["events"] = n_events
         if ev.terminated and recs and recs[-1].t > res.t[-1]:
             rec = recs[-1]
             res.t = np.append(res.t, rec.t)
