@@ -10,7 +10,8 @@ the standalone integrator ``<prefix>_taylor.c`` (the same driver text with the s
 what C bundles ship) into a cffi module of its own.
 
 The per-call Python is kept lean (the options and statistics structs are allocated once per
-module, arrays are handed to C without copies, nothing is validated twice): callers such as
+module, an events struct is reused from run to run, arrays are handed to C without copies,
+nothing is validated twice): callers such as
 ``simulate(method="taylor")`` check the user's input once.
 """
 
