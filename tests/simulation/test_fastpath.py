@@ -225,6 +225,49 @@ def test_runs_a_prepared_run_does_not_honour_take_the_full_path(double_pendulum)
     assert Taylor(order=3).defaults_beside(frozenset({"order"}))
 
 
+def assert_same_with_events(fast, slow):
+    """assert_same, the event records field by field (their states bit for bit)."""
+    import dataclasses
+    assert [(e.name, e.index, e.t, e.direction, e.terminal, e.state_names) for e in fast.events] == \
+        [(e.name, e.index, e.t, e.direction, e.terminal, e.state_names) for e in slow.events]
+    for a, b in zip(fast.events, slow.events):
+        np.testing.assert_array_equal(a.y, b.y)
+    assert_same(dataclasses.replace(fast, events=[]), dataclasses.replace(slow, events=[]))
+
+
+def test_taylor_event_runs_take_the_fast_path_bit_identically(double_pendulum):
+    """A Taylor run with events (the second call with the same events) runs the prepared run with
+    those events: the same records, rows and statistics as the full path, also for a terminal
+    event (its state the last row) and a failed run; CVODE's event runs stay on the full path."""
+    import sympy as sp
+    from lagcodegen.model.events import Event
+    cm = double_pendulum
+    th = sp.Symbol(cm.state_names[0])
+    opts = dict(method="taylor", rtol=1e-9, atol=1e-9)
+    y0 = np.array([0.7, -0.3, 0.1, 0.0])
+    t = np.linspace(0.0, 3.0, 7)
+    crossing, stop = Event("cross", th, 0, False), Event("stop", th + 0.5, -1, True)
+    for events in ([crossing], [stop], [crossing, stop]):
+        first = cm.simulate(t, y0=y0, events=events, **opts)
+        assert type(first) is Result
+        fast = cm.simulate(t, y0=y0, events=events, **opts)
+        assert isinstance(fast, LazyResult) and fast.events and fast.stats["events"] >= len(fast.events)
+        assert_same_with_events(fast, cm._simulate(t, y0=y0, events=events, **opts))
+        if stop in events:  # ended at theta_1 = -0.5, falling, its state the last row
+            assert fast.events[-1].name == "stop" and fast.t[-1] == fast.events[-1].t < t[-1]
+            assert abs(fast.y[-1, 0] + 0.5) < 1e-9 and fast.y[-1, 2] < 0
+            assert np.array_equal(fast.y[-1], fast.events[-1].y) and fast.outputs["energy"].shape == fast.t.shape
+    short = dict(opts, max_steps=3)
+    cm.simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short)
+    fast = cm.simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short)
+    assert isinstance(fast, LazyResult) and fast.status == -1
+    assert_same_with_events(fast, cm._simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short))
+    with pytest.raises(SolverError, match="max_steps"):
+        cm.simulate(t, y0=y0, events=[crossing], **short)
+    for _ in range(2):
+        assert type(cm.simulate(t, y0=y0, events=[crossing], method="adams")) is Result
+
+
 def assert_same_sensitivities(fast, slow):
     """assert_same (the sensitivities bit for bit with their names among its fields), the
     statistics but for the wall time."""
