@@ -113,6 +113,22 @@ def test_pendulum_events_against_quarter_periods(pendulum):
     assert all(abs(e.y[0]) < 1e-9 for e in res.events)
 
 
+def test_a_scalar_then_a_per_state_atol_on_one_module(pendulum):
+    """The module keeps its options while the same values come back: a per-state atol after a
+    scalar one is written (not compared as an array), and the scalar one after it again gives
+    the first run bit for bit."""
+    tm, p = pendulum
+    t = np.linspace(0.0, 2.0, 3)
+    y0 = np.array([1.0, 0.0])
+    a = tm.simulate(t, y0, p, rtol=1e-8, atol=1e-8)
+    b = tm.simulate(t, y0, p, rtol=1e-8, atol=np.array([1e-8, 1e-2]))  # the velocity's loose
+    c = tm.simulate(t, y0, p, rtol=1e-8, atol=1e-8)
+    assert a.success and b.success and np.array_equal(a.y, c.y) and a.stats == c.stats
+    assert not np.array_equal(a.y, b.y)  # the per-state atol was used
+    theta, _ = exact_pendulum(t, 1.0, math.sqrt(9.81))
+    assert np.abs(b.y[:, 0] - theta).max() < 1e-4
+
+
 def test_event_runs_one_after_another_keep_their_own_records(pendulum):
     """The events struct of a finished run serves the next (its records hold copies): a second
     run, one with fewer events kept, and the first run again each find their own events, and the

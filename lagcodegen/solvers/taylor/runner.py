@@ -243,13 +243,15 @@ class TaylorModule:
         else:  # the driver writes no outputs: the same placeholder and its cdata every call
             out, out_ptr = self._no_out
         opt, st = self._opt, self._st
-        key = (rtol, atol, max_step, max_steps, order)
-        if key != self._opt_key:
-            self._set_options(*key)
-        if max_wall or self.table is not None:
-            if self.table is None:
+        key = (rtol, atol, max_step, max_steps, order, max_wall)
+        # new values written into the struct (kept while they come back; an array atol each time:
+        # arrays are not compared)
+        if not (isinstance(atol, float) and key == self._opt_key):
+            if max_wall and self.table is None:
                 raise LagcodegenError("max_wall needs the Taylor runtime's driver (build_taylor(runtime=True))")
-            opt.max_wall = max_wall
+            self._set_options(rtol, atol, max_step, max_steps, order)
+            if self.table is not None:
+                opt.max_wall = max_wall
             self._opt_key = key if isinstance(atol, float) else None
         ev = ffi.NULL
         keep = None
