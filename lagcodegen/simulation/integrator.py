@@ -239,13 +239,11 @@ class Integrator:
 
     def _collect(self) -> EventRecord | None:
         count, terminated, (tt, yy, which, direction) = self._stepper.event_arrays()
-        events = self._stepper.events
-        recs = []
-        for k in range(min(count, tt.shape[0])):
-            i = int(which[k])
-            ev = events[i]
-            recs.append(EventRecord(ev.name, i, float(tt[k]), yy[k, :self._ny].copy(), int(direction[k]),
-                                    ev.terminal, self.state_names))
+        events, ny, names = self._stepper.events, self._ny, self.state_names
+        k = min(count, tt.shape[0])
+        # the arrays read as Python numbers at once (the same values as element by element)
+        recs = [EventRecord(events[i].name, i, te, yy[j, :ny].copy(), d, events[i].terminal, names)
+                for j, (i, te, d) in enumerate(zip(which[:k].tolist(), tt[:k].tolist(), direction[:k].tolist()))]
         self.events = recs
         self.stopped_by = recs[-1] if terminated and recs else None
         return self.stopped_by
