@@ -268,6 +268,35 @@ def test_taylor_event_runs_take_the_fast_path_bit_identically(double_pendulum):
         assert type(cm.simulate(t, y0=y0, events=[crossing], method="adams")) is Result
 
 
+def test_fast_event_runs_from_several_threads(double_pendulum):
+    """Concurrent Taylor runs with events never share an events struct: runs from two threads at
+    once record the events of the same runs one after the other."""
+    import sympy as sp
+    from lagcodegen.model.events import Event
+    cm = double_pendulum
+    events = [Event("cross", sp.Symbol(cm.state_names[0]), 0, False)]
+    t = np.linspace(0.0, 4.0, 5)
+    starts = [[0.2 * k, -0.1 * k] for k in range(1, 7)]
+    cm.simulate(t, q0=starts[0], method="taylor", events=events)
+    serial = [cm._simulate(t, q0=q, method="taylor", events=events) for q in starts]
+    assert all(r.events for r in serial)
+    got = [None] * len(starts)
+
+    def work(ks):
+        for k in ks:
+            for _ in range(20):
+                got[k] = cm.simulate(t, q0=starts[k], method="taylor", events=events)
+
+    threads = [threading.Thread(target=work, args=(range(i, len(starts), 2),)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for a, b in zip(got, serial):
+        assert isinstance(a, LazyResult)
+        assert_same_with_events(a, b)
+
+
 def assert_same_sensitivities(fast, slow):
     """assert_same (the sensitivities bit for bit with their names among its fields), the
     statistics but for the wall time."""
