@@ -108,12 +108,14 @@ class FastRun:
         self.last = ((None, None), (None, None))
 
     def __call__(self, cm, t, q0, v0, y0, z0, params, raise_on_error: bool) -> Result:
-        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and 2 <= t.shape[0] <= 64 and t.flags.c_contiguous:
+        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and 2 <= t.size <= 64 and t.flags.c_contiguous:
             # the common few output times: output_times' check (finite ends, strictly increasing,
-            # so every time finite), without its call
+            # so every time finite), without its call; two or three times by comparisons alone
             times = t.tolist()
             a, b = times[0], times[-1]
-            if not (a < b and _ISFINITE(a) and _ISFINITE(b) and (len(times) == 2 or all(map(_LT, times, times[1:])))):
+            n = len(times)
+            if not (a < b and _ISFINITE(a) and _ISFINITE(b)
+                    and (n == 2 or (a < times[1] < b if n == 3 else all(map(_LT, times, times[1:]))))):
                 output_times(t)  # raises its error
         else:
             t = output_times(t)

@@ -115,6 +115,24 @@ def test_fast_path_checks_what_each_call_brings(double_pendulum, method):
         assert_same(cm.simulate(t, y0=y, **opts), cm._simulate(t, y0=y, **opts))
 
 
+def test_output_times_are_checked_as_on_the_full_path(double_pendulum):
+    """The fast path's own check of a few output times (two, three, more) refuses what
+    output_times refuses: equal, decreasing and non-finite times anywhere."""
+    cm = double_pendulum
+    y0 = np.array([0.1, 0.2, 0.0, 0.0])
+    cm.simulate(np.array([0.0, 1.0]), y0=y0, method="taylor")
+    bad = [[0.0, 0.0], [0.0, 2.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [np.nan, 0.5, 1.0],
+           [0.0, 0.5, np.inf], [0.0, 0.5, 0.7, 0.6, 1.0], [0.0, 0.5, 0.5, 1.0], [0.0, np.nan, 0.7, 1.0]]
+    for times in bad:
+        for run in (cm.simulate, cm._simulate):
+            with pytest.raises(LagcodegenError, match="strictly increasing"):
+                run(np.array(times), y0=y0, method="taylor")
+    for times in ([0.0, 1.0], [0.0, 0.5, 1.0], [-1.0, 0.0, 0.25, 1.0]):
+        fast = cm.simulate(np.array(times), y0=y0, method="taylor")
+        assert isinstance(fast, LazyResult)
+        assert_same(fast, cm._simulate(np.array(times), y0=y0, method="taylor"))
+
+
 def test_values_equal_across_types_do_not_share_a_prepared_run(double_pendulum):
     cm = double_pendulum
     t = np.array([0.0, 0.5])
