@@ -127,7 +127,8 @@ def test_integrator_overhead_pendulum():
     for method in ("taylor", "adams"):
         rows += io.rows_of("pendulum", 1, method, 1e-3, io.measure(sim, method, 1e-3, rounds=1, batch=0.002))
     assert {r["call"] for r in rows} == {"propagate_for", "closed loop", "propagate_grid", "propagate_grid, out=",
-                                         "step", "simulate", "simulate, full path"}
+                                         "step", "simulate", "simulate, full path", "module run"}
+    assert {r["method"] for r in rows if r["call"] == "module run"} == {"taylor"}  # the Taylor family's layer
     assert all(finite(r["call_us"]) and r["call_us"] > 0 and finite(r["overhead_us"]) for r in rows)
 
 

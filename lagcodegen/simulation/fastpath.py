@@ -3,20 +3,23 @@ option values as an earlier one (solver, rtol, atol and the other keywords, thei
 goes from ``simulate()`` straight to a run its family prepared once (the options resolved and
 checked, the driver's options struct made: ``prepared_ode`` of
 :class:`~lagcodegen.solvers.taylor.Taylor` and :class:`~lagcodegen.solvers.cvode.CVODE`,
-both with forward sensitivities too, their directions parsed once), and returns a
+both with forward sensitivities too, their directions parsed once; with events,
+``prepared_ode_events`` of the Taylor family), and returns a
 :class:`~lagcodegen.solvers.lazy_result.LazyResult`.
 
 What the call brings anew is checked as on the full path, with the same errors: the output
-times, the initial state (length, dtype, finiteness) and the parameters. Runs with events or
-input tables, and options the families do not prepare (scikit-sundae, array tolerances), take
-the full path. A list of names (``sensitivities=[...]``) is kept for by its names and its type (a
-list and a tuple of the same names prepare a run each). Both paths call the same C driver with
+times, the initial state (length, dtype, finiteness) and the parameters. Runs with input tables,
+runs with events on CVODE or with sensitivities, and options the families do not prepare
+(scikit-sundae, array tolerances), take the full path. A list of names
+(``sensitivities=[...]``) is kept for by its names and its type (a list and a tuple of the same
+names prepare a run each). Both paths call the same C driver with
 the same options and arrays, so their results are bit-identical; a failed run ends in the same
 checks and errors (:func:`finish_run`, shared by both)."""
 
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -30,6 +33,7 @@ from ..util import output_times
 _F64 = np.dtype(np.float64)
 _NDARRAY = np.ndarray
 _ISFINITE = math.isfinite
+_LT = operator.lt
 #: Types of option values a prepared run is kept for (hashable, compared by value).
 _SCALARS = frozenset((str, int, float, bool, type(None)))
 #: Types of rtol and atol a prepared run is kept for (array tolerances take the full path).
@@ -104,9 +108,14 @@ class FastRun:
         self.last = ((None, None), (None, None))
 
     def __call__(self, cm, t, q0, v0, y0, z0, params, raise_on_error: bool) -> Result:
-        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and t.shape[0] == 2 and t.flags.c_contiguous:
-            a, b = t.tolist()  # the common [t0, t1]: output_times' check, without its call
-            if not (a < b and _ISFINITE(a) and _ISFINITE(b)):
+        if type(t) is _NDARRAY and t.dtype is _F64 and t.ndim == 1 and 2 <= t.size <= 64 and t.flags.c_contiguous:
+            # the common few output times: output_times' check (finite ends, strictly increasing,
+            # so every time finite), without its call; two or three times by comparisons alone
+            times = t.tolist()
+            a, b = times[0], times[-1]
+            n = len(times)
+            if not (a < b and _ISFINITE(a) and _ISFINITE(b)
+                    and (n == 2 or (a < times[1] < b if n == 3 else all(map(_LT, times, times[1:]))))):
                 output_times(t)  # raises its error
         else:
             t = output_times(t)
@@ -160,21 +169,46 @@ class FastRuns:
                 return None
         return run
 
-    def learn(self, cm, solver, rtol, atol, options: dict) -> None:
+    def get_events(self, solver, rtol, atol, options: dict, events) -> FastRun | None:
+        """:meth:`get` of a call with ``events`` (compared by value, as the families key their
+        compiled events); None where a value does not hash (that call takes the full path)."""
+        try:
+            run = self._runs.get((solver, rtol, atol, *options.items(), ("events", tuple(events))))
+        except TypeError:
+            return None
+        if run is None or type(rtol) is not run.rtol_type or type(atol) is not run.atol_type:
+            return None
+        for k, kind in run.checks:
+            if type(options[k]) is not kind:
+                return None
+        return run
+
+    def learn(self, cm, solver, rtol, atol, options: dict, events=()) -> None:
         """After a call on the full path that did not raise: prepare its run for the next calls
-        with these values, where the family prepares it (else remember that it does not)."""
+        with these values, where the family prepares it (else remember that it does not). With
+        ``events``: the family's ``prepared_ode_events``, a call of hashable option values only."""
         if type(rtol) not in _TOLERANCES or type(atol) not in _TOLERANCES \
                 or not all(type(v) in _SCALARS or _names(v) for v in options.values()):
             return
         key = _names_key(solver, rtol, atol, options)
+        if events:
+            try:
+                key = (*key, ("events", tuple(events)))
+                hash(key)
+            except TypeError:
+                return
         if key in self._runs:
             return
         rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)
         own = {k: v for k, v in options.items() if k != "inputs"}
         family = resolve("ode", solver, own, cm.n, rtol_f)
-        prepare = getattr(family, "prepared_ode", None)
         fixed = {"n_coordinates": cm.n, "model_name": cm.code.model_name or "", "drawing": deferred_drawing(cm)}
-        run = prepare(cm, rtol_f, atol_f, fixed) if prepare is not None else None
+        if events:
+            prepare = getattr(family, "prepared_ode_events", None)
+            run = prepare(cm, rtol_f, atol_f, fixed, tuple(events)) if prepare is not None else None
+        else:
+            prepare = getattr(family, "prepared_ode", None)
+            run = prepare(cm, rtol_f, atol_f, fixed) if prepare is not None else None
         if len(self._runs) >= self.LIMIT:
             self._runs.clear()
         self._runs[key] = None if run is None else FastRun(cm, run, rtol, atol, options)

@@ -28,6 +28,7 @@ _BAD_INPUT = int(Flag.BAD_INPUT)
 _CANCELLED = int(Flag.CANCELLED)
 _INF = math.inf
 _F64 = np.dtype(np.float64)
+_NDARRAY, _empty = np.ndarray, np.empty
 
 
 def _closed(*args):
@@ -161,15 +162,15 @@ class Integrator:
         on; a time equal to :attr:`time` gives the current state), one row each (into ``out``, a
         C-contiguous float64 array of shape (len(times), ny), if given). A terminal event stops it:
         the rows reached (see :attr:`stopped_by`)."""
-        if type(times) is not np.ndarray or times.dtype is not _F64 or times.ndim != 1:
+        if type(times) is not _NDARRAY or times.dtype is not _F64 or times.ndim != 1:
             times = self._times(times)
         nt = times.shape[0]
-        if out is not None and (type(out) is not np.ndarray or out.dtype is not _F64 or out.shape != (nt, self._ny)):
+        if out is not None and (type(out) is not _NDARRAY or out.dtype is not _F64 or out.shape != (nt, self._ny)):
             raise LagcodegenError(f"out must be a float64 array of shape ({nt}, {self._ny})")
         fb = self._from_buffer
         try:
             if out is None:  # new arrays: converted as they come
-                out = np.empty((nt, self._ny))
+                out = _empty((nt, self._ny))
                 flag = self._grid(nt, fb("double[]", times), fb("double[]", out))
             else:
                 # the caller's preallocated arrays: their cdata kept while the same arrays come back
@@ -238,13 +239,11 @@ class Integrator:
 
     def _collect(self) -> EventRecord | None:
         count, terminated, (tt, yy, which, direction) = self._stepper.event_arrays()
-        events = self._stepper.events
-        recs = []
-        for k in range(min(count, tt.shape[0])):
-            i = int(which[k])
-            ev = events[i]
-            recs.append(EventRecord(ev.name, i, float(tt[k]), yy[k, :self._ny].copy(), int(direction[k]),
-                                    ev.terminal, self.state_names))
+        events, ny, names = self._stepper.events, self._ny, self.state_names
+        k = min(count, tt.shape[0])
+        # the arrays read as Python numbers at once (the same values as element by element)
+        recs = [EventRecord(events[i].name, i, te, yy[j, :ny].copy(), d, events[i].terminal, names)
+                for j, (i, te, d) in enumerate(zip(which[:k].tolist(), tt[:k].tolist(), direction[:k].tolist()))]
         self.events = recs
         self.stopped_by = recs[-1] if terminated and recs else None
         return self.stopped_by

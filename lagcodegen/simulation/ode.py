@@ -254,14 +254,14 @@ class CompiledModel(CompiledReprMixin):
             whole run), ``max_step``, ``first_step``, ``min_step``, ``max_wall``; a keyword the
             family does not have raises LagcodegenError naming it.
         """
-        if not events:
-            fast = self._fast_runs.get(solver, rtol, atol, options)
-            if fast is not None:
-                return fast(self, t, q0, v0, y0, z0, params, raise_on_error)
+        fast = self._fast_runs.get(solver, rtol, atol, options) if not events else \
+            self._fast_runs.get_events(solver, rtol, atol, options, events)
+        if fast is not None:
+            return fast(self, t, q0, v0, y0, z0, params, raise_on_error)
         res = self._simulate(t, q0, v0, y0=y0, z0=z0, params=params, solver=solver, rtol=rtol, atol=atol,
                              events=events, raise_on_error=raise_on_error, **options)
-        if not events and options.get("inputs") is None:
-            self._fast_runs.learn(self, solver, rtol, atol, options)
+        if options.get("inputs") is None:
+            self._fast_runs.learn(self, solver, rtol, atol, options, events)
         return res
 
     @attaches_drawing

@@ -81,14 +81,15 @@ def lazy_result(maker: ResultMaker, raw, fixed: dict, t, y, status: int, message
     (backend, method, n_coordinates, model_name, drawing), ``raw`` what its maker
     needs."""
     res = _new(LazyResult)
-    d = res.__dict__
-    d.update(fixed)
-    d["t"] = t
-    d["y"] = y
-    d["status"] = status
-    d["message"] = message
-    d["_maker"] = maker
-    d["_raw"] = raw
+    # attribute stores first (cheaper than item stores into the instance's __dict__), then the
+    # shared members
+    res.t = t
+    res.y = y
+    res.status = status
+    res.message = message
+    res._maker = maker
+    res._raw = raw
+    res.__dict__.update(fixed)
     return res
 
 

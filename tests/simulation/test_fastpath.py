@@ -115,6 +115,24 @@ def test_fast_path_checks_what_each_call_brings(double_pendulum, method):
         assert_same(cm.simulate(t, y0=y, **opts), cm._simulate(t, y0=y, **opts))
 
 
+def test_output_times_are_checked_as_on_the_full_path(double_pendulum):
+    """The fast path's own check of a few output times (two, three, more) refuses what
+    output_times refuses: equal, decreasing and non-finite times anywhere."""
+    cm = double_pendulum
+    y0 = np.array([0.1, 0.2, 0.0, 0.0])
+    cm.simulate(np.array([0.0, 1.0]), y0=y0, method="taylor")
+    bad = [[0.0, 0.0], [0.0, 2.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [np.nan, 0.5, 1.0],
+           [0.0, 0.5, np.inf], [0.0, 0.5, 0.7, 0.6, 1.0], [0.0, 0.5, 0.5, 1.0], [0.0, np.nan, 0.7, 1.0]]
+    for times in bad:
+        for run in (cm.simulate, cm._simulate):
+            with pytest.raises(LagcodegenError, match="strictly increasing"):
+                run(np.array(times), y0=y0, method="taylor")
+    for times in ([0.0, 1.0], [0.0, 0.5, 1.0], [-1.0, 0.0, 0.25, 1.0]):
+        fast = cm.simulate(np.array(times), y0=y0, method="taylor")
+        assert isinstance(fast, LazyResult)
+        assert_same(fast, cm._simulate(np.array(times), y0=y0, method="taylor"))
+
+
 def test_values_equal_across_types_do_not_share_a_prepared_run(double_pendulum):
     cm = double_pendulum
     t = np.array([0.0, 0.5])
@@ -223,6 +241,78 @@ def test_runs_a_prepared_run_does_not_honour_take_the_full_path(double_pendulum)
     assert Taylor().defaults_beside(frozenset()) and CVODE().defaults_beside(frozenset())
     assert not Taylor(order=3).defaults_beside(frozenset({"max_steps"}))
     assert Taylor(order=3).defaults_beside(frozenset({"order"}))
+
+
+def assert_same_with_events(fast, slow):
+    """assert_same, the event records field by field (their states bit for bit)."""
+    import dataclasses
+    assert [(e.name, e.index, e.t, e.direction, e.terminal, e.state_names) for e in fast.events] == \
+        [(e.name, e.index, e.t, e.direction, e.terminal, e.state_names) for e in slow.events]
+    for a, b in zip(fast.events, slow.events):
+        np.testing.assert_array_equal(a.y, b.y)
+    assert_same(dataclasses.replace(fast, events=[]), dataclasses.replace(slow, events=[]))
+
+
+def test_taylor_event_runs_take_the_fast_path_bit_identically(double_pendulum):
+    """A Taylor run with events (the second call with the same events) runs the prepared run with
+    those events: the same records, rows and statistics as the full path, also for a terminal
+    event (its state the last row) and a failed run; CVODE's event runs stay on the full path."""
+    import sympy as sp
+    from lagcodegen.model.events import Event
+    cm = double_pendulum
+    th = sp.Symbol(cm.state_names[0])
+    opts = dict(method="taylor", rtol=1e-9, atol=1e-9)
+    y0 = np.array([0.7, -0.3, 0.1, 0.0])
+    t = np.linspace(0.0, 3.0, 7)
+    crossing, stop = Event("cross", th, 0, False), Event("stop", th + 0.5, -1, True)
+    for events in ([crossing], [stop], [crossing, stop]):
+        first = cm.simulate(t, y0=y0, events=events, **opts)
+        assert type(first) is Result
+        fast = cm.simulate(t, y0=y0, events=events, **opts)
+        assert isinstance(fast, LazyResult) and fast.events and fast.stats["events"] >= len(fast.events)
+        assert_same_with_events(fast, cm._simulate(t, y0=y0, events=events, **opts))
+        if stop in events:  # ended at theta_1 = -0.5, falling, its state the last row
+            assert fast.events[-1].name == "stop" and fast.t[-1] == fast.events[-1].t < t[-1]
+            assert abs(fast.y[-1, 0] + 0.5) < 1e-9 and fast.y[-1, 2] < 0
+            assert np.array_equal(fast.y[-1], fast.events[-1].y) and fast.outputs["energy"].shape == fast.t.shape
+    short = dict(opts, max_steps=3)
+    cm.simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short)
+    fast = cm.simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short)
+    assert isinstance(fast, LazyResult) and fast.status == -1
+    assert_same_with_events(fast, cm._simulate(t, y0=y0, events=[crossing], raise_on_error=False, **short))
+    with pytest.raises(SolverError, match="max_steps"):
+        cm.simulate(t, y0=y0, events=[crossing], **short)
+    for _ in range(2):
+        assert type(cm.simulate(t, y0=y0, events=[crossing], method="adams")) is Result
+
+
+def test_fast_event_runs_from_several_threads(double_pendulum):
+    """Concurrent Taylor runs with events never share an events struct: runs from two threads at
+    once record the events of the same runs one after the other."""
+    import sympy as sp
+    from lagcodegen.model.events import Event
+    cm = double_pendulum
+    events = [Event("cross", sp.Symbol(cm.state_names[0]), 0, False)]
+    t = np.linspace(0.0, 4.0, 5)
+    starts = [[0.2 * k, -0.1 * k] for k in range(1, 7)]
+    cm.simulate(t, q0=starts[0], method="taylor", events=events)
+    serial = [cm._simulate(t, q0=q, method="taylor", events=events) for q in starts]
+    assert all(r.events for r in serial)
+    got = [None] * len(starts)
+
+    def work(ks):
+        for k in ks:
+            for _ in range(20):
+                got[k] = cm.simulate(t, q0=starts[k], method="taylor", events=events)
+
+    threads = [threading.Thread(target=work, args=(range(i, len(starts), 2),)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for a, b in zip(got, serial):
+        assert isinstance(a, LazyResult)
+        assert_same_with_events(a, b)
 
 
 def assert_same_sensitivities(fast, slow):

@@ -113,6 +113,42 @@ def test_pendulum_events_against_quarter_periods(pendulum):
     assert all(abs(e.y[0]) < 1e-9 for e in res.events)
 
 
+def test_a_scalar_then_a_per_state_atol_on_one_module(pendulum):
+    """The module keeps its options while the same values come back: a per-state atol after a
+    scalar one is written (not compared as an array), and the scalar one after it again gives
+    the first run bit for bit."""
+    tm, p = pendulum
+    t = np.linspace(0.0, 2.0, 3)
+    y0 = np.array([1.0, 0.0])
+    a = tm.simulate(t, y0, p, rtol=1e-8, atol=1e-8)
+    b = tm.simulate(t, y0, p, rtol=1e-8, atol=np.array([1e-8, 1e-2]))  # the velocity's loose
+    c = tm.simulate(t, y0, p, rtol=1e-8, atol=1e-8)
+    assert a.success and b.success and np.array_equal(a.y, c.y) and a.stats == c.stats
+    assert not np.array_equal(a.y, b.y)  # the per-state atol was used
+    theta, _ = exact_pendulum(t, 1.0, math.sqrt(9.81))
+    assert np.abs(b.y[:, 0] - theta).max() < 1e-4
+
+
+def test_event_runs_one_after_another_keep_their_own_records(pendulum):
+    """The events struct of a finished run serves the next (its records hold copies): a second
+    run, one with fewer events kept, and the first run again each find their own events, and the
+    first run's records are not changed by the later runs."""
+    tm, p = pendulum
+    t = np.linspace(0.0, 5.0, 3)
+    first = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10)
+    kept = [(e.name, e.t, e.y.copy(), e.direction) for e in first.events]
+    other = tm.simulate(t, np.array([0.5, 0.0]), p, rtol=1e-10, atol=1e-10)  # another amplitude, period
+    few = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10, max_events=2)
+    again = tm.simulate(t, np.array([2.0, 0.0]), p, rtol=1e-10, atol=1e-10)
+    assert len(first.events) > 2 and first.stats["events"] == len(first.events)
+    assert [(e.name, e.t, e.direction) for e in first.events] == [(n, te, d) for n, te, _, d in kept]
+    assert all(np.array_equal(e.y, y) for e, (_, _, y, _) in zip(first.events, kept))
+    assert [(e.name, e.t, e.direction) for e in again.events] == [(n, te, d) for n, te, _, d in kept]
+    assert [(e.name, e.t) for e in few.events] == [(n, te) for n, te, _, _ in kept[:2]]
+    assert few.stats["events"] == first.stats["events"]  # counted beyond those kept
+    assert other.events[0].t != first.events[0].t and all(abs(e.y[0]) < 1e-9 for e in other.events)
+
+
 def test_terminal_event_and_free_fall_is_exact(ball):
     """y(t) = y0 + vy0 t - g t^2/2 is a polynomial: the Taylor series ends, steps are long, the
     hit of the ground at t* = (vy0 + sqrt(vy0^2 + 2 g y0))/g ends the run."""
@@ -237,6 +273,30 @@ def test_non_analytic_expressions_are_refused(expr, name):
     with pytest.raises(ModelError, match=r"event 'e': it contains abs\(theta\)"):  # and in events
         taylor_code(Scene(derive(lcg.systems.pendulum()), jacobian=False),
                     events=[Event("e", sp.Abs(sp.Symbol("theta")) - 1)])
+
+
+def test_a_run_fills_every_field_of_its_result(pendulum):
+    """TaylorModule.simulate makes its Result positionally (cheaper than by keyword): every field
+    must hold what its name says, the others their defaults."""
+    import dataclasses
+
+    from lagcodegen.result import Result
+    tm, p = pendulum
+    t = np.array([0.0, 0.5, 1.0])
+    res = tm.simulate(t, np.array([0.3, 0.0]), p, rtol=1e-10, atol=1e-10)
+    assert type(res) is Result
+    assert res.t is t and res.y.shape == (3, 2) and res.y[0, 0] == 0.3
+    assert res.state_names == ["theta", "theta_dot"] and list(res.outputs) == ["energy"]
+    assert res.status == 0 and res.message == "success" and res.backend == "native" and res.method == "taylor"
+    assert res.parameters == {} and res.n_coordinates == 1
+    assert [e.name for e in res.events] == ["down"] and res.stats["events"] == 1  # theta = 0 once, falling
+    assert res.stats["steps"] > 0 and res.stats["order"] == math.ceil(-math.log(1e-10) / 2 + 3)
+    assert res.drift("energy") < 1e-9  # the run itself: energy conserved
+    by_keyword = Result(t=t, y=res.y, state_names=res.state_names, outputs=res.outputs, stats=res.stats)
+    for f in dataclasses.fields(Result):
+        if f.name not in ("t", "y", "state_names", "outputs", "stats", "status", "message", "backend", "method",
+                          "parameters", "n_coordinates", "events"):
+            assert getattr(res, f.name) == getattr(by_keyword, f.name), f.name  # defaults
 
 
 def test_singular_mass_matrix_and_max_steps_are_reported(pendulum):

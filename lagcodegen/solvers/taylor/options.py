@@ -14,7 +14,7 @@ from .prepared import PreparedTaylorRun
 from .stepper import TaylorSensitivityStepper, TaylorStepper
 
 
-#: The fields a prepared run honours (max_events: a prepared run has no events).
+#: The fields a prepared run honours (max_events: the events kept by a prepared run with events).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events"))
 
 
@@ -95,6 +95,16 @@ class Taylor(Family):
         return PreparedTaylorRun(taylor_module(cm), rtol=rtol, atol=atol, max_step=float(self.max_step),
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
                                  fixed=fixed)
+
+    def prepared_ode_events(self, cm, rtol: float, atol, fixed: dict, events: tuple):
+        """The runs of :meth:`run_ode` with ``events`` (located on each step's polynomial, at most
+        ``max_events`` kept) prepared once (:class:`.prepared.PreparedTaylorRun`); None with
+        sensitivities or a field it does not know."""
+        if self.sensitivities is not None or not self.defaults_beside(_PREPARED):
+            return None
+        return PreparedTaylorRun(taylor_module(cm, events), rtol=rtol, atol=atol, max_step=float(self.max_step),
+                                 max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall),
+                                 fixed=fixed, max_events=self.max_events)
 
     def _prepared_sensitivities(self, cm, rtol: float, atol, fixed: dict):
         """The runs of :meth:`run_ode` with sensitivities (no events) prepared once

@@ -15,6 +15,8 @@ from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
 from .runner import TaylorModule, message, run_stats
 
+_empty = np.empty
+
 
 class TaylorResultMaker(ResultMaker):
     """The members of a Taylor run's LazyResult (``raw`` = (stats struct, outputs, parameters))."""
@@ -24,40 +26,42 @@ class TaylorResultMaker(ResultMaker):
 
 
 class PreparedTaylorRun:
-    """Runs of ``module`` (no events) with the options given, from the caller's checked arrays:
+    """Runs of ``module`` with the options given, from the caller's checked arrays:
     ``run(t, t_ptr, y_ptr, p, p_ptr)`` with ``t`` contiguous increasing float64 times, ``y_ptr``
     the cdata of ny finite initial values, ``p`` the parameters, and ``*_ptr`` the cdata of each
     (``p_ptr`` NULL without parameters).
     ``fixed``: the members every result shares (backend, method, n_coordinates, model_name,
-    drawing)."""
+    drawing). A module with events records them as its own runs do (at most ``max_events``, an
+    events struct of its pool per run)."""
 
     def __init__(self, module: TaylorModule, *, rtol: float, atol, max_step: float, max_steps: int,
-                 order: int | None, max_wall: float, fixed: dict):
-        if module.events:
-            raise ValueError("a prepared Taylor run has no events")
+                 order: int | None, max_wall: float, fixed: dict, max_events: int = 10_000):
         self.module = module
+        self.events, self.max_events = bool(module.events), max_events
         self.opt, self._atol = module.options_struct(rtol=rtol, atol=atol, max_step=max_step, max_steps=max_steps,
                                                      order=order, max_wall=max_wall)
         self.fixed = dict(fixed, backend="native", method="taylor")
         self.maker = TaylorResultMaker(module.state_names, module.output_names, module.param_names)
         self.ffi = ffi = module.ffi
         self.null = ffi.NULL
+        self.fb, self.new = ffi.from_buffer, ffi.new  # bound once (a call uses each)
         self.solve = module._solve
         self.ny, self.nout, self.stats_type = module.ny, module.nout, module.types[1]
         empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
         self.no_out = (empty, ffi.from_buffer("double[]", empty))
 
     def __call__(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
-        ffi = self.ffi
-        fb = ffi.from_buffer
+        if self.events:
+            return self._with_events(t, t_ptr, y_ptr, p, p_ptr)
+        fb = self.fb
         nt = t.shape[0]
-        yout = np.empty((nt, self.ny))
+        yout = _empty((nt, self.ny))
         if self.nout:
-            out = np.empty((nt, self.nout))
+            out = _empty((nt, self.nout))
             out_ptr = fb("double[]", out)
         else:
             out, out_ptr = self.no_out
-        st = ffi.new(self.stats_type)
+        st = self.new(self.stats_type)
         flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, self.null)
         if flag == 0 and st.nt_done >= nt:
             return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, 0, "success")
@@ -67,5 +71,31 @@ class PreparedTaylorRun:
         if done < nt:
             t, yout, out = t[:done].copy(), yout[:done], out[:done]
         text = "success" if flag == 0 else message(flag, st.model_error,
-                                                   ffi.string(st.message).decode(errors="replace"))
+                                                   self.ffi.string(st.message).decode(errors="replace"))
         return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
+
+    def _with_events(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
+        """A run with the module's events: the events struct from its pool, the records into the
+        result and the struct back (:meth:`.runner.TaylorModule.simulate`'s way)."""
+        module, fb = self.module, self.fb
+        nt = t.shape[0]
+        yout = _empty((nt, self.ny))
+        if self.nout:
+            out = _empty((nt, self.nout))
+            out_ptr = fb("double[]", out)
+        else:
+            out, out_ptr = self.no_out
+        st = self.new(self.stats_type)
+        ev, keep = module._events_struct(self.max_events)
+        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, ev)
+        if flag == CANCELLED:
+            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
+        done = st.nt_done
+        if done < nt:
+            t, yout, out = t[:done].copy(), yout[:done], out[:done]
+        text = "success" if flag == 0 else message(flag, st.model_error,
+                                                   self.ffi.string(st.message).decode(errors="replace"))
+        res = lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
+        module._events_into(res, ev, keep, p)
+        module._ev_pool.append((ev, keep))  # read out: the next run may fill it
+        return res

@@ -10,7 +10,8 @@ the standalone integrator ``<prefix>_taylor.c`` (the same driver text with the s
 what C bundles ship) into a cffi module of its own.
 
 The per-call Python is kept lean (the options and statistics structs are allocated once per
-module, arrays are handed to C without copies, nothing is validated twice): callers such as
+module, an events struct is reused from run to run, arrays are handed to C without copies,
+nothing is validated twice): callers such as
 ``simulate(method="taylor")`` check the user's input once.
 """
 
@@ -183,7 +184,9 @@ class TaylorModule:
             self._opt.poll_every = POLL_EVERY
         self._buf = ffi.from_buffer
         self._empty = np.zeros(1)
+        self._no_out = (self._empty, ffi.from_buffer("double[]", self._empty))
         self._ptrs = [None, None, None]
+        self._ev_pool: list = []  # events structs of finished runs (_events_struct)
         self._opt_key = None
         self._atol = None
         self.p_max = P_MAX
@@ -231,25 +234,31 @@ class TaylorModule:
         Taylor polynomial below w_i = atol_i + rtol |y_i| (Jorba & Zou); the order is
         ceil(-ln(rtol)/2 + 3) unless ``order`` is given. ``atol``: a scalar or ny values.
         """
-        ffi, buf = self.ffi, self._buf
+        ffi = self.ffi
         nt = t_out.shape[0]
         yout = np.empty((nt, self.ny))
-        out = np.empty((nt, self.nout)) if self.nout else self._empty
+        if self.nout:
+            out = np.empty((nt, self.nout))
+            out_ptr = self._buf("double[]", out)
+        else:  # the driver writes no outputs: the same placeholder and its cdata every call
+            out, out_ptr = self._no_out
         opt, st = self._opt, self._st
-        key = (rtol, atol, max_step, max_steps, order)
-        if key != self._opt_key:
-            self._set_options(*key)
-        if max_wall or self.table is not None:
-            if self.table is None:
+        key = (rtol, atol, max_step, max_steps, order, max_wall)
+        # new values written into the struct (kept while they come back; an array atol each time:
+        # arrays are not compared)
+        if not (isinstance(atol, float) and key == self._opt_key):
+            if max_wall and self.table is None:
                 raise LagcodegenError("max_wall needs the Taylor runtime's driver (build_taylor(runtime=True))")
-            opt.max_wall = max_wall
+            self._set_options(rtol, atol, max_step, max_steps, order)
+            if self.table is not None:
+                opt.max_wall = max_wall
             self._opt_key = key if isinstance(atol, float) else None
         ev = ffi.NULL
         keep = None
         if self.events:
             ev, keep = self._events_struct(max_events)
-        flag = self._solve(self._ptr(p, 0), self._ptr(y0, 1), nt, self._ptr(t_out, 2), buf("double[]", yout),
-                           buf("double[]", out), opt, st, ev)
+        flag = self._solve(self._ptr(p, 0), self._ptr(y0, 1), nt, self._ptr(t_out, 2), self._buf("double[]", yout),
+                           out_ptr, opt, st, ev)
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
         stats = run_stats(st)
@@ -257,13 +266,15 @@ class TaylorModule:
         t = t_out
         if done < nt:
             t, yout, out = t_out[:done].copy(), yout[:done], out[:done]
-        res = Result(t=t, y=yout, state_names=self.state_names,
-                     outputs={name: out[:, i] for i, name in enumerate(self.output_names)}, stats=stats,
-                     status=flag, message="success" if flag == 0 else message(
-                         flag, st.model_error, ffi.string(st.message).decode(errors="replace")),
-                     backend="native", method="taylor", n_coordinates=self.n)
+        text = "success" if flag == 0 else message(flag, st.model_error,
+                                                   ffi.string(st.message).decode(errors="replace"))
+        outputs = {name: out[:, i] for i, name in enumerate(self.output_names)} if self.nout else {}
+        # the fields positionally (t, y, state_names, outputs, stats, status, message, backend,
+        # method, parameters, n_coordinates): the same Result as by keyword, at half the cost
+        res = Result(t, yout, self.state_names, outputs, stats, flag, text, "native", "taylor", {}, self.n)
         if keep is not None:
             self._events_into(res, ev, keep, p)
+            self._ev_pool.append((ev, keep))  # read out: the next run may fill it
         return res
 
     def _set_options(self, rtol, atol, max_step, max_steps, order) -> None:
@@ -304,18 +315,26 @@ class TaylorModule:
         return opt, atol_vec
 
     def _events_struct(self, max_events: int):
-        return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        """An events struct for ``max_events`` events and its arrays: a finished run's from the pool
+        (the driver clears its count; the records copy what they keep), else a new one."""
+        try:
+            ev, keep = self._ev_pool.pop()  # atomic: concurrent runs never share one
+        except IndexError:
+            return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        if keep[0].shape[0] != max_events:
+            return events_struct(self.ffi, self.types[2], max_events, self.ny)
+        return ev, keep
 
     def _events_into(self, res: Result, ev, keep, p) -> None:
-        count = min(int(ev.n_events), keep[0].shape[0])
-        recs = []
-        for k in range(count):
-            i = int(keep[2][k])
-            e = self.events[i]
-            recs.append(EventRecord(e.name, i, float(keep[0][k]), keep[1][k].copy(), int(keep[3][k]), e.terminal,
-                                    self.state_names))
+        n_events = int(ev.n_events)
+        count = min(n_events, keep[0].shape[0])
+        events, names, rows = self.events, self.state_names, keep[1]
+        # the arrays read as Python numbers at once (the same values as element by element)
+        recs = [EventRecord(events[i].name, i, tk, rows[k].copy(), dk, events[i].terminal, names)
+                for k, (i, tk, dk) in enumerate(zip(keep[2][:count].tolist(), keep[0][:count].tolist(),
+                                                    keep[3][:count].tolist()))]
         res.events = recs
-        res.stats["events"] = int(ev.n_events)
+        res.stats["events"] = n_events
         if ev.terminated and recs and recs[-1].t > res.t[-1]:
             rec = recs[-1]
             res.t = np.append(res.t, rec.t)
