@@ -144,6 +144,16 @@ class FastRun:
         return res
 
 
+def _same_types(run: "FastRun | None", rtol, atol, options: dict) -> "FastRun | None":
+    """``run`` if this call's tolerances and options have the types it was prepared with, else None."""
+    if run is None or type(rtol) is not run.rtol_type or type(atol) is not run.atol_type:
+        return None
+    for k, kind in run.checks:
+        if type(options[k]) is not kind:
+            return None
+    return run
+
+
 class FastRuns:
     """The prepared runs of one compiled scene, by the option values of the ``simulate()`` calls
     that made them (at most :attr:`LIMIT`; then the cache starts afresh)."""
@@ -162,12 +172,7 @@ class FastRuns:
             if key is None:
                 return None
             run = self._runs.get(key)
-        if run is None or type(rtol) is not run.rtol_type or type(atol) is not run.atol_type:
-            return None
-        for k, kind in run.checks:
-            if type(options[k]) is not kind:
-                return None
-        return run
+        return _same_types(run, rtol, atol, options)
 
     def get_events(self, solver, rtol, atol, options: dict, events) -> FastRun | None:
         """:meth:`get` of a call with ``events`` (compared by value, as the families key their
@@ -176,12 +181,7 @@ class FastRuns:
             run = self._runs.get((solver, rtol, atol, *options.items(), ("events", tuple(events))))
         except TypeError:
             return None
-        if run is None or type(rtol) is not run.rtol_type or type(atol) is not run.atol_type:
-            return None
-        for k, kind in run.checks:
-            if type(options[k]) is not kind:
-                return None
-        return run
+        return _same_types(run, rtol, atol, options)
 
     def learn(self, cm, solver, rtol, atol, options: dict, events=()) -> None:
         """After a call on the full path that did not raise: prepare its run for the next calls

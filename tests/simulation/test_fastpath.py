@@ -188,6 +188,24 @@ def test_a_lazy_result_pickles_and_copies_as_a_plain_result(double_pendulum):
         res.no_such_member  # noqa: B018
 
 
+def from_two_threads(call, count: int) -> list:
+    """call(k) for k = 0..count-1, 20 times each, from two threads at once (k alternating between
+    them): the last result of each."""
+    got = [None] * count
+
+    def work(ks):
+        for k in ks:
+            for _ in range(20):
+                got[k] = call(k)
+
+    threads = [threading.Thread(target=work, args=(range(i, count, 2),)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    return got
+
+
 @pytest.mark.parametrize("method", ["taylor", "adams"])
 def test_fast_runs_from_several_threads(double_pendulum, method):
     """Each fast run has its own statistics and arrays: runs from two threads at once give the
@@ -197,18 +215,7 @@ def test_fast_runs_from_several_threads(double_pendulum, method):
     starts = [[0.1 * k, -0.05 * k] for k in range(1, 9)]
     cm.simulate(t, q0=starts[0], method=method)
     serial = [cm._simulate(t, q0=q, method=method) for q in starts]
-    got = [None] * len(starts)
-
-    def work(ks):
-        for k in ks:
-            for _ in range(20):
-                got[k] = cm.simulate(t, q0=starts[k], method=method)
-
-    threads = [threading.Thread(target=work, args=(range(i, len(starts), 2),)) for i in range(2)]
-    for th in threads:
-        th.start()
-    for th in threads:
-        th.join()
+    got = from_two_threads(lambda k: cm.simulate(t, q0=starts[k], method=method), len(starts))
     for a, b in zip(got, serial):
         assert isinstance(a, LazyResult)
         assert_same(a, b)
@@ -298,18 +305,7 @@ def test_fast_event_runs_from_several_threads(double_pendulum):
     cm.simulate(t, q0=starts[0], method="taylor", events=events)
     serial = [cm._simulate(t, q0=q, method="taylor", events=events) for q in starts]
     assert all(r.events for r in serial)
-    got = [None] * len(starts)
-
-    def work(ks):
-        for k in ks:
-            for _ in range(20):
-                got[k] = cm.simulate(t, q0=starts[k], method="taylor", events=events)
-
-    threads = [threading.Thread(target=work, args=(range(i, len(starts), 2),)) for i in range(2)]
-    for th in threads:
-        th.start()
-    for th in threads:
-        th.join()
+    got = from_two_threads(lambda k: cm.simulate(t, q0=starts[k], method="taylor", events=events), len(starts))
     for a, b in zip(got, serial):
         assert isinstance(a, LazyResult)
         assert_same_with_events(a, b)

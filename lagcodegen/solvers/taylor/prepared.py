@@ -50,52 +50,46 @@ class PreparedTaylorRun:
         empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
         self.no_out = (empty, ffi.from_buffer("double[]", empty))
 
-    def __call__(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
-        if self.events:
-            return self._with_events(t, t_ptr, y_ptr, p, p_ptr)
-        fb = self.fb
-        nt = t.shape[0]
+    def _arrays(self, nt: int):
+        """The run's rows, outputs (and their cdata) and statistics struct."""
         yout = _empty((nt, self.ny))
         if self.nout:
             out = _empty((nt, self.nout))
-            out_ptr = fb("double[]", out)
+            out_ptr = self.fb("double[]", out)
         else:
             out, out_ptr = self.no_out
-        st = self.new(self.stats_type)
-        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, self.null)
-        if flag == 0 and st.nt_done >= nt:
-            return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, 0, "success")
+        return yout, out, out_ptr, self.new(self.stats_type)
+
+    def _finish(self, flag: int, st, t: np.ndarray, yout: np.ndarray, out: np.ndarray, p: np.ndarray):
+        """The result of a run that stopped early or failed (Ctrl-C raised here)."""
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
         done = st.nt_done
-        if done < nt:
+        if done < t.shape[0]:
             t, yout, out = t[:done].copy(), yout[:done], out[:done]
         text = "success" if flag == 0 else message(flag, st.model_error,
                                                    self.ffi.string(st.message).decode(errors="replace"))
         return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
 
+    def __call__(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
+        if self.events:
+            return self._with_events(t, t_ptr, y_ptr, p, p_ptr)
+        nt = t.shape[0]
+        yout, out, out_ptr, st = self._arrays(nt)
+        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, self.fb("double[]", yout), out_ptr, self.opt, st, self.null)
+        if flag == 0 and st.nt_done >= nt:
+            return lazy_result(self.maker, (st, out, p), self.fixed, t, yout, 0, "success")
+        return self._finish(flag, st, t, yout, out, p)
+
     def _with_events(self, t: np.ndarray, t_ptr, y_ptr, p: np.ndarray, p_ptr):
         """A run with the module's events: the events struct from its pool, the records into the
         result and the struct back (:meth:`.runner.TaylorModule.simulate`'s way)."""
-        module, fb = self.module, self.fb
+        module = self.module
         nt = t.shape[0]
-        yout = _empty((nt, self.ny))
-        if self.nout:
-            out = _empty((nt, self.nout))
-            out_ptr = fb("double[]", out)
-        else:
-            out, out_ptr = self.no_out
-        st = self.new(self.stats_type)
+        yout, out, out_ptr, st = self._arrays(nt)
         ev, keep = module._events_struct(self.max_events)
-        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, fb("double[]", yout), out_ptr, self.opt, st, ev)
-        if flag == CANCELLED:
-            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
-        done = st.nt_done
-        if done < nt:
-            t, yout, out = t[:done].copy(), yout[:done], out[:done]
-        text = "success" if flag == 0 else message(flag, st.model_error,
-                                                   self.ffi.string(st.message).decode(errors="replace"))
-        res = lazy_result(self.maker, (st, out, p), self.fixed, t, yout, flag, text)
+        flag = self.solve(p_ptr, y_ptr, nt, t_ptr, self.fb("double[]", yout), out_ptr, self.opt, st, ev)
+        res = self._finish(flag, st, t, yout, out, p)
         module._events_into(res, ev, keep, p)
         module._ev_pool.append((ev, keep))  # read out: the next run may fill it
         return res
