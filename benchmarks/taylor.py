@@ -24,6 +24,12 @@ tolerance, so load drift hits all alike; medians over the rounds):
                (issue 23's target there: at most 0.5x heyoka at n = 1);
 * ``adams``    lagcodegen ``simulate(method="adams")`` (full run only).
 
+Rounds: by default each round times one call of every contender at every tolerance in turn, so a
+call runs after other contenders' calls, its caches and branch predictors cold (heyoka's compact JIT
+code and short Python path suffer less from this than lagcodegen's longer path through Python and two
+shared libraries); ``--repeat R`` times each by the median of R back-to-back calls instead (warm, as in
+a loop of calls). Both are reported in the issue's notes.
+
 Clock: ``--clock cpu`` (default) times each run by the CPU time of the calling thread
 (``time.thread_time``), which a loaded machine's preemption does not inflate; ``--clock wall``
 by ``time.perf_counter``. The output names the clock.
@@ -173,7 +179,7 @@ class Heyokas:
 
 
 def run_case(n: int, q0: float, tols, rounds: int, heyokas: Heyokas, sim, with_adams: bool,
-             out: Path | None, clock=time.thread_time) -> tuple[list, list]:
+             out: Path | None, clock=time.thread_time, repeat: int = 1) -> tuple[list, list]:
     H.progress("taylor", f"n = {n}, q0 = {q0}: references")
     ref = reference(n, q0, 1e-19)
     ref_unc = float(np.max(np.abs(ref - reference(n, q0, 1e-17))))
@@ -223,9 +229,12 @@ def run_case(n: int, q0: float, tols, rounds: int, heyokas: Heyokas, sim, with_a
         for tol in tols:
             for name in contenders:
                 run = runs[(name, tol)]
-                start = clock()
-                results[(name, tol)] = run()
-                times[(name, tol)].append(clock() - start)
+                batch = []
+                for _ in range(repeat):  # repeat > 1: the median of back-to-back calls (warm caches)
+                    start = clock()
+                    results[(name, tol)] = run()
+                    batch.append(clock() - start)
+                times[(name, tol)].append(float(np.median(batch)))
     rows = []
     for name in contenders:
         for tol in tols:
@@ -299,6 +308,10 @@ def main(argv=None) -> int:
                     "integrators reach an error of 1e-4 only from tolerances looser than 1e-4)")
     ap.add_argument("--rounds", type=int, default=None)
     ap.add_argument("--no-adams", action="store_true", help="leave CVODE Adams out of the full run")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="time each contender by the median of this many back-to-back calls within a round (default "
+                    "1: one call between other contenders' calls, caches and branch predictors cold; more: warm, as "
+                    "in a loop of calls)")
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
                     help="time runs by the calling thread's CPU time (default) or by wall time")
     args = ap.parse_args(argv)
@@ -323,7 +336,8 @@ def main(argv=None) -> int:
             heyokas = Heyokas(n, tols)
             ours = our_operations(sim)
             for q0 in q0s:
-                rows, summary = run_case(n, q0, tols, rounds, heyokas, sim, with_adams, args.out, clock)
+                rows, summary = run_case(n, q0, tols, rounds, heyokas, sim, with_adams, args.out, clock,
+                                         max(1, args.repeat))
                 all_rows += rows
                 summaries += summary
         builds.append(dict(n=n, gcc_cvode=build_cvode, gcc_taylor=build_taylor, jit_lagr=heyokas.jit["hy-lagr"],
@@ -334,7 +348,9 @@ def main(argv=None) -> int:
     lines = H.machine_lines("benchmarks/taylor.py: lagcodegen's Taylor integrator vs heyoka (both forms)",
                             (load0, load1))
     clock_text = "CPU time of the calling thread" if args.clock == "cpu" else "wall time"
-    lines += [f"clock:    {clock_text}; medians over {rounds} interleaved rounds",
+    warm = f", each round's time the median of {args.repeat} back-to-back calls" if args.repeat > 1 else \
+        ", one call per contender and tolerance per round"
+    lines += [f"clock:    {clock_text}; medians over {rounds} interleaved rounds{warm}",
               "", "runs (median time over interleaved rounds; error: max |y(10) - ref(10)| over the state)",
               H.format_table([("n", "n", "{}"), ("q0", "q0", "{}"), ("contender", "contender", "{}"),
                               ("tol", "tol", "{:.0e}"), ("error", "error", "{:.2e}"), ("seconds", "time [s]", "{:.3e}"),
