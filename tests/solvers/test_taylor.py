@@ -541,6 +541,32 @@ def test_runtime_and_per_model_builds_agree_bit_for_bit():
         assert np.array_equal(a.jet(0.3, y0, p, 9), b.jet(0.3, y0, p, 9))
 
 
+def test_step_cap_macro_moves_the_steps_and_keeps_the_order():
+    """LCG_TAYLOR_CAP (the step's cap h <= rho e^-c, templates/taylor/_driver.j2) through
+    build_taylor's cflags: compiled as 1.7 the standalone driver is the default one bit for bit; a
+    looser cap (1.0) takes fewer, longer steps of the same order, a tighter one (2.4) more, and each
+    still follows the closed-form pendulum (the loose one to a looser error, as documented)."""
+    from lagcodegen.build import DEFAULT_CFLAGS
+
+    sc = Scene(derive(lcg.systems.pendulum()), jacobian=False)
+    p = np.array(sc.default_parameters(), dtype=float)
+    caps = {c: build_taylor(sc, runtime=False, cflags=(*DEFAULT_CFLAGS, f"-DLCG_TAYLOR_CAP={c}"))
+            for c in ("1.0", "1.7", "2.4")}
+    default = build_taylor(sc, runtime=False)
+    t = np.linspace(0.0, 10.0, 11)
+    theta, omega = exact_pendulum(t, 1.0, math.sqrt(9.81))
+    y0 = np.array([1.0, 0.0])
+    runs = {c: m.simulate(t, y0, p, rtol=1e-4, atol=1e-4) for c, m in caps.items()}
+    ref = default.simulate(t, y0, p, rtol=1e-4, atol=1e-4)
+    assert np.array_equal(runs["1.7"].y, ref.y) and runs["1.7"].stats == ref.stats
+    steps = [runs[c].stats["steps"] for c in ("1.0", "1.7", "2.4")]
+    assert steps[0] < 0.8 * steps[1] and steps[2] > 1.2 * steps[1], steps
+    assert len({runs[c].stats["order"] for c in runs}) == 1
+    err = {c: max(np.abs(r.y[:, 0] - theta).max(), np.abs(r.y[:, 1] - omega).max()) for c, r in runs.items()}
+    # tol 1e-4: below it at 1.7, within a few times it at 1.0 (err/tol up to 3.3 on the n-link pendulum)
+    assert err["2.4"] < err["1.7"] < 1e-4 and err["1.7"] < err["1.0"] < 5e-4, err
+
+
 def test_runtime_refuses_a_table_of_another_version_and_keeps_max_wall():
     tm, p = module(lcg.systems.pendulum())
     ffi, lib = tm.ffi, tm.lib

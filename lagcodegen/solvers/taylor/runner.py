@@ -123,17 +123,21 @@ def jet_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, lis
 
 
 def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: bool = False,
-                 runtime: bool = True) -> "TaylorModule":
+                 runtime: bool = True, cflags: tuple[str, ...] = DEFAULT_CFLAGS) -> "TaylorModule":
     """Generate and compile the Taylor integrator of ``scene`` (cached like every build): with
-    ``runtime``, only its jet, for the Taylor runtime's driver; else the standalone integrator."""
+    ``runtime``, only its jet, for the Taylor runtime's driver (compiled once with the default
+    flags); else the standalone integrator, driver included. ``cflags``: the C compiler's flags
+    of what is compiled here (e.g. ``-DLCG_TAYLOR_CAP=1.3`` changes a standalone driver's step
+    cap, see templates/taylor/_driver.j2)."""
+    cflags = tuple(cflags)
     if not runtime:
         code, d, events = taylor_code(scene, events)
-        built = build(code, native=False, cc=cc, verbose=verbose)
+        built = build(code, native=False, cc=cc, cflags=cflags, verbose=verbose)
         return TaylorModule(code, built.module, d, events, built.path)
     code, d, events = jet_code(scene, events)
     rt = taylor_runtime(cc)
     library, path, _ = plain_library(f"the Taylor jet of model {code.model_name!r}", f"{code.prefix}_taylor",
-                                     code.files, cc, verbose=verbose)
+                                     code.files, cc, cflags, verbose=verbose)
     getter = getattr(library, f"{code.prefix}_taylor_table")
     getter.restype = ctypes.c_void_p
     table = rt.ffi.cast("const lcg_taylor_model *", getter())
