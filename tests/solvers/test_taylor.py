@@ -13,6 +13,7 @@ import sympy as sp
 from scipy.special import ellipj, ellipk
 
 import lagcodegen as lcg
+from lagcodegen.build import DEFAULT_CFLAGS
 from lagcodegen.derivation import derive
 from lagcodegen.errors import ModelError
 from lagcodegen.formulation.scene import Scene
@@ -545,10 +546,11 @@ def test_step_cap_macro_moves_the_steps_and_keeps_the_order():
     """LCG_TAYLOR_CAP (the step's cap h <= rho e^-c, templates/taylor/_driver.j2) through
     build_taylor's cflags: compiled as 1.7 the standalone driver is the default one bit for bit; a
     looser cap (1.0) takes fewer, longer steps of the same order, a tighter one (2.4) more, and each
-    still follows the closed-form pendulum (the loose one to a looser error, as documented)."""
-    from lagcodegen.build import DEFAULT_CFLAGS
-
+    still follows the closed-form pendulum (the loose one to a looser error, as documented). The
+    runtime's driver, compiled once, refuses the macro rather than ignore it."""
     sc = Scene(derive(lcg.systems.pendulum()), jacobian=False)
+    with pytest.raises(lcg.LagcodegenError, match="runtime=False"):
+        build_taylor(sc, cflags=(*DEFAULT_CFLAGS, "-DLCG_TAYLOR_CAP=1.3"))
     p = np.array(sc.default_parameters(), dtype=float)
     caps = {c: build_taylor(sc, runtime=False, cflags=(*DEFAULT_CFLAGS, f"-DLCG_TAYLOR_CAP={c}"))
             for c in ("1.0", "1.7", "2.4")}

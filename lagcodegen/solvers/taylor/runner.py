@@ -130,6 +130,10 @@ def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: boo
     of what is compiled here (e.g. ``-DLCG_TAYLOR_CAP=1.3`` changes a standalone driver's step
     cap, see templates/taylor/_driver.j2)."""
     cflags = tuple(cflags)
+    if runtime and any(flag.startswith("-DLCG_TAYLOR_CAP") for flag in cflags):
+        raise LagcodegenError("LCG_TAYLOR_CAP sets the step cap of a driver, and the Taylor runtime's driver is "
+                              "compiled once with the default flags: build the standalone integrator "
+                              "(build_taylor(..., runtime=False)) to compile it with another cap")
     if not runtime:
         code, d, events = taylor_code(scene, events)
         built = build(code, native=False, cc=cc, cflags=cflags, verbose=verbose)
