@@ -21,8 +21,8 @@ order, so the same cost model holds), compared with the cap 1.7.
 
 Usage::
 
-    python benchmarks/taylor_order.py [--ns 1,2,3,5] [--offsets -1,0,1,2,3,4]
-    python benchmarks/taylor_order.py --caps 1.0,1.3,1.7,2.0 [--ns 1,2,3]
+    python benchmarks/taylor_order.py [--quick] [--out DIR] [--ns 1,2,3,5] [--offsets -1,0,1,2,3,4]
+    python benchmarks/taylor_order.py --caps 1.0,1.3,2.0 [--ns 1,2,3]
 """
 
 from __future__ import annotations
@@ -108,20 +108,13 @@ def compare(n: int, q0: float, label: str, variants: dict, base, runs: dict, cos
     return out
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--ns", default=None, help="comma-separated n (default 1,2,3,5; with --caps 1,2,3)")
-    ap.add_argument("--offsets", default="-1,0,1,2,3,4")
-    ap.add_argument("--caps", default=None, help="comma-separated step caps c (h <= rho e^-c) to compare with 1.7 "
-                    "instead of the order offsets")
-    ap.add_argument("--seconds", type=float, default=0.3, help="timing budget per order for the step costs")
-    args = ap.parse_args(argv)
-    caps = sorted({1.7, *(float(x) for x in args.caps.split(","))}) if args.caps else None
-    ns = [int(x) for x in (args.ns or ("1,2,3" if caps else "1,2,3,5")).split(",")]
-    offsets = [int(x) for x in args.offsets.split(",")]
-    label, base, fmt = ("cap", 1.7, "{:.2f}") if caps else ("offset", 0, "{:+d}")
-    tols = [10.0 ** (-k / 4) for k in range(4, 57)]
-    load0 = H.load_average()
+def study(ns, *, caps=None, offsets=(0, 2), tols=None, seconds: float = 0.3, rounds: int = 4) -> tuple[str, list, list]:
+    """(label, rows per case and variant, rows over every case) of the order-offset study, or of
+    the cap study when ``caps`` are given (1.7, the driver's, always among them): time at equal
+    achieved error over the base variant's (offset 0, cap 1.7), err/tol of each sweep."""
+    caps = sorted({1.7, *caps}) if caps else None
+    label, base = ("cap", 1.7) if caps else ("offset", 0)
+    tols = tols or [10.0 ** (-k / 4) for k in range(4, 57)]
     summary = []
     for n in ns:
         sim = lcg.compile_model(lcg.systems.n_link_pendulum(n, name=f"to{n}"))
@@ -135,20 +128,42 @@ def main(argv=None) -> int:
         else:
             variants = {off: (tm, lambda tol, off=off: min(30, classic_order(tol) + off)) for off in offsets}
         H.progress("taylor_order", f"n = {n}: step costs")
-        cost = step_costs(tm, p, n, list(range(4, 26)), args.seconds)
+        cost = step_costs(tm, p, n, list(range(4, 26)), seconds, rounds)
         for q0 in (0.1, 1.0):
             H.progress("taylor_order", f"n = {n}, q0 = {q0}: sweeps")
             ref = B.reference(n, q0, 1e-19)
             runs = {v: sweep(module, p, n, q0, ref, tols, order_of) for v, (module, order_of) in variants.items()}
             summary += compare(n, q0, label, variants, base, runs, cost)
-    load1 = H.load_average()
     overall = []
-    for v in variants:
+    for v in (caps or offsets):
         rs = [r for s in summary if s[label] == v for r in (s[f"{t:.0e}"] for t in TARGETS) if r]
         overall.append({label: v, "geo": math.exp(sum(map(math.log, rs)) / len(rs)) if rs else None,
                         "worst": max(rs) if rs else None, "cells": len(rs),
                         "med": float(np.median([s["err_tol_median"] for s in summary if s[label] == v])),
                         "max": max(s["err_tol_max"] for s in summary if s[label] == v)})
+    return label, summary, overall
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="n = 1, tolerances every half decade, short timings")
+    ap.add_argument("--out", type=Path, help="also write DIR/taylor_order.txt and .csv")
+    ap.add_argument("--ns", default=None, help="comma-separated n (default 1,2,3,5; with --caps 1,2,3)")
+    ap.add_argument("--offsets", default="-1,0,1,2,3,4")
+    ap.add_argument("--caps", default=None, help="comma-separated step caps c (h <= rho e^-c) to compare with 1.7 "
+                    "instead of the order offsets")
+    ap.add_argument("--seconds", type=float, default=0.3, help="timing budget per order for the step costs")
+    args = ap.parse_args(argv)
+    caps = [float(x) for x in args.caps.split(",")] if args.caps else None
+    ns = [int(x) for x in (args.ns or ("1" if args.quick else "1,2,3" if caps else "1,2,3,5")).split(",")]
+    offsets = [int(x) for x in args.offsets.split(",")]
+    tols = [10.0 ** (-k / 2) for k in range(2, 25)] if args.quick else None
+    load0 = H.load_average()
+    label, summary, overall = study(ns, caps=caps, offsets=offsets, tols=tols,
+                                    seconds=0.05 if args.quick else args.seconds, rounds=2 if args.quick else 4)
+    load1 = H.load_average()
+    fmt = "{:.2f}" if caps else "{:+d}"
+    base = 1.7 if caps else 0
     what = "the step cap c (h <= rho e^-c)" if caps else "the Taylor order rule"
     lines = H.machine_lines(f"benchmarks/taylor_order.py: {what} at equal achieved error", (load0, load1))
     lines += ["", f"modelled time (steps x cost per step of the order) at equal achieved error, / {label} "
@@ -161,7 +176,10 @@ def main(argv=None) -> int:
               H.format_table([(label, label, fmt), ("geo", "time ratio (geo. mean)", "{:.3f}"),
                               ("worst", "worst cell", "{:.2f}"), ("cells", "cells", "{}"),
                               ("med", "err/tol median", "{:.3f}"), ("max", "err/tol max", "{:.2f}")], overall)]
-    print("\n".join(lines))
+    text = "\n".join(lines)
+    print(text)
+    if args.out is not None:
+        H.write_report(args.out, "taylor_order", text, summary)
     return 0
 
 

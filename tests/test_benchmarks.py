@@ -119,6 +119,20 @@ def test_taylor_runtime_one_link():
     assert [r["kind"] for r in cold] == ["per-model", "runtime"] and all(finite(r["total"]) for r in cold)
 
 
+def test_taylor_order_cap_study_one_link():
+    """benchmarks/taylor_order.py --caps: the cap 1.7 is its own base (every ratio 1), a looser cap's
+    sweep ends further from the exact state than 1.7's (its longer steps), and its ratios are finite."""
+    import taylor_order as to
+    label, rows, overall = to.study([1], caps=[1.2], tols=[10.0 ** (-k / 2) for k in range(4, 21)], seconds=0.02,
+                                    rounds=1)
+    assert label == "cap" and {r["cap"] for r in rows} == {1.2, 1.7} and len(rows) == 4
+    base = [r for r in rows if r["cap"] == 1.7]
+    assert all(r[f"{t:.0e}"] in (None, 1.0) for r in base for t in to.TARGETS)
+    by = {o["cap"]: o for o in overall}
+    assert by[1.7]["geo"] == 1.0 and finite(by[1.2]["geo"]) and by[1.2]["cells"] >= 8
+    assert by[1.2]["med"] > by[1.7]["med"] and by[1.2]["max"] > by[1.7]["max"]
+
+
 def test_integrator_overhead_pendulum():
     """benchmarks/integrator_overhead.py: every call measured on both families, overheads computed."""
     import integrator_overhead as io
