@@ -45,6 +45,7 @@ from lagcodegen.solvers.taylor.run import scene_of, taylor_module  # noqa: E402
 from lagcodegen.solvers.taylor.runner import build_taylor  # noqa: E402
 
 TARGETS = [10.0 ** -k for k in range(4, 13)]
+DRIVER_CAP = 1.7  # the driver's LCG_TAYLOR_CAP (templates/taylor/_driver.j2): the cap study's base
 
 
 def classic_order(tol: float) -> int:
@@ -112,8 +113,8 @@ def study(ns, *, caps=None, offsets=(0, 2), tols=None, seconds: float = 0.3, rou
     """(label, rows per case and variant, rows over every case) of the order-offset study, or of
     the cap study when ``caps`` are given (1.7, the driver's, always among them): time at equal
     achieved error over the base variant's (offset 0, cap 1.7), err/tol of each sweep."""
-    caps = sorted({1.7, *caps}) if caps else None
-    label, base = ("cap", 1.7) if caps else ("offset", 0)
+    caps = sorted({DRIVER_CAP, *caps}) if caps else None
+    label, base = ("cap", DRIVER_CAP) if caps else ("offset", 0)
     tols = tols or [10.0 ** (-k / 4) for k in range(4, 57)]
     summary = []
     for n in ns:
@@ -162,9 +163,8 @@ def main(argv=None) -> int:
     label, summary, overall = study(ns, caps=caps, offsets=offsets, tols=tols,
                                     seconds=0.05 if args.quick else args.seconds, rounds=2 if args.quick else 4)
     load1 = H.load_average()
-    fmt = "{:.2f}" if caps else "{:+d}"
-    base = 1.7 if caps else 0
-    what = "the step cap c (h <= rho e^-c)" if caps else "the Taylor order rule"
+    fmt, base, what = (("{:.2f}", DRIVER_CAP, "the step cap c (h <= rho e^-c)") if label == "cap"
+                       else ("{:+d}", 0, "the Taylor order rule"))
     lines = H.machine_lines(f"benchmarks/taylor_order.py: {what} at equal achieved error", (load0, load1))
     lines += ["", f"modelled time (steps x cost per step of the order) at equal achieved error, / {label} "
               + fmt.format(base),
