@@ -116,13 +116,13 @@ def event_list(system, events: Iterable = ()) -> list[Event]:
 
 
 def records(events: list[Event], t, y, which, direction, state_names, ny: int) -> list[EventRecord]:
-    """EventRecords from the arrays a driver fills."""
-    out = []
-    for k in range(len(t)):
-        i = int(which[k])
-        ev = events[i]
-        out.append(EventRecord(ev.name, i, float(t[k]), np.array(y[k][:ny], dtype=float), int(direction[k]),
-                               ev.terminal, list(state_names)))
-    return out
+    """EventRecords from the arrays a driver fills (the first ny values of each row of ``y``; the
+    records of one call share one copy of ``state_names``)."""
+    rows = np.asarray(y, dtype=float)[:, :ny]  # (events, width) -> the state columns
+    names = list(state_names)
+    # the arrays read as Python numbers at once (the same values as element by element)
+    return [EventRecord(events[i].name, i, tk, rows[k].copy(), dk, events[i].terminal, names)
+            for k, (i, tk, dk) in enumerate(zip(np.asarray(which).tolist(), np.asarray(t, dtype=float).tolist(),
+                                                np.asarray(direction).tolist()))]
 
 

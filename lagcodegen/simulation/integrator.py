@@ -20,7 +20,7 @@ import numpy as np
 
 from ..codes import Flag
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
-from ..model.events import EventRecord
+from ..model.events import EventRecord, records
 from ..solvers import control
 from ..solvers.base import message
 
@@ -239,11 +239,8 @@ class Integrator:
 
     def _collect(self) -> EventRecord | None:
         count, terminated, (tt, yy, which, direction) = self._stepper.event_arrays()
-        events, ny, names = self._stepper.events, self._ny, self.state_names
         k = min(count, tt.shape[0])
-        # the arrays read as Python numbers at once (the same values as element by element)
-        recs = [EventRecord(events[i].name, i, te, yy[j, :ny].copy(), d, events[i].terminal, names)
-                for j, (i, te, d) in enumerate(zip(which[:k].tolist(), tt[:k].tolist(), direction[:k].tolist()))]
+        recs = records(self._stepper.events, tt[:k], yy[:k], which[:k], direction[:k], self.state_names, self._ny)
         self.events = recs
         self.stopped_by = recs[-1] if terminated and recs else None
         return self.stopped_by

@@ -47,8 +47,7 @@ class PreparedTaylorRun:
         self.fb, self.new = ffi.from_buffer, ffi.new  # bound once (a call uses each)
         self.solve = module._solve
         self.ny, self.nout, self.stats_type = module.ny, module.nout, module.types[1]
-        empty = np.zeros(1)  # the outputs array of a model without outputs (the driver writes none)
-        self.no_out = (empty, ffi.from_buffer("double[]", empty))
+        self.no_out = module._no_out  # the outputs placeholder of a model without outputs (never written)
 
     def _arrays(self, nt: int):
         """The run's rows, outputs (and their cdata) and statistics struct."""

@@ -33,7 +33,7 @@ from ...codegen.templates import environment
 from ...codes import model_error_flag
 from ...errors import LagcodegenError
 from ...formulation.scene import Scene
-from ...model.events import EventRecord
+from ...model.events import records
 from ...result import Result
 from ...util import c_vector
 from ..base import message as base_message
@@ -191,8 +191,8 @@ class TaylorModule:
             self._opt.poll = install(module)
             self._opt.poll_every = POLL_EVERY
         self._buf = ffi.from_buffer
-        self._empty = np.zeros(1)
-        self._no_out = (self._empty, ffi.from_buffer("double[]", self._empty))
+        empty = np.zeros(1)  # the outputs of a model without outputs: the driver writes none
+        self._no_out = (empty, ffi.from_buffer("double[]", empty))  # shared by its prepared runs too
         self._ptrs = [None, None, None]
         self._ev_pool: list = []  # events structs of finished runs (_events_struct)
         self._opt_key = None
@@ -336,11 +336,8 @@ class TaylorModule:
     def _events_into(self, res: Result, ev, keep, p) -> None:
         n_events = int(ev.n_events)
         count = min(n_events, keep[0].shape[0])
-        events, names, rows = self.events, self.state_names, keep[1]
-        # the arrays read as Python numbers at once (the same values as element by element)
-        recs = [EventRecord(events[i].name, i, tk, rows[k].copy(), dk, events[i].terminal, names)
-                for k, (i, tk, dk) in enumerate(zip(keep[2][:count].tolist(), keep[0][:count].tolist(),
-                                                    keep[3][:count].tolist()))]
+        recs = records(self.events, keep[0][:count], keep[1][:count], keep[2][:count], keep[3][:count],
+                       self.state_names, self.ny)
         res.events = recs
         res.stats["events"] = n_events
         if ev.terminated and recs and recs[-1].t > res.t[-1]:
