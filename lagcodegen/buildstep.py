@@ -28,13 +28,13 @@ import json
 import os
 import sys
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 from typing import Mapping
 
 from .errors import ModelError
 from .modelfile import ModelFile, load_model_path
 from .modelfile.formats import as_model_file
-from .util import atomic_write
+from .util import atomic_write, excerpt, read_regular_file
 from .version import __version__
 
 #: Version of the manifest's layout.
@@ -170,12 +170,59 @@ def manifest_text(inputs: dict, options: Mapping, generator: dict, files: Mappin
     return json.dumps(record, indent=2, sort_keys=True) + "\n"
 
 
+class ManifestError(ModelError):
+    """A manifest lists a file name that is not a plain name inside its folder."""
+
+
+def check_manifest_name(name, manifest: Path) -> str:
+    """``name`` if it names a file inside the manifest's folder: a relative name of components of
+    letters, digits and ``_ . + -`` separated by ``/`` (what lagcodegen writes); ManifestError for
+    an absolute name, a drive, ``..``, ``.``, an empty component or any other character (a
+    backslash, a control character, CMake's list separator ``;``): a tampered manifest must not
+    make ``--list-outputs``, ``--check`` or a build tool's clean target reach outside the folder."""
+    problem = None
+    if not isinstance(name, str) or not name:
+        problem = "is not a file name"
+    elif name.startswith("/") or PureWindowsPath(name).drive or PureWindowsPath(name).root:
+        problem = "is an absolute path"
+    elif any(part in ("", ".", "..") for part in name.split("/")):
+        problem = "is not a plain name inside the folder ('..', '.' or an empty component)"
+    elif not all(ch.isalnum() or ch in "_.+-/" for ch in name):
+        problem = "has a character other than letters, digits and _ . + - / (a list separator, a space, a quote)"
+    if problem:
+        raise ManifestError(f"{manifest}: the listed file {excerpt(name)} {problem}: the manifest was not written "
+                            "by lagcodegen; delete it to regenerate the folder")
+    return name
+
+
 def read_manifest(directory: Path, prefix: str) -> dict | None:
-    try:
-        record = json.loads((Path(directory) / manifest_name(prefix)).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    """The manifest of ``directory``, None if there is none (or it is not JSON of this format);
+    ManifestError if it lists a file outside the folder (:func:`check_manifest_name`)."""
+    path = Path(directory) / manifest_name(prefix)
+    data = read_regular_file(path)
+    if data is None:
         return None
-    return record if isinstance(record, dict) and record.get("format") == MANIFEST_FORMAT else None
+    try:
+        record = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    if not (isinstance(record, dict) and record.get("format") == MANIFEST_FORMAT):
+        return None
+    files = record.get("files")
+    if isinstance(files, dict):
+        root = os.path.realpath(directory)
+        for name, digest in files.items():
+            check_manifest_name(name, path)
+            target = Path(directory) / name
+            inside = os.path.commonpath([root, os.path.realpath(target.parent)]) == root
+            if not inside or (os.path.lexists(target) and not target.is_file()) or target.is_symlink():
+                raise ManifestError(f"{path}: the listed file {excerpt(name)} is not a regular file inside "
+                                    f"{directory} (a link, a FIFO, a folder): the manifest was not written by "
+                                    "lagcodegen; delete it to regenerate the folder")
+            if not isinstance(digest, str):
+                raise ManifestError(f"{path}: the digest of {excerpt(name)} is not a string: the manifest was not "
+                                    "written by lagcodegen; delete it to regenerate the folder")
+    return record
 
 
 def manifest_matches(record: dict | None, inputs: dict, options: Mapping, generator: dict) -> bool:
@@ -195,14 +242,12 @@ def manifest_outdated(directory: Path, prefix: str, text: str) -> bool:
 
 
 def stale_by_manifest(directory: Path, record: dict) -> list[str]:
-    """Files the manifest lists that are missing or differ from their recorded digest."""
+    """Files the manifest lists that are missing, differ from their recorded digest, or are not
+    regular files (a symbolic link, a FIFO: never followed or read)."""
     stale = []
     for name, digest in sorted(record["files"].items()):
-        try:
-            same = _digest((Path(directory) / name).read_bytes()) == digest
-        except OSError:
-            same = False
-        if not same:
+        data = read_regular_file(Path(directory) / name)  # a link, FIFO or folder is stale, never read
+        if data is None or _digest(data) != digest:
             stale.append(name)
     return stale
 

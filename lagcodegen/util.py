@@ -11,6 +11,7 @@ import math
 import operator
 import os
 import signal
+import stat
 import tempfile
 import threading
 from pathlib import Path
@@ -67,6 +68,25 @@ def check_baumgarte(value, what: str = "baumgarte"):
     except (TypeError, ValueError):
         raise ModelError(f"{what} must be 'auto' or (alpha, beta), got {excerpt(value)}") from None
     return check_finite(alpha, f"{what} alpha"), check_finite(beta, f"{what} beta")
+
+
+def read_regular_file(path: str | os.PathLike) -> bytes | None:
+    """The bytes of ``path`` if it is a regular file (a symbolic link is not followed; a FIFO,
+    device or folder is never opened for reading, so nothing blocks), else None."""
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        if os.path.islink(path):
+            return None
+        fd = os.open(path, flags)
+    except OSError:
+        return None
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                return None
+            return fh.read()
+        except OSError:
+            return None
 
 
 def atomic_write(path: Path, text: str) -> Path:

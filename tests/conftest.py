@@ -10,6 +10,28 @@ import pytest
 os.environ.setdefault("LAGCODEGEN_CACHE", tempfile.mkdtemp(prefix="lagcodegen-test-cache-"))
 
 
+#: With LAGCODEGEN_SKIPPED=FILE each skipped test's id is appended to FILE; with
+#: LAGCODEGEN_NO_SKIP=1 a skip is a failure. .ci/run uses both: the README's command runs with the
+#: [test] extra alone (the tests of peers from [bench] skip), then the skipped tests run again with
+#: every extra installed and must pass, none skipping.
+SKIPPED_FILE = os.environ.get("LAGCODEGEN_SKIPPED")
+NO_SKIP = os.environ.get("LAGCODEGEN_NO_SKIP") == "1"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if not report.skipped or hasattr(report, "wasxfail"):
+        return
+    if NO_SKIP:
+        report.outcome = "failed"
+        report.longrepr = f"skipped with LAGCODEGEN_NO_SKIP=1: {report.longrepr}"
+    elif SKIPPED_FILE:
+        with open(SKIPPED_FILE, "a", encoding="utf-8") as fh:
+            fh.write(item.nodeid + "\n")
+
+
 @pytest.fixture(scope="session")
 def cc():
     compiler = os.environ.get("CC", "cc")

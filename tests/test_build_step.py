@@ -140,3 +140,56 @@ def test_toml_depfile_relative_paths(tmp_path, run, monkeypatch):
     assert str(EXAMPLES / "pendulum.toml") in (tmp_path / "p.d").read_text()
     assert (tmp_path / "p.stamp").read_text().splitlines() == [
         os.path.join("gen", n) for n in ("pendulum.c", "pendulum.h", "pendulum.lagcodegen.json")]
+
+
+def _tampered(out: Path, name: str, entry: str) -> None:
+    """Add ``entry`` to the manifest's list of files, as a hostile repository could ship it."""
+    path = out / f"{name}.lagcodegen.json"
+    record = json.loads(path.read_text())
+    record["files"][entry] = "0" * 64
+    path.write_text(json.dumps(record))
+
+
+@pytest.mark.parametrize("entry", ["../../outside.txt", "/etc/hostname", "sub/../../outside.txt",
+                                   "pend.c;/tmp/victim", "a\\..\\b", "C:/x.c", "./pendulum.c", "x\ny"])
+def test_tampered_manifest_names_are_refused(tmp_path, run, entry):
+    """A manifest listing a name outside its folder is refused by generate, --check and
+    --list-outputs alike, naming the manifest and the entry; nothing outside is listed or read."""
+    model, out = EXAMPLES / "pendulum.toml", tmp_path / "gen"
+    assert run("generate", model, "-o", out, "-q").returncode == 0
+    _tampered(out, "pendulum", entry)
+    for extra in ([], ["--check"], ["--list-outputs"]):
+        proc = run("generate", model, "-o", out, "-q", *extra)
+        assert proc.returncode == 1, (extra, proc.stdout, proc.stderr)
+        assert "pendulum.lagcodegen.json" in proc.stderr and "delete it" in proc.stderr
+        assert proc.stdout == "" and "Traceback" not in proc.stderr
+
+
+def test_manifest_entries_that_are_not_regular_files(tmp_path, run):
+    """A FIFO in place of a generated file is never opened (--check would block forever): the
+    manifest is refused; a folder symlinked outside is refused too, and a symlinked file that
+    is not listed by a tampered manifest is out of date and replaced, not followed."""
+    model, out = EXAMPLES / "pendulum.toml", tmp_path / "gen"
+    assert run("generate", model, "-o", out, "-q").returncode == 0
+    (out / "pendulum.c").unlink()
+    os.mkfifo(out / "pendulum.c")
+    for extra in ([], ["--check"], ["--list-outputs"]):
+        proc = run("generate", model, "-o", out, "-q", *extra)
+        assert proc.returncode == 1 and "not a regular file" in proc.stderr, (extra, proc.stderr)
+    (out / "pendulum.c").unlink()
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "x.c").write_text("precious\n")
+    os.symlink(outside, out / "sub")
+    _tampered(out, "pendulum", "sub/x.c")
+    proc = run("generate", model, "-o", out, "-q", "--list-outputs")
+    assert proc.returncode == 1 and "sub/x.c" in proc.stderr and proc.stdout == ""
+    (out / "sub").unlink()
+    # a regular manifest, the generated source replaced by a link to a file outside
+    (out / "pendulum.lagcodegen.json").unlink()
+    assert run("generate", model, "-o", out, "-q").returncode == 0
+    (out / "pendulum.h").unlink()
+    os.symlink(outside / "x.c", out / "pendulum.h")
+    proc = run("generate", model, "-o", out, "-q")
+    assert proc.returncode == 1 and "pendulum.h" in proc.stderr
+    assert (outside / "x.c").read_text() == "precious\n"

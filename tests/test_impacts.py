@@ -72,6 +72,31 @@ def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
     assert np.all(res["lambda_ineq_0"][res.t < sticks[0].t] == 0.0)
 
 
+@pytest.mark.parametrize("e", [0.1, 0.5, 0.8])
+@pytest.mark.parametrize("tolerances", [{}, {"rtol": 1e-8, "atol": 1e-10}, {"rtol": 1e-4, "atol": 1e-6}])
+def test_bouncing_ball_never_tunnels_at_ordinary_tolerances(e, tolerances):
+    """At default or loose tolerances the steps near the accumulation point are longer than the
+    last flights: a step skips a whole flight and CVODE's sign test sees no root (the ball fell to
+    y = -18 m at rtol 1e-8, -146 m at the defaults). The driver finds the skipped crossing, the
+    ball rests on the floor held by m g, the gap never goes further below zero than gap_tol plus
+    one step's fall, and that depth is reported (stats['max_penetration'])."""
+    h0 = 1.0
+    sim = _ball(e)
+    res = sim.simulate(np.linspace(0, 6, 601), q0=[h0], v0=[0.0], **tolerances)
+    y = res["y"]
+    assert y.min() > -1e-6, y.min()
+    assert abs(y[-1]) < 1e-6 and res["lambda_ineq_0"][-1] == pytest.approx(G, rel=1e-6)
+    # the first impacts at the closed-form times, the accumulation at t1 (1 + e) / (1 - e)
+    t1 = math.sqrt(2 * h0 / G)
+    first = [r.t for r in res.impacts.select("bounce")[:3]]
+    k = np.arange(len(first))
+    rtol = tolerances.get("rtol", 1e-6)
+    assert np.allclose(first, t1 + 2 * t1 * e * (1 - e**k) / (1 - e), rtol=max(100 * rtol, 1e-9))
+    assert res.impacts.select("stick")[0].t == pytest.approx(t1 * (1 + e) / (1 - e), rel=1e-2)
+    assert 0 <= res.stats["max_penetration"] < 1e-6
+    assert res.stats["max_penetration"] == pytest.approx(max(0.0, -y.min()), abs=1e-12) or y.min() >= 0
+
+
 def test_ball_released_when_the_floor_would_pull():
     # a moving floor y_f(t) with y_f'' = 1 - 20 t: the ball resting on it is pushed with the
     # multiplier lambda = m (g + y_f'') = m (g + 1 - 20 t), released where that turns negative,

@@ -153,6 +153,12 @@ def run(args) -> int:
             f"{', terminal: run stopped' if ev.terminal else ''}): {state}", args.quiet)
     if mf.constrained is None:
         return write_result(res, args, None, not_conserved(mf))
+    impacts = getattr(res, "impacts", None)
+    if impacts is not None:
+        deepest = res.stats.get("max_penetration", 0.0)
+        say(f"{len(impacts.times)} impact(s)" + (f"; a contact was found {deepest:.3e} below its surface after a step "
+                                                  "had skipped its flight (located there)" if deepest > 0 else ""),
+            args.quiet)
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
@@ -233,6 +239,8 @@ def not_conserved(mf) -> str | None:
                                or any(sp.sympify(A0) != 0 or any(t in sp.sympify(a).free_symbols for a in A)
                                       for A, A0 in system.nonholonomic)):
         return "constraints that depend on time"
+    if system is not None and any(e is not None and e < 1 for e in system.restitution):
+        return "impacts with a restitution below 1, each losing energy"
     return None
 
 

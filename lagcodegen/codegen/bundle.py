@@ -43,7 +43,7 @@ from ..errors import ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
-from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite
+from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, read_regular_file
 from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
@@ -343,12 +343,7 @@ def stale_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[
     out = Path(directory)
     stale = []
     for name, text in files.items():
-        path = out / name
-        try:
-            same = path.is_file() and path.read_bytes() == text.encode("utf-8")
-        except OSError:
-            same = False
-        if not same:
+        if read_regular_file(out / name) != text.encode("utf-8"):
             stale.append(name)
     return stale
 

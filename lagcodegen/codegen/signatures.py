@@ -295,6 +295,10 @@ STAT_FIELDS = {f.name: f for f in (
     Field("ic_flag", "int", "IDACalcIC's return flag", stat="ic_flag"),
     Field("alpha", "double", "the Baumgarte parameter alpha used", stat="alpha"),
     Field("beta", "double", "the Baumgarte parameter beta used", stat="beta"),
+    Field("nretries", "long", "segments integrated again with shorter steps: a step had skipped a contact's flight",
+          stat="contact_retries"),
+    Field("max_penetration", "double", "deepest negative gap of a contact whose flight the steps could not "
+          "resolve (taken as a plastic impact there), or 0", stat="max_penetration"),
     Field("nrhs", "long", "right-hand-side evaluations"),
     Field("nrhs_dq", "long", "right-hand-side evaluations of difference-quotient Jacobians"),
     Field("nres", "long", "residual evaluations"),
@@ -316,7 +320,7 @@ CVODE_STATS = Struct("lcg_cvode_stats", _fields(
     STAT_FIELDS))
 CVC_STATS = Struct("lcg_cvc_stats", _fields(
     "nsteps nrhs nrhs_dq njac nlinsetups netfails nniters nncfails nproj nprojfails ngevals t_reached h_last alpha "
-    "beta flag model_error nt_done message", STAT_FIELDS))
+    "beta nretries max_penetration flag model_error nt_done message", STAT_FIELDS))
 IDA_STATS = Struct("lcg_ida_stats", _fields(
     "nsteps nres nres_dq njac nlinsetups netfails nniters nncfails nbacktracks ngevals t_reached h_last flag ic_flag "
     "model_error nt_done message", STAT_FIELDS))

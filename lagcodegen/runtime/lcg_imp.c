@@ -32,10 +32,15 @@
 #define LCG_STATS lcg_cvc_stats
 #include "lcg_sundials.h"
 
-/* CVODE's reinitialization (cvode.h; not among the declarations the other drivers share). */
+/* CVODE's reinitialization and interpolation (cvode.h; not among the declarations the other
+ * drivers share). */
 int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
+int CVodeGetDky(void *cvode_mem, sunrealtype t, int k, N_Vector dky);
 
 /* Fields of one record of rec[]: t, contact, kind, impulse, w before, w after. */
+
+/* Bisection steps locating a skipped contact on a step's interpolant. */
+#define LCG_IMP_BISECT 60
 #define REC 6
 
 typedef struct {
@@ -213,6 +218,79 @@ static int release_pulling(imp_data *d, double t, const double *y, double *ydot,
     return LCG_DAE_OK;
 }
 
+/* The impact of the contacts hit[] (and those touching and closing) at (t, y of CVODE), the
+ * contacts that pull released, CVODE restarted there. *flag: CVODE's flag (< 0: failed).
+ * Returns LCG_DAE_OK or a model error. */
+static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const double *e, const double *set,
+                   double *last, double *s, int *rows, double *ydot, double *rec, int max_rec, int *n_rec, long *base,
+                   double t_stop, int *flag)
+{
+    double *yv = N_VGetArrayPointer(y);
+    int k, rc;
+
+    rc = impact(d, t, yv, hit, e, set, last, s, rows, rec, max_rec, n_rec);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    rc = release_pulling(d, t, yv, ydot, rec, max_rec, n_rec);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < d->im->nk; ++k)
+        hit[k] = 0;
+    add_counts(mem, base);
+    if ((*flag = CVodeReInit(mem, t, y)) >= 0 && t_stop > t)
+        *flag = CVodeSetStopTime(mem, t_stop);
+    return LCG_DAE_OK;
+}
+
+/* How far a free contact's gap may go below zero before it counts as skipped by a step: -gap_tol,
+ * or gap_tol below where the segment began if that was deeper than -2 gap_tol (a contact
+ * released with its gap drifted below zero). */
+static double gap_floor(double g0, double gap_tol)
+{
+    return g0 < -2.0 * gap_tol ? g0 - gap_tol : -gap_tol;
+}
+
+/* The free contact deepest below its floor (gap_floor) and still closing (w < 0): its flight
+ * skipped by a step, CVODE's sign test blind to it; or -1. A contact below its floor that opens
+ * again (a released contact recovering) is not one. */
+static int below_floor(const double *gk, const double *wk, const double *gprev, const int *active, int nk,
+                       double gap_tol)
+{
+    int k, worst = -1;
+
+    for (k = 0; k < nk; ++k)
+        if (!active[k] && gk[k] < gap_floor(gprev[k], gap_tol) && wk[k] < 0.0 && (worst < 0 || gk[k] < gk[worst]))
+            worst = k;
+    return worst;
+}
+
+/* The first time in [ta, tb] (gap of contact k above its floor at ta, below at tb) where the gap,
+ * on CVODE's interpolant of the last step, is below the floor: *tstar, y the state there. */
+static int bisect(imp_data *d, void *mem, N_Vector y, int k, double ta, double tb, const double *gprev,
+                  double gap_tol, double *tstar)
+{
+    double *yv = N_VGetArrayPointer(y), floor = gap_floor(gprev[k], gap_tol);
+    int it, rc;
+
+    for (it = 0; it < LCG_IMP_BISECT; ++it) {
+        double tm = 0.5 * (ta + tb);
+        if (!(tm > ta && tm < tb))
+            break;
+        if (CVodeGetDky(mem, tm, 0, y) < 0)
+            break;
+        rc = d->im->gaps(tm, yv, d->p, d->gk, d->wk);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        if (d->gk[k] < floor)
+            tb = tm;
+        else
+            ta = tm;
+    }
+    *tstar = tb;
+    CVodeGetDky(mem, tb, 0, y);
+    return LCG_DAE_OK;
+}
+
 /* Integrate with impacts; see lcg_imp.h. */
 int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
                   double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
@@ -226,8 +304,10 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     SUNLinearSolver LS = NULL;
     imp_data data;
     const lcg_dae_model *m;
-    double *yv, *buf = NULL, *last, *scratch, *ydot;
+    double *yv, *buf = NULL, *last, *scratch, *ydot, *yprev, *gprev, *wa;
+    double tprev;
     int *ibuf = NULL, *info, *hit, *dirs, *rows;
+    int j;
     long nst = 0;
     long base[8] = {0, 0, 0, 0, 0, 0, 0, 0}; /* the counters of the segments before the last CVodeReInit */
     int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, quiet = 0;
@@ -253,8 +333,9 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         ev->terminated = 0;
     }
     /* doubles: lam[nrow], gk[nk], wk[nk], ydot scratch[ny], last[nk], impact scratch
-     * (eff[nk], wm[nk], P[nrow], ynew[ny]); ints: info[nall], hit[nk], dirs[nall], rows[2 nk] */
-    buf = (double *)malloc(sizeof(double) * (size_t)(im->nrow + 3 * nk + ny + 2 * nk + im->nrow + ny + nk));
+     * (eff[nk], wm[nk], P[nrow], ynew[ny]), the segment's start yprev[ny], gprev[nk], wa[nk];
+     * ints: info[nall], hit[nk], dirs[nall], rows[2 nk] */
+    buf = (double *)malloc(sizeof(double) * (size_t)(im->nrow + 3 * nk + ny + 2 * nk + im->nrow + ny + nk + ny + 2 * nk));
     ibuf = (int *)malloc(sizeof(int) * (size_t)(2 * nall + 3 * nk));
     if (buf == NULL || ibuf == NULL) {
         free(buf);
@@ -268,6 +349,9 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     ydot = data.wk + nk; /* = gk + 2 nk, as roots() expects */
     last = ydot + ny;
     scratch = last + nk;
+    yprev = scratch + 2 * nk + im->nrow + ny;
+    gprev = yprev + ny;
+    wa = gprev + nk;
     info = ibuf;
     hit = info + nall;
     dirs = hit + nk;
@@ -350,11 +434,17 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
 
+    tprev = tout[0];
+    for (i = 0; i < ny; ++i)
+        yprev[i] = yv[i];
+    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
         if (WATCH_TICK(&data.w))
             goto done;
         for (;;) {
+            int missed = -1, rflag = 0;
             CVodeGetNumSteps(mem, &nst);
             if (base[0] + nst >= opt->max_steps) {
                 flag = -1;
@@ -365,6 +455,94 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             CVodeSetMaxNumSteps(mem, opt->max_steps - base[0] - nst);
             flag = CVode(mem, tout[k], y, &tret, CV_NORMAL);
             st->t_reached = tret;
+            if (flag >= 0) { /* a free contact deeper than where the segment began: a flight skipped by a step */
+                rc = im->gaps(tret, yv, p, data.gk, data.wk);
+                LCG_MODEL_ERROR(LCG_DAE_OK);
+                missed = below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
+            }
+            if (missed >= 0) {
+                /* A step skipped a free contact's flight (or its gap began negative): the segment
+                 * again from its start in single steps up to this return, each step's end checked,
+                 * the crossing located by bisection on the step's interpolant, the impact there. */
+                double t_miss = tret, ta = tprev, tstar = -HUGE_VAL;
+                int apex = 0;
+                st->nretries++;
+                for (i = 0; i < ny; ++i)
+                    yv[i] = yprev[i];
+                rc = im->gaps(tprev, yv, p, data.gk, wa);
+                LCG_MODEL_ERROR(LCG_DAE_OK);
+                add_counts(mem, base);
+                if ((flag = CVodeReInit(mem, tprev, y)) < 0 || (flag = CVodeSetStopTime(mem, t_miss)) < 0)
+                    goto done;
+                for (;;) {
+                    CVodeGetNumSteps(mem, &nst);
+                    if (base[0] + nst >= opt->max_steps) {
+                        flag = -1;
+                        snprintf(st->message, sizeof st->message, "the step budget max_steps = %ld is used up "
+                                 "before t = %.17g", opt->max_steps, tout[k]);
+                        goto done;
+                    }
+                    flag = CVode(mem, t_miss, y, &tret, CV_ONE_STEP);
+                    st->t_reached = tret;
+                    if (flag < 0 || flag == CV_ROOT_RETURN)
+                        break; /* failed, or CVODE's root finding saw it this time */
+                    rc = im->gaps(tret, yv, p, data.gk, data.wk);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    missed = below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
+                    if (missed >= 0) {
+                        apex = wa[missed] > 0.0;
+                        if (apex) /* rising at the step's start: the whole flight within one step */
+                            tstar = tret;
+                        else
+                            rc = bisect(&data, mem, y, missed, ta, tret, gprev, set[2], &tstar);
+                        LCG_MODEL_ERROR(LCG_DAE_OK);
+                        break;
+                    }
+                    if (tret >= t_miss)
+                        break; /* these steps saw no crossing: the segment as it is */
+                    ta = tret;
+                    for (j = 0; j < nk; ++j)
+                        wa[j] = data.wk[j];
+                }
+                if (flag < 0)
+                    goto done;
+                if (nt > 1 && (rflag = CVodeSetStopTime(mem, tout[nt - 1])) < 0) {
+                    flag = rflag;
+                    goto done;
+                }
+                if (missed >= 0) { /* the state at the crossing: the impact there, then on to tout[k] */
+                    tret = tstar;
+                    rc = im->gaps(tret, yv, p, data.gk, data.wk);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    if (-data.gk[missed] > st->max_penetration)
+                        st->max_penetration = -data.gk[missed];
+                    for (j = 0; j < nk; ++j)
+                        hit[j] = j == missed;
+                    if (apex)
+                        last[missed] = tret; /* a flight shorter than a step (accumulation): plastic */
+                    rc = restart(&data, mem, y, tret, hit, e, set, last, scratch, rows, ydot, rec, max_rec, n_rec,
+                                 base, nt > 1 ? tout[nt - 1] : tret, &rflag);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    if (rflag < 0) {
+                        flag = rflag;
+                        goto done;
+                    }
+                    tprev = tret;
+                    for (i = 0; i < ny; ++i)
+                        yprev[i] = yv[i];
+                    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    continue;
+                }
+                if (flag != CV_ROOT_RETURN && tret < tout[k]) { /* no crossing up to an earlier return */
+                    tprev = tret;
+                    for (i = 0; i < ny; ++i)
+                        yprev[i] = yv[i];
+                    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    continue;
+                }
+            }
             if (flag == CV_ROOT_RETURN) {
                 int j, stop = 0, any = 0;
                 if (CVodeGetRootInfo(mem, info) < 0)
@@ -398,23 +576,29 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                     any |= hit[j];
                 }
                 if (any) {
-                    rc = impact(&data, tret, yv, hit, e, set, last, scratch, rows, rec, max_rec, n_rec);
+                    rc = restart(&data, mem, y, tret, hit, e, set, last, scratch, rows, ydot, rec, max_rec, n_rec,
+                                 base, nt > 1 ? tout[nt - 1] : tret, &flag);
                     LCG_MODEL_ERROR(LCG_DAE_OK);
-                    rc = release_pulling(&data, tret, yv, ydot, rec, max_rec, n_rec);
-                    LCG_MODEL_ERROR(LCG_DAE_OK);
-                    for (j = 0; j < nk; ++j)
-                        hit[j] = 0;
-                    add_counts(mem, base);
-                    if ((flag = CVodeReInit(mem, tret, y)) < 0)
-                        goto done;
-                    if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
+                    if (flag < 0)
                         goto done;
                 }
+                tprev = tret;
+                for (i = 0; i < ny; ++i)
+                    yprev[i] = yv[i];
+                rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                LCG_MODEL_ERROR(LCG_DAE_OK);
                 if (tret >= tout[k])
                     break;
                 continue;
             }
             break;
+        }
+        if (flag >= 0) {
+            tprev = tret;
+            for (i = 0; i < ny; ++i)
+                yprev[i] = yv[i];
+            rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
         }
         if (flag < 0)
             goto done;

@@ -46,6 +46,7 @@ SUNErrCode SUNNonlinSolFree(SUNNonlinearSolver NLS);
 #define CV_ADAMS 1
 #define CV_BDF 2
 #define CV_NORMAL 1
+#define CV_ONE_STEP 2
 #define CV_SUCCESS 0
 #define CV_TSTOP_RETURN 1
 #define CV_ROOT_RETURN 2

@@ -363,3 +363,26 @@ def test_readme_meson_snippet(tmp_path, tools):
     again = run(["ninja", "-C", src / "b"], src).stdout
     assert "Generating" in again or "pendulum" in again
     assert nothing_to_do(src / "b", src)
+
+
+def test_cmake_clean_never_reaches_outside_through_a_tampered_manifest(tmp_path, tools):
+    """A generated folder shipped with a manifest that lists ``../../../victim.txt``: configuring
+    fails naming the manifest, and CMake's clean target deletes nothing outside the build."""
+    src = consumer_project(tmp_path / "src")
+    (src / "CMakeLists.txt").write_text(CONSUMER.split("lagcodegen_generate(TARGET pendf")[0]
+                                        + "add_executable(main main.c)\ntarget_link_libraries(main PRIVATE pend)\n")
+    build = tmp_path / "build"
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    run(["cmake", "-S", src, "-B", build, "-G", "Ninja", f"-Dlagcodegen_DIR={cmake_dir()}"], tmp_path)
+    run(["ninja", "-C", build], tmp_path)
+    manifest = build / "lagcodegen" / "pend" / "pend.lagcodegen.json"
+    record = json.loads(manifest.read_text())
+    record["files"]["../../../victim.txt"] = record["files"]["pend.c"]
+    manifest.write_text(json.dumps(record))
+    configure = run(["cmake", "-S", src, "-B", build, "-G", "Ninja", f"-Dlagcodegen_DIR={cmake_dir()}"], tmp_path,
+                    check=False)
+    assert configure.returncode != 0
+    assert "pend.lagcodegen.json" in configure.stderr and "victim.txt" in configure.stderr
+    run(["cmake", "--build", build, "--target", "clean"], tmp_path, check=False)
+    assert victim.read_text() == "precious\n"
