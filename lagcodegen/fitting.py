@@ -250,18 +250,19 @@ def _start(sim, q0, v0, y0, values: dict, names: list) -> dict:
     coords = [q.name for q in sim.system.model.coords]
     q = np.array(state_values(q0, coords, "q0"), dtype=float)
     v = np.array(state_values(v0, coords, "v0"), dtype=float)
-    for name in names:
-        if name in sim.param_names:
-            continue
-        base = name[:-3] if name.endswith("(0)") else None
-        if base is not None and base.endswith("_dot") and base[:-4] in coords:
-            v[coords.index(base[:-4])] = values[name]
-        elif base is not None and base in coords:
-            q[coords.index(base)] = values[name]
-        else:
-            raise LagcodegenError(f"fit: {name!r} is neither a run-time parameter ({', '.join(sim.param_names)}) "
-                                  "nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
+    for d in _directions(names, list(sim.param_names), coords):
+        if d.kind == "position":
+            q[coords.index(d.target)] = values[d.name]
+        elif d.kind == "velocity":
+            v[coords.index(d.target)] = values[d.name]
     return {"q0": q, "v0": v}
+
+
+def _directions(names: list, params: list, coords: list, states: list | None = None) -> list:
+    """The fitted names as :class:`~lagcodegen.solvers.direction.Direction` values (parsed once
+    here), with the fit's messages."""
+    from .solvers.direction import Direction
+    return [Direction.parse(name, params=params, coords=coords, states=states or (), what="fit") for name in names]
 
 
 #: The keywords of simulate that a prepared sensitivity run (:func:`_prepared_runs`) takes over;
@@ -309,17 +310,8 @@ def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:
     from .solvers.base import initial_state
     y = np.array(initial_state(sim, q0, v0, y0, None), dtype=float)
     states = list(sim.state_names)
-    n = sim.n
-    for name in names:
-        if name.endswith("(0)"):
-            base = name[:-3]
-            if base.endswith("_dot") and base[:-4] in states[:n]:
-                y[n + states.index(base[:-4])] = values[name]
-            elif base in states:
-                y[states.index(base)] = values[name]
-            else:
-                raise LagcodegenError(f"fit: {name!r} names no initial value")
-        elif name not in sim.param_names:
-            raise LagcodegenError(f"fit: {name!r} is neither a run-time parameter ({', '.join(sim.param_names)}) "
-                                  "nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
+    coords = states[:sim.n]
+    for d in _directions(names, list(sim.param_names), coords, states):
+        if d.kind != "parameter":
+            y[d.state_index(coords, states)] = values[d.name]
     return y

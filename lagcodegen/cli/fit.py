@@ -18,6 +18,7 @@ import numpy as np
 from ..api import compile_file
 from ..errors import LagcodegenError
 from ..fitting import fit
+from ..solvers.direction import SPELLING, Direction
 from ..util import atomic_binary, atomic_write
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
                      load, say)
@@ -111,16 +112,15 @@ def run(args) -> int:
     values = {p.name: float(v) for p, v in mf.model.params.items()}
     values.update(s.parameters)
     start = {}
+    coords = [q.name for q in mf.model.coords]
     for name in names:
-        if name in values:
-            start[name] = values[name]
-        elif name.endswith("_dot(0)") and name[:-7] in [q.name for q in mf.model.coords]:
-            start[name] = v0[[q.name for q in mf.model.coords].index(name[:-7])]
-        elif name.endswith("(0)") and name[:-3] in [q.name for q in mf.model.coords]:
-            start[name] = q0[[q.name for q in mf.model.coords].index(name[:-3])]
-        else:
+        try:
+            d = Direction.parse(name, params=list(values), coords=coords, what=f"--fit {name}")
+        except LagcodegenError:
             raise UsageError(f"--fit {name}: neither a parameter of {mf.model.name} nor an initial value "
-                             "('<coordinate>(0)', '<coordinate>_dot(0)')")
+                             f"({SPELLING})") from None
+        start[name] = values[name] if d.kind == "parameter" else \
+            (q0 if d.kind == "position" else v0)[coords.index(d.target)]
     fixed = {k: v for k, v in s.parameters.items() if k in sim.param_names and k not in names}
     t = rows[:, 0]
     data = rows[:, [header.index(o) for o in observe]]
@@ -152,10 +152,9 @@ def _plot(sim, mf, result, t, data, observe, q0, v0, fixed, path) -> None:
     coords = [q.name for q in mf.model.coords]
     q0, v0 = list(q0), list(v0)
     for k, v in result.params.items():
-        if k.endswith("_dot(0)") and k[:-7] in coords:
-            v0[coords.index(k[:-7])] = v
-        elif k.endswith("(0)") and k[:-3] in coords:
-            q0[coords.index(k[:-3])] = v
+        d = Direction.parse(k, params=(), coords=coords) if Direction.initial(k) else None
+        if d is not None:
+            (q0 if d.kind == "position" else v0)[coords.index(d.target)] = v
     fine = np.linspace(t[0], t[-1], max(1001, 4 * t.size))
     extra = {} if mf.constrained is None else {"initial": "project"}  # the fitted start, onto its constraints
     res = sim.simulate(fine, q0=q0, v0=v0, params=params, rtol=mf.simulation.rtol, atol=mf.simulation.atol, **extra)

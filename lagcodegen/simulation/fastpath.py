@@ -187,8 +187,7 @@ class FastRuns:
         """After a call on the full path that did not raise: prepare its run for the next calls
         with these values, where the family prepares it (else remember that it does not). With
         ``events``: the family's ``prepared_ode_events``, a call of hashable option values only."""
-        if type(rtol) not in _TOLERANCES or type(atol) not in _TOLERANCES \
-                or not all(type(v) in _SCALARS or _names(v) for v in options.values()):
+        if not preparable(rtol, atol, options):
             return
         key = _names_key(solver, rtol, atol, options)
         if events:
@@ -199,16 +198,29 @@ class FastRuns:
                 return
         if key in self._runs:
             return
-        rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)
-        own = {k: v for k, v in options.items() if k != "inputs"}
-        family = resolve("ode", solver, own, cm.n, rtol_f)
-        fixed = {"n_coordinates": cm.n, "model_name": cm.code.model_name or "", "drawing": deferred_drawing(cm)}
-        if events:
-            prepare = getattr(family, "prepared_ode_events", None)
-            run = prepare(cm, rtol_f, atol_f, fixed, tuple(events)) if prepare is not None else None
-        else:
-            prepare = getattr(family, "prepared_ode", None)
-            run = prepare(cm, rtol_f, atol_f, fixed) if prepare is not None else None
+        run = family_run(cm, solver, rtol, atol, options, events)
         if len(self._runs) >= self.LIMIT:
             self._runs.clear()
         self._runs[key] = None if run is None else FastRun(cm, run, rtol, atol, options)
+
+
+def preparable(rtol, atol, options: dict) -> bool:
+    """Whether a run of these values can be prepared: scalar tolerances, option values that are
+    scalars or lists of names, no input tables (those runs take the full path)."""
+    return (type(rtol) in _TOLERANCES and type(atol) in _TOLERANCES and options.get("inputs") is None
+            and all(type(v) in _SCALARS or _names(v) for v in options.values()))
+
+
+def family_run(cm, solver, rtol, atol, options: dict, events=()):
+    """The run of ``cm`` that the family of ``solver`` and ``options`` prepares once for these
+    tolerances (``prepared_ode``, with ``events`` ``prepared_ode_events``), or None where the
+    family does not prepare it (those runs take the full path)."""
+    rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)
+    own = {k: v for k, v in options.items() if k != "inputs"}
+    family = resolve("ode", solver, own, cm.n, rtol_f)
+    fixed = {"n_coordinates": cm.n, "model_name": cm.code.model_name or "", "drawing": deferred_drawing(cm)}
+    if events:
+        prepare = getattr(family, "prepared_ode_events", None)
+        return prepare(cm, rtol_f, atol_f, fixed, tuple(events)) if prepare is not None else None
+    prepare = getattr(family, "prepared_ode", None)
+    return prepare(cm, rtol_f, atol_f, fixed) if prepare is not None else None

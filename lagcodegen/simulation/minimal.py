@@ -20,6 +20,7 @@ from ..formulation.scene import Scene
 from ..model.events import event_list
 from ..model.model import Model
 from ..result import Result
+from ..solvers.direction import Direction
 from ..theory.constraints import ConstrainedSystem
 from ..theory.minimal import reduced_model, solve_constraints
 from ..util import check_finite, output_times, state_vector
@@ -224,9 +225,9 @@ class MinimalSimulation(_Base):
         if names is None:
             return
         for name in [names] if isinstance(names, str) else names:
-            if isinstance(name, str) and name.endswith("(0)"):
-                base = name[:-3]
-                base = base[:-4] if base.endswith("_dot") else base
+            initial = Direction.initial(name) if isinstance(name, str) else None
+            if initial is not None:
+                base = initial[1]
                 if any(q.name == base for q in self.eliminated):
                     raise LagcodegenError(f"sensitivities: {name!r}: {base} is eliminated in minimal coordinates (a "
                                           f"function of {', '.join(q.name for q in self.remaining)}); give the "

@@ -19,12 +19,14 @@ from ..formulation.drawing import attaches_drawing
 from ..notebook import CompiledReprMixin
 from ..result import Result
 from ..solvers import control
+from ..solvers.artifacts import Artifacts
 from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
 from ..util import c_vector, check_finite, output_times
 from ..solvers.inputs import input_set
 from .ensemble import ensemble_ode
 from .fastpath import FastRuns, finish_run
+from .prepared import PreparedRun
 from .integrator import Integrator
 from .sensitivity_integrator import SensitivityIntegrator
 
@@ -63,7 +65,7 @@ class CompiledModel(CompiledReprMixin):
             self._bind_module(code.prefix)
         self.poll = control.install(module)  # the drivers' poll callback (Ctrl-C, progress)
         self._defaults = np.array(code.param_defaults, dtype=float)
-        self.solver_state: dict = {}  # per-family compiled state (e.g. the Taylor module), built on first use
+        self.artifacts = Artifacts()  # what the families build on first use (Taylor modules, event libraries)
         self._fast_runs = FastRuns()  # simulate()'s prepared runs by option values (fastpath)
 
     def _bind_table(self, table) -> None:
@@ -263,6 +265,16 @@ class CompiledModel(CompiledReprMixin):
         if options.get("inputs") is None:
             self._fast_runs.learn(self, solver, rtol, atol, options, events)
         return res
+
+    def prepare(self, t, *, solver=None, rtol: float = 1e-8, atol=1e-10, events=(), **options) -> PreparedRun:
+        """A run with its output times ``t``, solver family, tolerances, ``events`` and options
+        fixed once (:class:`~lagcodegen.simulation.prepared.PreparedRun`), to call with the
+        initial state and parameters alone: ``run = sim.prepare(t, method="bdf", rtol=1e-10)``,
+        then ``run(q0=..., params=...)`` as often as needed. Each call returns what
+        ``simulate(t, q0, ..., **options)`` returns, bit for bit; where the family prepares the
+        run (``run.prepared``: native CVODE, also with sensitivities; Taylor, also with events)
+        its options struct and arrays are made here, once. Every option is checked here."""
+        return PreparedRun(self, t, solver=solver, rtol=rtol, atol=atol, events=events, options=options)
 
     @attaches_drawing
     def _simulate(self, t, q0=None, v0=None, *, y0=None, z0=None, params: dict | None = None, solver=None,

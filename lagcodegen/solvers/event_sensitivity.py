@@ -67,11 +67,7 @@ def event_gradients(cm, scene, events) -> EventGradients:
     :class:`~lagcodegen.model.events.Event`), built on first use and kept with the compiled model
     ``cm``."""
     events = tuple(events)
-    key = ("event-gradients", events)
-    found = cm.solver_state.get(key)
-    if found is None:
-        found = cm.solver_state[key] = EventGradients(cm, scene, list(events))
-    return found
+    return cm.artifacts.get(EventGradients, events, lambda: EventGradients(cm, scene, list(events)))
 
 
 def event_records(grad: EventGradients, events, state_names, names, which, p: np.ndarray, times, rows, kinds,

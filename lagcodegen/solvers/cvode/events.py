@@ -93,21 +93,18 @@ def compiled_events(cm, events) -> CompiledEvents | None:
     if not events:
         return None
     try:  # the events as given (checking them takes sympy milliseconds; a run with events, tens of us)
-        given = ("cvode-events given", tuple(events))
-        found = cm.solver_state.get(given)
+        given = ("given", tuple(events))
+        found = cm.artifacts.find(CompiledEvents, given)
     except TypeError:  # unhashable items (dicts, lists): checked every time
         given, found = None, None
     if found is not None:
         return found
     scene = scene_of(cm)
     checked = scene_events(scene, events)
-    key = ("cvode-events", tuple(checked))
-    found = cm.solver_state.get(key)
-    if found is None:
+    def make():
         sources = events_source(scene, checked)
         library, path, _ = plain_library(f"the event functions of model {cm.code.model_name!r}",
                                          f"{cm.code.prefix}_events", sources)
-        found = cm.solver_state[key] = CompiledEvents(cm, checked, library, path)
-    if given is not None:
-        cm.solver_state[given] = found
-    return found
+        return CompiledEvents(cm, checked, library, path)
+    found = cm.artifacts.get(CompiledEvents, ("checked", tuple(checked)), make)
+    return found if given is None else cm.artifacts.keep(CompiledEvents, given, found)

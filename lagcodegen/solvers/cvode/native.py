@@ -68,11 +68,8 @@ CVODE_RUN_OPTIONS = (_CVODE_VARYING, pack_format(CVODE_STRUCT, _CVODE_VARYING))
 def ode_options(cm) -> PreparedOptions:
     """The options structs of ``cm``'s CVODE driver kept for reuse across its ODE runs (one per
     distinct set of values; made on first use)."""
-    prepared = cm.solver_state.get("cvode_options")
-    if prepared is None:
-        prepared = cm.solver_state["cvode_options"] = PreparedOptions(
-            cm.ffi, cm.options_type, *CVODE_RUN_OPTIONS, poll=cm.poll, poll_every=POLL_EVERY)
-    return prepared
+    return cm.artifacts.get(PreparedOptions, "cvode", lambda: PreparedOptions(
+        cm.ffi, cm.options_type, *CVODE_RUN_OPTIONS, poll=cm.poll, poll_every=POLL_EVERY))
 
 
 def ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order, band=None,

@@ -30,6 +30,7 @@ from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
+from ..direction import parse_all
 from .sensitivity_events import SensEvents
 
 #: The runtime files of the sensitivity driver.
@@ -101,11 +102,8 @@ class SensitivityFunctions:
 
 
 def functions(cm) -> SensitivityFunctions:
-    """The sensitivity functions of ``cm``, built on first use (kept in ``cm.solver_state``)."""
-    fns = cm.solver_state.get("sensitivities")
-    if fns is None:
-        fns = cm.solver_state["sensitivities"] = SensitivityFunctions(cm)
-    return fns
+    """The sensitivity functions of ``cm``, built on first use (kept in ``cm.artifacts``)."""
+    return cm.artifacts.get(SensitivityFunctions, "ode", lambda: SensitivityFunctions(cm))
 
 
 def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -122,38 +120,16 @@ def parse_directions(names, *, params: list, states: list, n: int, ny: int, fold
     and the initial values of ``states`` (the first n the coordinates, whose velocities follow
     them in y; s0 has ny columns); a name in ``folded`` is refused as a constant of the code, to
     be listed in ``listed_in``. Shared by the ODE and the constrained formulations."""
-    if isinstance(names, str):
-        names = [names]
-    names = list(names)
-    if not names:
-        raise LagcodegenError("sensitivities: give at least one parameter or initial value")
     coords = states[:n]
-    which, s0 = [], np.zeros((len(names), ny))
-    for j, name in enumerate(names):
-        if not isinstance(name, str):
-            raise LagcodegenError(f"sensitivities: {name!r} is not a name")
-        if names.index(name) != j:
-            raise LagcodegenError(f"sensitivities: {name!r} is given twice")
-        if name in params:
-            which.append(params.index(name))
-            continue
-        if name.endswith("(0)"):
-            base = name[:-3]
-            if base.endswith("_dot") and base[:-4] in coords:
-                i = n + coords.index(base[:-4])
-            elif base in states:
-                i = states.index(base)
-            else:
-                raise LagcodegenError(f"sensitivities: {name!r} names no initial value (coordinates: "
-                                      f"{', '.join(coords)}; write '<coordinate>(0)' or '<coordinate>_dot(0)')")
+    dirs = parse_all(names, params=params, coords=coords, states=states, folded=folded, listed_in=listed_in)
+    which, s0 = [], np.zeros((len(dirs), ny))
+    for j, d in enumerate(dirs):
+        if d.kind == "parameter":
+            which.append(params.index(d.target))
+        else:
             which.append(-1)
-            s0[j, i] = 1.0
-            continue
-        if name in folded:
-            raise LagcodegenError(f"sensitivities: parameter {name!r} is folded into the code as a constant; list it "
-                                  f"in {listed_in}")
-        raise LagcodegenError(f"sensitivities: {name!r} is neither a run-time parameter ({', '.join(params) or 'none'})"
-                              f" nor an initial value ('<coordinate>(0)', '<coordinate>_dot(0)')")
+            s0[j, d.state_index(coords, states)] = 1.0
+    names = [d.name for d in dirs]
     return names, np.array(which, dtype=np.intc), s0
 
 

@@ -86,13 +86,10 @@ class ConstrainedSensitivityFunctions:
 
 
 def functions(sim) -> ConstrainedSensitivityFunctions:
-    """The sensitivity functions of ``sim``, built on first use (kept in its compiled model's
-    ``solver_state``)."""
-    state = sim.compiled.solver_state
-    fns = state.get("constrained_sensitivities")
-    if fns is None:
-        fns = state["constrained_sensitivities"] = ConstrainedSensitivityFunctions(sim)
-    return fns
+    """The sensitivity functions of ``sim``, built on first use (kept with its compiled model's
+    ``artifacts``)."""
+    return sim.compiled.artifacts.get(ConstrainedSensitivityFunctions, "constrained",
+                                      lambda: ConstrainedSensitivityFunctions(sim))
 
 
 def directions(sim, names) -> tuple[list[str], np.ndarray, np.ndarray]:

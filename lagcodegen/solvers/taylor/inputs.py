@@ -17,7 +17,7 @@ from ...errors import LagcodegenError
 from ...formulation.scene import Scene
 from ...result import Result
 from .run import scene_of
-from .runner import build_taylor
+from .runner import TaylorModule, build_taylor
 
 #: Extra run-time parameters per input: c0, c1, c2, c3, tc.
 PER_INPUT = 5
@@ -46,15 +46,13 @@ class InputSeriesScene(Scene):
 def series_module(cm, names: tuple):
     """The compiled Taylor integrator of ``cm``'s scene with the inputs ``names`` as cubics of t
     (built once per set of inputs, then reused)."""
-    key = ("taylor-inputs", names)
-    module = cm.solver_state.get(key)
-    if module is None:
+    def make():
         scene = scene_of(cm)
         series = InputSeriesScene(eom=scene.eom, jacobian=False, outputs=list(scene.outputs),
                                   runtime_parameters=list(scene.runtime_parameters), values=dict(scene.values),
                                   prefix=f"{scene.prefix}_useries", series_inputs=names)
-        module = cm.solver_state[key] = build_taylor(series)
-    return module
+        return build_taylor(series)
+    return cm.artifacts.get(TaylorModule, ("inputs", names), make)
 
 
 def segment_parameters(p: np.ndarray, tables, a: float) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 
 from ...errors import LagcodegenError
 from ...result import Result
-from .runner import build_taylor
+from .runner import TaylorModule, build_taylor
 
 
 def scene_of(cm):
@@ -22,11 +22,8 @@ def scene_of(cm):
 
 def taylor_module(cm, events=()):
     """The compiled Taylor integrator of ``cm``'s scene with ``events`` (built once, then reused)."""
-    key = ("taylor", tuple(events))
-    module = cm.solver_state.get(key)
-    if module is None:
-        module = cm.solver_state[key] = build_taylor(scene_of(cm), events=events)
-    return module
+    return cm.artifacts.get(TaylorModule, ("events", tuple(events)),
+                            lambda: build_taylor(scene_of(cm), events=events))
 
 
 def run_taylor(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, *, rtol: float, atol: np.ndarray,

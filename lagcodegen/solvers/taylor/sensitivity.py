@@ -346,13 +346,13 @@ def _checked_events(cm, scene: Scene, events) -> tuple:
     given (checking takes sympy milliseconds, a run with events tens of microseconds)."""
     try:
         given = ("taylor-sensitivity events given", tuple(events))
-        found = cm.solver_state.get(given)
+        found = cm.artifacts.find(tuple, given)
     except TypeError:  # unhashable items (dicts, lists): checked every time
         given, found = None, None
     if found is None:
         found = tuple(check_events(scene, events))
         if given is not None:
-            cm.solver_state[given] = found
+            cm.artifacts.keep(tuple, given, found)
     return found
 
 
@@ -362,8 +362,6 @@ def variational_module(cm, scene: Scene, names, events=()) -> VariationalModule:
     compiled model)."""
     names, dirs, s0 = directions_of(cm, names)
     events = _checked_events(cm, scene, events) if events else ()
-    key = ("taylor-sensitivities", tuple(names)) + ((events,) if events else ())
-    module = cm.solver_state.get(key)
-    if module is None:
-        module = cm.solver_state[key] = VariationalModule(cm, scene, names, dirs, s0, events=events)
-    return module
+    key = (tuple(names),) + ((events,) if events else ())
+    return cm.artifacts.get(VariationalModule, key, lambda: VariationalModule(cm, scene, names, dirs, s0,
+                                                                              events=events))

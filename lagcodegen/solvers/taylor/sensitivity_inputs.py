@@ -28,15 +28,13 @@ def series_variational_module(cm, names, inputs: tuple) -> VariationalModule:
     """The variational jet of ``cm`` along the directions ``names`` with the inputs ``inputs``
     (names) as cubics of t (built once per set of directions and inputs, then reused)."""
     names, dirs, s0 = directions_of(cm, names)
-    key = ("taylor-sensitivities-inputs", tuple(names), tuple(inputs))
-    module = cm.solver_state.get(key)
-    if module is None:
+    def make():
         scene = scene_of(cm)
         series = InputSeriesScene(eom=scene.eom, jacobian=False, outputs=list(scene.outputs),
                                   runtime_parameters=list(scene.runtime_parameters), values=dict(scene.values),
                                   prefix=f"{scene.prefix}_useries", series_inputs=tuple(inputs))
-        module = cm.solver_state[key] = VariationalModule(cm, series, names, dirs, s0)
-    return module
+        return VariationalModule(cm, series, names, dirs, s0)
+    return cm.artifacts.get(VariationalModule, ("inputs", tuple(names), tuple(inputs)), make)
 
 
 def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, names, *,
