@@ -171,9 +171,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         elif self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t[0], y0, p)
-            res = family.runner("ggl")(self, t, yy0, yp0, p, rtol, atol, roots)
+            res = family.run_ggl(self, t, yy0, yp0, p, rtol, atol, roots)
         else:
-            res = family.runner("index1")(self, t, y0, p, rtol, atol, roots)
+            res = family.run_index1(self, t, y0, p, rtol, atol, roots)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
         res.formulation = self.formulation
@@ -200,7 +200,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self.info.contacts:
             raise LagcodegenError("the integrator object does not run systems with contacts (impacts with "
                                   "restitution): use simulate(), whose impact driver applies the jumps")
-        family = resolve(self.formulation, solver, options)
+        family = resolve(self.formulation, solver, options, runs="stepper")
         if q0 is None:
             raise LagcodegenError("q0 is required")
         t0 = check_finite(t0, "t0")
@@ -211,10 +211,10 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t0, y0, p)
-            stepper = family.runner("ggl", "stepper")(self, mem, yy0, yp0, rtol, atol, roots)
+            stepper = family.stepper_ggl(self, mem, yy0, yp0, rtol, atol, roots)
         else:
             rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
-            stepper = family.runner("index1", "stepper")(self, mem, rtol, atol_arr, roots)
+            stepper = family.stepper_index1(self, mem, rtol, atol_arr, roots)
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 

@@ -11,7 +11,6 @@ the same run alone; ``executor=`` splits them into chunks (:func:`lagcodegen.sol
 
 from __future__ import annotations
 
-import inspect
 from typing import Mapping
 
 import numpy as np
@@ -19,6 +18,7 @@ import numpy as np
 from ..errors import LagcodegenError
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
+from ..solvers.family import OdeInputRuns
 from ..solvers.inputs import member_sets
 from ..solvers.registry import resolve
 from ..util import output_times
@@ -147,29 +147,23 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
     solver, rtol, atol, events, options = run_keywords(options)
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
-    family = resolve("ode", solver, options, cm.n, float(rtol))
+    family = resolve("ode", solver, options, cm.n, float(rtol), runs="ensemble")
     sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name)
     if sets is not None:
         if events:
             raise LagcodegenError("events with input tables: not supported")
-        run = getattr(family, "ensemble_ode_inputs", None)
-        if run is None:
+        if not isinstance(family, OdeInputRuns):
             raise LagcodegenError(f"input tables are interpolated by the native CVODE driver; {family.name} "
                                   "ensembles do not take them (use method='adams' or 'bdf')")
         if executor is not None:
             raise LagcodegenError("ensembles with input tables run in this process (executor= is not supported)")
-        return run(cm, t, Y, P, rtol, atol, sets, threads=threads, save=save, progress=progress)
-    runner = family.runner("ode", "ensemble")
-    more = {}
-    if events:
-        if "events" not in inspect.signature(runner).parameters:
-            raise LagcodegenError(f"{family.name} ensembles have no events: events in every member run on CVODE "
-                                  "(simulate(method='taylor', events=...) runs one member with them)")
-        more["events"] = list(events)
+        return family.ensemble_ode_inputs(cm, t, Y, P, rtol, atol, sets, threads=threads, save=save,
+                                          progress=progress)
+    more = {"events": list(events)} if events else {}
     if executor is not None:
         return run_chunks(cm, executor, chunk_size, n_mem, t, dict(y0=Y), P, threads, save,
                           dict(solver=family, rtol=rtol, atol=atol, **more))
-    return runner(cm, t, Y, P, rtol, atol, threads=threads, save=save, progress=progress, **more)
+    return family.ensemble_ode(cm, t, Y, P, rtol, atol, threads=threads, save=save, progress=progress, **more)
 
 
 # ---------------------------------------------------------------------- constrained systems
@@ -199,7 +193,7 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     ``simulate`` does; a member whose initial state is rejected gets flag -84 and the reason as
     its message, and is not run."""
     solver, rtol, atol, events, options = run_keywords(options)
-    family = resolve(sim.formulation, solver, options)
+    family = resolve(sim.formulation, solver, options, runs="ensemble")
     roots = sim._roots(events)
     t = output_times(t)
     n_mem, Q, V, names = _qv(sim, q0, v0, params)
@@ -226,7 +220,7 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     width = 2 * sim.info.ng if ggl else 2 * sim.n
     Y = np.ascontiguousarray(np.array(rows).reshape(len(valid), width))
     Pv = P if P.ndim == 1 else np.ascontiguousarray(P[valid])
-    run = family.runner(sim.formulation, "ensemble")
+    run = family.ensemble_ggl if ggl else family.ensemble_index1
     part = run(sim, t, Y, Pv, rtol, atol, roots, threads=threads, save=save, progress=progress)
     if not rejected:
         return part

@@ -27,6 +27,7 @@ from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.drawing import deferred_drawing
 from ..result import Result
 from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
+from ..solvers.family import PreparedOdeEventRuns, PreparedOdeRuns
 from ..solvers.registry import resolve
 from ..util import output_times
 
@@ -220,7 +221,6 @@ def family_run(cm, solver, rtol, atol, options: dict, events=()):
     family = resolve("ode", solver, own, cm.n, rtol_f)
     fixed = {"n_coordinates": cm.n, "model_name": cm.code.model_name or "", "drawing": deferred_drawing(cm)}
     if events:
-        prepare = getattr(family, "prepared_ode_events", None)
-        return prepare(cm, rtol_f, atol_f, fixed, tuple(events)) if prepare is not None else None
-    prepare = getattr(family, "prepared_ode", None)
-    return prepare(cm, rtol_f, atol_f, fixed) if prepare is not None else None
+        return family.prepared_ode_events(cm, rtol_f, atol_f, fixed, tuple(events)) \
+            if isinstance(family, PreparedOdeEventRuns) else None
+    return family.prepared_ode(cm, rtol_f, atol_f, fixed) if isinstance(family, PreparedOdeRuns) else None

@@ -20,6 +20,7 @@ from ..notebook import CompiledReprMixin
 from ..result import Result
 from ..solvers import control
 from ..solvers.artifacts import Artifacts
+from ..solvers.family import OdeInputRuns
 from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
 from ..util import c_vector, check_finite, output_times
@@ -294,7 +295,7 @@ class CompiledModel(CompiledReprMixin):
         if tables:
             res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
         else:
-            res = family.runner("ode")(self, t, y, p, rtol, atol_arr, events)
+            res = family.run_ode(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         return finish_run(self, res, t[0], y, p, raise_on_error)
@@ -319,9 +320,9 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         t0 = check_finite(t0, "t0")
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
-        family = resolve("ode", solver, options, self.n, rtol)
+        family = resolve("ode", solver, options, self.n, rtol, runs="stepper")
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
-        stepper = family.runner("ode", "stepper")(self, mem, rtol, atol_arr, events)
+        stepper = family.stepper_ode(self, mem, rtol, atol_arr, events)
         if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)
             return SensitivityIntegrator(stepper, getattr(stepper, "mem", mem), state_names=self.state_names,
                                          param_names=self.param_names, family=stepper.family)
@@ -378,13 +379,12 @@ class CompiledModel(CompiledReprMixin):
 def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
     """A run of ``cm`` driven by input ``tables`` on a family that takes them (its
     ``run_ode_inputs``); the restarts inside the run in ``stats["restarts"]``."""
-    run = getattr(family, "run_ode_inputs", None)
-    if run is None:
+    if not isinstance(family, OdeInputRuns):
         raise LagcodegenError(f"input tables ({', '.join(map(repr, tables.names))}): {family.name} does not take "
                               "them (native CVODE and Taylor do)")
     if events:
         raise LagcodegenError("events with input tables: not supported")
-    res = run(cm, t, y, p, rtol, atol, tables)
+    res = family.run_ode_inputs(cm, t, y, p, rtol, atol, tables)
     res.stats["restarts"] = int(tables.restarts_in(float(t[0]), float(t[-1])).size)
     return res
 

@@ -11,13 +11,19 @@ same code after it. The faces (:mod:`lagcodegen.simulation`) it runs:
 * ``"ode"``: the ODE y' = f(t, y) of a compiled scene (``run_ode``, ``ensemble_ode``);
 * ``"index1"``: a constrained system at the acceleration level (``run_index1``, ``ensemble_index1``);
 * ``"ggl"``: a constrained system in the stabilized index-2 GGL form (``run_ggl``, ``ensemble_ggl``).
+
+Each face's runs are a declared interface (:class:`OdeRuns`, :class:`OdeInputRuns`,
+:class:`Index1Runs`, :class:`GGLRuns`; prepared runs :class:`PreparedOdeRuns`,
+:class:`PreparedOdeEventRuns`): a family lists the faces it integrates in ``faces``
+(checked by :meth:`Family.check_face` when resolved) and has that face's methods; the
+simulations call them by name, never through a name built at run time.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, Protocol, runtime_checkable
 
 from ..errors import LagcodegenError
 
@@ -118,19 +124,107 @@ class Family:
             raise LagcodegenError(f"{', '.join(map(repr, wrong))}: option{'s' if len(wrong) > 1 else ''} of {self.name} "
                                   f"that {FACES.get(face, face)} does not take")
 
+    def check_runs(self, face: str, runs: str) -> None:
+        """Raise unless this family implements the interface of ``runs`` ("run", "stepper",
+        "ensemble") on ``face`` (:data:`INTERFACES`), naming what is missing."""
+        interface = INTERFACES.get((face, runs))
+        if interface is None or not isinstance(self, interface):
+            raise LagcodegenError(f"{self.name} has no {RUN_KINDS.get(runs, runs)} runner for {FACES.get(face, face)}")
+
     def defaults_beside(self, names: frozenset[str]) -> bool:
         """Whether every field not in ``names`` has its default value (a caller that honours only
         ``names`` may then stand in for the family's own runner)."""
         return all(_same(getattr(self, name), f.default) for name, f in self.fields().items() if name not in names)
 
-    def runner(self, face: str, what: str = "run"):
-        """The bound method that runs ``face`` (``what``: "run", "ensemble" or "stepper", the C
-        state of an integrator object); the object was checked against the face when resolved
-        (:func:`~.registry.resolve`)."""
-        method = getattr(self, f"{what}_{face}", None)
-        if method is None:
-            raise LagcodegenError(f"{self.name} has no {what} runner for {FACES.get(face, face)}")
-        return method
+@runtime_checkable
+class OdeRuns(Protocol):
+    """A run of the ODE face of a compiled scene to output times (CVODE, Taylor)."""
+
+    def run_ode(self, cm, t, y, p, rtol: float, atol, events=()): ...
+
+
+@runtime_checkable
+class OdeSteppers(Protocol):
+    """An integrator object's C stepper of the ODE face on the memory ``mem`` = (t, y, p)."""
+
+    def stepper_ode(self, cm, mem, rtol: float, atol, events=()): ...
+
+
+@runtime_checkable
+class OdeEnsembles(Protocol):
+    """An ensemble of runs of the ODE face."""
+
+    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()): ...
+
+
+@runtime_checkable
+class OdeInputRuns(Protocol):
+    """The runs of the ODE face driven by input tables (native CVODE, Taylor)."""
+
+    def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs): ...
+
+    def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress): ...
+
+
+@runtime_checkable
+class PreparedOdeRuns(Protocol):
+    """The ODE runs a family prepares once for given tolerances (``simulate()``'s fast path,
+    :meth:`CompiledModel.prepare <lagcodegen.simulation.ode.CompiledModel.prepare>`): None where
+    a run needs more than its driver's call."""
+
+    def prepared_ode(self, cm, rtol: float, atol, fixed: dict): ...
+
+
+@runtime_checkable
+class PreparedOdeEventRuns(Protocol):
+    """The ODE runs with events a family prepares once (Taylor)."""
+
+    def prepared_ode_events(self, cm, rtol: float, atol, fixed: dict, events: tuple): ...
+
+
+@runtime_checkable
+class Index1Runs(Protocol):
+    """A run of a constrained system in the index-1 form (CVODE)."""
+
+    def run_index1(self, sim, t, y0, p, rtol, atol, roots: bool): ...
+
+
+@runtime_checkable
+class Index1Steppers(Protocol):
+    def stepper_index1(self, sim, mem, rtol: float, atol, roots: bool): ...
+
+
+@runtime_checkable
+class Index1Ensembles(Protocol):
+    def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress): ...
+
+
+@runtime_checkable
+class GGLRuns(Protocol):
+    """A run of a constrained system in the GGL form (IDA)."""
+
+    def run_ggl(self, sim, t, yy0, yp0, p, rtol, atol, roots: bool): ...
+
+
+@runtime_checkable
+class GGLSteppers(Protocol):
+    def stepper_ggl(self, sim, mem, yy0, yp0, rtol, atol, roots: bool): ...
+
+
+@runtime_checkable
+class GGLEnsembles(Protocol):
+    def ensemble_ggl(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress): ...
+
+
+#: The interface a family implements for each (face, kind of run): the one table of what can be
+#: asked of a family, checked by :func:`~.registry.resolve` (``runs=``) before anything runs.
+INTERFACES = {
+    ("ode", "run"): OdeRuns, ("ode", "stepper"): OdeSteppers, ("ode", "ensemble"): OdeEnsembles,
+    ("index1", "run"): Index1Runs, ("index1", "stepper"): Index1Steppers, ("index1", "ensemble"): Index1Ensembles,
+    ("ggl", "run"): GGLRuns, ("ggl", "stepper"): GGLSteppers, ("ggl", "ensemble"): GGLEnsembles,
+}
+#: How each kind of run is named in messages.
+RUN_KINDS = {"run": "run", "stepper": "integrator object (stepper)", "ensemble": "ensemble"}
 
 
 def _same(a, b) -> bool:

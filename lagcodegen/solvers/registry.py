@@ -54,12 +54,14 @@ def _kind(value):
     return tuple(map(_kind, value)) if kind is tuple else kind
 
 
-def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8) -> Family:
+def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8, *, runs: str = "run") -> Family:
     """The family object of a run on ``face`` ("ode", "index1", "ggl"): ``solver`` (a family
     object or None) with ``options`` (the run's other keywords: method, linear_solver, ...)
-    applied, checked against the face. ``n`` and ``rtol`` choose the family of ``method="auto"``."""
+    applied, checked against the face and against the kind of run asked for (``runs``: "run",
+    "stepper", "ensemble"; :data:`~.family.INTERFACES`). ``n`` and ``rtol`` choose the family
+    of ``method="auto"``."""
     try:
-        key = (face, solver, tuple(options.items()), tuple(map(_kind, options.values())), n, rtol)
+        key = (face, runs, solver, tuple(options.items()), tuple(map(_kind, options.values())), n, rtol)
         hit = _CACHE.get(key)
     except TypeError:  # unhashable values (arrays): resolved every time
         key = hit = None
@@ -86,6 +88,7 @@ def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8) ->
         raise LagcodegenError(f"solver must be {', '.join(f'{c.__name__}(...)' for c in FAMILIES.values())}, "
                               f"got {solver!r}")
     family.check_face(face)
+    family.check_runs(face, runs)
     if key is not None:
         if len(_CACHE) >= 256:
             _CACHE.clear()
