@@ -147,16 +147,21 @@ class _CallbackReporter:
             self.callback(s.name, s.done, s.total, s.elapsed())
 
 
+def _is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal (False for a closed stream or one without ``isatty``)."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
 class _LineReporter:
     """One line on ``stream`` for the innermost open stages (outer ones named first), with the
     outermost stage's elapsed time; drawn by a thread while a stage is open."""
 
     def __init__(self, stream=None):
         self.stream = stream if stream is not None else sys.stderr
-        try:
-            self.tty = bool(self.stream.isatty())
-        except (AttributeError, ValueError):
-            self.tty = False
+        self.tty = _is_terminal(self.stream)
         self.open: list[Stage] = []
         self.lock = threading.Lock()
         self.width = 0  # characters of the line on screen (terminal)
@@ -248,10 +253,7 @@ class StatusLine:
 
     def __init__(self, stream=None):
         self.stream = stream if stream is not None else sys.stderr
-        try:
-            self.tty = bool(self.stream.isatty())
-        except (AttributeError, ValueError):
-            self.tty = False
+        self.tty = _is_terminal(self.stream)
         self.last: float | None = None  # time of the last draw
         self.text = ""
         self.drawn = False  # the latest text is on the stream

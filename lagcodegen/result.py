@@ -13,6 +13,17 @@ from .errors import LagcodegenError
 from .util import atomic_binary, atomic_write
 
 
+def sensitivity_index(names: list, values: list, value: str, direction: str, what: str) -> tuple[int, int]:
+    """(j, k): ``direction`` among the sensitivity directions ``names`` and ``value`` among the
+    states and outputs ``values`` of a ``what`` ("run", "ensemble"), else LagcodegenError
+    listing them."""
+    if direction not in names:
+        raise LagcodegenError(f"{direction!r} is not a sensitivity direction of this {what} ({', '.join(names)})")
+    if value not in values:
+        raise LagcodegenError(f"{value!r} is neither a state nor an output of this {what} ({', '.join(values)})")
+    return names.index(direction), values.index(value)
+
+
 @dataclass
 class Result:
     """Trajectory, outputs and solver statistics of a run.
@@ -61,13 +72,8 @@ class Result:
         initial value "<q>(0)", "<q>_dot(0)")."""
         if self.sensitivities is None:
             raise LagcodegenError("this result has no sensitivities: run simulate(..., sensitivities=[...])")
-        if direction not in self.sensitivity_names:
-            raise LagcodegenError(f"{direction!r} is not a sensitivity direction of this run "
-                                  f"({', '.join(self.sensitivity_names)})")
-        if value not in self.sensitivity_values:
-            raise LagcodegenError(f"{value!r} is neither a state nor an output of this run "
-                                  f"({', '.join(self.sensitivity_values)})")
-        return self.sensitivities[:, self.sensitivity_names.index(direction), self.sensitivity_values.index(value)]
+        j, k = sensitivity_index(self.sensitivity_names, self.sensitivity_values, value, direction, "run")
+        return self.sensitivities[:, j, k]
 
     @property
     def success(self) -> bool:

@@ -58,6 +58,20 @@ class ConstrainedSymbols:
         self.F = eom.F_se
 
 
+
+def mass_force_block(sym, c) -> Block:
+    """The kernel ``mf`` of the constrained forms: the upper triangle of M and F, each through the
+    substitution ``c`` into array symbols."""
+    targets, exprs = [], []
+    for i in range(sym.n):
+        for j in range(i, sym.n):
+            targets.append(("M", i, j))
+            exprs.append(c(sym.M[i][j]))
+    for i in range(sym.n):
+        targets.append(("F", i))
+        exprs.append(c(sym.F[i]))
+    return Block(targets, exprs)
+
 def _constrained_outputs(system: ConstrainedSystem, sym: ConstrainedSymbols, scene: Scene,
                          names: Sequence[str]) -> list[tuple[str, object]]:
     """(name, symengine expression) of the requested outputs, groups expanded."""
@@ -154,16 +168,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         return se.sympify(e).xreplace(sub)
 
     blocks = {}
-    # M, F
-    targets, exprs = [], []
-    for i in range(n):
-        for j in range(i, n):
-            targets.append(("M", i, j))
-            exprs.append(c(sym.M[i][j]))
-    for i in range(n):
-        targets.append(("F", i))
-        exprs.append(c(sym.F[i]))
-    blocks["mf"] = Block(targets, exprs)
+    blocks["mf"] = mass_force_block(sym, c)
     # A, s, g
     targets, exprs = [], []
     for r in range(J):
@@ -243,14 +248,7 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     def c(e):
         return se.sympify(e).xreplace(base)
 
-    mf_t, mf_e = [], []
-    for i in range(n):
-        for j in range(i, n):
-            mf_t.append(("M", i, j))
-            mf_e.append(c(sym.M[i][j]))
-    for i in range(n):
-        mf_t.append(("F", i))
-        mf_e.append(c(sym.F[i]))
+    mf = mass_force_block(sym, c)
     rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
     heights = list(sym.f) + [se.Integer(0)] * (J - JH)
     def row(g):
@@ -286,7 +284,7 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
             exprs.append(c(row[i]))
         targets += [("s", r), ("h", r), ("gam", r)]
         exprs += [c(vals[r]), c(heights[r]), c(gammas[r])]
-    return {"mf": Block(mf_t, mf_e), "rows": Block(targets, exprs), "tangent_of": tangent_of}
+    return {"mf": mf, "rows": Block(targets, exprs), "tangent_of": tangent_of}
 
 
 #: Languages of the generated constrained code (the native drivers are C in both cases).

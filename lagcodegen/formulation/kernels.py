@@ -85,6 +85,15 @@ class Block:
     def __add__(self, other: "Block") -> "Block":
         return Block(self.targets + other.targets, self.exprs + other.exprs, self.defs + other.defs)
 
+    def add_partials(self, expr, variables, c, target) -> None:
+        """Add ``c(d expr / d variables[j])`` under ``target(j)`` for each j where it is not zero
+        (``c``: the substitution into array symbols, :func:`substituter`)."""
+        expr = se.sympify(expr)
+        for j, var in enumerate(variables):
+            e = c(se.diff(expr, var))
+            if e != 0:
+                self.add(target(j), e)
+
 
 def symbol_map(scene: Scene) -> dict:
     """symengine substitution: model symbols -> array elements, folded parameters -> numbers."""

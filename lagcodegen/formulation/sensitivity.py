@@ -72,19 +72,10 @@ def sensitivity_blocks(scene: Scene) -> dict[str, Block]:
     for k, par in enumerate(params):
         for i in range(n):
             r = sum((eom.M_se[i][j] * a[j] for j in range(n)), se.Integer(0)) - eom.F_se[i]
-            e = c(se.diff(se.sympify(r), par))
-            if e != 0:
-                tangent.add(("P", k, i), e)
+            tangent.add_partials(r, [par], c, lambda _, k=k, i=i: ("P", k, i))
     for k, (_, rate) in enumerate(eom.quadratures):
-        rate = se.sympify(rate)
-        for j, var in enumerate(y):
-            e = c(se.diff(rate, var))
-            if e != 0:
-                tangent.add(("Z", k, j), e)
-        for m, par in enumerate(params):
-            e = c(se.diff(rate, par))
-            if e != 0:
-                tangent.add(("Zp", k, m), e)
+        tangent.add_partials(rate, y, c, lambda j, k=k: ("Z", k, j))
+        tangent.add_partials(rate, params, c, lambda m, k=k: ("Zp", k, m))
     out = output_block(scene)
     _closed_form(model, tangent)
     return {"rhs": rhs, "tangent": tangent, "out": out}
@@ -108,15 +99,8 @@ def output_block(scene: Scene) -> Block:
     states = y + [se.Symbol(name) for name, _ in eom.quadratures]
     out = Block()
     for k, o in enumerate(scene.output_list()):
-        expr = se.sympify(o.expr)
-        for i, var in enumerate(states):
-            e = c(se.diff(expr, var))
-            if e != 0:
-                out.add(("Oy", k, i), e)
-        for m, par in enumerate(params):
-            e = c(se.diff(expr, par))
-            if e != 0:
-                out.add(("Op", k, m), e)
+        out.add_partials(o.expr, states, c, lambda i, k=k: ("Oy", k, i))
+        out.add_partials(o.expr, params, c, lambda m, k=k: ("Op", k, m))
     _closed_form(model, out)
     return out
 

@@ -83,49 +83,20 @@ def constrained_sensitivity_blocks(system: ConstrainedSystem, scene: Scene, outp
         R.append(sum((sym.A[r][i] * a[i] for i in range(n)), se.Integer(0)) - sym.gamma[r])
     tangent = Block()
     for i, res in enumerate(R):
-        res = se.sympify(res)
-        for j, var in enumerate(y):
-            e = c(se.diff(res, var))
-            if e != 0:
-                tangent.add(("Ry", i, j), e)
-        for k, par in enumerate(params):
-            e = c(se.diff(res, par))
-            if e != 0:
-                tangent.add(("Rp", k, i), e)
+        tangent.add_partials(res, y, c, lambda j, i=i: ("Ry", i, j))
+        tangent.add_partials(res, params, c, lambda k, i=i: ("Rp", k, i))
     con_tangent = Block()
     for r in range(J):
-        for j, var in enumerate(y):
-            e = c(se.diff(sym.s[r], var))
-            if e != 0:
-                con_tangent.add(("Sy", r, j), e)
-        for k, par in enumerate(params):
-            e = c(se.diff(sym.s[r], par))
-            if e != 0:
-                con_tangent.add(("Sp", k, r), e)
+        con_tangent.add_partials(sym.s[r], y, c, lambda j, r=r: ("Sy", r, j))
+        con_tangent.add_partials(sym.s[r], params, c, lambda k, r=r: ("Sp", k, r))
     for r in range(JH):
-        for j, var in enumerate(sym.q):
-            e = c(se.diff(sym.f[r], var))
-            if e != 0:
-                con_tangent.add(("Gy", r, j), e)
-        for k, par in enumerate(params):
-            e = c(se.diff(sym.f[r], par))
-            if e != 0:
-                con_tangent.add(("Gp", k, r), e)
+        con_tangent.add_partials(sym.f[r], sym.q, c, lambda j, r=r: ("Gy", r, j))
+        con_tangent.add_partials(sym.f[r], params, c, lambda k, r=r: ("Gp", k, r))
     dout = Block()
     for k, (_, expr) in enumerate(_constrained_outputs(system, sym, scene, list(outputs))):
-        expr = se.sympify(expr)
-        for i, var in enumerate(y):
-            e = c(se.diff(expr, var))
-            if e != 0:
-                dout.add(("Oy", k, i), e)
-        for r, lam in enumerate(sym.lam):
-            e = c(se.diff(expr, lam))
-            if e != 0:
-                dout.add(("Ol", k, r), e)
-        for m, par in enumerate(params):
-            e = c(se.diff(expr, par))
-            if e != 0:
-                dout.add(("Op", k, m), e)
+        dout.add_partials(expr, y, c, lambda i, k=k: ("Oy", k, i))
+        dout.add_partials(expr, sym.lam, c, lambda r, k=k: ("Ol", k, r))
+        dout.add_partials(expr, params, c, lambda m, k=k: ("Op", k, m))
     for block in (tangent, con_tangent, dout):
         bad = [e for e in block.exprs if e.atoms(se.Derivative, se.Subs)]
         if bad:

@@ -168,13 +168,7 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
     for body in bodies:
         if not isinstance(body, (Particle, RigidBody)):
             raise ModelError(f"from_bodies: {body!r} is not a sympy.physics.mechanics Particle or RigidBody")
-        try:
-            T = body.kinetic_energy(frame)
-        except ValueError as exc:
-            raise ModelError(f"kinetic energy of body {body.name!r} in frame {frame.name}: {exc}") from None
-        T = imp.convert(T, f"kinetic energy of body {body.name!r}")
-        V = imp.convert(body.potential_energy, f"potential energy of body {body.name!r}")
-        energies.append((body.name, T, V))
+        energies.append(_energies(body, frame, imp))
 
     positions: list[tuple[str, sp.Matrix]] = []
     if origin is not None:
@@ -257,13 +251,7 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     energies: list[tuple[str, sp.Expr, sp.Expr]] = []
     positions: list[tuple[str, sp.Matrix]] = []
     for body in system.bodies:
-        try:
-            T = body.kinetic_energy(frame)
-        except ValueError as exc:
-            raise ModelError(f"kinetic energy of body {body.name!r} in frame {frame.name}: {exc}") from None
-        T = imp.convert(T, f"kinetic energy of body {body.name!r}")
-        V = imp.convert(body.potential_energy, f"potential energy of body {body.name!r}")
-        energies.append((body.name, T, V))
+        energies.append(_energies(body, frame, imp))
         try:
             r = body.masscenter.pos_from(origin).to_matrix(frame)
         except ValueError:
@@ -431,6 +419,17 @@ def _loads(forces) -> list[tuple[object, Vector]]:
             raise ModelError(f"load on {location.name}: {vector!r} is not a sympy.physics.vector Vector")
         out.append((location, vector))
     return out
+
+
+def _energies(body, frame, imp) -> tuple[str, sp.Expr, sp.Expr]:
+    """(name, T, V) of a sympy mechanics body in ``frame``, converted by ``imp`` (:class:`_Importer`)."""
+    try:
+        T = body.kinetic_energy(frame)
+    except ValueError as exc:
+        raise ModelError(f"kinetic energy of body {body.name!r} in frame {frame.name}: {exc}") from None
+    T = imp.convert(T, f"kinetic energy of body {body.name!r}")
+    V = imp.convert(body.potential_energy, f"potential energy of body {body.name!r}")
+    return body.name, T, V
 
 
 class _Importer:

@@ -150,20 +150,7 @@ class MinimalSimulation(_Base):
         t = output_times(t)
         model = self.system.model
         self._check_directions(options.get("sensitivities", getattr(solver, "sensitivities", None)))
-        names = [q.name for q in model.coords]
-        q = state_vector(q0, names, "q0")
-        v = state_vector(v0, names, "v0")
-        defaults = {s.name: v_ for s, v_ in model.params.items()}
-        vals = {**defaults, **self._values}
-        for k, val in (params or {}).items():
-            if k not in self.param_names:
-                raise LagcodegenError(f"{k!r} is not a run-time parameter (run-time parameters: "
-                                      f"{', '.join(self.param_names) or 'none'})")
-            vals[k] = check_finite(val, f"parameter {k!r}")
-        if initial == "check":
-            self.system.check_initial(q, v, vals, t0=float(t[0]), tol=ic_tol)
-        elif initial not in ("project", "none"):
-            raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
+        q, v, vals = self._start(q0, v0, params, float(t[0]), initial, ic_tol)
         tol = ic_tol if initial == "check" else np.inf
         b = self._branch_for(q, float(t[0]), vals, tol)
         cm = self.compiled_branch(b)
@@ -190,20 +177,8 @@ class MinimalSimulation(_Base):
         state and parameters are those of the branch's model (the remaining coordinates,
         :attr:`state_names`)."""
         model = self.system.model
-        names = [q.name for q in model.coords]
-        q = state_vector(q0, names, "q0")
-        v = state_vector(v0, names, "v0")
         t0 = check_finite(t0, "t0")
-        vals = {**{s.name: v_ for s, v_ in model.params.items()}, **self._values}
-        for k, val in (params or {}).items():
-            if k not in self.param_names:
-                raise LagcodegenError(f"{k!r} is not a run-time parameter (run-time parameters: "
-                                      f"{', '.join(self.param_names) or 'none'})")
-            vals[k] = check_finite(val, f"parameter {k!r}")
-        if initial == "check":
-            self.system.check_initial(q, v, vals, t0=t0, tol=ic_tol)
-        elif initial not in ("project", "none"):
-            raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
+        q, v, vals = self._start(q0, v0, params, t0, initial, ic_tol)
         cm = self.compiled_branch(self._branch_for(q, t0, vals, ic_tol if initial == "check" else np.inf))
         idx = [model.index(qr) for qr in self.remaining]
         return cm.integrator(q0=q[idx], v0=v[idx], t0=t0, params={k: vals[k] for k in cm.param_names},
@@ -217,6 +192,26 @@ class MinimalSimulation(_Base):
         return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
                                 progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                 options=options)
+
+    def _start(self, q0, v0, params, t0: float, initial: str, ic_tol: float):
+        """(q, v, parameter values by name) of a run or integrator from ``t0``: q0/v0 for all n
+        coordinates, run-time parameters checked, the initial state checked against the
+        constraints when ``initial`` is "check" ("project" and "none" leave it to the branch)."""
+        model = self.system.model
+        names = [q.name for q in model.coords]
+        q = state_vector(q0, names, "q0")
+        v = state_vector(v0, names, "v0")
+        vals = {**{s.name: v_ for s, v_ in model.params.items()}, **self._values}
+        for k, val in (params or {}).items():
+            if k not in self.param_names:
+                raise LagcodegenError(f"{k!r} is not a run-time parameter (run-time parameters: "
+                                      f"{', '.join(self.param_names) or 'none'})")
+            vals[k] = check_finite(val, f"parameter {k!r}")
+        if initial == "check":
+            self.system.check_initial(q, v, vals, t0=t0, tol=ic_tol)
+        elif initial not in ("project", "none"):
+            raise LagcodegenError(f"initial must be 'check', 'project' or 'none', got {initial!r}")
+        return q, v, vals
 
     def _check_directions(self, names) -> None:
         """Sensitivity directions that name an eliminated coordinate's initial value raise: it is

@@ -12,7 +12,7 @@ import numpy as np
 from ..codes import FLAG_TEXT as CODE_TEXT
 from ..codes import Flag
 from ..errors import LagcodegenError
-from ..result import Result
+from ..result import Result, sensitivity_index
 from .control import FLAG_TEXT as CONTROL_TEXT
 from .control import NOT_RUN
 
@@ -86,13 +86,7 @@ class EnsembleResult:
         were saved, else (N,) at each member's last output time."""
         if self.sensitivities is None:
             raise LagcodegenError("this ensemble has no sensitivities: run ensemble(..., sensitivities=[...])")
-        if direction not in self.sensitivity_names:
-            raise LagcodegenError(f"{direction!r} is not a sensitivity direction of this ensemble "
-                                  f"({', '.join(self.sensitivity_names)})")
-        if value not in self.sensitivity_values:
-            raise LagcodegenError(f"{value!r} is not a state or output of this ensemble "
-                                  f"({', '.join(self.sensitivity_values)})")
-        j, k = self.sensitivity_names.index(direction), self.sensitivity_values.index(value)
+        j, k = sensitivity_index(self.sensitivity_names, self.sensitivity_values, value, direction, "ensemble")
         if self.sensitivity_trajectories is not None:
             return self.sensitivity_trajectories[:, :, j, k]
         return self.sensitivities[:, j, k]
