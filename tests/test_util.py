@@ -14,7 +14,8 @@ def test_staged_outputs_appear_together(tmp_path):
         staged[b].write_text("b")
         assert not a.exists() and not b.exists()
     assert a.read_text() == "a" and b.read_text() == "b"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.png", "x"] and [p.name for p in a.parent.iterdir()] == ["a.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.png", "x"]
+    assert [p.name for p in a.parent.iterdir()] == ["a.csv"]
 
 
 def test_staged_outputs_leave_nothing_on_interrupt(tmp_path):
