@@ -10,7 +10,51 @@ from pathlib import Path
 import numpy as np
 
 from .errors import LagcodegenError
-from .util import atomic_binary, atomic_write
+from .util import atomic_binary
+
+
+#: Values of a CSV file formatted at a time (:func:`write_csv`): a chunk takes some tens of
+#: milliseconds, and Ctrl-C (KeyboardInterrupt, raised between chunks) stops a long write that soon.
+CSV_CHUNK_VALUES = 1 << 18
+
+#: The format of a value in a CSV file: 17 significant digits, which read back as the same double.
+CSV_FORMAT = "%.17g"
+
+
+def write_csv(path: str | os.PathLike, columns: dict[str, np.ndarray]) -> Path:
+    """Write ``columns`` (name -> 1-D array of one length, as :meth:`Result.columns`) to ``path``
+    as CSV: a header line of the names, then a row per index, each value in :data:`CSV_FORMAT`
+    (every double reads back exactly; nan, inf and -inf as such).
+
+    The rows are formatted :data:`CSV_CHUNK_VALUES` values at a time into a temporary file beside
+    ``path`` that replaces it at the end (:func:`lagcodegen.util.atomic_binary`): Ctrl-C between
+    chunks, or any error, leaves ``path`` as it was and no temporary file. LagcodegenError if the
+    columns are not 1-D arrays of real numbers of one length."""
+    path = Path(path)
+    names = list(columns)
+    if not names:
+        raise LagcodegenError(f"{path}: no columns to write")
+    arrays = []
+    for name in names:
+        try:
+            arr = np.asarray(columns[name], dtype=float)
+        except (TypeError, ValueError):
+            raise LagcodegenError(f"{path}: column {name!r} is not an array of real numbers") from None
+        if arr.ndim != 1:
+            raise LagcodegenError(f"{path}: column {name!r} has shape {arr.shape}, expected one value per row")
+        arrays.append(arr)
+    nrows = len(arrays[0])
+    if any(len(a) != nrows for a in arrays):
+        raise LagcodegenError(f"{path}: the columns differ in length ("
+                              + ", ".join(f"{k} {len(a)}" for k, a in zip(names, arrays)) + ")")
+    step = max(1, CSV_CHUNK_VALUES // len(names))
+    row = ",".join([CSV_FORMAT] * len(names)) + "\n"
+    with atomic_binary(path) as fh:  # the temporary file is removed on any exception (Ctrl-C, SIGTERM)
+        fh.write((",".join(names) + "\n").encode("utf-8"))
+        for start in range(0, nrows, step):  # KeyboardInterrupt comes between chunks
+            block = np.column_stack([a[start:start + step] for a in arrays])
+            fh.write(((row * len(block)) % tuple(block.ravel().tolist())).encode("ascii"))
+    return path
 
 
 def sensitivity_index(names: list, values: list, value: str, direction: str, what: str) -> tuple[int, int]:
@@ -122,7 +166,9 @@ class Result:
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
-        """Write CSV (``.csv``) or NPZ (``.npz``), atomically."""
+        """Write CSV (``.csv``, :func:`write_csv`: the columns t, states, outputs, each double
+        exactly) or NPZ (``.npz``), atomically: an interrupted or failed write leaves ``path`` as
+        it was and no temporary file."""
 
         path = Path(path)
         cols = self.columns()
@@ -132,11 +178,8 @@ class Result:
             return path
         if path.suffix != ".csv":
             raise ValueError(f"{path}: results are written as .csv or .npz")
-        names = list(cols)
-        data = np.column_stack([cols[k] for k in names])
-        lines = [",".join(names)]
-        lines += [",".join(repr(float(x)) for x in row) for row in data]
-        return atomic_write(path, "\n".join(lines) + "\n")
+        write_csv(path, cols)
+        return path
 
     # ------------------------------------------------------------------ pictures
     def title(self) -> str:

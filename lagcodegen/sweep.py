@@ -42,7 +42,7 @@ import numpy as np
 from .errors import LagcodegenError, SolverError
 from .modelfile import FORMULATIONS, constrained_method, constrained_outputs
 from .solvers.ensemble import EnsembleInterrupted
-from .util import atomic_binary, output_problem
+from .util import atomic_binary, output_problem, staged_outputs
 
 #: Distributions of ``--sample``, with the meaning of their two numbers.
 DISTRIBUTIONS = {"uniform": "LOW:HIGH", "normal": "MEAN:SD", "loguniform": "LOW:HIGH (0 < LOW)"}
@@ -362,14 +362,14 @@ def run_plan(plan: Plan, mf, sim, values: dict[str, float], say: Callable[[str],
     for name in ens.outputs:
         table[f"final_{name}"] = ens[name]
     out = Path(spec.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_table(out, table, ens.messages)
+    plot = Path(spec.plot) if spec.plot is not None else None
+    with staged_outputs([out, plot]) as staged:  # the table and the plot appear together, or neither
+        write_table(staged[out], table, ens.messages)
+        if plot is not None:
+            plot_sweep(staged[plot], plan, swept, ens[y_name], ens.status, y_label=f"{y_name} at t = {t_end:g}",
+                       coords=coords + speeds)
     say(f"wrote {out} ({n_mem} rows, {len(table)} columns)")
-    if spec.plot is not None:
-        plot = Path(spec.plot)
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        plot_sweep(plot, plan, swept, ens[y_name], ens.status, y_label=f"{y_name} at t = {t_end:g}",
-                   coords=coords + speeds)
+    if plot is not None:
         say(f"wrote {plot}")
     if failed == n_mem:
         first = min(ens.messages)

@@ -115,6 +115,48 @@ def atomic_binary(path: Path):
         raise
 
 
+@contextlib.contextmanager
+def staged_outputs(paths):
+    """Write several files so that they appear together or not at all: yields a dict mapping
+    each of ``paths`` to a unique temporary path beside it with its suffix (writers pick the format
+    by it); when the ``with`` block ends without error each temporary file replaces its target.
+    On any exception (Ctrl-C, SIGTERM as :class:`Terminated`, a failed writer) the temporary files
+    are removed, and so are the folders made here for them (if left empty): nothing is written.
+
+    ``paths``: the files (str or path-like), each given once, None entries skipped."""
+    targets = [Path(p) for p in paths if p is not None]
+    if len(set(map(os.path.abspath, targets))) != len(targets):
+        raise LagcodegenError("the output files must differ: " + ", ".join(map(str, targets)))
+    made: list[Path] = []  # folders made here, outermost first
+    staged: dict[Path, Path] = {}
+    published: list[Path] = []
+    try:
+        for target in targets:
+            missing = []
+            parent = target.parent
+            while not parent.exists():
+                missing.append(parent)
+                parent = parent.parent
+            target.parent.mkdir(parents=True, exist_ok=True)
+            made.extend(reversed(missing))
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=f".part{target.suffix}")
+            os.close(fd)
+            staged[target] = Path(tmp)
+        yield dict(staged)
+        for target, tmp in staged.items():
+            os.replace(tmp, target)
+            published.append(target)
+    except BaseException:
+        for target, tmp in staged.items():
+            for path in (tmp, target) if target in published else (tmp,):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(path)
+        for folder in reversed(made):
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only if empty
+        raise
+
+
 class Terminated(BaseException):
     """SIGTERM as an exception (see :func:`sigterm_raises`); a BaseException, as KeyboardInterrupt,
     so that nothing catches it by accident."""

@@ -298,7 +298,7 @@ def test_sigterm_while_writing_leaves_no_temporary_file(tmp_path, method, name):
     assert proc.returncode == 143, proc.stderr
     assert "terminated" in proc.stderr and "Traceback" not in proc.stderr
     left = sorted(p.name for p in out.iterdir())
-    assert left == (["r.csv"] if method == "plot" else []), left  # no .tmp file, no partial output
+    assert left == [], left  # no .tmp file, no partial output, and no CSV without its plot
 
 
 def test_set_of_an_unknown_parameter_is_refused(tmp_path):
@@ -469,3 +469,21 @@ def test_fit_recovers_the_pendulum_length(tmp_path):
     (tmp_path / "bad.csv").write_text("t,phi\n0,1\n1,2\n")
     bad = run("fit", EXAMPLES / "pendulum.toml", tmp_path / "bad.csv", "--fit", "l")
     assert bad.returncode == 1 and "'phi' is neither a state nor an output" in bad.stderr
+
+
+def test_fit_interrupted_while_plotting_leaves_no_estimates(tmp_path, monkeypatch):
+    """The estimates and the plot appear together: Ctrl-C while plotting leaves neither."""
+    import lagcodegen as lcg
+    from lagcodegen.cli import fit as fit_command
+    from lagcodegen.cli import main
+    t = np.linspace(0.0, 2.0, 21)
+    data = tmp_path / "data.csv"
+    res = lcg.compile_model(lcg.systems.pendulum()).simulate(t, q0=[1.0], params={"l": 1.2})
+    data.write_text("t,theta\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(t.tolist(), res["theta"].tolist())))
+
+    def interrupted(*args):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(fit_command, "_plot", interrupted)
+    assert main(["fit", str(EXAMPLES / "pendulum.toml"), str(data), "--fit", "l", "-o", str(tmp_path / "fit.csv"),
+                 "--plot", str(tmp_path / "fit.png"), "-q"]) == 130
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data.csv"]

@@ -214,3 +214,16 @@ def test_ctrl_c_exits_130_and_writes_nothing(tmp_path):
     assert time.perf_counter() - start < 5
     assert "nothing written" in rest and "interrupted" in rest
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_ctrl_c_while_plotting_leaves_neither_table_nor_plot(tmp_path, monkeypatch):
+    import lagcodegen.sweep as sweep_module
+
+    def interrupted(path, *args, **kwargs):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise KeyboardInterrupt
+    monkeypatch.setattr(sweep_module, "plot_sweep", interrupted)
+    out = tmp_path / "out"
+    assert main(["sweep", str(PENDULUM), "--grid", "g=9.7:9.9:3", "-o", str(out / "s.csv"), "--plot",
+                 str(out / "s.png"), "--t-end", "0.5", "-q"]) == 130
+    assert list(tmp_path.iterdir()) == []

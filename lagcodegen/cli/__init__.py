@@ -42,7 +42,8 @@ exit codes:
     3  the C compiler failed
     4  the integration failed
     5  generate --check: the output folder is out of date
-  130  interrupted (Ctrl-C); 143: terminated (SIGTERM). No partial output file is left."""
+  130  interrupted (Ctrl-C); 143: terminated (SIGTERM). No partial output file is left, and a
+       command's files (-o, --plot, --animate) appear together or not at all."""
 
 
 class _CMakeDir(argparse.Action):

@@ -19,7 +19,7 @@ from ..api import compile_file
 from ..errors import LagcodegenError
 from ..fitting import fit
 from ..solvers.direction import SPELLING, Direction
-from ..util import atomic_binary, atomic_write
+from ..util import atomic_binary, atomic_write, staged_outputs
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
                      load, say)
 
@@ -133,13 +133,17 @@ def run(args) -> int:
         f"{result.iterations} iterations, cost {result.cost:.6g}, cond(J^T J) {result.condition:.3g}", args.quiet)
     for name in names:
         print(f"{name} = {result.params[name]:.12g} +- {result.stderr[name]:.3g}")
-    if args.output:
-        lines = ["name,estimate,stderr"] + [f"{n},{result.params[n]!r},{result.stderr[n]!r}" for n in names]
-        atomic_write(Path(args.output), "\n".join(lines) + "\n")
-        say(f"wrote {args.output}", args.quiet)
-    if args.plot:
-        _plot(sim, mf, result, t, data, observe, q0, v0, fixed, args.plot)
-        say(f"wrote {args.plot}", args.quiet)
+    out = Path(args.output) if args.output else None
+    plot = Path(args.plot) if args.plot else None
+    with staged_outputs([out, plot]) as staged:  # the estimates and the plot appear together, or neither
+        if out is not None:
+            lines = ["name,estimate,stderr"] + [f"{n},{result.params[n]!r},{result.stderr[n]!r}" for n in names]
+            atomic_write(staged[out], "\n".join(lines) + "\n")
+        if plot is not None:
+            _plot(sim, mf, result, t, data, observe, q0, v0, fixed, staged[plot])
+    for path in (out, plot):
+        if path is not None:
+            say(f"wrote {path}", args.quiet)
     return EXIT_OK
 
 

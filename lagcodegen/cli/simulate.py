@@ -20,7 +20,7 @@ from ..animation import FORMATS, ffmpeg_available
 from ..api import compile_file
 from ..modelfile.loader import MAX_STEPS
 from ..theory.energy import is_natural
-from ..util import atomic_binary, excerpt, output_problem
+from ..util import atomic_binary, excerpt, output_problem, staged_outputs
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_scene_options,
                      apply_options, assignments, check_parameter_names, csv, input_tables, load, say)
 
@@ -246,28 +246,30 @@ def not_conserved(mf) -> str | None:
 
 def write_result(res, args, plotted: list[str] | None = None, nonconservative: str | None = None) -> int:
     """Save the result (CSV/NPZ), the plot and the animation if asked, and report the drift of
-    the energy (or, for a model that does not conserve it, how much it changed and why)."""
+    the energy (or, for a model that does not conserve it, how much it changed and why).
+
+    The files are written to temporary files beside their targets and published together when
+    all are complete (:func:`lagcodegen.util.staged_outputs`): Ctrl-C, SIGTERM or a failure
+    while any is written leaves none of them (nor the folders made for them)."""
     out = Path(args.output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    res.save(out)
-    say(f"wrote {out}", args.quiet)
-    if args.plot:
-        plot = Path(args.plot)
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        xy = csv(args.plot_xy)
-        if xy and len(xy) == 2:
-            column_plot(res, xy[0], xy[1], plot)
-        elif xy:
-            res.plot(plot, xy=xy[0])
-        else:
-            what = [item.split("+") for item in csv(args.plot_y)] if args.plot_y else plotted
-            res.plot(plot, what)
-        say(f"wrote {plot}", args.quiet)
-    if args.animate:
-        movie = Path(args.animate)
-        movie.parent.mkdir(parents=True, exist_ok=True)
-        res.animate(movie)
-        say(f"wrote {movie}", args.quiet)
+    plot = Path(args.plot) if args.plot else None
+    movie = Path(args.animate) if args.animate else None
+    with staged_outputs([out, plot, movie]) as staged:
+        res.save(staged[out])
+        if plot is not None:
+            xy = csv(args.plot_xy)
+            if xy and len(xy) == 2:
+                column_plot(res, xy[0], xy[1], staged[plot])
+            elif xy:
+                res.plot(staged[plot], xy=xy[0])
+            else:
+                what = [item.split("+") for item in csv(args.plot_y)] if args.plot_y else plotted
+                res.plot(staged[plot], what)
+        if movie is not None:
+            res.animate(staged[movie])
+    for path in (out, plot, movie):
+        if path is not None:
+            say(f"wrote {path}", args.quiet)
     if "energy" in res.outputs:
         if nonconservative is None:
             say(f"energy drift over the run: {res.drift('energy'):.3e} (relative)", args.quiet)

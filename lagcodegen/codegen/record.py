@@ -101,6 +101,21 @@ class GeneratedCode:
         return written
 
 
+def scene_of_code(code: GeneratedCode, what: str) -> Scene:
+    """The scene ``code`` was generated from, which ``what`` (e.g. "method='taylor'") needs;
+    LagcodegenError saying why it is missing: a pickled compiled model carries its generated C
+    only, or the code was assembled by hand."""
+    scene = getattr(code, "scene", None)
+    if scene is None:
+        from ..errors import LagcodegenError
+        raise LagcodegenError(f"{what} needs the symbolic scene of model {code.model_name!r}, which this compiled "
+                              "model does not have: a pickled compiled model carries its generated C only (pickle "
+                              "lagcodegen.simulation.ode.with_scene(model) to send the scene along), and code "
+                              "assembled by hand has none; compile it with lagcodegen.compile_model or "
+                              "build(generate_c(scene))")
+    return scene
+
+
 def new_code(scene: Scene) -> GeneratedCode:
     """The GeneratedCode record of ``scene``: layout and names, no files yet."""
     eom = scene.eom

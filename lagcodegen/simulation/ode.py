@@ -5,6 +5,7 @@ y = (q, q', z), on any registered solver family that integrates an ODE."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import functools
 import math
 from pathlib import Path
@@ -371,8 +372,11 @@ class CompiledModel(CompiledReprMixin):
                             executor=executor, progress=progress, chunk_size=chunk_size, options=options)
 
     def __reduce__(self):
-        """Pickled by its generated sources (never the .so, which links SUNDIALS by an absolute
-        path): unpickling rebuilds from the receiving process's cache (memoized per process)."""
+        """Pickled by its generated sources and their layout (names, defaults; never the .so,
+        which links SUNDIALS by an absolute path, nor the symbolic scene): unpickling rebuilds
+        from the receiving process's cache (memoized per process). What needs the scene there
+        (the Taylor method, events, sensitivities, drawing from the states) raises a
+        LagcodegenError saying so, unless the pickle was made of :func:`with_scene`."""
         return rebuild_compiled, (pickle_code(self.code), bool(self.native))
 
 
@@ -390,15 +394,9 @@ def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
 
 
 def pickle_code(code: GeneratedCode) -> GeneratedCode:
-    """``code`` without the scene when the scene does not pickle (the Taylor method then needs
-    it to be rebuilt where the scene is)."""
-    import pickle
-    try:
-        pickle.dumps(code.scene)
-        return code
-    except Exception:  # noqa: BLE001 - sympy objects with closures, lambdas, ...
-        import dataclasses
-        return dataclasses.replace(code, scene=None)
+    """``code`` as it is pickled: its files, names, defaults and layout, without the scene (the
+    symbolic scene is many times the size of the C it was generated into)."""
+    return code if code.scene is None else dataclasses.replace(code, scene=None)
 
 
 _REBUILT: dict = {}
@@ -412,6 +410,51 @@ def rebuild_compiled(code, native: bool):
     if cm is None:
         cm = _REBUILT[key] = CompiledModel.from_built(build(code, native=native))
     return cm
+
+
+def scene_code(sim) -> GeneratedCode | None:
+    """The generated code of a compiled simulation that has one: a compiled scene's, or that of
+    the compiled model under a constrained system; else None."""
+    code = getattr(sim, "code", None)
+    if isinstance(code, GeneratedCode):
+        return code
+    code = getattr(getattr(sim, "compiled", None), "code", None)
+    return code if isinstance(code, GeneratedCode) else None
+
+
+class WithScene:
+    """A compiled simulation whose pickle carries its symbolic scene too, once: unpickled, it is
+    the simulation itself (rebuilt from its sources) with the scene restored, so that what needs
+    the scene (the Taylor method, events, sensitivities) runs there. Make it with
+    :func:`with_scene`; in this process, ``.sim`` is the simulation."""
+
+    __slots__ = ("sim",)
+
+    def __init__(self, sim):
+        self.sim = sim
+
+    def __reduce__(self):
+        code = scene_code(self.sim)
+        return _restore_scene, (self.sim, None if code is None else code.scene)
+
+
+def with_scene(sim) -> WithScene:
+    """``sim`` (a compiled model, or a constrained simulation) to be pickled with its scene, for a
+    process that runs it with the Taylor method, events or sensitivities (an executor's worker:
+    :func:`lagcodegen.solvers.ensemble.run_chunks` sends such runs this way). LagcodegenError if
+    ``sim`` has no scene to carry (it was itself unpickled without one, or assembled by hand)."""
+    code = scene_code(sim)
+    if code is not None and code.scene is None:
+        raise LagcodegenError(f"model {code.model_name!r} has no symbolic scene to carry (it was unpickled without "
+                              "one, or assembled by hand): compile it again in this process")
+    return WithScene(sim)
+
+
+def _restore_scene(sim, scene):
+    code = scene_code(sim)
+    if code is not None and code.scene is None and scene is not None:
+        code.scene = scene
+    return sim
 
 
 def simulate(sim, t, *args, **options) -> Result:

@@ -1,7 +1,8 @@
 """Ensembles on executors (run control above one C call): the members split into chunks, each
 chunk one ensemble call of the compiled simulation on a worker (``executor=``: any object with
 ``submit(fn, *args) -> future``: a ``concurrent.futures`` executor, a ``dask.distributed.Client``;
-the simulation is pickled by its generated sources and rebuilt there from the worker's cache),
+the simulation is pickled by its generated sources and rebuilt there from the worker's cache, with
+its symbolic scene only when the runs need it: :func:`needs_scene`),
 the results put back by offset; a chunk that fails is retried once, then its members are marked
 (flag -83) with the traceback as their message.
 
@@ -25,7 +26,23 @@ from .ensemble_result import FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleR
 # ---------------------------------------------------------------------- executors (Dask, process pools)
 def _run_chunk(sim, t, inputs: dict, P, threads, save, options):
     """One chunk on a worker: an ensemble call of ``sim`` (rebuilt from its sources there)."""
+    from ..simulation.ode import WithScene
+    if isinstance(sim, WithScene):  # an executor that did not pickle it (threads)
+        sim = sim.sim
     return sim.ensemble(t, params=P, threads=threads, save=save, progress=False, **inputs, **options)
+
+
+def needs_scene(sim, options: dict) -> bool:
+    """Whether the chunks of ``sim``'s ensemble with ``options`` need the symbolic scene of its
+    compiled model on the worker, which its pickle leaves out: sensitivities, and for the ODE of a
+    compiled scene the Taylor method or events (generated from the scene where they run)."""
+    solver = options.get("solver")
+    if getattr(solver, "sensitivities", None) is not None:
+        return True
+    from ..codegen.record import GeneratedCode
+    if not isinstance(getattr(sim, "code", None), GeneratedCode):  # constrained: events compiled in
+        return False
+    return bool(options.get("events")) or getattr(solver, "name", "CVODE") != "CVODE"
 
 
 def run_chunks(sim, executor, chunk_size, n_mem: int, t, inputs: dict, P, threads, save, options,
@@ -40,10 +57,12 @@ def run_chunks(sim, executor, chunk_size, n_mem: int, t, inputs: dict, P, thread
     threads = 1 if threads is None else threads  # executors run one worker per core
     starts = list(range(0, n_mem, chunk_size))
     payload = sim
+    if needs_scene(sim, options):  # pickled with its scene, once (else its generated sources only)
+        from ..simulation.ode import with_scene
+        payload = with_scene(sim)
     if len(starts) > 1 and callable(getattr(executor, "scatter", None)):
-        # a dask.distributed Client: the simulation goes to each worker once (its generated
-        # sources, sometimes its sympy scene), not once per chunk
-        payload = executor.scatter(sim, broadcast=True)
+        # a dask.distributed Client: the simulation goes to each worker once, not once per chunk
+        payload = executor.scatter(payload, broadcast=True)
 
     def args(s):
         sl = slice(s, min(s + chunk_size, n_mem))

@@ -305,3 +305,19 @@ def test_constrained_and_taylor_ensemble_sources_compile_strictly(tmp_path, cc):
         proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", src, "-o", "x.o"], cwd=tmp_path, capture_output=True,
                               text=True)
         assert proc.returncode == 0, proc.stderr
+
+
+def test_chunks_that_need_the_scene_get_it(dpend, pend):
+    """Taylor members on a process pool: the chunks are pickled with the scene (once each), and
+    run bit-identically; plain CVODE chunks go without it."""
+    from lagcodegen.solvers.cvode import CVODE
+    from lagcodegen.solvers.ensemble import needs_scene
+    from lagcodegen.solvers.taylor import Taylor
+    assert not needs_scene(pend, {"solver": CVODE()})
+    assert needs_scene(pend, {"solver": Taylor()}) and needs_scene(pend, {"solver": CVODE(), "events": ["x"]})
+    assert needs_scene(pend, {"solver": CVODE(sensitivities=("g",))})
+    Q, V, _ = members(6)
+    ref = dpend.ensemble(T, q0=Q, v0=V, method="taylor", save="trajectory")
+    with ProcessPoolExecutor(2) as ex:
+        e = dpend.ensemble(T, q0=Q, v0=V, method="taylor", save="trajectory", executor=ex, chunk_size=3)
+    assert np.array_equal(e.y, ref.y) and (e.status == 0).all()

@@ -281,3 +281,46 @@ def test_a_right_hand_side_turning_non_finite_is_named(toward_a_singularity, met
     assert 1.33 < info.value.t < 1.334
     if method == "bdf":
         assert "a computed value is not finite at t = 1.333" in text and "corrector" not in text
+
+
+# ---------------------------------------------------------------------- pickling
+@pytest.fixture(scope="module")
+def chain():
+    return lcg.compile_model(systems.n_link_pendulum(10), outputs=["energy"])
+
+
+def test_a_pickle_carries_the_generated_code_not_the_scene(chain):
+    """A 10-link chain pickles to about its C sources (it was 187 kB: the scene pickled, twice
+    over); unpickled, it runs bit-identically, and what needs the scene says so."""
+    import pickle
+    data = pickle.dumps(chain)
+    sources = sum(len(text) for text in chain.code.files.values())
+    assert len(data) < sources + 16_000
+    assert len(data) < len(pickle.dumps(chain.code.scene)) / 4
+    back = pickle.loads(data)
+    assert back.code.scene is None and chain.code.scene is not None  # the model pickled keeps its scene
+    assert (back.state_names, back.param_names, back.output_names) == (chain.state_names, chain.param_names,
+                                                                        chain.output_names)
+    t = np.linspace(0.0, 2.0, 21)
+    q0 = np.linspace(0.1, 1.0, 10)
+    mine, theirs = back.simulate(t, q0=q0, params={"g": 9.7}), chain.simulate(t, q0=q0, params={"g": 9.7})
+    assert np.array_equal(mine.y, theirs.y) and np.array_equal(mine["energy"], theirs["energy"])
+    with pytest.raises(LagcodegenError, match=r"method='taylor' needs the symbolic scene .*with_scene"):
+        back.simulate(t, q0=q0, method="taylor")
+    with pytest.raises(LagcodegenError, match="sensitivities needs the symbolic scene"):
+        back.simulate(t, q0=q0, sensitivities=["g"])
+
+
+def test_with_scene_pickles_the_scene_once_and_the_taylor_method_runs():
+    import pickle
+    from lagcodegen.simulation.ode import with_scene
+    cm = lcg.compile_model(systems.n_link_pendulum(3))
+    data = pickle.dumps(with_scene(cm))
+    assert len(data) < len(pickle.dumps(cm.code.scene)) + len(pickle.dumps(cm)) + 4_000
+    back = pickle.loads(data)
+    assert back.code.scene is not None
+    t = np.linspace(0.0, 1.0, 11)
+    assert np.array_equal(back.simulate(t, q0=[0.3, 0.2, 0.1], method="taylor").y,
+                          cm.simulate(t, q0=[0.3, 0.2, 0.1], method="taylor").y)
+    with pytest.raises(LagcodegenError, match="no symbolic scene to carry"):
+        with_scene(pickle.loads(pickle.dumps(lcg.compile_model(systems.n_link_pendulum(4)))))

@@ -12,6 +12,7 @@ import numpy as np
 
 from ...build import plain_library
 from ...codegen.events import events_function, events_source
+from ...codegen.record import scene_of_code
 from ...errors import LagcodegenError
 from ...formulation.events import scene_events
 from ...model.events import EventRecord
@@ -76,13 +77,9 @@ class CompiledEvents:
 
 
 def scene_of(cm):
-    """The scene ``cm`` was generated from (its events are generated from it)."""
-    scene = cm.code.scene
-    if scene is None:
-        raise LagcodegenError("events on CVODE need the scene of the compiled model (this one was assembled by "
-                              "hand or unpickled without it); compile it with lagcodegen.compile_model or "
-                              "build(generate_c(scene))")
-    return scene
+    """The scene ``cm`` was generated from (its events are generated from it); LagcodegenError if
+    ``cm`` has none (unpickled, or assembled by hand)."""
+    return scene_of_code(cm.code, "events on CVODE")
 
 
 def compiled_events(cm, events) -> CompiledEvents | None:

@@ -24,6 +24,7 @@ import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
 from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
+from ...codegen.record import scene_of_code
 from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from ...errors import LagcodegenError
 from ...result import Result
@@ -82,10 +83,10 @@ class SensitivityFunctions:
 
     def __init__(self, cm):
         code = cm.code
-        scene = getattr(code, "scene", None)
-        if scene is None or cm.table is None:
+        if cm.table is None:
             raise LagcodegenError("sensitivities need a compiled model of a scene on the native runtime "
                                   "(compile_model(...), native build)")
+        scene = scene_of_code(code, "sensitivities")
         prefix = code.prefix
         sources = sensitivity_source(scene, prefix)
         self.library, self.path, _ = plain_library("sensitivity functions", f"{prefix}_sens", sources)

@@ -30,6 +30,7 @@ import time
 import numpy as np
 
 from ...build import generated_headers, plain_library
+from ...codegen.record import scene_of_code
 from ...codegen.sensitivity_constrained import constrained_sensitivity_source
 from ...errors import LagcodegenError, ModelError
 from ...result import Result
@@ -44,7 +45,7 @@ class ConstrainedSensitivityFunctions:
     pointers of the sensitivity driver's module (``rt``); ``library`` keeps the library open."""
 
     def __init__(self, sim):
-        scene = sim.compiled.code.scene
+        scene = scene_of_code(sim.compiled.code, "sensitivities of a constrained system")
         prefix = scene.prefix
         sources = constrained_sensitivity_source(sim.system, scene, sim.output_names, prefix)
         sources.update(runtime_files(["lcg_model.h"]))

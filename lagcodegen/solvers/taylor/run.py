@@ -5,19 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...errors import LagcodegenError
+from ...codegen.record import scene_of_code
 from ...result import Result
 from .runner import TaylorModule, build_taylor
 
 
 def scene_of(cm):
-    """The scene ``cm`` was generated from (the Taylor integrator is generated from it)."""
-    scene = cm.code.scene
-    if scene is None:
-        raise LagcodegenError("method='taylor' needs the scene of the compiled model (this one was assembled "
-                              "by hand or unpickled without it); compile it with lagcodegen.compile_model or "
-                              "build(generate_c(scene))")
-    return scene
+    """The scene ``cm`` was generated from (the Taylor integrator is generated from it);
+    LagcodegenError if ``cm`` has none (unpickled, or assembled by hand)."""
+    return scene_of_code(cm.code, "method='taylor'")
 
 
 def taylor_module(cm, events=()):
