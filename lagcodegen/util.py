@@ -14,6 +14,7 @@ import signal
 import stat
 import tempfile
 import threading
+import unicodedata
 from pathlib import Path
 from collections.abc import Mapping
 
@@ -39,6 +40,20 @@ def excerpt(value, around: str | None = None, limit: int = EXCERPT) -> str:
     piece = text[start:start + limit]
     shown = repr(piece) if isinstance(value, str) else piece
     return f"{'...' if start else ''}{shown}{'...' if start + limit < len(text) else ''} ({len(text)} characters)"
+
+
+def lookalike(name: str) -> str | None:
+    """If Python reads the name ``name`` as another (its identifiers are NFKC-normalized: the
+    full-width ``\uff4b`` is ``k``, ``\u2113`` is ``l``), a description of the first character it
+    changes and what it reads as, e.g. ``'\uff4b' (U+FF4B FULLWIDTH LATIN SMALL LETTER K), read as 'k'``;
+    else None."""
+    if not isinstance(name, str) or unicodedata.normalize("NFKC", name) == name:
+        return None
+    for ch in name:
+        plain = unicodedata.normalize("NFKC", ch)
+        if plain != ch:
+            return f"{ch!r} (U+{ord(ch):04X} {unicodedata.name(ch, 'unnamed character')}), read as {plain!r}"
+    return f"{excerpt(name)} (combining characters), read as {excerpt(unicodedata.normalize('NFKC', name))}"
 
 
 def check_finite(value, what: str) -> float:

@@ -183,3 +183,30 @@ def test_constrained_functions_given_empty_arrays_raise_instead_of_crashing(tmp_
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
     assert proc.stdout.strip() == "ok"
+
+
+# ---------------------------------------------------------------------- look-alike names (NFKC)
+def test_a_look_alike_name_in_an_expression_is_refused_naming_the_character_file_and_line():
+    """Python reads the full-width 'ｋ' as 'k' (NFKC): it silently became the parameter k."""
+    text = pendulum_file(v="ｋ*theta**2", extra="").replace("g = 9.81", "g = 9.81\nk = 1.0")
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, "lookalike.toml")
+    msg = str(err.value)
+    assert msg.startswith("lookalike.toml:13:") and "energy.potential" in msg
+    assert "'ｋ'" in msg and "U+FF4B" in msg and "FULLWIDTH LATIN SMALL LETTER K" in msg and "'k'" in msg
+    with pytest.raises(ModelFileError, match=r"U\+2113 SCRIPT SMALL L"):  # was "unknown name 'l'"
+        loads_model(pendulum_file(v="ℓ*theta"), "lookalike.toml")
+    with pytest.raises(ModelFileError, match="U\\+FF53"):  # a function name too
+        loads_model(pendulum_file(x="ｓin(theta)"), "lookalike.toml")
+    assert loads_model(pendulum_file(v="g*theta")).model is not None
+
+
+def test_a_look_alike_name_cannot_be_declared():
+    text = pendulum_file(v="k*theta**2").replace("g = 9.81", 'g = 9.81\nk = 1.0\n"ｋ" = 5.0')
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, "lookalike.toml")
+    assert str(err.value).startswith("lookalike.toml:8:") and "U+FF4B" in str(err.value)
+    m = lcg.Model("m")
+    with pytest.raises(ModelError, match="coordinate name 'ℓ'.*U\\+2113"):
+        m.coordinates("ℓ")
+    assert m.coordinates("θ")  # a name Python keeps as written is fine

@@ -18,6 +18,7 @@ Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equatio
 from __future__ import annotations
 
 import keyword
+import unicodedata
 import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
@@ -26,6 +27,7 @@ import sympy as sp
 
 from ..errors import ModelError
 from .bodies import Joint, Link, Placement, make_link
+from ..util import excerpt, lookalike
 from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.check_finite)
 
 #: Names a coordinate or parameter may not take (they name other things).
@@ -41,7 +43,12 @@ DERIVED_SUFFIXES = ("_dot", "_ddot")
 
 def _check_name(name: str, what: str) -> str:
     if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
-        raise ModelError(f"{what} name {name!r} is not a valid identifier")
+        raise ModelError(f"{what} name {excerpt(name)} is not a valid identifier")
+    changed = lookalike(name)
+    if changed:
+        raise ModelError(f"{what} name {excerpt(name)} has the look-alike character {changed} in expressions "
+                         f"(Python normalizes names, NFKC): it could not be told from "
+                         f"{excerpt(unicodedata.normalize('NFKC', name))}; write the name in plain characters")
     if name in RESERVED_NAMES:
         raise ModelError(f"{what} name {name!r} is reserved")
     if name.startswith(RESERVED_PREFIX):
