@@ -7,6 +7,7 @@ these functions to run a pipeline.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from typing import Any, Callable, Iterable, Mapping, Sequence
@@ -26,8 +27,8 @@ from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
 from .model.mechanics import as_model
-from .model.model import Model
-from .modelfile import ModelFile, constrained_outputs
+from .model.model import Model, require_model
+from .modelfile import ModelFile, constrained_outputs, load_model_path
 from .simulation.constrained import ConstrainedSimulation
 from .simulation.minimal import MinimalSimulation
 from .simulation.ode import CompiledModel
@@ -68,7 +69,7 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
-    model = as_model(model, parameters=values)  # a sympy.physics.mechanics.System: its values are needed
+    model = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
     with _progress.enabled(progress):
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
@@ -208,9 +209,23 @@ def _compile_constrained(system, formulation, outputs, baumgarte, projection, ev
 
 
 # ---------------------------------------------------------------------- model files
-def compile_file(mf: ModelFile, **options: Any):
-    """Compile a loaded model file with its ``[simulation]`` settings (``options`` override; run
-    it with :meth:`ModelFile.simulate <lagcodegen.modelfile.ModelFile.simulate>`).
+def _model_file_argument(mf) -> ModelFile:
+    """``mf`` itself if it is a ModelFile, the model file at it if it is a path
+    (:func:`lagcodegen.modelfile.load_model_path`), else a ModelError saying what is taken."""
+    if isinstance(mf, ModelFile):
+        return mf
+    if isinstance(mf, str) or hasattr(mf, "__fspath__"):
+        return load_model_path(mf)
+    hint = {"Model": ": for a Model, use compile_model(model)",
+            "ConstrainedSystem": ": for a ConstrainedSystem, use compile_constrained(system)"}.get(type(mf).__name__, "")
+    raise ModelError(f"compile_file takes a loaded model file (lagcodegen.modelfile.load_model_path) or a model "
+                     f"file's path, got {'None' if mf is None else f'a {type(mf).__name__}'}{hint}")
+
+
+def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
+    """Compile a loaded model file (or the model file at a path: :func:`load_model_path`) with its
+    ``[simulation]`` settings (``options`` override; run it with :meth:`ModelFile.simulate
+    <lagcodegen.modelfile.ModelFile.simulate>`).
 
     Without constraints: :func:`compile_model` with the file's outputs, run-time parameters,
     parameter values and Jacobian setting. With constraints: :func:`compile_constrained` with the
@@ -218,6 +233,7 @@ def compile_file(mf: ModelFile, **options: Any):
     (:func:`lagcodegen.modelfile.constrained_outputs`). Errors of the derivation name the file
     and line (:meth:`ModelFile.derive <lagcodegen.modelfile.ModelFile.derive>`).
     """
+    mf = _model_file_argument(mf)
     s = mf.simulation
     with _progress.enabled(options.pop("progress", None)):
         if mf.constrained is not None:

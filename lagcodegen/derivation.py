@@ -33,7 +33,7 @@ import sympy as sp
 from . import progress
 from .errors import DerivationError, ModelError
 from .model.mechanics import as_model
-from .model.model import Model, Particle, PlanarBody, RigidBody
+from .model.model import Model, Particle, PlanarBody, RigidBody, require_model
 from .model.treedynamics import TreeDynamics, tree_nodes
 
 #: The sympy views of an EquationsOfMotion whose expressions count more nodes than this
@@ -409,7 +409,7 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
 
     A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
     """
-    model = as_model(model, unset=1.0)
+    model = require_model(as_model(model, unset=1.0), "derive")
     with progress.stage("derive", total=model.n, unit="coordinates") as stage:
         return _derive(model, check, stage)
 

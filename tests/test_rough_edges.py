@@ -210,3 +210,29 @@ def test_a_look_alike_name_cannot_be_declared():
     with pytest.raises(ModelError, match="coordinate name 'ℓ'.*U\\+2113"):
         m.coordinates("ℓ")
     assert m.coordinates("θ")  # a name Python keeps as written is fine
+
+
+# ---------------------------------------------------------------------- what compile_model / compile_file take
+def test_compile_model_given_a_path_or_none_says_what_it_takes():
+    """Was AttributeError: 'str' object has no attribute 'n'."""
+    for bad in ("pendulum.toml", ROOT / "examples" / "pendulum.toml"):
+        with pytest.raises(ModelError) as err:
+            lcg.compile_model(bad)
+        msg = str(err.value)
+        assert "compile_model takes a Model" in msg and "pendulum.toml" in msg and "compile_file(path)" in msg
+        assert "load_model_path" in msg
+    with pytest.raises(ModelError, match="compile_model takes a Model .*got None"):
+        lcg.compile_model(None)
+    with pytest.raises(ModelError, match=r"got a ModelFile .*compile_file\(mf\)"):
+        lcg.compile_model(lcg.modelfile.load_model(ROOT / "examples" / "pendulum.toml"))
+    with pytest.raises(ModelError, match="derive takes a Model"):
+        lcg.derive("pendulum.toml")
+
+
+def test_compile_file_loads_a_path_and_says_what_it_takes():
+    cm = lcg.compile_file(str(ROOT / "examples" / "pendulum.toml"))  # was: 'str' object has no attribute 'simulation'
+    assert cm.state_names == ["theta", "theta_dot"]
+    with pytest.raises(ModelError, match=r"compile_file takes a loaded model file .*got a Model: .*compile_model"):
+        lcg.compile_file(lcg.systems.pendulum())
+    with pytest.raises(ModelError, match="compile_file takes .*got None"):
+        lcg.compile_file(None)

@@ -557,3 +557,23 @@ class Model:
         """The coordinates and the energies stated directly, velocities dotted."""
         from ..notebook import model_latex
         return model_latex(self)
+
+
+def require_model(obj, what: str) -> Model:
+    """``obj`` if it is a :class:`Model`; else a ModelError saying what ``what`` (the function,
+    e.g. ``"compile_model"``) takes, and what to call for what was given (a model file's path,
+    a loaded model file, a constrained system)."""
+    if isinstance(obj, Model):
+        return obj
+    takes = f"{what} takes a Model (or a sympy.physics.mechanics System)"
+    kind = type(obj).__name__
+    if isinstance(obj, (str, bytes)) or hasattr(obj, "__fspath__"):
+        hint = ("for a model file, lagcodegen.compile_file(path) compiles it with its [simulation] settings, "
+                "lagcodegen.modelfile.load_model_path(path) loads it (its .model is the Model)")
+        raise ModelError(f"{takes}, got the {kind} {excerpt(obj if isinstance(obj, str) else str(obj))}: {hint}")
+    hints = {"ModelFile": "a loaded model file: lagcodegen.compile_file(mf) compiles it, mf.model is its Model",
+             "ConstrainedSystem": "a constrained system: lagcodegen.compile_constrained(system) compiles it, "
+                                  "system.model is its unconstrained Model",
+             "EquationsOfMotion": "derived equations: eom.model is their Model"}
+    raise ModelError(f"{takes}, got {'None' if obj is None else f'a {kind}'}"
+                     + (f" ({hints[kind]})" if kind in hints else ""))
