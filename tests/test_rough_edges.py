@@ -236,3 +236,35 @@ def test_compile_file_loads_a_path_and_says_what_it_takes():
         lcg.compile_file(lcg.systems.pendulum())
     with pytest.raises(ModelError, match="compile_file takes .*got None"):
         lcg.compile_file(None)
+
+
+# ---------------------------------------------------------------------- empty ensembles, deep TOML, animation sizes
+def test_an_ensemble_of_no_members_is_a_clear_error():
+    import numpy as np
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    for kw in (dict(q0=np.zeros((0, 1))), dict(q0=[0.1], params=np.zeros((0, 3))), dict(q0=[0.1], params={"g": []}),
+               dict(q0={"theta": []})):
+        with pytest.raises(lcg.LagcodegenError, match="the ensemble has no members"):  # was a bare IndexError
+            sim.ensemble([0, 1], **kw)
+
+
+def test_deeply_nested_toml_is_a_clear_error_naming_the_file(tmp_path):
+    path = tmp_path / "deep.toml"
+    path.write_text('[model]\nname = "p"\ncoordinates = ["x"]\n[simulation]\ninitial = '
+                    + "[" * 100_000 + "]" * 100_000 + "\n")
+    with pytest.raises(ModelFileError) as err:  # was a bare RecursionError
+        lcg.modelfile.load_model(path)
+    assert str(err.value).startswith(f"{path}:") and "nested too deeply" in str(err.value)
+
+
+def test_animation_size_and_dpi_are_checked_and_named(tmp_path):
+    res = lcg.compile_model(lcg.systems.pendulum()).simulate([0, 0.2], q0=[0.5])
+    out = tmp_path / "a.gif"
+    # were ZeroDivisionError, IndexError and ValueError from matplotlib
+    for kw, word in ((dict(dpi=0), "dpi"), (dict(dpi=-80), "dpi"), (dict(dpi=float("nan")), "dpi"),
+                     (dict(size=(float("nan"), 5)), "size"), (dict(size=5), "size"), (dict(size=(5, -1)), "size"),
+                     (dict(dpi=0.1), "pixels"), (dict(size=(5, 1e6)), "pixels")):
+        with pytest.raises(lcg.LagcodegenError, match=word):
+            res.animate(out, frames=2, **kw)
+    assert not out.exists()
+    assert res.animate(out, frames=2, dpi=40, size=(3, 2)) == out and out.stat().st_size > 0

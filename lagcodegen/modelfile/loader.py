@@ -100,6 +100,9 @@ class _Loader(_Reader):
             m = re.search(r"line (\d+)", str(exc))
             line = int(m.group(1)) if m else None
             raise ModelFileError(f"invalid TOML: {exc}", self.filename, line, "", None) from None
+        except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+            raise ModelFileError("invalid TOML: arrays or inline tables nested too deeply (beyond Python's recursion "
+                                 f"limit, {sys.getrecursionlimit()} calls)", self.filename, None, "", None) from None
         for key in data:
             if key not in _TOP_LEVEL:
                 close = difflib.get_close_matches(key, _TOP_LEVEL, n=1)
