@@ -35,7 +35,7 @@ from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.minimal import closest_branch, reduced_model, solve_constraints
 from .theory.routhian import RouthReduction
-from .util import check_baumgarte
+from .util import check_baumgarte, excerpt
 
 #: compile_model emits the analytic Jacobian by default up to this many coordinates; above, the
 #: longer build outweighs the faster runs of a first run (measured in benchmarks/scaling.py; the
@@ -186,7 +186,8 @@ def formulation_options(formulation: str, options: Mapping) -> dict:
     for name, (default, takes) in FORMULATION_OPTIONS.items():
         value = options.get(name, default)
         if formulation not in takes and value is not default and value != default:
-            raise ModelError(f"compile_constrained: {name}={value!r} does not apply to formulation {formulation!r} "
+            raise ModelError(f"compile_constrained: {name}={excerpt(value)} does not apply to formulation "
+                             f"{formulation!r} "
                              f"({', '.join(takes)} only)")
         out[name] = value
     return out

@@ -32,6 +32,7 @@ import sympy as sp
 
 from . import progress
 from .errors import DerivationError, ModelError
+from .util import excerpt
 from .model.mechanics import as_model
 from .model.model import Model, Particle, PlanarBody, RigidBody, require_model
 from .model.treedynamics import TreeDynamics, tree_nodes
@@ -47,7 +48,8 @@ def to_se(expr, what: str = "expression"):
     try:
         return se.sympify(expr)
     except Exception as exc:  # symengine raises several types here
-        raise ModelError(f"{what} cannot be handled by the derivation engine: {expr} ({exc})") from None
+        raise ModelError(f"{what} cannot be handled by the derivation engine: {excerpt(expr)} "
+                         f"({excerpt(str(exc), quote=False)})") from None
 
 
 def to_sp(expr):

@@ -268,3 +268,58 @@ def test_animation_size_and_dpi_are_checked_and_named(tmp_path):
             res.animate(out, frames=2, **kw)
     assert not out.exists()
     assert res.animate(out, frames=2, dpi=40, size=(3, 2)) == out and out.stat().st_size > 0
+
+
+# ---------------------------------------------------------------------- messages show excerpts of inputs
+def test_messages_show_a_bounded_excerpt_of_a_huge_input():
+    """The README promises about 80 characters of an offending input; these echoed it whole."""
+    import warnings
+    big = "9" * 5000
+    base = '[model]\nname = "p"\ncoordinates = ["theta"]\n[[particles]]\nname = "bob"\nmass = MASS\n' \
+           'position = ["sin(theta)", "-cos(theta)"]\n'
+    for mass, expect in ((big, "too large to read"), (f'"-{big}*theta"', "number too large")):
+        with pytest.raises(ModelFileError) as err:  # the bare literal: a ValueError from tomllib before
+            loads_model(base.replace("MASS", mass), "m.toml")
+        msg = str(err.value)
+        assert msg.startswith("m.toml:6:") and expect in msg and len(msg) < 300, msg
+    m = lcg.Model("p")
+    th, = m.coordinates("theta")
+    with pytest.warns(UserWarning) as caught:
+        m.particle("neg", -sp.Integer(10) ** 5000, (sp.sin(th), 0))
+    assert "is negative" in str(caught[0].message) and len(str(caught[0].message)) < 300
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for mass, position in (("x" * 5000, (th, 0)), (1, 7 ** 900)):
+            with pytest.raises(ModelError) as err:
+                m.particle("b", mass, position)
+            assert len(str(err.value)) < 300, str(err.value)[:400]
+    # constraints: a long holonomic constraint without a coordinate, a long inequality violated at the start
+    cm = lcg.Model("c")
+    x, y = cm.coordinates("x y")
+    cm.particle("b", 1, (x, y))
+    long = sum(sp.Symbol("t") ** k / (k + 1) for k in range(150))
+    with pytest.raises(ModelError) as err:
+        lcg.ConstrainedSystem(cm, holonomic=[long])
+    assert "involves no coordinate" in str(err.value) and len(str(err.value)) < 300
+    system = lcg.ConstrainedSystem(cm, inequalities=[y - 10 - sum(x ** k / (k + 1) for k in range(2, 150))])
+    with pytest.raises(ModelError) as err:
+        system.check_initial([0.0, 0.0])
+    assert "is violated" in str(err.value) and len(str(err.value)) < 400
+
+
+def test_a_sympy_system_with_long_constraints_is_refused_in_a_bounded_message():
+    me = pytest.importorskip("sympy.physics.mechanics")
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    ground = me.RigidBody("ground")
+    bob = me.Particle("bob", mass=sp.Symbol("m"))
+    system = me.System.from_newtonian(ground)
+    joint = me.PinJoint("j", ground, bob, coordinates=q1, speeds=q1.diff(me.dynamicsymbols._t),
+                        joint_axis=ground.frame.z, child_point=bob.masscenter)
+    system.add_joints(joint)
+    system.add_coordinates(q2)
+    system.add_speeds(q2.diff(me.dynamicsymbols._t))
+    system.add_holonomic_constraints(q1 - sum(q2 ** k / (k + 1) for k in range(1, 120)))
+    with pytest.raises(ModelError) as err:
+        lcg.derive(system)
+    msg = str(err.value)
+    assert "the System has holonomic constraints" in msg and "characters)" in msg and len(msg) < 500, msg[:600]

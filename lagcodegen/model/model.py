@@ -61,7 +61,7 @@ def _as_expr(value, what: str) -> sp.Expr:
     try:
         expr = sp.sympify(value, strict=True)
     except (sp.SympifyError, TypeError) as exc:
-        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
     return expr
 
 
@@ -74,9 +74,9 @@ def _as_mass(value, body: str, what: str = "mass") -> sp.Expr:
     rarely meant)."""
     expr = _as_expr(value, f"{what} of {body!r}")
     if isinstance(expr, sp.Basic) and expr.has(*_NON_FINITE):
-        raise ModelError(f"{what} of body {body!r} is not finite: {expr}")
+        raise ModelError(f"{what} of body {body!r} is not finite: {excerpt(expr)}")
     if what == "mass" and expr.is_number and expr.is_extended_real and expr < 0:
-        warnings.warn(f"mass of body {body!r} is negative ({expr})", stacklevel=3)
+        warnings.warn(f"mass of body {body!r} is negative ({excerpt(expr)})", stacklevel=3)
     return expr
 
 
@@ -87,7 +87,7 @@ def _as_vector(value, what: str) -> sp.Matrix:
         try:
             comps = list(value)
         except TypeError:
-            raise ModelError(f"{what} must be a 2- or 3-component vector, got {value!r}") from None
+            raise ModelError(f"{what} must be a 2- or 3-component vector, got {excerpt(value)}") from None
     if len(comps) not in (2, 3):
         raise ModelError(f"{what} must have 2 or 3 components, got {len(comps)}")
     return sp.Matrix([_as_expr(c, f"{what}[{i}]") for i, c in enumerate(comps)])
@@ -515,7 +515,8 @@ class Model:
             if syms and syms <= set(self.params):  # a literal negative mass warned when declared
                 value = body.mass.subs(self.params)
                 if value.is_number and value.is_extended_real and value < 0:
-                    warnings.warn(f"mass of body {body.name!r} is negative ({body.mass} = {value} with the "
+                    warnings.warn(f"mass of body {body.name!r} is negative ({excerpt(body.mass)} = "
+                                  f"{excerpt(value)} with the "
                                   "parameters' default values)", stacklevel=3)
             if isinstance(body, PlanarBody):
                 self.check_symbols(body.inertia, f"inertia of {body.name!r}", allow_speeds=False)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import difflib
 import math
+import sys
 from typing import Callable, Mapping
 
 import sympy as sp
@@ -80,6 +81,9 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Basic],
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
+        if "integer string conversion" in str(exc.msg):  # a literal beyond Python's digit limit
+            raise ExpressionError(f"number too large: an integer of more than {sys.get_int_max_str_digits()} digits "
+                                  f"in {excerpt(text)}", token=text) from None
         raise ExpressionError(f"invalid expression syntax ({exc.msg}) in {excerpt(text)}", token=text) from None
     except (ValueError, RecursionError, MemoryError):
         raise ExpressionError(f"expression cannot be parsed: {excerpt(text)}", token=text) from None
