@@ -164,7 +164,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         if not isinstance(system, ConstrainedSystem):
             raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
         if formulation not in FORMULATIONS:
-            raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
+            raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {excerpt(formulation)}")
         o = formulation_options(formulation, options)
         return _compile_constrained(system, formulation, outputs, o["baumgarte"], o["projection"], events,
                                     runtime_parameters, values, prefix, o["jacobian"], o["eliminate"], verbose, lang)

@@ -305,6 +305,9 @@ def test_messages_show_a_bounded_excerpt_of_a_huge_input():
     with pytest.raises(ModelError) as err:
         system.check_initial([0.0, 0.0])
     assert "is violated" in str(err.value) and len(str(err.value)) < 400
+    with pytest.raises(ModelError) as err:
+        lcg.compile_constrained(system, "index1" * 900)
+    assert "formulation must be one of" in str(err.value) and len(str(err.value)) < 300
 
 
 def test_a_sympy_system_with_long_constraints_is_refused_in_a_bounded_message():
