@@ -225,7 +225,9 @@ class ConstrainedSystem:
         root-finding events (event ``ineq_<k>``, terminal, direction -1), not enforced. An
         :class:`Inequality` with a ``restitution`` is a contact instead: enforced by impacts
         and persistent contact (index-1 formulation; see
-        :mod:`lagcodegen.simulation.constrained_impacts`), no event.
+        :mod:`lagcodegen.simulation.constrained_impacts`), no event. An inequality that cannot
+        act is a ModelError: one in no coordinate, or with a repeated factor in the coordinates
+        (:func:`_check_inequality`).
     integrable:
         ``"error"`` (default): a nonholonomic constraint that passes the Frobenius test is
         rejected ("integrable: it is holonomic"); ``"allow"``: keep it as a Pfaffian
