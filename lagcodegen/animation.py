@@ -25,7 +25,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from .errors import LagcodegenError
-from .util import atomic_write
+from .util import atomic_write, excerpt
 
 #: Frames of an animation at most (a longer one is refused: lower fps or duration).
 MAX_FRAMES = 5000
@@ -36,6 +36,8 @@ SPRING_COILS = 8
 SPRING_WIDTH = 0.04
 #: Suffixes :func:`animate` writes.
 FORMATS = (".gif", ".mp4", ".html")
+#: Pixels of a frame's side at most (size * dpi; a larger one is refused before any drawing).
+MAX_PIXELS = 8192
 
 
 @dataclass
@@ -141,6 +143,28 @@ def frame_times(t: np.ndarray, *, fps: float, duration: float | None, frames: in
     if frames > MAX_FRAMES:
         raise LagcodegenError(f"{frames} frames: at most {MAX_FRAMES} (lower fps, duration or frames)")
     return np.linspace(t[0], t[-1], int(frames))
+
+
+def frame_pixels(size, dpi) -> tuple[tuple[float, float], float]:
+    """(size in inches with even pixel sizes, as video codecs want them; dpi) of a frame, or a
+    LagcodegenError naming ``size`` or ``dpi`` when they are not positive finite numbers or make
+    a frame of fewer than 2 or more than :data:`MAX_PIXELS` pixels a side."""
+    def number(v) -> bool:
+        return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and np.isfinite(v) \
+            and v > 0
+    if not number(dpi):
+        raise LagcodegenError(f"dpi must be a positive number of dots per inch, got {excerpt(dpi)}")
+    try:
+        width, height = size
+    except (TypeError, ValueError):
+        raise LagcodegenError(f"size must be (width, height) in inches, got {excerpt(size)}") from None
+    if not (number(width) and number(height)):
+        raise LagcodegenError(f"size must be (width, height), two positive numbers of inches, got {excerpt(size)}")
+    pixels = [2 * round(float(v) * dpi / 2) for v in (width, height)]
+    if not all(2 <= p <= MAX_PIXELS for p in pixels):
+        raise LagcodegenError(f"size {excerpt(size)} at dpi {excerpt(dpi)} makes frames of {pixels[0]} x {pixels[1]} "
+                              f"pixels: each side must be 2 to {MAX_PIXELS}")
+    return (pixels[0] / dpi, pixels[1] / dpi), float(dpi)
 
 
 def at_times(t: np.ndarray, track: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -400,8 +424,7 @@ def animate(path: str | os.PathLike, drawing: Drawing, t: np.ndarray, positions:
     else:
         raise LagcodegenError(f"trail must be True, False or a length of model time >= 0, got {trail!r}")
     times = frame_times(t, fps=fps, duration=duration, frames=frames)
-    # even pixel sizes (video codecs want them)
-    size = tuple(2 * round(float(v) * dpi / 2) / dpi for v in size)
+    size, dpi = frame_pixels(size, dpi)
     anim = Animator(drawing, t, positions, times, trail=trail, title=title, size=size, dpi=dpi)
     from matplotlib import animation
 

@@ -7,6 +7,7 @@ these functions to run a pipeline.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from typing import Any, Callable, Iterable, Mapping, Sequence
@@ -26,15 +27,15 @@ from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.scene import Scene
 from .model.mechanics import as_model
-from .model.model import Model
-from .modelfile import ModelFile, constrained_outputs
+from .model.model import Model, require_model
+from .modelfile import ModelFile, constrained_outputs, load_model_path
 from .simulation.constrained import ConstrainedSimulation
 from .simulation.minimal import MinimalSimulation
 from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.minimal import closest_branch, reduced_model, solve_constraints
 from .theory.routhian import RouthReduction
-from .util import check_baumgarte
+from .util import check_baumgarte, excerpt
 
 #: compile_model emits the analytic Jacobian by default up to this many coordinates; above, the
 #: longer build outweighs the faster runs of a first run (measured in benchmarks/scaling.py; the
@@ -68,7 +69,7 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
-    model = as_model(model, parameters=values)  # a sympy.physics.mechanics.System: its values are needed
+    model = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
     with _progress.enabled(progress):
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
@@ -163,7 +164,7 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         if not isinstance(system, ConstrainedSystem):
             raise ModelError(f"compile_constrained needs a ConstrainedSystem, got {type(system).__name__}")
         if formulation not in FORMULATIONS:
-            raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {formulation!r}")
+            raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {excerpt(formulation)}")
         o = formulation_options(formulation, options)
         return _compile_constrained(system, formulation, outputs, o["baumgarte"], o["projection"], events,
                                     runtime_parameters, values, prefix, o["jacobian"], o["eliminate"], verbose, lang)
@@ -185,7 +186,8 @@ def formulation_options(formulation: str, options: Mapping) -> dict:
     for name, (default, takes) in FORMULATION_OPTIONS.items():
         value = options.get(name, default)
         if formulation not in takes and value is not default and value != default:
-            raise ModelError(f"compile_constrained: {name}={value!r} does not apply to formulation {formulation!r} "
+            raise ModelError(f"compile_constrained: {name}={excerpt(value)} does not apply to formulation "
+                             f"{formulation!r} "
                              f"({', '.join(takes)} only)")
         out[name] = value
     return out
@@ -208,9 +210,23 @@ def _compile_constrained(system, formulation, outputs, baumgarte, projection, ev
 
 
 # ---------------------------------------------------------------------- model files
-def compile_file(mf: ModelFile, **options: Any):
-    """Compile a loaded model file with its ``[simulation]`` settings (``options`` override; run
-    it with :meth:`ModelFile.simulate <lagcodegen.modelfile.ModelFile.simulate>`).
+def _model_file_argument(mf) -> ModelFile:
+    """``mf`` itself if it is a ModelFile, the model file at it if it is a path
+    (:func:`lagcodegen.modelfile.load_model_path`), else a ModelError saying what is taken."""
+    if isinstance(mf, ModelFile):
+        return mf
+    if isinstance(mf, str) or hasattr(mf, "__fspath__"):
+        return load_model_path(mf)
+    hint = {"Model": ": for a Model, use compile_model(model)",
+            "ConstrainedSystem": ": for a ConstrainedSystem, use compile_constrained(system)"}.get(type(mf).__name__, "")
+    raise ModelError(f"compile_file takes a loaded model file (lagcodegen.modelfile.load_model_path) or a model "
+                     f"file's path, got {'None' if mf is None else f'a {type(mf).__name__}'}{hint}")
+
+
+def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
+    """Compile a loaded model file (or the model file at a path: :func:`load_model_path`) with its
+    ``[simulation]`` settings (``options`` override; run it with :meth:`ModelFile.simulate
+    <lagcodegen.modelfile.ModelFile.simulate>`).
 
     Without constraints: :func:`compile_model` with the file's outputs, run-time parameters,
     parameter values and Jacobian setting. With constraints: :func:`compile_constrained` with the
@@ -218,6 +234,7 @@ def compile_file(mf: ModelFile, **options: Any):
     (:func:`lagcodegen.modelfile.constrained_outputs`). Errors of the derivation name the file
     and line (:meth:`ModelFile.derive <lagcodegen.modelfile.ModelFile.derive>`).
     """
+    mf = _model_file_argument(mf)
     s = mf.simulation
     with _progress.enabled(options.pop("progress", None)):
         if mf.constrained is not None:

@@ -32,8 +32,9 @@ import sympy as sp
 
 from . import progress
 from .errors import DerivationError, ModelError
+from .util import excerpt
 from .model.mechanics import as_model
-from .model.model import Model, Particle, PlanarBody, RigidBody
+from .model.model import Model, Particle, PlanarBody, RigidBody, require_model
 from .model.treedynamics import TreeDynamics, tree_nodes
 
 #: The sympy views of an EquationsOfMotion whose expressions count more nodes than this
@@ -47,7 +48,8 @@ def to_se(expr, what: str = "expression"):
     try:
         return se.sympify(expr)
     except Exception as exc:  # symengine raises several types here
-        raise ModelError(f"{what} cannot be handled by the derivation engine: {expr} ({exc})") from None
+        raise ModelError(f"{what} cannot be handled by the derivation engine: {excerpt(expr)} "
+                         f"({excerpt(str(exc), quote=False)})") from None
 
 
 def to_sp(expr):
@@ -409,7 +411,7 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
 
     A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
     """
-    model = as_model(model, unset=1.0)
+    model = require_model(as_model(model, unset=1.0), "derive")
     with progress.stage("derive", total=model.n, unit="coordinates") as stage:
         return _derive(model, check, stage)
 

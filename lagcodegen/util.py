@@ -14,6 +14,7 @@ import signal
 import stat
 import tempfile
 import threading
+import unicodedata
 from pathlib import Path
 from collections.abc import Mapping
 
@@ -26,19 +27,38 @@ from .errors import LagcodegenError, ModelError
 EXCERPT = 80
 
 
-def excerpt(value, around: str | None = None, limit: int = EXCERPT) -> str:
+def excerpt(value, around: str | None = None, limit: int = EXCERPT, quote: bool = True) -> str:
     """``repr(value)`` for an error message, bounded: a value whose text is longer than ``limit``
     characters is shown as a quoted excerpt of ``limit`` characters (about ``around`` if it occurs
-    in it), ``...`` where cut, and its length, e.g. ``'x*zeta0 + x*ze'... (757 characters)``."""
-    text = value if isinstance(value, str) else repr(value)
+    in it), ``...`` where cut, and its length, e.g. ``'x*zeta0 + x*ze'... (757 characters)``.
+    ``quote=False``: a string as it is, not its repr (text that is part of the message)."""
+    try:
+        text = value if isinstance(value, str) else repr(value)
+    except ValueError:  # the repr of an integer beyond Python's digit limit (sys.set_int_max_str_digits)
+        return f"<{type(value).__name__} too large to print>"
+    quoted = quote and isinstance(value, str)
     if len(text) <= limit:
-        return repr(value)
+        return repr(value) if quoted or not isinstance(value, str) else value
     start = 0
     if around and around in text:
         start = max(0, min(text.index(around) - (limit - len(around)) // 2, len(text) - limit))
     piece = text[start:start + limit]
-    shown = repr(piece) if isinstance(value, str) else piece
+    shown = repr(piece) if quoted else piece
     return f"{'...' if start else ''}{shown}{'...' if start + limit < len(text) else ''} ({len(text)} characters)"
+
+
+def lookalike(name: str) -> str | None:
+    """If Python reads the name ``name`` as another (its identifiers are NFKC-normalized: the
+    full-width ``\uff4b`` is ``k``, ``\u2113`` is ``l``), a description of the first character it
+    changes and what it reads as, e.g. ``'\uff4b' (U+FF4B FULLWIDTH LATIN SMALL LETTER K), read as 'k'``;
+    else None."""
+    if not isinstance(name, str) or unicodedata.normalize("NFKC", name) == name:
+        return None
+    for ch in name:
+        plain = unicodedata.normalize("NFKC", ch)
+        if plain != ch:
+            return f"{ch!r} (U+{ord(ch):04X} {unicodedata.name(ch, 'unnamed character')}), read as {plain!r}"
+    return f"{excerpt(name)} (combining characters), read as {excerpt(unicodedata.normalize('NFKC', name))}"
 
 
 def check_finite(value, what: str) -> float:

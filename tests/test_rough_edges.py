@@ -183,3 +183,146 @@ def test_constrained_functions_given_empty_arrays_raise_instead_of_crashing(tmp_
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
     assert proc.stdout.strip() == "ok"
+
+
+# ---------------------------------------------------------------------- look-alike names (NFKC)
+def test_a_look_alike_name_in_an_expression_is_refused_naming_the_character_file_and_line():
+    """Python reads the full-width 'ｋ' as 'k' (NFKC): it silently became the parameter k."""
+    text = pendulum_file(v="ｋ*theta**2", extra="").replace("g = 9.81", "g = 9.81\nk = 1.0")
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, "lookalike.toml")
+    msg = str(err.value)
+    assert msg.startswith("lookalike.toml:13:") and "energy.potential" in msg
+    assert "'ｋ'" in msg and "U+FF4B" in msg and "FULLWIDTH LATIN SMALL LETTER K" in msg and "'k'" in msg
+    with pytest.raises(ModelFileError, match=r"U\+2113 SCRIPT SMALL L"):  # was "unknown name 'l'"
+        loads_model(pendulum_file(v="ℓ*theta"), "lookalike.toml")
+    with pytest.raises(ModelFileError, match="U\\+FF53"):  # a function name too
+        loads_model(pendulum_file(x="ｓin(theta)"), "lookalike.toml")
+    assert loads_model(pendulum_file(v="g*theta")).model is not None
+
+
+def test_a_look_alike_name_cannot_be_declared():
+    text = pendulum_file(v="k*theta**2").replace("g = 9.81", 'g = 9.81\nk = 1.0\n"ｋ" = 5.0')
+    with pytest.raises(ModelFileError) as err:
+        loads_model(text, "lookalike.toml")
+    assert str(err.value).startswith("lookalike.toml:8:") and "U+FF4B" in str(err.value)
+    m = lcg.Model("m")
+    with pytest.raises(ModelError, match="coordinate name 'ℓ'.*U\\+2113"):
+        m.coordinates("ℓ")
+    assert m.coordinates("θ")  # a name Python keeps as written is fine
+
+
+# ---------------------------------------------------------------------- what compile_model / compile_file take
+def test_compile_model_given_a_path_or_none_says_what_it_takes():
+    """Was AttributeError: 'str' object has no attribute 'n'."""
+    for bad in ("pendulum.toml", ROOT / "examples" / "pendulum.toml"):
+        with pytest.raises(ModelError) as err:
+            lcg.compile_model(bad)
+        msg = str(err.value)
+        assert "compile_model takes a Model" in msg and "pendulum.toml" in msg and "compile_file(path)" in msg
+        assert "load_model_path" in msg
+    with pytest.raises(ModelError, match="compile_model takes a Model .*got None"):
+        lcg.compile_model(None)
+    with pytest.raises(ModelError, match=r"got a ModelFile .*compile_file\(mf\)"):
+        lcg.compile_model(lcg.modelfile.load_model(ROOT / "examples" / "pendulum.toml"))
+    with pytest.raises(ModelError, match="derive takes a Model"):
+        lcg.derive("pendulum.toml")
+
+
+def test_compile_file_loads_a_path_and_says_what_it_takes():
+    cm = lcg.compile_file(str(ROOT / "examples" / "pendulum.toml"))  # was: 'str' object has no attribute 'simulation'
+    assert cm.state_names == ["theta", "theta_dot"]
+    with pytest.raises(ModelError, match=r"compile_file takes a loaded model file .*got a Model: .*compile_model"):
+        lcg.compile_file(lcg.systems.pendulum())
+    with pytest.raises(ModelError, match="compile_file takes .*got None"):
+        lcg.compile_file(None)
+
+
+# ---------------------------------------------------------------------- empty ensembles, deep TOML, animation sizes
+def test_an_ensemble_of_no_members_is_a_clear_error():
+    import numpy as np
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    for kw in (dict(q0=np.zeros((0, 1))), dict(q0=[0.1], params=np.zeros((0, 3))), dict(q0=[0.1], params={"g": []}),
+               dict(q0={"theta": []})):
+        with pytest.raises(lcg.LagcodegenError, match="the ensemble has no members"):  # was a bare IndexError
+            sim.ensemble([0, 1], **kw)
+
+
+def test_deeply_nested_toml_is_a_clear_error_naming_the_file(tmp_path):
+    path = tmp_path / "deep.toml"
+    path.write_text('[model]\nname = "p"\ncoordinates = ["x"]\n[simulation]\ninitial = '
+                    + "[" * 100_000 + "]" * 100_000 + "\n")
+    with pytest.raises(ModelFileError) as err:  # was a bare RecursionError
+        lcg.modelfile.load_model(path)
+    assert str(err.value).startswith(f"{path}:") and "nested too deeply" in str(err.value)
+
+
+def test_animation_size_and_dpi_are_checked_and_named(tmp_path):
+    res = lcg.compile_model(lcg.systems.pendulum()).simulate([0, 0.2], q0=[0.5])
+    out = tmp_path / "a.gif"
+    # were ZeroDivisionError, IndexError and ValueError from matplotlib
+    for kw, word in ((dict(dpi=0), "dpi"), (dict(dpi=-80), "dpi"), (dict(dpi=float("nan")), "dpi"),
+                     (dict(size=(float("nan"), 5)), "size"), (dict(size=5), "size"), (dict(size=(5, -1)), "size"),
+                     (dict(dpi=0.1), "pixels"), (dict(size=(5, 1e6)), "pixels")):
+        with pytest.raises(lcg.LagcodegenError, match=word):
+            res.animate(out, frames=2, **kw)
+    assert not out.exists()
+    assert res.animate(out, frames=2, dpi=40, size=(3, 2)) == out and out.stat().st_size > 0
+
+
+# ---------------------------------------------------------------------- messages show excerpts of inputs
+def test_messages_show_a_bounded_excerpt_of_a_huge_input():
+    """The README promises about 80 characters of an offending input; these echoed it whole."""
+    import warnings
+    big = "9" * 5000
+    base = '[model]\nname = "p"\ncoordinates = ["theta"]\n[[particles]]\nname = "bob"\nmass = MASS\n' \
+           'position = ["sin(theta)", "-cos(theta)"]\n'
+    for mass, expect in ((big, "too large to read"), (f'"-{big}*theta"', "number too large")):
+        with pytest.raises(ModelFileError) as err:  # the bare literal: a ValueError from tomllib before
+            loads_model(base.replace("MASS", mass), "m.toml")
+        msg = str(err.value)
+        assert msg.startswith("m.toml:6:") and expect in msg and len(msg) < 300, msg
+    m = lcg.Model("p")
+    th, = m.coordinates("theta")
+    with pytest.warns(UserWarning) as caught:
+        m.particle("neg", -sp.Integer(10) ** 5000, (sp.sin(th), 0))
+    assert "is negative" in str(caught[0].message) and len(str(caught[0].message)) < 300
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for mass, position in (("x" * 5000, (th, 0)), (1, 7 ** 900)):
+            with pytest.raises(ModelError) as err:
+                m.particle("b", mass, position)
+            assert len(str(err.value)) < 300, str(err.value)[:400]
+    # constraints: a long holonomic constraint without a coordinate, a long inequality violated at the start
+    cm = lcg.Model("c")
+    x, y = cm.coordinates("x y")
+    cm.particle("b", 1, (x, y))
+    long = sum(sp.Symbol("t") ** k / (k + 1) for k in range(150))
+    with pytest.raises(ModelError) as err:
+        lcg.ConstrainedSystem(cm, holonomic=[long])
+    assert "involves no coordinate" in str(err.value) and len(str(err.value)) < 300
+    system = lcg.ConstrainedSystem(cm, inequalities=[y - 10 - sum(x ** k / (k + 1) for k in range(2, 150))])
+    with pytest.raises(ModelError) as err:
+        system.check_initial([0.0, 0.0])
+    assert "is violated" in str(err.value) and len(str(err.value)) < 400
+    with pytest.raises(ModelError) as err:
+        lcg.compile_constrained(system, "index1" * 900)
+    assert "formulation must be one of" in str(err.value) and len(str(err.value)) < 300
+
+
+def test_a_sympy_system_with_long_constraints_is_refused_in_a_bounded_message():
+    me = pytest.importorskip("sympy.physics.mechanics")
+    q1, q2 = me.dynamicsymbols("q1 q2")
+    ground = me.RigidBody("ground")
+    bob = me.Particle("bob", mass=sp.Symbol("m"))
+    system = me.System.from_newtonian(ground)
+    joint = me.PinJoint("j", ground, bob, coordinates=q1, speeds=q1.diff(me.dynamicsymbols._t),
+                        joint_axis=ground.frame.z, child_point=bob.masscenter)
+    system.add_joints(joint)
+    system.add_coordinates(q2)
+    system.add_speeds(q2.diff(me.dynamicsymbols._t))
+    system.add_holonomic_constraints(q1 - sum(q2 ** k / (k + 1) for k in range(1, 120)))
+    with pytest.raises(ModelError) as err:
+        lcg.derive(system)
+    msg = str(err.value)
+    assert "the System has holonomic constraints" in msg and "characters)" in msg and len(msg) < 500, msg[:600]

@@ -9,6 +9,7 @@ calculated) and the ModelStructure with the dependencies of the derivatives and 
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
@@ -27,6 +28,18 @@ class Header:
     start_time: float
     stop_time: float | None
     tolerance: float
+
+
+#: A variable name of FMI's "structured" naming convention as lagcodegen writes them: an ASCII
+#: identifier, or ``der(`` one ``)``. Any other name (``θ``, ``der(θ)``: the standards' grammar has
+#: no non-ASCII characters, not even in q-names) makes the FMU's convention "flat" (any Unicode).
+_STRUCTURED = re.compile(r"[A-Za-z_][A-Za-z0-9_]*|der\([A-Za-z_][A-Za-z0-9_]*\)")
+
+
+def naming_convention(table: VariableTable) -> str:
+    """``"structured"`` if every variable name of ``table`` is one of that convention, else ``"flat"``
+    (the names stay those of ``simulate()``'s CSV either way)."""
+    return "structured" if all(_STRUCTURED.fullmatch(v.name) for v in table.variables) else "flat"
 
 
 def _num(value: float) -> str:
@@ -95,7 +108,7 @@ def model_description_fmi2(table: VariableTable, h: Header, source_files: list[s
                     canGetAndSetFMUstate="false", canSerializeFMUstate="false",
                     providesDirectionalDerivative="false")
     root = _attrs(fmiVersion="2.0", modelName=h.model_name, guid=h.token, description=h.description,
-                  generationTool=f"lagcodegen {__version__}", variableNamingConvention="structured",
+                  generationTool=f"lagcodegen {__version__}", variableNamingConvention=naming_convention(table),
                   numberOfEventIndicators=0)
     cs = _attrs(canHandleVariableCommunicationStepSize="true", canInterpolateInputs="false",
                 maxOutputDerivativeOrder=0)
@@ -161,7 +174,7 @@ def model_description_fmi3(table: VariableTable, h: Header) -> str:
     common = _attrs(modelIdentifier=h.identifier, canGetAndSetFMUState="false", canSerializeFMUState="false",
                     providesDirectionalDerivatives="false", providesAdjointDerivatives="false")
     root = _attrs(fmiVersion="3.0", modelName=h.model_name, instantiationToken=h.token, description=h.description,
-                  generationTool=f"lagcodegen {__version__}", variableNamingConvention="structured")
+                  generationTool=f"lagcodegen {__version__}", variableNamingConvention=naming_convention(table))
     cs = _attrs(canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder=0, hasEventMode="false",
                 providesIntermediateUpdate="false")
     out = ['<?xml version="1.0" encoding="UTF-8"?>\n',

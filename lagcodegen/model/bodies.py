@@ -38,6 +38,7 @@ from typing import Sequence
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 
 #: Numeric rotation entries this close to 0 or +-1 are taken as exactly 0 or +-1 (cos(pi/2) in
 #: double precision is 6e-17): constants fold, and the change is below a rounding error.
@@ -46,13 +47,13 @@ SNAP = 1e-14
 
 def _expr(value, what: str) -> sp.Expr:
     if isinstance(value, str):
-        raise ModelError(f"{what} must be a number or a sympy expression, got the string {value!r}")
+        raise ModelError(f"{what} must be a number or a sympy expression, got the string {excerpt(value)}")
     try:
         e = sp.sympify(value, strict=True)
     except (sp.SympifyError, TypeError):
-        raise ModelError(f"{what} is not a number or symbolic expression: {value!r}") from None
+        raise ModelError(f"{what} is not a number or symbolic expression: {excerpt(value)}") from None
     if not isinstance(e, sp.Expr) or e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
-        raise ModelError(f"{what} is not a finite scalar: {value!r}")
+        raise ModelError(f"{what} is not a finite scalar: {excerpt(value)}")
     return e
 
 
@@ -69,7 +70,7 @@ def _vector3(value, what: str) -> tuple:
     try:
         comps = list(value)
     except TypeError:
-        raise ModelError(f"{what} must be 3 components, got {value!r}") from None
+        raise ModelError(f"{what} must be 3 components, got {excerpt(value)}") from None
     if len(comps) != 3:
         raise ModelError(f"{what} must have 3 components, got {len(comps)}")
     return tuple(_expr(c, f"{what}[{i}]") for i, c in enumerate(comps))

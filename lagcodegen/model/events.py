@@ -25,6 +25,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 
 #: Crossing directions: -1 decreasing (from + to -), +1 increasing, 0 both.
 DIRECTIONS = (-1, 0, 1)
@@ -82,7 +83,7 @@ def _as_event(item, k: int) -> Event:
     if isinstance(item, (tuple, list)) and 2 <= len(item) <= 4:
         return Event(*item)
     raise ModelError(f"event {k}: give an Event, a dict or a tuple (name, expr[, direction[, terminal]]), "
-                     f"got {item!r}")
+                     f"got {excerpt(item)}")
 
 
 def event_list(system, events: Iterable = ()) -> list[Event]:

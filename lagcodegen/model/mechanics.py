@@ -48,6 +48,7 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 
 from ..errors import ModelError
+from ..util import excerpt
 from .model import Model
 
 #: sympy.physics.mechanics and .vector, bound by _physics() on first use: importing them is slow
@@ -238,7 +239,8 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
                         ("dependent coordinates", system.q_dep), ("dependent speeds", system.u_dep),
                         ("auxiliary speeds", system.u_aux)):
         if len(items):
-            raise ModelError(f"from_system: the System has {what} ({', '.join(map(str, items))}); lagcodegen "
+            listed = excerpt(", ".join(map(str, items)), quote=False)
+            raise ModelError(f"from_system: the System has {what} ({listed}); lagcodegen "
                              "takes constrained systems as a ConstrainedSystem of a Model: convert the unconstrained "
                              "System and add the constraints there (lagcodegen.ConstrainedSystem)")
     q = list(system.q)
@@ -336,8 +338,9 @@ def _speeds_of(system, imp: "_Importer") -> dict:
         except (NotImplementedError, ValueError):
             found = []
         if len(found) != 1:
-            raise ModelError(f"from_system: the kinematic differential equations {kdes} cannot be solved for "
-                             f"{', '.join(map(str, qdots))} one way; lagcodegen needs speeds u = q'")
+            raise ModelError(f"from_system: the kinematic differential equations {excerpt(kdes)} cannot be solved for "
+                             f"{excerpt(', '.join(map(str, qdots)), quote=False)} one way; lagcodegen needs "
+                             "speeds u = q'")
         solution = found[0]
     mapping = {}
     bad = []
@@ -351,7 +354,9 @@ def _speeds_of(system, imp: "_Importer") -> dict:
         mapping[value] = qd
     if bad:
         raise ModelError("from_system: the System's speeds are not the coordinates' time derivatives (its kinematic "
-                         f"differential equations give {'; '.join(bad)}); lagcodegen's equations (eq. 3.16) are in q': "
+                         f"differential equations give {excerpt('; '.join(bad), quote=False)}); lagcodegen's "
+                         "equations (eq. 3.16) "
+                         "are in q': "
                          "make each joint's speeds the time derivatives of its coordinates (e.g. "
                          "PinJoint(..., coordinates=q1, speeds=q1.diff(t)); for a SphericalJoint, speeds=[q.diff(t) "
                          "for q in its coordinates]), or keep kinematic equations u_i - q_i' = 0 (PinJoint's and "
@@ -401,22 +406,22 @@ def _loads(forces) -> list[tuple[object, Vector]]:
         items = list(forces)
     except TypeError:
         raise ModelError(f"forces must be a list of (Point, Vector) / (ReferenceFrame, Vector) "
-                         f"pairs, got {forces!r}") from None
+                         f"pairs, got {excerpt(forces)}") from None
     out = []
     for item in items:
         if ActuatorBase is not None and isinstance(item, ActuatorBase):
             out += _loads(item.to_loads())
             continue
         if not isinstance(item, tuple) or len(item) != 2:
-            raise ModelError(f"load {item!r} is not a (Point, Vector) or (ReferenceFrame, Vector) pair")
+            raise ModelError(f"load {excerpt(item)} is not a (Point, Vector) or (ReferenceFrame, Vector) pair")
         location, vector = item
         if not isinstance(location, (Point, ReferenceFrame)):
-            raise ModelError(f"load {item!r}: the location must be a Point (force) or a ReferenceFrame "
+            raise ModelError(f"load {excerpt(item)}: the location must be a Point (force) or a ReferenceFrame "
                              f"(torque); for a body use Force(body, F) or Torque(body, T)")
         if not isinstance(vector, Vector):
             if vector == 0:
                 continue
-            raise ModelError(f"load on {location.name}: {vector!r} is not a sympy.physics.vector Vector")
+            raise ModelError(f"load on {location.name}: {excerpt(vector)} is not a sympy.physics.vector Vector")
         out.append((location, vector))
     return out
 
@@ -474,7 +479,7 @@ class _Importer:
         try:
             expr = sp.sympify(expr, strict=True)
         except (sp.SympifyError, TypeError) as exc:
-            raise ModelError(f"{what} is not a sympy expression: {expr!r}") from exc
+            raise ModelError(f"{what} is not a sympy expression: {excerpt(expr)}") from exc
         if self.speed_subs:
             expr = expr.xreplace(self.speed_subs)
         clash = sorted(s.name for s in expr.free_symbols - {self.time} if s.name in self.taken)

@@ -18,6 +18,7 @@ Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equatio
 from __future__ import annotations
 
 import keyword
+import unicodedata
 import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
@@ -26,6 +27,7 @@ import sympy as sp
 
 from ..errors import ModelError
 from .bodies import Joint, Link, Placement, make_link
+from ..util import excerpt, lookalike
 from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.check_finite)
 
 #: Names a coordinate or parameter may not take (they name other things).
@@ -41,7 +43,12 @@ DERIVED_SUFFIXES = ("_dot", "_ddot")
 
 def _check_name(name: str, what: str) -> str:
     if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
-        raise ModelError(f"{what} name {name!r} is not a valid identifier")
+        raise ModelError(f"{what} name {excerpt(name)} is not a valid identifier")
+    changed = lookalike(name)
+    if changed:
+        raise ModelError(f"{what} name {excerpt(name)} has the look-alike character {changed} in expressions "
+                         f"(Python normalizes names, NFKC): it could not be told from "
+                         f"{excerpt(unicodedata.normalize('NFKC', name))}; write the name in plain characters")
     if name in RESERVED_NAMES:
         raise ModelError(f"{what} name {name!r} is reserved")
     if name.startswith(RESERVED_PREFIX):
@@ -54,7 +61,7 @@ def _as_expr(value, what: str) -> sp.Expr:
     try:
         expr = sp.sympify(value, strict=True)
     except (sp.SympifyError, TypeError) as exc:
-        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
     return expr
 
 
@@ -67,9 +74,9 @@ def _as_mass(value, body: str, what: str = "mass") -> sp.Expr:
     rarely meant)."""
     expr = _as_expr(value, f"{what} of {body!r}")
     if isinstance(expr, sp.Basic) and expr.has(*_NON_FINITE):
-        raise ModelError(f"{what} of body {body!r} is not finite: {expr}")
+        raise ModelError(f"{what} of body {body!r} is not finite: {excerpt(expr)}")
     if what == "mass" and expr.is_number and expr.is_extended_real and expr < 0:
-        warnings.warn(f"mass of body {body!r} is negative ({expr})", stacklevel=3)
+        warnings.warn(f"mass of body {body!r} is negative ({excerpt(expr)})", stacklevel=3)
     return expr
 
 
@@ -80,7 +87,7 @@ def _as_vector(value, what: str) -> sp.Matrix:
         try:
             comps = list(value)
         except TypeError:
-            raise ModelError(f"{what} must be a 2- or 3-component vector, got {value!r}") from None
+            raise ModelError(f"{what} must be a 2- or 3-component vector, got {excerpt(value)}") from None
     if len(comps) not in (2, 3):
         raise ModelError(f"{what} must have 2 or 3 components, got {len(comps)}")
     return sp.Matrix([_as_expr(c, f"{what}[{i}]") for i, c in enumerate(comps)])
@@ -508,7 +515,8 @@ class Model:
             if syms and syms <= set(self.params):  # a literal negative mass warned when declared
                 value = body.mass.subs(self.params)
                 if value.is_number and value.is_extended_real and value < 0:
-                    warnings.warn(f"mass of body {body.name!r} is negative ({body.mass} = {value} with the "
+                    warnings.warn(f"mass of body {body.name!r} is negative ({excerpt(body.mass)} = "
+                                  f"{excerpt(value)} with the "
                                   "parameters' default values)", stacklevel=3)
             if isinstance(body, PlanarBody):
                 self.check_symbols(body.inertia, f"inertia of {body.name!r}", allow_speeds=False)
@@ -550,3 +558,23 @@ class Model:
         """The coordinates and the energies stated directly, velocities dotted."""
         from ..notebook import model_latex
         return model_latex(self)
+
+
+def require_model(obj, what: str) -> Model:
+    """``obj`` if it is a :class:`Model`; else a ModelError saying what ``what`` (the function,
+    e.g. ``"compile_model"``) takes, and what to call for what was given (a model file's path,
+    a loaded model file, a constrained system)."""
+    if isinstance(obj, Model):
+        return obj
+    takes = f"{what} takes a Model (or a sympy.physics.mechanics System)"
+    kind = type(obj).__name__
+    if isinstance(obj, (str, bytes)) or hasattr(obj, "__fspath__"):
+        hint = ("for a model file, lagcodegen.compile_file(path) compiles it with its [simulation] settings, "
+                "lagcodegen.modelfile.load_model_path(path) loads it (its .model is the Model)")
+        raise ModelError(f"{takes}, got the {kind} {excerpt(obj if isinstance(obj, str) else str(obj))}: {hint}")
+    hints = {"ModelFile": "a loaded model file: lagcodegen.compile_file(mf) compiles it, mf.model is its Model",
+             "ConstrainedSystem": "a constrained system: lagcodegen.compile_constrained(system) compiles it, "
+                                  "system.model is its unconstrained Model",
+             "EquationsOfMotion": "derived equations: eom.model is their Model"}
+    raise ModelError(f"{takes}, got {'None' if obj is None else f'a {kind}'}"
+                     + (f" ({hints[kind]})" if kind in hints else ""))

@@ -29,6 +29,7 @@ import symengine as se
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 from .bodies import Placement
 
 ZERO = se.Integer(0)
@@ -120,7 +121,8 @@ def _se(e, what: str):
     try:
         return se.sympify(e)
     except Exception as exc:  # symengine raises several types
-        raise ModelError(f"{what} cannot be handled by the derivation engine: {e} ({exc})") from None
+        raise ModelError(f"{what} cannot be handled by the derivation engine: {excerpt(e)} "
+                         f"({excerpt(str(exc), quote=False)})") from None
 
 
 def _is0(x) -> bool:

@@ -12,12 +12,13 @@ from __future__ import annotations
 import ast
 import difflib
 import math
+import sys
 from typing import Callable, Mapping
 
 import sympy as sp
 
 from ..errors import ModelError
-from ..util import excerpt
+from ..util import excerpt, lookalike
 
 #: Functions an expression may call: name -> (sympy function, number of arguments).
 FUNCTIONS: dict[str, tuple[Callable[..., sp.Expr], int]] = {
@@ -80,6 +81,9 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Basic],
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:
+        if "integer string conversion" in str(exc.msg):  # a literal beyond Python's digit limit
+            raise ExpressionError(f"number too large: an integer of more than {sys.get_int_max_str_digits()} digits "
+                                  f"in {excerpt(text)}", token=text) from None
         raise ExpressionError(f"invalid expression syntax ({exc.msg}) in {excerpt(text)}", token=text) from None
     except (ValueError, RecursionError, MemoryError):
         raise ExpressionError(f"expression cannot be parsed: {excerpt(text)}", token=text) from None
@@ -148,8 +152,19 @@ class _Converter:
                 type(None): "None", type(...): "Ellipsis"}.get(type(value), "constant")
         raise self.reject(node, kind)
 
+    def written(self, node: ast.Name) -> str:
+        """The name as written: Python has NFKC-normalized ``node.id`` (the full-width ``\uff4b`` to
+        ``k``), so a look-alike would silently be another name; it is refused, naming the character."""
+        text = self.source(node)
+        changed = lookalike(text)
+        if changed and text != node.id:
+            raise ExpressionError(f"name {excerpt(text)} has the look-alike character {changed} (Python normalizes "
+                                  f"names, NFKC) in {self.within(text)}; write names in plain characters",
+                                  token=text)
+        return node.id
+
     def name(self, node: ast.Name) -> sp.Expr:
-        name = node.id
+        name = self.written(node)
         if name in self.symbols:
             return self.symbols[name]
         if name in self.forbidden:
@@ -199,7 +214,7 @@ class _Converter:
             token = self.source(node.func)
             raise ExpressionError(f"call of {excerpt(token)} is not allowed in {self.within(token)}; only the "
                                   f"functions {', '.join(FUNCTIONS)} may be called", token=token)
-        name = node.func.id
+        name = self.written(node.func)
         if name not in FUNCTIONS:
             raise ExpressionError(f"function {excerpt(name)} is not allowed in {self.within(name)}; allowed functions: "
                                   f"{', '.join(FUNCTIONS)}", token=name)

@@ -100,6 +100,15 @@ class _Loader(_Reader):
             m = re.search(r"line (\d+)", str(exc))
             line = int(m.group(1)) if m else None
             raise ModelFileError(f"invalid TOML: {exc}", self.filename, line, "", None) from None
+        except ValueError as exc:  # tomllib's int() of a literal beyond Python's digit limit
+            digits = re.search(r"\d{%d,}" % (sys.get_int_max_str_digits() + 1), self.text) \
+                if sys.get_int_max_str_digits() else None
+            line = self.text.count("\n", 0, digits.start()) + 1 if digits else None
+            what = f"an integer of more than {sys.get_int_max_str_digits()} digits" if digits else excerpt(str(exc))
+            raise ModelFileError(f"invalid TOML: {what}, too large to read", self.filename, line, "", None) from None
+        except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+            raise ModelFileError("invalid TOML: arrays or inline tables nested too deeply (beyond Python's recursion "
+                                 f"limit, {sys.getrecursionlimit()} calls)", self.filename, None, "", None) from None
         for key in data:
             if key not in _TOP_LEVEL:
                 close = difflib.get_close_matches(key, _TOP_LEVEL, n=1)
@@ -332,7 +341,8 @@ class _Loader(_Reader):
         for i, value in enumerate(self.array([*path, "holonomic"], table.get("holonomic", []))):
             f = self.expr([*path, "holonomic", i], value)
             if not f.free_symbols & coords:
-                raise self.error([*path, "holonomic", i], f"holonomic constraint {f} = 0 involves no coordinate "
+                raise self.error([*path, "holonomic", i], f"holonomic constraint {excerpt(f)} = 0 involves no "
+                                 "coordinate "
                                  f"({', '.join(q.name for q in self.model.coords)})", token=str(value),
                                  needle=str(value))
             holonomic.append(f)

@@ -59,6 +59,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import ModelError
+from ..util import excerpt
 from ..model.bodies import Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem
@@ -95,7 +96,7 @@ def _locked(robot: RobotDescription, lock) -> dict[str, float]:
         try:
             out[jname] = float(value)
         except (TypeError, ValueError):
-            raise URDFError(f"lock: position of joint {jname!r} must be a number, got {value!r}",
+            raise URDFError(f"lock: position of joint {jname!r} must be a number, got {excerpt(value)}",
                             robot.filename, j.line, f"joint {jname!r}") from None
     return out
 
@@ -246,20 +247,21 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
     if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
                                    or root_joint in robot.joints):
         raise URDFError(f"floating must be True or the name of the free joint (an identifier that names no joint of "
-                        f"the robot), got {floating!r}", robot.filename, None, "")
+                        f"the robot), got {excerpt(floating)}", robot.filename, None, "")
     if form not in FORMS:
-        raise URDFError(f"form must be one of {', '.join(FORMS)}, got {form!r}", robot.filename, None, "")
+        raise URDFError(f"form must be one of {', '.join(FORMS)}, got {excerpt(form)}", robot.filename, None, "")
     if mimic not in MIMIC:
-        raise URDFError(f"mimic must be one of {', '.join(MIMIC)}, got {mimic!r}", robot.filename, None, "")
+        raise URDFError(f"mimic must be one of {', '.join(MIMIC)}, got {excerpt(mimic)}", robot.filename, None, "")
     locked = _locked(robot, lock)
     if friction not in FRICTION:
-        raise URDFError(f"friction must be one of {', '.join(FRICTION)}, got {friction!r}", robot.filename, None, "")
+        raise URDFError(f"friction must be one of {', '.join(FRICTION)}, got {excerpt(friction)}", robot.filename,
+                        None, "")
     if not (isinstance(friction_velocity, (int, float)) and friction_velocity > 0):
-        raise URDFError(f"friction_velocity must be a positive number, got {friction_velocity!r}",
+        raise URDFError(f"friction_velocity must be a positive number, got {excerpt(friction_velocity)}",
                         robot.filename, None, "")
     gvec = np.array(gravity, dtype=float)
     if gvec.shape != (3,) or not np.all(np.isfinite(gvec)):
-        raise URDFError(f"gravity must be 3 finite numbers, got {gravity!r}", robot.filename, None, "")
+        raise URDFError(f"gravity must be 3 finite numbers, got {excerpt(gravity)}", robot.filename, None, "")
 
     def err(j: Joint, message: str) -> URDFError:
         return URDFError(message, robot.filename, j.line, f"joint {j.name!r}")

@@ -42,6 +42,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ..errors import ModelError
+from ..util import excerpt
 
 #: URDF joint types, and the ones lagcodegen builds (floating: a free joint; planar: refused).
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -206,13 +207,13 @@ class _Reader:
 
     def _float(self, el, attr, what, value: str) -> float:
         whole = el.get(attr)
-        token = "" if value.strip() == whole.strip() else f": {value!r}"
+        token = "" if value.strip() == whole.strip() else f": {excerpt(value)}"
         try:
             x = float(value)
         except ValueError:
-            raise self.error(el, what, f"attribute {attr}={whole!r}{token} is not a number") from None
+            raise self.error(el, what, f"attribute {attr}={excerpt(whole)}{token} is not a number") from None
         if not math.isfinite(x):
-            raise self.error(el, what, f"attribute {attr}={whole!r}{token} is not finite")
+            raise self.error(el, what, f"attribute {attr}={excerpt(whole)}{token} is not finite")
         return x
 
     def vector(self, el: ET.Element | None, attr: str, what: str, default) -> tuple[float, float, float]:
@@ -221,7 +222,7 @@ class _Reader:
         value = el.get(attr)
         parts = value.split()
         if len(parts) != 3:
-            raise self.error(el, what, f"attribute {attr}={value!r} needs 3 numbers, has {len(parts)}")
+            raise self.error(el, what, f"attribute {attr}={excerpt(value)} needs 3 numbers, has {len(parts)}")
         return tuple(self._float(el, attr, what, p) for p in parts)
 
     def one(self, parent: ET.Element, tag: str, what: str, required: bool = False) -> ET.Element | None:

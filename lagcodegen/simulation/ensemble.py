@@ -38,6 +38,9 @@ def _members(*arrays) -> int:
     sizes = {a.shape[0] for a, per_member_ndim in arrays if a is not None and a.ndim == per_member_ndim}
     if len(sizes) > 1:
         raise LagcodegenError(f"the ensemble inputs disagree on the number of members: {sorted(sizes)}")
+    if 0 in sizes:
+        raise LagcodegenError("the ensemble has no members: its per-member inputs (q0, v0, y0, params) have 0 rows; "
+                              "give at least one member")
     return sizes.pop() if sizes else 1
 
 

@@ -40,7 +40,7 @@ import sympy as sp
 from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
-from ..util import check_finite, state_vector
+from ..util import check_finite, excerpt, state_vector
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
 INTEGRABLE_POLICIES = ("error", "allow")
@@ -57,9 +57,9 @@ def _expr(value, what: str) -> sp.Expr:
     try:
         expr = sp.sympify(value, strict=True)
     except (sp.SympifyError, TypeError) as exc:
-        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
     if not isinstance(expr, sp.Expr):
-        raise ModelError(f"{what} is not a scalar expression: {value!r}")
+        raise ModelError(f"{what} is not a scalar expression: {excerpt(value)}")
     return expr
 
 
@@ -88,13 +88,14 @@ class Inequality:
     def __post_init__(self):
         e = self.restitution
         if self.tangent is not None and e is None:
-            raise ModelError(f"Inequality({self.expr!r}): a tangent (no-slip contact) needs a restitution")
+            raise ModelError(f"Inequality({excerpt(self.expr)}): a tangent (no-slip contact) needs a restitution")
         if e is None:
             return
         if isinstance(e, bool) or not isinstance(e, (int, float, np.floating, np.integer)):
-            raise ModelError(f"Inequality({self.expr!r}): restitution must be a number in [0, 1], got {e!r}")
+            raise ModelError(f"Inequality({excerpt(self.expr)}): restitution must be a number in [0, 1], "
+                             f"got {excerpt(e)}")
         if not (0.0 <= float(e) <= 1.0):
-            raise ModelError(f"Inequality({self.expr!r}): restitution must be in [0, 1] (Newton's law "
+            raise ModelError(f"Inequality({excerpt(self.expr)}): restitution must be in [0, 1] (Newton's law "
                              f"A q'+ = -e A q'-), got {e!r}")
         object.__setattr__(self, "restitution", float(e))
 
@@ -224,7 +225,9 @@ class ConstrainedSystem:
         root-finding events (event ``ineq_<k>``, terminal, direction -1), not enforced. An
         :class:`Inequality` with a ``restitution`` is a contact instead: enforced by impacts
         and persistent contact (index-1 formulation; see
-        :mod:`lagcodegen.simulation.constrained_impacts`), no event.
+        :mod:`lagcodegen.simulation.constrained_impacts`), no event. An inequality that cannot
+        act is a ModelError: one in no coordinate, or with a repeated factor in the coordinates
+        (:func:`_check_inequality`).
     integrable:
         ``"error"`` (default): a nonholonomic constraint that passes the Frobenius test is
         rejected ("integrable: it is holonomic"); ``"allow"``: keep it as a Pfaffian
@@ -255,7 +258,7 @@ class ConstrainedSystem:
             f = _expr(f, what)
             model.check_symbols(f, what, allow_speeds=False)
             if not (f.free_symbols & set(model.coords)):
-                raise ModelError(f"{what} ({f} = 0) involves no coordinate of model {model.name!r}")
+                raise ModelError(f"{what} ({excerpt(f)} = 0) involves no coordinate of model {model.name!r}")
             self.holonomic.append(f)
 
         self.nonholonomic: list[tuple[tuple, sp.Expr]] = []
@@ -287,6 +290,7 @@ class ConstrainedSystem:
             self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
+            _check_inequality(g, what, model)
             self.inequalities.append(g)
 
         J = len(self.holonomic) + len(self.nonholonomic)
@@ -313,7 +317,8 @@ class ConstrainedSystem:
                     form += f" + ({A0})*dt"
                 how = "" if rep.proven else " (numerically, at random points)"
                 raise ModelError(
-                    f"nonholonomic constraint {j} ({form} = 0) is integrable: it is holonomic (the Frobenius "
+                    f"nonholonomic constraint {j} ({excerpt(form, quote=False)} = 0) is integrable: it is holonomic "
+                    "(the Frobenius "
                     f"condition w ^ dw = 0 holds{how}); give it as a holonomic constraint f(q, t) = 0, or pass "
                     "integrable='allow' to keep the Pfaffian form")
 
@@ -454,7 +459,7 @@ class ConstrainedSystem:
             try:
                 x = float(val)
             except TypeError:
-                raise ModelError(f"{what} is not a real number at this state: {val}") from None
+                raise ModelError(f"{what} is not a real number at this state: {excerpt(val)}") from None
             return x
 
         rows = self.rows()
@@ -491,11 +496,11 @@ class ConstrainedSystem:
                 raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{self.n}) has rank "
                                  f"{rank} < {J} constraints; {detail} (redundant or inconsistent constraints, "
                                  "or a singular configuration)")
-        bad = [f"holonomic constraint {j} (g_{j} = {f}) has residual {vals['g'][j]:.3g}"
+        bad = [f"holonomic constraint {j} (g_{j} = {excerpt(f)}) has residual {vals['g'][j]:.3g}"
                for j, f in enumerate(self.holonomic) if not abs(vals["g"][j]) <= tol]
         bad += [f"velocity constraint {j} (gdot_{j} = A_{j} q' + A0_{j}) has residual {vals['gdot'][j]:.3g}"
                 for j in range(J) if not abs(vals["gdot"][j]) <= tol]
-        bad += [f"inequality constraint {k} ({g} >= 0) is violated: {vals['inequalities'][k]:.3g}"
+        bad += [f"inequality constraint {k} ({excerpt(g)} >= 0) is violated: {vals['inequalities'][k]:.3g}"
                 for k, g in enumerate(self.inequalities) if not vals["inequalities"][k] >= -tol]
         if bad:
             raise ModelError("inconsistent initial conditions (tolerance %.3g): %s; project them with "
@@ -506,6 +511,35 @@ class ConstrainedSystem:
     def __repr__(self) -> str:
         return (f"ConstrainedSystem({self.model.name!r}, {self.n_holonomic} holonomic, {self.n_nonholonomic} "
                 f"nonholonomic, {len(self.inequalities)} inequalities)")
+
+
+#: Operations of an inequality at most that :func:`_check_inequality` factors (factoring a large
+#: expression in several variables can take long; a larger one is not searched for repeated factors).
+FACTOR_OPS = 200
+
+
+def _check_inequality(g: sp.Expr, what: str, model: Model) -> None:
+    """Refuse an inequality g(q, t) >= 0 that cannot act as one: g involves no coordinate (``0*y``,
+    ``5 - t``: the motion never changes it), or has a repeated factor in the coordinates (``y**2``,
+    ``(x - 1)**2*y``: on that factor's zero set g and its gradient dg/dq vanish together, so g
+    touches zero without crossing it and, as a contact, has no normal direction)."""
+    shown = excerpt(str(g))
+    if not (g.free_symbols & set(model.coords)):
+        raise ModelError(f"{what} ({shown} >= 0) involves no coordinate of model {model.name!r}: the motion never "
+                         "changes it, so it constrains nothing (a condition on time alone is an event)")
+    if sp.count_ops(g) > FACTOR_OPS:
+        return
+    try:
+        _, factors = sp.factor_list(g)
+    except (sp.PolynomialError, NotImplementedError, ValueError, TypeError, RecursionError):
+        return
+    coords = set(model.coords)
+    for factor, power in factors:
+        if power >= 2 and factor.free_symbols & coords:
+            raise ModelError(f"{what} ({shown} >= 0) has the factor {excerpt(str(factor))} to the power {power}: "
+                             "where that factor is zero, g and its gradient dg/dq vanish together (an even power "
+                             "never crosses zero; a contact there has no normal direction); write the factor once, "
+                             f"e.g. {excerpt(str(factor))} >= 0 or its negative")
 
 
 def _is_row(x) -> bool:

@@ -115,6 +115,33 @@ def test_fixed_parameters_and_start_values(tmp_path):
                       "w": ("tunable", 1.5)}
 
 
+@pytest.mark.parametrize("version", VERSIONS)
+def test_non_ascii_names_make_a_valid_fmu(tmp_path, version):
+    """A coordinate, parameter or output named outside ASCII (a joint 'θ') is no name of FMI's
+    "structured" convention (its grammar has no such character, not even quoted): the FMU declares
+    the "flat" convention, FMPy finds no problem, and the names stay those of simulate()."""
+    import sympy as sp
+    m = lcg.Model("pend")
+    th, = m.coordinates("θ")
+    g = m.parameter("ğ", 9.81)
+    m.unit("θ", "rad")
+    m.particle("bob", 1, (sp.sin(th), -sp.cos(th)))
+    m.gravity(g)
+    m.output("Ω", 2 * th)
+    path = lcg.export_fmu(m, tmp_path / "u.fmu", fmi_version=version, outputs=["Ω"], initial={"θ": 0.3})
+    assert validate_fmu(str(path)) == []  # 8 problems before
+    md = fmpy.read_model_description(str(path))
+    assert md.variableNamingConvention == "flat"
+    assert [v.name for v in md.modelVariables] == ["time", "θ", "θ_dot", "der(θ)", "der(θ_dot)", "ğ", "Ω"]
+    res = fmpy.simulate_fmu(str(path), stop_time=1.0, start_values={"ğ": 1.0})
+    ref = lcg.compile_model(m, outputs=["Ω"]).simulate([0, 1.0], q0=[0.3], params={"ğ": 1.0})
+    assert abs(res["Ω"][-1] - ref["Ω"][-1]) < 1e-5
+    # plain names keep the structured convention
+    md = fmpy.read_model_description(str(lcg.export_fmu(lcg.systems.pendulum(), tmp_path / "p.fmu",
+                                                        fmi_version=version)))
+    assert md.variableNamingConvention == "structured"
+
+
 # ---------------------------------------------------------------------- trajectories
 @pytest.mark.parametrize("version", VERSIONS)
 @pytest.mark.parametrize("name", MODELS)

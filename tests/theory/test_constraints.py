@@ -140,6 +140,42 @@ def test_unknown_symbol_is_named():
         ConstrainedSystem(m, inequalities=[y - sp.Symbol("h")])
 
 
+def test_an_inequality_that_cannot_act_is_refused_naming_it():
+    """An inequality in no coordinate (0*y, 5 - t) got "augmented matrix singular" as a contact, or
+    was silently never active; one with a repeated factor (y**2) was silently never active: its
+    gradient vanishes where it is zero."""
+    m, x, y, l = plane_particle()
+    t = m.t
+    for g in (0 * y, 5 - t, l - 1):
+        for item in (g, lcg.Inequality(g, restitution=0.5)):
+            with pytest.raises(ModelError, match=r"inequality constraint 1 \(.* >= 0\) involves no coordinate"):
+                ConstrainedSystem(m, inequalities=[y + 2, item])
+    for g, factor in ((y ** 2, "'y' to the power 2"), (-3 * (x - l) ** 2 * y, "'-l \\+ x' to the power 2"),
+                      (sp.sin(x) ** 3, r"'sin\(x\)' to the power 3")):
+        with pytest.raises(ModelError, match=rf"inequality constraint 0 \(.* >= 0\) has the factor {factor}"):
+            ConstrainedSystem(m, inequalities=[lcg.Inequality(g, restitution=0.0)])
+    # the message shows a bounded excerpt of a long inequality
+    long = sum(l ** k / (k + 1) for k in range(120)) + t
+    with pytest.raises(ModelError) as err:
+        ConstrainedSystem(m, inequalities=[long])
+    assert "involves no coordinate" in str(err.value) and "characters)" in str(err.value)
+    assert len(str(err.value)) < 400
+    # inequalities that act are kept: a factor once, a repeated factor in parameters or time only
+    for g in (y, y ** 2 - l ** 2, l ** 2 * y, (t - 1) ** 2 * y, x ** 2 + y ** 2 + 1):
+        assert ConstrainedSystem(m, inequalities=[g]).inequalities == [g]
+
+
+def test_model_file_inequalities_that_cannot_act_are_located():
+    from lagcodegen.modelfile import ModelFileError, loads_model
+    base = ('[model]\nname = "b"\ncoordinates = ["y"]\n[[particles]]\nname = "b"\nmass = 1\n'
+            'position = ["0", "y"]\n[gravity]\ng = 9.81\n[constraints]\n')
+    for text, expect in (("y**2", "has the factor 'y' to the power 2"), ("5 - t", "involves no coordinate")):
+        with pytest.raises(ModelFileError) as err:
+            loads_model(base + f'inequalities = ["y + 1", {{ expr = "{text}", restitution = 0.5 }}]\n', "b.toml")
+        msg = str(err.value)
+        assert msg.startswith("b.toml:11:") and "constraints.inequalities[1]" in msg and expect in msg, msg
+
+
 def test_velocities_are_not_allowed_in_constraint_coefficients():
     m, x, y, l = plane_particle()
     with pytest.raises(ModelError, match="velocity not allowed"):
