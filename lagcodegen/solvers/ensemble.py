@@ -20,13 +20,13 @@ import numpy as np
 
 from ..errors import LagcodegenError
 from .control import CHUNK_FAILED
+from .payload import WithScene, with_scene
 from .ensemble_result import FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleResult  # noqa: F401 - public names
 
 
 # ---------------------------------------------------------------------- executors (Dask, process pools)
 def _run_chunk(sim, t, inputs: dict, P, threads, save, options):
     """One chunk on a worker: an ensemble call of ``sim`` (rebuilt from its sources there)."""
-    from ..simulation.ode import WithScene
     if isinstance(sim, WithScene):  # an executor that did not pickle it (threads)
         sim = sim.sim
     return sim.ensemble(t, params=P, threads=threads, save=save, progress=False, **inputs, **options)
@@ -58,7 +58,6 @@ def run_chunks(sim, executor, chunk_size, n_mem: int, t, inputs: dict, P, thread
     starts = list(range(0, n_mem, chunk_size))
     payload = sim
     if needs_scene(sim, options):  # pickled with its scene, once (else its generated sources only)
-        from ..simulation.ode import with_scene
         payload = with_scene(sim)
     if len(starts) > 1 and callable(getattr(executor, "scatter", None)):
         # a dask.distributed Client: the simulation goes to each worker once, not once per chunk
