@@ -21,10 +21,12 @@ from .buildstep import load_source
 from .codegen.bundle import render_bundle, render_constrained_bundle
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
+from .codegen.events import events_source
 from .codegen.record import GeneratedCode
 from .derivation import EquationsOfMotion, derive
 from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
+from .formulation.events import scene_events
 from .formulation.scene import Scene
 from .model.mechanics import as_model
 from .model.model import Model, require_model
@@ -257,6 +259,21 @@ def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
         return _compile_equations(mf.derive(), **kwargs)
 
 
+def _event_files(scene: Scene, mf: ModelFile, lang: str, report: Callable[[str], None] | None) -> dict[str, str]:
+    """``<prefix>_events.c`` of the file's ``[[events]]`` (checked against the scene: ModelError
+    naming a bad one), the C function ``int <prefix>_events(t, y, p, gout)`` the native drivers'
+    root finding takes; none without events. Printed in C only: with ``lang`` "fortran" ``report``
+    says so and nothing is added."""
+    if not mf.events:
+        return {}
+    if lang != "c":
+        if report is not None:
+            report(f"{len(mf.events)} event function(s): printed in C only (generate with --lang c for "
+                   f"{scene.prefix}_events.c)")
+        return {}
+    return events_source(scene, scene_events(scene, list(mf.events)))
+
+
 def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, method: str | None = None,
                   prefix: str | None = None, report: Callable[[str], None] | None = None,
                   sensitivities: bool = False) -> dict[str, str]:
@@ -285,7 +302,7 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
                       values=folded, prefix=prefix)
         code = generate_code(scene, lang)
         if not bundle:
-            return dict(code.files)
+            return {**code.files, **_event_files(scene, mf, lang, report)}
         params = {k: v for k, v in values.items() if k in scene.runtime_parameters}
         return render_bundle(scene, lang, y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end, code=code,
                              method=method or "bdf", sensitivities=sensitivities)
