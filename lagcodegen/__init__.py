@@ -43,7 +43,7 @@ from .simulation.ode import CompiledModel, simulate  # noqa: F401
 from .simulation.hybrid import simulate_with_switch  # noqa: F401
 from .fitting import FitResult, fit  # noqa: F401
 from .api import (AUTO_JACOBIAN_MAX_N, build_code, compile_constrained, compile_file,  # noqa: F401
-                  compile_model, compile_reduction, generate_file, run_sweep)
+                  compile_model, compile_reduction, compile_urdf, generate_file, run_sweep)
 from . import modelfile, progress  # noqa: F401
 from .fmu import export_fmu  # noqa: F401
 from .modelfile import urdf  # noqa: F401  (the URDF reader, lagcodegen.modelfile.urdf)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -21,10 +22,12 @@ from .buildstep import load_source
 from .codegen.bundle import render_bundle, render_constrained_bundle
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
+from .codegen.events import events_source
 from .codegen.record import GeneratedCode
 from .derivation import EquationsOfMotion, derive
 from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
+from .formulation.events import scene_events
 from .formulation.scene import Scene
 from .model.mechanics import as_model
 from .model.model import Model, require_model
@@ -74,6 +77,71 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
                                   verbose=verbose, lang=lang)
+
+
+def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = None, jacobian: bool | None = None,
+                 outputs=(), runtime_parameters=None, values=None, prefix: str | None = None, native: bool = True,
+                 progress=None) -> CompiledModel:
+    """``compile_model(urdf.load(path, **load), ...)`` with its generated code cached by the URDF
+    file's content: a new process that compiles the same file with the same options loads the code
+    and the compiled library from the cache without deriving anything (what the command line's
+    manifest does for model files).
+
+    ``load``: the keywords of :func:`lagcodegen.modelfile.urdf.load` (``floating``, ``mimic``,
+    ``lock``, ``gravity``, ``friction``, ``form``, ``name``; ``limits=True`` makes a constrained
+    system: compile it with :func:`compile_constrained`); the others as :func:`compile_model`
+    (C only). The cache key is the file's bytes, these options, and the versions of lagcodegen
+    (its sources' digest), sympy and symengine. A model from the cache has no symbolic scene until
+    a run needs one (the Taylor method, events, sensitivities, a drawing): it is then derived again
+    from the file, once.
+    """
+    import hashlib
+    import pickle
+
+    from .buildstep import generator_record
+    from .cache import cache_key, cached_build
+    from .modelfile import urdf as _urdf
+    from .simulation.ode import pickle_code
+
+    load = dict(load or {})
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the URDF file ({exc.strerror or exc})") from None
+    digest = hashlib.sha256(data).hexdigest()
+    options = dict(jacobian=jacobian, outputs=list(outputs), runtime_parameters=runtime_parameters,
+                   values=dict(values or {}), prefix=prefix)
+    key = cache_key(["urdf-code", digest, repr(sorted(load.items())), repr(sorted(options.items())),
+                     repr(sorted(generator_record().items()))])
+
+    def scene() -> Scene:
+        model = _urdf.loads(data, filename=str(path), **load)
+        if isinstance(model, ConstrainedSystem):
+            raise ModelError(f"{path}: with limits=True the URDF is a constrained system: compile it with "
+                             "compile_constrained(urdf.load(...)), whose code is not cached by the file")
+        eom = derive(model)
+        return Scene(eom, jacobian=eom.model.n <= AUTO_JACOBIAN_MAX_N if jacobian is None else jacobian,
+                     outputs=outputs, runtime_parameters=runtime_parameters, values=dict(values or {}),
+                     prefix=prefix)
+
+    made: dict = {}
+
+    def make(folder: Path) -> Path:
+        code = made["code"] = generate_code(scene(), "c")
+        out = folder / "code.pickle"
+        out.write_bytes(pickle.dumps(pickle_code(code), protocol=pickle.HIGHEST_PROTOCOL))
+        return out
+
+    def opener(_name: str, file: Path) -> GeneratedCode:
+        return pickle.loads(file.read_bytes())  # an entry of the user's own cache, checked by its digest
+
+    with _progress.enabled(progress):
+        code, _, cached = cached_build(key, f"lcg_urdf_{key}", "code.pickle", make, opener)
+        if not cached:
+            code = made["code"]  # with its scene
+        else:
+            code.rederive = scene
+        return build_code(code, native=native)
 
 
 def _compile_equations(eom: EquationsOfMotion, *, jacobian: bool | None, outputs, runtime_parameters, values,
@@ -257,6 +325,21 @@ def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
         return _compile_equations(mf.derive(), **kwargs)
 
 
+def _event_files(scene: Scene, mf: ModelFile, lang: str, report: Callable[[str], None] | None) -> dict[str, str]:
+    """``<prefix>_events.c`` of the file's ``[[events]]`` (checked against the scene: ModelError
+    naming a bad one), the C function ``int <prefix>_events(t, y, p, gout)`` the native drivers'
+    root finding takes; none without events. Printed in C only: with ``lang`` "fortran" ``report``
+    says so and nothing is added."""
+    if not mf.events:
+        return {}
+    if lang != "c":
+        if report is not None:
+            report(f"{len(mf.events)} event function(s): printed in C only (generate with --lang c for "
+                   f"{scene.prefix}_events.c)")
+        return {}
+    return events_source(scene, scene_events(scene, list(mf.events)))
+
+
 def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, method: str | None = None,
                   prefix: str | None = None, report: Callable[[str], None] | None = None,
                   sensitivities: bool = False) -> dict[str, str]:
@@ -285,7 +368,7 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
                       values=folded, prefix=prefix)
         code = generate_code(scene, lang)
         if not bundle:
-            return dict(code.files)
+            return {**code.files, **_event_files(scene, mf, lang, report)}
         params = {k: v for k, v in values.items() if k in scene.runtime_parameters}
         return render_bundle(scene, lang, y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end, code=code,
                              method=method or "bdf", sensitivities=sensitivities)

@@ -193,3 +193,62 @@ def test_manifest_entries_that_are_not_regular_files(tmp_path, run):
     proc = run("generate", model, "-o", out, "-q")
     assert proc.returncode == 1 and "pendulum.h" in proc.stderr
     assert (outside / "x.c").read_text() == "precious\n"
+
+
+EVENTS_MODEL = """
+[model]
+name = "evpend"
+coordinates = ["theta"]
+[parameters]
+g = 9.81
+l = 1.0
+m = 1.0
+[[particles]]
+name = "bob"
+mass = "m"
+position = ["l*sin(theta)", "-l*cos(theta)"]
+[gravity]
+g = "g"
+[[events]]
+name = "cross"
+expr = "theta - 0.25"
+direction = 0
+terminal = false
+[[events]]
+name = "fast"
+expr = "theta_dot*theta_dot - g"
+direction = 1
+terminal = true
+[simulation]
+runtime_parameters = ["g"]
+t_end = 3.0
+initial = { theta = 1.0 }
+"""
+
+
+def test_generate_writes_the_event_functions_of_a_model_file(tmp_path, run, cc):
+    """`generate` of a model file with [[events]] writes <prefix>_events.c beside the model's code
+    (listed, in the manifest): it compiles strictly, and its gout are the events' expressions; in
+    Fortran the events are said to be printed in C only."""
+    import ctypes
+    from helpers import STRICT_CFLAGS
+    model = tmp_path / "evpend.toml"
+    model.write_text(EVENTS_MODEL)
+    out = tmp_path / "gen"
+    listed = run("generate", model, "-o", out, "--list-outputs", "-q")
+    assert str(out / "evpend_events.c") in listed.stdout.splitlines()
+    assert run("generate", model, "-o", out, "-q").returncode == 0
+    manifest = json.loads((out / "evpend.lagcodegen.json").read_text())
+    assert "evpend_events.c" in manifest["files"]
+    lib = tmp_path / "libev.so"
+    proc = subprocess.run([cc, *STRICT_CFLAGS, "-shared", "-fPIC", str(out / "evpend_events.c"), "-o", str(lib),
+                           "-lm"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    fn = ctypes.CDLL(str(lib)).evpend_events
+    fn.restype = ctypes.c_int
+    y, p, g = (ctypes.c_double * 2)(0.7, -3.5), (ctypes.c_double * 1)(9.0), (ctypes.c_double * 2)()
+    assert fn(ctypes.c_double(0.0), y, p, g) == 0
+    assert list(g) == [0.7 - 0.25, 3.5 * 3.5 - 9.0]
+    fortran = run("generate", model, "-o", tmp_path / "genf", "--lang", "fortran")
+    assert fortran.returncode == 0 and "printed in C only" in fortran.stderr
+    assert not (tmp_path / "genf" / "evpend_events.c").exists()

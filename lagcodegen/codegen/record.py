@@ -67,6 +67,9 @@ class GeneratedCode:
     # The scene the code was generated from (for further code of the same scene, e.g. the
     # Taylor integrator), or None for code assembled by hand.
     scene: object = field(default=None, repr=False, compare=False)
+    # Code loaded from the cache without its scene (:func:`lagcodegen.api.compile_urdf`): a
+    # function deriving the scene again where a run needs it (never pickled).
+    rederive: object = field(default=None, repr=False, compare=False)
     # The run-time parameters that are input signals u(t) (Model.input), in p order: an FMU
     # declares them as inputs.
     input_names: list[str] = field(default_factory=list)
@@ -106,6 +109,9 @@ def scene_of_code(code: GeneratedCode, what: str) -> Scene:
     LagcodegenError saying why it is missing: a pickled compiled model carries its generated C
     only, or the code was assembled by hand."""
     scene = getattr(code, "scene", None)
+    rederive = getattr(code, "rederive", None)
+    if scene is None and rederive is not None:  # code from the cache of a model file: derived again, once
+        scene = code.scene = rederive()
     if scene is None:
         from ..errors import LagcodegenError
         raise LagcodegenError(f"{what} needs the symbolic scene of model {code.model_name!r}, which this compiled "

@@ -210,13 +210,25 @@ def deferred_drawing(cm) -> DeferredDrawing | None:
     cached = cm.__dict__.get("_lcg_drawing")
     if cached is not None:  # made from the model's scene on an earlier call
         return cached
-    scene = getattr(_code(cm), "scene", None)
+    code = _code(cm)
+    scene = getattr(code, "scene", None)
     if not isinstance(scene, Scene):
-        return None
+        if getattr(code, "rederive", None) is None:
+            return None
+        # code from the cache of a model file: its scene derived again when the drawing is read
+        cached = cm.__dict__["_lcg_drawing"] = DeferredDrawing(lambda: drawing_of(_rederived(code)))
+        return cached
     cached = cm.__dict__.get("_lcg_drawing")
     if cached is None:
         cached = cm.__dict__["_lcg_drawing"] = DeferredDrawing(functools.partial(drawing_of, scene))
     return cached
+
+
+def _rederived(code) -> Scene:
+    """The scene of ``code`` (a GeneratedCode with ``rederive``), derived again once."""
+    if code.scene is None:
+        code.scene = code.rederive()
+    return code.scene
 
 
 def attaches_drawing(simulate: Callable) -> Callable:

@@ -61,11 +61,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..build import DEFAULT_CFLAGS, config_header, driver_runtime, find_sundials, generated_headers, types_headers
-from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, driver_cdef, header_cdef
+from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ..codegen.signatures import IMP_TABLE, cffi_struct
 from ..errors import LagcodegenError
 from ..result import Result
 from ..runtime import sources as runtime_files
+from ..solvers.control import CANCELLED, POLL_EVERY, install, raise_pending
 from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
 
 #: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...).
@@ -76,7 +77,7 @@ RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_model.h", "lcg_dae_model.h",
                  "lcg_sundials.h", "sundials_api.h")
 
 _CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE),
-                   header_cdef("lcg_imp.h")])
+                   header_cdef("lcg_imp.h"), POLL_CDEF])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -200,6 +201,7 @@ class ImpactRunner:
         self.sim = sim
         self.rt = rt = impact_runtime()
         self.ffi = ffi = rt.ffi
+        self.poll = install(rt)  # Ctrl-C (and progress) during a run, as the other drivers
         library = sim.compiled._library  # the model library (ctypes), kept open by the compiled model
         getter = getattr(library, f"{info.prefix}_imp_model_table")
         getter.restype = ctypes.c_void_p
@@ -244,6 +246,7 @@ class ImpactRunner:
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
         opt.max_steps, opt.first_step, opt.max_step, opt.min_step = int(max_steps), first_step, max_step, min_step
         opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(max_order), alpha, beta, int(roots), max_wall
+        opt.poll, opt.poll_every = self.poll, POLL_EVERY
         st = ffi.new("lcg_cvc_stats *")
         events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, max_events) if roots and sim.info.events \
             else None
@@ -258,6 +261,8 @@ class ImpactRunner:
             fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
             events.struct if events else ffi.NULL)
         wall = time.perf_counter() - start
+        if flag == CANCELLED:
+            raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
         done = st.nt_done
         recs = events.records(sim.state_names, ny) if events else []
         tt, yy, oo, ll = t[:done].copy(), yout[:done].copy(), out[:done].copy(), lamout[:done].copy()

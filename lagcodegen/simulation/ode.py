@@ -397,7 +397,8 @@ def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
 def pickle_code(code: GeneratedCode) -> GeneratedCode:
     """``code`` as it is pickled: its files, names, defaults and layout, without the scene (the
     symbolic scene is many times the size of the C it was generated into)."""
-    return code if code.scene is None else dataclasses.replace(code, scene=None)
+    return code if code.scene is None and code.rederive is None else dataclasses.replace(code, scene=None,
+                                                                                         rederive=None)
 
 
 _REBUILT: dict = {}
