@@ -40,6 +40,8 @@ def with_scene(sim) -> WithScene:
     :func:`lagcodegen.solvers.ensemble.run_chunks` sends such runs this way). LagcodegenError if
     ``sim`` has no scene to carry (it was itself unpickled without one, or assembled by hand)."""
     code = scene_code(sim)
+    if code is not None and code.scene is None and code.rederive is not None:
+        code.scene = code.rederive()  # code from the cache of a model file: its scene derived again
     if code is not None and code.scene is None:
         raise LagcodegenError(f"model {code.model_name!r} has no symbolic scene to carry (it was unpickled without "
                               "one, or assembled by hand): compile it again in this process")
