@@ -14,7 +14,7 @@ import pytest
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen import ModelError, progress
+from lagcodegen import ModelError, fitting, progress
 from lagcodegen.modelfile import ModelFileError, loads_model
 from lagcodegen.modelfile.expressions import MAX_POWER
 from lagcodegen.solvers import control
@@ -183,3 +183,70 @@ def test_constrained_functions_given_empty_arrays_raise_instead_of_crashing(tmp_
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
     assert proc.stdout.strip() == "ok"
+
+
+# ---------------------------------------------------------------------- fits: convergence, duplicated columns
+def cli(*args, cwd=None):
+    import os
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "lagcodegen", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=600)
+
+
+def write_csv(path, header, t, *cols):
+    import numpy as np
+    rows = np.column_stack([t, *cols])
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n")
+    return path
+
+
+def test_a_fit_that_cannot_converge_says_so_and_exits_6(tmp_path):
+    """Data no pendulum reaches (theta = 1e9): the optimizer stops on ftol at a cost of 1e19
+    with the gradient far from zero; before, exit 0 and no word of it."""
+    import numpy as np
+    t = np.linspace(0.0, 5.0, 21)
+    data = write_csv(tmp_path / "far.csv", ["t", "theta"], t, np.full(t.size, 1e9))
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", data, "--fit", "l", "-o", tmp_path / "fit.csv")
+    assert proc.returncode == 6, (proc.returncode, proc.stderr)
+    assert "fit not converged" in proc.stderr and "l = " in proc.stdout
+    assert (tmp_path / "fit.csv").exists()  # the estimates are still written
+    assert "6  fit: the fit did not converge" in cli("--help").stdout
+    assert "exits with code 6" in cli("fit", "--help").stdout
+    # the Python API: converged False, and said in its summary; a good fit is converged
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    far = fitting.fit(sim, t, np.full(t.size, 1e9), params={"l": 1.0}, observe=["theta"], q0=[1.0])
+    assert far.success and not far.converged and far.stationarity > fitting.STATIONARITY
+    assert "not converged" in str(far)
+    theta = sim.simulate(t, q0=[1.0], params={"l": 1.3})["theta"]
+    good = fitting.fit(sim, t, theta, params={"l": 1.0}, observe=["theta"], q0=[1.0])
+    assert good.converged and abs(good.params["l"] - 1.3) < 1e-6 and "not converged" not in str(good)
+
+
+def test_a_duplicated_data_column_is_refused(tmp_path):
+    """The same column twice counted every measurement twice: the standard errors shrank by sqrt 2."""
+    import numpy as np
+    t = np.linspace(0.0, 5.0, 21)
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    theta = sim.simulate(t, q0=[1.0], params={"l": 1.3})["theta"]
+    data = write_csv(tmp_path / "dup.csv", ["t", "theta", "theta"], t, theta, theta)
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", data, "--fit", "l")
+    assert proc.returncode == 1 and "'theta' appears more than once" in proc.stderr, proc.stderr
+    once = write_csv(tmp_path / "once.csv", ["t", "theta"], t, theta)
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", once, "--fit", "l", "--observe", "theta,theta")
+    assert proc.returncode == 2 and "theta given more than once" in proc.stderr, proc.stderr
+    with pytest.raises(lcg.LagcodegenError, match="'theta' observed more than once"):
+        fitting.fit(sim, t, np.column_stack([theta, theta]), params={"l": 1.0}, observe=["theta", "theta"],
+                        q0=[1.0])
+
+
+def test_an_input_given_a_value_and_a_table_is_refused_naming_it():
+    """Before, the table silently won over params={"F": ...}."""
+    import numpy as np
+    sim = lcg.compile_model(lcg.systems.forced_oscillator("osc_both", m=1.0, k=4.0, c=0.4))
+    t = np.linspace(0.0, 1.0, 11)
+    table = lcg.Table([0.0, 1.0], [0.0, 2.0])
+    with pytest.raises(lcg.LagcodegenError, match="'F' given both a value \\(params=\\) and a table"):
+        sim.simulate(t, q0=[0.0], params={"F": 3.0}, inputs={"F": table})
+    with pytest.raises(lcg.LagcodegenError, match="'F' given both"):
+        sim.ensemble(t, q0=np.zeros((2, 1)), params={"F": [1.0, 2.0]}, inputs={"F": table})
+    assert sim.simulate(t, q0=[0.0], params={"k": 9.0}, inputs={"F": table}).success

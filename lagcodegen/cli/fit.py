@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import io
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -17,9 +18,9 @@ import numpy as np
 
 from ..api import compile_file
 from ..errors import LagcodegenError
-from ..fitting import fit
+from ..fitting import STATIONARITY, fit
 from ..util import atomic_binary, atomic_write
-from .common import (EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
+from .common import (EXIT_NOT_CONVERGED, EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
                      load, say)
 
 HELP = "fit run-time parameters of a model file to measured data (CSV); write the estimates (and a PNG)"
@@ -31,7 +32,12 @@ per time (the first time is the initial time of the run, from the file's initial
 [constraints], formulation index1 or minimal, projected onto the constraints). Starting
 values: the file's parameter values (--set overrides) and initial state. Least squares with the
 exact Jacobian from forward sensitivities; the estimates with their standard errors (from the
-residual variance) are printed and, with -o, written as CSV (name,estimate,stderr).
+residual variance) are printed and, with -o, written as CSV (name,estimate,stderr). A data
+column named twice is refused.
+
+A fit that does not converge (the optimizer out of evaluations, or stopped where the
+residuals still have a component along the Jacobian: the model cannot follow the data) prints
+"fit not converged" and exits with code 6; its estimates are still printed and written.
 
     lagcodegen fit model.toml data.csv --fit l,c -o fit.csv --plot fit.png"""
 
@@ -80,6 +86,11 @@ def read_data(path: str) -> tuple[list[str], np.ndarray]:
     header = [h.strip() for h in lines[0].split(",")]
     if not header or header[0] != "t" or len(header) < 2:
         raise LagcodegenError(f"{path}: the header must be 't' followed by observed names, got {lines[0]!r}")
+    twice = sorted({h for h in header if header.count(h) > 1})
+    if twice:
+        raise LagcodegenError(f"{path}: column {', '.join(map(repr, twice))} appears more than once in the header; "
+                              "give each observed name one column (a repeated column counts the same "
+                              "measurements twice and shrinks the standard errors)")
     try:
         rows = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
     except ValueError as exc:
@@ -97,6 +108,9 @@ def run(args) -> int:
     mf = apply_options(mf, args)
     names = csv(args.fit)
     observe = csv(args.observe) or header[1:]
+    twice = sorted({o for o in observe if observe.count(o) > 1})
+    if twice:
+        raise UsageError(f"--observe: {', '.join(twice)} given more than once")
     missing = [o for o in observe if o not in header]
     if missing:
         raise UsageError(f"--observe {','.join(missing)}: not a column of {args.data} ({', '.join(header)})")
@@ -133,6 +147,11 @@ def run(args) -> int:
         f"{result.iterations} iterations, cost {result.cost:.6g}, cond(J^T J) {result.condition:.3g}", args.quiet)
     for name in names:
         print(f"{name} = {result.params[name]:.12g} +- {result.stderr[name]:.3g}")
+    if not result.converged:
+        print(f"lagcodegen: fit not converged ({result.message.rstrip('.')}; cost {result.cost:.6g}, stationarity "
+              f"{result.stationarity:.3g} > {STATIONARITY:g} or the optimizer stopped early): the estimates are not "
+              "a minimum of the least squares; check the starting values (--set), the observed names and the "
+              f"data (exit code {EXIT_NOT_CONVERGED})", file=sys.stderr)
     if args.output:
         lines = ["name,estimate,stderr"] + [f"{n},{result.params[n]!r},{result.stderr[n]!r}" for n in names]
         atomic_write(Path(args.output), "\n".join(lines) + "\n")
@@ -140,7 +159,7 @@ def run(args) -> int:
     if args.plot:
         _plot(sim, mf, result, t, data, observe, q0, v0, fixed, args.plot)
         say(f"wrote {args.plot}", args.quiet)
-    return EXIT_OK
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 
 
 def _plot(sim, mf, result, t, data, observe, q0, v0, fixed, path) -> None:

@@ -278,7 +278,7 @@ class CompiledModel(CompiledReprMixin):
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
-                                                       self.code.model_name)
+                                                       self.code.model_name, params=params)
         if tables:
             res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
         else:
