@@ -250,3 +250,29 @@ def test_an_input_given_a_value_and_a_table_is_refused_naming_it():
     with pytest.raises(lcg.LagcodegenError, match="'F' given both"):
         sim.ensemble(t, q0=np.zeros((2, 1)), params={"F": [1.0, 2.0]}, inputs={"F": table})
     assert sim.simulate(t, q0=[0.0], params={"k": 9.0}, inputs={"F": table}).success
+
+
+# ---------------------------------------------------------------------- paths that cannot be written
+def test_fmu_and_output_paths_that_cannot_be_written_say_why(tmp_path, capsys):
+    """--fmu at a folder wrote FOLDER/out.fmu silently; a file where a folder should be gave a
+    bare "[Errno 17] File exists"."""
+    folder = tmp_path / "existing_dir"
+    folder.mkdir()
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    from lagcodegen.cli import main
+    pendulum = str(ROOT / "examples" / "pendulum.toml")
+    cases = [(["--fmu", str(folder)], f"{folder} is a folder; give the FMU's file name, ending in .fmu"),
+             (["--fmu", str(afile / "x.fmu")], f"{afile} is a file, not a folder"),
+             (["-o", str(afile)], f"-o {afile}: {afile} is a file, not a folder"),
+             (["-o", str(afile / "sub")], f"{afile} is a file, not a folder")]
+    for extra, message in cases:
+        capsys.readouterr()
+        assert main(["generate", pendulum, *extra, "-q"]) == 2, extra
+        err = capsys.readouterr().err
+        assert message in err and "Errno" not in err, (extra, err)
+    assert list(folder.iterdir()) == []
+    with pytest.raises(lcg.LagcodegenError, match="is a folder; give the FMU's file name"):
+        lcg.export_fmu(ROOT / "examples" / "pendulum.toml", folder)
+    with pytest.raises(lcg.LagcodegenError, match="afile is a file, not a folder"):
+        lcg.write_bundle(lcg.Scene(lcg.derive(lcg.systems.pendulum())), afile / "b")

@@ -39,11 +39,11 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..codes import c_header as codes_header
-from ..errors import ModelError
+from ..errors import LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
-from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, read_regular_file
+from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, folder_problem, read_regular_file
 from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
@@ -352,6 +352,9 @@ def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[
     """Write ``files`` (name -> text) into ``directory``: each changed file atomically, unchanged
     files not at all. Returns the paths written."""
     out = Path(directory)
+    problem = folder_problem(out)
+    if problem:
+        raise LagcodegenError(f"cannot write the files into {out}: {problem}")
     out.mkdir(parents=True, exist_ok=True)
     return [atomic_write(out / name, files[name]) for name in sorted(stale_files(out, files))]
 
