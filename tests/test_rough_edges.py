@@ -276,3 +276,69 @@ def test_fmu_and_output_paths_that_cannot_be_written_say_why(tmp_path, capsys):
         lcg.export_fmu(ROOT / "examples" / "pendulum.toml", folder)
     with pytest.raises(lcg.LagcodegenError, match="afile is a file, not a folder"):
         lcg.write_bundle(lcg.Scene(lcg.derive(lcg.systems.pendulum())), afile / "b")
+
+
+# ---------------------------------------------------------------------- particles on a line
+SPRING_1D = """
+[model]
+name = "line_spring"
+coordinates = ["x"]
+[parameters]
+m = 2.0
+k = 8.0
+[[particles]]
+name = "mass"
+mass = "m"
+position = ["x"]
+[energy]
+potential = "k*x**2/2"
+[simulation]
+t_end = 3.0
+initial = { x = 0.5, x_dot = 0.3 }
+"""
+
+
+def test_a_particle_on_a_line_is_the_analytic_harmonic_oscillator():
+    """position = ["x"] and Model.particle(name, m, (x,)) were refused ("must have 2 or 3
+    components"); now T = m x'^2/2, and with a spring x = x0 cos(w t) + v0/w sin(w t), w = sqrt(k/m)."""
+    import numpy as np
+    t = np.linspace(0.0, 3.0, 61)
+    w = 2.0  # sqrt(8 / 2)
+    exact = 0.5 * np.cos(w * t) + 0.3 / w * np.sin(w * t)
+    mf = loads_model(SPRING_1D)
+    assert mf.model.points["mass"].dim == 1
+    res = lcg.compile_file(mf).simulate(t, q0=[0.5], v0=[0.3], rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(res["x"] - exact)) < 1e-8
+    m = lcg.Model("line_spring_py")
+    x, = m.coordinates("x")
+    mass, k = m.parameters(m=2.0, k=8.0)
+    m.particle("p", mass, (x,))
+    m.spring("p", (0,), k)
+    eom = lcg.derive(m)
+    assert sp.simplify(eom.T - mass * eom.qd[0] ** 2 / 2) == 0 and eom.M == sp.Matrix([[mass]])
+    res = lcg.compile_model(m, outputs=["positions"]).simulate(t, q0=[0.5], v0=[0.3], rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(res["x"] - exact)) < 1e-8 and np.allclose(res["p_x"], res["x"])
+    # gravity along the line only with an explicit one-component up: the equilibrium moves to -m g / k
+    m.gravity(9.81, up=(1,))
+    res = lcg.compile_model(m).simulate(t, q0=[0.5], rtol=1e-11, atol=1e-13)
+    shift = -2.0 * 9.81 / 8.0
+    assert np.max(np.abs(res["x"] - (shift + (0.5 - shift) * np.cos(w * t)))) < 1e-8
+
+
+def test_gravity_on_a_particle_on_a_line_without_a_direction_is_refused_clearly():
+    with pytest.raises(ModelFileError) as err:
+        loads_model(SPRING_1D + '[gravity]\ng = 9.81\n')
+    msg = str(err.value)
+    assert "gravity on 'mass', a particle on a line" in msg and "up = [1]" in msg
+    ok = loads_model(SPRING_1D + '[gravity]\ng = 9.81\nup = [-1]\n')
+    assert ok.model.gravity_spec[1] == sp.Matrix([-1])
+    with pytest.raises(ModelFileError, match="'up' has 2 components, 'mass' has 1"):
+        loads_model(SPRING_1D + '[gravity]\ng = 9.81\nup = [0, 1]\n')
+    m = lcg.Model("line_gravity")
+    x, = m.coordinates("x")
+    m.particle("p", 1, (x,))
+    m.gravity(9.81)
+    with pytest.raises(ModelError, match="a particle on a line"):
+        lcg.derive(m)
+    with pytest.raises(ModelError, match="must have 1, 2 or 3 components, got 4"):
+        m.particle("q", 1, (x, x, x, x))
