@@ -217,7 +217,18 @@ def compile_file(mf: ModelFile, **options: Any):
     file's formulation, Baumgarte parameters, projection, events and outputs
     (:func:`lagcodegen.modelfile.constrained_outputs`). Errors of the derivation name the file
     and line (:meth:`ModelFile.derive <lagcodegen.modelfile.ModelFile.derive>`).
+
+    The file's initial state (``[simulation] initial``) is the compiled system's default:
+    ``simulate(t)`` (and ``integrator()``, ``fit``) without ``q0`` (or ``v0``) starts from the
+    file's values, as the command line does; ``initial_defaults`` holds them as (q0, v0).
     """
+    sim = _compile_file(mf, **options)
+    sim.initial_defaults = mf.initial_state()
+    return sim
+
+
+def _compile_file(mf: ModelFile, **options: Any):
+    """:func:`compile_file` but for the initial state's defaults."""
     s = mf.simulation
     with _progress.enabled(options.pop("progress", None)):
         if mf.constrained is not None:

@@ -22,6 +22,7 @@ from ..model.model import Model
 from ..result import Result
 from ..theory.constraints import ConstrainedSystem
 from ..theory.minimal import reduced_model, solve_constraints
+from ..solvers.base import file_initial
 from ..util import check_finite, output_times, state_vector
 from .constrained_functions import _Base
 from .ensemble import ensemble_minimal
@@ -150,6 +151,7 @@ class MinimalSimulation(_Base):
         model = self.system.model
         self._check_directions(options.get("sensitivities", getattr(solver, "sensitivities", None)))
         names = [q.name for q in model.coords]
+        q0, v0 = file_initial(self, q0, v0)
         q = state_vector(q0, names, "q0")
         v = state_vector(v0, names, "v0")
         defaults = {s.name: v_ for s, v_ in model.params.items()}
@@ -190,6 +192,7 @@ class MinimalSimulation(_Base):
         :attr:`state_names`)."""
         model = self.system.model
         names = [q.name for q in model.coords]
+        q0, v0 = file_initial(self, q0, v0)
         q = state_vector(q0, names, "q0")
         v = state_vector(v0, names, "v0")
         t0 = check_finite(t0, "t0")

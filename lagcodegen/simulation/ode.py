@@ -45,6 +45,10 @@ class CompiledModel(CompiledReprMixin):
     array handed to C is checked first (length, dtype): a wrong one raises LagcodegenError.
     """
 
+    #: (q0, v0) a run starts from when not given: a model file's initial state (set by
+    #: :func:`lagcodegen.compile_file`), else None (zeros).
+    initial_defaults: tuple | None = None
+
     def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool, table=None,
                  library=None, dae_table=None):
         self.code = code
