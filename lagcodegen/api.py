@@ -17,7 +17,8 @@ from . import build as _build
 from . import progress as _progress
 from . import sweep as _sweep
 from .buildstep import load_source
-from .codegen.bundle import render_bundle, render_constrained_bundle
+from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, register_reference_run, render_bundle, \
+    render_constrained_bundle
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.record import GeneratedCode
@@ -369,3 +370,18 @@ def run_sweep(spec: _sweep.SweepSpec, say: Callable[[str], None] | None = None) 
     sim = compile_file(mf, **options)
     say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s")
     return _sweep.run_plan(plan, mf, sim, values, say)
+
+
+def _bundle_reference(scene: Scene, code: GeneratedCode | None, y: Sequence[float], p: Sequence[float],
+                      t0: float, t1: float) -> tuple[list[str], list[float]]:
+    """The reference row of a bundle's ``make check`` (:func:`lagcodegen.codegen.bundle.reference_values`):
+    t, the state and the outputs of ``scene`` at ``t1``, lagcodegen's CVODE from ``y`` at ``t0``."""
+    cm = build_code(code if code is not None else generate_code(scene, "c"))
+    res = cm.simulate([t0, t1], y0=list(y), params=dict(zip(cm.param_names, p)), rtol=REFERENCE_RTOL,
+                      atol=REFERENCE_ATOL)
+    names = ["t", *cm.state_names, *cm.output_names]
+    return names, [float(res.t[-1]), *map(float, res.y[-1]), *(float(res[o][-1]) for o in cm.output_names)]
+
+
+register_reference_run(_bundle_reference)
+
