@@ -383,5 +383,23 @@ def _bundle_reference(scene: Scene, code: GeneratedCode | None, y: Sequence[floa
     return names, [float(res.t[-1]), *map(float, res.y[-1]), *(float(res[o][-1]) for o in cm.output_names)]
 
 
-register_reference_run(_bundle_reference)
+
+
+def _constrained_bundle_reference(system: ConstrainedSystem, options: dict, y: Sequence[float], p: Sequence[float],
+                                  t0: float, t1: float) -> tuple[list[str], list[float]]:
+    """The reference row of a constrained bundle's ``make check``: t, (q, q') and the outputs at
+    ``t1`` of the index-1 formulation compiled with the bundle's ``options``, from ``y`` at
+    ``t0`` projected onto the constraints, as the bundle's RK4 example starts."""
+    opts = dict(options)
+    columns = opts.pop("columns")
+    sim = compile_constrained(system, "index1", **opts)
+    n = sim.n
+    res = sim.simulate([t0, t1], q0=list(y[:n]), v0=list(y[n:]), params=dict(zip(sim.param_names, p)),
+                       rtol=REFERENCE_RTOL, atol=REFERENCE_ATOL, initial="project", events=False)
+    names = ["t", *sim.state_names[:2 * n], *columns]
+    return names, [float(res.t[-1]), *map(float, res.y[-1][:2 * n]), *(float(res[o][-1]) for o in columns)]
+
+
+register_reference_run("scene", _bundle_reference)
+register_reference_run("constrained", _constrained_bundle_reference)
 

@@ -207,7 +207,8 @@ def test_make_clean_removes_everything_make_wrote(tmp_path, tools, scenes):
         write_bundle(scene, folder, **options)
         written = sorted(p.name for p in folder.iterdir())
         run(["make"], folder)
-        run(["make", "check"], folder)
+        check = run(["make", "check"], folder)
+        assert "make check: rk4_example agrees with reference.csv" in check.stdout, (name, check.stdout)
         if name == "c" and sundials_include() is not None:
             run(["make", "cvode"], folder)
         assert len(list(folder.iterdir())) > len(written) + 3  # the library, objects, examples, CSVs
