@@ -181,6 +181,10 @@ def output_problem(output, plot, written: str) -> str | None:
         return f"-o {output}: is a folder; give a file name ending in .csv or .npz"
     if plot is not None and Path(plot).suffix != ".png":
         return f"--plot {plot}: plots are written as .png"
+    for option, name in (("-o", output), ("--plot", plot)):
+        problem = None if name is None else folder_problem(Path(name).parent)
+        if problem:
+            return f"{option} {name}: {problem}"
     return None
 
 

@@ -271,6 +271,14 @@ def test_fmu_and_output_paths_that_cannot_be_written_say_why(tmp_path, capsys):
         assert main(["generate", pendulum, *extra, "-q"]) == 2, extra
         err = capsys.readouterr().err
         assert message in err and "Errno" not in err, (extra, err)
+    # the result files of the other commands the same, before any work
+    for command in (["simulate", pendulum, "-o", str(afile / "r.csv")],
+                    ["simulate", pendulum, "-o", str(tmp_path / "r.csv"), "--plot", str(afile / "r.png")],
+                    ["sweep", pendulum, "--grid", "g=9.7:9.9:3", "-o", str(afile / "g.csv")]):
+        capsys.readouterr()
+        assert main([*command, "-q"]) == 2, command
+        err = capsys.readouterr().err
+        assert f"{afile} is a file, not a folder" in err and "Errno" not in err, (command, err)
     assert list(folder.iterdir()) == []
     with pytest.raises(lcg.LagcodegenError, match="is a folder; give the FMU's file name"):
         lcg.export_fmu(ROOT / "examples" / "pendulum.toml", folder)

@@ -19,7 +19,7 @@ import numpy as np
 from ..api import compile_file
 from ..errors import LagcodegenError
 from ..fitting import STATIONARITY, fit
-from ..util import atomic_binary, atomic_write
+from ..util import atomic_binary, atomic_write, folder_problem
 from .common import (EXIT_NOT_CONVERGED, EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
                      load, say)
 
@@ -60,7 +60,10 @@ def add_parser(sub) -> None:
 
 def check_args(args) -> None:
     """Every option of ``fit`` checked before any work (exit 2 on a bad one)."""
-    for name in (args.output, args.plot):
+    for option, name in (("-o", args.output), ("--plot", args.plot)):
+        problem = None if name is None else folder_problem(Path(name).parent)
+        if problem:
+            raise UsageError(f"{option} {name}: {problem}")
         if name is not None and not Path(name).parent.exists():
             raise UsageError(f"{name}: its folder does not exist")
     if args.plot is not None and not args.plot.lower().endswith(".png"):
