@@ -249,7 +249,7 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
     except np.linalg.LinAlgError:
         cov = np.full((n, n), np.inf)
     err = np.sqrt(np.clip(np.diag(cov), 0, None))
-    stationarity = _stationarity(r, J)
+    stationarity = _stationarity(r, J, out.x, lo, hi)
     return FitResult(names=names, params=dict(zip(names, out.x.tolist())), stderr=dict(zip(names, err.tolist())),
                      cov=cov, residuals=r, iterations=int(out.njev or 0), nfev=int(out.nfev), cost=0.5 * ssr,
                      cost_history=history, condition=cond, status=int(out.status), message=str(out.message),
@@ -349,16 +349,21 @@ def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:
     return y
 
 
-def _stationarity(r: np.ndarray, J: np.ndarray) -> float:
+def _stationarity(r: np.ndarray, J: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
     """The largest cosine between the residuals and a column of the Jacobian: 0 at a minimum of
     the least squares (the residuals orthogonal to every direction the parameters can move the
     model in), about sqrt(ftol) where the optimizer stops near one, near 1 where the model
-    cannot follow the data at all. 0 for zero residuals."""
+    cannot follow the data at all. 0 for zero residuals. A parameter at one of its bounds
+    (``lo``, ``hi``; within 1e-6 (1 + |bound|)) whose descent direction leaves the range does
+    not count: the minimum is on the bound."""
     rn = float(np.linalg.norm(r))
     if rn == 0.0:
         return 0.0
+    g = J.T @ r  # the gradient of the cost; the cost falls along -g
+    at_lo = (x - lo <= 1e-6 * (1 + np.abs(lo))) & (g > 0)
+    at_hi = (hi - x <= 1e-6 * (1 + np.abs(hi))) & (g < 0)
     cols = np.linalg.norm(J, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        cos = np.abs(J.T @ r) / (cols * rn)
-    cos = np.where(cols > 0, cos, 0.0)
+        cos = np.abs(g) / (cols * rn)
+    cos = np.where((cols > 0) & ~at_lo & ~at_hi, cos, 0.0)
     return float(np.max(cos)) if cos.size else 0.0

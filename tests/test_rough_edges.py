@@ -220,6 +220,9 @@ def test_a_fit_that_cannot_converge_says_so_and_exits_6(tmp_path):
     theta = sim.simulate(t, q0=[1.0], params={"l": 1.3})["theta"]
     good = fitting.fit(sim, t, theta, params={"l": 1.0}, observe=["theta"], q0=[1.0])
     assert good.converged and abs(good.params["l"] - 1.3) < 1e-6 and "not converged" not in str(good)
+    # a minimum on a bound is one: the gradient there points out of the range
+    bounded = fitting.fit(sim, t, theta, params={"l": 1.0}, observe=["theta"], q0=[1.0], bounds={"l": (0.5, 1.1)})
+    assert bounded.converged and bounded.params["l"] == pytest.approx(1.1)
 
 
 def test_a_duplicated_data_column_is_refused(tmp_path):

@@ -20,8 +20,8 @@ from ..api import compile_file
 from ..errors import LagcodegenError
 from ..fitting import STATIONARITY, fit
 from ..util import atomic_binary, atomic_write, folder_problem
-from .common import (EXIT_NOT_CONVERGED, EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
-                     load, say)
+from .common import (EXIT_NOT_CONVERGED, EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options,
+                     check_parameter_names, csv, load, say)
 
 HELP = "fit run-time parameters of a model file to measured data (CSV); write the estimates (and a PNG)"
 

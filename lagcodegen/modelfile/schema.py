@@ -129,8 +129,9 @@ SCHEMA: tuple[Table, ...] = (
     ), maps_to="Model.rigid_body"),
     Table("gravity", "table", "Uniform gravity on every body: V += m g (x . up).", keys=(
         Key("g", "expression", "the acceleration of gravity", required=True),
-        Key("up", "vector", "the upward direction (normalized)", default="the last axis (y in 2-D, z in 3-D); particles on a line need [1] "
-            "(a vertical line, pointing up) or [-1]"),
+        Key("up", "vector", "the upward direction (normalized)",
+            default="the last axis (y in 2-D, z in 3-D); particles on a line need [1] (a vertical line, pointing "
+                    "up) or [-1]"),
     ), maps_to="Model.gravity"),
     Table("springs", "array", "Linear springs: V += k/2 (|x_a - x_b| - rest_length)^2.", keys=(
         Key("a", "point", "one end", required=True),
