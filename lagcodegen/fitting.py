@@ -360,8 +360,9 @@ def _stationarity(r: np.ndarray, J: np.ndarray, x: np.ndarray, lo: np.ndarray, h
     if rn == 0.0:
         return 0.0
     g = J.T @ r  # the gradient of the cost; the cost falls along -g
-    at_lo = (x - lo <= 1e-6 * (1 + np.abs(lo))) & (g > 0)
-    at_hi = (hi - x <= 1e-6 * (1 + np.abs(hi))) & (g < 0)
+    with np.errstate(invalid="ignore"):
+        at_lo = np.isfinite(lo) & (x - lo <= 1e-6 * (1 + np.abs(lo))) & (g > 0)
+        at_hi = np.isfinite(hi) & (hi - x <= 1e-6 * (1 + np.abs(hi))) & (g < 0)
     cols = np.linalg.norm(J, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         cos = np.abs(g) / (cols * rn)
