@@ -383,5 +383,7 @@ def test_compile_file_simulate_starts_from_the_files_initial_state(tmp_path, nam
         assert np.max(np.abs(res[q.name] - column)) < 1e-8, q.name
     # given values still win; the integrator takes the defaults too (ODE)
     assert sim.simulate([0.0, 0.1], q0=q0, v0=[0.0] * len(q0))[mf.model.coords[0].name][0] == q0[0]
-    if formulation is None:
+    if formulation is None:  # the integrator, and simulate's prepared runs (its second call on), too
         assert list(sim.integrator().state[:len(q0)]) == q0
+        for _ in range(2):
+            assert [sim.simulate([0.0, 0.1])[q.name][0] for q in mf.model.coords] == q0
