@@ -256,7 +256,10 @@ def reference_values(kind: str, model_name: str, subject, y_values: list[float],
     try:
         names, values = run(*subject, list(y_values), list(p_values), t_start, t_check)
     except (LagcodegenError, OSError) as exc:
-        settings["reason"] = f"lagcodegen could not run the model when it wrote the bundle: {exc}"
+        # one line of plain words: it goes into a Makefile's echo and the README
+        said = " ".join(str(exc).split()).translate({ord(c): "'" for c in "\"`"}).replace("\\", "/").replace("$", "")
+        settings["reason"] = (f"lagcodegen could not run the model when it wrote the bundle: "
+                              f"{said[:300]}{' ...' if len(said) > 300 else ''}")
         return None, settings
     if not all(map(math.isfinite, values)):
         settings["reason"] = "the reference run gave non-finite values"

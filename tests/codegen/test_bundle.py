@@ -243,3 +243,23 @@ def test_generate_bundle_check_from_the_command_line(tmp_path):
     assert proc.returncode == 5 and "README.md" in proc.stderr
     assert run(base, ROOT, env=env, check=False).returncode == 0
     assert run([*base, "--check"], ROOT, env=env, check=False).returncode == 0
+
+
+def test_without_a_reference_make_check_says_so(tmp_path, tools, scenes, monkeypatch):
+    """Where lagcodegen cannot run the model when it writes the bundle (here: a reference run that
+    fails, its message on several lines with quotes and dollars), the bundle has no
+    reference.csv and make check and the README say why."""
+    from lagcodegen.codegen import bundle
+
+    def broken(*args):
+        raise lcg.LagcodegenError('cc: not found\n  "$HOME" `x` \\ second line')
+
+    monkeypatch.setitem(bundle.REFERENCE_RUNS, "scene", broken)
+    write_bundle(scenes["oscillator"], tmp_path, sundials_example=False)
+    assert not (tmp_path / "reference.csv").exists()
+    assert "`make check` compares nothing: there is no `reference.csv`" in (tmp_path / "README.md").read_text()
+    run(["make"], tmp_path)
+    check = run(["make", "check"], tmp_path)
+    assert ("make check: no reference.csv to compare with (lagcodegen could not run the model when it wrote the "
+            "bundle: cc: not found 'HOME' 'x' / second line)") in check.stdout
+    assert (tmp_path / "rk4_example.csv").is_file()
