@@ -383,8 +383,6 @@ def _bundle_reference(scene: Scene, code: GeneratedCode | None, y: Sequence[floa
     return names, [float(res.t[-1]), *map(float, res.y[-1]), *(float(res[o][-1]) for o in cm.output_names)]
 
 
-
-
 def _constrained_bundle_reference(system: ConstrainedSystem, options: dict, y: Sequence[float], p: Sequence[float],
                                   t0: float, t1: float) -> tuple[list[str], list[float]]:
     """The reference row of a constrained bundle's ``make check``: t, (q, q') and the outputs at
@@ -402,4 +400,3 @@ def _constrained_bundle_reference(system: ConstrainedSystem, options: dict, y: S
 
 register_reference_run("scene", _bundle_reference)
 register_reference_run("constrained", _constrained_bundle_reference)
-
