@@ -19,7 +19,8 @@ from . import build as _build
 from . import progress as _progress
 from . import sweep as _sweep
 from .buildstep import load_source
-from .codegen.bundle import render_bundle, render_constrained_bundle
+from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, register_reference_run, render_bundle, \
+    render_constrained_bundle
 from .codegen.languages import check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.events import events_source
@@ -301,8 +302,19 @@ def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
     file's formulation, Baumgarte parameters, projection, events and outputs
     (:func:`lagcodegen.modelfile.constrained_outputs`). Errors of the derivation name the file
     and line (:meth:`ModelFile.derive <lagcodegen.modelfile.ModelFile.derive>`).
+
+    The file's initial state (``[simulation] initial``) is the compiled system's default:
+    ``simulate(t)`` (and ``integrator()``, ``fit``) without ``q0`` (or ``v0``) starts from the
+    file's values, as the command line does; ``initial_defaults`` holds them as (q0, v0).
     """
     mf = _model_file_argument(mf)
+    sim = _compile_file(mf, **options)
+    sim.initial_defaults = mf.initial_state()
+    return sim
+
+
+def _compile_file(mf: ModelFile, **options: Any):
+    """:func:`compile_file` but for the initial state's defaults."""
     s = mf.simulation
     with _progress.enabled(options.pop("progress", None)):
         if mf.constrained is not None:
@@ -458,3 +470,33 @@ def run_sweep(spec: _sweep.SweepSpec, say: Callable[[str], None] | None = None) 
     sim = compile_file(mf, **options)
     say(f"derived, generated and compiled in {time.perf_counter() - t0:.3f} s")
     return _sweep.run_plan(plan, mf, sim, values, say)
+
+
+def _bundle_reference(scene: Scene, code: GeneratedCode | None, y: Sequence[float], p: Sequence[float],
+                      t0: float, t1: float) -> tuple[list[str], list[float]]:
+    """The reference row of a bundle's ``make check`` (:func:`lagcodegen.codegen.bundle.reference_values`):
+    t, the state and the outputs of ``scene`` at ``t1``, lagcodegen's CVODE from ``y`` at ``t0``."""
+    cm = build_code(code if code is not None else generate_code(scene, "c"))
+    res = cm.simulate([t0, t1], y0=list(y), params=dict(zip(cm.param_names, p)), rtol=REFERENCE_RTOL,
+                      atol=REFERENCE_ATOL)
+    names = ["t", *cm.state_names, *cm.output_names]
+    return names, [float(res.t[-1]), *map(float, res.y[-1]), *(float(res[o][-1]) for o in cm.output_names)]
+
+
+def _constrained_bundle_reference(system: ConstrainedSystem, options: dict, y: Sequence[float], p: Sequence[float],
+                                  t0: float, t1: float) -> tuple[list[str], list[float]]:
+    """The reference row of a constrained bundle's ``make check``: t, (q, q') and the outputs at
+    ``t1`` of the index-1 formulation compiled with the bundle's ``options``, from ``y`` at
+    ``t0`` projected onto the constraints, as the bundle's RK4 example starts."""
+    opts = dict(options)
+    columns = opts.pop("columns")
+    sim = compile_constrained(system, "index1", **opts)
+    n = sim.n
+    res = sim.simulate([t0, t1], q0=list(y[:n]), v0=list(y[n:]), params=dict(zip(sim.param_names, p)),
+                       rtol=REFERENCE_RTOL, atol=REFERENCE_ATOL, initial="project", events=False)
+    names = ["t", *sim.state_names[:2 * n], *columns]
+    return names, [float(res.t[-1]), *map(float, res.y[-1][:2 * n]), *(float(res[o][-1]) for o in columns)]
+
+
+register_reference_run("scene", _bundle_reference)
+register_reference_run("constrained", _constrained_bundle_reference)

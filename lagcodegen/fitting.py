@@ -28,7 +28,9 @@ class FitResult:
     (``cov``, in the order of ``names``), the residuals at the optimum (stacked: experiments, then
     observed names, then times), ``iterations`` (Jacobian evaluations of the trust-region method),
     ``cost_history`` (0.5 SSR at every evaluation of the residuals), ``condition`` (of J^T J), the
-    optimizer's ``status``/``message``, ``nfev``, and the wall time."""
+    optimizer's ``status``/``message``, ``nfev``, the wall time, and ``stationarity`` (the largest
+    cosine between the residuals and a column of the Jacobian at the estimates: 0 at a minimum).
+    :attr:`converged` says whether the estimates are a minimum of the least squares."""
 
     names: list
     params: dict
@@ -45,12 +47,28 @@ class FitResult:
     success: bool
     wall_time: float = 0.0
     residual_variance: float = 0.0
+    stationarity: float = 0.0
     experiments: list = field(default_factory=list, repr=False)
+
+    @property
+    def converged(self) -> bool:
+        """Whether the optimizer stopped on one of its tolerances (not on ``max_nfev``) at a
+        stationary point: ``stationarity`` at most :data:`STATIONARITY`. A fit whose model cannot
+        follow the data (a cost that no step lowers by a relative ``ftol`` while the gradient is
+        far from zero) is not converged."""
+        return self.success and math.isfinite(self.cost) and self.stationarity <= STATIONARITY
 
     def __str__(self) -> str:
         rows = [f"{name} = {self.params[name]:.10g} +- {self.stderr[name]:.3g}" for name in self.names]
+        status = "" if self.converged else "not converged: "
         return "\n".join(rows + [f"iterations {self.iterations}, cost {self.cost:.6g}, cond(J^T J) "
-                                 f"{self.condition:.3g}: {self.message}"])
+                                 f"{self.condition:.3g}: {status}{self.message}"])
+
+
+#: The largest cosine between the residuals and a column of the Jacobian (``FitResult.stationarity``)
+#: of a converged fit: where least_squares stops near a minimum on ftol = 1e-8 it is about
+#: sqrt(ftol) = 1e-4; a model that cannot follow the data leaves it at several percent.
+STATIONARITY = 1e-2
 
 
 @dataclass
@@ -123,6 +141,10 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
     observe = [observe] if isinstance(observe, str) else list(observe)
     if not observe:
         raise LagcodegenError("fit: observe at least one state or output")
+    twice = sorted({o for o in observe if observe.count(o) > 1})
+    if twice:  # the same values counted twice would shrink the standard errors by sqrt(2)
+        raise LagcodegenError(f"fit: {', '.join(map(repr, twice))} observed more than once; observe each name once "
+                              "(a repeated column counts the same measurements twice)")
     outputs = getattr(sim, "output_names", None)
     if outputs is None and hasattr(sim, "compiled_branch"):  # minimal coordinates: a branch's (all the same)
         outputs = sim.compiled_branch(0).output_names
@@ -227,10 +249,12 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
     except np.linalg.LinAlgError:
         cov = np.full((n, n), np.inf)
     err = np.sqrt(np.clip(np.diag(cov), 0, None))
+    stationarity = _stationarity(r, J, out.x, lo, hi)
     return FitResult(names=names, params=dict(zip(names, out.x.tolist())), stderr=dict(zip(names, err.tolist())),
                      cov=cov, residuals=r, iterations=int(out.njev or 0), nfev=int(out.nfev), cost=0.5 * ssr,
                      cost_history=history, condition=cond, status=int(out.status), message=str(out.message),
-                     success=bool(out.success), wall_time=wall, residual_variance=s2, experiments=exps)
+                     success=bool(out.success), wall_time=wall, residual_variance=s2, stationarity=stationarity,
+                     experiments=exps)
 
 
 def _constrained(sim) -> bool:
@@ -315,3 +339,24 @@ def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:
         if d.kind != "parameter":
             y[d.state_index(coords, states)] = values[d.name]
     return y
+
+
+def _stationarity(r: np.ndarray, J: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """The largest cosine between the residuals and a column of the Jacobian: 0 at a minimum of
+    the least squares (the residuals orthogonal to every direction the parameters can move the
+    model in), about sqrt(ftol) where the optimizer stops near one, near 1 where the model
+    cannot follow the data at all. 0 for zero residuals. A parameter at one of its bounds
+    (``lo``, ``hi``; within 1e-6 (1 + |bound|)) whose descent direction leaves the range does
+    not count: the minimum is on the bound."""
+    rn = float(np.linalg.norm(r))
+    if rn == 0.0:
+        return 0.0
+    g = J.T @ r  # the gradient of the cost; the cost falls along -g
+    with np.errstate(invalid="ignore"):
+        at_lo = np.isfinite(lo) & (x - lo <= 1e-6 * (1 + np.abs(lo))) & (g > 0)
+        at_hi = np.isfinite(hi) & (hi - x <= 1e-6 * (1 + np.abs(hi))) & (g < 0)
+    cols = np.linalg.norm(J, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.abs(g) / (cols * rn)
+    cos = np.where((cols > 0) & ~at_lo & ~at_hi, cos, 0.0)
+    return float(np.max(cos)) if cos.size else 0.0

@@ -9,6 +9,7 @@ its HTML. One of the lowest stages (beside :mod:`lagcodegen.animation`): sympy a
 
 from __future__ import annotations
 
+import functools
 import html
 import time
 from typing import Iterable, Sequence
@@ -242,3 +243,26 @@ def result_html(res) -> str:
     items = [("status", esc(f"{res.status} {res.message}".strip())), ("t", esc(f"{res.t[0]:g} .. {res.t[-1]:g}")
                                                                         if n else "empty")]
     return fields(title, items + stats) + table(shown, rows, caption)
+
+
+def figure_png(fig) -> bytes:
+    """The PNG of a matplotlib figure (drawn by Agg at its own size and dpi)."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    if not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    return buffer.getvalue()
+
+
+def shown(fig):
+    """``fig`` (a matplotlib figure made without pyplot, which no notebook backend knows of)
+    given a ``_repr_png_``, so that a notebook cell ending with it draws the figure rather than
+    printing ``<Figure size ... with n Axes>``. Where pyplot's inline backend is active its own
+    formatter draws it instead (IPython asks the formatters registered by type first): one
+    picture either way."""
+    fig._repr_png_ = functools.partial(figure_png, fig)
+    return fig
+

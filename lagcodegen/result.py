@@ -211,10 +211,13 @@ class Result:
         the model's drawing). ``phase``: instead, phase portraits q' against q.
 
         With ``path``, the figure is saved as PNG (atomically) and the path returned; without,
-        the matplotlib figure is returned (a notebook shows it).
+        the matplotlib figure is returned: a notebook draws it (its ``_repr_png_``, as it was
+        made without pyplot: :func:`lagcodegen.notebook.shown`).
         """
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
+
+        from .notebook import shown
 
         if xy:
             fig = self._xy_figure(xy)
@@ -243,7 +246,7 @@ class Result:
         fig.suptitle(title if title is not None else self.title())
         fig.tight_layout()
         if path is None:
-            return fig
+            return shown(fig)
         FigureCanvasAgg(fig)
         path = Path(path)
         with atomic_binary(path) as fh:  # a unique temporary file, never a predictable name

@@ -243,7 +243,33 @@ def output_problem(output, plot, written: str) -> str | None:
         return f"-o {output}: is a folder; give a file name ending in .csv or .npz"
     if plot is not None and Path(plot).suffix != ".png":
         return f"--plot {plot}: plots are written as .png"
+    for option, name in (("-o", output), ("--plot", plot)):
+        problem = None if name is None else folder_problem(Path(name).parent)
+        if problem:
+            return f"{option} {name}: {problem}"
     return None
+
+
+def folder_problem(folder: str | os.PathLike) -> str | None:
+    """What keeps ``folder`` from being (made) a folder: it, or a folder above it, is an existing
+    file that is not a folder ("<that path> is a file, not a folder"); None when it can be made."""
+    path = Path(folder)
+    for part in (path, *path.parents):
+        if part.exists() or part.is_symlink():
+            if part.is_dir():
+                return None
+            return f"{part} is a file, not a folder"
+    return None
+
+
+def fmu_path_problem(path: str | os.PathLike) -> str | None:
+    """What is wrong with ``path`` as the FMU file to write: an existing folder (the name of the
+    file is asked for, ending in .fmu), or a file where a folder above it should be; None when
+    it can be written."""
+    path = Path(path)
+    if path.is_dir():
+        return f"{path} is a folder; give the FMU's file name, ending in .fmu (e.g. {path / 'model.fmu'})"
+    return folder_problem(path.parent)
 
 
 def state_values(val, names: list[str], what: str) -> list[float]:

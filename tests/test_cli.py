@@ -180,9 +180,10 @@ def test_generate_constrained_bundle_builds_and_runs(tmp_path, angle_pendulum):
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["CMakeLists.txt", "Makefile", "README.md", "rk4_example.c", "cartesian_pendulum_dae.c",
-         "cartesian_pendulum_dae.h", "cartesian_pendulum.lagcodegen.json"])
+         "cartesian_pendulum_dae.h", "cartesian_pendulum.lagcodegen.json", "reference.csv"])
     build = subprocess.run(["make", "check"], cwd=out, capture_output=True, text=True, timeout=300, check=False)
     assert build.returncode == 0, build.stdout + build.stderr
+    assert "make check: rk4_example agrees with reference.csv" in build.stdout
     cols = read_csv(out / "rk4_example.csv")  # the file's t_end, initial state and Baumgarte (5, 5)
     assert {"lambda_0", "g_0", "tension"} <= set(cols) and cols["t"][-1] == 10.0
     ref = angle_pendulum([0.0, 10.0])

@@ -34,3 +34,23 @@ def test_code_blocks_run(page, tmp_path, monkeypatch):
     assert all((tmp_path / name).stat().st_size > 0 for name in written)
     if page.name in ("pictures-and-notebooks.md", "getting-started.md"):
         assert any(name.endswith((".gif", ".html")) for name in written)
+
+
+def test_getting_started_prints_what_its_comments_say(tmp_path, monkeypatch):
+    """Each `print(...)  # text` of the getting-started page prints exactly that text (it said a
+    list where res.outputs, a dict of arrays, printed the arrays)."""
+    import contextlib
+    import io
+    monkeypatch.chdir(tmp_path)
+    page = DOCS / "getting-started.md"
+    code = blocks(page)
+    out = io.StringIO()
+    namespace: dict = {}
+    with contextlib.redirect_stdout(out):
+        for i, block in enumerate(code):
+            exec(compile(block, f"{page.name}[block {i}]", "exec"), namespace)  # noqa: S102 - our own docs
+    printed = out.getvalue().splitlines()
+    said = re.findall(r"^\s*print\(.*\)\s+# (.*)$", "\n".join(code), re.M)
+    assert len(said) >= 3
+    for text in said:
+        assert text.strip() in printed, (text, printed)

@@ -127,3 +127,24 @@ def test_model_latex_escapes_names_and_bounds_terms():
         m.potential_energy(sp.Integer(k + 1) * x ** 2, label=f"V_{k}")
     tex = m._repr_latex_()
     assert r"my\_model" in tex and r"\dot{x}^{2}" in tex and "more" in tex
+
+
+def test_a_plot_made_without_pyplot_draws_itself_in_a_notebook(dp):
+    """A fresh notebook (no pyplot, so no inline formatter for matplotlib figures) showed
+    `<Figure size 800x640 with 3 Axes>`: the figures res.plot() returns carry a _repr_png_ that
+    IPython's PNG formatter calls."""
+    _, _, res = dp
+    for fig in (res.plot(), res.plot(phase=True), res.plot(xy=True)):
+        png = fig._repr_png_()
+        assert png[:8] == b"\x89PNG\r\n\x1a\n"
+        width, height = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
+        assert (width, height) == (round(fig.get_figwidth() * fig.dpi), round(fig.get_figheight() * fig.dpi))
+    import pickle
+    assert pickle.loads(pickle.dumps(res.plot()))._repr_png_()[:4] == b"\x89PNG"
+
+
+def test_ipythons_png_formatter_draws_a_plot(dp):
+    """What a notebook asks of the figure: IPython's PNG formatter (no pyplot imported) gives the PNG."""
+    formatters = pytest.importorskip("IPython.core.formatters")
+    _, _, res = dp
+    assert formatters.PNGFormatter()(res.plot())[:4] == b"\x89PNG"

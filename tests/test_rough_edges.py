@@ -14,7 +14,7 @@ import pytest
 import sympy as sp
 
 import lagcodegen as lcg
-from lagcodegen import ModelError, progress
+from lagcodegen import ModelError, fitting, progress
 from lagcodegen.modelfile import ModelFileError, loads_model
 from lagcodegen.modelfile.expressions import MAX_POWER
 from lagcodegen.solvers import control
@@ -326,3 +326,205 @@ def test_a_sympy_system_with_long_constraints_is_refused_in_a_bounded_message():
         lcg.derive(system)
     msg = str(err.value)
     assert "the System has holonomic constraints" in msg and "characters)" in msg and len(msg) < 500, msg[:600]
+# ---------------------------------------------------------------------- fits: convergence, duplicated columns
+def cli(*args, cwd=None):
+    import os
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "lagcodegen", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=600)
+
+
+def write_csv(path, header, t, *cols):
+    import numpy as np
+    rows = np.column_stack([t, *cols])
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n")
+    return path
+
+
+def test_a_fit_that_cannot_converge_says_so_and_exits_6(tmp_path):
+    """Data no pendulum reaches (theta = 1e9): the optimizer stops on ftol at a cost of 1e19
+    with the gradient far from zero; before, exit 0 and no word of it."""
+    import numpy as np
+    t = np.linspace(0.0, 5.0, 21)
+    data = write_csv(tmp_path / "far.csv", ["t", "theta"], t, np.full(t.size, 1e9))
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", data, "--fit", "l", "-o", tmp_path / "fit.csv")
+    assert proc.returncode == 6, (proc.returncode, proc.stderr)
+    assert "fit not converged" in proc.stderr and "l = " in proc.stdout
+    assert (tmp_path / "fit.csv").exists()  # the estimates are still written
+    assert "6  fit: the fit did not converge" in cli("--help").stdout
+    assert "exits with code 6" in cli("fit", "--help").stdout
+    # the Python API: converged False, and said in its summary; a good fit is converged
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    far = fitting.fit(sim, t, np.full(t.size, 1e9), params={"l": 1.0}, observe=["theta"], q0=[1.0])
+    assert far.success and not far.converged and far.stationarity > fitting.STATIONARITY
+    assert "not converged" in str(far)
+    theta = sim.simulate(t, q0=[1.0], params={"l": 1.3})["theta"]
+    good = fitting.fit(sim, t, theta, params={"l": 1.0}, observe=["theta"], q0=[1.0])
+    assert good.converged and abs(good.params["l"] - 1.3) < 1e-6 and "not converged" not in str(good)
+    # a minimum on a bound is one: the gradient there points out of the range
+    bounded = fitting.fit(sim, t, theta, params={"l": 1.0}, observe=["theta"], q0=[1.0], bounds={"l": (0.5, 1.1)})
+    assert bounded.converged and bounded.params["l"] == pytest.approx(1.1)
+
+
+def test_a_duplicated_data_column_is_refused(tmp_path):
+    """The same column twice counted every measurement twice: the standard errors shrank by sqrt 2."""
+    import numpy as np
+    t = np.linspace(0.0, 5.0, 21)
+    sim = lcg.compile_model(lcg.systems.pendulum())
+    theta = sim.simulate(t, q0=[1.0], params={"l": 1.3})["theta"]
+    data = write_csv(tmp_path / "dup.csv", ["t", "theta", "theta"], t, theta, theta)
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", data, "--fit", "l")
+    assert proc.returncode == 1 and "'theta' appears more than once" in proc.stderr, proc.stderr
+    once = write_csv(tmp_path / "once.csv", ["t", "theta"], t, theta)
+    proc = cli("fit", ROOT / "examples" / "pendulum.toml", once, "--fit", "l", "--observe", "theta,theta")
+    assert proc.returncode == 2 and "theta given more than once" in proc.stderr, proc.stderr
+    with pytest.raises(lcg.LagcodegenError, match="'theta' observed more than once"):
+        fitting.fit(sim, t, np.column_stack([theta, theta]), params={"l": 1.0}, observe=["theta", "theta"],
+                        q0=[1.0])
+
+
+def test_an_input_given_a_value_and_a_table_is_refused_naming_it():
+    """Before, the table silently won over params={"F": ...}."""
+    import numpy as np
+    sim = lcg.compile_model(lcg.systems.forced_oscillator("osc_both", m=1.0, k=4.0, c=0.4))
+    t = np.linspace(0.0, 1.0, 11)
+    table = lcg.Table([0.0, 1.0], [0.0, 2.0])
+    with pytest.raises(lcg.LagcodegenError, match="'F' given both a value \\(params=\\) and a table"):
+        sim.simulate(t, q0=[0.0], params={"F": 3.0}, inputs={"F": table})
+    with pytest.raises(lcg.LagcodegenError, match="'F' given both"):
+        sim.ensemble(t, q0=np.zeros((2, 1)), params={"F": [1.0, 2.0]}, inputs={"F": table})
+    assert sim.simulate(t, q0=[0.0], params={"k": 9.0}, inputs={"F": table}).success
+
+
+# ---------------------------------------------------------------------- paths that cannot be written
+def test_fmu_and_output_paths_that_cannot_be_written_say_why(tmp_path, capsys):
+    """--fmu at a folder wrote FOLDER/out.fmu silently; a file where a folder should be gave a
+    bare "[Errno 17] File exists"."""
+    folder = tmp_path / "existing_dir"
+    folder.mkdir()
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    from lagcodegen.cli import main
+    pendulum = str(ROOT / "examples" / "pendulum.toml")
+    cases = [(["--fmu", str(folder)], f"{folder} is a folder; give the FMU's file name, ending in .fmu"),
+             (["--fmu", str(afile / "x.fmu")], f"{afile} is a file, not a folder"),
+             (["-o", str(afile)], f"-o {afile}: {afile} is a file, not a folder"),
+             (["-o", str(afile / "sub")], f"{afile} is a file, not a folder")]
+    for extra, message in cases:
+        capsys.readouterr()
+        assert main(["generate", pendulum, *extra, "-q"]) == 2, extra
+        err = capsys.readouterr().err
+        assert message in err and "Errno" not in err, (extra, err)
+    # the result files of the other commands the same, before any work
+    for command in (["simulate", pendulum, "-o", str(afile / "r.csv")],
+                    ["simulate", pendulum, "-o", str(tmp_path / "r.csv"), "--plot", str(afile / "r.png")],
+                    ["sweep", pendulum, "--grid", "g=9.7:9.9:3", "-o", str(afile / "g.csv")]):
+        capsys.readouterr()
+        assert main([*command, "-q"]) == 2, command
+        err = capsys.readouterr().err
+        assert f"{afile} is a file, not a folder" in err and "Errno" not in err, (command, err)
+    assert list(folder.iterdir()) == []
+    with pytest.raises(lcg.LagcodegenError, match="is a folder; give the FMU's file name"):
+        lcg.export_fmu(ROOT / "examples" / "pendulum.toml", folder)
+    with pytest.raises(lcg.LagcodegenError, match="afile is a file, not a folder"):
+        lcg.write_bundle(lcg.Scene(lcg.derive(lcg.systems.pendulum())), afile / "b")
+
+
+# ---------------------------------------------------------------------- particles on a line
+SPRING_1D = """
+[model]
+name = "line_spring"
+coordinates = ["x"]
+[parameters]
+m = 2.0
+k = 8.0
+[[particles]]
+name = "mass"
+mass = "m"
+position = ["x"]
+[energy]
+potential = "k*x**2/2"
+[simulation]
+t_end = 3.0
+initial = { x = 0.5, x_dot = 0.3 }
+"""
+
+
+def test_a_particle_on_a_line_is_the_analytic_harmonic_oscillator():
+    """position = ["x"] and Model.particle(name, m, (x,)) were refused ("must have 2 or 3
+    components"); now T = m x'^2/2, and with a spring x = x0 cos(w t) + v0/w sin(w t), w = sqrt(k/m)."""
+    import numpy as np
+    t = np.linspace(0.0, 3.0, 61)
+    w = 2.0  # sqrt(8 / 2)
+    exact = 0.5 * np.cos(w * t) + 0.3 / w * np.sin(w * t)
+    mf = loads_model(SPRING_1D)
+    assert mf.model.points["mass"].dim == 1
+    res = lcg.compile_file(mf).simulate(t, q0=[0.5], v0=[0.3], rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(res["x"] - exact)) < 1e-8
+    m = lcg.Model("line_spring_py")
+    x, = m.coordinates("x")
+    mass, k = m.parameters(m=2.0, k=8.0)
+    m.particle("p", mass, (x,))
+    m.spring("p", (0,), k)
+    eom = lcg.derive(m)
+    assert sp.simplify(eom.T - mass * eom.qd[0] ** 2 / 2) == 0 and eom.M == sp.Matrix([[mass]])
+    res = lcg.compile_model(m, outputs=["positions"]).simulate(t, q0=[0.5], v0=[0.3], rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(res["x"] - exact)) < 1e-8 and np.allclose(res["p_x"], res["x"])
+    # gravity along the line only with an explicit one-component up: the equilibrium moves to -m g / k
+    m.gravity(9.81, up=(1,))
+    res = lcg.compile_model(m).simulate(t, q0=[0.5], rtol=1e-11, atol=1e-13)
+    shift = -2.0 * 9.81 / 8.0
+    assert np.max(np.abs(res["x"] - (shift + (0.5 - shift) * np.cos(w * t)))) < 1e-8
+
+
+def test_gravity_on_a_particle_on_a_line_without_a_direction_is_refused_clearly():
+    with pytest.raises(ModelFileError) as err:
+        loads_model(SPRING_1D + '[gravity]\ng = 9.81\n')
+    msg = str(err.value)
+    assert "gravity on 'mass', a particle on a line" in msg and "up = [1]" in msg
+    ok = loads_model(SPRING_1D + '[gravity]\ng = 9.81\nup = [-1]\n')
+    assert ok.model.gravity_spec[1] == sp.Matrix([-1])
+    with pytest.raises(ModelFileError, match="'up' has 2 components, 'mass' has 1"):
+        loads_model(SPRING_1D + '[gravity]\ng = 9.81\nup = [0, 1]\n')
+    m = lcg.Model("line_gravity")
+    x, = m.coordinates("x")
+    m.particle("p", 1, (x,))
+    m.gravity(9.81)
+    with pytest.raises(ModelError, match="a particle on a line"):
+        lcg.derive(m)
+    with pytest.raises(ModelError, match="must have 1, 2 or 3 components, got 4"):
+        m.particle("q", 1, (x, x, x, x))
+
+
+# ---------------------------------------------------------------------- a model file's initial state
+@pytest.mark.parametrize("name, formulation", [("double_pendulum", None), ("cartesian_pendulum", "index1"),
+                                               ("cartesian_pendulum", "minimal")])
+def test_compile_file_simulate_starts_from_the_files_initial_state(tmp_path, name, formulation):
+    """compile_file(mf).simulate(t) without q0 started from zeros (the constrained ones refused:
+    "q0 is required"); now from [simulation] initial, as the command line does."""
+    import numpy as np
+    from lagcodegen.modelfile import load_model
+    from lagcodegen.modelfile.document import constrained_method
+    path = ROOT / "examples" / f"{name}.toml"
+    mf = load_model(path)
+    s = mf.simulation
+    extra = ["--formulation", formulation] if formulation else []
+    proc = cli("simulate", path, "-o", tmp_path / "out.csv", "-q", *extra)
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "out.csv").read_text().splitlines()[0].split(",")
+    table = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1)
+    sim = lcg.compile_file(mf, **({"formulation": formulation} if formulation else {}))
+    q0, v0 = mf.initial_state()
+    assert any(q0) and sim.initial_defaults == (q0, v0)
+    method = constrained_method(formulation, getattr(sim, "projection", False), s.method) if formulation else s.method
+    res = sim.simulate(mf.times(), method=method, rtol=s.rtol, atol=s.atol)
+    for q in mf.model.coords:
+        column = table[:, header.index(q.name)]
+        assert column[0] == pytest.approx(q0[mf.model.coords.index(q)], abs=1e-12)
+        assert np.max(np.abs(res[q.name] - column)) < 1e-8, q.name
+    # given values still win; the integrator takes the defaults too (ODE)
+    assert sim.simulate([0.0, 0.1], q0=q0, v0=[0.0] * len(q0))[mf.model.coords[0].name][0] == q0[0]
+    if formulation is None:  # the integrator, and simulate's prepared runs (its second call on), too
+        assert list(sim.integrator().state[:len(q0)]) == q0
+        for _ in range(2):
+            assert [sim.simulate([0.0, 0.1])[q.name][0] for q in mf.model.coords] == q0

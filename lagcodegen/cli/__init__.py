@@ -42,6 +42,7 @@ exit codes:
     3  the C compiler failed
     4  the integration failed
     5  generate --check: the output folder is out of date
+    6  fit: the fit did not converge (the estimates are printed, marked not converged)
   130  interrupted (Ctrl-C); 143: terminated (SIGTERM). No partial output file is left, and a
        command's files (-o, --plot, --animate) appear together or not at all."""
 

@@ -18,6 +18,7 @@ from ..modelfile import FORMULATIONS, ModelFile
 from ..util import EXCERPT, excerpt
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
+EXIT_NOT_CONVERGED = 6  # fit: the optimizer did not reach a minimum
 
 #: The help of the model argument of every command.
 MODEL_HELP = ("model file (.toml), or FILE.py:FUNCTION (executes FILE.py; FUNCTION() returns a Model, a "

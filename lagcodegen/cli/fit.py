@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import io
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -17,11 +18,11 @@ import numpy as np
 
 from ..api import compile_file
 from ..errors import LagcodegenError
-from ..fitting import fit
+from ..fitting import STATIONARITY, fit
 from ..solvers.direction import SPELLING, Direction
-from ..util import atomic_binary, atomic_write, staged_outputs
-from .common import (EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options, check_parameter_names, csv,
-                     load, say)
+from ..util import atomic_binary, atomic_write, folder_problem, staged_outputs
+from .common import (EXIT_NOT_CONVERGED, EXIT_OK, MODEL_HELP, UsageError, add_scene_options, apply_options,
+                     check_parameter_names, csv, load, say)
 
 HELP = "fit run-time parameters of a model file to measured data (CSV); write the estimates (and a PNG)"
 
@@ -32,7 +33,12 @@ per time (the first time is the initial time of the run, from the file's initial
 [constraints], formulation index1 or minimal, projected onto the constraints). Starting
 values: the file's parameter values (--set overrides) and initial state. Least squares with the
 exact Jacobian from forward sensitivities; the estimates with their standard errors (from the
-residual variance) are printed and, with -o, written as CSV (name,estimate,stderr).
+residual variance) are printed and, with -o, written as CSV (name,estimate,stderr). A data
+column named twice is refused.
+
+A fit that does not converge (the optimizer out of evaluations, or stopped where the
+residuals still have a component along the Jacobian: the model cannot follow the data) prints
+"fit not converged" and exits with code 6; its estimates are still printed and written.
 
     lagcodegen fit model.toml data.csv --fit l,c -o fit.csv --plot fit.png"""
 
@@ -55,7 +61,10 @@ def add_parser(sub) -> None:
 
 def check_args(args) -> None:
     """Every option of ``fit`` checked before any work (exit 2 on a bad one)."""
-    for name in (args.output, args.plot):
+    for option, name in (("-o", args.output), ("--plot", args.plot)):
+        problem = None if name is None else folder_problem(Path(name).parent)
+        if problem:
+            raise UsageError(f"{option} {name}: {problem}")
         if name is not None and not Path(name).parent.exists():
             raise UsageError(f"{name}: its folder does not exist")
     if args.plot is not None and not args.plot.lower().endswith(".png"):
@@ -81,6 +90,11 @@ def read_data(path: str) -> tuple[list[str], np.ndarray]:
     header = [h.strip() for h in lines[0].split(",")]
     if not header or header[0] != "t" or len(header) < 2:
         raise LagcodegenError(f"{path}: the header must be 't' followed by observed names, got {lines[0]!r}")
+    twice = sorted({h for h in header if header.count(h) > 1})
+    if twice:
+        raise LagcodegenError(f"{path}: column {', '.join(map(repr, twice))} appears more than once in the header; "
+                              "give each observed name one column (a repeated column counts the same "
+                              "measurements twice and shrinks the standard errors)")
     try:
         rows = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
     except ValueError as exc:
@@ -98,6 +112,9 @@ def run(args) -> int:
     mf = apply_options(mf, args)
     names = csv(args.fit)
     observe = csv(args.observe) or header[1:]
+    twice = sorted({o for o in observe if observe.count(o) > 1})
+    if twice:
+        raise UsageError(f"--observe: {', '.join(twice)} given more than once")
     missing = [o for o in observe if o not in header]
     if missing:
         raise UsageError(f"--observe {','.join(missing)}: not a column of {args.data} ({', '.join(header)})")
@@ -133,6 +150,11 @@ def run(args) -> int:
         f"{result.iterations} iterations, cost {result.cost:.6g}, cond(J^T J) {result.condition:.3g}", args.quiet)
     for name in names:
         print(f"{name} = {result.params[name]:.12g} +- {result.stderr[name]:.3g}")
+    if not result.converged:
+        print(f"lagcodegen: fit not converged ({result.message.rstrip('.')}; cost {result.cost:.6g}, stationarity "
+              f"{result.stationarity:.3g} > {STATIONARITY:g} or the optimizer stopped early): the estimates are not "
+              "a minimum of the least squares; check the starting values (--set), the observed names and the "
+              f"data (exit code {EXIT_NOT_CONVERGED})", file=sys.stderr)
     out = Path(args.output) if args.output else None
     plot = Path(args.plot) if args.plot else None
     with staged_outputs([out, plot]) as staged:  # the estimates and the plot appear together, or neither
@@ -144,7 +166,7 @@ def run(args) -> int:
     for path in (out, plot):
         if path is not None:
             say(f"wrote {path}", args.quiet)
-    return EXIT_OK
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
 
 
 def _plot(sim, mf, result, t, data, observe, q0, v0, fixed, path) -> None:

@@ -16,6 +16,7 @@ from ..fmu import export_fmu
 from ..buildstep import (generator_record, input_record, manifest_matches, manifest_name, manifest_outdated,
                          manifest_text, read_manifest, stale_by_manifest, touch_stamp, write_depfile)
 from ..codegen.bundle import stale_files, write_files
+from ..util import fmu_path_problem, folder_problem
 from .common import (EXIT_OK, EXIT_OUTDATED, EXIT_USAGE, MODEL_HELP, UsageError, add_formulation_option,
                      add_scene_options, apply_options, assignments, check_parameter_names, csv, load, say)
 
@@ -100,6 +101,9 @@ def _generate_fmu(args) -> int:
     """``generate --fmu FILE [--fmi 3]``: the model file as an FMU (:func:`lagcodegen.fmu.export_fmu`)."""
     if args.bundle or args.check or args.list_outputs or args.lang != "c":
         raise UsageError("--fmu writes one FMU file: --bundle, --check, --list-outputs and --lang fortran do not apply")
+    problem = fmu_path_problem(args.fmu)
+    if problem:
+        raise UsageError(f"--fmu {args.fmu}: {problem}")
     mf = load(args.model, args.quiet).model_file
     check_parameter_names(mf, args)
     t0 = time.perf_counter()
@@ -120,6 +124,9 @@ def run(args) -> int:
     if args.check and args.list_outputs:
         print("lagcodegen generate: --check and --list-outputs exclude each other", file=sys.stderr)
         return EXIT_USAGE
+    problem = folder_problem(args.output)
+    if problem:
+        raise UsageError(f"-o {args.output}: {problem}; give the output folder")
     source = load(args.model, args.quiet)
     mf = source.model_file
     check_parameter_names(mf, args)

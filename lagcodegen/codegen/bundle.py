@@ -39,11 +39,11 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..codes import c_header as codes_header
-from ..errors import ModelError
+from ..errors import LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
-from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, read_regular_file
+from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, folder_problem, read_regular_file
 from ..version import __version__
 from .constrained import generate_constrained
 from .languages import LANGUAGES, generate_code
@@ -66,6 +66,13 @@ def register_integrator(name: str, sources) -> None:
     INTEGRATORS[name] = sources
 #: Default initial coordinates of the examples when none are given (velocities and z: 0).
 DEFAULT_Q0 = 0.5
+#: ``make check``: the RK4 example's run compared with ``reference.csv`` (lagcodegen's own CVODE
+#: integration at the tolerances below, written when the bundle is rendered) spans at most
+#: CHECK_SPAN time units from t_start; each value v of its final row must be within
+#: CHECK_TOL (1 + |r|) of its reference r.
+CHECK_SPAN = 1.0
+CHECK_TOL = 1e-6
+REFERENCE_RTOL, REFERENCE_ATOL = 1e-12, 1e-14
 
 
 def _c_double(value: float) -> str:
@@ -100,7 +107,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
                   y0: Sequence[float] | None = None, params: Mapping[str, float] | None = None,
                   t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
                   code: GeneratedCode | None = None, method: str = "bdf",
-                  sensitivities: bool = False) -> dict[str, str]:
+                  sensitivities: bool = False, reference: bool = True) -> dict[str, str]:
     """The files of the bundle of ``scene`` (name -> text), rendered in memory.
 
     ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
@@ -110,6 +117,13 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     for this scene and language. ``method``: the linear multistep method of the CVODE example,
     "bdf" or "adams" (the model code is the same for both). ``sensitivities``: also the forward
     sensitivity functions (C bundles; module docstring).
+
+    ``reference``: compile the scene and integrate it with lagcodegen's CVODE (rtol
+    :data:`REFERENCE_RTOL`, atol :data:`REFERENCE_ATOL`) from the examples' defaults over at
+    most :data:`CHECK_SPAN`, and write the final values as ``reference.csv``: ``make check``
+    runs the RK4 example over that span and fails unless each value is within
+    :data:`CHECK_TOL` (1 + |reference|). Where the model cannot be compiled or run here (no C
+    compiler, the run fails), the bundle has no reference and ``make check`` says so.
     """
     if isinstance(scene, ConstrainedSystem):
         raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
@@ -182,9 +196,18 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
                           f"the {name} integrator, standalone (C99 + libm, no model code needed)"))
         table.insert(-1, (f"{name}_example.c", f"a {name} integration, a table on stdout; needs only a C compiler"))
     ctx.update(integrators=integrators, skipped_integrators=skipped)
+    ref_text, ctx["check"] = None, None
+    if reference:
+        ref_text, ctx["check"] = reference_values("scene", code.model_name, (scene, code if not fortran else None),
+                                                  y_values, _parameters(code, params), t_start, t_end, steps)
+        if ref_text is not None:
+            table.insert(-1, ("reference.csv", "the final row `make check` expects of rk4_example (lagcodegen's "
+                                               "CVODE at tight tolerances)"))
     env = environment()
     files = {name: code.files[name] for name in names}
     files.update(extra)
+    if ref_text is not None:
+        files["reference.csv"] = ref_text
     files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
     files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
     files["rk4_example.c"] = env.get_template("bundle/rk4_example.c.j2").render(**ctx)
@@ -197,6 +220,56 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         files.update(sensitivity_files(scene, code, env, ctx))
     files["README.md"] = env.get_template("bundle/README.md.j2").render(**ctx)
     return files
+
+
+def register_reference_run(kind: str, run) -> None:
+    """Give bundles of ``kind`` their reference run (:data:`REFERENCE_RUNS`). "scene":
+    ``run(scene, code, y, p, t0, t1)`` (``code``: the scene's C code, or None); "constrained":
+    ``run(system, options, y, p, t0, t1)`` (``options``: those of the bundle's index-1 code,
+    ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``, ``baumgarte``, and
+    ``columns``, the names of the outputs the example prints). Each returns
+    (column names, values): t, the state and the outputs at t1, integrated from the state y at
+    t0 with the run-time parameter values p. :mod:`lagcodegen.api` registers lagcodegen's own
+    CVODE runs (this stage compiles nothing itself)."""
+    REFERENCE_RUNS[kind] = run
+
+
+#: The runs that write ``reference.csv``, by kind of bundle (:func:`register_reference_run`);
+#: a kind without one: bundles without a reference.
+REFERENCE_RUNS: dict = {}
+
+
+def reference_values(kind: str, model_name: str, subject, y_values: list[float], p_values: list[float],
+                     t_start: float, t_end: float, steps: int) -> tuple[str | None, dict]:
+    """(the text of ``reference.csv`` or None, the Makefile's check settings): t, the state and
+    the outputs at t_start + min(:data:`CHECK_SPAN`, t_end - t_start) from ``y_values`` with the
+    run-time parameters ``p_values``, by the run of ``kind`` (:data:`REFERENCE_RUNS`) given
+    ``subject`` (its first two arguments). The check's RK4 run takes steps no longer than the
+    example's. Without a reference, the settings say why (``reason``)."""
+    t_check = t_start + min(CHECK_SPAN, t_end - t_start)
+    n_check = max(100, math.ceil(steps * (t_check - t_start) / (t_end - t_start)))
+    settings = dict(t_end=_c_double(t_check), steps=n_check, tol=f"{CHECK_TOL:g}", reason="")
+    run = REFERENCE_RUNS.get(kind)
+    if run is None:
+        settings["reason"] = "no reference run was registered when the bundle was written"
+        return None, settings
+    try:
+        names, values = run(*subject, list(y_values), list(p_values), t_start, t_check)
+    except (LagcodegenError, OSError) as exc:
+        # one line of plain words: it goes into a Makefile's echo and the README
+        said = " ".join(str(exc).split()).translate({ord(c): "'" for c in "\"`"}).replace("\\", "/").replace("$", "")
+        settings["reason"] = (f"lagcodegen could not run the model when it wrote the bundle: "
+                              f"{said[:300]}{' ...' if len(said) > 300 else ''}")
+        return None, settings
+    if not all(map(math.isfinite, values)):
+        settings["reason"] = "the reference run gave non-finite values"
+        return None, settings
+    text = (f"# reference.csv -- generated by lagcodegen {__version__} for model \"{model_name}\": the final row "
+            f"that\n# `make check` expects of ./rk4_example -t {settings['t_end']} -n {n_check} (lagcodegen's CVODE, "
+            f"rtol {REFERENCE_RTOL:g},\n# atol {REFERENCE_ATOL:g}, from the examples' default initial state and "
+            f"parameters): each value\n# within {CHECK_TOL:g} (1 + |reference|).\n"
+            + ",".join(names) + "\n" + ",".join(f"{float(v):.12g}" for v in values) + "\n")
+    return text, settings
 
 
 def sensitivity_files(scene: Scene, code: GeneratedCode, env, ctx: dict) -> dict[str, str]:
@@ -251,7 +324,8 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
                               prefix: str | None = None, ggl: bool = False,
                               baumgarte: tuple[float, float] | str = "auto", y0: Sequence[float] | None = None,
                               params: Mapping[str, float] | None = None, t_start: float = 0.0,
-                              t_end: float = 10.0, steps: int | None = None) -> dict[str, str]:
+                              t_end: float = 10.0, steps: int | None = None,
+                              reference: bool = True) -> dict[str, str]:
     """The files of the bundle of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` in the
     index-1 formulation (name -> text), rendered in memory.
 
@@ -270,7 +344,9 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
     ``y0`` (q and q', projected onto the constraints by the example; default q = 0.5, q' = 0),
     ``params``, ``t_start``, ``t_end``, ``steps``: the example's defaults, as for
-    :func:`render_bundle`.
+    :func:`render_bundle`. ``reference``: ``reference.csv`` and ``make check``'s comparison, as
+    for :func:`render_bundle` (the reference run: lagcodegen's index-1 CVODE integration from
+    the initial state projected onto the constraints).
     """
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
@@ -301,8 +377,18 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
              ("rk4_example.c", "fixed-step RK4 integration of the index-1 equations, CSV on stdout; "
                                "needs only a C compiler"),
              ("README.md", "this file")]
+    check, ref_text = None, None
+    if reference:
+        options = dict(outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else list(outputs),
+                       columns=list(info.output_names), events=list(events), runtime_parameters=runtime_parameters,
+                       values=values, prefix=prefix, baumgarte=stab)
+        ref_text, check = reference_values("constrained", code.model_name, (system, options), y_values,
+                                           _parameters(code, params), t_start, t_end, steps)
+        if ref_text is not None:
+            table.insert(-1, ("reference.csv", "the final row `make check` expects of rk4_example (lagcodegen's "
+                                               "CVODE at tight tolerances)"))
     ctx = dict(
-        integrators=[], skipped_integrators=[],
+        integrators=[], skipped_integrators=[], check=check,
         version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
         fortran=fortran, lang_name="Fortran 2008" if fortran else "C99", header=header, source=source,
         stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
@@ -321,6 +407,8 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
     files["rk4_example.c"] = env.get_template("bundle/rk4_constrained.c.j2").render(**ctx)
     files["README.md"] = env.get_template("bundle/README_constrained.md.j2").render(**ctx)
+    if ref_text is not None:
+        files["reference.csv"] = ref_text
     return files
 
 
@@ -352,6 +440,9 @@ def write_files(directory: str | os.PathLike, files: Mapping[str, str]) -> list[
     """Write ``files`` (name -> text) into ``directory``: each changed file atomically, unchanged
     files not at all. Returns the paths written."""
     out = Path(directory)
+    problem = folder_problem(out)
+    if problem:
+        raise LagcodegenError(f"cannot write the files into {out}: {problem}")
     out.mkdir(parents=True, exist_ok=True)
     return [atomic_write(out / name, files[name]) for name in sorted(stale_files(out, files))]
 

@@ -26,13 +26,13 @@ from ..codegen.constrained import generate_constrained
 from ..codegen.languages import generate_code
 from ..codegen.templates import environment, templates_dir
 from ..derivation import derive
-from ..errors import CompileError, ModelError
+from ..errors import CompileError, LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.model import Model
 from ..modelfile.document import ModelFile, constrained_outputs
 from ..modelfile.loader import load_model
 from ..theory.constraints import ConstrainedSystem
-from ..util import BAUMGARTE_AUTO, check_baumgarte, check_finite, excerpt
+from ..util import BAUMGARTE_AUTO, check_baumgarte, check_finite, excerpt, fmu_path_problem
 from ..version import __version__
 from .description import Header, build_description_fmi3, model_description_fmi2, model_description_fmi3
 from .variables import VariableTable, build_table, variable_table
@@ -276,6 +276,9 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
         initial state, computed when initialization ends, as simulate() does at each run's start)
         or (alpha, beta); default: the file's index-1 setting, else "auto".
     """
+    problem = fmu_path_problem(path)
+    if problem:
+        raise LagcodegenError(f"export_fmu: {problem}")
     mf = _model_file(source)
     system = None
     if mf is not None:

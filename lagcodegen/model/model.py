@@ -81,15 +81,16 @@ def _as_mass(value, body: str, what: str = "mass") -> sp.Expr:
 
 
 def _as_vector(value, what: str) -> sp.Matrix:
+    """A column of 1 (a point on a line), 2 or 3 expressions."""
     if isinstance(value, sp.MatrixBase):
         comps = list(value)
     else:
         try:
             comps = list(value)
         except TypeError:
-            raise ModelError(f"{what} must be a 2- or 3-component vector, got {excerpt(value)}") from None
-    if len(comps) not in (2, 3):
-        raise ModelError(f"{what} must have 2 or 3 components, got {len(comps)}")
+            raise ModelError(f"{what} must be a vector of 1, 2 or 3 components, got {excerpt(value)}") from None
+    if len(comps) not in (1, 2, 3):
+        raise ModelError(f"{what} must have 1, 2 or 3 components, got {len(comps)}")
     return sp.Matrix([_as_expr(c, f"{what}[{i}]") for i, c in enumerate(comps)])
 
 
@@ -278,7 +279,9 @@ class Model:
         return Point(f"<{what}>", _as_vector(p, what))
 
     def particle(self, name: str, mass, position) -> Particle:
-        """A point mass at x(q, t); contributes m/2 |x'|^2 to T (eq. 2.2)."""
+        """A point mass at x(q, t); contributes m/2 |x'|^2 to T (eq. 2.2). ``position`` has 2 or
+        3 components, or 1 for a particle on a line (T = m/2 x'^2; gravity then needs an
+        explicit one-component ``up``, see :meth:`gravity`)."""
         mass = _as_mass(mass, name)
         body = Particle(name, mass, self.point(name, position))
         self.bodies.append(body)
@@ -389,7 +392,10 @@ class Model:
     def gravity(self, g, up: Sequence | None = None) -> None:
         """Uniform gravity on every massive body: V = sum m g (x . up).
 
-        ``up`` defaults to the last axis (y in 2-D, z in 3-D); it is normalized.
+        ``up`` defaults to the last axis (y in 2-D, z in 3-D); it is normalized. A particle on a
+        line (a one-component position) has no default up: give ``up=(1,)`` for a vertical line
+        pointing up (``(-1,)`` pointing down), or give the particle 2 components, e.g. ``(x, 0)``
+        for a horizontal line.
         """
         if up is not None:
             up = _as_vector(up, "gravity up")
@@ -543,6 +549,16 @@ class Model:
             if not self.bodies and not self.links:
                 raise ModelError("gravity() acts on the model's bodies, but it has none (T was given "
                                  "directly): add the gravitational potential with potential_energy()")
+            for body in self.bodies:
+                up = self.gravity_spec[1]
+                dim = body.point.dim
+                if up is None and dim == 1:
+                    raise ModelError(f"gravity on {body.name!r}, a particle on a line (1-D position): its direction "
+                                     "along the line is not defined; give gravity an up vector of one component "
+                                     "(up = [1] for a vertical line pointing up, [-1] pointing down), or give "
+                                     f"{body.name!r} 2 components (e.g. [x, 0] for a horizontal line)")
+                if up is not None and len(up) != dim:
+                    raise ModelError(f"gravity 'up' has {len(up)} components, {body.name!r} has {dim}")
         for name, expr in self.outputs.items():
             self.check_symbols(expr, f"output {name!r}")
         if not self.bodies and not self.kinetic_terms and not self.links:

@@ -21,7 +21,7 @@ A build step can describe a model without writing Python::
     name = "anchor"
     position = [0, 0]
 
-    [[particles]]                         # name, mass, position (2 or 3 components)
+    [[particles]]                         # name, mass, position (1, 2 or 3 components)
     name = "bob1"
     mass = "m1"
     position = ["l1*sin(theta1)", "-l1*cos(theta1)"]

@@ -205,7 +205,7 @@ class _Loader(_Reader):
         assert self.model is not None
         self.fields(path, entry, **schema.keys("points"))
         name = self.string([*path, "name"], entry["name"])
-        position = self.vector([*path, "position"], entry["position"])
+        position = self.vector([*path, "position"], entry["position"], sizes=(1, 2, 3))
         with self.at([*path, "name"], needle=name):
             self.model.point(name, position)
 
@@ -214,7 +214,7 @@ class _Loader(_Reader):
         self.fields(path, entry, **schema.keys("particles"))
         name = self.string([*path, "name"], entry["name"])
         mass = self.expr([*path, "mass"], entry["mass"])
-        position = self.vector([*path, "position"], entry["position"])
+        position = self.vector([*path, "position"], entry["position"], sizes=(1, 2, 3))
         with self.at([*path, "name"], needle=name):
             self.model.particle(name, mass, position)
 
@@ -248,7 +248,7 @@ class _Loader(_Reader):
         assert self.model is not None
         self.fields(["gravity"], table, **schema.keys("gravity"))
         g = self.expr(["gravity", "g"], table["g"])
-        up = self.vector(["gravity", "up"], table["up"]) if "up" in table else None
+        up = self.vector(["gravity", "up"], table["up"], sizes=(1, 2, 3)) if "up" in table else None
         with self.at(["gravity"]):
             self.model.gravity(g, up)
 
@@ -277,7 +277,7 @@ class _Loader(_Reader):
         assert self.model is not None
         self.fields(path, entry, **schema.keys("forces"))
         point = self.point_ref([*path, "point"], entry["point"])
-        vector = self.vector([*path, "vector"], entry["vector"], velocities=True)
+        vector = self.vector([*path, "vector"], entry["vector"], velocities=True, sizes=(1, 2, 3))
         label = self.string([*path, "label"], entry["label"]) if "label" in entry else None
         with self.at([*path, "vector"]):
             self.model.force(point, vector, label=label)

@@ -23,7 +23,7 @@ TYPES = {
     "identifier": "a string that is a name (letters, digits, _; not starting with a digit)",
     "expression": "a TOML number or a string expression (see Expressions)",
     "constant": "a finite number, or a string expression of numbers, pi and the functions (\"pi/2\")",
-    "vector": "an array of 2 or 3 expressions",
+    "vector": "an array of 2 or 3 expressions (1 for the position of a particle or point on a line)",
     "point": "the name of a point or body (string), or a position (array of expressions)",
     "inertia3": "an array of 3 principal moments, or a 3x3 array of expressions",
     "matrix3": "a 3x3 array of expressions (array of 3 rows)",
@@ -110,7 +110,8 @@ SCHEMA: tuple[Table, ...] = (
     Table("particles", "array", "Point masses: T += m/2 |x'|^2 (eq. 2.2).", keys=(
         Key("name", "identifier", "the particle's name (also a point)", required=True),
         Key("mass", "expression", "its mass", required=True),
-        Key("position", "vector", "its position x(q, t), 2 or 3 components", required=True),
+        Key("position", "vector", "its position x(q, t), 2 or 3 components, or 1 for a particle on a line "
+            "(T += m/2 x'^2)", required=True),
     ), maps_to="Model.particle"),
     Table("planar_bodies", "array", "Rigid bodies moving in a plane: T += m/2 |x_G'|^2 + I_G/2 angle'^2.", keys=(
         Key("name", "identifier", "the body's name (also a point, at its centre of mass)", required=True),
@@ -128,7 +129,9 @@ SCHEMA: tuple[Table, ...] = (
     ), maps_to="Model.rigid_body"),
     Table("gravity", "table", "Uniform gravity on every body: V += m g (x . up).", keys=(
         Key("g", "expression", "the acceleration of gravity", required=True),
-        Key("up", "vector", "the upward direction (normalized)", default="the last axis (y in 2-D, z in 3-D)"),
+        Key("up", "vector", "the upward direction (normalized)",
+            default="the last axis (y in 2-D, z in 3-D); particles on a line need [1] (a vertical line, pointing "
+                    "up) or [-1]"),
     ), maps_to="Model.gravity"),
     Table("springs", "array", "Linear springs: V += k/2 (|x_a - x_b| - rest_length)^2.", keys=(
         Key("a", "point", "one end", required=True),

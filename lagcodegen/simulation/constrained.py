@@ -57,7 +57,7 @@ from ..errors import LagcodegenError, ModelError, SingularMassMatrixError, Solve
 from ..formulation.constrained import ConstrainedCodeInfo
 from ..formulation.drawing import attaches_run_drawing
 from ..result import Result
-from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, tolerances
+from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, file_initial, tolerances
 from ..solvers.control import POLL_EVERY
 from ..solvers.cvode.native import CVC_OPTIONS
 from ..solvers.cvode.sensitivity_constrained import run_index1 as run_sensitivities
@@ -156,6 +156,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
+        q0, v0 = file_initial(self, q0, v0)
         if q0 is None:
             raise LagcodegenError("q0 is required")
         roots = self._roots(events)

@@ -28,6 +28,9 @@ class _Base:
     """What every compiled constrained system offers: layout, parameters, initial-state checks."""
 
     system: ConstrainedSystem
+    #: (q0, v0) a run starts from when not given: a model file's initial state (set by
+    #: :func:`lagcodegen.compile_file`), else None.
+    initial_defaults: tuple | None = None
 
     @property
     def n(self) -> int:

@@ -151,7 +151,8 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, thre
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
     family = resolve("ode", solver, options, cm.n, float(rtol), runs="ensemble")
-    sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name)
+    sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name,
+                       params=params)
     if sets is not None:
         if events:
             raise LagcodegenError("events with input tables: not supported")

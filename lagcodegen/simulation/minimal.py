@@ -23,6 +23,7 @@ from ..result import Result
 from ..solvers.direction import Direction
 from ..theory.constraints import ConstrainedSystem
 from ..theory.minimal import reduced_model, solve_constraints
+from ..solvers.base import file_initial
 from ..util import check_finite, output_times, state_vector
 from .constrained_functions import _Base
 from .ensemble import ensemble_minimal
@@ -199,6 +200,7 @@ class MinimalSimulation(_Base):
         constraints when ``initial`` is "check" ("project" and "none" leave it to the branch)."""
         model = self.system.model
         names = [q.name for q in model.coords]
+        q0, v0 = file_initial(self, q0, v0)
         q = state_vector(q0, names, "q0")
         v = state_vector(v0, names, "v0")
         vals = {**{s.name: v_ for s, v_ in model.params.items()}, **self._values}

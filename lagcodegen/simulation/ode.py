@@ -50,6 +50,10 @@ class CompiledModel(CompiledReprMixin):
     array handed to C is checked first (length, dtype): a wrong one raises LagcodegenError.
     """
 
+    #: (q0, v0) a run starts from when not given: a model file's initial state (set by
+    #: :func:`lagcodegen.compile_file`), else None (zeros).
+    initial_defaults: tuple | None = None
+
     def __init__(self, code: GeneratedCode, module, path: Path, native: bool, cached: bool, table=None,
                  library=None, dae_table=None):
         self.code = code
@@ -293,7 +297,7 @@ class CompiledModel(CompiledReprMixin):
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.n, rtol)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
-                                                       self.code.model_name)
+                                                       self.code.model_name, params=params)
         if tables:
             res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
         else:

@@ -227,8 +227,20 @@ def reached_rows(t, yout, out, done: int):
     return t.copy(), yout, out
 
 
+def file_initial(sim, q0, v0) -> tuple:
+    """``q0``, ``v0`` with the defaults of a system compiled from a model file
+    (:func:`lagcodegen.compile_file` sets ``sim.initial_defaults`` to the file's
+    ``[simulation] initial``): each one not given (None) is the file's; unchanged for any other
+    compiled system (None: zeros, or required where a run requires it)."""
+    defaults = getattr(sim, "initial_defaults", None)
+    if defaults is None:
+        return q0, v0
+    return (list(defaults[0]) if q0 is None else q0), (list(defaults[1]) if v0 is None else v0)
+
+
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
-    """The state y = (q, q', z) of an ODE run from q0/v0 (and z0) or the whole y0."""
+    """The state y = (q, q', z) of an ODE run from q0/v0 (and z0) or the whole y0; q0, v0 not
+    given are the model file's initial values for a model compiled from one (:func:`file_initial`)."""
     n = cm.n
     if y0 is not None:
         if q0 is not None or v0 is not None or z0 is not None:
@@ -241,6 +253,7 @@ def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
             raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
     names = cm.state_names
+    q0, v0 = file_initial(cm, q0, v0)
     return np.array(state_values(q0, names[:n], "q0") + state_values(v0, names[:n], "v0")
                     + state_values(z0, names[2 * n:], "z0"), dtype=float)
 

@@ -229,11 +229,20 @@ def as_table(name: str, spec) -> Table:
                           f"(times, values), got {type(spec).__name__}")
 
 
+def _refuse_both(inputs: Mapping, params) -> None:
+    """LagcodegenError naming the names that ``params`` gives a value and ``inputs`` a table."""
+    both = [name for name in inputs if isinstance(params, Mapping) and name in params]
+    if both:
+        raise LagcodegenError(f"{', '.join(map(repr, both))} given both a value (params=) and a table (inputs=); "
+                              "give each in one of them (the table drives the input over the run)")
+
+
 def input_set(input_names: list[str], param_names: list[str], inputs: Mapping | None,
-              model_name: str = "") -> InputSet | None:
+              model_name: str = "", *, params: Mapping | None = None) -> InputSet | None:
     """The tables of ``inputs`` (input name -> :class:`Table` or (times, values)) checked against a
     compiled model's inputs (``input_names``) and run-time parameters (``param_names``); None
-    when ``inputs`` is empty."""
+    when ``inputs`` is empty. A name given a value in ``params`` (the run's parameter values) as
+    well as a table is refused: one of the two would be ignored."""
     if inputs is None:
         return None
     if not isinstance(inputs, Mapping):
@@ -241,6 +250,7 @@ def input_set(input_names: list[str], param_names: list[str], inputs: Mapping | 
                               f"{type(inputs).__name__}")
     if not inputs:
         return None
+    _refuse_both(inputs, params)
     of = f" of model {model_name!r}" if model_name else ""
     if not input_names:
         raise LagcodegenError(f"inputs given ({', '.join(map(repr, inputs))}) but the model{of} declares no inputs "
@@ -258,11 +268,15 @@ def input_set(input_names: list[str], param_names: list[str], inputs: Mapping | 
     return InputSet(slots, names, tables)
 
 
-def member_sets(input_names, param_names, inputs, n: int, model_name: str = "") -> list[InputSet] | None:
+def member_sets(input_names, param_names, inputs, n: int, model_name: str = "", *,
+                params: Mapping | None = None) -> list[InputSet] | None:
     """The tables of the ``n`` members of an ensemble: ``inputs`` maps each input name to one table
-    (shared) or a list of ``n`` tables (one per member: each a Table or a tuple (times, values))."""
+    (shared) or a list of ``n`` tables (one per member: each a Table or a tuple (times, values)).
+    ``params``: the ensemble's parameter values (a name in both refused, as by :func:`input_set`)."""
     if inputs is None or (isinstance(inputs, Mapping) and not inputs):
         return None
+    if isinstance(inputs, Mapping):
+        _refuse_both(inputs, params)
     if not isinstance(inputs, Mapping):
         raise LagcodegenError("inputs must be a mapping input name -> Table, (times, values) or a list of one per "
                               "member")

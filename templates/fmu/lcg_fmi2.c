@@ -1,6 +1,7 @@
 /* lcg_fmi2.c -- the FMI 2.0 functions of lagcodegen's FMUs (Model Exchange and Co-Simulation)
  * on the model-independent core (lcg_fmu.h). Only Real variables; no event indicators, no
  * FMU state, no directional derivatives (the modelDescription.xml says so). */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -354,8 +355,14 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real currentCommunicationPoint, fm
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL)
         return fmi2Error;
-    if (!(communicationStepSize >= 0.0))
+    if (isnan(communicationStepSize))
+        return refuse(comp, "fmi2DoStep: the communication step size is not a number (NaN)");
+    if (!isfinite(currentCommunicationPoint))
+        return refuse(comp, "fmi2DoStep: the communication point is not a finite number");
+    if (communicationStepSize < 0.0)
         return refuse(comp, "fmi2DoStep: the communication step size is negative");
+    if (!isfinite(communicationStepSize))
+        return refuse(comp, "fmi2DoStep: the communication step size is infinite");
     return lcg_fmu_step(c->core, currentCommunicationPoint, currentCommunicationPoint + communicationStepSize) == 0
                ? fmi2OK : fail(c);
 }

@@ -2,6 +2,7 @@
  * on the model-independent core (lcg_fmu.h). Only Float64 variables; no event indicators, no
  * clocks, no FMU state, no directional derivatives (the modelDescription.xml says so);
  * Scheduled Execution is not provided. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -611,8 +612,14 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL)
         return fmi3Error;
-    if (!(communicationStepSize >= 0.0))
+    if (isnan(communicationStepSize))
+        return refuse(instance, "fmi3DoStep: the communication step size is not a number (NaN)");
+    if (!isfinite(currentCommunicationPoint))
+        return refuse(instance, "fmi3DoStep: the communication point is not a finite number");
+    if (communicationStepSize < 0.0)
         return refuse(instance, "fmi3DoStep: the communication step size is negative");
+    if (!isfinite(communicationStepSize))
+        return refuse(instance, "fmi3DoStep: the communication step size is infinite");
     code = lcg_fmu_step(c->core, currentCommunicationPoint, currentCommunicationPoint + communicationStepSize);
     if (eventHandlingNeeded != NULL)
         *eventHandlingNeeded = fmi3False;

@@ -46,6 +46,12 @@ def references(scenes):
     return refs
 
 
+def cm_reference(scene, setup, t_end):
+    """The state at ``t_end`` by lagcodegen's CVODE from the setup's y0 and parameters (rtol 1e-12)."""
+    cm = lcg.build_code(generate_c(scene))
+    return cm.simulate([0.0, t_end], y0=setup["y0"], params=setup["params"], rtol=1e-12, atol=1e-14).y[-1]
+
+
 def run(cmd, cwd, env=None, check=True):
     proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=env, timeout=300)
     if check:
@@ -66,7 +72,8 @@ def test_bundle_builds_with_make_and_cmake_and_matches_cvode(tmp_path, tools, sc
     source = f"{scene.prefix}.{'f90' if lang == 'fortran' else 'c'}"
     taylor = [f"{scene.prefix}_taylor.c", f"{scene.prefix}_taylor.h", "taylor_example.c"] if lang == "c" else []
     assert sorted(p.name for p in paths) == sorted(["CMakeLists.txt", "Makefile", "README.md", "cvode_example.c",
-                                                   "rk4_example.c", f"{scene.prefix}.h", source, *taylor])
+                                                   "rk4_example.c", f"{scene.prefix}.h", source, *taylor,
+                                                   "reference.csv"])
     ny = len(s["y0"])
 
     # make: library, example, `make check` runs it with the defaults baked into the bundle.
@@ -78,6 +85,21 @@ def test_bundle_builds_with_make_and_cmake_and_matches_cvode(tmp_path, tools, sc
     assert header == ["t", *(q.name for q in model.coords), *(v.name for v in model.speeds), "energy"]
     assert final[0] == s["t_end"]
     np.testing.assert_allclose(final[1:ny + 1], references[name, "default"], rtol=0, atol=1e-6)
+    # make check compares a short run with reference.csv (lagcodegen's CVODE, written with the bundle)
+    assert "make check: rk4_example agrees with reference.csv at t = 1: " in check.stdout
+    reference = (tmp_path / "reference.csv").read_text()
+    ref_header, ref_row = last_row("\n".join(ln for ln in reference.splitlines() if not ln.startswith("#")))
+    assert ref_header == header and ref_row[0] == 1.0
+    short = cm_reference(scene, s, 1.0)
+    np.testing.assert_allclose(ref_row[1:ny + 1], short, rtol=0, atol=1e-10)
+    lines = reference.splitlines()
+    values = lines[-1].split(",")
+    values[2] = repr(float(values[2]) + 1e-3)  # the second state off by 1e-3: make check fails naming it
+    (tmp_path / "reference.csv").write_text("\n".join(lines[:-1] + [",".join(values)]) + "\n")
+    failed = run(["make", "check"], tmp_path, check=False)
+    assert failed.returncode != 0, failed.stdout
+    assert f"make check: {header[2]} = " in failed.stdout and "1e-06 (1 + |reference|)" in failed.stdout
+    (tmp_path / "reference.csv").write_text(reference)
     if lang == "c":  # the Taylor example, built and run by `make check` with only a compiler
         taylor_header, final_taylor = last_row((tmp_path / "taylor_example.csv").read_text())  # a CSV
         assert taylor_header == header
@@ -185,7 +207,8 @@ def test_make_clean_removes_everything_make_wrote(tmp_path, tools, scenes):
         write_bundle(scene, folder, **options)
         written = sorted(p.name for p in folder.iterdir())
         run(["make"], folder)
-        run(["make", "check"], folder)
+        check = run(["make", "check"], folder)
+        assert "make check: rk4_example agrees with reference.csv" in check.stdout, (name, check.stdout)
         if name == "c" and sundials_include() is not None:
             run(["make", "cvode"], folder)
         assert len(list(folder.iterdir())) > len(written) + 3  # the library, objects, examples, CSVs
@@ -220,3 +243,23 @@ def test_generate_bundle_check_from_the_command_line(tmp_path):
     assert proc.returncode == 5 and "README.md" in proc.stderr
     assert run(base, ROOT, env=env, check=False).returncode == 0
     assert run([*base, "--check"], ROOT, env=env, check=False).returncode == 0
+
+
+def test_without_a_reference_make_check_says_so(tmp_path, tools, scenes, monkeypatch):
+    """Where lagcodegen cannot run the model when it writes the bundle (here: a reference run that
+    fails, its message on several lines with quotes and dollars), the bundle has no
+    reference.csv and make check and the README say why."""
+    from lagcodegen.codegen import bundle
+
+    def broken(*args):
+        raise lcg.LagcodegenError('cc: not found\n  "$HOME" `x` \\ second line')
+
+    monkeypatch.setitem(bundle.REFERENCE_RUNS, "scene", broken)
+    write_bundle(scenes["oscillator"], tmp_path, sundials_example=False)
+    assert not (tmp_path / "reference.csv").exists()
+    assert "`make check` compares nothing: there is no `reference.csv`" in (tmp_path / "README.md").read_text()
+    run(["make"], tmp_path)
+    check = run(["make", "check"], tmp_path)
+    assert ("make check: no reference.csv to compare with (lagcodegen could not run the model when it wrote the "
+            "bundle: cc: not found 'HOME' 'x' / second line)") in check.stdout
+    assert (tmp_path / "rk4_example.csv").is_file()

@@ -55,7 +55,7 @@ def test_constrained_bundle_builds_and_matches_cvode(tmp_path, tools, pendulum, 
     paths = write_bundle(pendulum, tmp_path, lang=lang, y0=Y0, t_end=T_END, outputs=OUTPUTS)
     source = f"bpend_dae.{'f90' if lang == 'fortran' else 'c'}"
     assert sorted(p.name for p in paths) == sorted(["CMakeLists.txt", "Makefile", "README.md", "rk4_example.c",
-                                                   "bpend_dae.h", source])
+                                                   "bpend_dae.h", source, "reference.csv"])
     readme = (tmp_path / "README.md").read_text()
     for fn in ("kkt", "crhs", "residuals", "project", "coutputs"):
         assert f"bpend_{fn}" in readme
@@ -64,7 +64,8 @@ def test_constrained_bundle_builds_and_matches_cvode(tmp_path, tools, pendulum, 
     # make: `make check` runs the example with the defaults baked into the bundle.
     run(["make"], tmp_path)
     assert (tmp_path / "libbpend.a").is_file()
-    run(["make", "check"], tmp_path)
+    check = run(["make", "check"], tmp_path)
+    assert "make check: rk4_example agrees with reference.csv at t = 1: " in check.stdout
     header, table = rows((tmp_path / "rk4_example.csv").read_text())
     assert header == ["t", "x", "y", "x_dot", "y_dot", "energy", "lambda_0", "g_0", "gdot_0"]
     final = table[-1]

@@ -415,3 +415,47 @@ def test_strict_flags_on_every_source(fmus, tmp_path, cc):
                 proc = subprocess.run([cc, *STRICT_CFLAGS, "-c", c_file.name, "-o", "/dev/null"], cwd=sources,
                                       capture_output=True, text=True)
                 assert proc.returncode == 0, f"{name}, FMI {version}, {c_file.name}:\n{proc.stderr}"
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_nan_communication_step_is_called_nan_not_negative(fmus, tmp_path, version):
+    """fmiDoStep with a NaN step size: refused, the message saying NaN (before: "negative"); a
+    negative step still says negative."""
+    from fmpy import extract, read_model_description
+    path = fmus("pendulum", version)
+    md = read_model_description(str(path))
+    folder = extract(str(path), unzipdir=str(tmp_path / "unzipped"))
+    messages = []
+    if version == 2:
+        from ctypes import byref
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
+            fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
+        from fmpy.logging import addLoggerProxy
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message:
+                                                  messages.append(message.decode()))
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                        instanceName="nan")
+        fmu.instantiate(callbacks=callbacks)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+    else:
+        from fmpy.fmi3 import FMU3Slave
+        fmu = FMU3Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
+                        instanceName="nan")
+        fmu.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.exitInitializationMode()
+    for step, word in ((float("nan"), "not a number (NaN)"), (-0.1, "negative"), (float("inf"), "infinite")):
+        messages.clear()
+        with pytest.raises(Exception):
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=step)
+        assert any(f"DoStep: the communication step size is {word}" in m for m in messages), (step, messages)
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.1)  # a good step still works
+    fmu.terminate()
+    fmu.freeInstance()
+
