@@ -34,8 +34,12 @@ What the model holds:
   Q_i = -f q_i' / sqrt(q_i'^2 + v_s^2) (a smooth sign function, ``v_s = friction_velocity``,
   default 1e-3 rad/s or m/s: |Q_i| is within 1 % of f once |q_i'| > 8 v_s);
 * with ``limits=True``, the ``<limit lower upper>`` of each revolute and prismatic joint as two
-  inequality constraints q_i - lower >= 0 and upper - q_i >= 0 (eq. 4.3; monitored, not
-  enforced; joints whose lower equals upper are left out).
+  inequality constraints q_i - lower >= 0 and upper - q_i >= 0 (eq. 4.3; joints whose lower
+  equals upper are left out), enforced as hard stops: a joint reaching its limit stops there
+  (a plastic impact; ``limits=("stop", e)``: it rebounds with restitution e), rests against it
+  while the load pushes into it, and leaves it when the stop's multiplier would pull
+  (:func:`lagcodegen.compile_constrained` runs them on the impact driver); ``limits="monitor"``
+  only locates them (a run ends at the first limit touched, as an event).
 
 ``lock={joint: position}`` holds joints fixed (merged like fixed joints at that position).
 
@@ -62,7 +66,7 @@ from ..errors import ModelError
 from ..util import excerpt
 from ..model.bodies import Joint as Joint_, Placement
 from ..model.model import Model
-from ..theory.constraints import ConstrainedSystem
+from ..theory.constraints import ConstrainedSystem, Inequality
 from .urdfxml import (ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
@@ -239,7 +243,7 @@ def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict
 
 
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
-          limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
+          limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
           lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
           form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
@@ -312,20 +316,40 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
             model.generalized_force(q, -sp.Float(j.dynamics.friction) * v / sp.sqrt(v**2 + vs**2),
                                     label=f"Coulomb friction of {j.name}")
     model.validate()
-    if not limits:
+    if limits is False:
         return model
+    stop = _limit_kind(limits, robot)
     inequalities = []
     for b in tree:
         j, q = b.joint, coords[b.joint.name]
         lim = j.limit
         if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None or lim.lower == lim.upper:
             continue
-        inequalities += [q - sp.Float(lim.lower), sp.Float(lim.upper) - q]
+        rows = [q - sp.Float(lim.lower), sp.Float(lim.upper) - q]
+        inequalities += rows if stop is None else [Inequality(g, restitution=stop) for g in rows]
     return ConstrainedSystem(model, inequalities=inequalities)
 
 
+#: How ``limits=`` reads: True or "stop" (hard stops, a plastic impact: restitution 0),
+#: ``("stop", e)`` (hard stops with restitution e), "monitor" (inequalities located, not enforced).
+LIMIT_KINDS = ("stop", "monitor")
+
+
+def _limit_kind(limits, robot: RobotDescription) -> float | None:
+    """The restitution of the joint stops ``limits`` asks for, or None for monitored limits."""
+    if limits is True or limits == "stop":
+        return 0.0
+    if limits == "monitor":
+        return None
+    if isinstance(limits, tuple) and len(limits) == 2 and limits[0] == "stop" and isinstance(limits[1], (int, float)) \
+            and not isinstance(limits[1], bool) and 0.0 <= float(limits[1]) <= 1.0:
+        return float(limits[1])
+    raise URDFError(f"limits must be False, True (or 'stop': hard stops), ('stop', restitution in [0, 1]) or "
+                    f"'monitor', got {excerpt(limits)}", robot.filename, None, "")
+
+
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
-         limits: bool = False, friction: str = "ignore", friction_velocity: float = 1e-3,
+         limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
          form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
@@ -333,7 +357,8 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
 
     ``name``: the model's name (default: the ``<robot name>``, made an identifier);
     ``gravity``: the gravitational acceleration vector in the root link's frame (m/s^2);
-    ``limits``: joint limits as inequality constraints (eq. 4.3);
+    ``limits``: joint limits as inequality constraints (eq. 4.3): True (or "stop") hard stops,
+    ``("stop", e)`` stops with restitution e, "monitor" located only (module docstring);
     ``friction``, ``friction_velocity``: Coulomb friction, see the module docstring;
     ``lock``: joints held fixed, as ``{name: position}`` or names (at 0): merged like fixed
     joints (e.g. a gripper's fingers);

@@ -107,6 +107,40 @@ def test_limits_become_inequality_constraints():
     assert not system.holonomic and not system.nonholonomic
 
 
+STOPPED_PENDULUM = """<robot name="{name}"><link name="base"/>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="rod"/><axis xyz="0 -1 0"/>
+    <limit lower="-0.5" upper="0.5" effort="1" velocity="10"/></joint>
+  <link name="rod"><inertial><origin xyz="0 0 -1"/><mass value="1"/>
+    <inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5])
+def test_limits_are_hard_stops(e):
+    """A point-mass pendulum (l = 1, m = 1) with stops at +-0.5 rad, thrown at the upper one: it
+    reaches it with the speed energy conservation gives (w^2 = w0^2 + 2 g (cos 0.5 - cos q0)),
+    rebounds with e times it (Newton's law), never passes the stop, and the run goes on to its end;
+    with e = 0 it stops there, and the stop releases it at once: gravity pulls it back."""
+    from lagcodegen.api import compile_constrained
+    system = urdf.loads(STOPPED_PENDULUM.format(name=f"stopped_{int(10 * e)}"), limits=True if e == 0 else ("stop", e))
+    assert system.restitution == [e, e]
+    sim = compile_constrained(system, "index1")
+    q0, w0, g = 0.4, 2.0, 9.81
+    t = np.linspace(0.0, 2.0, 201)
+    res = sim.simulate(t, q0=[q0], v0=[w0], rtol=1e-10, atol=1e-12)
+    assert res.success and res.t[-1] == t[-1]
+    assert np.all(np.abs(res["hinge"]) <= 0.5 + 1e-8)
+    first = res.impacts.select("stick" if e == 0 else "bounce")[0]
+    speed = np.sqrt(w0**2 + 2 * g * (np.cos(0.5) - np.cos(q0)))
+    assert first.contact == 1 and first.w_before == pytest.approx(-speed, rel=1e-8)
+    assert first.w_after == pytest.approx(e * speed, abs=1e-8)
+    if e == 0:  # at the stop the pendulum is pushed back by gravity: the stop releases at once
+        assert any(r.kind == "release" and r.contact == 1 for r in res.impacts)
+    with pytest.raises(urdf.URDFError, match="limits must be"):
+        urdf.loads(STOPPED_PENDULUM.format(name="bad"), limits=("stop", 2.0))
+    monitored = urdf.loads(STOPPED_PENDULUM.format(name="monitored"), limits="monitor")
+    assert monitored.restitution == [None, None]
+
+
 def test_gravity_option_direction_and_parameter():
     model = urdf.load(EXAMPLES / "two_link_arm.urdf", gravity=(0, 0, -1.62))
     assert {s.name: v for s, v in model.params.items()} == {"g": pytest.approx(1.62)}
