@@ -67,13 +67,16 @@ def split_python_spec(spec: str) -> tuple[str, str] | None:
     return None
 
 
-def load_source(spec: str) -> ModelSource:
+def load_source(spec: str, *, urdf: Mapping | None = None) -> ModelSource:
     """The model named by ``spec``: a model file (:func:`lagcodegen.modelfile.load_model_path`,
-    by its suffix), or ``file.py:function`` (executes the file)."""
+    by its suffix; ``urdf``: a URDF file's loading options), or ``file.py:function`` (executes
+    the file)."""
     python = split_python_spec(spec)
     if python is None:
         path = Path(spec)
-        return ModelSource(load_model_path(path), path.name, [path.resolve()])
+        return ModelSource(load_model_path(path, urdf=urdf), path.name, [path.resolve()])
+    if urdf:
+        raise ModelError(f"{spec}: URDF options apply to .urdf files only")
     return load_python_model(*python)
 
 

@@ -71,3 +71,40 @@ def test_info_and_bad_urdf_exit_with_a_located_message(tmp_path):
     assert proc.returncode != 0
     assert f"{bad}:1: joint 'j': unknown joint type 'hinge'" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+MIMIC_ARM = """<robot name="mimic_arm"><link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
+    <limit lower="-0.3" upper="0.3" effort="1" velocity="1"/></joint>
+  <link name="a"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j1" multiplier="1"/></joint>
+  <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
+
+
+def test_urdf_loading_options_on_the_command_line(tmp_path):
+    """--urdf KEY=VALUE takes urdf.load's keywords: a robot with a mimic joint is refused by default
+    (exit 1, the message naming mimic), runs with mimic=independent, and with limits=true its
+    joints stop at their limits (the run goes to its end); a bad key is a usage error naming the
+    keys; URDF options on a .toml file are refused; generate records them in its manifest."""
+    urdf = tmp_path / "mimic_arm.urdf"
+    urdf.write_text(MIMIC_ARM)
+    refused = run("simulate", urdf, "-o", tmp_path / "a.csv", "-q")
+    assert refused.returncode == 1 and "mimic" in refused.stderr and "Traceback" not in refused.stderr
+    ok = run("simulate", urdf, "-o", tmp_path / "a.csv", "--t-end", "2", "--initial", "j1=0.25",
+             "--urdf", "mimic=independent", "--urdf", "limits=true", "-q")
+    assert ok.returncode == 0, ok.stderr
+    data = np.loadtxt(tmp_path / "a.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "a.csv").read_text().splitlines()[0].split(",")
+    assert data[-1, 0] == pytest.approx(2.0)
+    assert np.all(np.abs(data[:, header.index("j1")]) <= 0.3 + 1e-6)  # the stops hold
+    bad = run("simulate", urdf, "-o", tmp_path / "a.csv", "--urdf", "mimc=independent", "-q")
+    assert bad.returncode == 2 and "floating, mimic, limits" in bad.stderr
+    toml = run("simulate", ROOT / "examples" / "pendulum.toml", "-o", tmp_path / "p.csv", "--urdf", "mimic=independent",
+               "-q")
+    assert toml.returncode == 1 and "apply to .urdf files only" in toml.stderr
+    gen = run("generate", urdf, "-o", tmp_path / "gen", "--urdf", "mimic=independent", "-q")
+    assert gen.returncode == 0, gen.stderr
+    assert '"urdf"' in (tmp_path / "gen" / "mimic_arm.lagcodegen.json").read_text()

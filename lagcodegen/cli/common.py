@@ -102,11 +102,47 @@ def check_parameter_names(mf: ModelFile, args) -> None:
                              f"(parameters: {', '.join(params) or 'none'})")
 
 
-def load(spec: str, quiet: bool) -> ModelSource:
+#: --urdf KEY=VALUE: the keywords of lagcodegen.modelfile.urdf.load the command line takes.
+URDF_KEYS = ("floating", "mimic", "limits", "lock", "gravity", "friction", "friction_velocity", "form", "name")
+
+
+def urdf_options(items: list[str] | None) -> dict:
+    """``--urdf KEY=VALUE`` items as the keywords of :func:`lagcodegen.modelfile.urdf.load`:
+    floating=true|false|NAME, mimic=error|independent, limits=true|false|stop|monitor|stop:E,
+    lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=ignore|smooth, friction_velocity=V,
+    form=tree|closed, name=NAME."""
+    out: dict = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in URDF_KEYS:
+            raise UsageError(f"--urdf {item!r:.80}: give KEY=VALUE with KEY one of {', '.join(URDF_KEYS)}")
+        low = value.strip().lower()
+        try:
+            if key in ("floating", "limits") and low in ("true", "false", "yes", "no", "1", "0"):
+                out[key] = low in ("true", "yes", "1")
+            elif key == "limits" and low.startswith("stop:"):
+                out[key] = ("stop", float(low[5:]))
+            elif key == "lock":
+                pairs = [p.partition(":") for p in value.split(",") if p.strip()]
+                out[key] = {n.strip(): float(v) for n, _, v in pairs} if any(s for _, s, _ in pairs) \
+                    else [n.strip() for n, _, _ in pairs]
+            elif key == "gravity":
+                out[key] = tuple(float(x) for x in value.split(","))
+            elif key == "friction_velocity":
+                out[key] = float(value)
+            else:
+                out[key] = value.strip()
+        except ValueError:
+            raise UsageError(f"--urdf {item!r:.80}: {key} takes a number where this has none") from None
+    return out
+
+
+def load(spec: str, quiet: bool, urdf: list[str] | None = None) -> ModelSource:
     """The model named on the command line (:func:`lagcodegen.buildstep.load_source`: a model file
-    by its suffix, or FILE.py:FUNCTION), with a progress line."""
+    by its suffix, or FILE.py:FUNCTION; ``urdf``: --urdf KEY=VALUE items), with a progress line."""
     t0 = time.perf_counter()
-    source = load_source(spec)
+    source = load_source(spec, urdf=urdf_options(urdf))
     kind = "executed" if split_python_spec(spec) else "loaded"
     say(f"{kind} {spec} ({source.model_file.model.n} coordinates) in {time.perf_counter() - t0:.3f} s", quiet)
     return source
@@ -170,5 +206,9 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fold-all", action="store_true", help="fold every parameter as a constant")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter value (repeatable)")
     p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
+    p.add_argument("--urdf", action="append", metavar="KEY=VALUE",
+                   help="a URDF model's loading option (repeatable): floating=true|NAME, mimic=independent, "
+                        "limits=true|stop:E|monitor, lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=smooth, "
+                        "form=tree|closed, name=NAME")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     add_progress_option(p)

@@ -107,7 +107,7 @@ def read_data(path: str) -> tuple[list[str], np.ndarray]:
 def run(args) -> int:
     check_args(args)
     header, rows = read_data(args.data)
-    mf = load(args.model, args.quiet).model_file
+    mf = load(args.model, args.quiet, args.urdf).model_file
     check_parameter_names(mf, args)
     mf = apply_options(mf, args)
     names = csv(args.fit)

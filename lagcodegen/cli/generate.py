@@ -81,6 +81,7 @@ def _options(args) -> dict:
     return {"lang": args.lang, "prefix": args.prefix, "bundle": args.bundle, "outputs": args.outputs,
             "runtime_parameters": args.runtime_parameters, "fold_all": args.fold_all, "set": args.set or [],
             "no_jacobian": args.no_jacobian, "formulation": args.formulation, "method": args.method,
+            **({"urdf": args.urdf} if args.urdf else {}),
             **({"sensitivities": True} if args.sensitivities else {})}
 
 
@@ -104,7 +105,7 @@ def _generate_fmu(args) -> int:
     problem = fmu_path_problem(args.fmu)
     if problem:
         raise UsageError(f"--fmu {args.fmu}: {problem}")
-    mf = load(args.model, args.quiet).model_file
+    mf = load(args.model, args.quiet, args.urdf).model_file
     check_parameter_names(mf, args)
     t0 = time.perf_counter()
     tunable = [] if args.fold_all else csv(args.runtime_parameters)
@@ -127,7 +128,7 @@ def run(args) -> int:
     problem = folder_problem(args.output)
     if problem:
         raise UsageError(f"-o {args.output}: {problem}; give the output folder")
-    source = load(args.model, args.quiet)
+    source = load(args.model, args.quiet, args.urdf)
     mf = source.model_file
     check_parameter_names(mf, args)
     out = Path(args.output)

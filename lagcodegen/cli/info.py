@@ -36,7 +36,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    mf = load(args.model, True).model_file
+    mf = load(args.model, True, getattr(args, "urdf", None)).model_file
     eom = mf.derive()
     model = mf.model
     show = sp.latex if args.latex else (lambda e: sp.pretty(e, use_unicode=False))

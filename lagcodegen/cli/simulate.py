@@ -123,7 +123,7 @@ def check_args(args) -> None:
 
 def run(args) -> int:
     check_args(args)
-    mf = load(args.model, args.quiet).model_file
+    mf = load(args.model, args.quiet, args.urdf).model_file
     check_parameter_names(mf, args)
     mf = apply_initial(apply_options(mf, args), initial_values(args.initial))
     t0 = time.perf_counter()

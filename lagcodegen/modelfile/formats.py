@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 from ..errors import ModelError
 from ..model.model import Model
@@ -39,11 +39,18 @@ def as_model_file(value: Any, path: Path, what: str) -> ModelFile:
     raise ModelError(f"{what} returned {type(value).__name__}, not a Model, ConstrainedSystem or ModelFile")
 
 
-def load_model_path(path: str | os.PathLike) -> ModelFile:
-    """The model file at ``path``, read by the loader of its suffix (:data:`LOADERS`)."""
+def load_model_path(path: str | os.PathLike, *, urdf: Mapping[str, Any] | None = None) -> ModelFile:
+    """The model file at ``path``, read by the loader of its suffix (:data:`LOADERS`); ``urdf``:
+    the keywords of :func:`lagcodegen.modelfile.urdf.load` for a ``.urdf`` file (``floating``,
+    ``mimic``, ``limits``, ``lock``, ...), refused for other files."""
     path = Path(path)
-    loader = LOADERS.get(path.suffix.lower())
+    suffix = path.suffix.lower()
+    loader = LOADERS.get(suffix)
     if loader is None:
         known = ", ".join(sorted(LOADERS))
         raise ModelError(f"{path}: not a model file lagcodegen reads (suffixes: {known}; or FILE.py:FUNCTION)")
+    if urdf:
+        if suffix != ".urdf":
+            raise ModelError(f"{path}: URDF options ({', '.join(sorted(urdf))}) apply to .urdf files only")
+        return as_model_file(load_urdf(path, **urdf), path, str(path))
     return as_model_file(loader(path), path, str(path))
