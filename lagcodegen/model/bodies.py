@@ -202,13 +202,15 @@ JOINT_COORDINATES = {
     "fixed": (),
     "spherical": ("_yaw", "_pitch", "_roll"),
     "free": ("_x", "_y", "_z", "_yaw", "_pitch", "_roll"),
+    "planar": ("_x", "_y", "_theta"),
 }
 
 
 @dataclass(frozen=True)
 class Joint:
     """A joint between a parent link and its child. Build with :meth:`revolute`,
-    :meth:`continuous`, :meth:`prismatic`, :meth:`fixed`, :meth:`spherical`, :meth:`free`."""
+    :meth:`continuous`, :meth:`prismatic`, :meth:`fixed`, :meth:`spherical`, :meth:`free`,
+    :meth:`planar`."""
 
     kind: str
     name: str
@@ -253,6 +255,15 @@ class Joint:
         pitch = +-pi/2)."""
         return cls("free", name)
 
+    @classmethod
+    def planar(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
+        """Motion in the plane normal to ``axis`` (URDF's planar joint): translations
+        ``<name>_x``, ``<name>_y`` along the plane's axes e1, e2 (for axis z: the joint frame's x
+        and y; in general (e1, e2, axis) right-handed, :func:`plane_axes`), then the rotation
+        ``<name>_theta`` about ``axis``. The angle is a coordinate of its own (no singularity in
+        a plane); Pinocchio's planar joint carries (cos theta, sin theta) and local velocities."""
+        return cls("planar", name, _unit(axis, f"axis of joint {name!r}"))
+
     @property
     def coordinate_names(self) -> tuple[str, ...]:
         """The names of the coordinates this joint brings to the model."""
@@ -272,7 +283,29 @@ class Joint:
         if self.kind == "free":
             return [("P", ex, coords[0]), ("P", ey, coords[1]), ("P", ez, coords[2]),
                     ("R", ez, coords[3]), ("R", ey, coords[4]), ("R", ex, coords[5])]
+        if self.kind == "planar":
+            e1, e2 = plane_axes(self.axis)
+            return [("P", e1, coords[0]), ("P", e2, coords[1]), ("R", self.axis, coords[2])]
         return []
+
+
+def plane_axes(axis: Sequence) -> tuple[tuple, tuple]:
+    """(e1, e2) spanning the plane normal to the unit ``axis``, with (e1, e2, axis) right-handed:
+    for a coordinate axis the next two in cyclic order (z: x, y; x: y, z; y: z, x), else e1 the
+    coordinate axis least aligned with ``axis`` made normal to it."""
+    n = [sp.nsimplify(c) if isinstance(c, (int, float)) else c for c in axis]
+    units = [(1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    for k, u in enumerate(units):
+        if list(n) == list(u):
+            return units[(k + 1) % 3], units[(k + 2) % 3]
+    k = min(range(3), key=lambda i: abs(float(n[i])))
+    u = units[k]
+    d = sum(a * b for a, b in zip(u, n))
+    e1 = [a - d * b for a, b in zip(u, n)]
+    norm = sp.sqrt(sum(c * c for c in e1))
+    e1 = [sp.nsimplify(c / norm) for c in e1]
+    e2 = [n[1] * e1[2] - n[2] * e1[1], n[2] * e1[0] - n[0] * e1[2], n[0] * e1[1] - n[1] * e1[0]]
+    return tuple(e1), tuple(e2)
 
 
 def _inertia(value, what: str) -> sp.ImmutableMatrix:

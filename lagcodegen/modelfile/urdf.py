@@ -47,7 +47,9 @@ Refused with a :class:`~lagcodegen.modelfile.urdfxml.URDFError` naming the file 
 ``mimic`` joints unless ``mimic="independent"`` (then they are coordinates of their own, as
 Pinocchio's ``buildModelFromUrdf`` reads them by default) or locked (a coupled joint is a
 constraint, not a coordinate: write the coupling as a holonomic constraint of a
-:class:`ConstrainedSystem`), ``planar`` joints, a URDF without any movable joint. Meshes,
+:class:`ConstrainedSystem`), a URDF without any movable joint. ``planar`` joints move in the
+plane normal to their axis: coordinates ``<joint>_x``, ``<joint>_y``, ``<joint>_theta``
+(:meth:`lagcodegen.model.bodies.Joint.planar`). Meshes,
 visuals, collisions, materials, transmissions and Gazebo tags are ignored.
 """
 
@@ -212,7 +214,8 @@ def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
 def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
     """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
     coords = {}
-    kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic}
+    kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic,
+             "planar": Joint_.planar}
     for b in tree:
         j = b.joint
         I = b.inertia
@@ -280,8 +283,6 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
                          "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as "
                          f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling "
                          "as a holonomic constraint of a ConstrainedSystem")
-        if j.type == "planar":
-            raise err(j, "planar joints are not supported (revolute, continuous, prismatic, fixed and floating are)")
     tree = bodies(robot, locked, root_joint)
     if not tree:
         raise URDFError("the robot has no movable joint (revolute, continuous or prismatic): nothing moves",
@@ -323,7 +324,8 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
     for b in tree:
         j, q = b.joint, coords[b.joint.name]
         lim = j.limit
-        if j.type == "continuous" or lim is None or lim.lower is None or lim.upper is None or lim.lower == lim.upper:
+        if j.type in ("continuous", "planar", "floating") or lim is None or lim.lower is None or lim.upper is None \
+                or lim.lower == lim.upper:
             continue
         rows = [q - sp.Float(lim.lower), sp.Float(lim.upper) - q]
         inequalities += rows if stop is None else [Inequality(g, restitution=stop) for g in rows]

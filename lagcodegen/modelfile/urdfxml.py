@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import ModelError
 from ..util import excerpt
 
-#: URDF joint types, and the ones lagcodegen builds (floating: a free joint; planar: refused).
+#: URDF joint types, all of which lagcodegen builds (floating: a free joint; planar: Joint.planar).
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 #: An inertia's smallest eigenvalue may be this much below zero, relative to its largest (the
 #: rounding of inertias written with a few digits); a zero eigenvalue (a point mass, a thin rod) is

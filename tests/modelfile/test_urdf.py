@@ -335,6 +335,45 @@ def test_floating_base_agrees_with_pinocchio_free_flyer(path, form):
         assert np.abs(np.linalg.solve(M, F) - qdd_ref).max() < 1e-11 * np.abs(qdd_ref).max()
 
 
+PLANAR_ROBOT = """<robot name="sled"><link name="ground"/>
+  <joint name="base" type="planar"><parent link="ground"/><child link="body"/><axis xyz="0 0 1"/></joint>
+  <link name="body"><inertial><origin xyz="0.2 -0.1 0"/><mass value="3"/>
+    <inertia ixx="0.2" iyy="0.3" izz="0.4" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="arm" type="continuous"><parent link="body"/><child link="rod"/><origin xyz="0.5 0 0.1"/>
+    <axis xyz="0 0 1"/><dynamics damping="0.3"/></joint>
+  <link name="rod"><inertial><origin xyz="0.4 0 0"/><mass value="1.5"/>
+    <inertia ixx="0.01" iyy="0.05" izz="0.06" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_planar_joint_agrees_with_pinocchio(form):
+    """A planar base (x, y, theta about z) carrying a damped arm, gravity in the plane, against
+    Pinocchio's planar joint (q: x, y, cos, sin; v: (R^T (x', y'), theta') in the body frame):
+    with v = J q', M = J^T M_pin J and q'' = J^-1 (a_pin - J' q')."""
+    model = urdf.loads(PLANAR_ROBOT, gravity=(0.0, -9.81, 0.0), form=form)
+    assert [c.name for c in model.coords] == ["base_x", "base_y", "base_theta", "arm"]
+    pin_model = pin.buildModelFromXML(PLANAR_ROBOT)
+    pin_model.gravity.linear = np.array([0.0, -9.81, 0.0])
+    data = pin_model.createData()
+    evaluate = numeric(model)
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        q, v = rng.uniform(-2, 2, 4), rng.normal(size=4)
+        c, s_ = np.cos(q[2]), np.sin(q[2])
+        Rt = np.array([[c, s_], [-s_, c]])  # R(theta)^T
+        dRt = v[2] * np.array([[-s_, c], [-c, -s_]])
+        J, Jd = np.eye(4), np.zeros((4, 4))
+        J[:2, :2], Jd[:2, :2] = Rt, dRt
+        qp = np.array([q[0], q[1], c, s_, np.cos(q[3]), np.sin(q[3])])
+        M, F = evaluate(q, v)
+        M_pin = pin.crba(pin_model, data, qp)
+        M_pin = np.triu(M_pin) + np.triu(M_pin, 1).T
+        np.testing.assert_allclose(M, J.T @ M_pin @ J, rtol=0, atol=1e-12 * np.abs(M_pin).max())
+        a_pin = pin.aba(pin_model, data, qp, J @ v, np.array([0, 0, 0, -0.3 * v[3]]))
+        qdd_ref = np.linalg.solve(J, a_pin - Jd @ v)
+        np.testing.assert_allclose(np.linalg.solve(M, F), qdd_ref, rtol=0, atol=1e-11 * np.abs(qdd_ref).max())
+
+
 def test_locked_joints_agree_with_pinocchio_reduced_model():
     """UR5 with the elbow locked at 0.4 rad: Pinocchio's buildReducedModel at the same position."""
     file = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"
@@ -411,8 +450,6 @@ ERRORS = {
                         r"bad\.urdf:4: joint 'j' <limit>: lower=1\.0 is above upper=-1\.0"),
     "mimic of nothing": (robot(ARM.replace('<child link="b"/>', '<child link="b"/><mimic joint="x"/>')),
                          r"joint 'j' <mimic>: mimics joint 'x', which does not exist"),
-    "planar": (robot(ARM.replace('type="revolute"', 'type="planar"')),
-               r"bad\.urdf:4: joint 'j': planar joints are not supported"),
     "nothing moves": (robot(ARM.replace('type="revolute"', 'type="fixed"')),
                       r"robot 'r': the robot has no movable joint"),
 }
