@@ -21,7 +21,7 @@ from . import sweep as _sweep
 from .buildstep import load_source
 from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, register_reference_run, render_bundle, \
     render_constrained_bundle
-from .codegen.languages import check_language, generate_code
+from .codegen.languages import backend, check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.events import events_source
 from .codegen.record import GeneratedCode
@@ -344,7 +344,7 @@ def _event_files(scene: Scene, mf: ModelFile, lang: str, report: Callable[[str],
     says so and nothing is added."""
     if not mf.events:
         return {}
-    if lang != "c":
+    if not backend(lang).c_sources:
         if report is not None:
             report(f"{len(mf.events)} event function(s): printed in C only (generate with --lang c for "
                    f"{scene.prefix}_events.c)")

@@ -30,6 +30,7 @@ from pathlib import Path
 import cffi
 
 from .codegen.cffi_decl import model_cdef, runtime_cdef
+from .codegen.languages import backend, file_backend
 from .codegen.signatures import DRIVERS
 from .codegen.signatures import c_header as types_header
 from .codegen.record import GeneratedCode
@@ -261,10 +262,21 @@ def _cffi_module(folder: Path, modname: str, cdef: str, headers: list[str]) -> s
     return f"{modname}.c"
 
 
+def _languages(sources) -> list:
+    """The backends of the model sources among ``sources`` (by their files' suffixes), each once."""
+    found = {}
+    for name in sources:
+        be = file_backend(name)
+        if be is not None:
+            found.setdefault(be.name, be)
+    return [found[k] for k in sorted(found)]
+
+
 def _fortran_objects(folder: Path, sources: dict[str, str], fc: str, fflags, label: str) -> list[str]:
     objects = []
-    for name in sorted(n for n in sources if n.endswith(".f90")):  # modules first: sorted names
-        obj = name[:-4] + ".o"
+    suffix = backend("fortran").suffix
+    for name in sorted(n for n in sources if n.endswith(suffix)):  # modules first: sorted names
+        obj = name[:-len(suffix)] + ".o"
         _run([fc, *fflags, "-c", name, "-o", obj], folder, "Fortran compiler", label)
         objects.append(obj)
     return objects
@@ -450,8 +462,9 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
     if code.dae is not None:
         sources.update(dae_table_source(code))
     sources, c_files = _translation_units(sources, code.prefix, code.split)
-    fortran = any(name.endswith(".f90") for name in sources)
-    libs = ["-lm"] + (["-lgfortran"] if fortran else [])
+    languages = _languages(sources)
+    fortran = any(not be.c_sources for be in languages)
+    libs = ["-lm"] + [lib for be in languages for lib in be.link_libs]
     parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
              " ".join(libs), *sorted(f"{k}\0{v}" for k, v in sources.items())]
     if fortran:
@@ -528,7 +541,7 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         sources["sundials_api.h"] = runtime_files(["sundials_api.h"])["sundials_api.h"]
         sources["lcg_config.h"] = config_header(sundials)
     headers = [code.header_name, *code.cffi_headers]
-    fortran = any(name.endswith(".f90") for name in sources)
+    fortran = any(not be.c_sources for be in _languages(sources))
     cdef = model_cdef(code, native) + "\n" + code.cdef_extra
     link = sundials.link_args(("cvode", *code.sundials_libs, "core")) if native else []
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]

@@ -17,6 +17,7 @@ from ..buildstep import (generator_record, input_record, manifest_matches, manif
                          manifest_text, read_manifest, stale_by_manifest, touch_stamp, write_depfile)
 from ..codegen.bundle import stale_files, write_files
 from ..util import fmu_path_problem, folder_problem
+from ..codegen.languages import LANGUAGES, backend
 from .common import (EXIT_OK, EXIT_OUTDATED, EXIT_USAGE, MODEL_HELP, UsageError, add_formulation_option,
                      add_scene_options, apply_options, assignments, check_parameter_names, csv, load, say)
 
@@ -53,7 +54,7 @@ def add_parser(sub) -> None:
     g.add_argument("--fmu", metavar="FILE", help="write an FMU (Model Exchange and Co-Simulation) instead of sources")
     g.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="--fmu: the FMI version (default 2)")
     g.add_argument("--prefix", help="C identifier prefix (default: the model name)")
-    g.add_argument("--lang", choices=["c", "fortran"], default="c",
+    g.add_argument("--lang", choices=list(LANGUAGES), default="c",
                    help="language of the model code: C99 (<prefix>.c) or Fortran 2008 (<prefix>.f90); "
                         "the C header <prefix>.h comes with both")
     g.add_argument("--bundle", action="store_true",
@@ -100,7 +101,7 @@ def _finish_build_step(args, out: Path, names, manifest: str, source) -> None:
 
 def _generate_fmu(args) -> int:
     """``generate --fmu FILE [--fmi 3]``: the model file as an FMU (:func:`lagcodegen.fmu.export_fmu`)."""
-    if args.bundle or args.check or args.list_outputs or args.lang != "c":
+    if args.bundle or args.check or args.list_outputs or not backend(args.lang).c_sources:
         raise UsageError("--fmu writes one FMU file: --bundle, --check, --list-outputs and --lang fortran do not apply")
     problem = fmu_path_problem(args.fmu)
     if problem:

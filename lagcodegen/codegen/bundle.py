@@ -46,7 +46,7 @@ from ..theory.constraints import ConstrainedSystem
 from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, folder_problem, read_regular_file
 from ..version import __version__
 from .constrained import generate_constrained
-from .languages import LANGUAGES, generate_code
+from .languages import LANGUAGES, backend, generate_code
 from .record import GeneratedCode
 from .sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
 from .signatures import DRIVERS, c_header as types_header
@@ -134,9 +134,10 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     if method not in CVODE_METHODS:
         raise ModelError(f"bundle: unknown CVODE method {method!r} (choose from {', '.join(CVODE_METHODS)})")
-    fortran = lang == "fortran"
+    be = backend(lang)
+    fortran = not be.c_sources
     t_start, t_end, steps = _checked_span(t_start, t_end, steps)
-    source = f"{code.prefix}.f90" if fortran else code.source_name
+    source = f"{code.prefix}{be.suffix}"
     names = [code.header_name, source]
     missing = [name for name in names if name not in code.files]
     if missing:
@@ -144,8 +145,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
 
     folded = sorted(scene.folded.items())
     table = [(code.header_name, "C header: sizes, array layouts, return codes, function prototypes"),
-             (source, (f"Fortran 2008 module `{code.prefix}_mod`, functions bound to the C names" if fortran
-                       else "C99 source of the functions (libm only)")),
+             (source, be.source_description(code.prefix)),
              ("Makefile", f"`make`: lib{code.prefix}.a and rk4_example; `make check` runs it"),
              ("CMakeLists.txt", "the same with CMake"),
              ("rk4_example.c", "fixed-step RK4 integration, CSV on stdout; needs only a C compiler")]
@@ -168,7 +168,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     y_values = _initial_state(code, y0)
     ctx = dict(
         version=__version__, prefix=code.prefix, PREFIX=code.prefix.upper(), model_name=code.model_name,
-        lang=lang, fortran=fortran, lang_name="Fortran 2008" if fortran else "C99",
+        lang=lang, fortran=fortran, lang_name=be.title,
         header=code.header_name, source=source, stem=code.prefix, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
         nout=code.nout, state_names=code.state_names, param_names=code.param_names,
         param_values=[_c_double(v) for v in _parameters(code, params)], output_names=code.output_names,
@@ -363,15 +363,15 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     code, info = generate_constrained(system, ggl=ggl, outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else outputs,
                                         events=events, runtime_parameters=runtime_parameters, values=values,
                                         prefix=prefix, lang=lang)
-    fortran = lang == "fortran"
+    be = backend(lang)
+    fortran = not be.c_sources
     pre = code.prefix
     header = f"{pre}_dae.h"
-    source = f"{pre}_dae.{'f90' if fortran else 'c'}"
+    source = f"{pre}_dae{be.suffix}"
     y_values = _initial_state(code, y0)
     folded = sorted(info.folded.items())
     table = [(header, "C header: sizes, array layouts, return codes, function prototypes"),
-             (source, (f"Fortran 2008 module `{pre}_dae_mod`, functions bound to the C names" if fortran
-                       else "C99 source of the functions (libm only)")),
+             (source, be.source_description(f"{pre}_dae")),
              ("Makefile", f"`make`: lib{pre}.a and rk4_example; `make check` runs it"),
              ("CMakeLists.txt", "the same with CMake"),
              ("rk4_example.c", "fixed-step RK4 integration of the index-1 equations, CSV on stdout; "
@@ -390,7 +390,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     ctx = dict(
         integrators=[], skipped_integrators=[], check=check,
         version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
-        fortran=fortran, lang_name="Fortran 2008" if fortran else "C99", header=header, source=source,
+        fortran=fortran, lang_name=be.title, header=header, source=source,
         stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
         nout=len(info.output_names), nroot=len(info.events), state_names=code.state_names,
         param_names=code.param_names, param_values=[_c_double(v) for v in _parameters(code, params)],

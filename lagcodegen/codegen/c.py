@@ -374,6 +374,14 @@ class CBackend:
 
     name = "c"
     printer = CPrinter
+    #: The model source's suffix, the language's name in texts, what a library of it links beside
+    #: libm, and whether the model source is C (the C-only parts of a bundle apply: the standalone
+    #: integrators, input tables, sensitivity functions, the reference run).
+    suffix, title, link_libs, c_sources = ".c", "C99", (), True
+
+    def source_description(self, module: str) -> str:
+        """What the model source is, for a bundle's README (``module``: the model's prefix)."""
+        return "C99 source of the functions (libm only)"
 
     def generate(self, scene: Scene) -> GeneratedCode:
         """The model code of ``scene``: :func:`generate_c`."""

@@ -343,6 +343,12 @@ class FortranBackend:
 
     name = "fortran"
     printer = FortranPrinter
+    #: As :class:`lagcodegen.codegen.c.CBackend`'s: the model source is Fortran (no C-only parts).
+    suffix, title, link_libs, c_sources = ".f90", "Fortran 2008", ("-lgfortran",), False
+
+    def source_description(self, module: str) -> str:
+        """What the model source is, for a bundle's README (``module``: the model's prefix)."""
+        return f"Fortran 2008 module `{module}_mod`, functions bound to the C names"
 
     def generate(self, scene: Scene) -> GeneratedCode:
         """The model code of ``scene``: :func:`generate_fortran`."""

@@ -40,6 +40,14 @@ def generate_code(scene: Scene, lang: str = "c") -> GeneratedCode:
     return code
 
 
+def file_backend(name: str):
+    """The backend whose model sources end like the file ``name`` (``.c``, ``.f90``), or None."""
+    for cls in BACKENDS.values():
+        if name.endswith(cls.suffix):
+            return cls()
+    return None
+
+
 def check_language(lang: str) -> None:
     """Raise ModelError unless ``lang`` names a registered language."""
     if not isinstance(lang, str) or lang not in BACKENDS:
