@@ -1,0 +1,167 @@
+"""The few typed records a run hands to the C boundary (the drivers', steppers' and ensembles'
+arguments), the same for every family:
+
+* :class:`StepControl`: how the solver steps (method, tolerances, budgets, Jacobian, linear
+  solver, order), made from a family object and the run's tolerances by :meth:`StepControl.of`;
+* :class:`Index1Form`, :class:`GGLForm`: the settings of a constrained system's form
+  (Baumgarte and projection of the index-1 form; IDA's algebraic unknowns of the GGL form);
+* :class:`Recording`: what a run records beside its trajectory (events or root finding and how
+  many are kept, the sensitivities' directions) and, for ensembles, what each member keeps,
+  the threads and the progress bar;
+* :class:`RunArrays`: the output times, initial state(s) and parameters of a call;
+* :class:`Layout`: the layout of the rows of an ensemble's result (states, outputs,
+  parameters, by name).
+
+They only carry values: each driver writes the fields of its own C options struct from them
+(the structs declared in :mod:`lagcodegen.codegen.signatures`), exactly as it wrote its keyword
+arguments before."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+#: The family fields a :class:`StepControl` takes over when the family has them (as they are).
+_FAMILY_FIELDS = ("first_step", "min_step", "max_order", "order")
+
+
+@dataclass(frozen=True)
+class StepControl:
+    """How a run steps: ``method`` ("adams", "bdf", "taylor"; "" where the driver has one),
+    ``rtol`` and ``atol`` (a float or one value per state, as the driver takes them), the budgets
+    ``max_steps`` (internal steps of the run), ``max_wall`` (seconds, 0: none), the step sizes
+    ``first_step``, ``max_step``, ``min_step`` (0: the solver's), ``max_order`` (0: the solver's),
+    Taylor's series ``order`` (None: from the tolerance), ``jacobian`` (the generated one, else
+    difference quotients), CVODE's linear solver (``band`` = (upper, lower) bandwidths, or
+    ``fixedpoint``: functional iteration), and of sensitivity runs ``errcon`` (the
+    sensitivities in the error test) and ``corrector`` ("staggered" or "simultaneous")."""
+
+    rtol: float
+    atol: Any
+    method: str = ""
+    max_steps: int = 1_000_000
+    first_step: float = 0.0
+    max_step: float = 0.0
+    min_step: float = 0.0
+    max_order: int = 0
+    order: int | None = None
+    jacobian: bool = False
+    band: tuple[int, int] | None = None
+    fixedpoint: bool = False
+    max_wall: float = 0.0
+    errcon: bool = True
+    corrector: str = "staggered"
+
+    @classmethod
+    def of(cls, family, rtol, atol, **resolved) -> "StepControl":
+        """The step control of a run of ``family`` (a :class:`~lagcodegen.solvers.family.Family`)
+        with these tolerances: its budgets (``max_steps`` as an int, ``max_step``, ``max_wall``
+        as floats), the fields it has of ``first_step``, ``min_step``, ``max_order``, ``order``,
+        its sensitivities' ``errcon`` and ``corrector``; ``resolved``: the values the family
+        resolved for this run (``method``, ``jacobian``, ``band``, ...), which take precedence."""
+        values = {"max_steps": int(family.max_steps), "max_step": float(family.max_step),
+                  "max_wall": float(family.max_wall)}
+        for name in _FAMILY_FIELDS:
+            if hasattr(family, name):
+                values[name] = getattr(family, name)
+        if hasattr(family, "sensitivity_errcon"):
+            values["errcon"] = bool(family.sensitivity_errcon)
+        if hasattr(family, "sensitivity_corrector"):
+            values["corrector"] = family.sensitivity_corrector
+        values.update(resolved)
+        return cls(rtol=rtol, atol=atol, **values)
+
+    def with_tolerances(self, rtol, atol) -> "StepControl":
+        """This control with other (e.g. resolved) tolerances."""
+        return dataclasses.replace(self, rtol=rtol, atol=atol)
+
+    def replace(self, **values) -> "StepControl":
+        return dataclasses.replace(self, **values)
+
+    @property
+    def linear_solver(self) -> int:
+        """The CVODE driver's ``linear_solver`` field: 0 dense, 1 band, 2 fixed-point iteration."""
+        return 1 if self.band else 2 if self.fixedpoint else 0
+
+    @property
+    def bandwidths(self) -> tuple[int, int]:
+        """The CVODE driver's ``mupper``, ``mlower`` fields (0, 0 without the band solver)."""
+        return (self.band[0], self.band[1]) if self.band else (0, 0)
+
+
+@dataclass(frozen=True)
+class Index1Form:
+    """The index-1 form of a constrained system (eq. 4.5): the Baumgarte parameters ``alpha``,
+    ``beta``, ``projection`` onto the constraints after each step (CVODE's projection, BDF only)
+    with its tolerance ``proj_tol`` and iteration limit ``proj_maxit``."""
+
+    alpha: float
+    beta: float
+    projection: bool = False
+    proj_tol: float = 1e-12
+    proj_maxit: int = 10
+
+
+@dataclass(frozen=True)
+class GGLForm:
+    """The GGL form of a constrained system on IDA: ``suppress_alg`` (lambda, mu out of the
+    error test), ``stop_at_outputs`` (step exactly to every output time)."""
+
+    suppress_alg: bool = True
+    stop_at_outputs: bool = False
+
+
+@dataclass(frozen=True)
+class Recording:
+    """What a run records beside its trajectory: ``events`` (the driver's events: compiled event
+    functions, event objects, or an ensemble's (directions, terminal flags) arrays; None: none),
+    ``roots`` (root finding on a constrained system's compiled events; the event functions'
+    table of an ODE ensemble), ``max_events`` kept (per run or member), ``sensitivities`` (the
+    directions, by name). Of an ensemble: ``save`` (what each member keeps: "final",
+    "trajectory" or names), ``threads`` (None: the cores) and ``progress`` (the bar)."""
+
+    events: Any = None
+    roots: Any = False
+    max_events: int = 10_000
+    sensitivities: Any = None
+    save: Any = "final"
+    threads: int | None = None
+    progress: Any = None
+
+    def replace(self, **values) -> "Recording":
+        return dataclasses.replace(self, **values)
+
+
+@dataclass(frozen=True)
+class RunArrays:
+    """The arrays of a call: output times ``t``, initial state(s) ``y`` (one row per member of an
+    ensemble), parameters ``p`` (one row per member, or one shared vector), and IDA's initial
+    derivatives ``yp`` (or None)."""
+
+    t: np.ndarray
+    y: np.ndarray
+    p: np.ndarray
+    yp: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The layout of an ensemble's rows: ``nrow`` state values and ``nout`` outputs per row,
+    the names of the states (``state_names``), of the outputs, of the driver's row
+    (``row_names``; hidden ones start with "_"), of the parameters, further named columns of the
+    row (``extra_outputs``: name -> index), and what the result reports: ``method``,
+    ``formulation``, ``n_coordinates``."""
+
+    nrow: int
+    nout: int
+    state_names: Any
+    output_names: Any
+    row_names: Any
+    param_names: Any = ()
+    extra_outputs: dict | None = None
+    method: str = ""
+    formulation: str = ""
+    n_coordinates: int | None = None
