@@ -12,9 +12,10 @@ arguments), the same for every family:
 * :class:`Layout`: the layout of the rows of an ensemble's result (states, outputs,
   parameters, by name).
 
-They only carry values: each driver writes the fields of its own C options struct from them
-(the structs declared in :mod:`lagcodegen.codegen.signatures`), exactly as it wrote its keyword
-arguments before."""
+A driver's options struct is filled from them through its declaration in
+:mod:`lagcodegen.codegen.signatures`: :func:`option_fields` gives the value of every field of
+the struct that the records carry, by the field's name (the same values, converted the same way,
+whichever driver, stepper or ensemble writes them)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from ..codegen.signatures import Struct
+from .base import METHODS
 
 #: The family fields a :class:`StepControl` takes over when the family has them (as they are).
 _FAMILY_FIELDS = ("first_step", "min_step", "max_order", "order")
@@ -165,3 +169,40 @@ class Layout:
     method: str = ""
     formulation: str = ""
     n_coordinates: int | None = None
+
+
+def _known(control: StepControl, form, recording: Recording | None) -> dict:
+    """Every options field the records carry, by its name in the drivers' structs."""
+    c = control
+    mupper, mlower = c.bandwidths
+    known = {"rtol": c.rtol, "max_steps": int(c.max_steps), "first_step": c.first_step, "max_step": c.max_step,
+             "min_step": c.min_step, "max_order": c.max_order, "jacobian": int(bool(c.jacobian)),
+             "linear_solver": c.linear_solver, "mupper": mupper, "mlower": mlower, "max_wall": float(c.max_wall),
+             "order": int(c.order or 0)}
+    if c.method in METHODS:
+        known["method"] = METHODS[c.method]
+    if isinstance(form, Index1Form):
+        known.update(alpha=form.alpha, beta=form.beta, projection=int(bool(form.projection)),
+                     proj_tol=form.proj_tol, proj_maxit=form.proj_maxit)
+    elif isinstance(form, GGLForm):
+        known.update(suppress_alg=int(bool(form.suppress_alg)), stop_at_outputs=int(bool(form.stop_at_outputs)))
+    if recording is not None and isinstance(recording.roots, (bool, int, np.bool_)):  # not an ensemble's table
+        known["roots"] = int(recording.roots)
+    return known
+
+
+def option_fields(struct: Struct, control: StepControl, form=None, recording: Recording | None = None) -> dict:
+    """The fields of a driver's options ``struct`` (its declaration,
+    :mod:`lagcodegen.codegen.signatures`) that ``control``, ``form`` (an :class:`Index1Form` or a
+    :class:`GGLForm`) and ``recording`` (``roots``) carry: field name -> value, in the struct's
+    order (the tolerances' vector, the run-control pointers and fixed fields are the caller's)."""
+    known = _known(control, form, recording)
+    return {f.name: known[f.name] for f in struct.fields if f.name in known}
+
+
+def option_values(struct: Struct, names: tuple, control: StepControl, form=None,
+                  recording: Recording | None = None) -> tuple:
+    """The values of the fields ``names`` of ``struct`` (:func:`option_fields`), in that order:
+    what :class:`~lagcodegen.solvers.base.PreparedOptions` takes."""
+    fields = option_fields(struct, control, form, recording)
+    return tuple(fields[name] for name in names)

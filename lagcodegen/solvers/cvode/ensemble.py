@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import METHODS, native_options, tolerances
+from ...codegen.signatures import CVC_OPTIONS, CVODE_OPTIONS
+from ..base import native_options, tolerances
 from ..inputs import fill_inputs
 from ..ensemble_run import event_arrays, run_native
-from ..request import Index1Form, Layout, Recording, RunArrays, StepControl
+from ..request import Index1Form, Layout, Recording, RunArrays, StepControl, option_fields
 
 
 def ensemble_ode(cm, t, Y, P, control: StepControl, recording: Recording, inputs=None):
@@ -19,15 +20,9 @@ def ensemble_ode(cm, t, Y, P, control: StepControl, recording: Recording, inputs
     (:class:`~.events.CompiledEvents`) located in every member (its stats ``events`` and
     ``terminated``; a terminal event's time and state are the member's ``t_reached`` and final
     state); ``inputs``: one :class:`~lagcodegen.solvers.inputs.InputSet` per member, or None."""
-    c = control
-    rtol, atol_arr = tolerances(c.rtol, c.atol, cm.ny)
-    mupper, mlower = c.bandwidths
+    c = control.with_tolerances(*tolerances(control.rtol, control.atol, cm.ny))
     keep: list = []
-    opt = native_options(cm.ffi, cm.options_type, atol_arr, keep, method=METHODS[c.method],
-                         jacobian=int(c.jacobian), rtol=rtol, max_steps=c.max_steps,
-                         first_step=c.first_step, max_step=c.max_step, min_step=c.min_step,
-                         max_order=c.max_order, linear_solver=c.linear_solver, mupper=mupper, mlower=mlower)
-    opt.max_wall = c.max_wall
+    opt = native_options(cm.ffi, cm.options_type, c.atol, keep, **option_fields(CVODE_OPTIONS, c))
     setup = None
     if inputs is not None:
         P = np.ascontiguousarray(np.broadcast_to(P, (Y.shape[0], cm.code.np)))  # each member its row (and tables)
@@ -46,14 +41,11 @@ def ensemble_ode(cm, t, Y, P, control: StepControl, recording: Recording, inputs
 def ensemble_index1(sim, t, Y, P, control: StepControl, form: Index1Form, recording: Recording):
     """The members (consistent states, rows of Y) of an index-1 constrained system ``sim`` in the
     index-1 form ``form``; ``recording.roots``: locate the compiled events in each member."""
-    n, c = sim.n, control
-    rtol, atol_arr = tolerances(c.rtol, c.atol, 2 * n)
+    n = sim.n
+    c = control.with_tolerances(*tolerances(control.rtol, control.atol, 2 * n))
     keep: list = []
-    opt = native_options(sim.ffi, sim.cvc_options_type, atol_arr, keep, method=METHODS[c.method], rtol=rtol,
-                         alpha=form.alpha, beta=form.beta, projection=int(form.projection), proj_tol=form.proj_tol,
-                         proj_maxit=form.proj_maxit, proj_err=1, max_steps=int(c.max_steps),
-                         first_step=c.first_step, max_step=c.max_step, min_step=c.min_step,
-                         max_order=c.max_order, roots=int(recording.roots), max_wall=float(c.max_wall))
+    opt = native_options(sim.ffi, sim.cvc_options_type, c.atol, keep, proj_err=1,
+                         **option_fields(CVC_OPTIONS, c, form, recording))
     layout = Layout(nrow=2 * n, nout=len(sim.info.output_names), state_names=sim.state_names,
                     output_names=sim.output_names, row_names=list(sim.state_names), param_names=sim.param_names,
                     method=c.method, formulation=sim.formulation, n_coordinates=n)

@@ -18,10 +18,10 @@ from ...errors import LagcodegenError
 from ...formulation.scene import band_order
 from ...formulation.scene import bandwidths as widths
 from ...result import Result
-from ..base import (METHODS, SINGULAR_AUGMENTED, NativeEvents, PreparedOptions, message, native_stats,
+from ..base import (SINGULAR_AUGMENTED, NativeEvents, PreparedOptions, message, native_stats,
                    pooled_stats, reached_rows)
 from ..control import CANCELLED, POLL_EVERY, raise_pending
-from ..request import Index1Form, Recording, StepControl
+from ..request import Index1Form, Recording, StepControl, option_values
 
 
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:
@@ -76,10 +76,7 @@ def ode_options(cm) -> PreparedOptions:
 def ode_struct(cm, control: StepControl):
     """The options struct of an ODE run of ``cm`` on the native driver with the step control
     ``control`` (from :func:`ode_options`: shared, never written)."""
-    c = control
-    mupper, mlower = c.bandwidths
-    return ode_options(cm).get(c.atol, METHODS[c.method], int(c.jacobian), c.rtol, c.max_steps, c.first_step,
-                               c.max_step, c.min_step, c.max_order, c.linear_solver, mupper, mlower, c.max_wall)
+    return ode_options(cm).get(control.atol, *option_values(CVODE_STRUCT, _CVODE_VARYING, control))
 
 
 def run_message(ffi, flag: int, st) -> str:
@@ -170,9 +167,7 @@ def solve_index1(sim, t, y0, p, control: StepControl, form: Index1Form, recordin
     ny, nt = 2 * sim._n, t.size
     yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
-    opt = sim.cvc_options.get(c.atol, METHODS[method], c.rtol, int(c.max_steps), c.first_step, c.max_step, c.min_step,
-                              c.max_order, form.alpha, form.beta, int(form.projection), form.proj_tol, form.proj_maxit,
-                              int(roots), c.max_wall)
+    opt = sim.cvc_options.get(c.atol, *option_values(CVC_STRUCT, _CVC_VARYING, c, form, recording))
     pool = sim.cvc_stats_pool
     st = pooled_stats(ffi, pool, sim.cvc_stats_type)
     events = sim.native_events(recording.max_events) if roots else None

@@ -16,12 +16,13 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.signatures import CVC_OPTIONS, CVODE_OPTIONS
 from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
-from ..base import METHODS, NativeEvents
+from ..base import NativeEvents
 from ..control import POLL_EVERY, install
-from ..request import Index1Form, Recording, StepControl
+from ..request import Index1Form, Recording, StepControl, option_fields
 from ..stepper import NativeStepper, tolerance_option
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
@@ -100,17 +101,11 @@ class CVODEStepper(NativeStepper):
         table = ffi.cast("const lcg_model *", int(cm.ffi.cast("uintptr_t", cm.table)))
         c, events = control, recording.events
         opt = ffi.new("lcg_cvode_options *")
-        opt.method = METHODS[c.method]
-        opt.jacobian = int(c.jacobian)
-        opt.rtol = c.rtol
+        for name, value in option_fields(CVODE_OPTIONS, c).items():
+            setattr(opt, name, value)
         atol_keep = tolerance_option(ffi, opt, c.atol, cm.ny)
-        opt.max_steps = c.max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = c.first_step, c.max_step, c.min_step, c.max_order
-        opt.linear_solver = c.linear_solver
-        opt.mupper, opt.mlower = c.bandwidths
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = c.max_wall
         self.compiled = events  # keeps the event functions' library open
         self.events = list(events.events) if events is not None else []
         self._native = NativeEvents(ffi, "lcg_events", self.events, cm.ny, recording.max_events) if self.events \
@@ -142,18 +137,12 @@ class CVCStepper(NativeStepper):
         table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
         c, roots = control, recording.roots
         opt = ffi.new("lcg_cvc_options *")
-        opt.method = METHODS[c.method]
-        opt.rtol = c.rtol
+        for name, value in option_fields(CVC_OPTIONS, c, form, recording).items():
+            setattr(opt, name, value)
         atol_keep = tolerance_option(ffi, opt, c.atol, ny)
-        opt.max_steps = c.max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = c.first_step, c.max_step, c.min_step, c.max_order
-        opt.alpha, opt.beta = form.alpha, form.beta
-        opt.projection, opt.proj_tol, opt.proj_maxit, opt.proj_err = int(form.projection), form.proj_tol, \
-            form.proj_maxit, 1
-        opt.roots = int(roots)
+        opt.proj_err = 1
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = c.max_wall
         self.events = list(sim.info.events) if roots else []
         self._native = NativeEvents(ffi, "lcg_events", self.events, ny, recording.max_events) if self.events \
             else None

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...codegen.signatures import IDA_OPTIONS
 from ..base import native_options
 from ..ensemble_run import event_arrays, run_native
-from ..request import GGLForm, Layout, Recording, RunArrays, StepControl
+from ..request import GGLForm, Layout, Recording, RunArrays, StepControl, option_fields
 from .native import ALGEBRAIC_ATOL
 
 
@@ -15,14 +16,9 @@ def ensemble_ggl(sim, t, Y, P, control: StepControl, form: GGLForm, recording: R
     """The members of the GGL form of ``sim``: rows of Y are (yy0, yp0), ``control.atol`` one value
     per unknown; ``recording.roots``: locate the compiled events in each member."""
     n, ng, J, JH = sim.n, sim.info.ng, sim.info.J, sim.info.JH
-    c = control
     keep: list = []
-    opt = native_options(sim.ffi, sim.ida_options_type, c.atol, keep, rtol=c.rtol,
-                         suppress_alg=int(bool(form.suppress_alg)), jacobian=int(c.jacobian), calc_ic=1,
-                         ic_alg_atol=ALGEBRAIC_ATOL, stop_at_outputs=int(bool(form.stop_at_outputs)),
-                         max_steps=int(c.max_steps), first_step=c.first_step, max_step=c.max_step,
-                         min_step=c.min_step, max_order=c.max_order, roots=int(recording.roots),
-                         max_wall=float(c.max_wall))
+    opt = native_options(sim.ffi, sim.ida_options_type, control.atol, keep, calc_ic=1, ic_alg_atol=ALGEBRAIC_ATOL,
+                         **option_fields(IDA_OPTIONS, control, form, recording))
     row_names = list(sim.state_names) + [f"_lambda_{j}" for j in range(J)] + [f"mu_{k}" for k in range(JH)]
     layout = Layout(nrow=ng, nout=len(sim.info.output_names), state_names=sim.state_names,
                     output_names=sim.output_names, row_names=row_names, param_names=sim.param_names,

@@ -15,7 +15,7 @@ from ...result import Result
 from ..base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
 from ..control import CANCELLED, raise_pending
 from ..cvode.native import append_event_row
-from ..request import GGLForm, Recording, StepControl
+from ..request import GGLForm, Recording, StepControl, option_values
 
 #: Default absolute tolerance of the algebraic GGL unknowns lambda, mu. scikit-sundae never
 #: calls IDASetSuppressAlg, so there a huge atol is what keeps them out of the error test. The
@@ -44,8 +44,7 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, form: GGLForm, recordin
     ng, nt, n = sim.info.ng, t.size, sim.n
     yout = np.empty((nt, ng))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
-    opt = sim.ida_options.get(c.atol, c.rtol, int(c.max_steps), c.first_step, c.max_step, c.min_step, c.max_order,
-                              int(suppress_alg), int(c.jacobian), int(roots), int(form.stop_at_outputs), c.max_wall)
+    opt = sim.ida_options.get(c.atol, *option_values(IDA_STRUCT, _IDA_VARYING, c, form, recording))
     pool = sim.ida_stats_pool
     st = pooled_stats(ffi, pool, sim.ida_stats_type)
     events = sim.native_events(recording.max_events) if roots else None

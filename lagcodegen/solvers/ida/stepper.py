@@ -15,11 +15,12 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.signatures import IDA_OPTIONS
 from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...runtime import sources as runtime_files
 from ..base import NativeEvents
 from ..control import POLL_EVERY, install
-from ..request import GGLForm, Recording, StepControl
+from ..request import GGLForm, Recording, StepControl, option_fields
 from ..stepper import NativeStepper
 from .native import ALGEBRAIC_ATOL
 
@@ -78,15 +79,12 @@ class IDAStepper(NativeStepper):
         c, roots = control, recording.roots
         atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(c.atol, dtype=float), (ng,)))
         opt = ffi.new("lcg_ida_options *")
-        opt.rtol, opt.atol, opt.atol_vec = c.rtol, float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
-        opt.max_steps = c.max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = c.first_step, c.max_step, c.min_step, c.max_order
-        opt.suppress_alg, opt.jacobian = int(form.suppress_alg), int(c.jacobian)
+        for name, value in option_fields(IDA_OPTIONS, c, form, recording).items():
+            setattr(opt, name, value)
+        opt.atol, opt.atol_vec = float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
         opt.calc_ic, opt.ic_alg_atol = 1, ALGEBRAIC_ATOL
-        opt.roots, opt.stop_at_outputs = int(roots), int(form.stop_at_outputs)
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = c.max_wall
         self.events = list(sim.info.events) if roots else []
         self._native = NativeEvents(ffi, "lcg_events", self.events, ng, recording.max_events) if self.events \
             else None

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...codegen.signatures import TAYLOR_OPTIONS
 from .. import control as poll_control
 from ..base import tolerances
 from ..ensemble_run import run_native
-from ..request import Layout, Recording, RunArrays, StepControl
+from ..request import Layout, Recording, RunArrays, StepControl, option_fields
 from .run import taylor_module
 
 
@@ -26,7 +27,8 @@ def run_taylor_ensemble(cm, t, Y, P, control: StepControl, recording: Recording)
     ffi, table = tm.ffi, tm.table
     rtol, atol_arr = tolerances(c.rtol, c.atol, cm.ny)
     opt = ffi.new("lcg_taylor_options *")
-    opt.rtol = rtol
+    for name, value in option_fields(TAYLOR_OPTIONS, c.with_tolerances(rtol, atol_arr)).items():
+        setattr(opt, name, value)
     keep = []
     if np.all(atol_arr == atol_arr[0]):
         opt.atol = float(atol_arr[0])
@@ -35,10 +37,6 @@ def run_taylor_ensemble(cm, t, Y, P, control: StepControl, recording: Recording)
         keep.append(atol_arr)
         opt.atol = float(atol_arr.min())
         opt.atol_vec = ffi.from_buffer("double[]", atol_arr)
-    opt.max_steps = int(c.max_steps)
-    opt.max_step = float(c.max_step)
-    opt.order = int(c.order or 0)
-    opt.max_wall = float(c.max_wall)
     solve_many = tm.lib.lcg_taylor_solve_many
 
     def solve(e, o):
