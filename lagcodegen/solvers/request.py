@@ -20,6 +20,8 @@ whichever driver, stepper or ensemble writes them)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
+import operator
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,10 +29,6 @@ import numpy as np
 
 from ..codegen.signatures import Struct
 from .base import METHODS
-
-#: The family fields a :class:`StepControl` takes over when the family has them (as they are).
-_FAMILY_FIELDS = ("first_step", "min_step", "max_order", "order")
-
 
 @dataclass(frozen=True)
 class StepControl:
@@ -60,23 +58,18 @@ class StepControl:
     corrector: str = "staggered"
 
     @classmethod
-    def of(cls, family, rtol, atol, **resolved) -> "StepControl":
+    def of(cls, family, rtol, atol, method: str = "", jacobian: bool = False, band=None,
+           fixedpoint: bool = False) -> "StepControl":
         """The step control of a run of ``family`` (a :class:`~lagcodegen.solvers.family.Family`)
         with these tolerances: its budgets (``max_steps`` as an int, ``max_step``, ``max_wall``
         as floats), the fields it has of ``first_step``, ``min_step``, ``max_order``, ``order``,
-        its sensitivities' ``errcon`` and ``corrector``; ``resolved``: the values the family
-        resolved for this run (``method``, ``jacobian``, ``band``, ...), which take precedence."""
-        values = {"max_steps": int(family.max_steps), "max_step": float(family.max_step),
-                  "max_wall": float(family.max_wall)}
-        for name in _FAMILY_FIELDS:
-            if hasattr(family, name):
-                values[name] = getattr(family, name)
-        if hasattr(family, "sensitivity_errcon"):
-            values["errcon"] = bool(family.sensitivity_errcon)
-        if hasattr(family, "sensitivity_corrector"):
-            values["corrector"] = family.sensitivity_corrector
-        values.update(resolved)
-        return cls(rtol=rtol, atol=atol, **values)
+        its sensitivities' ``errcon`` and ``corrector``, and the values the family resolved for
+        this run: ``method``, ``jacobian``, CVODE's ``band`` or ``fixedpoint``."""
+        get = getattr
+        return cls(rtol, atol, method, int(family.max_steps), get(family, "first_step", 0.0),
+                   float(family.max_step), get(family, "min_step", 0.0), get(family, "max_order", 0),
+                   get(family, "order", None), jacobian, band, fixedpoint, float(family.max_wall),
+                   bool(get(family, "sensitivity_errcon", True)), get(family, "sensitivity_corrector", "staggered"))
 
     def with_tolerances(self, rtol, atol) -> "StepControl":
         """This control with other (e.g. resolved) tolerances."""
@@ -203,6 +196,48 @@ def option_fields(struct: Struct, control: StepControl, form=None, recording: Re
 def option_values(struct: Struct, names: tuple, control: StepControl, form=None,
                   recording: Recording | None = None) -> tuple:
     """The values of the fields ``names`` of ``struct`` (:func:`option_fields`), in that order:
-    what :class:`~lagcodegen.solvers.base.PreparedOptions` takes."""
-    fields = option_fields(struct, control, form, recording)
-    return tuple(fields[name] for name in names)
+    what :class:`~lagcodegen.solvers.base.PreparedOptions` takes (those of the last call again
+    when it had the same records, by identity: records are never written)."""
+    global _last_values
+    last = _last_values
+    if last is not None and last[0] is control and last[1] is form and last[2] is recording \
+            and last[3] is struct and last[4] is names:
+        return last[5]
+    values = _picker(struct, names)(_known(control, form, recording))
+    _last_values = (control, form, recording, struct, names, values)
+    return values
+
+
+_last_values = None  # (control, form, recording, struct, names, values) of the last call
+
+
+def remembered(owner, key, make):
+    """``make()``, or what it made for ``owner`` (e.g. a family object) and an equal ``key``
+    the last time: the records of a run made once while its values stay the same. ``key`` None:
+    made every time (keys of plain values only: numbers, strings, identities of read-only
+    arrays that the records made keep alive)."""
+    if key is None:
+        return make()
+    entry = _REMEMBERED.get(id(owner))
+    if entry is not None and entry[0] is owner and entry[1] == key:
+        return entry[2]
+    value = make()
+    if len(_REMEMBERED) >= 256:
+        _REMEMBERED.clear()
+    _REMEMBERED[id(owner)] = (owner, key, value)
+    return value
+
+
+_REMEMBERED: dict = {}  # id(owner) -> (owner, key, records)
+
+
+@functools.lru_cache(maxsize=64)
+def _picker(struct: Struct, names: tuple):
+    """The getter of the fields ``names`` of ``struct`` from :func:`_known`'s values (the names
+    checked against the struct's declaration once)."""
+    declared = {f.name for f in struct.fields}
+    unknown = [name for name in names if name not in declared]
+    if unknown:
+        raise KeyError(f"{struct.name} has no field {', '.join(map(repr, unknown))}")
+    pick = operator.itemgetter(*names)
+    return pick if len(names) > 1 else (lambda known: (pick(known),))

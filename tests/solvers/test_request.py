@@ -51,3 +51,20 @@ def test_an_ensembles_event_table_is_not_a_roots_flag():
     table = np.zeros(1)  # stands for the lcg_ode_roots pointer an ODE ensemble carries in roots
     assert "roots" not in option_fields(CVC_OPTIONS, StepControl(rtol=1e-8, atol=1e-10, method="bdf"),
                                         Index1Form(0.0, 0.0), Recording(roots=table))
+
+
+def test_records_are_remembered_per_owner_while_the_key_stays_equal():
+    from lagcodegen.solvers.request import remembered
+    owner, made = CVODE(max_steps=11), []
+
+    def make():
+        made.append(1)
+        return StepControl.of(owner, 1e-8, 1e-10, method="adams")
+
+    first = remembered(owner, (1e-8, 1e-10), make)
+    assert remembered(owner, (1e-8, 1e-10), make) is first and len(made) == 1
+    assert remembered(owner, (1e-9, 1e-10), make) is not first and len(made) == 2
+    assert remembered(CVODE(max_steps=11), (1e-9, 1e-10), make) is not first and len(made) == 3  # another owner
+    remembered(owner, None, make)
+    remembered(owner, None, make)
+    assert len(made) == 5  # key None: made every time

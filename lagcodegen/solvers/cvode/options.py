@@ -6,6 +6,7 @@ of a constrained system."""
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 from ...errors import LagcodegenError
@@ -17,7 +18,7 @@ from . import ensemble, native
 from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
 from .events import compiled_events
-from ..request import Index1Form, Recording, StepControl
+from ..request import Index1Form, Recording, StepControl, remembered
 
 BACKENDS = ("native", "sksundae")
 #: The fields a prepared ODE run honours (the index-1 ones are refused on the ODE by check_face;
@@ -130,14 +131,21 @@ class CVODE(Family):
             return run(self, cm, t, y, p, rtol, atol, self.sensitivities, events=compiled)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
-        control = self.ode_control(cm, rtol, atol, y, p, self.backend == "native")
-        if self.backend == "native":
+        native_backend = self.backend == "native"
+        # the records made once while the values stay the same (the model by a weak reference, the
+        # compiled events: one object per set, kept with the model); a band solver's widths may be
+        # probed at y, p: made every time
+        key = (weakref.ref(cm), rtol, atol, compiled, native_backend) \
+            if self.linear_solver != "band" and type(atol) is float else None
+        control, recording = remembered(self, key, lambda: (
+            self.ode_control(cm, rtol, atol, y, p, native_backend), self.recording(10_000, events=compiled)))
+        if native_backend:
             if not cm.native:
                 raise LagcodegenError("this module was built without the native driver (build(native=False))")
             if compiled is not None and compiled.table is None:
                 raise LagcodegenError("events on the native CVODE driver need a model built for the runtime "
                                       "(build(code, native=True) of plain C code)")
-            return native.solve_native(cm, t, y, p, control, self.recording(10_000, events=compiled))
+            return native.solve_native(cm, t, y, p, control, recording)
         from ..sksundae import solve_sksundae
         res = solve_sksundae(cm, t, y, p, control, events=compiled)
         # its outputs are evaluated after the run, where nothing fails: check the first row
@@ -270,10 +278,13 @@ class CVODE(Family):
             atol_arr = atol  # what tolerances() returns for these
         else:
             rtol, atol_arr = tolerances(rtol, atol, 2 * sim.n, scalar=native_backend)
-        control = StepControl.of(self, rtol, atol_arr, method=method)
-        form = self.index1_form(projection, alpha, beta)
+        # the records made once while the values stay the same (repeated runs of a fit or a sweep)
+        key = (rtol, atol_arr, method, projection, alpha, beta, bool(roots)) if type(atol_arr) is float else None
+        control, form, recording = remembered(self, key, lambda: (
+            StepControl.of(self, rtol, atol_arr, method=method), self.index1_form(projection, alpha, beta),
+            self.recording(10_000, roots=bool(roots))))
         if native_backend:
-            res = native.solve_index1(sim, t, y0, p, control, form, self.recording(10_000, roots=roots))
+            res = native.solve_index1(sim, t, y0, p, control, form, recording)
         else:
             from .. import sksundae
             res = sksundae.solve_index1(sim, t, y0, p, control, form, roots)

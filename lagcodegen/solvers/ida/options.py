@@ -14,7 +14,7 @@ from ...util import check_finite
 from ..base import _DOUBLE, tolerances
 from ..family import Family, choice
 from . import ensemble, native
-from ..request import GGLForm, Recording, StepControl
+from ..request import GGLForm, Recording, StepControl, remembered
 from .native import ALGEBRAIC_ATOL
 from .stepper import IDAStepper
 
@@ -84,9 +84,14 @@ class IDA(Family):
         """A GGL run of ``sim`` from the consistent initial values (yy0, yp0)."""
         jacobian = self._jacobian(sim)
         rtol, atol_arr = self.tolerances(sim, rtol, atol)
-        control = StepControl.of(self, rtol, atol_arr, method="bdf", jacobian=bool(jacobian))
+        # the records made once while the values stay the same: atol by identity, a read-only array
+        # (the tolerances cached per model) that the records keep alive
+        key = None if atol_arr.flags.writeable else (rtol, id(atol_arr), bool(jacobian), bool(roots))
+        control, form, recording = remembered(self, key, lambda: (
+            StepControl.of(self, rtol, atol_arr, method="bdf", jacobian=bool(jacobian)), self.ggl_form(),
+            self.recording(10_000, roots=bool(roots))))
         if self.backend == "native":
-            return native.solve_ggl(sim, t, yy0, yp0, p, control, self.ggl_form(), self.recording(10_000, roots=roots))
+            return native.solve_ggl(sim, t, yy0, yp0, p, control, form, recording)
         from .. import sksundae
         return sksundae.solve_ggl(sim, t, yy0, yp0, p, control, roots)
 
