@@ -235,8 +235,8 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         if formulation not in FORMULATIONS:
             raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {excerpt(formulation)}")
         o = formulation_options(formulation, options)
-        return _compile_constrained(system, formulation, outputs, o["baumgarte"], o["projection"], events,
-                                    runtime_parameters, values, prefix, o["jacobian"], o["eliminate"], verbose, lang)
+        return _compile_constrained(system, formulation, o, outputs, events, runtime_parameters, values, prefix,
+                                    verbose, lang)
 
 
 #: The options of each constrained formulation with their defaults (``compile_constrained(**options)``).
@@ -262,9 +262,12 @@ def formulation_options(formulation: str, options: Mapping) -> dict:
     return out
 
 
-def _compile_constrained(system, formulation, outputs, baumgarte, projection, events, runtime_parameters, values,
-                         prefix, jacobian, eliminate, verbose, lang):
-    baumgarte = check_baumgarte(baumgarte, "baumgarte")
+def _compile_constrained(system, formulation, options: dict, outputs, events, runtime_parameters, values, prefix,
+                         verbose, lang):
+    """The simulation of ``system`` in ``formulation`` with its ``options`` (those of
+    :data:`FORMULATION_OPTIONS`, each given or defaulted by :func:`formulation_options`)."""
+    projection, jacobian, eliminate = options["projection"], options["jacobian"], options["eliminate"]
+    baumgarte = check_baumgarte(options["baumgarte"], "baumgarte")
     check_language(lang)
     if formulation == "minimal":
         return MinimalSimulation(system, outputs=outputs, events=events, runtime_parameters=runtime_parameters,

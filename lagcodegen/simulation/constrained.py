@@ -63,6 +63,7 @@ from ..solvers.cvode.native import CVC_OPTIONS
 from ..solvers.cvode.sensitivity_constrained import run_index1 as run_sensitivities
 from ..solvers.ida.native import ALGEBRAIC_ATOL, IDA_OPTIONS
 from ..solvers.registry import resolve
+from ..solvers.request import Index1Form, Recording, StepControl
 from ..theory.constraints import ConstrainedSystem
 from ..util import check_finite, output_times
 from .constrained_functions import ConstrainedFunctions
@@ -239,11 +240,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if bad:
             raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
                              "(inequality constraints g >= 0)")
-        max_events = 10_000 if family.max_events is None else family.max_events
-        return runner.run(t, y0, p, method=method, rtol=rtol, atol=atol, alpha=alpha, beta=beta, roots=roots,
-                          max_events=max_events, max_steps=family.max_steps, first_step=family.first_step,
-                          max_step=family.max_step, min_step=family.min_step, max_order=family.max_order,
-                          max_wall=float(family.max_wall), contacts=contacts)
+        return runner.run(t, y0, p, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
+                          family.recording(10_000, roots=roots), contacts)
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""
@@ -281,8 +279,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self.info.contacts:
             raise LagcodegenError("ensembles of systems with contacts are not supported: run the members with "
                                   "simulate (each a call of the impact driver)")
-        return ensemble_constrained(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
-                                    progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
+        return ensemble_constrained(self, t, q0, v0, params=params,
+                                    recording=Recording(save=save, threads=threads, progress=progress),
+                                    executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                     options=options)
 
     def __reduce__(self):

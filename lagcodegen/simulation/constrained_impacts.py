@@ -68,6 +68,7 @@ from ..result import Result
 from ..runtime import sources as runtime_files
 from ..solvers.control import CANCELLED, POLL_EVERY, install, raise_pending
 from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
+from ..solvers.request import Index1Form, Recording, StepControl
 
 #: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...).
 KINDS = ("bounce", "stick", "release", "contact_impulse")
@@ -227,10 +228,13 @@ class ImpactRunner:
             raise LagcodegenError(f"the contact gaps are not finite at t = {t}")
         return g, w
 
-    def run(self, t, y0, p, *, method: str, rtol: float, atol: float, alpha: float, beta: float, roots: bool,
-            max_events: int, max_steps: int, first_step: float, max_step: float, min_step: float, max_order: int,
-            max_wall: float, contacts: ContactOptions) -> Result:
+    def run(self, t, y0, p, control: StepControl, form: Index1Form, recording: Recording,
+            contacts: ContactOptions) -> Result:
+        """A run on the impact driver with the step control ``control`` (a scalar atol), the
+        Baumgarte parameters of ``form`` (no projection), ``recording.roots``: locate the compiled
+        events (at most ``recording.max_events``), and the contact settings ``contacts``."""
         sim, ffi = self.sim, self.ffi
+        method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
         nr = nj + nk
         ny, nt = 2 * sim.n, t.size
@@ -244,12 +248,15 @@ class ImpactRunner:
         n_rec = ffi.new("int *")
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
-        opt.max_steps, opt.first_step, opt.max_step, opt.min_step = int(max_steps), first_step, max_step, min_step
-        opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(max_order), alpha, beta, int(roots), max_wall
+        c = control
+        opt.max_steps, opt.first_step, opt.max_step, opt.min_step = int(c.max_steps), c.first_step, c.max_step, \
+            c.min_step
+        opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(c.max_order), form.alpha, form.beta, \
+            int(roots), c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
         st = ffi.new("lcg_cvc_stats *")
-        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, max_events) if roots and sim.info.events \
-            else None
+        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
+            if roots and sim.info.events else None
         settings = np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol])
         fb = ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)

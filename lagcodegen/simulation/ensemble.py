@@ -21,6 +21,7 @@ from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
 from ..solvers.family import OdeInputRuns
 from ..solvers.inputs import member_sets
 from ..solvers.registry import resolve
+from ..solvers.request import Recording
 from ..util import output_times
 
 
@@ -142,11 +143,14 @@ def ode_states(cm, q0, v0, y0, z0, params) -> tuple[int, np.ndarray, np.ndarray]
 
 
 # ---------------------------------------------------------------------- the ODE of a compiled scene
-def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, threads=None, save="final",
-                 executor=None, progress=None, chunk_size=None, options: dict, inputs=None) -> EnsembleResult:
-    """:meth:`CompiledModel.ensemble <lagcodegen.simulation.ode.CompiledModel.ensemble>`."""
+def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, recording: Recording,
+                 executor=None, chunk_size=None, options: dict) -> EnsembleResult:
+    """:meth:`CompiledModel.ensemble <lagcodegen.simulation.ode.CompiledModel.ensemble>`
+    (``recording``: its ``save``, ``threads`` and ``progress``; ``options`` the run's keywords,
+    ``inputs`` among them)."""
+    threads, save, progress = recording.threads, recording.save, recording.progress
     options = dict(options)
-    inputs = options.pop("inputs", inputs)
+    inputs = options.pop("inputs", None)
     solver, rtol, atol, events, options = run_keywords(options)
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
@@ -189,13 +193,13 @@ def _qv(sim, q0, v0, params) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     return n_mem, Q, V, names
 
 
-def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
-                         progress=None, chunk_size=None, initial="check", ic_tol=1e-8,
-                         options: dict) -> EnsembleResult:
+def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, recording: Recording, executor=None,
+                         chunk_size=None, initial="check", ic_tol=1e-8, options: dict) -> EnsembleResult:
     """:meth:`ConstrainedSimulation.ensemble <lagcodegen.simulation.constrained.ConstrainedSimulation.ensemble>`
-    (index-1 on CVODE, GGL on IDA): every member's initial state is checked (or projected) as
-    ``simulate`` does; a member whose initial state is rejected gets flag -84 and the reason as
-    its message, and is not run."""
+    (index-1 on CVODE, GGL on IDA; ``recording``: its ``save``, ``threads`` and ``progress``):
+    every member's initial state is checked (or projected) as ``simulate`` does; a member whose
+    initial state is rejected gets flag -84 and the reason as its message, and is not run."""
+    threads, save, progress = recording.threads, recording.save, recording.progress
     solver, rtol, atol, events, options = run_keywords(options)
     family = resolve(sim.formulation, solver, options, runs="ensemble")
     roots = sim._roots(events)
@@ -235,12 +239,14 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, threads=None,
     return out
 
 
-def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, threads=None, save="final", executor=None,
-                     progress=None, chunk_size=None, initial="check", ic_tol=1e-8, options: dict) -> EnsembleResult:
-    """:meth:`MinimalSimulation.ensemble <lagcodegen.simulation.minimal.MinimalSimulation.ensemble>`:
-    members grouped by the solution branch of the constraints their initial state lies on (one
-    ensemble call per branch); the outputs ``residuals``/``g_*``/``gdot_*`` computed in Python by
-    ``simulate`` are not part of ensembles."""
+def ensemble_minimal(sim, t, q0=None, v0=None, *, params=None, recording: Recording, executor=None,
+                     chunk_size=None, initial="check", ic_tol=1e-8, options: dict) -> EnsembleResult:
+    """:meth:`MinimalSimulation.ensemble <lagcodegen.simulation.minimal.MinimalSimulation.ensemble>`
+    (``recording``: its ``save``, ``threads`` and ``progress``): members grouped by the solution
+    branch of the constraints their initial state lies on (one ensemble call per branch); the
+    outputs ``residuals``/``g_*``/``gdot_*`` computed in Python by ``simulate`` are not part of
+    ensembles."""
+    threads, save, progress = recording.threads, recording.save, recording.progress
     roots = sim.check_events(options.get("events"))
     t = output_times(t)
     n_mem, Q, V, names = _qv(sim, q0, v0, params)

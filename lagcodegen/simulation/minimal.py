@@ -21,6 +21,7 @@ from ..model.events import event_list
 from ..model.model import Model
 from ..result import Result
 from ..solvers.direction import Direction
+from ..solvers.request import Recording
 from ..theory.constraints import ConstrainedSystem
 from ..theory.minimal import reduced_model, solve_constraints
 from ..solvers.base import file_initial
@@ -190,8 +191,9 @@ class MinimalSimulation(_Base):
         """N runs in one call per solution branch into the generated C (see
         :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble`); q0/v0 (N, n) for all n
         coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``)."""
-        return ensemble_minimal(self, t, q0, v0, params=params, threads=threads, save=save, executor=executor,
-                                progress=progress, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
+        return ensemble_minimal(self, t, q0, v0, params=params,
+                                recording=Recording(save=save, threads=threads, progress=progress),
+                                executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                 options=options)
 
     def _start(self, q0, v0, params, t0: float, initial: str, ic_tol: float):

@@ -24,6 +24,7 @@ from ..solvers.artifacts import Artifacts
 from ..solvers.family import OdeInputRuns
 from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
+from ..solvers.request import Recording
 from ..util import c_vector, check_finite, output_times
 from ..solvers.inputs import input_set
 from ..solvers.payload import with_scene  # noqa: F401 - public here too (lagcodegen.simulation.ode.with_scene)
@@ -373,8 +374,9 @@ class CompiledModel(CompiledReprMixin):
         :class:`~lagcodegen.solvers.ensemble_result.EnsembleInterrupted` (a KeyboardInterrupt)
         holding what finished.
         """
-        return ensemble_ode(self, t, q0, v0, y0=y0, z0=z0, params=params, threads=threads, save=save,
-                            executor=executor, progress=progress, chunk_size=chunk_size, options=options)
+        return ensemble_ode(self, t, q0, v0, y0=y0, z0=z0, params=params,
+                            recording=Recording(save=save, threads=threads, progress=progress), executor=executor,
+                            chunk_size=chunk_size, options=options)
 
     def __reduce__(self):
         """Pickled by its generated sources and their layout (names, defaults; never the .so,

@@ -12,6 +12,7 @@ from ..codes import Flag
 from ..errors import LagcodegenError
 from .base import message
 from .control import CANCELLED, NOT_RUN, POLL_EVERY, Progress, take_pending
+from .request import Layout, Recording, RunArrays
 from .ensemble_result import COUNT_NAMES, FLAG_TEXT, MAX_MESSAGES, EnsembleInterrupted, EnsembleResult
 
 
@@ -37,18 +38,22 @@ def _columns(save, state_cols: list, output_names: list, extra: dict) -> tuple[l
     return names, [index[n] for n in names]
 
 
-def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P: np.ndarray, nrow: int,
-               nout: int, state_names: list, output_names: list, row_names: list, save, threads,
-               progress, poll, YP0=None, events=None, max_events: int = 64, extra_outputs=None,
-               method: str = "", formulation: str = "", n_coordinates=None, param_names=(),
-               roots=None, setup=None) -> EnsembleResult:
-    """One call of a driver's solve-many function ``fn`` over the members Y0 (N, *), P; ``roots``:
-    the event functions of an ODE ensemble (an ``lcg_ode_roots *``) with ``events`` their
-    directions and terminal flags; ``setup(e, keep)``: sets further fields of the ensemble struct
-    ``e`` (arrays kept in ``keep``)."""
+def run_native(ffi, fn, ens_type: str, opt, arrays: RunArrays, layout: Layout, recording: Recording, *, poll,
+               setup=None) -> EnsembleResult:
+    """One call of a driver's solve-many function ``fn`` (with its options struct ``opt``) over the
+    members ``arrays`` (initial states ``y`` (N, *), IDA's ``yp`` or None, parameters ``p``, output
+    times ``t``), their rows laid out as ``layout`` says; ``recording``: what each member keeps
+    (``save``), the ``threads`` and ``progress`` bar, the events (``events``: their directions and
+    terminal flags as int arrays, or None; ``max_events`` per member) and of an ODE ensemble the
+    event functions (``roots``: an ``lcg_ode_roots *``, or None); ``poll`` the Ctrl-C callback;
+    ``setup(e, keep)``: sets further fields of the ensemble struct ``e`` (arrays kept in ``keep``)."""
+    t, Y0, P, YP0 = arrays.t, arrays.y, arrays.p, arrays.yp
+    nrow, nout, extra_outputs = layout.nrow, layout.nout, layout.extra_outputs
+    save, threads, progress = recording.save, recording.threads, recording.progress
+    events, roots = recording.events, recording.roots
     n_mem, nt = Y0.shape[0], t.shape[0]
     extra_outputs = extra_outputs or {}
-    names, cols = _columns(save, row_names, output_names, extra_outputs)
+    names, cols = _columns(save, layout.row_names, layout.output_names, extra_outputs)
     keep = []
     buf = ffi.from_buffer
     e = ffi.new(f"{ens_type} *")
@@ -96,10 +101,10 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
     if events is not None:
         rootdir, terminal = events
         keep += [rootdir, terminal]
-        e.max_events = max_events
+        e.max_events = recording.max_events
         e.rootdir = buf("int[]", rootdir)
         e.terminal = buf("int[]", terminal)
-    if roots is not None:
+    if roots is not None and roots is not False:  # the event functions' table of an ODE ensemble
         e.roots = roots
     bar = Progress(n_mem, show=progress)
     handle = ffi.new_handle(bar)
@@ -133,11 +138,11 @@ def run_native(ffi, fn, ens_type: str, opt, *, t: np.ndarray, Y0: np.ndarray, P:
             messages[i] = text
     stats = {name: counts[:, k] for k, name in enumerate(COUNT_NAMES)}
     stats["wall"] = wall
-    res = EnsembleResult(t=t, state_names=list(state_names), output_names=list(output_names), status=status,
-                         t_reached=t_reached, nt_done=nt_done, final=final, nrow=nrow, stats=stats,
-                         messages=messages, columns=names, traj=traj, params=P, param_names=list(param_names),
-                         extra_outputs=dict(extra_outputs), method=method, formulation=formulation,
-                         n_coordinates=n_coordinates)
+    res = EnsembleResult(t=t, state_names=list(layout.state_names), output_names=list(layout.output_names),
+                         status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=nrow, stats=stats,
+                         messages=messages, columns=names, traj=traj, params=P, param_names=list(layout.param_names),
+                         extra_outputs=dict(extra_outputs), method=layout.method, formulation=layout.formulation,
+                         n_coordinates=layout.n_coordinates)
     if err is not None:
         if isinstance(err, KeyboardInterrupt):
             raise EnsembleInterrupted(res) from None

@@ -19,15 +19,18 @@ from ..model.events import EventRecord
 from ..result import Result
 from .base import ERR_NONFINITE, ERR_SINGULAR, SINGULAR_AUGMENTED, message
 from .ida.native import ALGEBRAIC_ATOL
+from .request import Index1Form, StepControl
 
 
-def solve_sksundae(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                    min_step, max_order, events=None) -> Result:
-    """An ODE run of ``cm`` on scikit-sundae's CVODE; ``events``
+def solve_sksundae(cm, t, y0, p, control: StepControl, events=None) -> Result:
+    """An ODE run of ``cm`` on scikit-sundae's CVODE with the step control ``control``; ``events``
     (:class:`~lagcodegen.solvers.cvode.events.CompiledEvents`): its ``eventsfn`` on the same
     compiled event functions as the native driver's root finding."""
     from sksundae.cvode import CVODE
 
+    method, rtol, atol, jacobian = control.method, control.rtol, control.atol, control.jacobian
+    max_steps, first_step, max_step = control.max_steps, control.first_step, control.max_step
+    min_step, max_order = control.min_step, control.max_order
     ffi, ny = cm.ffi, cm.ny
     crhs, cjac = cm.c_rhs, cm.c_jac
     pp = ffi.from_buffer("double[]", p) if p.size else ffi.NULL
@@ -181,11 +184,16 @@ def _budgeted_solve(solver, t, initial: tuple, max_steps: int, eventsfn=None) ->
                            y_events=last.y_events)
 
 
-def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, roots, max_steps, first_step,
-                 max_step, min_step, max_order) -> Result:
-    """An index-1 constrained run on scikit-sundae's CVODE (no projection: scikit-sundae does
-    not expose CVodeSetProjFn)."""
+def solve_index1(sim, t, y0, p, control: StepControl, form: Index1Form, roots: bool) -> Result:
+    """An index-1 constrained run on scikit-sundae's CVODE with the step control ``control`` and
+    the Baumgarte parameters of ``form`` (no projection: scikit-sundae does not expose
+    CVodeSetProjFn); ``roots``: locate the compiled events."""
     from sksundae.cvode import CVODE
+
+    method, rtol, atol, jacobian = control.method, control.rtol, control.atol, control.jacobian
+    max_steps, first_step, max_step = control.max_steps, control.first_step, control.max_step
+    min_step, max_order = control.min_step, control.max_order
+    alpha, beta = form.alpha, form.beta
 
     ffi, ny = sim.ffi, 2 * sim.n
     pp = sim.c_params(p)
@@ -213,11 +221,15 @@ def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, roots, max_step
     return _constrained_result(sim, soln, t, ny, p, state, wall, method, "scikit-sundae")
 
 
-def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, jacobian, roots, max_steps, first_step, max_step,
-              min_step, max_order) -> Result:
-    """A GGL constrained run on scikit-sundae's IDA (a huge atol keeps lambda, mu out of the
-    error test: scikit-sundae never calls IDASetSuppressAlg)."""
+def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, roots: bool) -> Result:
+    """A GGL constrained run on scikit-sundae's IDA with the step control ``control`` (a huge
+    atol keeps lambda, mu out of the error test: scikit-sundae never calls IDASetSuppressAlg);
+    ``roots``: locate the compiled events."""
     from sksundae.ida import IDA
+
+    method, rtol, atol, jacobian = control.method, control.rtol, control.atol, control.jacobian
+    max_steps, first_step, max_step = control.max_steps, control.first_step, control.max_step
+    min_step, max_order = control.min_step, control.max_order
 
     ffi, n, ng, J = sim.ffi, sim.n, sim.info.ng, sim.info.J
     pp = sim.c_params(p)

@@ -7,55 +7,47 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import METHODS, native_options, tolerances
+from ...codegen.signatures import CVC_OPTIONS, CVODE_OPTIONS
+from ..base import native_options, tolerances
 from ..inputs import fill_inputs
 from ..ensemble_run import event_arrays, run_native
+from ..request import Index1Form, Layout, Recording, RunArrays, StepControl, option_fields
 
 
-def ensemble_ode(cm, t, Y, P, rtol, atol, opts: dict, *, max_wall: float, threads, save, progress, events=None,
-                 max_events: int = 64, inputs=None):
-    """The members (rows of Y, P) of the ODE of ``cm``; ``opts`` the resolved driver options
-    (:meth:`CVODE._ode_options <lagcodegen.solvers.cvode.CVODE>`); ``events``
+def ensemble_ode(cm, t, Y, P, control: StepControl, recording: Recording, inputs=None):
+    """The members (rows of Y, P) of the ODE of ``cm`` with the step control ``control`` (as
+    :meth:`CVODE.ode_control <lagcodegen.solvers.cvode.CVODE>` resolves it); ``recording.events``
     (:class:`~.events.CompiledEvents`) located in every member (its stats ``events`` and
     ``terminated``; a terminal event's time and state are the member's ``t_reached`` and final
     state); ``inputs``: one :class:`~lagcodegen.solvers.inputs.InputSet` per member, or None."""
-    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
-    band = opts.get("band")
+    c = control.with_tolerances(*tolerances(control.rtol, control.atol, cm.ny))
     keep: list = []
-    opt = native_options(cm.ffi, cm.options_type, atol_arr, keep, method=METHODS[opts["method"]],
-                         jacobian=int(opts["jacobian"]), rtol=rtol, max_steps=opts["max_steps"],
-                         first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
-                         max_order=opts["max_order"],
-                         linear_solver=1 if band else 2 if opts.get("fixedpoint") else 0,
-                         mupper=band[0] if band else 0, mlower=band[1] if band else 0)
-    opt.max_wall = max_wall
+    opt = native_options(cm.ffi, cm.options_type, c.atol, keep, **option_fields(CVODE_OPTIONS, c))
     setup = None
     if inputs is not None:
         P = np.ascontiguousarray(np.broadcast_to(P, (Y.shape[0], cm.code.np)))  # each member its row (and tables)
 
         def setup(e, keep):
             e.inputs = fill_inputs(cm.ffi, inputs, keep)
-    return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, t=t, Y0=Y, P=P, setup=setup,
-                      nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
-                      row_names=cm.state_names, save=save, threads=threads, progress=progress, poll=cm.poll,
-                      method=opts["method"], n_coordinates=cm.n, param_names=cm.param_names,
-                      events=None if events is None else (events.directions, events.terminal),
-                      max_events=max_events, roots=None if events is None else events.table)
+    events = recording.events
+    layout = Layout(nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
+                    row_names=cm.state_names, param_names=cm.param_names, method=c.method, n_coordinates=cm.n)
+    recording = recording.replace(events=None if events is None else (events.directions, events.terminal),
+                                  roots=None if events is None else events.table)
+    return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, RunArrays(t, Y, P), layout, recording,
+                      poll=cm.poll, setup=setup)
 
 
-def ensemble_index1(sim, t, Y, P, rtol, atol, family, method: str, projection: bool, alpha: float, beta: float,
-                    roots: bool, max_events: int, *, threads, save, progress):
-    """The members (consistent states, rows of Y) of an index-1 constrained system ``sim``."""
+def ensemble_index1(sim, t, Y, P, control: StepControl, form: Index1Form, recording: Recording):
+    """The members (consistent states, rows of Y) of an index-1 constrained system ``sim`` in the
+    index-1 form ``form``; ``recording.roots``: locate the compiled events in each member."""
     n = sim.n
-    rtol, atol_arr = tolerances(rtol, atol, 2 * n)
+    c = control.with_tolerances(*tolerances(control.rtol, control.atol, 2 * n))
     keep: list = []
-    opt = native_options(sim.ffi, sim.cvc_options_type, atol_arr, keep, method=METHODS[method], rtol=rtol,
-                         alpha=alpha, beta=beta, projection=int(projection), proj_tol=family.proj_tol,
-                         proj_maxit=family.proj_maxit, proj_err=1, max_steps=int(family.max_steps),
-                         first_step=family.first_step, max_step=family.max_step, min_step=family.min_step,
-                         max_order=family.max_order, roots=int(roots), max_wall=float(family.max_wall))
-    return run_native(sim.ffi, sim.cvc_solve_many, sim.cvc_ensemble_type, opt, t=t, Y0=Y, P=P, nrow=2 * n,
-                      nout=len(sim.info.output_names), state_names=sim.state_names, output_names=sim.output_names,
-                      row_names=list(sim.state_names), save=save, threads=threads, progress=progress,
-                      poll=sim.compiled.poll, events=event_arrays(sim.info.events), max_events=max_events,
-                      method=method, formulation=sim.formulation, n_coordinates=n, param_names=sim.param_names)
+    opt = native_options(sim.ffi, sim.cvc_options_type, c.atol, keep, proj_err=1,
+                         **option_fields(CVC_OPTIONS, c, form, recording))
+    layout = Layout(nrow=2 * n, nout=len(sim.info.output_names), state_names=sim.state_names,
+                    output_names=sim.output_names, row_names=list(sim.state_names), param_names=sim.param_names,
+                    method=c.method, formulation=sim.formulation, n_coordinates=n)
+    return run_native(sim.ffi, sim.cvc_solve_many, sim.cvc_ensemble_type, opt, RunArrays(t, Y, P), layout,
+                      recording.replace(events=event_arrays(sim.info.events), roots=None), poll=sim.compiled.poll)

@@ -18,9 +18,10 @@ from ...errors import LagcodegenError
 from ...formulation.scene import band_order
 from ...formulation.scene import bandwidths as widths
 from ...result import Result
-from ..base import (METHODS, SINGULAR_AUGMENTED, NativeEvents, PreparedOptions, message, native_stats,
+from ..base import (SINGULAR_AUGMENTED, NativeEvents, PreparedOptions, message, native_stats,
                    pooled_stats, reached_rows)
 from ..control import CANCELLED, POLL_EVERY, raise_pending
+from ..request import Index1Form, Recording, StepControl, option_values
 
 
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:
@@ -72,13 +73,10 @@ def ode_options(cm) -> PreparedOptions:
         cm.ffi, cm.options_type, *CVODE_RUN_OPTIONS, poll=cm.poll, poll_every=POLL_EVERY))
 
 
-def ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order, band=None,
-               fixedpoint=False, max_wall=0.0):
-    """The options struct of an ODE run of ``cm`` on the native driver (from :func:`ode_options`:
-    shared, never written)."""
-    return ode_options(cm).get(atol, METHODS[method], int(jacobian), rtol, max_steps, first_step, max_step, min_step,
-                               max_order, 1 if band else 2 if fixedpoint else 0, band[0] if band else 0,
-                               band[1] if band else 0, max_wall)
+def ode_struct(cm, control: StepControl):
+    """The options struct of an ODE run of ``cm`` on the native driver with the step control
+    ``control`` (from :func:`ode_options`: shared, never written)."""
+    return ode_options(cm).get(control.atol, *option_values(CVODE_STRUCT, _CVODE_VARYING, control))
 
 
 def run_message(ffi, flag: int, st) -> str:
@@ -91,12 +89,12 @@ def run_message(ffi, flag: int, st) -> str:
     return text
 
 
-def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_step, max_step,
-                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, events=None,
-                 max_events: int = 10_000, inputs=None) -> Result:
-    """An ODE run of a compiled scene: one call of the native driver (``lcg_cvode_solve``) over all
-    output times; with ``events`` (:class:`~.events.CompiledEvents`), ``lcg_cvode_solve_events``
-    locates them (CVODE's root finding; a terminal event's state is the run's last row); with
+def solve_native(cm, t, y0, p, control: StepControl, recording: Recording = Recording(), inputs=None) -> Result:
+    """An ODE run of a compiled scene with the step control ``control``: one call of the native
+    driver (``lcg_cvode_solve``) over all output times; with ``recording.events``
+    (:class:`~.events.CompiledEvents`, at most ``recording.max_events`` kept),
+    ``lcg_cvode_solve_events`` locates them (CVODE's root finding; a terminal event's state is the
+    run's last row); with
     ``inputs`` (:class:`~lagcodegen.solvers.inputs.InputSet`), ``lcg_cvode_solve_inputs`` sets the
     inputs' parameters from their tables in C."""
     ffi = cm.ffi
@@ -104,8 +102,8 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     yout = np.empty((nt, cm.ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, max(cm.code.nout, 1)))
     keep: list = []
-    opt = ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order, band,
-                     fixedpoint, max_wall)
+    opt = ode_struct(cm, control)
+    events, method = recording.events, control.method
     st = ffi.new(cm.stats_type)
     found = None
     args = (ffi.from_buffer("double[]", y0), nt, ffi.from_buffer("double[]", t), ffi.from_buffer("double[]", yout),
@@ -113,7 +111,7 @@ def solve_native(cm, t, y0, p, method, rtol, atol, jacobian, max_steps, first_st
     if events is not None and inputs:
         raise LagcodegenError("events with input tables: not supported")
     if events is not None:
-        found = NativeEvents(ffi, "lcg_events", events.events, cm.ny, max_events)
+        found = NativeEvents(ffi, "lcg_events", events.events, cm.ny, recording.max_events)
         flag = cm.lib.lcg_cvode_solve_events(cm.table, events.table, cm.c_params(p), *args, found.struct)
     elif inputs:
         flag = cm.lib.lcg_cvode_solve_inputs(cm.table, cm.c_params(p), inputs.struct(ffi, keep), *args)
@@ -158,21 +156,21 @@ _CVC_VARYING = ("method", "rtol", "max_steps", "first_step", "max_step", "min_st
 CVC_OPTIONS = (_CVC_VARYING, pack_format(CVC_STRUCT, _CVC_VARYING))
 
 
-def solve_index1(sim, t, y0, p, method, rtol, atol, alpha, beta, projection, proj_tol, proj_maxit, roots,
-                 max_events, max_steps, first_step, max_step, min_step, max_order, max_wall=0.0) -> Result:
+def solve_index1(sim, t, y0, p, control: StepControl, form: Index1Form, recording: Recording) -> Result:
     """An index-1 run of a constrained system (eq. 4.5 at the acceleration level, Baumgarte
-    and/or CVODE's projection): one call of the runtime's ``lcg_cvc_solve`` on the model's table
-    (``sim.c_cvc_solve``). ``atol`` a float (every state) or an array; ``t`` and ``y0``
-    contiguous float64 arrays (the caller's checks)."""
+    and/or CVODE's projection: ``form``): one call of the runtime's ``lcg_cvc_solve`` on the
+    model's table (``sim.c_cvc_solve``); ``recording.roots``: locate the compiled events (at most
+    ``recording.max_events`` kept). ``control.atol`` a float (every state) or an array; ``t``
+    and ``y0`` contiguous float64 arrays (the caller's checks)."""
+    c, roots, method = control, recording.roots, control.method
     ffi = sim.ffi
     ny, nt = 2 * sim._n, t.size
     yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
-    opt = sim.cvc_options.get(atol, METHODS[method], rtol, int(max_steps), first_step, max_step, min_step, max_order,
-                              alpha, beta, int(projection), proj_tol, proj_maxit, int(roots), max_wall)
+    opt = sim.cvc_options.get(c.atol, *option_values(CVC_STRUCT, _CVC_VARYING, c, form, recording))
     pool = sim.cvc_stats_pool
     st = pooled_stats(ffi, pool, sim.cvc_stats_type)
-    events = sim.native_events(max_events) if roots else None
+    events = sim.native_events(recording.max_events) if roots else None
     fb, darr = ffi.from_buffer, sim._double_array
     try:
         start = time.perf_counter()

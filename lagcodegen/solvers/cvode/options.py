@@ -6,6 +6,7 @@ of a constrained system."""
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 from ...errors import LagcodegenError
@@ -17,6 +18,7 @@ from . import ensemble, native
 from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
 from .events import compiled_events
+from ..request import Index1Form, Recording, StepControl, remembered
 
 BACKENDS = ("native", "sksundae")
 #: The fields a prepared ODE run honours (the index-1 ones are refused on the ODE by check_face;
@@ -99,22 +101,23 @@ class CVODE(Family):
             raise LagcodegenError("max_wall needs backend='native'")
 
     # ------------------------------------------------------------------ the ODE of a scene
-    def _ode_options(self, cm, y, p, native_backend: bool) -> dict:
-        """The driver's options for the ODE of ``cm`` (the Jacobian and linear solver resolved)."""
+    def ode_control(self, cm, rtol, atol, y, p, native_backend: bool) -> StepControl:
+        """The step control of a run of the ODE of ``cm`` with these tolerances (the Jacobian and
+        linear solver resolved; ``y``, ``p``: where a band solver's widths are probed)."""
         jacobian = False if self.linear_solver == "fixedpoint" else self.jacobian  # functional iteration
         has_jac = cm.code.jacobian or (bool(getattr(cm.code, "sparse_jacobian", False)) and native_backend)
         if jacobian is None:
             jacobian = has_jac
         if jacobian and not has_jac:
             raise LagcodegenError("jacobian=True but the scene emits no Jacobian (Scene(jacobian=False))")
-        opts = dict(method=self.method or "adams", jacobian=bool(jacobian), max_steps=int(self.max_steps),
-                    first_step=self.first_step, max_step=self.max_step, min_step=self.min_step,
-                    max_order=self.max_order)
-        if self.linear_solver == "band":
-            opts["band"] = native.band_widths(cm, self.bandwidths, y, p)
-        elif self.linear_solver == "fixedpoint":
-            opts["fixedpoint"] = True
-        return opts
+        band = native.band_widths(cm, self.bandwidths, y, p) if self.linear_solver == "band" else None
+        return StepControl.of(self, rtol, atol, method=self.method or "adams", jacobian=bool(jacobian), band=band,
+                              fixedpoint=self.linear_solver == "fixedpoint")
+
+    def recording(self, default_max_events: int, **values) -> Recording:
+        """What a run records: ``values`` (events, sensitivities, ...) and at most ``max_events``
+        events (None: ``default_max_events``)."""
+        return Recording(max_events=default_max_events if self.max_events is None else self.max_events, **values)
 
     def run_ode(self, cm, t, y, p, rtol: float, atol, events=()) -> Result:
         """A run of the ODE of ``cm`` (inputs checked by the face; ``atol`` a float or ny values);
@@ -125,22 +128,26 @@ class CVODE(Family):
             compiled.values(float(t[0]), y, p)
         if self.sensitivities is not None:  # events: their times' sensitivities too (.sensitivity_events)
             from .sensitivity import run
-            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon),
-                       events=compiled)
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, events=compiled)
         if self.backend != "native":  # the native driver reports this itself, from its first RHS call
             check_initial_mass_matrix(cm, t[0], y, p)
-        opts = self._ode_options(cm, y, p, self.backend == "native")
-        if self.backend == "native":
+        native_backend = self.backend == "native"
+        # the records made once while the values stay the same (the model by a weak reference, the
+        # compiled events: one object per set, kept with the model); a band solver's widths may be
+        # probed at y, p: made every time
+        key = (weakref.ref(cm), rtol, atol, compiled, native_backend) \
+            if self.linear_solver != "band" and type(atol) is float else None
+        control, recording = remembered(self, key, lambda: (
+            self.ode_control(cm, rtol, atol, y, p, native_backend), self.recording(10_000, events=compiled)))
+        if native_backend:
             if not cm.native:
                 raise LagcodegenError("this module was built without the native driver (build(native=False))")
             if compiled is not None and compiled.table is None:
                 raise LagcodegenError("events on the native CVODE driver need a model built for the runtime "
                                       "(build(code, native=True) of plain C code)")
-            max_events = 10_000 if self.max_events is None else self.max_events
-            return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall),
-                                       events=compiled, max_events=max_events, **opts)
+            return native.solve_native(cm, t, y, p, control, recording)
         from ..sksundae import solve_sksundae
-        res = solve_sksundae(cm, t, y, p, rtol=rtol, atol=atol, events=compiled, **opts)
+        res = solve_sksundae(cm, t, y, p, control, events=compiled)
         # its outputs are evaluated after the run, where nothing fails: check the first row
         if res.t.size and not all(math.isfinite(v[0]) for v in res.outputs.values()):
             cm.check_initial_outputs(t[0], y, p)
@@ -160,8 +167,7 @@ class CVODE(Family):
             return None
         if self.linear_solver == "band" and self.bandwidths is None and getattr(cm.code, "jac_pattern", None) is None:
             return None
-        opts = self._ode_options(cm, None, None, True)
-        return PreparedCVODERun(cm, rtol=rtol, atol=atol, max_wall=float(self.max_wall), fixed=fixed, **opts)
+        return PreparedCVODERun(cm, self.ode_control(cm, rtol, atol, None, None, True), fixed)
 
     def _prepared_sensitivities(self, cm, rtol: float, atol, fixed: dict):
         """The runs of :meth:`run_ode` with sensitivities (no events) prepared once
@@ -171,12 +177,10 @@ class CVODE(Family):
         if self.backend != "native" or self.linear_solver != "dense" or not self.defaults_beside(_PREPARED):
             return None
         from .prepared_sensitivity import PreparedSensitivityRun
-        opts = self._ode_options(cm, None, None, True)
-        if opts["method"] not in ("adams", "bdf"):
+        control = self.ode_control(cm, rtol, atol, None, None, True)
+        if control.method not in ("adams", "bdf"):
             return None
-        return PreparedSensitivityRun(cm, self.sensitivities, rtol=rtol, atol=atol,
-                                      errcon=bool(self.sensitivity_errcon), max_wall=float(self.max_wall),
-                                      fixed=fixed, corrector=self.sensitivity_corrector, **opts)
+        return PreparedSensitivityRun(cm, self.sensitivities, control, fixed)
 
     def stepper_ode(self, cm, mem, rtol: float, atol, events=()) -> CVODEStepper:
         """The C state of an integrator object on the ODE of ``cm`` (``mem`` = (t, y, p), checked by
@@ -191,22 +195,14 @@ class CVODE(Family):
                 raise LagcodegenError("events on the CVODE integrator object need a model built for the runtime "
                                       "(build(code, native=True) of plain C code)")
             compiled.values(float(mem[0]), y, p)  # a value that is not finite at the start: named here
-        opts = self._ode_options(cm, y, p, True)
-        max_events = 10_000 if self.max_events is None else self.max_events
+        control = self.ode_control(cm, rtol, atol, y, p, True)
+        recording = self.recording(10_000, events=compiled, sensitivities=self.sensitivities)
         if self.sensitivities is not None:  # the sensitivity driver's stepper (.sensitivity_stepper)
-            return self._sensitivity_stepper(cm, mem, rtol, atol, opts, compiled, max_events)
-        return CVODEStepper(cm, mem, rtol=rtol, atol=atol, max_wall=float(self.max_wall), events=compiled,
-                            max_events=max_events, **opts)
-
-    def _sensitivity_stepper(self, cm, mem, rtol, atol, opts, compiled, max_events):
-        from .sensitivity import check_family
-        from .sensitivity_stepper import CVSensStepper
-        check_family(self)
-        return CVSensStepper(cm, mem, self.sensitivities, rtol=rtol, atol=atol, errcon=bool(self.sensitivity_errcon),
-                             method=opts["method"], jacobian=opts["jacobian"], max_steps=opts["max_steps"],
-                             first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
-                             max_order=opts["max_order"], max_wall=float(self.max_wall), events=compiled,
-                             max_events=max_events, corrector=self.sensitivity_corrector)
+            from .sensitivity import check_family
+            from .sensitivity_stepper import CVSensStepper
+            check_family(self)
+            return CVSensStepper(cm, mem, control, recording)
+        return CVODEStepper(cm, mem, control, recording)
 
     def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs) -> Result:
         """A run of the ODE of ``cm`` driven by the input tables ``inputs``
@@ -218,11 +214,9 @@ class CVODE(Family):
             raise LagcodegenError("input tables need the native driver (build(native=True), the default)")
         if self.sensitivities is not None:  # the sensitivity driver with the tables (.sensitivity)
             from .sensitivity import run
-            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, errcon=bool(self.sensitivity_errcon),
-                       inputs=inputs)
-        opts = self._ode_options(cm, y, inputs.apply(p, t[0]), True)
-        return native.solve_native(cm, t, y, p, rtol=rtol, atol=atol, max_wall=float(self.max_wall), inputs=inputs,
-                                   **opts)
+            return run(self, cm, t, y, p, rtol, atol, self.sensitivities, inputs=inputs)
+        control = self.ode_control(cm, rtol, atol, y, inputs.apply(p, t[0]), True)
+        return native.solve_native(cm, t, y, p, control, inputs=inputs)
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of the native driver; ``events``
@@ -232,28 +226,15 @@ class CVODE(Family):
             raise LagcodegenError("this module was built without the native driver (build(native=False))")
         compiled = compiled_events(cm, events)
         if self.sensitivities is not None:
-            return self._ensemble_sensitivities(cm, t, Y, P, rtol, atol, compiled, threads=threads, save=save,
-                                                progress=progress)
-        opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
-        max_events = 64 if self.max_events is None else self.max_events
-        return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
-                                     save=save, progress=progress, events=compiled, max_events=max_events)
-
-    def _ensemble_sensitivities(self, cm, t, Y, P, rtol, atol, compiled, *, threads, save, progress):
-        """Members with forward sensitivities (:mod:`.sensitivity_ensemble`), each a run of the
-        sensitivity driver as :meth:`run_ode` makes it."""
-        from .sensitivity import check_family
-        from .sensitivity_ensemble import ensemble_sensitivities
-        check_family(self)
-        opts = self._ode_options(cm, Y[0], P if P.ndim == 1 else P[0], True)
-        return ensemble_sensitivities(cm, t, Y, P, rtol, atol, self.sensitivities, threads=threads, save=save,
-                                      progress=progress, method=opts["method"],
-                                      errcon=bool(self.sensitivity_errcon), jacobian=opts["jacobian"],
-                                      max_steps=opts["max_steps"], max_order=opts["max_order"],
-                                      first_step=opts["first_step"], max_step=opts["max_step"],
-                                      min_step=opts["min_step"], max_wall=float(self.max_wall), events=compiled,
-                                      max_events=64 if self.max_events is None else self.max_events,
-                                      corrector=self.sensitivity_corrector)
+            from .sensitivity import check_family
+            check_family(self)
+        control = self.ode_control(cm, rtol, atol, Y[0], P if P.ndim == 1 else P[0], True)
+        recording = self.recording(64, events=compiled, sensitivities=self.sensitivities, save=save,
+                                   threads=threads, progress=progress)
+        if self.sensitivities is not None:  # each member a run of the sensitivity driver (.sensitivity_ensemble)
+            from .sensitivity_ensemble import ensemble_sensitivities
+            return ensemble_sensitivities(cm, t, Y, P, control, recording)
+        return ensemble.ensemble_ode(cm, t, Y, P, control, recording)
 
     def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress):
         """Members (rows of Y, P) of the ODE of ``cm``, member i driven by the input tables
@@ -265,14 +246,12 @@ class CVODE(Family):
         if self.sensitivities is not None:
             from .sensitivity import check_family
             check_family(self)
-        opts = self._ode_options(cm, Y[0], inputs[0].apply(P if P.ndim == 1 else P[0], t[0]), True)
+        control = self.ode_control(cm, rtol, atol, Y[0], inputs[0].apply(P if P.ndim == 1 else P[0], t[0]), True)
+        recording = Recording(sensitivities=self.sensitivities, save=save, threads=threads, progress=progress)
         if self.sensitivities is not None:
             from .sensitivity_ensemble import ensemble_sensitivities_inputs
-            return ensemble_sensitivities_inputs(self, cm, t, Y, P, rtol, atol, self.sensitivities, inputs,
-                                                 threads=threads, save=save, progress=progress,
-                                                 method=opts["method"])
-        return ensemble.ensemble_ode(cm, t, Y, P, rtol, atol, opts, max_wall=float(self.max_wall), threads=threads,
-                                     save=save, progress=progress, inputs=inputs)
+            return ensemble_sensitivities_inputs(self, cm, t, Y, P, control, inputs, recording)
+        return ensemble.ensemble_ode(cm, t, Y, P, control, recording, inputs=inputs)
 
     # ------------------------------------------------------------------ index-1 constrained systems
     def index1_settings(self, sim, t0: float, y0, p, native_backend: bool = True):
@@ -299,15 +278,16 @@ class CVODE(Family):
             atol_arr = atol  # what tolerances() returns for these
         else:
             rtol, atol_arr = tolerances(rtol, atol, 2 * sim.n, scalar=native_backend)
+        # the records made once while the values stay the same (repeated runs of a fit or a sweep)
+        key = (rtol, atol_arr, method, projection, alpha, beta, bool(roots)) if type(atol_arr) is float else None
+        control, form, recording = remembered(self, key, lambda: (
+            StepControl.of(self, rtol, atol_arr, method=method), self.index1_form(projection, alpha, beta),
+            self.recording(10_000, roots=bool(roots))))
         if native_backend:
-            max_events = 10_000 if self.max_events is None else self.max_events
-            res = native.solve_index1(sim, t, y0, p, method, rtol, atol_arr, alpha, beta, projection, self.proj_tol,
-                                      self.proj_maxit, roots, max_events, self.max_steps, self.first_step,
-                                      self.max_step, self.min_step, self.max_order, float(self.max_wall))
+            res = native.solve_index1(sim, t, y0, p, control, form, recording)
         else:
             from .. import sksundae
-            res = sksundae.solve_index1(sim, t, y0, p, method, rtol, atol_arr, alpha, beta, roots, self.max_steps,
-                                        self.first_step, self.max_step, self.min_step, self.max_order)
+            res = sksundae.solve_index1(sim, t, y0, p, control, form, roots)
             res.stats.update(alpha=alpha, beta=beta)
         res.stats["projection"] = projection
         return res
@@ -324,11 +304,8 @@ class CVODE(Family):
                                   "sensitivities=[...])")
         ny = 2 * sim.n
         method, projection, alpha, beta = self.index1_settings(sim, float(mem[0]), mem[1:1 + ny], mem[1 + ny:])
-        return CVCStepper(sim, mem, rtol=rtol, atol=atol, method=method, alpha=alpha, beta=beta, projection=projection,
-                          proj_tol=self.proj_tol, proj_maxit=self.proj_maxit, roots=roots,
-                          max_events=10_000 if self.max_events is None else self.max_events,
-                          max_steps=int(self.max_steps), first_step=self.first_step, max_step=self.max_step,
-                          min_step=self.min_step, max_order=self.max_order, max_wall=float(self.max_wall))
+        return CVCStepper(sim, mem, StepControl.of(self, rtol, atol, method=method),
+                          self.index1_form(projection, alpha, beta), self.recording(10_000, roots=roots))
 
     def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Members (consistent initial states, rows of Y) of an index-1 system in one native call."""
@@ -337,9 +314,15 @@ class CVODE(Family):
             raise LagcodegenError("ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) "
                                   "per member")
         method, projection, alpha, beta = self.index1_settings(sim, float(t[0]), None, None)
-        max_events = 64 if self.max_events is None else self.max_events
-        return ensemble.ensemble_index1(sim, t, Y, P, rtol, atol, self, method, projection, alpha, beta, roots,
-                                        max_events, threads=threads, save=save, progress=progress)
+        recording = self.recording(64, roots=roots, save=save, threads=threads, progress=progress)
+        return ensemble.ensemble_index1(sim, t, Y, P, StepControl.of(self, rtol, atol, method=method),
+                                        self.index1_form(projection, alpha, beta), recording)
+
+    def index1_form(self, projection: bool, alpha: float, beta: float) -> Index1Form:
+        """The index-1 form of a run: these resolved settings with this object's projection
+        tolerance and iteration limit."""
+        return Index1Form(alpha=alpha, beta=beta, projection=projection, proj_tol=self.proj_tol,
+                          proj_maxit=self.proj_maxit)
 
     def _native_only(self) -> None:
         if self.backend != "native":

@@ -15,6 +15,7 @@ import numpy as np
 from ..base import native_stats
 from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
+from ..request import StepControl
 from .native import ode_struct, run_message
 
 
@@ -30,14 +31,14 @@ class CVODEResultMaker(ResultMaker):
 
 
 class PreparedCVODERun:
-    """Runs of the ODE of ``cm`` on the native driver with the options given (those of
-    :func:`.native.solve_native`), from the caller's checked arrays: ``run(t, t_ptr, y_ptr, p,
-    p_ptr)`` as :class:`lagcodegen.solvers.taylor.prepared.PreparedTaylorRun`'s."""
+    """Runs of the ODE of ``cm`` on the native driver with the step control ``control`` (that of
+    :func:`.native.solve_native`; ``fixed`` the members every result shares), from the caller's
+    checked arrays: ``run(t, t_ptr, y_ptr, p, p_ptr)`` as
+    :class:`lagcodegen.solvers.taylor.prepared.PreparedTaylorRun`'s."""
 
-    def __init__(self, cm, *, method: str, rtol: float, atol: float, jacobian, max_steps, first_step, max_step,
-                 min_step, max_order, band=None, fixedpoint=False, max_wall=0.0, fixed: dict):
-        self.opt = ode_struct(cm, method, rtol, atol, jacobian, max_steps, first_step, max_step, min_step, max_order,
-                              band, fixedpoint, max_wall)
+    def __init__(self, cm, control: StepControl, fixed: dict):
+        self.opt = ode_struct(cm, control)
+        method = control.method
         self.solve = cm.native_solve
         self.ffi = cm.ffi
         self.stats_type = cm.stats_type

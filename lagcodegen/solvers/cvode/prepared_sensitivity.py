@@ -17,6 +17,7 @@ import numpy as np
 
 from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
+from ..request import StepControl
 from .sensitivity import directions, functions, message, sens_options, sens_stats
 
 
@@ -33,21 +34,18 @@ class SensitivityResultMaker(ResultMaker):
 
 class PreparedSensitivityRun:
     """Runs of the ODE of ``cm`` with the sensitivities ``names`` on the native driver, with the
-    options given (those of :func:`.sensitivity.solve_sensitivities`), from the caller's checked
+    step control ``control`` (that of :func:`.sensitivity.solve_sensitivities`; ``fixed`` the
+    members every result shares), from the caller's checked
     arrays: ``run(t, t_ptr, y_ptr, p, p_ptr)`` as
     :class:`lagcodegen.solvers.cvode.prepared.PreparedCVODERun`'s."""
 
-    def __init__(self, cm, names, *, method: str, rtol: float, atol: float, errcon: bool, jacobian: bool,
-                 max_steps: int, first_step: float, max_step: float, min_step: float, max_order: int,
-                 max_wall: float, fixed: dict, corrector: str = "staggered"):
+    def __init__(self, cm, names, control: StepControl, fixed: dict):
+        method = control.method
         self.names, which, s0 = directions(cm, names)
         self.fns = fns = functions(cm)
         self.ffi = ffi = fns.rt.ffi
         self.ns, self.ny, self.nout = len(self.names), cm.ny, cm.code.nout
-        self.opt, self._atol = sens_options(ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=cm.ny,
-                                            ns=self.ns, errcon=errcon, max_steps=max_steps, jacobian=jacobian,
-                                            max_order=max_order, first_step=first_step, max_step=max_step,
-                                            min_step=min_step, max_wall=max_wall, corrector=corrector)
+        self.opt, self._atol = sens_options(ffi, fns.poll, control, cm.ny, self.ns)
         self._which = np.ascontiguousarray(which)
         self._s0 = np.ascontiguousarray(s0)
         self.which_ptr = ffi.from_buffer("int[]", self._which)

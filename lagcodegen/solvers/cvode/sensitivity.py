@@ -32,6 +32,7 @@ from ...runtime import sources as runtime_files
 from ..base import METHODS, message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 from ..direction import parse_all
+from ..request import Recording, StepControl
 from .sensitivity_events import SensEvents
 
 #: The runtime files of the sensitivity driver.
@@ -138,17 +139,17 @@ def parse_directions(names, *, params: list, states: list, n: int, ny: int, fold
 CORRECTORS = {"staggered": 0, "simultaneous": 1}
 
 
-def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int, errcon: bool, max_steps: int,
-                 jacobian: bool, max_order: int, first_step: float, max_step: float, min_step: float,
-                 max_wall: float, corrector: str = "staggered"):
-    """(the driver's ``lcg_cvsens_options`` struct made by ``ffi`` with the Ctrl-C ``poll`` function, the tolerance array it points to: keep it
-    alive with the struct): the states' absolute tolerances ``atol`` (scalar or ny values) repeated
-    for each of the ns directions, or effectively none for them without ``errcon``; ``corrector``
-    one of :data:`CORRECTORS`."""
+def sens_options(ffi, poll, control: StepControl, ny: int, ns: int):
+    """(the driver's ``lcg_cvsens_options`` struct made by ``ffi`` with the Ctrl-C ``poll``
+    function, the tolerance array it points to: keep it alive with the struct) of the step
+    control ``control``: the states' absolute tolerances ``control.atol`` (scalar or ny values)
+    repeated for each of the ns directions, or effectively none for them without
+    ``control.errcon``; ``control.corrector`` one of :data:`CORRECTORS`."""
+    corrector, errcon = control.corrector, control.errcon
     if corrector not in CORRECTORS:
         raise LagcodegenError(f"sensitivity_corrector must be one of {', '.join(map(repr, CORRECTORS))}, "
                               f"not {corrector!r}")
-    atol = np.broadcast_to(np.asarray(atol, dtype=float), (ny,))
+    atol = np.broadcast_to(np.asarray(control.atol, dtype=float), (ny,))
     if errcon and ns and not np.all(atol > 0.0):
         raise LagcodegenError(
             "sensitivities with error control need atol > 0 in every state component (atol is "
@@ -157,34 +158,36 @@ def sens_options(ffi, poll, *, method: str, rtol: float, atol, ny: int, ns: int,
             "sensitivity_errcon=False")
     atol_all = np.concatenate([atol] + [atol if errcon else np.full(ny, 1e300)] * ns)
     opt = ffi.new("lcg_cvsens_options *")
-    opt.method = METHODS[method]
-    opt.rtol = rtol
+    c = control
+    opt.method = METHODS[c.method]
+    opt.rtol = c.rtol
     opt.atol = ffi.from_buffer("double[]", atol_all)
-    opt.max_steps = int(max_steps)
-    opt.jacobian = int(bool(jacobian))
-    opt.max_order = int(max_order)
-    opt.first_step, opt.max_step, opt.min_step = first_step, max_step, min_step
-    opt.poll, opt.poll_every, opt.max_wall = poll, POLL_EVERY, float(max_wall)
+    opt.max_steps = int(c.max_steps)
+    opt.jacobian = int(bool(c.jacobian))
+    opt.max_order = int(c.max_order)
+    opt.first_step, opt.max_step, opt.min_step = c.first_step, c.max_step, c.min_step
+    opt.poll, opt.poll_every, opt.max_wall = poll, POLL_EVERY, float(c.max_wall)
     opt.corrector = CORRECTORS[corrector]
     return opt, atol_all
 
 
-def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names, *, rtol: float, atol: np.ndarray,
-                        method: str = "adams", errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000,
-                        max_order: int = 0, first_step: float = 0.0, max_step: float = 0.0,
-                        min_step: float = 0.0, max_wall: float = 0.0, events=None,
-                        max_events: int = 10_000, corrector: str = "staggered", inputs=None) -> Result:
-    """One run of the sensitivity driver: a :class:`~lagcodegen.result.Result` whose
-    ``sensitivities`` (nt, ns, ny + nout) hold d(state or output)/d(direction) at every output
-    time, named by ``sensitivity_names`` (directions) and ``state_names`` + output names.
-    ``events`` (:class:`~.events.CompiledEvents`): located as in a plain run, each record with
-    its time's sensitivities (:mod:`.sensitivity_events`); a terminal one ends the run with its
-    state as the last row. ``inputs`` (:class:`~lagcodegen.solvers.inputs.InputSet`): the run
-    driven by these tables (``lcg_cvsens_solve_inputs``), restarted where they jump or kink; no
-    direction may be an input (:func:`check_inputs`)."""
+def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, control: StepControl,
+                        recording: Recording, inputs=None) -> Result:
+    """One run of the sensitivity driver with the step control ``control`` (``method``,
+    ``errcon``, ``corrector``, budgets) along the directions ``recording.sensitivities``: a
+    :class:`~lagcodegen.result.Result` whose ``sensitivities`` (nt, ns, ny + nout) hold
+    d(state or output)/d(direction) at every output time, named by ``sensitivity_names``
+    (directions) and ``state_names`` + output names. ``recording.events``
+    (:class:`~.events.CompiledEvents`, at most ``recording.max_events`` kept): located as in a
+    plain run, each record with its time's sensitivities (:mod:`.sensitivity_events`); a terminal
+    one ends the run with its state as the last row. ``inputs``
+    (:class:`~lagcodegen.solvers.inputs.InputSet`): the run driven by these tables
+    (``lcg_cvsens_solve_inputs``), restarted where they jump or kink; no direction may be an
+    input (:func:`check_inputs`)."""
+    method, events = control.method, recording.events
     if method not in ("adams", "bdf"):
         raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
-    names, which, s0 = directions(cm, names)
+    names, which, s0 = directions(cm, recording.sensitivities)
     if inputs and events is not None:
         raise LagcodegenError("events with input tables: not supported")
     if inputs:
@@ -197,9 +200,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     sout = np.empty((nt, ns, ny))
     out = np.empty((nt, max(nout, 1)))
     dout = np.empty((nt, ns, max(nout, 1)))
-    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
-                                 max_steps=max_steps, jacobian=jacobian, max_order=max_order, first_step=first_step,
-                                 max_step=max_step, min_step=min_step, max_wall=max_wall, corrector=corrector)
+    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, control, ny, ns)
     st = ffi.new("lcg_cvsens_stats *")
     fb = ffi.from_buffer
     p_ptr = fb("double[]", p) if p.size else ffi.NULL
@@ -207,7 +208,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, names,
     args = (fns.table, fns.rhs, fns.out, p_ptr, ns, fb("int[]", which), fb("double[]", y0),
             fb("double[]", np.ascontiguousarray(s0)), nt, fb("double[]", t), fb("double[]", yout), fb("double[]", sout),
             fb("double[]", out), fb("double[]", dout), opt, st)
-    found = None if events is None else SensEvents(ffi, events, ny, ns, max_events)
+    found = None if events is None else SensEvents(ffi, events, ny, ns, recording.max_events)
     if inputs:
         keep: list = []
         flag = lib.lcg_cvsens_solve_inputs(*args[:4], inputs.struct(ffi, keep), *args[4:])
@@ -269,19 +270,16 @@ def add_events(cm, fns, res: Result, found: SensEvents, names, which, p) -> None
             res.sensitivities = np.concatenate([res.sensitivities, np.concatenate([s, dout], axis=1)[None]])
 
 
-def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
-        errcon: bool = True, events=None, inputs=None) -> Result:
-    """A sensitivity run of ``cm`` with the options of the resolved solver ``family`` (a
+def run(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *, events=None,
+        inputs=None) -> Result:
+    """A sensitivity run of ``cm`` along the directions ``names`` with the resolved solver ``family`` (a
     :class:`~lagcodegen.solvers.cvode.CVODE` on the native backend with the dense Newton solver:
-    the block solver of the sensitivity driver replaces it); ``inputs`` its input tables, if any."""
+    the block solver of the sensitivity driver replaces it), with its options; ``inputs`` its
+    input tables, if any."""
     check_family(family)
-    opts = family._ode_options(cm, y, p if not inputs else inputs.apply(p, t[0]), True)
-    return solve_sensitivities(cm, t, y, p, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
-                               jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
-                               first_step=opts["first_step"], max_step=opts["max_step"], min_step=opts["min_step"],
-                               max_wall=float(family.max_wall), events=events,
-                               max_events=10_000 if family.max_events is None else family.max_events,
-                               corrector=family.sensitivity_corrector, inputs=inputs)
+    control = family.ode_control(cm, rtol, atol, y, p if not inputs else inputs.apply(p, t[0]), True)
+    recording = family.recording(10_000, events=events, sensitivities=names)
+    return solve_sensitivities(cm, t, y, p, control, recording, inputs=inputs)
 
 
 def check_family(family) -> None:
@@ -303,12 +301,9 @@ class PreparedSensitivities:
     returns (flag, message); the arrays ``yout`` (nt, ny), ``sout`` (nt, ns, ny), ``out`` (nt,
     nout) and ``dout`` (nt, ns, nout) hold the run's values (``nt_done`` rows of them)."""
 
-    def __init__(self, cm, t: np.ndarray, names, *, rtol: float, atol: np.ndarray, method: str = "adams",
-                 errcon: bool = True, jacobian: bool = True, max_steps: int = 500_000, max_order: int = 0,
-                 first_step: float = 0.0, max_step: float = 0.0, min_step: float = 0.0, max_wall: float = 0.0,
-                 corrector: str = "staggered"):
-        if method not in ("adams", "bdf"):
-            raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
+    def __init__(self, cm, t: np.ndarray, names, control: StepControl):
+        if control.method not in ("adams", "bdf"):
+            raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {control.method!r}")
         self.names, which, s0 = directions(cm, names)
         fns = functions(cm)
         self.fns = fns
@@ -323,10 +318,7 @@ class PreparedSensitivities:
         self.sout = np.empty((nt, ns, ny))
         self.out = np.empty((nt, max(nout, 1)))
         self.dout = np.empty((nt, ns, max(nout, 1)))
-        opt, self._atol = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns, errcon=errcon,
-                                       max_steps=max_steps, jacobian=jacobian, max_order=max_order,
-                                       first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall,
-                                       corrector=corrector)
+        opt, self._atol = sens_options(fns.rt.ffi, fns.poll, control, ny, ns)
         self._opt = opt
         self._st = ffi.new("lcg_cvsens_stats *")
         fb = ffi.from_buffer
@@ -355,12 +347,8 @@ class PreparedSensitivities:
 
 def prepare(family, cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, rtol: float, atol, names, *,
             errcon: bool = True) -> PreparedSensitivities:
-    """The :class:`PreparedSensitivities` of ``cm`` with the options of the resolved solver
-    ``family`` (as :func:`run`; ``y``, ``p`` a representative initial state and parameters)."""
+    """The :class:`PreparedSensitivities` of ``cm`` along ``names`` with the options of the
+    resolved solver ``family`` (as :func:`run`; ``y``, ``p`` a representative initial state and
+    parameters)."""
     check_family(family)
-    opts = family._ode_options(cm, y, p, True)
-    return PreparedSensitivities(cm, t, names, rtol=rtol, atol=atol, method=opts["method"], errcon=errcon,
-                                 jacobian=opts["jacobian"], max_steps=opts["max_steps"], max_order=opts["max_order"],
-                                 first_step=opts["first_step"], max_step=opts["max_step"],
-                                 min_step=opts["min_step"], max_wall=float(family.max_wall),
-                                 corrector=family.sensitivity_corrector)
+    return PreparedSensitivities(cm, t, names, family.ode_control(cm, rtol, atol, y, p, True).replace(errcon=errcon))

@@ -37,6 +37,7 @@ from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import tolerances
 from ..control import CANCELLED, install, raise_pending
+from ..request import StepControl
 from .sensitivity import driver_result, parse_directions, sens_options, sens_runtime
 
 
@@ -135,11 +136,8 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
     sout = np.empty((nt, ns, ny))
     out = np.empty((nt, max(nout, 1)))
     dout = np.empty((nt, ns, max(nout, 1)))
-    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
-                                 errcon=bool(family.sensitivity_errcon), max_steps=family.max_steps, jacobian=True,
-                                 max_order=family.max_order, first_step=family.first_step,
-                                 max_step=family.max_step, min_step=family.min_step, max_wall=family.max_wall,
-                                 corrector=family.sensitivity_corrector)
+    control = StepControl.of(family, rtol, atol, method=method, jacobian=True)
+    opt, atol_all = sens_options(fns.rt.ffi, fns.poll, control, ny, ns)
     if projection:
         opt.project = fns.project
     st = ffi.new("lcg_cvsens_stats *")

@@ -18,6 +18,7 @@ from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
 from ...codegen.cffi_decl import header_cdef
 from ...runtime import sources as runtime_files
 from ..control import install
+from ..request import Recording, StepControl
 from ..stepper import NativeStepper
 from .sensitivity import CDEF, LINKED_UNITS, _sources, directions, functions, sens_options, sens_stats
 from .sensitivity_events import SensEvents
@@ -48,10 +49,11 @@ def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFL
 
 
 class CVSensStepper(NativeStepper):
-    """The C stepper of a compiled scene's ODE with the sensitivities ``names`` on CVODE, on
-    ``mem`` = (t, y, p), a float64 array the caller keeps; ``sens`` (ns, ny) the initial
-    sensitivities (None: unit vectors for initial values, zeros for parameters, as a run starts).
-    ``events`` (:class:`~.events.CompiledEvents` or None) located as in a run, each record with its
+    """The C stepper of a compiled scene's ODE with the sensitivities ``recording.sensitivities``
+    on CVODE (the step control ``control``), on ``mem`` = (t, y, p), a float64 array the caller
+    keeps; its sensitivities start as a run's (unit vectors for initial values, zeros for
+    parameters). ``recording.events`` (:class:`~.events.CompiledEvents` or None) located as in a
+    run, each record with its
     time's sensitivities (the rows of :meth:`event_arrays`: the state, then the sensitivities)."""
 
     family = "cvode"
@@ -59,11 +61,9 @@ class CVSensStepper(NativeStepper):
     calls = ("until", "step")
     with_sensitivities = True  # the integrator object shows them (SensitivityIntegrator)
 
-    def __init__(self, cm, mem: np.ndarray, names, *, rtol: float, atol, errcon: bool, method: str,
-                 jacobian: bool, max_steps: int, first_step: float, max_step: float, min_step: float,
-                 max_order: int, max_wall: float = 0.0, events=None, max_events: int = 10_000,
-                 corrector: str = "staggered"):
-        names, which, s0 = directions(cm, names)
+    def __init__(self, cm, mem: np.ndarray, control: StepControl, recording: Recording):
+        names, which, s0 = directions(cm, recording.sensitivities)
+        events = recording.events
         fns = functions(cm)
         rt = stepper_runtime()
         ffi, lib = rt.ffi, rt.lib
@@ -75,13 +75,10 @@ class CVSensStepper(NativeStepper):
         self.sout = None  # (nt, ns, ny): where propagate_grid's sensitivities go (set per call)
         table = ffi.cast("const lcg_model *", int(cm.ffi.cast("uintptr_t", cm.table)))
         rhs = ffi.cast("lcg_sens_rhs_fn", int(fns.rt.ffi.cast("uintptr_t", fns.rhs)))
-        opt, atol_all = sens_options(ffi, install(rt), method=method, rtol=rtol, atol=atol, ny=ny, ns=ns,
-                                     errcon=errcon, max_steps=max_steps, jacobian=jacobian, max_order=max_order,
-                                     first_step=first_step, max_step=max_step, min_step=min_step, max_wall=max_wall,
-                                     corrector=corrector)
+        opt, atol_all = sens_options(ffi, install(rt), control, ny, ns)
         self.compiled = events
         self.events = list(events.events) if events is not None else []
-        self._native = SensEvents(ffi, events, ny, ns, max_events) if self.events else None
+        self._native = SensEvents(ffi, events, ny, ns, recording.max_events) if self.events else None
         msg = ffi.new("char[]", 512)
         handle = lib.lcg_cvsens_stepper_new(table, rhs, ns, ffi.from_buffer("int[]", which), opt,
                                             ffi.from_buffer("double[]", mem), ffi.from_buffer("double[]", self.sens),

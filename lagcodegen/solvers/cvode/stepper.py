@@ -16,11 +16,13 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.signatures import CVC_OPTIONS, CVODE_OPTIONS
 from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
-from ..base import METHODS, NativeEvents
+from ..base import NativeEvents
 from ..control import POLL_EVERY, install
+from ..request import Index1Form, Recording, StepControl, option_fields
 from ..stepper import NativeStepper, tolerance_option
 
 #: The stepper's files of lagcodegen/runtime/ (lcg_cvode_stepper.c includes lcg_cvode.c).
@@ -79,18 +81,16 @@ def stepper_runtime(kind: str = "cvode", cc: str | None = None, cflags: tuple[st
 
 class CVODEStepper(NativeStepper):
     """The C stepper of a compiled scene's ODE on CVODE, on ``mem`` = (t, y, p), a float64 array
-    the caller keeps. ``opts``: the driver's options as the family resolves them
-    (:meth:`lagcodegen.solvers.cvode.CVODE._ode_options`); ``events``: compiled event functions
-    (:class:`~.events.CompiledEvents`, or None) located by CVODE's root finding and recorded per
-    call (at most ``max_events``)."""
+    the caller keeps. ``control``: the step control as the family resolves it
+    (:meth:`lagcodegen.solvers.cvode.CVODE.ode_control`); ``recording.events``: compiled event
+    functions (:class:`~.events.CompiledEvents`, or None) located by CVODE's root finding and
+    recorded per call (at most ``recording.max_events``)."""
 
     family = "cvode"
     kind = "cvode"
     calls = ("until", "advance", "grid", "step")
 
-    def __init__(self, cm, mem: np.ndarray, *, rtol: float, atol, method: str, jacobian: bool, max_steps: int,
-                 first_step: float, max_step: float, min_step: float, max_order: int, band=None,
-                 fixedpoint: bool = False, max_wall: float = 0.0, events=None, max_events: int = 10_000):
+    def __init__(self, cm, mem: np.ndarray, control: StepControl, recording: Recording):
         if cm.table is None:
             raise LagcodegenError("the integrator object on CVODE needs the model library of a native build "
                                   "(build_code(..., native=True), the default of compile_model)")
@@ -99,21 +99,17 @@ class CVODEStepper(NativeStepper):
         self.ffi, self.lib, self.rt = ffi, lib, rt
         self.cm = cm  # keeps the model's library open
         table = ffi.cast("const lcg_model *", int(cm.ffi.cast("uintptr_t", cm.table)))
+        c, events = control, recording.events
         opt = ffi.new("lcg_cvode_options *")
-        opt.method = METHODS[method]
-        opt.jacobian = int(jacobian)
-        opt.rtol = rtol
-        atol_keep = tolerance_option(ffi, opt, atol, cm.ny)
-        opt.max_steps = max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
-        opt.linear_solver = 1 if band else 2 if fixedpoint else 0
-        opt.mupper, opt.mlower = band if band else (0, 0)
+        for name, value in option_fields(CVODE_OPTIONS, c).items():
+            setattr(opt, name, value)
+        atol_keep = tolerance_option(ffi, opt, c.atol, cm.ny)
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = max_wall
         self.compiled = events  # keeps the event functions' library open
         self.events = list(events.events) if events is not None else []
-        self._native = NativeEvents(ffi, "lcg_events", self.events, cm.ny, max_events) if self.events else None
+        self._native = NativeEvents(ffi, "lcg_events", self.events, cm.ny, recording.max_events) if self.events \
+            else None
         roots = ffi.cast("const lcg_ode_roots *", int(cm.ffi.cast("uintptr_t", events.table))) if self.events \
             else ffi.NULL
         msg = ffi.new("char[]", 512)
@@ -125,35 +121,31 @@ class CVODEStepper(NativeStepper):
 
 class CVCStepper(NativeStepper):
     """The C stepper of a constrained system's index-1 form on CVODE (``lcg_cvc_stepper``), on
-    ``mem`` = (t, y, p) with y = (q, q'), a float64 array the caller keeps; ``roots``: locate the
-    compiled events (recorded per call, at most ``max_events``)."""
+    ``mem`` = (t, y, p) with y = (q, q'), a float64 array the caller keeps, with the step control
+    ``control`` in the index-1 form ``form``; ``recording.roots``: locate the compiled events
+    (recorded per call, at most ``recording.max_events``)."""
 
     family = "cvode"
     kind = "cvc"
 
-    def __init__(self, sim, mem: np.ndarray, *, rtol: float, atol, method: str, alpha: float, beta: float,
-                 projection: bool, proj_tol: float, proj_maxit: int, roots: bool, max_events: int, max_steps: int,
-                 first_step: float, max_step: float, min_step: float, max_order: int, max_wall: float = 0.0):
+    def __init__(self, sim, mem: np.ndarray, control: StepControl, form: Index1Form, recording: Recording):
         rt = stepper_runtime("cvc")
         ffi, lib = rt.ffi, rt.lib
         self.ffi, self.lib, self.rt = ffi, lib, rt
         self.sim = sim  # keeps the model's library open
         ny = 2 * sim.n
         table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
+        c, roots = control, recording.roots
         opt = ffi.new("lcg_cvc_options *")
-        opt.method = METHODS[method]
-        opt.rtol = rtol
-        atol_keep = tolerance_option(ffi, opt, atol, ny)
-        opt.max_steps = max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
-        opt.alpha, opt.beta = alpha, beta
-        opt.projection, opt.proj_tol, opt.proj_maxit, opt.proj_err = int(projection), proj_tol, proj_maxit, 1
-        opt.roots = int(roots)
+        for name, value in option_fields(CVC_OPTIONS, c, form, recording).items():
+            setattr(opt, name, value)
+        atol_keep = tolerance_option(ffi, opt, c.atol, ny)
+        opt.proj_err = 1
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = max_wall
         self.events = list(sim.info.events) if roots else []
-        self._native = NativeEvents(ffi, "lcg_events", self.events, ny, max_events) if self.events else None
+        self._native = NativeEvents(ffi, "lcg_events", self.events, ny, recording.max_events) if self.events \
+            else None
         msg = ffi.new("char[]", 512)
         handle = lib.lcg_cvc_stepper_new(table, opt, ffi.from_buffer("double[]", mem),
                                          self._native.struct if self._native else ffi.NULL, msg, 512)

@@ -15,6 +15,7 @@ from ...result import Result
 from ..base import SINGULAR_AUGMENTED, message, native_stats, pooled_stats, reached_rows
 from ..control import CANCELLED, raise_pending
 from ..cvode.native import append_event_row
+from ..request import GGLForm, Recording, StepControl, option_values
 
 #: Default absolute tolerance of the algebraic GGL unknowns lambda, mu. scikit-sundae never
 #: calls IDASetSuppressAlg, so there a huge atol is what keeps them out of the error test. The
@@ -33,19 +34,20 @@ _IDA_VARYING = ("rtol", "max_steps", "first_step", "max_step", "min_step", "max_
 IDA_OPTIONS = (_IDA_VARYING, pack_format(IDA_STRUCT, _IDA_VARYING))
 
 
-def solve_ggl(sim, t, yy0, yp0, p, rtol, atol, suppress_alg, jacobian, roots, max_events, max_steps,
-              first_step, max_step, min_step, max_order, stop_at_outputs, max_wall=0.0) -> Result:
-    """A GGL run: one call of ``lcg_ida_solve`` (``sim.c_ida_solve``; ``t``, ``yy0``, ``yp0``
-    contiguous float64 arrays, ``atol`` a float or an array of NG values)."""
+def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, form: GGLForm, recording: Recording) -> Result:
+    """A GGL run with the step control ``control`` in the GGL form ``form``: one call of
+    ``lcg_ida_solve`` (``sim.c_ida_solve``; ``t``, ``yy0``, ``yp0`` contiguous float64 arrays,
+    ``control.atol`` a float or an array of NG values); ``recording.roots``: locate the compiled
+    events (at most ``recording.max_events`` kept)."""
+    c, roots, suppress_alg = control, recording.roots, form.suppress_alg
     ffi = sim.ffi
     ng, nt, n = sim.info.ng, t.size, sim.n
     yout = np.empty((nt, ng))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
-    opt = sim.ida_options.get(atol, rtol, int(max_steps), first_step, max_step, min_step, max_order, int(suppress_alg),
-                              int(jacobian), int(roots), int(stop_at_outputs), max_wall)
+    opt = sim.ida_options.get(c.atol, *option_values(IDA_STRUCT, _IDA_VARYING, c, form, recording))
     pool = sim.ida_stats_pool
     st = pooled_stats(ffi, pool, sim.ida_stats_type)
-    events = sim.native_events(max_events) if roots else None
+    events = sim.native_events(recording.max_events) if roots else None
     fb, darr = ffi.from_buffer, sim._double_array
     try:
         start = time.perf_counter()

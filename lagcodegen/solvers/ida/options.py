@@ -14,6 +14,7 @@ from ...util import check_finite
 from ..base import _DOUBLE, tolerances
 from ..family import Family, choice
 from . import ensemble, native
+from ..request import GGLForm, Recording, StepControl, remembered
 from .native import ALGEBRAIC_ATOL
 from .stepper import IDAStepper
 
@@ -83,14 +84,16 @@ class IDA(Family):
         """A GGL run of ``sim`` from the consistent initial values (yy0, yp0)."""
         jacobian = self._jacobian(sim)
         rtol, atol_arr = self.tolerances(sim, rtol, atol)
+        # the records made once while the values stay the same: atol by identity, a read-only array
+        # (the tolerances cached per model) that the records keep alive
+        key = None if atol_arr.flags.writeable else (rtol, id(atol_arr), bool(jacobian), bool(roots))
+        control, form, recording = remembered(self, key, lambda: (
+            StepControl.of(self, rtol, atol_arr, method="bdf", jacobian=bool(jacobian)), self.ggl_form(),
+            self.recording(10_000, roots=bool(roots))))
         if self.backend == "native":
-            max_events = 10_000 if self.max_events is None else self.max_events
-            return native.solve_ggl(sim, t, yy0, yp0, p, rtol, atol_arr, bool(self.suppress_alg), bool(jacobian),
-                                    roots, max_events, self.max_steps, self.first_step, self.max_step,
-                                    self.min_step, self.max_order, bool(self.stop_at_outputs), float(self.max_wall))
+            return native.solve_ggl(sim, t, yy0, yp0, p, control, form, recording)
         from .. import sksundae
-        return sksundae.solve_ggl(sim, t, yy0, yp0, p, rtol, atol_arr, bool(jacobian), roots, self.max_steps,
-                                  self.first_step, self.max_step, self.min_step, self.max_order)
+        return sksundae.solve_ggl(sim, t, yy0, yp0, p, control, roots)
 
     def stepper_ggl(self, sim, mem, yy0, yp0, rtol, atol, roots: bool) -> IDAStepper:
         """The C state of an integrator object on the GGL form of ``sim`` (``mem`` = (t, y, p), the
@@ -100,12 +103,8 @@ class IDA(Family):
             raise LagcodegenError("the integrator object runs on the native driver (backend='native')")
         jacobian = self._jacobian(sim)
         rtol, atol_arr = self.tolerances(sim, rtol, atol)
-        return IDAStepper(sim, mem, yy0, yp0, rtol=rtol, atol=atol_arr, suppress_alg=bool(self.suppress_alg),
-                          jacobian=bool(jacobian), roots=roots,
-                          max_events=10_000 if self.max_events is None else self.max_events,
-                          max_steps=int(self.max_steps), first_step=self.first_step, max_step=self.max_step,
-                          min_step=self.min_step, max_order=self.max_order,
-                          stop_at_outputs=bool(self.stop_at_outputs), max_wall=float(self.max_wall))
+        control = StepControl.of(self, rtol, atol_arr, method="bdf", jacobian=bool(jacobian))
+        return IDAStepper(sim, mem, yy0, yp0, control, self.ggl_form(), self.recording(10_000, roots=roots))
 
     def ensemble_ggl(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Members (rows (yy0, yp0) of Y) of the GGL form of ``sim`` in one native call."""
@@ -113,6 +112,15 @@ class IDA(Family):
             raise LagcodegenError("ensembles run on the native drivers (backend='native')")
         jacobian = self._jacobian(sim)
         rtol_, atol_arr = self.tolerances(sim, rtol, atol)
-        max_events = 64 if self.max_events is None else self.max_events
-        return ensemble.ensemble_ggl(sim, t, Y, P, rtol_, atol_arr, self, jacobian, roots, max_events,
-                                     threads=threads, save=save, progress=progress)
+        control = StepControl.of(self, rtol_, atol_arr, method="bdf", jacobian=jacobian)
+        recording = self.recording(64, roots=roots, save=save, threads=threads, progress=progress)
+        return ensemble.ensemble_ggl(sim, t, Y, P, control, self.ggl_form(), recording)
+
+    def ggl_form(self) -> GGLForm:
+        """The GGL form of this object's runs (``suppress_alg``, ``stop_at_outputs``)."""
+        return GGLForm(suppress_alg=bool(self.suppress_alg), stop_at_outputs=bool(self.stop_at_outputs))
+
+    def recording(self, default_max_events: int, **values) -> Recording:
+        """What a run records: ``values`` (roots, ...) and at most ``max_events`` events (None:
+        ``default_max_events``)."""
+        return Recording(max_events=default_max_events if self.max_events is None else self.max_events, **values)

@@ -15,10 +15,12 @@ import os
 import numpy as np
 
 from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, runtime_sources
+from ...codegen.signatures import IDA_OPTIONS
 from ...codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
 from ...runtime import sources as runtime_files
 from ..base import NativeEvents
 from ..control import POLL_EVERY, install
+from ..request import GGLForm, Recording, StepControl, option_fields
 from ..stepper import NativeStepper
 from .native import ALGEBRAIC_ATOL
 
@@ -59,33 +61,33 @@ def stepper_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFL
 class IDAStepper(NativeStepper):
     """The C stepper of a constrained system's GGL form on IDA (``lcg_ida_stepper``), on ``mem`` =
     (t, y, p) with y = (q, v), a float64 array the caller keeps, from the initial values (yy0,
-    yp0) of the unknowns (q, v, lambda, mu); ``roots``: locate the compiled events."""
+    yp0) of the unknowns (q, v, lambda, mu), with the step control ``control`` in the GGL form
+    ``form``; ``recording.roots``: locate the compiled events (at most ``recording.max_events``
+    kept per call)."""
 
     family = "ida"
     kind = "ida"
 
-    def __init__(self, sim, mem: np.ndarray, yy0: np.ndarray, yp0: np.ndarray, *, rtol: float, atol: np.ndarray,
-                 suppress_alg: bool, jacobian: bool, roots: bool, max_events: int, max_steps: int, first_step: float,
-                 max_step: float, min_step: float, max_order: int, stop_at_outputs: bool, max_wall: float = 0.0):
+    def __init__(self, sim, mem: np.ndarray, yy0: np.ndarray, yp0: np.ndarray, control: StepControl, form: GGLForm,
+                 recording: Recording):
         rt = stepper_runtime()
         ffi, lib = rt.ffi, rt.lib
         self.ffi, self.lib, self.rt = ffi, lib, rt
         self.sim = sim  # keeps the model's library open
         ng = sim.info.ng
         table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
-        atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), (ng,)))
+        c, roots = control, recording.roots
+        atol_keep = np.ascontiguousarray(np.broadcast_to(np.asarray(c.atol, dtype=float), (ng,)))
         opt = ffi.new("lcg_ida_options *")
-        opt.rtol, opt.atol, opt.atol_vec = rtol, float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
-        opt.max_steps = max_steps
-        opt.first_step, opt.max_step, opt.min_step, opt.max_order = first_step, max_step, min_step, max_order
-        opt.suppress_alg, opt.jacobian = int(suppress_alg), int(jacobian)
+        for name, value in option_fields(IDA_OPTIONS, c, form, recording).items():
+            setattr(opt, name, value)
+        opt.atol, opt.atol_vec = float(atol_keep.min()), ffi.from_buffer("double[]", atol_keep)
         opt.calc_ic, opt.ic_alg_atol = 1, ALGEBRAIC_ATOL
-        opt.roots, opt.stop_at_outputs = int(roots), int(stop_at_outputs)
         opt.poll = install(rt)
         opt.poll_every = POLL_EVERY
-        opt.max_wall = max_wall
         self.events = list(sim.info.events) if roots else []
-        self._native = NativeEvents(ffi, "lcg_events", self.events, ng, max_events) if self.events else None
+        self._native = NativeEvents(ffi, "lcg_events", self.events, ng, recording.max_events) if self.events \
+            else None
         msg = ffi.new("char[]", 512)
         yy0 = np.ascontiguousarray(yy0, dtype=float)
         yp0 = np.ascontiguousarray(yp0, dtype=float)

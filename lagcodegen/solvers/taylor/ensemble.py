@@ -10,19 +10,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import control
+from ...codegen.signatures import TAYLOR_OPTIONS
+from .. import control as poll_control
 from ..base import tolerances
 from ..ensemble_run import run_native
+from ..request import Layout, Recording, RunArrays, StepControl, option_fields
 from .run import taylor_module
 
 
-def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol=1e-10, max_step=0.0,
-                        max_steps=1_000_000, order=None, max_wall=0.0):
+def run_taylor_ensemble(cm, t, Y, P, control: StepControl, recording: Recording):
+    """The members (rows of Y, P) in one call of ``lcg_taylor_solve_many`` with the step control
+    ``control`` (tolerances, ``max_step``, ``max_steps``, ``order``, ``max_wall``); ``recording``:
+    what each member keeps (``save``), the ``threads`` and ``progress`` bar (no events)."""
+    c = control
     tm = taylor_module(cm)  # the jet of simulate(method="taylor") without events, built once
     ffi, table = tm.ffi, tm.table
-    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
+    rtol, atol_arr = tolerances(c.rtol, c.atol, cm.ny)
     opt = ffi.new("lcg_taylor_options *")
-    opt.rtol = rtol
+    for name, value in option_fields(TAYLOR_OPTIONS, c.with_tolerances(rtol, atol_arr)).items():
+        setattr(opt, name, value)
     keep = []
     if np.all(atol_arr == atol_arr[0]):
         opt.atol = float(atol_arr[0])
@@ -31,38 +37,34 @@ def run_taylor_ensemble(cm, t, Y, P, *, threads, save, progress, rtol=1e-8, atol
         keep.append(atol_arr)
         opt.atol = float(atol_arr.min())
         opt.atol_vec = ffi.from_buffer("double[]", atol_arr)
-    opt.max_steps = int(max_steps)
-    opt.max_step = float(max_step)
-    opt.order = int(order or 0)
-    opt.max_wall = float(max_wall)
     solve_many = tm.lib.lcg_taylor_solve_many
 
     def solve(e, o):
         e.model = table
         return solve_many(e, o)
 
-    return run_native(ffi, solve, "lcg_taylor_ensemble", opt, t=t, Y0=Y, P=P,
-                      nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
-                      row_names=cm.state_names, save=save, threads=threads, progress=progress,
-                      poll=control.install(tm.module), method="taylor", n_coordinates=cm.n,
-                      param_names=cm.param_names)
+    layout = Layout(nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
+                    row_names=cm.state_names, param_names=cm.param_names, method="taylor", n_coordinates=cm.n)
+    return run_native(ffi, solve, "lcg_taylor_ensemble", opt, RunArrays(t, Y, P), layout,
+                      recording.replace(events=None, roots=None), poll=poll_control.install(tm.module))
 
 
-def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progress, rtol=1e-8, atol=1e-10,
-                                    errcon=True, max_step=0.0, max_steps=1_000_000, order=None, max_wall=0.0,
-                                    events=(), max_events=10_000):
-    """The members (rows of Y, P) with the sensitivities ``names``: each one run of the variational
-    jet (built once, before the threads start) on its own statistics and arrays, gathered by
-    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`; ``events`` located in
-    every member (at most ``max_events`` kept per member), each with its time's sensitivities."""
+def run_taylor_sensitivity_ensemble(cm, t, Y, P, control: StepControl, recording: Recording):
+    """The members (rows of Y, P) with the sensitivities ``recording.sensitivities`` and the step
+    control ``control``: each one run of the variational jet (built once, before the threads
+    start) on its own statistics and arrays, gathered by
+    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`; ``recording.events``
+    located in every member (at most ``recording.max_events`` kept per member), each with its
+    time's sensitivities."""
+    c, names, events, max_events = control, recording.sensitivities, recording.events, recording.max_events
     from ..ensemble_sensitivities import ensemble_of_runs
     from .prepared_sensitivity import PreparedTaylorSensitivityRun
     from .run import scene_of
     from .sensitivity import variational_module
     module = variational_module(cm, scene_of(cm), names, events)
-    rtol, atol_arr = tolerances(rtol, atol, cm.ny)
-    run = PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol_arr, errcon=errcon, max_step=float(max_step),
-                                       max_steps=int(max_steps), order=order, max_wall=float(max_wall), fixed={},
+    rtol, atol_arr = tolerances(c.rtol, c.atol, cm.ny)
+    run = PreparedTaylorSensitivityRun(module, rtol=rtol, atol=atol_arr, errcon=c.errcon, max_step=float(c.max_step),
+                                       max_steps=int(c.max_steps), order=c.order, max_wall=float(c.max_wall), fixed={},
                                        model_ffi=cm.ffi, param_names=cm.param_names)
     t = np.ascontiguousarray(t, dtype=float)
     t_ptr = module.rt.ffi.from_buffer("double[]", t)
@@ -75,5 +77,5 @@ def run_taylor_sensitivity_ensemble(cm, t, Y, P, names, *, threads, save, progre
         def member_run(i, y0, p):
             return run(t, t_ptr, model_buffer("double[]", y0), p, None)
 
-    return ensemble_of_runs(cm, t, Y, P, module.names, member_run, threads=threads, save=save,
-                            progress=progress, method="taylor")
+    return ensemble_of_runs(cm, t, Y, P, module.names, member_run, threads=recording.threads, save=recording.save,
+                            progress=recording.progress, method="taylor")

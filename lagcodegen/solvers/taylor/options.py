@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from ...errors import LagcodegenError
 from ...result import Result
 from ..family import Family, names_field
+from ..request import Recording, StepControl
 from .ensemble import run_taylor_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
 from .prepared import PreparedTaylorRun
@@ -128,10 +129,7 @@ class Taylor(Family):
         breakpoints (:mod:`.sensitivity_inputs`)."""
         if self.sensitivities is not None:
             from .sensitivity_inputs import run_taylor_sensitivity_inputs
-            return run_taylor_sensitivity_inputs(cm, t, y, p, inputs, self.sensitivities, rtol=rtol, atol=atol,
-                                                 errcon=bool(self.sensitivity_errcon), max_step=float(self.max_step),
-                                                 max_steps=int(self.max_steps), order=self.order,
-                                                 max_wall=float(self.max_wall))
+            return run_taylor_sensitivity_inputs(cm, t, y, p, inputs, self.sensitivities, self.control(rtol, atol))
         from .inputs import run_taylor_inputs
         return run_taylor_inputs(cm, t, y, p, inputs, rtol=rtol, atol=atol, max_step=self.max_step,
                                  max_steps=int(self.max_steps), order=self.order, max_wall=float(self.max_wall))
@@ -145,26 +143,23 @@ class Taylor(Family):
             raise LagcodegenError("input tables are interpolated by the native CVODE driver; Taylor ensembles do "
                                   "not take them without sensitivities (use method='adams' or 'bdf')")
         from .sensitivity_inputs import run_taylor_sensitivity_inputs_ensemble
-        return run_taylor_sensitivity_inputs_ensemble(cm, t, Y, P, inputs, self.sensitivities, threads=threads,
-                                                      save=save, progress=progress, rtol=rtol, atol=atol,
-                                                      errcon=bool(self.sensitivity_errcon),
-                                                      max_step=float(self.max_step), max_steps=int(self.max_steps),
-                                                      order=self.order, max_wall=float(self.max_wall))
+        recording = Recording(sensitivities=self.sensitivities, save=save, threads=threads, progress=progress)
+        return run_taylor_sensitivity_inputs_ensemble(cm, t, Y, P, inputs, self.control(rtol, atol), recording)
 
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
         sensitivities, each member a run of the variational jet (:mod:`.ensemble`), ``events``
         located in each (without sensitivities: refused, those members run on CVODE)."""
+        recording = Recording(events=events, max_events=self.max_events, sensitivities=self.sensitivities, save=save,
+                              threads=threads, progress=progress)
         if self.sensitivities is not None:
-            return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.sensitivities, threads=threads, save=save,
-                                                   progress=progress, rtol=rtol, atol=atol,
-                                                   errcon=bool(self.sensitivity_errcon), max_step=self.max_step,
-                                                   max_steps=self.max_steps, order=self.order,
-                                                   max_wall=self.max_wall, events=events,
-                                                   max_events=self.max_events)
+            return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
         if events:
             raise LagcodegenError("Taylor ensembles have no events without sensitivities: events in every member "
                                   "run on CVODE (simulate(method='taylor', events=...) runs one member with them)")
-        return run_taylor_ensemble(cm, t, Y, P, threads=threads, save=save, progress=progress, rtol=rtol, atol=atol,
-                                   max_step=self.max_step, max_steps=self.max_steps, order=self.order,
-                                   max_wall=self.max_wall)
+        return run_taylor_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
+
+    def control(self, rtol, atol) -> StepControl:
+        """The step control of a run with these tolerances (``max_step``, ``max_steps``, ``order``,
+        ``max_wall``, the sensitivities' ``errcon``)."""
+        return StepControl.of(self, rtol, atol, method="taylor")

@@ -18,6 +18,7 @@ import numpy as np
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...result import Result
+from ..request import Recording, StepControl
 # ------------------------------------------------------------------------------------------
 from .inputs import InputSeriesScene, run_segments
 from .run import scene_of
@@ -37,17 +38,18 @@ def series_variational_module(cm, names, inputs: tuple) -> VariationalModule:
     return cm.artifacts.get(VariationalModule, ("inputs", tuple(names), tuple(inputs)), make)
 
 
-def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, names, *,
-                                  rtol: float, atol, errcon: bool, max_step: float, max_steps: int,
-                                  order: int | None, max_wall: float = 0.0) -> Result:
+def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarray, tables, names,
+                                  control: StepControl) -> Result:
     """The trajectory of ``cm`` driven by ``tables`` (:class:`~lagcodegen.solvers.inputs.InputSet`)
-    and its sensitivities along ``names`` (as a Taylor sensitivity run without tables reports
-    them; statistics summed over the segments)."""
+    and its sensitivities along ``names`` with the step control ``control`` (as a Taylor
+    sensitivity run without tables reports them; statistics summed over the segments)."""
+    c = control
+    max_steps = c.max_steps
     from ..cvode.sensitivity import check_inputs, directions
     check_inputs(*directions(cm, names)[:2], tables)  # before anything is built
     module = series_variational_module(cm, names, tuple(tables.names))
-    opt, keep = module.new_options(rtol=rtol, atol=atol, errcon=errcon, max_step=max_step, max_steps=max_steps,
-                                   order=order, max_wall=max_wall)
+    opt, keep = module.new_options(rtol=c.rtol, atol=c.atol, errcon=c.errcon, max_step=c.max_step,
+                                   max_steps=max_steps, order=c.order, max_wall=c.max_wall)
     ny, ns = module.ny, module.ns
 
     def segment(seg, start, pseg, budget):
@@ -65,27 +67,26 @@ def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarra
     return res
 
 
-def run_taylor_sensitivity_inputs_ensemble(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, inputs: list, names, *,
-                                           threads, save, progress, rtol: float, atol, errcon: bool,
-                                           max_step: float, max_steps: int, order: int | None,
-                                           max_wall: float = 0.0):
+def run_taylor_sensitivity_inputs_ensemble(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, inputs: list,
+                                           control: StepControl, recording: Recording):
     """The members (rows of Y, P), member i driven by the input tables ``inputs[i]``, with the
-    sensitivities ``names``: each member :func:`run_taylor_sensitivity_inputs` (its own options
-    struct; the module of every set of inputs built before the threads start), gathered by
+    sensitivities ``recording.sensitivities`` and the step control ``control``: each member
+    :func:`run_taylor_sensitivity_inputs` (its own options struct; the module of every set of inputs
+    built before the threads start), gathered by
     :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`."""
     from ..base import tolerances
     from ..cvode.sensitivity import check_inputs, directions
     from ..ensemble_sensitivities import ensemble_of_runs
+    names = recording.sensitivities
     parsed, which, _ = directions(cm, names)
     for tables in inputs:
         check_inputs(parsed, which, tables)
         series_variational_module(cm, names, tuple(tables.names))
-    rtol, atol = tolerances(rtol, atol, cm.ny, scalar=True)  # as simulate() resolves them
+    control = control.with_tolerances(*tolerances(control.rtol, control.atol, cm.ny, scalar=True))  # as simulate()
     t = np.ascontiguousarray(t, dtype=float)
 
     def member_run(i, y0, p):
-        return run_taylor_sensitivity_inputs(cm, t, y0, p, inputs[i], names, rtol=rtol, atol=atol, errcon=errcon,
-                                             max_step=max_step, max_steps=max_steps, order=order, max_wall=max_wall)
+        return run_taylor_sensitivity_inputs(cm, t, y0, p, inputs[i], names, control)
 
-    return ensemble_of_runs(cm, t, Y, P, parsed, member_run, threads=threads, save=save, progress=progress,
-                            method="taylor")
+    return ensemble_of_runs(cm, t, Y, P, parsed, member_run, threads=recording.threads, save=recording.save,
+                            progress=recording.progress, method="taylor")
