@@ -15,9 +15,7 @@ the errors and util; matplotlib is imported when a picture is drawn.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -25,7 +23,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from .errors import LagcodegenError
-from .util import atomic_write, excerpt
+from .util import atomic_write, excerpt, staged_outputs
 
 #: Frames of an animation at most (a longer one is refused: lower fps or duration).
 MAX_FRAMES = 5000
@@ -334,22 +332,6 @@ def zigzag(a: np.ndarray, b: np.ndarray, width: float, coils: int = SPRING_COILS
     return np.vstack([a, middle, b])
 
 
-@contextlib.contextmanager
-def _atomic_path(path: Path):
-    """A unique temporary path beside ``path`` with its suffix (writers pick the format by it),
-    moved onto ``path`` when the block ends without error, removed otherwise."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        yield tmp
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 class _Frame:
     """What matplotlib's movie writers see as the figure: its size, and ``savefig`` handing
     over the current blitted frame (raw RGBA, or PNG for the HTML player) instead of drawing
@@ -435,7 +417,8 @@ def animate(path: str | os.PathLike, drawing: Drawing, t: np.ndarray, positions:
     else:
         writer = animation.HTMLWriter(fps=fps, embed_frames=True, default_mode="loop")
     frame = _Frame(anim)
-    with _atomic_path(path) as tmp:
+    with staged_outputs([path]) as staged:  # the movie appears whole or not at all
+        tmp = str(staged[path])
         writer.setup(frame, tmp, dpi=anim.fig.dpi)
         try:
             for k in range(len(times)):

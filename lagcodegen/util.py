@@ -164,6 +164,7 @@ def staged_outputs(paths):
             staged[target] = Path(tmp)
         yield dict(staged)
         for target, tmp in staged.items():
+            os.chmod(tmp, 0o644)  # mkstemp made it private; an output is a plain file as open() would make it
             os.replace(tmp, target)
             published.append(target)
     except BaseException:

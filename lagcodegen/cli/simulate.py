@@ -194,9 +194,8 @@ def apply_initial(mf, values: dict[str, float]):
     names = [q.name for q in mf.model.coords] + [v.name for v in mf.model.speeds]
     for name in values:
         if name not in names:
-            close = difflib.get_close_matches(name, names, n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise UsageError(f"--initial {excerpt(name)}: not a coordinate or velocity of {mf.model.name}{hint} "
+            raise UsageError(f"--initial {excerpt(name)}: not a coordinate or velocity of {mf.model.name}"
+                             f"{_did_you_mean(name, names)} "
                              f"(coordinates: {', '.join(names[:len(names) // 2])}; velocities: <q>_dot)")
     s = mf.simulation
     return dataclasses.replace(mf, simulation=dataclasses.replace(s, initial={**s.initial, **values}))
@@ -211,10 +210,14 @@ def check_columns(args, columns: list[str]) -> None:
         wanted += xy
     for name in wanted:
         if name not in columns:
-            close = difflib.get_close_matches(name, columns, n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
             raise UsageError(f"--plot-{'xy' if name in xy else 'y'} {excerpt(name)}: not a column of the result"
-                             f"{hint} (columns: {', '.join(columns)})")
+                             f"{_did_you_mean(name, columns)} (columns: {', '.join(columns)})")
+
+
+def _did_you_mean(name: str, choices: list[str]) -> str:
+    """"; did you mean 'x'?" with the closest of ``choices`` to ``name``, or nothing."""
+    close = difflib.get_close_matches(name, choices, n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def not_conserved(mf) -> str | None:

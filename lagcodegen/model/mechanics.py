@@ -189,18 +189,8 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
     exprs += ([] if D_conv is None else [D_conv]) + [Q for _, _, Q in Q_conv]
     subs = imp.declare_parameters(exprs, parameters)
     model = imp.model
-    for body_name, T, V in energies:
-        if T != 0:
-            model.kinetic_energy(T.xreplace(subs), label=f"T[{body_name}]")
-        if V != 0:
-            model.potential_energy(V.xreplace(subs), label=f"V[{body_name}]")
-    for body_name, r in positions:
-        model.point(body_name, r.xreplace(subs))
-    imp.add_loads(Q_conv, subs)
-    if D_conv is not None:
-        model.dissipation(D_conv.xreplace(subs), label="D")
-    model.validate()
-    return model
+    _add_energies(model, energies, subs)
+    return _finish(model, imp, positions, Q_conv, D_conv, subs)
 
 
 def from_system(system, *, parameters: ParameterValues | None = None, dissipation=None, name: str = "model",
@@ -279,21 +269,11 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     exprs += ([] if D_conv is None else [D_conv]) + [Q for _, _, Q in Q_conv]
     subs = imp.declare_parameters(exprs, parameters, unset=unset)
     model = imp.model
-    for body_name, T, V in energies:
-        if T != 0:
-            model.kinetic_energy(T.xreplace(subs), label=f"T[{body_name}]")
-        if V != 0:
-            model.potential_energy(V.xreplace(subs), label=f"V[{body_name}]")
+    _add_energies(model, energies, subs)
     for label, V in potentials:
         if V != 0:
             model.potential_energy(V.xreplace(subs), label=label)
-    for body_name, r in positions:
-        model.point(body_name, r.xreplace(subs))
-    imp.add_loads(Q_conv, subs)
-    if D_conv is not None:
-        model.dissipation(D_conv.xreplace(subs), label="D")
-    model.validate()
-    return model
+    return _finish(model, imp, positions, Q_conv, D_conv, subs)
 
 
 def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | None = None):
@@ -424,6 +404,27 @@ def _loads(forces) -> list[tuple[object, Vector]]:
             raise ModelError(f"load on {location.name}: {excerpt(vector)} is not a sympy.physics.vector Vector")
         out.append((location, vector))
     return out
+
+
+def _finish(model, imp, positions, Q_conv, D_conv, subs):
+    """The imported model completed: the bodies' points, the loads, the dissipation (parameters
+    substituted by ``subs``), validated."""
+    for body_name, r in positions:
+        model.point(body_name, r.xreplace(subs))
+    imp.add_loads(Q_conv, subs)
+    if D_conv is not None:
+        model.dissipation(D_conv.xreplace(subs), label="D")
+    model.validate()
+    return model
+
+
+def _add_energies(model, energies, subs) -> None:
+    """Each body's (name, T, V) of ``energies`` into ``model`` (parameters substituted by ``subs``)."""
+    for body_name, T, V in energies:
+        if T != 0:
+            model.kinetic_energy(T.xreplace(subs), label=f"T[{body_name}]")
+        if V != 0:
+            model.potential_energy(V.xreplace(subs), label=f"V[{body_name}]")
 
 
 def _energies(body, frame, imp) -> tuple[str, sp.Expr, sp.Expr]:
