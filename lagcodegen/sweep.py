@@ -308,7 +308,8 @@ def run_plan(plan: Plan, mf, sim, values: dict[str, float], say: Callable[[str],
     q0, v0 = mf.initial_state()
     Q = np.tile(np.asarray(q0, dtype=float), (n_mem, 1))
     V = np.tile(np.asarray(v0, dtype=float), (n_mem, 1))
-    params: dict[str, Any] = {k: float(values[k]) for k in sim.param_names}
+    driven = set(spec.inputs or ())  # inputs driven by tables: no value of theirs goes with them
+    params: dict[str, Any] = {k: float(values[k]) for k in sim.param_names if k not in driven}
     for name, vals in swept.items():
         if name in coords:
             Q[:, coords.index(name)] = vals
