@@ -201,12 +201,18 @@ class _Decomposer:
         self.memo: dict = {}
         self.op_memo: dict = {}
         self.labels: dict = {}
+        self.const_known: dict = {}  # expression -> is_const
         self.where = ""
         self.names: dict = {}  # array symbols -> model symbols, for messages
 
     # -------------------------------------------------------------- rows and constants
     def is_const(self, e) -> bool:
-        return not (e.free_symbols & self.varsyms)
+        """No state variable or time in ``e`` (remembered: the free symbols of a large shared
+        expression cost its size as a tree, and each subexpression is asked about several times)."""
+        known = self.const_known.get(e)
+        if known is None:
+            known = self.const_known[e] = not (e.free_symbols & self.varsyms)
+        return known
 
     def constant(self, e):
         """A constant subexpression: a symengine number, or a Const for the run constants."""
