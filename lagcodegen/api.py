@@ -102,13 +102,11 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
     from .buildstep import generator_record
     from .cache import cache_key, cached_build
     from .modelfile import urdf as _urdf
+    from .modelfile import urdfxml as _urdfxml
     from .simulation.ode import pickle_code
 
     load = dict(load or {})
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read the URDF file ({exc.strerror or exc})") from None
+    data = _urdfxml.read_bytes(path, max_bytes=load.get("max_bytes", _urdfxml.MAX_BYTES))
     digest = hashlib.sha256(data).hexdigest()
     options = dict(jacobian=jacobian, outputs=list(outputs), runtime_parameters=runtime_parameters,
                    values=dict(values or {}), prefix=prefix)

@@ -62,5 +62,5 @@ def test_compile_urdf_refuses_what_it_cannot_cache(tmp_path):
     path.write_text(ARM.format(name="limited_arm", mass=1.0))
     with pytest.raises(ModelError, match="limits=True.*compile_constrained"):
         lcg.compile_urdf(path, load={"limits": True})
-    with pytest.raises(ModelError, match="cannot read the URDF file"):
+    with pytest.raises(ModelError, match="missing.urdf.*cannot read the file"):
         lcg.compile_urdf(tmp_path / "missing.urdf")

@@ -73,3 +73,53 @@ def test_simulate_and_sweep_take_input_tables(tmp_path, capsys):
     assert main(["simulate", str(model), "-o", str(out), "--input", f"F={tmp_path / 'bad.txt'}", "-q"]) == 2
     assert "--input F: times must increase strictly" in capsys.readouterr().err
     assert main(["simulate", str(model), "-o", str(out), "--input", "F", "-q"]) == 2
+
+
+def test_input_tables_that_are_not_regular_files_or_too_large_are_refused(tmp_path, capsys, monkeypatch):
+    """--input reads a regular file of at most INPUT_TABLE_MAX_BYTES (64 MiB): a FIFO (or a device
+    such as /dev/zero, read without end into a bare MemoryError) is refused without waiting for a
+    writer, a folder too, and a larger file before it is read; each a usage error (exit 2) naming
+    the input, the file and, for the size, the limit."""
+    import os
+    import threading
+    import time
+
+    from lagcodegen.cli import common
+    model = tmp_path / "forced.toml"
+    model.write_text(FORCED)
+    out = tmp_path / "r.csv"
+    fifo = tmp_path / "table.fifo"
+    os.mkfifo(fifo)
+
+    def writer():  # a table for whoever opens the FIFO for reading (within 5 s): never the new code's open
+        end = time.monotonic() + 5
+        while time.monotonic() < end:
+            try:
+                fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+            except OSError:
+                time.sleep(0.01)
+                continue
+            try:
+                os.write(fd, b"0 0\n1.3 2\n")
+            except OSError:
+                pass
+            os.close(fd)
+            return
+    thread = threading.Thread(target=writer, daemon=True)
+    thread.start()
+    capsys.readouterr()
+    assert main(["simulate", str(model), "-o", str(out), "--input", f"F={fifo}", "-q"]) == 2
+    assert f"--input F: '{fifo}' is a FIFO, not a regular file" in capsys.readouterr().err
+    assert main(["simulate", str(model), "-o", str(out), "--input", f"F={tmp_path}", "-q"]) == 2
+    assert "--input F:" in capsys.readouterr().err and not out.exists()
+    thread.join()
+
+    assert common.INPUT_TABLE_MAX_BYTES == 64 * 2**20
+    table = tmp_path / "step.txt"
+    table.write_text("0 0\n" + "".join(f"{1 + k * 1e-3:.6f} 2\n" for k in range(20)))
+    monkeypatch.setattr(common, "INPUT_TABLE_MAX_BYTES", 100)
+    assert main(["simulate", str(model), "-o", str(out), "--input", f"F={table}", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"--input F: '{table}' is larger than the input table limit of 100 bytes" in err and "Traceback" not in err
+    monkeypatch.setattr(common, "INPUT_TABLE_MAX_BYTES", 10_000)
+    assert main(["simulate", str(model), "-o", str(out), "--input", f"F={table}:zoh", "-q"]) == 0

@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import difflib
+import os
+import stat
 import sys
 import time
 
@@ -47,9 +49,64 @@ def _name(name: str) -> str:
     return name if len(name) <= EXCERPT else excerpt(name)
 
 
+#: The largest input table file --input reads, in bytes (64 MiB: millions of rows t, value); a
+#: larger one, or a file that is not a regular file (a FIFO, a device such as /dev/zero, a
+#: folder), is a usage error naming it, found before anything is read beyond the cap.
+INPUT_TABLE_MAX_BYTES = 64 * 2**20
+
+
+def _file_kind(mode: int) -> str:
+    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
+def read_input_table(path: str, *, what: str, max_bytes: int | None = None) -> str:
+    """The text of the input table file ``path`` (``what`` names it in errors, "--input F"):
+    a regular file (a FIFO or device is opened without blocking and refused), of at most
+    ``max_bytes`` bytes (default :data:`INPUT_TABLE_MAX_BYTES`; read in chunks, never more
+    than ``max_bytes + 1``), UTF-8."""
+    max_bytes = INPUT_TABLE_MAX_BYTES if max_bytes is None else max_bytes
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError as exc:
+        raise UsageError(f"{what}: cannot read {excerpt(path)}: {exc.strerror or exc}") from None
+    mode = os.fstat(fd)
+    if not stat.S_ISREG(mode.st_mode):  # checked before a file object is made (a folder's would fail)
+        os.close(fd)
+        raise UsageError(f"{what}: {excerpt(path)} is {_file_kind(mode.st_mode)}, not a regular file of two "
+                         "columns t, value")
+    with os.fdopen(fd, "rb") as fh:
+        too_large = (f"{what}: {excerpt(path)} is larger than the input table limit of {max_bytes} bytes "
+                     f"({max_bytes / 2**20:.3g} MiB)")
+        if mode.st_size > max_bytes:
+            raise UsageError(too_large)
+        chunks, size = [], 0
+        try:
+            while size <= max_bytes:
+                chunk = fh.read(min(1 << 20, max_bytes + 1 - size))
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                size += len(chunk)
+        except OSError as exc:
+            raise UsageError(f"{what}: cannot read {excerpt(path)}: {exc.strerror or exc}") from None
+        if size > max_bytes:  # the file grew while it was read
+            raise UsageError(too_large)
+    try:
+        return b"".join(chunks).decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UsageError(f"{what}: {excerpt(path)} is not UTF-8 text (byte {exc.start})") from None
+
+
 def input_tables(items: list[str] | None) -> dict:
     """The tables of --input NAME=FILE[:KIND] (FILE: two columns t, value, whitespace or commas;
-    KIND: linear (default), zoh or cubic), as simulate(inputs=...) takes them."""
+    KIND: linear (default), zoh or cubic), as simulate(inputs=...) takes them. FILE is a
+    regular file of at most :data:`INPUT_TABLE_MAX_BYTES` (:func:`read_input_table`)."""
+    import io
+
     import numpy as np
 
     from ..errors import LagcodegenError
@@ -61,8 +118,9 @@ def input_tables(items: list[str] | None) -> dict:
         path, _, kind = rest.rpartition(":") if rest.rsplit(":", 1)[-1] in KINDS else (rest, "", "linear")
         if not sep or not name or not path:
             raise UsageError(f"--input expects NAME=FILE[:{'|'.join(KINDS)}], got {excerpt(item)}")
+        text = read_input_table(path, what=f"--input {_name(name)}")
         try:
-            rows = np.loadtxt(path, delimiter="," if path.endswith(".csv") else None, ndmin=2)
+            rows = np.loadtxt(io.StringIO(text), delimiter="," if path.endswith(".csv") else None, ndmin=2)
         except (OSError, ValueError) as exc:
             raise UsageError(f"--input {_name(name)}: cannot read {excerpt(path)} as two columns t, value: "
                              f"{excerpt(str(exc))}") from None

@@ -80,7 +80,7 @@ def add_parser(sub) -> None:
                         "requiring it to satisfy them")
     s.add_argument("--input", action="append", metavar="NAME=FILE[:KIND]",
                    help="an input's table: FILE has two columns t, value; KIND linear (default), zoh or cubic "
-                        "(repeatable)")
+                        "(repeatable); FILE a regular file of at most 64 MiB")
     add_scene_options(s)
     s.set_defaults(func=run)
 

@@ -58,7 +58,7 @@ def add_parser(sub) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.add_argument("--input", action="append", metavar="NAME=FILE[:KIND]",
                    help="an input's table, the same for every member: FILE has two columns t, value; KIND linear "
-                        "(default), zoh or cubic (repeatable)")
+                        "(default), zoh or cubic (repeatable); FILE a regular file of at most 64 MiB")
     add_progress_option(p)
     p.set_defaults(func=run)
 

@@ -197,14 +197,16 @@ class Model:
         for name in names:
             _check_name(name, "coordinate")
             self._check_free(name)
+            taken = self._taken()[1]
             for suffix in DERIVED_SUFFIXES:
-                if name + suffix in self._names():
+                if name + suffix in taken:
                     raise ModelError(f"coordinate {name!r}: {name + suffix!r} (its "
                                      f"{'velocity' if suffix == '_dot' else 'acceleration'}) is already "
                                      "the name of a coordinate or parameter")
             q = sp.Symbol(name)
             self.coords.append(q)
             self.speeds.append(sp.Symbol(f"{name}_dot"))
+            self._note_taken(coordinate=q)
             out.append(q)
         return tuple(out)
 
@@ -223,17 +225,56 @@ class Model:
         value = check_finite(default, f"parameter {name!r}")
         sym = sp.Symbol(name)
         self.params[sym] = value
+        self._note_taken(parameter=sym)
         return sym
 
     def _names(self) -> set[str]:
         return {s.name for s in self.coords} | {s.name for s in self.speeds} | {s.name for s in self.params}
 
-    def _check_free(self, name: str) -> None:
-        for q in self.coords:  # the velocity and acceleration symbols each coordinate brings
+    def _taken_key(self) -> tuple:
+        return (id(self.coords), len(self.coords), id(self.speeds), len(self.speeds), id(self.params), len(self.params))
+
+    def _taken(self) -> tuple[dict, set]:
+        """(derived name -> (velocity or acceleration, coordinate), :meth:`_names`): kept up to
+        date by :meth:`coordinates` and :meth:`parameter` (constant time per declaration), built
+        again from the lists when they were changed from outside (replaced, or grown by others)."""
+        cache = self.__dict__.get("_taken_cache")
+        if cache is None or cache[0] != self._taken_key():
+            derived: dict = {}
+            for q in self.coords:  # the velocity and acceleration symbols each coordinate brings
+                for suffix, what in zip(DERIVED_SUFFIXES, ("velocity", "acceleration")):
+                    derived.setdefault(q.name + suffix, (what, q.name))
+            cache = (self._taken_key(), derived, self._names())
+            self.__dict__["_taken_cache"] = cache
+        return cache[1], cache[2]
+
+    def _note_taken(self, *, coordinate: sp.Symbol | None = None, parameter: sp.Symbol | None = None) -> None:
+        """Add the names of a coordinate just appended (with its speed) or of a parameter just set
+        to the cache of :meth:`_taken`, if it was up to date before; else drop it."""
+        cache = self.__dict__.pop("_taken_cache", None)
+        if cache is None:
+            return
+        key, derived, names = cache
+        grown = 1 if coordinate is not None else 0
+        before = (key[0], key[1] + grown, key[2], key[3] + grown, key[4], key[5] + (parameter is not None))
+        if before != self._taken_key():
+            return
+        if coordinate is not None:
             for suffix, what in zip(DERIVED_SUFFIXES, ("velocity", "acceleration")):
-                if name == q.name + suffix:
-                    raise ModelError(f"name {name!r} is taken by the {what} of coordinate {q.name!r}")
-        if name in self._names():
+                derived.setdefault(coordinate.name + suffix, (what, coordinate.name))
+            names.update((coordinate.name, self.speeds[-1].name))
+        if parameter is not None:
+            names.add(parameter.name)
+        self.__dict__["_taken_cache"] = (self._taken_key(), derived, names)
+
+    def _check_free(self, name: str) -> None:
+        """ModelError if ``name`` is a coordinate's, speed's or parameter's, or the velocity or
+        acceleration of a coordinate (constant time: :meth:`_taken`)."""
+        derived, names = self._taken()
+        if name in derived:
+            what, q = derived[name]
+            raise ModelError(f"name {name!r} is taken by the {what} of coordinate {q!r}")
+        if name in names:
             raise ModelError(f"name {name!r} is declared twice")
 
     def dot(self, q: sp.Symbol) -> sp.Symbol:
@@ -243,6 +284,18 @@ class Model:
     def index(self, q) -> int:
         """Index of a coordinate given by symbol or name."""
         name = q if isinstance(q, str) else getattr(q, "name", None)
+        # name -> index, extended as coordinates are appended (constant time per call); a hit is
+        # checked against the list, which others may have changed, and a miss looked for in it.
+        cached = self.__dict__.get("_index_cache")
+        if cached is None or cached[0] != id(self.coords) or cached[1] > len(self.coords):
+            cached = (id(self.coords), 0, {})
+        positions = cached[2]
+        for i in range(cached[1], len(self.coords)):
+            positions.setdefault(self.coords[i].name, i)
+        self.__dict__["_index_cache"] = (id(self.coords), len(self.coords), positions)
+        i = positions.get(name)
+        if i is not None and self.coords[i].name == name:
+            return i
         for i, c in enumerate(self.coords):
             if c.name == name:
                 return i

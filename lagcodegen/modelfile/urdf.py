@@ -69,7 +69,7 @@ from ..util import excerpt
 from ..model.bodies import Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem, Inequality
-from .urdfxml import (ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
+from .urdfxml import (MAX_BYTES, ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
 __all__ = ["load", "loads", "build", "bodies", "DEFAULT_FORM", "FORMS", "FRICTION", "MIMIC", "URDFError",
@@ -164,7 +164,7 @@ def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | 
         return (inertial.mass, p + R @ np.array(inertial.xyz, dtype=float),
                 R @ inertial.inertia_in_link_frame() @ R.T)
 
-    def walk(body_link: str, joint: Joint | None, parent: str | None, R0: np.ndarray, p0: np.ndarray) -> None:
+    def walk(body_link: str, joint: Joint | None, parent: str | None, R0: np.ndarray, p0: np.ndarray) -> list:
         # the links welded to body_link by fixed joints, with their poses in the body frame
         welded = [(body_link, np.eye(3), np.zeros(3))]
         movable: list[tuple[Joint, np.ndarray, np.ndarray]] = []
@@ -182,11 +182,14 @@ def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | 
             pieces = [pc for pc in (inertial_piece(link, R, p) for link, R, p in welded) if pc is not None]
             mass, com, inertia = _merge(pieces) if pieces else (0.0, np.zeros(3), np.zeros((3, 3)))
             out.append(Body(joint, parent, R0, p0, mass, com, inertia))
-        for j, R, p in movable:
-            walk(j.child, j, body_link if joint is not None else None, R, p)
+        return [(j.child, j, body_link if joint is not None else None, R, p) for j, R, p in movable]
 
+    # Depth first, children in file order, with a stack (a chain of thousands of links is deeper
+    # than Python's recursion limit).
     root_joint = None if floating is None else Joint(floating, "floating", "", robot.root)
-    walk(robot.root, root_joint, None, np.eye(3), np.zeros(3))
+    stack = [(robot.root, root_joint, None, np.eye(3), np.zeros(3))]
+    while stack:
+        stack += reversed(walk(*stack.pop()))
     return out
 
 
@@ -353,7 +356,8 @@ def _limit_kind(limits, robot: RobotDescription) -> float | None:
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
          limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-         form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
+         form: str = DEFAULT_FORM, floating: bool | str = False,
+         max_bytes: int | None = MAX_BYTES) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
 
@@ -373,12 +377,15 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     ``floating``: True puts the root link on a free joint ``root_joint`` (a string names it):
     six coordinates ``<name>_x, _y, _z`` (the root frame's origin in the world) and the Z-Y-X
     Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at pitch = +-pi/2, see
-    :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world.
+    :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world;
+    ``max_bytes``: a larger file is refused before it is read (:data:`MAX_BYTES`, 20 MiB,
+    unless told; None: no cap).
     """
-    return build(read(path), name=name, gravity=gravity, limits=limits, friction=friction,
+    return build(read(path, max_bytes=max_bytes), name=name, gravity=gravity, limits=limits, friction=friction,
                  friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating)
 
 
-def loads(text: str | bytes, *, filename: str = "<string>", **options) -> Model | ConstrainedSystem:
+def loads(text: str | bytes, *, filename: str = "<string>", max_bytes: int | None = MAX_BYTES,
+          **options) -> Model | ConstrainedSystem:
     """As :func:`load`, for URDF text (``filename`` names it in error messages)."""
-    return build(parse(text, filename=filename), **options)
+    return build(parse(text, filename=filename, max_bytes=max_bytes), **options)

@@ -21,8 +21,8 @@ cycle), joints that form a cycle, a zero joint axis, a negative mass, a negative
 friction, an inertia tensor with a negative eigenvalue (beyond :data:`INERTIA_RTOL` and
 :data:`INERTIA_ATOL`; zero
 eigenvalues are accepted: massless "dummy" links, point masses), ``lower > upper`` limits, a
-``<mimic>`` naming a joint that does not exist. A ``<robot>`` without a name takes the file's
-stem.
+``<mimic>`` naming a joint that does not exist, a file (or text) above :data:`MAX_BYTES`
+(``max_bytes=`` moves or lifts the cap). A ``<robot>`` without a name takes the file's stem.
 
 Conventions (URDF): ``rpy`` are fixed-axis roll, pitch, yaw, R = Rz(yaw) Ry(pitch) Rx(roll);
 a joint's ``origin`` places the child link's frame (= the joint frame) in the parent link's
@@ -54,6 +54,10 @@ INERTIA_RTOL = 1e-9
 INERTIA_ATOL = 1e-18
 #: Joint types with one coordinate along or about the axis.
 ONE_DOF = ("revolute", "continuous", "prismatic")
+#: The largest URDF read or parsed unless told (``max_bytes=``), in bytes: 20 MiB, far above
+#: real robots (Panda, ANYmal, Solo: tens of kB; meshes are separate files) and below what
+#: takes seconds and hundreds of MB to parse (a 50 MB file: 12.5 s, 846 MB).
+MAX_BYTES = 20 * 2**20
 
 
 class URDFError(ModelError):
@@ -142,8 +146,15 @@ class RobotDescription:
     parent_joint: dict = field(default_factory=dict)  # link name -> joint name (every link but the root)
 
     def children(self, link: str) -> list[Joint]:
-        """The joints whose parent is ``link``, in file order."""
-        return [j for j in self.joints.values() if j.parent == link]
+        """The joints whose parent is ``link``, in file order (an index built on the first call:
+        constant time per call after it)."""
+        index = self.__dict__.get("_children")
+        if index is None:
+            index = {}
+            for j in self.joints.values():
+                index.setdefault(j.parent, []).append(j)
+            object.__setattr__(self, "_children", index)  # a cache: the description stays as frozen
+        return list(index.get(link, ()))
 
 
 def rpy_matrix(rpy) -> np.ndarray:
@@ -303,10 +314,30 @@ def _joint(r: _Reader, el: ET.Element) -> Joint:
     return Joint(name, jtype, parent, child, xyz, rpy, axis, limit, dynamics, mimic, r.lines.get(el))
 
 
-def parse(text: str | bytes, *, filename: str = "<string>") -> RobotDescription:
-    """The checked :class:`RobotDescription` of URDF ``text`` (``filename`` names it in errors)."""
+def _check_max_bytes(max_bytes, filename: str) -> int | None:
+    if max_bytes is None:
+        return None
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
+        raise URDFError(f"max_bytes must be a positive integer or None, got {max_bytes!r:.80}", filename, None, "")
+    return max_bytes
+
+
+def _too_large(filename: str, size: str, max_bytes: int) -> URDFError:
+    return URDFError(f"the URDF is {size}, above the size cap of {max_bytes} bytes "
+                     f"({max_bytes / 2**20:.3g} MiB); pass max_bytes= a larger number (or None) to read it",
+                     filename, None, "")
+
+
+def parse(text: str | bytes, *, filename: str = "<string>", max_bytes: int | None = MAX_BYTES) -> RobotDescription:
+    """The checked :class:`RobotDescription` of URDF ``text`` (``filename`` names it in errors).
+
+    ``max_bytes``: the largest text accepted, in bytes (UTF-8), default :data:`MAX_BYTES`;
+    None: no cap. A larger one is a :class:`URDFError` naming the file and the cap."""
+    max_bytes = _check_max_bytes(max_bytes, filename)
     if isinstance(text, str):
         text = text.encode("utf-8")
+    if max_bytes is not None and len(text) > max_bytes:
+        raise _too_large(filename, f"{len(text)} bytes", max_bytes)
     root, lines = _read_tree(text, filename)
     r = _Reader(filename, lines)
     if root.tag != "robot":
@@ -352,16 +383,21 @@ def parse(text: str | bytes, *, filename: str = "<string>") -> RobotDescription:
     if len(roots) > 1:
         raise r.error(None, f"robot {name!r}", f"several root links (links that are no joint's child): "
                                                f"{', '.join(map(repr, roots))}; a URDF tree has one root")
-    # Every link's parent chain must reach the root; else it runs in a circle.
+    # Every link's parent chain must reach the root; else it runs in a circle. Each link is
+    # walked up once: a walk stops at a link already known to reach the root (linear in links).
+    reaches_root: set[str] = set()
     for lname in links:
         seen = [lname]
-        while seen[-1] in parent_joint:
+        position = {lname: 0}  # link -> its index in seen
+        while seen[-1] in parent_joint and seen[-1] not in reaches_root:
             up = joints[parent_joint[seen[-1]]].parent
-            if up in seen:
-                cycle = seen[seen.index(up):] + [up]
+            if up in position:
+                cycle = seen[position[up]:] + [up]
                 raise r.error(None, f"joint {parent_joint[seen[-1]]!r}",
                               "the joints form a cycle through links " + " -> ".join(map(repr, reversed(cycle))))
+            position[up] = len(seen)
             seen.append(up)
+        reaches_root.update(seen)
     if not roots:  # unreachable: a cycle is found above
         raise r.error(None, f"robot {name!r}", "no root link")
 
@@ -377,11 +413,27 @@ def parse(text: str | bytes, *, filename: str = "<string>") -> RobotDescription:
     return RobotDescription(name, links, joints, roots[0], tuple(order), filename, parent_joint)
 
 
-def read(path: str | os.PathLike) -> RobotDescription:
-    """The checked :class:`RobotDescription` of the URDF file at ``path``."""
+def read(path: str | os.PathLike, *, max_bytes: int | None = MAX_BYTES) -> RobotDescription:
+    """The checked :class:`RobotDescription` of the URDF file at ``path``.
+
+    ``max_bytes``: the largest file read, in bytes, default :data:`MAX_BYTES`; None: no cap. A
+    larger file is a :class:`URDFError` naming it and the cap, found from its size before it
+    is read (and never more than ``max_bytes + 1`` bytes are read)."""
+    return parse(read_bytes(path, max_bytes=max_bytes), filename=str(path), max_bytes=max_bytes)
+
+
+def read_bytes(path: str | os.PathLike, *, max_bytes: int | None = MAX_BYTES) -> bytes:
+    """The bytes of the URDF file at ``path``, at most ``max_bytes`` (see :func:`read`)."""
     path = Path(path)
+    max_bytes = _check_max_bytes(max_bytes, str(path))
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if max_bytes is not None and size > max_bytes:
+                raise _too_large(str(path), f"{size} bytes", max_bytes)
+            data = fh.read() if max_bytes is None else fh.read(max_bytes + 1)
     except OSError as exc:
         raise URDFError(f"cannot read the file: {exc.strerror or exc}", str(path), None, "") from None
-    return parse(data, filename=str(path))
+    if max_bytes is not None and len(data) > max_bytes:
+        raise _too_large(str(path), f"more than {max_bytes} bytes", max_bytes)
+    return data

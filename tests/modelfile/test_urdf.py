@@ -473,6 +473,62 @@ def test_a_cycle_is_reported_as_a_cycle(tmp_path):
         urdf.loads(text, filename="loop.urdf")
 
 
+def deep_chain(n: int) -> str:
+    """A chain of ``n`` revolute joints l0 -> l1 -> ... -> ln."""
+    body = ['<link name="l0"/>']
+    for i in range(1, n + 1):
+        body.append(f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+                    f'<origin xyz="0 0 -0.1"/><axis xyz="0 1 0"/></joint><link name="l{i}">{INERTIAL}</link>')
+    return robot("\n".join(body))
+
+
+def test_a_chain_deeper_than_the_recursion_limit_is_read_and_walked():
+    """1200 links (3000 took 128 s to parse, the cycle check scanning each link's path to the root
+    once per link; the bodies' walk recursed once per link): parsed, the joints depth first, one
+    body per joint in chain order."""
+    import sys
+    n = 1200
+    assert n > sys.getrecursionlimit()
+    description = urdf.parse(deep_chain(n), filename="deep.urdf")
+    assert description.order == tuple(f"j{i}" for i in range(1, n + 1))
+    assert [j.name for j in description.children("l7")] == ["j8"] and description.children(f"l{n}") == []
+    bodies = urdf.bodies(description)
+    assert [b.joint.name for b in bodies] == list(description.order)
+    assert bodies[-1].parent == f"l{n - 1}"
+
+
+def test_a_cycle_hanging_off_a_deep_chain_names_the_cycle():
+    """Links in a cycle below the root's chain (a separate loop of three links): the one walk
+    per link finds it and names it as before."""
+    loop = ('<link name="x"/><link name="y"/><link name="z"/>'
+            '<joint name="jx" type="fixed"><parent link="z"/><child link="x"/></joint>'
+            '<joint name="jy" type="fixed"><parent link="x"/><child link="y"/></joint>'
+            '<joint name="jz" type="fixed"><parent link="y"/><child link="z"/></joint>')
+    text = deep_chain(300).replace("</robot>", loop + "</robot>")
+    with pytest.raises(urdf.URDFError, match=r"loop\.urdf: joint 'jy': the joints form a cycle through links "
+                                             r"'x' -> 'y' -> 'z' -> 'x'"):
+        urdf.loads(text, filename="loop.urdf")
+
+
+def test_a_urdf_above_the_size_cap_is_refused_before_it_is_read(tmp_path):
+    """A URDF file above max_bytes (default urdf MAX_BYTES, 20 MiB: a 50 MB file took 12.5 s and
+    846 MB) is a URDFError naming the file and the cap; max_bytes=None lifts it; text too."""
+    from lagcodegen.modelfile import urdfxml
+    assert urdfxml.MAX_BYTES == 20 * 2**20
+    path = tmp_path / "padded.urdf"
+    text = robot(ARM + "<!-- " + "x" * 5000 + " -->")
+    path.write_text(text)
+    with pytest.raises(urdf.URDFError, match=r"padded\.urdf: the URDF is \d+ bytes, above the size cap of 4096 "
+                                             r"bytes .*max_bytes="):
+        urdf.load(path, max_bytes=4096)
+    with pytest.raises(urdf.URDFError, match=r"text\.urdf: the URDF is \d+ bytes, above the size cap of 4096"):
+        urdf.loads(text, filename="text.urdf", max_bytes=4096)
+    assert urdf.load(path, max_bytes=None).n == 1
+    assert urdf.load(path).n == 1  # under the default cap
+    with pytest.raises(urdf.URDFError, match="max_bytes must be a positive integer or None, got -1"):
+        urdf.load(path, max_bytes=-1)
+
+
 def test_missing_file_and_bad_options():
     with pytest.raises(urdf.URDFError, match=r"nowhere\.urdf: cannot read the file"):
         urdf.load("nowhere.urdf")

@@ -651,3 +651,76 @@ def test_trig_linearization_leaves_long_products_and_huge_sums_alone():
     y = se.Symbol("y")
     huge = se.Add(*[se.Integer(k) * y ** k * se.sin(y) ** 2 for k in range(1, MAX_LINEARIZED_TERMS + 2)])
     assert linearize_trig(huge) is huge
+
+
+def _shared_tower(levels: int):
+    """y[0], then e -> sin(e) * e + e ``levels`` times: a few nodes per level as a DAG, about
+    3^levels as a printed tree."""
+    import symengine as se
+    e = se.Symbol("y[0]")
+    for _ in range(levels):
+        e = se.sin(e) * e + e
+    return e
+
+
+def test_labels_of_large_shared_expressions_are_sketched_not_printed():
+    """A label (or a message) prints an expression only up to LABEL_NODES tree nodes: the shared
+    subexpressions of a rigid-body chain print as trees exponential in the joints (a 12-joint
+    chain's jet had not finished after 395 s, nearly all of it printing 60-character labels)."""
+    import importlib
+
+    import symengine as se
+    D = importlib.import_module("lagcodegen.solvers.taylor.decompose")
+    small = _shared_tower(2)
+    assert D._short(small, 1000) == str(small)  # small ones as before: today's generated code unchanged
+    large = _shared_tower(12)  # about 10^5 nodes as a tree: not printed
+    assert D._short(large) == f"sum of {len(large.args)} terms"
+    assert D._short(se.cos(large)) == "cos(...)"
+    assert D._tree_size(_shared_tower(60), D.LABEL_NODES) == D.LABEL_NODES + 1  # 10^28 nodes: stops at the cap
+
+
+def test_trig_linearization_does_not_expand_what_would_be_dropped(monkeypatch):
+    """An expression whose expansion is bounded above MAX_EXPANSION_BOUND terms is returned as
+    given without calling expand (an 8-joint chain's forces: 2.4 million products, 27 s each,
+    then dropped); the bound multiplies out sums, products and integer powers and stops at
+    the cap."""
+    import symengine as se
+    from lagcodegen.solvers.taylor.decompose import MAX_EXPANSION_BOUND, expansion_bound, linearize_trig
+    a, b, c, d, e = se.symbols("a b c d e")
+    assert expansion_bound((a + b) * (c + d + e)) == 6
+    assert expansion_bound((a + b) ** 3 * se.sin(a + b)) == 8
+    assert expansion_bound(((a + b) * c + d) * e + 1) == 4
+    sums = [se.Add(*se.symbols(f"x{k}_0:10")) for k in range(6)]
+    big = se.Mul(*sums) * se.sin(a) * se.cos(b)  # 10^6 products
+    assert expansion_bound(big) == MAX_EXPANSION_BOUND + 1
+
+    def expand(expr):
+        raise AssertionError("expanded an expression above MAX_EXPANSION_BOUND")
+    monkeypatch.setattr(se, "expand", expand)
+    assert linearize_trig(big) is big
+    tower = _shared_tower(60)  # 2^60 products as a tree: the bound's walk stops at the cap
+    assert expansion_bound(tower) == MAX_EXPANSION_BOUND + 1
+    assert linearize_trig(tower) is tower
+
+
+def test_decomposition_is_a_progress_stage_that_ctrl_c_stops():
+    """decompose reports the stage "taylor", one step per expression (M, F, rates, events) of each
+    form: the loop point where a progress callback's exception (Ctrl-C's KeyboardInterrupt)
+    stops a long decomposition."""
+    from lagcodegen import progress
+    eom = derive(lcg.systems.double_pendulum())
+    calls = []
+
+    def record(stage, done, total, elapsed):
+        calls.append((stage, done, total))
+    with progress.enabled(record):
+        decompose(Scene(eom, jacobian=False))
+    taylor = [c for c in calls if c[0] == "taylor"]
+    assert taylor and {c[2] for c in taylor} == {3 + 2}  # M's upper triangle and F
+    assert max(c[1] for c in taylor) == 5
+
+    def interrupt(stage, done, total, elapsed):
+        if stage == "taylor" and done == 2:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt), progress.enabled(interrupt):
+        decompose(Scene(eom, jacobian=False))

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ... import progress
 from ...errors import ModelError
 from ...formulation.kernels import symbol_map
 from ...formulation.scene import Scene
@@ -133,8 +134,43 @@ def _is_zero(entry) -> bool:
     return not isinstance(entry, (int, Const)) and entry == 0
 
 
+#: An expression printed whole into a label or a message has at most this many nodes as a tree
+#: (shared subexpressions counted each time they occur, as the printer writes them); a larger
+#: one is described by its head (:func:`_sketch`). Printing a tree costs its size, which for
+#: the shared subexpressions of a rigid-body chain grows exponentially with the joints.
+LABEL_NODES = 400
+
+
+def _tree_size(expr, cap: int) -> int:
+    """Nodes of ``expr`` as a tree, or ``cap + 1`` if more: at most ``cap`` nodes visited (no
+    memo: looking an expression up compares equal ones node by node, as a tree)."""
+    count, stack = 0, [expr]
+    while stack:
+        count += 1
+        if count > cap:
+            return cap + 1
+        stack.extend(stack.pop().args)
+    return count
+
+
+def _sketch(expr) -> str:
+    """A few words on a large expression, from its head and its number of operands."""
+    args = expr.args
+    if isinstance(expr, se.Add):
+        return f"sum of {len(args)} terms"
+    if isinstance(expr, se.Mul):
+        return f"product of {len(args)} factors"
+    if isinstance(expr, se.Pow):
+        exponent = args[1]
+        return f"power {exponent}" if exponent.is_Number else "power"
+    return f"{type(expr).__name__}(...)"
+
+
 def _short(expr, width: int = 60) -> str:
-    text = str(expr).replace("*/", "* /")
+    """``expr`` as text of at most ``width`` characters, for a label or a message: printed
+    (and cut) up to :data:`LABEL_NODES` nodes, else :func:`_sketch` (bounded work either way)."""
+    text = str(expr) if _tree_size(expr, LABEL_NODES) <= LABEL_NODES else _sketch(expr)
+    text = text.replace("*/", "* /")
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
@@ -165,12 +201,18 @@ class _Decomposer:
         self.memo: dict = {}
         self.op_memo: dict = {}
         self.labels: dict = {}
+        self.const_known: dict = {}  # expression -> is_const
         self.where = ""
         self.names: dict = {}  # array symbols -> model symbols, for messages
 
     # -------------------------------------------------------------- rows and constants
     def is_const(self, e) -> bool:
-        return not (e.free_symbols & self.varsyms)
+        """No state variable or time in ``e`` (remembered: the free symbols of a large shared
+        expression cost its size as a tree, and each subexpression is asked about several times)."""
+        known = self.const_known.get(e)
+        if known is None:
+            known = self.const_known[e] = not (e.free_symbols & self.varsyms)
+        return known
 
     def constant(self, e):
         """A constant subexpression: a symengine number, or a Const for the run constants."""
@@ -388,16 +430,66 @@ def _trig_powers_expanded(factors) -> list:
 #: cosines: 2^13 sums each) would take minutes, and the derived form is the cheaper there anyway.
 MAX_LINEARIZED_TERMS = 2000
 
+#: An expression whose expansion may have more terms than this before like terms are combined
+#: (:func:`expansion_bound`) is not even expanded (returned as given): expanding the forces of
+#: an 8-joint chain (2.4 million products, 130 000 terms) took 27 s, only for the result to be
+#: dropped above :data:`MAX_LINEARIZED_TERMS`.
+MAX_EXPANSION_BOUND = 25 * MAX_LINEARIZED_TERMS
+
 #: A term with more sine and cosine factors than this keeps them as a product (k factors become
 #: 2^(k-1) sines and cosines of sums).
 MAX_TRIG_FACTORS = 6
 
 
+def expansion_bound(expr, *, cap: int = MAX_EXPANSION_BOUND) -> int:
+    """An upper bound of the number of terms of ``se.expand(expr)`` (sums, products and integer
+    powers multiplied out, like terms not combined), or ``cap + 1`` if above ``cap``. The walk
+    stops there: a sum's bound is at least its terms', a product's (of factors with 2 or more
+    terms) at least their sum, so it visits about ``cap`` nodes at most."""
+    def expands(e) -> bool:
+        return isinstance(e, (se.Add, se.Mul)) or (isinstance(e, se.Pow) and isinstance(e.args[1], se.Integer)
+                                                   and e.args[1] > 1)
+
+    def combine(e, value: int, child: int) -> int:
+        if isinstance(e, se.Add):
+            return value + child
+        if isinstance(e, se.Mul):
+            return value * child
+        k = int(e.args[1])
+        return child if child == 1 else child ** k if k * child.bit_length() <= cap.bit_length() + 1 else cap + 1
+
+    if not expands(expr):
+        return 1
+    # frames: [expression, its arguments, next argument, value so far]
+    stack = [[expr, expr.args[:1] if isinstance(expr, se.Pow) else expr.args, 0,
+              0 if isinstance(expr, se.Add) else 1]]
+    while True:
+        frame = stack[-1]
+        e, args, i, value = frame
+        if i < len(args) and value <= cap:
+            frame[2] += 1
+            a = args[i]
+            if expands(a):
+                stack.append([a, a.args[:1] if isinstance(a, se.Pow) else a.args, 0, 0 if isinstance(a, se.Add) else 1])
+            else:
+                frame[3] = combine(e, value, 1)
+            continue
+        stack.pop()
+        value = min(value, cap + 1)
+        if not stack:
+            return value
+        parent = stack[-1]
+        parent[3] = combine(parent[0], parent[3], value)
+
+
 def linearize_trig(expr):
     """Expand ``expr`` and turn every product of sines and cosines (small integer powers
     included) into a sum of sines and cosines of sums and differences of their arguments
-    (``expr`` as given above :data:`MAX_LINEARIZED_TERMS` terms; products of more than
-    :data:`MAX_TRIG_FACTORS` factors kept)."""
+    (``expr`` as given when its expansion may exceed :data:`MAX_EXPANSION_BOUND` terms or has
+    more than :data:`MAX_LINEARIZED_TERMS`; products of more than :data:`MAX_TRIG_FACTORS`
+    factors kept)."""
+    if expansion_bound(expr) > MAX_EXPANSION_BOUND:
+        return expr
     e = se.expand(expr)
     terms = e.args if isinstance(e, se.Add) else (e,)
     if len(terms) > MAX_LINEARIZED_TERMS:
@@ -484,11 +576,13 @@ def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: 
     d.names = names
     varsyms = d.varsyms
     entries = {}
-    for loc, e in exprs.items():
-        d.where = where(loc)
-        if form == "trig-linearized" and not d.is_const(e):
-            e = group_by_atoms(linearize_trig(e), varsyms)
-        entries[loc] = d.row(e) if loc[0] == "event" else d.node(e)
+    with progress.stage("taylor", total=len(exprs), unit=f"expressions, {form} form") as stage:
+        for loc, e in exprs.items():  # one expression at a time: a loop point for progress and Ctrl-C
+            d.where = where(loc)
+            if form == "trig-linearized" and not d.is_const(e):
+                e = group_by_atoms(linearize_trig(e), varsyms)
+            entries[loc] = d.row(e) if loc[0] == "event" else d.node(e)
+            stage.advance()
     M = [[None] * n for _ in range(n)]
     for i in range(n):
         for j in range(i, n):
