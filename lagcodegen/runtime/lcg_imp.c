@@ -291,6 +291,18 @@ static int bisect(imp_data *d, void *mem, N_Vector y, int k, double ta, double t
     return LCG_DAE_OK;
 }
 
+/* A segment of the run begins at (t, y): kept as where a rerun would start (tprev, yprev), with
+ * the contacts' gaps there (gprev). Returns LCG_DAE_OK or a model error. */
+static int segment_start(imp_data *d, double t, const double *y, int ny, double *tprev, double *yprev, double *gprev)
+{
+    int i;
+
+    *tprev = t;
+    for (i = 0; i < ny; ++i)
+        yprev[i] = y[i];
+    return d->im->gaps(t, yprev, d->p, gprev, d->wk);
+}
+
 /* Integrate with impacts; see lcg_imp.h. */
 int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
                   double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
@@ -434,10 +446,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if (nt > 1 && (flag = CVodeSetStopTime(mem, tout[nt - 1])) < 0)
         goto done;
 
-    tprev = tout[0];
-    for (i = 0; i < ny; ++i)
-        yprev[i] = yv[i];
-    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+    rc = segment_start(&data, tout[0], yv, ny, &tprev, yprev, gprev);
     LCG_MODEL_ERROR(LCG_DAE_OK);
     for (k = 1; k < nt; ++k) {
         double tret = tout[k - 1];
@@ -527,18 +536,12 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                         flag = rflag;
                         goto done;
                     }
-                    tprev = tret;
-                    for (i = 0; i < ny; ++i)
-                        yprev[i] = yv[i];
-                    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                    rc = segment_start(&data, tret, yv, ny, &tprev, yprev, gprev);
                     LCG_MODEL_ERROR(LCG_DAE_OK);
                     continue;
                 }
                 if (flag != CV_ROOT_RETURN && tret < tout[k]) { /* no crossing up to an earlier return */
-                    tprev = tret;
-                    for (i = 0; i < ny; ++i)
-                        yprev[i] = yv[i];
-                    rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                    rc = segment_start(&data, tret, yv, ny, &tprev, yprev, gprev);
                     LCG_MODEL_ERROR(LCG_DAE_OK);
                     continue;
                 }
@@ -582,10 +585,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                     if (flag < 0)
                         goto done;
                 }
-                tprev = tret;
-                for (i = 0; i < ny; ++i)
-                    yprev[i] = yv[i];
-                rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+                rc = segment_start(&data, tret, yv, ny, &tprev, yprev, gprev);
                 LCG_MODEL_ERROR(LCG_DAE_OK);
                 if (tret >= tout[k])
                     break;
@@ -594,10 +594,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             break;
         }
         if (flag >= 0) {
-            tprev = tret;
-            for (i = 0; i < ny; ++i)
-                yprev[i] = yv[i];
-            rc = im->gaps(tprev, yprev, p, gprev, data.wk);
+            rc = segment_start(&data, tret, yv, ny, &tprev, yprev, gprev);
             LCG_MODEL_ERROR(LCG_DAE_OK);
         }
         if (flag < 0)
