@@ -63,6 +63,12 @@ def _file_kind(mode: int) -> str:
     return "not a regular file"
 
 
+def _shown(path: str) -> str:
+    """A file's path as a message shows it: whole as far as any file system allows (a path is
+    not an input value to cut at 80 characters), quoted."""
+    return excerpt(str(path), limit=4096)
+
+
 def read_input_table(path: str, *, what: str, max_bytes: int | None = None) -> str:
     """The text of the input table file ``path`` (``what`` names it in errors, "--input F"):
     a regular file (a FIFO or device is opened without blocking and refused), of at most
@@ -72,14 +78,14 @@ def read_input_table(path: str, *, what: str, max_bytes: int | None = None) -> s
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     except OSError as exc:
-        raise UsageError(f"{what}: cannot read {excerpt(path)}: {exc.strerror or exc}") from None
+        raise UsageError(f"{what}: cannot read {_shown(path)}: {exc.strerror or exc}") from None
     mode = os.fstat(fd)
     if not stat.S_ISREG(mode.st_mode):  # checked before a file object is made (a folder's would fail)
         os.close(fd)
-        raise UsageError(f"{what}: {excerpt(path)} is {_file_kind(mode.st_mode)}, not a regular file of two "
+        raise UsageError(f"{what}: {_shown(path)} is {_file_kind(mode.st_mode)}, not a regular file of two "
                          "columns t, value")
     with os.fdopen(fd, "rb") as fh:
-        too_large = (f"{what}: {excerpt(path)} is larger than the input table limit of {max_bytes} bytes "
+        too_large = (f"{what}: {_shown(path)} is larger than the input table limit of {max_bytes} bytes "
                      f"({max_bytes / 2**20:.3g} MiB)")
         if mode.st_size > max_bytes:
             raise UsageError(too_large)
@@ -92,13 +98,13 @@ def read_input_table(path: str, *, what: str, max_bytes: int | None = None) -> s
                 chunks.append(chunk)
                 size += len(chunk)
         except OSError as exc:
-            raise UsageError(f"{what}: cannot read {excerpt(path)}: {exc.strerror or exc}") from None
+            raise UsageError(f"{what}: cannot read {_shown(path)}: {exc.strerror or exc}") from None
         if size > max_bytes:  # the file grew while it was read
             raise UsageError(too_large)
     try:
         return b"".join(chunks).decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise UsageError(f"{what}: {excerpt(path)} is not UTF-8 text (byte {exc.start})") from None
+        raise UsageError(f"{what}: {_shown(path)} is not UTF-8 text (byte {exc.start})") from None
 
 
 def input_tables(items: list[str] | None) -> dict:
@@ -122,10 +128,10 @@ def input_tables(items: list[str] | None) -> dict:
         try:
             rows = np.loadtxt(io.StringIO(text), delimiter="," if path.endswith(".csv") else None, ndmin=2)
         except (OSError, ValueError) as exc:
-            raise UsageError(f"--input {_name(name)}: cannot read {excerpt(path)} as two columns t, value: "
+            raise UsageError(f"--input {_name(name)}: cannot read {_shown(path)} as two columns t, value: "
                              f"{excerpt(str(exc))}") from None
         if rows.shape[1] != 2:
-            raise UsageError(f"--input {_name(name)}: {excerpt(path)} has {rows.shape[1]} columns, expected 2 "
+            raise UsageError(f"--input {_name(name)}: {_shown(path)} has {rows.shape[1]} columns, expected 2 "
                              "(t, value)")
         try:
             out[name] = Table(rows[:, 0], rows[:, 1], kind=kind, name=f"--input {_name(name)}")

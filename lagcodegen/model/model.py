@@ -1,5 +1,9 @@
 """The mechanical model: coordinates, parameters, bodies, energies and forces.
 
+One job: the :class:`Model` a user states a system in; each of its methods adds one kind of term
+(coordinate, parameter, body, energy, force) with the checks of its names and expressions, and
+the names already taken are kept in one place (so their checks cost no loop over the model).
+
 A :class:`Model` holds what the user states about a system, in sympy terms:
 
 * generalized coordinates q_i (and their velocities q_i', plain symbols named ``<q>_dot``),

@@ -2,6 +2,10 @@
 differentiation) recurrences: language-neutral, in topological order, shared subexpressions
 computed once.
 
+One job: the decomposition, from symengine expressions to operations; its parts (constants,
+trig linearization, labels, mass matrix entries) share the one table of operations being built
+and its bounds on work (labels and expansions of large expressions), so they stay together.
+
 A Taylor method needs the normalized derivatives x_[k] = x^(k)(t)/k! of every quantity in the
 right-hand side. They follow from recurrences on *elementary* operations (sum, product,
 quotient, sin/cos as a pair, exp, log, power, tan, ...), so the expressions of
