@@ -83,7 +83,7 @@ FORMS = ("tree", "closed")
 #: The form :func:`load` uses unless told.
 DEFAULT_FORM = "tree"
 #: What :func:`build` does with ``<mimic>`` joints.
-MIMIC = ("error", "independent")
+MIMIC = ("error", "independent", "coupled")
 
 
 def _locked(robot: RobotDescription, lock) -> dict[str, float]:
@@ -283,7 +283,9 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
         if j.mimic is not None and mimic == "error":
             raise err(j, f"mimic joints are not supported: {j.name!r} follows {j.mimic.joint!r} "
                          f"({j.mimic.multiplier} * {j.mimic.joint} + {j.mimic.offset}), a constraint rather than a "
-                         "coordinate; pass mimic='independent' (the joint becomes a coordinate of its own, as "
+                         "coordinate; pass mimic='coupled' (the coupling as a holonomic constraint: a "
+                         "ConstrainedSystem, e.g. compile_constrained(system, 'minimal')), mimic='independent' (the "
+                         "joint becomes a coordinate of its own, as "
                          f"Pinocchio reads it by default), lock={{{j.name!r}: <position>}}, or write the coupling "
                          "as a holonomic constraint of a ConstrainedSystem")
     tree = bodies(robot, locked, root_joint)
@@ -320,8 +322,9 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
             model.generalized_force(q, -sp.Float(j.dynamics.friction) * v / sp.sqrt(v**2 + vs**2),
                                     label=f"Coulomb friction of {j.name}")
     model.validate()
+    coupled = _couplings(robot, tree, coords) if mimic == "coupled" else []
     if limits is False:
-        return model
+        return ConstrainedSystem(model, holonomic=coupled) if coupled else model
     stop = _limit_kind(limits, robot)
     inequalities = []
     for b in tree:
@@ -332,7 +335,22 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
             continue
         rows = [q - sp.Float(lim.lower), sp.Float(lim.upper) - q]
         inequalities += rows if stop is None else [Inequality(g, restitution=stop) for g in rows]
-    return ConstrainedSystem(model, inequalities=inequalities)
+    return ConstrainedSystem(model, holonomic=coupled, inequalities=inequalities)
+
+
+def _couplings(robot: RobotDescription, tree: list[Body], coords: dict) -> list:
+    """The holonomic constraints q_j - (multiplier q_k + offset) = 0 of the ``<mimic>`` joints j
+    of ``tree`` following joint k (eq. 4.1); a mimic joint following a locked joint is refused."""
+    rows = []
+    for b in tree:
+        j = b.joint
+        if j.mimic is None:
+            continue
+        if j.mimic.joint not in coords:
+            raise URDFError(f"mimic joint {j.name!r} follows {j.mimic.joint!r}, which is locked or fixed: lock "
+                            f"{j.name!r} too", robot.filename, j.line, f"joint {j.name!r}")
+        rows.append(coords[j.name] - (sp.Float(j.mimic.multiplier) * coords[j.mimic.joint] + sp.Float(j.mimic.offset)))
+    return rows
 
 
 #: How ``limits=`` reads: True or "stop" (hard stops, a plastic impact: restitution 0),
@@ -368,7 +386,10 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     ``friction``, ``friction_velocity``: Coulomb friction, see the module docstring;
     ``lock``: joints held fixed, as ``{name: position}`` or names (at 0): merged like fixed
     joints (e.g. a gripper's fingers);
-    ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"independent"`` makes them
+    ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"coupled"`` keeps each a
+    coordinate held to its joint by the holonomic constraint q = multiplier q_k + offset (a
+    :class:`ConstrainedSystem`; minimal coordinates eliminate it, as Pinocchio's ``mimic=True``
+    does), ``"independent"`` makes them
     coordinates of their own (Pinocchio's default reading);
     ``form``: ``"tree"`` states the bodies as links of a tree (:meth:`Model.link`),
     ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:

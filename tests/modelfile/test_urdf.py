@@ -374,6 +374,45 @@ def test_planar_joint_agrees_with_pinocchio(form):
         np.testing.assert_allclose(np.linalg.solve(M, F), qdd_ref, rtol=0, atol=1e-11 * np.abs(qdd_ref).max())
 
 
+MIMIC_ARM = """<robot name="mimic_arm"><link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="a"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="j1" multiplier="0.5" offset="0.1"/></joint>
+  <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1.5"/>
+    <inertia ixx="0.01" iyy="0.03" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
+
+
+def test_mimic_joints_coupled_agree_with_pinocchio_mimic():
+    """mimic="coupled": the mimic joint held by q2 = 0.5 q1 + 0.1 (a holonomic constraint); in
+    minimal coordinates its run agrees with Pinocchio's mimic model (buildModel..(mimic=True):
+    q1'' = -M^-1 nle from crba and rnea) integrated by scipy at tight tolerances."""
+    from scipy.integrate import solve_ivp
+    from lagcodegen.api import compile_constrained
+    system = urdf.loads(MIMIC_ARM, mimic="coupled")
+    assert isinstance(system, lcg.ConstrainedSystem) and len(system.holonomic) == 1
+    j1, j2 = system.model.coords
+    assert sp.simplify(system.holonomic[0] - (j2 - 0.5 * j1 - 0.1)) == 0
+    pin_model = pin.buildModelFromXML(MIMIC_ARM, mimic=True)
+    data = pin_model.createData()
+    assert pin_model.nv == 1
+
+    def rhs(_t, x):
+        q, v = x[:1], x[1:]
+        M = pin.crba(pin_model, data, q)
+        return [v[0], -np.linalg.solve(M, pin.rnea(pin_model, data, q, v, np.zeros(1)))[0]]
+
+    t = np.linspace(0.0, 2.0, 21)
+    ref = solve_ivp(rhs, (0, 2), [0.7, -0.4], t_eval=t, rtol=1e-12, atol=1e-12, method="DOP853")
+    sim = compile_constrained(system, "minimal")
+    res = sim.simulate(t, q0=[0.7, 0.5 * 0.7 + 0.1], v0=[-0.4, -0.2], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(res["j1"], ref.y[0], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(res["j2"], 0.5 * ref.y[0] + 0.1, rtol=0, atol=1e-8)
+    assert not isinstance(urdf.loads(MIMIC_ARM, mimic="independent"), lcg.ConstrainedSystem)
+
+
 def test_locked_joints_agree_with_pinocchio_reduced_model():
     """UR5 with the elbow locked at 0.4 rad: Pinocchio's buildReducedModel at the same position."""
     file = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"
