@@ -61,7 +61,9 @@ def run_chunks(sim, executor, chunk_size, n_mem: int, t, inputs: dict, P, thread
         payload = with_scene(sim)
     if len(starts) > 1 and callable(getattr(executor, "scatter", None)):
         # a dask.distributed Client: the simulation goes to each worker once, not once per chunk
-        payload = executor.scatter(payload, broadcast=True)
+        # hash=False: a key of its own per call (a hashed key is shared with an earlier call of the same
+        # simulation, whose release would drop the data under this one: "lost dependencies")
+        payload = executor.scatter(payload, broadcast=True, hash=False)
 
     def args(s):
         sl = slice(s, min(s + chunk_size, n_mem))

@@ -1,6 +1,7 @@
 """Ensembles (one C call over a thread pool, bit-identical to single runs), run control (Ctrl-C,
 wall-clock limits), pickling and executors (process pool, Dask LocalCluster)."""
 
+import gc
 import os
 import pickle
 import signal
@@ -151,6 +152,13 @@ def test_dask_local_cluster(pend):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                   silence_logs=40) as cluster, distributed.Client(cluster) as client:
         e = pend.ensemble(T, q0=q0, executor=client, chunk_size=10)
+        # the same simulation again, the first call's scattered copy released meanwhile: each call
+        # scatters under a key of its own (a shared, hashed key lost the data: "lost dependencies")
+        for _ in range(3):
+            del e
+            gc.collect()
+            e = pend.ensemble(T, q0=q0, executor=client, chunk_size=10)
+            assert np.array_equal(e.y, ref.y) and (e.status == 0).all()
     assert np.array_equal(e.y, ref.y) and (e.status == 0).all()
 
 
