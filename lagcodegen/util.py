@@ -90,23 +90,69 @@ def check_baumgarte(value, what: str = "baumgarte"):
     return check_finite(alpha, f"{what} alpha"), check_finite(beta, f"{what} beta")
 
 
+class FileProblem(LagcodegenError):
+    """A file :func:`read_bounded` would not read: ``kind`` "unreadable" (``detail``: the system's
+    reason), "not regular" (``detail``: what it is, e.g. "a FIFO") or "too large" (``detail``: its
+    size, e.g. "123 bytes" or "more than 100 bytes"). Callers word the message."""
+
+    def __init__(self, kind: str, detail: str):
+        super().__init__(f"{kind}: {detail}")
+        self.kind, self.detail = kind, detail
+
+
+def file_kind(mode: int) -> str:
+    """What a file of ``st_mode`` ``mode`` is, when it is not a regular file ("a FIFO", ...)."""
+    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a link")):
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
+def read_bounded(path: str | os.PathLike, *, max_bytes: int | None = None, follow_links: bool = True) -> bytes:
+    """The bytes of the regular file at ``path``: opened without blocking (a FIFO, a device or a
+    folder is refused, never read; with ``follow_links`` False a symbolic link too), at most
+    ``max_bytes`` (its size checked first, then never more than ``max_bytes + 1`` bytes read, in
+    chunks: a file growing meanwhile is refused too). :class:`FileProblem` saying why not."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
+        if os.path.islink(path):
+            raise FileProblem("not regular", "a link")
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise FileProblem("unreadable", str(exc.strerror or exc)) from None
+    mode = os.fstat(fd)
+    if not stat.S_ISREG(mode.st_mode):  # checked before a file object is made (a folder's would fail)
+        os.close(fd)
+        raise FileProblem("not regular", file_kind(mode.st_mode))
+    with os.fdopen(fd, "rb") as fh:
+        if max_bytes is not None and mode.st_size > max_bytes:
+            raise FileProblem("too large", f"{mode.st_size} bytes")
+        chunks, size = [], 0
+        try:
+            while max_bytes is None or size <= max_bytes:
+                chunk = fh.read(1 << 20 if max_bytes is None else min(1 << 20, max_bytes + 1 - size))
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                size += len(chunk)
+        except OSError as exc:
+            raise FileProblem("unreadable", str(exc.strerror or exc)) from None
+    if max_bytes is not None and size > max_bytes:
+        raise FileProblem("too large", f"more than {max_bytes} bytes")
+    return b"".join(chunks)
+
+
 def read_regular_file(path: str | os.PathLike) -> bytes | None:
     """The bytes of ``path`` if it is a regular file (a symbolic link is not followed; a FIFO,
-    device or folder is never opened for reading, so nothing blocks), else None."""
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    device or folder is never opened for reading, so nothing blocks), else None
+    (:func:`read_bounded`)."""
     try:
-        if os.path.islink(path):
-            return None
-        fd = os.open(path, flags)
-    except OSError:
+        return read_bounded(path, follow_links=False)
+    except FileProblem:
         return None
-    with os.fdopen(fd, "rb") as fh:
-        try:
-            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-                return None
-            return fh.read()
-        except OSError:
-            return None
 
 
 def atomic_write(path: Path, text: str) -> Path:

@@ -10,14 +10,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import difflib
-import os
-import stat
 import sys
 import time
 
 from ..buildstep import ModelSource, load_source, split_python_spec
 from ..modelfile import FORMULATIONS, ModelFile
-from ..util import EXCERPT, excerpt
+from ..util import EXCERPT, FileProblem, excerpt, read_bounded
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_COMPILE, EXIT_SOLVER, EXIT_OUTDATED = 0, 1, 2, 3, 4, 5
 EXIT_NOT_CONVERGED = 6  # fit: the optimizer did not reach a minimum
@@ -55,14 +53,6 @@ def _name(name: str) -> str:
 INPUT_TABLE_MAX_BYTES = 64 * 2**20
 
 
-def _file_kind(mode: int) -> str:
-    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return what
-    return "not a regular file"
-
-
 def _shown(path: str) -> str:
     """A file's path as a message shows it: whole as far as any file system allows (a path is
     not an input value to cut at 80 characters), quoted."""
@@ -76,33 +66,17 @@ def read_input_table(path: str, *, what: str, max_bytes: int | None = None) -> s
     than ``max_bytes + 1``), UTF-8."""
     max_bytes = INPUT_TABLE_MAX_BYTES if max_bytes is None else max_bytes
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
-    except OSError as exc:
-        raise UsageError(f"{what}: cannot read {_shown(path)}: {exc.strerror or exc}") from None
-    mode = os.fstat(fd)
-    if not stat.S_ISREG(mode.st_mode):  # checked before a file object is made (a folder's would fail)
-        os.close(fd)
-        raise UsageError(f"{what}: {_shown(path)} is {_file_kind(mode.st_mode)}, not a regular file of two "
-                         "columns t, value")
-    with os.fdopen(fd, "rb") as fh:
-        too_large = (f"{what}: {_shown(path)} is larger than the input table limit of {max_bytes} bytes "
-                     f"({max_bytes / 2**20:.3g} MiB)")
-        if mode.st_size > max_bytes:
-            raise UsageError(too_large)
-        chunks, size = [], 0
-        try:
-            while size <= max_bytes:
-                chunk = fh.read(min(1 << 20, max_bytes + 1 - size))
-                if not chunk:
-                    break
-                chunks.append(chunk)
-                size += len(chunk)
-        except OSError as exc:
-            raise UsageError(f"{what}: cannot read {_shown(path)}: {exc.strerror or exc}") from None
-        if size > max_bytes:  # the file grew while it was read
-            raise UsageError(too_large)
+        data = read_bounded(path, max_bytes=max_bytes)
+    except FileProblem as exc:
+        if exc.kind == "unreadable":
+            raise UsageError(f"{what}: cannot read {_shown(path)}: {exc.detail}") from None
+        if exc.kind == "not regular":
+            raise UsageError(f"{what}: {_shown(path)} is {exc.detail}, not a regular file of two columns t, value") \
+                from None
+        raise UsageError(f"{what}: {_shown(path)} is larger than the input table limit of {max_bytes} bytes "
+                         f"({max_bytes / 2**20:.3g} MiB)") from None
     try:
-        return b"".join(chunks).decode("utf-8")
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise UsageError(f"{what}: {_shown(path)} is not UTF-8 text (byte {exc.start})") from None
 

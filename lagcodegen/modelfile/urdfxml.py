@@ -42,7 +42,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ..errors import ModelError
-from ..util import excerpt
+from ..util import FileProblem, excerpt, read_bounded
 
 #: URDF joint types, all of which lagcodegen builds (floating: a free joint; planar: Joint.planar).
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -427,13 +427,10 @@ def read_bytes(path: str | os.PathLike, *, max_bytes: int | None = MAX_BYTES) ->
     path = Path(path)
     max_bytes = _check_max_bytes(max_bytes, str(path))
     try:
-        with open(path, "rb") as fh:
-            size = os.fstat(fh.fileno()).st_size
-            if max_bytes is not None and size > max_bytes:
-                raise _too_large(str(path), f"{size} bytes", max_bytes)
-            data = fh.read() if max_bytes is None else fh.read(max_bytes + 1)
-    except OSError as exc:
-        raise URDFError(f"cannot read the file: {exc.strerror or exc}", str(path), None, "") from None
-    if max_bytes is not None and len(data) > max_bytes:
-        raise _too_large(str(path), f"more than {max_bytes} bytes", max_bytes)
-    return data
+        return read_bounded(path, max_bytes=max_bytes)
+    except FileProblem as exc:
+        if exc.kind == "too large":
+            raise _too_large(str(path), exc.detail, max_bytes) from None
+        reason = f"cannot read the file: {exc.detail}" if exc.kind == "unreadable" else \
+            f"cannot read the file: it is {exc.detail}, not a regular file"
+        raise URDFError(reason, str(path), None, "") from None

@@ -549,6 +549,20 @@ def test_a_cycle_hanging_off_a_deep_chain_names_the_cycle():
         urdf.loads(text, filename="loop.urdf")
 
 
+def test_a_urdf_that_is_not_a_regular_file_is_refused_without_blocking(tmp_path):
+    """A FIFO named robot.urdf blocked urdf.load (and compile_urdf) forever in open(); it is
+    opened without blocking and refused, naming the file; a folder too."""
+    import os
+    fifo = tmp_path / "robot.urdf"
+    os.mkfifo(fifo)
+    with pytest.raises(urdf.URDFError, match=r"robot\.urdf: cannot read the file: it is a FIFO, not a regular file"):
+        urdf.load(fifo)
+    with pytest.raises(urdf.URDFError, match=r"robot\.urdf: cannot read the file: it is a FIFO"):
+        lcg.compile_urdf(fifo)
+    with pytest.raises(urdf.URDFError, match="it is a folder, not a regular file"):
+        urdf.load(tmp_path)
+
+
 def test_a_urdf_above_the_size_cap_is_refused_before_it_is_read(tmp_path):
     """A URDF file above max_bytes (default urdf MAX_BYTES, 20 MiB: a 50 MB file took 12.5 s and
     846 MB) is a URDFError naming the file and the cap; max_bytes=None lifts it; text too."""
