@@ -10,6 +10,18 @@ from lagcodegen.theory.constraints import ConstrainedSystem
 STRICT_CFLAGS = ["-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic"]
 STRICT_FFLAGS = ["-Wall", "-Wextra", "-std=f2008", "-Werror"]
 
+#: A two-link arm whose elbow j2 mimics the shoulder j1 (q2 = 0.5 q1 + 0.1), both revolute (as
+#: Pinocchio's mimic joints must be), the shoulder limited to +-0.3 rad.
+MIMIC_ARM = """<robot name="mimic_arm"><link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
+    <limit lower="-0.3" upper="0.3" effort="1" velocity="1"/></joint>
+  <link name="a"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.02" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="j1" multiplier="0.5" offset="0.1"/></joint>
+  <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1.5"/>
+    <inertia ixx="0.01" iyy="0.03" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
+
 G = 9.81
 TH0 = 1.0  # initial pendulum angle (rad)
 

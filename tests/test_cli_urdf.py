@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import MIMIC_ARM
+
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "examples" / "two_link_arm.urdf"
 
@@ -71,17 +73,6 @@ def test_info_and_bad_urdf_exit_with_a_located_message(tmp_path):
     assert proc.returncode != 0
     assert f"{bad}:1: joint 'j': unknown joint type 'hinge'" in proc.stderr
     assert "Traceback" not in proc.stderr
-
-
-MIMIC_ARM = """<robot name="mimic_arm"><link name="base"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
-    <limit lower="-0.3" upper="0.3" effort="1" velocity="1"/></joint>
-  <link name="a"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j1" multiplier="1"/></joint>
-  <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
 
 
 def test_urdf_loading_options_on_the_command_line(tmp_path):

@@ -14,6 +14,8 @@ import lagcodegen as lcg
 from lagcodegen import urdf
 from lagcodegen.errors import ModelError
 
+from helpers import MIMIC_ARM
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 #: The ways a URDF robot can be stated (urdf.FORMS) whose equations are checked here.
 FORMS = ["closed", "tree"]
@@ -372,17 +374,6 @@ def test_planar_joint_agrees_with_pinocchio(form):
         a_pin = pin.aba(pin_model, data, qp, J @ v, np.array([0, 0, 0, -0.3 * v[3]]))
         qdd_ref = np.linalg.solve(J, a_pin - Jd @ v)
         np.testing.assert_allclose(np.linalg.solve(M, F), qdd_ref, rtol=0, atol=1e-11 * np.abs(qdd_ref).max())
-
-
-MIMIC_ARM = """<robot name="mimic_arm"><link name="base"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <link name="a"><inertial><origin xyz="0 0 -0.5"/><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.02" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 -1"/><axis xyz="0 1 0"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="j1" multiplier="0.5" offset="0.1"/></joint>
-  <link name="b"><inertial><origin xyz="0 0 -0.5"/><mass value="1.5"/>
-    <inertia ixx="0.01" iyy="0.03" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>"""
 
 
 def test_mimic_joints_coupled_agree_with_pinocchio_mimic():
