@@ -177,7 +177,7 @@ def table_source(code: GeneratedCode) -> dict[str, str]:
     env = environment()
     ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=code.model_name,
                jacobian=code.jacobian, outputs=bool(code.nout),
-               sparse=bool(getattr(code, "sparse_jacobian", False)))
+               sparse=bool(getattr(code, "sparse_jacobian", False)), nv=getattr(code, "nv", None))
     return {**runtime_files(TABLE_FILES), **generated_headers(),
             f"{code.prefix}_table.c": env.get_template("c/model_table.c.j2").render(**ctx)}
 
@@ -484,7 +484,9 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
 
     library, path, cached = cached_build(key, modname, filename, make, open_library)
     table = _table(rt, library, f"{code.prefix}_model_table", "const lcg_model *")
-    expected = (code.n, code.nz, code.ny, code.np, code.nout)
+    nv = getattr(code, "nv", None)  # generalized speeds: the table counts the speeds (lcg_model.h)
+    expected = (code.n, code.nz, code.ny, code.np, code.nout) if nv is None else \
+        (nv, code.ny - 2 * nv, code.ny, code.np, code.nout)
     if (table.nq, table.nz, table.ny, table.np, table.nout) != expected:
         raise LagcodegenError(f"the library built for model {code.model_name!r} ({path}) has another layout "
                               f"than its code: (nq, nz, ny, np, nout) = {(table.nq, table.nz, table.ny, table.np, table.nout)}"

@@ -116,6 +116,34 @@ class EquationsOfMotion:
         return self.model.n
 
     @property
+    def general(self) -> bool:
+        """True if the speeds are not the coordinates' rates: q' = G(q, t) v + g(q, t) (nq >= nv),
+        M(q, t) v' = F(q, v, t) with M nv x nv (quaternion joints, Kane's form)."""
+        return self.model.general
+
+    @property
+    def v(self) -> list[sp.Symbol]:
+        """The generalized speeds (the q' symbols :attr:`qd` unless :attr:`general`)."""
+        return list(self.model.v)
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def qdot_se(self) -> list:
+        """q' in (q, v, t) per coordinate (symengine): the speeds themselves unless :attr:`general`."""
+        cache = self._cache.get("qdot")
+        if cache is None:
+            cache = self._cache["qdot"] = [to_se(e, f"kinematic equation of {q.name!r}")
+                                           for e, q in zip(self.model.qdot, self.model.coords)]
+        return cache
+
+    @property
     def parameters(self) -> dict:
         """Parameter symbols and their default values."""
         return dict(self.model.params)
@@ -228,6 +256,7 @@ class _Engine:
         self.model = model
         self.q = [se.Symbol(s.name) for s in model.coords]
         self.qd = [se.Symbol(s.name) for s in model.speeds]
+        self.v = [se.Symbol(s.name) for s in model.velocities] if model.general else self.qd
         self.t = se.Symbol(model.t.name)
         self.memo: dict = {}
 
@@ -440,9 +469,11 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
     used = L.free_symbols | D.free_symbols
     for Qi in Q:
         used |= Qi.free_symbols
-    tree = TreeDynamics(model, eng.q, eng.qd) if model.links else None
+    tree = TreeDynamics(model, eng.q, eng.v) if model.links else None
     if tree is not None:
         used |= {eng.q[nd.coord] for nd in tree.nodes}
+        if model.general:
+            used |= {se.Symbol(c.name) for lk in model.links if lk.joint.quaternion for c in lk.coordinates}
     for q, qd in zip(eng.q, eng.qd):
         if q not in used and qd not in used:
             raise ModelError(f"coordinate {q.name!r} appears nowhere in T, V, D or the forces")
@@ -478,19 +509,53 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
                 f"{model.speeds[i].name!r}")
     h = sum((v * pi for v, pi in zip(eng.qd, p)), se.Integer(0)) - L  # eq. 3.5
     dhdt = -se.diff(L, eng.t) + sum((v * (Qi - se.diff(D, v)) for v, Qi in zip(eng.qd, Q)), se.Integer(0))
+    if model.general:
+        M, F, p, Q, (T, V, h, D, dhdt, Uv) = _project(model, eng, M, F, p, Q, (T, V, h, D, dhdt, Uv))
+        n = model.nv
     if tree is not None:
         T, V, h = _add_tree(tree, eng, M, F, p, T, V, h)
         for i in range(n if check else 0):
             if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
                 raise DerivationError(
                     f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
-                    f"{model.speeds[i].name!r} (a joint whose links beyond it have no mass or inertia)")
+                    f"{model.v[i].name!r} (a joint whose links beyond it have no mass or inertia)")
     eom = EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
                             h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start,
                             tree=tree)
     eom._cache["positions"] = {pt.name: eng.vec(pt.position, f"position of {pt.name!r}")
                                for pt in model.points.values()}
     return eom
+
+
+def _project(model: Model, eng: _Engine, M: list, F: list, p: list, Q: list, scalars: tuple):
+    """Lagrange's equations in q (M_q q'' = F_q, eq. 3.16) carried to generalized speeds v by
+    the kinematic equations q' = k(q, v, t) = G v + g: with q'' = G v' + (dk/dq) k + dk/dt,
+    premultiplied by G^T (Maggi's / Kane's form; the design brief's generalized speeds):
+    M_v = G^T M_q G, F_v = G^T (F_q - M_q ((dk/dq) k + dk/dt)), p_v = G^T p_q, Q_v = G^T Q,
+    every q' replaced by k. Returns (M_v, F_v, p_v, Q_v, scalars with q' replaced)."""
+    nq, nv = model.nq, model.nv
+    k = [to_se(e, f"kinematic equation of {q.name!r}") for e, q in zip(model.kinematics, model.coords)]
+    sub = dict(zip(eng.qd, k))
+    G = [[se.diff(k[i], eng.v[a]) for a in range(nv)] for i in range(nq)]
+    for i, q in enumerate(model.coords):
+        for a in range(nv):
+            if any(x in G[i][a].free_symbols for x in eng.v):
+                raise ModelError(f"kinematic equation of {q.name!r} is not linear in the generalized speeds: "
+                                 f"{excerpt(model.kinematics[i])}")
+    Mq = [[se.sympify(M[i][j]).xreplace(sub) for j in range(nq)] for i in range(nq)]
+    bias = [se.Add(se.diff(k[i], eng.t), *(se.diff(k[i], eng.q[m]) * k[m] for m in range(nq))) for i in range(nq)]
+    Fq = [se.sympify(F[i]).xreplace(sub) - se.Add(*(Mq[i][j] * bias[j] for j in range(nq) if Mq[i][j] != 0))
+          for i in range(nq)]
+    pq = [se.sympify(x).xreplace(sub) for x in p]
+    Qq = [se.sympify(x).xreplace(sub) for x in Q]
+
+    def left(vec):  # G^T vec
+        return [se.Add(*(G[i][a] * vec[i] for i in range(nq) if G[i][a] != 0 and vec[i] != 0)) for a in range(nv)]
+    MG = [[se.Add(*(Mq[i][j] * G[j][b] for j in range(nq) if Mq[i][j] != 0 and G[j][b] != 0)) for b in range(nv)]
+          for i in range(nq)]
+    Mv = [[se.Add(*(G[i][a] * MG[i][b] for i in range(nq) if G[i][a] != 0 and MG[i][b] != 0)) for b in range(nv)]
+          for a in range(nv)]
+    return Mv, left(Fq), left(pq), left(Qq), tuple(se.sympify(x).xreplace(sub) for x in scalars)
 
 
 def _add_tree(tree: TreeDynamics, eng: _Engine, M: list, F: list, p: list, T, V, h):
@@ -508,7 +573,7 @@ def _add_tree(tree: TreeDynamics, eng: _Engine, M: list, F: list, p: list, T, V,
                 M[i][j] = M[j][i] = Mt[i][j] if M[i][j] == 0 else se.Add(M[i][j], Mt[i][j])
         if bias[i] != 0:
             F[i] = se.Add(F[i], -bias[i])
-        terms = [Mt[i][j] * eng.qd[j] for j in range(n) if Mt[i][j] != 0]
+        terms = [Mt[i][j] * eng.v[j] for j in range(n) if Mt[i][j] != 0]
         if terms:
             p[i] = se.Add(p[i], *terms)
     Tt, Vt = tree.kinetic_energy(), tree.potential_energy()

@@ -73,10 +73,20 @@ class GeneratedCode:
     # The run-time parameters that are input signals u(t) (Model.input), in p order: an FMU
     # declares them as inputs.
     input_names: list[str] = field(default_factory=list)
+    # Generalized speeds (q' = k(q, v, t), y = (q, v, z)): their number; None: v = q' (nv = n).
+    nv: int | None = None
+    # The neutral configuration (quaternions' scalar parts 1) where it is not all zeros: the q a
+    # run starts from where none is given.
+    q_neutral: list | None = None
 
     @property
     def ny(self) -> int:
-        return 2 * self.n + self.nz
+        return self.n + self.speeds + self.nz
+
+    @property
+    def speeds(self) -> int:
+        """The number of speeds nv (= n unless the model has generalized speeds)."""
+        return self.n if self.nv is None else self.nv
 
     @property
     def np(self) -> int:
@@ -127,8 +137,9 @@ def new_code(scene: Scene) -> GeneratedCode:
     eom = scene.eom
     model = eom.model
     return GeneratedCode(
-        prefix=scene.prefix, model_name=model.name, n=model.n,
-        state_names=[s.name for s in model.coords] + [s.name for s in model.speeds]
+        prefix=scene.prefix, model_name=model.name, n=model.n, nv=model.nv if model.general else None,
+        q_neutral=model.neutral() if any(model.neutral()) else None,
+        state_names=[s.name for s in model.coords] + [s.name for s in model.v]
         + [name for name, _ in eom.quadratures],
         param_names=list(scene.runtime_parameters), param_defaults=scene.default_parameters(),
         output_names=[o.name for o in scene.output_list()], jacobian=scene.jacobian, nz=len(eom.quadratures),
@@ -141,6 +152,6 @@ def header_context(scene: Scene, code: GeneratedCode) -> dict:
                 model_name=code.model_name, n=code.n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout,
                 state_names=code.state_names, param_names=code.param_names,
                 folded=sorted(scene.folded.items()), outputs=code.output_names, jacobian=code.jacobian,
-                diagonal=mass_matrix_is_diagonal(scene.eom))
+                diagonal=mass_matrix_is_diagonal(scene.eom), nv=code.nv)
 
 

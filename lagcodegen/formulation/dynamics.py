@@ -21,10 +21,10 @@ def inverse_dynamics_block(scene: Scene) -> Block:
     if eom.tree is None:
         raise ModelError(f"model {eom.model.name!r} has no rigid-body tree (Model.link): no inverse dynamics kernel")
     model = eom.model
-    n = model.n
+    n = model.nv
     sub = symbol_map(scene)
     q = [se.Symbol(s.name) for s in model.coords]
-    qd = [se.Symbol(s.name) for s in model.speeds]
+    qd = [se.Symbol(s.name) for s in model.v]
     a = [se.Symbol(f"a[{i}]") for i in range(n)]
     defs, tau = recorded_inverse_dynamics(model, q, qd, a)
     M_rest, F_rest = eom.tree.rest

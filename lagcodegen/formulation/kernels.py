@@ -101,12 +101,22 @@ def symbol_map(scene: Scene) -> dict:
     model = eom.model
     n = model.n
     sub = {}
+    zero = 2 * n  # the first quadrature state
     for i, q in enumerate(model.coords):
         sub[se.Symbol(q.name)] = se.Symbol(f"y[{i}]")
-    for i, v in enumerate(model.speeds):
-        sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
+    if model.general:  # y = (q, v, z); a coordinate's rate q' is its kinematic equation k(q, v, t)
+        for i, v in enumerate(model.velocities):
+            sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
+        rates = substitute_all(dict(sub), eom.qdot_se)
+        for qd, k in zip(model.speeds, rates):
+            if qd not in model.velocities:
+                sub[se.Symbol(qd.name)] = k
+        zero = n + model.nv
+    else:
+        for i, v in enumerate(model.speeds):
+            sub[se.Symbol(v.name)] = se.Symbol(f"y[{n + i}]")
     for k, (name, _) in enumerate(eom.quadratures):
-        sub[se.Symbol(name)] = se.Symbol(f"y[{2 * n + k}]")
+        sub[se.Symbol(name)] = se.Symbol(f"y[{zero + k}]")
     for k, name in enumerate(scene.runtime_parameters):
         sub[se.Symbol(name)] = se.Symbol(f"p[{k}]")
     sub.update(scene.substitutions())
@@ -115,7 +125,7 @@ def symbol_map(scene: Scene) -> dict:
 
 def mass_matrix_is_diagonal(eom) -> bool:
     """True if every off-diagonal entry of M is structurally zero (the generated solve divides)."""
-    n = eom.n
+    n = len(eom.M_se)
     return n > 1 and all(eom.M_se[i][j] == 0 for i in range(n) for j in range(n) if i != j)
 
 
@@ -168,8 +178,43 @@ def model_blocks(scene: Scene) -> dict[str, Block]:
     (:mod:`lagcodegen.progress`): the rows of M, then the Jacobian's columns.
     """
     n = scene.eom.model.n
+    if scene.eom.general:
+        with progress.stage("formulate", total=scene.eom.nv, unit="rows") as stage:
+            return _general_blocks(scene, stage)
     with progress.stage("formulate", total=n + (2 * n if scene.jacobian else 0), unit="rows and columns") as stage:
         return _model_blocks(scene, stage)
+
+
+def _general_blocks(scene: Scene, stage) -> dict[str, Block]:
+    """The kernels of q' = k(q, v, t), M(q, t) v' = F(q, v, t) (generalized speeds): ``rhs``
+    with ("ydot", i) = k_i for the coordinates' rates, ("M", a, b) (upper triangle) and
+    ("F", a) of the speeds' equations, ("ydot", nq + nv + k) the quadratures; ``out``. No
+    analytic Jacobian: the solvers form it from differences (Scene(jacobian=...) is refused)."""
+    eom = scene.eom
+    model = eom.model
+    nq, nv = model.nq, model.nv
+    if scene.jacobian:
+        raise ModelError(f"model {model.name!r} has generalized speeds (nq = {nq}, nv = {nv}): its analytic "
+                         "Jacobian is not generated; use jacobian=False (CVODE forms it from differences)")
+    sub = symbol_map(scene)
+    subst = substitute_shared if eom.tree is not None else substitute_all
+    if eom.tree is not None:
+        rhs = tree_rhs(eom, sub)
+    else:
+        rhs = Block()
+        for a in range(nv):
+            for b, e in enumerate(subst(sub, eom.M_se[a][a:]), start=a):
+                rhs.add(("M", a, b), e)
+        rhs = rhs + Block([("F", a) for a in range(nv)], subst(sub, eom.F_se))
+    for i, e in enumerate(substitute_all(sub, eom.qdot_se)):
+        rhs.add(("ydot", i), e)
+    for _ in range(nv):
+        stage.advance()
+    for k, (_, rate) in enumerate(eom.quadratures):
+        rhs.add(("ydot", nq + nv + k), se.sympify(rate).xreplace(sub))
+    outputs = scene.output_list()
+    return {"rhs": rhs, "out": Block([("out", k) for k in range(len(outputs))],
+                                     subst(sub, [o.expr for o in outputs]))}
 
 
 def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
@@ -221,9 +266,9 @@ def tree_rhs(eom, sub: dict) -> Block:
     Newton-Euler for the bias) as the block's temporaries, plus the closed-form terms of the
     model's other elements; targets as :func:`model_blocks`' ("M", i, j), ("F", i)."""
     model = eom.model
-    n = model.n
+    n = model.nv
     q = [se.Symbol(s.name) for s in model.coords]
-    qd = [se.Symbol(s.name) for s in model.speeds]
+    qd = [se.Symbol(s.name) for s in model.v]
     defs, Mt, bias = recorded(model, q, qd)
     M_rest, F_rest = eom.tree.rest
     block = Block(defs=list(zip([sym for sym, _ in defs], substitute_all(sub, [e for _, e in defs]))))

@@ -122,7 +122,8 @@ class Scene:
         self.outputs = list(self.outputs)
         outputs = self.output_list()  # validate names early
         check_double_range([(f"mass matrix entry M[{i}][{j}]", e) for i, row in enumerate(self.eom.M_se) for j, e in enumerate(row)]
-                           + [(f"force term F[{i}] (equation of {model.coords[i].name})", e) for i, e in enumerate(self.eom.F_se)]
+                           + [(f"force term F[{i}] (equation of {model.v[i].name if model.general else model.coords[i].name})", e)
+                              for i, e in enumerate(self.eom.F_se)]
                            + [(f"output {o.name!r}", o.expr) for o in outputs])
 
     # ------------------------------------------------------------------ queries
@@ -165,7 +166,7 @@ class Scene:
             "jacobi_h": eom.h_se,
             "dh_dt": eom.dhdt_se,
         }
-        for q, p in zip(model.coords, eom.p_se):
+        for q, p in zip(model.v if model.general else model.coords, eom.p_se):
             out[f"p_{q.name}"] = p
         for pt in model.points.values():
             for axis, c in zip("xyz", eom.position(pt.name)):
@@ -181,7 +182,7 @@ class Scene:
         names: list[str] = []
         for item in self.outputs:
             if item == "momenta":
-                names += [f"p_{q.name}" for q in model.coords]
+                names += [f"p_{q.name}" for q in (model.v if model.general else model.coords)]
             elif item == "positions":
                 names += [f"{pt.name}_{a}" for pt in model.points.values() for a in "xyz"[:pt.dim]]
             elif item in avail:
@@ -196,6 +197,8 @@ class Scene:
         states = {"t": "the time"}
         for q, v in zip(model.coords, model.speeds):
             states[q.name], states[v.name] = f"coordinate {q.name!r}", f"the velocity of coordinate {q.name!r}"
+        for v in model.velocities:
+            states[v.name] = f"the generalized speed {v.name!r}"
         for name, _ in self.eom.quadratures:
             states[name] = f"the quadrature state {name!r}"
         for n in seen:
@@ -203,6 +206,9 @@ class Scene:
                 raise ModelError(f"output {n!r} has the name of {states[n]}: its column would replace the state's "
                                  f"in the results (rename the output)")
         return [Output(n, avail[n]) for n in seen]
+
+    def _general_pattern(self) -> np.ndarray:
+        return _dense_general_pattern(self)
 
     def substitutions(self) -> dict:
         """symengine substitution folding constant parameters into numbers."""
@@ -221,6 +227,8 @@ class Scene:
         """
         eom = self.eom
         model = eom.model
+        if model.general:
+            return self._general_pattern()
         n, nz = model.n, len(eom.quadratures)
         ny = 2 * n + nz
         sub = self.substitutions()
@@ -277,6 +285,29 @@ class Scene:
             for j in deps(expr(rate)):
                 pattern[2 * n + k, j] = True
         return pattern
+
+
+def _dense_general_pattern(scene) -> np.ndarray:
+    """The Jacobian pattern of a model with generalized speeds: q' = k(q, v, t) depends on what
+    k_i holds, v' = M^-1 F on the whole state (taken dense), quadrature rates on what they hold."""
+    eom = scene.eom
+    model = eom.model
+    nq, nv, nz = model.nq, model.nv, len(eom.quadratures)
+    ny = nq + nv + nz
+    state = ([se.Symbol(q.name) for q in model.coords] + [se.Symbol(v.name) for v in model.velocities]
+             + [se.Symbol(name) for name, _ in eom.quadratures])
+    index = {s: j for j, s in enumerate(state)}
+    pattern = np.zeros((ny, ny), dtype=bool)
+    for i, k in enumerate(eom.qdot_se):
+        for s in se.sympify(k).free_symbols:
+            if s in index:
+                pattern[i, index[s]] = True
+    pattern[nq:nq + nv, :nq + nv] = True
+    for k, (_, rate) in enumerate(eom.quadratures):
+        for s in se.sympify(rate).free_symbols:
+            if s in index:
+                pattern[nq + nv + k, index[s]] = True
+    return pattern
 
 
 def check_double_range(exprs: Sequence[tuple[str, object]]) -> None:

@@ -14,14 +14,21 @@ joint):
   continuous joint by the pair (cos, sin); here it is the angle itself);
 * ``prismatic``: one displacement along the axis, named as the joint;
 * ``fixed``: none (the link is rigidly attached: the derivation merges it into its parent);
-* ``spherical``: three intrinsic Z-Y-X (yaw-pitch-roll) Euler angles ``<name>_yaw``,
-  ``<name>_pitch``, ``<name>_roll``: R = Rz(yaw) Ry(pitch) Rx(roll). Singular (gimbal lock: the
-  mass matrix loses rank) at pitch = +-pi/2;
-* ``free``: the translation of the joint frame's origin in the parent frame ``<name>_x``,
-  ``<name>_y``, ``<name>_z``, then the spherical joint's three angles (same singularity).
+* ``spherical`` (default ``rotation="quaternion"``, Pinocchio's ``JointModelSpherical``): a unit
+  quaternion ``<name>_qx``, ``<name>_qy``, ``<name>_qz``, ``<name>_qw`` (Hamilton, scalar last)
+  and three generalized speeds, the child's angular velocity in the child frame ``<name>_wx``,
+  ``<name>_wy``, ``<name>_wz``; q' = 1/2 q (x) (0, w). No singular attitude;
+* ``free`` (default ``rotation="quaternion"``, Pinocchio's ``JointModelFreeFlyer``): the joint
+  frame's origin in the parent frame ``<name>_x``, ``<name>_y``, ``<name>_z``, then the
+  quaternion; speeds: the linear velocity of the child's origin and its angular velocity, both
+  in the child frame, ``<name>_vx, _vy, _vz, _wx, _wy, _wz``; (x, y, z)' = R(q) v;
+* ``rotation="ZYX"`` on either: three intrinsic Z-Y-X (yaw-pitch-roll) Euler angles
+  ``<name>_yaw``, ``<name>_pitch``, ``<name>_roll`` (R = Rz(yaw) Ry(pitch) Rx(roll)) whose
+  velocities are their time derivatives. Singular (gimbal lock: the mass matrix loses rank) at
+  pitch = +-pi/2: a body that turns through it is integrated with errors far above the tolerance.
 
-Their velocities are the coordinates' time derivatives (q', as everywhere in lagcodegen): a
-spherical joint's angular velocity is E(q) q', not a vector of its own.
+Every other joint's velocity is its coordinate's time derivative q'. The quaternion joints give
+the model generalized speeds v != q' (:attr:`Model.velocities`, :attr:`Model.kinematics`).
 
 Nothing is derived here: the model only records the tree (:attr:`Model.links
 <lagcodegen.model.model.Model>`); :mod:`lagcodegen.derivation` recognises it and evaluates
@@ -205,6 +212,33 @@ JOINT_COORDINATES = {
     "planar": ("_x", "_y", "_theta"),
 }
 
+#: Rotations of spherical and free joints: a unit quaternion (default; generalized speeds) or
+#: Z-Y-X Euler angles (their velocities q'; singular at pitch = +-pi/2).
+ROTATIONS = ("quaternion", "ZYX")
+
+#: Coordinates and generalized speeds of the quaternion joints (Pinocchio's order).
+QUATERNION_COORDINATES = {"spherical": ("_qx", "_qy", "_qz", "_qw"),
+                          "free": ("_x", "_y", "_z", "_qx", "_qy", "_qz", "_qw")}
+QUATERNION_SPEEDS = {"spherical": ("_wx", "_wy", "_wz"), "free": ("_vx", "_vy", "_vz", "_wx", "_wy", "_wz")}
+
+
+def quaternion_rotation(x, y, z, w) -> list:
+    """The rotation matrix (rows) of the quaternion (x, y, z, w) normalized: exact for any nonzero
+    quaternion, so that the dynamics does not depend on the drift of its norm."""
+    s = 2 / (x * x + y * y + z * z + w * w)
+    return [[1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
+            [s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)],
+            [s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)]]
+
+
+def quaternion_rates(q, w) -> list:
+    """q' = 1/2 q (x) (0, w) for q = (x, y, z, s) and the angular velocity w in the body frame."""
+    x, y, z, s = q
+    wx, wy, wz = w
+    half = sp.Rational(1, 2)
+    return [half * (s * wx - z * wy + y * wz), half * (z * wx + s * wy - x * wz),
+            half * (-y * wx + x * wy + s * wz), -half * (x * wx + y * wy + z * wz)]
+
 
 @dataclass(frozen=True)
 class Joint:
@@ -215,12 +249,21 @@ class Joint:
     kind: str
     name: str
     axis: tuple = (0, 0, 1)
+    rotation: str = "quaternion"
 
     def __post_init__(self):
         if self.kind not in JOINT_COORDINATES:
             raise ModelError(f"joint kind {self.kind!r} is unknown (known: {', '.join(JOINT_COORDINATES)})")
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ModelError(f"joint name {self.name!r} is not a valid identifier")
+        if self.rotation not in ROTATIONS:
+            raise ModelError(f"joint {self.name!r}: rotation must be one of {', '.join(map(repr, ROTATIONS))}, "
+                             f"got {self.rotation!r}")
+
+    @property
+    def quaternion(self) -> bool:
+        """True for a spherical or free joint whose rotation is a quaternion (generalized speeds)."""
+        return self.kind in QUATERNION_COORDINATES and self.rotation == "quaternion"
 
     @classmethod
     def revolute(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
@@ -243,17 +286,21 @@ class Joint:
         return cls("fixed", name)
 
     @classmethod
-    def spherical(cls, name: str) -> "Joint":
-        """A ball joint: Z-Y-X Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at
-        pitch = +-pi/2)."""
-        return cls("spherical", name)
+    def spherical(cls, name: str, *, rotation: str = "quaternion") -> "Joint":
+        """A ball joint. Default: the quaternion ``<name>_qx, _qy, _qz, _qw`` with the angular
+        velocity in the child frame ``<name>_wx, _wy, _wz`` as its speeds (Pinocchio's layout; no
+        singular attitude). ``rotation="ZYX"``: Z-Y-X Euler angles ``<name>_yaw, _pitch, _roll``
+        (R = Rz Ry Rx) and their rates, singular at pitch = +-pi/2."""
+        return cls("spherical", name, rotation=rotation)
 
     @classmethod
-    def free(cls, name: str) -> "Joint":
+    def free(cls, name: str, *, rotation: str = "quaternion") -> "Joint":
         """Six degrees of freedom: the translation ``<name>_x, _y, _z`` of the joint frame in the
-        parent frame, then the spherical joint's angles ``<name>_yaw, _pitch, _roll`` (singular at
+        parent frame, then the rotation as :meth:`spherical`'s. Quaternion (default): speeds
+        ``<name>_vx, _vy, _vz`` (the child origin's velocity) and ``_wx, _wy, _wz``, both in the
+        child frame (Pinocchio's free flyer). ``rotation="ZYX"``: Euler angles (singular at
         pitch = +-pi/2)."""
-        return cls("free", name)
+        return cls("free", name, rotation=rotation)
 
     @classmethod
     def planar(cls, name: str, axis: Sequence = (0, 0, 1)) -> "Joint":
@@ -267,13 +314,25 @@ class Joint:
     @property
     def coordinate_names(self) -> tuple[str, ...]:
         """The names of the coordinates this joint brings to the model."""
+        if self.quaternion:
+            return tuple(self.name + s for s in QUATERNION_COORDINATES[self.kind])
         return tuple(self.name + s for s in JOINT_COORDINATES[self.kind])
+
+    @property
+    def speed_names(self) -> tuple[str, ...]:
+        """The names of the generalized speeds of a quaternion joint (none for the others, whose
+        speeds are their coordinates' rates)."""
+        return tuple(self.name + s for s in QUATERNION_SPEEDS[self.kind]) if self.quaternion else ()
 
     def steps(self, coords: Sequence) -> list[tuple[str, tuple, object]]:
         """The joint as elementary motions in order, (kind "R" or "P", unit axis, coordinate):
         a spherical joint is three rotations about the moving z, y, x axes, a free joint three
-        translations along the joint frame's axes followed by those rotations."""
+        translations along the joint frame's axes followed by those rotations (Euler angles).
+        Quaternion joints are no such chain (:mod:`lagcodegen.model.treedynamics` moves them as a
+        whole): an empty list."""
         ex, ey, ez = (1, 0, 0), (0, 1, 0), (0, 0, 1)
+        if self.quaternion:
+            return []
         if self.kind in ("revolute", "continuous"):
             return [("R", self.axis, coords[0])]
         if self.kind == "prismatic":
@@ -351,10 +410,16 @@ class Link:
     coordinates: tuple
     children: list = field(default_factory=list, repr=False)
     _pose: tuple | None = field(default=None, repr=False)
+    speeds: tuple = ()  # a quaternion joint's generalized speeds (Joint.speed_names)
 
     def local_pose(self) -> tuple[sp.Matrix, sp.Matrix]:
         """(R, p): the link frame's axes and origin in the parent frame, in sympy."""
         R, p = sp.Matrix(self.origin.rotation), sp.Matrix(self.origin.translation)
+        if self.joint.quaternion:
+            quat = self.coordinates[-4:]
+            if self.joint.kind == "free":
+                p = p + R * sp.Matrix(self.coordinates[:3])
+            return R * sp.Matrix(quaternion_rotation(*quat)), p
         for kind, axis, q in self.joint.steps(self.coordinates):
             if kind == "R":
                 R = R * axis_rotation(axis, q)

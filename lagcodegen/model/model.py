@@ -187,6 +187,10 @@ class Model:
     links: list = field(default_factory=list)  # rigid links of trees (bodies.Link), parents first
     springs: list = field(default_factory=list)  # (label, Point a, Point b) of spring(): what pictures draw
     units: dict = field(default_factory=dict)  # coordinate / parameter / input name -> unit ("m", "kg")
+    # Generalized speeds v != q' (quaternion joints, Kane's form): the speeds and, per coordinate,
+    # q' = kinematics[i](q, v, t). Both empty: v = q' (the ``speeds``), Lagrange's equations.
+    velocities: list = field(default_factory=list)
+    kinematics: list = field(default_factory=list)
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -210,6 +214,9 @@ class Model:
             q = sp.Symbol(name)
             self.coords.append(q)
             self.speeds.append(sp.Symbol(f"{name}_dot"))
+            if self.velocities:  # a model with generalized speeds: this coordinate's is its rate
+                self.velocities.append(self.speeds[-1])
+                self.kinematics.append(self.speeds[-1])
             self._note_taken(coordinate=q)
             out.append(q)
         return tuple(out)
@@ -233,10 +240,12 @@ class Model:
         return sym
 
     def _names(self) -> set[str]:
-        return {s.name for s in self.coords} | {s.name for s in self.speeds} | {s.name for s in self.params}
+        return ({s.name for s in self.coords} | {s.name for s in self.speeds} | {s.name for s in self.params}
+                | {s.name for s in self.velocities})
 
     def _taken_key(self) -> tuple:
-        return (id(self.coords), len(self.coords), id(self.speeds), len(self.speeds), id(self.params), len(self.params))
+        return (id(self.coords), len(self.coords), id(self.speeds), len(self.speeds), id(self.params), len(self.params),
+                len(self.velocities))
 
     def _taken(self) -> tuple[dict, set]:
         """(derived name -> (velocity or acceleration, coordinate), :meth:`_names`): kept up to
@@ -260,7 +269,8 @@ class Model:
             return
         key, derived, names = cache
         grown = 1 if coordinate is not None else 0
-        before = (key[0], key[1] + grown, key[2], key[3] + grown, key[4], key[5] + (parameter is not None))
+        before = (key[0], key[1] + grown, key[2], key[3] + grown, key[4], key[5] + (parameter is not None),
+                  key[6] + (grown if self.velocities else 0))
         if before != self._taken_key():
             return
         if coordinate is not None:
@@ -309,6 +319,103 @@ class Model:
     def n(self) -> int:
         """Number of generalized coordinates."""
         return len(self.coords)
+
+    # ------------------------------------------------------------------ generalized speeds
+    @property
+    def general(self) -> bool:
+        """True if the model's speeds are not its coordinates' rates (q' = G(q, t) v + g(q, t))."""
+        return bool(self.velocities)
+
+    @property
+    def v(self) -> list:
+        """The generalized speeds: :attr:`velocities`, or the coordinates' rates (``speeds``)."""
+        return self.velocities if self.velocities else self.speeds
+
+    @property
+    def qdot(self) -> list:
+        """q' per coordinate in (q, v, t): :attr:`kinematics`, or the speeds themselves."""
+        return self.kinematics if self.kinematics else self.speeds
+
+    @property
+    def nq(self) -> int:
+        """Number of coordinates (= :attr:`n`)."""
+        return len(self.coords)
+
+    @property
+    def nv(self) -> int:
+        """Number of generalized speeds (nv <= nq)."""
+        return len(self.v)
+
+    def generalized_speeds(self, names: Sequence[str], kinematics) -> tuple[sp.Symbol, ...]:
+        """Declare generalized speeds ``names`` and the kinematic equations q' = f(q, v, t) of
+        every coordinate (``kinematics``: a mapping coordinate (symbol or name) -> expression, or
+        a sequence in coordinate order), replacing the speeds q' the coordinates brought (Kane's
+        form; notes eq. 2.1 with q' a function of the speeds). Return the speeds' symbols."""
+        if self.velocities:
+            raise ModelError(f"model {self.name!r} has generalized speeds already")
+        if isinstance(names, str):
+            names = names.replace(",", " ").split()
+        syms = []
+        for name in names:
+            _check_name(name, "generalized speed")
+            self._check_free(name)
+            syms.append(sp.Symbol(name))
+        if len(set(syms)) != len(syms):
+            raise ModelError("generalized speeds: a name is given twice")
+        if len(syms) > self.n:
+            raise ModelError(f"{len(syms)} generalized speeds for {self.n} coordinates: at most one per coordinate")
+        if isinstance(kinematics, dict):
+            rows = {self.index(k): v for k, v in kinematics.items()}
+            missing = [self.coords[i].name for i in range(self.n) if i not in rows]
+            if missing:
+                raise ModelError(f"kinematic equations: no q' given for coordinate(s) {', '.join(missing)}")
+            kinematics = [rows[i] for i in range(self.n)]
+        kinematics = list(kinematics)
+        if len(kinematics) != self.n:
+            raise ModelError(f"kinematic equations: {len(kinematics)} given for {self.n} coordinates")
+        exprs = [_as_expr(e, f"kinematic equation of {q.name!r}") for e, q in zip(kinematics, self.coords)]
+        allowed = set(self.coords) | set(syms) | set(self.params) | {self.t}
+        for e, q in zip(exprs, self.coords):
+            bad = e.free_symbols - allowed
+            if bad:
+                raise ModelError(f"kinematic equation of {q.name!r} ({excerpt(e)}) uses "
+                                 f"{', '.join(sorted(s.name for s in bad))}: only coordinates, the speeds "
+                                 f"{', '.join(names)}, parameters and t")
+        self.velocities[:] = syms
+        self.kinematics[:] = exprs
+        self.__dict__.pop("_taken_cache", None)
+        return tuple(syms)
+
+    def neutral(self) -> list[float]:
+        """The neutral configuration (Pinocchio's ``neutral``): every coordinate 0 but the scalar
+        part of each quaternion, 1 (the identity rotation)."""
+        out = [0.0] * self.n
+        for lk in self.links:
+            if lk.joint.quaternion:
+                out[self.index(lk.coordinates[-1])] = 1.0
+        return out
+
+    def _quaternion_joint(self, joint: Joint, coords: tuple) -> tuple:
+        """The generalized speeds and kinematics of a quaternion joint whose coordinates were
+        just declared (:meth:`link`); returns the speeds."""
+        from .bodies import quaternion_rates, quaternion_rotation
+        if not self.velocities:
+            self.velocities[:] = list(self.speeds)
+            self.kinematics[:] = list(self.speeds)
+        k = len(coords)
+        del self.velocities[-k:]
+        del self.kinematics[-k:]
+        w = [sp.Symbol(name) for name in joint.speed_names]
+        quat = coords[-4:]
+        qdot = []
+        if joint.kind == "free":
+            R = quaternion_rotation(*quat)
+            qdot = [sum((R[i][j] * w[j] for j in range(3)), sp.Integer(0)) for i in range(3)]
+        qdot += quaternion_rates(quat, w[-3:])
+        self.velocities.extend(w)
+        self.kinematics.extend(qdot)
+        self.__dict__.pop("_taken_cache", None)
+        return tuple(w)
 
     def time_derivative(self, expr) -> sp.Expr:
         """d/dt of an expression in (q, t): sum_i dx/dq_i q_i' + dx/dt."""
@@ -400,7 +507,7 @@ class Model:
         if joint is not None and isinstance(joint, Joint):
             if any(lk.joint.name == joint.name for lk in self.links):
                 raise ModelError(f"link {name!r}: joint name {joint.name!r} is used twice")
-            for cname in joint.coordinate_names:
+            for cname in joint.coordinate_names + joint.speed_names:
                 _check_name(cname, "coordinate")
                 self._check_free(cname)
         lk = make_link(name, parent, joint, origin, mass, com, inertia, ())
@@ -412,6 +519,8 @@ class Model:
                                  f"{', '.join(sorted(s.name for s in bad))}")
         coords = self.coordinates(list(lk.joint.coordinate_names)) if lk.joint.coordinate_names else ()
         lk.coordinates = tuple(coords)
+        if lk.joint.quaternion:
+            lk.speeds = self._quaternion_joint(lk.joint, lk.coordinates)
         if parent is not None:
             parent.children.append(lk)
         self.links.append(lk)
@@ -539,15 +648,15 @@ class Model:
 
     # ------------------------------------------------------------------ checks
     def known_symbols(self) -> set:
-        return set(self.coords) | set(self.speeds) | set(self.params) | {self.t}
+        return set(self.coords) | set(self.speeds) | set(self.params) | {self.t} | set(self.velocities)
 
     def check_symbols(self, expr, what: str, allow_speeds: bool = True) -> None:
         """Raise ModelError if ``expr`` uses a symbol the model does not declare."""
         expr = sp.sympify(expr)
         allowed = self.known_symbols()
-        speeds = {s.name for s in self.speeds}
+        speeds = {s.name for s in self.speeds} | {s.name for s in self.velocities}
         if not allow_speeds:
-            allowed -= set(self.speeds)
+            allowed -= set(self.speeds) | set(self.velocities)
         bad = expr.free_symbols - allowed
         velocities = sorted(s.name for s in bad if s.name in speeds and not allow_speeds)
         if velocities:

@@ -14,8 +14,13 @@ expressions are built: zero and unit entries of placements, axis-aligned joint a
 Spatial vectors are pairs of 3-vectors in body coordinates at the body frame's origin: motion
 (omega, v), force (n, f); a spatial inertia is (m, h = m c, I_o = I_G + m (|c|^2 1 - c c^T)).
 Fixed joints are merged into their parent (their inertia moved into the parent's frame);
-spherical and free joints are chains of elementary rotations and translations through massless
-frames (:meth:`lagcodegen.model.bodies.Joint.steps`).
+spherical and free joints with Euler angles are chains of elementary rotations and translations
+through massless frames (:meth:`lagcodegen.model.bodies.Joint.steps`). A quaternion joint
+(generalized speeds, Featherstone ch. 4: motion subspace the identity in the child frame) is a
+group of nodes at one frame: the first carries the joint's rotation R(q) (and a free joint's
+translation), each node one column of the motion subspace and one speed (``Node.speed``, an index
+into v, where the 1-dof nodes' speed is their coordinate's rate); the velocity-product term of the
+group is v_in x S v_J with v_in the velocity carried from the parent (``Node.group``).
 
 One job: the tree's recursions; :mod:`lagcodegen.derivation` adds them to the closed-form terms
 of the model's other elements.
@@ -212,10 +217,16 @@ class Node:
     axis: list
     coord: int
     inertia: tuple | None = None
+    speed: int | None = None   # index into v (None: the coordinate's rate, index ``coord``)
+    rot: list | None = None    # a quaternion joint's rotation R_J (rows); "still": no motion of the frame
+    shift: list | None = None  # a free joint's translation (x, y, z) in the joint frame
+    group: int | None = None   # the first node of a quaternion joint's group
 
     # --- the joint's rotation R_J applied to vectors (axis-aligned axes: a plane rotation)
     def setup(self, q, c, s):
         self.q, self.c, self.s = q, c, s
+        if self.speed is None:
+            self.speed = self.coord
         self.aligned = None
         nz = [k for k in range(3) if not _is0(self.axis[k])]
         if len(nz) == 1 and self.axis[nz[0]] in (ONE, -ONE):
@@ -225,6 +236,8 @@ class Node:
 
     def joint_rot(self, x, transpose: bool):
         """R_J x (R_J^T x with ``transpose``) for a revolute node; x itself for a prismatic one."""
+        if self.rot is not None:
+            return list(x) if self.rot == "still" else matvec(self.rot, x, transpose)
         if self.kind == "P":
             return list(x)
         c, s = self.c, self.s
@@ -262,9 +275,10 @@ class TreeDynamics:
 
     def __init__(self, model, q: list, qd: list):
         self.model = model
-        self.n = len(q)
+        self.n = len(qd)
         self.q, self.qd = q, qd
         index = {c.name: i for i, c in enumerate(model.coords)}
+        speed_index = {v.name: i for i, v in enumerate(model.v)}
         self.nodes: list[Node] = []
         # link name -> (node index, Placement of the link frame in that node; None: the identity)
         anchors: dict = {}
@@ -275,6 +289,8 @@ class TreeDynamics:
             else:
                 node, place = anchors[link.parent.name]
                 place = link.origin if place is None else place * link.origin
+            if link.joint.quaternion:
+                node, place = self._quaternion_group(link, node, place, index, speed_index), None
             for kind, axis, coord in link.joint.steps(link.coordinates):
                 if place is None:  # the next elementary motion of a spherical or free joint
                     R, p = [[ONE if i == j else ZERO for j in range(3)] for i in range(3)], [ZERO] * 3
@@ -305,7 +321,10 @@ class TreeDynamics:
         self.coord_node = {}
         for k, nd in enumerate(self.nodes):
             qk = q[nd.coord]
-            nd.setup(qk, _named(se.cos(qk)), _named(se.sin(qk)))
+            if nd.rot is not None:
+                nd.setup(qk, None, None)
+            else:
+                nd.setup(qk, _named(se.cos(qk)), _named(se.sin(qk)))
             self.coord_node[nd.coord] = k
         self.children: list[list[int]] = [[] for _ in self.nodes]
         for k, nd in enumerate(self.nodes):
@@ -313,10 +332,49 @@ class TreeDynamics:
                 self.children[nd.parent].append(k)
         self._velocities = None
 
+    def _quaternion_group(self, link, node: int, place, index: dict, speed_index: dict) -> int:
+        """Append the nodes of ``link``'s quaternion joint (a free joint: three translations
+        along the child's axes, then three rotations; a spherical joint: the rotations) after
+        ``node``, placed at ``place``; return the last node."""
+        if place is None:
+            R, p = [[ONE if i == j else ZERO for j in range(3)] for i in range(3)], [ZERO] * 3
+        else:
+            R = [[_se(place.rotation[i, j], f"origin of {link.name!r}") for j in range(3)] for i in range(3)]
+            p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
+        coords = [se.Symbol(c.name) for c in link.coordinates]
+        x, y, z, w = coords[-4:]
+        n2 = _named(se.Add(mul(x, x), mul(y, y), mul(z, z), mul(w, w)))
+        s2 = _named(se.Integer(2) / n2)
+        xx, yy, zz = mul(x, x), mul(y, y), mul(z, z)
+        xy, xz, yz, xw, yw, zw = mul(x, y), mul(x, z), mul(y, z), mul(x, w), mul(y, w), mul(z, w)
+        rot = [[add(ONE, neg(mul(s2, add(yy, zz)))), mul(s2, add(xy, neg(zw))), mul(s2, add(xz, yw))],
+               [mul(s2, add(xy, zw)), add(ONE, neg(mul(s2, add(xx, zz)))), mul(s2, add(yz, neg(xw)))],
+               [mul(s2, add(xz, neg(yw))), mul(s2, add(yz, xw)), add(ONE, neg(mul(s2, add(xx, yy))))]]
+        units = [[ONE, ZERO, ZERO], [ZERO, ONE, ZERO], [ZERO, ZERO, ONE]]
+        kinds = (["P"] * 3 if link.joint.kind == "free" else []) + ["R"] * 3
+        first = len(self.nodes)
+        coord = index[link.coordinates[0].name]
+        for j, (kind, speed) in enumerate(zip(kinds, link.speeds)):
+            axis = units[j % 3]
+            if j == 0:
+                nd = Node(node, R, p, kind, axis, coord, speed=speed_index[speed.name], rot=rot, group=first,
+                          shift=coords[:3] if link.joint.kind == "free" else None)
+            else:
+                nd = Node(first + j - 1, [list(r) for r in units], [ZERO] * 3, kind, axis, coord,
+                          speed=speed_index[speed.name], rot="still", group=first)
+            self.nodes.append(nd)
+        return len(self.nodes) - 1
+
     # ------------------------------------------------------------------ kinematics
     def origin(self, k: int):
-        """The node's origin in its parent frame: p_T (+ R_T a q for a prismatic joint)."""
+        """The node's origin in its parent frame: p_T (+ R_T a q for a prismatic joint; + R_T x
+        for a free joint's translation x)."""
         nd = self.nodes[k]
+        if nd.shift is not None:
+            d = list(nd.shift)
+            return vadd(nd.p_T, d if nd.identity_T else matvec(nd.R_T, d))
+        if nd.rot is not None:
+            return nd.p_T
         if nd.kind == "P":
             d = scale(nd.q, nd.axis)
             return vadd(nd.p_T, d if nd.identity_T else matvec(nd.R_T, d))
@@ -326,13 +384,16 @@ class TreeDynamics:
         """(omega_i, v_i) of every node in its own coordinates."""
         if self._velocities is None:
             out = []
+            self._incoming = {}
             for k, nd in enumerate(self.nodes):
                 if nd.parent < 0:
                     w, v = [ZERO] * 3, [ZERO] * 3
                 else:
                     wp, vp = out[nd.parent]
                     w, v = nd.down(wp), nd.down(vadd(vp, cross(wp, self.origin(k))))
-                Sq = scale(self.qd[nd.coord], nd.axis)
+                if nd.group == k:  # the velocity a quaternion joint's group carries from the parent
+                    self._incoming[k] = (w, v)
+                Sq = scale(self.qd[nd.speed], nd.axis)
                 if nd.kind == "R":
                     w = vadd(w, Sq)
                 else:
@@ -377,13 +438,14 @@ class TreeDynamics:
                 alp, ap = acc[nd.parent]
                 al, a = nd.down(alp), nd.down(vadd(ap, cross(alp, self.origin(k))))
             if velocities:
-                Sq = scale(self.qd[nd.coord], nd.axis)
-                if nd.kind == "R":  # c_J = v x S q'
-                    al, a = vadd(al, cross(w, Sq)), vadd(a, cross(v, Sq))
+                Sq = scale(self.qd[nd.speed], nd.axis)
+                wc, vc = (w, v) if nd.group is None else self._incoming[nd.group]
+                if nd.kind == "R":  # c_J = v x S q' (a group: v_in x S v_J, Node.group)
+                    al, a = vadd(al, cross(wc, Sq)), vadd(a, cross(vc, Sq))
                 else:
-                    a = vadd(a, cross(w, Sq))
+                    a = vadd(a, cross(wc, Sq))
             if qdd is not None:
-                Sa = scale(qdd[nd.coord], nd.axis)
+                Sa = scale(qdd[nd.speed], nd.axis)
                 if nd.kind == "R":
                     al = vadd(al, Sa)
                 else:
@@ -408,7 +470,7 @@ class TreeDynamics:
             if not tn:
                 continue
             n, f = [add(*t) for t in tn], [add(*t) for t in tf]
-            tau[nd.coord] = dot(nd.axis, n if nd.kind == "R" else f)
+            tau[nd.speed] = dot(nd.axis, n if nd.kind == "R" else f)
             if nd.parent >= 0:
                 Rf = nd.up(f)
                 Rn = vadd(nd.up(n), cross(self.origin(k), Rf))
@@ -536,11 +598,11 @@ class TreeDynamics:
             Io = [[add(*t) for t in row] for row in comp[k][2]]
             w, v = S[k]
             n, f = self.apply_inertia((m, h, Io), w, v)
-            i = nd.coord
+            i = nd.speed
             j = k
             while j >= 0:
                 sj = S[j]
-                M[self.nodes[j].coord][i] = M[i][self.nodes[j].coord] = add(dot(sj[0], n), dot(sj[1], f))
+                M[self.nodes[j].speed][i] = M[i][self.nodes[j].speed] = add(dot(sj[0], n), dot(sj[1], f))
                 j = self.nodes[j].parent
         return M
 
@@ -557,7 +619,7 @@ class TreeDynamics:
                 n, f = [dot(row, nd.axis) for row in Io], cross(nd.axis, h)
             else:
                 n, f = cross(h, nd.axis), scale(m, nd.axis)
-            i = nd.coord
+            i = nd.speed
             M[i][i] = dot(nd.axis, n if nd.kind == "R" else f)
             j = k
             while self.nodes[j].parent >= 0:
@@ -566,7 +628,7 @@ class TreeDynamics:
                 f = f2
                 j = self.nodes[j].parent
                 pj = self.nodes[j]
-                M[pj.coord][i] = M[i][pj.coord] = dot(pj.axis, n if pj.kind == "R" else f)
+                M[pj.speed][i] = M[i][pj.speed] = dot(pj.axis, n if pj.kind == "R" else f)
         return M
 
     def kinetic_energy(self):

@@ -21,8 +21,8 @@ extern "C" {
 
 typedef struct lcg_model {
     int abi;      /* LCG_MODEL_ABI */
-    int nq;       /* coordinates */
-    int nz;       /* quadrature states after (q, q') */
+    int nq;       /* coordinates (a model with generalized speeds, y = (q, v, z): the speeds nv) */
+    int nz;       /* quadrature states after (q, q') (generalized speeds: ny - 2 nv) */
     int ny;       /* state size 2 nq + nz */
     int np;       /* run-time parameters */
     int nout;     /* outputs */

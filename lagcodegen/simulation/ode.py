@@ -121,6 +121,16 @@ class CompiledModel(CompiledReprMixin):
         return self.code.ny
 
     @property
+    def nq(self) -> int:
+        """The number of coordinates q (the first nq entries of the state y = (q, v, z))."""
+        return self.code.n
+
+    @property
+    def nv(self) -> int:
+        """The number of speeds v (= nq unless the model has generalized speeds, e.g. quaternion joints)."""
+        return self.code.speeds
+
+    @property
     def state_names(self) -> list[str]:
         return self.code.state_names
 
@@ -191,11 +201,11 @@ class CompiledModel(CompiledReprMixin):
         generated ``<prefix>_inverse_dynamics`` (recursive Newton-Euler, O(n)). With v = a = 0 it is
         the static load -F(q, 0, t), e.g. the gravity torques a controller compensates."""
         fn = self._inverse_dynamics_function()
-        n = self.n
-        y = np.concatenate([c_vector(q, n, "q"), c_vector(v, n, "v"), np.zeros(self.ny - 2 * n)])
-        acc = c_vector(a, n, "a")
+        n, nv = self.n, self.nv
+        y = np.concatenate([c_vector(q, n, "q"), c_vector(v, nv, "v"), np.zeros(self.ny - n - nv)])
+        acc = c_vector(a, nv, "a")
         p = self._defaults if params is None else self.parameter_vector(params)
-        tau = np.empty(n)
+        tau = np.empty(nv)
         dp = ctypes.POINTER(ctypes.c_double)
         rc = fn(float(t), y.ctypes.data_as(dp), acc.ctypes.data_as(dp), p.ctypes.data_as(dp), tau.ctypes.data_as(dp))
         check_rc(rc, t, "inverse dynamics")

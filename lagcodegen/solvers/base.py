@@ -253,9 +253,13 @@ def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
             raise LagcodegenError(f"y0 has {y.size} values, the state has {cm.ny}: {', '.join(cm.state_names)}")
         return y
     names = cm.state_names
+    nv = getattr(cm.code, "speeds", n)
     q0, v0 = file_initial(cm, q0, v0)
-    return np.array(state_values(q0, names[:n], "q0") + state_values(v0, names[:n], "v0")
-                    + state_values(z0, names[2 * n:], "z0"), dtype=float)
+    neutral = getattr(cm.code, "q_neutral", None)
+    if neutral is not None and (q0 is None or isinstance(q0, Mapping)):  # quaternions: the identity
+        q0 = {**dict(zip(names[:n], neutral)), **(q0 or {})}
+    return np.array(state_values(q0, names[:n], "q0") + state_values(v0, names[n:n + nv], "v0")
+                    + state_values(z0, names[n + nv:], "z0"), dtype=float)
 
 
 def check_initial_mass_matrix(cm, t0: float, y: np.ndarray, p: np.ndarray) -> None:
