@@ -119,7 +119,7 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
             raise ModelError(f"{path}: with limits=True the URDF is a constrained system: compile it with "
                              "compile_constrained(urdf.load(...)), whose code is not cached by the file")
         eom = derive(model)
-        return Scene(eom, jacobian=eom.model.n <= AUTO_JACOBIAN_MAX_N if jacobian is None else jacobian,
+        return Scene(eom, jacobian=auto_jacobian(eom) if jacobian is None else jacobian,
                      outputs=outputs, runtime_parameters=runtime_parameters, values=dict(values or {}),
                      prefix=prefix)
 
@@ -143,10 +143,16 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
         return build_code(code, native=native)
 
 
+def auto_jacobian(eom: EquationsOfMotion) -> bool:
+    """``jacobian=None``: the analytic Jacobian for models of at most AUTO_JACOBIAN_MAX_N
+    coordinates whose speeds are their rates (models with generalized speeds have none yet)."""
+    return not eom.general and eom.model.n <= AUTO_JACOBIAN_MAX_N
+
+
 def _compile_equations(eom: EquationsOfMotion, *, jacobian: bool | None, outputs, runtime_parameters, values,
                        prefix: str | None, native: bool, verbose: bool, lang: str) -> CompiledModel:
     if jacobian is None:
-        jacobian = eom.model.n <= AUTO_JACOBIAN_MAX_N
+        jacobian = auto_jacobian(eom)
     scene = Scene(eom, jacobian=jacobian, outputs=outputs, runtime_parameters=runtime_parameters,
                   values=values or {}, prefix=prefix)
     return build_code(generate_code(scene, lang), native=native, verbose=verbose)

@@ -271,7 +271,7 @@ def test_rigid_body_trees_draw_joints_centres_of_mass_and_frame_axes(tmp_path):
 
 def test_a_top_on_a_ball_joint_is_drawn_from_its_link(tmp_path):
     m = lcg.Model("top")
-    m.link("top", joint=lcg.Joint.spherical("pivot"), mass=1.0, com=(0, 0, 0.3), inertia=(0.02, 0.02, 0.04))
+    m.link("top", joint=lcg.Joint.spherical("pivot", rotation="ZYX"), mass=1.0, com=(0, 0, 0.3), inertia=(0.02, 0.02, 0.04))
     m.gravity(9.81)
     res = lcg.compile_model(m).simulate(T, q0=[0.0, 0.2, 0.0], v0=[0.0, 0.0, 30.0], rtol=1e-10, atol=1e-12)
     d = res.drawn()

@@ -120,6 +120,11 @@ class Scene:
                 raise ModelError(f"scene: value given for unknown parameter {name!r}")
             check_finite(value, f"scene value of parameter {name!r}")
         self.outputs = list(self.outputs)
+        if self.jacobian and self.eom.general:
+            model = self.eom.model
+            raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
+                             "analytic Jacobian is not generated; use jacobian=False (CVODE forms it from "
+                             "differences)")
         outputs = self.output_list()  # validate names early
         check_double_range([(f"mass matrix entry M[{i}][{j}]", e) for i, row in enumerate(self.eom.M_se) for j, e in enumerate(row)]
                            + [(f"force term F[{i}] (equation of {model.v[i].name if model.general else model.coords[i].name})", e)

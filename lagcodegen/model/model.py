@@ -356,9 +356,11 @@ class Model:
         if isinstance(names, str):
             names = names.replace(",", " ").split()
         syms = []
+        rates = {s.name for s in self.speeds}
         for name in names:
             _check_name(name, "generalized speed")
-            self._check_free(name)
+            if name not in rates:  # a coordinate's own rate may be one of the speeds
+                self._check_free(name)
             syms.append(sp.Symbol(name))
         if len(set(syms)) != len(syms):
             raise ModelError("generalized speeds: a name is given twice")

@@ -299,7 +299,8 @@ class TreeDynamics:
                     p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
                 self.nodes.append(Node(node, R, p, kind, [se.Integer(int(a)) if sp.sympify(a).is_Integer
                                                           else _se(a, f"axis of {link.joint.name!r}") for a in axis],
-                                       index[coord.name]))
+                                       index[coord.name],
+                                       speed=speed_index[model.speeds[index[coord.name]].name]))
                 node, place = len(self.nodes) - 1, None
             anchors[link.name] = (node, place)
             if node >= 0 and link.mass != 0:

@@ -18,8 +18,10 @@ What the model holds:
   :meth:`Model.rigid_body`, the same equations as closed forms, which grow fast with the
   number of joints);
 * a fixed base (the root link does not move), or with ``floating=True`` a free joint
-  ``root_joint`` between the world and the root (x, y, z and Z-Y-X Euler angles; URDF
-  ``floating`` joints become free joints too);
+  ``root_joint`` between the world and the root in Pinocchio's free-flyer layout (q: x, y, z,
+  qx, qy, qz, qw; v: the linear and angular velocity in the root's frame), before the URDF's
+  joints in q and v; URDF ``floating`` joints become free joints too. ``rotation="ZYX"`` gives
+  them Z-Y-X Euler angles instead (singular at pitch = +-pi/2);
 * the links' inertials: mass, centre of mass and the inertia about it, turned from the axes of
   the inertial ``origin`` into the link's axes (I_link = R I R^T, R from its ``rpy``);
 * links attached by ``fixed`` joints merged into their parent (masses added, centres of mass
@@ -66,7 +68,7 @@ import sympy as sp
 
 from ..errors import ModelError
 from ..util import excerpt
-from ..model.bodies import Joint as Joint_, Placement
+from ..model.bodies import ROTATIONS, Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem, Inequality
 from .urdfxml import (MAX_BYTES, ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
@@ -214,7 +216,7 @@ def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
     return out
 
 
-def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion") -> dict[str, sp.Symbol]:
     """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
     coords = {}
     kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic,
@@ -222,7 +224,7 @@ def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, s
     for b in tree:
         j = b.joint
         I = b.inertia
-        joint = (Joint_.free(names[j.name]) if j.type == "floating"
+        joint = (Joint_.free(names[j.name], rotation=rotation) if j.type == "floating"
                  else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
         link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
                           origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
@@ -232,14 +234,17 @@ def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, s
     return coords
 
 
-def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
+def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion"
+                  ) -> dict[str, sp.Symbol]:
     """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`): the world pose of each
     (:meth:`Link.pose` of the same tree stated as links in a scratch model, whose coordinates
     are the same symbols) multiplied out; the coordinate of each joint."""
     scratch = Model(model.name)
-    _links(scratch, tree, names)
+    _links(scratch, tree, names, rotation)
     for c in scratch.coords:
         model.coordinate(c.name)
+    if scratch.general:  # quaternion joints: their speeds and kinematic equations
+        model.generalized_speeds([v.name for v in scratch.velocities], scratch.kinematics)
     coords = {}
     for b, link in zip(tree, scratch.links):
         coords[b.joint.name] = link.coordinates[0]
@@ -251,7 +256,8 @@ def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
           limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
           lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-          form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
+          form: str = DEFAULT_FORM, floating: bool | str = False,
+          rotation: str = "quaternion") -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
     root_joint = "root_joint" if floating is True else (floating or None)
     if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
@@ -260,6 +266,9 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
                         f"the robot), got {excerpt(floating)}", robot.filename, None, "")
     if form not in FORMS:
         raise URDFError(f"form must be one of {', '.join(FORMS)}, got {excerpt(form)}", robot.filename, None, "")
+    if rotation not in ROTATIONS:
+        raise URDFError(f"rotation must be one of {', '.join(ROTATIONS)}, got {excerpt(rotation)}", robot.filename,
+                        None, "")
     if mimic not in MIMIC:
         raise URDFError(f"mimic must be one of {', '.join(MIMIC)}, got {excerpt(mimic)}", robot.filename, None, "")
     locked = _locked(robot, lock)
@@ -299,7 +308,7 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
         g = model.parameter("gravity_g" if "g" in robot.joints else "g", float(np.linalg.norm(gvec)))
     names = _names(robot, tree)
     try:
-        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names)
+        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names, rotation)
     except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
         raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
     if g is not None:
@@ -374,7 +383,7 @@ def _limit_kind(limits, robot: RobotDescription) -> float | None:
 def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
          limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-         form: str = DEFAULT_FORM, floating: bool | str = False,
+         form: str = DEFAULT_FORM, floating: bool | str = False, rotation: str = "quaternion",
          max_bytes: int | None = MAX_BYTES) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
@@ -395,15 +404,19 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     ``"closed"`` as rigid bodies whose world poses are multiplied out (:meth:`Model.rigid_body`:
     the same equations, but closed forms that grow fast with the number of joints); default
     :data:`DEFAULT_FORM`;
-    ``floating``: True puts the root link on a free joint ``root_joint`` (a string names it):
-    six coordinates ``<name>_x, _y, _z`` (the root frame's origin in the world) and the Z-Y-X
-    Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at pitch = +-pi/2, see
-    :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world;
+    ``floating``: True puts the root link on a free joint ``root_joint`` (a string names it) in
+    Pinocchio's free-flyer layout: coordinates ``<name>_x, _y, _z`` (the root frame's origin in
+    the world) and the quaternion ``<name>_qx, _qy, _qz, _qw``, speeds ``<name>_vx, _vy, _vz,
+    _wx, _wy, _wz`` (linear and angular velocity in the root's frame), then the URDF's joints
+    (:meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world;
+    ``rotation``: "quaternion" (default) or "ZYX" (the free joints' rotation as Z-Y-X Euler
+    angles ``<name>_yaw, _pitch, _roll``, their rates the speeds; singular at pitch = +-pi/2);
     ``max_bytes``: a larger file is refused before it is read (:data:`MAX_BYTES`, 20 MiB,
     unless told; None: no cap).
     """
     return build(read(path, max_bytes=max_bytes), name=name, gravity=gravity, limits=limits, friction=friction,
-                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating)
+                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating,
+                 rotation=rotation)
 
 
 def loads(text: str | bytes, *, filename: str = "<string>", max_bytes: int | None = MAX_BYTES,

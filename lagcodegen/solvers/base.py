@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import operator
 import struct
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -128,8 +128,8 @@ def test_link_api_coordinates_and_errors():
     m = lcg.Model("arm")
     base = m.link("base", mass=1, inertia=(1, 1, 1))
     a = m.link("a", parent="base", joint=lcg.Joint.revolute("shoulder", (0, 1, 0)), mass=1, inertia=(1, 1, 1))
-    m.link("b", parent=a, joint=lcg.Joint.spherical("wrist"), mass=1, inertia=(1, 1, 1))
-    m.link("c", parent="b", joint=lcg.Joint.free("float"), mass=1, inertia=(1, 1, 1))
+    m.link("b", parent=a, joint=lcg.Joint.spherical("wrist", rotation="ZYX"), mass=1, inertia=(1, 1, 1))
+    m.link("c", parent="b", joint=lcg.Joint.free("float", rotation="ZYX"), mass=1, inertia=(1, 1, 1))
     assert [q.name for q in m.coords] == ["shoulder", "wrist_yaw", "wrist_pitch", "wrist_roll", "float_x", "float_y",
                                           "float_z", "float_yaw", "float_pitch", "float_roll"]
     assert base.joint.kind == "fixed" and a.parent is base and a in base.children
@@ -223,9 +223,10 @@ def test_spherical_and_free_joints_match_pinocchio_euler_joints():
     pm.gravity = pin.Motion(np.array([0, 0, -9.81, 0, 0, 0]))
     I0, c0, I1, c1 = inertia(rng), rng.uniform(-.3, .3, 3), inertia(rng), rng.uniform(-.3, .3, 3)
     R1, t1 = rotation(rng), rng.uniform(-.5, .5, 3)
-    m.link("body", joint=lcg.Joint.free("base"), origin=lcg.Placement((0.1, 0.2, 0.3)), mass=1.5, com=tuple(c0),
+    m.link("body", joint=lcg.Joint.free("base", rotation="ZYX"), origin=lcg.Placement((0.1, 0.2, 0.3)), mass=1.5,
+           com=tuple(c0),
            inertia=six(I0))
-    m.link("arm", parent="body", joint=lcg.Joint.spherical("ball"), origin=lcg.Placement(tuple(t1), rotation=R1.tolist()),
+    m.link("arm", parent="body", joint=lcg.Joint.spherical("ball", rotation="ZYX"), origin=lcg.Placement(tuple(t1), rotation=R1.tolist()),
            mass=0.7, com=tuple(c1), inertia=six(I1))
     j = pm.addJoint(0, pin.JointModelTranslation(), pin.SE3(np.eye(3), np.array([0.1, 0.2, 0.3])), "t")
     j = pm.addJoint(j, pin.JointModelSphericalZYX(), pin.SE3.Identity(), "r")

@@ -293,11 +293,11 @@ def _euler_maps():
                                         ("examples/ur_like_arm.urdf", "tree"),
                                         ("solo_description/robots/solo12.urdf", "tree")])
 def test_floating_base_agrees_with_pinocchio_free_flyer(path, form):
-    """floating=True: the root on a free joint (x, y, z, Z-Y-X Euler angles) against Pinocchio's
+    """floating=True, rotation="ZYX": the root on a free joint (x, y, z, Z-Y-X Euler angles) against Pinocchio's
     free flyer (position, quaternion; velocity (R^T p', omega) in the body frame): with
     v = J(q) q', M = J^T M_pin J and q'' = J^-1 (a_pin - J' q')."""
     file = EXAMPLES.parent / path if path.startswith("examples/") else ROBOTS / path
-    model = urdf.load(file, form=form, floating=True)
+    model = urdf.load(file, form=form, floating=True, rotation="ZYX")
     names = [c.name for c in model.coords]
     assert names[:6] == ["root_joint_x", "root_joint_y", "root_joint_z", "root_joint_yaw", "root_joint_pitch",
                          "root_joint_roll"]

@@ -1,0 +1,198 @@
+"""Generalized speeds v != q': quaternion spherical and free joints in Pinocchio's layout, the
+general form q' = k(q, v, t), M v' = F, and its runs, checked against independent facts
+(Euler's equations integrated on SO(3) by scipy, Pinocchio's free flyer and spherical joint)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+import lagcodegen as lcg
+from lagcodegen.errors import ModelError
+
+pin = pytest.importorskip("pinocchio")
+ROBOTS = Path(pin.__file__).resolve().parents[4] / "share" / "example-robot-data" / "robots"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+INERTIA = np.array([1.0, 2.0, 3.0])
+
+
+def quat_matrix(q):
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def so3_reference(w0, times):
+    """The free rigid body on SO(3): R' = R [w]x, I w' = (I w) x w, by DOP853 at 1e-13."""
+    def f(t, y):
+        R, w = y[:9].reshape(3, 3), y[9:]
+        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        return np.concatenate([(R @ W).ravel(), np.cross(INERTIA * w, w) / INERTIA])
+    sol = solve_ivp(f, (times[0], times[-1]), np.concatenate([np.eye(3).ravel(), w0]), method="DOP853",
+                    rtol=1e-13, atol=1e-14, t_eval=times)
+    return sol.y[:9].T.reshape(-1, 3, 3), sol.y[9:].T
+
+
+def tumbling_body(rotation="quaternion"):
+    m = lcg.Model("tumbler" if rotation == "quaternion" else "tumbler_zyx")
+    m.link("body", joint=lcg.Joint.spherical("ball", rotation=rotation), mass=1.0, inertia=tuple(INERTIA))
+    return m
+
+
+def test_quaternion_joints_declare_pinocchio_layout():
+    m = lcg.Model("fly")
+    m.link("base", joint=lcg.Joint.free("root"), mass=1, inertia=(1, 1, 1))
+    m.link("arm", parent="base", joint=lcg.Joint.revolute("elbow"), mass=1, inertia=(1, 1, 1))
+    m.link("hand", parent="arm", joint=lcg.Joint.spherical("wrist"), mass=1, inertia=(1, 1, 1))
+    assert [q.name for q in m.coords] == ["root_x", "root_y", "root_z", "root_qx", "root_qy", "root_qz", "root_qw",
+                                          "elbow", "wrist_qx", "wrist_qy", "wrist_qz", "wrist_qw"]
+    assert [v.name for v in m.v] == ["root_vx", "root_vy", "root_vz", "root_wx", "root_wy", "root_wz", "elbow_dot",
+                                     "wrist_wx", "wrist_wy", "wrist_wz"]
+    assert (m.nq, m.nv) == (12, 10) and m.general
+    assert m.neutral() == [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+    assert m.kinematics[7] == sp.Symbol("elbow_dot")  # a 1-dof joint's speed is its rate
+    with pytest.raises(ModelError, match="rotation must be one of"):
+        lcg.Joint.spherical("s", rotation="XYZ")
+
+
+def test_free_body_equations_are_eulers():
+    eom = lcg.derive(tumbling_body())
+    w = sp.symbols("ball_wx ball_wy ball_wz")
+    assert sp.Matrix(eom.M) == sp.diag(*[sp.Float(x) for x in INERTIA])
+    # I w' = (I w) x w, component by component (Euler's equations)
+    expected = [(INERTIA[1] - INERTIA[2]) * w[1] * w[2], (INERTIA[2] - INERTIA[0]) * w[2] * w[0],
+                (INERTIA[0] - INERTIA[1]) * w[0] * w[1]]
+    assert all(sp.simplify(sp.sympify(a) - b) == 0 for a, b in zip(eom.F, expected))
+
+
+@pytest.mark.parametrize("method, rtol, bound", [("adams", 1e-11, 1e-8), ("bdf", 1e-11, 1e-7), ("bdf", 1e-12, 1e-8)])
+def test_tumbling_through_gimbal_lock_attitudes_quaternion_vs_so3(method, rtol, bound):
+    """A body spun about its middle axis (unstable) with a small perturbation turns over again and
+    again, through the attitudes where Z-Y-X angles are singular; the quaternion joint follows the
+    SO(3) reference to 1e-8 at rtol 1e-11 on Adams (BDF, of lower order: 6e-8 there, 7e-9 at
+    1e-12; Euler angles: 4e-3 and 8e-3) and its norm stays within 1e-8 of 1."""
+    times = np.linspace(0.0, 40.0, 401)
+    w0 = np.array([0.01, 2.0, 0.01])
+    R_ref, w_ref = so3_reference(w0, times)
+    cm = lcg.compile_model(tumbling_body())
+    res = cm.simulate(times, v0=w0, method=method, rtol=rtol, atol=rtol / 10, max_steps=10**6)
+    q = res.y[:, :4]
+    R = np.array([quat_matrix(x) for x in q])
+    assert np.abs(R - R_ref).max() < bound
+    assert np.abs(res.y[:, 4:7] - w_ref).max() < 2 * bound
+    assert np.abs(np.linalg.norm(q, axis=1) - 1).max() < 1e-8
+    # the body really lies flat: its z axis sweeps through the horizontal plane (pitch = +-pi/2 of Z-Y-X)
+    assert np.abs(R_ref[:, 2, 0]).max() > 0.999
+
+
+def test_euler_angles_on_request_are_what_they_were():
+    """rotation="ZYX" keeps the three angles and their rates (the joint of earlier versions)."""
+    m = tumbling_body("ZYX")
+    assert [q.name for q in m.coords] == ["ball_yaw", "ball_pitch", "ball_roll"] and not m.general
+    assert lcg.derive(m).M.shape == (3, 3)
+
+
+def pinocchio_check(model, pin_model, rng, trials=4, file=None):
+    """v' and q' of the compiled model against Pinocchio (aba, with the URDF ``file``'s joint
+    damping as torques -c v; the quaternion and free-flyer kinematics) at random states in the
+    same layout."""
+    cm = lcg.compile_model(model, jacobian=False)
+    data = pin_model.createData()
+    assert (cm.nq, cm.nv) == (pin_model.nq, pin_model.nv)
+    damping = np.zeros(pin_model.nv)
+    if file is not None:
+        for name, joint in lcg.urdf.read(file).joints.items():
+            if pin_model.existJointName(name) and joint.dynamics is not None:
+                damping[pin_model.joints[pin_model.getJointId(name)].idx_v] = joint.dynamics.damping
+    for _ in range(trials):
+        q = pin.randomConfiguration(pin_model, -np.ones(pin_model.nq), np.ones(pin_model.nq))
+        v = rng.normal(size=pin_model.nv)
+        ydot = cm.rhs(0.0, np.concatenate([q, v]))
+        a = pin.aba(pin_model, data, q, v, -damping * v)
+        assert np.abs(ydot[cm.nq:] - a).max() <= 1e-10 * max(1.0, np.abs(a).max())
+        # q' against the map Pinocchio integrates with: q(t + h) = integrate(q, h v), central differences
+        h = 1e-6
+        qd = (pin.integrate(pin_model, q, h * v) - pin.integrate(pin_model, q, -h * v)) / (2 * h)
+        assert np.abs(ydot[:cm.nq] - qd).max() <= 1e-7 * max(1.0, np.abs(qd).max())
+    return cm
+
+
+@pytest.mark.parametrize("form", ["tree", "closed"])
+def test_floating_arm_agrees_with_pinocchio_free_flyer(form):
+    file = EXAMPLES / "ur_like_arm.urdf"
+    model = lcg.urdf.load(file, floating=True, form=form)
+    assert [c.name for c in model.coords[:7]] == ["root_joint_x", "root_joint_y", "root_joint_z", "root_joint_qx",
+                                                  "root_joint_qy", "root_joint_qz", "root_joint_qw"]
+    pinocchio_check(model, pin.buildModelFromUrdf(str(file), pin.JointModelFreeFlyer()), np.random.default_rng(3),
+                    file=file)
+
+
+def test_floating_solo12_agrees_with_pinocchio_free_flyer():
+    file = ROBOTS / "solo_description" / "robots" / "solo12.urdf"
+    pinocchio_check(lcg.urdf.load(file, floating=True), pin.buildModelFromUrdf(str(file), pin.JointModelFreeFlyer()),
+                    np.random.default_rng(4), trials=3, file=file)
+
+
+def test_spherical_joint_chain_agrees_with_pinocchio():
+    """A revolute link carrying a ball-jointed link under gravity, placements rotated."""
+    rng = np.random.default_rng(5)
+    R1 = pin.rpy.rpyToMatrix(*rng.uniform(-1, 1, 3))
+    t1 = rng.uniform(-0.5, 0.5, 3)
+    m = lcg.Model("ballchain")
+    m.gravity(9.81)
+    m.link("upper", joint=lcg.Joint.revolute("hinge", (0, 1, 0)), mass=1.2, com=(0.1, 0, -0.3),
+           inertia=(0.05, 0.06, 0.02))
+    m.link("lower", parent="upper", joint=lcg.Joint.spherical("ball"), origin=lcg.Placement(tuple(t1), rotation=R1),
+           mass=0.8, com=(0.02, -0.01, -0.25), inertia=(0.03, 0.025, 0.01, 0.001, -0.002, 0.0005))
+    pm = pin.Model()
+    pm.gravity = pin.Motion(np.array([0, 0, -9.81, 0, 0, 0]))
+    j = pm.addJoint(0, pin.JointModelRY(), pin.SE3.Identity(), "hinge")
+    pm.appendBodyToJoint(j, pin.Inertia(1.2, np.array([0.1, 0, -0.3]), np.diag([0.05, 0.06, 0.02])),
+                         pin.SE3.Identity())
+    j = pm.addJoint(j, pin.JointModelSpherical(), pin.SE3(R1, t1), "ball")
+    I = np.array([[0.03, 0.001, -0.002], [0.001, 0.025, 0.0005], [-0.002, 0.0005, 0.01]])
+    pm.appendBodyToJoint(j, pin.Inertia(0.8, np.array([0.02, -0.01, -0.25]), I), pin.SE3.Identity())
+    cm = pinocchio_check(m, pm, rng)
+    # energy is conserved along a run (T + V of the general form)
+    cm2 = lcg.compile_model(m, jacobian=False, outputs=["energy"])
+    res = cm2.simulate(np.linspace(0, 3, 31), q0=[0.3, 0.1, 0.2, 0.0, 1.0], v0=[1.0, 2.0, -1.0, 0.5],
+                       rtol=1e-11, atol=1e-12)
+    e = res["energy"]
+    assert np.abs(e - e[0]).max() < 1e-8 * abs(e[0])
+
+
+def test_a_model_of_its_own_speeds_matches_lagrange():
+    """Model.generalized_speeds: a particle in the plane in polar coordinates with the speeds
+    u1 = r', u2 = r theta' (the tangential velocity), against the Lagrangian model in q'."""
+    def model(speeds):
+        m = lcg.Model("polar_u" if speeds else "polar")
+        r, th = m.coordinates("r theta")
+        k, mass = m.parameters(k=3.0, m=1.5)
+        m.particle("p", mass, (r * sp.cos(th), r * sp.sin(th)))
+        m.potential_energy(k / 2 * (r - 1) ** 2)
+        if speeds:
+            u1, u2 = sp.symbols("u1 u2")
+            m.generalized_speeds(["u1", "u2"], {r: u1, th: u2 / r})
+        return m
+    a = lcg.compile_model(model(True), jacobian=False)
+    b = lcg.compile_model(model(False))
+    t = np.linspace(0, 5, 51)
+    ra = a.simulate(t, q0=[1.2, 0.0], v0=[0.1, 1.2 * 0.8], rtol=1e-11, atol=1e-12)
+    rb = b.simulate(t, q0=[1.2, 0.0], v0=[0.1, 0.8], rtol=1e-11, atol=1e-12)
+    assert np.abs(ra.y[:, :2] - rb.y[:, :2]).max() < 1e-8
+    assert np.abs(ra.y[:, 3] - rb.y[:, 0] * rb.y[:, 3]).max() < 1e-8  # u2 = r theta'
+    with pytest.raises(ModelError, match="not linear in the generalized speeds"):
+        m = lcg.Model("bad")
+        x, = m.coordinates("x")
+        m.particle("p", 1, (x,))
+        m.generalized_speeds(["u"], {x: sp.Symbol("u") ** 2})
+        lcg.derive(m)
+
+
+def test_generalized_speeds_refuse_an_analytic_jacobian_by_name():
+    with pytest.raises(ModelError, match="generalized speeds .* jacobian=False"):
+        lcg.compile_model(tumbling_body(), jacobian=True)
