@@ -89,6 +89,7 @@ class Result:
     method: str = ""
     parameters: dict = field(default_factory=dict)
     n_coordinates: int | None = None  # n: y = (q_1..q_n, q_1'..q_n', z...) with z quadrature states
+    n_speeds: int | None = None  # generalized speeds: y = (q_1..q_n, v_1..v_nv, z...); None: nv = n
     events: list = field(default_factory=list)  # events found by root finding (lagcodegen.model.events.EventRecord)
     formulation: str = ""  # constrained systems: "index1", "ggl" or "minimal"
     model_name: str = ""  # the model's name (plot titles), set by the compiled model
@@ -128,14 +129,21 @@ class Result:
         return self.n_coordinates if self.n_coordinates is not None else len(self.state_names) // 2
 
     @property
+    def nv(self) -> int:
+        """The number of speeds (= :attr:`n` unless the model has generalized speeds)."""
+        return self.n if self.n_speeds is None else self.n_speeds
+
+    @property
     def q(self) -> dict[str, np.ndarray]:
         """Coordinates by name (including quadrature states such as reconstructed ignorable coordinates)."""
-        idx = list(range(self.n)) + list(range(2 * self.n, len(self.state_names)))
+        idx = list(range(self.n)) + list(range(self.n + self.nv, len(self.state_names)))
         return {self.state_names[i]: self.y[:, i] for i in idx}
 
     @property
     def v(self) -> dict[str, np.ndarray]:
-        """Velocities by coordinate name."""
+        """Velocities by coordinate name; generalized speeds by their own names."""
+        if self.n_speeds is not None:
+            return {name: self.y[:, self.n + i] for i, name in enumerate(self.state_names[self.n:self.n + self.nv])}
         return {name: self.y[:, self.n + i] for i, name in enumerate(self.state_names[: self.n])}
 
     def __getitem__(self, name: str) -> np.ndarray:
@@ -222,6 +230,9 @@ class Result:
         if xy:
             fig = self._xy_figure(xy)
         elif phase:
+            if self.n_speeds is not None:
+                raise LagcodegenError("phase portraits plot q' against q: this run's speeds are generalized speeds, "
+                                      "not the coordinates' rates")
             names = self.state_names[: self.n]
             fig = Figure(figsize=(4 * min(len(names), 3), 4 * ((len(names) + 2) // 3)))
             for i, name in enumerate(names):

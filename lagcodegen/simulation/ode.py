@@ -315,6 +315,7 @@ class CompiledModel(CompiledReprMixin):
             res = family.run_ode(self, t, y, p, rtol, atol_arr, events)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
+        res.n_speeds = self.code.nv
         return finish_run(self, res, t[0], y, p, raise_on_error)
 
     def integrator(self, *, q0=None, v0=None, y0=None, z0=None, t0: float = 0.0, params: dict | None = None,
