@@ -43,6 +43,16 @@ from .model.treedynamics import TreeDynamics, tree_nodes
 SYMPY_VIEW_MAX_OPS = 200_000
 
 
+def require_lagrange(model, what: str) -> None:
+    """ModelError naming ``what`` if ``model`` (a Model or equations of one) has generalized
+    speeds (q' = k(q, v, t), v != q'): the places that take only Lagrange's form q' = v."""
+    model = getattr(model, "model", model)
+    if getattr(model, "general", False):
+        raise ModelError(f"{what}: model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}; "
+                         "quaternion joints or Model.generalized_speeds), which it does not take yet; it takes models "
+                         "whose speeds are their coordinates' rates (Euler-angle joints: rotation='ZYX')")
+
+
 def to_se(expr, what: str = "expression"):
     """sympy -> symengine, with a clear error for constructs symengine lacks."""
     try:

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..codes import c_header as codes_header
+from ..derivation import require_lagrange
 from ..errors import LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
@@ -108,7 +109,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
                   t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
                   code: GeneratedCode | None = None, method: str = "bdf",
                   sensitivities: bool = False, reference: bool = True) -> dict[str, str]:
-    """The files of the bundle of ``scene`` (name -> text), rendered in memory.
+    """The files of the bundle of ``scene`` (name -> text), rendered in memory (models with
+    generalized speeds are refused by name: the example programs integrate y = (q, q')).
 
     ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
     name), ``t_start``, ``t_end`` and ``steps`` are the examples' defaults (the examples take
@@ -125,6 +127,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     :data:`CHECK_TOL` (1 + |reference|). Where the model cannot be compiled or run here (no C
     compiler, the run fails), the bundle has no reference and ``make check`` says so.
     """
+    require_lagrange(scene.eom, "bundle")
     if isinstance(scene, ConstrainedSystem):
         raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
                          "or write_bundle")

@@ -25,7 +25,7 @@ from ..cache import CACHE_FORMAT, cache_key, cached_build
 from ..codegen.constrained import generate_constrained
 from ..codegen.languages import generate_code
 from ..codegen.templates import environment, templates_dir
-from ..derivation import derive
+from ..derivation import derive, require_lagrange
 from ..errors import CompileError, LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.model import Model
@@ -182,6 +182,7 @@ def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tun
     fields of :class:`~.description.Header` but the identifier and the token."""
     _check_version(fmi_version)
     _check_identifier(scene.prefix)
+    require_lagrange(scene.eom, "FMU export")
     code = generate_code(scene, "c")
     table = variable_table(scene, x_start=list(x_start), tunable=tunable)
     files, description = _assemble(code, table, fmi_version=fmi_version, x_start=x_start,

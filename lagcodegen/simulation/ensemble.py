@@ -16,6 +16,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import LagcodegenError
+from ..solvers.base import check_speeds
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
 from ..solvers.family import OdeInputRuns
@@ -131,11 +132,12 @@ def ode_states(cm, q0, v0, y0, z0, params) -> tuple[int, np.ndarray, np.ndarray]
     else:
         if q0 is None:
             raise LagcodegenError("q0 (or y0) is required")
+        nv = getattr(cm, "nv", n)  # generalized speeds: v0 by their names
         parts = [_matrix(q0, n_mem, n, "q0", names[:n]),
-                 np.zeros((n_mem, n)) if v0 is None else _matrix(v0, n_mem, n, "v0", names[:n])]
-        nz = cm.ny - 2 * n
+                 np.zeros((n_mem, nv)) if v0 is None else _matrix(v0, n_mem, nv, "v0", names[n:n + nv])]
+        nz = cm.ny - n - nv
         if nz:
-            parts.append(np.zeros((n_mem, nz)) if z0 is None else _matrix(z0, n_mem, nz, "z0", names[2 * n:]))
+            parts.append(np.zeros((n_mem, nz)) if z0 is None else _matrix(z0, n_mem, nz, "z0", names[n + nv:]))
         Y = np.ascontiguousarray(np.hstack(parts))
     P = parameter_matrix(cm._defaults, list(cm.param_names), params, n_mem)
     return n_mem, Y, P
@@ -154,7 +156,8 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, reco
     solver, rtol, atol, events, options = run_keywords(options)
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
-    family = resolve("ode", solver, options, cm.n, float(rtol), runs="ensemble")
+    family = resolve("ode", solver, options, cm.method_size, float(rtol), runs="ensemble")
+    check_speeds(cm, family)
     sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name,
                        params=params)
     if sets is not None:

@@ -22,7 +22,7 @@ from ..result import Result
 from ..solvers import control
 from ..solvers.artifacts import Artifacts
 from ..solvers.family import OdeInputRuns
-from ..solvers.base import initial_state, tolerances
+from ..solvers.base import check_speeds, initial_state, tolerances
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
 from ..util import c_vector, check_finite, output_times
@@ -124,6 +124,12 @@ class CompiledModel(CompiledReprMixin):
     def nq(self) -> int:
         """The number of coordinates q (the first nq entries of the state y = (q, v, z))."""
         return self.code.n
+
+    @property
+    def method_size(self) -> float:
+        """The size ``method="auto"`` chooses by (:func:`~lagcodegen.solvers.registry.choose_method`):
+        the coordinates, or infinity (never the Taylor method) for generalized speeds."""
+        return self.n if self.code.nv is None else math.inf
 
     @property
     def nv(self) -> int:
@@ -306,7 +312,8 @@ class CompiledModel(CompiledReprMixin):
             raise LagcodegenError("the initial state has non-finite values")
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
-        family = resolve("ode", solver, options, self.n, rtol)
+        family = resolve("ode", solver, options, self.method_size, rtol)
+        check_speeds(self, family)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
                                                        self.code.model_name, params=params)
         if tables:
@@ -338,7 +345,8 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         t0 = check_finite(t0, "t0")
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
-        family = resolve("ode", solver, options, self.n, rtol, runs="stepper")
+        family = resolve("ode", solver, options, self.method_size, rtol, runs="stepper")
+        check_speeds(self, family)
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
         stepper = family.stepper_ode(self, mem, rtol, atol_arr, events)
         if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)

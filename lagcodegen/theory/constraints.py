@@ -37,7 +37,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ..derivation import derive
+from ..derivation import derive, require_lagrange
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
@@ -244,6 +244,7 @@ class ConstrainedSystem:
                  inequalities: Iterable = (), *, integrable: str = "error"):
         if not isinstance(model, Model):
             raise ModelError(f"ConstrainedSystem needs a lagcodegen Model, got {type(model).__name__}")
+        require_lagrange(model, "ConstrainedSystem")
         if integrable not in INTEGRABLE_POLICIES:
             raise ModelError(f"integrable must be one of {', '.join(INTEGRABLE_POLICIES)}, got {integrable!r}")
         self.model = model

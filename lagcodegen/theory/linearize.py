@@ -27,7 +27,7 @@ import numpy as np
 import symengine as se
 import sympy as sp
 
-from ..derivation import EquationsOfMotion
+from ..derivation import EquationsOfMotion, require_lagrange
 from ..errors import ModelError
 from ..util import check_finite
 
@@ -198,7 +198,10 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
     symbolic:
         Return sympy matrices M, C, K as functions of the state symbols, the parameters and
         the accelerations ``<q>_ddot`` at the state (no matrix is inverted).
+
+    Models with generalized speeds (quaternion joints) are refused by name.
     """
+    require_lagrange(eom, "linearize")
     names = [s.name for s in eom.q]
     n = eom.n
     if symbolic:

@@ -30,7 +30,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ..derivation import EquationsOfMotion, derive, to_se
+from ..derivation import EquationsOfMotion, derive, require_lagrange, to_se
 from ..errors import DerivationError, LagcodegenError, ModelError
 from ..model.model import Model
 from ..result import Result
@@ -308,6 +308,7 @@ def reduce(system: EquationsOfMotion | Model, ignorable: Sequence[str] | None = 
     coordinate is not ignorable (appears in L, D or a force) or is not a coordinate, and
     when dL/dq_i' = C_i cannot be solved for the ignorable velocities.
     """
+    require_lagrange(system, "Routh's reduction")
     underived: DerivationError | None = None
     if isinstance(system, Model):
         try:

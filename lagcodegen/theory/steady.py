@@ -32,7 +32,7 @@ import numpy as np
 import symengine as se
 import sympy as sp
 
-from ..derivation import EquationsOfMotion, derive
+from ..derivation import EquationsOfMotion, derive, require_lagrange
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite
@@ -94,6 +94,7 @@ def _resolve(system) -> tuple[EquationsOfMotion, RouthReduction | None]:
     if isinstance(system, RouthReduction):
         return system.eom, system
     eom = derive(system) if isinstance(system, Model) else system
+    require_lagrange(eom, "steady_motions")
     if not isinstance(eom, EquationsOfMotion):
         raise ModelError("steady_motions needs a RouthReduction, EquationsOfMotion or Model, "
                          f"got {type(system).__name__}")

@@ -196,3 +196,30 @@ def test_a_model_of_its_own_speeds_matches_lagrange():
 def test_generalized_speeds_refuse_an_analytic_jacobian_by_name():
     with pytest.raises(ModelError, match="generalized speeds .* jacobian=False"):
         lcg.compile_model(tumbling_body(), jacobian=True)
+
+
+def test_fortran_agrees_with_c_on_a_floating_arm():
+    model = lcg.urdf.load(EXAMPLES / "ur_like_arm.urdf", floating=True)
+    c, f = lcg.compile_model(model), lcg.compile_model(model, lang="fortran")
+    rng = np.random.default_rng(6)
+    y = np.r_[rng.normal(size=3), rng.normal(size=4), rng.uniform(-1, 1, 6), rng.normal(size=12)]
+    assert np.abs(c.rhs(0.0, y) - f.rhs(0.0, y)).max() <= 1e-12 * np.abs(c.rhs(0.0, y)).max()
+
+
+def test_what_does_not_take_generalized_speeds_yet_says_so():
+    from lagcodegen.errors import LagcodegenError
+    m = tumbling_body()
+    cm = lcg.compile_model(m)
+    t = np.linspace(0, 1, 3)
+    with pytest.raises(LagcodegenError, match="generalized speeds .* the Taylor method"):
+        cm.simulate(t, v0=[0, 1, 0], method="taylor")
+    with pytest.raises(LagcodegenError, match="generalized speeds .* forward sensitivities"):
+        cm.simulate(t, v0=[0, 1, 0], sensitivities=["ball_wx(0)"])
+    assert cm.simulate(t, v0=[0, 1, 0], method="auto").method != "taylor"
+    for call, what in [(lambda: lcg.linearize(lcg.derive(m), q0=[0, 0, 0, 1]), "linearize"),
+                       (lambda: lcg.ConstrainedSystem(m, holonomic=[sp.Symbol("ball_qx")]), "ConstrainedSystem"),
+                       (lambda: lcg.steady_motions(m), "steady_motions")]:
+        with pytest.raises(ModelError, match=f"{what}: model 'tumbler' has generalized speeds"):
+            call()
+    ens = cm.ensemble(t, q0=[0, 0, 0, 1], v0=np.array([[0, 1, 0], [0, 2, 0]]))
+    assert np.allclose(ens.y[:, 4:], [[0, 1, 0], [0, 2, 0]])  # save="final": each member's last state
