@@ -241,15 +241,13 @@ def file_initial(sim, q0, v0) -> tuple:
 
 def check_speeds(cm, family) -> None:
     """Refuse, naming them, the runs a model with generalized speeds (y = (q, v, z), nq != nv
-    or q' != v) cannot take yet: the Taylor method and forward sensitivities."""
+    or q' != v) cannot take yet: forward sensitivities."""
     code = getattr(cm, "code", None)
     if getattr(code, "nv", None) is None:
         return
-    what = ("the Taylor method" if family.name == "Taylor"
-            else "forward sensitivities" if getattr(family, "sensitivities", None) else None)
-    if what is not None:
+    if getattr(family, "sensitivities", None):
         raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
-                              f"{what} cannot integrate it yet; use method='adams' or 'bdf' without sensitivities")
+                              "forward sensitivities cannot integrate it yet; run it without sensitivities")
 
 
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:

@@ -101,7 +101,7 @@ class Decomposition:
     a :class:`Const`, or a symengine number (zero entries of M are ``se.Integer(0)``).
     """
 
-    n: int
+    n: int  # the speeds (the size of M): the coordinates unless ``kin``
     nz: int
     nrows: int
     ops: list
@@ -114,10 +114,17 @@ class Decomposition:
     form: str  # "derived" or "trig-linearized"
     cost: float
     labels: dict = field(default_factory=dict)  # row -> short text of the expression
+    # Generalized speeds: the coordinates' rates q' = k(q, v, t), an entry per coordinate (rows
+    # 0..nq-1 q, nq..nq+n-1 v); None: q' = v (nq = n).
+    kin: list | None = None
+
+    @property
+    def nq(self) -> int:
+        return self.n if self.kin is None else len(self.kin)
 
     @property
     def ny(self) -> int:
-        return 2 * self.n + self.nz
+        return self.nq + self.n + self.nz
 
     @property
     def acc_rows(self) -> list[int]:
@@ -193,11 +200,11 @@ def _refuse(expr, where: str, names: dict):
 class _Decomposer:
     """Hash-consed decomposition: every distinct subexpression becomes one row."""
 
-    def __init__(self, state: dict, time_symbol, n: int, nz: int):
+    def __init__(self, state: dict, time_symbol, n: int, nz: int, nq: int | None = None):
         self.state = state  # symbol -> row
         self.time_symbol = time_symbol
         self.varsyms = set(state) | {time_symbol}
-        self.nrows = 3 * n + nz  # y rows then the accelerations
+        self.nrows = (n if nq is None else nq) + 2 * n + nz  # y rows then the accelerations
         self.time_row = None
         self.ops: list[Op] = []
         self.consts: list = []
@@ -539,7 +546,7 @@ def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
     for the upper triangle, ("F", i), ("rate", k), ("event", e)."""
     eom = scene.eom
     model = eom.model
-    n = model.n
+    n = model.nv
     sub = symbol_map(scene)
     time_symbol = se.Symbol(model.t.name)
 
@@ -548,6 +555,9 @@ def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
         return e.xreplace(sub) if sub else e
 
     exprs = {}
+    if model.general:  # the coordinates' rates (generalized speeds)
+        for i, k in enumerate(eom.qdot_se):
+            exprs[("kin", i)] = c(k)
     for i in range(n):
         for j in range(i, n):
             exprs[("M", i, j)] = c(eom.M_se[i][j])
@@ -557,14 +567,16 @@ def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
         exprs[("rate", k)] = c(rate)
     for e, ev in enumerate(events):
         exprs[("event", e)] = c(ev.expr)
-    ny = 2 * n + len(eom.quadratures)
+    ny = model.nq + n + len(eom.quadratures)
     state = {se.Symbol(f"y[{i}]"): i for i in range(ny)}
     return exprs, time_symbol, state
 
 
 def _where(scene: Scene, loc: tuple, events) -> str:
     eom = scene.eom
-    names = [q.name for q in eom.model.coords]
+    names = [q.name for q in eom.model.v] if eom.general else [q.name for q in eom.model.coords]
+    if loc[0] == "kin":
+        return f"the kinematic equation of {eom.model.coords[loc[1]].name}"
     if loc[0] == "M":
         return f"the mass matrix entry M[{names[loc[1]]}, {names[loc[2]]}]"
     if loc[0] == "F":
@@ -575,8 +587,8 @@ def _where(scene: Scene, loc: tuple, events) -> str:
 
 
 def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: int, form: str,
-                    where, names: dict) -> Decomposition:
-    d = _Decomposer(state, time_symbol, n, nz)
+                    where, names: dict, nq: int | None = None) -> Decomposition:
+    d = _Decomposer(state, time_symbol, n, nz, nq)
     d.names = names
     varsyms = d.varsyms
     entries = {}
@@ -595,7 +607,8 @@ def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: 
         n=n, nz=nz, nrows=d.nrows, ops=d.ops, consts=d.consts, M=M,
         F=[entries[("F", i)] for i in range(n)], rates=[entries[("rate", k)] for k in range(nz)],
         events=[entries[("event", e)] for e in range(ne)],
-        time_row=d.time_row, form=form, cost=0.0, labels=d.labels)
+        time_row=d.time_row, form=form, cost=0.0, labels=d.labels,
+        kin=None if nq is None else [entries[("kin", i)] for i in range(nq)])
     decomposition.cost = cost(decomposition)
     return decomposition
 
@@ -614,7 +627,7 @@ def fuse_products(d: Decomposition) -> Decomposition:
     for op in d.ops:
         for r in op.args:
             use(r)
-    for entry in [e for row in d.M for e in row] + list(d.F) + list(d.rates) + list(d.events):
+    for entry in [e for row in d.M for e in row] + list(d.F) + list(d.rates) + list(d.events) + list(d.kin or ()):
         use(entry)
     products = {op.out[0]: op for op in d.ops if op.kind == "mul"}
     fused: set[int] = set()
@@ -646,7 +659,8 @@ def decompose(scene: Scene, events=(), form: str | None = None, fuse: bool = Tru
     "derived" or "trig-linearized" to force one); ``fuse``: products used by one linear
     combination only computed in its loop (:func:`fuse_products`)."""
     eom = scene.eom
-    n, nz = eom.model.n, len(eom.quadratures)
+    n, nz = eom.model.nv, len(eom.quadratures)
+    nq = eom.model.nq if eom.general else None
     exprs, time_symbol, state = scene_expressions(scene, events)
     names = {v: se.Symbol(str(k)) for k, v in symbol_map(scene).items() if isinstance(v, se.Symbol)}
 
@@ -656,7 +670,7 @@ def decompose(scene: Scene, events=(), form: str | None = None, fuse: bool = Tru
     forms = (form,) if form else ("derived", "trig-linearized")
     best = None
     for f in forms:
-        d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where, names)
+        d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where, names, nq)
         if best is None or d.cost < best.cost:
             best = d
     return fuse_products(best) if fuse else best

@@ -88,7 +88,7 @@ def taylor_context(scene: Scene, d: Decomposition, events=()) -> dict:
     outs = scene.output_list()
     ctx = header_context(scene, new_code(scene))
     ctx.update(
-        n=n, nz=d.nz, ny=d.ny, nout=len(outs), ne=len(events), nrows=d.nrows, p_max=P_MAX,
+        n=n, nz=d.nz, ny=d.ny, nout=len(outs), kin=d.kin, ne=len(events), nrows=d.nrows, p_max=P_MAX,
         outputs_block=print_block(Block([("out", k) for k in range(len(outs))], [c(o.expr) for o in outs])),
         ops=d.ops, chunks=[d.ops[k:k + CHUNK] for k in range(0, len(d.ops), CHUNK)] or [[]], chunk_size=CHUNK,
         kinds=kinds, labels=d.labels, consts=d.consts, const_lines=const_lines, form=d.form,

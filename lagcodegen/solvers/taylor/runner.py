@@ -146,7 +146,9 @@ def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: boo
     getter.restype = ctypes.c_void_p
     table = rt.ffi.cast("const lcg_taylor_model *", getter())
     got = (table.abi, table.nq, table.nz, table.ny, table.np, table.nout, table.ne, table.nrows, table.order_max)
-    expected = (rt.lib.LCG_TAYLOR_ABI, code.n, code.nz, code.ny, code.np, code.nout, len(events), d.nrows,
+    # generalized speeds: the table counts the speeds, and the states beyond 2 nv (lcg_taylor_model.h)
+    nq, nz = (code.n, code.nz) if d.kin is None else (d.n, code.ny - 2 * d.n)
+    expected = (rt.lib.LCG_TAYLOR_ABI, nq, nz, code.ny, code.np, code.nout, len(events), d.nrows,
                 rt.lib.LCG_TAYLOR_ORDER_MAX)
     if got != expected:
         raise LagcodegenError(f"the Taylor library built for model {code.model_name!r} ({path}) has another layout "

@@ -55,9 +55,13 @@ class _Printer:
     def __init__(self, d: Decomposition, coef):
         self.d = d
         self.coef = coef
-        n, ny = d.n, d.ny
+        n, ny, nq = d.n, d.ny, d.nq
         # the row holding the derivative of each state row's series: j x_[j] = x'_[j-1]
-        self.deriv = {i: n + i for i in range(n)} | {n + i: ny + i for i in range(n)}
+        if d.kin is None:
+            self.deriv = {i: n + i for i in range(n)} | {n + i: ny + i for i in range(n)}
+        else:  # generalized speeds: q' = k(q, v, t), where k is a row
+            self.deriv = {i: k for i, k in enumerate(d.kin) if isinstance(k, int) and not isinstance(k, bool)}
+            self.deriv |= {nq + i: ny + i for i in range(n)}
 
     def at(self, e, k: int) -> str:
         """An entry (row, run constant or number) at order k."""
