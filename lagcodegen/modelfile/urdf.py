@@ -69,6 +69,7 @@ from ..util import excerpt
 from ..model.bodies import Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem, Inequality
+from . import urdf_inertial as _inertial
 from .urdfxml import (MAX_BYTES, ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
@@ -120,6 +121,8 @@ class Body:
     mass: float
     com: np.ndarray
     inertia: np.ndarray  # about the centre of mass, body axes
+    #: the links merged into the body, (name, R, p) of each link frame in the body frame
+    welded: tuple = ()
 
 
 def _merge(pieces: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray]:
@@ -181,7 +184,7 @@ def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | 
         if joint is not None:
             pieces = [pc for pc in (inertial_piece(link, R, p) for link, R, p in welded) if pc is not None]
             mass, com, inertia = _merge(pieces) if pieces else (0.0, np.zeros(3), np.zeros((3, 3)))
-            out.append(Body(joint, parent, R0, p0, mass, com, inertia))
+            out.append(Body(joint, parent, R0, p0, mass, com, inertia, tuple(welded)))
         return [(j.child, j, body_link if joint is not None else None, R, p) for j, R, p in movable]
 
     # Depth first, children in file order, with a stack (a chain of thousands of links is deeper
@@ -214,8 +217,11 @@ def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
     return out
 
 
-def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, sp.Symbol]:
-    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
+def _links(model: Model, tree: list[Body], names: dict[str, str], robot: RobotDescription | None = None,
+           params: dict | None = None) -> dict[str, sp.Symbol]:
+    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint. The
+    bodies holding a link of ``params`` (link -> its dynamic-parameter symbols) take their
+    dynamic parameters (:func:`.urdf_inertial.body_parameters`)."""
     coords = {}
     kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic,
              "planar": Joint_.planar}
@@ -224,6 +230,13 @@ def _links(model: Model, tree: list[Body], names: dict[str, str]) -> dict[str, s
         I = b.inertia
         joint = (Joint_.free(names[j.name]) if j.type == "floating"
                  else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
+        dyn = _inertial.body_parameters(robot, b, params) if params else None
+        if dyn is not None:
+            link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
+                              origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
+                              dynamic_parameters=dyn)
+            coords[j.name] = link.coordinates[0]
+            continue
         link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
                           origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
                           mass=float(b.mass), com=tuple(float(x) for x in b.com),
@@ -251,7 +264,8 @@ def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str]) -> dict
 def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
           limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
           lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-          form: str = DEFAULT_FORM, floating: bool | str = False) -> Model | ConstrainedSystem:
+          form: str = DEFAULT_FORM, floating: bool | str = False,
+          inertial_parameters: bool | Sequence[str] = False) -> Model | ConstrainedSystem:
     """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
     root_joint = "root_joint" if floating is True else (floating or None)
     if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
@@ -298,8 +312,13 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
     if np.any(gvec != 0):
         g = model.parameter("gravity_g" if "g" in robot.joints else "g", float(np.linalg.norm(gvec)))
     names = _names(robot, tree)
+    chosen = _inertial.chosen_links(robot, tree, inertial_parameters)
+    if chosen and form != "tree":
+        raise URDFError("inertial_parameters need form='tree' (the closed form's equations would not be linear in "
+                        "them)", robot.filename, None, "")
     try:
-        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names)
+        params = _inertial.declare(model, robot, chosen, _identifier)
+        coords = _links(model, tree, names, robot, params) if form == "tree" else _rigid_bodies(model, tree, names)
     except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
         raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
     if g is not None:
@@ -375,6 +394,7 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
          limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
          form: str = DEFAULT_FORM, floating: bool | str = False,
+         inertial_parameters: bool | Sequence[str] = False,
          max_bytes: int | None = MAX_BYTES) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
     ``limits=True``).
@@ -399,11 +419,19 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     six coordinates ``<name>_x, _y, _z`` (the root frame's origin in the world) and the Z-Y-X
     Euler angles ``<name>_yaw, _pitch, _roll`` (R = Rz Ry Rx; singular at pitch = +-pi/2, see
     :meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world;
+    ``inertial_parameters``: True makes the inertial of the link of every moving body (the
+    child of each movable joint) run-time parameters, a list of link names those links' (links
+    welded to a moving body by fixed joints too): ten per link, ``<link>_m``, ``<link>_mx``,
+    ``_my``, ``_mz`` (the first moments m c), ``<link>_Ixx``, ``_Ixy``, ``_Iyy``, ``_Ixz``,
+    ``_Iyz``, ``_Izz`` (the inertia about the link frame's origin, in its axes: Pinocchio's
+    dynamic parameters), defaults from the URDF; the equations of motion are linear in them
+    (:mod:`lagcodegen.modelfile.urdf_inertial`); default False (the URDF's numbers folded in);
     ``max_bytes``: a larger file is refused before it is read (:data:`MAX_BYTES`, 20 MiB,
     unless told; None: no cap).
     """
     return build(read(path, max_bytes=max_bytes), name=name, gravity=gravity, limits=limits, friction=friction,
-                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating)
+                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating,
+                 inertial_parameters=inertial_parameters)
 
 
 def loads(text: str | bytes, *, filename: str = "<string>", max_bytes: int | None = MAX_BYTES,
