@@ -1,0 +1,64 @@
+"""The inverse-dynamics regressor of a compiled tree model, generated, compiled and loaded on
+first use (:class:`CompiledRegressor`, kept in ``CompiledModel.artifacts``): the model's own
+files are not changed by it (:mod:`lagcodegen.codegen.regressor`)."""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from ..build import plain_library
+from ..codegen.record import scene_of_code
+from ..codegen.regressor import regressor_files, regressor_functions
+from ..errors import LagcodegenError
+from ..util import c_vector
+
+_DP = ctypes.POINTER(ctypes.c_double)
+
+
+class CompiledRegressor:
+    """The compiled ``<prefix>_inverse_dynamics_regressor`` and ``<prefix>_regressor_parameters``
+    of the scene of ``cm`` (a :class:`~lagcodegen.simulation.ode.CompiledModel`)."""
+
+    def __init__(self, cm):
+        code = cm.code
+        if f"{code.prefix}_dynamics.c" not in code.files:
+            raise LagcodegenError(f"model {code.model_name!r} has no inverse-dynamics regressor (only models with a "
+                                  "rigid-body tree, Model.link, have one)")
+        scene = scene_of_code(code, "inverse_dynamics_regressor")
+        sources, self.bodies = regressor_files(scene, code.prefix, code.model_name)
+        self.sources = sources
+        self.library, self.path, _ = plain_library(f"the inverse-dynamics regressor of model {code.model_name!r}",
+                                                   f"{code.prefix}_regressor", sources)
+        fY, fpi = regressor_functions(code.prefix)
+        self._Y = getattr(self.library, fY)
+        self._Y.restype, self._Y.argtypes = ctypes.c_int, [ctypes.c_double, _DP, _DP, _DP, _DP]
+        self._pi = getattr(self.library, fpi)
+        self._pi.restype, self._pi.argtypes = None, [_DP, _DP]
+        self.n, self.ny, self.ncol = cm.n, cm.ny, 10 * len(self.bodies)
+
+    def matrix(self, cm, q, v, a, t: float, p: np.ndarray) -> np.ndarray:
+        """Y (n x 10 nb) at (q, v, a, t, p), checked."""
+        from .ode import check_rc
+        n = self.n
+        y = np.concatenate([c_vector(q, n, "q"), c_vector(v, n, "v"), np.zeros(self.ny - 2 * n)])
+        acc = c_vector(a, n, "a")
+        p = np.ascontiguousarray(p, dtype=float)
+        Y = np.empty((n, self.ncol))
+        rc = self._Y(float(t), y.ctypes.data_as(_DP), acc.ctypes.data_as(_DP), p.ctypes.data_as(_DP),
+                     Y.ctypes.data_as(_DP))
+        check_rc(rc, t, "inverse-dynamics regressor")
+        return Y
+
+    def parameters(self, p: np.ndarray) -> np.ndarray:
+        """pi (10 nb) at the run-time parameters ``p``."""
+        p = np.ascontiguousarray(p, dtype=float)
+        out = np.empty(self.ncol)
+        self._pi(p.ctypes.data_as(_DP), out.ctypes.data_as(_DP))
+        return out
+
+
+def compiled_regressor(cm) -> CompiledRegressor:
+    """The regressor of ``cm``, built on first use and kept with it."""
+    return cm.artifacts.get(CompiledRegressor, "regressor", lambda: CompiledRegressor(cm))
