@@ -211,7 +211,7 @@ class CompiledModel(CompiledReprMixin):
         (gravity ``g``)."""
         from .regressor import compiled_regressor
         reg = compiled_regressor(self)
-        return reg.matrix(self, q, v, a, t, self._defaults if params is None else self.parameter_vector(params))
+        return reg.matrix(q, v, a, t, self._defaults if params is None else self.parameter_vector(params))
 
     def regressor_parameters(self, params=None) -> np.ndarray:
         """pi: the dynamic parameters of the tree's bodies (10 each, the columns of

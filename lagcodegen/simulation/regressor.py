@@ -38,9 +38,8 @@ class CompiledRegressor:
         self._pi.restype, self._pi.argtypes = None, [_DP, _DP]
         self.n, self.ny, self.ncol = cm.n, cm.ny, 10 * len(self.bodies)
 
-    def matrix(self, cm, q, v, a, t: float, p: np.ndarray) -> np.ndarray:
+    def matrix(self, q, v, a, t: float, p: np.ndarray) -> np.ndarray:
         """Y (n x 10 nb) at (q, v, a, t, p), checked."""
-        from .ode import check_rc
         n = self.n
         y = np.concatenate([c_vector(q, n, "q"), c_vector(v, n, "v"), np.zeros(self.ny - 2 * n)])
         acc = c_vector(a, n, "a")
@@ -48,7 +47,8 @@ class CompiledRegressor:
         Y = np.empty((n, self.ncol))
         rc = self._Y(float(t), y.ctypes.data_as(_DP), acc.ctypes.data_as(_DP), p.ctypes.data_as(_DP),
                      Y.ctypes.data_as(_DP))
-        check_rc(rc, t, "inverse-dynamics regressor")
+        if rc != 0:  # the one error it returns: its scratch array could not be allocated
+            raise LagcodegenError(f"inverse-dynamics regressor: out of memory (code {rc})")
         return Y
 
     def parameters(self, p: np.ndarray) -> np.ndarray:
