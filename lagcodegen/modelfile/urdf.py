@@ -25,6 +25,9 @@ What the model holds:
 * links attached by ``fixed`` joints merged into their parent (masses added, centres of mass
   combined, inertias moved by the parallel-axis theorem), the placements of the joints
   beyond them composed;
+* with ``inertial_parameters``, the inertials of the chosen links as run-time parameters (ten
+  per link, the mass, first moments and inertia about the link frame: Pinocchio's dynamic
+  parameters, defaults from the file; :mod:`.urdf_inertial`), the equations linear in them;
 * gravity: the parameter ``g`` (default 9.81, or the norm of ``gravity``) along ``-z`` or
   along the direction of ``gravity``; ``gravity=(0, 0, 0)`` leaves it out;
 * ``<dynamics damping=c>``: viscous joint damping, the Rayleigh dissipation D = c/2 q_i'^2
