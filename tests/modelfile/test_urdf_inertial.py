@@ -257,3 +257,48 @@ def test_sensitivities_and_fit_work_on_inertial_parameters():
     fitted = lcg.fit(sim, t, data, params={"forearm_link_m": base["forearm_link_m"]}, observe=sim.state_names[:6],
                      q0=q0, rtol=1e-11, atol=1e-12)
     assert fitted.params["forearm_link_m"] == pytest.approx(truth, rel=1e-6)
+
+
+def _arm(tool_inertial: dict | None = None, tool_parameters=None) -> lcg.Model:
+    """A spherical joint, a revolute joint and a tool on a fixed joint (placed and turned): the
+    tool by ``tool_inertial`` (mass, com, inertia), or by ``tool_parameters`` (name -> default)
+    declared as run-time parameters and given as its dynamic parameters."""
+    m = lcg.Model("arm")
+    m.gravity(9.81)
+    m.link("a", joint=lcg.Joint.spherical("ball"), mass=1.2, com=(0.1, 0, -0.3), inertia=(0.02, 0.03, 0.01))
+    m.link("b", parent="a", joint=lcg.Joint.revolute("j", (1, 0, 0)), origin=lcg.Placement(xyz=(0, 0, -0.6)),
+           mass=0.7, com=(0, 0.1, -0.2), inertia=(0.01, 0.01, 0.02))
+    if tool_parameters is not None:
+        tool_inertial = dict(dynamic_parameters=[m.parameter(k, v) for k, v in tool_parameters.items()])
+    m.link("tool", parent="b", origin=lcg.Placement(xyz=(0.1, 0.2, -0.3), rpy=(0.3, -0.2, 0.5)), **tool_inertial)
+    return m
+
+
+def test_model_link_dynamic_parameters_on_a_fixed_joint_agree_with_the_inertia_they_stand_for():
+    """Model.link(dynamic_parameters=...) of a tool on a fixed joint, the values Pinocchio's
+    Inertia.toDynamicParameters gives for its mass, centre of mass and inertia, as run-time
+    parameters: q'' is that of the tool stated by mass, com and inertia; the tool's body (b)
+    in the regressor has pi moved by the fixed joint's placement (Pinocchio's SE3.act); Y pi is
+    the inverse dynamics (the spherical joint's massless intermediate frames bring no columns)."""
+    mass, com = 0.4, np.array([0.05, 0.0, 0.1])
+    I = np.array([[0.003, 0.0001, 0.0], [0.0001, 0.002, 0.0], [0.0, 0.0, 0.001]])
+    plain = lcg.compile_model(_arm(dict(mass=mass, com=tuple(com), inertia=(0.003, 0.002, 0.001, 0.0001, 0, 0))),
+                              jacobian=False)
+    values = pin.Inertia(mass, com, I).toDynamicParameters()
+    par = lcg.compile_model(_arm(tool_parameters={f"tool_{s}": float(x) for s, x in zip(SUFFIXES, values)}),
+                            jacobian=False)
+    assert par.param_names == [f"tool_{s}" for s in SUFFIXES]
+    assert par.regressor_bodies == ["a", "b"]
+    rng = np.random.default_rng(8)
+    for _ in range(4):
+        y = rng.normal(size=8)
+        ref = plain.rhs(0.0, y)
+        assert np.abs(par.rhs(0.0, y) - ref).max() <= 1e-12 * np.abs(ref).max()
+        q, v, a = rng.normal(size=(3, 4))
+        tau = par.inverse_dynamics(q, v, a)
+        np.testing.assert_allclose(par.inverse_dynamics_regressor(q, v, a) @ par.regressor_parameters(), tau,
+                                   rtol=0, atol=1e-12 * np.abs(tau).max())
+    X = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.2, 0.5), np.array([0.1, 0.2, -0.3]))
+    b = pin.Inertia(0.7, np.array([0, 0.1, -0.2]), np.diag([0.01, 0.01, 0.02]))
+    merged = (b + X.act(pin.Inertia(mass, com, I))).toDynamicParameters()
+    np.testing.assert_allclose(par.regressor_parameters()[10:], merged, rtol=0, atol=1e-14)
