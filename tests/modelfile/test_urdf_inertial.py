@@ -257,6 +257,10 @@ def test_sensitivities_and_fit_work_on_inertial_parameters():
     fitted = lcg.fit(sim, t, data, params={"forearm_link_m": base["forearm_link_m"]}, observe=sim.state_names[:6],
                      q0=q0, rtol=1e-11, atol=1e-12)
     assert fitted.params["forearm_link_m"] == pytest.approx(truth, rel=1e-6)
+    masses = base["forearm_link_m"] * np.array([0.8, 1.0, 1.3])
+    ens = sim.ensemble(t, q0, params={"forearm_link_m": masses}, rtol=1e-11, atol=1e-12, threads=1)
+    np.testing.assert_array_equal(ens.y[2], sim.simulate(t, q0, params={"forearm_link_m": masses[2]}, rtol=1e-11,
+                                                         atol=1e-12).y[-1])
 
 
 def _arm(tool_inertial: dict | None = None, tool_parameters=None) -> lcg.Model:
