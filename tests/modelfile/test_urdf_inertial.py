@@ -306,3 +306,12 @@ def test_model_link_dynamic_parameters_on_a_fixed_joint_agree_with_the_inertia_t
     b = pin.Inertia(0.7, np.array([0, 0.1, -0.2]), np.diag([0.01, 0.01, 0.02]))
     merged = (b + X.act(pin.Inertia(mass, com, I))).toDynamicParameters()
     np.testing.assert_allclose(par.regressor_parameters()[10:], merged, rtol=0, atol=1e-14)
+
+
+def test_command_line_urdf_option():
+    """--urdf inertial_parameters=true|false|LINK,LINK reads as urdf.load's keyword."""
+    from lagcodegen.cli.common import urdf_options
+    assert urdf_options(["inertial_parameters=true"]) == {"inertial_parameters": True}
+    assert urdf_options(["inertial_parameters=no"]) == {"inertial_parameters": False}
+    assert urdf_options(["inertial_parameters=forearm_link, wrist_3_link"]) == {
+        "inertial_parameters": ["forearm_link", "wrist_3_link"]}
