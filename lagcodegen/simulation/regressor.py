@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ctypes
 
+import cffi
 import numpy as np
 
 from ..build import plain_library
@@ -13,9 +14,6 @@ from ..codegen.record import scene_of_code
 from ..codegen.regressor import regressor_files, regressor_functions
 from ..errors import LagcodegenError
 from ..util import c_vector
-
-_DP = ctypes.POINTER(ctypes.c_double)
-
 
 class CompiledRegressor:
     """The compiled ``<prefix>_inverse_dynamics_regressor`` and ``<prefix>_regressor_parameters``
@@ -32,10 +30,12 @@ class CompiledRegressor:
         self.library, self.path, _ = plain_library(f"the inverse-dynamics regressor of model {code.model_name!r}",
                                                    f"{code.prefix}_regressor", sources)
         fY, fpi = regressor_functions(code.prefix)
-        self._Y = getattr(self.library, fY)
-        self._Y.restype, self._Y.argtypes = ctypes.c_int, [ctypes.c_double, _DP, _DP, _DP, _DP]
-        self._pi = getattr(self.library, fpi)
-        self._pi.restype, self._pi.argtypes = None, [_DP, _DP]
+        # called through cffi: a few microseconds, where ctypes' pointer arguments take tens
+        self._ffi = ffi = cffi.FFI()
+        self._Y = ffi.cast("int (*)(double, const double *, const double *, const double *, double *)",
+                           ctypes.cast(getattr(self.library, fY), ctypes.c_void_p).value)
+        self._pi = ffi.cast("void (*)(const double *, double *)",
+                            ctypes.cast(getattr(self.library, fpi), ctypes.c_void_p).value)
         self.n, self.ny, self.ncol = cm.n, cm.ny, 10 * len(self.bodies)
 
     def matrix(self, q, v, a, t: float, p: np.ndarray) -> np.ndarray:
@@ -45,8 +45,9 @@ class CompiledRegressor:
         acc = c_vector(a, n, "a")
         p = np.ascontiguousarray(p, dtype=float)
         Y = np.empty((n, self.ncol))
-        rc = self._Y(float(t), y.ctypes.data_as(_DP), acc.ctypes.data_as(_DP), p.ctypes.data_as(_DP),
-                     Y.ctypes.data_as(_DP))
+        fb = self._ffi.from_buffer
+        rc = self._Y(float(t), fb("double[]", y), fb("double[]", acc), fb("double[]", p) if p.size else self._ffi.NULL,
+                     fb("double[]", Y))
         if rc != 0:  # the one error it returns: its scratch array could not be allocated
             raise LagcodegenError(f"inverse-dynamics regressor: out of memory (code {rc})")
         return Y
@@ -55,7 +56,8 @@ class CompiledRegressor:
         """pi (10 nb) at the run-time parameters ``p``."""
         p = np.ascontiguousarray(p, dtype=float)
         out = np.empty(self.ncol)
-        self._pi(p.ctypes.data_as(_DP), out.ctypes.data_as(_DP))
+        fb = self._ffi.from_buffer
+        self._pi(fb("double[]", p) if p.size else self._ffi.NULL, fb("double[]", out))
         return out
 
 
