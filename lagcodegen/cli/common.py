@@ -141,14 +141,15 @@ def check_parameter_names(mf: ModelFile, args) -> None:
 
 
 #: --urdf KEY=VALUE: the keywords of lagcodegen.modelfile.urdf.load the command line takes.
-URDF_KEYS = ("floating", "mimic", "limits", "lock", "gravity", "friction", "friction_velocity", "form", "name")
+URDF_KEYS = ("floating", "mimic", "limits", "lock", "gravity", "friction", "friction_velocity", "form", "name",
+             "inertial_parameters")
 
 
 def urdf_options(items: list[str] | None) -> dict:
     """``--urdf KEY=VALUE`` items as the keywords of :func:`lagcodegen.modelfile.urdf.load`:
     floating=true|false|NAME, mimic=error|independent, limits=true|false|stop|monitor|stop:E,
     lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=ignore|smooth, friction_velocity=V,
-    form=tree|closed, name=NAME."""
+    form=tree|closed, name=NAME, inertial_parameters=true|false|LINK,...."""
     out: dict = {}
     for item in items or []:
         key, sep, value = item.partition("=")
@@ -159,6 +160,9 @@ def urdf_options(items: list[str] | None) -> dict:
         try:
             if key in ("floating", "limits") and low in ("true", "false", "yes", "no", "1", "0"):
                 out[key] = low in ("true", "yes", "1")
+            elif key == "inertial_parameters":
+                out[key] = low in ("true", "yes", "1") if low in ("true", "false", "yes", "no", "1", "0") \
+                    else [n.strip() for n in value.split(",") if n.strip()]
             elif key == "limits" and low.startswith("stop:"):
                 out[key] = ("stop", float(low[5:]))
             elif key == "lock":
@@ -247,6 +251,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--urdf", action="append", metavar="KEY=VALUE",
                    help="a URDF model's loading option (repeatable): floating=true|NAME, mimic=independent, "
                         "limits=true|stop:E|monitor, lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=smooth, "
-                        "form=tree|closed, name=NAME")
+                        "form=tree|closed, name=NAME, inertial_parameters=true|LINK,... (the links' inertials as "
+                        "run-time parameters <link>_m, _mx, ..., _Izz)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     add_progress_option(p)

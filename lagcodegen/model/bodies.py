@@ -411,6 +411,9 @@ class Link:
     children: list = field(default_factory=list, repr=False)
     _pose: tuple | None = field(default=None, repr=False)
     speeds: tuple = ()  # a quaternion joint's generalized speeds (Joint.speed_names)
+    #: (m, h = m c, I_o): the inertia about the link frame's origin when the link was given its
+    #: dynamic parameters (:func:`make_link`); the tree uses it as it is (linear in them).
+    origin_inertia: tuple | None = field(default=None, repr=False)
 
     def local_pose(self) -> tuple[sp.Matrix, sp.Matrix]:
         """(R, p): the link frame's axes and origin in the parent frame, in sympy."""
@@ -459,9 +462,43 @@ class Link:
         return self if self.parent is None else self.parent.root
 
 
+#: The order of a link's dynamic parameters (Pinocchio's ``Inertia.toDynamicParameters``): the
+#: mass, the first moments m c, the inertia about the link frame's origin (not the centre of mass).
+DYNAMIC_PARAMETERS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def dynamic_parameters_inertia(values, what: str) -> tuple:
+    """(m, h, I_o) of the 10 dynamic parameters ``values`` (:data:`DYNAMIC_PARAMETERS`), checked:
+    numbers or sympy expressions; I_o a symmetric sympy matrix."""
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != 10:
+        raise ModelError(f"{what} must be 10 values (m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz), got "
+                         f"{excerpt(values)}")
+    v = [_expr(x, f"{what}[{k}] ({DYNAMIC_PARAMETERS[k]})") for k, x in enumerate(values)]
+    m, h = v[0], tuple(v[1:4])
+    if m.is_number and m < 0:
+        raise ModelError(f"{what}: the mass is negative ({m})")
+    if m.is_number and m == 0 and any(x != 0 for x in h):
+        raise ModelError(f"{what}: first moments m c without mass")
+    xx, xy, yy, xz, yz, zz = v[4:]
+    return m, h, sp.ImmutableMatrix([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
 def make_link(name: str, parent: "Link | None", joint: Joint | None, origin: Placement | None, mass, com,
-              inertia, coordinates: tuple) -> Link:
-    """A :class:`Link` with its arguments checked (called by :meth:`Model.link`)."""
+              inertia, coordinates: tuple, dynamic_parameters=None) -> Link:
+    """A :class:`Link` with its arguments checked (called by :meth:`Model.link`). With
+    ``dynamic_parameters`` (:data:`DYNAMIC_PARAMETERS`) the mass, centre of mass h/m and inertia
+    about it I_o - (|h|^2 1 - h h^T)/m are derived from them, and the tree takes (m, h, I_o)
+    themselves (:attr:`Link.origin_inertia`): the equations stay linear in these parameters."""
+    if dynamic_parameters is not None:
+        m, h, Io = dynamic_parameters_inertia(dynamic_parameters, f"dynamic_parameters of link {name!r}")
+        if m == 0:
+            com, IG = (0, 0, 0), Io
+        else:
+            hh = sp.Matrix(h)
+            com, IG = tuple(x / m for x in h), Io - ((hh.T * hh)[0, 0] * sp.eye(3) - hh * hh.T) / m
+        lk = make_link(name, parent, joint, origin, m, com, sp.Matrix(IG), coordinates)
+        lk.origin_inertia = (m, h, Io)
+        return lk
     if joint is None:
         joint = Joint.fixed(f"{name}_joint")
     if not isinstance(joint, Joint):

@@ -485,7 +485,7 @@ class Model:
     # ------------------------------------------------------------------ trees of links
     def link(self, name: str, *, parent: "str | Link | None" = None, joint: Joint | None = None,
              origin: Placement | None = None, mass=0, com: Sequence = (0, 0, 0),
-             inertia: Sequence = (0, 0, 0, 0, 0, 0)) -> Link:
+             inertia: Sequence = (0, 0, 0, 0, 0, 0), dynamic_parameters: Sequence | None = None) -> Link:
         """A rigid link of a tree (:mod:`lagcodegen.model.bodies`), attached to ``parent`` (a link
         or its name; None: the world) by ``joint`` (default: fixed) whose frame sits at ``origin``
         in the parent's frame (URDF's joint origin). ``mass``, ``com`` and ``inertia`` (ixx, iyy,
@@ -493,6 +493,10 @@ class Model:
 
         The joint's coordinates are declared here, named after the joint (a 1-dof joint: its
         name; spherical/free: :data:`~lagcodegen.model.bodies.JOINT_COORDINATES` suffixes).
+        ``dynamic_parameters``, instead of those three: the 10 values (m, m c_x, m c_y, m c_z,
+        Ixx, Ixy, Iyy, Ixz, Iyz, Izz) with the inertia about the link frame's origin (Pinocchio's
+        ``Inertia.toDynamicParameters`` order), typically parameters: the equations of motion are
+        linear in them (:func:`lagcodegen.modelfile.urdf.load`'s ``inertial_parameters``).
         Gravity (:meth:`gravity`) acts on links too. The kinetic energy of the links is
         T = 1/2 q'^T M(q) q' with M evaluated along the tree by the derivation.
         """
@@ -512,7 +516,10 @@ class Model:
             for cname in joint.coordinate_names + joint.speed_names:
                 _check_name(cname, "coordinate")
                 self._check_free(cname)
-        lk = make_link(name, parent, joint, origin, mass, com, inertia, ())
+        if dynamic_parameters is not None and not (isinstance(mass, (int, float)) and mass == 0
+                                                   and tuple(com) == (0, 0, 0) and tuple(inertia) == (0,) * 6):
+            raise ModelError(f"link {name!r}: give mass, com and inertia or dynamic_parameters, not both")
+        lk = make_link(name, parent, joint, origin, mass, com, inertia, (), dynamic_parameters)
         for what, e in ([("origin", e) for e in lk.origin.free_symbols()] + [("mass", lk.mass)]
                         + [("com", c) for c in lk.com] + [("inertia", c) for c in lk.inertia]):
             bad = sp.sympify(e).free_symbols - set(self.params)

@@ -36,6 +36,7 @@ import sympy as sp
 from ..errors import ModelError
 from ..util import excerpt
 from .bodies import Placement
+from .inertial import placed_inertia
 
 ZERO = se.Integer(0)
 ONE = se.Integer(1)
@@ -283,6 +284,7 @@ class TreeDynamics:
         # link name -> (node index, Placement of the link frame in that node; None: the identity)
         anchors: dict = {}
         masses: dict = {}   # node index -> list of (m, c, I_G) in node coordinates (symengine)
+        spatial: dict = {}  # node index -> list of (m, h, I_o) in node coordinates (dynamic parameters)
         for link in model.links:
             if link.parent is None:
                 node, place = -1, link.origin
@@ -303,7 +305,9 @@ class TreeDynamics:
                                        speed=speed_index[model.speeds[index[coord.name]].name]))
                 node, place = len(self.nodes) - 1, None
             anchors[link.name] = (node, place)
-            if node >= 0 and link.mass != 0:
+            if node >= 0 and link.origin_inertia is not None:  # dynamic parameters: kept linear
+                spatial.setdefault(node, []).append(placed_inertia(link.origin_inertia, place))
+            elif node >= 0 and link.mass != 0:
                 com = se.DenseMatrix(3, 1, [_se(c, "centre of mass") for c in link.com])
                 IG = se.DenseMatrix(3, 3, [_se(c, "inertia") for c in sp.Matrix(link.inertia)])
                 if place is not None:
@@ -319,6 +323,12 @@ class TreeDynamics:
                    for j in range(3)] for i in range(3)]
             Io = [[se.expand(e) if not e.free_symbols else e for e in row] for row in Io]
             self.nodes[k].inertia = (m, h, Io)
+        for k, items in spatial.items():
+            if self.nodes[k].inertia is not None:
+                items = [self.nodes[k].inertia, *items]
+            self.nodes[k].inertia = (se.Add(*(it[0] for it in items)),
+                                     [se.Add(*(it[1][i] for it in items)) for i in range(3)],
+                                     [[se.Add(*(it[2][i][j] for it in items)) for j in range(3)] for i in range(3)])
         self.coord_node = {}
         for k, nd in enumerate(self.nodes):
             qk = q[nd.coord]

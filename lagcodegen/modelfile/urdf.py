@@ -27,6 +27,9 @@ What the model holds:
 * links attached by ``fixed`` joints merged into their parent (masses added, centres of mass
   combined, inertias moved by the parallel-axis theorem), the placements of the joints
   beyond them composed;
+* with ``inertial_parameters``, the inertials of the chosen links as run-time parameters (ten
+  per link, the mass, first moments and inertia about the link frame: Pinocchio's dynamic
+  parameters, defaults from the file; :mod:`.urdf_inertial`), the equations linear in them;
 * gravity: the parameter ``g`` (default 9.81, or the norm of ``gravity``) along ``-z`` or
   along the direction of ``gravity``; ``gravity=(0, 0, 0)`` leaves it out;
 * ``<dynamics damping=c>``: viscous joint damping, the Rayleigh dissipation D = c/2 q_i'^2
@@ -71,6 +74,7 @@ from ..util import excerpt
 from ..model.bodies import ROTATIONS, Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem, Inequality
+from . import urdf_inertial as _inertial
 from .urdfxml import (MAX_BYTES, ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
@@ -122,6 +126,8 @@ class Body:
     mass: float
     com: np.ndarray
     inertia: np.ndarray  # about the centre of mass, body axes
+    #: the links merged into the body, (name, R, p) of each link frame in the body frame
+    welded: tuple = ()
 
 
 def _merge(pieces: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray]:
@@ -183,7 +189,7 @@ def bodies(robot: RobotDescription, locked: dict | None = None, floating: str | 
         if joint is not None:
             pieces = [pc for pc in (inertial_piece(link, R, p) for link, R, p in welded) if pc is not None]
             mass, com, inertia = _merge(pieces) if pieces else (0.0, np.zeros(3), np.zeros((3, 3)))
-            out.append(Body(joint, parent, R0, p0, mass, com, inertia))
+            out.append(Body(joint, parent, R0, p0, mass, com, inertia, tuple(welded)))
         return [(j.child, j, body_link if joint is not None else None, R, p) for j, R, p in movable]
 
     # Depth first, children in file order, with a stack (a chain of thousands of links is deeper
@@ -216,8 +222,11 @@ def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
     return out
 
 
-def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion") -> dict[str, sp.Symbol]:
-    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint."""
+def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion",
+           robot: RobotDescription | None = None, params: dict | None = None) -> dict[str, sp.Symbol]:
+    """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint. The
+    bodies holding a link of ``params`` (link -> its dynamic-parameter symbols) take their
+    dynamic parameters (:func:`.urdf_inertial.body_parameters`)."""
     coords = {}
     kinds = {"revolute": Joint_.revolute, "continuous": Joint_.continuous, "prismatic": Joint_.prismatic,
              "planar": Joint_.planar}
@@ -226,6 +235,13 @@ def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str 
         I = b.inertia
         joint = (Joint_.free(names[j.name], rotation=rotation) if j.type == "floating"
                  else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
+        dyn = _inertial.body_parameters(robot, b, params) if params else None
+        if dyn is not None:
+            link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
+                              origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
+                              dynamic_parameters=dyn)
+            coords[j.name] = link.coordinates[0]
+            continue
         link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
                           origin=Placement(xyz=tuple(float(x) for x in b.xyz), rotation=b.rotation.tolist()),
                           mass=float(b.mass), com=tuple(float(x) for x in b.com),
@@ -253,12 +269,42 @@ def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str], rotatio
     return coords
 
 
-def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
-          limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
-          lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-          form: str = DEFAULT_FORM, floating: bool | str = False,
-          rotation: str = "quaternion") -> Model | ConstrainedSystem:
-    """The :class:`Model` of a parsed URDF robot (see the module docstring and :func:`load`)."""
+@dataclass(frozen=True)
+class LoadOptions:
+    """The options of :func:`load`, :func:`loads` and :func:`build`, each described at
+    :func:`load`; given as keywords, checked by :func:`build`."""
+
+    name: str | None = None
+    gravity: Sequence[float] = (0.0, 0.0, -9.81)
+    limits: bool | str | tuple = False
+    friction: str = "ignore"
+    friction_velocity: float = 1e-3
+    lock: Mapping[str, float] | Sequence[str] = ()
+    mimic: str = "error"
+    form: str = DEFAULT_FORM
+    floating: bool | str = False
+    rotation: str = "quaternion"
+    inertial_parameters: bool | Sequence[str] = False
+
+
+def load_options(robot: RobotDescription, options: Mapping) -> LoadOptions:
+    """``options`` (keywords of :func:`load`) as :class:`LoadOptions`; an unknown one is a
+    URDFError naming it and the known ones."""
+    known = LoadOptions.__dataclass_fields__
+    unknown = [k for k in options if k not in known]
+    if unknown:
+        raise URDFError(f"unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))} (known: "
+                        f"{', '.join(known)})", robot.filename, None, "")
+    return LoadOptions(**options)
+
+
+def build(robot: RobotDescription, **options) -> Model | ConstrainedSystem:
+    """The :class:`Model` of a parsed URDF robot (see the module docstring; ``options``: the
+    keywords of :func:`load`, :class:`LoadOptions`)."""
+    o = load_options(robot, options)
+    name, gravity, limits, friction, friction_velocity = o.name, o.gravity, o.limits, o.friction, o.friction_velocity
+    lock, mimic, form, floating, rotation = o.lock, o.mimic, o.form, o.floating, o.rotation
+    inertial_parameters = o.inertial_parameters
     root_joint = "root_joint" if floating is True else (floating or None)
     if root_joint is not None and (not isinstance(root_joint, str) or not root_joint.isidentifier()
                                    or root_joint in robot.joints):
@@ -307,8 +353,14 @@ def build(robot: RobotDescription, *, name: str | None = None, gravity: Sequence
     if np.any(gvec != 0):
         g = model.parameter("gravity_g" if "g" in robot.joints else "g", float(np.linalg.norm(gvec)))
     names = _names(robot, tree)
+    chosen = _inertial.chosen_links(robot, tree, inertial_parameters)
+    if chosen and form != "tree":
+        raise URDFError("inertial_parameters need form='tree' (the closed form's equations would not be linear in "
+                        "them)", robot.filename, None, "")
     try:
-        coords = (_links if form == "tree" else _rigid_bodies)(model, tree, names, rotation)
+        params = _inertial.declare(model, robot, chosen, _identifier)
+        coords = (_links(model, tree, names, rotation, robot, params) if form == "tree"
+                  else _rigid_bodies(model, tree, names, rotation))
     except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
         raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
     if g is not None:
@@ -380,13 +432,9 @@ def _limit_kind(limits, robot: RobotDescription) -> float | None:
                     f"'monitor', got {excerpt(limits)}", robot.filename, None, "")
 
 
-def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[float] = (0.0, 0.0, -9.81),
-         limits: bool | str = False, friction: str = "ignore", friction_velocity: float = 1e-3,
-         lock: Mapping[str, float] | Sequence[str] = (), mimic: str = "error",
-         form: str = DEFAULT_FORM, floating: bool | str = False, rotation: str = "quaternion",
-         max_bytes: int | None = MAX_BYTES) -> Model | ConstrainedSystem:
+def load(path: str | os.PathLike, *, max_bytes: int | None = MAX_BYTES, **options) -> Model | ConstrainedSystem:
     """The :class:`Model` of the URDF file at ``path`` (a :class:`ConstrainedSystem` with
-    ``limits=True``).
+    ``limits=True``). The options (keywords, :class:`LoadOptions`):
 
     ``name``: the model's name (default: the ``<robot name>``, made an identifier);
     ``gravity``: the gravitational acceleration vector in the root link's frame (m/s^2);
@@ -411,12 +459,17 @@ def load(path: str | os.PathLike, *, name: str | None = None, gravity: Sequence[
     (:meth:`lagcodegen.model.bodies.Joint.free`); default False: the root is fixed to the world;
     ``rotation``: "quaternion" (default) or "ZYX" (the free joints' rotation as Z-Y-X Euler
     angles ``<name>_yaw, _pitch, _roll``, their rates the speeds; singular at pitch = +-pi/2);
+    ``inertial_parameters``: True makes the inertial of the link of every moving body (the
+    child of each movable joint) run-time parameters, a list of link names those links' (links
+    welded to a moving body by fixed joints too): ten per link, ``<link>_m``, ``<link>_mx``,
+    ``_my``, ``_mz`` (the first moments m c), ``<link>_Ixx``, ``_Ixy``, ``_Iyy``, ``_Ixz``,
+    ``_Iyz``, ``_Izz`` (the inertia about the link frame's origin, in its axes: Pinocchio's
+    dynamic parameters), defaults from the URDF; the equations of motion are linear in them
+    (:mod:`lagcodegen.modelfile.urdf_inertial`); default False (the URDF's numbers folded in);
     ``max_bytes``: a larger file is refused before it is read (:data:`MAX_BYTES`, 20 MiB,
     unless told; None: no cap).
     """
-    return build(read(path, max_bytes=max_bytes), name=name, gravity=gravity, limits=limits, friction=friction,
-                 friction_velocity=friction_velocity, lock=lock, mimic=mimic, form=form, floating=floating,
-                 rotation=rotation)
+    return build(read(path, max_bytes=max_bytes), **options)
 
 
 def loads(text: str | bytes, *, filename: str = "<string>", max_bytes: int | None = MAX_BYTES,

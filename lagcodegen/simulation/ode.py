@@ -217,6 +217,31 @@ class CompiledModel(CompiledReprMixin):
         check_rc(rc, t, "inverse dynamics")
         return tau
 
+    def inverse_dynamics_regressor(self, q, v, a, *, t: float = 0.0, params=None) -> np.ndarray:
+        """Y(q, v, a): the inverse-dynamics regressor of the rigid-body tree, n rows and 10 columns
+        per body (:attr:`regressor_bodies`), Pinocchio's order: m, m c_x, m c_y, m c_z, I_xx,
+        I_xy, I_yy, I_xz, I_yz, I_zz (the inertia about the body frame's origin). The tree's share
+        of :meth:`inverse_dynamics` is Y pi (pi: :meth:`regressor_parameters`); the model's
+        other elements (joint damping, friction, springs) are not in Y. Generated and compiled on
+        first use (:mod:`lagcodegen.simulation.regressor`); it may depend on run-time parameters
+        (gravity ``g``)."""
+        from .regressor import compiled_regressor
+        reg = compiled_regressor(self)
+        return reg.matrix(q, v, a, t, self._defaults if params is None else self.parameter_vector(params))
+
+    def regressor_parameters(self, params=None) -> np.ndarray:
+        """pi: the dynamic parameters of the tree's bodies (10 each, the columns of
+        :meth:`inverse_dynamics_regressor`) at the run-time parameters ``params`` (defaults)."""
+        from .regressor import compiled_regressor
+        return compiled_regressor(self).parameters(self._defaults if params is None else self.parameter_vector(params))
+
+    @property
+    def regressor_bodies(self) -> list[str]:
+        """The links whose 10 columns :meth:`inverse_dynamics_regressor` holds, in order (each
+        moving body of the tree, links on fixed joints merged into it)."""
+        from .regressor import compiled_regressor
+        return list(compiled_regressor(self).bodies)
+
     def _inverse_dynamics_function(self):
         name = f"{self.code.prefix}_inverse_dynamics"
         if f"{self.code.prefix}_dynamics.c" not in self.code.files:

@@ -236,3 +236,25 @@ def test_taylor_on_a_floating_arm_agrees_with_cvode_and_locates_events():
     b = cm.simulate(t, q0=q0, v0=v0, method="taylor", rtol=1e-12, atol=1e-13, events=ev)
     assert np.abs(a.y - b.y).max() < 1e-8
     assert len(a.events) == len(b.events) == 1 and abs(a.events[0].t - b.events[0].t) < 1e-9
+
+
+def test_floating_base_regressor_matches_pinocchio_free_flyer():
+    """The inverse-dynamics regressor of a tree with a free-flyer root (its six speeds as rows,
+    the root body's ten columns first) is Pinocchio's computeJointTorqueRegressor, and
+    Y pi = rnea, in the same layout."""
+    file = EXAMPLES / "ur_like_arm.urdf"
+    cm = lcg.compile_model(lcg.urdf.load(file, floating=True, inertial_parameters=True))
+    pm = pin.buildModelFromUrdf(str(file), pin.JointModelFreeFlyer())
+    data = pm.createData()
+    rng = np.random.default_rng(9)
+    pi = cm.regressor_parameters()
+    pi_pin = np.concatenate([pm.inertias[j].toDynamicParameters() for j in range(1, pm.njoints)])
+    assert np.abs(pi - pi_pin).max() <= 1e-12 * np.abs(pi_pin).max()
+    for _ in range(3):
+        q = pin.randomConfiguration(pm, -np.ones(pm.nq), np.ones(pm.nq))
+        v, a = rng.normal(size=pm.nv), rng.normal(size=pm.nv)
+        Y = cm.inverse_dynamics_regressor(q, v, a)
+        Y_pin = pin.computeJointTorqueRegressor(pm, data, q, v, a)
+        assert Y.shape == Y_pin.shape and np.abs(Y - Y_pin).max() <= 1e-12 * np.abs(Y_pin).max()
+        tau = pin.rnea(pm, data, q, v, a)
+        assert np.abs(Y @ pi - tau).max() <= 1e-11 * np.abs(tau).max()
