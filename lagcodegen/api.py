@@ -337,11 +337,13 @@ def _compile_file(mf: ModelFile, **options: Any):
             return compile_constrained(mf.constrained, **copts)
         if options.pop("formulation", None) is not None:
             raise ModelError(f"{mf.path}: a formulation applies to model files with [constraints]")
-        kwargs: dict[str, Any] = dict(jacobian=s.jacobian, outputs=list(s.outputs),
+        eom = mf.derive()
+        # generalized speeds (a floating URDF): no analytic Jacobian yet, CVODE's differences instead
+        kwargs: dict[str, Any] = dict(jacobian=s.jacobian and not eom.general, outputs=list(s.outputs),
                                       runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
                                       prefix=None, native=True, verbose=False, lang="c")
         kwargs.update(options)
-        return _compile_equations(mf.derive(), **kwargs)
+        return _compile_equations(eom, **kwargs)
 
 
 def _event_files(scene: Scene, mf: ModelFile, lang: str, report: Callable[[str], None] | None) -> dict[str, str]:
@@ -383,7 +385,8 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
     folded = {k: v for k, v in values.items() if runtime is not None and k not in runtime}
     q0, v0 = mf.initial_state()
     if mf.constrained is None:
-        scene = Scene(mf.derive(), jacobian=s.jacobian, outputs=list(s.outputs), runtime_parameters=runtime,
+        eom = mf.derive()
+        scene = Scene(eom, jacobian=s.jacobian and not eom.general, outputs=list(s.outputs), runtime_parameters=runtime,
                       values=folded, prefix=prefix)
         code = generate_code(scene, lang)
         if not bundle:

@@ -99,3 +99,20 @@ def test_urdf_loading_options_on_the_command_line(tmp_path):
     gen = run("generate", urdf, "-o", tmp_path / "gen", "--urdf", "mimic=independent", "-q")
     assert gen.returncode == 0, gen.stderr
     assert '"urdf"' in (tmp_path / "gen" / "mimic_arm.lagcodegen.json").read_text()
+
+
+def test_simulate_a_floating_robot_falls_freely(tmp_path):
+    """--floating: the arm's root on a free joint in Pinocchio's layout (q: x y z qx qy qz qw, v:
+    linear and angular velocity in the root's frame); released at rest it falls freely, its
+    base's height z = z0 - g t^2 / 2 with the quaternion unchanged (no torque on the whole)."""
+    proc = run("simulate", ROOT / "examples" / "ur_like_arm.urdf", "--floating", "-o", tmp_path / "fall.csv",
+               "--t-end", "1", "--rtol", "1e-10", "--atol", "1e-12", "-q")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "fall.csv").read_text().splitlines()[0].split(",")
+    assert header[1:8] == ["root_joint_x", "root_joint_y", "root_joint_z", "root_joint_qx", "root_joint_qy",
+                           "root_joint_qz", "root_joint_qw"]
+    assert "root_joint_vx" in header and "root_joint_wz" in header
+    data = np.loadtxt(tmp_path / "fall.csv", delimiter=",", skiprows=1)
+    t, z = data[:, 0], data[:, header.index("root_joint_z")]
+    assert np.abs(z + 9.81 * t ** 2 / 2).max() < 1e-8
+    assert np.abs(data[:, header.index("root_joint_qw")] - 1).max() < 1e-9

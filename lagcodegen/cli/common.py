@@ -142,14 +142,14 @@ def check_parameter_names(mf: ModelFile, args) -> None:
 
 #: --urdf KEY=VALUE: the keywords of lagcodegen.modelfile.urdf.load the command line takes.
 URDF_KEYS = ("floating", "mimic", "limits", "lock", "gravity", "friction", "friction_velocity", "form", "name",
-             "inertial_parameters")
+             "inertial_parameters", "rotation")
 
 
 def urdf_options(items: list[str] | None) -> dict:
     """``--urdf KEY=VALUE`` items as the keywords of :func:`lagcodegen.modelfile.urdf.load`:
     floating=true|false|NAME, mimic=error|independent, limits=true|false|stop|monitor|stop:E,
     lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=ignore|smooth, friction_velocity=V,
-    form=tree|closed, name=NAME, inertial_parameters=true|false|LINK,...."""
+    form=tree|closed, name=NAME, inertial_parameters=true|false|LINK,..., rotation=quaternion|ZYX."""
     out: dict = {}
     for item in items or []:
         key, sep, value = item.partition("=")
@@ -252,6 +252,10 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
                    help="a URDF model's loading option (repeatable): floating=true|NAME, mimic=independent, "
                         "limits=true|stop:E|monitor, lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=smooth, "
                         "form=tree|closed, name=NAME, inertial_parameters=true|LINK,... (the links' inertials as "
-                        "run-time parameters <link>_m, _mx, ..., _Izz)")
+                        "run-time parameters <link>_m, _mx, ..., _Izz), rotation=ZYX (Euler angles on free "
+                        "joints instead of quaternions)")
+    p.add_argument("--floating", action="append_const", dest="urdf", const="floating=true",
+                   help="a URDF model's root on a free joint root_joint (--urdf floating=true): Pinocchio's free-flyer "
+                        "layout, q (x, y, z, qx, qy, qz, qw), v (linear, angular velocity in the root's frame)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     add_progress_option(p)

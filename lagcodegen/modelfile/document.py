@@ -61,10 +61,12 @@ class ModelFile:
     events: list[Event] = field(default_factory=list, compare=False)
 
     def initial_state(self) -> tuple[list[float], list[float]]:
-        """Initial coordinates and velocities from ``simulation.initial`` (missing entries 0.0)."""
+        """Initial coordinates and velocities from ``simulation.initial`` (missing entries 0.0; a
+        quaternion's scalar part 1, :meth:`Model.neutral`); velocities per speed."""
         init = self.simulation.initial
-        q0 = [float(init.get(q.name, 0.0)) for q in self.model.coords]
-        v0 = [float(init.get(v.name, 0.0)) for v in self.model.speeds]
+        neutral = self.model.neutral()
+        q0 = [float(init.get(q.name, x)) for q, x in zip(self.model.coords, neutral)]
+        v0 = [float(init.get(v.name, 0.0)) for v in self.model.v]
         return q0, v0
 
     def times(self) -> np.ndarray:
