@@ -83,10 +83,11 @@ def _c_double(value: float) -> str:
 
 
 def _initial_state(code: GeneratedCode, y0) -> list[float]:
-    if y0 is None:
-        return [DEFAULT_Q0] * code.n + [0.0] * (code.n + code.nz)
+    if y0 is None:  # quaternions' scalar parts 1 (the code's neutral configuration)
+        neutral = getattr(code, "q_neutral", None) or [0.0] * code.n
+        return [1.0 if x == 1.0 else DEFAULT_Q0 for x in neutral] + [0.0] * (code.speeds + code.nz)
     values = [check_finite(v, "bundle initial state") for v in y0]
-    if len(values) == 2 * code.n:
+    if len(values) == code.n + code.speeds:
         values += [0.0] * code.nz
     if len(values) != code.ny:
         raise ModelError(f"bundle initial state: expected {code.ny} values ({', '.join(code.state_names)}), "
@@ -109,8 +110,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
                   t_start: float = 0.0, t_end: float = 10.0, steps: int | None = None,
                   code: GeneratedCode | None = None, method: str = "bdf",
                   sensitivities: bool = False, reference: bool = True) -> dict[str, str]:
-    """The files of the bundle of ``scene`` (name -> text), rendered in memory (models with
-    generalized speeds are refused by name: the example programs integrate y = (q, q')).
+    """The files of the bundle of ``scene`` (name -> text), rendered in memory (with
+    ``sensitivities``, models with generalized speeds are refused by name).
 
     ``y0`` (the whole state, or q and q' with z = 0), ``params`` (run-time parameter values by
     name), ``t_start``, ``t_end`` and ``steps`` are the examples' defaults (the examples take
@@ -127,7 +128,8 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     :data:`CHECK_TOL` (1 + |reference|). Where the model cannot be compiled or run here (no C
     compiler, the run fails), the bundle has no reference and ``make check`` says so.
     """
-    require_lagrange(scene.eom, "bundle")
+    if sensitivities:
+        require_lagrange(scene.eom, "a bundle with sensitivities")
     if isinstance(scene, ConstrainedSystem):
         raise ModelError("render_bundle takes a Scene; bundle a ConstrainedSystem with render_constrained_bundle "
                          "or write_bundle")

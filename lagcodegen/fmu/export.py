@@ -25,7 +25,7 @@ from ..cache import CACHE_FORMAT, cache_key, cached_build
 from ..codegen.constrained import generate_constrained
 from ..codegen.languages import generate_code
 from ..codegen.templates import environment, templates_dir
-from ..derivation import derive, require_lagrange
+from ..derivation import derive
 from ..errors import CompileError, LagcodegenError, ModelError
 from ..formulation.scene import Scene
 from ..model.model import Model
@@ -182,7 +182,6 @@ def fmu_sources(scene: Scene, *, fmi_version: int, x_start: Sequence[float], tun
     fields of :class:`~.description.Header` but the identifier and the token."""
     _check_version(fmi_version)
     _check_identifier(scene.prefix)
-    require_lagrange(scene.eom, "FMU export")
     code = generate_code(scene, "c")
     table = variable_table(scene, x_start=list(x_start), tunable=tunable)
     files, description = _assemble(code, table, fmi_version=fmi_version, x_start=x_start,
@@ -317,12 +316,14 @@ def export_fmu(source: Model | ModelFile | str | os.PathLike, path: str | os.Pat
     init = dict(s.initial) if s is not None else {}
     for name, value in (initial or {}).items():
         init[name] = check_finite(value, f"export_fmu: initial value of {name!r}")
-    state_names = [q.name for q in model.coords] + [v.name for v in model.speeds]
+    state_names = [q.name for q in model.coords] + [v.name for v in model.v]  # (q, v): nq + nv states
+    neutral = dict(zip([q.name for q in model.coords], model.neutral()))  # quaternions at the identity
     for name in init:
         if name not in state_names:
             raise ModelError(f"export_fmu: initial value given for {name!r}, which is not a coordinate or velocity "
                              f"(state: {', '.join(state_names)})")
-    x_start = [float(init.get(name, 0.0)) for name in state_names] + [0.0] * (len(eom.quadratures) if eom else 0)
+    x_start = ([float(init.get(name, neutral.get(name, 0.0))) for name in state_names]
+               + [0.0] * (len(eom.quadratures) if eom else 0))
     if tolerance is None:
         tolerance = s.rtol if s is not None and s.rtol > 0 else DEFAULT_TOLERANCE
     tolerance = check_finite(tolerance, "export_fmu: tolerance")

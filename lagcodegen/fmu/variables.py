@@ -56,10 +56,10 @@ def variable_table(scene: Scene, *, x_start: Sequence[float], tunable: set[str])
     importer may change during the simulation, the others are fixed after initialization)."""
     eom = scene.eom
     model = eom.model
-    n, nz = model.n, len(eom.quadratures)
-    nx = 2 * n + nz
-    state_names = [q.name for q in model.coords] + [v.name for v in model.speeds] + [name for name, _ in
-                                                                                      eom.quadratures]
+    nq, n, nz = model.nq, model.nv, len(eom.quadratures)  # n: the speeds (generalized ones: nv <= nq)
+    nx = nq + n + nz
+    state_names = [q.name for q in model.coords] + [v.name for v in model.v] + [name for name, _ in
+                                                                                 eom.quadratures]
     params = list(scene.runtime_parameters)
     inputs = set(scene.input_names)
     outputs = scene.output_list()
@@ -96,14 +96,14 @@ def variable_table(scene: Scene, *, x_start: Sequence[float], tunable: set[str])
 
     derivative_deps = []
     for k in range(nx):
-        if k < n:
+        if k < nq and not model.general:
             derivative_deps.append((state_vr[state_names[n + k]],))
             continue
         names = {state_names[j] for j in range(nx) if pattern[k, j]}
-        if k < 2 * n:
-            names |= comp_inputs[find(k - n)]
-        else:
-            names |= _symbols(eom.quadratures[k - 2 * n][1]) & inputs
+        if nq <= k < nq + n:
+            names |= comp_inputs[find(k - nq)]
+        elif k >= nq + n:
+            names |= _symbols(eom.quadratures[k - nq - n][1]) & inputs
         derivative_deps.append(deps_of(names))
     defaults = scene.default_parameters()
     param_rows = [(name, defaults[k], "input" if name in inputs else "parameter",
