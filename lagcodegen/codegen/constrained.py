@@ -90,11 +90,14 @@ def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
     ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver."""
     blocks = impact_blocks(system, scene)
     contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
-                         + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None else "")
+                         + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None
+                            and system.friction[k] is None else "")
+                         + (f", Coulomb friction along {system.tangents[k]}" if system.friction[k] is not None
+                            else "")
                          for k in system.contacts)
     return environment().get_template("c/impact.c.j2").render(
         **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
-        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"])
+        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction)
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

@@ -43,6 +43,26 @@ typedef struct lcg_imp_model {
     const lcg_dae_model *dae;
 } lcg_imp_model;
 
+/* Layout version of lcg_imp_friction. */
+#define LCG_IMP_FRICTION_ABI 1
+
+/* What the impact driver needs besides lcg_imp_model for contacts with Coulomb friction
+ * (generated only for systems with a friction coefficient): the numbers of the model at a state,
+ * from which the driver (lcg_imp.c) builds and solves the contact problems of each mode itself.
+ * eval: M[nq*nq] (full, row-major), F[nq], R[nrow*nq] (the rows as in lcg_imp_model), s[nrow]
+ * = R q' + R0, h[nrow] (the holonomic values: f_j, g_k; 0 for the other rows), gam[nrow] =
+ * -d/dt (R q' + R0) with q'' excluded. tangent_of[nt]: the contact (0..nk-1) of each tangential
+ * row nj + nk + i. */
+typedef struct lcg_imp_friction {
+    int abi; /* LCG_IMP_FRICTION_ABI */
+    int njh; /* holonomic equality rows (the first njh) */
+    int nt;  /* tangential rows */
+    const int *tangent_of;
+    int (*eval)(double t, const double *y, const double *p, double *M, double *F, double *R, double *s, double *h,
+                double *gam);
+    const lcg_imp_model *imp;
+} lcg_imp_friction;
+
 #ifdef __cplusplus
 }
 #endif
