@@ -72,6 +72,10 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if lang != "c":
             raise ModelError(f"inequality constraints with a restitution (contacts) are generated in C only, "
                              f"not lang={lang!r}")
+        if ggl and system.has_friction:
+            raise ModelError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the impact "
+                             "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
+                             "formulation on IDA cannot take it")
         if ggl:
             raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
                              "formulation (formulation='index1'), not GGL")

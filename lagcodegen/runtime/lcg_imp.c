@@ -996,6 +996,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     imp_data data;
     fric_data fdata;
     void *fmem = NULL;
+    char painleve[sizeof st->message];
     const lcg_dae_model *m;
     double *yv, *buf = NULL, *last, *scratch, *ydot, *yprev, *gprev, *wa;
     double tprev;
@@ -1341,6 +1342,8 @@ done:
             if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
                 active[k] = fdata.fmode[k] > 0 ? 2 : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
+    if (flag == LCG_FLAG_CONTACT_MODE) /* kept from CVODE's error handler (the counters below) */
+        memcpy(painleve, st->message, sizeof painleve);
     if (mem != NULL) {
         add_counts(mem, base);
         st->nsteps = base[0];
@@ -1357,6 +1360,8 @@ done:
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
     st->flag = flag;
+    if (flag == LCG_FLAG_CONTACT_MODE)
+        memcpy(st->message, painleve, sizeof painleve);
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
     free_solver(LS, NULL, A, &y, 1, &ctx);
