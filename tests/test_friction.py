@@ -241,3 +241,58 @@ def test_existing_contacts_generate_no_friction_table():
     rough = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.5, tangent=x, friction=0.2)])
     code, _ = generate_constrained(rough)
     assert "nofr_imp_friction_table" in code.files["nofr_impact.c"]
+
+
+def test_stick_to_slip_located_where_the_sticking_force_reaches_mu_n():
+    # A block on a floor that accelerates horizontally at c t (tangent x - c t^3 / 6): it sticks,
+    # held by lambda_t = m c t, until m c t = mu m g at t_s = mu g / c, then slips behind the floor
+    # with x'' = mu g.
+    mu, c = 0.4, 3.0
+    m = lcg.Model("belt")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    t = m.t
+    floor = lcg.Inequality(y, restitution=0.0, tangent=x - c * t**3 / 6, friction=mu)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[floor]), "index1")
+    ts = mu * G / c
+    tt = np.linspace(0, 2 * ts, 40)
+    res = sim.simulate(tt, q0=[0.0, 0.0], v0=[0.0, 0.0], **TIGHT)
+    slips = res.impacts.transitions(0)
+    assert [r.kind for r in slips] == ["slip"]
+    assert slips[0].t == pytest.approx(ts, rel=1e-9)
+    assert slips[0].impulse == pytest.approx(mu * G, rel=1e-9)  # lambda_t = mu lambda_n there
+    before, after = tt < ts, tt > ts
+    assert np.max(np.abs(res["x"][before] - c * tt[before] ** 3 / 6)) < 1e-12
+    tau = tt[after] - ts
+    x_exact = c * ts**3 / 6 + c * ts**2 / 2 * tau + mu * G * tau**2 / 2
+    assert np.max(np.abs(res["x"][after] / x_exact - 1)) < 1e-9
+    assert res.impacts.friction_modes == {0: "slip-"}
+    assert res.stats["stick_slip"] == 1
+
+
+@pytest.mark.parametrize("alpha, mu", [(0.5, 0.3), (0.5, 0.7)])
+def test_block_sent_up_an_incline_stops_then_sticks_or_slides_back(alpha, mu):
+    # x down the slope; launched up (x' = -v0) it decelerates at g (sin + mu cos) and stops at
+    # t1 = v0 / (g (sin + mu cos)); there the slip velocity crosses zero: it sticks if
+    # tan(alpha) <= mu ("grip"), else slides back down at g (sin - mu cos) ("reverse").
+    v0 = 2.0
+    sim = _incline(alpha, mu)
+    a_up = G * (math.sin(alpha) + mu * math.cos(alpha))
+    t1 = v0 / a_up
+    tt = np.linspace(0, 2 * t1, 40)
+    res = sim.simulate(tt, q0=[0.0, 0.0], v0=[-v0, 0.0], **TIGHT)
+    trans = res.impacts.transitions(0)
+    assert len(trans) == 1 and trans[0].t == pytest.approx(t1, rel=1e-9)
+    x1 = -v0 * t1 + a_up * t1**2 / 2
+    before, after = tt < t1, tt > t1
+    assert np.max(np.abs(res["x"][before] - (-v0 * tt[before] + a_up * tt[before] ** 2 / 2))) < 1e-9 * abs(x1)
+    if math.tan(alpha) <= mu:
+        assert trans[0].kind == "grip" and res.impacts.friction_modes == {0: "stick"}
+        assert np.max(np.abs(res["x"][after] / x1 - 1)) < 1e-9
+    else:
+        assert trans[0].kind == "reverse" and res.impacts.friction_modes == {0: "slip+"}
+        a_down = G * (math.sin(alpha) - mu * math.cos(alpha))
+        tau = tt[after] - t1
+        assert np.max(np.abs(res["x"][after] / (x1 + a_down * tau**2 / 2) - 1)) < 1e-9
