@@ -83,13 +83,10 @@ class Inequality:
     normal multiplier only). Without a tangent contacts are frictionless.
 
     ``friction`` mu (keyword, >= 0, with a tangent): Coulomb friction instead of no slip. In
-    persistent contact the contact sticks (u held at 0) while its tangential multiplier satisfies
-    |lambda_t| <= mu lambda_n, and slips with lambda_t = -mu lambda_n sign(u) otherwise; in an
-    impact the tangential impulse sticks within |P_t| <= mu P_n or slides with |P_t| = mu P_n
-    (notes, sec. 4.3; :mod:`lagcodegen.simulation.constrained_impacts`, "Coulomb friction").
-    Coulomb's law is applied to the multipliers, so it is the physical law when g and tangent are
-    lengths with unit gradients (g the distance of the touching points, tangent the position of
-    the touching point along the surface): then lambda_n and lambda_t are the contact forces.
+    persistent contact it sticks (u = 0) while |lambda_t| <= mu lambda_n, else slips with
+    lambda_t = -mu lambda_n sign(u); impacts likewise with the impulses (notes, sec. 4.3;
+    :mod:`lagcodegen.simulation.constrained_impacts`). The law acts on the multipliers: the
+    physical one when g and tangent are lengths (gap and position of the touching point).
     """
 
     expr: object
