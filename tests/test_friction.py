@@ -296,3 +296,14 @@ def test_block_sent_up_an_incline_stops_then_sticks_or_slides_back(alpha, mu):
         a_down = G * (math.sin(alpha) - mu * math.cos(alpha))
         tau = tt[after] - t1
         assert np.max(np.abs(res["x"][after] / (x1 + a_down * tau**2 / 2) - 1)) < 1e-9
+
+
+def test_friction_is_refused_by_solvers_that_cannot_take_it_naming_them():
+    sim = _incline(0.5, 0.3)
+    with pytest.raises(LagcodegenError, match="solver CVODE \\(backend 'sksundae'\\) cannot take it"):
+        sim.simulate((0, 1), q0=[0.0, 0.0], v0=[0.0, 0.0], backend="sksundae")
+    from lagcodegen.solvers.taylor.options import Taylor
+    with pytest.raises(LagcodegenError, match="Taylor"):
+        sim.simulate((0, 1), q0=[0.0, 0.0], v0=[0.0, 0.0], solver=Taylor())
+    with pytest.raises(LagcodegenError, match="ensembles"):
+        sim.ensemble((0, 1), q0=[[0.0, 0.0]], v0=[[0.0, 0.0]])
