@@ -307,3 +307,49 @@ def test_friction_is_refused_by_solvers_that_cannot_take_it_naming_them():
         sim.simulate((0, 1), q0=[0.0, 0.0], v0=[0.0, 0.0], solver=Taylor())
     with pytest.raises(LagcodegenError, match="ensembles"):
         sim.ensemble((0, 1), q0=[[0.0, 0.0]], v0=[[0.0, 0.0]])
+
+
+SLIDER_FILE = """
+[model]
+name = "slider"
+coordinates = ["x", "y"]
+
+[parameters]
+g = 9.81
+m = 1.0
+
+[[particles]]
+name = "block"
+mass = "m"
+position = ["x", "y"]
+
+[gravity]
+g = "g"
+
+[constraints]
+inequalities = [{ expr = "y", restitution = 0.0, tangent = "x", friction = 0.25 }]
+
+[simulation]
+formulation = "index1"
+t_end = 2.0
+n_out = 21
+rtol = 1e-12
+atol = 1e-14
+initial = { x = 0.0, y = 0.0, x_dot = 3.0 }
+"""
+
+
+def test_model_file_friction_slides_to_rest_at_v0_over_mu_g():
+    from lagcodegen.api import compile_file
+    from lagcodegen.modelfile import ModelFileError, loads_model
+
+    mf = loads_model(SLIDER_FILE)
+    res = mf.simulate(compile_file(mf))
+    t_stop = 3.0 / (0.25 * G)
+    grips = res.impacts.select("grip")
+    assert len(grips) == 1 and grips[0].t == pytest.approx(t_stop, rel=1e-9)
+    assert res["x"][-1] == pytest.approx(3.0 * t_stop / 2, rel=1e-9)
+    with pytest.raises(ModelFileError, match="friction"):
+        loads_model(SLIDER_FILE.replace("friction = 0.25", "friction = -1"))
+    with pytest.raises(ModelFileError, match="friction"):
+        loads_model(SLIDER_FILE.replace('tangent = "x", ', ""))
