@@ -353,3 +353,18 @@ def test_model_file_friction_slides_to_rest_at_v0_over_mu_g():
         loads_model(SLIDER_FILE.replace("friction = 0.25", "friction = -1"))
     with pytest.raises(ModelFileError, match="friction"):
         loads_model(SLIDER_FILE.replace('tangent = "x", ', ""))
+
+
+def test_painleve_rod_sliding_into_the_paradox_is_stopped_where_the_contact_problem_turns_singular():
+    # mu = 2: G M^-1 (G + mu T)^T = (1 + 3 cos^2 - 6 sin cos) / m < 0 for 3 - sqrt(5) < tan(theta)
+    # < 3 + sqrt(5). The rod sliding fast with its end moving to -x from theta = 30 degrees turns
+    # up into that range: the normal force grows without bound as the effective mass tends to 0,
+    # and the run stops there with Painleve's name (root of the contact problem's determinant).
+    theta0 = math.radians(30)
+    sim, q0 = _painleve_rod(2.0, theta0)
+    with pytest.raises(PainleveError, match="Painleve's paradox at t = .*became singular") as err:
+        sim.simulate(np.linspace(0, 0.3, 31), q0=q0, v0=[-20.0, 0.0, 0.0], rtol=1e-10, atol=1e-12)
+    part = err.value.result
+    assert 0 < err.value.t < 0.3
+    assert np.all(np.tan(part["theta"]) < 3 - math.sqrt(5))  # the outputs before it: outside the range
+    assert math.tan(part["theta"][-1]) > 0.98 * (3 - math.sqrt(5))  # the last output, 2 ms before
