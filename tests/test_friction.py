@@ -368,3 +368,40 @@ def test_painleve_rod_sliding_into_the_paradox_is_stopped_where_the_contact_prob
     assert 0 < err.value.t < 0.3
     assert np.all(np.tan(part["theta"]) < 3 - math.sqrt(5))  # the outputs before it: outside the range
     assert math.tan(part["theta"][-1]) > 0.98 * (3 - math.sqrt(5))  # the last output, 2 ms before
+
+
+def _box_on_incline(alpha: float, mu: float, b: float = 0.4, h: float = 0.1):
+    """A box (half-width b, half-height h) resting flat on an incline on its two bottom corners,
+    each a contact with Coulomb friction: x down the slope, y normal to it, phi its tilt."""
+    m = lcg.Model("box_incline")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(g=G, m=1.0, alpha=alpha, b=b, h=h)
+    a, mass, B, H = sp.symbols("alpha m b h")
+    m.planar_body("box", mass, mass * (B**2 + H**2) / 3, (x * sp.cos(a) + y * sp.sin(a),
+                                                         -x * sp.sin(a) + y * sp.cos(a)), phi)
+    m.gravity(sp.Symbol("g"))
+    corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
+               (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx, friction=mu)
+                                                    for cx, cy in corners])
+    return compile_constrained(system, "index1"), [0.0, h, 0.0]
+
+
+@pytest.mark.parametrize("alpha, mu", [(0.3, 0.4), (0.3, 0.2)])
+def test_box_on_two_rough_corners_sticks_or_slides_as_one_contact(alpha, mu):
+    # Two simultaneous contacts solved together: sticking on both (dependent rows: the box's
+    # three motions held by four rows) while tan(alpha) <= mu, else both slide, the box at
+    # g (sin - mu cos) without tipping; the normal forces add up to m g cos(alpha).
+    sim, q0 = _box_on_incline(alpha, mu)
+    t = np.linspace(0, 1, 11)
+    res = sim.simulate(t, q0=q0, v0=[0.0, 0.0, 0.0], **TIGHT)
+    total = res["lambda_ineq_0"] + res["lambda_ineq_1"]
+    assert np.max(np.abs(total / (G * math.cos(alpha)) - 1)) < 1e-8
+    assert np.max(np.abs(res["phi"])) < 1e-10
+    if math.tan(alpha) <= mu:
+        assert res.impacts.friction_modes == {0: "stick", 1: "stick"}
+        assert np.max(np.abs(res["x"])) < 1e-12
+    else:
+        assert res.impacts.friction_modes == {0: "slip+", 1: "slip+"}
+        acc = G * (math.sin(alpha) - mu * math.cos(alpha))
+        assert np.max(np.abs(res["x"][1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
