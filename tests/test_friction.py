@@ -405,3 +405,58 @@ def test_box_on_two_rough_corners_sticks_or_slides_as_one_contact(alpha, mu):
         assert res.impacts.friction_modes == {0: "slip+", 1: "slip+"}
         acc = G * (math.sin(alpha) - mu * math.cos(alpha))
         assert np.max(np.abs(res["x"][1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
+
+
+def test_ctrl_c_stops_a_long_stick_slip_run(tmp_path):
+    """The friction modes run inside the impact driver with no Python in the loop, which polls
+    for Ctrl-C as before: a block pushed back and forth on a rough floor by A sin(w t) > mu m g
+    (a stick -> slip -> stick cycle each half period) for 1e7 s stops on SIGINT within seconds."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+    import time
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    script = tmp_path / "long.py"
+    script.write_text(textwrap.dedent("""
+        import sys
+        import numpy as np
+        import sympy as sp
+        import lagcodegen as lcg
+        from lagcodegen.api import compile_constrained
+        m = lcg.Model("ctrlc_shaker")
+        x, y = m.coordinates("x y")
+        m.parameters(g=9.81, m=1.0)
+        m.particle("b", sp.Symbol("m"), (x, y))
+        m.gravity(sp.Symbol("g"))
+        m.generalized_force(x, 5.0 * sp.sin(3.0 * m.t))
+        floor = lcg.Inequality(y, restitution=0.0, tangent=x, friction=0.3)
+        sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[floor]), "index1")
+        # max_step: while the block sticks its state is constant and CVODE's steps grow past the
+        # forcing's period, over which a friction limit is crossed and recrossed unseen
+        res = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0], max_step=0.05)
+        assert res.stats["stick_slip"] >= 18, res.impacts.records
+        print("ready", flush=True)
+        try:
+            sim.simulate(np.array([0.0, 1e7]), q0=[0.0, 0.0], v0=[0.0, 0.0], max_steps=10**15, max_step=0.05,
+                         contacts=lcg.ContactOptions(max_records=10))
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            sys.exit(130)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(root)))
+    try:
+        line = proc.stdout.readline().strip()
+        assert line == "ready", proc.communicate(timeout=60)[1]
+        time.sleep(0.5)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=60)[1]
+        took = time.perf_counter() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and took < 10
