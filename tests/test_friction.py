@@ -15,7 +15,7 @@ import sympy as sp
 import lagcodegen as lcg
 from lagcodegen.api import compile_constrained
 from lagcodegen.errors import LagcodegenError, ModelError
-from lagcodegen.simulation.constrained_impacts import PainleveError
+PainleveError = lcg.PainleveError
 
 G = 9.81
 TIGHT = {"rtol": 1e-12, "atol": 1e-14}

@@ -18,7 +18,9 @@
  * speed e_k |w_k-| is at most contact_speed, or that hit again within min_flight of its last
  * impact (accumulating impacts, Zeno), gets e_k = 0 and turns into persistent contact; a
  * persistent contact is released where its multiplier becomes negative. The model's own events
- * (m->roots: monitored inequalities, user events) are recorded as by lcg_cvc.c. */
+ * (m->roots: monitored inequalities, user events) are recorded as by lcg_cvc.c. Contacts with
+ * Coulomb friction (a friction table lcg_imp_friction) are solved here, mode by mode, from the
+ * model's numbers: see "Coulomb friction" below; without the table the path above is unchanged. */
 #include "lcg_control.h" /* first: POSIX */
 
 #include <float.h>

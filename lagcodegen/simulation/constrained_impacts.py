@@ -22,8 +22,8 @@ n_contacts + 1 solves). Limits: Newton's law on the joint system is the simultan
 law, which is not the sequence of pairwise impacts: for chains in contact at the same instant
 (a cradle whose balls touch) it does not reproduce the pairwise result (let small gaps separate
 the impacts, as the cradle example does); after the joint solve a dropped contact may still
-close (it is then hit again at once, as the next impact); no friction (impulses act along
-G_k only).
+close (it is then hit again at once, as the next impact); without friction (below) impulses act
+along G_k only.
 
 **Persistent contact.** A contact whose rebound speed e_k |w_k-| is at most ``contact_speed``,
 or that is hit again within ``min_flight`` of its previous impact (accumulating impacts, Zeno),
@@ -45,6 +45,41 @@ to zero; in persistent contact: a multiplier of either sign, unbounded friction)
 of Housner's rocking block. Active rows that are dependent (a block resting flat on two no-slip
 corners) are solved with a small regularization of the multiplier block (see the generated
 ``solve_active``).
+
+**Coulomb friction.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
+and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
+u = T q' + T0) obeys Coulomb's law on its multipliers. In persistent contact it sticks (row T
+held, lambda_t free) while |lambda_t| <= mu lambda_n, and slips otherwise with lambda_t =
+-mu lambda_n sign(u) (the normal row's force direction becomes G - sign(u) mu T, so the system
+is no longer symmetric). Transitions are roots located by CVODE: stick -> slip where
+mu lambda_n -+ lambda_t reaches 0, slip -> stick or reversal where u reaches 0 (then the
+sticking force decides: admissible, it grips; else it slips the other way), release where
+lambda_n reaches 0. At each switch and impact the modes of all contacts in persistent contact
+are chosen together by enumerating stick / slip+ / slip- / release per contact (slip from rest
+only when |u| <= ``contact_speed``; at most 4096 combinations), the mode whose root fired
+excluded, and checking each combination's forces and accelerations. Exactly one consistent
+motion is taken (consistent modes with the same accelerations, e.g. at the limit of friction,
+count as one; the most constrained is kept); none (inconsistency) or several with different
+accelerations (indeterminacy) is Painleve's paradox and raises :class:`PainleveError` naming it,
+as does the contact problem of a slipping contact turning singular during a run (a root of its
+determinant). Impacts take Newton's law on the normal and, per contact, a tangential impulse that
+sticks (T dv = -u) when |P_t| <= mu P_n, else slides with P_t = -sigma mu P_n (sigma u+ >= 0), the
+modes again enumerated jointly (a "tangential_impulse" record each); a contact that begins to stick
+has its slip velocity projected to 0. ``Result.impacts`` records the transitions ("slip",
+"grip", "reverse"; :meth:`ContactLog.transitions`, ``stats["stick_slip"]``) and the final modes
+(``ContactLog.friction_modes``); ``outputs["lambda_t_ineq_<k>"]`` is the tangential multiplier.
+
+*Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
+friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
+F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
+``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
+other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Limits: roots
+are seen where their sign differs at CVODE's step ends, so a friction limit crossed and recrossed
+within one step is missed; while a contact sticks under forcing that depends on time alone the
+state is constant and steps grow long: bound them (``max_step``) below the forcing's time scale.
+Impacts with friction and Newton's law can gain energy in some configurations (a known property
+of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
+backend only (other solvers are refused naming them).
 
 Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
 projection, ensembles, Fortran model code.
