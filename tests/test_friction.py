@@ -460,3 +460,11 @@ def test_ctrl_c_stops_a_long_stick_slip_run(tmp_path):
         proc.kill()
     assert proc.returncode == 130, err
     assert "interrupted" in err and took < 10
+
+
+def test_painleve_time_is_the_located_root():
+    sim, q0 = _painleve_rod(2.0, math.radians(30))
+    with pytest.raises(PainleveError) as err:
+        sim.simulate(np.linspace(0, 0.3, 31), q0=q0, v0=[-20.0, 0.0, 0.0], rtol=1e-10, atol=1e-12)
+    t_root = float(str(err.value).split("t = ")[1].split(":")[0])
+    assert err.value.t == t_root

@@ -906,6 +906,7 @@ static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const
             d->fr->ending[k] = 0;
         if (rc == -1) {
             *flag = LCG_FLAG_CONTACT_MODE;
+            d->st->t_reached = t;
             return LCG_DAE_OK;
         }
     } else {
@@ -1299,6 +1300,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                         }
                     if (fi[2 * nk] != 0) {
                         flag = LCG_FLAG_CONTACT_MODE;
+                        st->t_reached = tret;
                         snprintf(st->message, sizeof st->message, "Painleve's paradox at t = %.17g: the contact "
                                  "problem of the slipping contact(s) became singular (the normal's effective mass "
                                  "with friction, G M^-1 (G - sigma mu T)^T, reached 0: the normal force grows "
@@ -1358,7 +1360,7 @@ done:
         st->nncfails = base[7];
         CVodeGetLastStep(mem, &st->h_last);
         CVodeGetNumGEvals(mem, &st->ngevals);
-        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
+        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0 && flag != LCG_FLAG_CONTACT_MODE)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
     st->flag = flag;

@@ -383,6 +383,7 @@ class ImpactRunner:
         res = Result(t=tt, y=yy, state_names=sim.state_names, outputs=outputs, stats=stats, status=int(flag),
                      message=text, backend="native", method=method, events=recs)
         res.impacts = log
-        if flag == int(Flag.CONTACT_MODE):
-            raise PainleveError(text, t=float(st.t_reached), flag=int(flag), result=res)
+        if flag == int(Flag.CONTACT_MODE):  # Painleve, or more modes than the driver enumerates
+            cls = PainleveError if "Painleve" in text else SolverError
+            raise cls(text, t=float(st.t_reached), flag=int(flag), result=res)
         return res
