@@ -468,3 +468,27 @@ def test_painleve_time_is_the_located_root():
         sim.simulate(np.linspace(0, 0.3, 31), q0=q0, v0=[-20.0, 0.0, 0.0], rtol=1e-10, atol=1e-12)
     t_root = float(str(err.value).split("t = ")[1].split(":")[0])
     assert err.value.t == t_root
+
+
+@pytest.mark.parametrize("vx, sticks", [(3.0, False), (1.0, True)])
+def test_box_landing_flat_on_two_rough_corners(vx, sticks):
+    # A box dropped flat from height d with speed vx lands on both corners at once (plastic): the
+    # normal impulses add up to m vy (vy = sqrt(2 g d)), and the tangential one stops the slip when
+    # m vx <= mu m vy (the rows of the two corners then dependent), else it is mu m vy and the box
+    # slides on at vx - mu vy, decelerating at mu g to rest.
+    mu, d = 0.5, 0.5
+    sim, q0 = _box_on_incline(0.0, mu)
+    q0 = [q0[0], q0[1] + d, q0[2]]
+    t1 = math.sqrt(2 * d / G)
+    vy = G * t1
+    res = sim.simulate(np.linspace(0, 2.0, 21), q0=q0, v0=[vx, 0.0, 0.0], **TIGHT)
+    hits = res.impacts.select("stick")
+    assert sorted(r.contact for r in hits) == [0, 1] and all(r.t == pytest.approx(t1, rel=1e-10) for r in hits)
+    assert sum(r.impulse for r in hits) == pytest.approx(vy, rel=1e-9)
+    tang = res.impacts.select("tangential_impulse")
+    assert sum(r.impulse for r in tang) == pytest.approx(-vx if sticks else -mu * vy, rel=1e-9)
+    x_end = vx * t1 + (0.0 if sticks else (vx - mu * vy) ** 2 / (2 * mu * G))
+    assert res["x"][-1] == pytest.approx(x_end, rel=1e-9)
+    assert np.max(np.abs(res["phi"])) < 1e-10
+    assert res.impacts.friction_modes == {0: "stick", 1: "stick"}
+    assert [r.kind for r in res.impacts.transitions()] == ([] if sticks else ["grip", "grip"])
