@@ -492,3 +492,53 @@ def test_box_landing_flat_on_two_rough_corners(vx, sticks):
     assert np.max(np.abs(res["phi"])) < 1e-10
     assert res.impacts.friction_modes == {0: "stick", 1: "stick"}
     assert [r.kind for r in res.impacts.transitions()] == ([] if sticks else ["grip", "grip"])
+
+
+def test_generated_friction_code_compiles_strictly(tmp_path):
+    import subprocess
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.runtime import sources as runtime_files
+    m = lcg.Model("strict_fr")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, inequalities=[
+        lcg.Inequality(y, restitution=0.2, tangent=x, friction=0.4), lcg.Inequality(2 - x, restitution=0.5)])
+    code, _ = generate_constrained(system)
+    files = dict(code.files)
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    for name, text in runtime_files(("lcg_dae_model.h", "lcg_model.h")).items():
+        if not (tmp_path / name).exists():
+            (tmp_path / name).write_text(text)
+    from lagcodegen.codes import c_header
+    if not (tmp_path / "lcg_codes.h").exists():
+        (tmp_path / "lcg_codes.h").write_text(c_header())
+    proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", "strict_fr_impact.c",
+                           "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "strict_fr_imp_friction_table" in files["strict_fr_impact.c"]
+
+
+def test_friction_with_an_equality_constraint_drags_a_second_mass():
+    # The incline's block tied by the holonomic constraint z = x to a second mass m2 moving on a
+    # horizontal line (no force along it): the pair slides at m1 g (sin - mu cos) / (m1 + m2).
+    alpha, mu, m2 = 0.5, 0.3, 0.5
+    m = lcg.Model("incline_pair")
+    x, y, z = m.coordinates("x y z")
+    m.parameters(g=G, m=1.0, m2=m2)
+    a = sp.Float(alpha)
+    m.particle("b", sp.Symbol("m"), (x * sp.cos(a) + y * sp.sin(a), -x * sp.sin(a) + y * sp.cos(a)))
+    m.particle("c", sp.Symbol("m2"), (z, 5))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, holonomic=[z - x], inequalities=[
+        lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)])
+    sim = compile_constrained(system, "index1")
+    t = np.linspace(0, 2, 21)
+    res = sim.simulate(t, q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], **TIGHT)
+    acc = G * (math.sin(alpha) - mu * math.cos(alpha)) / (1 + m2)
+    assert np.max(np.abs(res["x"][1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
+    assert np.max(np.abs(res["z"] - res["x"])) < 1e-12
+    # the multiplier of z - x = 0 pulls the second mass: lambda_0 (dz - dx) . force = m2 z''
+    assert np.max(np.abs(res["lambda_0"] - m2 * acc)) < 1e-9

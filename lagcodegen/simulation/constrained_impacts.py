@@ -364,6 +364,9 @@ class ImpactRunner:
         text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(
             errors="replace"), "CVODE", SINGULAR_AUGMENTED)
         outputs = dict(zip(sim.info.output_names, oo.T))
+        for j in range(nj):  # the equality multipliers with the contact forces (the constrained table's
+            if f"lambda_{j}" in outputs:  # outputs solve without the contact rows)
+                outputs[f"lambda_{j}"] = ll[:, j]
         for i, k in enumerate(self.contacts):
             outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
         for k, r in self.tangent_rows.items():
