@@ -542,3 +542,19 @@ def test_friction_with_an_equality_constraint_drags_a_second_mass():
     assert np.max(np.abs(res["z"] - res["x"])) < 1e-12
     # the multiplier of z - x = 0 pulls the second mass: lambda_0 (dz - dx) . force = m2 z''
     assert np.max(np.abs(res["lambda_0"] - m2 * acc)) < 1e-9
+
+
+def test_command_line_reports_the_stick_slip_transitions(tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    model = tmp_path / "slider.toml"
+    model.write_text(SLIDER_FILE)
+    out = tmp_path / "slider.csv"
+    proc = subprocess.run([sys.executable, "-m", "lagcodegen", "simulate", str(model), "-o", str(out)],
+                          capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(root)), timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 stick/slip transition(s), final friction modes 0: stick" in proc.stderr
+    assert "Coulomb friction" in proc.stderr and "energy drift" not in proc.stderr
