@@ -558,3 +558,18 @@ def test_command_line_reports_the_stick_slip_transitions(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "1 stick/slip transition(s), final friction modes 0: stick" in proc.stderr
     assert "Coulomb friction" in proc.stderr and "energy drift" not in proc.stderr
+
+
+def test_ladder_on_a_frictionless_floor_leaves_the_wall_at_two_thirds_of_its_height():
+    # mu = 0 (Coulomb with no friction: it always slips): the classic sliding ladder leaves the
+    # wall where sin(theta) = 2/3 sin(alpha); the release is the normal multiplier's root on the
+    # friction path, recorded, and the floor slips on.
+    alpha = 1.2
+    sim, q0 = _ladder(alpha, 0.0)
+    res = sim.simulate(np.linspace(0, 2.0, 201), q0=q0, v0=[0.0, 0.0, 0.0], **TIGHT)
+    releases = res.impacts.select("release", contact=0)
+    assert len(releases) >= 1
+    t_off = releases[0].t
+    at = sim.simulate(np.array([0.0, t_off]), q0=q0, v0=[0.0, 0.0, 0.0], **TIGHT)
+    assert math.sin(at["theta"][-1]) == pytest.approx(2 / 3 * math.sin(alpha), rel=1e-8)
+    assert res.impacts.friction_modes[1] == "slip+"
