@@ -353,6 +353,8 @@ def test_model_file_friction_slides_to_rest_at_v0_over_mu_g():
         loads_model(SLIDER_FILE.replace("friction = 0.25", "friction = -1"))
     with pytest.raises(ModelFileError, match="friction"):
         loads_model(SLIDER_FILE.replace('tangent = "x", ', ""))
+    with pytest.raises(ModelFileError, match="friction \\(a rough contact\\) needs a restitution"):
+        loads_model(SLIDER_FILE.replace('restitution = 0.0, tangent = "x", ', ""))
 
 
 def test_painleve_rod_sliding_into_the_paradox_is_stopped_where_the_contact_problem_turns_singular():

@@ -396,6 +396,9 @@ class _Loader(_Reader):
         e = value.get("restitution")
         tangent = self.expr([*path, "tangent"], value["tangent"]) if "tangent" in value else None
         if e is None:
+            if "friction" in value:
+                raise self.error([*path, "friction"], "friction (a rough contact) needs a restitution and a tangent",
+                                 token="friction")
             if tangent is not None:
                 raise self.error([*path, "tangent"], "a tangent (no-slip contact) needs a restitution",
                                  token="tangent")
