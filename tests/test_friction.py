@@ -436,13 +436,13 @@ def test_ctrl_c_stops_a_long_stick_slip_run(tmp_path):
         m.generalized_force(x, 5.0 * sp.sin(3.0 * m.t))
         floor = lcg.Inequality(y, restitution=0.0, tangent=x, friction=0.3)
         sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[floor]), "index1")
-        # max_step: while the block sticks its state is constant and CVODE's steps grow past the
-        # forcing's period, over which a friction limit is crossed and recrossed unseen
-        res = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0], max_step=0.05)
+        # while the block sticks its state is constant; the contact forces, integrated in CVODE's
+        # state, keep its steps below the forcing's period (else limits are crossed unseen)
+        res = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0])
         assert res.stats["stick_slip"] >= 18, res.impacts.records
         print("ready", flush=True)
         try:
-            sim.simulate(np.array([0.0, 1e7]), q0=[0.0, 0.0], v0=[0.0, 0.0], max_steps=10**15, max_step=0.05,
+            sim.simulate(np.array([0.0, 1e7]), q0=[0.0, 0.0], v0=[0.0, 0.0], max_steps=10**15,
                          contacts=lcg.ContactOptions(max_records=10))
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
@@ -575,3 +575,45 @@ def test_ladder_on_a_frictionless_floor_leaves_the_wall_at_two_thirds_of_its_hei
     at = sim.simulate(np.array([0.0, t_off]), q0=q0, v0=[0.0, 0.0, 0.0], **TIGHT)
     assert math.sin(at["theta"][-1]) == pytest.approx(2 / 3 * math.sin(alpha), rel=1e-8)
     assert res.impacts.friction_modes[1] == "slip+"
+
+
+def _shaker_times(A, w, mu, t_end):
+    """Stick-slip of a block (m = 1) pushed by A sin(w t) on a rough floor: slip j begins where
+    A sin(w t) = (-1)^j mu g, s_j = (asin(mu g / A) + j pi) / w, and grips where its velocity
+    v = A / w (cos(w s_j) - cos(w t)) - (-1)^j mu g (t - s_j) returns to 0 (after the forcing falls
+    back through the friction limit, at s_j + (pi - 2 asin(mu g / A)) / w); each grip comes before
+    the next slip for these numbers (else the block would reverse)."""
+    from scipy.optimize import brentq
+    a = math.asin(mu * G / A)
+    out, j = [], 0
+    while (a + j * math.pi) / w < t_end:
+        sj, sign = (a + j * math.pi) / w, (-1) ** j
+
+        def v(t, s0=sj, sg=sign):
+            return sg * (A / w * (math.cos(w * s0) - math.cos(w * t)) - sg * mu * G * (t - s0))
+        t_grip = brentq(v, sj + (math.pi - 2 * a) / w, sj + 2 * math.pi / w, xtol=1e-15, rtol=1e-15)
+        assert t_grip < (a + (j + 1) * math.pi) / w
+        out += [("slip", sj), ("grip", t_grip)]
+        j += 1
+    return [(k, t) for k, t in out if t < t_end]
+
+
+def test_shaken_block_stick_slip_times_at_tight_and_default_tolerances():
+    A, w, mu = 5.0, 3.0, 0.3
+    m = lcg.Model("shaker")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    m.generalized_force(x, A * sp.sin(w * m.t))
+    floor = lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[floor]), "index1")
+    exact = _shaker_times(A, w, mu, 10.0)
+    assert len(exact) >= 18
+    tight = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0], **TIGHT).impacts.transitions()
+    assert [r.kind for r in tight] == [k for k, _ in exact]
+    assert np.max(np.abs(np.array([r.t for r in tight]) / np.array([t for _, t in exact]) - 1)) < 1e-9
+    # default tolerances, two output times: the steps stay below the forcing's period while it sticks
+    loose = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0]).impacts.transitions()
+    assert [r.kind for r in loose] == [k for k, _ in exact]
+    assert np.max(np.abs(np.array([r.t for r in loose]) - np.array([t for _, t in exact]))) < 1e-4

@@ -88,6 +88,14 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
         d->st->t_reached = t;
         return -1;
     }
+    if (rc == LCG_DAE_OK && d->fr != NULL) { /* the integrals of the contact forces (see FR_WATCH) */
+        double *z = N_VGetArrayPointer(ydot) + 2 * d->im->nq;
+        int k, nk = d->im->nk, nj = d->im->nj;
+        for (k = 0; k < nk; ++k) {
+            z[2 * k] = d->lam[nj + k];
+            z[2 * k + 1] = d->fr->trow[k] >= 0 ? d->lam[d->fr->trow[k]] : 0.0;
+        }
+    }
     return rc == LCG_DAE_OK ? 0 : 1;
 }
 
@@ -1007,7 +1015,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     int j;
     long nst = 0;
     long base[8] = {0, 0, 0, 0, 0, 0, 0, 0}; /* the counters of the segments before the last CVodeReInit */
-    int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, nlam, quiet = 0;
+    int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, nlam, nvec, quiet = 0;
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -1096,9 +1104,15 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         return st->flag = LCG_FLAG_NOMEM;
     }
 
-    y = N_VNew_Serial(ny, ctx);
+    /* FR_WATCH: with friction, CVODE's state carries the integrals of the contacts' multipliers
+     * (2 nk values after y, z' = (lambda_n, lambda_t) per contact), so that its error control
+     * resolves how the contact forces vary: while contacts stick under forcing that depends on time
+     * alone the state is constant and the steps would otherwise grow past the forcing's period,
+     * over which a friction limit is crossed and recrossed unseen by the sign test of the roots. */
+    nvec = ny + (data.fr != NULL ? 2 * nk : 0);
+    y = N_VNew_Serial(nvec, ctx);
     mem = CVodeCreate(opt->method, ctx);
-    A = SUNDenseMatrix(ny, ny, ctx);
+    A = SUNDenseMatrix(nvec, nvec, ctx);
     if (y == NULL || mem == NULL || A == NULL) {
         flag = LCG_FLAG_NOMEM;
         goto done;
@@ -1107,6 +1121,8 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     yv = N_VGetArrayPointer(y);
     for (i = 0; i < ny; ++i)
         yv[i] = y0[i];
+    for (i = ny; i < nvec; ++i)
+        yv[i] = 0.0;
     /* the contacts the initial state rests on (touching, at rest, pushing) start in persistent contact */
     rc = im->gaps(tout[0], yv, p, data.gk, data.wk);
     LCG_MODEL_ERROR(LCG_DAE_OK);

@@ -73,10 +73,11 @@ has its slip velocity projected to 0. ``Result.impacts`` records the transitions
 friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
 F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
 ``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
-other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Limits: roots
-are seen where their sign differs at CVODE's step ends, so a friction limit crossed and recrossed
-within one step is missed; while a contact sticks under forcing that depends on time alone the
-state is constant and steps grow long: bound them (``max_step``) below the forcing's time scale.
+other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are
+seen where their sign differs at CVODE's step ends; so that a friction limit is not crossed and
+recrossed within one step while a contact sticks under forcing that depends on time alone (the
+state constant, the steps growing), CVODE's state carries the integrals of the contact forces,
+whose error control keeps the steps to the forces' time scale (at the run's tolerances).
 Impacts with friction and Newton's law can gain energy in some configurations (a known property
 of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
 backend only (other solvers are refused naming them).
