@@ -5,7 +5,8 @@
  * model-independent impact driver (lcg_imp.c) needs besides the constrained table lcg_dae_model.
  * Rows r = 0..nj-1 are the equality constraints A q' + A0 = 0 (eq. 4.2, 4.3), rows nj + k the
  * contacts G_k q' + G0_k with G_k = dg_k/dq, G0_k = dg_k/dt, the rows after them (up to nrow)
- * the tangential rows of no-slip contacts, held with their contact. Pure C99; no other
+ * the tangential rows of rough contacts (no slip, or Coulomb friction: lcg_imp_friction below),
+ * held with their contact while it sticks. Pure C99; no other
  * dependency. */
 #ifndef LCG_IMP_MODEL_H
 #define LCG_IMP_MODEL_H

@@ -48,7 +48,9 @@ corners) are solved with a small regularization of the multiplier block (see the
 
 **Coulomb friction.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
 and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
-u = T q' + T0) obeys Coulomb's law on its multipliers. In persistent contact it sticks (row T
+u = T q' + T0) obeys Coulomb's law on its multipliers. It is not an ideal constraint (sec. 4.3
+takes the force along A): while slipping the force G^T lambda_n + T^T lambda_t has
+lambda_t = -mu lambda_n sign(u) set by the law, not a multiplier of its own. In persistent contact it sticks (row T
 held, lambda_t free) while |lambda_t| <= mu lambda_n, and slips otherwise with lambda_t =
 -mu lambda_n sign(u) (the normal row's force direction becomes G - sign(u) mu T, so the system
 is no longer symmetric). Transitions are roots located by CVODE: stick -> slip where
