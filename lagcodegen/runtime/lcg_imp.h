@@ -25,7 +25,8 @@
  * rebound at most this fast, or a resting start, is persistent contact), [1] min_flight (an
  * impact within this time of the contact's last one is persistent contact: accumulation), [2]
  * gap_tol (contacts with g <= gap_tol take part in an impact). active[nk]: in, the contacts that
- * start in persistent contact (those touching at rest are added); out, the final modes. rec:
+ * start in persistent contact (those touching at rest are added); out, the final modes (contacts
+ * with Coulomb friction in contact: 1 sticking, 2 slipping with u > 0, 3 with u < 0). rec:
  * max_rec records of 6 values (t, contact, kind, impulse P, w before, w after), *n_rec their
  * number (may exceed max_rec; the friction records 4..7 carry the slip velocity u = T q' + T0
  * before and after in place of w). ev: the model's events (opt->roots), may be NULL. fr: the
