@@ -617,3 +617,21 @@ def test_shaken_block_stick_slip_times_at_tight_and_default_tolerances():
     loose = sim.simulate(np.array([0.0, 10.0]), q0=[0.0, 0.0], v0=[0.0, 0.0]).impacts.transitions()
     assert [r.kind for r in loose] == [k for k, _ in exact]
     assert np.max(np.abs(np.array([r.t for r in loose]) - np.array([t for _, t in exact]))) < 1e-4
+
+
+def test_more_contact_modes_than_the_driver_enumerates_is_a_clear_error():
+    # Seven blocks resting on a rough floor: 4^7 stick/slip+/slip-/release combinations, more
+    # than the 4096 the driver enumerates: an error saying so (not a Painleve error), no run.
+    m = lcg.Model("seven")
+    coords = m.coordinates(" ".join(f"x{i} y{i}" for i in range(7)))
+    m.parameters(g=G, m=1.0)
+    ineqs = []
+    for i in range(7):
+        x, y = coords[2 * i], coords[2 * i + 1]
+        m.particle(f"b{i}", sp.Symbol("m"), (x, y))
+        ineqs.append(lcg.Inequality(y, restitution=0.0, tangent=x, friction=0.5))
+    m.gravity(sp.Symbol("g"))
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), "index1")
+    with pytest.raises(lcg.SolverError, match="more than 4096 stick/slip/release modes") as err:
+        sim.simulate((0, 1), q0=[0.0] * 14, v0=[0.0] * 14)
+    assert not isinstance(err.value, PainleveError)
