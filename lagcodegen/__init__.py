@@ -29,7 +29,7 @@ from .model.bodies import Joint, Link, Placement  # noqa: F401
 from .model.events import Event  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
 from .theory.constraints import ConstrainedSystem, Inequality  # noqa: F401
-from .simulation.constrained_impacts import ContactOptions  # noqa: F401
+from .simulation.constrained_impacts import ContactOptions, PainleveError  # noqa: F401
 from .theory.routhian import ignorable_coordinates, reduce as routh_reduce  # noqa: F401
 from .theory.steady import steady_motions  # noqa: F401
 from .theory.linearize import linearize  # noqa: F401

@@ -52,6 +52,7 @@ class Flag(enum.IntEnum):
     NOT_RUN = -82         #: an ensemble member never started
     CHUNK_FAILED = -83    #: an ensemble member whose chunk failed on the executor
     REJECTED = -84        #: an ensemble member whose initial state was rejected
+    CONTACT_MODE = -85    #: contacts with Coulomb friction: no unique stick/slip/release mode (Painleve)
     MODEL_ERROR = -100    #: -100 - e: the model function returned error e (:func:`model_error_flag`)
 
 
@@ -62,6 +63,7 @@ FLAG_TEXT = {
     int(Flag.NOT_RUN): "not run (the ensemble was cancelled first)",
     int(Flag.CHUNK_FAILED): "its chunk failed on the executor",
     int(Flag.REJECTED): "the initial state was rejected",
+    int(Flag.CONTACT_MODE): "no unique contact mode of the contacts with friction (Painleve's paradox)",
 }
 
 

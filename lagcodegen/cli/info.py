@@ -83,7 +83,9 @@ def _info_constrained(mf, eom, show, simplify: bool) -> None:
         e = system.restitution[k]
         what = (f"terminal event ineq_{k}, decreasing" if e is None else
                 f"contact: impacts with restitution {e:g}, persistent contact with multiplier lambda_ineq_{k}"
-                + ("" if system.tangents[k] is None else f", no slip along {system.tangents[k]}"))
+                + ("" if system.tangents[k] is None else f", no slip along {system.tangents[k]}"
+                   if system.friction[k] is None else
+                   f", Coulomb friction mu = {system.friction[k]:g} along {system.tangents[k]}"))
         print(f"\ninequality constraint {k} (eq. 4.3): ineq_{k}(q, t) >= 0 ({what}) with ineq_{k} =")
         print(show(simp(g)))
     if system.J:

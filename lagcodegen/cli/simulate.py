@@ -157,8 +157,10 @@ def run(args) -> int:
     if impacts is not None:
         deepest = res.stats.get("max_penetration", 0.0)
         say(f"{len(impacts.times)} impact(s)" + (f"; a contact was found {deepest:.3e} below its surface after a step "
-                                                  "had skipped its flight (located there)" if deepest > 0 else ""),
-            args.quiet)
+                                                  "had skipped its flight (located there)" if deepest > 0 else "")
+            + (f"; {res.stats['stick_slip']} stick/slip transition(s), final friction modes "
+               + ", ".join(f"{k}: {v}" for k, v in impacts.friction_modes.items()) if "stick_slip" in res.stats
+               else ""), args.quiet)
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
@@ -242,6 +244,8 @@ def not_conserved(mf) -> str | None:
                                or any(sp.sympify(A0) != 0 or any(t in sp.sympify(a).free_symbols for a in A)
                                       for A, A0 in system.nonholonomic)):
         return "constraints that depend on time"
+    if system is not None and any(mu is not None and mu > 0 for mu in system.friction):
+        return "contacts with Coulomb friction, losing energy while they slip"
     if system is not None and any(e is not None and e < 1 for e in system.restitution):
         return "impacts with a restitution below 1, each losing energy"
     return None

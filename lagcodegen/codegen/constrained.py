@@ -72,6 +72,10 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if lang != "c":
             raise ModelError(f"inequality constraints with a restitution (contacts) are generated in C only, "
                              f"not lang={lang!r}")
+        if ggl and system.has_friction:
+            raise ModelError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the impact "
+                             "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
+                             "formulation on IDA cannot take it")
         if ggl:
             raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
                              "formulation (formulation='index1'), not GGL")
@@ -90,11 +94,14 @@ def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
     ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver."""
     blocks = impact_blocks(system, scene)
     contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
-                         + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None else "")
+                         + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None
+                            and system.friction[k] is None else "")
+                         + (f", Coulomb friction along {system.tangents[k]}" if system.friction[k] is not None
+                            else "")
                          for k in system.contacts)
     return environment().get_template("c/impact.c.j2").render(
         **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
-        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"])
+        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction)
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

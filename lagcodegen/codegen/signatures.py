@@ -515,3 +515,13 @@ IMP_TABLE = Struct("lcg_imp_model", (
     _fn("impact", "double t, const double *y, const double *p, const int *active, const double *e, double *ynew, "
                   "double *P"),
     Field("dae", "const lcg_dae_model *")))
+
+#: The friction table of a constrained model with Coulomb friction on a contact
+#: (lagcodegen/runtime/lcg_imp_model.h, <prefix>_impact.c): the model's numbers at a state, from
+#: which the impact driver (lcg_imp.c) solves the stick/slip modes.
+IMP_FRICTION_TABLE = Struct("lcg_imp_friction", (
+    *(Field(n, "int") for n in ("abi", "njh", "nt")),
+    Field("tangent_of", "const int *"),
+    _fn("eval", "double t, const double *y, const double *p, double *M, double *F, double *R, double *s, double *h, "
+                "double *gam"),
+    Field("imp", "const lcg_imp_model *")))

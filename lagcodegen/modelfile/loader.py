@@ -387,14 +387,18 @@ class _Loader(_Reader):
     def load_inequality(self, path: list[_Key], value: object):
         """An inequality g(q, t) >= 0: an expression (monitored: the terminal event ineq_<k>) or a
         contact ``{ expr = "...", restitution = e }`` (impacts with Newton's law, 0 <= e <= 1;
-        ``tangent = "..."``: no slip along that expression while touching)."""
+        ``tangent = "..."``: no slip along that expression while touching; with ``friction = mu``:
+        Coulomb friction along it instead)."""
         if not isinstance(value, dict):
             return self.expr(path, value)
-        self.fields(path, value, required=("expr",), optional=("restitution", "tangent"))
+        self.fields(path, value, required=("expr",), optional=("restitution", "tangent", "friction"))
         expr = self.expr([*path, "expr"], value["expr"])
         e = value.get("restitution")
         tangent = self.expr([*path, "tangent"], value["tangent"]) if "tangent" in value else None
         if e is None:
+            if "friction" in value:
+                raise self.error([*path, "friction"], "friction (a rough contact) needs a restitution and a tangent",
+                                 token="friction")
             if tangent is not None:
                 raise self.error([*path, "tangent"], "a tangent (no-slip contact) needs a restitution",
                                  token="tangent")
@@ -402,7 +406,12 @@ class _Loader(_Reader):
         if isinstance(e, bool) or not isinstance(e, (int, float)) or not 0 <= e <= 1:
             raise self.error([*path, "restitution"], f"must be a number in [0, 1] (Newton's law w+ = -e w-), got "
                              f"{excerpt(e)}", token=repr(e))
-        return Inequality(expr, restitution=float(e), tangent=tangent)
+        mu = value.get("friction")
+        if mu is not None and (tangent is None or isinstance(mu, bool) or not isinstance(mu, (int, float))
+                               or not 0 <= mu < float("inf")):
+            raise self.error([*path, "friction"], "friction needs a tangent = \"...\" and is a finite number >= 0 "
+                             f"(the Coulomb coefficient mu), got {excerpt(mu)}", token=repr(mu))
+        return Inequality(expr, restitution=float(e), tangent=tangent, friction=None if mu is None else float(mu))
 
     def load_pfaffian(self, path: list[_Key], entry: dict) -> tuple[tuple, sp.Expr]:
         """A nonholonomic constraint: ``{A = [...], A0 = ...}`` or ``{coefficients = {q = ...}, A0 = ...}``."""

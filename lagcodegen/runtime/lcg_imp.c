@@ -18,9 +18,12 @@
  * speed e_k |w_k-| is at most contact_speed, or that hit again within min_flight of its last
  * impact (accumulating impacts, Zeno), gets e_k = 0 and turns into persistent contact; a
  * persistent contact is released where its multiplier becomes negative. The model's own events
- * (m->roots: monitored inequalities, user events) are recorded as by lcg_cvc.c. */
+ * (m->roots: monitored inequalities, user events) are recorded as by lcg_cvc.c. Contacts with
+ * Coulomb friction (a friction table lcg_imp_friction) are solved here, mode by mode, from the
+ * model's numbers: see "Coulomb friction" below; without the table the path above is unchanged. */
 #include "lcg_control.h" /* first: POSIX */
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -43,6 +46,18 @@ int CVodeGetDky(void *cvode_mem, sunrealtype t, int k, N_Vector dky);
 #define LCG_IMP_BISECT 60
 #define REC 6
 
+/* The state of Coulomb friction (NULL without a friction table); see "Coulomb friction" below. */
+typedef struct {
+    const lcg_imp_friction *tab;
+    const double *mu; /* nk: Coulomb coefficient, < 0: none (a tangent without friction sticks) */
+    int n, nrow;
+    int *trow;        /* nk: the tangential row of contact k, or -1 */
+    int *fmode;       /* nk: 0 stick, +1 / -1 slipping with u > 0 / u < 0 */
+    double *M, *F, *R, *s, *h, *gam, *b, *K, *rhs, *x, *lam, *bestx, *bestlam, *u, *wm, *eff;
+    int *piv, *sel, *opts, *nopt, *tact, *tmode, *bact, *bmode, *part, *plastic, *ending;
+    double det, det0; /* the determinant of the current mode's contact problem, and at its start */
+} fric_data;
+
 typedef struct {
     const lcg_imp_model *im;
     const lcg_dae_model *m;
@@ -53,7 +68,12 @@ typedef struct {
     double *gk, *wk; /* nk (scratch) */
     lcg_cvc_stats *st;
     watch w;
+    fric_data *fr; /* NULL: no friction table */
+    int nroot;     /* the model's events located */
 } imp_data;
+
+/* The right-hand side of the current modes: the generated crhs, or the friction driver's. */
+static int crhs(imp_data *d, double t, const double *y, double *ydot, double *lam);
 
 static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 {
@@ -62,17 +82,26 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 
     if (WATCH_TICK(&d->w))
         return -1;
-    rc = d->im->crhs(t, N_VGetArrayPointer(y), d->p, d->alpha, d->beta, d->active, N_VGetArrayPointer(ydot),
-                     d->lam);
+    rc = crhs(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot), d->lam);
     if (rc == LCG_DAE_ERR_SINGULAR) {
         d->st->model_error = rc;
         d->st->t_reached = t;
         return -1;
     }
+    if (rc == LCG_DAE_OK && d->fr != NULL) { /* the integrals of the contact forces (see FR_WATCH) */
+        double *z = N_VGetArrayPointer(ydot) + 2 * d->im->nq;
+        int k, nk = d->im->nk, nj = d->im->nj;
+        for (k = 0; k < nk; ++k) {
+            z[2 * k] = d->lam[nj + k];
+            z[2 * k + 1] = d->fr->trow[k] >= 0 ? d->lam[d->fr->trow[k]] : 0.0;
+        }
+    }
     return rc == LCG_DAE_OK ? 0 : 1;
 }
 
-/* Contact roots first (g_k free, lambda_k in persistent contact), then the model's events. */
+/* Contact roots first (g_k free, lambda_k in persistent contact), then the model's events, then
+ * (with friction) two per contact (sticking: mu lambda_n - lambda_t, mu lambda_n + lambda_t;
+ * slipping: fmode u, 1) and the determinant of the contact problem while a contact slips. */
 static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
 {
     imp_data *d = (imp_data *)data;
@@ -85,9 +114,9 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
         any |= d->active[k];
     if (rc == LCG_DAE_OK && any) {
         ydot = d->gk + 2 * nk; /* scratch of ny values after gk, wk */
-        rc = d->im->crhs(t, y, d->p, d->alpha, d->beta, d->active, ydot, d->lam);
+        rc = crhs(d, t, y, ydot, d->lam);
     }
-    if (rc == LCG_DAE_OK && d->m->nroot > 0)
+    if (rc == LCG_DAE_OK && d->nroot > 0)
         rc = d->m->roots(t, y, NULL, d->p, gout + nk);
     if (rc != LCG_DAE_OK) {
         d->st->model_error = rc;
@@ -96,6 +125,24 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
     }
     for (k = 0; k < nk; ++k)
         gout[k] = d->active[k] ? d->lam[nj + k] : d->gk[k];
+    if (d->fr != NULL) {
+        fric_data *f = d->fr;
+        double *gf = gout + nk + d->nroot;
+        int slipping = 0;
+        for (k = 0; k < nk; ++k) {
+            gf[2 * k] = gf[2 * k + 1] = 1.0;
+            if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
+                continue;
+            if (f->fmode[k] == 0) {
+                gf[2 * k] = f->mu[k] * d->lam[nj + k] - d->lam[f->trow[k]];
+                gf[2 * k + 1] = f->mu[k] * d->lam[nj + k] + d->lam[f->trow[k]];
+            } else {
+                gf[2 * k] = f->fmode[k] * f->s[f->trow[k]];
+                slipping = 1;
+            }
+        }
+        gf[2 * nk] = slipping && f->det0 != 0.0 ? f->det / f->det0 : 1.0;
+    }
     return 0;
 }
 
@@ -135,6 +182,636 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
         r[5] = wp;
     }
     (*n_rec)++;
+}
+
+/* ---------------------------------------------------------------- Coulomb friction
+ *
+ * Contacts with a tangent row T_k and a friction coefficient mu_k >= 0 (the model's friction
+ * table lcg_imp_friction, whose eval gives M, F, the rows R, s, h, gamma at a state): the driver
+ * builds the contact problem of each mode itself. A contact in persistent contact sticks (fmode
+ * 0: its tangential row held, u = T q' + T0 = 0, multiplier lambda_t free) or slips (fmode
+ * +1 / -1 with u > 0 / u < 0: no tangential row, the normal row's force direction
+ * G - fmode mu T, i.e. lambda_t = -fmode mu lambda_n). The system [M W^T; R 0] is not symmetric
+ * while a contact slips (W: the force directions). Contacts with a tangent and no friction
+ * (mu < 0 here) always stick; contacts without a tangent are frictionless.
+ *
+ * Modes change only at located roots (stick: mu lambda_n -+ lambda_t reaching 0; slip: the slip
+ * velocity fmode u reaching 0; persistent contact: lambda_n reaching 0; the determinant of the
+ * contact problem while a contact slips reaching 0: Painleve) and at impacts. There the modes of
+ * all contacts in persistent contact are chosen together by enumeration (fr_modes): each contact
+ * stick, slip +, slip - (the last two from rest only, |u| <= contact_speed; a sliding contact
+ * keeps its direction) or release, the mode whose root fired excluded; a combination is
+ * consistent when lambda_n >= 0, |lambda_t| <= mu lambda_n (stick), the tangential acceleration
+ * has the slip's sign (slip from rest) and the normal acceleration >= 0 (release), to a relative
+ * 1e-9. One consistent mode (or several with the same accelerations: the most constrained is
+ * taken) is the motion; none (inconsistency) or several with different accelerations
+ * (indeterminacy) is Painleve's paradox, reported by name (flag LCG_FLAG_CONTACT_MODE), never
+ * integrated. Frictional impacts (fr_impact) are chosen the same way: each contact that takes
+ * part in the impact with Newton's law on its normal and its tangential impulse sticking
+ * (T dv = -u, |P_t| <= mu P_n) or sliding (P_t = -sigma mu P_n with sigma u+ >= 0), or left out
+ * (P_n = 0, w+ >= 0). */
+
+#define FR_STICK 0
+#define FR_SLIP_POS 1
+#define FR_SLIP_NEG 2
+#define FR_FREE 3
+#define FR_END_RELEASE 1 /* the root of lambda_n fired */
+#define FR_END_STICK 2   /* the root of mu lambda_n -+ lambda_t fired */
+#define FR_END_SLIP 3    /* the root of the slip velocity fired */
+#define FR_MAX_ENUM 4096 /* mode combinations enumerated at most */
+#define FR_REL 1e-9      /* relative tolerance of the consistency conditions */
+#define FR_SAME 1e-7     /* modes whose accelerations (velocity jumps) agree to this are one motion */
+
+static int coulomb(const fric_data *f, int k)
+{
+    return f->trow[k] >= 0 && f->mu[k] >= 0.0;
+}
+
+/* The model's numbers at (t, y) into f. */
+static int fr_eval(imp_data *d, double t, const double *y)
+{
+    fric_data *f = d->fr;
+    return f->tab->eval(t, y, d->p, f->M, f->F, f->R, f->s, f->h, f->gam);
+}
+
+/* b: the right-hand sides of the rows. accel: Baumgarte-stabilized accelerations (as the
+ * generated crhs); otherwise the impact with the contacts' effective restitution eff[]. */
+static void fr_rhs(imp_data *d, int accel, const double *eff)
+{
+    fric_data *f = d->fr;
+    int r, nj = d->im->nj, nk = d->im->nk;
+
+    for (r = 0; r < f->nrow; ++r) {
+        if (!accel)
+            f->b[r] = (r >= nj && r < nj + nk) ? -(1.0 + eff[r - nj]) * f->s[r] : -f->s[r];
+        else if (r < f->tab->njh || (r >= nj && r < nj + nk))
+            f->b[r] = f->gam[r] - 2.0 * d->alpha * f->s[r] - d->beta * d->beta * f->h[r];
+        else
+            f->b[r] = f->gam[r] - d->alpha * f->s[r];
+    }
+}
+
+/* LU with partial pivoting of the dim x dim row-major A; *det its determinant. Returns 1, or 0
+ * when a pivot is negligible (singular). */
+static int fr_lu(int dim, double *A, int *piv, double *det)
+{
+    double scale = 0.0, dt = 1.0;
+    int i, j, k;
+
+    for (i = 0; i < dim * dim; ++i)
+        if (fabs(A[i]) > scale)
+            scale = fabs(A[i]);
+    for (k = 0; k < dim; ++k) {
+        int pr = k;
+        for (i = k + 1; i < dim; ++i)
+            if (fabs(A[i * dim + k]) > fabs(A[pr * dim + k]))
+                pr = i;
+        piv[k] = pr;
+        if (!(fabs(A[pr * dim + k]) > dim * DBL_EPSILON * scale)) {
+            *det = 0.0;
+            return 0;
+        }
+        if (pr != k) {
+            for (j = 0; j < dim; ++j) {
+                double tmp = A[k * dim + j];
+                A[k * dim + j] = A[pr * dim + j];
+                A[pr * dim + j] = tmp;
+            }
+            dt = -dt;
+        }
+        dt *= A[k * dim + k];
+        for (i = k + 1; i < dim; ++i) {
+            double l = A[i * dim + k] / A[k * dim + k];
+            A[i * dim + k] = l;
+            for (j = k + 1; j < dim; ++j)
+                A[i * dim + j] -= l * A[k * dim + j];
+        }
+    }
+    *det = dt;
+    return 1;
+}
+
+static void fr_lu_solve(int dim, const double *A, const int *piv, double *x)
+{
+    int i, j;
+
+    for (i = 0; i < dim; ++i) {
+        double tmp = x[piv[i]];
+        x[piv[i]] = x[i];
+        x[i] = tmp;
+        for (j = 0; j < i; ++j)
+            x[i] -= A[i * dim + j] * x[j];
+    }
+    for (i = dim - 1; i >= 0; --i) {
+        for (j = i + 1; j < dim; ++j)
+            x[i] -= A[i * dim + j] * x[j];
+        x[i] /= A[i * dim + i];
+    }
+}
+
+/* The contact problem of the mode (act[k]: in contact; mode[k]: 0 stick, +-1 slip) with the
+ * numbers and right-hand sides in f: [M W^T; R 0] [x; z] = [F or 0; b], x into f->x, the
+ * multipliers (impulses) lam = -z into f->lam (all rows; 0 off the mode; the tangential one of a
+ * slipping contact -mode mu lambda_n), the determinant (0: singular) into f->det. Rows that are
+ * dependent are solved with -eps on the multipliers' diagonal as the generated solve_active. */
+static int fr_solve(imp_data *d, const int *act, const int *mode, int accel)
+{
+    fric_data *f = d->fr;
+    int n = f->n, nj = d->im->nj, nk = d->im->nk, m = 0, r, i, j, k, dim, attempt;
+    double mscale = 0.0, rscale = 0.0, eps = 0.0, det = 0.0;
+    double *K = f->K, *rhs = f->rhs;
+
+    for (r = 0; r < nj; ++r)
+        f->sel[m++] = r;
+    for (k = 0; k < nk; ++k)
+        if (act[k]) {
+            f->sel[m++] = nj + k;
+            if (f->trow[k] >= 0 && (f->mu[k] < 0.0 || mode[k] == 0))
+                f->sel[m++] = f->trow[k];
+        }
+    dim = n + m;
+    for (i = 0; i < n; ++i)
+        if (fabs(f->M[i * n + i]) > mscale)
+            mscale = fabs(f->M[i * n + i]);
+    f->det = 0.0;
+    for (attempt = 0; attempt < 2; ++attempt) {
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j)
+                K[i * dim + j] = f->M[i * n + j];
+            rhs[i] = accel ? f->F[i] : 0.0;
+        }
+        for (j = 0; j < m; ++j) {
+            const double *Rr = f->R + (long)f->sel[j] * n, *Tr = NULL;
+            double norm = 0.0, sm = 0.0;
+            r = f->sel[j];
+            if (r >= nj && r < nj + nk && coulomb(f, r - nj) && mode[r - nj] != 0) {
+                Tr = f->R + (long)f->trow[r - nj] * n;
+                sm = mode[r - nj] * f->mu[r - nj];
+            }
+            for (i = 0; i < n; ++i) {
+                K[i * dim + n + j] = Tr != NULL ? Rr[i] - sm * Tr[i] : Rr[i];
+                K[(n + j) * dim + i] = Rr[i];
+                norm += Rr[i] * Rr[i];
+            }
+            for (i = 0; i < m; ++i)
+                K[(n + j) * dim + n + i] = 0.0;
+            K[(n + j) * dim + n + j] = -eps;
+            rhs[n + j] = f->b[r];
+            if (norm > rscale)
+                rscale = norm;
+        }
+        if (fr_lu(dim, K, f->piv, &det))
+            break;
+        if (attempt == 1 || m == 0 || !(rscale > 0.0))
+            return LCG_DAE_ERR_SINGULAR;
+        eps = 1e-12 * mscale / rscale;
+    }
+    if (attempt == 0)
+        f->det = det;
+    fr_lu_solve(dim, K, f->piv, rhs);
+    for (i = 0; i < dim; ++i)
+        if (!isfinite(rhs[i]))
+            return LCG_DAE_ERR_NONFINITE;
+    for (i = 0; i < n; ++i)
+        f->x[i] = rhs[i];
+    for (r = 0; r < f->nrow; ++r)
+        f->lam[r] = 0.0;
+    for (j = 0; j < m; ++j)
+        f->lam[f->sel[j]] = -rhs[n + j];
+    for (k = 0; k < nk; ++k)
+        if (act[k] && coulomb(f, k) && mode[k] != 0)
+            f->lam[f->trow[k]] = -mode[k] * f->mu[k] * f->lam[nj + k];
+    return LCG_DAE_OK;
+}
+
+/* R_r x - gamma_r (accelerations x: the row's second derivative) or s_r + R_r x (impacts,
+ * x = dv: the row's velocity after). */
+static double fr_row(const fric_data *f, int r, const double *x, int accel)
+{
+    double v = accel ? -f->gam[r] : f->s[r];
+    int i;
+
+    for (i = 0; i < f->n; ++i)
+        v += f->R[(long)r * f->n + i] * x[i];
+    return v;
+}
+
+/* The right-hand side of the current mode at (t, y): ydot = (q', q''), lam[nrow] (NULL: not
+ * wanted). */
+static int fr_crhs(imp_data *d, double t, const double *y, double *ydot, double *lam)
+{
+    fric_data *f = d->fr;
+    int i, rc, n = f->n;
+
+    rc = fr_eval(d, t, y);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    fr_rhs(d, 1, NULL);
+    rc = fr_solve(d, d->active, f->fmode, 1);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (i = 0; i < n; ++i) {
+        ydot[i] = y[n + i];
+        ydot[n + i] = f->x[i];
+    }
+    if (lam != NULL)
+        for (i = 0; i < f->nrow; ++i)
+            lam[i] = f->lam[i];
+    return LCG_DAE_OK;
+}
+
+static const char *fr_mode_name(int act, int mode)
+{
+    return !act ? "free" : mode > 0 ? "slip+" : mode < 0 ? "slip-" : "stick";
+}
+
+/* "k:mode, ..." of the contacts that are or were in contact (was[k]) into buf. */
+static void fr_describe(const imp_data *d, const int *was, const int *act, const int *mode, char *buf, size_t size)
+{
+    size_t used = 0;
+    int k;
+
+    buf[0] = '\0';
+    for (k = 0; k < d->im->nk && used + 1 < size; ++k) {
+        int len;
+        if (!was[k])
+            continue;
+        len = snprintf(buf + used, size - used, "%s%d:%s", used ? " " : "", k, fr_mode_name(act[k], mode[k]));
+        if (len < 0)
+            break;
+        used += (size_t)len;
+    }
+}
+
+/* Choose the modes of the contacts in persistent contact at (t, y) by enumeration (see above);
+ * ending[k] (NULL: none) excludes the mode whose root fired. The transitions are recorded (rec,
+ * max_rec, n_rec); a contact that begins to stick gets its slip velocity projected to zero
+ * (y's velocities changed). Returns LCG_DAE_OK, a model error, or -1 with the Painleve message in
+ * st->message (the caller stops with LCG_FLAG_CONTACT_MODE). */
+static int fr_modes(imp_data *d, double t, double *y, const int *ending, double vtol, double *rec, int max_rec,
+                    int *n_rec)
+{
+    fric_data *f = d->fr;
+    int nk = d->im->nk, nj = d->im->nj, n = f->n, k, i, c, rc, total = 1, found = 0, grip = 0;
+    double xscale = 0.0;
+    char a[120], b[120];
+
+    rc = fr_eval(d, t, y);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    fr_rhs(d, 1, NULL);
+    for (k = 0; k < nk; ++k) {
+        int *o = f->opts + 4 * k, no = 0, end = ending != NULL ? ending[k] : 0;
+        double u = f->trow[k] >= 0 ? f->s[f->trow[k]] : 0.0;
+        f->u[k] = u;
+        if (!d->active[k] || end == FR_END_RELEASE) {
+            o[no++] = FR_FREE;
+        } else if (!coulomb(f, k)) {
+            o[no++] = FR_STICK;
+            o[no++] = FR_FREE;
+        } else if (fabs(u) <= vtol) {
+            int cur = f->fmode[k] == 0 ? FR_STICK : f->fmode[k] > 0 ? FR_SLIP_POS : FR_SLIP_NEG;
+            for (i = 0; i < 4; ++i)
+                if (!(end != 0 && i == cur))
+                    o[no++] = i;
+        } else {
+            o[no++] = u > 0.0 ? FR_SLIP_POS : FR_SLIP_NEG;
+            o[no++] = FR_FREE;
+        }
+        f->nopt[k] = no;
+        if (total > FR_MAX_ENUM / no) {
+            snprintf(d->st->message, sizeof d->st->message, "more than %d stick/slip/release modes of the "
+                     "contacts in persistent contact at t = %.17g to enumerate", FR_MAX_ENUM, t);
+            return -1;
+        }
+        total *= no;
+    }
+    for (c = 0; c < total; ++c) {
+        int idx = c, ok = 1;
+        double lscale = 0.0, ascale = 0.0;
+        for (k = 0; k < nk; ++k) {
+            int ch = f->opts[4 * k + idx % f->nopt[k]];
+            idx /= f->nopt[k];
+            f->tact[k] = ch != FR_FREE;
+            f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
+        }
+        rc = fr_solve(d, f->tact, f->tmode, 1);
+        if (rc == LCG_DAE_ERR_SINGULAR)
+            continue;
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (i = 0; i < f->nrow; ++i)
+            if (fabs(f->lam[i]) > lscale)
+                lscale = fabs(f->lam[i]);
+        for (i = 0; i < n; ++i)
+            if (fabs(f->x[i]) > ascale)
+                ascale = fabs(f->x[i]);
+        lscale = FR_REL * (1.0 + lscale);
+        ascale = FR_REL * (1.0 + ascale);
+        for (k = 0; k < nk && ok; ++k) {
+            if (f->tact[k]) {
+                double ln = f->lam[nj + k];
+                ok = ln >= -lscale;
+                if (ok && coulomb(f, k) && f->tmode[k] == 0)
+                    ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * ln + lscale;
+                else if (ok && coulomb(f, k) && fabs(f->u[k]) <= vtol)
+                    ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 1) >= -ascale;
+            } else if (d->active[k]) {
+                ok = fr_row(f, nj + k, f->x, 1) >= -ascale;
+            }
+        }
+        if (!ok)
+            continue;
+        if (!found) {
+            found = 1;
+            for (k = 0; k < nk; ++k) {
+                f->bact[k] = f->tact[k];
+                f->bmode[k] = f->tmode[k];
+            }
+            for (i = 0; i < n; ++i) {
+                f->bestx[i] = f->x[i];
+                if (fabs(f->x[i]) > xscale)
+                    xscale = fabs(f->x[i]);
+            }
+            for (i = 0; i < f->nrow; ++i)
+                f->bestlam[i] = f->lam[i];
+            continue;
+        }
+        for (i = 0; i < n; ++i)
+            if (fabs(f->x[i] - f->bestx[i]) > FR_SAME * (1.0 + xscale))
+                break;
+        if (i < n) {
+            fr_describe(d, d->active, f->bact, f->bmode, a, sizeof a);
+            fr_describe(d, d->active, f->tact, f->tmode, b, sizeof b);
+            snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (indeterminacy) at t = %.17g: the "
+                     "contact modes [%s] and [%s] are both consistent with Coulomb friction and give different "
+                     "accelerations (friction too large for this configuration)", t, a, b);
+            return -1;
+        }
+    }
+    if (!found) {
+        fr_describe(d, d->active, d->active, f->fmode, a, sizeof a);
+        snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (inconsistency) at t = %.17g: no "
+                 "stick/slip/release mode of the contacts [%s] has admissible contact forces (lambda_n >= 0, "
+                 "|lambda_t| <= mu lambda_n) with Coulomb friction (friction too large for this configuration)",
+                 t, a);
+        return -1;
+    }
+    for (k = 0; k < nk; ++k) {
+        int was = d->active[k], old = f->fmode[k], now = f->bmode[k];
+        double lt = f->trow[k] >= 0 ? f->bestlam[f->trow[k]] : 0.0;
+        if (!was)
+            continue;
+        if (!f->bact[k]) {
+            d->active[k] = 0;
+            f->fmode[k] = 0;
+            record(rec, max_rec, n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+            continue;
+        }
+        if (coulomb(f, k) && old != now) {
+            int kind = old == 0 ? LCG_IMP_SLIP : now == 0 ? LCG_IMP_GRIP : LCG_IMP_REVERSE;
+            record(rec, max_rec, n_rec, t, k, kind, lt, f->u[k], now == 0 ? 0.0 : f->u[k]);
+            grip |= now == 0;
+        }
+        f->fmode[k] = now;
+    }
+    if (grip) { /* the contacts that begin to stick: their slip velocity (and the normal ones) to 0 */
+        for (k = 0; k < nk; ++k)
+            f->eff[k] = 0.0;
+        fr_rhs(d, 0, f->eff);
+        rc = fr_solve(d, d->active, f->fmode, 0);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (i = 0; i < n; ++i)
+            y[n + i] += f->x[i];
+    }
+    rc = fr_crhs(d, t, y, d->gk + 2 * nk, d->lam);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    f->det0 = f->det;
+    return LCG_DAE_OK;
+}
+
+/* The frictional impact at (t, y) of the free contacts that touch and close (and those that
+ * hit[]) with the contacts in persistent contact (see above and impact()). Returns as fr_modes. */
+static int fr_impact(imp_data *d, double t, double *y, const int *hit, const double *e, const double *set,
+                     double *last, double *rec, int max_rec, int *n_rec)
+{
+    fric_data *f = d->fr;
+    int nk = d->im->nk, nj = d->im->nj, n = f->n, k, i, c, rc, total = 1, found = 0, changed = 0;
+    double gap_tol = set[2], vscale = 0.0, xscale = 0.0;
+    char a[120], b[120];
+
+    rc = fr_eval(d, t, y);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < nk; ++k) {
+        int *o = f->opts + 4 * k, no = 0;
+        double g = f->h[nj + k], w = f->s[nj + k];
+        f->wm[k] = w;
+        f->u[k] = f->trow[k] >= 0 ? f->s[f->trow[k]] : 0.0;
+        f->part[k] = d->active[k] || ((hit[k] || g <= gap_tol) && w < 0.0);
+        f->plastic[k] = d->active[k] || e[k] * fabs(w) <= set[0] || t - last[k] < set[1];
+        f->eff[k] = f->plastic[k] ? 0.0 : e[k];
+        changed |= f->part[k] && !d->active[k];
+        if (f->part[k]) {
+            o[no++] = FR_STICK;
+            if (coulomb(f, k)) {
+                o[no++] = FR_SLIP_POS;
+                o[no++] = FR_SLIP_NEG;
+            }
+            if (fabs(w) > vscale)
+                vscale = fabs(w);
+            if (fabs(f->u[k]) > vscale)
+                vscale = fabs(f->u[k]);
+        }
+        o[no++] = FR_FREE;
+        f->nopt[k] = no;
+        if (total > FR_MAX_ENUM / no) {
+            snprintf(d->st->message, sizeof d->st->message, "more than %d modes of the contacts in the impact at "
+                     "t = %.17g to enumerate", FR_MAX_ENUM, t);
+            return -1;
+        }
+        total *= no;
+    }
+    if (!changed)
+        return LCG_DAE_OK;
+    fr_rhs(d, 0, f->eff);
+    vscale = FR_REL * (1.0 + vscale);
+    for (c = 0; c < total; ++c) {
+        int idx = c, ok = 1;
+        double pscale = 0.0;
+        for (k = 0; k < nk; ++k) {
+            int ch = f->opts[4 * k + idx % f->nopt[k]];
+            idx /= f->nopt[k];
+            f->tact[k] = ch != FR_FREE;
+            f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
+        }
+        rc = fr_solve(d, f->tact, f->tmode, 0);
+        if (rc == LCG_DAE_ERR_SINGULAR)
+            continue;
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (i = 0; i < f->nrow; ++i)
+            if (fabs(f->lam[i]) > pscale)
+                pscale = fabs(f->lam[i]);
+        pscale = FR_REL * (1.0 + pscale);
+        for (k = 0; k < nk && ok; ++k) {
+            if (!f->part[k])
+                continue;
+            if (!f->tact[k]) {
+                ok = fr_row(f, nj + k, f->x, 0) >= -vscale;
+                continue;
+            }
+            ok = f->lam[nj + k] >= -pscale;
+            if (ok && coulomb(f, k) && f->tmode[k] == 0)
+                ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * f->lam[nj + k] + pscale;
+            else if (ok && coulomb(f, k))
+                ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 0) >= -vscale;
+        }
+        if (!ok)
+            continue;
+        if (!found) {
+            found = 1;
+            for (k = 0; k < nk; ++k) {
+                f->bact[k] = f->tact[k];
+                f->bmode[k] = f->tmode[k];
+            }
+            for (i = 0; i < n; ++i) {
+                f->bestx[i] = f->x[i];
+                if (fabs(f->x[i]) > xscale)
+                    xscale = fabs(f->x[i]);
+            }
+            for (i = 0; i < f->nrow; ++i)
+                f->bestlam[i] = f->lam[i];
+            continue;
+        }
+        for (i = 0; i < n; ++i)
+            if (fabs(f->x[i] - f->bestx[i]) > FR_SAME * (1.0 + xscale))
+                break;
+        if (i < n) {
+            fr_describe(d, f->part, f->bact, f->bmode, a, sizeof a);
+            fr_describe(d, f->part, f->tact, f->tmode, b, sizeof b);
+            snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (indeterminate frictional impact) "
+                     "at t = %.17g: the impact modes [%s] and [%s] are both consistent with Newton's law and Coulomb "
+                     "friction and give different velocities", t, a, b);
+            return -1;
+        }
+    }
+    if (!found) {
+        fr_describe(d, f->part, f->part, f->fmode, a, sizeof a);
+        snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (inconsistent frictional impact) at "
+                 "t = %.17g: no stick/slide/leave mode of the contacts [%s] in the impact has admissible "
+                 "impulses (P_n >= 0, |P_t| <= mu P_n) with Newton's law", t, a);
+        return -1;
+    }
+    for (i = 0; i < n; ++i)
+        y[n + i] += f->bestx[i];
+    for (k = 0; k < nk; ++k) {
+        double wp, up;
+        if (!f->part[k])
+            continue;
+        if (!f->bact[k]) {
+            if (d->active[k]) {
+                d->active[k] = 0;
+                record(rec, max_rec, n_rec, t, k, LCG_IMP_RELEASE, 0.0, f->wm[k], f->wm[k]);
+            }
+            continue;
+        }
+        wp = fr_row(f, nj + k, f->bestx, 0);
+        if (d->active[k]) {
+            if (f->bestlam[nj + k] != 0.0)
+                record(rec, max_rec, n_rec, t, k, LCG_IMP_CONTACT_IMPULSE, f->bestlam[nj + k], f->wm[k], wp);
+        } else {
+            last[k] = t;
+            d->active[k] = f->plastic[k];
+            record(rec, max_rec, n_rec, t, k, f->plastic[k] ? LCG_IMP_STICK : LCG_IMP_BOUNCE, f->bestlam[nj + k],
+                   f->wm[k], wp);
+        }
+        f->fmode[k] = f->bmode[k];
+        if (f->trow[k] >= 0 && f->bestlam[f->trow[k]] != 0.0) {
+            up = fr_row(f, f->trow[k], f->bestx, 0);
+            record(rec, max_rec, n_rec, t, k, LCG_IMP_TANGENTIAL_IMPULSE, f->bestlam[f->trow[k]], f->u[k], up);
+        }
+    }
+    return LCG_DAE_OK;
+}
+
+static int crhs(imp_data *d, double t, const double *y, double *ydot, double *lam)
+{
+    if (d->fr != NULL)
+        return fr_crhs(d, t, y, ydot, lam);
+    return d->im->crhs(t, y, d->p, d->alpha, d->beta, d->active, ydot, lam);
+}
+
+/* The friction state of the table fr with the coefficients mu[nk] in one block of memory
+ * (*mem, freed by the caller); the table checked against im. Returns 0, or -1 (out of memory, or
+ * a table of another layout: message in st). */
+static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_model *im, const double *mu, void **mem,
+                    lcg_cvc_stats *st)
+{
+    int n = im->nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
+    size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + dim * dim + dim + n + nrow + n + nrow + 3 * nk);
+    size_t ni = (size_t)(2 * nk + dim + nrow + 4 * nk + 10 * nk);
+    double *db;
+    int *ib;
+
+    if (fr->abi != LCG_IMP_FRICTION_ABI || fr->imp != im || fr->nt != nrow - im->nj - nk || fr->njh < 0
+        || fr->njh > im->nj || (fr->nt > 0 && fr->tangent_of == NULL) || fr->eval == NULL) {
+        snprintf(st->message, sizeof st->message, "the friction table is unusable (lcg_imp_friction version %d, "
+                 "this driver reads version %d)", fr->abi, LCG_IMP_FRICTION_ABI);
+        return -1;
+    }
+    *mem = malloc(sizeof(double) * nd + sizeof(int) * ni);
+    if (*mem == NULL) {
+        snprintf(st->message, sizeof st->message, "out of memory");
+        return -1;
+    }
+    db = (double *)*mem;
+    ib = (int *)(db + nd);
+    f->tab = fr;
+    f->mu = mu;
+    f->n = n;
+    f->nrow = nrow;
+    f->M = db;
+    f->F = f->M + n * n;
+    f->R = f->F + n;
+    f->s = f->R + nrow * n;
+    f->h = f->s + nrow;
+    f->gam = f->h + nrow;
+    f->b = f->gam + nrow;
+    f->K = f->b + nrow;
+    f->rhs = f->K + dim * dim;
+    f->x = f->rhs + dim;
+    f->lam = f->x + n;
+    f->bestx = f->lam + nrow;
+    f->bestlam = f->bestx + n;
+    f->u = f->bestlam + nrow;
+    f->wm = f->u + nk;
+    f->eff = f->wm + nk;
+    f->trow = ib;
+    f->fmode = f->trow + nk;
+    f->piv = f->fmode + nk;
+    f->sel = f->piv + dim;
+    f->opts = f->sel + nrow;
+    f->nopt = f->opts + 4 * nk;
+    f->tact = f->nopt + nk;
+    f->tmode = f->tact + nk;
+    f->bact = f->tmode + nk;
+    f->bmode = f->bact + nk;
+    f->part = f->bmode + nk;
+    f->plastic = f->part + nk;
+    f->ending = f->plastic + nk;
+    for (k = 0; k < nk; ++k) {
+        f->trow[k] = -1;
+        f->fmode[k] = 0;
+        f->ending[k] = 0;
+    }
+    for (i = 0; i < fr->nt; ++i)
+        if (fr->tangent_of[i] >= 0 && fr->tangent_of[i] < nk)
+            f->trow[fr->tangent_of[i]] = im->nj + nk + i;
+    f->det = f->det0 = 0.0;
+    return 0;
 }
 
 /* The impact at (t, y) of the free contacts that touch and close (and those that hit[]): the
@@ -204,7 +881,7 @@ static int release_pulling(imp_data *d, double t, const double *y, double *ydot,
 
     while (again) {
         again = 0;
-        rc = d->im->crhs(t, y, d->p, d->alpha, d->beta, d->active, ydot, d->lam);
+        rc = crhs(d, t, y, ydot, d->lam);
         if (rc != LCG_DAE_OK)
             return rc;
         for (k = 0; k < nk; ++k)
@@ -219,8 +896,9 @@ static int release_pulling(imp_data *d, double t, const double *y, double *ydot,
 }
 
 /* The impact of the contacts hit[] (and those touching and closing) at (t, y of CVODE), the
- * contacts that pull released, CVODE restarted there. *flag: CVODE's flag (< 0: failed).
- * Returns LCG_DAE_OK or a model error. */
+ * contacts that pull released (with friction: the modes chosen, the roots that fired in
+ * d->fr->ending excluded), CVODE restarted there. *flag: CVODE's flag (< 0: failed).
+ * Returns LCG_DAE_OK, a model error, or -1: Painleve (*flag = LCG_FLAG_CONTACT_MODE). */
 static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const double *e, const double *set,
                    double *last, double *s, int *rows, double *ydot, double *rec, int max_rec, int *n_rec, long *base,
                    double t_stop, int *flag)
@@ -228,10 +906,22 @@ static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const
     double *yv = N_VGetArrayPointer(y);
     int k, rc;
 
-    rc = impact(d, t, yv, hit, e, set, last, s, rows, rec, max_rec, n_rec);
-    if (rc != LCG_DAE_OK)
-        return rc;
-    rc = release_pulling(d, t, yv, ydot, rec, max_rec, n_rec);
+    if (d->fr != NULL) {
+        rc = fr_impact(d, t, yv, hit, e, set, last, rec, max_rec, n_rec);
+        if (rc == LCG_DAE_OK)
+            rc = fr_modes(d, t, yv, d->fr->ending, set[0], rec, max_rec, n_rec);
+        for (k = 0; k < d->im->nk; ++k)
+            d->fr->ending[k] = 0;
+        if (rc == -1) {
+            *flag = LCG_FLAG_CONTACT_MODE;
+            d->st->t_reached = t;
+            return LCG_DAE_OK;
+        }
+    } else {
+        rc = impact(d, t, yv, hit, e, set, last, s, rows, rec, max_rec, n_rec);
+        if (rc == LCG_DAE_OK)
+            rc = release_pulling(d, t, yv, ydot, rec, max_rec, n_rec);
+    }
     if (rc != LCG_DAE_OK)
         return rc;
     for (k = 0; k < d->im->nk; ++k)
@@ -307,7 +997,7 @@ static int segment_start(imp_data *d, double t, const double *y, int ny, double 
 int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
                   double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
                   const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
-                  lcg_events *ev)
+                  lcg_events *ev, const lcg_imp_friction *fr, const double *mu)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -315,6 +1005,9 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     SUNMatrix A = NULL;
     SUNLinearSolver LS = NULL;
     imp_data data;
+    fric_data fdata;
+    void *fmem = NULL;
+    char painleve[sizeof st->message];
     const lcg_dae_model *m;
     double *yv, *buf = NULL, *last, *scratch, *ydot, *yprev, *gprev, *wa;
     double tprev;
@@ -322,7 +1015,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     int j;
     long nst = 0;
     long base[8] = {0, 0, 0, 0, 0, 0, 0, 0}; /* the counters of the segments before the last CVodeReInit */
-    int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, quiet = 0;
+    int k, i, flag = 0, rc, ny, nk, nj, nr, nroot, nall, nlam, nvec, quiet = 0;
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -339,7 +1032,14 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     nj = im->nj;
     nr = nj + nk;
     nroot = (opt->roots && ev != NULL) ? m->nroot : 0;
-    nall = nk + nroot;
+    nall = nk + nroot + (fr != NULL ? 2 * nk + 1 : 0);
+    nlam = fr != NULL ? im->nrow : nr; /* the multipliers reported per output time */
+    data.fr = NULL;
+    if (fr != NULL) {
+        if (fr_setup(&fdata, fr, im, mu, &fmem, st) != 0)
+            return st->flag = LCG_FLAG_BAD_INPUT;
+        data.fr = &fdata;
+    }
     if (ev != NULL) {
         ev->n_events = 0;
         ev->terminated = 0;
@@ -352,6 +1052,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if (buf == NULL || ibuf == NULL) {
         free(buf);
         free(ibuf);
+        free(fmem);
         snprintf(st->message, sizeof st->message, "out of memory");
         return st->flag = LCG_FLAG_NOMEM;
     }
@@ -374,13 +1075,14 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         active[k] = active[k] != 0;
     }
     for (i = 0; i < nall; ++i)
-        dirs[i] = i < nk ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
+        dirs[i] = (i < nk || i >= nk + nroot) ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
 
     data.im = im;
     data.m = m;
     data.p = p;
     data.active = active;
     data.st = st;
+    data.nroot = nroot;
     data.alpha = opt->alpha;
     data.beta = opt->beta;
     if (opt->alpha < 0.0 || opt->beta < 0.0) { /* "auto": the rate of the fastest motion at y0 */
@@ -398,12 +1100,19 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     if (create_context(&ctx, st) != 0) {
         free(buf);
         free(ibuf);
+        free(fmem);
         return st->flag = LCG_FLAG_NOMEM;
     }
 
-    y = N_VNew_Serial(ny, ctx);
+    /* FR_WATCH: with friction, CVODE's state carries the integrals of the contacts' multipliers
+     * (2 nk values after y, z' = (lambda_n, lambda_t) per contact), so that its error control
+     * resolves how the contact forces vary: while contacts stick under forcing that depends on time
+     * alone the state is constant and the steps would otherwise grow past the forcing's period,
+     * over which a friction limit is crossed and recrossed unseen by the sign test of the roots. */
+    nvec = ny + (data.fr != NULL ? 2 * nk : 0);
+    y = N_VNew_Serial(nvec, ctx);
     mem = CVodeCreate(opt->method, ctx);
-    A = SUNDenseMatrix(ny, ny, ctx);
+    A = SUNDenseMatrix(nvec, nvec, ctx);
     if (y == NULL || mem == NULL || A == NULL) {
         flag = LCG_FLAG_NOMEM;
         goto done;
@@ -412,20 +1121,37 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     yv = N_VGetArrayPointer(y);
     for (i = 0; i < ny; ++i)
         yv[i] = y0[i];
+    for (i = ny; i < nvec; ++i)
+        yv[i] = 0.0;
     /* the contacts the initial state rests on (touching, at rest, pushing) start in persistent contact */
     rc = im->gaps(tout[0], yv, p, data.gk, data.wk);
     LCG_MODEL_ERROR(LCG_DAE_OK);
     for (k = 0; k < nk; ++k)
         if (!active[k] && data.gk[k] <= set[2] && fabs(data.wk[k]) <= set[0])
             active[k] = 1;
-    rc = release_pulling(&data, tout[0], yv, ydot, rec, 0, &quiet);
+    if (data.fr != NULL) { /* the initial modes: sticking where the slip velocity is at most contact_speed */
+        rc = fr_eval(&data, tout[0], yv);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        for (k = 0; k < nk; ++k)
+            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0) {
+                double u = fdata.s[fdata.trow[k]];
+                fdata.fmode[k] = fabs(u) <= set[0] ? 0 : u > 0.0 ? 1 : -1;
+            }
+        rc = fr_modes(&data, tout[0], yv, NULL, set[0], rec, 0, &quiet);
+        if (rc == -1) {
+            flag = LCG_FLAG_CONTACT_MODE;
+            goto done;
+        }
+    } else {
+        rc = release_pulling(&data, tout[0], yv, ydot, rec, 0, &quiet);
+    }
     LCG_MODEL_ERROR(LCG_DAE_OK);
 
     rc = m->coutputs(tout[0], yv, NULL, p, out);
     LCG_MODEL_ERROR(LCG_DAE_OK);
     for (i = 0; i < ny; ++i)
         yout[i] = yv[i];
-    for (i = 0; i < nr; ++i)
+    for (i = 0; i < nlam; ++i)
         lamout[i] = data.lam[i];
     st->nt_done = 1;
 
@@ -550,7 +1276,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                 int j, stop = 0, any = 0;
                 if (CVodeGetRootInfo(mem, info) < 0)
                     goto done;
-                for (j = nk; j < nall; ++j) { /* the model's events */
+                for (j = nk; j < nk + nroot; ++j) { /* the model's events */
                     if (info[j] == 0)
                         continue;
                     if (ev->n_events < ev->max_events) {
@@ -571,12 +1297,32 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                 }
                 for (j = 0; j < nk; ++j) {
                     hit[j] = info[j] != 0 && !active[j];
-                    if (info[j] != 0 && active[j]) { /* the multiplier crosses zero: release */
+                    if (info[j] != 0 && active[j] && data.fr != NULL) { /* released by fr_modes */
+                        fdata.ending[j] = FR_END_RELEASE;
+                        any = 1;
+                    } else if (info[j] != 0 && active[j]) { /* the multiplier crosses zero: release */
                         active[j] = 0;
                         record(rec, max_rec, n_rec, tret, j, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
                         any = 1;
                     }
                     any |= hit[j];
+                }
+                if (data.fr != NULL) {
+                    const int *fi = info + nk + nroot;
+                    for (j = 0; j < nk; ++j)
+                        if ((fi[2 * j] != 0 || fi[2 * j + 1] != 0) && active[j] && fdata.ending[j] == 0) {
+                            fdata.ending[j] = fdata.fmode[j] == 0 ? FR_END_STICK : FR_END_SLIP;
+                            any = 1;
+                        }
+                    if (fi[2 * nk] != 0) {
+                        flag = LCG_FLAG_CONTACT_MODE;
+                        st->t_reached = tret;
+                        snprintf(st->message, sizeof st->message, "Painleve's paradox at t = %.17g: the contact "
+                                 "problem of the slipping contact(s) became singular (the normal's effective mass "
+                                 "with friction, G M^-1 (G - sigma mu T)^T, reached 0: the normal force grows "
+                                 "without bound)", tret);
+                        goto done;
+                    }
                 }
                 if (any) {
                     rc = restart(&data, mem, y, tret, hit, e, set, last, scratch, rows, ydot, rec, max_rec, n_rec,
@@ -601,17 +1347,23 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             goto done;
         for (i = 0; i < ny; ++i)
             yout[(long)k * ny + i] = yv[i];
-        rc = im->crhs(tret, yv, p, data.alpha, data.beta, active, ydot, data.lam);
+        rc = crhs(&data, tret, yv, ydot, data.lam);
         LCG_MODEL_ERROR(LCG_DAE_OK);
-        for (i = 0; i < nr; ++i)
-            lamout[(long)k * nr + i] = data.lam[i];
+        for (i = 0; i < nlam; ++i)
+            lamout[(long)k * nlam + i] = data.lam[i];
         rc = m->coutputs(tret, yv, NULL, p, out + (long)k * m->nout);
         LCG_MODEL_ERROR(LCG_DAE_OK);
         st->nt_done = k + 1;
     }
 
 done:
+    if (data.fr != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip- */
+        for (k = 0; k < nk; ++k)
+            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
+                active[k] = fdata.fmode[k] > 0 ? 2 : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
+    if (flag == LCG_FLAG_CONTACT_MODE) /* kept from CVODE's error handler (the counters below) */
+        memcpy(painleve, st->message, sizeof painleve);
     if (mem != NULL) {
         add_counts(mem, base);
         st->nsteps = base[0];
@@ -624,14 +1376,17 @@ done:
         st->nncfails = base[7];
         CVodeGetLastStep(mem, &st->h_last);
         CVodeGetNumGEvals(mem, &st->ngevals);
-        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
+        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0 && flag != LCG_FLAG_CONTACT_MODE)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
     st->flag = flag;
+    if (flag == LCG_FLAG_CONTACT_MODE)
+        memcpy(st->message, painleve, sizeof painleve);
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);
     free_solver(LS, NULL, A, &y, 1, &ctx);
     free(buf);
     free(ibuf);
+    free(fmem);
     return flag < 0 ? flag : 0;
 }

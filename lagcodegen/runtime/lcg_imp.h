@@ -12,6 +12,10 @@
 #define LCG_IMP_STICK 1            /* an impact that ends in persistent contact (e = 0) */
 #define LCG_IMP_RELEASE 2          /* persistent contact released (its multiplier turned negative) */
 #define LCG_IMP_CONTACT_IMPULSE 3  /* the impulse a persistent contact took in another's impact */
+#define LCG_IMP_SLIP 4             /* friction: a sticking contact begins to slip (impulse: lambda_t) */
+#define LCG_IMP_GRIP 5             /* friction: a slipping contact begins to stick (impulse: lambda_t) */
+#define LCG_IMP_REVERSE 6          /* friction: a slipping contact slips the other way from rest */
+#define LCG_IMP_TANGENTIAL_IMPULSE 7 /* friction: the tangential impulse P_t of a contact in an impact */
 
 /* Integrate model im (y = (q, q'), index-1 with the equality constraints and the contacts in
  * persistent contact; Baumgarte opt->alpha, opt->beta, negative: the natural rate at y0) from
@@ -21,14 +25,20 @@
  * rebound at most this fast, or a resting start, is persistent contact), [1] min_flight (an
  * impact within this time of the contact's last one is persistent contact: accumulation), [2]
  * gap_tol (contacts with g <= gap_tol take part in an impact). active[nk]: in, the contacts that
- * start in persistent contact (those touching at rest are added); out, the final modes. rec:
+ * start in persistent contact (those touching at rest are added); out, the final modes (contacts
+ * with Coulomb friction in contact: 1 sticking, 2 slipping with u > 0, 3 with u < 0). rec:
  * max_rec records of 6 values (t, contact, kind, impulse P, w before, w after), *n_rec their
- * number (may exceed max_rec). ev: the model's events (opt->roots), may be NULL. Returns 0, a
- * negative CVODE flag, -22 a table of another layout, -80 cancelled, -81 out of time, or
- * -100 - (model error code). Projection (opt->projection) and atol_vec are not used. */
+ * number (may exceed max_rec; the friction records 4..7 carry the slip velocity u = T q' + T0
+ * before and after in place of w). ev: the model's events (opt->roots), may be NULL. fr: the
+ * model's friction table (NULL: none; then the generated crhs and impact are used as they are),
+ * mu[nk] the contacts' Coulomb coefficients (< 0: none); with fr, lamout has nrow values per time
+ * (the tangential multipliers after the contacts'). Returns 0, a negative CVODE flag, -22 a table
+ * of another layout, -80 cancelled, -81 out of time, -85 (LCG_FLAG_CONTACT_MODE) no unique
+ * stick/slip/release mode (Painleve's paradox; st->message names it), or -100 - (model error
+ * code). Projection (opt->projection) and atol_vec are not used. */
 int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, int nt, const double *tout,
                   double *yout, double *out, double *lamout, const lcg_cvc_options *opt, const double *e,
                   const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_cvc_stats *st,
-                  lcg_events *ev);
+                  lcg_events *ev, const lcg_imp_friction *fr, const double *mu);
 
 #endif

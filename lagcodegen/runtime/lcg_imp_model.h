@@ -5,7 +5,8 @@
  * model-independent impact driver (lcg_imp.c) needs besides the constrained table lcg_dae_model.
  * Rows r = 0..nj-1 are the equality constraints A q' + A0 = 0 (eq. 4.2, 4.3), rows nj + k the
  * contacts G_k q' + G0_k with G_k = dg_k/dq, G0_k = dg_k/dt, the rows after them (up to nrow)
- * the tangential rows of no-slip contacts, held with their contact. Pure C99; no other
+ * the tangential rows of rough contacts (no slip, or Coulomb friction: lcg_imp_friction below),
+ * held with their contact while it sticks. Pure C99; no other
  * dependency. */
 #ifndef LCG_IMP_MODEL_H
 #define LCG_IMP_MODEL_H
@@ -42,6 +43,26 @@ typedef struct lcg_imp_model {
     /* the model's constrained table (its outputs and events) */
     const lcg_dae_model *dae;
 } lcg_imp_model;
+
+/* Layout version of lcg_imp_friction. */
+#define LCG_IMP_FRICTION_ABI 1
+
+/* What the impact driver needs besides lcg_imp_model for contacts with Coulomb friction
+ * (generated only for systems with a friction coefficient): the numbers of the model at a state,
+ * from which the driver (lcg_imp.c) builds and solves the contact problems of each mode itself.
+ * eval: M[nq*nq] (full, row-major), F[nq], R[nrow*nq] (the rows as in lcg_imp_model), s[nrow]
+ * = R q' + R0, h[nrow] (the holonomic values: f_j, g_k; 0 for the other rows), gam[nrow] =
+ * -d/dt (R q' + R0) with q'' excluded. tangent_of[nt]: the contact (0..nk-1) of each tangential
+ * row nj + nk + i. */
+typedef struct lcg_imp_friction {
+    int abi; /* LCG_IMP_FRICTION_ABI */
+    int njh; /* holonomic equality rows (the first njh) */
+    int nt;  /* tangential rows */
+    const int *tangent_of;
+    int (*eval)(double t, const double *y, const double *p, double *M, double *F, double *R, double *s, double *h,
+                double *gam);
+    const lcg_imp_model *imp;
+} lcg_imp_friction;
 
 #ifdef __cplusplus
 }

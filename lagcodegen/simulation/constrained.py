@@ -226,7 +226,12 @@ class ConstrainedSimulation(ConstrainedFunctions):
             contacts = ContactOptions()
         elif not isinstance(contacts, ContactOptions):
             raise LagcodegenError(f"contacts must be a ContactOptions, got {type(contacts).__name__}")
-        if getattr(family, "backend", None) != "native":
+        backend = getattr(family, "backend", None)
+        if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
+            raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
+                                  f"CVODE impact driver only; the solver {type(family).__name__} (backend "
+                                  f"{backend!r}) cannot take it: solver=CVODE(backend='native')")
+        if backend != "native":
             raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
         method, projection, alpha, beta = family.index1_settings(self, float(t[0]), y0, p)
         if projection:

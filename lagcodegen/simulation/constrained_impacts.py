@@ -22,8 +22,8 @@ n_contacts + 1 solves). Limits: Newton's law on the joint system is the simultan
 law, which is not the sequence of pairwise impacts: for chains in contact at the same instant
 (a cradle whose balls touch) it does not reproduce the pairwise result (let small gaps separate
 the impacts, as the cradle example does); after the joint solve a dropped contact may still
-close (it is then hit again at once, as the next impact); no friction (impulses act along
-G_k only).
+close (it is then hit again at once, as the next impact); without friction (below) impulses act
+along G_k only.
 
 **Persistent contact.** A contact whose rebound speed e_k |w_k-| is at most ``contact_speed``,
 or that is hit again within ``min_flight`` of its previous impact (accumulating impacts, Zeno),
@@ -46,6 +46,44 @@ of Housner's rocking block. Active rows that are dependent (a block resting flat
 corners) are solved with a small regularization of the multiplier block (see the generated
 ``solve_active``).
 
+**Coulomb friction.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
+and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
+u = T q' + T0) obeys Coulomb's law on its multipliers. It is not an ideal constraint (sec. 4.3
+takes the force along A): while slipping the force G^T lambda_n + T^T lambda_t has
+lambda_t = -mu lambda_n sign(u) set by the law, not a multiplier of its own. In persistent contact it sticks (row T
+held, lambda_t free) while |lambda_t| <= mu lambda_n, and slips otherwise with lambda_t =
+-mu lambda_n sign(u) (the normal row's force direction becomes G - sign(u) mu T, so the system
+is no longer symmetric). Transitions are roots located by CVODE: stick -> slip where
+mu lambda_n -+ lambda_t reaches 0, slip -> stick or reversal where u reaches 0 (then the
+sticking force decides: admissible, it grips; else it slips the other way), release where
+lambda_n reaches 0. At each switch and impact the modes of all contacts in persistent contact
+are chosen together by enumerating stick / slip+ / slip- / release per contact (slip from rest
+only when |u| <= ``contact_speed``; at most 4096 combinations), the mode whose root fired
+excluded, and checking each combination's forces and accelerations. Exactly one consistent
+motion is taken (consistent modes with the same accelerations, e.g. at the limit of friction,
+count as one; the most constrained is kept); none (inconsistency) or several with different
+accelerations (indeterminacy) is Painleve's paradox and raises :class:`PainleveError` naming it,
+as does the contact problem of a slipping contact turning singular during a run (a root of its
+determinant). Impacts take Newton's law on the normal and, per contact, a tangential impulse that
+sticks (T dv = -u) when |P_t| <= mu P_n, else slides with P_t = -sigma mu P_n (sigma u+ >= 0), the
+modes again enumerated jointly (a "tangential_impulse" record each); a contact that begins to stick
+has its slip velocity projected to 0. ``Result.impacts`` records the transitions ("slip",
+"grip", "reverse"; :meth:`ContactLog.transitions`, ``stats["stick_slip"]``) and the final modes
+(``ContactLog.friction_modes``); ``outputs["lambda_t_ineq_<k>"]`` is the tangential multiplier.
+
+*Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
+friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
+F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
+``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
+other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are
+seen where their sign differs at CVODE's step ends; so that a friction limit is not crossed and
+recrossed within one step while a contact sticks under forcing that depends on time alone (the
+state constant, the steps growing), CVODE's state carries the integrals of the contact forces,
+whose error control keeps the steps to the forces' time scale (at the run's tolerances).
+Impacts with friction and Newton's law can gain energy in some configurations (a known property
+of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
+backend only (other solvers are refused naming them).
+
 Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
 projection, ensembles, Fortran model code.
 """
@@ -62,23 +100,37 @@ import numpy as np
 
 from ..build import DEFAULT_CFLAGS, config_header, driver_runtime, find_sundials, generated_headers, types_headers
 from ..codegen.cffi_decl import DAE_TABLE_CDEF, MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
-from ..codegen.signatures import IMP_TABLE, cffi_struct
-from ..errors import LagcodegenError
+from ..codegen.signatures import IMP_FRICTION_TABLE, IMP_TABLE, cffi_struct
+from ..codes import Flag
+from ..errors import LagcodegenError, SolverError
 from ..result import Result
 from ..runtime import sources as runtime_files
 from ..solvers.control import CANCELLED, POLL_EVERY, install, raise_pending
 from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
 from ..solvers.request import Index1Form, Recording, StepControl
 
-#: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...).
-KINDS = ("bounce", "stick", "release", "contact_impulse")
+#: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...). With Coulomb friction:
+#: "slip" (a sticking contact begins to slip), "grip" (a slipping one begins to stick), "reverse"
+#: (a slipping one slips the other way from rest), "tangential_impulse" (the tangential impulse of
+#: a contact in an impact).
+KINDS = ("bounce", "stick", "release", "contact_impulse", "slip", "grip", "reverse", "tangential_impulse")
+
+#: The friction transitions among :data:`KINDS`.
+FRICTION_TRANSITIONS = ("slip", "grip", "reverse")
 
 #: The files of lagcodegen/runtime/ the impact driver is compiled from.
 RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h",
                  "lcg_sundials.h", "sundials_api.h")
 
 _CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE),
-                   header_cdef("lcg_imp.h"), POLL_CDEF])
+                   cffi_struct(IMP_FRICTION_TABLE), header_cdef("lcg_imp.h"), POLL_CDEF])
+
+
+class PainleveError(SolverError):
+    """Contacts with Coulomb friction that have no consistent stick/slip/release mode
+    (inconsistency), several with different motions (indeterminacy), or whose contact problem
+    became singular while slipping: Painleve's paradox, reported instead of integrating a branch.
+    ``t``: where; ``result``: the run up to there."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -108,7 +160,9 @@ class ContactOptions:
 class ImpactRecord:
     """One contact record: ``t``, ``contact`` (index k of the inequality g_k >= 0), ``kind`` (one
     of :data:`KINDS`), ``impulse`` P_k (>= 0: the contact pushes; the notes' Lambda = -P), and the
-    normal velocity w_k = G_k q' + G0_k before and after."""
+    normal velocity w_k = G_k q' + G0_k before and after. Friction records ("slip", "grip",
+    "reverse", "tangential_impulse") carry the tangential multiplier lambda_t (transitions) or
+    the tangential impulse P_t, and the slip velocity u = T q' + T0 before and after in place of w."""
 
     t: float
     contact: int
@@ -125,6 +179,8 @@ class ContactLog:
     records: list = field(default_factory=list)
     final_modes: dict = field(default_factory=dict)  # contact k -> "free" or "contact" at the end
     truncated: bool = False  # more records than ContactOptions.max_records
+    #: contacts with Coulomb friction: k -> "free", "stick", "slip+" or "slip-" at the end
+    friction_modes: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.records)
@@ -166,6 +222,11 @@ class ContactLog:
             return None
         ratio = d2 / d1
         return times[n] + d2 * ratio / (1 - ratio)
+
+    def transitions(self, contact: int | None = None) -> list:
+        """The friction transitions (records of kind "slip", "grip", "reverse"), of one contact or all."""
+        return [r for r in self.records if r.kind in FRICTION_TRANSITIONS
+                and (contact is None or r.contact == contact)]
 
     @property
     def impulses(self) -> np.ndarray:
@@ -214,6 +275,23 @@ class ImpactRunner:
             raise LagcodegenError(f"the contact table of {info.prefix!r} does not match its code")
         self.contacts = list(info.contacts)
         self.restitution = np.array([sim.system.restitution[k] for k in self.contacts], dtype=float)
+        system = sim.system
+        #: Coulomb coefficients (-1: none), the row of each contact's tangential multiplier
+        self.mu = np.array([-1.0 if system.friction[k] is None else system.friction[k] for k in self.contacts])
+        self.friction = ffi.NULL
+        self.tangent_rows = {}
+        if system.has_friction:
+            getter = getattr(library, f"{info.prefix}_imp_friction_table", None)
+            if getter is None:
+                raise LagcodegenError(f"the code of {info.prefix!r} has no friction table (generated by a "
+                                      "lagcodegen without Coulomb friction): generate it again")
+            getter.restype = ctypes.c_void_p
+            getter.argtypes = []
+            self.friction = ffi.cast("const lcg_imp_friction *", getter())
+            if self.friction.imp != self.table:
+                raise LagcodegenError(f"the friction table of {info.prefix!r} does not match its code")
+            with_tangent = [k for k in self.contacts if system.tangents[k] is not None]
+            self.tangent_rows = {k: info.J + len(self.contacts) + i for i, k in enumerate(with_tangent)}
 
     def gaps(self, t: float, y, p) -> tuple[np.ndarray, np.ndarray]:
         """(g_k, w_k) of the contacts at (t, y)."""
@@ -242,7 +320,8 @@ class ImpactRunner:
             raise LagcodegenError("runs with contacts take a scalar atol")
         yout = np.empty((nt, ny))
         out = np.empty((nt, sim.n_out_columns))
-        lamout = np.zeros((nt, max(nr, 1)))
+        nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
+        lamout = np.zeros((nt, max(nlam, 1)))
         rec = np.empty((contacts.max_records, 6))
         active = np.zeros(nk, dtype=np.intc)
         n_rec = ffi.new("int *")
@@ -266,7 +345,7 @@ class ImpactRunner:
             self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), nt, fb("double[]", t),
             fb("double[]", yout), fb("double[]", out), fb("double[]", lamout), opt, fb("double[]", self.restitution),
             fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
-            events.struct if events else ffi.NULL)
+            events.struct if events else ffi.NULL, self.friction, fb("double[]", self.mu))
         wall = time.perf_counter() - start
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
@@ -288,15 +367,29 @@ class ImpactRunner:
         text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(
             errors="replace"), "CVODE", SINGULAR_AUGMENTED)
         outputs = dict(zip(sim.info.output_names, oo.T))
+        for j in range(nj):  # the equality multipliers with the contact forces (the constrained table's
+            if f"lambda_{j}" in outputs:  # outputs solve without the contact rows)
+                outputs[f"lambda_{j}"] = ll[:, j]
         for i, k in enumerate(self.contacts):
             outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
+        for k, r in self.tangent_rows.items():
+            outputs[f"lambda_t_ineq_{k}"] = ll[:, r]
         count = int(n_rec[0])
         log = ContactLog([ImpactRecord(float(r[0]), self.contacts[int(r[1])], KINDS[int(r[2])], float(r[3]),
                                        float(r[4]), float(r[5])) for r in rec[: min(count, contacts.max_records)]],
                          {k: "contact" if active[i] else "free" for i, k in enumerate(self.contacts)},
                          count > contacts.max_records)
         stats["impacts"] = len(log.times)
+        if self.friction != ffi.NULL:  # the driver returns the final modes as 1 stick, 2 slip+, 3 slip-
+            log.friction_modes = {k: ("free", "stick", "slip+", "slip-")[int(active[i])]
+                                  for i, k in enumerate(self.contacts) if self.mu[i] >= 0}
+            stats["stick_slip"] = len(log.transitions())
+        if flag == int(Flag.CONTACT_MODE):
+            text = ffi.string(st.message).decode(errors="replace")
         res = Result(t=tt, y=yy, state_names=sim.state_names, outputs=outputs, stats=stats, status=int(flag),
                      message=text, backend="native", method=method, events=recs)
         res.impacts = log
+        if flag == int(Flag.CONTACT_MODE):  # Painleve, or more modes than the driver enumerates
+            cls = PainleveError if "Painleve" in text else SolverError
+            raise cls(text, t=float(st.t_reached), flag=int(flag), result=res)
         return res

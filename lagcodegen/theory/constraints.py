@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -74,21 +74,40 @@ class Inequality:
     (the notes' Lambda = -P in q'+ = q'- - M^-1 A^T Lambda). ``restitution=None`` keeps the
     meaning of a plain expression: the terminal event ``ineq_<k>`` where g reaches 0.
 
-    ``tangent`` (optional, with a restitution): a rough contact that does not slip. While the
-    contact touches (in an impact and in persistent contact) the velocity of the expression
-    ``tangent(q, t)`` (e.g. the horizontal position of the touching point) is held at zero too:
-    a second row T = d tangent/dq with its own impulse and multiplier (unbounded friction; the
-    contact is released by its normal multiplier only). Without it contacts are frictionless.
+    ``tangent`` (optional, with a restitution): a rough contact. ``tangent(q, t)`` is a *position*
+    expression whose time derivative is the slip velocity u = T q' + T0 (T = d tangent/dq,
+    T0 = d tangent/dt) of the touching points, e.g. the horizontal position of the touching
+    point, or x - R phi for a disc rolling on a line. Without ``friction`` the contact does not
+    slip: while it touches (in an impact and in persistent contact) u is held at zero by a second
+    row T with its own impulse and multiplier (unbounded friction; the contact is released by its
+    normal multiplier only). Without a tangent contacts are frictionless.
+
+    ``friction`` mu (keyword, >= 0, with a tangent): Coulomb friction instead of no slip. In
+    persistent contact it sticks (u = 0) while |lambda_t| <= mu lambda_n, else slips with
+    lambda_t = -mu lambda_n sign(u); impacts likewise with the impulses (notes, sec. 4.3;
+    :mod:`lagcodegen.simulation.constrained_impacts`). The law acts on the multipliers: the
+    physical one when g and tangent are lengths (gap and position of the touching point).
     """
 
     expr: object
     restitution: float | None = None
     tangent: object = None
+    friction: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
         e = self.restitution
+        mu = self.friction
+        if mu is not None:
+            if isinstance(mu, bool) or not isinstance(mu, (int, float, np.floating, np.integer)) \
+                    or not (0.0 <= float(mu) < math.inf):
+                raise ModelError(f"Inequality({excerpt(self.expr)}): friction must be a finite number >= 0 (the "
+                                 f"Coulomb coefficient mu), got {excerpt(mu)}")
+            if self.tangent is None:
+                raise ModelError(f"Inequality({excerpt(self.expr)}): friction needs a tangent (the position "
+                                 "expression whose time derivative is the slip velocity)")
+            object.__setattr__(self, "friction", float(mu))
         if self.tangent is not None and e is None:
-            raise ModelError(f"Inequality({excerpt(self.expr)}): a tangent (no-slip contact) needs a restitution")
+            raise ModelError(f"Inequality({excerpt(self.expr)}): a tangent (rough contact) needs a restitution")
         if e is None:
             return
         if isinstance(e, bool) or not isinstance(e, (int, float, np.floating, np.integer)):
@@ -277,14 +296,18 @@ class ConstrainedSystem:
         self.inequalities: list[sp.Expr] = []
         #: per inequality: its coefficient of restitution, or None (a monitored inequality)
         self.restitution: list[float | None] = []
-        #: per inequality: the no-slip tangent expression of a rough contact, or None
+        #: per inequality: the tangent expression of a rough contact, or None
         self.tangents: list[sp.Expr | None] = []
+        #: per inequality: its Coulomb friction coefficient mu, or None (no slip with a tangent,
+        #: frictionless without)
+        self.friction: list[float | None] = []
         for k, g in enumerate(inequalities):
             what = f"inequality constraint {k}"
-            e = tangent = None
+            e = tangent = mu = None
             if isinstance(g, Inequality):
-                g, e, tangent = g.expr, g.restitution, g.tangent
+                g, e, tangent, mu = g.expr, g.restitution, g.tangent, g.friction
             self.restitution.append(e)
+            self.friction.append(mu)
             if tangent is not None:
                 tangent = _expr(tangent, f"{what}, tangent")
                 model.check_symbols(tangent, f"{what}, tangent", allow_speeds=False)
@@ -373,6 +396,11 @@ class ConstrainedSystem:
         """Indices k of the inequalities that are contacts (an :class:`Inequality` with a
         restitution): enforced by impacts, not events."""
         return [k for k, e in enumerate(self.restitution) if e is not None]
+
+    @property
+    def has_friction(self) -> bool:
+        """Whether a contact has Coulomb friction (an :class:`Inequality` with ``friction``)."""
+        return any(mu is not None for mu in self.friction)
 
     @property
     def dof(self) -> int:
