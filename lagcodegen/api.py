@@ -38,6 +38,7 @@ from .simulation.minimal import MinimalSimulation
 from .simulation.ode import CompiledModel
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.minimal import closest_branch, reduced_model, solve_constraints
+from .simulation.speeds import IndependentSpeedsSimulation
 from .theory.routhian import RouthReduction
 from .util import check_baumgarte, excerpt
 
@@ -221,7 +222,12 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
         GGL: generate the residual Jacobian dF/dy + cj dF/dy' (else IDA's difference quotients).
     eliminate:
         Minimal: coordinates to eliminate (default: the first subset sympy can solve for,
-        trying the last coordinates first).
+        trying the last coordinates first). With nonholonomic constraints, "minimal" is the
+        system in independent speeds (:mod:`lagcodegen.theory.speeds`: Maggi's, Voronets' and
+        Kane's form M_r = B^T M B, every constraint at velocity level:
+        :class:`~lagcodegen.simulation.speeds.IndependentSpeedsSimulation`, state (q, u), the
+        holonomic residuals ``g_<j>`` as outputs) and ``eliminate`` names the coordinates whose
+        rates are eliminated (default: by column-pivoted QR of A at each run's initial state).
     lang:
         Language of the generated model functions: ``"c"`` or ``"fortran"`` (Fortran 2008
         modules bound to the same C names, evaluating the same operations, so the results are
@@ -266,6 +272,23 @@ def formulation_options(formulation: str, options: Mapping) -> dict:
     return out
 
 
+def _independent_speeds(system, eliminate, outputs, events, runtime_parameters, values, prefix, verbose, lang):
+    """A system with nonholonomic constraints in minimal form: the compiled model of its
+    independent speeds (:func:`lagcodegen.theory.speeds.independent_speeds_model`; ``eliminate``:
+    the coordinates whose rates are eliminated, default chosen by pivoting), state (q, u), the
+    holonomic constraints' residuals g_<j> among the outputs."""
+    if events:
+        raise ModelError("compile_constrained: formulation 'minimal' of a system with nonholonomic constraints "
+                         "compiles an ODE in independent speeds: give its events to simulate(..., events=...)")
+    independent = None
+    if eliminate is not None:
+        gone = {system.model.coords[system.model.index(q)].name for q in eliminate}
+        independent = [q.name for q in system.model.coords if q.name not in gone]
+    return IndependentSpeedsSimulation(system, independent=independent, outputs=outputs,
+                                       runtime_parameters=runtime_parameters, values=values, prefix=prefix,
+                                       verbose=verbose, lang=lang)
+
+
 def _compile_constrained(system, formulation, options: dict, outputs, events, runtime_parameters, values, prefix,
                          verbose, lang):
     """The simulation of ``system`` in ``formulation`` with its ``options`` (those of
@@ -273,6 +296,9 @@ def _compile_constrained(system, formulation, options: dict, outputs, events, ru
     projection, jacobian, eliminate = options["projection"], options["jacobian"], options["eliminate"]
     baumgarte = check_baumgarte(options["baumgarte"], "baumgarte")
     check_language(lang)
+    if formulation == "minimal" and system.nonholonomic:  # independent speeds (Maggi, Voronets, Kane)
+        return _independent_speeds(system, eliminate, outputs, events, runtime_parameters, values, prefix, verbose,
+                                   lang)
     if formulation == "minimal":
         return MinimalSimulation(system, outputs=outputs, events=events, runtime_parameters=runtime_parameters,
                                  values=values, prefix=prefix, eliminate=eliminate, verbose=verbose, lang=lang)
