@@ -334,6 +334,20 @@ int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double 
     return LCG_OK;
 }
 
+int lcg_rhs_batch(const lcg_model *m, int nt, double t, const double *y, const double *p, int pstride, double *ydot,
+                  int *failed)
+{
+    int k, rc;
+
+    for (k = 0; k < nt; ++k)
+        if ((rc = m->rhs(t, y + (long)k * m->ny, p == NULL ? NULL : p + (long)k * pstride,
+                         ydot + (long)k * m->ny)) != LCG_OK) {
+            *failed = k;
+            return rc;
+        }
+    return LCG_OK;
+}
+
 /* CVode towards target (the root returns of the events on the way recorded into ev and stepped
  * over): a negative CVODE flag, ADVANCE_TERMINAL at a terminal event (its time in *tret), or 0. */
 #define ADVANCE_TERMINAL 1

@@ -134,7 +134,8 @@ def ode_states(cm, q0, v0, y0, z0, params) -> tuple[int, np.ndarray, np.ndarray]
             raise LagcodegenError("q0 (or y0) is required")
         nv = getattr(cm, "nv", n)  # generalized speeds: v0 by their names
         parts = [_matrix(q0, n_mem, n, "q0", names[:n]),
-                 np.zeros((n_mem, nv)) if v0 is None else _matrix(v0, n_mem, nv, "v0", names[n:n + nv])]
+                 np.zeros((n_mem, nv)) if v0 is None else _matrix(v0, n_mem, nv, "v0",
+                                                                  names[:n] if cm.code.nv is None else names[n:n + nv])]
         nz = cm.ny - n - nv
         if nz:
             parts.append(np.zeros((n_mem, nz)) if z0 is None else _matrix(z0, n_mem, nz, "z0", names[n + nv:]))

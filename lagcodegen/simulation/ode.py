@@ -84,6 +84,7 @@ class CompiledModel(CompiledReprMixin):
         self.c_outputs = table.outputs if table.outputs != null else None
         self.c_jac_sparse = table.jac_sparse if table.jac_sparse != null else None
         self.c_outputs_batch = functools.partial(lib.lcg_outputs_batch, table) if self.c_outputs else None
+        self.c_rhs_batch = functools.partial(lib.lcg_rhs_batch, table)
         self.native_solve = functools.partial(lib.lcg_cvode_solve, table)
         solve_many = lib.lcg_cvode_solve_many
 
@@ -102,7 +103,7 @@ class CompiledModel(CompiledReprMixin):
         self.c_jac = getattr(self.lib, f"{p}_jac", None)
         self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
         self.c_jac_sparse = getattr(self.lib, f"{p}_jac_sparse", None)
-        self.c_outputs_batch = None
+        self.c_outputs_batch = self.c_rhs_batch = None
         self.native_solve = self.native_solve_many = None
         self.options_type = self.stats_type = self.ensemble_type = None
 
@@ -178,6 +179,34 @@ class CompiledModel(CompiledReprMixin):
         out = np.empty(self.ny)
         rc = self.c_rhs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
         check_rc(rc, t, "right-hand side")
+        return out
+
+    def rhs_batch(self, t: float, Y, p=None) -> np.ndarray:
+        """f(t, y, p) of every row of ``Y`` (N x ny) in one call into C: ``p`` None (the
+        defaults), one parameter vector for all rows, or an N x np array (one per row). Returns
+        N x ny. A state whose right-hand side fails raises, naming its row."""
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim != 2 or Y.shape[1] != self.ny:
+            raise LagcodegenError(f"Y must be an N x {self.ny} array of states ({', '.join(self.state_names)}), got "
+                                  f"shape {Y.shape}")
+        Y = np.ascontiguousarray(Y)
+        P = self._defaults if p is None else np.ascontiguousarray(np.asarray(p, dtype=float))
+        if P.ndim == 2 and P.shape != (Y.shape[0], self.code.np) or P.ndim == 1 and P.size != self.code.np \
+                or P.ndim > 2:
+            raise LagcodegenError(f"p must hold {self.code.np} values ({', '.join(self.param_names) or 'none'}), "
+                                  f"one vector or one row per state, got shape {P.shape}")
+        if not (np.isfinite(Y).all() and np.isfinite(P).all()):
+            raise LagcodegenError("rhs_batch: the states or parameters have non-finite values")
+        out = np.empty_like(Y)
+        if self.c_rhs_batch is None:  # a module of its own: row by row
+            for k in range(Y.shape[0]):
+                out[k] = self.rhs(t, Y[k], P if P.ndim == 1 else P[k])
+            return out
+        failed = self.ffi.new("int *")
+        rc = self.c_rhs_batch(Y.shape[0], float(t), self.ffi.from_buffer("double[]", Y),
+                              self._ptr(P.ravel()), self.code.np if P.ndim == 2 else 0,
+                              self.ffi.from_buffer("double[]", out), failed)
+        check_rc(rc, t, f"right-hand side of row {failed[0]}")
         return out
 
     def jac(self, t: float, y, p=None) -> np.ndarray:

@@ -270,7 +270,9 @@ def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
     neutral = getattr(cm.code, "q_neutral", None)
     if neutral is not None and (q0 is None or isinstance(q0, Mapping)):  # quaternions: the identity
         q0 = {**dict(zip(names[:n], neutral)), **(q0 or {})}
-    return np.array(state_values(q0, names[:n], "q0") + state_values(v0, names[n:n + nv], "v0")
+    # velocities by coordinate name; generalized speeds by their own names
+    speed_names = names[:n] if getattr(cm.code, "nv", None) is None else names[n:n + nv]
+    return np.array(state_values(q0, names[:n], "q0") + state_values(v0, speed_names, "v0")
                     + state_values(z0, names[n + nv:], "z0"), dtype=float)
 
 
