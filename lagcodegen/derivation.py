@@ -583,9 +583,11 @@ def _add_given(model: Model, eng: _Engine, M: list, F: list, p: list, T, V):
             if e != 0:
                 F[i] = e if F[i] == 0 else se.Add(F[i], e)
         symmetric = symmetric and eq.symmetric
+        why = dict(eq.missing)
         if eq.kinetic_energy is None:
-            unknown.setdefault("T", f"the kinetic energy of model {model.name!r} is not known: its equations {eq.label!r} "
-                                    "were given without it (Model.equations_of_motion(..., kinetic_energy=T))")
+            unknown.setdefault("T", f"the kinetic energy of model {model.name!r} is not known: "
+                                    + (why["T"] if "T" in why else f"its equations {eq.label!r} were given without it "
+                                       "(Model.equations_of_motion(..., kinetic_energy=T))"))
         else:
             Tg = to_se(eq.kinetic_energy, f"kinetic energy of {what}")
             T = se.Add(T, Tg)
@@ -594,9 +596,9 @@ def _add_given(model: Model, eng: _Engine, M: list, F: list, p: list, T, V):
                 if d != 0:
                     p[i] = se.Add(p[i], d)
         if eq.potential_energy is None:
-            unknown.setdefault("V", f"the potential energy of model {model.name!r} is not known: its equations "
-                                    f"{eq.label!r} were given without it (Model.equations_of_motion(..., "
-                                    "potential_energy=V))")
+            unknown.setdefault("V", f"the potential energy of model {model.name!r} is not known: "
+                                    + (why["V"] if "V" in why else f"its equations {eq.label!r} were given without "
+                                       "it (Model.equations_of_motion(..., potential_energy=V))"))
         else:
             V = se.Add(V, to_se(eq.potential_energy, f"potential energy of {what}"))
     if "T" in unknown:

@@ -55,16 +55,16 @@ from .model import Model
 #: (the package pulls in sympy's unit systems), which every other use of lagcodegen (the command
 #: line, model files, lagcodegen's own models) does without.
 Particle = RigidBody = dynamicsymbols = Point = ReferenceFrame = Vector = partial_velocity = ActuatorBase = None
-System = None
+System = KanesMethod = None
 
 
 def _physics() -> None:
     """Import sympy.physics.mechanics and .vector into this module's names (once)."""
     global Particle, RigidBody, dynamicsymbols, Point, ReferenceFrame, Vector, partial_velocity, ActuatorBase
-    global System
+    global System, KanesMethod
     if Particle is not None:
         return
-    from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
+    from sympy.physics.mechanics import KanesMethod, Particle, RigidBody, dynamicsymbols
     try:  # System exists from sympy 1.13 on
         from sympy.physics.mechanics import System
     except ImportError:  # pragma: no cover - older sympy
@@ -75,7 +75,7 @@ def _physics() -> None:
     except ImportError:  # pragma: no cover - older sympy
         ActuatorBase = None
 
-__all__ = ["from_lagrangian", "from_bodies", "from_system", "as_model"]
+__all__ = ["from_lagrangian", "from_bodies", "from_system", "from_kanes_method", "as_model"]
 
 #: A value given for a parameter: by symbol or by name.
 ParameterValues = Mapping[sp.Symbol | str, float]
@@ -276,11 +276,138 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     return _finish(model, imp, positions, Q_conv, D_conv, subs)
 
 
+def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: str = "model",
+                      unset: float | None = None, origin: Point | None = None) -> Model:
+    """A :class:`Model` of Kane's equations formed by a ``sympy.physics.mechanics.KanesMethod``
+    (``kanes_equations`` must have run), with its coordinates, speeds and parameter names.
+
+    * coordinates: ``km.q`` (independent, then dependent ones), named like the dynamicsymbols;
+    * generalized speeds: ``km.u`` (independent, then dependent ones), named like theirs, with
+      the kinematic differential equations solved for q' (``km.kindiffdict()``) as the model's
+      kinematics q' = k(q, u, t) (:meth:`Model.generalized_speeds`);
+    * equations: ``km.mass_matrix`` u' = ``km.forcing`` given directly
+      (:meth:`Model.equations_of_motion`). With dependent speeds these hold the acceleration
+      constraints' rows, which make M square over all u (and not symmetric: the generated code
+      solves it by LU): the same system ``km.rhs()`` integrates, so a run keeps the velocity
+      constraints as well as sympy's own integration does; the configuration constraints
+      (dependent coordinates) are not enforced either, as there. Auxiliary speeds are left
+      out, as ``km.mass_matrix`` leaves them;
+    * energies, for the outputs only: T = sum of ``body.kinetic_energy(frame)`` over
+      ``km.bodies`` (in q and u). The potential energy is known when every load that is a force
+      constant in the inertial frame (gravity) acts at a point whose position from ``origin`` is
+      known: V = -F . r_P (loads that vary are not potentials, as in :func:`from_system`);
+      without ``origin`` and with such loads the potential energy, and so ``energy``, is refused
+      by name. Bodies' ``potential_energy`` attributes are not used (Kane's method ignores
+      them). With ``origin``, each body's mass centre seen from it is a model point
+      (``positions`` outputs).
+
+    ``origin``: a point fixed in the inertial frame (or moving only within a plane normal to
+    every constant force, such as the contact point of a rolling disc on the ground).
+    ``parameters``: every other free symbol's value (by symbol or name); ``unset``: the value of
+    the ones missing from it (None: they are an error, naming them); ``name``: the model's.
+    Dynamicsymbols other than q and u, and time derivatives of the speeds (u') are an error
+    naming them.
+    """
+    _physics()
+    if not isinstance(km, KanesMethod):
+        raise ModelError(f"from_kanes_method needs a sympy.physics.mechanics.KanesMethod, got {type(km).__name__}")
+    try:
+        M, F = km.mass_matrix, km.forcing
+    except ValueError:
+        raise ModelError("from_kanes_method: Kane's equations have not been formed on this KanesMethod: call "
+                         "km.kanes_equations(bodies, loads) first") from None
+    q, u = list(km.q), list(km.u)
+    imp = _Importer(q, time=None, name=name)
+    try:
+        kdd = km.kindiffdict()
+    except (ValueError, AttributeError) as exc:
+        raise ModelError(f"from_kanes_method: the kinematic differential equations cannot be solved for q' "
+                         f"({excerpt(str(exc), quote=False)})") from None
+    imp.set_generalized_speeds(u, kdd)
+    kinematics = [imp.convert(kdd[sp.Derivative(f, imp.time)], f"kinematic equation of {_fname(f)!r}")
+                  for f in imp.functions]
+    M = M.applyfunc(lambda e: imp.convert(e, "the mass matrix of Kane's equations"))
+    F = F.applyfunc(lambda e: imp.convert(e, "the forcing of Kane's equations"))
+    frame = km._inertial
+    T = _kane_kinetic_energy(km.bodies, frame, imp)
+    V, why_not_V = _kane_potential(km.loads, frame, origin, imp)
+    positions = _positions(km.bodies, frame, origin, imp) if origin is not None else []
+    exprs = [*kinematics, *M, *F] + ([] if T is None else [T]) + ([] if V is None else [V])
+    exprs += [c for _, r in positions for c in r]
+    subs = imp.declare_parameters(exprs, parameters, unset=unset)
+    model = imp.model
+    model.generalized_speeds([_fname(w) for w in u], [k.xreplace(subs) for k in kinematics])
+    dependent = bool(getattr(km, "_udep", None))
+    model.equations_of_motion(M.xreplace(subs), F.xreplace(subs),
+                              kinetic_energy=None if T is None else T.xreplace(subs),
+                              potential_energy=None if V is None else V.xreplace(subs),
+                              symmetric=False if dependent else None, label="Kane's equations",
+                              missing={"T": "a body's kinetic energy could not be formed from the KanesMethod's "
+                                            "bodies" if T is None else None,
+                                       "V": why_not_V})
+    for body_name, r in positions:
+        model.point(body_name, r.xreplace(subs))
+    model.validate()
+    return model
+
+
+def _kane_kinetic_energy(bodies, frame, imp: "_Importer"):
+    """T = sum of the bodies' kinetic energies in ``frame``, in (q, u); None if one cannot be formed."""
+    T = sp.Integer(0)
+    for body in bodies or ():
+        try:
+            Tb = body.kinetic_energy(frame)
+        except ValueError:
+            return None
+        T += imp.convert(Tb, f"kinetic energy of body {body.name!r}")
+    return T
+
+
+def _kane_potential(loads, frame, origin, imp: "_Importer"):
+    """(V, None) with V = -F . r_P summed over the forces constant in ``frame`` (gravity), r_P
+    from ``origin``; (None, why) when such a force has no position from ``origin``."""
+    V = sp.Integer(0)
+    for location, vector in _loads(loads):
+        if not isinstance(location, Point):
+            continue
+        try:
+            Fv = vector.to_matrix(frame)
+        except ValueError:
+            continue
+        if any(c.has(imp.time) or c.atoms(AppliedUndef) or c.atoms(sp.Derivative) for c in Fv):
+            continue  # a varying force: not a potential
+        if all(c == 0 for c in Fv):
+            continue
+        if origin is None:
+            return None, f"the constant force at point {location.name} (gravity?) has no potential without a fixed point: pass origin=<Point>"
+        Vp = _constant_force_potential(location, vector, frame, origin, imp)
+        if Vp is None:
+            return None, f"the position of point {location.name} from {origin.name} is not known"
+        V += Vp
+    return V, None
+
+
+def _positions(bodies, frame, origin, imp: "_Importer") -> list:
+    """(name, position of the mass centre from ``origin`` in ``frame``'s axes) of the bodies whose
+    position is known and depends on the coordinates."""
+    out = []
+    for body in bodies or ():
+        try:
+            r = body.masscenter.pos_from(origin).to_matrix(frame)
+        except ValueError:
+            continue
+        r = r.applyfunc(lambda c, b=body: imp.convert(c, f"position of body {b.name!r}"))
+        if any(c.free_symbols & set(imp.model.coords) for c in r):
+            out.append((body.name, r))
+    return out
+
+
 def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | None = None):
-    """``obj`` itself unless it is a ``sympy.physics.mechanics.System``: then its
-    :func:`from_system` model (``parameters``, ``unset`` as there). Anything else is returned
-    as it is (the caller checks it); other sympy.physics objects (``KanesMethod``,
-    ``LagrangesMethod``, ...) are a ModelError saying what to pass instead.
+    """``obj`` itself unless it is a ``sympy.physics.mechanics.System`` (then its
+    :func:`from_system` model) or a ``KanesMethod`` on which ``kanes_equations`` has run (its
+    :func:`from_kanes_method` model); ``parameters``, ``unset`` as there. Anything else is
+    returned as it is (the caller checks it); other sympy.physics objects (``LagrangesMethod``,
+    ...) are a ModelError saying what to pass instead.
 
     :func:`lagcodegen.derive` calls it with ``unset=1.0``: the derived equations are symbolic,
     the free symbols stay symbols, and their placeholder default 1.0 is announced by a
@@ -293,11 +420,12 @@ def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | N
     _physics()
     if System is not None and isinstance(obj, System):
         return from_system(obj, parameters=parameters, unset=unset)
+    if isinstance(obj, KanesMethod):
+        return from_kanes_method(obj, parameters=parameters, unset=unset)
     kind = type(obj).__name__
-    hint = {"KanesMethod": "pass the System it came from, or its bodies and loads to mechanics.from_bodies",
-            "LagrangesMethod": "pass the System it came from, or its Lagrangian and coordinates to "
-                               "mechanics.from_lagrangian"}.get(kind, "pass a System, or use mechanics.from_bodies / "
-                                                                      "from_lagrangian")
+    hint = {"LagrangesMethod": "pass the System it came from, or its Lagrangian and coordinates to "
+                               "mechanics.from_lagrangian"}.get(kind, "pass a System or a KanesMethod, or use "
+                                                                      "mechanics.from_bodies / from_lagrangian")
     raise ModelError(f"a sympy.physics.mechanics {kind} is not a model lagcodegen derives: {hint}")
 
 
@@ -465,6 +593,27 @@ class _Importer:
         self.taken = {s.name for s in self.model.coords} | {s.name for s in self.model.speeds}
         self.speed_subs: dict = {}  # generalized speeds u_j(t) that are q_i'(t) -> q_i'(t)
         self.partial_speeds = list(self.velocities)  # the speeds of the partial velocities, by coordinate
+        self.gspeeds: dict = {}  # generalized speeds u_j(t) other than q' (Kane's) -> plain symbols
+        self.kin_subs: dict = {}  # q_i'(t) -> k_i(q(t), u(t), t) when there are such speeds
+
+    def set_generalized_speeds(self, u: Sequence, kindiff: dict) -> None:
+        """Take the dynamicsymbols ``u`` as generalized speeds (plain symbols named like them) and
+        ``kindiff`` ({q_i'(t): k_i(q, u, t)}, every coordinate) as the kinematic equations."""
+        for w in u:
+            if not (isinstance(w, AppliedUndef) and w.args == (self.time,)):
+                raise ModelError(f"speed {w!r} is not a dynamicsymbol u({self.time})")
+            if w in self.coords:
+                raise ModelError(f"{_fname(w)!r} is both a coordinate and a speed")
+            if _fname(w) in self.taken:
+                raise ModelError(f"speed {_fname(w)!r}: the name is taken by a coordinate or its velocity")
+            self.gspeeds[w] = sp.Symbol(_fname(w))
+        if len(set(self.gspeeds.values())) != len(self.gspeeds) or len(self.gspeeds) != len(u):
+            raise ModelError("a speed is given twice")
+        missing = [_fname(f) for f in self.functions if sp.Derivative(f, self.time) not in kindiff]
+        if missing:
+            raise ModelError(f"the kinematic differential equations give no q' for {', '.join(missing)}")
+        self.kin_subs = {d: kindiff[d] for d in (sp.Derivative(f, self.time) for f in self.functions)}
+        self.taken |= {s.name for s in self.gspeeds.values()}
 
     def set_speeds(self, mapping: dict) -> None:
         """Take the speeds u_j(t) of ``mapping`` ({u_j(t): q_i'(t)}) as the velocities q_i'."""
@@ -483,6 +632,8 @@ class _Importer:
             raise ModelError(f"{what} is not a sympy expression: {excerpt(expr)}") from exc
         if self.speed_subs:
             expr = expr.xreplace(self.speed_subs)
+        if self.kin_subs:
+            expr = expr.xreplace(self.kin_subs)
         clash = sorted(s.name for s in expr.free_symbols - {self.time} if s.name in self.taken)
         if clash:
             raise ModelError(f"{what} uses symbol(s) {', '.join(clash)} whose names are taken by the "
@@ -490,6 +641,9 @@ class _Importer:
         repl: dict = {}
         for d in expr.atoms(sp.Derivative):
             f = d.expr
+            if f in self.gspeeds:
+                raise ModelError(f"{what} contains the time derivative {d} of the speed {_fname(f)!r}: only the "
+                                 "coordinates and speeds may appear (no accelerations)")
             if isinstance(f, AppliedUndef) and f not in self.coords:
                 raise ModelError(f"{what} contains {_fname(f)!r} (as {d}), a dynamicsymbol that is not "
                                  f"a generalized coordinate")
@@ -503,12 +657,14 @@ class _Importer:
                 raise ModelError(f"{what} contains the derivative {d}: only first time derivatives of "
                                  f"the coordinates may appear")
         repl.update(self.coords)
+        repl.update(self.gspeeds)
         repl[self.time] = self.model.t
         expr = expr.xreplace(repl)
         stray = sorted(expr.atoms(AppliedUndef), key=str)
         if stray:
             listed = ", ".join(f"{_fname(f)!r} (as {f})" for f in stray)
-            raise ModelError(f"{what} contains {listed}: not a generalized coordinate; add it to q "
+            kind = "a generalized coordinate or speed" if self.gspeeds else "a generalized coordinate"
+            raise ModelError(f"{what} contains {listed}: not {kind}; add it to q "
                              f"or substitute it")
         return expr
 
@@ -520,7 +676,7 @@ class _Importer:
         Returns the substitution taking the user's symbols to the model's parameter symbols.
         ``unset``: the value of symbols ``values`` misses (None: an error names them).
         """
-        known = self.model.known_symbols()
+        known = self.model.known_symbols() | set(self.gspeeds.values())
         by_name: dict[str, sp.Symbol] = {}
         for e in exprs:
             for s in sorted(e.free_symbols - known, key=lambda s: s.name):

@@ -166,6 +166,7 @@ class GivenEquations:
     kinetic_energy: sp.Expr | None
     potential_energy: sp.Expr | None
     symmetric: bool
+    missing: tuple = ()  # ("T" or "V", why it is not known) for the error messages
 
 
 #: :meth:`Model.equations_of_motion` proves M symmetric by expanding M_ij - M_ji only for entries of
@@ -636,7 +637,7 @@ class Model:
             (label or f"Q*[{self.coords[i].name}]", i, _as_expr(expr, f"generalized force on {self.coords[i].name!r}")))
 
     def equations_of_motion(self, M, F, *, kinetic_energy=None, potential_energy=None, symmetric: bool | None = None,
-                            label: str = "equations") -> GivenEquations:
+                            label: str = "equations", missing: dict | None = None) -> GivenEquations:
         """Add equations of motion given directly: M(q, v, t) v' = F(q, v, t), M nv x nv and F of nv
         rows in the model's coordinates, speeds :attr:`v` (the coordinates' rates q' unless
         :meth:`generalized_speeds` declared others), parameters and t. They are added to the
@@ -651,7 +652,8 @@ class Model:
         not determine). ``symmetric``: whether M is symmetric (None: proved by expanding M_ij - M_ji
         for small entries, else taken as not). A symmetric M is factored by Cholesky, another by LU
         with partial pivoting (Kane's equations with dependent speeds: the velocity constraints'
-        rows make M square and not symmetric)."""
+        rows make M square and not symmetric). ``missing``: {"T" or "V": why that energy is not
+        given}, told when an output needs it."""
         what = f"mass matrix of {label!r}"
         try:
             Mm = sp.Matrix(M)
@@ -680,7 +682,8 @@ class Model:
             self.check_symbols(V, f"potential energy of {label!r}", allow_speeds=False)
         if symmetric is None:
             symmetric = _provably_symmetric(Mm)
-        eq = GivenEquations(label, Mm, Fm, T, V, bool(symmetric))
+        eq = GivenEquations(label, Mm, Fm, T, V, bool(symmetric),
+                            tuple((k, str(v)) for k, v in (missing or {}).items() if v))
         self.given_equations.append(eq)
         return eq
 
