@@ -224,20 +224,25 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     _physics()
     if System is None or not isinstance(system, System):
         raise ModelError(f"from_system needs a sympy.physics.mechanics.System, got {type(system).__name__}")
-    for what, items in (("holonomic constraints", system.holonomic_constraints),
-                        ("nonholonomic constraints", system.nonholonomic_constraints),
-                        ("dependent coordinates", system.q_dep), ("dependent speeds", system.u_dep),
-                        ("auxiliary speeds", system.u_aux)):
-        if len(items):
-            listed = excerpt(", ".join(map(str, items)), quote=False)
-            raise ModelError(f"from_system: the System has {what} ({listed}); lagcodegen "
-                             "takes constrained systems as a ConstrainedSystem of a Model: convert the unconstrained "
-                             "System and add the constraints there (lagcodegen.ConstrainedSystem)")
     q = list(system.q)
     if not q:
         raise ModelError("from_system: the System has no coordinates (add joints or coordinates)")
     imp = _Importer(q, time=None, name=name)
-    imp.set_speeds(_speeds_of(system, imp))
+    constrained = [what for what, items in (("holonomic constraints", system.holonomic_constraints),
+                                            ("nonholonomic constraints", system.nonholonomic_constraints),
+                                            ("dependent coordinates", system.q_dep),
+                                            ("dependent speeds", system.u_dep),
+                                            ("auxiliary speeds", system.u_aux)) if len(items)]
+    try:
+        speeds = None if constrained else _speeds_of(system, imp)
+    except ModelError:
+        speeds = None
+    if speeds is None:  # u != q' or constraints: Kane's equations of the System
+        if dissipation is not None:
+            raise ModelError("from_system: a dissipation function needs speeds u = q' and no constraints; give the "
+                             "damping as loads of the System (e.g. a LinearDamper actuator)")
+        return _system_by_kane(system, constrained, parameters=parameters, name=name, unset=unset)
+    imp.set_speeds(speeds)
     frame, origin = system.frame, system.fixed_point
 
     energies: list[tuple[str, sp.Expr, sp.Expr]] = []
@@ -274,6 +279,29 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
         if V != 0:
             model.potential_energy(V.xreplace(subs), label=label)
     return _finish(model, imp, positions, Q_conv, D_conv, subs)
+
+
+def _system_by_kane(system, constrained: list, *, parameters, name: str, unset) -> Model:
+    """The :func:`from_kanes_method` model of the KanesMethod a System's ``form_eoms`` would build
+    (the same arguments, explicit kinematics), formed without changing the System; its fixed
+    point is the origin of the potentials and positions."""
+    what = f" (it has {', '.join(constrained)})" if constrained else ""
+    advice = ("declare one dependent coordinate per holonomic constraint and one dependent speed per constraint "
+              "(System.add_coordinates(..., independent=False), add_speeds(..., independent=False)), or convert "
+              "the unconstrained System and add the constraints in a lagcodegen.ConstrainedSystem")
+    loads = tuple(system.loads) + tuple(load for act in system.actuators for load in act.to_loads())
+    try:
+        system.validate_system(KanesMethod)
+        km = KanesMethod(system.frame, q_ind=system.q_ind, u_ind=system.u_ind, kd_eqs=system.kdes,
+                         q_dependent=system.q_dep, u_dependent=system.u_dep,
+                         configuration_constraints=system.holonomic_constraints,
+                         velocity_constraints=system.velocity_constraints, u_auxiliary=system.u_aux,
+                         forcelist=loads or None, bodies=system.bodies)
+        km.kanes_equations()
+    except (ValueError, TypeError, AttributeError, NotImplementedError) as exc:
+        raise ModelError(f"from_system: Kane's equations of the System{what} cannot be formed: "
+                         f"{excerpt(' '.join(str(exc).split()), limit=300, quote=False)}" + (f"; {advice}" if constrained else "")) from None
+    return from_kanes_method(km, parameters=parameters, name=name, unset=unset, origin=system.fixed_point)
 
 
 def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: str = "model",
