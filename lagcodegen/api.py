@@ -62,8 +62,9 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options;
     ``lang``: "c" or "fortran", the language of the generated model code).
 
-    ``model`` may be a ``sympy.physics.mechanics.System`` whose speeds are q'
-    (:func:`lagcodegen.model.mechanics.from_system`); ``values`` then gives every parameter's value.
+    ``model`` may be a ``sympy.physics.mechanics.System`` (:func:`lagcodegen.model.mechanics.from_system`)
+    or a ``KanesMethod`` after ``kanes_equations`` (:func:`~lagcodegen.model.mechanics.from_kanes_method`);
+    ``values`` then gives every parameter's value.
 
     ``jacobian=None`` emits the analytic Jacobian for models with at most
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.

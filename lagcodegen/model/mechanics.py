@@ -7,9 +7,16 @@ Users of sympy's mechanics package can bring their models as they are:
 * :func:`from_bodies` takes the inertial frame and the bodies themselves, and keeps the
   kinetic and potential energies apart (so energy outputs are exact);
 * :func:`from_system` takes a ``sympy.physics.mechanics.System`` built with joints
-  (``PinJoint``, ``PrismaticJoint``, ``SphericalJoint``, ...), its bodies, loads and actuators,
-  when its generalized speeds are the coordinates' time derivatives (u = q'). :func:`as_model`
-  lets :func:`lagcodegen.derive` and :func:`lagcodegen.compile_model` take such a System.
+  (``PinJoint``, ``PrismaticJoint``, ``SphericalJoint``, ...), its bodies, loads and actuators:
+  as a Lagrangian model when its generalized speeds are the coordinates' time derivatives
+  (u = q') and it has no constraints, else through Kane's equations (:func:`from_kanes_method`);
+* :func:`from_kanes_method` takes a ``KanesMethod`` on which ``kanes_equations`` has run: its
+  coordinates, speeds, kinematic equations and M u' = forcing (dependent speeds' constraint rows
+  included) as a model with generalized speeds and equations given directly
+  (:meth:`Model.equations_of_motion`).
+
+:func:`as_model` lets :func:`lagcodegen.derive` and :func:`lagcodegen.compile_model` take a
+System or a KanesMethod.
 
 Supported sympy.physics.mechanics objects:
 
@@ -25,11 +32,11 @@ Supported sympy.physics.mechanics objects:
   a torque on frame B gives Q_i = T . dw_B/dq_i', the same as ``LagrangesMethod``;
 * a Rayleigh dissipation function in q'(t) (eq. 3.15).
 
-Not supported: constraint equations (``hol_coneqs``/``nonhol_coneqs``, a System's holonomic
-and nonholonomic constraints), generalized speeds u(t) other than q'(t) (a ``KanesMethod`` with
-kinematic equations such as u = w . b_z for a ball joint), and ``KanesMethod`` /
-``LagrangesMethod`` / ``JointsMethod`` objects themselves (pass the ``System``, or the bodies and
-coordinates to :func:`from_bodies`, or the Lagrangian to :func:`from_lagrangian`).
+Not supported: constraint equations of a Lagrangian (``hol_coneqs``/``nonhol_coneqs``), a
+System's or KanesMethod's holonomic constraints without dependent coordinates and speeds (sympy
+cannot form Kane's equations then; lagcodegen.ConstrainedSystem takes the unconstrained model and
+the constraints), and ``LagrangesMethod`` / ``JointsMethod`` objects (pass the ``System``, or the
+bodies and coordinates to :func:`from_bodies`, or the Lagrangian to :func:`from_lagrangian`).
 
 Conversion: q_i(t) becomes the plain symbol named like q_i, q_i'(t) the symbol
 ``<name>_dot`` (:meth:`Model.dot`), time the model's ``t``. Every other free symbol is a
@@ -195,7 +202,8 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
 
 def from_system(system, *, parameters: ParameterValues | None = None, dissipation=None, name: str = "model",
                 unset: float | None = None) -> Model:
-    """A :class:`Model` from a ``sympy.physics.mechanics.System`` whose speeds are q'.
+    """A :class:`Model` from a ``sympy.physics.mechanics.System``: Lagrangian when its speeds are q'
+    and it has no constraints (below), else Kane's equations (the last paragraph).
 
     The system's coordinates (``system.q``) become the model's, in order; its bodies
     (``system.bodies``: ``RigidBody`` and ``Particle``) give T = sum of
@@ -212,9 +220,12 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     q_i'(t) itself (joints made with ``speeds=q.diff(t)``), or the kinematic differential
     equations ``system.kdes`` say u_j = q_i' (the joints' default u_j - q_i' = 0 of
     ``PinJoint`` and ``PrismaticJoint``). Otherwise (a ``SphericalJoint``'s angular-velocity
-    speeds, any u_j = f(q, q') other than q_i') a :class:`ModelError` says what the kinematic
-    equations give and how to make the speeds q' instead. Constraints (holonomic,
-    nonholonomic, dependent or auxiliary speeds) are refused.
+    speeds, any u_j = f(q, q') other than q_i'), and with constraints (holonomic, nonholonomic,
+    dependent or auxiliary speeds), the model is :func:`from_kanes_method`'s of the KanesMethod
+    ``System.form_eoms()`` would build (formed here without changing the System), with
+    ``system.fixed_point`` as the origin of potentials and positions; ``dissipation`` is refused
+    then (give damping as loads), and constraints sympy cannot form equations for (no dependent
+    coordinates or speeds declared) are a ModelError saying what to declare.
 
     ``parameters``: the value of every other free symbol (by symbol or name; its default as a
     model parameter); ``unset``: the value given to symbols missing from ``parameters`` (None:
@@ -407,7 +418,9 @@ def _kane_potential(loads, frame, origin, imp: "_Importer"):
         if all(c == 0 for c in Fv):
             continue
         if origin is None:
-            return None, f"the constant force at point {location.name} (gravity?) has no potential without a fixed point: pass origin=<Point>"
+            return None, (f"the constant force at point {location.name} (gravity?) has no potential without a fixed "
+                          "point: import the KanesMethod with lagcodegen.model.mechanics.from_kanes_method(km, "
+                          "origin=<a Point fixed in the inertial frame>)")
         Vp = _constant_force_potential(location, vector, frame, origin, imp)
         if Vp is None:
             return None, f"the position of point {location.name} from {origin.name} is not known"
