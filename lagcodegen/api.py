@@ -74,7 +74,10 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
-    model = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
+    converted = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
+    if converted is not model and values:  # sympy's objects take values by symbol too: the scene's are by name
+        values = {getattr(k, "name", k): v for k, v in values.items()}
+    model = converted
     with _progress.enabled(progress):
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,

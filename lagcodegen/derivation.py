@@ -462,7 +462,7 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
     A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
     """
     model = require_model(as_model(model, unset=1.0), "derive")
-    with progress.stage("derive", total=model.n, unit="coordinates") as stage:
+    with progress.stage("derive", total=max(model.n, model.nv), unit="coordinates") as stage:
         return _derive(model, check, stage)
 
 

@@ -375,7 +375,7 @@ def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: st
     exprs += [c for _, r in positions for c in r]
     subs = imp.declare_parameters(exprs, parameters, unset=unset)
     model = imp.model
-    model.generalized_speeds([_fname(w) for w in u], [k.xreplace(subs) for k in kinematics])
+    model.generalized_speeds([_fname(w) for w in u], [k.xreplace(subs) for k in kinematics], excess=True)
     dependent = bool(getattr(km, "_udep", None))
     model.equations_of_motion(M.xreplace(subs), F.xreplace(subs),
                               kinetic_energy=None if T is None else T.xreplace(subs),

@@ -379,14 +379,19 @@ class Model:
 
     @property
     def nv(self) -> int:
-        """Number of generalized speeds (nv <= nq)."""
+        """Number of generalized speeds (nv <= nq but for Kane's equations with ignorable coordinates left out)."""
         return len(self.v)
 
-    def generalized_speeds(self, names: Sequence[str], kinematics) -> tuple[sp.Symbol, ...]:
+    def generalized_speeds(self, names: Sequence[str], kinematics, *, excess: bool = False) -> tuple[sp.Symbol, ...]:
         """Declare generalized speeds ``names`` and the kinematic equations q' = f(q, v, t) of
         every coordinate (``kinematics``: a mapping coordinate (symbol or name) -> expression, or
         a sequence in coordinate order), replacing the speeds q' the coordinates brought (Kane's
-        form; notes eq. 2.1 with q' a function of the speeds). Return the speeds' symbols."""
+        form; notes eq. 2.1 with q' a function of the speeds). Return the speeds' symbols.
+
+        ``excess``: allow more speeds than coordinates (Kane's equations whose ignorable
+        coordinates were left out, e.g. a bicycle's wheel angles with their rates kept as speeds);
+        their equations must be given directly (:meth:`equations_of_motion`): Lagrange's, projected
+        onto more speeds than coordinates, would have a singular mass matrix."""
         if self.velocities:
             raise ModelError(f"model {self.name!r} has generalized speeds already")
         if isinstance(names, str):
@@ -400,7 +405,7 @@ class Model:
             syms.append(sp.Symbol(name))
         if len(set(syms)) != len(syms):
             raise ModelError("generalized speeds: a name is given twice")
-        if len(syms) > self.n:
+        if len(syms) > self.n and not excess:
             raise ModelError(f"{len(syms)} generalized speeds for {self.n} coordinates: at most one per coordinate")
         if isinstance(kinematics, dict):
             rows = {self.index(k): v for k, v in kinematics.items()}

@@ -107,7 +107,7 @@ STATES = [[0.3, 0.4, -0.7, 1.1, -0.6, 2.0], [-1.2, 0.9, 2.5, -0.4, 3.0, 0.7], [0
 
 def test_rolling_disc_rhs_agrees_with_kanes_method_rhs():
     km, _ = rolling_disc()
-    cm = lcg.compile_model(km, values=VALUES)
+    cm = lcg.compile_model(km, values={sp.Symbol(k): v for k, v in VALUES.items()})  # by symbol or by name
     assert (cm.nq, cm.nv) == (3, 3)
     assert cm.code.state_names == ["q1", "q2", "q3", "u1", "u2", "u3"]
     ref = sympy_rhs(km)
@@ -219,6 +219,10 @@ def test_stray_dynamicsymbols_and_accelerations_are_named():
     km2.kanes_equations([me.Particle("p", P, m)], [(P, -m * u.diff(t) * N.x)])  # a force in u'
     with pytest.raises(ModelError, match=r"time derivative .* of the speed 'u'"):
         lcg.compile_model(km2, values={"m": 1.0})
+    km3 = me.KanesMethod(N, q_ind=[q], u_ind=[u], kd_eqs=[q.diff(t) - u])
+    km3.kanes_equations([me.Particle("p", P, m)], [(P, -m * q.diff(t, 2) * N.x)])  # a force in q''
+    with pytest.raises(ModelError, match=r"derivative of order 2 of 'q'"):
+        lcg.compile_model(km3, values={"m": 1.0})
 
 
 def test_a_refused_constrained_system_keeps_its_message_short():
@@ -235,3 +239,51 @@ def test_a_refused_constrained_system_keeps_its_message_short():
         lcg.compile_model(bare, values=VALUES)
     text = str(info.value)
     assert "nonholonomic constraints" in text and "independent=False" in text and len(text) < 900
+
+
+def sympy_bicycle():
+    """sympy's own bicycle (sympy/physics/mechanics/tests/test_kane3.py, Meijaard et al.'s benchmark
+    ported from Autolev): coordinates q1, q2, q5 and the dependent pitch q4 (a configuration
+    constraint), speeds u2, u3, u5 and the dependent u1, u4, u6 (three velocity constraints); the
+    wheel angles are left out, their rates u3, u6 kept: 4 coordinates, 6 speeds. Its statements
+    are run from sympy's test source, up to kanes_equations and the benchmark's values.
+    Returns (km, the velocity constraints, the configuration constraint, values by symbol)."""
+    import inspect
+    import textwrap
+    from sympy.physics.mechanics.tests import test_kane3
+    source = textwrap.dedent(inspect.getsource(test_kane3.test_bicycle).split(":\n", 1)[1])
+    head, found, rest = source.partition("(fr, frstar) = KM.kanes_equations(BL, FL)")
+    values, found2, _ = rest.partition("u6: v / PaperRadFront}")
+    if not found or not found2:
+        pytest.skip("sympy's bicycle test changed its layout")
+    scope = dict(vars(test_kane3))
+    exec(head + found + values + found2, scope)
+    vals = {k: float(v) for k, v in scope["val_dict"].items()
+            if isinstance(k, sp.Symbol) and k.name != "v"}
+    return scope["KM"], scope["conlist_speed"], scope["conlist_coord"], vals
+
+
+def test_sympys_bicycle_with_dependent_speeds_agrees_with_kanes_method():
+    """sympy's KanesMethod.rhs() solves mass_matrix_full (y' = (q', u')) by LU; its symbolic LU
+    solve of this size would take hours, so the same system is solved numerically (lambdified,
+    numpy) at states that satisfy the configuration and velocity constraints: within 1e-10."""
+    from scipy.optimize import brentq
+    km, conlist_speed, conlist_coord, vals = sympy_bicycle()
+    cm = lcg.compile_model(km, values=vals)
+    assert (cm.nq, cm.nv) == (4, 6)
+    q, u = list(km.q), list(km.u)
+    Mf = sp.lambdify(q + u, km.mass_matrix_full.xreplace(vals), "numpy", cse=True)
+    Ff = sp.lambdify(q + u, km.forcing_full.xreplace(vals), "numpy", cse=True)
+    hol = sp.lambdify(q, conlist_coord[0].xreplace(vals), "numpy")
+    dep = list(km.u[3:])
+    A, b = sp.linear_eq_to_matrix([sp.sympify(c).xreplace(km.kindiffdict()).xreplace(vals) for c in conlist_speed],
+                                  dep)
+    Af, bf = sp.lambdify(q + u, A, "numpy"), sp.lambdify(q + u, b, "numpy")
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        q1, q2, q5 = rng.uniform(-0.3, 0.3, 3)
+        q4 = brentq(lambda x: float(hol(q1, q2, q5, x)), -0.3, 0.6)  # the pitch that keeps both wheels down
+        y = np.array([q1, q2, q5, q4, *(rng.normal(size=3) + [0, 5 / 0.3, 0]), 0.0, 0.0, 0.0])
+        y[7:] = np.linalg.solve(np.asarray(Af(*y), float), np.asarray(bf(*y), float).ravel())
+        ref = np.linalg.solve(np.asarray(Mf(*y), float), np.asarray(Ff(*y), float).ravel())
+        assert np.abs(cm.rhs(0.0, y) - ref).max() <= 1e-10 * max(1.0, np.abs(ref).max())
