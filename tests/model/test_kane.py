@@ -287,3 +287,39 @@ def test_sympys_bicycle_with_dependent_speeds_agrees_with_kanes_method():
         y[7:] = np.linalg.solve(np.asarray(Af(*y), float), np.asarray(bf(*y), float).ravel())
         ref = np.linalg.solve(np.asarray(Mf(*y), float), np.asarray(Ff(*y), float).ravel())
         assert np.abs(cm.rhs(0.0, y) - ref).max() <= 1e-10 * max(1.0, np.abs(ref).max())
+
+
+def test_equations_given_directly_add_to_a_lagrangian_model():
+    """Model.equations_of_motion on a model with bodies: its M and F are added to Lagrange's (a
+    torque tau as a given F equals the generalized force tau), energies as given."""
+    def pendulum(given):
+        m = lcg.Model("given_torque" if given else "q_star_torque")
+        th, = m.coordinates("theta")
+        l, g, mass, tau = m.parameters(l=0.8, g=9.81, m=1.3, tau=0.7)
+        m.particle("bob", mass, (l * sp.sin(th), -l * sp.cos(th)))
+        m.gravity(g)
+        if given:
+            m.equations_of_motion([[0]], [tau], kinetic_energy=0, potential_energy=0, label="motor")
+        else:
+            m.generalized_force(th, tau)
+        return m
+    a, b = lcg.compile_model(pendulum(True), outputs=["energy"]), lcg.compile_model(pendulum(False))
+    for y in ([0.3, -1.0], [2.0, 0.5]):
+        np.testing.assert_allclose(a.rhs(0.0, np.array(y)), b.rhs(0.0, np.array(y)), rtol=1e-14, atol=1e-14)
+    with pytest.raises(ModelError, match="mass matrix of 'motor' is 2 x 2, the model has 1 speeds"):
+        pendulum(False).equations_of_motion(sp.eye(2), [0, 0], label="motor")
+
+
+def test_a_mass_matrix_that_is_not_symmetric_is_solved_by_lu():
+    m = lcg.Model("not_symmetric")
+    a, b = m.coordinates("a b")
+    m.equations_of_motion([[1, 1], [0, 2]], [-a, -b])
+    eom = lcg.derive(m)
+    assert not eom.symmetric and not m.general
+    cm = lcg.compile_model(m)  # jacobian=None: none for it
+    # [1 1; 0 2] v' = (-a, -b): v2' = -b/2, v1' = -a + b/2 (not the symmetric [1 1; 1 2]'s answer)
+    np.testing.assert_allclose(cm.rhs(0.0, np.array([1.0, 4.0, 0.0, 0.0])), [0, 0, 1.0, -2.0], atol=1e-15)
+    with pytest.raises(ModelError, match="not symmetric.*jacobian=False"):
+        lcg.compile_model(m, jacobian=True)
+    with pytest.raises(ModelError, match="not symmetric.*Fortran backend"):
+        lcg.compile_model(m, lang="fortran")
