@@ -1,5 +1,10 @@
 """Lagrange's equations M(q, q', t) q'' = F(q, q', t) from a :class:`~lagcodegen.model.Model`.
 
+One job: a model's elements into one M and F (:class:`EquationsOfMotion`): Lagrange's closed-form
+terms, their projection onto generalized speeds, a rigid-body tree's terms
+(:mod:`lagcodegen.model.treedynamics` computes them) and equations given directly
+(:meth:`Model.equations_of_motion`, Kane's) are added here, with the energies and momenta beside.
+
 The derivation runs on symengine (fast), and every result is offered as sympy objects:
 
 * T from the bodies (eq. 2.2) plus any T given directly, V (eq. 2.7), L = T - V (sec. 3.2),

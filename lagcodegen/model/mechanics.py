@@ -1,5 +1,9 @@
 """Import models written with :mod:`sympy.physics.mechanics` as lagcodegen :class:`Model` s.
 
+One job: sympy's mechanics objects into models, through one expression importer
+(:class:`_Importer`: dynamicsymbols to the model's symbols, parameters, loads) that the Lagrangian
+imports (from_lagrangian, from_bodies, from_system) and Kane's (from_kanes_method) share.
+
 Users of sympy's mechanics package can bring their models as they are:
 
 * :func:`from_lagrangian` takes a Lagrangian L(q(t), q'(t), t), for example built by
