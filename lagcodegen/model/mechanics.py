@@ -334,7 +334,7 @@ def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: st
       solves it by LU): the same system ``km.rhs()`` integrates, so a run keeps the velocity
       constraints as well as sympy's own integration does; the configuration constraints
       (dependent coordinates) are not enforced either, as there. Auxiliary speeds are left
-      out, as ``km.mass_matrix`` leaves them;
+      out, as ``km.mass_matrix`` leaves them (zero in the kinetic energy);
     * energies, for the outputs only: T = sum of ``body.kinetic_energy(frame)`` over
       ``km.bodies`` (in q and u). The potential energy is known when every load that is a force
       constant in the inertial frame (gravity) acts at a point whose position from ``origin`` is
@@ -372,7 +372,8 @@ def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: st
     M = M.applyfunc(lambda e: imp.convert(e, "the mass matrix of Kane's equations"))
     F = F.applyfunc(lambda e: imp.convert(e, "the forcing of Kane's equations"))
     frame = km._inertial
-    T = _kane_kinetic_energy(km.bodies, frame, imp)
+    aux = dict.fromkeys(getattr(km, "_uaux", None) or (), 0)  # auxiliary speeds: zero in the motion
+    T = _kane_kinetic_energy(km.bodies, frame, imp, aux)
     V, why_not_V = _kane_potential(km.loads, frame, origin, imp)
     positions = _positions(km.bodies, frame, origin, imp) if origin is not None else []
     exprs = [*kinematics, *M, *F] + ([] if T is None else [T]) + ([] if V is None else [V])
@@ -394,12 +395,13 @@ def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: st
     return model
 
 
-def _kane_kinetic_energy(bodies, frame, imp: "_Importer"):
-    """T = sum of the bodies' kinetic energies in ``frame``, in (q, u); None if one cannot be formed."""
+def _kane_kinetic_energy(bodies, frame, imp: "_Importer", aux: dict):
+    """T = sum of the bodies' kinetic energies in ``frame``, in (q, u), the auxiliary speeds ``aux``
+    set to zero; None if one cannot be formed."""
     T = sp.Integer(0)
     for body in bodies or ():
         try:
-            Tb = body.kinetic_energy(frame)
+            Tb = body.kinetic_energy(frame).xreplace(aux)
         except ValueError:
             return None
         T += imp.convert(Tb, f"kinetic energy of body {body.name!r}")

@@ -323,3 +323,29 @@ def test_a_mass_matrix_that_is_not_symmetric_is_solved_by_lu():
         lcg.compile_model(m, jacobian=True)
     with pytest.raises(ModelError, match="not symmetric.*Fortran backend"):
         lcg.compile_model(m, lang="fortran")
+
+
+def test_auxiliary_speeds_are_left_out_as_kanes_method_leaves_them():
+    """sympy's rolling disc with auxiliary speeds u4, u5 at the contact point (test_kane.py's
+    test_aux) and the contact forces f1, f2 on them: the same motion as without them."""
+    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols("q1 q2 q3 u1 u2 u3")
+    u4, u5, f1, f2 = me.dynamicsymbols("u4 u5 f1 f2")
+    r, m, g = sp.symbols("r m g")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_R_N_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point("C")
+    C.set_vel(N, u4 * L.x + u5 * (Y.z ^ L.x))
+    Dmc = C.locatenew("Dmc", r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    disc = me.RigidBody("disc", Dmc, R, m, (me.inertia(L, m / 4 * r**2, m / 2 * r**2, m / 4 * r**2), Dmc))
+    km = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3],
+                        kd_eqs=[me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L], u_auxiliary=[u4, u5])
+    km.kanes_equations([disc], [(Dmc, -m * g * Y.z), (C, f1 * L.x + f2 * (Y.z ^ L.x))])
+    cm = lcg.compile_model(km, values=VALUES, outputs=["kinetic_energy"])
+    ref = sympy_rhs(rolling_disc()[0])
+    for y in STATES:
+        assert np.abs(cm.rhs(0.0, np.array(y)) - ref(y)).max() <= 1e-12 * max(1.0, np.abs(ref(y)).max())
