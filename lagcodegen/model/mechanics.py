@@ -243,11 +243,11 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     if not q:
         raise ModelError("from_system: the System has no coordinates (add joints or coordinates)")
     imp = _Importer(q, time=None, name=name)
-    constrained = [what for what, items in (("holonomic constraints", system.holonomic_constraints),
-                                            ("nonholonomic constraints", system.nonholonomic_constraints),
-                                            ("dependent coordinates", system.q_dep),
-                                            ("dependent speeds", system.u_dep),
-                                            ("auxiliary speeds", system.u_aux)) if len(items)]
+    constrained = [(what, items) for what, items in (("holonomic constraints", system.holonomic_constraints),
+                                                     ("nonholonomic constraints", system.nonholonomic_constraints),
+                                                     ("dependent coordinates", system.q_dep),
+                                                     ("dependent speeds", system.u_dep),
+                                                     ("auxiliary speeds", system.u_aux)) if len(items)]
     try:
         speeds = None if constrained else _speeds_of(system, imp)
     except ModelError:
@@ -300,10 +300,6 @@ def _system_by_kane(system, constrained: list, *, parameters, name: str, unset) 
     """The :func:`from_kanes_method` model of the KanesMethod a System's ``form_eoms`` would build
     (the same arguments, explicit kinematics), formed without changing the System; its fixed
     point is the origin of the potentials and positions."""
-    what = f" (it has {', '.join(constrained)})" if constrained else ""
-    advice = ("declare one dependent coordinate per holonomic constraint and one dependent speed per constraint "
-              "(System.add_coordinates(..., independent=False), add_speeds(..., independent=False)), or convert "
-              "the unconstrained System and add the constraints in a lagcodegen.ConstrainedSystem")
     loads = tuple(system.loads) + tuple(load for act in system.actuators for load in act.to_loads())
     try:
         system.validate_system(KanesMethod)
@@ -314,8 +310,14 @@ def _system_by_kane(system, constrained: list, *, parameters, name: str, unset) 
                          forcelist=loads or None, bodies=system.bodies)
         km.kanes_equations()
     except (ValueError, TypeError, AttributeError, NotImplementedError) as exc:
-        raise ModelError(f"from_system: Kane's equations of the System{what} cannot be formed: "
-                         f"{excerpt(' '.join(str(exc).split()), limit=300, quote=False)}" + (f"; {advice}" if constrained else "")) from None
+        reason = excerpt(" ".join(str(exc).split()), limit=100, quote=False)
+        if not constrained:
+            raise ModelError(f"from_system: sympy cannot form Kane's equations of the System: {reason}") from None
+        (what, items), *others = constrained
+        has = f"{what} ({excerpt(', '.join(map(str, items)), quote=False)})" + "".join(f", {w}" for w, _ in others)
+        raise ModelError(f"from_system: the System has {has}; sympy cannot form Kane's equations of it: {reason}; "
+                         "declare dependent coordinates and speeds (independent=False), or constrain the "
+                         "unconstrained model in a lagcodegen.ConstrainedSystem") from None
     return from_kanes_method(km, parameters=parameters, name=name, unset=unset, origin=system.fixed_point)
 
 
