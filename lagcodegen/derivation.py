@@ -464,7 +464,8 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
 
     Reports the stage "derive" (:mod:`lagcodegen.progress`), one step per coordinate.
 
-    A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
+    A ``sympy.physics.mechanics.System`` or ``KanesMethod`` is taken through
+    :func:`lagcodegen.model.mechanics.as_model`.
     """
     model = require_model(as_model(model, unset=1.0), "derive")
     with progress.stage("derive", total=max(model.n, model.nv), unit="coordinates") as stage:

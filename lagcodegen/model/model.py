@@ -863,7 +863,7 @@ def require_model(obj, what: str) -> Model:
     a loaded model file, a constrained system)."""
     if isinstance(obj, Model):
         return obj
-    takes = f"{what} takes a Model (or a sympy.physics.mechanics System)"
+    takes = f"{what} takes a Model (or a sympy.physics.mechanics System or KanesMethod)"
     kind = type(obj).__name__
     if isinstance(obj, (str, bytes)) or hasattr(obj, "__fspath__"):
         hint = ("for a model file, lagcodegen.compile_file(path) compiles it with its [simulation] settings, "
