@@ -63,8 +63,9 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     """Derive, generate and compile ``model`` in one call (see :class:`Scene` for the options;
     ``lang``: "c" or "fortran", the language of the generated model code).
 
-    ``model`` may be a ``sympy.physics.mechanics.System`` whose speeds are q'
-    (:func:`lagcodegen.model.mechanics.from_system`); ``values`` then gives every parameter's value.
+    ``model`` may be a ``sympy.physics.mechanics.System`` (:func:`lagcodegen.model.mechanics.from_system`)
+    or a ``KanesMethod`` after ``kanes_equations`` (:func:`~lagcodegen.model.mechanics.from_kanes_method`);
+    ``values`` then gives every parameter's value.
 
     ``jacobian=None`` emits the analytic Jacobian for models with at most
     :data:`AUTO_JACOBIAN_MAX_N` coordinates; larger ones use CVODE's difference quotients.
@@ -74,7 +75,10 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
     :func:`lagcodegen.progress.enabled` says (off unless set).
     """
-    model = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
+    converted = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
+    if converted is not model and values:  # sympy's objects take values by symbol too: the scene's are by name
+        values = {getattr(k, "name", k): v for k, v in values.items()}
+    model = converted
     with _progress.enabled(progress):
         return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
                                   runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
@@ -147,7 +151,7 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
 def auto_jacobian(eom: EquationsOfMotion) -> bool:
     """``jacobian=None``: the analytic Jacobian for models of at most AUTO_JACOBIAN_MAX_N
     coordinates whose speeds are their rates (models with generalized speeds have none yet)."""
-    return not eom.general and eom.model.n <= AUTO_JACOBIAN_MAX_N
+    return not eom.general and getattr(eom, "symmetric", True) and eom.model.n <= AUTO_JACOBIAN_MAX_N
 
 
 def _compile_equations(eom: EquationsOfMotion, *, jacobian: bool | None, outputs, runtime_parameters, values,

@@ -1,5 +1,10 @@
 """Lagrange's equations M(q, q', t) q'' = F(q, q', t) from a :class:`~lagcodegen.model.Model`.
 
+One job: a model's elements into one M and F (:class:`EquationsOfMotion`): Lagrange's closed-form
+terms, their projection onto generalized speeds, a rigid-body tree's terms
+(:mod:`lagcodegen.model.treedynamics` computes them) and equations given directly
+(:meth:`Model.equations_of_motion`, Kane's) are added here, with the energies and momenta beside.
+
 The derivation runs on symengine (fast), and every result is offered as sympy objects:
 
 * T from the bodies (eq. 2.2) plus any T given directly, V (eq. 2.7), L = T - V (sec. 3.2),
@@ -106,6 +111,13 @@ class EquationsOfMotion:
     quadratures: list = field(default_factory=list)  # (state name, symengine rate): extra states z' = rate
     derivation_seconds: float = 0.0
     tree: object = None  # treedynamics.TreeDynamics of the model's links (None: no links)
+    #: False if M need not be symmetric (equations given directly, e.g. Kane's with dependent speeds):
+    #: the generated code writes every entry and factors M by LU.
+    symmetric: bool = True
+    #: The quantities the equations do not determine (equations given directly without their
+    #: energies, Model.equations_of_motion): name ("T", "V", "momenta", "D", "Q", "L", "h", "dhdt")
+    #: -> why; their views and outputs are refused with it.
+    unknown: dict = field(default_factory=dict)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------ symbols
@@ -159,43 +171,55 @@ class EquationsOfMotion:
         return dict(self.model.params)
 
     # ------------------------------------------------------------ sympy views
+    def _known(self, name: str) -> None:
+        """ModelError if the equations do not determine ``name`` (:attr:`unknown`)."""
+        if name in self.unknown:
+            raise ModelError(self.unknown[name])
+
     @cached_property
     def T(self) -> sp.Expr:
         """Kinetic energy T(q, q', t) (eq. 2.2)."""
+        self._known('T')
         _viewable(self, 'T', self.T_se)
         return to_sp(self.T_se)
 
     @cached_property
     def V(self) -> sp.Expr:
         """Potential energy V(q, t) (eq. 2.7), including the velocity-free part of generalized potentials."""
+        self._known('V')
         _viewable(self, 'V', self.V_se)
         return to_sp(self.V_se)
 
     @cached_property
     def U_velocity(self) -> sp.Expr:
         """Velocity-dependent part of the generalized potentials (eq. 3.4), e.g. -e v . A."""
+        self._known('L')
         return to_sp(self.Uv_se)
 
     @cached_property
     def L(self) -> sp.Expr:
         """Lagrangian L = T - V - U_velocity (secs. 3.2, 3.3)."""
+        self._known('L')
         return self.T - self.V - self.U_velocity
 
     @cached_property
     def D(self) -> sp.Expr:
         """Rayleigh dissipation function (eq. 3.15)."""
+        self._known('D')
         _viewable(self, 'D', self.D_se)
         return to_sp(self.D_se)
 
     @cached_property
     def Q(self) -> sp.Matrix:
         """Generalized forces from Cartesian forces (eq. 2.6) and Q* (eq. 3.16)."""
+        self._known('Q')
         return sp.Matrix([to_sp(e) for e in self.Q_se])
 
     @cached_property
     def momenta(self) -> sp.Matrix:
         """Generalized (canonical) momenta p_i = dL/dq_i'; equal to dT/dq_i' (eq. 2.3) unless a
         generalized potential depends on the velocities (then e.g. m v + e A)."""
+        self._known('momenta')
         _viewable(self, 'momenta', self.p_se)
         return sp.Matrix([to_sp(e) for e in self.p_se])
 
@@ -214,6 +238,7 @@ class EquationsOfMotion:
     @cached_property
     def h(self) -> sp.Expr:
         """Jacobi energy function h = sum_i q_i' dL/dq_i' - L (eq. 3.5)."""
+        self._known('h')
         _viewable(self, 'h', self.h_se)
         return to_sp(self.h_se)
 
@@ -223,6 +248,7 @@ class EquationsOfMotion:
 
         For D homogeneous quadratic in the velocities, sum_i q_i' dD/dq_i' = 2 D.
         """
+        self._known('dhdt')
         _viewable(self, 'dhdt', self.dhdt_se)
         return to_sp(self.dhdt_se)
 
@@ -448,16 +474,26 @@ def derive(model: Model, check: bool = True) -> EquationsOfMotion:
 
     Reports the stage "derive" (:mod:`lagcodegen.progress`), one step per coordinate.
 
-    A ``sympy.physics.mechanics.System`` is taken through :func:`lagcodegen.model.mechanics.as_model`.
+    A ``sympy.physics.mechanics.System`` or ``KanesMethod`` is taken through
+    :func:`lagcodegen.model.mechanics.as_model`.
     """
     model = require_model(as_model(model, unset=1.0), "derive")
-    with progress.stage("derive", total=model.n, unit="coordinates") as stage:
+    with progress.stage("derive", total=max(model.n, model.nv), unit="coordinates") as stage:
         return _derive(model, check, stage)
+
+
+def _lagrangian_terms(model: Model) -> bool:
+    """True if the model has elements Lagrange's equations are formed from (not only equations
+    given directly, :meth:`Model.equations_of_motion`)."""
+    return bool(model.bodies or model.kinetic_terms or model.potential_terms or model.generalized_potential_terms
+                or model.dissipation_terms or model.cartesian_forces or model.generalized_forces or model.links)
 
 
 def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
     start = time.perf_counter()
     model.validate()
+    if model.given_equations and not _lagrangian_terms(model):
+        return _derive_given(model, check, stage, start)
     eng = _Engine(model)
     T, T_rest, masses = _kinetic_energy(model, eng, split=SPLIT_POINT_MASSES)
     V = _potential_energy(model, eng)
@@ -485,7 +521,7 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
         if model.general:
             used |= {se.Symbol(c.name) for lk in model.links if lk.joint.quaternion for c in lk.coordinates}
     for q, qd in zip(eng.q, eng.qd):
-        if q not in used and qd not in used:
+        if q not in used and qd not in used and not model.given_equations:
             raise ModelError(f"coordinate {q.name!r} appears nowhere in T, V, D or the forces")
 
     # L without the point masses of _point_masses (differentiated symbolically), and their terms.
@@ -510,9 +546,10 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
         p.append(pi)  # eq. 2.3
         F.append(Fi)
         stage.advance()
-    if check and tree is None and all(M[i][j] == 0 for i in range(n) for j in range(n)):
+    check_rows = check and tree is None and not model.given_equations
+    if check_rows and all(M[i][j] == 0 for i in range(n) for j in range(n)):
         raise DerivationError("the mass matrix is identically zero: T does not depend on the velocities")
-    for i in range(n if check and tree is None else 0):
+    for i in range(n if check_rows else 0):
         if M[i][i] == 0 and all(M[i][j] == 0 for j in range(n)):
             raise DerivationError(
                 f"row {i} of the mass matrix is identically zero: no kinetic energy in velocity "
@@ -522,6 +559,12 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
     if model.general:
         M, F, p, Q, (T, V, h, D, dhdt, Uv) = _project(model, eng, M, F, p, Q, (T, V, h, D, dhdt, Uv))
         n = model.nv
+    symmetric, unknown = True, {}
+    if model.given_equations:  # before the tree's terms: the tree's kernels add them as closed-form terms
+        T, V, symmetric, unknown = _add_given(model, eng, M, F, p, T, V)
+        if tree is not None and not symmetric:
+            raise ModelError(f"model {model.name!r}: equations given directly whose mass matrix is not symmetric "
+                             "cannot be added to a rigid-body tree's (Model.link)")
     if tree is not None:
         T, V, h = _add_tree(tree, eng, M, F, p, T, V, h)
         for i in range(n if check else 0):
@@ -531,7 +574,74 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
                     f"{model.v[i].name!r} (a joint whose links beyond it have no mass or inertia)")
     eom = EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=D, Q_se=Q, p_se=p, M_se=M, F_se=F,
                             h_se=h, dhdt_se=dhdt, Uv_se=Uv, derivation_seconds=time.perf_counter() - start,
-                            tree=tree)
+                            tree=tree, symmetric=symmetric, unknown=unknown)
+    eom._cache["positions"] = {pt.name: eng.vec(pt.position, f"position of {pt.name!r}")
+                               for pt in model.points.values()}
+    return eom
+
+
+def _add_given(model: Model, eng: _Engine, M: list, F: list, p: list, T, V):
+    """Add the equations given directly (:meth:`Model.equations_of_motion`) in place to M, F and the
+    momenta (dT/dv of their kinetic energies); return (T, V with their energies, whether M is
+    symmetric, :attr:`EquationsOfMotion.unknown`)."""
+    n = model.nv
+    symmetric = True
+    unknown: dict = {}
+    labels = ", ".join(repr(eq.label) for eq in model.given_equations)
+    for eq in model.given_equations:
+        what = f"equations {eq.label!r}"
+        for i in range(n):
+            for j in range(n):
+                e = to_se(eq.M[i, j], f"mass matrix of {what}")
+                if e != 0:
+                    M[i][j] = e if M[i][j] == 0 else se.Add(M[i][j], e)
+            e = to_se(eq.F[i], f"forces of {what}")
+            if e != 0:
+                F[i] = e if F[i] == 0 else se.Add(F[i], e)
+        symmetric = symmetric and eq.symmetric
+        why = dict(eq.missing)
+        if eq.kinetic_energy is None:
+            unknown.setdefault("T", f"the kinetic energy of model {model.name!r} is not known: "
+                                    + (why["T"] if "T" in why else f"its equations {eq.label!r} were given without it "
+                                       "(Model.equations_of_motion(..., kinetic_energy=T))"))
+        else:
+            Tg = to_se(eq.kinetic_energy, f"kinetic energy of {what}")
+            T = se.Add(T, Tg)
+            for i, v in enumerate(eng.v):
+                d = se.diff(Tg, v)
+                if d != 0:
+                    p[i] = se.Add(p[i], d)
+        if eq.potential_energy is None:
+            unknown.setdefault("V", f"the potential energy of model {model.name!r} is not known: "
+                                    + (why["V"] if "V" in why else f"its equations {eq.label!r} were given without "
+                                       "it (Model.equations_of_motion(..., potential_energy=V))"))
+        else:
+            V = se.Add(V, to_se(eq.potential_energy, f"potential energy of {what}"))
+    if "T" in unknown:
+        unknown["momenta"] = unknown["T"].replace("kinetic energy", "momenta (dT/dv)", 1)
+    for key, what in (("D", "dissipation function"), ("Q", "generalized forces"), ("L", "Lagrangian"),
+                      ("h", "Jacobi energy function"), ("dhdt", "rate of the Jacobi energy function")):
+        unknown[key] = (f"the {what} of model {model.name!r} is not known: equations given directly ({labels}) "
+                        "determine only the motion and, when given, the energies T and V")
+    return T, V, symmetric, unknown
+
+
+def _derive_given(model: Model, check: bool, stage, start: float) -> EquationsOfMotion:
+    """The equations of a model that has equations given directly and nothing else."""
+    eng = _Engine(model)
+    n = model.nv
+    zero = se.Integer(0)
+    M = [[zero] * n for _ in range(n)]
+    F, p = [zero] * n, [zero] * n
+    T, V, symmetric, unknown = _add_given(model, eng, M, F, p, zero, zero)
+    for i in range(n):
+        if check and all(M[i][j] == 0 for j in range(n)):
+            raise DerivationError(f"row {i} of the mass matrix is identically zero (the equation of speed "
+                                  f"{model.v[i].name!r})")
+        stage.advance()
+    eom = EquationsOfMotion(model=model, T_se=T, V_se=V, D_se=zero, Q_se=[zero] * n, p_se=p, M_se=M, F_se=F,
+                            h_se=zero, dhdt_se=zero, Uv_se=zero, derivation_seconds=time.perf_counter() - start,
+                            symmetric=symmetric, unknown=unknown)
     eom._cache["positions"] = {pt.name: eng.vec(pt.position, f"position of {pt.name!r}")
                                for pt in model.points.values()}
     return eom

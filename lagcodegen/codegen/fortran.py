@@ -49,7 +49,7 @@ from itertools import accumulate
 import symengine as se
 
 from ..errors import ModelError
-from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, cse, model_blocks, require_symmetric, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import build_program, tangent_program
 from ..version import __version__
@@ -223,6 +223,7 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     expanded (``model_blocks``' symbolic dr/dy).
     """
     check_prefix(scene.prefix)
+    require_symmetric(scene.eom, "the Fortran backend")
     n = scene.eom.n
     tangent = program.tangent_jacobian(scene)
     blocks = model_blocks(dataclasses.replace(scene, jacobian=False) if tangent else scene)

@@ -163,10 +163,13 @@ def symbol_node(name: str) -> Node:
 
 def target_nodes(target: tuple) -> tuple:
     """The nodes assigned for a kernel target (:class:`lagcodegen.formulation.kernels.Block`):
-    ("M", i, j) off the diagonal fills both triangles; ("y", 3) is the element y[3]."""
+    ("M", i, j) off the diagonal fills both triangles, ("Mx", i, j) the entry M[i][j] alone (a mass
+    matrix that is not symmetric); ("y", 3) is the element y[3]."""
     kind, *idx = target
     if kind == "M" and idx[0] != idx[1]:
         return Element("M", (idx[0], idx[1])), Element("M", (idx[1], idx[0]))
+    if kind == "Mx":
+        return (Element("M", (idx[0], idx[1])),)
     return (Element(kind, tuple(idx)),)
 
 

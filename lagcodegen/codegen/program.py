@@ -340,9 +340,9 @@ def program_form(prog, targets: list, tangent, measure: Measure) -> ProgramForm:
     form.values = _named("values", "values", rhs_pieces)
     form.partials = _named("partials", "values", extra)
     # M in pieces of its own too: hundreds of stores into the caller's M cost gcc seconds there.
-    mass = [ir.Assign(ir.target_nodes(t), lowering.expression(a)) for t, a in targets if t[0] == "M"]
+    mass = [ir.Assign(ir.target_nodes(t), lowering.expression(a)) for t, a in targets if t[0] in ("M", "Mx")]
     form.mass = _named("mass", "mass", measure.chunks(mass, measure.statement))
-    form.targets = [ir.Assign(rhs_target(t), lowering.expression(a)) for t, a in targets if t[0] != "M"]
+    form.targets = [ir.Assign(rhs_target(t), lowering.expression(a)) for t, a in targets if t[0] not in ("M", "Mx")]
     return form
 
 

@@ -152,6 +152,7 @@ def header_context(scene: Scene, code: GeneratedCode) -> dict:
                 model_name=code.model_name, n=code.n, nz=code.nz, ny=code.ny, np=code.np, nout=code.nout,
                 state_names=code.state_names, param_names=code.param_names,
                 folded=sorted(scene.folded.items()), outputs=code.output_names, jacobian=code.jacobian,
-                diagonal=mass_matrix_is_diagonal(scene.eom), nv=code.nv)
+                diagonal=mass_matrix_is_diagonal(scene.eom), nv=code.nv,
+                lu_only=not getattr(scene.eom, "symmetric", True))
 
 

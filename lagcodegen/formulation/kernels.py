@@ -123,6 +123,16 @@ def symbol_map(scene: Scene) -> dict:
     return sub
 
 
+def require_symmetric(eom, what: str) -> None:
+    """ModelError if the mass matrix of ``eom`` need not be symmetric (equations given directly,
+    Kane's with dependent speeds): only the C right-hand side (LU) handles that; ``what`` names the
+    feature refused."""
+    if not getattr(eom, "symmetric", True):
+        raise ModelError(f"model {eom.model.name!r}: its mass matrix is not symmetric (equations given directly, "
+                         f"e.g. Kane's with dependent speeds): {what} is not available for it (the C backend's "
+                         "right-hand side is: compile_model(..., lang='c'))")
+
+
 def mass_matrix_is_diagonal(eom) -> bool:
     """True if every off-diagonal entry of M is structurally zero (the generated solve divides)."""
     n = len(eom.M_se)
@@ -187,7 +197,8 @@ def model_blocks(scene: Scene) -> dict[str, Block]:
 
 def _general_blocks(scene: Scene, stage) -> dict[str, Block]:
     """The kernels of q' = k(q, v, t), M(q, t) v' = F(q, v, t) (generalized speeds): ``rhs``
-    with ("ydot", i) = k_i for the coordinates' rates, ("M", a, b) (upper triangle) and
+    with ("ydot", i) = k_i for the coordinates' rates, ("M", a, b) (upper triangle; ("Mx", a, b) every
+    entry when M is not symmetric, :attr:`EquationsOfMotion.symmetric`) and
     ("F", a) of the speeds' equations, ("ydot", nq + nv + k) the quadratures; ``out``. No
     analytic Jacobian: the solvers form it from differences (Scene(jacobian=...) is refused)."""
     eom = scene.eom
@@ -203,6 +214,10 @@ def _general_blocks(scene: Scene, stage) -> dict[str, Block]:
     else:
         rhs = Block()
         for a in range(nv):
+            if not eom.symmetric:  # M not symmetric (Kane's equations with dependent speeds): every entry
+                for b, e in enumerate(subst(sub, eom.M_se[a])):
+                    rhs.add(("Mx", a, b), e)
+                continue
             for b, e in enumerate(subst(sub, eom.M_se[a][a:]), start=a):
                 rhs.add(("M", a, b), e)
         rhs = rhs + Block([("F", a) for a in range(nv)], subst(sub, eom.F_se))
@@ -236,8 +251,12 @@ def _model_blocks(scene: Scene, stage) -> dict[str, Block]:
     else:
         mass = Block()
         for i in range(n):  # row by row: a loop point for progress
-            for j, e in enumerate(subst(sub, eom.M_se[i][i:]), start=i):
-                mass.add(("M", i, j), e)
+            if not eom.symmetric:  # M not symmetric (equations given directly): every entry
+                for j, e in enumerate(subst(sub, eom.M_se[i])):
+                    mass.add(("Mx", i, j), e)
+            else:
+                for j, e in enumerate(subst(sub, eom.M_se[i][i:]), start=i):
+                    mass.add(("M", i, j), e)
             stage.advance()
         rhs = mass + Block([("F", i) for i in range(n)], subst(sub, eom.F_se))
     for k, (_, rate) in enumerate(eom.quadratures):
@@ -303,6 +322,7 @@ def sparse_jacobian(scene: Scene, pattern) -> SparseJacobian:
     -(dr_i/dy_j)/M_ii with r = M a - F; otherwise M is factored once and only the columns of
     dr/dy with a nonzero entry are solved for."""
     eom = scene.eom
+    require_symmetric(eom, "the sparse Jacobian")
     model = eom.model
     n = model.n
     ny = pattern.shape[0]

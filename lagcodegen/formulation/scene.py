@@ -120,6 +120,10 @@ class Scene:
                 raise ModelError(f"scene: value given for unknown parameter {name!r}")
             check_finite(value, f"scene value of parameter {name!r}")
         self.outputs = list(self.outputs)
+        if self.jacobian and not getattr(self.eom, "symmetric", True):
+            raise ModelError(f"model {self.eom.model.name!r}: its mass matrix is not symmetric (equations given "
+                             "directly): its analytic Jacobian is not generated; use jacobian=False (CVODE forms it "
+                             "from differences)")
         if self.jacobian and self.eom.general:
             model = self.eom.model
             raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
@@ -180,12 +184,30 @@ class Scene:
             out[name] = to_se(expr, f"output {name!r}")
         return out
 
+    def _unknown_output(self, name: str) -> str | None:
+        """Why the equations do not determine the output ``name`` (equations given directly without
+        their energies, :attr:`EquationsOfMotion.unknown`), or None."""
+        unknown = getattr(self.eom, "unknown", None)
+        if not unknown or name in self.eom.model.outputs:
+            return None
+        needs = {"energy": ("T", "V"), "kinetic_energy": ("T",), "potential_energy": ("V",), "dissipation": ("D",),
+                 "jacobi_h": ("h",), "dh_dt": ("dhdt",), "momenta": ("momenta",)}.get(name)
+        if needs is None and name.startswith("p_") and name[2:] in {v.name for v in self.eom.model.v}:
+            needs = ("momenta",)
+        for key in needs or ():
+            if key in unknown:
+                return f"output {name!r}: {unknown[key]}"
+        return None
+
     def output_list(self) -> list[Output]:
         """The outputs this scene emits, groups expanded, in order."""
         avail = self.available_outputs()
         model = self.eom.model
         names: list[str] = []
         for item in self.outputs:
+            why = self._unknown_output(item) if isinstance(item, str) else None
+            if why:
+                raise ModelError(why)
             if item == "momenta":
                 names += [f"p_{q.name}" for q in (model.v if model.general else model.coords)]
             elif item == "positions":

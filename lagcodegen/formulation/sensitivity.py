@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import symengine as se
 
 from ..errors import ModelError
-from .kernels import Block, model_blocks, residual_derivatives, substituter
+from .kernels import Block, model_blocks, require_symmetric, residual_derivatives, substituter
 from .scene import Scene
 from .tangent import Program, _live_ops, build_program
 
@@ -56,6 +56,7 @@ def sensitivity_blocks(scene: Scene) -> dict[str, Block]:
     if eom.tree is not None:
         raise ModelError(f"model {model.name!r}: sensitivities of a rigid-body tree model are not generated "
                          "(its M and F are programs, not expressions)")
+    require_symmetric(eom, "sensitivities")
     n = model.n
     c = substituter(scene)
     rhs = model_blocks(dataclasses.replace(scene, jacobian=False))["rhs"]
@@ -178,6 +179,7 @@ def direction_tangent(scene: Scene) -> DirectionTangent:
     forward-mode sweep of the right-hand side program per direction. Works for rigid-body trees
     (their recorded program, parameters inside link inertias included) as for closed forms."""
     eom = scene.eom
+    require_symmetric(eom, "sensitivities")
     n, nz, npar = eom.model.n, len(eom.quadratures), len(scene.runtime_parameters)
     rhs = model_blocks(dataclasses.replace(scene, jacobian=False))["rhs"]
     prog, targets = build_program(rhs, n, nparams=npar)

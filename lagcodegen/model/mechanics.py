@@ -1,5 +1,9 @@
 """Import models written with :mod:`sympy.physics.mechanics` as lagcodegen :class:`Model` s.
 
+One job: sympy's mechanics objects into models, through one expression importer
+(:class:`_Importer`: dynamicsymbols to the model's symbols, parameters, loads) that the Lagrangian
+imports (from_lagrangian, from_bodies, from_system) and Kane's (from_kanes_method) share.
+
 Users of sympy's mechanics package can bring their models as they are:
 
 * :func:`from_lagrangian` takes a Lagrangian L(q(t), q'(t), t), for example built by
@@ -7,9 +11,16 @@ Users of sympy's mechanics package can bring their models as they are:
 * :func:`from_bodies` takes the inertial frame and the bodies themselves, and keeps the
   kinetic and potential energies apart (so energy outputs are exact);
 * :func:`from_system` takes a ``sympy.physics.mechanics.System`` built with joints
-  (``PinJoint``, ``PrismaticJoint``, ``SphericalJoint``, ...), its bodies, loads and actuators,
-  when its generalized speeds are the coordinates' time derivatives (u = q'). :func:`as_model`
-  lets :func:`lagcodegen.derive` and :func:`lagcodegen.compile_model` take such a System.
+  (``PinJoint``, ``PrismaticJoint``, ``SphericalJoint``, ...), its bodies, loads and actuators:
+  as a Lagrangian model when its generalized speeds are the coordinates' time derivatives
+  (u = q') and it has no constraints, else through Kane's equations (:func:`from_kanes_method`);
+* :func:`from_kanes_method` takes a ``KanesMethod`` on which ``kanes_equations`` has run: its
+  coordinates, speeds, kinematic equations and M u' = forcing (dependent speeds' constraint rows
+  included) as a model with generalized speeds and equations given directly
+  (:meth:`Model.equations_of_motion`).
+
+:func:`as_model` lets :func:`lagcodegen.derive` and :func:`lagcodegen.compile_model` take a
+System or a KanesMethod.
 
 Supported sympy.physics.mechanics objects:
 
@@ -25,11 +36,11 @@ Supported sympy.physics.mechanics objects:
   a torque on frame B gives Q_i = T . dw_B/dq_i', the same as ``LagrangesMethod``;
 * a Rayleigh dissipation function in q'(t) (eq. 3.15).
 
-Not supported: constraint equations (``hol_coneqs``/``nonhol_coneqs``, a System's holonomic
-and nonholonomic constraints), generalized speeds u(t) other than q'(t) (a ``KanesMethod`` with
-kinematic equations such as u = w . b_z for a ball joint), and ``KanesMethod`` /
-``LagrangesMethod`` / ``JointsMethod`` objects themselves (pass the ``System``, or the bodies and
-coordinates to :func:`from_bodies`, or the Lagrangian to :func:`from_lagrangian`).
+Not supported: constraint equations of a Lagrangian (``hol_coneqs``/``nonhol_coneqs``), a
+System's or KanesMethod's holonomic constraints without dependent coordinates and speeds (sympy
+cannot form Kane's equations then; lagcodegen.ConstrainedSystem takes the unconstrained model and
+the constraints), and ``LagrangesMethod`` / ``JointsMethod`` objects (pass the ``System``, or the
+bodies and coordinates to :func:`from_bodies`, or the Lagrangian to :func:`from_lagrangian`).
 
 Conversion: q_i(t) becomes the plain symbol named like q_i, q_i'(t) the symbol
 ``<name>_dot`` (:meth:`Model.dot`), time the model's ``t``. Every other free symbol is a
@@ -55,16 +66,16 @@ from .model import Model
 #: (the package pulls in sympy's unit systems), which every other use of lagcodegen (the command
 #: line, model files, lagcodegen's own models) does without.
 Particle = RigidBody = dynamicsymbols = Point = ReferenceFrame = Vector = partial_velocity = ActuatorBase = None
-System = None
+System = KanesMethod = None
 
 
 def _physics() -> None:
     """Import sympy.physics.mechanics and .vector into this module's names (once)."""
     global Particle, RigidBody, dynamicsymbols, Point, ReferenceFrame, Vector, partial_velocity, ActuatorBase
-    global System
+    global System, KanesMethod
     if Particle is not None:
         return
-    from sympy.physics.mechanics import Particle, RigidBody, dynamicsymbols
+    from sympy.physics.mechanics import KanesMethod, Particle, RigidBody, dynamicsymbols
     try:  # System exists from sympy 1.13 on
         from sympy.physics.mechanics import System
     except ImportError:  # pragma: no cover - older sympy
@@ -75,7 +86,7 @@ def _physics() -> None:
     except ImportError:  # pragma: no cover - older sympy
         ActuatorBase = None
 
-__all__ = ["from_lagrangian", "from_bodies", "from_system", "as_model"]
+__all__ = ["from_lagrangian", "from_bodies", "from_system", "from_kanes_method", "as_model"]
 
 #: A value given for a parameter: by symbol or by name.
 ParameterValues = Mapping[sp.Symbol | str, float]
@@ -195,7 +206,8 @@ def from_bodies(frame: ReferenceFrame, bodies: Iterable, q: Sequence, *,
 
 def from_system(system, *, parameters: ParameterValues | None = None, dissipation=None, name: str = "model",
                 unset: float | None = None) -> Model:
-    """A :class:`Model` from a ``sympy.physics.mechanics.System`` whose speeds are q'.
+    """A :class:`Model` from a ``sympy.physics.mechanics.System``: Lagrangian when its speeds are q'
+    and it has no constraints (below), else Kane's equations (the last paragraph).
 
     The system's coordinates (``system.q``) become the model's, in order; its bodies
     (``system.bodies``: ``RigidBody`` and ``Particle``) give T = sum of
@@ -212,9 +224,12 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     q_i'(t) itself (joints made with ``speeds=q.diff(t)``), or the kinematic differential
     equations ``system.kdes`` say u_j = q_i' (the joints' default u_j - q_i' = 0 of
     ``PinJoint`` and ``PrismaticJoint``). Otherwise (a ``SphericalJoint``'s angular-velocity
-    speeds, any u_j = f(q, q') other than q_i') a :class:`ModelError` says what the kinematic
-    equations give and how to make the speeds q' instead. Constraints (holonomic,
-    nonholonomic, dependent or auxiliary speeds) are refused.
+    speeds, any u_j = f(q, q') other than q_i'), and with constraints (holonomic, nonholonomic,
+    dependent or auxiliary speeds), the model is :func:`from_kanes_method`'s of the KanesMethod
+    ``System.form_eoms()`` would build (formed here without changing the System), with
+    ``system.fixed_point`` as the origin of potentials and positions; ``dissipation`` is refused
+    then (give damping as loads), and constraints sympy cannot form equations for (no dependent
+    coordinates or speeds declared) are a ModelError saying what to declare.
 
     ``parameters``: the value of every other free symbol (by symbol or name; its default as a
     model parameter); ``unset``: the value given to symbols missing from ``parameters`` (None:
@@ -224,20 +239,25 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     _physics()
     if System is None or not isinstance(system, System):
         raise ModelError(f"from_system needs a sympy.physics.mechanics.System, got {type(system).__name__}")
-    for what, items in (("holonomic constraints", system.holonomic_constraints),
-                        ("nonholonomic constraints", system.nonholonomic_constraints),
-                        ("dependent coordinates", system.q_dep), ("dependent speeds", system.u_dep),
-                        ("auxiliary speeds", system.u_aux)):
-        if len(items):
-            listed = excerpt(", ".join(map(str, items)), quote=False)
-            raise ModelError(f"from_system: the System has {what} ({listed}); lagcodegen "
-                             "takes constrained systems as a ConstrainedSystem of a Model: convert the unconstrained "
-                             "System and add the constraints there (lagcodegen.ConstrainedSystem)")
     q = list(system.q)
     if not q:
         raise ModelError("from_system: the System has no coordinates (add joints or coordinates)")
     imp = _Importer(q, time=None, name=name)
-    imp.set_speeds(_speeds_of(system, imp))
+    constrained = [(what, items) for what, items in (("holonomic constraints", system.holonomic_constraints),
+                                                     ("nonholonomic constraints", system.nonholonomic_constraints),
+                                                     ("dependent coordinates", system.q_dep),
+                                                     ("dependent speeds", system.u_dep),
+                                                     ("auxiliary speeds", system.u_aux)) if len(items)]
+    try:
+        speeds = None if constrained else _speeds_of(system, imp)
+    except ModelError:
+        speeds = None
+    if speeds is None:  # u != q' or constraints: Kane's equations of the System
+        if dissipation is not None:
+            raise ModelError("from_system: a dissipation function needs speeds u = q' and no constraints; give the "
+                             "damping as loads of the System (e.g. a LinearDamper actuator)")
+        return _system_by_kane(system, constrained, parameters=parameters, name=name, unset=unset)
+    imp.set_speeds(speeds)
     frame, origin = system.frame, system.fixed_point
 
     energies: list[tuple[str, sp.Expr, sp.Expr]] = []
@@ -276,11 +296,167 @@ def from_system(system, *, parameters: ParameterValues | None = None, dissipatio
     return _finish(model, imp, positions, Q_conv, D_conv, subs)
 
 
+def _system_by_kane(system, constrained: list, *, parameters, name: str, unset) -> Model:
+    """The :func:`from_kanes_method` model of the KanesMethod a System's ``form_eoms`` would build
+    (the same arguments, explicit kinematics), formed without changing the System; its fixed
+    point is the origin of the potentials and positions."""
+    loads = tuple(system.loads) + tuple(load for act in system.actuators for load in act.to_loads())
+    try:
+        system.validate_system(KanesMethod)
+        km = KanesMethod(system.frame, q_ind=system.q_ind, u_ind=system.u_ind, kd_eqs=system.kdes,
+                         q_dependent=system.q_dep, u_dependent=system.u_dep,
+                         configuration_constraints=system.holonomic_constraints,
+                         velocity_constraints=system.velocity_constraints, u_auxiliary=system.u_aux,
+                         forcelist=loads or None, bodies=system.bodies)
+        km.kanes_equations()
+    except (ValueError, TypeError, AttributeError, NotImplementedError) as exc:
+        reason = excerpt(" ".join(str(exc).split()), limit=100, quote=False)
+        if not constrained:
+            raise ModelError(f"from_system: sympy cannot form Kane's equations of the System: {reason}") from None
+        (what, items), *others = constrained
+        has = f"{what} ({excerpt(', '.join(map(str, items)), quote=False)})" + "".join(f", {w}" for w, _ in others)
+        raise ModelError(f"from_system: the System has {has}; sympy cannot form Kane's equations of it: {reason}; "
+                         "declare dependent coordinates and speeds (independent=False), or constrain the "
+                         "unconstrained model in a lagcodegen.ConstrainedSystem") from None
+    return from_kanes_method(km, parameters=parameters, name=name, unset=unset, origin=system.fixed_point)
+
+
+def from_kanes_method(km, *, parameters: ParameterValues | None = None, name: str = "model",
+                      unset: float | None = None, origin: Point | None = None) -> Model:
+    """A :class:`Model` of Kane's equations formed by a ``sympy.physics.mechanics.KanesMethod``
+    (``kanes_equations`` must have run), with its coordinates, speeds and parameter names.
+
+    * coordinates: ``km.q`` (independent, then dependent ones), named like the dynamicsymbols;
+    * generalized speeds: ``km.u`` (independent, then dependent ones), named like theirs, with
+      the kinematic differential equations solved for q' (``km.kindiffdict()``) as the model's
+      kinematics q' = k(q, u, t) (:meth:`Model.generalized_speeds`);
+    * equations: ``km.mass_matrix`` u' = ``km.forcing`` given directly
+      (:meth:`Model.equations_of_motion`). With dependent speeds these hold the acceleration
+      constraints' rows, which make M square over all u (and not symmetric: the generated code
+      solves it by LU): the same system ``km.rhs()`` integrates, so a run keeps the velocity
+      constraints as well as sympy's own integration does; the configuration constraints
+      (dependent coordinates) are not enforced either, as there. Auxiliary speeds are left
+      out, as ``km.mass_matrix`` leaves them (zero in the kinetic energy);
+    * energies, for the outputs only: T = sum of ``body.kinetic_energy(frame)`` over
+      ``km.bodies`` (in q and u). The potential energy is known when every load that is a force
+      constant in the inertial frame (gravity) acts at a point whose position from ``origin`` is
+      known: V = -F . r_P (loads that vary are not potentials, as in :func:`from_system`);
+      without ``origin`` and with such loads the potential energy, and so ``energy``, is refused
+      by name. Bodies' ``potential_energy`` attributes are not used (Kane's method ignores
+      them). With ``origin``, each body's mass centre seen from it is a model point
+      (``positions`` outputs).
+
+    ``origin``: a point fixed in the inertial frame (or moving only within a plane normal to
+    every constant force, such as the contact point of a rolling disc on the ground).
+    ``parameters``: every other free symbol's value (by symbol or name); ``unset``: the value of
+    the ones missing from it (None: they are an error, naming them); ``name``: the model's.
+    Dynamicsymbols other than q and u, and time derivatives of the speeds (u') are an error
+    naming them.
+    """
+    _physics()
+    if not isinstance(km, KanesMethod):
+        raise ModelError(f"from_kanes_method needs a sympy.physics.mechanics.KanesMethod, got {type(km).__name__}")
+    try:
+        M, F = km.mass_matrix, km.forcing
+    except ValueError:
+        raise ModelError("from_kanes_method: Kane's equations have not been formed on this KanesMethod: call "
+                         "km.kanes_equations(bodies, loads) first") from None
+    q, u = list(km.q), list(km.u)
+    imp = _Importer(q, time=None, name=name)
+    try:
+        kdd = km.kindiffdict()
+    except (ValueError, AttributeError) as exc:
+        raise ModelError(f"from_kanes_method: the kinematic differential equations cannot be solved for q' "
+                         f"({excerpt(str(exc), quote=False)})") from None
+    imp.set_generalized_speeds(u, kdd)
+    kinematics = [imp.convert(kdd[sp.Derivative(f, imp.time)], f"kinematic equation of {_fname(f)!r}")
+                  for f in imp.functions]
+    M = M.applyfunc(lambda e: imp.convert(e, "the mass matrix of Kane's equations"))
+    F = F.applyfunc(lambda e: imp.convert(e, "the forcing of Kane's equations"))
+    frame = km._inertial
+    aux = dict.fromkeys(getattr(km, "_uaux", None) or (), 0)  # auxiliary speeds: zero in the motion
+    T = _kane_kinetic_energy(km.bodies, frame, imp, aux)
+    V, why_not_V = _kane_potential(km.loads, frame, origin, imp)
+    positions = _positions(km.bodies, frame, origin, imp) if origin is not None else []
+    exprs = [*kinematics, *M, *F] + ([] if T is None else [T]) + ([] if V is None else [V])
+    exprs += [c for _, r in positions for c in r]
+    subs = imp.declare_parameters(exprs, parameters, unset=unset)
+    model = imp.model
+    model.generalized_speeds([_fname(w) for w in u], [k.xreplace(subs) for k in kinematics], excess=True)
+    dependent = bool(getattr(km, "_udep", None))
+    model.equations_of_motion(M.xreplace(subs), F.xreplace(subs),
+                              kinetic_energy=None if T is None else T.xreplace(subs),
+                              potential_energy=None if V is None else V.xreplace(subs),
+                              symmetric=False if dependent else None, label="Kane's equations",
+                              missing={"T": "a body's kinetic energy could not be formed from the KanesMethod's "
+                                            "bodies" if T is None else None,
+                                       "V": why_not_V})
+    for body_name, r in positions:
+        model.point(body_name, r.xreplace(subs))
+    model.validate()
+    return model
+
+
+def _kane_kinetic_energy(bodies, frame, imp: "_Importer", aux: dict):
+    """T = sum of the bodies' kinetic energies in ``frame``, in (q, u), the auxiliary speeds ``aux``
+    set to zero; None if one cannot be formed."""
+    T = sp.Integer(0)
+    for body in bodies or ():
+        try:
+            Tb = body.kinetic_energy(frame).xreplace(aux)
+        except ValueError:
+            return None
+        T += imp.convert(Tb, f"kinetic energy of body {body.name!r}")
+    return T
+
+
+def _kane_potential(loads, frame, origin, imp: "_Importer"):
+    """(V, None) with V = -F . r_P summed over the forces constant in ``frame`` (gravity), r_P
+    from ``origin``; (None, why) when such a force has no position from ``origin``."""
+    V = sp.Integer(0)
+    for location, vector in _loads(loads):
+        if not isinstance(location, Point):
+            continue
+        try:
+            Fv = vector.to_matrix(frame)
+        except ValueError:
+            continue
+        if any(c.has(imp.time) or c.atoms(AppliedUndef) or c.atoms(sp.Derivative) for c in Fv):
+            continue  # a varying force: not a potential
+        if all(c == 0 for c in Fv):
+            continue
+        if origin is None:
+            return None, (f"the constant force at point {location.name} (gravity?) has no potential without a fixed "
+                          "point: import the KanesMethod with lagcodegen.model.mechanics.from_kanes_method(km, "
+                          "origin=<a Point fixed in the inertial frame>)")
+        Vp = _constant_force_potential(location, vector, frame, origin, imp)
+        if Vp is None:
+            return None, f"the position of point {location.name} from {origin.name} is not known"
+        V += Vp
+    return V, None
+
+
+def _positions(bodies, frame, origin, imp: "_Importer") -> list:
+    """(name, position of the mass centre from ``origin`` in ``frame``'s axes) of the bodies whose
+    position is known and depends on the coordinates."""
+    out = []
+    for body in bodies or ():
+        try:
+            r = body.masscenter.pos_from(origin).to_matrix(frame)
+        except ValueError:
+            continue
+        r = r.applyfunc(lambda c, b=body: imp.convert(c, f"position of body {b.name!r}"))
+        if any(c.free_symbols & set(imp.model.coords) for c in r):
+            out.append((body.name, r))
+    return out
+
+
 def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | None = None):
-    """``obj`` itself unless it is a ``sympy.physics.mechanics.System``: then its
-    :func:`from_system` model (``parameters``, ``unset`` as there). Anything else is returned
-    as it is (the caller checks it); other sympy.physics objects (``KanesMethod``,
-    ``LagrangesMethod``, ...) are a ModelError saying what to pass instead.
+    """``obj`` itself unless it is a ``sympy.physics.mechanics.System`` (then its
+    :func:`from_system` model) or a ``KanesMethod`` on which ``kanes_equations`` has run (its
+    :func:`from_kanes_method` model); ``parameters``, ``unset`` as there. Anything else is
+    returned as it is (the caller checks it); other sympy.physics objects (``LagrangesMethod``,
+    ...) are a ModelError saying what to pass instead.
 
     :func:`lagcodegen.derive` calls it with ``unset=1.0``: the derived equations are symbolic,
     the free symbols stay symbols, and their placeholder default 1.0 is announced by a
@@ -293,11 +469,12 @@ def as_model(obj, *, parameters: ParameterValues | None = None, unset: float | N
     _physics()
     if System is not None and isinstance(obj, System):
         return from_system(obj, parameters=parameters, unset=unset)
+    if isinstance(obj, KanesMethod):
+        return from_kanes_method(obj, parameters=parameters, unset=unset)
     kind = type(obj).__name__
-    hint = {"KanesMethod": "pass the System it came from, or its bodies and loads to mechanics.from_bodies",
-            "LagrangesMethod": "pass the System it came from, or its Lagrangian and coordinates to "
-                               "mechanics.from_lagrangian"}.get(kind, "pass a System, or use mechanics.from_bodies / "
-                                                                      "from_lagrangian")
+    hint = {"LagrangesMethod": "pass the System it came from, or its Lagrangian and coordinates to "
+                               "mechanics.from_lagrangian"}.get(kind, "pass a System or a KanesMethod, or use "
+                                                                      "mechanics.from_bodies / from_lagrangian")
     raise ModelError(f"a sympy.physics.mechanics {kind} is not a model lagcodegen derives: {hint}")
 
 
@@ -465,6 +642,27 @@ class _Importer:
         self.taken = {s.name for s in self.model.coords} | {s.name for s in self.model.speeds}
         self.speed_subs: dict = {}  # generalized speeds u_j(t) that are q_i'(t) -> q_i'(t)
         self.partial_speeds = list(self.velocities)  # the speeds of the partial velocities, by coordinate
+        self.gspeeds: dict = {}  # generalized speeds u_j(t) other than q' (Kane's) -> plain symbols
+        self.kin_subs: dict = {}  # q_i'(t) -> k_i(q(t), u(t), t) when there are such speeds
+
+    def set_generalized_speeds(self, u: Sequence, kindiff: dict) -> None:
+        """Take the dynamicsymbols ``u`` as generalized speeds (plain symbols named like them) and
+        ``kindiff`` ({q_i'(t): k_i(q, u, t)}, every coordinate) as the kinematic equations."""
+        for w in u:
+            if not (isinstance(w, AppliedUndef) and w.args == (self.time,)):
+                raise ModelError(f"speed {w!r} is not a dynamicsymbol u({self.time})")
+            if w in self.coords:
+                raise ModelError(f"{_fname(w)!r} is both a coordinate and a speed")
+            if _fname(w) in self.taken:
+                raise ModelError(f"speed {_fname(w)!r}: the name is taken by a coordinate or its velocity")
+            self.gspeeds[w] = sp.Symbol(_fname(w))
+        if len(set(self.gspeeds.values())) != len(self.gspeeds) or len(self.gspeeds) != len(u):
+            raise ModelError("a speed is given twice")
+        missing = [_fname(f) for f in self.functions if sp.Derivative(f, self.time) not in kindiff]
+        if missing:
+            raise ModelError(f"the kinematic differential equations give no q' for {', '.join(missing)}")
+        self.kin_subs = {d: kindiff[d] for d in (sp.Derivative(f, self.time) for f in self.functions)}
+        self.taken |= {s.name for s in self.gspeeds.values()}
 
     def set_speeds(self, mapping: dict) -> None:
         """Take the speeds u_j(t) of ``mapping`` ({u_j(t): q_i'(t)}) as the velocities q_i'."""
@@ -483,6 +681,8 @@ class _Importer:
             raise ModelError(f"{what} is not a sympy expression: {excerpt(expr)}") from exc
         if self.speed_subs:
             expr = expr.xreplace(self.speed_subs)
+        if self.kin_subs:
+            expr = expr.xreplace(self.kin_subs)
         clash = sorted(s.name for s in expr.free_symbols - {self.time} if s.name in self.taken)
         if clash:
             raise ModelError(f"{what} uses symbol(s) {', '.join(clash)} whose names are taken by the "
@@ -490,6 +690,9 @@ class _Importer:
         repl: dict = {}
         for d in expr.atoms(sp.Derivative):
             f = d.expr
+            if f in self.gspeeds:
+                raise ModelError(f"{what} contains the time derivative {d} of the speed {_fname(f)!r}: only the "
+                                 "coordinates and speeds may appear (no accelerations)")
             if isinstance(f, AppliedUndef) and f not in self.coords:
                 raise ModelError(f"{what} contains {_fname(f)!r} (as {d}), a dynamicsymbol that is not "
                                  f"a generalized coordinate")
@@ -503,12 +706,14 @@ class _Importer:
                 raise ModelError(f"{what} contains the derivative {d}: only first time derivatives of "
                                  f"the coordinates may appear")
         repl.update(self.coords)
+        repl.update(self.gspeeds)
         repl[self.time] = self.model.t
         expr = expr.xreplace(repl)
         stray = sorted(expr.atoms(AppliedUndef), key=str)
         if stray:
             listed = ", ".join(f"{_fname(f)!r} (as {f})" for f in stray)
-            raise ModelError(f"{what} contains {listed}: not a generalized coordinate; add it to q "
+            kind = "a generalized coordinate or speed" if self.gspeeds else "a generalized coordinate"
+            raise ModelError(f"{what} contains {listed}: not {kind}; add it to q "
                              f"or substitute it")
         return expr
 
@@ -520,7 +725,7 @@ class _Importer:
         Returns the substitution taking the user's symbols to the model's parameter symbols.
         ``unset``: the value of symbols ``values`` misses (None: an error names them).
         """
-        known = self.model.known_symbols()
+        known = self.model.known_symbols() | set(self.gspeeds.values())
         by_name: dict[str, sp.Symbol] = {}
         for e in exprs:
             for s in sorted(e.free_symbols - known, key=lambda s: s.name):

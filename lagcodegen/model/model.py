@@ -155,6 +155,39 @@ class RigidBody:
     orientation: sp.Matrix
 
 
+@dataclass(frozen=True)
+class GivenEquations:
+    """Equations of motion M(q, v, t) v' = F(q, v, t) given directly (:meth:`Model.equations_of_motion`),
+    with the energies of the system they describe when known (None: not known)."""
+
+    label: str
+    M: sp.Matrix  # nv x nv
+    F: sp.Matrix  # nv x 1
+    kinetic_energy: sp.Expr | None
+    potential_energy: sp.Expr | None
+    symmetric: bool
+    missing: tuple = ()  # ("T" or "V", why it is not known) for the error messages
+
+
+#: :meth:`Model.equations_of_motion` proves M symmetric by expanding M_ij - M_ji only for entries of
+#: at most this many operations (else M counts as not symmetric: solved by LU, still right).
+SYMMETRY_CHECK_MAX_OPS = 400
+
+
+def _provably_symmetric(M: sp.Matrix) -> bool:
+    """True if M_ij - M_ji is zero for every i < j, structurally or once expanded (entries of
+    at most SYMMETRY_CHECK_MAX_OPS operations)."""
+    n = M.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            a, b = M[i, j], M[j, i]
+            if a == b:
+                continue
+            if sp.count_ops(a) + sp.count_ops(b) > SYMMETRY_CHECK_MAX_OPS or sp.expand(a - b) != 0:
+                return False
+    return True
+
+
 @dataclass
 class Model:
     """A mechanical system stated in generalized coordinates.
@@ -191,6 +224,9 @@ class Model:
     # q' = kinematics[i](q, v, t). Both empty: v = q' (the ``speeds``), Lagrange's equations.
     velocities: list = field(default_factory=list)
     kinematics: list = field(default_factory=list)
+    # Equations of motion given directly (:meth:`equations_of_motion`, Kane's equations imported from
+    # sympy): GivenEquations, added to what the derivation forms from the other elements.
+    given_equations: list = field(default_factory=list)
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -343,14 +379,19 @@ class Model:
 
     @property
     def nv(self) -> int:
-        """Number of generalized speeds (nv <= nq)."""
+        """Number of generalized speeds (nv <= nq but for Kane's equations with ignorable coordinates left out)."""
         return len(self.v)
 
-    def generalized_speeds(self, names: Sequence[str], kinematics) -> tuple[sp.Symbol, ...]:
+    def generalized_speeds(self, names: Sequence[str], kinematics, *, excess: bool = False) -> tuple[sp.Symbol, ...]:
         """Declare generalized speeds ``names`` and the kinematic equations q' = f(q, v, t) of
         every coordinate (``kinematics``: a mapping coordinate (symbol or name) -> expression, or
         a sequence in coordinate order), replacing the speeds q' the coordinates brought (Kane's
-        form; notes eq. 2.1 with q' a function of the speeds). Return the speeds' symbols."""
+        form; notes eq. 2.1 with q' a function of the speeds). Return the speeds' symbols.
+
+        ``excess``: allow more speeds than coordinates (Kane's equations whose ignorable
+        coordinates were left out, e.g. a bicycle's wheel angles with their rates kept as speeds);
+        their equations must be given directly (:meth:`equations_of_motion`): Lagrange's, projected
+        onto more speeds than coordinates, would have a singular mass matrix."""
         if self.velocities:
             raise ModelError(f"model {self.name!r} has generalized speeds already")
         if isinstance(names, str):
@@ -364,7 +405,7 @@ class Model:
             syms.append(sp.Symbol(name))
         if len(set(syms)) != len(syms):
             raise ModelError("generalized speeds: a name is given twice")
-        if len(syms) > self.n:
+        if len(syms) > self.n and not excess:
             raise ModelError(f"{len(syms)} generalized speeds for {self.n} coordinates: at most one per coordinate")
         if isinstance(kinematics, dict):
             rows = {self.index(k): v for k, v in kinematics.items()}
@@ -607,6 +648,57 @@ class Model:
         self.generalized_forces.append(
             (label or f"Q*[{self.coords[i].name}]", i, _as_expr(expr, f"generalized force on {self.coords[i].name!r}")))
 
+    def equations_of_motion(self, M, F, *, kinetic_energy=None, potential_energy=None, symmetric: bool | None = None,
+                            label: str = "equations", missing: dict | None = None) -> GivenEquations:
+        """Add equations of motion given directly: M(q, v, t) v' = F(q, v, t), M nv x nv and F of nv
+        rows in the model's coordinates, speeds :attr:`v` (the coordinates' rates q' unless
+        :meth:`generalized_speeds` declared others), parameters and t. They are added to the
+        equations the derivation forms from the model's other elements (bodies, energies, forces,
+        links; a model may have none: Kane's equations imported from sympy,
+        :func:`lagcodegen.model.mechanics.from_kanes_method`), and are not differentiated.
+
+        ``kinetic_energy`` T(q, v, t) and ``potential_energy`` V(q, t): the energies of the system
+        these equations describe, for the outputs ``energy``, ``kinetic_energy``,
+        ``potential_energy`` and the momenta dT/dv only; without them those outputs are refused by
+        name (as are ``dissipation``, ``jacobi_h`` and ``dh_dt``, which equations given directly do
+        not determine). ``symmetric``: whether M is symmetric (None: proved by expanding M_ij - M_ji
+        for small entries, else taken as not). A symmetric M is factored by Cholesky, another by LU
+        with partial pivoting (Kane's equations with dependent speeds: the velocity constraints'
+        rows make M square and not symmetric). ``missing``: {"T" or "V": why that energy is not
+        given}, told when an output needs it."""
+        what = f"mass matrix of {label!r}"
+        try:
+            Mm = sp.Matrix(M)
+        except (TypeError, ValueError, sp.SympifyError):
+            raise ModelError(f"{what} is not a matrix: {excerpt(M)}") from None
+        nv = self.nv
+        if Mm.shape != (nv, nv):
+            raise ModelError(f"{what} is {Mm.shape[0]} x {Mm.shape[1]}, the model has {nv} speeds "
+                             f"({', '.join(s.name for s in self.v)})")
+        try:
+            Fm = sp.Matrix(F)
+        except (TypeError, ValueError, sp.SympifyError):
+            raise ModelError(f"forces of {label!r} are not a vector: {excerpt(F)}") from None
+        if Fm.shape == (1, nv) and nv > 1:
+            Fm = Fm.T
+        if Fm.shape != (nv, 1):
+            raise ModelError(f"forces of {label!r} have {Fm.shape[0]} x {Fm.shape[1]} entries, the model has {nv} speeds")
+        Mm = Mm.applyfunc(lambda e: _as_expr(e, what))
+        Fm = Fm.applyfunc(lambda e: _as_expr(e, f"forces of {label!r}"))
+        T = None if kinetic_energy is None else _as_expr(kinetic_energy, f"kinetic energy of {label!r}")
+        V = None if potential_energy is None else _as_expr(potential_energy, f"potential energy of {label!r}")
+        for expr, part in ((Mm, what), (Fm, f"forces of {label!r}"), (T, f"kinetic energy of {label!r}")):
+            if expr is not None:
+                self._check_given(expr, part)
+        if V is not None:
+            self.check_symbols(V, f"potential energy of {label!r}", allow_speeds=False)
+        if symmetric is None:
+            symmetric = _provably_symmetric(Mm)
+        eq = GivenEquations(label, Mm, Fm, T, V, bool(symmetric),
+                            tuple((k, str(v)) for k, v in (missing or {}).items() if v))
+        self.given_equations.append(eq)
+        return eq
+
     def dissipation(self, D, label: str = "D") -> None:
         """Add a Rayleigh dissipation function D(q, q', t) in generalized velocities (eq. 3.15)."""
         self.dissipation_terms.append((label, _as_expr(D, f"dissipation {label!r}")))
@@ -684,6 +776,17 @@ class Model:
         if funcs:
             raise ModelError(f"{what} uses undefined function(s): {', '.join(sorted(map(str, funcs)))}")
 
+    def _check_given(self, expr, what: str) -> None:
+        """:meth:`check_symbols` for a term in (q, v, t): with generalized speeds, the coordinates' rates
+        q' that are not speeds are refused (they are no state: write them by the kinematic equations)."""
+        self.check_symbols(expr, what)
+        if self.general:
+            rates = sorted(s.name for s in sp.sympify(expr).free_symbols if s in set(self.speeds) - set(self.velocities))
+            if rates:
+                raise ModelError(f"{what} uses the coordinates' rate(s) {', '.join(rates)}, which are not speeds of "
+                                 f"model {self.name!r}: write them by the kinematic equations (the speeds are "
+                                 f"{', '.join(s.name for s in self.velocities)})")
+
     def validate(self) -> None:
         """Check every expression uses declared symbols only; called by the derivation."""
         if not self.coords:
@@ -736,7 +839,17 @@ class Model:
                     raise ModelError(f"gravity 'up' has {len(up)} components, {body.name!r} has {dim}")
         for name, expr in self.outputs.items():
             self.check_symbols(expr, f"output {name!r}")
-        if not self.bodies and not self.kinetic_terms and not self.links:
+        for eq in self.given_equations:
+            self._check_given(eq.M, f"mass matrix of {eq.label!r}")
+            self._check_given(eq.F, f"forces of {eq.label!r}")
+            if eq.kinetic_energy is not None:
+                self._check_given(eq.kinetic_energy, f"kinetic energy of {eq.label!r}")
+            if eq.potential_energy is not None:
+                self.check_symbols(eq.potential_energy, f"potential energy of {eq.label!r}", allow_speeds=False)
+            if eq.M.shape != (self.nv, self.nv):
+                raise ModelError(f"mass matrix of {eq.label!r} is {eq.M.shape[0]} x {eq.M.shape[1]}, the model has "
+                                 f"{self.nv} speeds")
+        if not self.bodies and not self.kinetic_terms and not self.links and not self.given_equations:
             raise ModelError(f"model {self.name!r} has no kinetic energy: add bodies or kinetic_energy()")
 
     # ------------------------------------------------------------------ notebooks
@@ -757,7 +870,7 @@ def require_model(obj, what: str) -> Model:
     a loaded model file, a constrained system)."""
     if isinstance(obj, Model):
         return obj
-    takes = f"{what} takes a Model (or a sympy.physics.mechanics System)"
+    takes = f"{what} takes a Model (or a sympy.physics.mechanics System or KanesMethod)"
     kind = type(obj).__name__
     if isinstance(obj, (str, bytes)) or hasattr(obj, "__fspath__"):
         hint = ("for a model file, lagcodegen.compile_file(path) compiles it with its [simulation] settings, "

@@ -1,7 +1,8 @@
 """sympy.physics.mechanics System models (joints, bodies, loads, actuators) through
 lagcodegen.derive and compile_model: mass matrix and forcing against sympy's own
-System.form_eoms(), a simulation against a hand-written lagcodegen model, and clear refusals
-when the speeds are not q' or the system is constrained."""
+System.form_eoms(), a simulation against a hand-written lagcodegen model; Systems whose speeds
+are not q' go through Kane's equations (tests/model/test_kane.py), constrained ones without
+dependent speeds are refused clearly."""
 
 import os
 import subprocess
@@ -160,7 +161,9 @@ def test_compile_model_of_a_system_needs_every_value():
         lcg.compile_model(double_pendulum(), values={"m1": 1.0, "m2": 1.0})
 
 
-def test_speeds_that_are_not_q_dot_are_refused_with_what_to_do():
+def test_speeds_that_are_not_q_dot_take_kanes_equations():
+    """A System whose speed is not q' (q' = r u, a wheel's spin rate) is imported through Kane's
+    equations: its speed u and kinematic equation are the model's, M = m r^2."""
     q, u = me.dynamicsymbols("q u")
     m, r = sp.symbols("m r")
     N = me.ReferenceFrame("N")
@@ -173,21 +176,29 @@ def test_speeds_that_are_not_q_dot_are_refused_with_what_to_do():
     system.add_speeds(u)
     system.add_kdes(q.diff(t) - r * u)  # u is a wheel's spin rate, q' = r u
     system.add_bodies(me.Particle("ball", P, m))
-    with pytest.raises(ModelError, match=r"speeds are not the coordinates' time derivatives .*give "
-                                         r"Derivative\(q\(t\), t\) = r\*u\(t\).*speeds=q1\.diff\(t\)"):
-        mechanics.from_system(system, unset=1.0)
+    model = mechanics.from_system(system, parameters={"m": 2.0, "r": 0.5})
+    assert [s.name for s in model.v] == ["u"] and model.general
+    mm, rr = sp.symbols("m r")
+    assert sp.simplify(model.kinematics[0] - rr * sp.Symbol("u")) == 0
+    eom = lcg.derive(model)
+    assert sp.simplify(eom.M[0, 0] - mm * rr**2) == 0 and eom.F[0] == 0
+    assert sp.simplify(eom.T - mm * rr**2 * sp.Symbol("u") ** 2 / 2) == 0
+    assert system.eom_method is None  # the System itself is left as it was
 
 
-def test_constraints_and_eom_method_objects_are_refused():
+def test_constraints_without_dependent_speeds_are_refused_and_kanes_method_is_taken():
     system = double_pendulum()
     q1, q2 = system.q
     system.add_holonomic_constraints(q1 - q2)
-    with pytest.raises(ModelError, match="the System has holonomic constraints .*lagcodegen.ConstrainedSystem"):
+    with pytest.raises(ModelError, match=r"the System has holonomic constraints \(q1\(t\) - q2\(t\)\); sympy cannot "
+                                         r"form Kane's equations .*dependent coordinates.*lagcodegen.ConstrainedSystem"):
         lcg.derive(system)
     free = double_pendulum()
     free.form_eoms()
-    with pytest.raises(ModelError, match="KanesMethod is not a model lagcodegen derives: pass the System"):
-        lcg.derive(free.eom_method)
+    with pytest.warns(UserWarning, match="have no value"):
+        eom = lcg.derive(free.eom_method)
+    assert [s.name for s in eom.model.v] == ["u1", "u2"]
+    assert eom.M.shape == (2, 2)
 
 
 def test_models_pass_through_and_no_physics_import_for_them():

@@ -37,7 +37,7 @@ import symengine as se
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ... import progress
 from ...errors import ModelError
-from ...formulation.kernels import symbol_map
+from ...formulation.kernels import require_symmetric, symbol_map
 from ...formulation.scene import Scene
 # ------------------------------------------------------------------------------------------
 
@@ -545,6 +545,7 @@ def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
     symbols renamed to y[i], p[k] and folded parameters as numbers. Locations: ("M", i, j)
     for the upper triangle, ("F", i), ("rate", k), ("event", e)."""
     eom = scene.eom
+    require_symmetric(eom, "the Taylor method")
     model = eom.model
     n = model.nv
     sub = symbol_map(scene)
