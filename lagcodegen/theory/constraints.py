@@ -439,6 +439,14 @@ class ConstrainedSystem:
         """R_j = lambda_j A_j (sec. 4.3), one generalized-force vector per constraint."""
         return [self.multipliers[r.index] * sp.Matrix(r.A) for r in self.rows()]
 
+    def derived(self):
+        """Lagrange's equations of :attr:`model` (eq. 3.16, :func:`lagcodegen.derive`), derived on
+        the first call and kept (the model must not change afterwards)."""
+        eom = self.__dict__.get("_derived")
+        if eom is None:
+            eom = self.__dict__["_derived"] = derive(self.model)
+        return eom
+
     def is_integrable(self, j: int) -> IntegrabilityReport:
         """Frobenius test of nonholonomic constraint ``j`` (index among the nonholonomic ones)."""
         if not isinstance(j, int) or not 0 <= j < self.n_nonholonomic:

@@ -27,9 +27,11 @@ import numpy as np
 import symengine as se
 import sympy as sp
 
-from ..derivation import EquationsOfMotion
+from ..derivation import EquationsOfMotion, derive, to_se
 from ..errors import ModelError
-from ..util import check_finite
+from ..model.model import Model
+from ..util import check_finite, excerpt
+from .constraints import ConstrainedSystem, dependent_rows
 
 __all__ = ["Linearization", "linearize"]
 
@@ -55,6 +57,19 @@ class Linearization:
     t: object
     params: dict
     symbolic: bool = False
+    #: Constrained systems (:func:`linearize` of a ConstrainedSystem): the independent speeds
+    #: u (``speeds``, named by their coordinates) and the kinematics dq' = H dq + G du of the
+    #: independent ``coordinates``; None for unconstrained equations (u = q', G = I, H = 0).
+    speeds: list | None = None
+    G: object = None
+    H: object = None
+    #: Constrained systems: the multipliers lambda0 at the state (A^T lambda0 = M a0 - F, least
+    #: squares), the residual of that fit and of A a0 = gamma (max abs), and the dependent speeds
+    #: and coordinates (names) the reduction eliminated.
+    multipliers: object = None
+    residual: float = 0.0
+    dependent_speeds: list | None = None
+    dependent_coordinates: list | None = None
 
     def _numeric(self, what: str) -> None:
         if self.symbolic:
@@ -65,8 +80,17 @@ class Linearization:
         return len(self.coordinates)
 
     @property
+    def reduced(self) -> bool:
+        """Whether this is the reduced linearization of a constrained system (speeds u != q')."""
+        return self.G is not None
+
+    @property
     def A(self) -> np.ndarray:
-        """First-order system matrix [[0, I], [-M^-1 K, -M^-1 C]] (2n x 2n)."""
+        """First-order system matrix [[0, I], [-M^-1 K, -M^-1 C]] (2n x 2n).
+
+        Of a constrained system: [[H, G], [-M^-1 K, -M^-1 C]] in the state (dq, du) of the
+        independent coordinates and speeds (n + n_u square).
+        """
         self._numeric("A")
         n = self.n
         try:
@@ -74,6 +98,8 @@ class Linearization:
             MC = np.linalg.solve(self.M, self.C)
         except np.linalg.LinAlgError:
             raise ModelError("the mass matrix is singular at the linearization state") from None
+        if self.reduced:
+            return np.block([[self.H, self.G], [-MK, -MC]])
         return np.block([[np.zeros((n, n)), np.eye(n)], [-MK, -MC]])
 
     @property
@@ -86,6 +112,9 @@ class Linearization:
     def conservative(self) -> bool:
         """C = 0, and K and M symmetric (to rounding): the (K, M) eigenproblem applies."""
         self._numeric("conservative")
+        if self.reduced and (self.K.shape[0] != self.K.shape[1] or np.any(self.H != 0)
+                             or not np.array_equal(self.G, np.eye(self.n))):
+            return False
         scale = max(np.max(np.abs(self.K)), np.max(np.abs(self.M)), 1e-300)
         tol = 1e-12 * scale
         return (np.max(np.abs(self.C), initial=0.0) <= tol and np.max(np.abs(self.K - self.K.T), initial=0.0) <= tol
@@ -99,6 +128,10 @@ class Linearization:
         real parts of the eigenvalues of M^-1 K.
         """
         self._numeric("omega_squared")
+        if self.K.shape[0] != self.K.shape[1]:
+            raise ModelError(f"omega_squared needs as many speeds as coordinates; this reduced linearization has "
+                             f"{self.K.shape[0]} speeds ({', '.join(self.speeds or [])}) and {self.n} coordinates: "
+                             "use eigenvalues")
         import scipy.linalg  # scipy: only for this generalized symmetric eigenproblem
         K, M = self.K, self.M
         if np.allclose(K, K.T, rtol=1e-12, atol=0) and np.allclose(M, M.T, rtol=1e-12, atol=0):
@@ -181,9 +214,14 @@ def _jacobians(qs, vs, M, F, acc: list):
     return K, C
 
 
-def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
-              params: Mapping[str, float] | None = None, symbolic: bool = False) -> Linearization:
+def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: float | None = None,
+              params: Mapping[str, float] | None = None, symbolic: bool = False, *,
+              independent: Sequence[str] | None = None, a0=None, tol: float = 1e-8) -> Linearization:
     """Linearize the equations of ``eom`` about (q0, v0, t) (see the module docstring).
+
+    ``eom`` may also be a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` (holonomic
+    and nonholonomic rows, eq. 4.5): it is linearized about a steady motion and reduced to
+    independent coordinates and speeds (see "Constrained systems" below).
 
     Parameters
     ----------
@@ -198,7 +236,56 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
     symbolic:
         Return sympy matrices M, C, K as functions of the state symbols, the parameters and
         the accelerations ``<q>_ddot`` at the state (no matrix is inverted).
+        Unconstrained equations only.
+    independent:
+        Constrained systems: the names of the n - J independent speeds (their coordinates), or
+        of the n - J_h independent coordinates. Default: chosen by pivoting on A at the state
+        (QR with column pivoting, holonomic rows first).
+    a0:
+        Constrained systems: the accelerations of the steady motion (default 0).
+    tol:
+        Constrained systems: relative tolerance of the checks that the state satisfies the
+        constraints and is a steady motion.
+
+    Constrained systems
+    -------------------
+    For M q'' = F + A^T lambda, A q' + A0 = 0 (eq. 4.5; holonomic rows A = df/dq, eq. 4.2) at
+    a steady motion (q0, v0) with accelerations a0, all on the constraints:
+
+    1. lambda0 from A^T lambda0 = M a0 - F (least squares); its residual, and that of
+       A a0 = gamma, must be below ``tol`` (relative to max(1, |F|, |M a0|)), or the state is
+       refused (not a steady motion consistent with the constraints; the message gives the
+       accelerations the constraints allow there);
+    2. K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq;
+    3. dependent speeds (J) with A_dep regular and dependent coordinates (J_h of them) with
+       A_h regular on them: dv = B0 du + D dq with B0 = [I; -A_dep^-1 A_ind] (A B0 = 0) and
+       D = -A_dep^-1 S on the dependent rows (A dv + S dq = 0), dq = P dq_I with
+       P = [I; -A_h,dep^-1 A_h,ind];
+    4. multiplying M dv' + C dv + K dq = A^T dlambda (dv' = B0 du' + D dv) by B0^T:
+
+           M_r du' + C_r du + K_r dq_I = 0,     dq_I' = H dq_I + G du,
+           M_r = B0^T M B0,  C_r = B0^T (M D B0 + C B0),  K_r = B0^T (M D D + C D + K) P,
+           G, H = the independent-coordinate rows of B0 and D P.
+
+    The result's ``coordinates`` are the independent coordinates, ``speeds`` the
+    independent speeds, ``M``, ``C``, ``K`` = M_r, C_r, K_r, and ``A`` = [[H, G], [-M_r^-1 K_r,
+    -M_r^-1 C_r]]. The coefficients are frozen at (q0, v0): exact where they do not depend on
+    the coordinates that move along the steady motion (ignorable ones, eq. 3.8).
     """
+    if isinstance(eom, ConstrainedSystem):
+        if symbolic:
+            raise ModelError("linearize: symbolic=True is for unconstrained equations; a ConstrainedSystem is "
+                             "linearized numerically about a steady motion")
+        if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+            raise ModelError(f"linearize: tol must be a number in (0, 1), got {tol!r}")
+        return _linearize_constrained(eom, q0, v0, t, params, independent, a0, float(tol))
+    if isinstance(eom, Model):
+        eom = derive(eom)
+    if not isinstance(eom, EquationsOfMotion):
+        raise ModelError("linearize needs EquationsOfMotion (lagcodegen.derive), a Model or a ConstrainedSystem, "
+                         f"got {type(eom).__name__}")
+    if independent is not None or a0 is not None:
+        raise ModelError("linearize: independent and a0 are for constrained systems (a ConstrainedSystem)")
     names = [s.name for s in eom.q]
     n = eom.n
     if symbolic:
@@ -258,3 +345,221 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
     return Linearization(coordinates=names, M=M, C=np.array([[num(e) for e in row] for row in C]),
                          K=np.array([[num(e) for e in row] for row in K]), q0=qv, v0=vv, a0=a0, t=tv,
                          params=values, symbolic=False)
+
+
+# ---------------------------------------------------------------------- constrained systems
+def _state_numbers(model, q0, v0, t, params: Mapping[str, float] | None):
+    """(names, q, v, t, parameter values, parameter substitution, state substitution)."""
+    names = [s.name for s in model.coords]
+    n = len(names)
+    if q0 is None:
+        raise ModelError("linearize: the state q0 is required")
+    qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(names, _values(q0, names, "q0", [0.0] * n))])
+    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(names, _values(v0, names, "v0", [0.0] * n))])
+    tv = 0.0 if t is None else check_finite(t, "t")
+    known = {s.name: float(v) for s, v in model.params.items()}
+    for k in params or {}:
+        if k not in known:
+            raise ModelError(f"{k!r} is not a parameter of model {model.name!r} "
+                             f"(parameters: {', '.join(known) or 'none'})")
+    values = dict(known)
+    values.update({k: check_finite(v, f"parameter {k!r}") for k, v in (params or {}).items()})
+    psub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
+    psub[se.Symbol(model.t.name)] = exact_number(tv)
+    sub = {se.Symbol(s.name): se.RealDouble(x) for s, x in zip(model.coords, qv)}
+    sub.update({se.Symbol(s.name): se.RealDouble(x) for s, x in zip(model.speeds, vv)})
+    return names, qv, vv, tv, values, psub, sub
+
+
+def _evaluator(sub: dict, where: str):
+    """A function taking a symengine expression (parameters already in) to its real value at the state."""
+    def num(e) -> float:
+        try:
+            x = complex(se.sympify(e).xreplace(sub).evalf())
+        except (TypeError, ValueError, RuntimeError) as exc:
+            raise ModelError(f"linearize: cannot evaluate {excerpt(str(e))} at the state ({exc})") from None
+        if not np.isfinite(x.real) or abs(x.imag) > 1e-12 * max(1.0, abs(x.real)):
+            raise ModelError(f"linearize: {excerpt(str(e))} is not finite and real at the state ({where})")
+        return x.real
+    return num
+
+
+def _nonsingular(B: np.ndarray, scale: float) -> bool:
+    if B.size == 0:
+        return True
+    s = np.linalg.svd(B, compute_uv=False)
+    return bool(s[-1] > 1e-9 * max(scale, 1e-300))
+
+
+def _pivot_columns(A: np.ndarray, columns: list[int], k: int) -> list[int]:
+    """k of ``columns`` on which A (k rows) is best conditioned: QR with column pivoting."""
+    import scipy.linalg  # scipy: column pivoting
+    if k == 0:
+        return []
+    _, _, perm = scipy.linalg.qr(A[:, columns], pivoting=True, mode="economic")
+    return sorted(columns[i] for i in perm[:k])
+
+
+def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[list[int], list[int]]:
+    """(dependent speeds, dependent coordinates) as column indices, holonomic rows the first JH of A.
+
+    The dependent coordinates (JH) are a subset of the dependent speeds (J), chosen so that
+    A_h restricted to them is regular; the dependent speeds make A_dep (J x J) regular.
+    """
+    J, n = A.shape
+    scale = float(np.linalg.svd(A, compute_uv=False)[0]) if J else 1.0
+    Ah = A[:JH]
+    everything = list(range(n))
+    if independent is None:
+        dep_h = _pivot_columns(Ah, everything, JH)
+        if not _nonsingular(Ah[:, dep_h], scale):
+            raise ModelError(f"linearize: the holonomic constraints' Jacobian has rank < {JH} at this state "
+                             f"({dependent_rows(Ah)})")
+        rest = [i for i in everything if i not in dep_h]
+        schur = A[JH:, rest]
+        if JH:
+            schur = schur - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, rest])
+        dep_n = [rest[i] for i in _pivot_columns(schur, list(range(len(rest))), J - JH)]
+        dep = sorted(dep_h + dep_n)
+        if not _nonsingular(A[:, dep], scale):
+            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
+                             f"({dependent_rows(A)}): redundant constraints or a singular configuration")
+        return dep, dep_h
+    chosen = [independent] if isinstance(independent, str) else list(independent)
+    unknown = [k for k in chosen if k not in names]
+    if unknown or len(set(chosen)) != len(chosen):
+        what = f"unknown coordinate(s) {', '.join(map(str, unknown))}" if unknown else "a name repeated"
+        raise ModelError(f"linearize: independent: {what} (coordinates: {', '.join(names)})")
+    ind = [names.index(k) for k in chosen]
+    shown = ", ".join(chosen) or "none"
+    if len(ind) == n - J:
+        dep = [i for i in everything if i not in ind]
+        if not _nonsingular(A[:, dep], scale):
+            raise ModelError(f"linearize: independent speeds ({shown}) cannot be chosen at this state: the "
+                             f"constraints cannot be solved for the other speeds "
+                             f"({', '.join(names[i] for i in dep)}), A restricted to them is singular; "
+                             "choose other independent speeds (or leave independent=None to pivot on A)")
+        return dep, [dep[i] for i in _pivot_columns(Ah[:, dep], list(range(len(dep))), JH)]
+    if JH and len(ind) == n - JH:
+        dep_h = [i for i in everything if i not in ind]
+        if not _nonsingular(Ah[:, dep_h], scale):
+            raise ModelError(f"linearize: independent coordinates ({shown}) cannot be chosen at this state: the "
+                             f"holonomic constraints cannot be solved for {', '.join(names[i] for i in dep_h)} "
+                             "(their Jacobian is singular there); choose other independent coordinates")
+        schur = A[JH:, ind] - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, ind])
+        dep_n = [ind[i] for i in _pivot_columns(schur, list(range(len(ind))), J - JH)]
+        dep = sorted(dep_h + dep_n)
+        if not _nonsingular(A[:, dep], scale):
+            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
+                             f"({dependent_rows(A)})")
+        return dep, dep_h
+    counts = f"the {n - J} independent speeds"
+    if JH:
+        counts += f" or the {n - JH} independent coordinates"
+    raise ModelError(f"linearize: independent names {len(ind)} coordinate(s) ({shown}); give {counts} "
+                     f"({n} coordinates, {JH} holonomic and {J - JH} nonholonomic constraints)")
+
+
+def _linearize_constrained(system: ConstrainedSystem, q0, v0, t, params, independent, a0, tol: float) -> Linearization:
+    """:func:`linearize` of a constrained system about a steady motion (see there)."""
+    model = system.model
+    if system.J == 0:  # inequalities only: nothing to eliminate
+        return linearize(system.derived(), q0, v0, t, params)
+    eom = system.derived()
+    names, qv, vv, tv, values, psub, sub = _state_numbers(model, q0, v0, t, params)
+    n, J, JH = system.n, system.J, system.n_holonomic
+    where = ", ".join(f"{k}={x:g}" for k, x in zip(names, qv))
+    num = _evaluator(sub, where)
+    qs = [se.Symbol(k) for k in names]
+    vs = [se.Symbol(s.name) for s in model.speeds]
+    ts = se.Symbol(model.t.name)
+
+    Mp = [[se.sympify(e).xreplace(psub) for e in row] for row in eom.M_se]
+    Fp = [se.sympify(e).xreplace(psub) for e in eom.F_se]
+    rows = system.rows()
+    # time kept symbolic in A, A0, f until gamma is formed (d/dt of the constraints)
+    tsub = {k: v for k, v in psub.items() if k != ts}
+    Ase = [[to_se(a, f"constraint {r.index}").xreplace(tsub) for a in r.A] for r in rows]
+    A0se = [to_se(r.A0, f"constraint {r.index}").xreplace(tsub) for r in rows]
+    fse = [to_se(f, f"holonomic constraint {j}").xreplace(psub) for j, f in enumerate(system.holonomic)]
+    tnum = {ts: exact_number(tv)}
+
+    M = np.array([[num(e) for e in row] for row in Mp])
+    F = np.array([num(e) for e in Fp])
+    A = np.array([[num(e.xreplace(tnum)) for e in row] for row in Ase]).reshape(J, n)
+    Avals = np.array([num(e.xreplace(tnum)) for e in A0se])
+    if not np.all(np.isfinite(A)):
+        raise ModelError("linearize: the constraint Jacobian A is not finite at the state")
+
+    # the state must satisfy the constraints (eqs. 4.1-4.3)
+    bad = []
+    for j, f in enumerate(fse):
+        val = num(f)
+        if abs(val) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(qv), initial=0.0))):
+            bad.append(f"holonomic constraint {j} ({excerpt(str(system.holonomic[j]))} = 0) has residual {val:.3g}")
+    s0 = A @ vv + Avals
+    for j in range(J):
+        if abs(s0[j]) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(vv), initial=0.0))):
+            bad.append(f"velocity constraint {j} (A_{j} q' + A0_{j}) has residual {s0[j]:.3g}")
+    if bad:
+        raise ModelError("linearize: the state violates the constraints: " + "; ".join(bad))
+
+    # accelerations and multipliers: A^T lambda0 = M a0 - F (least squares), A a0 = gamma
+    acc = np.zeros(n) if a0 is None else np.array(
+        [check_finite(x, f"a0[{k}]") for k, x in zip(names, _values(a0, names, "a0", [0.0] * n))])
+    s_sym = [se.Add(*(a * v for a, v in zip(row, vs)), a0_) for row, a0_ in zip(Ase, A0se)]
+    gamma = np.array([-num(se.Add(se.diff(sj, ts), *(se.diff(sj, q) * v for q, v in zip(qs, vs))).xreplace(tnum))
+                      for sj in s_sym])
+    target = M @ acc - F
+    lam0 = np.linalg.lstsq(A.T, target, rcond=None)[0]
+    res_dyn = float(np.max(np.abs(A.T @ lam0 - target), initial=0.0))
+    res_acc = float(np.max(np.abs(A @ acc - gamma), initial=0.0))
+    scale_dyn = max(1.0, float(np.max(np.abs(F))), float(np.max(np.abs(M @ acc))))
+    scale_acc = max(1.0, float(np.max(np.abs(gamma))), float(np.max(np.abs(A @ acc))))
+    if res_dyn > tol * scale_dyn or res_acc > tol * scale_acc:
+        true_acc = _constrained_accelerations(M, F, A, gamma)
+        raise ModelError(
+            "linearize: the state is not a steady motion consistent with the constraints: "
+            f"A^T lambda = M a0 - F has the least-squares residual {res_dyn:.3g} (relative {res_dyn / scale_dyn:.2g}) "
+            f"and A a0 = gamma the residual {res_acc:.3g} (relative {res_acc / scale_acc:.2g}), tolerance {tol:g}; "
+            "the accelerations the constraints allow there are "
+            + ", ".join(f"{k}''={x:.6g}" for k, x in zip(names, true_acc))
+            + " (give them as a0 for an instantaneous linearization, or choose a state where they vanish)")
+
+    # first-order terms: K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq
+    lam_se = [exact_number(float(x)) for x in lam0]
+    acc_se = [exact_number(float(x)) for x in acc]
+    r = [Fp[i] - se.Add(*(Mp[i][k] * acc_se[k] for k in range(n)))
+         + se.Add(*(Ase[j][i].xreplace(tnum) * lam_se[j] for j in range(J))) for i in range(n)]
+    K = np.array([[-num(se.diff(r[i], q)) for q in qs] for i in range(n)])
+    C = np.array([[-num(se.diff(Fp[i], v)) for v in vs] for i in range(n)])
+    vsub = {v: se.RealDouble(float(x)) for v, x in zip(vs, vv)}
+    S = np.array([[num(se.diff(sj.xreplace(vsub).xreplace(tnum), q)) for q in qs] for sj in s_sym]).reshape(J, n)
+
+    # independent speeds u and coordinates; dv = B0 du + D dq, dq = P dq_I
+    dep, dep_h = _dependent(A, JH, names, independent)
+    ind = [i for i in range(n) if i not in dep]
+    indq = [i for i in range(n) if i not in dep_h]
+    B0 = np.zeros((n, len(ind)))
+    B0[ind, :] = np.eye(len(ind))
+    B0[dep, :] = -np.linalg.solve(A[:, dep], A[:, ind])
+    D = np.zeros((n, n))
+    D[dep, :] = -np.linalg.solve(A[:, dep], S)
+    P = np.zeros((n, len(indq)))
+    P[indq, :] = np.eye(len(indq))
+    if JH:
+        P[dep_h, :] = -np.linalg.solve(A[:JH][:, dep_h], A[:JH][:, indq])
+    Mr = B0.T @ M @ B0
+    Cr = B0.T @ (M @ D @ B0 + C @ B0)
+    Kr = B0.T @ (M @ D @ D + C @ D + K) @ P
+    return Linearization(coordinates=[names[i] for i in indq], M=Mr, C=Cr, K=Kr, q0=qv, v0=vv, a0=acc, t=tv,
+                         params=values, symbolic=False, speeds=[names[i] for i in ind], G=B0[indq, :],
+                         H=(D @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
+                         dependent_speeds=[names[i] for i in dep], dependent_coordinates=[names[i] for i in dep_h])
+
+
+def _constrained_accelerations(M: np.ndarray, F: np.ndarray, A: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """q'' of [M A^T; A 0][q''; -lambda] = [F; gamma] (eq. 4.5), least squares if singular."""
+    n, J = M.shape[0], A.shape[0]
+    K = np.block([[M, A.T], [A, np.zeros((J, J))]])
+    return np.linalg.lstsq(K, np.concatenate([F, gamma]), rcond=None)[0][:n]
