@@ -435,10 +435,11 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
     if len(ind) == n - J:
         dep = [i for i in everything if i not in ind]
         if not _nonsingular(A[:, dep], scale):
-            raise ModelError(f"linearize: independent speeds ({shown}) cannot be chosen at this state: the "
-                             f"constraints cannot be solved for the other speeds "
+            what = "coordinates and speeds" if J == JH else "speeds"
+            raise ModelError(f"linearize: independent {what} ({shown}) cannot be chosen at this state: the "
+                             f"constraints cannot be solved for the other {what} "
                              f"({', '.join(names[i] for i in dep)}), A restricted to them is singular; "
-                             "choose other independent speeds (or leave independent=None to pivot on A)")
+                             f"choose other independent {what} (or leave independent=None to pivot on A)")
         return dep, [dep[i] for i in _pivot_columns(Ah[:, dep], list(range(len(dep))), JH)]
     if JH and len(ind) == n - JH:
         dep_h = [i for i in everything if i not in ind]
