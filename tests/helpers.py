@@ -150,17 +150,16 @@ def whipple_bicycle(name="whipple", check_integrability=False):
     def velocity(point):
         return sp.Matrix([sum(sp.diff(comp, q) * v for q, v in zip(qs, qd)) for comp in point])
 
-    def omega(R):  # world-frame angular velocity: [w]x = R' R^T
-        W = velocity_matrix(R) * R.T
-        return sp.Matrix([W[2, 1], W[0, 2], W[1, 0]])
-
-    def velocity_matrix(R):
-        return R.applyfunc(lambda e: sum(sp.diff(e, q) * v for q, v in zip(qs, qd)))
+    # angular velocities (world frame) as sums of rates about the joint axes
+    ez, ex, ey = sp.Matrix([0, 0, 1]), sp.Matrix([1, 0, 0]), sp.Matrix([0, 1, 0])
+    wB = m.dot(psi) * ez + m.dot(phi) * (Ryaw * ex) + m.dot(theta) * (Rlean * ey)
+    wR = wB + m.dot(thR) * (Rlean * ey)
+    wF = wB + m.dot(delta) * (RB * _ry(lam) * ez) + m.dot(thF) * a
 
     rows = []
-    for centre, R, contact in ((cR, RB * _ry(thR), P), (cF, RH * _ry(thF), contact_F)):
+    for centre, w_, contact in ((cR, wR, P), (cF, wF, contact_F)):
         # velocity of the wheel's material point at the contact: v_centre + w x (contact - centre)
-        vel = velocity(centre) + omega(R).cross(contact - centre)
+        vel = velocity(centre) + w_.cross(contact - centre)
         for k in (0, 1):
             rows.append([sp.diff(vel[k], v) for v in qd])
     return ConstrainedSystem(m, holonomic=holonomic, nonholonomic=rows, check_integrability=check_integrability)
