@@ -20,6 +20,7 @@ function serves the full equations and a Routhian-reduced system (pass the integ
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -349,7 +350,7 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
 
 # ---------------------------------------------------------------------- constrained systems
 def _state_numbers(model, q0, v0, t, params: Mapping[str, float] | None):
-    """(names, q, v, t, parameter values, parameter substitution, state substitution)."""
+    """(names, q, v, t, parameter values by name) of a state, checked."""
     names = [s.name for s in model.coords]
     n = len(names)
     if q0 is None:
@@ -364,24 +365,84 @@ def _state_numbers(model, q0, v0, t, params: Mapping[str, float] | None):
                              f"(parameters: {', '.join(known) or 'none'})")
     values = dict(known)
     values.update({k: check_finite(v, f"parameter {k!r}") for k, v in (params or {}).items()})
-    psub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
-    psub[se.Symbol(model.t.name)] = exact_number(tv)
-    sub = {se.Symbol(s.name): se.RealDouble(x) for s, x in zip(model.coords, qv)}
-    sub.update({se.Symbol(s.name): se.RealDouble(x) for s, x in zip(model.speeds, vv)})
-    return names, qv, vv, tv, values, psub, sub
+    return names, qv, vv, tv, values
 
 
-def _evaluator(sub: dict, where: str):
-    """A function taking a symengine expression (parameters already in) to its real value at the state."""
-    def num(e) -> float:
+class _ConstrainedNumbers:
+    """The numbers the constrained linearization needs at a state (q, v, t) and parameter values:
+    M, F, A, A0, f, gamma = -d/dt (A q' + A0) at q'' = 0, dF/dq, dF/dq', dM/dq, dA/dq, dA0/dq.
+
+    Differentiated symbolically once per system (symengine) and compiled, with the parameters
+    as arguments, into one function (``symengine.Lambdify``, common subexpressions shared): later
+    states and parameter values cost one call. Where that double-precision evaluation is not
+    finite (a parameter that is exactly zero multiplying a pole, e.g. C^2 cos/sin^3 at C = 0),
+    the expressions are evaluated again with the parameters substituted exactly first, as the
+    unconstrained :func:`linearize` does.
+    """
+
+    def __init__(self, system: ConstrainedSystem):
+        model, eom = system.model, system.derived()
+        n, J = system.n, system.J
+        q = [se.Symbol(s.name) for s in model.coords]
+        v = [se.Symbol(s.name) for s in model.speeds]
+        t = se.Symbol(model.t.name)
+        self.params = [se.Symbol(s.name) for s in model.params]
+        rows = system.rows()
+        M = [se.sympify(e) for row in eom.M_se for e in row]
+        F = [se.sympify(e) for e in eom.F_se]
+        A = [to_se(a, f"constraint {r.index}") for r in rows for a in r.A]
+        A0 = [to_se(r.A0, f"constraint {r.index}") for r in rows]
+        s = [se.Add(*(a * w for a, w in zip(A[j * n:(j + 1) * n], v)), A0[j]) for j in range(J)]
+        parts = {
+            "M": M, "F": F, "A": A, "A0": A0,
+            "f": [to_se(e, f"holonomic constraint {j}") for j, e in enumerate(system.holonomic)],
+            "gamma": [-se.Add(se.diff(sj, t), *(se.diff(sj, qk) * w for qk, w in zip(q, v))) for sj in s],
+            "dFdq": [se.diff(e, qk) for e in F for qk in q], "dFdv": [se.diff(e, w) for e in F for w in v],
+            "dMdq": [se.diff(e, qk) for e in M for qk in q], "dAdq": [se.diff(e, qk) for e in A for qk in q],
+            "dA0dq": [se.diff(e, qk) for e in A0 for qk in q]}
+        self.shapes = {"M": (n, n), "F": (n,), "A": (J, n), "A0": (J,), "f": (len(parts["f"]),), "gamma": (J,),
+                       "dFdq": (n, n), "dFdv": (n, n), "dMdq": (n, n, n), "dAdq": (J, n, n), "dA0dq": (J, n)}
+        self.slices, self.exprs = {}, []
+        for key, items in parts.items():
+            self.slices[key] = slice(len(self.exprs), len(self.exprs) + len(items))
+            self.exprs += items
+        self.args = q + v + [t] + self.params
+        stray = set().union(*(e.free_symbols for e in self.exprs)) - set(self.args)
+        if stray:
+            raise ModelError(f"linearize: the equations depend on {', '.join(sorted(map(str, stray)))}, which has no "
+                             "value (not a coordinate, velocity, time or parameter)")
+        self.fn = se.Lambdify(self.args, self.exprs, real=True, cse=True)
+
+    def __call__(self, q: np.ndarray, v: np.ndarray, t: float, values: Mapping[str, float], where: str) -> dict:
+        p = [values[s.name] for s in self.params]
+        with np.errstate(all="ignore"):
+            out = np.asarray(self.fn(np.concatenate([q, v, [t], p])), dtype=float).ravel()
+        if not np.all(np.isfinite(out)):  # evaluate exactly: parameters first, then the state
+            psub = {s: exact_number(x) for s, x in zip(self.params, p)}
+            psub[self.args[2 * len(q)]] = exact_number(t)
+            state = {s: se.RealDouble(float(x)) for s, x in zip(self.args, np.concatenate([q, v]))}
+            out = np.array([self._exact(e, psub, state) for e in self.exprs])
+        vals = {k: out[sl].reshape(self.shapes[k]) for k, sl in self.slices.items()}
+        bad = [k for k, x in vals.items() if not np.all(np.isfinite(x))]
+        if bad:
+            raise ModelError(f"linearize: {', '.join(bad)} not finite and real at the state ({where})")
+        return vals
+
+    @staticmethod
+    def _exact(e, psub: dict, state: dict) -> float:
         try:
-            x = complex(se.sympify(e).xreplace(sub).evalf())
-        except (TypeError, ValueError, RuntimeError) as exc:
-            raise ModelError(f"linearize: cannot evaluate {excerpt(str(e))} at the state ({exc})") from None
-        if not np.isfinite(x.real) or abs(x.imag) > 1e-12 * max(1.0, abs(x.real)):
-            raise ModelError(f"linearize: {excerpt(str(e))} is not finite and real at the state ({where})")
-        return x.real
-    return num
+            x = complex(e.xreplace(psub).xreplace(state).evalf())
+        except (TypeError, ValueError, RuntimeError):
+            return math.nan
+        return x.real if abs(x.imag) <= 1e-12 * max(1.0, abs(x.real)) else math.nan
+
+
+def _constrained_numbers(system: ConstrainedSystem) -> _ConstrainedNumbers:
+    """The compiled functions of ``system``, made on the first call and kept on the system."""
+    kept = system.__dict__.get("_linearize_compiled")
+    if kept is None:
+        kept = system.__dict__["_linearize_compiled"] = _ConstrainedNumbers(system)
+    return kept
 
 
 def _nonsingular(B: np.ndarray, scale: float) -> bool:
@@ -466,39 +527,18 @@ def _linearize_constrained(system: ConstrainedSystem, q0, v0, t, params, indepen
     model = system.model
     if system.J == 0:  # inequalities only: nothing to eliminate
         return linearize(system.derived(), q0, v0, t, params)
-    eom = system.derived()
-    names, qv, vv, tv, values, psub, sub = _state_numbers(model, q0, v0, t, params)
+    names, qv, vv, tv, values = _state_numbers(model, q0, v0, t, params)
     n, J, JH = system.n, system.J, system.n_holonomic
     where = ", ".join(f"{k}={x:g}" for k, x in zip(names, qv))
-    num = _evaluator(sub, where)
-    qs = [se.Symbol(k) for k in names]
-    vs = [se.Symbol(s.name) for s in model.speeds]
-    ts = se.Symbol(model.t.name)
-
-    Mp = [[se.sympify(e).xreplace(psub) for e in row] for row in eom.M_se]
-    Fp = [se.sympify(e).xreplace(psub) for e in eom.F_se]
-    rows = system.rows()
-    # time kept symbolic in A, A0, f until gamma is formed (d/dt of the constraints)
-    tsub = {k: v for k, v in psub.items() if k != ts}
-    Ase = [[to_se(a, f"constraint {r.index}").xreplace(tsub) for a in r.A] for r in rows]
-    A0se = [to_se(r.A0, f"constraint {r.index}").xreplace(tsub) for r in rows]
-    fse = [to_se(f, f"holonomic constraint {j}").xreplace(psub) for j, f in enumerate(system.holonomic)]
-    tnum = {ts: exact_number(tv)}
-
-    M = np.array([[num(e) for e in row] for row in Mp])
-    F = np.array([num(e) for e in Fp])
-    A = np.array([[num(e.xreplace(tnum)) for e in row] for row in Ase]).reshape(J, n)
-    Avals = np.array([num(e.xreplace(tnum)) for e in A0se])
-    if not np.all(np.isfinite(A)):
-        raise ModelError("linearize: the constraint Jacobian A is not finite at the state")
+    x = _constrained_numbers(system)(qv, vv, tv, values, where)
+    M, F, A = x["M"], x["F"], x["A"]
 
     # the state must satisfy the constraints (eqs. 4.1-4.3)
     bad = []
-    for j, f in enumerate(fse):
-        val = num(f)
+    for j, val in enumerate(x["f"]):
         if abs(val) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(qv), initial=0.0))):
             bad.append(f"holonomic constraint {j} ({excerpt(str(system.holonomic[j]))} = 0) has residual {val:.3g}")
-    s0 = A @ vv + Avals
+    s0 = A @ vv + x["A0"]
     for j in range(J):
         if abs(s0[j]) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(vv), initial=0.0))):
             bad.append(f"velocity constraint {j} (A_{j} q' + A0_{j}) has residual {s0[j]:.3g}")
@@ -507,10 +547,8 @@ def _linearize_constrained(system: ConstrainedSystem, q0, v0, t, params, indepen
 
     # accelerations and multipliers: A^T lambda0 = M a0 - F (least squares), A a0 = gamma
     acc = np.zeros(n) if a0 is None else np.array(
-        [check_finite(x, f"a0[{k}]") for k, x in zip(names, _values(a0, names, "a0", [0.0] * n))])
-    s_sym = [se.Add(*(a * v for a, v in zip(row, vs)), a0_) for row, a0_ in zip(Ase, A0se)]
-    gamma = np.array([-num(se.Add(se.diff(sj, ts), *(se.diff(sj, q) * v for q, v in zip(qs, vs))).xreplace(tnum))
-                      for sj in s_sym])
+        [check_finite(a_, f"a0[{k}]") for k, a_ in zip(names, _values(a0, names, "a0", [0.0] * n))])
+    gamma = x["gamma"]
     target = M @ acc - F
     lam0 = np.linalg.lstsq(A.T, target, rcond=None)[0]
     res_dyn = float(np.max(np.abs(A.T @ lam0 - target), initial=0.0))
@@ -524,18 +562,13 @@ def _linearize_constrained(system: ConstrainedSystem, q0, v0, t, params, indepen
             f"A^T lambda = M a0 - F has the least-squares residual {res_dyn:.3g} (relative {res_dyn / scale_dyn:.2g}) "
             f"and A a0 = gamma the residual {res_acc:.3g} (relative {res_acc / scale_acc:.2g}), tolerance {tol:g}; "
             "the accelerations the constraints allow there are "
-            + ", ".join(f"{k}''={x:.6g}" for k, x in zip(names, true_acc))
+            + ", ".join(f"{k}''={a_:.6g}" for k, a_ in zip(names, true_acc))
             + " (give them as a0 for an instantaneous linearization, or choose a state where they vanish)")
 
     # first-order terms: K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq
-    lam_se = [exact_number(float(x)) for x in lam0]
-    acc_se = [exact_number(float(x)) for x in acc]
-    r = [Fp[i] - se.Add(*(Mp[i][k] * acc_se[k] for k in range(n)))
-         + se.Add(*(Ase[j][i].xreplace(tnum) * lam_se[j] for j in range(J))) for i in range(n)]
-    K = np.array([[-num(se.diff(r[i], q)) for q in qs] for i in range(n)])
-    C = np.array([[-num(se.diff(Fp[i], v)) for v in vs] for i in range(n)])
-    vsub = {v: se.RealDouble(float(x)) for v, x in zip(vs, vv)}
-    S = np.array([[num(se.diff(sj.xreplace(vsub).xreplace(tnum), q)) for q in qs] for sj in s_sym]).reshape(J, n)
+    K = -(x["dFdq"] - np.einsum("ikj,k->ij", x["dMdq"], acc) + np.einsum("lij,l->ij", x["dAdq"], lam0))
+    C = -x["dFdv"]
+    S = np.einsum("jik,i->jk", x["dAdq"], vv) + x["dA0dq"]
 
     # independent speeds u and coordinates; dv = B0 du + D dq, dq = P dq_I
     dep, dep_h = _dependent(A, JH, names, independent)
