@@ -1,4 +1,4 @@
-"""Steady motions (sec. 3.5): the non-ignorable coordinates at rest, the ignorable ones turning uniformly.
+"""Steady motions (section 3.5 of the notes): the non-ignorable coordinates at rest, the ignorable ones turning uniformly.
 
 With q_r' = q_r'' = 0 the reduced equations (3.10) become
 
@@ -18,6 +18,12 @@ polished by Newton's method and de-duplicated, is reported with its linear stabi
 (:mod:`lagcodegen.theory.linearize`). A root must have a small residual and a small Newton
 correction (so that F -> 0 at infinity, as for the Kepler problem, is no root), and a
 regular mass matrix.
+
+A :class:`~lagcodegen.theory.constraints.ConstrainedSystem` with holonomic constraints is
+searched for its equilibria on the constraints (:func:`constrained_equilibria`: F + A^T lambda = 0
+with f = 0, eqs. 4.1 and 4.5, then :func:`~lagcodegen.theory.linearize.linearize` on the
+constraints); one with nonholonomic constraints is refused (its equilibria come in families;
+:func:`~lagcodegen.theory.linearize.linearize` checks and linearizes a given steady motion).
 """
 
 from __future__ import annotations

@@ -242,16 +242,16 @@ def tan_exact_model():
 def test_frobenius_budget_decides_large_terms_by_samples(monkeypatch):
     """d(z tan x + y) written with 1/cos^2 x: w ^ dw = 1/cos^2 x - (1 + tan^2 x) is zero, but only
     simplify shows it; over the budget the samples decide (integrable, not proven)."""
-    from lagcodegen.theory import constraints
+    from lagcodegen.theory import integrability as frobenius
     m, x, y, z = tan_exact_model()
     A = [z / sp.cos(x) ** 2, 1, sp.tan(x)]
-    rep = constraints.integrability(A, 0, m.coords, m.t)
+    rep = frobenius.integrability(A, 0, m.coords, m.t)
     assert rep.integrable and rep.proven
-    monkeypatch.setattr(constraints, "FROBENIUS_SIMPLIFY_OPS", 0)
-    rep = constraints.integrability(A, 0, m.coords, m.t)
+    monkeypatch.setattr(frobenius, "FROBENIUS_SIMPLIFY_OPS", 0)
+    rep = frobenius.integrability(A, 0, m.coords, m.t)
     assert rep.integrable and not rep.proven
     # a nonintegrable form is decided by the samples whatever the budget
-    assert not constraints.integrability([sp.sin(z), -sp.cos(z), 0], 0, m.coords, m.t).integrable
+    assert not frobenius.integrability([sp.sin(z), -sp.cos(z), 0], 0, m.coords, m.t).integrable
 
 
 def test_integrability_check_is_optional():
