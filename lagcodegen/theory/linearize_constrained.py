@@ -167,7 +167,12 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
             raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
                              f"({dependent_rows(A)}): redundant constraints or a singular configuration")
         return dep, dep_h
-    chosen = [independent] if isinstance(independent, str) else list(independent)
+    if isinstance(independent, str):
+        chosen = [independent]
+    elif isinstance(independent, (list, tuple)) and all(isinstance(k, str) for k in independent):
+        chosen = list(independent)
+    else:
+        raise ModelError(f"linearize: independent must be a list of coordinate names, got {excerpt(repr(independent))}")
     unknown = [k for k in chosen if k not in names]
     if unknown or len(set(chosen)) != len(chosen):
         what = f"unknown coordinate(s) {', '.join(map(str, unknown))}" if unknown else "a name repeated"

@@ -222,6 +222,10 @@ def test_refusals():
         linearize(cs, [0.0, -1.0], tol=-1)
     with pytest.raises(ModelError, match="needs EquationsOfMotion"):
         linearize("pendulum", [0.0])
+    with pytest.raises(ModelError, match="independent must be a list of coordinate names"):
+        linearize(cs, [0.0, -1.0], independent=5)
+    with pytest.raises(ModelError, match="a name repeated"):
+        linearize(cs, [0.0, -1.0], independent=["x", "x"])
     with pytest.raises(ModelError, match="for constrained systems"):
         linearize(lcg.derive(cs.model), [0.0, -1.0], independent=["x"])
     # a knife edge on an incline is accelerated down the slope: no steady motion at rest
