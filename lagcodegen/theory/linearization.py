@@ -28,6 +28,11 @@ class Linearization:
     matrices in the state symbols, with ``a0`` the acceleration symbols ``<q>_ddot`` (to be
     replaced by the solution of M a = F; zero at equilibria); the numeric properties below
     then raise.
+
+    Of a constrained system (eq. 4.5, :mod:`lagcodegen.theory.linearize_constrained`): the
+    reduced M_r du' + C_r du + K_r dq = 0 with dq' = H dq + G du, where ``coordinates`` are the
+    independent coordinates and ``speeds`` the independent speeds; ``q0``, ``v0``, ``a0`` stay
+    the full state (all n coordinates).
     """
 
     coordinates: list[str]
