@@ -71,3 +71,101 @@ def mixed_system():
                              nonholonomic=[([sp.sin(th), -sp.cos(th), 0], 0)], inequalities=[3 - x])
 
 
+
+
+# ---------------------------------------------------------------------- the Whipple bicycle
+#: Benchmark parameters of Meijaard, Papadopoulos, Ruina, Schwab (2007), Proc. R. Soc. A 463,
+#: 1955-1982, Table 1 (lam: the steer axis tilt pi/10, set below).
+WHIPPLE_PARAMETERS = dict(
+    w=1.02, c=0.08, g=9.81,
+    rR=0.3, mR=2.0, IRxx=0.0603, IRyy=0.12,
+    xB=0.3, zB=-0.9, mB=85.0, IBxx=9.2, IBxz=2.4, IByy=11.0, IBzz=2.8,
+    xH=0.9, zH=-0.7, mH=4.0, IHxx=0.05892, IHxz=-0.00756, IHyy=0.06, IHzz=0.00708,
+    rF=0.35, mF=3.0, IFxx=0.1405, IFyy=0.28)
+
+
+def _rx(a):
+    return sp.Matrix([[1, 0, 0], [0, sp.cos(a), -sp.sin(a)], [0, sp.sin(a), sp.cos(a)]])
+
+
+def _ry(a):
+    return sp.Matrix([[sp.cos(a), 0, sp.sin(a)], [0, 1, 0], [-sp.sin(a), 0, sp.cos(a)]])
+
+
+def _rz(a):
+    return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
+
+
+def whipple_bicycle(name="whipple", check_integrability=False):
+    """The Whipple bicycle of Meijaard et al. (2007) as a ConstrainedSystem (written here from the
+    paper's description, sec. 2 and Table 1; conventions as there: x forward, z down, y to the
+    right; lean about x, steer about the steer axis, both right-handed).
+
+    Coordinates: the rear contact point (x, y), yaw psi, lean phi, rear frame pitch theta (0 in the
+    paper's reference configuration, where both wheels touch), steer delta, the wheels' rotation
+    angles thR, thF relative to their frames. Four rigid bodies: rear wheel R, rear frame B, front
+    frame H, front wheel F (knife-edge wheels, point contact). Constraints: the front wheel's lowest
+    point on the ground (holonomic: its height, z = 0), and no slip at both contacts (the material
+    point of each wheel at its contact has no horizontal velocity: 4 nonholonomic rows).
+    """
+    m = lcg.Model(name)
+    x, y, psi, phi, theta, delta, thR, thF = m.coordinates("x y psi phi theta delta thR thF")
+    p = {k: m.parameter(k, v) for k, v in WHIPPLE_PARAMETERS.items()}
+    lam = m.parameter("lam", float(np.pi / 10))
+    w, c, rR, rF = p["w"], p["c"], p["rR"], p["rF"]
+    m.gravity(p["g"], up=(0, 0, -1))  # z points down
+
+    Ryaw = _rz(psi)
+    Rlean = Ryaw * _rx(phi)
+    RB = Rlean * _ry(theta)  # rear frame: yaw, lean, pitch
+    steer = _ry(lam) * _rz(delta) * _ry(-lam)  # about the steer axis (sin lam, 0, cos lam) of B
+    RH = RB * steer
+    P = sp.Matrix([x, y, 0])
+    cR = P + Rlean * sp.Matrix([0, 0, -rR])  # rear wheel centre, above the contact in the wheel plane
+    # Reference configuration (all angles 0): rear contact at the origin, rear centre (0, 0, -rR),
+    # the steer axis meets the ground at (w + c, 0, 0), front centre (w, 0, -rF).
+    axis = cR + RB * sp.Matrix([w + c, 0, rR])
+    cF = axis + RH * sp.Matrix([-c, 0, -rF])
+    gB = cR + RB * sp.Matrix([p["xB"], 0, p["zB"] + rR])
+    gH = axis + RH * sp.Matrix([p["xH"] - w - c, 0, p["zH"]])
+
+    m.rigid_body("R", p["mR"], [p["IRxx"], p["IRyy"], p["IRxx"]], cR, RB * _ry(thR))
+    m.rigid_body("B", p["mB"], sp.Matrix([[p["IBxx"], 0, p["IBxz"]], [0, p["IByy"], 0], [p["IBxz"], 0, p["IBzz"]]]),
+                 gB, RB)
+    m.rigid_body("H", p["mH"], sp.Matrix([[p["IHxx"], 0, p["IHxz"]], [0, p["IHyy"], 0], [p["IHxz"], 0, p["IHzz"]]]),
+                 gH, RH)
+    m.rigid_body("F", p["mF"], [p["IFxx"], p["IFyy"], p["IFxx"]], cF, RH * _ry(thF))
+
+    # Front contact: from the front centre, rF along the direction in the wheel plane that points
+    # most downwards, d = (e_z - a_z a) / sqrt(1 - a_z^2), a the front axle.
+    a = RH * sp.Matrix([0, 1, 0])
+    s = sp.sqrt(1 - a[2] ** 2)
+    down = (sp.Matrix([0, 0, 1]) - a[2] * a) / s
+    contact_F = cF + rF * down
+    holonomic = [cF[2] + rF * s]  # the height of that point (z = contact_F[2] simplified)
+
+    qs = [x, y, psi, phi, theta, delta, thR, thF]
+    qd = [m.dot(q) for q in qs]
+
+    def velocity(point):
+        return sp.Matrix([sum(sp.diff(comp, q) * v for q, v in zip(qs, qd)) for comp in point])
+
+    # angular velocities (world frame) as sums of rates about the joint axes
+    ez, ex, ey = sp.Matrix([0, 0, 1]), sp.Matrix([1, 0, 0]), sp.Matrix([0, 1, 0])
+    wB = m.dot(psi) * ez + m.dot(phi) * (Ryaw * ex) + m.dot(theta) * (Rlean * ey)
+    wR = wB + m.dot(thR) * (Rlean * ey)
+    wF = wB + m.dot(delta) * (RB * _ry(lam) * ez) + m.dot(thF) * a
+
+    rows = []
+    for centre, w_, contact in ((cR, wR, P), (cF, wF, contact_F)):
+        # velocity of the wheel's material point at the contact: v_centre + w x (contact - centre)
+        vel = velocity(centre) + w_.cross(contact - centre)
+        for k in (0, 1):
+            rows.append([sp.diff(vel[k], v) for v in qd])
+    return ConstrainedSystem(m, holonomic=holonomic, nonholonomic=rows, check_integrability=check_integrability)
+
+
+def whipple_straight_run(v):
+    """(q0, v0) of the upright straight run at speed v (the wheels roll: thR' = -v/rR, thF' = -v/rF)."""
+    P = WHIPPLE_PARAMETERS
+    return [0.0] * 8, [v, 0, 0, 0, 0, 0, -v / P["rR"], -v / P["rF"]]

@@ -29,10 +29,9 @@ and integrates its code.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Mapping
 
 import numpy as np
 import sympy as sp
@@ -41,6 +40,7 @@ from ..derivation import derive, require_lagrange
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
+from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)  # noqa: F401 - re-exported
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
 INTEGRABLE_POLICIES = ("error", "allow")
@@ -137,95 +137,6 @@ class PfaffianRow:
         return self.f is not None
 
 
-@dataclass(frozen=True)
-class IntegrabilityReport:
-    """Result of the Frobenius test w ^ dw = 0 for one Pfaffian form w = A . dq + A0 dt."""
-
-    integrable: bool
-    obstruction: dict  # (var_i, var_j, var_k) names -> sympy expression not identically zero
-    proven: bool  # True: decided symbolically; False: decided from numerical samples
-
-    def __bool__(self) -> bool:
-        return self.integrable
-
-
-def frobenius_terms(A: Sequence, A0, coords: Sequence[sp.Symbol], t: sp.Symbol) -> dict:
-    """The components of w ^ dw for w = sum_i A_i dq_i + A0 dt, one per triple of variables.
-
-    With the variables x = (q_1..q_n, t) and coefficients a = (A_1..A_n, A0), the component
-    on dx_i ^ dx_j ^ dx_k (i < j < k) is
-
-        a_i (d_j a_k - d_k a_j) + a_j (d_k a_i - d_i a_k) + a_k (d_i a_j - d_j a_i).
-
-    A single 1-form is integrable (has an integrating factor, so that the constraint is
-    holonomic, eq. 4.1) exactly when all of them vanish (Frobenius).
-    """
-    xs = list(coords) + [t]
-    a = [sp.sympify(c) for c in A] + [sp.sympify(A0)]
-    out = {}
-    for i, j, k in itertools.combinations(range(len(xs)), 3):
-        xi, xj, xk = xs[i], xs[j], xs[k]
-        term = (a[i] * (sp.diff(a[k], xj) - sp.diff(a[j], xk))
-                + a[j] * (sp.diff(a[i], xk) - sp.diff(a[k], xi))
-                + a[k] * (sp.diff(a[j], xi) - sp.diff(a[i], xj)))
-        out[(xi.name, xj.name, xk.name)] = term
-    return out
-
-
-def _is_zero(expr: sp.Expr, symbols: list, rng: np.random.Generator) -> tuple[bool, bool]:
-    """(is zero, proven): evaluation at random points (every symbol, parameters included, gets a
-    random value in [0.3, 1.7]: integrability must hold for generic parameters), then symbolic
-    simplification."""
-    expr = sp.sympify(expr)
-    if expr == 0:
-        return True, True
-    # Numerical evaluation first: a clearly nonzero sample decides "not zero" for certain.
-    fn = sp.lambdify(symbols, expr, modules=["math"])
-    nonzero = 0
-    zero = 0
-    for _ in range(12):
-        point = [rng.uniform(0.3, 1.7) for _ in symbols]
-        try:
-            val = complex(fn(*point))
-        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
-            continue
-        if not (math.isfinite(val.real) and math.isfinite(val.imag)):
-            continue
-        if abs(val) > 1e-9:
-            nonzero += 1
-        else:
-            zero += 1
-    if nonzero:
-        return False, True
-    try:
-        simplified = sp.simplify(expr)
-    except Exception:  # pragma: no cover - simplify failures are sympy's
-        simplified = expr
-    if simplified == 0:
-        return True, True
-    return zero > 0, False
-
-
-def integrability(A: Sequence, A0, coords: Sequence[sp.Symbol], t: sp.Symbol, seed: int = 0) -> IntegrabilityReport:
-    """Frobenius test (w ^ dw = 0, time included) for the Pfaffian form A . dq + A0 dt (eq. 4.3).
-
-    Each component of w ^ dw is decided by evaluation at random points (a nonzero value proves
-    non-integrability) and, when those vanish, by symbolic simplification (``proven`` is False
-    if sympy could not reduce it to 0 and the decision rests on the samples).
-    """
-    terms = frobenius_terms(A, A0, coords, t)
-    rng = np.random.default_rng(seed)
-    obstruction = {}
-    proven = True
-    for key, term in terms.items():
-        symbols = sorted(term.free_symbols, key=lambda s: s.name)
-        zero, sure = _is_zero(term, symbols, rng)
-        proven = proven and sure
-        if not zero:
-            obstruction[key] = term
-    return IntegrabilityReport(integrable=not obstruction, obstruction=obstruction, proven=proven)
-
-
 class ConstrainedSystem:
     """A model plus constraints (notes, sec. 4).
 
@@ -252,6 +163,12 @@ class ConstrainedSystem:
         rejected ("integrable: it is holonomic"); ``"allow"``: keep it as a Pfaffian
         constraint (the equations are still correct, the constraint is just not
         nonholonomic).
+    check_integrability:
+        Run the Frobenius test on every nonholonomic constraint (default). It costs
+        O(n^3) symbolic terms per constraint (about 7 s for the Whipple bicycle's four rolling
+        constraints in 8 coordinates); ``False`` skips it for constraints known to be
+        nonholonomic: :attr:`integrability_reports` then starts empty, :meth:`is_integrable`
+        runs the test on demand, and ``integrable`` is not enforced.
 
     Notes
     -----
@@ -260,7 +177,7 @@ class ConstrainedSystem:
     """
 
     def __init__(self, model: Model, holonomic: Iterable = (), nonholonomic: Iterable = (),
-                 inequalities: Iterable = (), *, integrable: str = "error"):
+                 inequalities: Iterable = (), *, integrable: str = "error", check_integrability: bool = True):
         if not isinstance(model, Model):
             raise ModelError(f"ConstrainedSystem needs a lagcodegen Model, got {type(model).__name__}")
         require_lagrange(model, "ConstrainedSystem")
@@ -331,8 +248,11 @@ class ConstrainedSystem:
         if clash:
             raise ModelError(f"the model declares {', '.join(clash)}, names reserved for Lagrange multipliers")
 
+        if not isinstance(check_integrability, bool):
+            raise ModelError(f"check_integrability must be True or False, got {check_integrability!r}")
+        self.integrability_checked = check_integrability
         self.integrability_reports: dict[int, IntegrabilityReport] = {}
-        for j, (A, A0) in enumerate(self.nonholonomic):
+        for j, (A, A0) in enumerate(self.nonholonomic if check_integrability else ()):
             rep = integrability(A, A0, model.coords, t)
             self.integrability_reports[j] = rep
             if rep.integrable and integrable == "error":
@@ -459,8 +379,21 @@ class ConstrainedSystem:
         """R_j = lambda_j A_j (sec. 4.3), one generalized-force vector per constraint."""
         return [self.multipliers[r.index] * sp.Matrix(r.A) for r in self.rows()]
 
+    def derived(self):
+        """Lagrange's equations of :attr:`model` (eq. 3.16, :func:`lagcodegen.derive`), derived on
+        the first call and kept (the model must not change afterwards)."""
+        eom = self.__dict__.get("_derived")
+        if eom is None:
+            eom = self.__dict__["_derived"] = derive(self.model)
+        return eom
+
     def is_integrable(self, j: int) -> IntegrabilityReport:
         """Frobenius test of nonholonomic constraint ``j`` (index among the nonholonomic ones)."""
+        if not isinstance(j, int) or not 0 <= j < self.n_nonholonomic:
+            raise ModelError(f"no nonholonomic constraint {j!r} (there are {self.n_nonholonomic})")
+        if j not in self.integrability_reports:  # built with check_integrability=False: test now
+            A, A0 = self.nonholonomic[j]
+            self.integrability_reports[j] = integrability(A, A0, self.model.coords, self.model.t)
         return self.integrability_reports[j]
 
     # ------------------------------------------------------------------ numbers

@@ -15,144 +15,32 @@ M is never inverted symbolically: the numeric A uses ``numpy.linalg.solve``. For
 symmetric K the natural frequencies are the square roots of the generalized eigenvalues of
 (K, M), and the state is linearly stable iff they are all real (every w^2 > 0). The same
 function serves the full equations and a Routhian-reduced system (pass the integrals C_i in
-``params``).
+``params``), and a :class:`~lagcodegen.theory.constraints.ConstrainedSystem`, linearized about
+a steady motion and reduced to independent coordinates and speeds
+(:mod:`lagcodegen.theory.linearize_constrained`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
 import symengine as se
 import sympy as sp
 
-from ..derivation import EquationsOfMotion, require_lagrange
+from ..derivation import EquationsOfMotion, derive, require_lagrange
 from ..errors import ModelError
+from ..model.model import Model
 from ..util import check_finite
+from .constraints import ConstrainedSystem
+from .linearize_constrained import linearize_constrained
+from .linearization import Linearization, exact_number, values_by_name
 
-__all__ = ["Linearization", "linearize"]
-
-
-@dataclass
-class Linearization:
-    """M dq'' + C dq' + K dq = 0 about a state.
-
-    Numeric (default): ``M``, ``C``, ``K`` are numpy arrays and ``q0``, ``v0``, ``a0`` (the
-    accelerations at the state) arrays. Symbolic (``linearize(..., symbolic=True)``): sympy
-    matrices in the state symbols, with ``a0`` the acceleration symbols ``<q>_ddot`` (to be
-    replaced by the solution of M a = F; zero at equilibria); the numeric properties below
-    then raise.
-    """
-
-    coordinates: list[str]
-    M: object
-    C: object
-    K: object
-    q0: object
-    v0: object
-    a0: object
-    t: object
-    params: dict
-    symbolic: bool = False
-
-    def _numeric(self, what: str) -> None:
-        if self.symbolic:
-            raise ModelError(f"{what} needs a numeric linearization (symbolic=False)")
-
-    @property
-    def n(self) -> int:
-        return len(self.coordinates)
-
-    @property
-    def A(self) -> np.ndarray:
-        """First-order system matrix [[0, I], [-M^-1 K, -M^-1 C]] (2n x 2n)."""
-        self._numeric("A")
-        n = self.n
-        try:
-            MK = np.linalg.solve(self.M, self.K)
-            MC = np.linalg.solve(self.M, self.C)
-        except np.linalg.LinAlgError:
-            raise ModelError("the mass matrix is singular at the linearization state") from None
-        return np.block([[np.zeros((n, n)), np.eye(n)], [-MK, -MC]])
-
-    @property
-    def eigenvalues(self) -> np.ndarray:
-        """Eigenvalues of A (complex), sorted by imaginary then real part."""
-        ev = np.linalg.eigvals(self.A)
-        return ev[np.lexsort((ev.real, ev.imag))]
-
-    @property
-    def conservative(self) -> bool:
-        """C = 0, and K and M symmetric (to rounding): the (K, M) eigenproblem applies."""
-        self._numeric("conservative")
-        scale = max(np.max(np.abs(self.K)), np.max(np.abs(self.M)), 1e-300)
-        tol = 1e-12 * scale
-        return (np.max(np.abs(self.C), initial=0.0) <= tol and np.max(np.abs(self.K - self.K.T), initial=0.0) <= tol
-                and np.max(np.abs(self.M - self.M.T), initial=0.0) <= tol)
-
-    @property
-    def omega_squared(self) -> np.ndarray:
-        """Generalized eigenvalues w^2 of K v = w^2 M v, ascending (C is ignored).
-
-        ``scipy.linalg.eigh`` when K, M are symmetric and M positive definite; otherwise the
-        real parts of the eigenvalues of M^-1 K.
-        """
-        self._numeric("omega_squared")
-        import scipy.linalg  # scipy: only for this generalized symmetric eigenproblem
-        K, M = self.K, self.M
-        if np.allclose(K, K.T, rtol=1e-12, atol=0) and np.allclose(M, M.T, rtol=1e-12, atol=0):
-            try:
-                return scipy.linalg.eigh(0.5 * (K + K.T), 0.5 * (M + M.T), eigvals_only=True)
-            except np.linalg.LinAlgError:
-                pass
-        return np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real)
-
-    @property
-    def frequencies(self) -> np.ndarray:
-        """Angular frequencies of the oscillating modes, ascending.
-
-        Conservative case (C = 0, symmetric K): sqrt(w^2) of every positive generalized
-        eigenvalue of (K, M) (unstable or neutral modes have none). Otherwise the positive
-        imaginary parts of the eigenvalues of A (damped or gyroscopic frequencies).
-        """
-        if self.conservative:
-            w2 = self.omega_squared
-            scale = max(1.0, float(np.max(np.abs(w2), initial=0.0)))
-            return np.sqrt(w2[w2 > 1e-12 * scale])
-        ev = self.eigenvalues
-        scale = max(1.0, float(np.max(np.abs(ev), initial=0.0)))
-        return np.sort(ev.imag[ev.imag > 1e-12 * scale])
-
-    def stable(self, tol: float | None = None) -> bool:
-        """Linear stability: every eigenvalue of A has real part <= ``tol``.
-
-        Default ``tol`` = 1e-9 max(1, max |eigenvalue|), so the purely imaginary eigenvalues
-        of a conservative system (computed with rounding-level real parts) count as stable
-        (stable in the linear sense; zero eigenvalues, neutral directions, count too).
-        """
-        ev = self.eigenvalues
-        if tol is None:
-            tol = 1e-9 * max(1.0, float(np.max(np.abs(ev), initial=0.0)))
-        return bool(np.all(ev.real <= tol))
+__all__ = ["Linearization", "exact_number", "linearize"]
 
 
 # ---------------------------------------------------------------------- helpers
-def _values(val, names: Sequence[str], what: str, default) -> list:
-    if val is None:
-        return list(default)
-    if isinstance(val, Mapping):
-        unknown = set(val) - set(names)
-        if unknown:
-            raise ModelError(f"{what}: unknown coordinate(s) {', '.join(sorted(unknown))}")
-        return [val.get(k, d) for k, d in zip(names, default)]
-    vals = list(np.ravel(np.asarray(val, dtype=object)))
-    if len(vals) != len(names):
-        raise ModelError(f"{what} has {len(vals)} values, expected {len(names)} ({', '.join(names)})")
-    return vals
-
-
-def _parameter_values(eom: EquationsOfMotion, params: Mapping[str, float] | None, numeric: bool) -> dict:
+def _parametervalues_by_name(eom: EquationsOfMotion, params: Mapping[str, float] | None, numeric: bool) -> dict:
     names = {s.name: v for s, v in eom.model.params.items()}
     for k in params or {}:
         if k not in names:
@@ -163,11 +51,6 @@ def _parameter_values(eom: EquationsOfMotion, params: Mapping[str, float] | None
     out = {k: float(v) for k, v in names.items()}
     out.update({k: check_finite(v, f"parameter {k!r}") for k, v in (params or {}).items()})
     return out
-
-
-def exact_number(v: float):
-    """A float as symengine number: integral values exactly (0 * x must vanish)."""
-    return se.Integer(int(v)) if float(v).is_integer() and abs(v) < 2**53 else se.RealDouble(v)
 
 
 def _jacobians(qs, vs, M, F, acc: list):
@@ -181,9 +64,14 @@ def _jacobians(qs, vs, M, F, acc: list):
     return K, C
 
 
-def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
-              params: Mapping[str, float] | None = None, symbolic: bool = False) -> Linearization:
+def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: float | None = None,
+              params: Mapping[str, float] | None = None, symbolic: bool = False, *,
+              independent: Sequence[str] | None = None, a0=None, tol: float = 1e-8) -> Linearization:
     """Linearize the equations of ``eom`` about (q0, v0, t) (see the module docstring).
+
+    ``eom`` may also be a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` (holonomic
+    and nonholonomic rows, eq. 4.5): it is linearized about a steady motion and reduced to
+    independent coordinates and speeds (see "Constrained systems" below).
 
     Parameters
     ----------
@@ -198,10 +86,60 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
     symbolic:
         Return sympy matrices M, C, K as functions of the state symbols, the parameters and
         the accelerations ``<q>_ddot`` at the state (no matrix is inverted).
+        Unconstrained equations only.
+    independent:
+        Constrained systems: the names of the n - J independent speeds (their coordinates), or
+        of the n - J_h independent coordinates. Default: chosen by pivoting on A at the state
+        (QR with column pivoting, holonomic rows first).
+    a0:
+        Constrained systems: the accelerations of the steady motion (default 0).
+    tol:
+        Constrained systems: relative tolerance of the checks that the state satisfies the
+        constraints and is a steady motion.
 
-    Models with generalized speeds (quaternion joints) are refused by name.
+    Constrained systems
+    -------------------
+    For M q'' = F + A^T lambda, A q' + A0 = 0 (eq. 4.5; holonomic rows A = df/dq, eq. 4.2) at
+    a steady motion (q0, v0) with accelerations a0, all on the constraints:
+
+    1. lambda0 from A^T lambda0 = M a0 - F (least squares); its residual, and that of
+       A a0 = gamma, must be below ``tol`` (relative to max(1, |F|, |M a0|)), or the state is
+       refused (not a steady motion consistent with the constraints; the message gives the
+       accelerations the constraints allow there);
+    2. K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq;
+    3. dependent speeds (J) with A_dep regular and dependent coordinates (J_h of them) with
+       A_h regular on them: dv = B0 du + D dq with B0 = [I; -A_dep^-1 A_ind] (A B0 = 0) and
+       D = -A_dep^-1 S on the dependent rows (A dv + S dq = 0), dq = P dq_I with
+       P = [I; -A_h,dep^-1 A_h,ind];
+    4. multiplying M dv' + C dv + K dq = A^T dlambda (dv' = B0 du' + D dv) by B0^T:
+
+           M_r du' + C_r du + K_r dq_I = 0,     dq_I' = H dq_I + G du,
+           M_r = B0^T M B0,  C_r = B0^T (M D B0 + C B0),  K_r = B0^T (M D D + C D + K) P,
+           G, H = the independent-coordinate rows of B0 and D P.
+
+    The result's ``coordinates`` are the independent coordinates, ``speeds`` the
+    independent speeds, ``M``, ``C``, ``K`` = M_r, C_r, K_r, and ``A`` = [[H, G], [-M_r^-1 K_r,
+    -M_r^-1 C_r]]. The coefficients are frozen at (q0, v0): exact where they do not depend on
+    the coordinates that move along the steady motion (ignorable ones, eq. 3.8).
     """
+    if isinstance(eom, ConstrainedSystem):
+        if symbolic:
+            raise ModelError("linearize: symbolic=True is for unconstrained equations; a ConstrainedSystem is "
+                             "linearized numerically about a steady motion")
+        if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+            raise ModelError(f"linearize: tol must be a number in (0, 1), got {tol!r}")
+        if eom.J == 0:  # inequalities only: nothing to eliminate
+            return linearize(eom.derived(), q0, v0, t, params)
+        return linearize_constrained(eom, q0=q0, v0=v0, t=t, params=params, independent=independent, a0=a0,
+                                     tol=float(tol))
+    if isinstance(eom, Model):
+        eom = derive(eom)
+    if not isinstance(eom, EquationsOfMotion):
+        raise ModelError("linearize needs EquationsOfMotion (lagcodegen.derive), a Model or a ConstrainedSystem, "
+                         f"got {type(eom).__name__}")
     require_lagrange(eom, "linearize")
+    if independent is not None or a0 is not None:
+        raise ModelError("linearize: independent and a0 are for constrained systems (a ConstrainedSystem)")
     names = [s.name for s in eom.q]
     n = eom.n
     if symbolic:
@@ -209,12 +147,12 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
         K, C = _jacobians(eom.q, eom.qd, eom.M_se, eom.F_se, acc)
         sub = {}
         if q0 is not None:
-            sub.update(dict(zip(eom.q, [sp.sympify(x) for x in _values(q0, names, "q0", eom.q)])))
+            sub.update(dict(zip(eom.q, [sp.sympify(x) for x in values_by_name(q0, names, "q0", eom.q)])))
         if v0 is not None:
-            sub.update(dict(zip(eom.qd, [sp.sympify(x) for x in _values(v0, names, "v0", eom.qd)])))
+            sub.update(dict(zip(eom.qd, [sp.sympify(x) for x in values_by_name(v0, names, "v0", eom.qd)])))
         if t is not None:
             sub[eom.t] = sp.sympify(t)
-        for k, val in _parameter_values(eom, params, numeric=False).items():
+        for k, val in _parametervalues_by_name(eom, params, numeric=False).items():
             sub[sp.Symbol(k)] = sp.sympify(val)
 
         def mat(rows):
@@ -227,10 +165,10 @@ def linearize(eom: EquationsOfMotion, q0=None, v0=None, t: float | None = None,
 
     if q0 is None:
         raise ModelError("linearize: the state q0 is required (or pass symbolic=True)")
-    qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(names, _values(q0, names, "q0", [0.0] * n))])
-    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(names, _values(v0, names, "v0", [0.0] * n))])
+    qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(names, values_by_name(q0, names, "q0", [0.0] * n))])
+    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(names, values_by_name(v0, names, "v0", [0.0] * n))])
     tv = 0.0 if t is None else check_finite(t, "t")
-    values = _parameter_values(eom, params, numeric=True)
+    values = _parametervalues_by_name(eom, params, numeric=True)
     # Parameters first (integral values exactly, so that a zero integral removes its terms,
     # e.g. C^2 cos/sin^3 at theta = 0), then the state.
     psub = {se.Symbol(k): exact_number(v) for k, v in values.items()}

@@ -1,4 +1,4 @@
-"""Steady motions (sec. 3.5): the non-ignorable coordinates at rest, the ignorable ones turning uniformly.
+"""Steady motions (section 3.5 of the notes): the non-ignorable coordinates at rest, the ignorable ones turning uniformly.
 
 With q_r' = q_r'' = 0 the reduced equations (3.10) become
 
@@ -18,6 +18,12 @@ polished by Newton's method and de-duplicated, is reported with its linear stabi
 (:mod:`lagcodegen.theory.linearize`). A root must have a small residual and a small Newton
 correction (so that F -> 0 at infinity, as for the Kepler problem, is no root), and a
 regular mass matrix.
+
+A :class:`~lagcodegen.theory.constraints.ConstrainedSystem` with holonomic constraints is
+searched for its equilibria on the constraints (:func:`constrained_equilibria`: F + A^T lambda = 0
+with f = 0, eqs. 4.1 and 4.5, then :func:`~lagcodegen.theory.linearize.linearize` on the
+constraints); one with nonholonomic constraints is refused (its equilibria come in families;
+:func:`~lagcodegen.theory.linearize.linearize` checks and linearizes a given steady motion).
 """
 
 from __future__ import annotations
@@ -36,10 +42,11 @@ from ..derivation import EquationsOfMotion, derive, require_lagrange
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite
+from .constraints import ConstrainedSystem
 from .linearize import Linearization, exact_number, linearize
 from .routhian import RouthReduction, ignorable_coordinates, reduce
 
-__all__ = ["SteadyMotion", "steady_motions"]
+__all__ = ["SteadyMotion", "constrained_equilibria", "steady_motions"]
 
 #: Most coordinates for which sympy is tried (numeric roots are always searched).
 SYMBOLIC_MAX_COORDINATES = 2
@@ -310,12 +317,20 @@ def _wrap(x: np.ndarray, periodic: list[bool]) -> np.ndarray:
 
 
 def _evaluate(expr: sp.Expr, values: Mapping[str, float], at: Mapping[sp.Symbol, float], tsym: sp.Symbol,
-              t: float) -> float:
-    """expr with parameters (integral values exact) substituted first, then the coordinates."""
+              t: float, what: str = "expression") -> float:
+    """expr with parameters (integral values exact) substituted first, then the coordinates (``at``:
+    the non-ignorable coordinates and, at 0, their velocities). A symbol left over (an input, a
+    symbol of no parameter) is a ModelError naming it, not sympy's "Cannot convert expression to
+    float"."""
     def number(v: float):
         return sp.Integer(int(v)) if float(v).is_integer() and abs(v) < 2**53 else sp.Float(v, 20)
     e = expr.xreplace({sp.Symbol(k): number(v) for k, v in values.items()}).xreplace({tsym: number(t)})
-    z = complex(e.xreplace({q: sp.Float(x, 20) for q, x in at.items()}).evalf(20))
+    e = e.xreplace({q: (sp.Float(x, 20) if x else sp.Integer(0)) for q, x in at.items()})
+    if e.free_symbols:
+        raise ModelError(f"{what} depends on {', '.join(sorted(s.name for s in e.free_symbols))}, "
+                         "which has no value at a steady motion (not a coordinate, velocity or parameter)",
+                         location="steady_motions")
+    z = complex(e.evalf(20))
     return z.real if math.isfinite(z.real) and abs(z.imag) <= 1e-12 * max(1.0, abs(z.real)) else math.nan
 
 
@@ -330,7 +345,9 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
     system:
         A :class:`~lagcodegen.theory.routhian.RouthReduction`, or equations (or a Model) of a full
         system: with ignorable coordinates it is reduced first, without any its steady
-        motions are its equilibria.
+        motions are its equilibria. Or a
+        :class:`~lagcodegen.theory.constraints.ConstrainedSystem` with holonomic constraints
+        only: its equilibria on the constraints (see :func:`constrained_equilibria`).
     integrals:
         Values of the integrals, by name ``C_<q>`` or by the ignorable coordinate's name
         (default 0: equilibria).
@@ -351,6 +368,11 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
 
     Raises :class:`~lagcodegen.errors.ModelError` ("no real steady motion") when none is found.
     """
+    if isinstance(system, ConstrainedSystem):
+        if integrals:
+            raise ModelError("integrals are for Routh's reduction (eq. 3.9); a ConstrainedSystem is "
+                             "searched for its equilibria only", location="steady_motions")
+        return constrained_equilibria(system, params=params, t=t, bounds=bounds, starts=starts, tol=tol)
     eom, red = _resolve(system)
     values, C = _values(eom, red, integrals, params)
     qs = list(eom.q)
@@ -367,6 +389,10 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
     sub[se.Symbol(eom.t.name)] = exact_number(float(t))
     qse = [se.Symbol(q) for q in names]
     G = [se.sympify(f).xreplace(sub) for f in eom.F_se]
+    stray = set().union(*(g.free_symbols for g in G)) - set(qse)
+    if stray:
+        raise ModelError(f"F depends on {', '.join(sorted(str(s) for s in stray))}, which has no value "
+                         "(not a coordinate or parameter; an input?): give it as a parameter", location="steady_motions")
     J = [[se.diff(g, q) for q in qse] for g in G]
     f_G = se.Lambdify(qse, G, real=True)
     f_J = se.Lambdify(qse, [e for row in J for e in row], real=True)
@@ -415,7 +441,9 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
             lin = linearize(eom, q0=x, v0=np.zeros(n), t=t, params=values)
         except ModelError:  # singular mass matrix or a pole there: not a regular steady motion
             continue
-        vel = {q.name: _evaluate(rate, values, dict(zip(red.coordinates, x)), eom.t, t)
+        # q_i' = dR/dC_i (eq. 3.11) may hold the non-ignorable velocities (cross terms of T): 0 here
+        at = {**dict(zip(red.coordinates, x)), **{v: 0.0 for v in eom.qd}} if red is not None else {}
+        vel = {q.name: _evaluate(rate, values, at, eom.t, t, f"the rate of {q.name} (eq. 3.11)")
                for q, rate in zip(red.ignorable, red.reconstruction)} if red is not None else {}
         motions.append(SteadyMotion(coordinates=dict(zip(names, map(float, x))), velocities=vel,
                                     integrals=dict(C), parameters={k: values[k] for k in other},
@@ -424,4 +452,112 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
         where = f" for {', '.join(f'{k} = {v:g}' for k, v in C.items())}" if C else ""
         raise ModelError(f"no real steady motion{where}: F(q, q' = 0) = 0 has no real root with a regular "
                          f"mass matrix (searched from {len(candidates)} starting points)", location="steady_motions")
+    return motions
+
+
+# ---------------------------------------------------------------------- constrained systems
+def constrained_equilibria(system: ConstrainedSystem, *, params: Mapping[str, float] | None = None, t: float = 0.0,
+                           bounds: Mapping[str, tuple[float, float]] | None = None, starts: int = 24,
+                           tol: float = 1e-9) -> list[SteadyMotion]:
+    """Every equilibrium of a system with holonomic constraints, with its linear stability.
+
+    At rest (q' = q'' = 0) eq. 4.5 is F(q, 0, t) + A(q)^T lambda = 0 with f(q, t) = 0 (eq. 4.1):
+    n + J equations in (q, lambda), solved numerically (``scipy.optimize.root``) from a grid
+    of coordinates, the multipliers starting from the least-squares fit of A^T lambda = -F
+    there. Each root is linearized on the constraints (:func:`~lagcodegen.theory.linearize.linearize`
+    of the ConstrainedSystem: independent coordinates by pivoting) for its stability; its
+    ``coordinates`` are all n coordinates, its ``velocities`` and ``integrals`` empty.
+
+    Scope: equilibria only (Routh's reduction, eq. 3.9, of a constrained system is not
+    done), and holonomic constraints only: with nonholonomic constraints the equilibria come in
+    families (F in the span of more rows of A than there are equations to fix q), and a steady
+    motion has to be given: :func:`~lagcodegen.theory.linearize.linearize` checks and linearizes one.
+    Arguments as for :func:`steady_motions`.
+    """
+    if not isinstance(system, ConstrainedSystem):
+        raise ModelError(f"constrained_equilibria needs a ConstrainedSystem, got {type(system).__name__}")
+    if system.n_nonholonomic:
+        raise ModelError(
+            f"the steady motions of a system with nonholonomic constraints ({system.n_nonholonomic}) are not searched: "
+            "its equilibria come in families (F(q, 0) + A^T lambda = 0 has fewer equations than unknowns) and its "
+            "steady motions are not those of a Routhian; give the motion to linearize(system, q0=..., v0=...), "
+            "which checks that it is steady and linearizes it", location="steady_motions")
+    if system.J == 0:  # inequalities only
+        return steady_motions(system.derived(), params=params, t=t, bounds=bounds, starts=starts, tol=tol)
+    eom = system.derived()
+    values, _ = _values(eom, None, None, params)
+    names = [q.name for q in eom.q]
+    n, JH = system.n, system.n_holonomic
+    user_bounds = dict(bounds or {})
+    for k in user_bounds:
+        if k not in names:
+            raise ModelError(f"bounds given for {k!r}, which is not a coordinate ({', '.join(names)})")
+    from ..derivation import to_se  # a lower stage: the constraints as symengine expressions
+    sub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
+    sub.update({se.Symbol(v.name): se.Integer(0) for v in eom.qd})
+    sub[se.Symbol(eom.t.name)] = exact_number(float(t))
+    qse = [se.Symbol(k) for k in names]
+    lam = [se.Symbol(f"__lambda{j}") for j in range(JH)]
+    F = [se.sympify(f).xreplace(sub) for f in eom.F_se]
+    A = [[to_se(a, f"holonomic constraint {r.index}").xreplace(sub) for a in r.A] for r in system.rows()]
+    f = [to_se(e, f"holonomic constraint {j}").xreplace(sub) for j, e in enumerate(system.holonomic)]
+    G = [F[i] + se.Add(*(A[j][i] * lam[j] for j in range(JH))) for i in range(n)] + f
+    stray = set().union(*(g.free_symbols for g in G)) - set(qse) - set(lam)
+    if stray:
+        raise ModelError(f"the equations depend on {', '.join(sorted(str(s) for s in stray))}, which "
+                         "has no value (not a coordinate or parameter; an input?)", location="steady_motions")
+    x = qse + lam
+    m = n + JH
+    f_G = se.Lambdify(x, G, real=True)
+    f_J = se.Lambdify(x, [se.diff(g, y) for g in G for y in x], real=True)
+    f_FA = se.Lambdify(qse, F + [a for row in A for a in row], real=True)
+
+    def fun(y):
+        with np.errstate(all="ignore"):
+            return np.asarray(f_G(np.asarray(y, dtype=float)), dtype=float).ravel()
+
+    def jac(y):
+        with np.errstate(all="ignore"):
+            return np.asarray(f_J(np.asarray(y, dtype=float)), dtype=float).reshape(m, m)
+
+    def with_multipliers(q):
+        with np.errstate(all="ignore"):
+            vals = np.asarray(f_FA(np.asarray(q, dtype=float)), dtype=float).ravel()
+        Fq, Aq = vals[:n], vals[n:].reshape(JH, n)
+        if not (np.all(np.isfinite(Fq)) and np.all(np.isfinite(Aq))):
+            return None
+        return np.concatenate([q, np.linalg.lstsq(Aq.T, -Fq, rcond=None)[0]])
+
+    rng = np.random.default_rng(1234)
+    periodic = [_is_periodic(lambda q: fun(np.concatenate([q, np.zeros(JH)])), n, k, rng) for k in range(n)]
+    bnds = [tuple(map(float, user_bounds[k])) if k in user_bounds else None for k in names]
+    grid = [y for y in (with_multipliers(q) for q in _starts(n, periodic, bnds, starts, rng)) if y is not None]
+    with np.errstate(all="ignore"):
+        sizes = np.array([np.max(np.abs(fun(y))) for y in grid]) if grid else np.zeros(0)
+    finite = sizes[np.isfinite(sizes)]
+    scale = max(1.0, float(np.median(finite))) if finite.size else 1.0
+    found: list[np.ndarray] = []
+    for y0 in grid:
+        y = _polish(fun, jac, y0)
+        if y is None or not _is_root(fun, jac, y, tol * scale):
+            continue
+        q = _wrap(y[:n], periodic)
+        if any(b is not None and not (b[0] - 1e-9 <= qi <= b[1] + 1e-9) for qi, b in zip(q, bnds)):
+            continue
+        if any(np.max(np.abs(_wrap(q - p, periodic))) <= 1e-7 * max(1.0, float(np.max(np.abs(p)))) for p in found):
+            continue
+        found.append(q)
+    found.sort(key=lambda q: tuple(np.round(q, 9)))
+    motions = []
+    for q in found:
+        try:
+            lin = linearize(system, q0=q, v0=np.zeros(n), t=t, params=values, tol=max(tol, 1e-8))
+        except ModelError:  # a singular constraint Jacobian or mass matrix there: not a regular equilibrium
+            continue
+        motions.append(SteadyMotion(coordinates=dict(zip(names, map(float, q))), velocities={}, integrals={},
+                                    parameters=dict(values), linearization=lin,
+                                    residual=float(np.max(np.abs(fun(np.concatenate([q, lin.multipliers])))))))
+    if not motions:
+        raise ModelError(f"no real equilibrium on the constraints: F(q, 0) + A^T lambda = 0, f(q) = 0 has no regular "
+                         f"real root (searched from {len(grid)} starting points)", location="steady_motions")
     return motions

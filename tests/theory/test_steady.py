@@ -131,3 +131,63 @@ def test_argument_errors(sph, hoop):
         steady_motions(sph, {"C_theta": 1.0})
     with pytest.raises(ModelError, match="not a parameter"):
         steady_motions(sph, params={"C_phi": 1.0})
+
+
+def test_reconstruction_with_cross_terms():
+    """T = a'^2/2 + (2 + sin^2 a) b'^2/2 + cos(a) a' b'/2: b is ignorable and its rate dR/dC_b
+    (eq. 3.11) holds a' (the cross term); at a steady motion a' = 0, so b' = C/(2 + sin^2 a)
+    (this raised sympy's "Cannot convert expression to float")."""
+    import sympy as sp
+    m = lcg.Model("cross")
+    a, b = m.coordinates("a b")
+    k, = m.parameters(k=2.0)
+    m.kinetic_energy(m.dot(a)**2 / 2 + (2 + sp.sin(a)**2) * m.dot(b)**2 / 2 + sp.cos(a) * m.dot(a) * m.dot(b) / 2)
+    m.potential_energy(k * (1 - sp.cos(a)))
+    C = 1.3
+    motions = steady_motions(m, {"C_b": C})
+    assert len(motions) >= 2
+    for s in motions:
+        x = s.coordinates["a"]
+        assert s.velocities["b"] == pytest.approx(C / (2 + math.sin(x) ** 2), rel=1e-12)
+
+
+# ---------------------------------------------------------------------- constrained systems
+def test_cartesian_pendulum_equilibria():
+    from helpers import cartesian_pendulum
+    l, g = 0.8, 9.81
+    bottom, top = steady_motions(cartesian_pendulum(), params={"l": l})
+    assert (bottom.coordinates["x"], bottom.coordinates["y"]) == pytest.approx((0.0, -l), abs=1e-12)
+    assert (top.coordinates["x"], top.coordinates["y"]) == pytest.approx((0.0, l), abs=1e-12)
+    assert bottom.stable and not top.stable
+    assert bottom.frequencies == pytest.approx([math.sqrt(g / l)], rel=1e-10)
+    assert bottom.linearization.multipliers[0] == pytest.approx(-g / (2 * l), rel=1e-10)  # tension m g
+
+
+def test_particle_on_a_circle_in_a_saddle_potential():
+    """x^2 + y^2 = r^2, V = k x y = (k r^2 / 2) sin 2 theta: equilibria at theta = +-pi/4, +-3pi/4,
+    stable where sin 2 theta < 0 with w^2 = 2 k / m."""
+    import sympy as sp
+    from lagcodegen.theory.constraints import ConstrainedSystem
+    mod = lcg.Model("saddle")
+    x, y = mod.coordinates("x y")
+    k, mass, r = mod.parameters(k=3.0, m=1.5, r=0.7)
+    mod.particle("p", mass, (x, y))
+    mod.potential_energy(k * x * y)
+    motions = steady_motions(ConstrainedSystem(mod, holonomic=[x**2 + y**2 - r**2]))
+    angles = sorted(round(math.atan2(s.coordinates["y"], s.coordinates["x"]) / (math.pi / 4)) for s in motions)
+    assert angles == [-3, -1, 1, 3]
+    for s in motions:
+        th = math.atan2(s.coordinates["y"], s.coordinates["x"])
+        assert math.hypot(s.coordinates["x"], s.coordinates["y"]) == pytest.approx(0.7, rel=1e-12)
+        assert s.stable == (math.sin(2 * th) < 0)
+        if s.stable:
+            assert s.frequencies == pytest.approx([math.sqrt(2 * 3.0 / 1.5)], rel=1e-10)
+    assert sp  # (sympy only for the model's symbols)
+
+
+def test_constrained_scope():
+    from helpers import cartesian_pendulum, knife_edge
+    with pytest.raises(ModelError, match="nonholonomic constraints .* are not searched.*linearize"):
+        steady_motions(knife_edge())
+    with pytest.raises(ModelError, match="integrals are for Routh"):
+        steady_motions(cartesian_pendulum(), {"C_x": 1.0})

@@ -1,0 +1,287 @@
+"""Linearization of a constrained system about a steady motion (eqs. 4.5 and 3.16 to first order).
+
+For M q'' = F + A^T lambda with A q' + A0 = 0 (holonomic rows A = df/dq, eq. 4.2) at a steady
+motion (q0, v0, a0) on the constraints: the multipliers lambda0 by least squares
+(A^T lambda0 = M a0 - F, refused when the residual says the state is not steady), the
+first-order terms K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq' and
+S = d(A v0 + A0)/dq, then independent speeds u and coordinates q_I (pivoting on A, or named)
+with dv = B0 du + D dq, dq = P dq_I:
+
+    M_r du' + C_r du + K_r dq_I = 0,   dq_I' = H dq_I + G du,
+    M_r = B0^T M B0,  C_r = B0^T (M D B0 + C B0),  K_r = B0^T (M D D + C D + K) P.
+
+The derivation is in :func:`lagcodegen.theory.linearize.linearize` (the entry point).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+import symengine as se
+
+from ..derivation import to_se
+from ..errors import ModelError
+from ..util import check_finite, excerpt
+from .constraints import ConstrainedSystem, dependent_rows
+from .linearization import Linearization, exact_number, values_by_name
+
+__all__ = ["linearize_constrained"]
+
+
+def _state_numbers(model, q0, v0, t, params: Mapping[str, float] | None):
+    """(names, q, v, t, parameter values by name) of a state, checked."""
+    names = [s.name for s in model.coords]
+    n = len(names)
+    if q0 is None:
+        raise ModelError("linearize: the state q0 is required")
+    qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(names, values_by_name(q0, names, "q0", [0.0] * n))])
+    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(names, values_by_name(v0, names, "v0", [0.0] * n))])
+    tv = 0.0 if t is None else check_finite(t, "t")
+    known = {s.name: float(v) for s, v in model.params.items()}
+    for k in params or {}:
+        if k not in known:
+            raise ModelError(f"{k!r} is not a parameter of model {model.name!r} "
+                             f"(parameters: {', '.join(known) or 'none'})")
+    values = dict(known)
+    values.update({k: check_finite(v, f"parameter {k!r}") for k, v in (params or {}).items()})
+    return names, qv, vv, tv, values
+
+
+class _ConstrainedNumbers:
+    """The numbers the constrained linearization needs at a state (q, v, t) and parameter values:
+    M, F, A, A0, f, gamma = -d/dt (A q' + A0) at q'' = 0, dF/dq, dF/dq', dM/dq, dA/dq, dA0/dq.
+
+    Differentiated symbolically once per system (symengine) and compiled, with the parameters
+    as arguments, into one function (``symengine.Lambdify``, common subexpressions shared): later
+    states and parameter values cost one call. Where that double-precision evaluation is not
+    finite (a parameter that is exactly zero multiplying a pole, e.g. C^2 cos/sin^3 at C = 0),
+    the expressions are evaluated again with the parameters substituted exactly first, as the
+    unconstrained :func:`linearize` does.
+    """
+
+    def __init__(self, system: ConstrainedSystem):
+        model, eom = system.model, system.derived()
+        n, J = system.n, system.J
+        q = [se.Symbol(s.name) for s in model.coords]
+        v = [se.Symbol(s.name) for s in model.speeds]
+        t = se.Symbol(model.t.name)
+        self.params = [se.Symbol(s.name) for s in model.params]
+        rows = system.rows()
+        M = [se.sympify(e) for row in eom.M_se for e in row]
+        F = [se.sympify(e) for e in eom.F_se]
+        A = [to_se(a, f"constraint {r.index}") for r in rows for a in r.A]
+        A0 = [to_se(r.A0, f"constraint {r.index}") for r in rows]
+        s = [se.Add(*(a * w for a, w in zip(A[j * n:(j + 1) * n], v)), A0[j]) for j in range(J)]
+        parts = {
+            "M": M, "F": F, "A": A, "A0": A0,
+            "f": [to_se(e, f"holonomic constraint {j}") for j, e in enumerate(system.holonomic)],
+            "gamma": [-se.Add(se.diff(sj, t), *(se.diff(sj, qk) * w for qk, w in zip(q, v))) for sj in s],
+            "dFdq": [se.diff(e, qk) for e in F for qk in q], "dFdv": [se.diff(e, w) for e in F for w in v],
+            "dMdq": [se.diff(e, qk) for e in M for qk in q], "dAdq": [se.diff(e, qk) for e in A for qk in q],
+            "dA0dq": [se.diff(e, qk) for e in A0 for qk in q]}
+        self.shapes = {"M": (n, n), "F": (n,), "A": (J, n), "A0": (J,), "f": (len(parts["f"]),), "gamma": (J,),
+                       "dFdq": (n, n), "dFdv": (n, n), "dMdq": (n, n, n), "dAdq": (J, n, n), "dA0dq": (J, n)}
+        self.slices, self.exprs = {}, []
+        for key, items in parts.items():
+            self.slices[key] = slice(len(self.exprs), len(self.exprs) + len(items))
+            self.exprs += items
+        self.args = q + v + [t] + self.params
+        stray = set().union(*(e.free_symbols for e in self.exprs)) - set(self.args)
+        if stray:
+            raise ModelError(f"linearize: the equations depend on {', '.join(sorted(map(str, stray)))}, which has no "
+                             "value (not a coordinate, velocity, time or parameter)")
+        self.fn = se.Lambdify(self.args, self.exprs, real=True, cse=True)
+
+    def __call__(self, q: np.ndarray, v: np.ndarray, t: float, values: Mapping[str, float], where: str) -> dict:
+        p = [values[s.name] for s in self.params]
+        with np.errstate(all="ignore"):
+            out = np.asarray(self.fn(np.concatenate([q, v, [t], p])), dtype=float).ravel()
+        if not np.all(np.isfinite(out)):  # evaluate exactly: parameters first, then the state
+            psub = {s: exact_number(x) for s, x in zip(self.params, p)}
+            psub[self.args[2 * len(q)]] = exact_number(t)
+            state = {s: se.RealDouble(float(x)) for s, x in zip(self.args, np.concatenate([q, v]))}
+            out = np.array([self._exact(e, psub, state) for e in self.exprs])
+        vals = {k: out[sl].reshape(self.shapes[k]) for k, sl in self.slices.items()}
+        bad = [k for k, x in vals.items() if not np.all(np.isfinite(x))]
+        if bad:
+            raise ModelError(f"linearize: {', '.join(bad)} not finite and real at the state ({where})")
+        return vals
+
+    @staticmethod
+    def _exact(e, psub: dict, state: dict) -> float:
+        try:
+            x = complex(e.xreplace(psub).xreplace(state).evalf())
+        except (TypeError, ValueError, RuntimeError):
+            return math.nan
+        return x.real if abs(x.imag) <= 1e-12 * max(1.0, abs(x.real)) else math.nan
+
+
+def _constrained_numbers(system: ConstrainedSystem) -> _ConstrainedNumbers:
+    """The compiled functions of ``system``, made on the first call and kept on the system."""
+    kept = system.__dict__.get("_linearize_compiled")
+    if kept is None:
+        kept = system.__dict__["_linearize_compiled"] = _ConstrainedNumbers(system)
+    return kept
+
+
+def _nonsingular(B: np.ndarray, scale: float) -> bool:
+    if B.size == 0:
+        return True
+    s = np.linalg.svd(B, compute_uv=False)
+    return bool(s[-1] > 1e-9 * max(scale, 1e-300))
+
+
+def _pivot_columns(A: np.ndarray, columns: list[int], k: int) -> list[int]:
+    """k of ``columns`` on which A (k rows) is best conditioned: QR with column pivoting."""
+    import scipy.linalg  # scipy: column pivoting
+    if k == 0:
+        return []
+    _, _, perm = scipy.linalg.qr(A[:, columns], pivoting=True, mode="economic")
+    return sorted(columns[i] for i in perm[:k])
+
+
+def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[list[int], list[int]]:
+    """(dependent speeds, dependent coordinates) as column indices, holonomic rows the first JH of A.
+
+    The dependent coordinates (JH) are a subset of the dependent speeds (J), chosen so that
+    A_h restricted to them is regular; the dependent speeds make A_dep (J x J) regular.
+    """
+    J, n = A.shape
+    scale = float(np.linalg.svd(A, compute_uv=False)[0]) if J else 1.0
+    Ah = A[:JH]
+    everything = list(range(n))
+    if independent is None:
+        dep_h = _pivot_columns(Ah, everything, JH)
+        if not _nonsingular(Ah[:, dep_h], scale):
+            raise ModelError(f"linearize: the holonomic constraints' Jacobian has rank < {JH} at this state "
+                             f"({dependent_rows(Ah)})")
+        rest = [i for i in everything if i not in dep_h]
+        schur = A[JH:, rest]
+        if JH:
+            schur = schur - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, rest])
+        dep_n = [rest[i] for i in _pivot_columns(schur, list(range(len(rest))), J - JH)]
+        dep = sorted(dep_h + dep_n)
+        if not _nonsingular(A[:, dep], scale):
+            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
+                             f"({dependent_rows(A)}): redundant constraints or a singular configuration")
+        return dep, dep_h
+    if isinstance(independent, str):
+        chosen = [independent]
+    elif isinstance(independent, (list, tuple)) and all(isinstance(k, str) for k in independent):
+        chosen = list(independent)
+    else:
+        raise ModelError(f"linearize: independent must be a list of coordinate names, got {excerpt(repr(independent))}")
+    unknown = [k for k in chosen if k not in names]
+    if unknown or len(set(chosen)) != len(chosen):
+        what = f"unknown coordinate(s) {', '.join(map(str, unknown))}" if unknown else "a name repeated"
+        raise ModelError(f"linearize: independent: {what} (coordinates: {', '.join(names)})")
+    ind = [names.index(k) for k in chosen]
+    shown = ", ".join(chosen) or "none"
+    if len(ind) == n - J:
+        dep = [i for i in everything if i not in ind]
+        if not _nonsingular(A[:, dep], scale):
+            what = "coordinates and speeds" if J == JH else "speeds"
+            raise ModelError(f"linearize: independent {what} ({shown}) cannot be chosen at this state: the "
+                             f"constraints cannot be solved for the other {what} "
+                             f"({', '.join(names[i] for i in dep)}), A restricted to them is singular; "
+                             f"choose other independent {what} (or leave independent=None to pivot on A)")
+        return dep, [dep[i] for i in _pivot_columns(Ah[:, dep], list(range(len(dep))), JH)]
+    if JH and len(ind) == n - JH:
+        dep_h = [i for i in everything if i not in ind]
+        if not _nonsingular(Ah[:, dep_h], scale):
+            raise ModelError(f"linearize: independent coordinates ({shown}) cannot be chosen at this state: the "
+                             f"holonomic constraints cannot be solved for {', '.join(names[i] for i in dep_h)} "
+                             "(their Jacobian is singular there); choose other independent coordinates")
+        schur = A[JH:, ind] - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, ind])
+        dep_n = [ind[i] for i in _pivot_columns(schur, list(range(len(ind))), J - JH)]
+        dep = sorted(dep_h + dep_n)
+        if not _nonsingular(A[:, dep], scale):
+            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
+                             f"({dependent_rows(A)})")
+        return dep, dep_h
+    counts = f"the {n - J} independent speeds"
+    if JH:
+        counts += f" or the {n - JH} independent coordinates"
+    raise ModelError(f"linearize: independent names {len(ind)} coordinate(s) ({shown}); give {counts} "
+                     f"({n} coordinates, {JH} holonomic and {J - JH} nonholonomic constraints)")
+
+
+def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | None = None,
+                          params: Mapping[str, float] | None = None, independent: Sequence[str] | None = None,
+                          a0=None, tol: float = 1e-8) -> Linearization:
+    """Linearize a constrained system about a steady motion, reduced to independent coordinates and
+    speeds: the "Constrained systems" part of :func:`lagcodegen.theory.linearize.linearize`, which
+    is the entry point (it checks the arguments and handles J = 0); see there for the formulas."""
+    model = system.model
+    names, qv, vv, tv, values = _state_numbers(model, q0, v0, t, params)
+    n, J, JH = system.n, system.J, system.n_holonomic
+    where = ", ".join(f"{k}={x:g}" for k, x in zip(names, qv))
+    x = _constrained_numbers(system)(qv, vv, tv, values, where)
+    M, F, A = x["M"], x["F"], x["A"]
+
+    # the state must satisfy the constraints (eqs. 4.1-4.3)
+    bad = []
+    for j, val in enumerate(x["f"]):
+        if abs(val) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(qv), initial=0.0))):
+            bad.append(f"holonomic constraint {j} ({excerpt(str(system.holonomic[j]))} = 0) has residual {val:.3g}")
+    s0 = A @ vv + x["A0"]
+    for j in range(J):
+        if abs(s0[j]) > tol * max(1.0, float(np.max(np.abs(A[j]))) * float(np.max(np.abs(vv), initial=0.0))):
+            bad.append(f"velocity constraint {j} (A_{j} q' + A0_{j}) has residual {s0[j]:.3g}")
+    if bad:
+        raise ModelError("linearize: the state violates the constraints: " + "; ".join(bad))
+
+    # accelerations and multipliers: A^T lambda0 = M a0 - F (least squares), A a0 = gamma
+    acc = np.zeros(n) if a0 is None else np.array(
+        [check_finite(a_, f"a0[{k}]") for k, a_ in zip(names, values_by_name(a0, names, "a0", [0.0] * n))])
+    gamma = x["gamma"]
+    target = M @ acc - F
+    lam0 = np.linalg.lstsq(A.T, target, rcond=None)[0]
+    res_dyn = float(np.max(np.abs(A.T @ lam0 - target), initial=0.0))
+    res_acc = float(np.max(np.abs(A @ acc - gamma), initial=0.0))
+    scale_dyn = max(1.0, float(np.max(np.abs(F))), float(np.max(np.abs(M @ acc))))
+    scale_acc = max(1.0, float(np.max(np.abs(gamma))), float(np.max(np.abs(A @ acc))))
+    if res_dyn > tol * scale_dyn or res_acc > tol * scale_acc:
+        true_acc = _constrained_accelerations(M, F, A, gamma)
+        raise ModelError(
+            "linearize: the state is not a steady motion consistent with the constraints: "
+            f"A^T lambda = M a0 - F has the least-squares residual {res_dyn:.3g} (relative {res_dyn / scale_dyn:.2g}) "
+            f"and A a0 = gamma the residual {res_acc:.3g} (relative {res_acc / scale_acc:.2g}), tolerance {tol:g}; "
+            "the accelerations the constraints allow there are "
+            + ", ".join(f"{k}''={a_:.6g}" for k, a_ in zip(names, true_acc))
+            + " (give them as a0 for an instantaneous linearization, or choose a state where they vanish)")
+
+    # first-order terms: K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq
+    K = -(x["dFdq"] - np.einsum("ikj,k->ij", x["dMdq"], acc) + np.einsum("lij,l->ij", x["dAdq"], lam0))
+    C = -x["dFdv"]
+    S = np.einsum("jik,i->jk", x["dAdq"], vv) + x["dA0dq"]
+
+    # independent speeds u and coordinates; dv = B0 du + D dq, dq = P dq_I
+    dep, dep_h = _dependent(A, JH, names, independent)
+    ind = [i for i in range(n) if i not in dep]
+    indq = [i for i in range(n) if i not in dep_h]
+    B0 = np.zeros((n, len(ind)))
+    B0[ind, :] = np.eye(len(ind))
+    B0[dep, :] = -np.linalg.solve(A[:, dep], A[:, ind])
+    D = np.zeros((n, n))
+    D[dep, :] = -np.linalg.solve(A[:, dep], S)
+    P = np.zeros((n, len(indq)))
+    P[indq, :] = np.eye(len(indq))
+    if JH:
+        P[dep_h, :] = -np.linalg.solve(A[:JH][:, dep_h], A[:JH][:, indq])
+    Mr = B0.T @ M @ B0
+    Cr = B0.T @ (M @ D @ B0 + C @ B0)
+    Kr = B0.T @ (M @ D @ D + C @ D + K) @ P
+    return Linearization(coordinates=[names[i] for i in indq], M=Mr, C=Cr, K=Kr, q0=qv, v0=vv, a0=acc, t=tv,
+                         params=values, symbolic=False, speeds=[names[i] for i in ind], G=B0[indq, :],
+                         H=(D @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
+                         dependent_speeds=[names[i] for i in dep], dependent_coordinates=[names[i] for i in dep_h])
+
+
+def _constrained_accelerations(M: np.ndarray, F: np.ndarray, A: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """q'' of [M A^T; A 0][q''; -lambda] = [F; gamma] (eq. 4.5), least squares if singular."""
+    n, J = M.shape[0], A.shape[0]
+    K = np.block([[M, A.T], [A, np.zeros((J, J))]])
+    return np.linalg.lstsq(K, np.concatenate([F, gamma]), rcond=None)[0][:n]
