@@ -168,28 +168,24 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     return s;
 }
 
-/* CVode towards tout (one_step: CV_ONE_STEP, else CV_NORMAL), recording the events met on the way;
- * *stop set at a terminal one (lcg_stepper_hooks; in one-step mode the step ends at any event). */
-static int cc_solve(void *x, double tout, int one_step, double *tret, int *stop)
+/* CVode towards tout (lcg_stepper_hooks). */
+static int cc_solve(void *x, double tout, int one_step, double *tret)
 {
     lcg_cvc_stepper *s = (lcg_cvc_stepper *)x;
-    const lcg_dae_model *m = s->m;
-    int flag;
 
-    for (;;) {
-        flag = CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-        if (flag == CV_ROOT_RETURN && s->roots_on) {
-            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yv), m->nroot, m->ny, s->data.info)) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (one_step)
-                return 0;
-            continue;
-        }
-        return flag;
+    return CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
+}
+
+/* The roots CVODE returned at tret (lcg_stepper_hooks; each one ends a step). */
+static int cc_record(void *x, double tret)
+{
+    lcg_cvc_stepper *s = (lcg_cvc_stepper *)x;
+
+    if (record_events(s->mem, s->ev, tret, N_VGetArrayPointer(s->yv), s->m->nroot, s->m->ny, s->data.info)) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return 0;
 }
 
 int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const double *tout, double *yout,
@@ -198,7 +194,7 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
     lcg_cvc_stats *st = &s->st;
     const lcg_cvc_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, cc_solve, cc_row, s->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {s, cc_solve, s->roots_on ? cc_record : NULL, cc_row, s->mem, 0, 0, &d->w};
     double t = s->b.tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
     int i, k, flag, ny = s->m->ny;
 

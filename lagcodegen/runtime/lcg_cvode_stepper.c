@@ -205,30 +205,26 @@ lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_od
     return s;
 }
 
-/* CVode towards tout (one_step: CV_ONE_STEP, else CV_NORMAL), recording the events met on the way;
- * *stop set at a terminal one (lcg_stepper_hooks). In one-step mode the step ends at an event
- * recorded (a root found again at the start, not reported, does not end it). */
-static int cs_solve(void *x, double tout, int one_step, double *tret, int *stop)
+/* CVode towards tout (lcg_stepper_hooks). */
+static int cs_solve(void *x, double tout, int one_step, double *tret)
 {
     lcg_cvode_stepper *s = (lcg_cvode_stepper *)x;
-    int flag;
-    int before;
 
-    for (;;) {
-        flag = CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-        if (flag == CV_ROOT_RETURN && s->roots_on) {
-            before = s->ev->n_events;
-            if (roots_found(s->mem, &s->data, s->ev, *tret, s->t_start, N_VGetArrayPointer(s->yv))) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (one_step && s->ev->n_events > before)
-                return 0;
-            continue;
-        }
-        return flag;
+    return CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
+}
+
+/* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
+ * (re)started from is not reported. */
+static int cs_record(void *x, double tret)
+{
+    lcg_cvode_stepper *s = (lcg_cvode_stepper *)x;
+    int before = s->ev->n_events;
+
+    if (roots_found(s->mem, &s->data, s->ev, tret, s->t_start, N_VGetArrayPointer(s->yv))) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return s->ev->n_events > before ? 0 : -1;
 }
 
 int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
@@ -237,7 +233,7 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
     lcg_cvode_stats *st = &s->st;
     const lcg_cvode_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, cs_solve, cs_row, s->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {s, cs_solve, s->roots_on ? cs_record : NULL, cs_row, s->mem, 0, 0, &d->w};
     double t = s->b.tv[0], tret = t;
     int k, flag;
 

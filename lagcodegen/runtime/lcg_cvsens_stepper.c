@@ -187,29 +187,26 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     return x;
 }
 
-/* CVode towards tout (one_step: CV_ONE_STEP, else CV_NORMAL), recording the events met on the way;
- * *stop set at a terminal one (lcg_stepper_hooks). In one-step mode the step ends at an event
- * recorded. */
-static int xs_solve(void *p, double tout, int one_step, double *tret, int *stop)
+/* CVode towards tout (lcg_stepper_hooks). */
+static int xs_solve(void *p, double tout, int one_step, double *tret)
 {
     lcg_cvsens_stepper *x = (lcg_cvsens_stepper *)p;
-    int flag, before;
 
-    for (;;) {
-        flag = CVode(x->mem, tout, x->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-        if (flag == CV_ROOT_RETURN && x->roots_on) {
-            before = x->ev->n_events;
-            if (sens_record(&x->data, *tret, x->t_start, N_VGetArrayPointer(x->yv), x->total)) {
-                x->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (one_step && x->ev->n_events > before)
-                return 0;
-            continue;
-        }
-        return flag;
+    return CVode(x->mem, tout, x->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
+}
+
+/* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
+ * (re)started from is not reported. */
+static int xs_record(void *p, double tret)
+{
+    lcg_cvsens_stepper *x = (lcg_cvsens_stepper *)p;
+    int before = x->ev->n_events;
+
+    if (sens_record(&x->data, tret, x->t_start, N_VGetArrayPointer(x->yv), x->total)) {
+        x->ev->terminated = 1;
+        return 1;
     }
+    return x->ev->n_events > before ? 0 : -1;
 }
 
 int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, const double *tout, double *yout,
@@ -218,14 +215,15 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
     lcg_cvsens_stats *st = &x->st;
     const lcg_cvsens_options *opt = &x->opt;
     sens_data *d = &x->data;
-    const lcg_stepper_hooks hooks = {x, xs_solve, xs_row, x->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {x, xs_solve, x->roots_on ? xs_record : NULL, xs_row, x->mem, 0, 0, &d->w};
     double t = x->b.tv[0], tret = t;
     int k, flag;
 
     LCG_STEPPER_NEW_CALL(st, x->ev);
     d->nonfinite = 0;
     watch_init(&d->w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    flag = lcg_stepper_begin(&x->b, t_end, nt, tout, yout != NULL && sout != NULL, st->message, sizeof st->message);
+    flag = lcg_stepper_begin(&x->b, t_end, nt, tout, yout != NULL && sout != NULL, st->message,
+                             sizeof st->message);
     if (flag < 0)
         goto out;
     if (x->b.restart) {

@@ -180,29 +180,24 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
     return s;
 }
 
-/* IDASolve towards tout (one_step: IDA_ONE_STEP, else IDA_NORMAL), recording the events met on the
- * way; *stop set at a terminal one (lcg_stepper_hooks; in one-step mode the step ends at any
- * event). */
-static int is_solve(void *x, double tout, int one_step, double *tret, int *stop)
+/* IDASolve towards tout (lcg_stepper_hooks). */
+static int is_solve(void *x, double tout, int one_step, double *tret)
 {
     lcg_ida_stepper *s = (lcg_ida_stepper *)x;
-    const lcg_dae_model *m = s->m;
-    int flag;
 
-    for (;;) {
-        flag = IDASolve(s->mem, tout, tret, s->yy, s->yp, one_step ? IDA_ONE_STEP : IDA_NORMAL);
-        if (flag == IDA_ROOT_RETURN && s->roots_on) {
-            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yy), m->nroot, m->ng, s->data.info)) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (one_step)
-                return 0;
-            continue;
-        }
-        return flag;
+    return IDASolve(s->mem, tout, tret, s->yy, s->yp, one_step ? IDA_ONE_STEP : IDA_NORMAL);
+}
+
+/* The roots IDA returned at tret (lcg_stepper_hooks; each one ends a step). */
+static int is_record(void *x, double tret)
+{
+    lcg_ida_stepper *s = (lcg_ida_stepper *)x;
+
+    if (record_events(s->mem, s->ev, tret, N_VGetArrayPointer(s->yy), s->m->nroot, s->m->ng, s->data.info)) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return 0;
 }
 
 /* Restart at the caller's (t, y, p): y projected onto the constraints, lambda, mu and yy' from the
@@ -251,7 +246,8 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
     lcg_ida_stats *st = &s->st;
     const lcg_ida_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, is_solve, is_row, s->mem, 1, opt->stop_at_outputs, &d->w};
+    const lcg_stepper_hooks hooks = {s, is_solve, s->roots_on ? is_record : NULL, is_row, s->mem, 1,
+                                     opt->stop_at_outputs, &d->w};
     double t = s->b.tv[0], tret = t, tout1;
     int k = 0, flag;
 

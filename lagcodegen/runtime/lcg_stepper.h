@@ -285,19 +285,44 @@ static inline int lcg_stepper_stop_at(void *mem, int ida, double t)
     return ida ? IDASetStopTime(mem, t) : CVodeSetStopTime(mem, t);
 }
 
-/* What lcg_stepper_drive calls back: the stepper s's solve towards tout (one_step: one internal
- * step; the events met on the way recorded, *stop set at a terminal one) and the store of the
- * solver's state into row k of the call's grid arrays; the solver's memory (ida: IDA's, else
- * CVODE's), the call's run control, and (IDA) a stop time at each grid time. */
+/* What lcg_stepper_drive calls back on the stepper s: the solver's call towards tout (one_step:
+ * CV_ONE_STEP or IDA_ONE_STEP, else the normal task; CVode or IDASolve on the stepper's vectors),
+ * the record of the roots it returned at tret (NULL: no root finding; returns 1 at a terminal
+ * event, the events record marked terminated; 0 when an event was recorded; -1 when none was, a
+ * root found again at the start), the store of the solver's state into row k of the call's grid
+ * arrays; the solver's memory (ida: IDA's, else CVODE's), the call's run control, and (IDA) a
+ * stop time at each grid time. */
 typedef struct {
     void *s;
-    int (*solve)(void *s, double tout, int one_step, double *tret, int *stop);
+    int (*solve)(void *s, double tout, int one_step, double *tret);
+    int (*record)(void *s, double tret);
     void (*store)(void *s, int k);
     void *mem;
     int ida;
     int stop_at_outputs;
     watch *w;
 } lcg_stepper_hooks;
+
+/* The solver towards tout (one_step: one internal step), recording the events met on the way
+ * (hooks' record): *stop set at a terminal one; in one-step mode the step ends at an event
+ * recorded. 0, or the solver's flag. */
+static inline int lcg_stepper_solve(const lcg_stepper_hooks *h, double tout, int one_step, double *tret, int *stop)
+{
+    int flag, recorded;
+
+    for (;;) {
+        flag = h->solve(h->s, tout, one_step, tret);
+        if (flag != CV_ROOT_RETURN || h->record == NULL) /* IDA_ROOT_RETURN: the same 2 */
+            return flag;
+        recorded = h->record(h->s, *tret);
+        if (recorded > 0) {
+            *stop = 1;
+            return 0;
+        }
+        if (one_step && recorded == 0)
+            return 0;
+    }
+}
 
 /* The advance of every SUNDIALS stepper from the time t (the grid rows before k written):
  * one_step, one internal step ending at t_end at the latest; without a grid (nt = 0) to t_end,
@@ -311,10 +336,10 @@ static inline int lcg_stepper_drive(const lcg_stepper_hooks *h, double t, double
     if (one_step) {
         flag = lcg_stepper_stop(h->mem, h->ida, t_end);
         if (flag >= 0 && t_end > t)
-            flag = h->solve(h->s, lcg_stepper_one_step_tout(t, t_end), 1, tret, &stop);
+            flag = lcg_stepper_solve(h, lcg_stepper_one_step_tout(t, t_end), 1, tret, &stop);
     } else if (nt == 0) {
         if (t_end > t && (flag = lcg_stepper_stop_at(h->mem, h->ida, t_end)) >= 0)
-            flag = h->solve(h->s, t_end, 0, tret, &stop);
+            flag = lcg_stepper_solve(h, t_end, 0, tret, &stop);
     } else if (k < nt) {
         if ((flag = lcg_stepper_stop_at(h->mem, h->ida, t_end)) < 0)
             return flag;
@@ -323,7 +348,7 @@ static inline int lcg_stepper_drive(const lcg_stepper_hooks *h, double t, double
                 break;
             if (h->stop_at_outputs && (flag = lcg_stepper_stop_at(h->mem, h->ida, tout[k])) < 0)
                 break;
-            flag = h->solve(h->s, tout[k], 0, tret, &stop);
+            flag = lcg_stepper_solve(h, tout[k], 0, tret, &stop);
             if (flag < 0 || stop)
                 break;
             h->store(h->s, k);

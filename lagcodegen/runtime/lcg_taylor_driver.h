@@ -43,7 +43,8 @@ static double tl_log2_rough(double x)
  * (tl_safety): h = min((sf_0 n_p)^(-1/p), (sf_1 n_(p-1))^(-1/(p-1))), the smaller one told
  * apart by rough logarithms (an error within ~1% of h, where the two limits are that close)
  * and computed by one pow. */
-static double tl_step_size(const lcg_taylor_model *m, const double *X, int p, const lcg_taylor_options *opt, const double sf[2])
+static double tl_step_size(const lcg_taylor_model *m, const double *X, int p, const lcg_taylor_options *opt,
+                           const double sf[2])
 {
     double np = 0.0, np1 = 0.0, check = 0.0;
     int i;
@@ -207,8 +208,8 @@ static void tl_run_restart(const lcg_taylor_model *m, tl_run *r)
  * there), the events in (0, *h] recorded into ev (NULL: not recorded), a terminal one ending the
  * step at it (*end = 2). 0, or a negative flag (st's message and model error set). */
 static int tl_step_plan(const lcg_taylor_model *m, tl_run *r, const lcg_taylor_options *opt, lcg_taylor_stats *st,
-                        lcg_taylor_events *ev, double thi, double tlo, const double *y, double t_end, double *h_out,
-                        int *end_out)
+                        lcg_taylor_events *ev, double thi, double tlo, const double *y, double t_end,
+                        double *h_out, int *end_out)
 {
     double *X = r->X, *last = r->last, *tau = r->tau;
     int *which = r->which, *dir = r->dir, order = r->order;
@@ -391,7 +392,8 @@ int lcg_taylor_solve(const lcg_taylor_model *m, const double *p, const double *y
         goto done;
     }
     if (nt < 1 || opt->max_steps < 0 || opt->max_step < 0.0 || opt->order < 0 || opt->order > P_MAX
-        || (opt->order > 0 && opt->order < 2) || opt->rel_block < 0 || (opt->rel_block > 0 && NY % opt->rel_block != 0)) {
+        || (opt->order > 0 && opt->order < 2) || opt->rel_block < 0
+        || (opt->rel_block > 0 && NY % opt->rel_block != 0)) {
         snprintf(st->message, sizeof st->message, "bad options (order must be 0 or 2..%d)", P_MAX);
         flag = -22;
         goto done;
