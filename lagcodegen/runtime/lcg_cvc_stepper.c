@@ -168,14 +168,6 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     return s;
 }
 
-/* CVode towards tout (lcg_stepper_hooks). */
-static int cc_solve(void *x, double tout, int one_step, double *tret)
-{
-    lcg_cvc_stepper *s = (lcg_cvc_stepper *)x;
-
-    return CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-}
-
 /* The roots CVODE returned at tret (lcg_stepper_hooks; each one ends a step). */
 static int cc_record(void *x, double tret)
 {
@@ -194,7 +186,7 @@ int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const doub
     lcg_cvc_stats *st = &s->st;
     const lcg_cvc_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, cc_solve, s->roots_on ? cc_record : NULL, cc_row, s->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {s->mem, 0, s->yv, NULL, s, s->roots_on ? cc_record : NULL, cc_row, &d->w, 0};
     double t = s->b.tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
     int i, k, flag, ny = s->m->ny;
 

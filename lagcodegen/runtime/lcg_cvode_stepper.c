@@ -205,14 +205,6 @@ lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_od
     return s;
 }
 
-/* CVode towards tout (lcg_stepper_hooks). */
-static int cs_solve(void *x, double tout, int one_step, double *tret)
-{
-    lcg_cvode_stepper *s = (lcg_cvode_stepper *)x;
-
-    return CVode(s->mem, tout, s->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-}
-
 /* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
  * (re)started from is not reported. */
 static int cs_record(void *x, double tret)
@@ -233,7 +225,7 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
     lcg_cvode_stats *st = &s->st;
     const lcg_cvode_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, cs_solve, s->roots_on ? cs_record : NULL, cs_row, s->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {s->mem, 0, s->yv, NULL, s, s->roots_on ? cs_record : NULL, cs_row, &d->w, 0};
     double t = s->b.tv[0], tret = t;
     int k, flag;
 

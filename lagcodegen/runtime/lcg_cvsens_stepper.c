@@ -187,14 +187,6 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     return x;
 }
 
-/* CVode towards tout (lcg_stepper_hooks). */
-static int xs_solve(void *p, double tout, int one_step, double *tret)
-{
-    lcg_cvsens_stepper *x = (lcg_cvsens_stepper *)p;
-
-    return CVode(x->mem, tout, x->yv, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
-}
-
 /* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
  * (re)started from is not reported. */
 static int xs_record(void *p, double tret)
@@ -215,7 +207,7 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
     lcg_cvsens_stats *st = &x->st;
     const lcg_cvsens_options *opt = &x->opt;
     sens_data *d = &x->data;
-    const lcg_stepper_hooks hooks = {x, xs_solve, x->roots_on ? xs_record : NULL, xs_row, x->mem, 0, 0, &d->w};
+    const lcg_stepper_hooks hooks = {x->mem, 0, x->yv, NULL, x, x->roots_on ? xs_record : NULL, xs_row, &d->w, 0};
     double t = x->b.tv[0], tret = t;
     int k, flag;
 

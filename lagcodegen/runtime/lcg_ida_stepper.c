@@ -180,14 +180,6 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
     return s;
 }
 
-/* IDASolve towards tout (lcg_stepper_hooks). */
-static int is_solve(void *x, double tout, int one_step, double *tret)
-{
-    lcg_ida_stepper *s = (lcg_ida_stepper *)x;
-
-    return IDASolve(s->mem, tout, tret, s->yy, s->yp, one_step ? IDA_ONE_STEP : IDA_NORMAL);
-}
-
 /* The roots IDA returned at tret (lcg_stepper_hooks; each one ends a step). */
 static int is_record(void *x, double tret)
 {
@@ -246,8 +238,8 @@ int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const doub
     lcg_ida_stats *st = &s->st;
     const lcg_ida_options *opt = &s->opt;
     user_data *d = &s->data;
-    const lcg_stepper_hooks hooks = {s, is_solve, s->roots_on ? is_record : NULL, is_row, s->mem, 1,
-                                     opt->stop_at_outputs, &d->w};
+    const lcg_stepper_hooks hooks = {s->mem, 1, s->yy, s->yp, s, s->roots_on ? is_record : NULL, is_row, &d->w,
+                                     opt->stop_at_outputs};
     double t = s->b.tv[0], tret = t, tout1;
     int k = 0, flag;
 

@@ -285,22 +285,21 @@ static inline int lcg_stepper_stop_at(void *mem, int ida, double t)
     return ida ? IDASetStopTime(mem, t) : CVodeSetStopTime(mem, t);
 }
 
-/* What lcg_stepper_drive calls back on the stepper s: the solver's call towards tout (one_step:
- * CV_ONE_STEP or IDA_ONE_STEP, else the normal task; CVode or IDASolve on the stepper's vectors),
- * the record of the roots it returned at tret (NULL: no root finding; returns 1 at a terminal
- * event, the events record marked terminated; 0 when an event was recorded; -1 when none was, a
- * root found again at the start), the store of the solver's state into row k of the call's grid
- * arrays; the solver's memory (ida: IDA's, else CVODE's), the call's run control, and (IDA) a
- * stop time at each grid time. */
+/* What lcg_stepper_drive works on: the solver's memory mem (ida: IDA's, else CVODE's) and the
+ * vectors it solves into (y; IDA: y, yp); on the stepper s, the record of the roots the solver
+ * returned at tret (NULL: no root finding; returns 1 at a terminal event, the events record
+ * marked terminated; 0 when an event was recorded; -1 when none was, a root found again at the
+ * start) and the store of the solver's state into row k of the call's grid arrays; the call's
+ * run control, and (IDA) a stop time at each grid time. */
 typedef struct {
-    void *s;
-    int (*solve)(void *s, double tout, int one_step, double *tret);
-    int (*record)(void *s, double tret);
-    void (*store)(void *s, int k);
     void *mem;
     int ida;
-    int stop_at_outputs;
+    N_Vector y, yp;
+    void *s;
+    int (*record)(void *s, double tret);
+    void (*store)(void *s, int k);
     watch *w;
+    int stop_at_outputs;
 } lcg_stepper_hooks;
 
 /* The solver towards tout (one_step: one internal step), recording the events met on the way
@@ -311,7 +310,8 @@ static inline int lcg_stepper_solve(const lcg_stepper_hooks *h, double tout, int
     int flag, recorded;
 
     for (;;) {
-        flag = h->solve(h->s, tout, one_step, tret);
+        flag = h->ida ? IDASolve(h->mem, tout, tret, h->y, h->yp, one_step ? IDA_ONE_STEP : IDA_NORMAL)
+                      : CVode(h->mem, tout, h->y, tret, one_step ? CV_ONE_STEP : CV_NORMAL);
         if (flag != CV_ROOT_RETURN || h->record == NULL) /* IDA_ROOT_RETURN: the same 2 */
             return flag;
         recorded = h->record(h->s, *tret);
