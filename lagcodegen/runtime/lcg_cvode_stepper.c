@@ -251,7 +251,7 @@ int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const 
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    flag = lcg_stepper_nonfinite(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
+    flag = lcg_nonfinite_flag(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
     flag = lcg_stepper_settle(&s->b, flag, st->model_error, 0);
     LCG_STEPPER_CVODE_COUNTS(s->mem, st);
     CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);

@@ -1268,11 +1268,7 @@ done:
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
-    if (data.nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        st->model_error = LCG_ERR_NONFINITE;
-        st->t_reached = data.t_nonfinite;
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    }
+    flag = lcg_nonfinite_flag(flag, data.nonfinite, data.t_nonfinite, &st->model_error, &st->t_reached);
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);

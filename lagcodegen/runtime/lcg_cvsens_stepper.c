@@ -239,7 +239,7 @@ int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, cons
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    flag = lcg_stepper_nonfinite(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
+    flag = lcg_nonfinite_flag(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
     flag = lcg_stepper_settle(&x->b, flag, st->model_error, 0);
     LCG_STEPPER_CVODE_COUNTS(x->mem, st);
     CVodeGetNumLinSolvSetups(x->mem, &st->nlinsetups);

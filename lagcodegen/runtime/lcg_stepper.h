@@ -370,20 +370,6 @@ static inline int lcg_stepper_settle(lcg_stepper_memory *b, int flag, int model_
     return flag;
 }
 
-/* A CVODE failure right after a callback reported a non-finite value (nonfinite, at t_nonfinite)
- * is that value's: the model error LCG_ERR_NONFINITE into *model_error, its time into *t_reached,
- * and its flag; else flag. */
-static inline int lcg_stepper_nonfinite(int flag, int nonfinite, double t_nonfinite, int *model_error,
-                                        double *t_reached)
-{
-    if (nonfinite && *model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        *model_error = LCG_ERR_NONFINITE;
-        *t_reached = t_nonfinite;
-        return LCG_MODEL_ERROR_FLAG(*model_error);
-    }
-    return flag;
-}
-
 /* CVODE's counters since the last (re)start that every CVODE stepper's statistics st keep: steps,
  * right-hand sides, error test and nonlinear convergence failures, the last step. */
 #define LCG_STEPPER_CVODE_COUNTS(mem, st)                                            \

@@ -113,6 +113,20 @@ static inline void free_solver(SUNLinearSolver LS, SUNNonlinearSolver NLS, SUNMa
         }                                                                            \
     } while (0)
 
+/* A CVODE failure (error test, convergence or right-hand-side failures) right after a callback
+ * reported a non-finite value (nonfinite, at t_nonfinite) has that value as its cause: the model error LCG_ERR_NONFINITE into *model_error, its time into *t_reached,
+ * and its flag; else flag. */
+static inline int lcg_nonfinite_flag(int flag, int nonfinite, double t_nonfinite, int *model_error,
+                                     double *t_reached)
+{
+    if (nonfinite && *model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
+        *model_error = LCG_ERR_NONFINITE;
+        *t_reached = t_nonfinite;
+        return LCG_MODEL_ERROR_FLAG(*model_error);
+    }
+    return flag;
+}
+
 /* After done: the message of the out-of-memory flag nomem when nothing more precise was recorded. */
 #define LCG_NOMEM_MESSAGE(nomem, solver)                                             \
     do {                                                                             \
