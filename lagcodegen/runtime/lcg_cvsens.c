@@ -1007,19 +1007,7 @@ static void corrector_free(sens_data *d, SUNLinearSolver LS, SUNNonlinearSolver 
 /* Add CVODE's counters since its last (re)initialization to st's. */
 static void add_counts(void *mem, lcg_cvsens_stats *st)
 {
-    long c[6] = {0, 0, 0, 0, 0, 0};
-    CVodeGetNumSteps(mem, &c[0]);
-    CVodeGetNumRhsEvals(mem, &c[1]);
-    CVodeGetNumLinSolvSetups(mem, &c[2]);
-    CVodeGetNumErrTestFails(mem, &c[3]);
-    CVodeGetNumNonlinSolvIters(mem, &c[4]);
-    CVodeGetNumNonlinSolvConvFails(mem, &c[5]);
-    st->nsteps += c[0];
-    st->nrhs += c[1];
-    st->nlinsetups += c[2];
-    st->netfails += c[3];
-    st->nniters += c[4];
-    st->nncfails += c[5];
+    LCG_ADD_CVODE_COUNTS(mem, st);
 }
 
 /* b within rounding of a (a <= b): CVODE cannot step from a to b. */

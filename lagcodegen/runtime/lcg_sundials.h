@@ -127,6 +127,26 @@ static inline int lcg_nonfinite_flag(int flag, int nonfinite, double t_nonfinite
     return flag;
 }
 
+/* Add CVODE's counters since its last (re)initialization that the statistics st of every CVODE
+ * driver keep (steps, right-hand sides, linear solver setups, error test failures, nonlinear
+ * iterations and their convergence failures) to st's. */
+#define LCG_ADD_CVODE_COUNTS(mem, st)                                                \
+    do {                                                                             \
+        long c_[6] = {0, 0, 0, 0, 0, 0};                                             \
+        CVodeGetNumSteps((mem), &c_[0]);                                             \
+        CVodeGetNumRhsEvals((mem), &c_[1]);                                          \
+        CVodeGetNumLinSolvSetups((mem), &c_[2]);                                     \
+        CVodeGetNumErrTestFails((mem), &c_[3]);                                      \
+        CVodeGetNumNonlinSolvIters((mem), &c_[4]);                                   \
+        CVodeGetNumNonlinSolvConvFails((mem), &c_[5]);                               \
+        (st)->nsteps += c_[0];                                                       \
+        (st)->nrhs += c_[1];                                                         \
+        (st)->nlinsetups += c_[2];                                                   \
+        (st)->netfails += c_[3];                                                     \
+        (st)->nniters += c_[4];                                                      \
+        (st)->nncfails += c_[5];                                                     \
+    } while (0)
+
 /* After done: the message of the out-of-memory flag nomem when nothing more precise was recorded. */
 #define LCG_NOMEM_MESSAGE(nomem, solver)                                             \
     do {                                                                             \
