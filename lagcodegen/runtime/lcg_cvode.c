@@ -28,6 +28,7 @@
 #include "lcg_cvode.h"
 
 #define LCG_STATS lcg_cvode_stats
+#define LCG_ROOT_INFO CVodeGetRootInfo
 #include "lcg_sundials.h"
 
 /* The ensemble pool's row sizes (lcg_pool.h): the model of the ensemble e. */
@@ -218,27 +219,9 @@ static int roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
 static int record_roots(void *mem, lcg_events *ev, double t, double t0, double h, const double *y, int nroot,
                         int ny, int *info)
 {
-    int i, k, stop = 0;
-
-    if (CVodeGetRootInfo(mem, info) < 0)
-        return 1;
     if (t - t0 <= 100.0 * DBL_EPSILON * (fabs(t0) + fabs(h)))
-        return 0;
-    for (i = 0; i < nroot; ++i) {
-        if (info[i] == 0)
-            continue;
-        if (ev->n_events < ev->max_events) {
-            ev->t[ev->n_events] = t;
-            for (k = 0; k < ny; ++k)
-                ev->y[(long)ev->n_events * ny + k] = y[k];
-            ev->which[ev->n_events] = i;
-            ev->direction[ev->n_events] = info[i];
-        }
-        ev->n_events++;
-        if (ev->terminal == NULL || ev->terminal[i])
-            stop = 1;
-    }
-    return stop;
+        return CVodeGetRootInfo(mem, info) < 0;
+    return record_events(mem, ev, t, y, nroot, ny, info);
 }
 
 /* Root finding on CVODE's memory: the event functions of d->r with ev's directions. 0 or a negative
