@@ -82,15 +82,8 @@ static int cc_setup(lcg_cvc_stepper *s)
         N_VGetArrayPointer(s->yv)[i] = s->b.y[i];
     if ((flag = CVodeInit(s->mem, rhs, s->b.tv[0], s->yv)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM;
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
-    } else {
-        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(s->mem, 0, s->ctx, ny, opt->rtol, opt->atol, opt->atol_vec, -1, &s->abstol,
+                          LCG_FLAG_NOMEM);
     if (flag < 0)
         return flag;
     CVodeSetUserData(s->mem, &s->data);

@@ -68,7 +68,7 @@ static const double *params_at(user_data *d, double t)
 /* Position in the interleaved (band solver) order of model state i (n coordinates), and back. */
 static int to_band(int n, int i)
 {
-    return i < n ? 2 * i : (i < 2 * n ? 2 * (i - n) + 1 : i);
+    return band_place(n, i);
 }
 
 static int from_band(int n, int k)
@@ -456,18 +456,8 @@ static int solve(const lcg_model *m, const lcg_ode_roots *r, const double *p, co
 
     if ((flag = CVodeInit(mem, band ? rhs_band : rhs, tout[0], y)) < 0)
         goto done;
-    if (opt->atol_vec != NULL) {
-        abstol = N_VNew_Serial(ny, ctx);
-        if (abstol == NULL) {
-            flag = LCG_FLAG_NOMEM;
-            goto done;
-        }
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(abstol)[band ? to_band(m->nq, i) : i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(mem, opt->rtol, abstol);
-    } else {
-        flag = CVodeSStolerances(mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(mem, 0, ctx, ny, opt->rtol, opt->atol, opt->atol_vec, band ? m->nq : -1, &abstol,
+                          LCG_FLAG_NOMEM);
     if (flag < 0)
         goto done;
     CVodeSetUserData(mem, &data);

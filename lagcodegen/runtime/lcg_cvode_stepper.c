@@ -91,7 +91,7 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
 {
     const lcg_model *m = s->m;
     const lcg_cvode_options *opt = &s->opt;
-    int i, flag, ny = m->ny, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
+    int flag, ny = m->ny, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
     int use_jac = opt->jacobian && (m->jac != NULL || m->jac_sparse != NULL);
 
     if (band && (opt->mupper < 0 || opt->mlower < 0 || opt->mupper >= ny || opt->mlower >= ny)) {
@@ -122,15 +122,8 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
     cs_load(s);
     if ((flag = CVodeInit(s->mem, band ? rhs_band : rhs, s->b.tv[0], s->yv)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM;
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(s->abstol)[band ? to_band(m->nq, i) : i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
-    } else {
-        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(s->mem, 0, s->ctx, ny, opt->rtol, opt->atol, opt->atol_vec, band ? m->nq : -1,
+                          &s->abstol, LCG_FLAG_NOMEM);
     if (flag < 0)
         return flag;
     CVodeSetUserData(s->mem, &s->data);

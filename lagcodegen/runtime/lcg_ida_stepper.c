@@ -104,13 +104,9 @@ static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
     }
     if ((flag = IDAInit(s->mem, res, s->b.tv[0], s->yy, s->yp)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ng, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM_IDA;
-        for (i = 0; i < ng; ++i)
-            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
-    }
-    if ((flag = is_tolerances(s)) < 0)
+    flag = set_tolerances(s->mem, 1, s->ctx, ng, opt->rtol, opt->atol, opt->atol_vec, -1, &s->abstol,
+                          LCG_FLAG_NOMEM_IDA);
+    if (flag < 0)
         return flag;
     IDASetUserData(s->mem, &s->data);
     if ((flag = IDASetId(s->mem, s->id)) < 0)

@@ -67,6 +67,31 @@ static inline int set_step_limits(void *mem, int ida, int max_order, double firs
     return 0;
 }
 
+/* The place of model state i (nq coordinates) in CVODE's band solver order: q_i, v_i interleaved
+ * (the others after them); nq < 0: i itself. */
+static inline int band_place(int nq, int i)
+{
+    return nq < 0 ? i : i < nq ? 2 * i : (i < 2 * nq ? 2 * (i - nq) + 1 : i);
+}
+
+/* The run's tolerances on the solver's memory mem (ida: IDA's, else CVODE's): rtol with the n
+ * absolute tolerances atol_vec, copied into a new vector *abstol of the context ctx (the caller
+ * frees it) at their band places (band_place; band_nq < 0: in order), or with the scalar atol
+ * when atol_vec is NULL. 0, a negative flag, or nomem when the vector cannot be made. */
+static inline int set_tolerances(void *mem, int ida, SUNContext ctx, int n, double rtol, double atol,
+                                 const double *atol_vec, int band_nq, N_Vector *abstol, int nomem)
+{
+    int i;
+
+    if (atol_vec == NULL)
+        return ida ? IDASStolerances(mem, rtol, atol) : CVodeSStolerances(mem, rtol, atol);
+    if ((*abstol = N_VNew_Serial(n, ctx)) == NULL)
+        return nomem;
+    for (i = 0; i < n; ++i)
+        N_VGetArrayPointer(*abstol)[band_place(band_nq, i)] = atol_vec[i];
+    return ida ? IDASVtolerances(mem, rtol, *abstol) : CVodeSVtolerances(mem, rtol, *abstol);
+}
+
 /* After CVodeFree / IDAFree: the solver's objects freed in this order, the linear and nonlinear
  * solvers, the matrix, the nv vectors v (e.g. a compound literal), the context *ctx (each NULL:
  * nothing). */
@@ -114,8 +139,8 @@ static inline void free_solver(SUNLinearSolver LS, SUNNonlinearSolver NLS, SUNMa
     } while (0)
 
 /* A CVODE failure (error test, convergence or right-hand-side failures) right after a callback
- * reported a non-finite value (nonfinite, at t_nonfinite) has that value as its cause: the model error LCG_ERR_NONFINITE into *model_error, its time into *t_reached,
- * and its flag; else flag. */
+ * reported a non-finite value (nonfinite, at t_nonfinite) has that value as its cause: the model
+ * error LCG_ERR_NONFINITE into *model_error, its time into *t_reached, and its flag; else flag. */
 static inline int lcg_nonfinite_flag(int flag, int nonfinite, double t_nonfinite, int *model_error,
                                      double *t_reached)
 {
