@@ -3,8 +3,13 @@
  * lcg_taylor_stepper.c): the caller's memory they work on and how a write to it is seen, the check
  * of a call's times, the start of a call, the grid rows at the current time, and the messages they
  * give, the end of a call and the calls on a stepper's advance; with SUNDIALS (included after
- * lcg_sundials.h, whose create_context, free_solver and set_step_limits they use as the drivers
- * do) the step limits with the budget of a call, the stop time of a step, the counters.
+ * lcg_sundials.h, whose create_context, free_solver, set_step_limits and set_tolerances they use as
+ * the drivers do) the lifecycle of a call, once: the caller's memory as a record
+ * (lcg_stepper_memory: bind, keep, unbind), the start (lcg_stepper_begin), the advance to a time,
+ * over a grid or by one step with the events recorded (lcg_stepper_drive over lcg_stepper_hooks),
+ * the end (lcg_stepper_settle); the step limits with the budget of a call, the stop time of a
+ * step, the counters. A stepper keeps only what is its own: its solver's setup and restart, how
+ * its state moves between the caller's arrays and the solver's vectors, how it records roots.
  *
  * Each stepper is one translation unit with its run driver: include this file after the driver
  * (lcg_control.h first there, then math.h, stdio.h, stdlib.h). Every function here is static
