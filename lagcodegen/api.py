@@ -19,7 +19,7 @@ from . import build as _build
 from . import progress as _progress
 from . import sweep as _sweep
 from .buildstep import load_source
-from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, register_reference_run, render_bundle, \
+from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, ExampleRun, register_reference_run, render_bundle, \
     render_constrained_bundle
 from .codegen.languages import backend, check_language, generate_code
 from .codegen.constrained import generate_constrained
@@ -447,7 +447,8 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
         return render_constrained_bundle(system, lang, outputs=outputs, events=list(mf.events),
                                          runtime_parameters=runtime, values=folded, prefix=prefix, ggl=ggl,
                                          baumgarte=s.baumgarte if formulation == "index1" else (0.0, 0.0),
-                                         y0=q0 + v0, params=params, t_start=s.t_start, t_end=s.t_end)
+                                         example=ExampleRun(y0=q0 + v0, params=params, t_start=s.t_start,
+                                                            t_end=s.t_end))
     code, _ = generate_constrained(system, ggl=ggl, ggl_jacobian=s.jacobian, outputs=outputs, events=list(mf.events),
                                    runtime_parameters=runtime, values=folded, prefix=prefix, lang=lang)
     files = {name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_dae.")}

@@ -272,14 +272,29 @@ def _languages(sources) -> list:
     return [found[k] for k in sorted(found)]
 
 
-def _fortran_objects(folder: Path, sources: dict[str, str], fc: str, fflags, label: str) -> list[str]:
+def _apart(sources) -> list:
+    """The backends among ``sources`` whose model sources are not C (:func:`_languages`): compiled
+    apart into objects (:func:`_objects_apart`), with their compiler's identity in the cache key."""
+    return [be for be in _languages(sources) if not be.c_sources]
+
+
+def _objects_apart(folder: Path, sources: dict[str, str], fc: str, fflags, label: str) -> list[str]:
+    """The objects of the model sources that are not C (:func:`_apart`), each compiled with ``fc``
+    and ``fflags`` (the backend names the compiler in its messages)."""
     objects = []
-    suffix = backend("fortran").suffix
-    for name in sorted(n for n in sources if n.endswith(suffix)):  # modules first: sorted names
-        obj = name[:-len(suffix)] + ".o"
-        _run([fc, *fflags, "-c", name, "-o", obj], folder, "Fortran compiler", label)
-        objects.append(obj)
+    for be in _apart(sources):
+        for name in sorted(n for n in sources if n.endswith(be.suffix)):  # modules first: sorted names
+            obj = name[:-len(be.suffix)] + ".o"
+            _run([fc, *fflags, "-c", name, "-o", obj], folder, be.compiler_label, label)
+            objects.append(obj)
     return objects
+
+
+def _compiler(lang: str, given: str | None) -> str:
+    """The compiler of ``lang``'s sources: ``given``, else the one its backend's environment
+    variable names, else the backend's default."""
+    be = backend(lang)
+    return given or os.environ.get(be.compiler_env) or be.default_compiler
 
 
 #: Sources at most this large compile in one compiler call; larger ones file by file, in parallel.
@@ -463,11 +478,10 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
         sources.update(dae_table_source(code))
     sources, c_files = _translation_units(sources, code.prefix, code.split)
     languages = _languages(sources)
-    fortran = any(not be.c_sources for be in languages)
     libs = ["-lm"] + [lib for be in languages for lib in be.link_libs]
     parts = [__version__, f"cache format {CACHE_FORMAT}", "model library", compiler_id(cc), " ".join(cflags),
              " ".join(libs), *sorted(f"{k}\0{v}" for k, v in sources.items())]
-    if fortran:
+    if _apart(sources):
         parts += [compiler_id(fc), " ".join(fflags)]
     key = cache_key(parts)
     modname = f"lib_lcg_{code.prefix}_{key}"
@@ -478,7 +492,7 @@ def _model_library(code: GeneratedCode, cc: str, cflags, fc: str, fflags, verbos
         _write(tmp, sources)
         if verbose:
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
-        objects = _fortran_objects(tmp, sources, fc, fflags, label)
+        objects = _objects_apart(tmp, sources, fc, fflags, label)
         _compile_shared(tmp, c_files, objects, filename, cc, cflags, [], libs, label, split=code.split)
         return tmp / filename
 
@@ -531,8 +545,8 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
     interface, ``code.cffi_headers`` the headers the module includes, ``code.sundials_libs``
     the SUNDIALS libraries linked (e.g. "cvode", "ida").
     """
-    cc = cc or os.environ.get("CC") or "cc"
-    fc = fc or os.environ.get("FC") or "gfortran"
+    cc = _compiler("c", cc)
+    fc = _compiler("fortran", fc)
     if _uses_runtime(code, native):
         return _model_library(code, cc, cflags, fc, fflags, verbose)
     if code.dae is not None:
@@ -543,13 +557,13 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         sources["sundials_api.h"] = runtime_files(["sundials_api.h"])["sundials_api.h"]
         sources["lcg_config.h"] = config_header(sundials)
     headers = [code.header_name, *code.cffi_headers]
-    fortran = any(not be.c_sources for be in _languages(sources))
+    apart = _apart(sources)
     cdef = model_cdef(code, native) + "\n" + code.cdef_extra
     link = sundials.link_args(("cvode", *code.sundials_libs, "core")) if native else []
     ext = importlib.machinery.EXTENSION_SUFFIXES[0]
     parts = [__version__, f"cache format {CACHE_FORMAT}", compiler_id(cc), " ".join(cflags), " ".join(link),
              ext, cdef, sys.version, *headers, *sorted(f"{k}\0{v}" for k, v in sources.items())]
-    if fortran:
+    if apart:
         parts += [compiler_id(fc), " ".join(fflags)]
     key = cache_key(parts)
     modname = f"_lcg_{code.prefix}_{key}"
@@ -560,9 +574,9 @@ def build(code: GeneratedCode, native: bool = True, cc: str | None = None,
         wrapper = _cffi_module(tmp, modname, cdef, headers)
         if verbose:
             print("lagcodegen: compiling", code.prefix, "...", file=sys.stderr, flush=True)
-        objects = _fortran_objects(tmp, sources, fc, fflags, label)
+        objects = _objects_apart(tmp, sources, fc, fflags, label)
         c_files = [wrapper] + sorted(n for n in sources if n.endswith(".c"))
-        libs = [*link, "-lm"] + (["-lgfortran"] if fortran else [])
+        libs = [*link, "-lm"] + [lib for be in _languages(sources) for lib in be.link_libs]
         _compile_shared(tmp, c_files, objects, f"{modname}{ext}", cc, cflags, [_python_include()], libs, label,
                         split=code.split)
         return tmp / f"{modname}{ext}"

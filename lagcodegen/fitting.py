@@ -192,21 +192,16 @@ def fit(sim, t=None, data=None, *, params: Mapping[str, float], observe: Sequenc
                                   f"{x0[i]:g}, got ({a}, {b})")
     history: list = []
     cache: dict = {}
-    prepared = _prepared_runs(sim, exps, observe, names, fixed, run_params, x0, rtol, atol, options)
+    prepared = _prepared_runs(sim, exps, names, rtol, atol, options)
 
     def simulated(k, e, initial, p, values):
         """(model values (nt, observe), their sensitivities (nt, names, observe)) of experiment k
         from the initial-state keywords ``initial`` (:func:`_start`)."""
-        if prepared is not None:
-            run, columns = prepared[k]
-            flag, _ = run(initial["y0"], sim.parameter_vector(p))
-            if flag >= 0 and run.nt_done == e.t.size:
-                values_ = np.concatenate([run.yout, run.out], axis=1)
-                sens = np.concatenate([run.sout, run.dout], axis=2)
-                return values_[:, columns], sens[:, :, columns]
-            # a failed run: simulate's own checks and message
         try:
-            res = sim.simulate(e.t, **initial, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
+            if prepared is not None:
+                res = prepared[k](**initial, params=p)
+            else:
+                res = sim.simulate(e.t, **initial, params=p, rtol=rtol, atol=atol, sensitivities=names, **options)
         except SolverError as exc:
             raise LagcodegenError(f"fit: the run of experiment {k} failed at parameters "
                                   f"{values}: {exc}") from None
@@ -289,44 +284,16 @@ def _directions(names: list, params: list, coords: list, states: list | None = N
     return [Direction.parse(name, params=params, coords=coords, states=states or (), what="fit") for name in names]
 
 
-#: The keywords of simulate that a prepared sensitivity run (:func:`_prepared_runs`) takes over;
-#: with any other, every evaluation runs ``simulate`` itself.
-PREPARED_OPTIONS = frozenset(("solver", "method", "max_steps", "max_order", "first_step", "max_step", "min_step",
-                              "jacobian", "sensitivity_errcon", "sensitivity_corrector", "max_wall"))
-
-
-def _prepared_runs(sim, exps: list, observe: list, names: list, fixed: dict, run_params: list, x0: np.ndarray,
-                   rtol, atol, options: dict) -> list | None:
-    """Per experiment (a :class:`~lagcodegen.solvers.cvode.sensitivity.PreparedSensitivities`,
-    the columns of the observed names among states and outputs): the runs of the fit with the
-    solver resolved, the directions and the driver's arrays made once rather than at every
-    evaluation. None where that does not apply (not a compiled ODE on the native CVODE driver,
-    options beyond :data:`PREPARED_OPTIONS`): the evaluations then call ``simulate``."""
-    from .simulation.ode import CompiledModel
-    from .solvers.base import tolerances
-    from .solvers.cvode import CVODE
-    from .solvers.cvode.sensitivity import prepare
-    from .solvers.registry import resolve
-    if not isinstance(sim, CompiledModel) or set(options) - PREPARED_OPTIONS or not getattr(sim, "native", False):
+def _prepared_runs(sim, exps: list, names: list, rtol, atol, options: dict) -> list | None:
+    """Per experiment, the run of the fit made explicit: ``sim.prepare(e.t, rtol=..., atol=...,
+    sensitivities=names, **options)`` (:class:`~lagcodegen.simulation.prepared.PreparedRun`: the
+    solver resolved and every option checked once; where the family prepares the run, its options
+    struct, directions and arrays made once), each evaluation calling it with the trial's initial
+    state and parameters, bit-identical to ``simulate``. None for a simulation without prepared
+    runs (constrained systems): every evaluation then calls ``simulate``."""
+    if _constrained(sim) or not hasattr(sim, "prepare"):
         return None
-    opts = dict(options)
-    solver = opts.pop("solver", None)
-    try:
-        rtol_, atol_arr = tolerances(rtol, atol, sim.ny, scalar=True)
-        family = resolve("ode", solver, {**opts, "sensitivities": tuple(names)}, sim.n, rtol_)
-        if not isinstance(family, CVODE) or family.backend != "native" or family.linear_solver != "dense":
-            return None
-        values = dict(zip(names, x0))
-        known = list(sim.state_names) + list(sim.output_names)
-        out = []
-        for e in exps:
-            p = sim.parameter_vector({**e.start["params"], **fixed, **{n: values[n] for n in run_params}})
-            y = _initial(sim, e.start["q0"], e.start["v0"], e.start["y0"], values, names)
-            run = prepare(family, sim, e.t, y, p, rtol_, atol_arr, names, errcon=bool(family.sensitivity_errcon))
-            out.append((run, [known.index(o) for o in observe]))
-        return out
-    except LagcodegenError:  # simulate names the problem at the first evaluation
-        return None
+    return [sim.prepare(e.t, rtol=rtol, atol=atol, sensitivities=list(names), **options) for e in exps]
 
 
 def _initial(sim, q0, v0, y0, values: dict, names: list) -> np.ndarray:

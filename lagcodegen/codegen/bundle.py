@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -324,13 +325,40 @@ def _checked_span(t_start, t_end, steps) -> tuple[float, float, int]:
     return t_start, t_end, int(steps)
 
 
+@dataclass(frozen=True)
+class ExampleRun:
+    """The defaults of a bundle's example programs (they take others on their command line): the
+    initial state ``y0``, the run-time parameter values ``params`` by name, the span ``t_start``
+    to ``t_end`` and the RK4 ``steps`` (None: steps of at most 1e-3)."""
+
+    y0: Sequence[float] | None = None
+    params: Mapping[str, float] | None = None
+    t_start: float = 0.0
+    t_end: float = 10.0
+    steps: int | None = None
+
+    @classmethod
+    def of(cls, example: "ExampleRun | None", fields: dict, caller: str) -> "ExampleRun":
+        """``example``, or one made of the keywords ``fields`` (its field names; TypeError naming
+        another, or both given)."""
+        unknown = sorted(set(fields) - set(cls.__dataclass_fields__))
+        if unknown:
+            raise TypeError(f"{caller}() got an unexpected keyword argument {unknown[0]!r}")
+        if example is None:
+            return cls(**fields)
+        if fields:
+            raise TypeError(f"{caller}(): give the example's values as example=ExampleRun(...) or as keywords "
+                            f"({', '.join(sorted(fields))}), not both")
+        if not isinstance(example, cls):
+            raise TypeError(f"{caller}(): example must be an ExampleRun, got {type(example).__name__}")
+        return example
+
+
 def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str] | None = None,
                               events=(), runtime_parameters=None, values: Mapping[str, float] | None = None,
                               prefix: str | None = None, ggl: bool = False,
-                              baumgarte: tuple[float, float] | str = "auto", y0: Sequence[float] | None = None,
-                              params: Mapping[str, float] | None = None, t_start: float = 0.0,
-                              t_end: float = 10.0, steps: int | None = None,
-                              reference: bool = True) -> dict[str, str]:
+                              baumgarte: tuple[float, float] | str = "auto", example: ExampleRun | None = None,
+                              reference: bool = True, **example_fields) -> dict[str, str]:
     """The files of the bundle of a :class:`~lagcodegen.theory.constraints.ConstrainedSystem` in the
     index-1 formulation (name -> text), rendered in memory.
 
@@ -347,9 +375,9 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
 
     ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
     :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
-    ``y0`` (q and q', projected onto the constraints by the example; default q = 0.5, q' = 0),
-    ``params``, ``t_start``, ``t_end``, ``steps``: the example's defaults, as for
-    :func:`render_bundle`. ``reference``: ``reference.csv`` and ``make check``'s comparison, as
+    ``example`` (an :class:`ExampleRun`), or its fields as keywords: ``y0`` (q and q',
+    projected onto the constraints by the example; default q = 0.5, q' = 0), ``params``,
+    ``t_start``, ``t_end``, ``steps``: the example's defaults, as for :func:`render_bundle`. ``reference``: ``reference.csv`` and ``make check``'s comparison, as
     for :func:`render_bundle` (the reference run: lagcodegen's index-1 CVODE integration from
     the initial state projected onto the constraints).
     """
@@ -361,10 +389,12 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         raise ModelError("bundles of systems with contacts (Inequality with a restitution) are not made: their "
                          "impacts need the impact driver of the runtime (compile_constrained runs them); "
                          "generate gives the model's C with <prefix>_impact.c")
+    run = ExampleRun.of(example, example_fields, "render_constrained_bundle")
+    y0, params = run.y0, run.params
     stab = check_baumgarte(baumgarte, "bundle baumgarte")
     auto = stab == BAUMGARTE_AUTO
     alpha, beta = (-1.0, -1.0) if auto else stab  # negative: the example's "auto"
-    t_start, t_end, steps = _checked_span(t_start, t_end, steps)
+    t_start, t_end, steps = _checked_span(run.t_start, run.t_end, run.steps)
     code, info = generate_constrained(system, ggl=ggl, outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else outputs,
                                         events=events, runtime_parameters=runtime_parameters, values=values,
                                         prefix=prefix, lang=lang)

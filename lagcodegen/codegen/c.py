@@ -378,6 +378,8 @@ class CBackend:
     #: libm, and whether the model source is C (the C-only parts of a bundle apply: the standalone
     #: integrators, input tables, sensitivity functions, the reference run).
     suffix, title, link_libs, c_sources = ".c", "C99", (), True
+    #: As :class:`lagcodegen.codegen.fortran.FortranBackend`'s: C is compiled with the build's cc.
+    compiler_label, compiler_env, default_compiler = "C compiler", "CC", "cc"
 
     def source_description(self, module: str) -> str:
         """What the model source is, for a bundle's README (``module``: the model's prefix)."""

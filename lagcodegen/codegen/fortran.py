@@ -346,6 +346,9 @@ class FortranBackend:
     printer = FortranPrinter
     #: As :class:`lagcodegen.codegen.c.CBackend`'s: the model source is Fortran (no C-only parts).
     suffix, title, link_libs, c_sources = ".f90", "Fortran 2008", ("-lgfortran",), False
+    #: The compiler of its sources (compiled apart into objects the C link takes): its name in
+    #: messages, the environment variable that names it, the one used otherwise.
+    compiler_label, compiler_env, default_compiler = "Fortran compiler", "FC", "gfortran"
 
     def source_description(self, module: str) -> str:
         """What the model source is, for a bundle's README (``module``: the model's prefix)."""

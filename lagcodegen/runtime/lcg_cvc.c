@@ -268,18 +268,7 @@ int lcg_cvc_solve(const lcg_dae_model *m, const double *p, const double *y0, int
 
     if ((flag = CVodeInit(mem, rhs, tout[0], y)) < 0)
         goto done;
-    if (opt->atol_vec != NULL) {
-        abstol = N_VNew_Serial(ny, ctx);
-        if (abstol == NULL) {
-            flag = LCG_FLAG_NOMEM;
-            goto done;
-        }
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(abstol)[i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(mem, opt->rtol, abstol);
-    } else {
-        flag = CVodeSStolerances(mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(mem, 0, ctx, ny, opt->rtol, opt->atol, opt->atol_vec, -1, &abstol, LCG_FLAG_NOMEM);
     if (flag < 0)
         goto done;
     CVodeSetUserData(mem, &data);

@@ -12,15 +12,13 @@
 
 struct lcg_cvc_stepper {
     const lcg_dae_model *m;
-    lcg_cvc_options opt;        /* the caller's, atol_vec pointing at atol below */
+    lcg_cvc_options opt;        /* the caller's, atol_vec pointing at the copy b.atol */
     lcg_cvc_stats st;           /* of the last call */
     user_data data;             /* what the callbacks see (lcg_cvc.c) */
     lcg_events *ev;             /* the caller's record, or NULL */
     int roots_on;
-    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
-    double *seen;               /* time, state and parameters as the last call left them */
-    double *atol;               /* ny, or NULL */
-    int restart;                /* CVodeReInit before the next step (after a failure) */
+    lcg_stepper_memory b;       /* the caller's time, state and parameters, as the last call left them */
+    double *yout;               /* the grid rows of the current call */
     SUNContext ctx;
     void *mem;
     N_Vector yv, abstol;
@@ -37,8 +35,7 @@ void lcg_cvc_stepper_free(lcg_cvc_stepper *s)
     free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->yv}, 2, &s->ctx);
     free(s->data.ynew);
     free(s->data.info);
-    free(s->seen);
-    free(s->atol);
+    lcg_stepper_unbind(&s->b);
     free(s);
 }
 
@@ -47,9 +44,22 @@ lcg_cvc_stats *lcg_cvc_stepper_stats(lcg_cvc_stepper *s)
     return &s->st;
 }
 
-static void cc_remember(lcg_cvc_stepper *s)
+/* CVODE's vector into y (ny values). */
+static void cc_store(lcg_cvc_stepper *s, double *y)
 {
-    lcg_stepper_remember(s->seen, s->tv, 1 + s->m->ny + s->m->np, NULL, 0);
+    const double *yv = N_VGetArrayPointer(s->yv);
+    int i;
+
+    for (i = 0; i < s->m->ny; ++i)
+        y[i] = yv[i];
+}
+
+/* CVODE's vector into the grid row k of the call (lcg_stepper_hooks). */
+static void cc_row(void *x, int k)
+{
+    lcg_cvc_stepper *s = (lcg_cvc_stepper *)x;
+
+    cc_store(s, s->yout + (long)k * s->m->ny);
 }
 
 /* The options of lcg_cvc_solve, on the stepper's CVODE memory: 0 or a negative flag. */
@@ -69,18 +79,11 @@ static int cc_setup(lcg_cvc_stepper *s)
     if (s->yv == NULL || s->mem == NULL || s->A == NULL || (s->LS = SUNLinSol_Dense(s->yv, s->A, s->ctx)) == NULL)
         return LCG_FLAG_NOMEM;
     for (i = 0; i < ny; ++i)
-        N_VGetArrayPointer(s->yv)[i] = s->y[i];
-    if ((flag = CVodeInit(s->mem, rhs, s->tv[0], s->yv)) < 0)
+        N_VGetArrayPointer(s->yv)[i] = s->b.y[i];
+    if ((flag = CVodeInit(s->mem, rhs, s->b.tv[0], s->yv)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM;
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
-    } else {
-        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(s->mem, 0, s->ctx, ny, opt->rtol, opt->atol, opt->atol_vec, -1, &s->abstol,
+                          LCG_FLAG_NOMEM);
     if (flag < 0)
         return flag;
     CVodeSetUserData(s->mem, &s->data);
@@ -122,25 +125,21 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     s->opt.cancel = NULL;
     s->ev = ev;
     s->roots_on = opt->roots && ev != NULL && m->nroot > 0;
-    s->tv = mem;
-    s->y = mem + 1;
-    s->p = s->y + m->ny;
-    s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
-    s->atol = lcg_stepper_copy(opt->atol_vec, m->ny);
-    s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
+    if (lcg_stepper_bind(&s->b, mem, m->ny, m->np, NULL, 0, opt->atol_vec, m->ny) != 0
+        || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvc_stepper_free(s);
         return NULL;
     }
+    s->opt.atol_vec = s->b.atol;
     s->data.crhs = m->crhs;
     s->data.m = m;
-    s->data.p = s->p;
+    s->data.p = s->b.p;
     s->data.alpha = opt->alpha;
     s->data.beta = opt->beta;
     if (opt->alpha < 0.0 || opt->beta < 0.0) { /* "auto": the rate of the fastest motion at the start */
         double rate = 0.0;
-        if (m->natural_rate(mem[0], s->y, s->p, &rate) != LCG_DAE_OK)
+        if (m->natural_rate(mem[0], s->b.y, s->b.p, &rate) != LCG_DAE_OK)
             rate = 0.0;
         if (opt->alpha < 0.0)
             s->data.alpha = rate;
@@ -158,99 +157,62 @@ lcg_cvc_stepper *lcg_cvc_stepper_new(const lcg_dae_model *m, const lcg_cvc_optio
     }
     s->st.alpha = s->data.alpha;
     s->st.beta = s->data.beta;
-    cc_remember(s);
+    lcg_stepper_keep(&s->b);
     return s;
 }
 
-/* CVode towards tout (task CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop
- * set at a terminal one (and, in one-step mode, at any event: the step ends there). */
-static int cc_solve(lcg_cvc_stepper *s, double tout, int task, double *tret, int *stop)
+/* The roots CVODE returned at tret (lcg_stepper_hooks; each one ends a step). */
+static int cc_record(void *x, double tret)
 {
-    const lcg_dae_model *m = s->m;
-    int flag;
+    lcg_cvc_stepper *s = (lcg_cvc_stepper *)x;
 
-    for (;;) {
-        flag = CVode(s->mem, tout, s->yv, tret, task);
-        if (flag == CV_ROOT_RETURN && s->roots_on) {
-            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yv), m->nroot, m->ny, s->data.info)) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (task == CV_ONE_STEP)
-                return 0;
-            continue;
-        }
-        return flag;
+    if (record_events(s->mem, s->ev, tret, N_VGetArrayPointer(s->yv), s->m->nroot, s->m->ny, s->data.info)) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return 0;
 }
 
 int lcg_cvc_stepper_advance(lcg_cvc_stepper *s, double t_end, int nt, const double *tout, double *yout,
                             int one_step)
 {
-    const lcg_dae_model *m = s->m;
     lcg_cvc_stats *st = &s->st;
     const lcg_cvc_options *opt = &s->opt;
     user_data *d = &s->data;
-    double t = s->tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
-    int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
+    const lcg_stepper_hooks hooks = {s->mem, 0, s->yv, NULL, s, s->roots_on ? cc_record : NULL, cc_row, &d->w, 0};
+    double t = s->b.tv[0], tret = t, *yv = N_VGetArrayPointer(s->yv);
+    int i, k, flag, ny = s->m->ny;
 
     LCG_STEPPER_NEW_CALL(st, s->ev);
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL, 1)) {
-        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
+    if ((flag = lcg_stepper_begin(&s->b, t_end, nt, tout, yout != NULL, st->message, sizeof st->message)) < 0)
         goto out;
-    }
-    if (!s->restart && lcg_stepper_written(s->seen, s->tv, n, NULL, 0))
-        s->restart = 1; /* the caller set the time, the state or the parameters */
-    if (s->restart) {
+    if (s->b.restart) {
         for (i = 0; i < ny; ++i)
-            yv[i] = s->y[i];
+            yv[i] = s->b.y[i];
         if ((flag = CVodeReInit(s->mem, t, s->yv)) < 0)
             goto out;
-        s->restart = 0;
+        s->b.restart = 0;
     }
-    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
-    if (one_step) {
-        flag = lcg_stepper_stop(s->mem, 0, t_end);
-        if (flag >= 0 && t_end > t)
-            flag = cc_solve(s, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
-    } else if (nt == 0) {
-        if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
-            flag = cc_solve(s, t_end, CV_NORMAL, &tret, &stop);
-    } else if (k < nt) {
-        if ((flag = CVodeSetStopTime(s->mem, t_end)) < 0)
-            goto out;
-        for (; k < nt && !stop; ++k) {
-            if (WATCH_TICK(&d->w))
-                break;
-            flag = cc_solve(s, tout[k], CV_NORMAL, &tret, &stop);
-            if (flag < 0 || stop)
-                break;
-            for (i = 0; i < ny; ++i)
-                yout[(long)k * ny + i] = yv[i];
-            st->nt_done = k + 1;
-        }
-    }
+    s->yout = yout;
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->b.y, ny, yout);
+    flag = lcg_stepper_drive(&hooks, t, t_end, nt, tout, k, one_step, &tret, &st->nt_done);
     if (tret > t || flag < 0) {
-        for (i = 0; i < ny; ++i)
-            s->y[i] = yv[i];
-        s->tv[0] = tret;
+        cc_store(s, s->b.y);
+        s->b.tv[0] = tret;
     }
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    flag = lcg_stepper_model_flag(flag, st->model_error);
-    if (flag < 0)
-        s->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    flag = lcg_stepper_settle(&s->b, flag, st->model_error, 0);
     LCG_STEPPER_CVODE_COUNTS(s->mem, st);
     CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
     if (opt->projection)
         CVodeGetNumProjEvals(s->mem, &st->nproj);
     if (s->roots_on)
         CVodeGetNumGEvals(s->mem, &st->ngevals);
-    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
-    cc_remember(s);
+    LCG_STEPPER_END_CALL(st, flag, s->b.tv[0]);
+    lcg_stepper_keep(&s->b);
     return st->flag;
 }
 

@@ -28,6 +28,7 @@
 #include "lcg_cvode.h"
 
 #define LCG_STATS lcg_cvode_stats
+#define LCG_ROOT_INFO CVodeGetRootInfo
 #include "lcg_sundials.h"
 
 /* The ensemble pool's row sizes (lcg_pool.h): the model of the ensemble e. */
@@ -67,7 +68,7 @@ static const double *params_at(user_data *d, double t)
 /* Position in the interleaved (band solver) order of model state i (n coordinates), and back. */
 static int to_band(int n, int i)
 {
-    return i < n ? 2 * i : (i < 2 * n ? 2 * (i - n) + 1 : i);
+    return band_place(n, i);
 }
 
 static int from_band(int n, int k)
@@ -218,27 +219,9 @@ static int roots(sunrealtype t, N_Vector y, sunrealtype *gout, void *data)
 static int record_roots(void *mem, lcg_events *ev, double t, double t0, double h, const double *y, int nroot,
                         int ny, int *info)
 {
-    int i, k, stop = 0;
-
-    if (CVodeGetRootInfo(mem, info) < 0)
-        return 1;
     if (t - t0 <= 100.0 * DBL_EPSILON * (fabs(t0) + fabs(h)))
-        return 0;
-    for (i = 0; i < nroot; ++i) {
-        if (info[i] == 0)
-            continue;
-        if (ev->n_events < ev->max_events) {
-            ev->t[ev->n_events] = t;
-            for (k = 0; k < ny; ++k)
-                ev->y[(long)ev->n_events * ny + k] = y[k];
-            ev->which[ev->n_events] = i;
-            ev->direction[ev->n_events] = info[i];
-        }
-        ev->n_events++;
-        if (ev->terminal == NULL || ev->terminal[i])
-            stop = 1;
-    }
-    return stop;
+        return CVodeGetRootInfo(mem, info) < 0;
+    return record_events(mem, ev, t, y, nroot, ny, info);
 }
 
 /* Root finding on CVODE's memory: the event functions of d->r with ev's directions. 0 or a negative
@@ -269,26 +252,17 @@ static int roots_found(void *mem, user_data *d, lcg_events *ev, double t, double
     return record_roots(mem, ev, t, t0, h, yv, d->r->nroot, d->m->ny, d->info);
 }
 
-/* Add CVODE's counters since its last (re)initialization to st's. */
+/* Add CVODE's counters since its last (re)initialization to st's (with the driver's own: the
+ * difference-quotient right-hand sides and the Jacobians). */
 static void add_counts(void *mem, lcg_cvode_stats *st)
 {
-    long c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-    CVodeGetNumSteps(mem, &c[0]);
-    CVodeGetNumRhsEvals(mem, &c[1]);
-    CVodeGetNumLinRhsEvals(mem, &c[2]);
-    CVodeGetNumJacEvals(mem, &c[3]);
-    CVodeGetNumLinSolvSetups(mem, &c[4]);
-    CVodeGetNumErrTestFails(mem, &c[5]);
-    CVodeGetNumNonlinSolvIters(mem, &c[6]);
-    CVodeGetNumNonlinSolvConvFails(mem, &c[7]);
-    st->nsteps += c[0];
-    st->nrhs += c[1];
-    st->nrhs_dq += c[2];
-    st->njac += c[3];
-    st->nlinsetups += c[4];
-    st->netfails += c[5];
-    st->nniters += c[6];
-    st->nncfails += c[7];
+    long dq = 0, jac = 0;
+
+    LCG_ADD_CVODE_COUNTS(mem, st);
+    CVodeGetNumLinRhsEvals(mem, &dq);
+    CVodeGetNumJacEvals(mem, &jac);
+    st->nrhs_dq += dq;
+    st->njac += jac;
 }
 
 /* The steps of the whole run (for the step budget, advance): those of the segments before the last
@@ -496,18 +470,8 @@ static int solve(const lcg_model *m, const lcg_ode_roots *r, const double *p, co
 
     if ((flag = CVodeInit(mem, band ? rhs_band : rhs, tout[0], y)) < 0)
         goto done;
-    if (opt->atol_vec != NULL) {
-        abstol = N_VNew_Serial(ny, ctx);
-        if (abstol == NULL) {
-            flag = LCG_FLAG_NOMEM;
-            goto done;
-        }
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(abstol)[band ? to_band(m->nq, i) : i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(mem, opt->rtol, abstol);
-    } else {
-        flag = CVodeSStolerances(mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(mem, 0, ctx, ny, opt->rtol, opt->atol, opt->atol_vec, band ? m->nq : -1, &abstol,
+                          LCG_FLAG_NOMEM);
     if (flag < 0)
         goto done;
     CVodeSetUserData(mem, &data);
@@ -573,13 +537,7 @@ done:
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
-    if (data.nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        /* CVODE gave up (error test, convergence or right-hand-side failures) right after a
-         * non-finite value: that is the cause */
-        st->model_error = LCG_ERR_NONFINITE;
-        st->t_reached = data.t_nonfinite;
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    }
+    flag = lcg_nonfinite_flag(flag, data.nonfinite, data.t_nonfinite, &st->model_error, &st->t_reached);
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);

@@ -15,13 +15,11 @@
 
 struct lcg_cvode_stepper {
     const lcg_model *m;
-    lcg_cvode_options opt;      /* the caller's, atol_vec pointing at atol below */
+    lcg_cvode_options opt;      /* the caller's, atol_vec pointing at the copy b.atol */
     lcg_cvode_stats st;         /* of the last call */
     user_data data;             /* what the callbacks see (lcg_cvode.c) */
-    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
-    double *seen;               /* time, state and parameters as the last call left them */
-    double *atol;               /* ny, or NULL */
-    int restart;                /* CVodeReInit before the next step (after a failure) */
+    lcg_stepper_memory b;       /* the caller's time, state and parameters, as the last call left them */
+    double *yout;               /* the grid rows of the current call */
     double t_start;             /* the time of the last CVodeInit / CVodeReInit */
     lcg_events *ev;             /* the caller's record of the events found, or NULL */
     int roots_on;               /* root finding on the event functions data.r */
@@ -45,8 +43,7 @@ void lcg_cvode_stepper_free(lcg_cvode_stepper *s)
     free(s->data.vals);
     free(s->data.jd);
     free(s->data.info);
-    free(s->seen);
-    free(s->atol);
+    lcg_stepper_unbind(&s->b);
     free(s);
 }
 
@@ -62,10 +59,10 @@ static void cs_load(lcg_cvode_stepper *s)
     int i;
 
     if (s->opt.linear_solver == 1)
-        scatter(s->m, s->y, yv);
+        scatter(s->m, s->b.y, yv);
     else
         for (i = 0; i < s->m->ny; ++i)
-            yv[i] = s->y[i];
+            yv[i] = s->b.y[i];
 }
 
 /* CVODE's vector into the caller's state. */
@@ -81,9 +78,12 @@ static void cs_store(lcg_cvode_stepper *s, double *y)
             y[i] = yv[i];
 }
 
-static void cs_remember(lcg_cvode_stepper *s)
+/* CVODE's vector into the grid row k of the call (lcg_stepper_hooks). */
+static void cs_row(void *x, int k)
 {
-    lcg_stepper_remember(s->seen, s->tv, 1 + s->m->ny + s->m->np, NULL, 0);
+    lcg_cvode_stepper *s = (lcg_cvode_stepper *)x;
+
+    cs_store(s, s->yout + (long)k * s->m->ny);
 }
 
 /* The options of lcg_cvode_solve, on the stepper's CVODE memory: 0 or a negative flag. */
@@ -91,7 +91,7 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
 {
     const lcg_model *m = s->m;
     const lcg_cvode_options *opt = &s->opt;
-    int i, flag, ny = m->ny, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
+    int flag, ny = m->ny, band = opt->linear_solver == 1, fixedpoint = opt->linear_solver == 2;
     int use_jac = opt->jacobian && (m->jac != NULL || m->jac_sparse != NULL);
 
     if (band && (opt->mupper < 0 || opt->mlower < 0 || opt->mupper >= ny || opt->mlower >= ny)) {
@@ -120,17 +120,10 @@ static int cs_setup(lcg_cvode_stepper *s, char *message, size_t size)
         == NULL)
         return LCG_FLAG_NOMEM;
     cs_load(s);
-    if ((flag = CVodeInit(s->mem, band ? rhs_band : rhs, s->tv[0], s->yv)) < 0)
+    if ((flag = CVodeInit(s->mem, band ? rhs_band : rhs, s->b.tv[0], s->yv)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ny, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM;
-        for (i = 0; i < ny; ++i)
-            N_VGetArrayPointer(s->abstol)[band ? to_band(m->nq, i) : i] = opt->atol_vec[i];
-        flag = CVodeSVtolerances(s->mem, opt->rtol, s->abstol);
-    } else {
-        flag = CVodeSStolerances(s->mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(s->mem, 0, s->ctx, ny, opt->rtol, opt->atol, opt->atol_vec, band ? m->nq : -1,
+                          &s->abstol, LCG_FLAG_NOMEM);
     if (flag < 0)
         return flag;
     CVodeSetUserData(s->mem, &s->data);
@@ -178,19 +171,15 @@ lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_od
     s->m = m;
     s->opt = *opt;
     s->opt.cancel = NULL;
-    s->tv = mem;
-    s->y = mem + 1;
-    s->p = s->y + m->ny;
-    s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
-    s->atol = lcg_stepper_copy(opt->atol_vec, m->ny);
-    s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
+    if (lcg_stepper_bind(&s->b, mem, m->ny, m->np, NULL, 0, opt->atol_vec, m->ny) != 0
+        || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvode_stepper_free(s);
         return NULL;
     }
+    s->opt.atol_vec = s->b.atol;
     s->data.m = m;
-    s->data.p = s->p;
+    s->data.p = s->b.p;
     s->data.st = &s->st;
     s->data.mu = opt->mupper; /* band solver: the bandwidths the Jacobian is copied within */
     s->data.ml = opt->mlower;
@@ -205,103 +194,63 @@ lcg_cvode_stepper *lcg_cvode_stepper_new_events(const lcg_model *m, const lcg_od
         lcg_cvode_stepper_free(s);
         return NULL;
     }
-    cs_remember(s);
+    lcg_stepper_keep(&s->b);
     return s;
 }
 
-/* CVode towards tout (task CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop set
- * at a terminal one. In one-step mode the step ends at an event recorded (a root found again at the
- * start, not reported, does not end it). */
-static int cs_solve(lcg_cvode_stepper *s, double tout, int task, double *tret, int *stop)
+/* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
+ * (re)started from is not reported. */
+static int cs_record(void *x, double tret)
 {
-    int flag;
-    int before;
+    lcg_cvode_stepper *s = (lcg_cvode_stepper *)x;
+    int before = s->ev->n_events;
 
-    for (;;) {
-        flag = CVode(s->mem, tout, s->yv, tret, task);
-        if (flag == CV_ROOT_RETURN && s->roots_on) {
-            before = s->ev->n_events;
-            if (roots_found(s->mem, &s->data, s->ev, *tret, s->t_start, N_VGetArrayPointer(s->yv))) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (task == CV_ONE_STEP && s->ev->n_events > before)
-                return 0;
-            continue;
-        }
-        return flag;
+    if (roots_found(s->mem, &s->data, s->ev, tret, s->t_start, N_VGetArrayPointer(s->yv))) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return s->ev->n_events > before ? 0 : -1;
 }
 
 int lcg_cvode_stepper_advance(lcg_cvode_stepper *s, double t_end, int nt, const double *tout, double *yout,
                               int one_step)
 {
-    const lcg_model *m = s->m;
     lcg_cvode_stats *st = &s->st;
     const lcg_cvode_options *opt = &s->opt;
     user_data *d = &s->data;
-    double t = s->tv[0], tret = t;
-    int k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
+    const lcg_stepper_hooks hooks = {s->mem, 0, s->yv, NULL, s, s->roots_on ? cs_record : NULL, cs_row, &d->w, 0};
+    double t = s->b.tv[0], tret = t;
+    int k, flag;
 
     LCG_STEPPER_NEW_CALL(st, s->ev);
     d->nonfinite = 0;
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL, 1)) {
-        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
+    if ((flag = lcg_stepper_begin(&s->b, t_end, nt, tout, yout != NULL, st->message, sizeof st->message)) < 0)
         goto out;
-    }
-    if (!s->restart && lcg_stepper_written(s->seen, s->tv, n, NULL, 0))
-        s->restart = 1; /* the caller set the time, the state or the parameters */
-    if (s->restart) {
+    if (s->b.restart) {
         cs_load(s);
         if ((flag = CVodeReInit(s->mem, t, s->yv)) < 0)
             goto out;
-        s->restart = 0;
+        s->b.restart = 0;
         s->t_start = t;
     }
-    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
-    if (one_step) {
-        flag = lcg_stepper_stop(s->mem, 0, t_end);
-        if (flag >= 0 && t_end > t)
-            flag = cs_solve(s, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
-    } else if (nt == 0) {
-        if (t_end > t && (flag = CVodeSetStopTime(s->mem, t_end)) >= 0)
-            flag = cs_solve(s, t_end, CV_NORMAL, &tret, &stop);
-    } else if (k < nt) {
-        if ((flag = CVodeSetStopTime(s->mem, t_end)) < 0)
-            goto out;
-        for (; k < nt; ++k) {
-            if (WATCH_TICK(&d->w))
-                break;
-            flag = cs_solve(s, tout[k], CV_NORMAL, &tret, &stop);
-            if (flag < 0 || stop)
-                break;
-            cs_store(s, yout + (long)k * ny);
-            st->nt_done = k + 1;
-        }
-    }
+    s->yout = yout;
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->b.y, s->m->ny, yout);
+    flag = lcg_stepper_drive(&hooks, t, t_end, nt, tout, k, one_step, &tret, &st->nt_done);
     if (tret > t || flag < 0) {
-        cs_store(s, s->y);
-        s->tv[0] = tret;
+        cs_store(s, s->b.y);
+        s->b.tv[0] = tret;
     }
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    if (d->nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        st->model_error = LCG_ERR_NONFINITE;
-        st->t_reached = d->t_nonfinite;
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    } else {
-        flag = lcg_stepper_model_flag(flag, st->model_error);
-    }
-    if (flag < 0)
-        s->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    flag = lcg_nonfinite_flag(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
+    flag = lcg_stepper_settle(&s->b, flag, st->model_error, 0);
     LCG_STEPPER_CVODE_COUNTS(s->mem, st);
     CVodeGetNumLinRhsEvals(s->mem, &st->nrhs_dq);
     CVodeGetNumJacEvals(s->mem, &st->njac);
-    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
-    cs_remember(s);
+    LCG_STEPPER_END_CALL(st, flag, s->b.tv[0]);
+    lcg_stepper_keep(&s->b);
     return st->flag;
 }
 

@@ -1007,19 +1007,7 @@ static void corrector_free(sens_data *d, SUNLinearSolver LS, SUNNonlinearSolver 
 /* Add CVODE's counters since its last (re)initialization to st's. */
 static void add_counts(void *mem, lcg_cvsens_stats *st)
 {
-    long c[6] = {0, 0, 0, 0, 0, 0};
-    CVodeGetNumSteps(mem, &c[0]);
-    CVodeGetNumRhsEvals(mem, &c[1]);
-    CVodeGetNumLinSolvSetups(mem, &c[2]);
-    CVodeGetNumErrTestFails(mem, &c[3]);
-    CVodeGetNumNonlinSolvIters(mem, &c[4]);
-    CVodeGetNumNonlinSolvConvFails(mem, &c[5]);
-    st->nsteps += c[0];
-    st->nrhs += c[1];
-    st->nlinsetups += c[2];
-    st->netfails += c[3];
-    st->nniters += c[4];
-    st->nncfails += c[5];
+    LCG_ADD_CVODE_COUNTS(mem, st);
 }
 
 /* b within rounding of a (a <= b): CVODE cannot step from a to b. */
@@ -1268,11 +1256,7 @@ done:
         if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
             CVodeGetCurrentTime(mem, &st->t_reached);
     }
-    if (data.nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        st->model_error = LCG_ERR_NONFINITE;
-        st->t_reached = data.t_nonfinite;
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    }
+    flag = lcg_nonfinite_flag(flag, data.nonfinite, data.t_nonfinite, &st->model_error, &st->t_reached);
     st->flag = flag;
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM, "CVODE");
     CVodeFree(&mem);

@@ -16,17 +16,14 @@
 
 struct lcg_cvsens_stepper {
     const lcg_model *m;
-    lcg_cvsens_options opt;     /* the caller's, atol pointing at atol below */
+    lcg_cvsens_options opt;     /* the caller's, atol pointing at the copy b.atol */
     lcg_cvsens_stats st;        /* of the last call */
     sens_data data;             /* what the callbacks see (lcg_cvsens.c) */
     int ns;
     int *which;                 /* ns: the directions (copied) */
-    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
-    double *s;                  /* the caller's sensitivities (ns*ny) */
-    double *seen;               /* time, state, parameters and sensitivities as the last call left them */
-    double *atol;               /* ny (1 + ns) */
+    lcg_stepper_memory b;       /* the caller's time, state, parameters and sensitivities (b.extra, ns*ny) */
+    double *yout, *sout;        /* the grid rows of the current call */
     long total;                 /* ny (1 + ns): the augmented state */
-    int restart;                /* CVodeReInit before the next step (after a failure) */
     double t_start;             /* the time of the last CVodeInit / CVodeReInit */
     lcg_cvsens_events *ev;      /* the caller's event functions and record, or NULL */
     int roots_on;
@@ -54,8 +51,7 @@ void lcg_cvsens_stepper_free(lcg_cvsens_stepper *x)
     free(x->data.vals);
     free(x->data.info);
     free(x->which);
-    free(x->seen);
-    free(x->atol);
+    lcg_stepper_unbind(&x->b);
     free(x);
 }
 
@@ -71,9 +67,9 @@ static void xs_load(lcg_cvsens_stepper *x)
     long i, ny = x->m->ny;
 
     for (i = 0; i < ny; ++i)
-        yv[i] = x->y[i];
+        yv[i] = x->b.y[i];
     for (i = 0; i < ny * x->ns; ++i)
-        yv[ny + i] = x->s[i];
+        yv[ny + i] = x->b.extra[i];
 }
 
 /* CVODE's vector into y (ny values) and s (ns*ny). */
@@ -88,9 +84,12 @@ static void xs_store(lcg_cvsens_stepper *x, double *y, double *s)
         s[i] = yv[ny + i];
 }
 
-static void xs_remember(lcg_cvsens_stepper *x)
+/* CVODE's vector into the grid row k of the call (lcg_stepper_hooks). */
+static void xs_row(void *p, int k)
 {
-    lcg_stepper_remember(x->seen, x->tv, 1 + x->m->ny + x->m->np, x->s, (long)x->m->ny * x->ns);
+    lcg_cvsens_stepper *x = (lcg_cvsens_stepper *)p;
+
+    xs_store(x, x->yout + (long)k * x->m->ny, x->sout + (long)k * x->m->ny * x->ns);
 }
 
 /* The options of lcg_cvsens_solve on the stepper's CVODE memory: 0 or a negative flag. */
@@ -116,7 +115,7 @@ static int xs_setup(lcg_cvsens_stepper *x, char *message, size_t size)
         return LCG_FLAG_NOMEM;
     d->mem = x->mem;
     xs_load(x);
-    if ((flag = CVodeInit(x->mem, aug_rhs, x->tv[0], x->yv)) < 0)
+    if ((flag = CVodeInit(x->mem, aug_rhs, x->b.tv[0], x->yv)) < 0)
         return flag;
     CVodeSetUserData(x->mem, d);
     if ((flag = sens_tolerances(d, x->mem, opt)) < 0)
@@ -138,7 +137,7 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
                                            lcg_cvsens_events *ev, char *message, size_t size)
 {
     lcg_cvsens_stepper *x;
-    long i, n;
+    long i;
     int flag;
 
     if (m == NULL || m->abi != LCG_MODEL_ABI || m->rhs == NULL || m->ny != 2 * m->nq + m->nz || sens_rhs == NULL) {
@@ -152,29 +151,23 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
     }
     if ((x = (lcg_cvsens_stepper *)lcg_stepper_alloc(sizeof *x, message, size)) == NULL)
         return NULL;
-    n = 1 + m->ny + m->np;
     x->m = m;
     x->opt = *opt;
     x->ns = ns;
     x->total = (long)m->ny * (1 + ns);
-    x->tv = mem;
-    x->y = mem + 1;
-    x->p = x->y + m->ny;
-    x->s = s;
     x->which = (int *)malloc(sizeof(int) * (size_t)ns);
-    x->seen = (double *)malloc(sizeof(double) * (size_t)(n + (long)m->ny * ns));
-    x->atol = lcg_stepper_copy(opt->atol, x->total);
-    if (x->which == NULL || x->seen == NULL || x->atol == NULL || create_context(&x->ctx, &x->st) != 0) {
+    if (lcg_stepper_bind(&x->b, mem, m->ny, m->np, s, (long)m->ny * ns, opt->atol, x->total) != 0
+        || x->which == NULL || create_context(&x->ctx, &x->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_cvsens_stepper_free(x);
         return NULL;
     }
     for (i = 0; i < ns; ++i)
         x->which[i] = which[i];
-    x->opt.atol = x->atol;
+    x->opt.atol = x->b.atol;
     x->data.m = m;
     x->data.sens_rhs = sens_rhs;
-    x->data.p = x->p;
+    x->data.p = x->b.p;
     x->data.ns = ns;
     x->data.which = x->which;
     x->data.jacobian = opt->jacobian;
@@ -190,106 +183,70 @@ lcg_cvsens_stepper *lcg_cvsens_stepper_new(const lcg_model *m, lcg_sens_rhs_fn s
         lcg_cvsens_stepper_free(x);
         return NULL;
     }
-    xs_remember(x);
+    lcg_stepper_keep(&x->b);
     return x;
 }
 
-/* CVode towards tout (CV_NORMAL or CV_ONE_STEP), recording the events met on the way; *stop set at
- * a terminal one. In one-step mode the step ends at an event recorded. */
-static int xs_solve(lcg_cvsens_stepper *x, double tout, int task, double *tret, int *stop)
+/* The roots CVODE returned at tret (lcg_stepper_hooks): a root within rounding of the time CVODE
+ * (re)started from is not reported. */
+static int xs_record(void *p, double tret)
 {
-    int flag, before;
+    lcg_cvsens_stepper *x = (lcg_cvsens_stepper *)p;
+    int before = x->ev->n_events;
 
-    for (;;) {
-        flag = CVode(x->mem, tout, x->yv, tret, task);
-        if (flag == CV_ROOT_RETURN && x->roots_on) {
-            before = x->ev->n_events;
-            if (sens_record(&x->data, *tret, x->t_start, N_VGetArrayPointer(x->yv), x->total)) {
-                x->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (task == CV_ONE_STEP && x->ev->n_events > before)
-                return 0;
-            continue;
-        }
-        return flag;
+    if (sens_record(&x->data, tret, x->t_start, N_VGetArrayPointer(x->yv), x->total)) {
+        x->ev->terminated = 1;
+        return 1;
     }
+    return x->ev->n_events > before ? 0 : -1;
 }
 
 int lcg_cvsens_stepper_advance(lcg_cvsens_stepper *x, double t_end, int nt, const double *tout, double *yout,
                                double *sout, int one_step)
 {
-    const lcg_model *m = x->m;
     lcg_cvsens_stats *st = &x->st;
     const lcg_cvsens_options *opt = &x->opt;
     sens_data *d = &x->data;
-    const long ny = m->ny, nsy = (long)m->ny * x->ns, n = 1 + m->ny + m->np;
-    double t = x->tv[0], tret = t;
-    int k = 0, flag = 0, stop = 0;
+    const lcg_stepper_hooks hooks = {x->mem, 0, x->yv, NULL, x, x->roots_on ? xs_record : NULL, xs_row, &d->w, 0};
+    double t = x->b.tv[0], tret = t;
+    int k, flag;
 
     LCG_STEPPER_NEW_CALL(st, x->ev);
     d->nonfinite = 0;
     watch_init(&d->w, NULL, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL && sout != NULL, 1)) {
-        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
+    flag = lcg_stepper_begin(&x->b, t_end, nt, tout, yout != NULL && sout != NULL, st->message,
+                             sizeof st->message);
+    if (flag < 0)
         goto out;
-    }
-    if (!x->restart && lcg_stepper_written(x->seen, x->tv, n, x->s, nsy))
-        x->restart = 1; /* the caller set the time, the state, the parameters or the sensitivities */
-    if (x->restart) {
+    if (x->b.restart) {
         xs_load(x);
         if ((flag = CVodeReInit(x->mem, t, x->yv)) < 0)
             goto out;
         corrector_reset(d); /* as a new run: the states' Jacobian evaluated at the first solve */
-        x->restart = 0;
+        x->b.restart = 0;
         x->t_start = t;
     }
+    x->yout = yout;
+    x->sout = sout;
     /* grid times at the current time: the current state and sensitivities */
-    lcg_stepper_rows_now(0, nt, tout, t, x->s, nsy, sout);
-    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, x->y, ny, yout);
-    if (one_step) {
-        flag = lcg_stepper_stop(x->mem, 0, t_end);
-        if (flag >= 0 && t_end > t)
-            flag = xs_solve(x, lcg_stepper_one_step_tout(t, t_end), CV_ONE_STEP, &tret, &stop);
-    } else if (nt == 0) {
-        if (t_end > t && (flag = CVodeSetStopTime(x->mem, t_end)) >= 0)
-            flag = xs_solve(x, t_end, CV_NORMAL, &tret, &stop);
-    } else if (k < nt) {
-        if ((flag = CVodeSetStopTime(x->mem, t_end)) < 0)
-            goto out;
-        for (; k < nt; ++k) {
-            if (WATCH_TICK(&d->w))
-                break;
-            flag = xs_solve(x, tout[k], CV_NORMAL, &tret, &stop);
-            if (flag < 0 || stop)
-                break;
-            xs_store(x, yout + (long)k * ny, sout + (long)k * nsy);
-            st->nt_done = k + 1;
-        }
-    }
+    lcg_stepper_rows_now(0, nt, tout, t, x->b.extra, x->b.n_extra, sout);
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, x->b.y, x->m->ny, yout);
+    flag = lcg_stepper_drive(&hooks, t, t_end, nt, tout, k, one_step, &tret, &st->nt_done);
     if (tret > t || flag < 0) {
-        xs_store(x, x->y, x->s);
-        x->tv[0] = tret;
+        xs_store(x, x->b.y, x->b.extra);
+        x->b.tv[0] = tret;
     }
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    if (d->nonfinite && st->model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
-        st->model_error = LCG_ERR_NONFINITE;
-        st->t_reached = d->t_nonfinite;
-        flag = LCG_MODEL_ERROR_FLAG(st->model_error);
-    } else {
-        flag = lcg_stepper_model_flag(flag, st->model_error);
-    }
-    if (flag < 0)
-        x->restart = 1; /* CVODE's state after a failure: start again from the last state reached */
+    flag = lcg_nonfinite_flag(flag, d->nonfinite, d->t_nonfinite, &st->model_error, &st->t_reached);
+    flag = lcg_stepper_settle(&x->b, flag, st->model_error, 0);
     LCG_STEPPER_CVODE_COUNTS(x->mem, st);
     CVodeGetNumLinSolvSetups(x->mem, &st->nlinsetups);
     CVodeGetNumNonlinSolvIters(x->mem, &st->nniters);
     corrector_stats(&x->data, st);
-    LCG_STEPPER_END_CALL(st, flag, x->tv[0]);
-    xs_remember(x);
+    LCG_STEPPER_END_CALL(st, flag, x->b.tv[0]);
+    lcg_stepper_keep(&x->b);
     return st->flag;
 }
 

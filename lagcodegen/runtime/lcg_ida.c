@@ -146,18 +146,7 @@ int lcg_ida_solve(const lcg_dae_model *m, const double *p, const double *yy0, co
 
     if ((flag = IDAInit(mem, res, tout[0], yy, yp)) < 0)
         goto done;
-    if (opt->atol_vec != NULL) {
-        abstol = N_VNew_Serial(ng, ctx);
-        if (abstol == NULL) {
-            flag = LCG_FLAG_NOMEM_IDA;
-            goto done;
-        }
-        for (i = 0; i < ng; ++i)
-            N_VGetArrayPointer(abstol)[i] = opt->atol_vec[i];
-        flag = IDASVtolerances(mem, opt->rtol, abstol);
-    } else {
-        flag = IDASStolerances(mem, opt->rtol, opt->atol);
-    }
+    flag = set_tolerances(mem, 1, ctx, ng, opt->rtol, opt->atol, opt->atol_vec, -1, &abstol, LCG_FLAG_NOMEM_IDA);
     if (flag < 0)
         goto done;
     IDASetUserData(mem, &data);

@@ -13,15 +13,15 @@
 
 struct lcg_ida_stepper {
     const lcg_dae_model *m;
-    lcg_ida_options opt;        /* the caller's, atol_vec pointing at atol below */
+    lcg_ida_options opt;        /* the caller's, atol_vec pointing at the copy b.atol */
     lcg_ida_stats st;           /* of the last call */
     user_data data;             /* what the callbacks see (lcg_ida.c) */
     lcg_events *ev;             /* the caller's record, or NULL */
     int roots_on;
-    double *tv, *y, *p;         /* the caller's time, state (ny) and parameters (np) */
-    double *seen;               /* time, state and parameters as the last call left them */
-    double *atol;               /* ng, or NULL */
-    int restart;                /* new initial values before the next step (a write, a failure) */
+    lcg_stepper_memory b;       /* the caller's time, state and parameters, as the last call left them;
+                                   b.atol: ng values, or NULL; b.restart: new initial values before
+                                   the next step (a write, a failure) */
+    double *yout;               /* the grid rows of the current call */
     int need_ic;                /* IDACalcIC before the next step */
     SUNContext ctx;
     void *mem;
@@ -38,8 +38,7 @@ void lcg_ida_stepper_free(lcg_ida_stepper *s)
         IDAFree(&s->mem);
     free_solver(s->LS, NULL, s->A, (N_Vector[]){s->abstol, s->ictol, s->id, s->yp, s->yy}, 5, &s->ctx);
     free(s->data.info);
-    free(s->seen);
-    free(s->atol);
+    lcg_stepper_unbind(&s->b);
     free(s);
 }
 
@@ -53,9 +52,22 @@ const double *lcg_ida_stepper_unknowns(lcg_ida_stepper *s)
     return N_VGetArrayPointer(s->yy);
 }
 
-static void is_remember(lcg_ida_stepper *s)
+/* The state (q, v) of IDA's unknowns into y (ny values). */
+static void is_store(lcg_ida_stepper *s, double *y)
 {
-    lcg_stepper_remember(s->seen, s->tv, 1 + s->m->ny + s->m->np, NULL, 0);
+    const double *yy = N_VGetArrayPointer(s->yy);
+    int i;
+
+    for (i = 0; i < s->m->ny; ++i)
+        y[i] = yy[i];
+}
+
+/* The state of IDA's unknowns into the grid row k of the call (lcg_stepper_hooks). */
+static void is_row(void *x, int k)
+{
+    lcg_ida_stepper *s = (lcg_ida_stepper *)x;
+
+    is_store(s, s->yout + (long)k * s->m->ny);
 }
 
 /* The run's tolerances (after IDACalcIC's own): 0 or a negative flag. */
@@ -90,15 +102,11 @@ static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
         N_VGetArrayPointer(s->ictol)[i] = i >= ny ? opt->ic_alg_atol
                                           : (opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol);
     }
-    if ((flag = IDAInit(s->mem, res, s->tv[0], s->yy, s->yp)) < 0)
+    if ((flag = IDAInit(s->mem, res, s->b.tv[0], s->yy, s->yp)) < 0)
         return flag;
-    if (opt->atol_vec != NULL) {
-        if ((s->abstol = N_VNew_Serial(ng, s->ctx)) == NULL)
-            return LCG_FLAG_NOMEM_IDA;
-        for (i = 0; i < ng; ++i)
-            N_VGetArrayPointer(s->abstol)[i] = opt->atol_vec[i];
-    }
-    if ((flag = is_tolerances(s)) < 0)
+    flag = set_tolerances(s->mem, 1, s->ctx, ng, opt->rtol, opt->atol, opt->atol_vec, -1, &s->abstol,
+                          LCG_FLAG_NOMEM_IDA);
+    if (flag < 0)
         return flag;
     IDASetUserData(s->mem, &s->data);
     if ((flag = IDASetId(s->mem, s->id)) < 0)
@@ -144,21 +152,17 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
     s->opt.cancel = NULL;
     s->ev = ev;
     s->roots_on = opt->roots && ev != NULL && m->nroot > 0;
-    s->tv = mem;
-    s->y = mem + 1;
-    s->p = s->y + m->ny;
     s->need_ic = opt->calc_ic;
-    s->seen = (double *)malloc(sizeof(double) * (size_t)(1 + m->ny + m->np));
-    s->atol = lcg_stepper_copy(opt->atol_vec, m->ng);
-    s->opt.atol_vec = s->atol;
-    if (s->seen == NULL || (opt->atol_vec != NULL && s->atol == NULL) || create_context(&s->ctx, &s->st) != 0) {
+    if (lcg_stepper_bind(&s->b, mem, m->ny, m->np, NULL, 0, opt->atol_vec, m->ng) != 0
+        || create_context(&s->ctx, &s->st) != 0) {
         snprintf(message, size, "out of memory");
         lcg_ida_stepper_free(s);
         return NULL;
     }
+    s->opt.atol_vec = s->b.atol;
     s->data.res = m->ggl_res;
     s->data.m = m;
-    s->data.p = s->p;
+    s->data.p = s->b.p;
     s->data.st = &s->st;
     flag = is_setup(s, yy0, yp0);
     if (flag < 0) {
@@ -167,32 +171,21 @@ lcg_ida_stepper *lcg_ida_stepper_new(const lcg_dae_model *m, const lcg_ida_optio
         return NULL;
     }
     for (i = 0; i < m->ny; ++i)
-        s->y[i] = yy0[i];
-    is_remember(s);
+        s->b.y[i] = yy0[i];
+    lcg_stepper_keep(&s->b);
     return s;
 }
 
-/* IDASolve towards tout (task IDA_NORMAL or IDA_ONE_STEP), recording the events met on the way;
- * *stop set at a terminal one (and, in one-step mode, at any event: the step ends there). */
-static int is_solve(lcg_ida_stepper *s, double tout, int task, double *tret, int *stop)
+/* The roots IDA returned at tret (lcg_stepper_hooks; each one ends a step). */
+static int is_record(void *x, double tret)
 {
-    const lcg_dae_model *m = s->m;
-    int flag;
+    lcg_ida_stepper *s = (lcg_ida_stepper *)x;
 
-    for (;;) {
-        flag = IDASolve(s->mem, tout, tret, s->yy, s->yp, task);
-        if (flag == IDA_ROOT_RETURN && s->roots_on) {
-            if (record_events(s->mem, s->ev, *tret, N_VGetArrayPointer(s->yy), m->nroot, m->ng, s->data.info)) {
-                s->ev->terminated = 1;
-                *stop = 1;
-                return 0;
-            }
-            if (task == IDA_ONE_STEP)
-                return 0;
-            continue;
-        }
-        return flag;
+    if (record_events(s->mem, s->ev, tret, N_VGetArrayPointer(s->yy), s->m->nroot, s->m->ng, s->data.info)) {
+        s->ev->terminated = 1;
+        return 1;
     }
+    return 0;
 }
 
 /* Restart at the caller's (t, y, p): y projected onto the constraints, lambda, mu and yy' from the
@@ -203,7 +196,7 @@ static int is_restart(lcg_ida_stepper *s)
     double *yy = N_VGetArrayPointer(s->yy);
     int i, rc;
 
-    rc = lcg_dae_initial_state(m, s->tv[0], s->y, s->p, 2, 1e-8, 0, yy, N_VGetArrayPointer(s->yp));
+    rc = lcg_dae_initial_state(m, s->b.tv[0], s->b.y, s->b.p, 2, 1e-8, 0, yy, N_VGetArrayPointer(s->yp));
     if (rc != 0) {
         snprintf(s->st.message, sizeof s->st.message,
                  "no consistent state at the written time, state and parameters (the projection onto the "
@@ -211,9 +204,9 @@ static int is_restart(lcg_ida_stepper *s)
         return LCG_FLAG_BAD_INPUT;
     }
     for (i = 0; i < m->ny; ++i)
-        s->y[i] = yy[i];
+        s->b.y[i] = yy[i];
     s->need_ic = s->opt.calc_ic;
-    return IDAReInit(s->mem, s->tv[0], s->yy, s->yp);
+    return IDAReInit(s->mem, s->b.tv[0], s->yy, s->yp);
 }
 
 /* IDACalcIC towards tout1 with loose tolerances on lambda, mu, then the run's (as lcg_ida_solve). */
@@ -232,75 +225,46 @@ static int is_calc_ic(lcg_ida_stepper *s, double tout1)
     if ((flag = is_tolerances(s)) < 0)
         return flag;
     s->need_ic = 0;
-    return IDAReInit(s->mem, s->tv[0], s->yy, s->yp);
+    return IDAReInit(s->mem, s->b.tv[0], s->yy, s->yp);
 }
 
 int lcg_ida_stepper_advance(lcg_ida_stepper *s, double t_end, int nt, const double *tout, double *yout,
                             int one_step)
 {
-    const lcg_dae_model *m = s->m;
     lcg_ida_stats *st = &s->st;
     const lcg_ida_options *opt = &s->opt;
     user_data *d = &s->data;
-    double t = s->tv[0], tret = t, tout1, *yv = N_VGetArrayPointer(s->yy);
-    int i, k = 0, flag = 0, stop = 0, ny = m->ny, n = 1 + m->ny + m->np;
+    const lcg_stepper_hooks hooks = {s->mem, 1, s->yy, s->yp, s, s->roots_on ? is_record : NULL, is_row, &d->w,
+                                     opt->stop_at_outputs};
+    double t = s->b.tv[0], tret = t, tout1;
+    int k = 0, flag;
 
     LCG_STEPPER_NEW_CALL(st, s->ev);
     watch_init(&d->w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
-    if (!(t_end >= t) || !lcg_stepper_grid_ok(t, t_end, nt, tout, yout != NULL, 1)) {
-        flag = lcg_stepper_backward(st->message, sizeof st->message, t_end, t);
+    if ((flag = lcg_stepper_begin(&s->b, t_end, nt, tout, yout != NULL, st->message, sizeof st->message)) < 0)
         goto out;
-    }
-    if (!s->restart && lcg_stepper_written(s->seen, s->tv, n, NULL, 0))
-        s->restart = 1; /* the caller set the time, the state or the parameters */
-    if (s->restart) {
+    if (s->b.restart) {
         if ((flag = is_restart(s)) < 0)
             goto out;
-        s->restart = 0;
+        s->b.restart = 0;
     }
     while (k < nt && tout[k] <= t)
         ++k;
     tout1 = k < nt ? tout[k] : lcg_stepper_one_step_tout(t, t_end);
     if (s->need_ic && tout1 > t && (flag = is_calc_ic(s, tout1)) < 0)
         goto out;
-    for (i = 0; i < ny; ++i)
-        s->y[i] = yv[i];
-    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->y, ny, yout);
-    if (one_step) {
-        flag = lcg_stepper_stop(s->mem, 1, t_end);
-        if (flag >= 0 && t_end > t)
-            flag = is_solve(s, tout1, IDA_ONE_STEP, &tret, &stop);
-    } else if (nt == 0) {
-        if (t_end > t && (flag = IDASetStopTime(s->mem, t_end)) >= 0)
-            flag = is_solve(s, t_end, IDA_NORMAL, &tret, &stop);
-    } else if (k < nt) {
-        if ((flag = IDASetStopTime(s->mem, t_end)) < 0)
-            goto out;
-        for (; k < nt && !stop; ++k) {
-            if (WATCH_TICK(&d->w))
-                break;
-            /* as lcg_ida_solve: step values at the output times if asked */
-            if (opt->stop_at_outputs && (flag = IDASetStopTime(s->mem, tout[k])) < 0)
-                break;
-            flag = is_solve(s, tout[k], IDA_NORMAL, &tret, &stop);
-            if (flag < 0 || stop)
-                break;
-            for (i = 0; i < ny; ++i)
-                yout[(long)k * ny + i] = yv[i];
-            st->nt_done = k + 1;
-        }
-    }
+    is_store(s, s->b.y);
+    s->yout = yout;
+    st->nt_done = k = lcg_stepper_rows_now(0, nt, tout, t, s->b.y, s->m->ny, yout);
+    flag = lcg_stepper_drive(&hooks, t, t_end, nt, tout, k, one_step, &tret, &st->nt_done);
     if (tret > t || flag < 0) {
-        for (i = 0; i < ny; ++i)
-            s->y[i] = yv[i];
-        s->tv[0] = tret;
+        is_store(s, s->b.y);
+        s->b.tv[0] = tret;
     }
 
 out:
     flag = watch_flag(&d->w, flag, st->message, sizeof st->message);
-    flag = lcg_stepper_model_flag(flag, st->model_error);
-    if (flag < 0 && flag != LCG_FLAG_BAD_INPUT)
-        s->restart = 1; /* IDA's state after a failure: start again from the last state reached */
+    flag = lcg_stepper_settle(&s->b, flag, st->model_error, 1);
     IDAGetNumSteps(s->mem, &st->nsteps);
     IDAGetNumResEvals(s->mem, &st->nres);
     IDAGetNumLinResEvals(s->mem, &st->nres_dq);
@@ -310,8 +274,8 @@ out:
     IDAGetLastStep(s->mem, &st->h_last);
     if (s->roots_on)
         IDAGetNumGEvals(s->mem, &st->ngevals);
-    LCG_STEPPER_END_CALL(st, flag, s->tv[0]);
-    is_remember(s);
+    LCG_STEPPER_END_CALL(st, flag, s->b.tv[0]);
+    lcg_stepper_keep(&s->b);
     return st->flag;
 }
 

@@ -67,6 +67,31 @@ static inline int set_step_limits(void *mem, int ida, int max_order, double firs
     return 0;
 }
 
+/* The place of model state i (nq coordinates) in CVODE's band solver order: q_i, v_i interleaved
+ * (the others after them); nq < 0: i itself. */
+static inline int band_place(int nq, int i)
+{
+    return nq < 0 ? i : i < nq ? 2 * i : (i < 2 * nq ? 2 * (i - nq) + 1 : i);
+}
+
+/* The run's tolerances on the solver's memory mem (ida: IDA's, else CVODE's): rtol with the n
+ * absolute tolerances atol_vec, copied into a new vector *abstol of the context ctx (the caller
+ * frees it) at their band places (band_place; band_nq < 0: in order), or with the scalar atol
+ * when atol_vec is NULL. 0, a negative flag, or nomem when the vector cannot be made. */
+static inline int set_tolerances(void *mem, int ida, SUNContext ctx, int n, double rtol, double atol,
+                                 const double *atol_vec, int band_nq, N_Vector *abstol, int nomem)
+{
+    int i;
+
+    if (atol_vec == NULL)
+        return ida ? IDASStolerances(mem, rtol, atol) : CVodeSStolerances(mem, rtol, atol);
+    if ((*abstol = N_VNew_Serial(n, ctx)) == NULL)
+        return nomem;
+    for (i = 0; i < n; ++i)
+        N_VGetArrayPointer(*abstol)[band_place(band_nq, i)] = atol_vec[i];
+    return ida ? IDASVtolerances(mem, rtol, *abstol) : CVodeSVtolerances(mem, rtol, *abstol);
+}
+
 /* After CVodeFree / IDAFree: the solver's objects freed in this order, the linear and nonlinear
  * solvers, the matrix, the nv vectors v (e.g. a compound literal), the context *ctx (each NULL:
  * nothing). */
@@ -111,6 +136,40 @@ static inline void free_solver(SUNLinearSolver LS, SUNNonlinearSolver NLS, SUNMa
             flag = LCG_MODEL_ERROR_FLAG(rc);                                         \
             goto done;                                                               \
         }                                                                            \
+    } while (0)
+
+/* A CVODE failure (error test, convergence or right-hand-side failures) right after a callback
+ * reported a non-finite value (nonfinite, at t_nonfinite) has that value as its cause: the model
+ * error LCG_ERR_NONFINITE into *model_error, its time into *t_reached, and its flag; else flag. */
+static inline int lcg_nonfinite_flag(int flag, int nonfinite, double t_nonfinite, int *model_error,
+                                     double *t_reached)
+{
+    if (nonfinite && *model_error == 0 && LCG_CVODE_NONFINITE_CAUSE(flag)) {
+        *model_error = LCG_ERR_NONFINITE;
+        *t_reached = t_nonfinite;
+        return LCG_MODEL_ERROR_FLAG(*model_error);
+    }
+    return flag;
+}
+
+/* Add CVODE's counters since its last (re)initialization that the statistics st of every CVODE
+ * driver keep (steps, right-hand sides, linear solver setups, error test failures, nonlinear
+ * iterations and their convergence failures) to st's. */
+#define LCG_ADD_CVODE_COUNTS(mem, st)                                                \
+    do {                                                                             \
+        long c_[6] = {0, 0, 0, 0, 0, 0};                                             \
+        CVodeGetNumSteps((mem), &c_[0]);                                             \
+        CVodeGetNumRhsEvals((mem), &c_[1]);                                          \
+        CVodeGetNumLinSolvSetups((mem), &c_[2]);                                     \
+        CVodeGetNumErrTestFails((mem), &c_[3]);                                      \
+        CVodeGetNumNonlinSolvIters((mem), &c_[4]);                                   \
+        CVodeGetNumNonlinSolvConvFails((mem), &c_[5]);                               \
+        (st)->nsteps += c_[0];                                                       \
+        (st)->nrhs += c_[1];                                                         \
+        (st)->nlinsetups += c_[2];                                                   \
+        (st)->netfails += c_[3];                                                     \
+        (st)->nniters += c_[4];                                                      \
+        (st)->nncfails += c_[5];                                                     \
     } while (0)
 
 /* After done: the message of the out-of-memory flag nomem when nothing more precise was recorded. */

@@ -50,9 +50,8 @@ static int tl_table_ok(const lcg_taylor_model *m)
         && (m->ne == 0 || (m->event_row != NULL && m->event_direction != NULL && m->event_terminal != NULL));
 }
 
-/* Step size, dense output, event location, the run loop and the jet entry point: the text every
- * standalone Taylor integrator (<prefix>_taylor.c) prints too, rendered for this driver by the
- * build from templates/taylor/_driver.j2 (lagcodegen.solvers.taylor.emit.driver_header). */
+/* Step size, dense output, event location, the step, the run loop and the jet entry point (a file
+ * of lagcodegen/runtime/, shared with the stepper lcg_taylor_stepper.c, which includes this file). */
 #include "lcg_taylor_driver.h"
 
 #undef NROW

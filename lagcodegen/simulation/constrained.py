@@ -116,7 +116,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
     @attaches_run_drawing
     def simulate(self, t, q0=None, v0=None, *, params: Mapping | None = None, solver=None, rtol: float = 1e-8,
                  atol=1e-10, events: bool | None = None, initial: str = "check", ic_tol: float = 1e-8,
-                 raise_on_error: bool = True, contacts: ContactOptions | None = None, **options) -> Result:
+                 raise_on_error: bool = True, **options) -> Result:
         """Integrate from t[0] and return the trajectory at the times ``t``.
 
         ``q0``/``v0``: initial coordinates and velocities (arrays or dicts by name), checked or
@@ -135,9 +135,10 @@ class ConstrainedSimulation(ConstrainedFunctions):
 
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
         restitution) run on the impact driver (:mod:`.constrained_impacts`: impacts, persistent
-        contact and release in one call; CVODE, native backend, no projection); ``contacts``
-        (:class:`~.constrained_impacts.ContactOptions`) sets how contacts switch, and
-        ``res.impacts`` lists what happened.
+        contact and release in one call; CVODE, native backend, no projection); the keyword
+        ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
+        before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
+        lists what happened.
 
         Output times are served by the integrator's interpolation (GGL with
         ``stop_at_outputs``: exact steps): ``t = (t0, t1)`` (1001 output times) takes the steps
@@ -155,6 +156,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                           or getattr(solver, "sensitivities", None) is not None):
             raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
+        contacts = options.pop("contacts", None)  # the run's contact settings, not a solver option
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         q0, v0 = file_initial(self, q0, v0)

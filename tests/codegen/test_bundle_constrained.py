@@ -159,3 +159,18 @@ def test_bad_constrained_bundle_options_write_nothing(tmp_path, pendulum):
         assert not target.exists()
     with pytest.raises(ModelError, match="ConstrainedSystem"):
         render_constrained_bundle(pendulum.model)
+
+
+def test_the_example_defaults_as_a_record_or_as_keywords(pendulum):
+    from lagcodegen.codegen.bundle import ExampleRun
+    keywords = render_constrained_bundle(pendulum, outputs=OUTPUTS, y0=[0.3, 0.0, 0.0, 0.0], t_end=2.0, steps=400,
+                                         reference=False)
+    record = render_constrained_bundle(pendulum, outputs=OUTPUTS, reference=False,
+                                       example=ExampleRun(y0=[0.3, 0.0, 0.0, 0.0], t_end=2.0, steps=400))
+    assert record == keywords
+    assert keywords["rk4_example.c"] != render_constrained_bundle(pendulum, outputs=OUTPUTS, reference=False)[
+        "rk4_example.c"]
+    with pytest.raises(TypeError, match="unexpected keyword argument 't_final'"):
+        render_constrained_bundle(pendulum, t_final=2.0)
+    with pytest.raises(TypeError, match="not both"):
+        render_constrained_bundle(pendulum, example=ExampleRun(), t_end=2.0)

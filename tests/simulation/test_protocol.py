@@ -1,6 +1,6 @@
 """The faces of lagcodegen.simulation behind one protocol: the same names, the same run keywords
-(with the face's own: y0/z0 for a scene's state, initial/ic_tol for a constrained one, contacts for
-one with contacts), pickling."""
+(with the face's own: y0/z0 for a scene's state, initial/ic_tol for a constrained one; contacts=
+for one with contacts goes through **options, not a name of the signature), pickling."""
 
 import inspect
 import pickle
@@ -16,7 +16,7 @@ from lagcodegen.simulation.ode import CompiledModel
 
 FACES = (CompiledModel, ConstrainedSimulation, MinimalSimulation)
 SHARED = ["t", "q0", "v0", "params", "solver", "rtol", "atol", "events", "raise_on_error", "options"]
-OWN = {CompiledModel: ["y0", "z0"], ConstrainedSimulation: ["initial", "ic_tol", "contacts"],
+OWN = {CompiledModel: ["y0", "z0"], ConstrainedSimulation: ["initial", "ic_tol"],
        MinimalSimulation: ["initial", "ic_tol"]}
 
 

@@ -128,7 +128,8 @@ def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: boo
     ``runtime``, only its jet, for the Taylor runtime's driver (compiled once with the default
     flags); else the standalone integrator, driver included. ``cflags``: the C compiler's flags
     of what is compiled here (e.g. ``-DLCG_TAYLOR_CAP=1.3`` changes a standalone driver's step
-    cap, see templates/taylor/_driver.j2)."""
+    cap, see templates/taylor/_driver.j2; the runtime's driver, lagcodegen/runtime/lcg_taylor_driver.h,
+    has the same rule)."""
     cflags = tuple(cflags)
     if runtime and any(flag.startswith("-DLCG_TAYLOR_CAP") for flag in cflags):
         raise LagcodegenError("LCG_TAYLOR_CAP sets the step cap of a driver, and the Taylor runtime's driver is "
