@@ -40,7 +40,7 @@ from ..derivation import derive, require_lagrange
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
-from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)  # noqa: F401 - re-exported
+from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
 INTEGRABLE_POLICIES = ("error", "allow")
