@@ -18,7 +18,7 @@ from ..errors import ModelError
 from ..formulation.scene import Scene
 from ..result import Result
 from ..theory.constraints import ConstrainedSystem
-from ..theory.speeds import choose_independent, independent_speeds_model
+from ..theory.speeds import choose_independent, independent_speeds_model, pivoted_solve
 from ..util import state_values
 from .ode import CompiledModel
 
@@ -68,22 +68,35 @@ class IndependentSpeedsSimulation:
         dep = set(int(i) for i in piv[:J])
         return [i for i in range(n) if i not in dep]
 
-    def _matrix(self, f, q0, t0, params):
+    def _parameter_values(self, params: Mapping | None) -> dict:
+        """The parameters' values by symbol: defaults, the compiled values, then ``params``."""
         model = self.system.model
         vals = {s.name: v for s, v in model.params.items()}
         vals.update(self._scene_options["values"])
         vals.update(params or {})
-        args = list(q0) + [t0] + [vals[s.name] for s in model.params]
+        return {s: float(vals[s.name]) for s in model.params}
+
+    def _matrix(self, f, q0, t0, params):
+        vals = self._parameter_values(params)
+        args = list(q0) + [t0] + [vals[s] for s in self.system.model.params]
         return np.atleast_2d(np.array(f(*args), dtype=float))
 
-    def compiled(self, independent: Sequence[int]) -> CompiledModel:
-        """The compiled model of one choice of independent speeds (built once)."""
-        key = tuple(independent)
+    def compiled(self, independent: Sequence[int], q0=None, t0: float = 0.0,
+                 params: Mapping | None = None) -> CompiledModel:
+        """The compiled model of one choice of independent speeds (built once), its dependent
+        rates solved with the pivots largest at ``q0`` (default: the neutral configuration)."""
+        model = self.system.model
+        q0 = model.neutral() if q0 is None else list(q0)
+        at = {**{q: float(x) for q, x in zip(model.coords, q0)}, model.t: float(t0),
+              **{s: float(v) for s, v in self._parameter_values(params).items()}}
+        dep = [i for i in range(model.n) if i not in independent]
+        A = self.system.A
+        _, pivots = pivoted_solve(A[:, dep], sp.zeros(A.shape[0], 1), at) if dep else (None, ())
+        key = (tuple(independent), pivots)
         if key not in self._compiled:
-            model = self.system.model
-            names = [model.coords[i].name for i in key]
-            suffix = "_".join(str(i) for i in key)
-            reduced = independent_speeds_model(self.system, independent=names,
+            names = [model.coords[i].name for i in independent]
+            suffix = "_".join(str(i) for i in independent) + ("_p" + "".join(map(str, pivots)) if pivots else "")
+            reduced = independent_speeds_model(self.system, independent=names, at=at,
                                                name=f"{model.name}_u{suffix}")
             extra = [f"g_{j}" for j in range(self.system.n_holonomic)]
             opts = dict(self._scene_options)
@@ -112,5 +125,5 @@ class IndependentSpeedsSimulation:
             raise ModelError(f"v0 does not satisfy the velocity constraints: row {worst} of A q' + A0 is "
                              f"{residual[worst]:.3g} (give rates on the constraint manifold)")
         ind = self.choose(q, t0, params)
-        cm = self.compiled(ind)
+        cm = self.compiled(ind, q, t0, params)
         return cm.simulate(t, q0=q, v0=v[ind], params=params, **options)

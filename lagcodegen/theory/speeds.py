@@ -78,12 +78,46 @@ def choose_independent(system: ConstrainedSystem, independent: Sequence[str] | N
     return [i for i in range(n) if i not in dep], dep
 
 
+def pivoted_solve(A: sp.Matrix, b: sp.Matrix, at: dict | None) -> tuple[sp.Matrix, tuple]:
+    """x with A x = b by Gaussian elimination, symbolically, each pivot the entry of largest
+    magnitude at the numeric point ``at`` (symbols -> numbers; None: sympy's structural choice,
+    which may divide by an expression that vanishes at the state, e.g. sin(phi) upright). Returns
+    (x, the pivot rows in order): a solution regular wherever those pivots do not vanish."""
+    m = A.shape[0]
+    if at is None:
+        return A.LUsolve(b), ()
+    A, b = A.copy(), b.copy()
+    rows = list(range(m))
+    order = []
+    for k in range(m):
+        values = [abs(complex(A[r, k].evalf(subs=at))) for r in rows[k:]]
+        best = k + int(np.argmax(values))
+        if values[best - k] < 1e-12:
+            raise ModelError("independent speeds: the constraints cannot be solved for the dependent rates at the "
+                             "initial state (A_dep is singular there)")
+        rows[k], rows[best] = rows[best], rows[k]
+        order.append(rows[k])
+        pivot = A[rows[k], k]
+        for r in rows[k + 1:]:
+            factor = A[r, k] / pivot
+            if factor != 0:
+                A[r, :] = A[r, :] - factor * A[rows[k], :]
+                b[r] = b[r] - factor * b[rows[k]]
+    x = [sp.Integer(0)] * m
+    for k in reversed(range(m)):
+        r = rows[k]
+        x[k] = (b[r] - sum((A[r, j] * x[j] for j in range(k + 1, m)), sp.Integer(0))) / A[r, k]
+    return sp.Matrix(x), tuple(order)
+
+
 def independent_speeds_model(system: ConstrainedSystem, *, independent: Sequence[str] | None = None,
-                             name: str | None = None) -> Model:
+                             name: str | None = None, at: dict | None = None) -> Model:
     """The model of ``system`` in independent speeds (module docstring): a copy of its model
     with the generalized speeds u (the independent coordinates' rates, named ``<q>_dot`` as
     before) and the kinematic equations q' = B u + b of every coordinate; the holonomic
-    constraints' residuals as outputs ``g_<j>``. Inequality constraints are refused."""
+    constraints' residuals as outputs ``g_<j>``. Inequality constraints are refused. ``at``
+    (symbols -> numbers, e.g. the initial state and parameters): the dependent rates are solved
+    with the pivots largest there (:func:`pivoted_solve`)."""
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"independent speeds need a ConstrainedSystem, got {type(system).__name__}")
     if system.inequalities:
@@ -97,7 +131,7 @@ def independent_speeds_model(system: ConstrainedSystem, *, independent: Sequence
     if dep:
         A_dep = A[:, dep]
         rhs = -(A[:, ind] * sp.Matrix([qd[i] for i in ind]) + A0)
-        solved = A_dep.LUsolve(rhs)
+        solved, _ = pivoted_solve(A_dep, rhs, at)
         for k, i in enumerate(dep):
             rates[i] = solved[k]
     reduced = copy.deepcopy(model)
