@@ -90,8 +90,12 @@ def test_minimal_coordinates_eliminate_y_and_have_no_multipliers(cpend):
 
 
 def test_minimal_coordinates_errors():
+    # nonholonomic constraints are not eliminated from the coordinates: the system is reduced to
+    # independent speeds instead (tests/theory/test_speeds.py)
+    from lagcodegen.simulation.speeds import IndependentSpeedsSimulation
+    assert isinstance(compile_constrained(knife_edge(), "minimal"), IndependentSpeedsSimulation)
     with pytest.raises(ModelError, match="nonholonomic constraints .* cannot be eliminated"):
-        compile_constrained(knife_edge(), "minimal")
+        lcg.theory.minimal.solve_constraints(knife_edge())
     m = lcg.Model("hard")
     x, y = m.coordinates("x y")
     m.particle("p", 1, (x, y))
