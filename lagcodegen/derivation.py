@@ -517,7 +517,8 @@ def _derive(model: Model, check: bool, stage) -> EquationsOfMotion:
         used |= Qi.free_symbols
     tree = TreeDynamics(model, eng.q, eng.v) if model.links else None
     if tree is not None:
-        used |= {eng.q[nd.coord] for nd in tree.nodes}
+        used |= {eng.q[nd.coord] for nd in tree.nodes if nd.coord < len(eng.q)}
+        used |= {eng.q[c] for c, _, _, _ in tree.mimics}
         if model.general:
             used |= {se.Symbol(c.name) for lk in model.links if lk.joint.quaternion for c in lk.coordinates}
     for q, qd in zip(eng.q, eng.qd):

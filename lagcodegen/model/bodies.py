@@ -250,6 +250,9 @@ class Joint:
     name: str
     axis: tuple = (0, 0, 1)
     rotation: str = "quaternion"
+    #: A mimic joint (URDF's <mimic>): (leader coordinate's name, multiplier, offset): no
+    #: coordinate of its own, its angle or displacement multiplier * leader + offset.
+    mimic: tuple = ()
 
     def __post_init__(self):
         if self.kind not in JOINT_COORDINATES:
@@ -259,6 +262,17 @@ class Joint:
         if self.rotation not in ROTATIONS:
             raise ModelError(f"joint {self.name!r}: rotation must be one of {', '.join(map(repr, ROTATIONS))}, "
                              f"got {self.rotation!r}")
+
+    def mimicking(self, leader: str, multiplier: float = 1.0, offset: float = 0.0) -> "Joint":
+        """This 1-dof joint driven by the coordinate ``leader`` (declared before it): its angle or
+        displacement is ``multiplier * leader + offset`` (URDF's <mimic>, Pinocchio's mimic joint)."""
+        if self.kind not in ("revolute", "continuous", "prismatic"):
+            raise ModelError(f"joint {self.name!r}: only revolute, continuous and prismatic joints mimic another")
+        import math
+        for what, x in (("multiplier", multiplier), ("offset", offset)):
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                raise ModelError(f"joint {self.name!r}: mimic {what} must be a finite number, got {excerpt(x)}")
+        return Joint(self.kind, self.name, self.axis, self.rotation, (str(leader), float(multiplier), float(offset)))
 
     @property
     def quaternion(self) -> bool:
@@ -316,6 +330,8 @@ class Joint:
         """The names of the coordinates this joint brings to the model."""
         if self.quaternion:
             return tuple(self.name + s for s in QUATERNION_COORDINATES[self.kind])
+        if self.mimic:
+            return ()
         return tuple(self.name + s for s in JOINT_COORDINATES[self.kind])
 
     @property

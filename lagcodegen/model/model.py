@@ -569,6 +569,13 @@ class Model:
                                  f"{', '.join(sorted(s.name for s in bad))}")
         coords = self.coordinates(list(lk.joint.coordinate_names)) if lk.joint.coordinate_names else ()
         lk.coordinates = tuple(coords)
+        if lk.joint.mimic:  # driven by a coordinate declared before: its angle m q + o
+            leader, gain, offset = lk.joint.mimic
+            if leader not in {q.name for q in self.coords}:
+                raise ModelError(f"link {name!r}: joint {lk.joint.name!r} mimics {leader!r}, which is no coordinate "
+                                 "declared before it")
+            q = self.coords[self.index(leader)]
+            lk.coordinates = (sp.Float(gain) * q + sp.Float(offset),)
         if lk.joint.quaternion:
             lk.speeds = self._quaternion_joint(lk.joint, lk.coordinates)
         if parent is not None:

@@ -80,6 +80,8 @@ def accelerations(tree: TreeDynamics, qdd: list) -> list:
 def regressor(tree: TreeDynamics, qdd: list) -> tuple[list, list]:
     """(Y as n rows of 10 nb entries, the bodies' link names) of ``tree`` at accelerations ``qdd``."""
     bodies = body_nodes(tree.model)
+    if tree.mimics:  # the mimic joints' pseudo-speeds: gain times their leader's
+        qdd = list(qdd) + [td.mul(se.Float(g), qdd[s]) for _, s, g, _ in tree.mimics]
     vel, acc = tree.velocities(), accelerations(tree, qdd)
     units = _unit_inertias()
     Y = [[ZERO] * (10 * len(bodies)) for _ in range(tree.n)]
@@ -99,6 +101,9 @@ def regressor(tree: TreeDynamics, qdd: list) -> tuple[list, list]:
                 f2 = nd.up(f)
                 n, f = vadd(nd.up(n), cross(tree.origin(j), f2)), f2
                 j = nd.parent
+    if tree.mimics:  # rows folded into the leaders' (G^T Y)
+        cols = [tree._fold([Y[i][c] for i in range(tree.n)]) for c in range(10 * len(bodies))]
+        Y = [[cols[c][i] for c in range(len(cols))] for i in range(tree.n_speeds)]
     return Y, [name for _, name in bodies]
 
 

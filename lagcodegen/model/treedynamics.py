@@ -281,6 +281,9 @@ class TreeDynamics:
         index = {c.name: i for i, c in enumerate(model.coords)}
         speed_index = {v.name: i for i, v in enumerate(model.v)}
         self.nodes: list[Node] = []
+        # mimic joints (Joint.mimicking): (leader coordinate, leader speed, gain, offset) each; their
+        # nodes move along pseudo-coordinates len(q) + k, speeds len(qd) + k (_extend_mimics)
+        self.mimics: list[tuple] = []
         # link name -> (node index, Placement of the link frame in that node; None: the identity)
         anchors: dict = {}
         masses: dict = {}   # node index -> list of (m, c, I_G) in node coordinates (symengine)
@@ -299,10 +302,16 @@ class TreeDynamics:
                 else:
                     R = [[_se(place.rotation[i, j], f"origin of {link.name!r}") for j in range(3)] for i in range(3)]
                     p = [_se(c, f"origin of {link.name!r}") for c in place.translation]
+                if link.joint.mimic:
+                    leader, gain, offset = link.joint.mimic
+                    self.mimics.append((index[leader], speed_index[model.speeds[index[leader]].name], gain, offset))
+                    ci, si = len(q) + len(self.mimics) - 1, len(qd) + len(self.mimics) - 1
+                else:
+                    ci = index[coord.name]
+                    si = speed_index[model.speeds[ci].name]
                 self.nodes.append(Node(node, R, p, kind, [se.Integer(int(a)) if sp.sympify(a).is_Integer
                                                           else _se(a, f"axis of {link.joint.name!r}") for a in axis],
-                                       index[coord.name],
-                                       speed=speed_index[model.speeds[index[coord.name]].name]))
+                                       ci, speed=si))
                 node, place = len(self.nodes) - 1, None
             anchors[link.name] = (node, place)
             if node >= 0 and link.origin_inertia is not None:  # dynamic parameters: kept linear
@@ -329,6 +338,8 @@ class TreeDynamics:
             self.nodes[k].inertia = (se.Add(*(it[0] for it in items)),
                                      [se.Add(*(it[1][i] for it in items)) for i in range(3)],
                                      [[se.Add(*(it[2][i][j] for it in items)) for j in range(3)] for i in range(3)])
+        if self.mimics:
+            q, qd = self._extend_mimics(q, qd)
         self.coord_node = {}
         for k, nd in enumerate(self.nodes):
             qk = q[nd.coord]
@@ -342,6 +353,44 @@ class TreeDynamics:
             if nd.parent >= 0:
                 self.children[nd.parent].append(k)
         self._velocities = None
+
+    def _extend_mimics(self, q: list, qd: list) -> tuple[list, list]:
+        """q and q' with the mimic joints' pseudo-coordinates gain q_leader + offset and rates
+        gain q_leader' appended: the recursions run over them as over any joint
+        (:attr:`n_full`), :meth:`mass_matrix` and :meth:`rnea` fold them into the leaders'."""
+        q = list(q) + [se.Add(mul(se.Float(g), q[c]), se.Float(o)) if o else mul(se.Float(g), q[c])
+                       for c, _, g, o in self.mimics]
+        qd = list(qd) + [mul(se.Float(g), qd[s]) for _, s, g, _ in self.mimics]
+        self.q, self.qd, self.n = q, qd, len(qd)
+        return q, qd
+
+    @property
+    def n_speeds(self) -> int:
+        """The model's speeds (without the mimic joints' pseudo-speeds)."""
+        return self.n - len(self.mimics)
+
+    def _fold(self, vec: list) -> list:
+        """A vector over the speeds and the mimic pseudo-speeds as one over the speeds: each
+        pseudo-speed's entry times its gain added to its leader's (G^T x, q'_mimic = gain q'_leader)."""
+        if not self.mimics:
+            return vec
+        nv = self.n_speeds
+        out = list(vec[:nv])
+        for k, (_, s, g, _) in enumerate(self.mimics):
+            out[s] = add(out[s], mul(se.Float(g), vec[nv + k]))
+        return out
+
+    def _fold_matrix(self, M: list) -> list:
+        """G^T M G of a matrix over the speeds and pseudo-speeds (:meth:`_fold` on rows and columns)."""
+        if not self.mimics:
+            return M
+        rows = [self._fold(row) for row in M]  # the columns folded: M G
+        nv = self.n_speeds
+        out = [list(r[:nv]) for r in rows[:nv]]
+        for k, (_, s, g, _) in enumerate(self.mimics):
+            for b in range(nv):
+                out[s][b] = add(out[s][b], mul(se.Float(g), rows[nv + k][b]))
+        return out
 
     def _quaternion_group(self, link, node: int, place, index: dict, speed_index: dict) -> int:
         """Append the nodes of ``link``'s quaternion joint (a free joint: three translations
@@ -437,6 +486,14 @@ class TreeDynamics:
         """tau = RNEA(q, q', q'') per coordinate (zero for coordinates outside the tree): the
         generalized forces the joints need for accelerations ``qdd`` (None: zero) under
         gravity (M q'' + C q' + g, Featherstone's algorithm 5.1)."""
+        if self.mimics:
+            if qdd is not None:
+                qdd = list(qdd) + [mul(se.Float(g), qdd[sp_]) for _, sp_, g, _ in self.mimics]
+            return self._fold(self._rnea(qdd, velocities, gravity))
+        return self._rnea(qdd, velocities, gravity)
+
+    def _rnea(self, qdd: list | None, velocities: bool, gravity: bool) -> list:
+        """:meth:`rnea` over the speeds and the mimic joints' pseudo-speeds."""
         vel = self.velocities() if velocities else [([ZERO] * 3, [ZERO] * 3) for _ in self.nodes]
         acc = []
         force = []
@@ -535,8 +592,8 @@ class TreeDynamics:
         coordinates are zero. Up to WORLD_CRBA_MIN_NODES moving frames in body coordinates
         (:meth:`mass_matrix_local`), above in world coordinates (:meth:`mass_matrix_world`)."""
         if len(self.nodes) >= WORLD_CRBA_MIN_NODES:
-            return self.mass_matrix_world()
-        return self.mass_matrix_local()
+            return self._fold_matrix(self.mass_matrix_world())
+        return self._fold_matrix(self.mass_matrix_local())
 
     def world_poses(self) -> list:
         """(E, x) of every node: its axes (rows of a 3x3 list) and origin in world coordinates."""

@@ -49,10 +49,10 @@ What the model holds:
 ``lock={joint: position}`` holds joints fixed (merged like fixed joints at that position).
 
 Refused with a :class:`~lagcodegen.modelfile.urdfxml.URDFError` naming the file and element:
-``mimic`` joints unless ``mimic="independent"`` (then they are coordinates of their own, as
-Pinocchio's ``buildModelFromUrdf`` reads them by default) or locked (a coupled joint is a
-constraint, not a coordinate: write the coupling as a holonomic constraint of a
-:class:`ConstrainedSystem`), a URDF without any movable joint. ``planar`` joints move in the
+``mimic`` joints with ``mimic="error"`` (by default they are driven by the joint they follow,
+``mimic="independent"`` makes them coordinates of their own as Pinocchio's
+``buildModelFromUrdf`` reads them by default, ``"coupled"`` holds them by holonomic constraints),
+a mimic joint following a locked or later joint, a URDF without any movable joint. ``planar`` joints move in the
 plane normal to their axis: coordinates ``<joint>_x``, ``<joint>_y``, ``<joint>_theta``
 (:meth:`lagcodegen.model.bodies.Joint.planar`). Meshes,
 visuals, collisions, materials, transmissions and Gazebo tags are ignored.
@@ -89,7 +89,7 @@ FORMS = ("tree", "closed")
 #: The form :func:`load` uses unless told.
 DEFAULT_FORM = "tree"
 #: What :func:`build` does with ``<mimic>`` joints.
-MIMIC = ("error", "independent", "coupled")
+MIMIC = ("driven", "error", "independent", "coupled")
 
 
 def _locked(robot: RobotDescription, lock) -> dict[str, float]:
@@ -223,7 +223,8 @@ def _names(robot: RobotDescription, tree: list[Body]) -> dict[str, str]:
 
 
 def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion",
-           robot: RobotDescription | None = None, params: dict | None = None) -> dict[str, sp.Symbol]:
+           robot: RobotDescription | None = None, params: dict | None = None, driven: bool = False
+           ) -> dict[str, sp.Symbol]:
     """The bodies as a tree of links (:meth:`Model.link`); the coordinate of each joint. The
     bodies holding a link of ``params`` (link -> its dynamic-parameter symbols) take their
     dynamic parameters (:func:`.urdf_inertial.body_parameters`)."""
@@ -235,6 +236,12 @@ def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str 
         I = b.inertia
         joint = (Joint_.free(names[j.name], rotation=rotation) if j.type == "floating"
                  else kinds[j.type](names[j.name], tuple(float(a) for a in j.axis)))
+        if driven and j.mimic is not None:  # mimic="driven": no coordinate, its leader's times the gain
+            if j.mimic.joint not in coords:
+                raise URDFError(f"mimic joint {j.name!r} follows {j.mimic.joint!r}, which is locked, fixed or comes "
+                                "after it in the tree: lock both, or use mimic='independent'", robot.filename if robot
+                                else "<urdf>", j.line, f"joint {j.name!r}")
+            joint = joint.mimicking(coords[j.mimic.joint].name, j.mimic.multiplier, j.mimic.offset)
         dyn = _inertial.body_parameters(robot, b, params) if params else None
         if dyn is not None:
             link = model.link(names[j.child], parent=None if b.parent is None else names[b.parent], joint=joint,
@@ -250,13 +257,13 @@ def _links(model: Model, tree: list[Body], names: dict[str, str], rotation: str 
     return coords
 
 
-def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion"
-                  ) -> dict[str, sp.Symbol]:
+def _rigid_bodies(model: Model, tree: list[Body], names: dict[str, str], rotation: str = "quaternion",
+                  driven: bool = False) -> dict[str, sp.Symbol]:
     """The bodies as closed-form rigid bodies (:meth:`Model.rigid_body`): the world pose of each
     (:meth:`Link.pose` of the same tree stated as links in a scratch model, whose coordinates
     are the same symbols) multiplied out; the coordinate of each joint."""
     scratch = Model(model.name)
-    _links(scratch, tree, names, rotation)
+    _links(scratch, tree, names, rotation, driven=driven)
     for c in scratch.coords:
         model.coordinate(c.name)
     if scratch.general:  # quaternion joints: their speeds and kinematic equations
@@ -280,7 +287,7 @@ class LoadOptions:
     friction: str = "ignore"
     friction_velocity: float = 1e-3
     lock: Mapping[str, float] | Sequence[str] = ()
-    mimic: str = "error"
+    mimic: str = "driven"
     form: str = DEFAULT_FORM
     floating: bool | str = False
     rotation: str = "quaternion"
@@ -359,8 +366,8 @@ def build(robot: RobotDescription, **options) -> Model | ConstrainedSystem:
                         "them)", robot.filename, None, "")
     try:
         params = _inertial.declare(model, robot, chosen, _identifier)
-        coords = (_links(model, tree, names, rotation, robot, params) if form == "tree"
-                  else _rigid_bodies(model, tree, names, rotation))
+        coords = (_links(model, tree, names, rotation, robot, params, mimic == "driven") if form == "tree"
+                  else _rigid_bodies(model, tree, names, rotation, mimic == "driven"))
     except ModelError as exc:  # a name the model refuses (a reserved word, a clash)
         raise URDFError(str(exc), robot.filename, None, f"robot {robot.name!r}") from None
     if g is not None:
@@ -369,7 +376,8 @@ def build(robot: RobotDescription, **options) -> Model | ConstrainedSystem:
     damping = [(b.joint, coords[b.joint.name]) for b in tree
                if b.joint.dynamics is not None and b.joint.dynamics.damping > 0]
     if damping:
-        model.dissipation(sum((sp.Float(j.dynamics.damping) / 2 * model.dot(q) ** 2 for j, q in damping),
+        # a driven mimic joint's q is gain q_leader + offset: its rate gain q_leader'
+        model.dissipation(sum((sp.Float(j.dynamics.damping) / 2 * model.time_derivative(q) ** 2 for j, q in damping),
                               sp.Integer(0)), label="joint damping")
     rubbing = [(b.joint, coords[b.joint.name]) for b in tree
                if b.joint.dynamics is not None and b.joint.dynamics.friction > 0]
@@ -379,9 +387,10 @@ def build(robot: RobotDescription, **options) -> Model | ConstrainedSystem:
     elif rubbing:
         vs = sp.Float(friction_velocity)
         for j, q in rubbing:
-            v = model.dot(q)
-            model.generalized_force(q, -sp.Float(j.dynamics.friction) * v / sp.sqrt(v**2 + vs**2),
-                                    label=f"Coulomb friction of {j.name}")
+            v = model.time_derivative(q)
+            leader = q if isinstance(q, sp.Symbol) else next(iter(q.free_symbols & set(model.coords)))
+            model.generalized_force(leader, -sp.diff(q, leader) * sp.Float(j.dynamics.friction) * v
+                                    / sp.sqrt(v**2 + vs**2), label=f"Coulomb friction of {j.name}")
     model.validate()
     coupled = _couplings(robot, tree, coords) if mimic == "coupled" else []
     if limits is False:
@@ -443,7 +452,10 @@ def load(path: str | os.PathLike, *, max_bytes: int | None = MAX_BYTES, **option
     ``friction``, ``friction_velocity``: Coulomb friction, see the module docstring;
     ``lock``: joints held fixed, as ``{name: position}`` or names (at 0): merged like fixed
     joints (e.g. a gripper's fingers);
-    ``mimic``: ``"error"`` (default) refuses ``<mimic>`` joints, ``"coupled"`` keeps each a
+    ``mimic``: ``"driven"`` (default) makes each ``<mimic>`` joint what it is, driven by the
+    joint it follows (no coordinate of its own, its angle multiplier q_k + offset: Pinocchio's
+    ``mimic=True`` layout; :meth:`lagcodegen.model.bodies.Joint.mimicking`), ``"error"`` refuses
+    them, ``"coupled"`` keeps each a
     coordinate held to its joint by the holonomic constraint q = multiplier q_k + offset (a
     :class:`ConstrainedSystem`; minimal coordinates eliminate it, as Pinocchio's ``mimic=True``
     does), ``"independent"`` makes them

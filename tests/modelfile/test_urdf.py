@@ -404,6 +404,51 @@ def test_mimic_joints_coupled_agree_with_pinocchio_mimic():
     assert not isinstance(urdf.loads(MIMIC_ARM, mimic="independent"), lcg.ConstrainedSystem)
 
 
+@pytest.mark.parametrize("form", FORMS)
+def test_mimic_joints_are_driven_by_default_as_pinocchio_reads_them(form):
+    """By default a <mimic> joint has no coordinate: its angle is multiplier q_leader + offset
+    (Pinocchio's buildModel(..., mimic=True) layout); q'' = -M^-1 nle from Pinocchio's crba and
+    rnea to 1e-12 at random states."""
+    model = urdf.loads(MIMIC_ARM, form=form)
+    assert [c.name for c in model.coords] == ["j1"] and not isinstance(model, lcg.ConstrainedSystem)
+    pin_model = pin.buildModelFromXML(MIMIC_ARM, mimic=True)
+    data = pin_model.createData()
+    cm = lcg.compile_model(model)
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        q, v = rng.uniform(-1, 1, 1), rng.normal(size=1)
+        M = pin.crba(pin_model, data, q)
+        a = -np.linalg.solve(M, pin.rnea(pin_model, data, q, v, np.zeros(1)))
+        assert np.abs(cm.rhs(0.0, np.r_[q, v])[1:] - a).max() <= 1e-12 * max(1.0, np.abs(a).max())
+
+
+def test_panda_with_its_gripper_by_default_agrees_with_pinocchio_mimic():
+    """The Panda loads with its fingers by default: finger 2 driven by finger 1 (nq = 8, as
+    Pinocchio's mimic model); q'' against Pinocchio's crba and rnea with the URDF's damping as
+    torques (the driven finger's damping c_2 g^2 on finger 1's rate), to 1e-12."""
+    file = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
+    model = urdf.load(file)
+    assert [c.name for c in model.coords] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1"]
+    pin_model = pin.buildModelFromUrdf(str(file), mimic=True)
+    data = pin_model.createData()
+    assert pin_model.nq == pin_model.nv == 8
+    joints = urdf.read(file).joints
+    damping = np.array([joints[f"panda_joint{i}"].dynamics.damping if joints[f"panda_joint{i}"].dynamics else 0.0
+                        for i in range(1, 8)] + [0.0])
+    for name, g in (("panda_finger_joint1", 1.0), ("panda_finger_joint2", joints["panda_finger_joint2"].mimic.multiplier)):
+        dyn = joints[name].dynamics
+        damping[7] += (dyn.damping if dyn else 0.0) * g * g
+    cm = lcg.compile_model(model)
+    rng = np.random.default_rng(12)
+    for _ in range(4):
+        q = np.r_[rng.uniform(-1, 1, 7), rng.uniform(0, 0.04)]
+        v = rng.normal(size=8)
+        M = pin.crba(pin_model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        a = np.linalg.solve(M, -damping * v - pin.rnea(pin_model, data, q, v, np.zeros(8)))
+        assert np.abs(cm.rhs(0.0, np.r_[q, v])[8:] - a).max() <= 1e-12 * np.abs(a).max()
+
+
 def test_locked_joints_agree_with_pinocchio_reduced_model():
     """UR5 with the elbow locked at 0.4 rad: Pinocchio's buildReducedModel at the same position."""
     file = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"
@@ -420,7 +465,7 @@ def test_panda_loads_with_its_mimic_finger_refused_or_independent():
     file = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
     with pytest.raises(ModelError, match=r"panda\.urdf:\d+: joint 'panda_finger_joint2': mimic joints are not "
                                          r"supported.*follows 'panda_finger_joint1'"):
-        urdf.load(file)
+        urdf.load(file, mimic="error")
     model = urdf.load(file, mimic="independent")
     assert [c.name for c in model.coords] == [f"panda_joint{i}" for i in range(1, 8)] + [
         "panda_finger_joint1", "panda_finger_joint2"]
