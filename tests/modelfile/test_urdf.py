@@ -624,7 +624,7 @@ def test_missing_file_and_bad_options():
     arm = EXAMPLES / "two_link_arm.urdf"
     with pytest.raises(urdf.URDFError, match="friction must be one of ignore, smooth"):
         urdf.load(arm, friction="stick")
-    with pytest.raises(urdf.URDFError, match="mimic must be one of error, independent"):
+    with pytest.raises(urdf.URDFError, match="mimic must be one of driven, error, independent"):
         urdf.load(arm, mimic="copy")
     with pytest.raises(urdf.URDFError, match="lock: no joint named 'wrist'"):
         urdf.load(arm, lock=["wrist"])
