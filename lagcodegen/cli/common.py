@@ -249,7 +249,8 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter value (repeatable)")
     p.add_argument("--no-jacobian", action="store_true", help="do not emit the Jacobian")
     p.add_argument("--urdf", action="append", metavar="KEY=VALUE",
-                   help="a URDF model's loading option (repeatable): floating=true|NAME, mimic=independent|coupled|error, "
+                   help="a URDF model's loading option (repeatable): floating=true|NAME, "
+                        "mimic=independent|coupled|error, "
                         "limits=true|stop:E|monitor, lock=JOINT[:POSITION],..., gravity=X,Y,Z, friction=smooth, "
                         "form=tree|closed, name=NAME, inertial_parameters=true|LINK,... (the links' inertials as "
                         "run-time parameters <link>_m, _mx, ..., _Izz), rotation=ZYX (Euler angles on free "

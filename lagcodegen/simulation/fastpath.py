@@ -220,7 +220,8 @@ def family_run(cm, solver, rtol, atol, options: dict, events=()):
     own = {k: v for k, v in options.items() if k != "inputs"}
     family = resolve("ode", solver, own, cm.method_size, rtol_f)
     check_speeds(cm, family)
-    fixed = {"n_coordinates": cm.n, "n_speeds": cm.code.nv, "model_name": cm.code.model_name or "", "drawing": deferred_drawing(cm)}
+    fixed = {"n_coordinates": cm.n, "n_speeds": cm.code.nv, "model_name": cm.code.model_name or "",
+             "drawing": deferred_drawing(cm)}
     if events:
         return family.prepared_ode_events(cm, rtol_f, atol_f, fixed, tuple(events)) \
             if isinstance(family, PreparedOdeEventRuns) else None
