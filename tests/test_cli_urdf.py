@@ -76,13 +76,17 @@ def test_info_and_bad_urdf_exit_with_a_located_message(tmp_path):
 
 
 def test_urdf_loading_options_on_the_command_line(tmp_path):
-    """--urdf KEY=VALUE takes urdf.load's keywords: a robot with a mimic joint is refused by default
-    (exit 1, the message naming mimic), runs with mimic=independent, and with limits=true its
+    """--urdf KEY=VALUE takes urdf.load's keywords: a robot with a mimic joint runs by default (the
+    mimic joint driven by its leader: one coordinate), is refused with mimic=error (exit 1, the
+    message naming mimic), runs with mimic=independent, and with limits=true its
     joints stop at their limits (the run goes to its end); a bad key is a usage error naming the
     keys; URDF options on a .toml file are refused; generate records them in its manifest."""
     urdf = tmp_path / "mimic_arm.urdf"
     urdf.write_text(MIMIC_ARM)
-    refused = run("simulate", urdf, "-o", tmp_path / "a.csv", "-q")
+    driven = run("simulate", urdf, "-o", tmp_path / "a.csv", "-q")
+    assert driven.returncode == 0, driven.stderr
+    assert (tmp_path / "a.csv").read_text().splitlines()[0].split(",")[:3] == ["t", "j1", "j1_dot"]
+    refused = run("simulate", urdf, "-o", tmp_path / "a.csv", "--urdf", "mimic=error", "-q")
     assert refused.returncode == 1 and "mimic" in refused.stderr and "Traceback" not in refused.stderr
     ok = run("simulate", urdf, "-o", tmp_path / "a.csv", "--t-end", "2", "--initial", "j1=0.25",
              "--urdf", "mimic=independent", "--urdf", "limits=true", "-q")
