@@ -448,6 +448,34 @@ static void fr_describe(const imp_data *d, const int *was, const int *act, const
  * max_rec, n_rec); a contact that begins to stick gets its slip velocity projected to zero
  * (y's velocities changed). Returns LCG_DAE_OK, a model error, or -1 with the Painleve message in
  * st->message (the caller stops with LCG_FLAG_CONTACT_MODE). */
+/* The mode just solved (f->x, f->lam, modes f->tact, f->tmode) against the first consistent one:
+ * the first is kept (f->bact, f->bmode, f->bestx, f->bestlam; *found set) and 0 returned; a later
+ * one returns 1 if its accelerations (velocity jumps) differ from the first's beyond FR_SAME. */
+static int fr_another_motion(fric_data *f, int nk, int n, int *found, double *xscale)
+{
+    int i, k;
+
+    if (!*found) {
+        *found = 1;
+        for (k = 0; k < nk; ++k) {
+            f->bact[k] = f->tact[k];
+            f->bmode[k] = f->tmode[k];
+        }
+        for (i = 0; i < n; ++i) {
+            f->bestx[i] = f->x[i];
+            if (fabs(f->x[i]) > *xscale)
+                *xscale = fabs(f->x[i]);
+        }
+        for (i = 0; i < f->nrow; ++i)
+            f->bestlam[i] = f->lam[i];
+        return 0;
+    }
+    for (i = 0; i < n; ++i)
+        if (fabs(f->x[i] - f->bestx[i]) > FR_SAME * (1.0 + *xscale))
+            return 1;
+    return 0;
+}
+
 static int fr_modes(imp_data *d, double t, double *y, const int *ending, double vtol, double *rec, int max_rec,
                     int *n_rec)
 {
@@ -522,25 +550,7 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         }
         if (!ok)
             continue;
-        if (!found) {
-            found = 1;
-            for (k = 0; k < nk; ++k) {
-                f->bact[k] = f->tact[k];
-                f->bmode[k] = f->tmode[k];
-            }
-            for (i = 0; i < n; ++i) {
-                f->bestx[i] = f->x[i];
-                if (fabs(f->x[i]) > xscale)
-                    xscale = fabs(f->x[i]);
-            }
-            for (i = 0; i < f->nrow; ++i)
-                f->bestlam[i] = f->lam[i];
-            continue;
-        }
-        for (i = 0; i < n; ++i)
-            if (fabs(f->x[i] - f->bestx[i]) > FR_SAME * (1.0 + xscale))
-                break;
-        if (i < n) {
+        if (fr_another_motion(f, nk, n, &found, &xscale)) {
             fr_describe(d, d->active, f->bact, f->bmode, a, sizeof a);
             fr_describe(d, d->active, f->tact, f->tmode, b, sizeof b);
             snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (indeterminacy) at t = %.17g: the "
@@ -671,25 +681,7 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
         }
         if (!ok)
             continue;
-        if (!found) {
-            found = 1;
-            for (k = 0; k < nk; ++k) {
-                f->bact[k] = f->tact[k];
-                f->bmode[k] = f->tmode[k];
-            }
-            for (i = 0; i < n; ++i) {
-                f->bestx[i] = f->x[i];
-                if (fabs(f->x[i]) > xscale)
-                    xscale = fabs(f->x[i]);
-            }
-            for (i = 0; i < f->nrow; ++i)
-                f->bestlam[i] = f->lam[i];
-            continue;
-        }
-        for (i = 0; i < n; ++i)
-            if (fabs(f->x[i] - f->bestx[i]) > FR_SAME * (1.0 + xscale))
-                break;
-        if (i < n) {
+        if (fr_another_motion(f, nk, n, &found, &xscale)) {
             fr_describe(d, f->part, f->bact, f->bmode, a, sizeof a);
             fr_describe(d, f->part, f->tact, f->tmode, b, sizeof b);
             snprintf(d->st->message, sizeof d->st->message, "Painleve's paradox (indeterminate frictional impact) "
