@@ -14,18 +14,25 @@ from .kernels import Block, substitute_all, symbol_map
 from .scene import Scene
 
 
+def tree_kernel_symbols(scene: Scene, what: str) -> tuple:
+    """(the model, the symbol map, q, v, the accelerations ``a[i]``) of a kernel along the
+    scene's rigid-body tree (inverse dynamics, its regressor); ModelError naming ``what`` if the
+    model has no tree."""
+    eom = scene.eom
+    if eom.tree is None:
+        raise ModelError(f"model {eom.model.name!r} has no rigid-body tree (Model.link): no {what}")
+    model = eom.model
+    q = [se.Symbol(s.name) for s in model.coords]
+    qd = [se.Symbol(s.name) for s in model.v]
+    return model, symbol_map(scene), q, qd, [se.Symbol(f"a[{i}]") for i in range(model.nv)]
+
+
 def inverse_dynamics_block(scene: Scene) -> Block:
     """Targets ("tau", i) in the array symbols ``y[i]``, ``a[i]`` (the accelerations q''),
     ``p[k]``, ``t``; the tree's program as the block's temporaries (:attr:`Block.defs`)."""
-    eom = scene.eom
-    if eom.tree is None:
-        raise ModelError(f"model {eom.model.name!r} has no rigid-body tree (Model.link): no inverse dynamics kernel")
-    model = eom.model
+    model, sub, q, qd, a = tree_kernel_symbols(scene, "inverse dynamics kernel")
     n = model.nv
-    sub = symbol_map(scene)
-    q = [se.Symbol(s.name) for s in model.coords]
-    qd = [se.Symbol(s.name) for s in model.v]
-    a = [se.Symbol(f"a[{i}]") for i in range(n)]
+    eom = scene.eom
     defs, tau = recorded_inverse_dynamics(model, q, qd, a)
     M_rest, F_rest = eom.tree.rest
     block = Block(defs=list(zip([sym for sym, _ in defs], substitute_all(sub, [e for _, e in defs]))))

@@ -8,7 +8,8 @@ import symengine as se
 
 from ..errors import ModelError
 from ..model.regressor import recorded_regressor
-from .kernels import Block, substitute_all, symbol_map
+from .dynamics import tree_kernel_symbols
+from .kernels import Block, substitute_all
 from .scene import Scene
 
 
@@ -16,16 +17,7 @@ def regressor_blocks(scene: Scene) -> tuple[Block, Block, list[str]]:
     """(the block of targets ("Y", i * ncol + j), row-major n x ncol, in ``y[i]``, ``a[i]``,
     ``p[k]`` with the tree's program as its temporaries; the block of targets ("pi", k) in
     ``p[k]``; the bodies' link names, 10 columns each). Entries that are zero are not targets."""
-    eom = scene.eom
-    if eom.tree is None:
-        raise ModelError(f"model {eom.model.name!r} has no rigid-body tree (Model.link): no inverse-dynamics "
-                         "regressor")
-    model = eom.model
-    n = model.nv
-    sub = symbol_map(scene)
-    q = [se.Symbol(s.name) for s in model.coords]
-    qd = [se.Symbol(s.name) for s in model.v]
-    a = [se.Symbol(f"a[{i}]") for i in range(n)]
+    model, sub, q, qd, a = tree_kernel_symbols(scene, "inverse-dynamics regressor")
     defs, Y, pi, names = recorded_regressor(model, q, qd, a)
     if not names:
         raise ModelError(f"model {model.name!r}: its tree has no moving link, so no inverse-dynamics regressor")

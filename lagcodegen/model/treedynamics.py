@@ -34,9 +34,8 @@ import symengine as se
 import sympy as sp
 
 from ..errors import ModelError
-from ..util import excerpt
 from .bodies import Placement
-from .inertial import placed_inertia
+from .inertial import _se, placed_inertia
 
 ZERO = se.Integer(0)
 ONE = se.Integer(1)
@@ -123,12 +122,6 @@ def dag_dependencies(index: dict):
     return deps
 
 
-def _se(e, what: str):
-    try:
-        return se.sympify(e)
-    except Exception as exc:  # symengine raises several types
-        raise ModelError(f"{what} cannot be handled by the derivation engine: {excerpt(e)} "
-                         f"({excerpt(str(exc), quote=False)})") from None
 
 
 def _is0(x) -> bool:
