@@ -335,6 +335,23 @@ def _evaluate(expr: sp.Expr, values: Mapping[str, float], at: Mapping[sp.Symbol,
 
 
 # ---------------------------------------------------------------------- main
+def _bounds(bounds, names: list[str]) -> dict:
+    """The user's search bounds by coordinate name, each name checked."""
+    user_bounds = dict(bounds or {})
+    for k in user_bounds:
+        if k not in names:
+            raise ModelError(f"bounds given for {k!r}, which is not a coordinate ({', '.join(names)})")
+    return user_bounds
+
+
+def _at_rest(eom: EquationsOfMotion, values: Mapping[str, float], t: float) -> dict:
+    """symengine substitution: the parameters' values, every velocity 0, the time ``t``."""
+    sub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
+    sub.update({se.Symbol(v.name): se.Integer(0) for v in eom.qd})
+    sub[se.Symbol(eom.t.name)] = exact_number(float(t))
+    return sub
+
+
 def steady_motions(system, integrals: Mapping[str, float] | None = None, params: Mapping[str, float] | None = None,
                    *, t: float = 0.0, bounds: Mapping[str, tuple[float, float]] | None = None,
                    starts: int = 24, tol: float = 1e-9, symbolic: bool = True) -> list[SteadyMotion]:
@@ -378,15 +395,10 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
     qs = list(eom.q)
     names = [q.name for q in qs]
     n = len(qs)
-    user_bounds = dict(bounds or {})
-    for k in user_bounds:
-        if k not in names:
-            raise ModelError(f"bounds given for {k!r}, which is not a coordinate ({', '.join(names)})")
+    user_bounds = _bounds(bounds, names)
 
     # Residual F_R(q, 0, t) with the numbers substituted (symengine), and its Jacobian.
-    sub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
-    sub.update({se.Symbol(v.name): se.Integer(0) for v in eom.qd})
-    sub[se.Symbol(eom.t.name)] = exact_number(float(t))
+    sub = _at_rest(eom, values, t)
     qse = [se.Symbol(q) for q in names]
     G = [se.sympify(f).xreplace(sub) for f in eom.F_se]
     stray = set().union(*(g.free_symbols for g in G)) - set(qse)
@@ -488,14 +500,9 @@ def constrained_equilibria(system: ConstrainedSystem, *, params: Mapping[str, fl
     values, _ = _values(eom, None, None, params)
     names = [q.name for q in eom.q]
     n, JH = system.n, system.n_holonomic
-    user_bounds = dict(bounds or {})
-    for k in user_bounds:
-        if k not in names:
-            raise ModelError(f"bounds given for {k!r}, which is not a coordinate ({', '.join(names)})")
+    user_bounds = _bounds(bounds, names)
     from ..derivation import to_se  # a lower stage: the constraints as symengine expressions
-    sub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
-    sub.update({se.Symbol(v.name): se.Integer(0) for v in eom.qd})
-    sub[se.Symbol(eom.t.name)] = exact_number(float(t))
+    sub = _at_rest(eom, values, t)
     qse = [se.Symbol(k) for k in names]
     lam = [se.Symbol(f"__lambda{j}") for j in range(JH)]
     F = [se.sympify(f).xreplace(sub) for f in eom.F_se]
