@@ -133,6 +133,22 @@ def _nonsingular(B: np.ndarray, scale: float) -> bool:
     return bool(s[-1] > 1e-9 * max(scale, 1e-300))
 
 
+def _with_nonholonomic(A: np.ndarray, Ah: np.ndarray, dep_h: list, rest: list, scale: float) -> list:
+    """The dependent speeds: ``dep_h`` (solved from the holonomic rows Ah) and, among ``rest``, the
+    columns pivoted on the nonholonomic rows with the holonomic ones eliminated (their Schur
+    complement); ModelError if A is singular on them."""
+    J, n = A.shape
+    JH = Ah.shape[0]
+    schur = A[JH:, rest]
+    if JH:
+        schur = schur - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, rest])
+    dep = sorted(dep_h + [rest[i] for i in _pivot_columns(schur, list(range(len(rest))), J - JH)])
+    if not _nonsingular(A[:, dep], scale):
+        raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
+                         f"({dependent_rows(A)}): redundant constraints or a singular configuration")
+    return dep
+
+
 def _pivot_columns(A: np.ndarray, columns: list[int], k: int) -> list[int]:
     """k of ``columns`` on which A (k rows) is best conditioned: QR with column pivoting."""
     import scipy.linalg  # scipy: column pivoting
@@ -157,16 +173,7 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
         if not _nonsingular(Ah[:, dep_h], scale):
             raise ModelError(f"linearize: the holonomic constraints' Jacobian has rank < {JH} at this state "
                              f"({dependent_rows(Ah)})")
-        rest = [i for i in everything if i not in dep_h]
-        schur = A[JH:, rest]
-        if JH:
-            schur = schur - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, rest])
-        dep_n = [rest[i] for i in _pivot_columns(schur, list(range(len(rest))), J - JH)]
-        dep = sorted(dep_h + dep_n)
-        if not _nonsingular(A[:, dep], scale):
-            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
-                             f"({dependent_rows(A)}): redundant constraints or a singular configuration")
-        return dep, dep_h
+        return _with_nonholonomic(A, Ah, dep_h, [i for i in everything if i not in dep_h], scale), dep_h
     if isinstance(independent, str):
         chosen = [independent]
     elif isinstance(independent, (list, tuple)) and all(isinstance(k, str) for k in independent):
@@ -194,13 +201,7 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
             raise ModelError(f"linearize: independent coordinates ({shown}) cannot be chosen at this state: the "
                              f"holonomic constraints cannot be solved for {', '.join(names[i] for i in dep_h)} "
                              "(their Jacobian is singular there); choose other independent coordinates")
-        schur = A[JH:, ind] - A[JH:, dep_h] @ np.linalg.solve(Ah[:, dep_h], Ah[:, ind])
-        dep_n = [ind[i] for i in _pivot_columns(schur, list(range(len(ind))), J - JH)]
-        dep = sorted(dep_h + dep_n)
-        if not _nonsingular(A[:, dep], scale):
-            raise ModelError(f"linearize: the constraint Jacobian A ({J}x{n}) has rank < {J} at this state "
-                             f"({dependent_rows(A)})")
-        return dep, dep_h
+        return _with_nonholonomic(A, Ah, dep_h, ind, scale), dep_h
     counts = f"the {n - J} independent speeds"
     if JH:
         counts += f" or the {n - JH} independent coordinates"
