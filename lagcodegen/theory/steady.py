@@ -335,6 +335,16 @@ def _evaluate(expr: sp.Expr, values: Mapping[str, float], at: Mapping[sp.Symbol,
 
 
 # ---------------------------------------------------------------------- main
+def _keep_new(x: np.ndarray, found: list, bnds: list, periodic: list) -> None:
+    """Append the root ``x`` to ``found`` unless it lies outside the bounds or is one found
+    already (to 1e-7 relative, angles modulo 2 pi)."""
+    if any(b is not None and not (b[0] - 1e-9 <= xi <= b[1] + 1e-9) for xi, b in zip(x, bnds)):
+        return
+    if any(np.max(np.abs(_wrap(x - y, periodic))) <= 1e-7 * max(1.0, float(np.max(np.abs(y)))) for y in found):
+        return
+    found.append(x)
+
+
 def _bounds(bounds, names: list[str]) -> dict:
     """The user's search bounds by coordinate name, each name checked."""
     user_bounds = dict(bounds or {})
@@ -438,12 +448,7 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
             continue
         if not _is_root(fun, jac, x, tol * scale):
             continue
-        x = _wrap(x, periodic)
-        if any(b is not None and not (b[0] - 1e-9 <= xi <= b[1] + 1e-9) for xi, b in zip(x, bnds)):
-            continue
-        if any(np.max(np.abs(_wrap(x - y, periodic))) <= 1e-7 * max(1.0, float(np.max(np.abs(y)))) for y in found):
-            continue
-        found.append(x)
+        _keep_new(_wrap(x, periodic), found, bnds, periodic)
     found.sort(key=lambda x: tuple(np.round(x, 9)))
 
     motions = []
@@ -548,12 +553,7 @@ def constrained_equilibria(system: ConstrainedSystem, *, params: Mapping[str, fl
         y = _polish(fun, jac, y0)
         if y is None or not _is_root(fun, jac, y, tol * scale):
             continue
-        q = _wrap(y[:n], periodic)
-        if any(b is not None and not (b[0] - 1e-9 <= qi <= b[1] + 1e-9) for qi, b in zip(q, bnds)):
-            continue
-        if any(np.max(np.abs(_wrap(q - p, periodic))) <= 1e-7 * max(1.0, float(np.max(np.abs(p)))) for p in found):
-            continue
-        found.append(q)
+        _keep_new(_wrap(y[:n], periodic), found, bnds, periodic)
     found.sort(key=lambda q: tuple(np.round(q, 9)))
     motions = []
     for q in found:
