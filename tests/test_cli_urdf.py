@@ -120,3 +120,18 @@ def test_simulate_a_floating_robot_falls_freely(tmp_path):
     t, z = data[:, 0], data[:, header.index("root_joint_z")]
     assert np.abs(z + 9.81 * t ** 2 / 2).max() < 1e-8
     assert np.abs(data[:, header.index("root_joint_qw")] - 1).max() < 1e-9
+
+
+def test_urdf_options_as_flags(tmp_path):
+    """--mimic, --lock, --limits, --friction are --urdf KEY=VALUE items of their own: a locked
+    elbow leaves one coordinate; --mimic independent gives the mimic joint its coordinate."""
+    proc = run("simulate", ARM, "--lock", "elbow", "-o", tmp_path / "l.csv", "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "l.csv").read_text().splitlines()[0].split(",") == ["t", "shoulder", "shoulder_dot"]
+    urdf = tmp_path / "mimic_arm.urdf"
+    urdf.write_text(MIMIC_ARM)
+    proc = run("simulate", urdf, "--mimic", "independent", "--friction", "smooth", "-o", tmp_path / "m.csv", "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "m.csv").read_text().splitlines()[0].split(",")[:3] == ["t", "j1", "j2"]
+    bad = run("simulate", urdf, "--mimic", "banana", "-o", tmp_path / "m.csv", "-q")
+    assert bad.returncode == 1 and "mimic must be one of driven" in bad.stderr

@@ -145,6 +145,15 @@ URDF_KEYS = ("floating", "mimic", "limits", "lock", "gravity", "friction", "fric
              "inertial_parameters", "rotation")
 
 
+class _UrdfOption(argparse.Action):
+    """``--KEY VALUE`` for a URDF loading option: the item ``KEY=VALUE`` of ``--urdf``."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        items = list(getattr(namespace, self.dest, None) or [])
+        items.append(f"{option_string.lstrip('-')}={values}")
+        setattr(namespace, self.dest, items)
+
+
 def urdf_options(items: list[str] | None) -> dict:
     """``--urdf KEY=VALUE`` items as the keywords of :func:`lagcodegen.modelfile.urdf.load`:
     floating=true|false|NAME, mimic=driven|error|independent|coupled, limits=true|false|stop|monitor|stop:E,
@@ -258,5 +267,11 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--floating", action="append_const", dest="urdf", const="floating=true",
                    help="a URDF model's root on a free joint root_joint (--urdf floating=true): Pinocchio's free-flyer "
                         "layout, q (x, y, z, qx, qy, qz, qw), v (linear, angular velocity in the root's frame)")
+    for key, meta, text in (("mimic", "driven|independent|coupled|error", "how <mimic> joints load"),
+                            ("lock", "JOINT[:POSITION],...", "joints held fixed"),
+                            ("limits", "true|stop:E|monitor", "joint limits as hard stops"),
+                            ("friction", "ignore|smooth", "the URDF's Coulomb joint friction")):
+        p.add_argument(f"--{key}", action=_UrdfOption, dest="urdf", metavar=meta,
+                       help=f"a URDF model's {text} (--urdf {key}=...)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     add_progress_option(p)
