@@ -39,6 +39,18 @@ _DOUBLE = np.dtype(np.float64)
 _UNIT_STRIDE = (8,)
 
 
+def _out_array(out, shape: tuple, what: str, order: str = "C") -> np.ndarray:
+    """``out`` checked to be a writable float64 array of ``shape``, contiguous in ``order``
+    (where the C writes its result), else a LagcodegenError naming what it must be."""
+    ok = isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == shape and out.flags.writeable \
+        and (out.flags.f_contiguous if order == "F" else out.flags.c_contiguous)
+    if not ok:
+        raise LagcodegenError(f"{what} must be a writable, {'Fortran' if order == 'F' else 'C'}-contiguous float64 "
+                              f"array of shape {shape}, got {type(out).__name__} "
+                              f"{getattr(out, 'dtype', '')} {getattr(out, 'shape', '')}".rstrip())
+    return out
+
+
 def check_rc(rc: int, t: float, what: str) -> None:
     """Raise the error a generated model function's return code stands for (1: singular mass
     matrix, 2: a non-finite value)."""
@@ -179,10 +191,11 @@ class CompiledModel(CompiledReprMixin):
         p = self._defaults if p is None else c_vector(p, self.code.np, "p", self.param_names)
         return y, p
 
-    def rhs(self, t: float, y, p=None) -> np.ndarray:
-        """f(t, y, p) evaluated by the compiled code. A float64 state of length ny with the default
-        parameters goes straight to C (its checks are the array's type, dtype, shape and strides:
-        the calls a controller or a scipy integrator makes cost little more than the C)."""
+    def rhs(self, t: float, y, p=None, *, out: np.ndarray | None = None) -> np.ndarray:
+        """f(t, y, p) evaluated by the compiled code (into ``out``, a float64 array of ny, if
+        given). A float64 state of length ny with the default parameters goes straight to C (its
+        checks are the array's type, dtype, shape and strides: the calls a controller or a scipy
+        integrator makes cost little more than the C)."""
         fb = self.ffi.from_buffer
         if p is None and type(y) is np.ndarray and y.dtype is _DOUBLE and y.shape == self._y_shape \
                 and y.strides == _UNIT_STRIDE:
@@ -190,7 +203,7 @@ class CompiledModel(CompiledReprMixin):
         else:
             y, p = self._args(y, p)
             yp, pp = self._ptr(y), self._ptr(p)
-        out = np.empty(self.ny)
+        out = np.empty(self.ny) if out is None else _out_array(out, (self.ny,), "out")
         rc = self.c_rhs(float(t), yp, pp, fb("double[]", out))
         if rc:
             check_rc(rc, t, "right-hand side")
@@ -224,28 +237,29 @@ class CompiledModel(CompiledReprMixin):
         check_rc(rc, t, f"right-hand side of row {failed[0]}")
         return out
 
-    def jac(self, t: float, y, p=None) -> np.ndarray:
+    def jac(self, t: float, y, p=None, *, out: np.ndarray | None = None) -> np.ndarray:
         """df/dy (ny x ny) evaluated by the compiled code."""
         if self.c_jac is None:
             raise LagcodegenError("this scene has no Jacobian (Scene(jacobian=False))")
         y, p = self._args(y, p)
         ydot = self.rhs(t, y, p)
-        J = np.empty((self.ny, self.ny), order="F")
+        J = np.empty((self.ny, self.ny), order="F") if out is None else _out_array(out, (self.ny, self.ny), "out",
+                                                                                   order="F")
         rc = self.c_jac(float(t), self._ptr(y), self._ptr(ydot), self._ptr(p), self.ffi.from_buffer("double[]", J.T))
         check_rc(rc, t, "Jacobian")
         return J
 
-    def outputs(self, t: float, y, p=None) -> np.ndarray:
+    def outputs(self, t: float, y, p=None, *, out: np.ndarray | None = None) -> np.ndarray:
         """The scene's outputs at (t, y)."""
         y, p = self._args(y, p)
         if self.c_outputs is None:
             return np.empty(0)
-        out = np.empty(self.code.nout)
+        out = np.empty(self.code.nout) if out is None else _out_array(out, (self.code.nout,), "out")
         rc = self.c_outputs(float(t), self._ptr(y), self._ptr(p), self.ffi.from_buffer("double[]", out))
         check_rc(rc, t, "outputs")
         return out
 
-    def inverse_dynamics(self, q, v, a, *, t: float = 0.0, params=None) -> np.ndarray:
+    def inverse_dynamics(self, q, v, a, *, t: float = 0.0, params=None, out: np.ndarray | None = None) -> np.ndarray:
         """tau = M(q) a - F(q, v, t) (eq. 3.16 solved for the generalized forces that give the
         accelerations ``a`` at the state (q, q' = ``v``)), for models with a rigid-body tree: the
         generated ``<prefix>_inverse_dynamics`` (recursive Newton-Euler, O(n)). With v = a = 0 it is
@@ -255,7 +269,7 @@ class CompiledModel(CompiledReprMixin):
         y = np.concatenate([c_vector(q, n, "q"), c_vector(v, nv, "v"), np.zeros(self.ny - n - nv)])
         acc = c_vector(a, nv, "a")
         p = self._defaults if params is None else self.parameter_vector(params)
-        tau = np.empty(nv)
+        tau = np.empty(nv) if out is None else _out_array(out, (nv,), "out")
         dp = ctypes.POINTER(ctypes.c_double)
         rc = fn(float(t), y.ctypes.data_as(dp), acc.ctypes.data_as(dp), p.ctypes.data_as(dp), tau.ctypes.data_as(dp))
         check_rc(rc, t, "inverse dynamics")

@@ -292,3 +292,24 @@ def test_generalized_speeds_pickle_and_run_in_other_processes():
     with ProcessPoolExecutor(2) as ex:
         spread = cm.ensemble(t, q0=[0, 0, 0, 1], v0=v0, executor=ex, chunk_size=1)
     assert np.array_equal(spread.y, cm.ensemble(t, q0=[0, 0, 0, 1], v0=v0).y)
+
+
+def test_results_into_out_arrays():
+    """rhs, outputs, jac and inverse_dynamics write into a caller's out= array (the same values
+    as without); a wrong one is refused by name."""
+    from lagcodegen.errors import LagcodegenError
+    cm = lcg.compile_model(lcg.urdf.load(EXAMPLES / "ur_like_arm.urdf"), outputs=["energy"])
+    rng = np.random.default_rng(13)
+    y = rng.normal(size=12)
+    buf = np.empty(12)
+    assert cm.rhs(0.0, y, out=buf) is buf and np.array_equal(buf, cm.rhs(0.0, y))
+    o = np.empty(1)
+    assert cm.outputs(0.0, y, out=o) is o and np.array_equal(o, cm.outputs(0.0, y))
+    J = np.empty((12, 12), order="F")
+    assert cm.jac(0.0, y, out=J) is J and np.array_equal(J, cm.jac(0.0, y))
+    tau = np.empty(6)
+    assert cm.inverse_dynamics(y[:6], y[6:], y[:6], out=tau) is tau
+    assert np.array_equal(tau, cm.inverse_dynamics(y[:6], y[6:], y[:6]))
+    for bad in (np.empty(11), np.empty(12, dtype=np.float32), np.empty(24)[::2]):
+        with pytest.raises(LagcodegenError, match="out must be a writable, C-contiguous float64 array of shape"):
+            cm.rhs(0.0, y, out=bad)
