@@ -189,7 +189,7 @@ def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
     return ctx
 
 
-def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
+def _jacobian_pieces(block: Block, prog: dict, what: str, general: bool = False) -> FortranBlock:
     """The expanded Jacobian of a program-form model in pieces (:func:`lagcodegen.codegen.program.block_pieces`:
     subroutines ``jacobian<k>``, the temporaries in an allocated array): the body of ``<prefix>_jac``
     as a :class:`FortranBlock`; the subroutines join the program form's."""
@@ -203,7 +203,8 @@ def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
     used |= {"ydot"} if "a" in used else set()  # a = ydot(n+1:2n)
     code = [f"{pad}allocate ({array}({size}), stat=stat)", f"{pad}if (stat /= 0) then",
             f"{pad}  rc = {what}_err_memory", f"{pad}  return", f"{pad}end if"]
-    code += [pad + sub.call({"a": "ydot(n + 1:2 * n)"}) for sub in subs]
+    accelerations = "ydot(nq + 1:nq + n)" if general else "ydot(n + 1:2 * n)"  # generalized speeds: a = v'
+    code += [pad + sub.call({"a": accelerations}) for sub in subs]
     decls = f"{pad}real(c_double), allocatable :: {array}(:)\n{pad}integer :: stat"
     unused = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
                        for d in ("t", "y", "ydot", "p") if d not in used)
@@ -231,17 +232,19 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     prog = None
     rhs = None
     if program.use_program(scene, blocks["rhs"]):
-        built = build_program(blocks["rhs"], n)
-        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built) if tangent else None
+        # With generalized speeds the tangent's columns are (q, v): nq + nv of them.
+        nv = scene.eom.model.nv if tangent and scene.eom.general else None
+        built = build_program(blocks["rhs"], n, nv=nv)
+        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built, nv=nv) if tangent else None
         prog = _program_context(built[0], built[1], tp, what)
     else:
         rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
     if scene.jacobian and not tangent and prog:  # a large expanded Jacobian: in pieces too
-        jac = _jacobian_pieces(blocks["jac"], prog, what)
+        jac = _jacobian_pieces(blocks["jac"], prog, what, scene.eom.general)
     elif scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
         jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
-                          renames={"a": ("ydot", n)})
+                          renames={"a": ("ydot", n)})  # generalized speeds: a = v' = ydot(nq+1:nq+nv), n = nq
     out = print_block(blocks["out"], f"{what}_outputs", ("t", "y", "p"), ("t", "y", "p"))
 
     code = new_code(scene)
