@@ -124,6 +124,10 @@ class Scene:
             raise ModelError(f"model {self.eom.model.name!r}: its mass matrix is not symmetric (equations given "
                              "directly): its analytic Jacobian is not generated; use jacobian=False (CVODE forms it "
                              "from differences)")
+        if self.sparse_jacobian and self.eom.general:
+            model = self.eom.model
+            raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
+                             "sparse Jacobian is not generated; use the dense one (sparse_jacobian=False)")
         outputs = self.output_list()  # validate names early
         check_double_range([(f"mass matrix entry M[{i}][{j}]", e) for i, row in enumerate(self.eom.M_se) for j, e in enumerate(row)]
                            + [(f"force term F[{i}] (equation of {model.v[i].name if model.general else model.coords[i].name})", e)

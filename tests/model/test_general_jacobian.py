@@ -102,3 +102,62 @@ def test_jacobian_matches_central_differences(name, make, form, lang):
         # the pattern holds every nonzero entry
         pattern = cm.code.jac_pattern
         assert not np.any((np.abs(J) > 0) & ~pattern)
+
+
+@pytest.mark.parametrize("name, make, form", [("flyer", free_flyer_with_spring, "tangent"),
+                                              ("polar_z", lambda: polar(True), "expanded"),
+                                              ("polar_z", lambda: polar(True), "tangent")])
+def test_general_jacobian_sources_compile_strictly(tmp_path, name, make, form):
+    import subprocess
+    from helpers import STRICT_CFLAGS
+    model = make()
+    code = generate_code(Scene(lcg.derive(model), jacobian=True, jacobian_form=form, prefix=f"strict_{name}_{form}"))
+    for file, text in code.files.items():
+        (tmp_path / file).write_text(text)
+    for file in code.files:
+        if file.endswith(".c"):
+            proc = subprocess.run(["cc", *STRICT_CFLAGS, "-O0", "-c", file, "-o", "x.o"], cwd=tmp_path,
+                                  capture_output=True, text=True, timeout=600)
+            assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("name, make, q0, v0", [
+    ("flyer", free_flyer_with_spring, [0.5, -0.2, 0.1, 0.1, 0.2, 0.3, 0.9, 0.4], [0.3, -0.2, 0.5, 0.4, -0.3, 0.8, 1.0]),
+    ("arm", floating_arm, np.r_[0, 0, 1.0, 0.1, 0.2, 0.0, 1.0, np.linspace(-0.5, 0.5, 6)],
+     np.r_[0.3, -0.2, 0.5, 0.4, -0.3, 0.8, np.linspace(1, -1, 6)]),
+    ("polar", polar, [1.2, 0.3], [0.1, 0.9])])
+def test_bdf_with_the_analytic_jacobian_equals_difference_quotients(name, make, q0, v0):
+    """jacobian=None turns the analytic Jacobian on for these models up to 8 coordinates
+    (auto_jacobian); BDF runs with it agree with runs on CVODE's difference quotients to the
+    tolerance, and both with Adams at a tight one."""
+    model = make()
+    q0 = np.asarray(q0, float)
+    for i, c in enumerate(model.coords):  # a unit quaternion
+        if c.name.endswith("_qx"):
+            q0[i:i + 4] /= np.linalg.norm(q0[i:i + 4])
+    # jacobian=None: on up to AUTO_JACOBIAN_MAX_N (8) coordinates, as for models in q'
+    assert auto_jacobian(lcg.derive(model)) == (model.nq <= 8)
+    a = lcg.compile_model(model, jacobian=None if model.nq <= 8 else True)
+    b = lcg.compile_model(model, jacobian=False, prefix=f"{model.name}_dq")
+    assert a.c_jac is not None and b.c_jac is None
+    t = np.linspace(0, 2, 21)
+    ra = a.simulate(t, q0=q0, v0=v0, method="bdf", rtol=1e-9, atol=1e-10)
+    rb = b.simulate(t, q0=q0, v0=v0, method="bdf", rtol=1e-9, atol=1e-10)
+    ref = a.simulate(t, q0=q0, v0=v0, method="adams", rtol=1e-13, atol=1e-14)
+    scale = max(1.0, np.abs(ref.y).max())
+    assert np.abs(ra.y - ref.y).max() < 1e-6 * scale
+    assert np.abs(rb.y - ref.y).max() < 1e-6 * scale
+    assert np.abs(ra.y - rb.y).max() < 1e-6 * scale
+
+
+def test_what_generalized_speeds_do_not_take_is_named():
+    """The sparse Jacobian and the band linear solver (its order pairs q_i with q_i') are refused
+    by name for models with generalized speeds."""
+    from lagcodegen.errors import LagcodegenError, ModelError
+    m = free_flyer_with_spring()
+    with pytest.raises(ModelError, match="generalized speeds .* sparse Jacobian"):
+        Scene(lcg.derive(m), sparse_jacobian=True)
+    cm = lcg.compile_model(m)
+    with pytest.raises(LagcodegenError, match="generalized speeds .* band linear solver"):
+        cm.simulate(np.linspace(0, 1, 3), q0=[0, 0, 0, 0, 0, 0, 1, 0], v0=np.zeros(7), method="bdf",
+                    linear_solver="band")

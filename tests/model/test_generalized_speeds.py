@@ -194,9 +194,14 @@ def test_a_model_of_its_own_speeds_matches_lagrange():
         lcg.derive(m)
 
 
-def test_generalized_speeds_refuse_an_analytic_jacobian_by_name():
-    with pytest.raises(ModelError, match="generalized speeds .* jacobian=False"):
-        lcg.compile_model(tumbling_body(), jacobian=True)
+def test_generalized_speeds_take_an_analytic_jacobian():
+    """The analytic Jacobian of a quaternion model (tests/model/test_general_jacobian.py checks its
+    values): jacobian=None turns it on; the expanded form of a rigid-body tree is refused by name."""
+    from lagcodegen.formulation.scene import Scene
+    cm = lcg.compile_model(tumbling_body())
+    assert cm.c_jac is not None
+    with pytest.raises(ModelError, match="expanded Jacobian of a rigid-body tree"):
+        lcg.generate_code(Scene(lcg.derive(tumbling_body()), jacobian_form="expanded"))
 
 
 def test_fortran_agrees_with_c_on_a_floating_arm():
