@@ -241,13 +241,10 @@ def file_initial(sim, q0, v0) -> tuple:
 
 def check_speeds(cm, family) -> None:
     """Refuse, naming them, the runs a model with generalized speeds (y = (q, v, z), nq != nv
-    or q' != v) cannot take yet: forward sensitivities."""
-    code = getattr(cm, "code", None)
-    if getattr(code, "nv", None) is None:
-        return
-    if getattr(family, "sensitivities", None):
-        raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
-                              "forward sensitivities cannot integrate it yet; run it without sensitivities")
+    or q' != v) cannot take yet. Every run takes them now (forward sensitivities on native CVODE
+    included: their directions, :func:`lagcodegen.solvers.cvode.sensitivity.general_directions`);
+    kept as the one place such a refusal goes."""
+    return None
 
 
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
