@@ -92,3 +92,26 @@ def test_quaternion_component_directions_are_refused_by_name():
         cm.simulate(T, q0=q, v0=np.zeros(7), sensitivities=["root_qx(0)"])
     with pytest.raises(LagcodegenError, match="'nope\\(0\\)' is neither a run-time parameter"):
         cm.simulate(T, q0=q, v0=np.zeros(7), sensitivities=["nope(0)"])
+
+
+def test_sensitivities_off_cvode_are_refused_by_name():
+    model = polar()
+    cm = lcg.compile_model(model)
+    with pytest.raises(LagcodegenError, match="generalized speeds .* run on CVODE .* not on Taylor"):
+        cm.simulate(T, q0=[1.2, 0.3], v0=[0.1, 0.9], method="taylor", sensitivities=["k"])
+
+
+def test_repeated_runs_take_each_runs_rotation():
+    """simulate's repeated runs (the prepared fast path) compute a rotation's s0 at each run's
+    initial state: two attitudes, each equal to its first run's sensitivities."""
+    model = free_flyer_with_spring()
+    cm = lcg.compile_model(model)
+    v = [0.3, -0.2, 0.5, 0.4, -0.3, 0.8, 1.0]
+    qa = np.r_[0.5, -0.2, 0.1, 0, 0, 0, 1, 0.4]
+    qb = np.r_[0.5, -0.2, 0.1, np.sqrt(0.5), 0, 0, np.sqrt(0.5), 0.4]
+    runs = [cm.simulate(T, q0=q, v0=v, sensitivities=["root_rz(0)"], **TOL).sensitivities for q in (qa, qb, qa, qb)]
+    assert np.abs(runs[0] - runs[1]).max() > 1e-3
+    assert np.abs(runs[2] - runs[0]).max() < 1e-12 and np.abs(runs[3] - runs[1]).max() < 1e-12
+    # the start: d q / d theta = q x (0, 0, 1/2, 0) (x, y, z, w), for qb = (s, 0, 0, s)
+    s = np.sqrt(0.5)
+    assert np.allclose(runs[1][0, 0, 3:7], [0, -s / 2, s / 2, 0], atol=1e-15)

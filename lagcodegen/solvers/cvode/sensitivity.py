@@ -108,16 +108,28 @@ def functions(cm) -> SensitivityFunctions:
     return cm.artifacts.get(SensitivityFunctions, "ode", lambda: SensitivityFunctions(cm))
 
 
-def directions(cm, names, y0=None, t0: float = 0.0, p=None) -> tuple[list[str], np.ndarray, np.ndarray]:
+def directions(cm, names, y0=None, t0: float = 0.0, p=None, defer: bool = False
+               ) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(names, which, s0) of the directions ``names``: which[j] the run-time parameter index
     (-1 for an initial value), s0 (ns, ny) the initial sensitivities (unit vectors for initial
     values, zero for parameters). Unknown or repeated names raise LagcodegenError. A model with
     generalized speeds: :func:`general_directions` (a rotation direction needs the initial state
-    ``y0`` at ``t0`` with the parameters ``p``)."""
+    ``y0`` at ``t0`` with the parameters ``p``, unless ``defer``: the caller fills it in per run,
+    or uses only the names and which)."""
     if getattr(cm.code, "nv", None) is not None:
-        return general_directions(cm, names, y0, t0, p)
+        return general_directions(cm, names, y0, t0, p, defer)
     return parse_directions(names, params=list(cm.param_names), states=list(cm.state_names), n=cm.n, ny=cm.ny,
                             folded=getattr(cm.code, "folded", {}) or {}, listed_in="the scene's runtime_parameters")
+
+
+def rotation_directions(cm, names) -> bool:
+    """True if ``names`` (parsed) hold a rotation of a quaternion (:func:`general_directions`),
+    whose s0 depends on the initial state."""
+    if getattr(cm.code, "nv", None) is None:
+        return False
+    states = list(cm.state_names)
+    return any(nm.endswith("(0)") and nm[-6:-3] in ("_rx", "_ry", "_rz") and nm[:-3] not in states
+               for nm in names)
 
 
 def _quaternion_joint(base: str, states: list) -> str | None:
@@ -129,7 +141,8 @@ def _quaternion_joint(base: str, states: list) -> str | None:
     return None
 
 
-def general_directions(cm, names, y0=None, t0: float = 0.0, p=None) -> tuple[list[str], np.ndarray, np.ndarray]:
+def general_directions(cm, names, y0=None, t0: float = 0.0, p=None, defer: bool = False
+                       ) -> tuple[list[str], np.ndarray, np.ndarray]:
     """The directions of a model with generalized speeds, y = (q, v, z): a run-time parameter;
     the initial value ``"<state>(0)"`` of any state by its name (a coordinate, a speed such as
     ``"ball_wx(0)"`` or ``"elbow_dot(0)"``, a quadrature); and for a joint with a unit quaternion
@@ -138,7 +151,8 @@ def general_directions(cm, names, y0=None, t0: float = 0.0, p=None) -> tuple[lis
     = the kinematic rates k(q0, e) of the unit speed e, Pinocchio's q x exp(e theta / 2) for its
     joints, whose angular speeds are in the body's frame). A single quaternion component is
     refused by name: its perturbation leaves the unit sphere that the kinematics keep. Without
-    ``y0`` a rotation's s0 is left zero (to be filled in once the initial state is known)."""
+    ``y0`` a rotation's s0 is left zero with ``defer`` (to be filled in once the initial state is
+    known), else refused."""
     states = list(cm.state_names)
     params = list(cm.param_names)
     folded = getattr(cm.code, "folded", {}) or {}
@@ -173,8 +187,11 @@ def general_directions(cm, names, y0=None, t0: float = 0.0, p=None) -> tuple[lis
             continue
         joint, _, axis = (base or "").rpartition("_")
         if axis in ("rx", "ry", "rz") and f"{joint}_qw" in states and f"{joint}_w{axis[1]}" in states:
-            if y0 is None:  # filled in per run (PreparedSensitivities)
-                continue
+            if y0 is None:
+                if defer:  # filled in per run (PreparedSensitivities) or not needed (names only)
+                    continue
+                raise LagcodegenError(f"sensitivities: the rotation direction {name!r} depends on the initial "
+                                      "state, which this kind of run does not give it: use simulate(...)")
             y = np.array(y0, dtype=float)
             y[nq:nq + nv] = 0.0
             base_rates = cm.rhs(t0, y, p)[:nq]
@@ -376,12 +393,10 @@ class PreparedSensitivities:
     def __init__(self, cm, t: np.ndarray, names, control: StepControl):
         if control.method not in ("adams", "bdf"):
             raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {control.method!r}")
-        self.names, which, s0 = directions(cm, names)
+        self.names, which, s0 = directions(cm, names, defer=True)
         # Rotations of a quaternion (general_directions): their s0 depends on the initial state.
         self._cm, self._t0 = cm, float(np.asarray(t, dtype=float).ravel()[0])
-        self._rotations = getattr(cm.code, "nv", None) is not None and any(
-            isinstance(nm, str) and nm[-6:-3] in ("_rx", "_ry", "_rz") and nm.endswith("(0)")
-            and nm[:-3] not in cm.state_names for nm in self.names)
+        self._rotations = rotation_directions(cm, self.names)
         fns = functions(cm)
         self.fns = fns
         ffi = fns.rt.ffi
