@@ -1,4 +1,5 @@
-"""Forward sensitivities of models with generalized speeds on native CVODE: parameter
+"""Forward sensitivities of models with generalized speeds on native CVODE (to 2e-8 of central
+differences at rtol 1e-11; measured 1e-10 .. 2e-9): parameter
 directions, initial values of coordinates and speeds by name, rotations of a quaternion joint
 ("<joint>_rx(0)"), each against central differences of whole runs."""
 
@@ -47,7 +48,7 @@ def perturbed(model, q0, v0, name, h):
     return q0, v0
 
 
-def check(cm, model, q0, v0, names, params=None, bound=1e-6):
+def check(cm, model, q0, v0, names, params=None, bound=2e-8):
     res = cm.simulate(T, q0=q0, v0=v0, sensitivities=names, params=params, **TOL)
     assert res.sensitivity_names == list(names)
     h = 1e-5
