@@ -123,9 +123,11 @@ class _Subroutine:
         return f"call {self.name}({', '.join(actual.get(a, a) for a in self.args)})"
 
 
-def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
+def _subroutine(piece: program.Piece, what: str, shapes: dict | None = None) -> _Subroutine:
     """The subroutine of a piece: arguments only those its statements use (no unused dummies),
-    arrays assumed-size (M n x n), intent(inout) where written."""
+    arrays assumed-size (M n x n), intent(inout) where written; ``shapes``: other shapes than
+    :data:`_SHAPES` (a model with generalized speeds' G and Z)."""
+    shapes = {**_SHAPES, **(shapes or {})}
     statements = [ir.Assign(st.targets, _value(st), local=st.local) for st in piece.statements]
     read, written = _arrays(statements)
     args = [a for a in _PIECE_ARGS if a in read | written]
@@ -133,7 +135,7 @@ def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
     lines = [f"  recursive subroutine {piece.name}({', '.join(args)})"]
     for a in args:
         intent = "inout" if a in written else "in"
-        shape = _SHAPES.get(a, "(*)")
+        shape = shapes.get(a, "(*)")
         lines.append(f"    real(c_double), intent({intent}) :: {a}{shape}")
     if block.decls:
         lines.append(block.decls)
@@ -189,12 +191,14 @@ def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
     return ctx
 
 
-def _jacobian_pieces(block: Block, prog: dict, what: str, general: bool = False) -> FortranBlock:
+def _jacobian_pieces(block: Block, prog: dict, what: str, general: bool = False, nz: int = 0) -> FortranBlock:
     """The expanded Jacobian of a program-form model in pieces (:func:`lagcodegen.codegen.program.block_pieces`:
     subroutines ``jacobian<k>``, the temporaries in an allocated array): the body of ``<prefix>_jac``
     as a :class:`FortranBlock`; the subroutines join the program form's."""
     pieces, array, size = program.block_pieces(block, "x", _measure(), cse)
-    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac")
+    # Generalized speeds: G over the (q, v) columns, Z the kinematic rows then the quadratures'.
+    shapes = {"G": "(n, nq + n)", "Z": "(nq + nz, nq + n)" if nz else "(nq, nq + n)"} if general else None
+    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac", shapes)
             for k, statements in enumerate(pieces)]
     prog["subroutines"] += "\n\n" + "\n\n".join(sub.text for sub in subs)
     prog["libm"] = set(prog["libm"]).union(*(sub.libm for sub in subs))
@@ -241,7 +245,7 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
         rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
     if scene.jacobian and not tangent and prog:  # a large expanded Jacobian: in pieces too
-        jac = _jacobian_pieces(blocks["jac"], prog, what, scene.eom.general)
+        jac = _jacobian_pieces(blocks["jac"], prog, what, scene.eom.general, len(scene.eom.quadratures))
     elif scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
         jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
                           renames={"a": ("ydot", n)})  # generalized speeds: a = v' = ydot(nq+1:nq+nv), n = nq

@@ -38,16 +38,16 @@ def free_flyer_with_spring():
     return m
 
 
-def polar(quadrature=False):
+def polar(damped=False):
     """A closed-form model of its own speeds: polar coordinates with u1 = r', u2 = r theta'."""
-    m = lcg.Model("gj_polar" + ("_z" if quadrature else ""))
+    m = lcg.Model("gj_polar" + ("_d" if damped else ""))
     r, th = m.coordinates("r theta")
     k, mass, c = m.parameters(k=3.0, m=1.5, c=0.2)
     m.particle("p", mass, (r * sp.cos(th), r * sp.sin(th)))
     m.potential_energy(k / 2 * (r - 1) ** 2 + sp.cos(th) * r ** 2 / 5)
     u1, u2 = sp.symbols("u1 u2")
     m.generalized_speeds(["u1", "u2"], {r: u1, th: u2 / r})
-    if quadrature:
+    if damped:  # Rayleigh dissipation in q' (the kinematics inside F)
         m.dissipation(c / 2 * sp.Symbol("r_dot") ** 2 * r)
     return m
 
@@ -84,7 +84,7 @@ def central(cm, y, h=3e-3):
 
 CASES = [("tumbler", tumbler, "tangent"), ("flyer", free_flyer_with_spring, "tangent"),
          ("arm", floating_arm, "tangent"), ("polar", polar, "expanded"), ("polar", polar, "tangent"),
-         ("polar_z", lambda: polar(True), "expanded"), ("polar_z", lambda: polar(True), "tangent")]
+         ("polar_d", lambda: polar(True), "expanded"), ("polar_d", lambda: polar(True), "tangent")]
 
 
 @pytest.mark.parametrize("lang", ["c", "fortran"])
@@ -105,8 +105,8 @@ def test_jacobian_matches_central_differences(name, make, form, lang):
 
 
 @pytest.mark.parametrize("name, make, form", [("flyer", free_flyer_with_spring, "tangent"),
-                                              ("polar_z", lambda: polar(True), "expanded"),
-                                              ("polar_z", lambda: polar(True), "tangent")])
+                                              ("polar_d", lambda: polar(True), "expanded"),
+                                              ("polar_d", lambda: polar(True), "tangent")])
 def test_general_jacobian_sources_compile_strictly(tmp_path, name, make, form):
     import subprocess
     from helpers import STRICT_CFLAGS
@@ -161,3 +161,47 @@ def test_what_generalized_speeds_do_not_take_is_named():
     with pytest.raises(LagcodegenError, match="generalized speeds .* band linear solver"):
         cm.simulate(np.linspace(0, 1, 3), q0=[0, 0, 0, 0, 0, 0, 1, 0], v0=np.zeros(7), method="bdf",
                     linear_solver="band")
+
+
+@pytest.mark.parametrize("lang", ["c", "fortran"])
+def test_expanded_jacobian_in_program_form(monkeypatch, lang):
+    """A right-hand side printed in program form (forced here: PROGRAM_MIN_OPS = 0) prints the
+    expanded Jacobian in pieces too (G over the (q, v) columns, Z the kinematic and quadrature
+    rows): the same values as the central differences."""
+    from lagcodegen.codegen import c as cgen, program
+    monkeypatch.setattr(cgen, "PROGRAM_MIN_OPS", 0)
+    monkeypatch.setattr(program, "PROGRAM_MIN_OPS", 0)
+    model = polar(True)
+    code = generate_code(Scene(lcg.derive(model), jacobian=True, jacobian_form="expanded",
+                               prefix=f"gj_polar_pieces_{lang}"), lang)
+    assert "jacobian0" in "".join(code.files.values())  # the pieces are there
+    cm = build_code(code)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        y = random_state(cm, model, rng)
+        D = central(cm, y)
+        assert np.abs(cm.jac(0.3, y) - D).max() < 1e-8 * max(1.0, np.abs(D).max())
+
+
+@pytest.mark.parametrize("lang", ["c", "fortran"])
+@pytest.mark.parametrize("form", ["expanded", "tangent"])
+def test_jacobian_with_a_quadrature_state(lang, form):
+    """A quadrature state z' = rate(q, q', v) after (q, v) (rows nq + nv ..; the quadrature
+    enters no rate): its row of df/dy, with q' inside the rate standing for the kinematics."""
+    import dataclasses
+    import symengine as se
+    model = polar()
+    eom = lcg.derive(model)
+    rate = se.Symbol("theta_dot") ** 2 * se.Symbol("r") + se.Symbol("u1") * se.sin(se.Symbol("theta"))
+    eom = dataclasses.replace(eom, quadratures=[("work", rate)])
+    cm = build_code(generate_code(Scene(eom, jacobian=True, jacobian_form=form,
+                                        prefix=f"gj_polar_quad_{form}_{lang}"), lang))
+    assert cm.ny == 5
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        y = random_state(cm, model, rng)
+        y[4] = rng.normal()
+        J, D = cm.jac(0.3, y), central(cm, y)
+        assert np.abs(J - D).max() < 1e-8 * max(1.0, np.abs(D).max())
+        assert np.abs(J[4, :4]).min() > 0  # the rate depends on every state of (q, v)
+        assert not np.any((np.abs(J) > 0) & ~cm.code.jac_pattern)
