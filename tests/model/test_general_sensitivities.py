@@ -58,19 +58,21 @@ def check(cm, model, q0, v0, names, params=None, bound=2e-8):
             if name in cm.param_names:
                 p = dict(params or {})
                 p[name] = p.get(name, {s.name: val for s, val in model.params.items()}[name]) + sign * h
-                runs.append(cm.simulate(T, q0=q0, v0=v0, params=p, **TOL).y)
+                r = cm.simulate(T, q0=q0, v0=v0, params=p, **TOL)
             else:
                 q, v = perturbed(model, q0, v0, name, sign * h)
-                runs.append(cm.simulate(T, q0=q, v0=v, params=params, **TOL).y)
+                r = cm.simulate(T, q0=q, v0=v, params=params, **TOL)
+            runs.append(np.column_stack([r.y] + [r[o] for o in cm.output_names]))
         fd = (runs[0] - runs[1]) / (2 * h)
-        s = res.sensitivities[:, j, :cm.ny]
+        s = res.sensitivities[:, j, :]  # the states' and the outputs'
+        assert s.shape == fd.shape
         assert np.abs(s - fd).max() < bound * max(1.0, np.abs(fd).max()), (name, np.abs(s - fd).max())
     return res
 
 
 def test_polar_model_of_its_own_speeds():
     model = polar()
-    cm = lcg.compile_model(model, runtime_parameters=["k", "m"])
+    cm = lcg.compile_model(model, runtime_parameters=["k", "m"], outputs=["energy", "p_x"])
     check(cm, model, [1.2, 0.3], [0.1, 0.9], ["k", "m", "r(0)", "theta(0)", "u1(0)", "u2(0)"])
 
 
@@ -116,3 +118,31 @@ def test_repeated_runs_take_each_runs_rotation():
     # the start: d q / d theta = q x (0, 0, 1/2, 0) (x, y, z, w), for qb = (s, 0, 0, s)
     s = np.sqrt(0.5)
     assert np.allclose(runs[1][0, 0, 3:7], [0, -s / 2, s / 2, 0], atol=1e-15)
+
+
+def test_event_time_sensitivities():
+    """The sensitivity of an event's time (the base crossing x = 0, in q and, through the rate,
+    the kinematics) along a parameter, a speed and a rotation, against central differences of
+    the event times of whole runs."""
+    model = free_flyer_with_spring()
+    cm = lcg.compile_model(model, runtime_parameters=["k"])
+    q = np.array([0.5, -0.2, 0.1, 0.1, 0.2, 0.3, 0.9, 0.4])
+    q[3:7] /= np.linalg.norm(q[3:7])
+    v = [0.3, -0.2, 0.5, 0.4, -0.3, 0.8, 1.0]
+    ev = [lcg.Event("cross", "root_x", direction=-1, terminal=True)]
+    t = np.linspace(0, 3, 4)
+    names = ["k", "root_vx(0)", "root_rz(0)"]
+    res = cm.simulate(t, q0=q, v0=v, sensitivities=names, events=ev, **TOL)
+    assert len(res.events) == 1
+    h = 1e-5
+    for name in names:
+        times = []
+        for sign in (1, -1):
+            if name == "k":
+                r = cm.simulate(t, q0=q, v0=v, params={"k": 3.0 + sign * h}, events=ev, **TOL)
+            else:
+                qq, vv = perturbed(model, q, v, name, sign * h)
+                r = cm.simulate(t, q0=qq, v0=vv, events=ev, **TOL)
+            times.append(r.events[0].t)
+        fd = (times[0] - times[1]) / (2 * h)
+        assert abs(res.events[0].t_sensitivity[name] - fd) < 1e-7 * max(1.0, abs(fd)), (name, fd)
