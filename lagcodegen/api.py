@@ -150,8 +150,9 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
 
 def auto_jacobian(eom: EquationsOfMotion) -> bool:
     """``jacobian=None``: the analytic Jacobian for models of at most AUTO_JACOBIAN_MAX_N
-    coordinates whose speeds are their rates (models with generalized speeds have none yet)."""
-    return not eom.general and getattr(eom, "symmetric", True) and eom.model.n <= AUTO_JACOBIAN_MAX_N
+    coordinates (with generalized speeds too: the coordinates q, nq of them) whose mass matrix is
+    symmetric."""
+    return getattr(eom, "symmetric", True) and eom.model.n <= AUTO_JACOBIAN_MAX_N
 
 
 def _compile_equations(eom: EquationsOfMotion, *, jacobian: bool | None, outputs, runtime_parameters, values,

@@ -312,14 +312,18 @@ def generate_c(scene: Scene) -> GeneratedCode:
     extra = dict(program=None)
     if use_program(scene, blocks["rhs"]):
         n = scene.eom.model.n
-        built = build_program(blocks["rhs"], n)
-        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built) if tangent else None
+        # With generalized speeds the tangent's columns are (q, v): nq + nv of them.
+        nv = scene.eom.model.nv if tangent and scene.eom.general else None
+        built = build_program(blocks["rhs"], n, nv=nv)
+        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built, nv=nv) if tangent else None
         extra = dict(program=print_program(built[0], built[1], tp))
     jac = print_block(blocks["jac"]) if "jac" in blocks and not extra["program"] else ""
     if "jac" in blocks and extra["program"]:  # a large expanded Jacobian: in pieces too
         nz = len(scene.eom.quadratures)
+        rows = "NQ + N" if scene.eom.general else "2 * N"  # Z's columns: d/dy[j] for the state's (q, v)
         params = [("double t", "t"), ("const double *y", "y"), ("const double *p", "p"), ("const double *a", "a"),
-                  ("double M[][N]", "M"), ("double G[][N]", "G")] + ([("double Z[][2 * N]", "Z")] if nz else [])
+                  ("double M[][N]", "M"), ("double G[][N]", "G")] + (
+            [(f"double Z[][{rows}]", "Z")] if nz or scene.eom.general else [])
         defs, jac = print_block_pieces(blocks["jac"], "jacobian", params[:4], params[4:], "x",
                                        f"{code.prefix.upper()}_ERR_MEMORY")
         extra["program"]["functions"] += defs

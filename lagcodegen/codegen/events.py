@@ -50,6 +50,7 @@ def events_gradient_source(scene: Scene, events: list[Event]) -> dict[str, str]:
     eom = scene.eom
     text = environment().get_template("c/events_grad.c.j2").render(
         prefix=scene.prefix, version=__version__, model_name=eom.model.name, ne=len(events),
-        ny=2 * eom.model.n + len(eom.quadratures), np=len(scene.runtime_parameters), described=described,
+        ny=(eom.model.n + eom.model.nv if eom.general else 2 * eom.model.n) + len(eom.quadratures),
+        np=len(scene.runtime_parameters), described=described,
         nonfinite=int(ModelCode.NONFINITE), body=print_block(events_gradient_block(scene, events)))
     return {f"{scene.prefix}_events_grad.c": text}

@@ -123,9 +123,11 @@ class _Subroutine:
         return f"call {self.name}({', '.join(actual.get(a, a) for a in self.args)})"
 
 
-def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
+def _subroutine(piece: program.Piece, what: str, shapes: dict | None = None) -> _Subroutine:
     """The subroutine of a piece: arguments only those its statements use (no unused dummies),
-    arrays assumed-size (M n x n), intent(inout) where written."""
+    arrays assumed-size (M n x n), intent(inout) where written; ``shapes``: other shapes than
+    :data:`_SHAPES` (a model with generalized speeds' G and Z)."""
+    shapes = {**_SHAPES, **(shapes or {})}
     statements = [ir.Assign(st.targets, _value(st), local=st.local) for st in piece.statements]
     read, written = _arrays(statements)
     args = [a for a in _PIECE_ARGS if a in read | written]
@@ -133,7 +135,7 @@ def _subroutine(piece: program.Piece, what: str) -> _Subroutine:
     lines = [f"  recursive subroutine {piece.name}({', '.join(args)})"]
     for a in args:
         intent = "inout" if a in written else "in"
-        shape = _SHAPES.get(a, "(*)")
+        shape = shapes.get(a, "(*)")
         lines.append(f"    real(c_double), intent({intent}) :: {a}{shape}")
     if block.decls:
         lines.append(block.decls)
@@ -189,12 +191,14 @@ def _program_context(prog, targets: list, tangent, prefix: str) -> dict:
     return ctx
 
 
-def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
+def _jacobian_pieces(block: Block, prog: dict, what: str, general: bool = False, nz: int = 0) -> FortranBlock:
     """The expanded Jacobian of a program-form model in pieces (:func:`lagcodegen.codegen.program.block_pieces`:
     subroutines ``jacobian<k>``, the temporaries in an allocated array): the body of ``<prefix>_jac``
     as a :class:`FortranBlock`; the subroutines join the program form's."""
     pieces, array, size = program.block_pieces(block, "x", _measure(), cse)
-    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac")
+    # Generalized speeds: G over the (q, v) columns, Z the kinematic rows then the quadratures'.
+    shapes = {"G": "(n, nq + n)", "Z": "(nq + nz, nq + n)" if nz else "(nq, nq + n)"} if general else None
+    subs = [_subroutine(program.Piece(f"jacobian{k}", "block", statements), f"{what}_jac", shapes)
             for k, statements in enumerate(pieces)]
     prog["subroutines"] += "\n\n" + "\n\n".join(sub.text for sub in subs)
     prog["libm"] = set(prog["libm"]).union(*(sub.libm for sub in subs))
@@ -203,7 +207,8 @@ def _jacobian_pieces(block: Block, prog: dict, what: str) -> FortranBlock:
     used |= {"ydot"} if "a" in used else set()  # a = ydot(n+1:2n)
     code = [f"{pad}allocate ({array}({size}), stat=stat)", f"{pad}if (stat /= 0) then",
             f"{pad}  rc = {what}_err_memory", f"{pad}  return", f"{pad}end if"]
-    code += [pad + sub.call({"a": "ydot(n + 1:2 * n)"}) for sub in subs]
+    accelerations = "ydot(nq + 1:nq + n)" if general else "ydot(n + 1:2 * n)"  # generalized speeds: a = v'
+    code += [pad + sub.call({"a": accelerations}) for sub in subs]
     decls = f"{pad}real(c_double), allocatable :: {array}(:)\n{pad}integer :: stat"
     unused = ", ".join(f"unused_{d} => {d}" if d == "t" else f"unused_{d} => {d}(1:0)"
                        for d in ("t", "y", "ydot", "p") if d not in used)
@@ -231,17 +236,19 @@ def generate_fortran(scene: Scene) -> GeneratedCode:
     prog = None
     rhs = None
     if program.use_program(scene, blocks["rhs"]):
-        built = build_program(blocks["rhs"], n)
-        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built) if tangent else None
+        # With generalized speeds the tangent's columns are (q, v): nq + nv of them.
+        nv = scene.eom.model.nv if tangent and scene.eom.general else None
+        built = build_program(blocks["rhs"], n, nv=nv)
+        tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built, nv=nv) if tangent else None
         prog = _program_context(built[0], built[1], tp, what)
     else:
         rhs = print_block(blocks["rhs"], f"{what}_rhs", ("t", "y", "p"), ("t", "p"))
     jac = None
     if scene.jacobian and not tangent and prog:  # a large expanded Jacobian: in pieces too
-        jac = _jacobian_pieces(blocks["jac"], prog, what)
+        jac = _jacobian_pieces(blocks["jac"], prog, what, scene.eom.general, len(scene.eom.quadratures))
     elif scene.jacobian and not tangent:  # accelerations a = q'' (C: a = ydot + N), printed as ydot(N+1:2N)
         jac = print_block(blocks["jac"], f"{what}_jac", ("t", "y", "ydot", "p"), ("t", "y", "ydot", "p"),
-                          renames={"a": ("ydot", n)})
+                          renames={"a": ("ydot", n)})  # generalized speeds: a = v' = ydot(nq+1:nq+nv), n = nq
     out = print_block(blocks["out"], f"{what}_outputs", ("t", "y", "p"), ("t", "y", "p"))
 
     code = new_code(scene)

@@ -297,7 +297,7 @@ def program_form(prog, targets: list, tangent, measure: Measure) -> ProgramForm:
     outside = {prog.index(a) for _, a in targets} - {None}
     form = ProgramForm([], [], [], [], max(1, len(prog)))
     if tangent is not None:
-        ncol = 2 * tangent.n
+        ncol = tangent.ncol
         calls: list[list[int]] = [[] for _ in range(ncol)]
         resets: list[list[int]] = [[] for _ in range(ncol)]
 

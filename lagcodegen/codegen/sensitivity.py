@@ -37,7 +37,10 @@ def sensitivity_source(scene: Scene, prefix: str, form: str = "auto") -> dict[st
     eom = scene.eom
     n, nz = eom.model.n, len(eom.quadratures)
     ctx = dict(prefix=prefix, version=__version__, model_name=eom.model.name, n=n, nz=nz, ny=2 * n + nz,
-               np=len(scene.runtime_parameters), nout=len(scene.output_list()))
+               np=len(scene.runtime_parameters), nout=len(scene.output_list()), nq=None)
+    if eom.general:  # y = (q, v, z): N the speeds, NQ the coordinates
+        nv = eom.model.nv
+        ctx.update(n=nv, nq=n, ny=n + nv + nz)
     if form == "direction":
         ctx.update(_direction_context(scene))
         text = environment().get_template("c/sens_direction.c.j2").render(**ctx)
@@ -74,7 +77,8 @@ def _direction_context(scene: Scene) -> dict:
             elif kind == "g":
                 st = ir.Assign((ir.Element("g", k),), tree, accumulate=True)
             else:
-                st = ir.Assign((ir.Element("dk", 2 * dt.n + k),), tree, accumulate=True)
+                zero = 2 * dt.n if dt.nv is None else 0  # generalized speeds: k is ydot's row
+                st = ir.Assign((ir.Element("dk", zero + k),), tree, accumulate=True)
             out.append(c_statement(printer, st, pad))
         return "\n".join(out)
     cases = [(m, statements(ops, ts, _PAD * 4)) for m, (ops, ts) in enumerate(zip(dt.param_ops, trees[1:])) if ops]

@@ -100,14 +100,19 @@ def events_gradient_block(scene: Scene, events: list[Event]) -> Block:
     states = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
     states += [se.Symbol(name) for name, _ in eom.quadratures]
     params = [se.Symbol(name) for name in scene.runtime_parameters]
+    general = eom.general  # y = (q, v, z): g in the array symbols first (q' inside: the kinematics)
+    if general:
+        states = [se.Symbol(f"y[{i}]") for i in range(model.nq + model.nv + len(eom.quadratures))]
+        params = [se.Symbol(f"p[{m}]") for m in range(len(params))]
     time = se.Symbol(model.t.name)
     ny, npar = len(states), len(params)
     block = Block()
     for k, ev in enumerate(events):
         g = to_se(ev.expr, f"event {ev.name!r}")
+        g = c(g) if general else g
         for key, var in [(("gt", k), time)] + [(("gy", k * ny + i), v) for i, v in enumerate(states)] \
                 + [(("gp", k * npar + m), v) for m, v in enumerate(params)]:
-            e = c(se.diff(g, var))
+            e = se.diff(g, var) if general else c(se.diff(g, var))
             if e.atoms(se.Derivative, se.Subs):
                 raise ModelError(f"event {ev.name!r}: its derivative {e} cannot be taken in closed form")
             if e != 0:

@@ -199,14 +199,18 @@ def _general_blocks(scene: Scene, stage) -> dict[str, Block]:
     """The kernels of q' = k(q, v, t), M(q, t) v' = F(q, v, t) (generalized speeds): ``rhs``
     with ("ydot", i) = k_i for the coordinates' rates, ("M", a, b) (upper triangle; ("Mx", a, b) every
     entry when M is not symmetric, :attr:`EquationsOfMotion.symmetric`) and
-    ("F", a) of the speeds' equations, ("ydot", nq + nv + k) the quadratures; ``out``. No
-    analytic Jacobian: the solvers form it from differences (Scene(jacobian=...) is refused)."""
+    ("F", a) of the speeds' equations, ("ydot", nq + nv + k) the quadratures; ``out``; and
+    with ``scene.jacobian`` (the expanded form) ``jac``: M, ("G", a, j) = d r_a / d y_j for
+    r = M a - F (a = v', the symbols ``a[i]``) and ("Z", r, j) = d ydot_r / d y_j for the rows
+    given in closed form: the kinematic rates (r < nq) and the quadratures (r = nq + k), j over
+    the state's (q, v)."""
     eom = scene.eom
     model = eom.model
     nq, nv = model.nq, model.nv
-    if scene.jacobian:
-        raise ModelError(f"model {model.name!r} has generalized speeds (nq = {nq}, nv = {nv}): its analytic "
-                         "Jacobian is not generated; use jacobian=False (CVODE forms it from differences)")
+    if eom.tree is not None and scene.jacobian:
+        raise ModelError(f"model {model.name!r}: the expanded Jacobian of a rigid-body tree is not generated (its "
+                         "entries would be derivatives of the tree's DAGs): use the tangent form "
+                         "(jacobian_form 'auto' or 'tangent') or jacobian=False")
     sub = symbol_map(scene)
     subst = substitute_shared if eom.tree is not None else substitute_all
     if eom.tree is not None:
@@ -227,9 +231,44 @@ def _general_blocks(scene: Scene, stage) -> dict[str, Block]:
         stage.advance()
     for k, (_, rate) in enumerate(eom.quadratures):
         rhs.add(("ydot", nq + nv + k), se.sympify(rate).xreplace(sub))
+    blocks = {"rhs": rhs}
+    if scene.jacobian:
+        blocks["jac"] = _general_jacobian(scene, rhs)
     outputs = scene.output_list()
-    return {"rhs": rhs, "out": Block([("out", k) for k in range(len(outputs))],
-                                     subst(sub, [o.expr for o in outputs]))}
+    blocks["out"] = Block([("out", k) for k in range(len(outputs))], subst(sub, [o.expr for o in outputs]))
+    return blocks
+
+
+def _general_jacobian(scene: Scene, rhs: Block) -> Block:
+    """The expanded Jacobian's kernel of a model with generalized speeds (:func:`_general_blocks`):
+    the right-hand side's entries (in the array symbols) differentiated by the state's symbols
+    y[0] .. y[nq + nv - 1] (the coordinates' rates q' inside F are the kinematics already)."""
+    model = scene.eom.model
+    nq, nv = model.nq, model.nv
+    y = [se.Symbol(f"y[{j}]") for j in range(nq + nv)]
+    a = [se.Symbol(f"a[{i}]") for i in range(nv)]
+    M = [[se.Integer(0)] * nv for _ in range(nv)]
+    F = [se.Integer(0)] * nv
+    rows = {}  # row of ydot in closed form -> its expression
+    jac = Block()
+    for target, e in zip(rhs.targets, rhs.exprs):
+        kind, *idx = target
+        if kind == "M":
+            M[idx[0]][idx[1]] = M[idx[1]][idx[0]] = e
+            jac.add(target, e)
+        elif kind == "F":
+            F[idx[0]] = e
+        else:  # ("ydot", r): a kinematic rate (r < nq) or a quadrature (r >= nq + nv)
+            rows[idx[0]] = e
+    for j, var in enumerate(y):
+        dM = [[se.diff(M[i][k], var) if M[i][k] != 0 else M[i][k] for k in range(nv)] for i in range(nv)]
+        for i in range(nv):
+            jac.add(("G", i, j), sum((dM[i][k] * a[k] for k in range(nv)), se.Integer(0)) - se.diff(F[i], var))
+    for r, e in sorted(rows.items()):
+        row = r if r < nq else r - nv  # Z's rows: the nq kinematic rates, then the quadratures
+        for j, var in enumerate(y):
+            jac.add(("Z", row, j), se.diff(e, var))
+    return jac
 
 
 def _model_blocks(scene: Scene, stage) -> dict[str, Block]:

@@ -124,11 +124,10 @@ class Scene:
             raise ModelError(f"model {self.eom.model.name!r}: its mass matrix is not symmetric (equations given "
                              "directly): its analytic Jacobian is not generated; use jacobian=False (CVODE forms it "
                              "from differences)")
-        if self.jacobian and self.eom.general:
+        if self.sparse_jacobian and self.eom.general:
             model = self.eom.model
             raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
-                             "analytic Jacobian is not generated; use jacobian=False (CVODE forms it from "
-                             "differences)")
+                             "sparse Jacobian is not generated; use the dense one (sparse_jacobian=False)")
         outputs = self.output_list()  # validate names early
         check_double_range([(f"mass matrix entry M[{i}][{j}]", e) for i, row in enumerate(self.eom.M_se) for j, e in enumerate(row)]
                            + [(f"force term F[{i}] (equation of {model.v[i].name if model.general else model.coords[i].name})", e)
@@ -316,24 +315,63 @@ class Scene:
 
 def _dense_general_pattern(scene) -> np.ndarray:
     """The Jacobian pattern of a model with generalized speeds: q' = k(q, v, t) depends on what
-    k_i holds, v' = M^-1 F on the whole state (taken dense), quadrature rates on what they hold."""
+    k_i holds; v' = M^-1 F, for a rigid-body tree, on the whole state (taken dense), otherwise
+    as :meth:`Scene.jacobian_pattern`'s accelerations: through the connected components of M's
+    nonzero graph, on what F and the nonzero entries of M hold (a coordinate's rate q'_i inside
+    them standing for what k_i holds); quadrature rates on what they hold (rates through k)."""
     eom = scene.eom
     model = eom.model
     nq, nv, nz = model.nq, model.nv, len(eom.quadratures)
     ny = nq + nv + nz
     state = ([se.Symbol(q.name) for q in model.coords] + [se.Symbol(v.name) for v in model.velocities]
              + [se.Symbol(name) for name, _ in eom.quadratures])
-    index = {s: j for j, s in enumerate(state)}
+    index = {s: {j} for j, s in enumerate(state)}
+    sub = scene.substitutions()
+
+    def deps(e) -> set:
+        e = se.sympify(e)
+        e = e.xreplace(sub) if sub else e
+        out: set = set()
+        for s in e.free_symbols:
+            out |= index.get(s, set())
+        return out
     pattern = np.zeros((ny, ny), dtype=bool)
-    for i, k in enumerate(eom.qdot_se):
-        for s in se.sympify(k).free_symbols:
-            if s in index:
-                pattern[i, index[s]] = True
-    pattern[nq:nq + nv, :nq + nv] = True
+    velocities = {v.name for v in model.velocities}
+    for i, (k, qd) in enumerate(zip(eom.qdot_se, model.speeds)):
+        d = deps(k)
+        for j in d:
+            pattern[i, j] = True
+        if qd.name not in velocities:  # q'_i inside M, F or a rate: what k_i holds
+            index[se.Symbol(qd.name)] = d
+    if eom.tree is not None:
+        pattern[nq:nq + nv, :nq + nv] = True
+    else:
+        M = [[se.sympify(e) for e in row] for row in eom.M_se]
+        nonzero = [[M[a][b] != 0 for b in range(nv)] for a in range(nv)]
+        comp = list(range(nv))
+
+        def find(a):
+            while comp[a] != a:
+                comp[a] = comp[comp[a]]
+                a = comp[a]
+            return a
+        for a in range(nv):
+            for b in range(a + 1, nv):
+                if nonzero[a][b] or nonzero[b][a]:
+                    comp[find(a)] = find(b)
+        reach: dict[int, set] = {}
+        for a in range(nv):
+            d = deps(eom.F_se[a])
+            for b in range(nv):
+                if nonzero[a][b]:
+                    d |= deps(M[a][b])
+            reach.setdefault(find(a), set()).update(d)
+        for a in range(nv):
+            for j in reach[find(a)]:
+                pattern[nq + a, j] = True
     for k, (_, rate) in enumerate(eom.quadratures):
-        for s in se.sympify(rate).free_symbols:
-            if s in index:
-                pattern[nq + nv + k, index[s]] = True
+        for j in deps(rate):
+            pattern[nq + nv + k, j] = True
     return pattern
 
 

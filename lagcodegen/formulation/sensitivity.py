@@ -56,6 +56,9 @@ def sensitivity_blocks(scene: Scene) -> dict[str, Block]:
     if eom.tree is not None:
         raise ModelError(f"model {model.name!r}: sensitivities of a rigid-body tree model are not generated "
                          "(its M and F are programs, not expressions)")
+    if eom.general:
+        raise ModelError(f"model {model.name!r} has generalized speeds: the expanded form of the sensitivities "
+                         "is not generated for it (the per-direction form is: form='direction' or 'auto')")
     require_symmetric(eom, "sensitivities")
     n = model.n
     c = substituter(scene)
@@ -95,10 +98,20 @@ def output_block(scene: Scene) -> Block:
     eom = scene.eom
     model = eom.model
     c = substituter(scene)
+    out = Block()
+    if eom.general:  # y = (q, v, z): differentiated in the array symbols (q' inside: the kinematics)
+        ny = model.nq + model.nv + len(eom.quadratures)
+        states = [se.Symbol(f"y[{i}]") for i in range(ny)]
+        params = [se.Symbol(f"p[{m}]") for m in range(len(scene.runtime_parameters))]
+        for k, o in enumerate(scene.output_list()):
+            e = c(o.expr)
+            out.add_partials(e, states, lambda x: x, lambda i, k=k: ("Oy", k, i))
+            out.add_partials(e, params, lambda x: x, lambda m, k=k: ("Op", k, m))
+        _closed_form(model, out)
+        return out
     y = [se.Symbol(s.name) for s in model.coords] + [se.Symbol(s.name) for s in model.speeds]
     params = [se.Symbol(name) for name in scene.runtime_parameters]
     states = y + [se.Symbol(name) for name, _ in eom.quadratures]
-    out = Block()
     for k, o in enumerate(scene.output_list()):
         out.add_partials(o.expr, states, c, lambda i, k=k: ("Oy", k, i))
         out.add_partials(o.expr, params, c, lambda m, k=k: ("Op", k, m))
@@ -128,16 +141,23 @@ class DirectionTangent:
     targets: list
     state_ops: list
     param_ops: list
+    #: The speeds of a model with generalized speeds (y = (q, v, z), n = nq), else None. Its
+    #: ("z", r, e) operations are then ``dk[r] += e`` for the rows r of ydot given in closed form
+    #: (the kinematic rates r < n, the quadratures r >= n + nv), seeded by sk[i], i < n + nv.
+    nv: int | None = None
 
     def size(self) -> int:
         """Operand terms of the state sweep (a measure of its cost per direction)."""
         return sum(len(se.Add.make_args(e)) for _, _, e in self.state_ops)
 
 
-def _sweep(prog: Program, targets: list, n: int, columns: frozenset, seeds: dict) -> list:
+def _sweep(prog: Program, targets: list, n: int, columns: frozenset, seeds: dict, zero: int | None = None) -> list:
     """The forward-mode sweep of ``prog`` seeded by ``seeds`` (atom -> its tangent) along the
     dependency ``columns`` (a value is differentiated if it depends on one): the operations of
-    :class:`DirectionTangent`."""
+    :class:`DirectionTangent` (``zero``: the row of ydot of the "z" operations' index 0, 2n
+    unless given)."""
+    zero = 2 * n if zero is None else zero
+
     def tangent_of(u):
         if u in seeds:
             return seeds[u]
@@ -170,7 +190,7 @@ def _sweep(prog: Program, targets: list, n: int, columns: frozenset, seeds: dict
         elif kind == "F":
             ops.append(("g", idx[0], -du))
         else:
-            ops.append(("z", idx[0] - 2 * n, du))
+            ops.append(("z", idx[0] - zero, du))
     return _live_ops(ops)
 
 
@@ -182,16 +202,19 @@ def direction_tangent(scene: Scene) -> DirectionTangent:
     require_symmetric(eom, "sensitivities")
     n, nz, npar = eom.model.n, len(eom.quadratures), len(scene.runtime_parameters)
     rhs = model_blocks(dataclasses.replace(scene, jacobian=False))["rhs"]
-    prog, targets = build_program(rhs, n, nparams=npar)
+    # Generalized speeds: columns (q, v), nq + nv of them; the "z" operations index ydot's rows.
+    nv, zero = (eom.model.nv, 0) if eom.general else (None, 2 * n)
+    ncol = n + (n if nv is None else nv)
+    prog, targets = build_program(rhs, n, nparams=npar, nv=nv)
     try:
         prog.finish_rhs()
     except ModelError as exc:
         raise ModelError(f"model {eom.model.name!r}: sensitivities: {exc}") from None
-    state = _sweep(prog, targets, n, frozenset(range(2 * n)),
-                   {se.Symbol(f"y[{i}]"): se.Symbol(f"sk[{i}]") for i in range(2 * n)})
-    params = [_sweep(prog, targets, n, frozenset((2 * n + m,)), {se.Symbol(f"p[{m}]"): se.Integer(1)})
+    state = _sweep(prog, targets, n, frozenset(range(ncol)),
+                   {se.Symbol(f"y[{i}]"): se.Symbol(f"sk[{i}]") for i in range(ncol)}, zero)
+    params = [_sweep(prog, targets, n, frozenset((ncol + m,)), {se.Symbol(f"p[{m}]"): se.Integer(1)}, zero)
               for m in range(npar)]
-    return DirectionTangent(n, nz, npar, prog, targets, state, params)
+    return DirectionTangent(n, nz, npar, prog, targets, state, params, nv)
 
 
 #: Choices of the tangent's form (:func:`sensitivity_form`).

@@ -76,18 +76,21 @@ class Program:
     ``deps[k]``: the columns (indices i < 2n of y) that value k depends on; the other symbols
     (parameters, t, the quadrature states) are constants of the differentiation."""
 
-    def __init__(self, n: int, nparams: int = 0):
+    def __init__(self, n: int, nparams: int = 0, nv: int | None = None):
         self.n = n
+        #: The velocity columns: y[n] .. y[n + nv - 1] (nv = n unless the model has generalized speeds).
+        self.nv = n if nv is None else nv
         self.exprs: list = []
         self.deps: list[frozenset] = []
         self.symbols: list = []
         self._memo: dict = {}    # statement (over atoms) -> its value symbol
         self._seen: dict = {}    # any expression flattened before -> its atom
         self._index: dict = {}   # value symbol -> k
-        self._state = {se.Symbol(f"y[{i}]"): i for i in range(2 * n)}
+        ncol = n + self.nv
+        self._state = {se.Symbol(f"y[{i}]"): i for i in range(ncol)}
         # With ``nparams``, the run-time parameters p[m] are differentiation columns too (2n + m):
         # the per-direction tangent of the sensitivities (lagcodegen.formulation.sensitivity).
-        self._state.update({se.Symbol(f"p[{m}]"): 2 * n + m for m in range(nparams)})
+        self._state.update({se.Symbol(f"p[{m}]"): ncol + m for m in range(nparams)})
         self.n_rhs = 0
         self.partials: list = []
         #: Built from a recorded program (a rigid-body tree's, :attr:`Block.defs`): its values are
@@ -220,12 +223,14 @@ class Program:
             k += 1
 
 
-def build_program(rhs: Block, n: int, cse: bool | None = None, nparams: int = 0) -> tuple[Program, list]:
+def build_program(rhs: Block, n: int, cse: bool | None = None, nparams: int = 0,
+                  nv: int | None = None) -> tuple[Program, list]:
     """The :class:`Program` of the right-hand side kernel ``rhs`` and its targets as (target,
     atom). ``cse``: start from symengine's common-subexpression elimination (None: when the
     block has at most :data:`CSE_MAX_OPS` operations). ``nparams``: the run-time parameters
-    p[0] .. p[nparams-1] count as columns of the dependencies (``Program.deps``) too."""
-    prog = Program(n, nparams)
+    p[0] .. p[nparams-1] count as columns of the dependencies (``Program.deps``) too. ``nv``:
+    the number of speeds of a model with generalized speeds (state columns y[0] .. y[n + nv - 1])."""
+    prog = Program(n, nparams, nv)
     exprs = list(rhs.exprs)
     known: dict = {}
     for sym, e in rhs.defs:  # a program already (a rigid-body tree's): no elimination
@@ -272,13 +277,22 @@ class TangentProgram:
 
     ``targets``: (target, atom) of the right-hand side kernel (("M", i, k) upper triangle,
     ("F", i), ("ydot", 2n + k)); ``groups``: the tangent code per column group with a
-    structurally nonzero derivative (positions, velocities)."""
+    structurally nonzero derivative (positions, velocities). With generalized speeds (``nv``
+    not None) the columns are y[0] .. y[n + nv - 1] and the "z" operations index the rows of
+    ydot themselves (the kinematic rates ("ydot", i < n) and the quadratures ("ydot", n + nv + k)).
+    """
 
     n: int
     nz: int
     program: Program
     targets: list
     groups: list
+    nv: int | None = None
+
+    @property
+    def ncol(self) -> int:
+        """The columns of dr/dy differentiated: 2n, or n + nv with generalized speeds."""
+        return 2 * self.n if self.nv is None else self.n + self.nv
 
     def size(self) -> int:
         """Number of operand terms of the program and the tangent code (a measure of the code's size)."""
@@ -301,22 +315,25 @@ def _mass_terms(target, tangent):
 
 
 def tangent_program(rhs: Block, n: int, nz: int = 0, narrow: int | None = None, cse: bool | None = None,
-                    program: tuple | None = None) -> TangentProgram:
+                    program: tuple | None = None, nv: int | None = None) -> TangentProgram:
     """The forward-mode Jacobian of the right-hand side kernel ``rhs`` (model_blocks(scene)["rhs"]:
     targets ("M", i, j), ("F", i), ("ydot", 2n + k)) by y[0] .. y[2n-1] (the quadrature states z
     do not enter the rates, as in the expanded form). ``program``: (Program, targets) of
-    :func:`build_program` if already built (its partials are computed here)."""
-    prog, targets = program if program is not None else build_program(rhs, n, cse)
+    :func:`build_program` if already built (its partials are computed here). ``nv``: the speeds
+    of a model with generalized speeds: columns y[0] .. y[n + nv - 1], targets ("ydot", i) also
+    for the kinematic rates i < n, and the "z" operations index ydot's rows (TangentProgram)."""
+    prog, targets = program if program is not None else build_program(rhs, n, cse, nv=nv)
     narrow = NARROW if narrow is None else narrow
-    targets = [((("ydot", t[1] - 2 * n) if t[0] == "ydot" else t), a) for t, a in targets]
+    zero = 2 * n if nv is None else 0  # the row of ydot of the "z" operations' index 0
+    targets = [((("ydot", t[1] - zero) if t[0] == "ydot" else t), a) for t, a in targets]
     prog.finish_rhs()
     groups = []
-    for start, stop in ((0, n), (n, 2 * n)):
+    for start, stop in ((0, n), (n, n + (n if nv is None else nv))):
         group = _group(prog, targets, start, stop, narrow)
         if group.columns or group.blocks:
             groups.append(group)
-    targets = [((("ydot", 2 * n + t[1]) if t[0] == "ydot" else t), a) for t, a in targets]
-    return TangentProgram(n, nz, prog, targets, groups)
+    targets = [((("ydot", zero + t[1]) if t[0] == "ydot" else t), a) for t, a in targets]
+    return TangentProgram(n, nz, prog, targets, groups, nv)
 
 
 def _group(prog: Program, targets: list, start: int, stop: int, narrow: int) -> TangentGroup:

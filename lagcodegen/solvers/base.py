@@ -241,13 +241,15 @@ def file_initial(sim, q0, v0) -> tuple:
 
 def check_speeds(cm, family) -> None:
     """Refuse, naming them, the runs a model with generalized speeds (y = (q, v, z), nq != nv
-    or q' != v) cannot take yet: forward sensitivities."""
+    or q' != v) cannot take yet: forward sensitivities other than CVODE's (their directions:
+    :func:`lagcodegen.solvers.cvode.sensitivity.general_directions`)."""
     code = getattr(cm, "code", None)
     if getattr(code, "nv", None) is None:
         return
-    if getattr(family, "sensitivities", None):
+    if getattr(family, "sensitivities", None) and type(family).__name__ != "CVODE":
         raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
-                              "forward sensitivities cannot integrate it yet; run it without sensitivities")
+                              f"its forward sensitivities run on CVODE (method 'adams' or 'bdf'), not on "
+                              f"{type(family).__name__}")
 
 
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:

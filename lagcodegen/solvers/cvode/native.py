@@ -27,7 +27,13 @@ from ..request import Index1Form, Recording, StepControl, option_values
 def band_widths(cm, bandwidths=None, y=None, p=None) -> tuple[int, int]:
     """(upper, lower) bandwidths of the band solver for ``cm``: ``bandwidths`` if given, else
     from the scene's Jacobian pattern in the interleaved order (:func:`scene.band_order`); a
-    module without a recorded pattern (e.g. Fortran) is probed numerically at ``y``."""
+    module without a recorded pattern (e.g. Fortran) is probed numerically at ``y``. A model with
+    generalized speeds is refused by name: the band order pairs q_i with q_i' (y[i], y[n + i])."""
+    code = getattr(cm, "code", None)
+    if getattr(code, "nv", None) is not None:
+        raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
+                              "the band linear solver (its order interleaves each coordinate with its rate) cannot "
+                              "take it; use the dense linear solver")
     if bandwidths is not None:
         mu, ml = (int(b) for b in bandwidths)
         if not (0 <= mu < cm.ny and 0 <= ml < cm.ny):

@@ -18,7 +18,7 @@ import numpy as np
 from ..control import CANCELLED, raise_pending
 from ..lazy_result import ResultMaker, lazy_result
 from ..request import StepControl
-from .sensitivity import directions, functions, message, sens_options, sens_stats
+from .sensitivity import directions, functions, message, rotation_directions, sens_options, sens_stats
 
 
 class SensitivityResultMaker(ResultMaker):
@@ -41,7 +41,10 @@ class PreparedSensitivityRun:
 
     def __init__(self, cm, names, control: StepControl, fixed: dict):
         method = control.method
-        self.names, which, s0 = directions(cm, names)
+        self.names, which, s0 = directions(cm, names, defer=True)
+        # Rotations of a quaternion (general_directions): their s0 depends on each run's initial state.
+        self.cm = cm
+        self.rotations = rotation_directions(cm, self.names)
         self.fns = fns = functions(cm)
         self.ffi = ffi = fns.rt.ffi
         self.ns, self.ny, self.nout = len(self.names), cm.ny, cm.code.nout
@@ -63,6 +66,9 @@ class PreparedSensitivityRun:
         out = np.empty((nt, max(nout, 1)))
         dout = np.empty((nt, ns, max(nout, 1)))
         st = ffi.new("lcg_cvsens_stats *")
+        if self.rotations:  # the rotations' s0 at this run's initial state
+            y0 = np.array(ffi.unpack(ffi.cast("double *", y_ptr), ny))
+            self._s0[:] = directions(self.cm, self.names, y0, float(t[0]), p)[2]
         start = time.perf_counter()
         flag = fns.rt.lib.lcg_cvsens_solve(fns.table, fns.rhs, fns.out, p_ptr, ns, self.which_ptr, y_ptr,
                                            self.s0_ptr, nt, t_ptr, fb("double[]", yout), fb("double[]", sout),

@@ -108,12 +108,101 @@ def functions(cm) -> SensitivityFunctions:
     return cm.artifacts.get(SensitivityFunctions, "ode", lambda: SensitivityFunctions(cm))
 
 
-def directions(cm, names) -> tuple[list[str], np.ndarray, np.ndarray]:
+def directions(cm, names, y0=None, t0: float = 0.0, p=None, defer: bool = False
+               ) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(names, which, s0) of the directions ``names``: which[j] the run-time parameter index
     (-1 for an initial value), s0 (ns, ny) the initial sensitivities (unit vectors for initial
-    values, zero for parameters). Unknown or repeated names raise LagcodegenError."""
+    values, zero for parameters). Unknown or repeated names raise LagcodegenError. A model with
+    generalized speeds: :func:`general_directions` (a rotation direction needs the initial state
+    ``y0`` at ``t0`` with the parameters ``p``, unless ``defer``: the caller fills it in per run,
+    or uses only the names and which)."""
+    if getattr(cm.code, "nv", None) is not None:
+        return general_directions(cm, names, y0, t0, p, defer)
     return parse_directions(names, params=list(cm.param_names), states=list(cm.state_names), n=cm.n, ny=cm.ny,
                             folded=getattr(cm.code, "folded", {}) or {}, listed_in="the scene's runtime_parameters")
+
+
+def rotation_directions(cm, names) -> bool:
+    """True if ``names`` (parsed) hold a rotation of a quaternion (:func:`general_directions`),
+    whose s0 depends on the initial state."""
+    if getattr(cm.code, "nv", None) is None:
+        return False
+    states = list(cm.state_names)
+    return any(nm.endswith("(0)") and nm[-6:-3] in ("_rx", "_ry", "_rz") and nm[:-3] not in states
+               for nm in names)
+
+
+def _quaternion_joint(base: str, states: list) -> str | None:
+    """The joint whose unit quaternion (Pinocchio's layout: <joint>_qx .. _qw, speeds <joint>_wx ..)
+    ``base`` is one component of, or None."""
+    joint, _, comp = base.rpartition("_")
+    if comp in ("qx", "qy", "qz", "qw") and f"{joint}_qw" in states and f"{joint}_wx" in states:
+        return joint
+    return None
+
+
+def general_directions(cm, names, y0=None, t0: float = 0.0, p=None, defer: bool = False
+                       ) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The directions of a model with generalized speeds, y = (q, v, z): a run-time parameter;
+    the initial value ``"<state>(0)"`` of any state by its name (a coordinate, a speed such as
+    ``"ball_wx(0)"`` or ``"elbow_dot(0)"``, a quadrature); and for a joint with a unit quaternion
+    (``<joint>_qx`` .. ``_qw``) the rotations ``"<joint>_rx(0)"``, ``_ry``, ``_rz``: the
+    quaternion turned by d(theta) about the axis of its speed ``<joint>_w<axis>`` (s0 = dq/d(theta)
+    = the kinematic rates k(q0, e) of the unit speed e, Pinocchio's q x exp(e theta / 2) for its
+    joints, whose angular speeds are in the body's frame). A single quaternion component is
+    refused by name: its perturbation leaves the unit sphere that the kinematics keep. Without
+    ``y0`` a rotation's s0 is left zero with ``defer`` (to be filled in once the initial state is
+    known), else refused."""
+    states = list(cm.state_names)
+    params = list(cm.param_names)
+    folded = getattr(cm.code, "folded", {}) or {}
+    nq, nv = cm.code.n, cm.code.nv
+    if isinstance(names, str):
+        names = [names]
+    names = list(names)
+    if not names:
+        raise LagcodegenError("sensitivities: give at least one parameter or initial value")
+    which, s0 = [], np.zeros((len(names), cm.ny))
+    for j, name in enumerate(names):
+        if not isinstance(name, str):
+            raise LagcodegenError(f"sensitivities: {name!r:.80} is not a name")
+        if names.index(name) != j:
+            raise LagcodegenError(f"sensitivities: {name!r:.80} is given twice")
+        if name in params:
+            which.append(params.index(name))
+            continue
+        if name in folded:
+            raise LagcodegenError(f"sensitivities: parameter {name!r:.80} is folded into the code as a constant; "
+                                  "list it in the scene's runtime_parameters")
+        base = name[:-3] if name.endswith("(0)") else None
+        joint = _quaternion_joint(base, states) if base else None
+        if joint is not None:
+            raise LagcodegenError(
+                f"sensitivities: {name!r} perturbs one component of the unit quaternion of joint {joint!r}, which "
+                f"leaves the unit sphere the kinematics keep; give a rotation of the joint instead: "
+                f"'{joint}_rx(0)', '{joint}_ry(0)', '{joint}_rz(0)' (about the axes of its speeds {joint}_wx ..)")
+        which.append(-1)
+        if base in states:
+            s0[j, states.index(base)] = 1.0
+            continue
+        joint, _, axis = (base or "").rpartition("_")
+        if axis in ("rx", "ry", "rz") and f"{joint}_qw" in states and f"{joint}_w{axis[1]}" in states:
+            if y0 is None:
+                if defer:  # filled in per run (PreparedSensitivities) or not needed (names only)
+                    continue
+                raise LagcodegenError(f"sensitivities: the rotation direction {name!r} depends on the initial "
+                                      "state, which this kind of run does not give it: use simulate(...)")
+            y = np.array(y0, dtype=float)
+            y[nq:nq + nv] = 0.0
+            base_rates = cm.rhs(t0, y, p)[:nq]
+            y[states.index(f"{joint}_w{axis[1]}")] = 1.0
+            s0[j, :nq] = cm.rhs(t0, y, p)[:nq] - base_rates  # k(q0, e) - k(q0, 0): linear in the speeds
+            continue
+        quaternions = sorted({b for s in states if (b := _quaternion_joint(s, states))})
+        rotations = "; rotations: " + ", ".join(f"'{b}_rx(0)'" for b in quaternions) + " .." if quaternions else ""
+        raise LagcodegenError(f"sensitivities: {name!r:.80} is neither a run-time parameter ({', '.join(params) or 'none'}) "
+                              f"nor an initial value '<state>(0)' (states: {', '.join(states)}{rotations})")
+    return names, np.array(which, dtype=np.intc), s0
 
 
 def parse_directions(names, *, params: list, states: list, n: int, ny: int, folded, listed_in: str
@@ -187,7 +276,7 @@ def solve_sensitivities(cm, t: np.ndarray, y0: np.ndarray, p: np.ndarray, contro
     method, events = control.method, recording.events
     if method not in ("adams", "bdf"):
         raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {method!r}")
-    names, which, s0 = directions(cm, recording.sensitivities)
+    names, which, s0 = directions(cm, recording.sensitivities, y0, float(t[0]), p)
     if inputs and events is not None:
         raise LagcodegenError("events with input tables: not supported")
     if inputs:
@@ -304,7 +393,10 @@ class PreparedSensitivities:
     def __init__(self, cm, t: np.ndarray, names, control: StepControl):
         if control.method not in ("adams", "bdf"):
             raise LagcodegenError(f"sensitivities run on CVODE with method 'adams' or 'bdf', not {control.method!r}")
-        self.names, which, s0 = directions(cm, names)
+        self.names, which, s0 = directions(cm, names, defer=True)
+        # Rotations of a quaternion (general_directions): their s0 depends on the initial state.
+        self._cm, self._t0 = cm, float(np.asarray(t, dtype=float).ravel()[0])
+        self._rotations = rotation_directions(cm, self.names)
         fns = functions(cm)
         self.fns = fns
         ffi = fns.rt.ffi
@@ -333,6 +425,8 @@ class PreparedSensitivities:
         y0 = np.ascontiguousarray(y0, dtype=float)
         p = np.ascontiguousarray(p, dtype=float)
         which, s0, nt, t, yout, sout, out, dout, opt, st = self._args
+        if self._rotations:  # the rotations' s0 at this initial state
+            self._s0[:] = directions(self._cm, self.names, y0, self._t0, p)[2]
         flag = lib.lcg_cvsens_solve(fns.table, fns.rhs, fns.out, ffi.from_buffer("double[]", p) if p.size else ffi.NULL,
                                     len(self.names), which, ffi.from_buffer("double[]", y0), s0, nt, t, yout, sout, out,
                                     dout, opt, st)

@@ -20,7 +20,7 @@ def ensemble_sensitivities(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, cont
     ``recording.sensitivities`` (checked once), each one run of :func:`solve_sensitivities` with the
     step control ``control`` and ``recording`` (events: located in every member, as
     :func:`ensemble_of_runs` says; ``save``, ``threads``, ``progress``: the ensemble's)."""
-    names = directions(cm, recording.sensitivities)[0]
+    names = directions(cm, recording.sensitivities, defer=True)[0]
     functions(cm)  # built once, before the threads start
     if recording.events is not None:
         gradients(cm, recording.events)  # the event functions' derivatives too
@@ -43,7 +43,7 @@ def ensemble_sensitivities_inputs(family, cm, t: np.ndarray, Y: np.ndarray, P: n
     tables is refused before anything runs."""
     from ..base import tolerances
     from .sensitivity import check_inputs, run
-    names, which, _ = directions(cm, recording.sensitivities)
+    names, which, _ = directions(cm, recording.sensitivities, defer=True)
     for tables in inputs:
         check_inputs(names, which, tables)
     rtol, atol = tolerances(control.rtol, control.atol, cm.ny, scalar=True)  # as simulate() resolves them
