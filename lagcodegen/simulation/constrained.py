@@ -166,6 +166,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         sensitivities = getattr(family, "sensitivities", None) is not None
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, self._ggl)
+        if sensitivities and self.system.model.general:
+            raise LagcodegenError(f"sensitivities of constrained systems with generalized speeds (model "
+                                  f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not computed yet")
         if sensitivities and self.info.contacts:
             raise LagcodegenError("sensitivities of systems with contacts (impacts) are not computed")
         if sensitivities:
@@ -217,7 +220,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                 yy0, yp0 = self._ggl_initial(t0, y0, p)
             stepper = family.stepper_ggl(self, mem, yy0, yp0, rtol, atol, roots)
         else:
-            rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
+            rtol, atol_arr = tolerances(rtol, atol, self._ny, scalar=True)
             stepper = family.stepper_index1(self, mem, rtol, atol_arr, roots)
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
@@ -307,7 +310,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                 return pool.pop()
             except IndexError:  # taken by another thread meanwhile
                 pass
-        ny = self.info.ng if self.formulation == "ggl" else 2 * self._n
+        ny = self.info.ng if self.formulation == "ggl" else self._ny
         return NativeEvents(self.ffi, self.events_type, self.info.events, ny, max_events)
 
     def release_events(self, events: NativeEvents) -> None:

@@ -36,7 +36,7 @@ from typing import Iterable, Mapping
 import numpy as np
 import sympy as sp
 
-from ..derivation import derive, require_lagrange
+from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
@@ -180,7 +180,6 @@ class ConstrainedSystem:
                  inequalities: Iterable = (), *, integrable: str = "error", check_integrability: bool = True):
         if not isinstance(model, Model):
             raise ModelError(f"ConstrainedSystem needs a lagcodegen Model, got {type(model).__name__}")
-        require_lagrange(model, "ConstrainedSystem")
         if integrable not in INTEGRABLE_POLICIES:
             raise ModelError(f"integrable must be one of {', '.join(INTEGRABLE_POLICIES)}, got {integrable!r}")
         self.model = model
@@ -235,10 +234,12 @@ class ConstrainedSystem:
             self.inequalities.append(g)
 
         J = len(self.holonomic) + len(self.nonholonomic)
-        if J > n:
+        if J > model.nv:
+            what = "coordinates" if not model.general else "generalized speeds"
+            names = model.coords if not model.general else model.v
             raise ModelError(f"{J} equality constraints ({len(self.holonomic)} holonomic, "
-                             f"{len(self.nonholonomic)} nonholonomic) but only {n} coordinates "
-                             f"({', '.join(q.name for q in model.coords)}): at most {n} are possible")
+                             f"{len(self.nonholonomic)} nonholonomic) but only {model.nv} {what} "
+                             f"({', '.join(q.name for q in names)}): at most {model.nv} are possible")
         if J == 0 and not self.inequalities:
             raise ModelError("no constraints given")
 
@@ -400,16 +401,19 @@ class ConstrainedSystem:
     def _numeric_values(self, q0, v0, params, t0):
         model = self.model
         q = state_vector(q0, [s.name for s in model.coords], "q0")
-        v = np.zeros(self.n) if v0 is None else state_vector(v0, [s.name for s in model.coords], "v0")
+        v = np.zeros(model.nv) if v0 is None else state_vector(v0, [s.name for s in model.v], "v0")
         pvals = {s: float(val) for s, val in model.params.items()}
         names = {s.name: s for s in model.params}
         for key, val in (params or {}).items():
             if key not in names:
                 raise ModelError(f"{key!r} is not a parameter of model {model.name!r}")
             pvals[names[key]] = check_finite(val, f"parameter {key!r}")
-        subs = {**dict(zip(model.coords, q)), **dict(zip(model.speeds, v)), **pvals,
+        subs = {**dict(zip(model.coords, q)), **dict(zip(model.v, v)), **pvals,
                 model.t: check_finite(t0, "t0")}
         subs = {k: sp.Float(float(val), 17) for k, val in subs.items()}
+        if model.general:  # the coordinates' rates q' = k(q, v, t) at this state
+            rates = [sp.sympify(k).xreplace(subs).evalf() for k in model.qdot]
+            subs.update({qd: sp.Float(float(r), 17) for qd, r in zip(model.speeds, rates) if qd not in subs})
         return q, v, subs
 
     def evaluate(self, q0, v0=None, params: Mapping | None = None, t0: float = 0.0) -> dict:
@@ -430,6 +434,10 @@ class ConstrainedSystem:
         g = np.array([num(f, f"holonomic constraint {j}") for j, f in enumerate(self.holonomic)])
         v = np.array([float(subs[s]) for s in self.model.speeds], dtype=float)
         gdot = A @ v + A0 if self.J else np.zeros(0)
+        if self.model.general and self.J:  # the rows in the generalized speeds: A G, G = dk/dv
+            model = self.model
+            G = np.array([[num(sp.diff(k, w), "kinematic equation") for w in model.v] for k in model.qdot])
+            A = A @ G
         ineq = np.array([num(gk, f"inequality constraint {k}") for k, gk in enumerate(self.inequalities)])
         return {"A": A, "A0": A0, "g": g, "gdot": gdot, "inequalities": ineq}
 
@@ -455,7 +463,7 @@ class ConstrainedSystem:
             rank = int(np.linalg.matrix_rank(A, tol=rank_tolerance(A)))
             if rank < J:
                 detail = dependent_rows(A)
-                raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{self.n}) has rank "
+                raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{A.shape[1]}) has rank "
                                  f"{rank} < {J} constraints; {detail} (redundant or inconsistent constraints, "
                                  "or a singular configuration)")
         bad = [f"holonomic constraint {j} (g_{j} = {excerpt(f)}) has residual {vals['g'][j]:.3g}"
