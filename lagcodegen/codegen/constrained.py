@@ -70,7 +70,9 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
                ggl=ggl, ggl_jac=bool(ggl and ggl_jacobian), outputs_use_lam=cb.outputs_use_lam,
                roots_use_lam=cb.roots_use_lam, general=model.general, nv=model.nv)
     if model.general:  # n is the speeds' count nv there; the coordinates' count and rates q' = k(q, v, t)
-        ctx.update(n=model.nq, kin=print_block(cb.blocks["kin"]), conq=print_block(cb.blocks["conq"]))
+        quaternions = [model.index(lk.coordinates[-4]) for lk in model.links if lk.joint.quaternion]
+        ctx.update(n=model.nq, kin=print_block(cb.blocks["kin"]), conq=print_block(cb.blocks["conq"]),
+                   quaternions=quaternions)
     env = environment()
     files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
     with deep_recursion():
@@ -112,8 +114,7 @@ def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
                          for k in system.contacts)
     return environment().get_template("c/impact.c.j2").render(
         **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
-        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction,
-        **({"kin": print_block(blocks["kin"])} if blocks["kin"] is not None else {}))
+        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction)
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

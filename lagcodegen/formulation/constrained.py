@@ -285,7 +285,6 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
         return se.sympify(e).xreplace(base)
 
     mf = mass_force_block(sym, c)
-    kin = kinematics_block(sym, c) if sym.general else None
     rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
     heights = list(sym.f) + [se.Integer(0)] * (J - JH)
     def row(g):
@@ -324,7 +323,7 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
             exprs.append(c(row[i]))
         targets += [("s", r), ("h", r), ("gam", r)]
         exprs += [c(vals[r]), c(heights[r]), c(gammas[r])]
-    return {"mf": mf, "rows": Block(targets, exprs), "tangent_of": tangent_of, "kin": kin}
+    return {"mf": mf, "rows": Block(targets, exprs), "tangent_of": tangent_of}
 
 
 #: Languages of the generated constrained code (the native drivers are C in both cases).

@@ -183,6 +183,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
             res = family.run_index1(self, t, y0, p, rtol, atol, roots)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
+        if self.system.model.general:
+            res.n_speeds = self.nv
         res.formulation = self.formulation
         if raise_on_error and not res.success:
             cls = SingularMassMatrixError if res.stats.get("model_error") == ERR_SINGULAR else SolverError
