@@ -588,39 +588,6 @@ class Model:
             raise ModelError(f"point_on: {link!r} is not a link of this model")
         return self.point(name, link.position_of(xyz))
 
-    def contact(self, link: "str | Link", point: Sequence = (0, 0, 0), *, restitution: float, ground: float = 0.0,
-                tangent: str | None = None, friction: float | None = None, name: str | None = None):
-        """A ground contact of the point ``point`` of ``link`` (link frame): the inequality
-        constraint z - ground >= 0 on the point's world height (the plane z = ``ground``, normal
-        +z), an :class:`~lagcodegen.theory.constraints.Inequality` with the coefficient of
-        ``restitution``, for :class:`~lagcodegen.theory.constraints.ConstrainedSystem`'s
-        ``inequalities`` (the point is declared as ``name``, default ``<link>_contact_<k>``).
-        Without ``tangent`` the contact is frictionless; ``tangent="x"`` or ``"y"``: a rough
-        contact along that world axis only (no slip, or Coulomb ``friction`` mu), the contact
-        driver taking one tangential direction per contact: 3-D friction (two directions) is not
-        supported. Works for links of floating-base models (quaternion free joints)."""
-        from ..theory.constraints import Inequality  # the theory layer imports the model layer
-
-        if isinstance(link, Link):
-            link = link.name
-        if not isinstance(link, str):
-            raise ModelError(f"contact: link must be a link or its name, got {link!r}")
-        if tangent not in (None, "x", "y"):
-            raise ModelError(f"contact: tangent must be None, 'x' or 'y' (one world axis: the contact driver takes "
-                             f"one tangential direction per contact; 3-D friction is not supported), got {tangent!r}")
-        if friction is not None and tangent is None:
-            raise ModelError("contact: friction needs a tangent direction ('x' or 'y'); 3-D Coulomb friction (two "
-                             "tangential directions per contact) is not supported")
-        if name is None:
-            k = sum(1 for nme in self.points if nme.startswith(f"{link}_contact_"))
-            name = f"{link}_contact_{k}"
-        pt = self.point_on(link, point, name)
-        if pt.dim != 3:
-            raise ModelError(f"contact: the point of link {link!r} is not 3-D")
-        g = pt.position[2] - _as_expr(ground, "contact ground height")
-        tan = None if tangent is None else pt.position["xy".index(tangent)]
-        return Inequality(g, restitution=restitution, tangent=tan, friction=friction)
-
     # ------------------------------------------------------------------ energies
     def kinetic_energy(self, T, label: str = "T") -> None:
         """Add kinetic energy given directly in (q, q', t)."""

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -539,3 +539,36 @@ def dependent_rows(A: np.ndarray) -> str:
         else:
             kept.append(j)
     return "; ".join(parts) or "rank deficient"
+
+
+def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restitution: float, ground: float = 0.0,
+                   tangent: str | None = None, friction: float | None = None, name: str | None = None) -> Inequality:
+    """A ground contact of the point ``point`` of ``link`` (a link of ``model`` or its name; the
+    point in the link frame): the inequality g = z - ground >= 0 on the point's world height (the
+    plane z = ``ground``, normal +z), an :class:`Inequality` with the coefficient of
+    ``restitution``, for :class:`ConstrainedSystem`'s ``inequalities``; the point is declared on
+    the model as ``name`` (default ``<link>_contact_<k>``). Without ``tangent`` the contact is
+    frictionless; ``tangent="x"`` or ``"y"``: a rough contact along that world axis only (no slip,
+    or Coulomb ``friction`` mu), the contact driver taking one tangential direction per contact:
+    3-D friction (two directions) is refused. Works on floating-base models (quaternion free
+    joints: ``urdf.load(path, floating=True)``)."""
+    if not isinstance(model, Model):
+        raise ModelError(f"ground_contact needs a lagcodegen Model, got {type(model).__name__}")
+    link = getattr(link, "name", link)
+    if not isinstance(link, str):
+        raise ModelError(f"ground_contact: link must be a link or its name, got {link!r}")
+    if tangent not in (None, "x", "y"):
+        raise ModelError(f"ground_contact: tangent must be None, 'x' or 'y' (one world axis: the contact driver takes "
+                         f"one tangential direction per contact; 3-D friction is not supported), got {tangent!r}")
+    if friction is not None and tangent is None:
+        raise ModelError("ground_contact: friction needs a tangent direction ('x' or 'y'); 3-D Coulomb friction (two "
+                         "tangential directions per contact) is not supported")
+    if name is None:
+        k = sum(1 for nme in model.points if nme.startswith(f"{link}_contact_"))
+        name = f"{link}_contact_{k}"
+    pt = model.point_on(link, point, name)
+    if pt.dim != 3:
+        raise ModelError(f"ground_contact: the point of link {link!r} is not 3-D")
+    g = pt.position[2] - _expr(ground, "ground_contact: ground height")
+    tan = None if tangent is None else pt.position["xy".index(tangent)]
+    return Inequality(g, restitution=restitution, tangent=tan, friction=friction)
