@@ -114,3 +114,59 @@ def test_generalized_speeds_refused_where_not_supported():
     system = pinned_body("quaternion", (0.1, 0.2, 0.5))
     with pytest.raises(ModelError, match="generalized speeds.*GGL"):
         lcg.compile_constrained(system, "ggl")
+
+
+def test_ground_contact_refusals():
+    m = lcg.Model("contact_refusals")
+    m.link("box", joint=lcg.Joint.free("root"), mass=1.0, inertia=INERTIA)
+    with pytest.raises(ModelError, match="3-D Coulomb friction"):
+        lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, friction=1.0)
+    with pytest.raises(ModelError, match="tangent must be None, 'x' or 'y'"):
+        lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="z")
+    rough = lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="x", friction=0.5)
+    with pytest.raises(ModelError, match="Coulomb friction .* generalized speeds"):
+        lcg.compile_constrained(ConstrainedSystem(m, inequalities=[rough]))
+
+
+def test_solo12_lands_on_four_feet_and_rests():
+    """Solo12 on Pinocchio's free flyer (example-robot-data's URDF), its 12 joints held by PD
+    torques about a standing posture, frictionless contacts at the four feet (the URDF's foot
+    frames on the lower legs), restitution 0, dropped with its base at 0.3 m: it lands on the four
+    feet at once, comes to rest, and the contact forces carry its weight (total mass by
+    Pinocchio's computeTotalMass) to 1e-6."""
+    pin = pytest.importorskip("pinocchio")
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    from lagcodegen.modelfile import urdf
+
+    path = (Path(pin.__file__).resolve().parents[4] / "share" / "example-robot-data" / "robots" / "solo_description"
+            / "robots" / "solo12.urdf")
+    feet = {}
+    for joint in ET.parse(path).getroot().findall("joint"):
+        if joint.find("child").get("link").endswith("_FOOT"):
+            feet[joint.find("parent").get("link")] = [float(x) for x in joint.find("origin").get("xyz").split()]
+    assert len(feet) == 4
+    m = urdf.load(path, floating=True)
+    pose = {}
+    for leg in ("FL", "FR", "HL", "HR"):
+        front = leg[0] == "F"
+        pose.update({f"{leg}_HAA": 0.0, f"{leg}_HFE": 0.8 if front else -0.8, f"{leg}_KFE": -1.6 if front else 1.6})
+    for name, ref in pose.items():
+        q = m.coords[m.index(name)]
+        m.generalized_force(q, -20.0 * (q - ref) - 0.5 * m.dot(q))
+    contacts = [lcg.ground_contact(m, link, xyz, restitution=0.0) for link, xyz in feet.items()]
+    sim = lcg.compile_constrained(ConstrainedSystem(m, inequalities=contacts))
+    q0 = np.array(m.neutral())
+    for name, ref in pose.items():
+        q0[m.index(name)] = ref
+    q0[2] = 0.3
+    res = sim.simulate(np.linspace(0.0, 3.0, 61), q0, np.zeros(m.nv), rtol=1e-8, atol=1e-10, method="bdf")
+    assert sorted(r.kind for r in res.impacts) == ["stick"] * 4
+    assert np.ptp([r.t for r in res.impacts]) < 1e-9  # the four feet at once (a symmetric posture)
+    assert res.impacts.final_modes == {k: "contact" for k in range(4)}
+    assert np.abs(res.y[-1, m.nq:]).max() < 1e-6  # at rest
+    weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())) * 9.81
+    normal = sum(res[f"lambda_ineq_{k}"][-1] for k in range(4))
+    assert normal == pytest.approx(weight, rel=1e-6)
+    assert np.abs(res.y[-1, :2]).max() < 1e-8  # no horizontal drift of the base
