@@ -112,8 +112,26 @@ def test_tilted_body_impact_agrees_with_euler_angles():
 
 def test_generalized_speeds_refused_where_not_supported():
     system = pinned_body("quaternion", (0.1, 0.2, 0.5))
-    with pytest.raises(ModelError, match="generalized speeds.*GGL"):
-        lcg.compile_constrained(system, "ggl")
+    for formulation in ("ggl", "minimal"):
+        with pytest.raises(ModelError, match=f"generalized speeds.*formulation {formulation!r} does not take"):
+            lcg.compile_constrained(system, formulation)
+    from lagcodegen.codegen.constrained import generate_constrained
+    with pytest.raises(ModelError, match="generalized speeds.*GGL formulation"):
+        generate_constrained(system, ggl=True)
+    with pytest.raises(ModelError, match="generalized speeds.*lang='fortran'"):
+        generate_constrained(system, lang="fortran")
+
+
+def test_integrator_and_ensemble_with_generalized_speeds():
+    rb, w = np.array([0.1, 0.2, 0.5]), np.array([0.7, -1.1, 2.3])
+    sim = lcg.compile_constrained(pinned_body("quaternion", rb))
+    q0, v0 = np.concatenate([-rb, [0, 0, 0, 1]]), np.concatenate([-np.cross(w, rb), w])
+    it = sim.integrator(q0=q0, v0=v0, rtol=1e-11, atol=1e-12)
+    it.propagate_until(1.5)
+    res = sim.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-11, atol=1e-12)
+    assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - res.y[-1]).max() < 1e-12
+    with pytest.raises(lcg.LagcodegenError, match="ensembles of constrained systems with generalized speeds"):
+        sim.ensemble(np.array([0.0, 1.0]), q0=[q0, q0], v0=[v0, v0])
 
 
 def test_ground_contact_refusals():
