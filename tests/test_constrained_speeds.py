@@ -188,3 +188,50 @@ def test_solo12_lands_on_four_feet_and_rests():
     normal = sum(res[f"lambda_ineq_{k}"][-1] for k in range(4))
     assert normal == pytest.approx(weight, rel=1e-6)
     assert np.abs(res.y[-1, :2]).max() < 1e-8  # no horizontal drift of the base
+
+
+def quat_mul(a, b):
+    """Hamilton product of (x, y, z, w) quaternions."""
+    av, aw, bv, bw = np.asarray(a[:3]), a[3], np.asarray(b[:3]), b[3]
+    return np.concatenate([aw * bv + bw * av + np.cross(av, bv), [aw * bw - av @ bv]])
+
+
+def test_rolling_sphere_nonholonomic_rows_in_quaternion_rates():
+    """A uniform ball on a free joint (quaternion) held on the plane z = r (holonomic) and rolling
+    without slip (two Pfaffian rows in q': the contact point's horizontal velocity x' - r w_y,
+    y' + r w_x with the world angular velocity w = 2 vec(q' q*)): its centre moves at constant
+    velocity and it turns at its constant initial angular velocity, q(t) = exp(w t / 2) q0."""
+    import sympy as sp
+
+    r = 0.2
+    m = lcg.Model("rolling_ball")
+    m.link("ball", joint=lcg.Joint.free("root"), mass=1.0, inertia=(0.4 * r * r,) * 3 + (0, 0, 0))
+    m.gravity(G0)
+    qx, qy, qz, qw = (m.coords[m.index(f"root_q{c}")] for c in "xyzw")
+    vec, dvec = sp.Matrix([qx, qy, qz]), sp.Matrix([m.dot(qx), m.dot(qy), m.dot(qz)])
+    w = 2 * (qw * dvec - m.dot(qw) * vec + vec.cross(dvec))  # world angular velocity, |q| = 1
+    x, y, z = (m.coords[m.index(f"root_{c}")] for c in "xyz")
+    rows = [sp.expand(m.dot(x) - r * w[1]), sp.expand(m.dot(y) + r * w[0])]
+
+    def pfaffian(expr):
+        return [sp.diff(expr, m.dot(q)) for q in m.coords]
+
+    system = ConstrainedSystem(m, holonomic=[z - r], nonholonomic=[pfaffian(e) for e in rows],
+                               check_integrability=False)
+    sim = lcg.compile_constrained(system)
+    q0 = zyx_quaternion(0.4, -0.7, 1.1)
+    qx0, qy0, qz0, qw0 = q0
+    R0 = np.array([[1 - 2 * (qy0**2 + qz0**2), 2 * (qx0 * qy0 - qz0 * qw0), 2 * (qx0 * qz0 + qy0 * qw0)],
+                   [2 * (qx0 * qy0 + qz0 * qw0), 1 - 2 * (qx0**2 + qz0**2), 2 * (qy0 * qz0 - qx0 * qw0)],
+                   [2 * (qx0 * qz0 - qy0 * qw0), 2 * (qy0 * qz0 + qx0 * qw0), 1 - 2 * (qx0**2 + qy0**2)]])
+    w_world = np.array([1.5, -2.0, 0.8])
+    v_world = np.array([r * w_world[1], -r * w_world[0], 0.0])  # rolling: v = w x (r e_z)
+    t = np.linspace(0.0, 2.0, 21)
+    res = sim.simulate(t, np.concatenate([[0, 0, r], q0]), np.concatenate([R0.T @ v_world, R0.T @ w_world]),
+                       rtol=1e-11, atol=1e-12)
+    assert np.abs(res.y[:, :3] - np.outer(t, v_world) - [0, 0, r]).max() < 1e-8
+    speed = np.linalg.norm(w_world)
+    for k, tk in enumerate(t):
+        turn = np.concatenate([np.sin(speed * tk / 2) * w_world / speed, [np.cos(speed * tk / 2)]])
+        expected = quat_mul(turn, q0)
+        assert min(np.abs(res.y[k, 3:7] - expected).max(), np.abs(res.y[k, 3:7] + expected).max()) < 1e-8
