@@ -120,6 +120,9 @@ def test_generalized_speeds_refused_where_not_supported():
         generate_constrained(system, ggl=True)
     with pytest.raises(ModelError, match="generalized speeds.*lang='fortran'"):
         generate_constrained(system, lang="fortran")
+    from lagcodegen.codegen.bundle import render_constrained_bundle
+    with pytest.raises(ModelError, match="a constrained bundle: model 'pinned_quaternion' has generalized speeds"):
+        render_constrained_bundle(system)
 
 
 def test_integrator_and_ensemble_with_generalized_speeds():
