@@ -96,7 +96,8 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
     code.dae = DaeLayout(nq=model.nq, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
-                         nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian))
+                         nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian),
+                         nv=model.nv if model.general else None)
     info = ConstrainedCodeInfo(pre, model.nq, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
                                dict(scene.folded), lang, tuple(system.contacts))
     return code, info
