@@ -28,7 +28,7 @@ from .model.model import Model  # noqa: F401
 from .model.bodies import Joint, Link, Placement  # noqa: F401
 from .model.events import Event  # noqa: F401
 from .derivation import EquationsOfMotion, derive  # noqa: F401
-from .theory.constraints import ConstrainedSystem, Inequality  # noqa: F401
+from .theory.constraints import ConstrainedSystem, Inequality, ground_contact  # noqa: F401
 from .simulation.constrained_impacts import ContactOptions, PainleveError  # noqa: F401
 from .theory.routhian import ignorable_coordinates, reduce as routh_reduce  # noqa: F401
 from .theory.steady import steady_motions  # noqa: F401

@@ -298,6 +298,11 @@ def _compile_constrained(system, formulation, options: dict, outputs, events, ru
                          verbose, lang):
     """The simulation of ``system`` in ``formulation`` with its ``options`` (those of
     :data:`FORMULATION_OPTIONS`, each given or defaulted by :func:`formulation_options`)."""
+    model = system.model
+    if model.general and formulation != "index1":
+        raise ModelError(f"compile_constrained: model {model.name!r} has generalized speeds (nq = {model.nq}, "
+                         f"nv = {model.nv}): its constrained form is formulation='index1' (CVODE); formulation "
+                         f"{formulation!r} does not take generalized speeds yet")
     projection, jacobian, eliminate = options["projection"], options["jacobian"], options["eliminate"]
     baumgarte = check_baumgarte(options["baumgarte"], "baumgarte")
     check_language(lang)

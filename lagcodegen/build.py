@@ -516,15 +516,16 @@ def _check_dae_table(rt, dae, table, code: GeneratedCode, path: Path) -> None:
     """Raise LagcodegenError unless the constrained table ``dae`` is what ``code.dae`` describes
     (and one the runtime's drivers read)."""
     lay, null = code.dae, rt.ffi.NULL
-    got = (dae.nq, dae.nj, dae.njh, dae.ng, dae.np, dae.nout, dae.nroot, dae.roots != null, dae.ggl_res != null,
-           dae.ggl_jac != null, dae.model == table)
-    expected = (lay.nq, lay.nj, lay.njh, lay.ng, lay.np, lay.nout, lay.nroot, lay.nroot > 0, lay.ggl, lay.ggl_jac,
-                True)
+    nv = lay.nq if getattr(lay, "nv", None) is None else lay.nv  # the state y = (q, v): ny = nq + nv
+    got = (dae.nq, dae.ny, dae.nj, dae.njh, dae.ng, dae.np, dae.nout, dae.nroot, dae.roots != null,
+           dae.ggl_res != null, dae.ggl_jac != null, dae.model == table)
+    expected = (lay.nq, lay.nq + nv, lay.nj, lay.njh, lay.ng, lay.np, lay.nout, lay.nroot, lay.nroot > 0, lay.ggl,
+                lay.ggl_jac, True)
     message = rt.ffi.new("char[]", 256)
     if got != expected or not rt.lib.lcg_dae_check(dae, message, 256):
         why = rt.ffi.string(message).decode(errors="replace")
         raise LagcodegenError(f"the library built for constrained model {code.model_name!r} ({path}) has another "
-                              f"layout than its code: (nq, nj, njh, ng, np, nout, nroot, roots, ggl_res, ggl_jac, "
+                              f"layout than its code: (nq, ny, nj, njh, ng, np, nout, nroot, roots, ggl_res, ggl_jac, "
                               f"model) = {got}, expected {expected}" + (f"; {why}" if why else ""))
 
 

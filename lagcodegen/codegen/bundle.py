@@ -383,6 +383,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     """
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
+    require_lagrange(system.model, "a constrained bundle")
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     if getattr(system, "contacts", None):

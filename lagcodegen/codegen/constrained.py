@@ -46,6 +46,11 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     """
     language = backend(lang)
     model = system.model
+    if model.general and (ggl or lang != "c"):
+        raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
+                         "constrained code is the index-1 formulation in C (formulation='index1', lang='c'); "
+                         + ("the GGL formulation (IDA) does not take it yet" if ggl else
+                            f"lang={lang!r} does not take it yet"))
     eom = derive(model)
     if eom.quadratures:
         raise ModelError("constrained systems with quadrature states are not supported")
@@ -63,7 +68,11 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
                state_names=code.state_names, param_names=list(scene.runtime_parameters),
                outputs=[name for name, _ in outs], roots=[f"{ev.name}: {ev.expr}" for ev in evs],
                ggl=ggl, ggl_jac=bool(ggl and ggl_jacobian), outputs_use_lam=cb.outputs_use_lam,
-               roots_use_lam=cb.roots_use_lam)
+               roots_use_lam=cb.roots_use_lam, general=model.general, nv=model.nv)
+    if model.general:  # n is the speeds' count nv there; the coordinates' count and rates q' = k(q, v, t)
+        quaternions = [model.index(lk.coordinates[-4]) for lk in model.links if lk.joint.quaternion]
+        ctx.update(n=model.nq, kin=print_block(cb.blocks["kin"]), conq=print_block(cb.blocks["conq"]),
+                   quaternions=quaternions)
     env = environment()
     files = {f"{pre}_dae.h": env.get_template("c/dae.h.j2").render(**ctx)}
     with deep_recursion():
@@ -79,12 +88,17 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if ggl:
             raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
                              "formulation (formulation='index1'), not GGL")
+        if model.general and system.has_friction:
+            raise ModelError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) of model {model.name!r} "
+                             "with generalized speeds is not supported yet: the friction driver takes models whose "
+                             "speeds are their coordinates' rates (frictionless or no-slip tangent= contacts are)")
         files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
-    code.dae = DaeLayout(nq=n, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
-                         nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian))
-    info = ConstrainedCodeInfo(pre, n, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
+    code.dae = DaeLayout(nq=model.nq, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
+                         nroot=len(evs), ggl=bool(ggl), ggl_jac=bool(ggl and ggl_jacobian),
+                         nv=model.nv if model.general else None)
+    info = ConstrainedCodeInfo(pre, model.nq, J, JH, ng, [name for name, _ in outs], evs, ggl, bool(ggl and ggl_jacobian),
                                dict(scene.folded), lang, tuple(system.contacts))
     return code, info
 

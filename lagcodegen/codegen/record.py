@@ -18,7 +18,9 @@ class DaeLayout:
     """The layout of a constrained system's functions (``<prefix>_dae.h``), which its function
     table ``<prefix>_dae_table.c`` (``lcg_dae_model.h``) states and the build checks: nq
     coordinates, nj equality constraints (njh holonomic), ng GGL unknowns, nout outputs, nroot
-    root functions; ``ggl``: the GGL residual is compiled, ``ggl_jac``: its Jacobian too."""
+    root functions; ``ggl``: the GGL residual is compiled, ``ggl_jac``: its Jacobian too; ``nv``:
+    the generalized speeds (None: nq, the speeds are the coordinates' rates), the state
+    y = (q, v) of nq + nv values (the table's ny)."""
 
     nq: int
     nj: int
@@ -29,6 +31,7 @@ class DaeLayout:
     nroot: int
     ggl: bool
     ggl_jac: bool
+    nv: int | None = None
 
 
 @dataclass

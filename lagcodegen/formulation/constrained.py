@@ -56,6 +56,32 @@ class ConstrainedSymbols:
         self.JH = len(self.f)
         self.M = eom.M_se
         self.F = eom.F_se
+        self.nq = self.nv = self.n
+        self.general = model.general
+        if model.general:
+            self._speeds(model, eom)
+
+    def _speeds(self, model, eom) -> None:
+        """Generalized speeds v (q' = k(q, v, t), linear in v): the rows in v, A_v = dk/dv-weighted
+        A (A_v = A G), s = A k + A0 (= A_v v + A0_v), gamma = -(ds/dt + ds/dq k) (v' excluded); the
+        holonomic rows in q kept as ``Aq`` (the positions' projection) and k as ``kin``."""
+        self.nv = model.nv
+        self.qd = [se.Symbol(s.name) for s in model.speeds]
+        self.v = [se.Symbol(s.name) for s in model.v]
+        inv = {qd: k for qd, k in zip(self.qd, eom.qdot_se) if qd not in set(self.v)}
+        self.kin = [se.sympify(k) for k in eom.qdot_se]
+        self.Aq = [list(self.A[j]) for j in range(self.JH)]
+        self.s = [se.sympify(s).xreplace(inv) for s in self.s]
+        self.A = [[se.diff(s, v) for v in self.v] for s in self.s]
+        self.gamma = [-self.rate(s) for s in self.s]
+        self.n = self.nv
+
+    def rate(self, w):
+        """d/dt w(q, v, t) with v' excluded: dw/dt + dw/dq q' (q' = k for generalized speeds)."""
+        d = se.diff(w, self.t)
+        for q, k in zip(self.q, self.kin if self.general else self.v):
+            d = d + se.diff(w, q) * k
+        return d
 
 
 
@@ -72,17 +98,23 @@ def mass_force_block(sym, c) -> Block:
         exprs.append(c(sym.F[i]))
     return Block(targets, exprs)
 
+def kinematics_block(sym, c) -> Block:
+    """The coordinates' rates ydot[i] = k_i(q, v, t) of a system with generalized speeds."""
+    return Block([("ydot", i) for i in range(sym.nq)], [c(k) for k in sym.kin])
+
+
 def _constrained_outputs(system: ConstrainedSystem, sym: ConstrainedSymbols, scene: Scene,
                          names: Sequence[str]) -> list[tuple[str, object]]:
     """(name, symengine expression) of the requested outputs, groups expanded."""
     model = system.model
     avail = dict(scene.available_outputs())
     coord_names = [q.name for q in model.coords]
+    speed_names = [v.name for v in model.v] if model.general else coord_names
     lam_names, force_names, resid_names, ineq_names = [], [], [], []
     for j in range(sym.J):
         avail[f"lambda_{j}"] = sym.lam[j]
         lam_names.append(f"lambda_{j}")
-        for i, c in enumerate(coord_names):
+        for i, c in enumerate(speed_names):
             avail[f"R_{j}_{c}"] = sym.lam[j] * sym.A[j][i]
             force_names.append(f"R_{j}_{c}")
     for j in range(sym.JH):
@@ -161,7 +193,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
     """The expression blocks of the constrained code of ``system`` (symbols renamed as in ``scene``)."""
     sym = ConstrainedSymbols(system, scene.eom)
     n, J, JH = sym.n, sym.J, sym.JH
-    ng = 2 * n + J + JH
+    ng = sym.nq + n + J + JH
     base = symbol_map(scene)
 
     def c(e, sub=base):
@@ -182,6 +214,10 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         exprs.append(c(sym.f[k]))
     blocks["con"] = Block(targets, exprs)
     blocks["gam"] = Block([("gam", r) for r in range(J)], [c(e) for e in sym.gamma])
+    if sym.general:  # the holonomic rows in q (positions' projection) and q' = k(q, v, t)
+        blocks["conq"] = Block([("Aq", r, i) for r in range(JH) for i in range(sym.nq)],
+                               [c(sym.Aq[r][i]) for r in range(JH) for i in range(sym.nq)])
+        blocks["kin"] = kinematics_block(sym, c)
 
     # outputs and roots: the multipliers are the array lam[]
     out_sub = dict(base)
@@ -252,6 +288,9 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
     heights = list(sym.f) + [se.Integer(0)] * (J - JH)
     def row(g):
+        if sym.general:  # w = dg/dq k + dg/dt in (q, v, t); the row in v: dw/dv
+            w = sum((se.diff(g, q) * k for q, k in zip(sym.q, sym.kin)), se.Integer(0)) + se.diff(g, sym.t)
+            return [se.diff(w, v) for v in sym.v], w, -sym.rate(w)
         G = [se.diff(g, q) for q in sym.q]
         w = sum((a * v for a, v in zip(G, sym.v)), se.Integer(0)) + se.diff(g, sym.t)
         d = se.diff(w, sym.t)

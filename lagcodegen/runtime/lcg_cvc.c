@@ -48,9 +48,11 @@ int lcg_dae_check(const lcg_dae_model *m, char *message, size_t size)
         why = "no model table";
     else if (m->abi != LCG_DAE_MODEL_ABI)
         why = "a table of another version";
-    else if (m->nq < 1 || m->nj < 0 || m->njh < 0 || m->njh > m->nj || m->ny != 2 * m->nq
-             || m->ng != 2 * m->nq + m->nj + m->njh || m->np < 0 || m->nout < 0 || m->nroot < 0)
+    else if (m->nq < 1 || m->nj < 0 || m->njh < 0 || m->njh > m->nj || m->ny < m->nq + 1
+             || m->ng != m->ny + m->nj + m->njh || m->np < 0 || m->nout < 0 || m->nroot < 0)
         why = "inconsistent sizes";
+    else if (m->ggl_res != NULL && m->ny != 2 * m->nq)
+        why = "a GGL residual of a model with generalized speeds (ny != 2 nq)";
     else if (m->kkt == NULL || m->crhs == NULL || m->natural_rate == NULL || m->residuals == NULL
              || m->project == NULL || m->coutputs == NULL || (m->nroot > 0 && m->roots == NULL) || (m->ggl_jac != NULL && m->ggl_res == NULL))
         why = "missing functions";
@@ -126,15 +128,15 @@ int lcg_dae_initial_state(const lcg_dae_model *m, double t, const double *y, con
     ny = m->ny;
     nj = m->nj;
     njh = m->njh;
-    /* g[max(njh, 1)], s[max(nj, 1)], acc[nq], lam[max(nj, 1)], gout[max(nroot, 1)] */
-    buf = (double *)malloc(sizeof(double) * (size_t)((njh > 0 ? njh : 1) + 2 * (nj > 0 ? nj : 1) + nq
+    /* g[max(njh, 1)], s[max(nj, 1)], acc[nv = ny - nq], lam[max(nj, 1)], gout[max(nroot, 1)] */
+    buf = (double *)malloc(sizeof(double) * (size_t)((njh > 0 ? njh : 1) + 2 * (nj > 0 ? nj : 1) + (ny - nq)
                                                      + (m->nroot > 0 ? m->nroot : 1)));
     if (buf == NULL)
         return LCG_FLAG_NOMEM;
     g = buf;
     s = g + (njh > 0 ? njh : 1);
     acc = s + (nj > 0 ? nj : 1);
-    lam = acc + nq;
+    lam = acc + (ny - nq);
     gout = lam + (nj > 0 ? nj : 1);
     if (mode == 1) {
         if (m->residuals(t, y, p, g, s) != LCG_DAE_OK)
@@ -173,7 +175,7 @@ int lcg_dae_initial_state(const lcg_dae_model *m, double t, const double *y, con
     }
     if (m->kkt(t, yy, p, 0.0, 0.0, acc, lam) != LCG_DAE_OK)
         goto done;
-    if (yp != NULL) {
+    if (yp != NULL) { /* GGL: ny = 2 nq (lcg_dae_check) */
         for (i = 0; i < nq; ++i) {
             yp[i] = yy[nq + i];
             yp[nq + i] = acc[i];

@@ -24,10 +24,11 @@ extern "C" {
 typedef struct lcg_dae_model {
     int abi;    /* LCG_DAE_MODEL_ABI */
     int nq;     /* coordinates */
-    int ny;     /* index-1 state size 2 nq: y = (q, q') */
+    int ny;     /* index-1 state size nq + nv: y = (q, v), nv = ny - nq the generalized speeds (the size of
+                 * M, of the rows A in v and of kkt's acc); 2 nq when v = q' (crhs writes q' = k(q, v, t)) */
     int nj;     /* equality constraints (rows of A) */
     int njh;    /* holonomic ones among them (the first njh rows) */
-    int ng;     /* GGL unknowns 2 nq + nj + njh: yy = (q, q', lambda, mu) */
+    int ng;     /* GGL unknowns ny + nj + njh: yy = (q, q', lambda, mu) (GGL: ny = 2 nq only) */
     int np;     /* run-time parameters */
     int nout;   /* outputs */
     int nroot;  /* root (event) functions */

@@ -89,7 +89,7 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
         return -1;
     }
     if (rc == LCG_DAE_OK && d->fr != NULL) { /* the integrals of the contact forces (see FR_WATCH) */
-        double *z = N_VGetArrayPointer(ydot) + 2 * d->im->nq;
+        double *z = N_VGetArrayPointer(ydot) + d->m->ny;
         int k, nk = d->im->nk, nj = d->im->nj;
         for (k = 0; k < nk; ++k) {
             z[2 * k] = d->lam[nj + k];
@@ -749,6 +749,7 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     int *ib;
 
     if (fr->abi != LCG_IMP_FRICTION_ABI || fr->imp != im || fr->nt != nrow - im->nj - nk || fr->njh < 0
+        || im->dae->ny != 2 * n /* the friction driver takes v = q' only */
         || fr->njh > im->nj || (fr->nt > 0 && fr->tangent_of == NULL) || fr->eval == NULL) {
         snprintf(st->message, sizeof st->message, "the friction table is unusable (lcg_imp_friction version %d, "
                  "this driver reads version %d)", fr->abi, LCG_IMP_FRICTION_ABI);
@@ -812,7 +813,7 @@ static int impact(imp_data *d, double t, double *y, const int *hit, const double
                   double *last, double *s, int *rows, double *rec, int max_rec, int *n_rec)
 {
     const lcg_imp_model *im = d->im;
-    int nk = im->nk, nj = im->nj, ny = 2 * im->nq, k, rc, iter, changed = 0;
+    int nk = im->nk, nj = im->nj, ny = im->dae->ny, k, rc, iter, changed = 0;
     double *eff = s, *wm = eff + nk, *P = wm + nk, *ynew = P + im->nrow, *gk = d->gk, *wk = d->wk;
     double gap_tol = set[2];
     int *plastic = rows + nk;

@@ -6,8 +6,9 @@
  * Rows r = 0..nj-1 are the equality constraints A q' + A0 = 0 (eq. 4.2, 4.3), rows nj + k the
  * contacts G_k q' + G0_k with G_k = dg_k/dq, G0_k = dg_k/dt, the rows after them (up to nrow)
  * the tangential rows of rough contacts (no slip, or Coulomb friction: lcg_imp_friction below),
- * held with their contact while it sticks. Pure C99; no other
- * dependency. */
+ * held with their contact while it sticks. Models with generalized speeds v (q' = k(q, v, t),
+ * dae->ny = nq + nv): the rows act on v (nv columns), ydot = (k, v'), the impact jumps v; the
+ * friction table takes v = q' only (ny = 2 nq). Pure C99; no other dependency. */
 #ifndef LCG_IMP_MODEL_H
 #define LCG_IMP_MODEL_H
 

@@ -166,6 +166,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         sensitivities = getattr(family, "sensitivities", None) is not None
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(float(t[0]), q0, v0, p, initial, ic_tol, self._ggl)
+        if sensitivities and self.system.model.general:
+            raise LagcodegenError(f"sensitivities of constrained systems with generalized speeds (model "
+                                  f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not computed yet")
         if sensitivities and self.info.contacts:
             raise LagcodegenError("sensitivities of systems with contacts (impacts) are not computed")
         if sensitivities:
@@ -180,6 +183,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
             res = family.run_index1(self, t, y0, p, rtol, atol, roots)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
+        if self.system.model.general:
+            res.n_speeds = self.nv
         res.formulation = self.formulation
         if raise_on_error and not res.success:
             cls = SingularMassMatrixError if res.stats.get("model_error") == ERR_SINGULAR else SolverError
@@ -217,7 +222,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                 yy0, yp0 = self._ggl_initial(t0, y0, p)
             stepper = family.stepper_ggl(self, mem, yy0, yp0, rtol, atol, roots)
         else:
-            rtol, atol_arr = tolerances(rtol, atol, 2 * self._n, scalar=True)
+            rtol, atol_arr = tolerances(rtol, atol, self._ny, scalar=True)
             stepper = family.stepper_index1(self, mem, rtol, atol_arr, roots)
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
@@ -286,6 +291,10 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self.info.contacts:
             raise LagcodegenError("ensembles of systems with contacts are not supported: run the members with "
                                   "simulate (each a call of the impact driver)")
+        if self.system.model.general:
+            raise LagcodegenError(f"ensembles of constrained systems with generalized speeds (model "
+                                  f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not supported yet: "
+                                  "run the members with simulate")
         return ensemble_constrained(self, t, q0, v0, params=params,
                                     recording=Recording(save=save, threads=threads, progress=progress),
                                     executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
@@ -307,7 +316,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                 return pool.pop()
             except IndexError:  # taken by another thread meanwhile
                 pass
-        ny = self.info.ng if self.formulation == "ggl" else 2 * self._n
+        ny = self.info.ng if self.formulation == "ggl" else self._ny
         return NativeEvents(self.ffi, self.events_type, self.info.events, ny, max_events)
 
     def release_events(self, events: NativeEvents) -> None:

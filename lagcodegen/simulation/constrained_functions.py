@@ -71,8 +71,11 @@ class ConstrainedFunctions(_Base):
         self.c_initial_state = functools.partial(lib.lcg_dae_initial_state, table)
         # layout, fixed at compile time (read on every call)
         self._n = system.model.n
-        self._state_names = list(cm.state_names[: 2 * self._n])
+        #: the state y = (q, v): nq + nv values (2 nq unless the model has generalized speeds)
+        self._ny = system.model.nq + system.model.nv
+        self._state_names = list(cm.state_names[: self._ny])
         self._coord_names = [q.name for q in system.model.coords]
+        self._speed_names = [v.name for v in system.model.v]
         # the monitored inequalities: the first root functions (contacts have none)
         self._nineq = len(system.inequalities) - len(system.contacts)
         self._ggl = ggl
@@ -88,6 +91,16 @@ class ConstrainedFunctions(_Base):
     def n(self) -> int:
         """Number of coordinates."""
         return self._n
+
+    @property
+    def ny(self) -> int:
+        """Size of the state y = (q, v): nq + nv (2 n unless the model has generalized speeds)."""
+        return self._ny
+
+    @property
+    def nv(self) -> int:
+        """Number of generalized speeds (n unless the model has generalized speeds)."""
+        return self._ny - self._n
 
     @property
     def state_names(self) -> list[str]:
@@ -125,14 +138,14 @@ class ConstrainedFunctions(_Base):
 
     def _y(self, y, size: int | None = None, what: str = "y") -> np.ndarray:
         names = self.state_names if size is None else None
-        return c_vector(y, 2 * self.n if size is None else size, what, names)
+        return c_vector(y, self._ny if size is None else size, what, names)
 
     # ------------------------------------------------------------------ generated functions
     def kkt(self, t: float, y, params=None, alpha: float = 0.0, beta: float = 0.0):
         """(q'', lambda) from the augmented system at (t, y)."""
         y = self._y(y)
         p = self._p(params)
-        acc, lam = np.empty(self.n), np.empty(max(self.info.J, 1))
+        acc, lam = np.empty(self.nv), np.empty(max(self.info.J, 1))
         rc = self.c_kkt(float(t), self._ptr(y), self._ptr(p), float(alpha), float(beta), self._ptr(acc), self._ptr(lam))
         self._check(rc, t, "augmented system")
         return acc, lam[: self.info.J]
@@ -234,7 +247,7 @@ class ConstrainedFunctions(_Base):
         """
         names = [q.name for q in self.system.model.coords]
         q = state_vector(q0, names, "q0")
-        v = state_vector(v0, names, "v0")
+        v = state_vector(v0, [s.name for s in self.system.model.v], "v0")
         p = self._p(params)
         y = np.concatenate([q, v])
         if initial == "none":
@@ -296,14 +309,14 @@ class ConstrainedFunctions(_Base):
         if mode is not None and (isinstance(ic_tol, float) or type(ic_tol) is int):
             names = self._coord_names
             fb, darr = self.ffi.from_buffer, self._double_array
-            y = self.ffi.new(darr, _state_values(q0, names, "q0") + _state_values(v0, names, "v0"))
+            y = self.ffi.new(darr, _state_values(q0, names, "q0") + _state_values(v0, self._speed_names, "v0"))
             if ggl:
                 yy, yp = np.empty(self.info.ng), np.empty(self.info.ng)
                 rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), fb(darr, yp))
                 if rc == 0:
                     return yy[: 2 * self._n], yy, yp
             else:
-                yy = np.empty(2 * self._n)
+                yy = np.empty(self._ny)
                 rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), self.ffi.NULL)
                 if rc == 0:
                     return yy, None, None

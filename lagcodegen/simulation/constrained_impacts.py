@@ -315,7 +315,7 @@ class ImpactRunner:
         method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
         nr = nj + nk
-        ny, nt = 2 * sim.n, t.size
+        ny, nt = sim.ny, t.size
         if not (type(atol) is float or isinstance(atol, (int, float))):
             raise LagcodegenError("runs with contacts take a scalar atol")
         yout = np.empty((nt, ny))

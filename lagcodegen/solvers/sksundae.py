@@ -195,7 +195,7 @@ def solve_index1(sim, t, y0, p, control: StepControl, form: Index1Form, roots: b
     min_step, max_order = control.min_step, control.max_order
     alpha, beta = form.alpha, form.beta
 
-    ffi, ny = sim.ffi, 2 * sim.n
+    ffi, ny = sim.ffi, sim.ny
     pp = sim.c_params(p)
     crhs = sim.c_crhs
     state = {"model_error": 0, "t": float(t[0])}

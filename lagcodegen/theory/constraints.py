@@ -31,12 +31,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
-from ..derivation import derive, require_lagrange
+from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
@@ -180,7 +180,6 @@ class ConstrainedSystem:
                  inequalities: Iterable = (), *, integrable: str = "error", check_integrability: bool = True):
         if not isinstance(model, Model):
             raise ModelError(f"ConstrainedSystem needs a lagcodegen Model, got {type(model).__name__}")
-        require_lagrange(model, "ConstrainedSystem")
         if integrable not in INTEGRABLE_POLICIES:
             raise ModelError(f"integrable must be one of {', '.join(INTEGRABLE_POLICIES)}, got {integrable!r}")
         self.model = model
@@ -235,10 +234,12 @@ class ConstrainedSystem:
             self.inequalities.append(g)
 
         J = len(self.holonomic) + len(self.nonholonomic)
-        if J > n:
+        if J > model.nv:
+            what = "coordinates" if not model.general else "generalized speeds"
+            names = model.coords if not model.general else model.v
             raise ModelError(f"{J} equality constraints ({len(self.holonomic)} holonomic, "
-                             f"{len(self.nonholonomic)} nonholonomic) but only {n} coordinates "
-                             f"({', '.join(q.name for q in model.coords)}): at most {n} are possible")
+                             f"{len(self.nonholonomic)} nonholonomic) but only {model.nv} {what} "
+                             f"({', '.join(q.name for q in names)}): at most {model.nv} are possible")
         if J == 0 and not self.inequalities:
             raise ModelError("no constraints given")
 
@@ -400,16 +401,19 @@ class ConstrainedSystem:
     def _numeric_values(self, q0, v0, params, t0):
         model = self.model
         q = state_vector(q0, [s.name for s in model.coords], "q0")
-        v = np.zeros(self.n) if v0 is None else state_vector(v0, [s.name for s in model.coords], "v0")
+        v = np.zeros(model.nv) if v0 is None else state_vector(v0, [s.name for s in model.v], "v0")
         pvals = {s: float(val) for s, val in model.params.items()}
         names = {s.name: s for s in model.params}
         for key, val in (params or {}).items():
             if key not in names:
                 raise ModelError(f"{key!r} is not a parameter of model {model.name!r}")
             pvals[names[key]] = check_finite(val, f"parameter {key!r}")
-        subs = {**dict(zip(model.coords, q)), **dict(zip(model.speeds, v)), **pvals,
+        subs = {**dict(zip(model.coords, q)), **dict(zip(model.v, v)), **pvals,
                 model.t: check_finite(t0, "t0")}
         subs = {k: sp.Float(float(val), 17) for k, val in subs.items()}
+        if model.general:  # the coordinates' rates q' = k(q, v, t) at this state
+            rates = [sp.sympify(k).xreplace(subs).evalf() for k in model.qdot]
+            subs.update({qd: sp.Float(float(r), 17) for qd, r in zip(model.speeds, rates) if qd not in subs})
         return q, v, subs
 
     def evaluate(self, q0, v0=None, params: Mapping | None = None, t0: float = 0.0) -> dict:
@@ -430,6 +434,10 @@ class ConstrainedSystem:
         g = np.array([num(f, f"holonomic constraint {j}") for j, f in enumerate(self.holonomic)])
         v = np.array([float(subs[s]) for s in self.model.speeds], dtype=float)
         gdot = A @ v + A0 if self.J else np.zeros(0)
+        if self.model.general and self.J:  # the rows in the generalized speeds: A G, G = dk/dv
+            model = self.model
+            G = np.array([[num(sp.diff(k, w), "kinematic equation") for w in model.v] for k in model.qdot])
+            A = A @ G
         ineq = np.array([num(gk, f"inequality constraint {k}") for k, gk in enumerate(self.inequalities)])
         return {"A": A, "A0": A0, "g": g, "gdot": gdot, "inequalities": ineq}
 
@@ -455,7 +463,7 @@ class ConstrainedSystem:
             rank = int(np.linalg.matrix_rank(A, tol=rank_tolerance(A)))
             if rank < J:
                 detail = dependent_rows(A)
-                raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{self.n}) has rank "
+                raise ModelError(f"singular constraint Jacobian at the initial state: A ({J}x{A.shape[1]}) has rank "
                                  f"{rank} < {J} constraints; {detail} (redundant or inconsistent constraints, "
                                  "or a singular configuration)")
         bad = [f"holonomic constraint {j} (g_{j} = {excerpt(f)}) has residual {vals['g'][j]:.3g}"
@@ -531,3 +539,36 @@ def dependent_rows(A: np.ndarray) -> str:
         else:
             kept.append(j)
     return "; ".join(parts) or "rank deficient"
+
+
+def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restitution: float, ground: float = 0.0,
+                   tangent: str | None = None, friction: float | None = None, name: str | None = None) -> Inequality:
+    """A ground contact of the point ``point`` of ``link`` (a link of ``model`` or its name; the
+    point in the link frame): the inequality g = z - ground >= 0 on the point's world height (the
+    plane z = ``ground``, normal +z), an :class:`Inequality` with the coefficient of
+    ``restitution``, for :class:`ConstrainedSystem`'s ``inequalities``; the point is declared on
+    the model as ``name`` (default ``<link>_contact_<k>``). Without ``tangent`` the contact is
+    frictionless; ``tangent="x"`` or ``"y"``: a rough contact along that world axis only (no slip,
+    or Coulomb ``friction`` mu), the contact driver taking one tangential direction per contact:
+    3-D friction (two directions) is refused. Works on floating-base models (quaternion free
+    joints: ``urdf.load(path, floating=True)``)."""
+    if not isinstance(model, Model):
+        raise ModelError(f"ground_contact needs a lagcodegen Model, got {type(model).__name__}")
+    link = getattr(link, "name", link)
+    if not isinstance(link, str):
+        raise ModelError(f"ground_contact: link must be a link or its name, got {link!r}")
+    if tangent not in (None, "x", "y"):
+        raise ModelError(f"ground_contact: tangent must be None, 'x' or 'y' (one world axis: the contact driver takes "
+                         f"one tangential direction per contact; 3-D friction is not supported), got {tangent!r}")
+    if friction is not None and tangent is None:
+        raise ModelError("ground_contact: friction needs a tangent direction ('x' or 'y'); 3-D Coulomb friction (two "
+                         "tangential directions per contact) is not supported")
+    if name is None:
+        k = sum(1 for nme in model.points if nme.startswith(f"{link}_contact_"))
+        name = f"{link}_contact_{k}"
+    pt = model.point_on(link, point, name)
+    if pt.dim != 3:
+        raise ModelError(f"ground_contact: the point of link {link!r} is not 3-D")
+    g = pt.position[2] - _expr(ground, "ground_contact: ground height")
+    tan = None if tangent is None else pt.position["xy".index(tangent)]
+    return Inequality(g, restitution=restitution, tangent=tan, friction=friction)

@@ -224,7 +224,7 @@ def test_what_does_not_take_generalized_speeds_yet_says_so():
     with pytest.raises(LagcodegenError, match="one component of the unit quaternion of joint 'ball'"):
         cm.simulate(t, v0=[0, 1, 0], sensitivities=["ball_qw(0)"])
     for call, what in [(lambda: lcg.linearize(lcg.derive(m), q0=[0, 0, 0, 1]), "linearize"),
-                       (lambda: lcg.ConstrainedSystem(m, holonomic=[sp.Symbol("ball_qx")]), "ConstrainedSystem"),
+                       # ConstrainedSystem takes them (index-1 and impacts: tests/test_constrained_speeds.py)
                        (lambda: lcg.steady_motions(m), "steady_motions")]:
         with pytest.raises(ModelError, match=f"{what}: model 'tumbler' has generalized speeds"):
             call()

@@ -42,11 +42,11 @@ def ensemble_index1(sim, t, Y, P, control: StepControl, form: Index1Form, record
     """The members (consistent states, rows of Y) of an index-1 constrained system ``sim`` in the
     index-1 form ``form``; ``recording.roots``: locate the compiled events in each member."""
     n = sim.n
-    c = control.with_tolerances(*tolerances(control.rtol, control.atol, 2 * n))
+    c = control.with_tolerances(*tolerances(control.rtol, control.atol, sim.ny))
     keep: list = []
     opt = native_options(sim.ffi, sim.cvc_options_type, c.atol, keep, proj_err=1,
                          **option_fields(CVC_OPTIONS, c, form, recording))
-    layout = Layout(nrow=2 * n, nout=len(sim.info.output_names), state_names=sim.state_names,
+    layout = Layout(nrow=sim.ny, nout=len(sim.info.output_names), state_names=sim.state_names,
                     output_names=sim.output_names, row_names=list(sim.state_names), param_names=sim.param_names,
                     method=c.method, formulation=sim.formulation, n_coordinates=n)
     return run_native(sim.ffi, sim.cvc_solve_many, sim.cvc_ensemble_type, opt, RunArrays(t, Y, P), layout,

@@ -170,7 +170,7 @@ def solve_index1(sim, t, y0, p, control: StepControl, form: Index1Form, recordin
     and ``y0`` contiguous float64 arrays (the caller's checks)."""
     c, roots, method = control, recording.roots, control.method
     ffi = sim.ffi
-    ny, nt = 2 * sim._n, t.size
+    ny, nt = sim.ny, t.size
     yout = np.empty((nt, ny))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
     opt = sim.cvc_options.get(c.atol, *option_values(CVC_STRUCT, _CVC_VARYING, c, form, recording))
@@ -208,7 +208,7 @@ def append_event_row(sim, tt, yy, oo, t_event: float, y_event, p, lam=None):
     if tt.size and t_event <= tt[-1]:
         return tt, yy, oo
     try:
-        o = sim.outputs(t_event, y_event[: 2 * sim.n], p, lam=lam)
+        o = sim.outputs(t_event, y_event[: sim.ny], p, lam=lam)
     except LagcodegenError:
         o = np.full(oo.shape[1], np.nan)
     return (np.append(tt, t_event), np.vstack([yy, np.asarray(y_event)[None, :]]),

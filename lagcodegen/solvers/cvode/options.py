@@ -277,7 +277,7 @@ class CVODE(Family):
                 and native_backend:
             atol_arr = atol  # what tolerances() returns for these
         else:
-            rtol, atol_arr = tolerances(rtol, atol, 2 * sim.n, scalar=native_backend)
+            rtol, atol_arr = tolerances(rtol, atol, sim.ny, scalar=native_backend)
         # the records made once while the values stay the same (repeated runs of a fit or a sweep)
         key = (rtol, atol_arr, method, projection, alpha, beta, bool(roots)) if type(atol_arr) is float else None
         control, form, recording = remembered(self, key, lambda: (
@@ -302,7 +302,7 @@ class CVODE(Family):
         if self.sensitivities is not None:
             raise LagcodegenError("the integrator object does not compute sensitivities: use simulate(..., "
                                   "sensitivities=[...])")
-        ny = 2 * sim.n
+        ny = sim.ny
         method, projection, alpha, beta = self.index1_settings(sim, float(mem[0]), mem[1:1 + ny], mem[1 + ny:])
         return CVCStepper(sim, mem, StepControl.of(self, rtol, atol, method=method),
                           self.index1_form(projection, alpha, beta), self.recording(10_000, roots=roots))

@@ -133,7 +133,7 @@ class CVCStepper(NativeStepper):
         ffi, lib = rt.ffi, rt.lib
         self.ffi, self.lib, self.rt = ffi, lib, rt
         self.sim = sim  # keeps the model's library open
-        ny = 2 * sim.n
+        ny = sim.ny
         table = ffi.cast("const lcg_dae_model *", int(sim.ffi.cast("uintptr_t", sim.table)))
         c, roots = control, recording.roots
         opt = ffi.new("lcg_cvc_options *")

@@ -1,0 +1,244 @@
+"""Constrained systems with generalized speeds (issue 37): quaternion (free) joints held by
+holonomic constraints on the index-1 formulation, and their impacts (the jump acts on v),
+checked against independent facts: the same systems in Z-Y-X angles (Lagrange's form, the
+formulation that predates generalized speeds) and the analytic bounce of a dropped body."""
+
+import numpy as np
+import pytest
+
+import lagcodegen as lcg
+from lagcodegen.errors import ModelError
+from lagcodegen.theory.constraints import ConstrainedSystem, Inequality
+
+G0 = 9.81
+INERTIA = (0.1, 0.2, 0.3, 0, 0, 0)
+
+
+def zyx_quaternion(yaw, pitch, roll):
+    """(x, y, z, w) of R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    cy, sy = np.cos(yaw / 2), np.sin(yaw / 2)
+    cp, sp_ = np.cos(pitch / 2), np.sin(pitch / 2)
+    cr, sr = np.cos(roll / 2), np.sin(roll / 2)
+    return np.array([sr * cp * cy - cr * sp_ * sy, cr * sp_ * cy + sr * cp * sy, cr * cp * sy - sr * sp_ * cy,
+                     cr * cp * cy + sr * sp_ * sy])
+
+
+def pinned_body(rotation, pivot):
+    """A rigid body on a free joint whose body point ``pivot`` is held at the origin (3 holonomic
+    constraints): a heavy top with a fixed point."""
+    m = lcg.Model("pinned_" + rotation.lower())
+    m.link("body", joint=lcg.Joint.free("root", rotation=rotation), mass=1.0, inertia=INERTIA)
+    m.gravity(G0)
+    tip = m.point_on("body", pivot, "pivot")
+    return ConstrainedSystem(m, holonomic=list(tip.position))
+
+
+def test_pinned_body_quaternion_agrees_with_euler_angles():
+    rb, w = np.array([0.1, 0.2, 0.5]), np.array([0.7, -1.1, 2.3])
+    quat = lcg.compile_constrained(pinned_body("quaternion", rb))
+    euler = lcg.compile_constrained(pinned_body("ZYX", rb))
+    assert quat.system.model.general and (quat.n, quat.nv, quat.ny) == (7, 6, 13)
+    vlin = -np.cross(w, rb)  # the pivot at rest: v + w x r_b = 0 (child frame, R = I)
+    t = np.linspace(0.0, 3.0, 301)
+    rq = quat.simulate(t, np.concatenate([-rb, [0, 0, 0, 1]]), np.concatenate([vlin, w]), rtol=1e-11, atol=1e-12)
+    # Z-Y-X at zero angles: body rates (roll', pitch', yaw')
+    rz = euler.simulate(t, np.concatenate([-rb, [0, 0, 0]]), np.concatenate([vlin, w[::-1]]), rtol=1e-11,
+                        atol=1e-12)
+    assert np.ptp(rq.y[:, :3], axis=0).min() > 0.05  # it moves
+    assert np.abs(rq.y[:, :3] - rz.y[:, :3]).max() < 1e-9
+    assert np.abs(np.linalg.norm(rq.y[:, 3:7], axis=1) - 1).max() < 1e-9
+    g, s = quat.residuals(t[-1], rq.y[-1])
+    assert np.abs(g).max() < 1e-9 and np.abs(s).max() < 1e-9
+    # energy is conserved by the constrained motion
+    assert np.ptp(rq["energy"]) < 1e-8
+    assert list(rq.v) == [v.name for v in quat.system.model.v]
+
+
+def test_projection_in_q_and_v():
+    rb = np.array([0.1, 0.2, 0.5])
+    sim = lcg.compile_constrained(pinned_body("quaternion", rb))
+    y = np.concatenate([-rb + 1e-3, zyx_quaternion(0.2, 0.1, -0.3), [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]])
+    yp = sim.project(0.0, y)
+    g, s = sim.residuals(0.0, yp)
+    assert np.abs(g).max() < 1e-12 and np.abs(s).max() < 1e-12
+    assert abs(np.linalg.norm(yp[3:7]) - 1) < 1e-14  # the quaternion renormalized (f depends on its direction)
+
+
+def dropped_box(rotation, foot, e, tangent=None):
+    m = lcg.Model("dropped_" + rotation.lower() + ("" if tangent is None else "_" + tangent))
+    m.link("box", joint=lcg.Joint.free("root", rotation=rotation), mass=2.0, inertia=INERTIA)
+    m.gravity(G0)
+    if tangent is not None:  # a rough (no-slip) contact along one world axis
+        return ConstrainedSystem(m, inequalities=[lcg.ground_contact(m, "box", foot, restitution=e, tangent=tangent)])
+    pt = m.point_on("box", foot, "foot")
+    return ConstrainedSystem(m, inequalities=[Inequality(pt.position[2], restitution=e)])
+
+
+def test_floating_body_bounce_apex():
+    """A body on a free joint spinning about its vertical principal axis, dropped from rest with
+    its contact point h above the ground, directly below its centre of mass: after the bounce the
+    contact point rises to e^2 h, at t = (1 + e) sqrt(2 h / g), its spin unchanged."""
+    e, h, r, yaw, wz = 0.6, 0.4, 0.1, 0.7, 3.0
+    sim = lcg.compile_constrained(dropped_box("quaternion", (0, 0, -r), e))
+    t1 = np.sqrt(2 * h / G0)
+    t_apex = t1 * (1 + e)
+    q0 = [0, 0, h + r, 0, 0, np.sin(yaw / 2), np.cos(yaw / 2)]
+    res = sim.simulate(np.array([0.0, 0.5 * t1, t_apex]), q0, [0, 0, 0, 0, 0, wz], rtol=1e-12, atol=1e-13)
+    (bounce,) = res.impacts.select("bounce")
+    assert bounce.t == pytest.approx(t1, abs=1e-10)
+    assert bounce.w_after == pytest.approx(-e * bounce.w_before, rel=1e-10)
+    y = res.y[-1]
+    assert abs(y[2] - r - e * e * h) < 1e-8 and abs(y[9]) < 1e-8  # apex: height e^2 h, at rest vertically
+    yaw_end = yaw + wz * t_apex
+    assert np.allclose(y[3:7], [0, 0, np.sin(yaw_end / 2), np.cos(yaw_end / 2)], atol=1e-8) or \
+        np.allclose(y[3:7], [0, 0, -np.sin(yaw_end / 2), -np.cos(yaw_end / 2)], atol=1e-8)
+
+
+@pytest.mark.parametrize("tangent", [None, "x"])
+def test_tilted_body_impact_agrees_with_euler_angles(tangent):
+    """A tilted body dropped on a corner: the impulse makes it spin; the quaternion (free joint,
+    jump on v) and Z-Y-X (jump on q') runs agree through the impacts, frictionless or with a
+    no-slip row along x (a tangential row in v)."""
+    e, foot, angles = 0.5, (0.1, 0.05, -0.1), (0.3, 0.4, -0.2)
+    quat = lcg.compile_constrained(dropped_box("quaternion", foot, e, tangent))
+    euler = lcg.compile_constrained(dropped_box("ZYX", foot, e, tangent))
+    t = np.linspace(0.0, 0.6, 61)
+    rq = quat.simulate(t, np.concatenate([[0, 0, 0.5], zyx_quaternion(*angles)]), np.zeros(6), rtol=1e-11,
+                       atol=1e-12)
+    rz = euler.simulate(t, np.array([0, 0, 0.5, *angles]), np.zeros(6), rtol=1e-11, atol=1e-12)
+    kinds = [r.kind for r in rq.impacts]
+    assert "bounce" in kinds and kinds == [r.kind for r in rz.impacts]
+    assert np.allclose([r.t for r in rq.impacts], [r.t for r in rz.impacts], atol=1e-8)
+    assert np.allclose([r.impulse for r in rq.impacts], [r.impulse for r in rz.impacts], rtol=1e-7, atol=1e-9)
+    assert np.abs(rq.y[:, :3] - rz.y[:, :3]).max() < 1e-7
+    assert np.abs(rq.y[-1, 7:10]).max() > 0.1  # it turned
+
+
+def test_generalized_speeds_refused_where_not_supported():
+    system = pinned_body("quaternion", (0.1, 0.2, 0.5))
+    for formulation in ("ggl", "minimal"):
+        with pytest.raises(ModelError, match=f"generalized speeds.*formulation {formulation!r} does not take"):
+            lcg.compile_constrained(system, formulation)
+    from lagcodegen.codegen.constrained import generate_constrained
+    with pytest.raises(ModelError, match="generalized speeds.*GGL formulation"):
+        generate_constrained(system, ggl=True)
+    with pytest.raises(ModelError, match="generalized speeds.*lang='fortran'"):
+        generate_constrained(system, lang="fortran")
+    from lagcodegen.codegen.bundle import render_constrained_bundle
+    with pytest.raises(ModelError, match="a constrained bundle: model 'pinned_quaternion' has generalized speeds"):
+        render_constrained_bundle(system)
+
+
+def test_integrator_and_ensemble_with_generalized_speeds():
+    rb, w = np.array([0.1, 0.2, 0.5]), np.array([0.7, -1.1, 2.3])
+    sim = lcg.compile_constrained(pinned_body("quaternion", rb))
+    q0, v0 = np.concatenate([-rb, [0, 0, 0, 1]]), np.concatenate([-np.cross(w, rb), w])
+    it = sim.integrator(q0=q0, v0=v0, rtol=1e-11, atol=1e-12)
+    it.propagate_until(1.5)
+    res = sim.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-11, atol=1e-12)
+    assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - res.y[-1]).max() < 1e-12
+    with pytest.raises(lcg.LagcodegenError, match="ensembles of constrained systems with generalized speeds"):
+        sim.ensemble(np.array([0.0, 1.0]), q0=[q0, q0], v0=[v0, v0])
+
+
+def test_ground_contact_refusals():
+    m = lcg.Model("contact_refusals")
+    m.link("box", joint=lcg.Joint.free("root"), mass=1.0, inertia=INERTIA)
+    with pytest.raises(ModelError, match="3-D Coulomb friction"):
+        lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, friction=1.0)
+    with pytest.raises(ModelError, match="tangent must be None, 'x' or 'y'"):
+        lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="z")
+    rough = lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="x", friction=0.5)
+    with pytest.raises(ModelError, match="Coulomb friction .* generalized speeds"):
+        lcg.compile_constrained(ConstrainedSystem(m, inequalities=[rough]))
+
+
+def test_solo12_lands_on_four_feet_and_rests():
+    """Solo12 on Pinocchio's free flyer (example-robot-data's URDF), its 12 joints held by PD
+    torques about a standing posture, frictionless contacts at the four feet (the URDF's foot
+    frames on the lower legs), restitution 0, dropped with its base at 0.3 m: it lands on the four
+    feet at once, comes to rest, and the contact forces carry its weight (total mass by
+    Pinocchio's computeTotalMass) to 1e-6."""
+    pin = pytest.importorskip("pinocchio")
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    from lagcodegen.modelfile import urdf
+
+    path = (Path(pin.__file__).resolve().parents[4] / "share" / "example-robot-data" / "robots" / "solo_description"
+            / "robots" / "solo12.urdf")
+    feet = {}
+    for joint in ET.parse(path).getroot().findall("joint"):
+        if joint.find("child").get("link").endswith("_FOOT"):
+            feet[joint.find("parent").get("link")] = [float(x) for x in joint.find("origin").get("xyz").split()]
+    assert len(feet) == 4
+    m = urdf.load(path, floating=True)
+    pose = {}
+    for leg in ("FL", "FR", "HL", "HR"):
+        front = leg[0] == "F"
+        pose.update({f"{leg}_HAA": 0.0, f"{leg}_HFE": 0.8 if front else -0.8, f"{leg}_KFE": -1.6 if front else 1.6})
+    for name, ref in pose.items():
+        q = m.coords[m.index(name)]
+        m.generalized_force(q, -20.0 * (q - ref) - 0.5 * m.dot(q))
+    contacts = [lcg.ground_contact(m, link, xyz, restitution=0.0) for link, xyz in feet.items()]
+    sim = lcg.compile_constrained(ConstrainedSystem(m, inequalities=contacts))
+    q0 = np.array(m.neutral())
+    for name, ref in pose.items():
+        q0[m.index(name)] = ref
+    q0[2] = 0.3
+    res = sim.simulate(np.linspace(0.0, 3.0, 61), q0, np.zeros(m.nv), rtol=1e-8, atol=1e-10, method="bdf")
+    assert sorted(r.kind for r in res.impacts) == ["stick"] * 4
+    assert np.ptp([r.t for r in res.impacts]) < 1e-9  # the four feet at once (a symmetric posture)
+    assert res.impacts.final_modes == {k: "contact" for k in range(4)}
+    assert np.abs(res.y[-1, m.nq:]).max() < 1e-6  # at rest
+    weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())) * 9.81
+    normal = sum(res[f"lambda_ineq_{k}"][-1] for k in range(4))
+    assert normal == pytest.approx(weight, rel=1e-6)
+    assert np.abs(res.y[-1, :2]).max() < 1e-8  # no horizontal drift of the base
+
+
+def quat_mul(a, b):
+    """Hamilton product of (x, y, z, w) quaternions."""
+    av, aw, bv, bw = np.asarray(a[:3]), a[3], np.asarray(b[:3]), b[3]
+    return np.concatenate([aw * bv + bw * av + np.cross(av, bv), [aw * bw - av @ bv]])
+
+
+def test_rolling_sphere_nonholonomic_rows_in_quaternion_rates():
+    """A uniform ball on a free joint (quaternion) held on the plane z = r (holonomic) and rolling
+    without slip (two Pfaffian rows in q': the contact point's horizontal velocity x' - r w_y,
+    y' + r w_x with the world angular velocity w = 2 vec(q' q*)): its centre moves at constant
+    velocity and it turns at its constant initial angular velocity, q(t) = exp(w t / 2) q0."""
+    import sympy as sp
+
+    r = 0.2
+    m = lcg.Model("rolling_ball")
+    m.link("ball", joint=lcg.Joint.free("root"), mass=1.0, inertia=(0.4 * r * r,) * 3 + (0, 0, 0))
+    m.gravity(G0)
+    qx, qy, qz, qw = (m.coords[m.index(f"root_q{c}")] for c in "xyzw")
+    vec, dvec = sp.Matrix([qx, qy, qz]), sp.Matrix([m.dot(qx), m.dot(qy), m.dot(qz)])
+    w = 2 * (qw * dvec - m.dot(qw) * vec + vec.cross(dvec))  # world angular velocity, |q| = 1
+    x, y, z = (m.coords[m.index(f"root_{c}")] for c in "xyz")
+    rows = [sp.expand(m.dot(x) - r * w[1]), sp.expand(m.dot(y) + r * w[0])]
+
+    def pfaffian(expr):
+        return [sp.diff(expr, m.dot(q)) for q in m.coords]
+
+    system = ConstrainedSystem(m, holonomic=[z - r], nonholonomic=[pfaffian(e) for e in rows],
+                               check_integrability=False)
+    sim = lcg.compile_constrained(system)
+    q0 = zyx_quaternion(0.4, -0.7, 1.1)
+    qx0, qy0, qz0, qw0 = q0
+    R0 = np.array([[1 - 2 * (qy0**2 + qz0**2), 2 * (qx0 * qy0 - qz0 * qw0), 2 * (qx0 * qz0 + qy0 * qw0)],
+                   [2 * (qx0 * qy0 + qz0 * qw0), 1 - 2 * (qx0**2 + qz0**2), 2 * (qy0 * qz0 - qx0 * qw0)],
+                   [2 * (qx0 * qz0 - qy0 * qw0), 2 * (qy0 * qz0 + qx0 * qw0), 1 - 2 * (qx0**2 + qy0**2)]])
+    w_world = np.array([1.5, -2.0, 0.8])
+    v_world = np.array([r * w_world[1], -r * w_world[0], 0.0])  # rolling: v = w x (r e_z)
+    t = np.linspace(0.0, 2.0, 21)
+    res = sim.simulate(t, np.concatenate([[0, 0, r], q0]), np.concatenate([R0.T @ v_world, R0.T @ w_world]),
+                       rtol=1e-11, atol=1e-12)
+    assert np.abs(res.y[:, :3] - np.outer(t, v_world) - [0, 0, r]).max() < 1e-8
+    speed = np.linalg.norm(w_world)
+    for k, tk in enumerate(t):
+        turn = np.concatenate([np.sin(speed * tk / 2) * w_world / speed, [np.cos(speed * tk / 2)]])
+        expected = quat_mul(turn, q0)
+        assert min(np.abs(res.y[k, 3:7] - expected).max(), np.abs(res.y[k, 3:7] + expected).max()) < 1e-8
