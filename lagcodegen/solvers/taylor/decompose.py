@@ -197,6 +197,21 @@ def _refuse(expr, where: str, names: dict):
                      "sinh, cosh)")
 
 
+def folded_number(e):
+    """``e`` as a symengine number if it is one (exactly, or a float of a closed form such as
+    sqrt(2)): an Integer for integral values below 2^53, else a RealDouble; None if it holds
+    symbols or does not evaluate."""
+    if e.free_symbols:
+        return None
+    if e.is_Number:
+        return e
+    try:
+        value = float(e)
+    except (RuntimeError, TypeError, ValueError):
+        return None
+    return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
+
+
 class _Decomposer:
     """Hash-consed decomposition: every distinct subexpression becomes one row."""
 
@@ -227,15 +242,8 @@ class _Decomposer:
 
     def constant(self, e):
         """A constant subexpression: a symengine number, or a Const for the run constants."""
-        if not e.free_symbols:
-            if e.is_Number:
-                return e
-            try:
-                value = float(e)
-            except (RuntimeError, TypeError, ValueError):
-                return self._const_entry(e)
-            return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
-        return self._const_entry(e)
+        number = folded_number(e)
+        return self._const_entry(e) if number is None else number
 
     def _const_entry(self, e):
         if e not in self.const_memo:

@@ -32,7 +32,7 @@ import symengine as se
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...errors import ModelError
 # ------------------------------------------------------------------------------------------
-from .decompose import Const, Decomposition, Op
+from .decompose import Const, Decomposition, Op, folded_number
 
 
 @dataclass
@@ -98,15 +98,9 @@ class _Tangent:
     def constant(self, e):
         """A constant: a symengine number, or a Const for the run constants (as the states')."""
         e = se.expand(e) if e.free_symbols else e
-        if not e.free_symbols:
-            if e.is_Number:
-                return e
-            try:
-                value = float(e)
-            except (RuntimeError, TypeError, ValueError):
-                value = None
-            if value is not None:
-                return se.Integer(int(value)) if value.is_integer() and abs(value) < 2**53 else se.RealDouble(value)
+        number = folded_number(e)
+        if number is not None:
+            return number
         if e not in self.const_memo:
             self.const_memo[e] = Const(len(self.consts))
             self.consts.append(e)
