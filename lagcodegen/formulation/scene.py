@@ -288,29 +288,37 @@ class Scene:
                     d |= deps(M[i][k])
             dr.append(d)
         # M^-1 couples every pair of coordinates in one connected component of M's graph.
-        comp = list(range(n))
-
-        def find(i):
-            while comp[i] != i:
-                comp[i] = comp[comp[i]]
-                i = comp[i]
-            return i
-        for i in range(n):
-            for j in range(i + 1, n):
-                if nonzero[i][j] or nonzero[j][i]:
-                    comp[find(i)] = find(j)
+        find = mass_components(nonzero)
         reach: dict[int, set[int]] = {}
         for i in range(n):
-            reach.setdefault(find(i), set()).update(dr[i])
+            reach.setdefault(find[i], set()).update(dr[i])
         pattern = np.zeros((ny, ny), dtype=bool)
         for i in range(n):
             pattern[i, n + i] = True
-            for j in reach[find(i)]:
+            for j in reach[find[i]]:
                 pattern[n + i, j] = True
         for k, (_, rate) in enumerate(eom.quadratures):
             for j in deps(expr(rate)):
                 pattern[2 * n + k, j] = True
         return pattern
+
+
+def mass_components(nonzero: list) -> list[int]:
+    """The connected component (a representative index) of each row of a mass matrix whose
+    structural nonzeros are ``nonzero`` (M^-1 couples every pair in one component)."""
+    n = len(nonzero)
+    comp = list(range(n))
+
+    def find(i):
+        while comp[i] != i:
+            comp[i] = comp[comp[i]]
+            i = comp[i]
+        return i
+    for i in range(n):
+        for j in range(i + 1, n):
+            if nonzero[i][j] or nonzero[j][i]:
+                comp[find(i)] = find(j)
+    return [find(i) for i in range(n)]
 
 
 def _dense_general_pattern(scene) -> np.ndarray:
@@ -348,26 +356,16 @@ def _dense_general_pattern(scene) -> np.ndarray:
     else:
         M = [[se.sympify(e) for e in row] for row in eom.M_se]
         nonzero = [[M[a][b] != 0 for b in range(nv)] for a in range(nv)]
-        comp = list(range(nv))
-
-        def find(a):
-            while comp[a] != a:
-                comp[a] = comp[comp[a]]
-                a = comp[a]
-            return a
-        for a in range(nv):
-            for b in range(a + 1, nv):
-                if nonzero[a][b] or nonzero[b][a]:
-                    comp[find(a)] = find(b)
+        find = mass_components(nonzero)
         reach: dict[int, set] = {}
         for a in range(nv):
             d = deps(eom.F_se[a])
             for b in range(nv):
                 if nonzero[a][b]:
                     d |= deps(M[a][b])
-            reach.setdefault(find(a), set()).update(d)
+            reach.setdefault(find[a], set()).update(d)
         for a in range(nv):
-            for j in reach[find(a)]:
+            for j in reach[find[a]]:
                 pattern[nq + a, j] = True
     for k, (_, rate) in enumerate(eom.quadratures):
         for j in deps(rate):

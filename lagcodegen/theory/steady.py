@@ -335,6 +335,23 @@ def _evaluate(expr: sp.Expr, values: Mapping[str, float], at: Mapping[sp.Symbol,
 
 
 # ---------------------------------------------------------------------- main
+def _numeric_functions(variables: list, G: list, J: list):
+    """(fun, jac): the residuals G and their Jacobian J (row-major, len(G) x len(variables)) as
+    numpy functions of the variables (floating-point warnings silenced: a failed point is NaN)."""
+    f_G = se.Lambdify(variables, G, real=True)
+    f_J = se.Lambdify(variables, J, real=True)
+    shape = (len(G), len(variables))
+
+    def fun(x):
+        with np.errstate(all="ignore"):
+            return np.asarray(f_G(np.asarray(x, dtype=float)), dtype=float).ravel()
+
+    def jac(x):
+        with np.errstate(all="ignore"):
+            return np.asarray(f_J(np.asarray(x, dtype=float)), dtype=float).reshape(shape)
+    return fun, jac
+
+
 def _keep_new(x: np.ndarray, found: list, bnds: list, periodic: list) -> None:
     """Append the root ``x`` to ``found`` unless it lies outside the bounds or is one found
     already (to 1e-7 relative, angles modulo 2 pi)."""
@@ -416,16 +433,7 @@ def steady_motions(system, integrals: Mapping[str, float] | None = None, params:
         raise ModelError(f"F depends on {', '.join(sorted(str(s) for s in stray))}, which has no value "
                          "(not a coordinate or parameter; an input?): give it as a parameter", location="steady_motions")
     J = [[se.diff(g, q) for q in qse] for g in G]
-    f_G = se.Lambdify(qse, G, real=True)
-    f_J = se.Lambdify(qse, [e for row in J for e in row], real=True)
-
-    def fun(x):
-        with np.errstate(all="ignore"):
-            return np.asarray(f_G(np.asarray(x, dtype=float)), dtype=float).ravel()
-
-    def jac(x):
-        with np.errstate(all="ignore"):
-            return np.asarray(f_J(np.asarray(x, dtype=float)), dtype=float).reshape(n, n)
+    fun, jac = _numeric_functions(qse, G, [e for row in J for e in row])
 
     rng = np.random.default_rng(1234)
     periodic = [_is_periodic(fun, n, k, rng) for k in range(n)]
@@ -519,18 +527,8 @@ def constrained_equilibria(system: ConstrainedSystem, *, params: Mapping[str, fl
         raise ModelError(f"the equations depend on {', '.join(sorted(str(s) for s in stray))}, which "
                          "has no value (not a coordinate or parameter; an input?)", location="steady_motions")
     x = qse + lam
-    m = n + JH
-    f_G = se.Lambdify(x, G, real=True)
-    f_J = se.Lambdify(x, [se.diff(g, y) for g in G for y in x], real=True)
+    fun, jac = _numeric_functions(x, G, [se.diff(g, y) for g in G for y in x])
     f_FA = se.Lambdify(qse, F + [a for row in A for a in row], real=True)
-
-    def fun(y):
-        with np.errstate(all="ignore"):
-            return np.asarray(f_G(np.asarray(y, dtype=float)), dtype=float).ravel()
-
-    def jac(y):
-        with np.errstate(all="ignore"):
-            return np.asarray(f_J(np.asarray(y, dtype=float)), dtype=float).reshape(m, m)
 
     def with_multipliers(q):
         with np.errstate(all="ignore"):
