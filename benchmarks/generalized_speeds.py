@@ -18,7 +18,7 @@ This is a measuring instrument: it asserts nothing about the numbers it reports.
 
 Usage::
 
-    python benchmarks/generalized_speeds.py [--quick] [--rounds 3] [--robots solo12,anymal,talos]
+    python benchmarks/generalized_speeds.py [--quick] [--rounds 3] [--robots solo12,anymal,talos] [--out DIR]
 """
 
 from __future__ import annotations
@@ -180,6 +180,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="two tolerances, Solo12 only, one round")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--robots", default="solo12,anymal,talos")
+    ap.add_argument("--out", type=Path, help="also write the table to OUT/generalized_speeds.txt")
     args = ap.parse_args(argv)
     rounds = 1 if args.quick else args.rounds
     names = ["solo12"] if args.quick else [r for r in args.robots.split(",") if r]
@@ -192,7 +193,11 @@ def main(argv=None) -> int:
         lines += [""] + robots(names, rounds)
     except ImportError:
         lines += ["", "Pinocchio is not installed (pip install pin example-robot-data): robots not measured"]
-    print("\n".join(H.machine_lines("Generalized speeds", (load0, H.load_average())) + [""] + lines))
+    text = "\n".join(H.machine_lines("Generalized speeds", (load0, H.load_average())) + [""] + lines)
+    print(text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "generalized_speeds.txt").write_text(text + "\n")
     return 0
 
 
