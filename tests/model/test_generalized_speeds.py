@@ -223,11 +223,12 @@ def test_what_does_not_take_generalized_speeds_yet_says_so():
     assert res.sensitivities[0, 0, 4] == 1.0  # d(ball_wx)/d(ball_wx(0)) at t = 0
     with pytest.raises(LagcodegenError, match="one component of the unit quaternion of joint 'ball'"):
         cm.simulate(t, v0=[0, 1, 0], sensitivities=["ball_qw(0)"])
-    for call, what in [(lambda: lcg.linearize(lcg.derive(m), q0=[0, 0, 0, 1]), "linearize"),
-                       # ConstrainedSystem takes them (index-1 and impacts: tests/test_constrained_speeds.py)
-                       (lambda: lcg.steady_motions(m), "steady_motions")]:
-        with pytest.raises(ModelError, match=f"{what}: model 'tumbler' has generalized speeds"):
-            call()
+    # linearize takes them at rest (test_linearize_at_rest_in_tangent_coordinates); not spinning
+    with pytest.raises(ModelError, match="about a state at rest"):
+        lcg.linearize(lcg.derive(m), q0=[0, 0, 0, 1], v0=[0, 1, 0])
+    # ConstrainedSystem takes them (index-1 and impacts: tests/test_constrained_speeds.py)
+    with pytest.raises(ModelError, match="steady_motions: model 'tumbler' has generalized speeds"):
+        lcg.steady_motions(m)
     ens = cm.ensemble(t, q0=[0, 0, 0, 1], v0=np.array([[0, 1, 0], [0, 2, 0]]))
     assert np.allclose(ens.y[:, 4:], [[0, 1, 0], [0, 2, 0]])  # save="final": each member's last state
 
@@ -322,3 +323,26 @@ def test_results_into_out_arrays():
     for bad in (np.empty(11), np.empty(12, dtype=np.float32), np.empty(24)[::2]):
         with pytest.raises(LagcodegenError, match="out must be a writable, C-contiguous float64 array of shape"):
             cm.rhs(0.0, y, out=bad)
+
+
+def test_linearize_at_rest_in_tangent_coordinates():
+    """A body hanging from a quaternion ball joint, linearized at rest in tangent coordinates
+    (dq = G(q0) dtheta): its pendulum frequencies are sqrt(m g l / (I + m l^2)) about x and y
+    (analytic) and those of the same body on Z-Y-X angles, the rotation about the vertical a
+    zero mode; the coordinates are the speeds' names."""
+    def hanging(rotation):
+        m = lcg.Model("hang_" + rotation.lower())
+        m.gravity(9.81)
+        m.link("body", joint=lcg.Joint.spherical("ball", rotation=rotation), mass=2.0, com=(0, 0, -0.5),
+               inertia=(0.03, 0.05, 0.02))
+        return m
+    quat = lcg.linearize(lcg.derive(hanging("quaternion")), q0=[0, 0, 0, 1])
+    euler = lcg.linearize(lcg.derive(hanging("ZYX")), q0=[0, 0, 0])
+    assert quat.coordinates == ["ball_wx", "ball_wy", "ball_wz"]
+    mass, length, g = 2.0, 0.5, 9.81
+    exact = sorted(np.sqrt(mass * g * length / (i + mass * length ** 2)) for i in (0.03, 0.05))
+    assert np.allclose(sorted(quat.frequencies), exact, rtol=1e-12)
+    assert np.allclose(sorted(quat.frequencies), sorted(euler.frequencies), rtol=1e-12)
+    # tilted 0.4 rad about x, the quaternion is no longer the identity: still at rest, not in equilibrium
+    tilt = lcg.linearize(lcg.derive(hanging("quaternion")), q0=[np.sin(0.2), 0, 0, np.cos(0.2)])
+    assert abs(tilt.a0[0] + mass * g * length * np.sin(0.4) / (0.03 + mass * length ** 2)) < 1e-12
