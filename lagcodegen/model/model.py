@@ -21,8 +21,6 @@ Nothing is derived here: :mod:`lagcodegen.derivation` turns a model into equatio
 
 from __future__ import annotations
 
-import keyword
-import unicodedata
 import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
@@ -31,43 +29,11 @@ import sympy as sp
 
 from ..errors import ModelError
 from .bodies import Joint, Link, Placement, make_link
-from ..util import excerpt, lookalike
+from .names import DERIVED_SUFFIXES, RESERVED_NAMES, RESERVED_PREFIX  # noqa: F401 (re-exported)
+from .names import as_expr as _as_expr, check_name as _check_name
+from .speeds import GivenEquations, check_given, declared_speeds, given_equations, quaternion_kinematics
+from ..util import excerpt
 from ..util import check_finite  # noqa: F401  (re-exported: lagcodegen.model.check_finite)
-
-#: Names a coordinate or parameter may not take (they name other things).
-RESERVED_NAMES = frozenset({"t", "pi", "E", "I", "oo", "nan", "zoo"})
-#: No model name starts with this: the symbols lagcodegen invents while it derives and
-#: generates (e.g. the accelerations ``__acc<i>`` of the analytic Jacobian) use it, so that
-#: they can never be a user's coordinate or parameter.
-RESERVED_PREFIX = "__"
-#: Suffixes of the symbols every coordinate q brings along: its velocity ``<q>_dot`` and its
-#: acceleration ``<q>_ddot`` (:meth:`EquationsOfMotion.accelerations`).
-DERIVED_SUFFIXES = ("_dot", "_ddot")
-
-
-def _check_name(name: str, what: str) -> str:
-    if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
-        raise ModelError(f"{what} name {excerpt(name)} is not a valid identifier")
-    changed = lookalike(name)
-    if changed:
-        raise ModelError(f"{what} name {excerpt(name)} has the look-alike character {changed} in expressions "
-                         f"(Python normalizes names, NFKC): it could not be told from "
-                         f"{excerpt(unicodedata.normalize('NFKC', name))}; write the name in plain characters")
-    if name in RESERVED_NAMES:
-        raise ModelError(f"{what} name {name!r} is reserved")
-    if name.startswith(RESERVED_PREFIX):
-        raise ModelError(f"{what} name {name!r} starts with {RESERVED_PREFIX!r}, which is reserved for the "
-                         "symbols lagcodegen generates")
-    return name
-
-
-def _as_expr(value, what: str) -> sp.Expr:
-    try:
-        expr = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError) as exc:
-        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
-    return expr
-
 
 _NON_FINITE = (sp.nan, sp.oo, -sp.oo, sp.zoo)
 
@@ -153,39 +119,6 @@ class RigidBody:
     inertia: sp.Matrix
     point: Point
     orientation: sp.Matrix
-
-
-@dataclass(frozen=True)
-class GivenEquations:
-    """Equations of motion M(q, v, t) v' = F(q, v, t) given directly (:meth:`Model.equations_of_motion`),
-    with the energies of the system they describe when known (None: not known)."""
-
-    label: str
-    M: sp.Matrix  # nv x nv
-    F: sp.Matrix  # nv x 1
-    kinetic_energy: sp.Expr | None
-    potential_energy: sp.Expr | None
-    symmetric: bool
-    missing: tuple = ()  # ("T" or "V", why it is not known) for the error messages
-
-
-#: :meth:`Model.equations_of_motion` proves M symmetric by expanding M_ij - M_ji only for entries of
-#: at most this many operations (else M counts as not symmetric: solved by LU, still right).
-SYMMETRY_CHECK_MAX_OPS = 400
-
-
-def _provably_symmetric(M: sp.Matrix) -> bool:
-    """True if M_ij - M_ji is zero for every i < j, structurally or once expanded (entries of
-    at most SYMMETRY_CHECK_MAX_OPS operations)."""
-    n = M.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
-            a, b = M[i, j], M[j, i]
-            if a == b:
-                continue
-            if sp.count_ops(a) + sp.count_ops(b) > SYMMETRY_CHECK_MAX_OPS or sp.expand(a - b) != 0:
-                return False
-    return True
 
 
 @dataclass
@@ -392,38 +325,7 @@ class Model:
         coordinates were left out, e.g. a bicycle's wheel angles with their rates kept as speeds);
         their equations must be given directly (:meth:`equations_of_motion`): Lagrange's, projected
         onto more speeds than coordinates, would have a singular mass matrix."""
-        if self.velocities:
-            raise ModelError(f"model {self.name!r} has generalized speeds already")
-        if isinstance(names, str):
-            names = names.replace(",", " ").split()
-        syms = []
-        rates = {s.name for s in self.speeds}
-        for name in names:
-            _check_name(name, "generalized speed")
-            if name not in rates:  # a coordinate's own rate may be one of the speeds
-                self._check_free(name)
-            syms.append(sp.Symbol(name))
-        if len(set(syms)) != len(syms):
-            raise ModelError("generalized speeds: a name is given twice")
-        if len(syms) > self.n and not excess:
-            raise ModelError(f"{len(syms)} generalized speeds for {self.n} coordinates: at most one per coordinate")
-        if isinstance(kinematics, dict):
-            rows = {self.index(k): v for k, v in kinematics.items()}
-            missing = [self.coords[i].name for i in range(self.n) if i not in rows]
-            if missing:
-                raise ModelError(f"kinematic equations: no q' given for coordinate(s) {', '.join(missing)}")
-            kinematics = [rows[i] for i in range(self.n)]
-        kinematics = list(kinematics)
-        if len(kinematics) != self.n:
-            raise ModelError(f"kinematic equations: {len(kinematics)} given for {self.n} coordinates")
-        exprs = [_as_expr(e, f"kinematic equation of {q.name!r}") for e, q in zip(kinematics, self.coords)]
-        allowed = set(self.coords) | set(syms) | set(self.params) | {self.t}
-        for e, q in zip(exprs, self.coords):
-            bad = e.free_symbols - allowed
-            if bad:
-                raise ModelError(f"kinematic equation of {q.name!r} ({excerpt(e)}) uses "
-                                 f"{', '.join(sorted(s.name for s in bad))}: only coordinates, the speeds "
-                                 f"{', '.join(names)}, parameters and t")
+        syms, exprs = declared_speeds(self, names, kinematics, excess)
         self.velocities[:] = syms
         self.kinematics[:] = exprs
         self.__dict__.pop("_taken_cache", None)
@@ -441,20 +343,13 @@ class Model:
     def _quaternion_joint(self, joint: Joint, coords: tuple) -> tuple:
         """The generalized speeds and kinematics of a quaternion joint whose coordinates were
         just declared (:meth:`link`); returns the speeds."""
-        from .bodies import quaternion_rates, quaternion_rotation
         if not self.velocities:
             self.velocities[:] = list(self.speeds)
             self.kinematics[:] = list(self.speeds)
         k = len(coords)
         del self.velocities[-k:]
         del self.kinematics[-k:]
-        w = [sp.Symbol(name) for name in joint.speed_names]
-        quat = coords[-4:]
-        qdot = []
-        if joint.kind == "free":
-            R = quaternion_rotation(*quat)
-            qdot = [sum((R[i][j] * w[j] for j in range(3)), sp.Integer(0)) for i in range(3)]
-        qdot += quaternion_rates(quat, w[-3:])
+        w, qdot = quaternion_kinematics(joint, coords)
         self.velocities.extend(w)
         self.kinematics.extend(qdot)
         self.__dict__.pop("_taken_cache", None)
@@ -673,36 +568,7 @@ class Model:
         with partial pivoting (Kane's equations with dependent speeds: the velocity constraints'
         rows make M square and not symmetric). ``missing``: {"T" or "V": why that energy is not
         given}, told when an output needs it."""
-        what = f"mass matrix of {label!r}"
-        try:
-            Mm = sp.Matrix(M)
-        except (TypeError, ValueError, sp.SympifyError):
-            raise ModelError(f"{what} is not a matrix: {excerpt(M)}") from None
-        nv = self.nv
-        if Mm.shape != (nv, nv):
-            raise ModelError(f"{what} is {Mm.shape[0]} x {Mm.shape[1]}, the model has {nv} speeds "
-                             f"({', '.join(s.name for s in self.v)})")
-        try:
-            Fm = sp.Matrix(F)
-        except (TypeError, ValueError, sp.SympifyError):
-            raise ModelError(f"forces of {label!r} are not a vector: {excerpt(F)}") from None
-        if Fm.shape == (1, nv) and nv > 1:
-            Fm = Fm.T
-        if Fm.shape != (nv, 1):
-            raise ModelError(f"forces of {label!r} have {Fm.shape[0]} x {Fm.shape[1]} entries, the model has {nv} speeds")
-        Mm = Mm.applyfunc(lambda e: _as_expr(e, what))
-        Fm = Fm.applyfunc(lambda e: _as_expr(e, f"forces of {label!r}"))
-        T = None if kinetic_energy is None else _as_expr(kinetic_energy, f"kinetic energy of {label!r}")
-        V = None if potential_energy is None else _as_expr(potential_energy, f"potential energy of {label!r}")
-        for expr, part in ((Mm, what), (Fm, f"forces of {label!r}"), (T, f"kinetic energy of {label!r}")):
-            if expr is not None:
-                self._check_given(expr, part)
-        if V is not None:
-            self.check_symbols(V, f"potential energy of {label!r}", allow_speeds=False)
-        if symmetric is None:
-            symmetric = _provably_symmetric(Mm)
-        eq = GivenEquations(label, Mm, Fm, T, V, bool(symmetric),
-                            tuple((k, str(v)) for k, v in (missing or {}).items() if v))
+        eq = given_equations(self, M, F, (kinetic_energy, potential_energy), symmetric, label, missing)
         self.given_equations.append(eq)
         return eq
 
@@ -783,17 +649,6 @@ class Model:
         if funcs:
             raise ModelError(f"{what} uses undefined function(s): {', '.join(sorted(map(str, funcs)))}")
 
-    def _check_given(self, expr, what: str) -> None:
-        """:meth:`check_symbols` for a term in (q, v, t): with generalized speeds, the coordinates' rates
-        q' that are not speeds are refused (they are no state: write them by the kinematic equations)."""
-        self.check_symbols(expr, what)
-        if self.general:
-            rates = sorted(s.name for s in sp.sympify(expr).free_symbols if s in set(self.speeds) - set(self.velocities))
-            if rates:
-                raise ModelError(f"{what} uses the coordinates' rate(s) {', '.join(rates)}, which are not speeds of "
-                                 f"model {self.name!r}: write them by the kinematic equations (the speeds are "
-                                 f"{', '.join(s.name for s in self.velocities)})")
-
     def validate(self) -> None:
         """Check every expression uses declared symbols only; called by the derivation."""
         if not self.coords:
@@ -847,10 +702,10 @@ class Model:
         for name, expr in self.outputs.items():
             self.check_symbols(expr, f"output {name!r}")
         for eq in self.given_equations:
-            self._check_given(eq.M, f"mass matrix of {eq.label!r}")
-            self._check_given(eq.F, f"forces of {eq.label!r}")
+            check_given(self, eq.M, f"mass matrix of {eq.label!r}")
+            check_given(self, eq.F, f"forces of {eq.label!r}")
             if eq.kinetic_energy is not None:
-                self._check_given(eq.kinetic_energy, f"kinetic energy of {eq.label!r}")
+                check_given(self, eq.kinetic_energy, f"kinetic energy of {eq.label!r}")
             if eq.potential_energy is not None:
                 self.check_symbols(eq.potential_energy, f"potential energy of {eq.label!r}", allow_speeds=False)
             if eq.M.shape != (self.nv, self.nv):
