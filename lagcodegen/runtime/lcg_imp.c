@@ -448,6 +448,32 @@ static void fr_describe(const imp_data *d, const int *was, const int *act, const
  * max_rec, n_rec); a contact that begins to stick gets its slip velocity projected to zero
  * (y's velocities changed). Returns LCG_DAE_OK, a model error, or -1 with the Painleve message in
  * st->message (the caller stops with LCG_FLAG_CONTACT_MODE). */
+/* Mode c of the enumeration (a mixed-radix number over the contacts' options f->opts, f->nopt)
+ * into f->tact, f->tmode, and its problem solved (accel: 1 the accelerations, 0 the impulses of an
+ * impact). Returns LCG_DAE_OK with *lscale = FR_REL (1 + max |multiplier|), LCG_DAE_ERR_SINGULAR
+ * (a mode to pass over) or another error. */
+static int fr_try_mode(imp_data *d, int c, int accel, double *lscale)
+{
+    fric_data *f = d->fr;
+    int idx = c, k, i, rc;
+    double m = 0.0;
+
+    for (k = 0; k < d->im->nk; ++k) {
+        int ch = f->opts[4 * k + idx % f->nopt[k]];
+        idx /= f->nopt[k];
+        f->tact[k] = ch != FR_FREE;
+        f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
+    }
+    rc = fr_solve(d, f->tact, f->tmode, accel);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (i = 0; i < f->nrow; ++i)
+        if (fabs(f->lam[i]) > m)
+            m = fabs(f->lam[i]);
+    *lscale = FR_REL * (1.0 + m);
+    return LCG_DAE_OK;
+}
+
 /* The mode just solved (f->x, f->lam, modes f->tact, f->tmode) against the first consistent one:
  * the first is kept (f->bact, f->bmode, f->bestx, f->bestlam; *found set) and 0 returned; a later
  * one returns 1 if its accelerations (velocity jumps) differ from the first's beyond FR_SAME. */
@@ -515,26 +541,16 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         total *= no;
     }
     for (c = 0; c < total; ++c) {
-        int idx = c, ok = 1;
-        double lscale = 0.0, ascale = 0.0;
-        for (k = 0; k < nk; ++k) {
-            int ch = f->opts[4 * k + idx % f->nopt[k]];
-            idx /= f->nopt[k];
-            f->tact[k] = ch != FR_FREE;
-            f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
-        }
-        rc = fr_solve(d, f->tact, f->tmode, 1);
+        int ok = 1;
+        double lscale, ascale = 0.0;
+        rc = fr_try_mode(d, c, 1, &lscale);
         if (rc == LCG_DAE_ERR_SINGULAR)
             continue;
         if (rc != LCG_DAE_OK)
             return rc;
-        for (i = 0; i < f->nrow; ++i)
-            if (fabs(f->lam[i]) > lscale)
-                lscale = fabs(f->lam[i]);
         for (i = 0; i < n; ++i)
             if (fabs(f->x[i]) > ascale)
                 ascale = fabs(f->x[i]);
-        lscale = FR_REL * (1.0 + lscale);
         ascale = FR_REL * (1.0 + ascale);
         for (k = 0; k < nk && ok; ++k) {
             if (f->tact[k]) {
@@ -649,23 +665,13 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
     fr_rhs(d, 0, f->eff);
     vscale = FR_REL * (1.0 + vscale);
     for (c = 0; c < total; ++c) {
-        int idx = c, ok = 1;
-        double pscale = 0.0;
-        for (k = 0; k < nk; ++k) {
-            int ch = f->opts[4 * k + idx % f->nopt[k]];
-            idx /= f->nopt[k];
-            f->tact[k] = ch != FR_FREE;
-            f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
-        }
-        rc = fr_solve(d, f->tact, f->tmode, 0);
+        int ok = 1;
+        double pscale;
+        rc = fr_try_mode(d, c, 0, &pscale);
         if (rc == LCG_DAE_ERR_SINGULAR)
             continue;
         if (rc != LCG_DAE_OK)
             return rc;
-        for (i = 0; i < f->nrow; ++i)
-            if (fabs(f->lam[i]) > pscale)
-                pscale = fabs(f->lam[i]);
-        pscale = FR_REL * (1.0 + pscale);
         for (k = 0; k < nk && ok; ++k) {
             if (!f->part[k])
                 continue;
