@@ -8,7 +8,6 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 import numpy as np
-import scipy.linalg
 import sympy as sp
 
 from ..build import build
@@ -59,14 +58,7 @@ class IndependentSpeedsSimulation:
         of A(q0, t0) (its pivot columns are the dependent rates)."""
         if self._independent is not None:
             return list(self._independent)
-        A = self._matrix(self._A, q0, t0, params)
-        J, n = self.system.J, self.system.model.n
-        _, R, piv = scipy.linalg.qr(A, pivoting=True)
-        if J and abs(R[J - 1, J - 1]) <= 1e-12 * max(1.0, abs(R[0, 0])):
-            raise ModelError(f"independent speeds: the constraints lose rank at the initial state (|R_{J}{J}| = "
-                             f"{abs(R[J - 1, J - 1]):.3g}); no choice of speeds is regular there")
-        dep = set(int(i) for i in piv[:J])
-        return [i for i in range(n) if i not in dep]
+        return choose_independent(self.system, A=self._matrix(self._A, q0, t0, params))[0]
 
     def _parameter_values(self, params: Mapping | None) -> dict:
         """The parameters' values by symbol: defaults, the compiled values, then ``params``."""

@@ -33,28 +33,34 @@ from ..model.model import Model
 from .constraints import ConstrainedSystem
 
 
-def _numeric_A(system: ConstrainedSystem, rng: np.random.Generator) -> np.ndarray:
-    """A at a random state (coordinates in [-1, 1], parameters at their defaults, t = 0.3)."""
+def random_state(system: ConstrainedSystem, seed: int = 0) -> dict:
+    """A random state (symbols -> numbers): coordinates in [-1, 1], parameters at their defaults,
+    t = 0.3."""
     model = system.model
-    at = {q: float(x) for q, x in zip(model.coords, rng.uniform(-1.0, 1.0, model.n))}
+    at = {q: float(x) for q, x in zip(model.coords, np.random.default_rng(seed).uniform(-1.0, 1.0, model.n))}
     at.update({s: float(v) for s, v in model.params.items()})
     at[model.t] = 0.3
-    A = system.A.subs(at)
+    return at
+
+
+def numeric_A(system: ConstrainedSystem, at: dict) -> np.ndarray:
+    """The constraint matrix A at the point ``at`` (symbols -> numbers)."""
     try:
-        return np.array(A.evalf(), dtype=float)
+        return np.array(system.A.subs(at).evalf(), dtype=float)
     except (TypeError, ValueError):
-        raise ModelError("independent speeds: the constraint matrix A does not evaluate to numbers at a random "
-                         "state (a symbol that is no coordinate or parameter?)") from None
+        raise ModelError("independent speeds: the constraint matrix A does not evaluate to numbers at the state "
+                         "(a symbol that is no coordinate or parameter?)") from None
 
 
 def choose_independent(system: ConstrainedSystem, independent: Sequence[str] | None = None,
-                       seed: int = 0) -> tuple[list[int], list[int]]:
+                       A: np.ndarray | None = None) -> tuple[list[int], list[int]]:
     """(independent coordinate indices, dependent ones): ``independent`` (coordinate names whose
-    rates are the speeds), checked, or chosen by column-pivoted QR of A at a random state."""
+    rates are the speeds), checked, or chosen by column-pivoted QR of ``A`` (the constraint matrix
+    at a state, numbers; None: at :func:`random_state`): its pivot columns are the dependent rates."""
     model = system.model
     n, J = model.n, system.J
-    rng = np.random.default_rng(seed)
-    A = _numeric_A(system, rng)
+    if A is None:
+        A = numeric_A(system, random_state(system))
     if independent is not None:
         if isinstance(independent, str):
             independent = independent.replace(",", " ").split()
@@ -66,26 +72,25 @@ def choose_independent(system: ConstrainedSystem, independent: Sequence[str] | N
         if J and np.linalg.matrix_rank(A[:, dep]) < J:
             raise ModelError(f"independent speeds {', '.join(model.coords[i].name for i in ind)}: the constraints "
                              f"cannot be solved for the rates of {', '.join(model.coords[i].name for i in dep)} "
-                             "(A_dep is singular at a random state); choose other independent speeds")
+                             "(A_dep is singular at the state); choose other independent speeds")
         return ind, dep
     if J == 0:
         return list(range(n)), []
     _, R, piv = scipy.linalg.qr(A, pivoting=True)
     rank = int(np.sum(np.abs(np.diag(R)) > 1e-10 * max(1.0, np.abs(R).max())))
     if rank < J:
-        raise ModelError(f"independent speeds: the {J} constraints have rank {rank} (dependent rows)")
+        raise ModelError(f"independent speeds: the {J} constraints have rank {rank} at the state (dependent rows, "
+                         "or a configuration where no choice of speeds is regular)")
     dep = sorted(int(i) for i in piv[:J])
     return [i for i in range(n) if i not in dep], dep
 
 
-def pivoted_solve(A: sp.Matrix, b: sp.Matrix, at: dict | None) -> tuple[sp.Matrix, tuple]:
+def pivoted_solve(A: sp.Matrix, b: sp.Matrix, at: dict) -> tuple[sp.Matrix, tuple]:
     """x with A x = b by Gaussian elimination, symbolically, each pivot the entry of largest
-    magnitude at the numeric point ``at`` (symbols -> numbers; None: sympy's structural choice,
-    which may divide by an expression that vanishes at the state, e.g. sin(phi) upright). Returns
-    (x, the pivot rows in order): a solution regular wherever those pivots do not vanish."""
+    magnitude at the numeric point ``at`` (symbols -> numbers; sympy's structural LU may divide by
+    an expression that vanishes at the state, e.g. sin(phi) upright). Returns (x, the pivot rows
+    in order): a solution regular wherever those pivots do not vanish."""
     m = A.shape[0]
-    if at is None:
-        return A.LUsolve(b), ()
     A, b = A.copy(), b.copy()
     rows = list(range(m))
     order = []
@@ -116,15 +121,16 @@ def independent_speeds_model(system: ConstrainedSystem, *, independent: Sequence
     with the generalized speeds u (the independent coordinates' rates, named ``<q>_dot`` as
     before) and the kinematic equations q' = B u + b of every coordinate; the holonomic
     constraints' residuals as outputs ``g_<j>``. Inequality constraints are refused. ``at``
-    (symbols -> numbers, e.g. the initial state and parameters): the dependent rates are solved
-    with the pivots largest there (:func:`pivoted_solve`)."""
+    (symbols -> numbers, e.g. the initial state and parameters; default :func:`random_state`): the
+    dependent rates are solved with the pivots largest there (:func:`pivoted_solve`)."""
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"independent speeds need a ConstrainedSystem, got {type(system).__name__}")
     if system.inequalities:
         raise ModelError("independent speeds: inequality constraints are not taken (use formulation 'index1', "
                          "whose impact driver does)")
     model = system.model
-    ind, dep = choose_independent(system, independent)
+    at = random_state(system) if at is None else at
+    ind, dep = choose_independent(system, independent, numeric_A(system, at))
     A, A0 = system.A, system.A0
     qd = sp.Matrix(model.speeds)
     rates: list = list(model.speeds)
