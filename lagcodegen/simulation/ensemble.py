@@ -16,7 +16,6 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import LagcodegenError
-from ..solvers.base import check_speeds
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
 from ..solvers.family import OdeInputRuns
@@ -158,7 +157,6 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, reco
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
     family = resolve("ode", solver, options, cm.method_size, float(rtol), runs="ensemble")
-    check_speeds(cm, family)
     sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name,
                        params=params)
     if sets is not None:

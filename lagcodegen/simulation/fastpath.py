@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.drawing import deferred_drawing
 from ..result import Result
-from ..solvers.base import check_initial_mass_matrix, check_speeds, initial_state, tolerances
+from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
 from ..solvers.family import PreparedOdeEventRuns, PreparedOdeRuns
 from ..solvers.registry import resolve
 from ..util import output_times
@@ -219,7 +219,6 @@ def family_run(cm, solver, rtol, atol, options: dict, events=()):
     rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)
     own = {k: v for k, v in options.items() if k != "inputs"}
     family = resolve("ode", solver, own, cm.method_size, rtol_f)
-    check_speeds(cm, family)
     fixed = {"n_coordinates": cm.n, "n_speeds": cm.code.nv, "model_name": cm.code.model_name or "",
              "drawing": deferred_drawing(cm)}
     if events:

@@ -22,7 +22,7 @@ from ..result import Result
 from ..solvers import control
 from ..solvers.artifacts import Artifacts
 from ..solvers.family import OdeInputRuns
-from ..solvers.base import check_speeds, initial_state, tolerances
+from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
 from ..util import c_vector, check_finite, output_times
@@ -396,7 +396,6 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.method_size, rtol)
-        check_speeds(self, family)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
                                                        self.code.model_name, params=params)
         if tables:
@@ -429,7 +428,6 @@ class CompiledModel(CompiledReprMixin):
         t0 = check_finite(t0, "t0")
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.method_size, rtol, runs="stepper")
-        check_speeds(self, family)
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
         stepper = family.stepper_ode(self, mem, rtol, atol_arr, events)
         if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..result import Result
-from ..solvers.base import check_speeds, tolerances
+from ..solvers.base import tolerances
 from ..solvers.registry import resolve
 from ..util import output_times
 from .fastpath import FastRun, family_run, preparable
@@ -39,8 +39,7 @@ class PreparedRun:
         self._options = dict(options)
         # every option checked now: a bad keyword or value raises here, not at the first call
         rtol_f, _ = tolerances(rtol, atol, cm.ny, scalar=True)
-        check_speeds(cm, resolve("ode", solver, {k: v for k, v in options.items() if k != "inputs"}, cm.method_size,
-                                 rtol_f))
+        resolve("ode", solver, {k: v for k, v in options.items() if k != "inputs"}, cm.method_size, rtol_f)
         run = family_run(cm, solver, rtol, atol, options, self._events) if preparable(rtol, atol, options) else None
         self._fast = None if run is None else FastRun(cm, run, rtol, atol, options)
 

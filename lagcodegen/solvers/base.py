@@ -239,19 +239,6 @@ def file_initial(sim, q0, v0) -> tuple:
     return (list(defaults[0]) if q0 is None else q0), (list(defaults[1]) if v0 is None else v0)
 
 
-def check_speeds(cm, family) -> None:
-    """Refuse, naming them, the runs a model with generalized speeds (y = (q, v, z), nq != nv
-    or q' != v) cannot take yet: forward sensitivities other than CVODE's (their directions:
-    :func:`lagcodegen.solvers.cvode.sensitivity.general_directions`)."""
-    code = getattr(cm, "code", None)
-    if getattr(code, "nv", None) is None:
-        return
-    if getattr(family, "sensitivities", None) and type(family).__name__ != "CVODE":
-        raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
-                              f"its forward sensitivities run on CVODE (method 'adams' or 'bdf'), not on "
-                              f"{type(family).__name__}")
-
-
 def initial_state(cm, q0, v0, y0, z0=None) -> np.ndarray:
     """The state y = (q, q', z) of an ODE run from q0/v0 (and z0) or the whole y0; q0, v0 not
     given are the model file's initial values for a model compiled from one (:func:`file_initial`)."""

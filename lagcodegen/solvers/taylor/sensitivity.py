@@ -334,7 +334,13 @@ def sens_stats(st, wall: float) -> dict:
 
 def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarray]:
     """(names, directions, s0) of the sensitivity directions ``names`` (run-time parameters,
-    ``"<q>(0)"``, ``"<q>_dot(0)"``; parsed as on CVODE, the same errors)."""
+    ``"<q>(0)"``, ``"<q>_dot(0)"``; parsed as on CVODE, the same errors). Every Taylor
+    sensitivity run passes here: a model with generalized speeds is refused (its variational jet
+    assumes q' = v; CVODE's directions take them)."""
+    code = cm.code
+    if getattr(code, "nv", None) is not None:
+        raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
+                              "its forward sensitivities run on CVODE (method 'adams' or 'bdf'), not on Taylor")
     from ..cvode.sensitivity import directions
     names, which, s0 = directions(cm, names)
     dirs = [("param", int(k)) if k >= 0 else ("state", int(np.argmax(s0[j]))) for j, k in enumerate(which)]
