@@ -233,9 +233,6 @@ class Scene:
                                  f"in the results (rename the output)")
         return [Output(n, avail[n]) for n in seen]
 
-    def _general_pattern(self) -> np.ndarray:
-        return _dense_general_pattern(self)
-
     def substitutions(self) -> dict:
         """symengine substitution folding constant parameters into numbers."""
         def number(v: float):
@@ -254,7 +251,7 @@ class Scene:
         eom = self.eom
         model = eom.model
         if model.general:
-            return self._general_pattern()
+            return _general_pattern(self)
         n, nz = model.n, len(eom.quadratures)
         ny = 2 * n + nz
         sub = self.substitutions()
@@ -321,7 +318,7 @@ def mass_components(nonzero: list) -> list[int]:
     return [find(i) for i in range(n)]
 
 
-def _dense_general_pattern(scene) -> np.ndarray:
+def _general_pattern(scene) -> np.ndarray:
     """The Jacobian pattern of a model with generalized speeds: q' = k(q, v, t) depends on what
     k_i holds; v' = M^-1 F, for a rigid-body tree, on the whole state (taken dense), otherwise
     as :meth:`Scene.jacobian_pattern`'s accelerations: through the connected components of M's
