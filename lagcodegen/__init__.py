@@ -38,6 +38,7 @@ from .codegen import GeneratedCode, generate_c, generate_code, generate_fortran 
 from .codegen.bundle import render_bundle, write_bundle  # noqa: F401
 from .result import Result  # noqa: F401
 from .solvers.registry import CVODE, IDA, Taylor  # noqa: F401
+from .solvers.family import Sensitivities  # noqa: F401
 from .solvers.inputs import Table  # noqa: F401
 from .simulation.ode import CompiledModel, simulate  # noqa: F401
 from .simulation.hybrid import simulate_with_switch  # noqa: F401

@@ -59,8 +59,8 @@ from ..formulation.drawing import attaches_run_drawing
 from ..result import Result
 from ..solvers.base import ERR_SINGULAR, NativeEvents, PreparedOptions, file_initial, tolerances
 from ..solvers.control import POLL_EVERY
+from ..solvers.family import Problem, Request
 from ..solvers.cvode.native import CVC_OPTIONS
-from ..solvers.cvode.sensitivity_constrained import run_index1 as run_sensitivities
 from ..solvers.ida.native import ALGEBRAIC_ATOL, IDA_OPTIONS
 from ..solvers.registry import resolve
 from ..solvers.request import Index1Form, Recording, StepControl
@@ -171,16 +171,13 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                   f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not computed yet")
         if sensitivities and self.info.contacts:
             raise LagcodegenError("sensitivities of systems with contacts (impacts) are not computed")
-        if sensitivities:
-            res = run_sensitivities(family, self, t, y0, p, rtol, atol, roots=roots, initial=initial)
-        elif self.info.contacts:
+        if self.info.contacts and not sensitivities:
             res = self._run_contacts(family, t, y0, p, rtol, atol, roots, contacts)
-        elif self._ggl:
-            if yy0 is None:
-                yy0, yp0 = self._ggl_initial(t[0], y0, p)
-            res = family.run_ggl(self, t, yy0, yp0, p, rtol, atol, roots)
         else:
-            res = family.run_index1(self, t, y0, p, rtol, atol, roots)
+            if self._ggl and yy0 is None:
+                yy0, yp0 = self._ggl_initial(t[0], y0, p)
+            problem = Problem(self, rtol, atol, t, yy0 if self._ggl else y0, p, yp0)
+            res = family.run(self.formulation, problem, Request(roots=roots, initial=initial))
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
         if self.system.model.general:
@@ -220,10 +217,11 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t0, y0, p)
-            stepper = family.stepper_ggl(self, mem, yy0, yp0, rtol, atol, roots)
+            stepper = family.run("ggl", Problem(self, rtol, atol, y=mem, yp=(yy0, yp0)),
+                                 Request(kind="stepper", roots=roots))
         else:
             rtol, atol_arr = tolerances(rtol, atol, self._ny, scalar=True)
-            stepper = family.stepper_index1(self, mem, rtol, atol_arr, roots)
+            stepper = family.run("index1", Problem(self, rtol, atol_arr, y=mem), Request(kind="stepper", roots=roots))
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import LagcodegenError
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import FLAG_TEXT, REJECTED, EnsembleResult
-from ..solvers.family import OdeInputRuns
+from ..solvers.family import Members, Problem, Request
 from ..solvers.inputs import member_sets
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
@@ -159,21 +159,15 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, reco
     family = resolve("ode", solver, options, cm.method_size, float(rtol), runs="ensemble")
     sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name,
                        params=params)
-    if sets is not None:
-        if events:
-            raise LagcodegenError("events with input tables: not supported")
-        if not isinstance(family, OdeInputRuns):
-            raise LagcodegenError(f"input tables are interpolated by the native CVODE driver; {family.name} "
-                                  "ensembles do not take them (use method='adams' or 'bdf')")
-        if executor is not None:
-            raise LagcodegenError("ensembles with input tables run in this process (executor= is not supported)")
-        return family.ensemble_ode_inputs(cm, t, Y, P, rtol, atol, sets, threads=threads, save=save,
-                                          progress=progress)
-    more = {"events": list(events)} if events else {}
+    request = Request(events=tuple(events or ()), inputs=sets, members=Members(threads, save, progress))
+    if sets is not None and executor is not None:
+        raise LagcodegenError("ensembles with input tables run in this process (executor= is not supported)")
+    family.check("ode", request)  # refused here, before any chunk is sent
     if executor is not None:
+        more = {"events": list(events)} if events else {}
         return run_chunks(cm, executor, chunk_size, n_mem, t, dict(y0=Y), P, threads, save,
                           dict(solver=family, rtol=rtol, atol=atol, **more))
-    return family.ensemble_ode(cm, t, Y, P, rtol, atol, threads=threads, save=save, progress=progress, **more)
+    return family.run("ode", Problem(cm, rtol, atol, t, Y, P), request)
 
 
 # ---------------------------------------------------------------------- constrained systems
@@ -230,8 +224,8 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, recording: Re
     width = 2 * sim.info.ng if ggl else 2 * sim.n
     Y = np.ascontiguousarray(np.array(rows).reshape(len(valid), width))
     Pv = P if P.ndim == 1 else np.ascontiguousarray(P[valid])
-    run = family.ensemble_ggl if ggl else family.ensemble_index1
-    part = run(sim, t, Y, Pv, rtol, atol, roots, threads=threads, save=save, progress=progress)
+    part = family.run(sim.formulation, Problem(sim, rtol, atol, t, Y, Pv),
+                      Request(roots=roots, members=Members(threads, save, progress)))
     if not rejected:
         return part
     out = EnsembleResult.assemble(n_mem, [(valid, part)], part, params=P)

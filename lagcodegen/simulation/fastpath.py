@@ -27,7 +27,7 @@ from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.drawing import deferred_drawing
 from ..result import Result
 from ..solvers.base import check_initial_mass_matrix, initial_state, tolerances
-from ..solvers.family import PreparedOdeEventRuns, PreparedOdeRuns
+from ..solvers.family import Problem, Request
 from ..solvers.registry import resolve
 from ..util import output_times
 
@@ -221,7 +221,5 @@ def family_run(cm, solver, rtol, atol, options: dict, events=()):
     family = resolve("ode", solver, own, cm.method_size, rtol_f)
     fixed = {"n_coordinates": cm.n, "n_speeds": cm.code.nv, "model_name": cm.code.model_name or "",
              "drawing": deferred_drawing(cm)}
-    if events:
-        return family.prepared_ode_events(cm, rtol_f, atol_f, fixed, tuple(events)) \
-            if isinstance(family, PreparedOdeEventRuns) else None
-    return family.prepared_ode(cm, rtol_f, atol_f, fixed) if isinstance(family, PreparedOdeRuns) else None
+    request = Request(kind="prepared", events=tuple(events), fixed=fixed)
+    return family.run("ode", Problem(cm, rtol_f, atol_f), request) if family.supports("ode", request) else None

@@ -21,7 +21,7 @@ from ..notebook import CompiledReprMixin
 from ..result import Result
 from ..solvers import control
 from ..solvers.artifacts import Artifacts
-from ..solvers.family import OdeInputRuns
+from ..solvers.family import Problem, Request
 from ..solvers.base import initial_state, tolerances
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
@@ -398,10 +398,10 @@ class CompiledModel(CompiledReprMixin):
         family = resolve("ode", solver, options, self.method_size, rtol)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
                                                        self.code.model_name, params=params)
+        res = family.run("ode", Problem(self, rtol, atol_arr, t, y, p),
+                         Request(events=events, inputs=tables or None))
         if tables:
-            res = run_inputs(family, self, t, y, p, rtol, atol_arr, events, tables)
-        else:
-            res = family.run_ode(self, t, y, p, rtol, atol_arr, events)
+            res.stats["restarts"] = int(tables.restarts_in(float(t[0]), float(t[-1])).size)
         res.parameters = dict(zip(self.param_names, p))
         res.n_coordinates = self.n
         res.n_speeds = self.code.nv
@@ -429,7 +429,7 @@ class CompiledModel(CompiledReprMixin):
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
         family = resolve("ode", solver, options, self.method_size, rtol, runs="stepper")
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
-        stepper = family.stepper_ode(self, mem, rtol, atol_arr, events)
+        stepper = family.run("ode", Problem(self, rtol, atol_arr, y=mem), Request(kind="stepper", events=events))
         if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)
             return SensitivityIntegrator(stepper, getattr(stepper, "mem", mem), state_names=self.state_names,
                                          param_names=self.param_names, family=stepper.family)
@@ -485,19 +485,6 @@ class CompiledModel(CompiledReprMixin):
         (the Taylor method, events, sensitivities, drawing from the states) raises a
         LagcodegenError saying so, unless the pickle was made of :func:`with_scene`."""
         return rebuild_compiled, (pickle_code(self.code), bool(self.native))
-
-
-def run_inputs(family, cm, t, y, p, rtol, atol, events, tables) -> Result:
-    """A run of ``cm`` driven by input ``tables`` on a family that takes them (its
-    ``run_ode_inputs``); the restarts inside the run in ``stats["restarts"]``."""
-    if not isinstance(family, OdeInputRuns):
-        raise LagcodegenError(f"input tables ({', '.join(map(repr, tables.names))}): {family.name} does not take "
-                              "them (native CVODE and Taylor do)")
-    if events:
-        raise LagcodegenError("events with input tables: not supported")
-    res = family.run_ode_inputs(cm, t, y, p, rtol, atol, tables)
-    res.stats["restarts"] = int(tables.restarts_in(float(t[0]), float(t[-1])).size)
-    return res
 
 
 def pickle_code(code: GeneratedCode) -> GeneratedCode:

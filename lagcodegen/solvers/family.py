@@ -6,24 +6,27 @@ of ``simulate``'s option keywords into such an object (:meth:`Family.from_option
 A family object is what ``simulate(..., solver=...)`` and ``ensemble(..., solver=...)`` take
 (``CVODE(method="bdf")``); the keyword spellings (``method="bdf"``, ``linear_solver="band"``,
 ``baumgarte=(5, 5)``) are turned into the same object by the same code, so both spellings run the
-same code after it. The faces (:mod:`lagcodegen.simulation`) it runs:
+same code after it. The faces (:mod:`lagcodegen.simulation`) it runs: ``"ode"`` (the ODE
+y' = f(t, y) of a compiled scene), ``"index1"`` (a constrained system at the acceleration level),
+``"ggl"`` (a constrained system in the stabilized index-2 GGL form).
 
-* ``"ode"``: the ODE y' = f(t, y) of a compiled scene (``run_ode``, ``ensemble_ode``);
-* ``"index1"``: a constrained system at the acceleration level (``run_index1``, ``ensemble_index1``);
-* ``"ggl"``: a constrained system in the stabilized index-2 GGL form (``run_ggl``, ``ensemble_ggl``).
-
-Each face's runs are a declared interface (:class:`OdeRuns`, :class:`OdeInputRuns`,
-:class:`Index1Runs`, :class:`GGLRuns`; prepared runs :class:`PreparedOdeRuns`,
-:class:`PreparedOdeEventRuns`): a family lists the faces it integrates in ``faces``
-(checked by :meth:`Family.check_face` when resolved) and has that face's methods; the
-simulations call them by name, never through a name built at run time.
+**One entry.** Every simulation asks a family through one call, :meth:`Family.run` (the
+:class:`Runs` interface): ``family.run(face, Problem(...), Request(...))``. The
+:class:`Problem` is what is integrated (the compiled simulation, tolerances, times, initial
+state(s), parameters); the :class:`Request` is the kind of run (to output times, an integrator
+object's stepper, a prepared run, an ensemble of :class:`Members`), what it records (events; the
+family's sensitivities, asked as a :class:`Sensitivities` value) and what drives it (input
+tables). Each family declares once, in its ``runs`` table, the (face, kind) pairs it runs and the
+combinations of events, inputs and sensitivities each takes (:func:`combinations`); anything
+else is refused by :meth:`Family.check`, by name, before anything runs. No method name is built
+at run time.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from ..errors import LagcodegenError
 
@@ -46,7 +49,9 @@ class Family:
     ``max_wall``: wall-clock limit of a run (of each ensemble member) in seconds (0: none).
     Subclasses name themselves (``name``), the ``method=`` spellings that choose them
     (``methods``), the faces they run (``faces``), the fields that apply to some faces only
-    (``only``: field -> faces) and keywords they accept without effect (``ignores``).
+    (``only``: field -> faces), keywords they accept without effect (``ignores``), and their
+    runs (``runs``: (face, kind of run) -> (function, combinations); ``refusals``: their words
+    for a combination they do not take).
     """
 
     name: ClassVar[str] = ""
@@ -54,6 +59,12 @@ class Family:
     faces: ClassVar[tuple[str, ...]] = ()
     only: ClassVar[dict] = {}
     ignores: ClassVar[tuple[str, ...]] = ()
+    #: The runs of the family: (face, kind of run) -> (the function running a problem and a
+    #: request, the combinations of what a request asks that it takes: :func:`combinations`).
+    runs: ClassVar[dict] = {}
+    #: Why a combination is not run, where a family has more to say than that it is not
+    #: (:meth:`why_not`).
+    refusals: ClassVar[dict] = {}
 
     max_steps: int = 1_000_000
     max_step: float = 0.0
@@ -125,106 +136,188 @@ class Family:
                                   f"that {FACES.get(face, face)} does not take")
 
     def check_runs(self, face: str, runs: str) -> None:
-        """Raise unless this family implements the interface of ``runs`` ("run", "stepper",
-        "ensemble") on ``face`` (:data:`INTERFACES`), naming what is missing."""
-        interface = INTERFACES.get((face, runs))
-        if interface is None or not isinstance(self, interface):
+        """Raise unless this family has a run of the kind ``runs`` ("run", "stepper", "ensemble",
+        "prepared") on ``face`` (:attr:`runs`), naming what is missing."""
+        if (face, runs) not in self.runs:
             raise LagcodegenError(f"{self.name} has no {RUN_KINDS.get(runs, runs)} runner for {FACES.get(face, face)}")
+
+    def supports(self, face: str, request: "Request") -> bool:
+        """Whether this family runs ``request`` on ``face`` (:attr:`runs`)."""
+        entry = self.runs.get((face, request.how))
+        return entry is not None and request.asks(self) in entry[1]
+
+    def run(self, face: str, problem: "Problem", request: "Request | None" = None):
+        """The one entry of a family: the run of ``problem`` on ``face`` ("ode", "index1",
+        "ggl") that ``request`` asks for (:class:`Request`: a run to output times, an integrator
+        object's stepper, a prepared run or an ensemble; with events, input tables, this
+        family's sensitivities). What each family takes is declared once, in its :attr:`runs`
+        table; any other combination is refused (:meth:`check`), by name, before anything runs."""
+        request = _PLAIN if request is None else request
+        return self.check(face, request)(self, problem, request)
+
+    def check(self, face: str, request: "Request"):
+        """The function of :attr:`runs` that runs ``request`` on ``face``; LagcodegenError naming
+        the kind of run, the face and what was asked together when this family does not take it
+        (:meth:`why_not` may say why)."""
+        how = request.how
+        entry = self.runs.get((face, how))
+        if entry is None:
+            raise LagcodegenError(f"{self.name} has no {RUN_KINDS.get(how, how)} runner for {FACES.get(face, face)}")
+        function, allowed = entry
+        asked = request.asks(self)
+        if asked not in allowed:
+            takes = "; ".join(sorted(" and ".join(sorted(a)) if a else "plain" for a in allowed))
+            reason = self.why_not(face, how, asked)
+            raise LagcodegenError(reason or f"{self.name}: a {RUN_KINDS.get(how, how)} of {FACES.get(face, face)} "
+                                  f"with {' and '.join(sorted(asked))} together is not supported (it takes: {takes})")
+        return function
+
+    def why_not(self, face: str, how: str, asked: frozenset[str]) -> str | None:
+        """A family's own words for a combination its :attr:`runs` does not take (its
+        :attr:`refusals`: (face, kind of run, what is asked) -> the message; None: the generic
+        message). Events with input tables are refused on every family."""
+        if {"events", "inputs"} <= asked:
+            return "events with input tables: not supported"
+        return self.refusals.get((face, how, asked))
 
     def defaults_beside(self, names: frozenset[str]) -> bool:
         """Whether every field not in ``names`` has its default value (a caller that honours only
         ``names`` may then stand in for the family's own runner)."""
         return all(_same(getattr(self, name), f.default) for name, f in self.fields().items() if name not in names)
 
-@runtime_checkable
-class OdeRuns(Protocol):
-    """A run of the ODE face of a compiled scene to output times (CVODE, Taylor)."""
+@dataclass(frozen=True, slots=True)
+class Problem:
+    """What a run integrates: ``sim`` (a compiled scene on the ODE face, a constrained simulation
+    on the index-1 and GGL faces), its tolerances ``rtol`` and ``atol``, the output times ``t``
+    (None for a stepper or a prepared run), the initial state ``y`` (rows of it for an ensemble;
+    a stepper's memory (t, y, p)), its derivative ``yp`` (the GGL form's consistent (y, y')
+    pair: ``y`` and ``yp``) and the parameters ``p`` (rows for an ensemble)."""
 
-    def run_ode(self, cm, t, y, p, rtol: float, atol, events=()): ...
-
-
-@runtime_checkable
-class OdeSteppers(Protocol):
-    """An integrator object's C stepper of the ODE face on the memory ``mem`` = (t, y, p)."""
-
-    def stepper_ode(self, cm, mem, rtol: float, atol, events=()): ...
-
-
-@runtime_checkable
-class OdeEnsembles(Protocol):
-    """An ensemble of runs of the ODE face."""
-
-    def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()): ...
+    sim: Any
+    rtol: Any
+    atol: Any
+    t: Any = None
+    y: Any = None
+    p: Any = None
+    yp: Any = None
 
 
-@runtime_checkable
-class OdeInputRuns(Protocol):
-    """The runs of the ODE face driven by input tables (native CVODE, Taylor)."""
+@dataclass(frozen=True, slots=True)
+class Members:
+    """How an ensemble runs its members: ``threads``, what each keeps (``save``: "final" or
+    "all") and the ``progress`` bar."""
 
-    def run_ode_inputs(self, cm, t, y, p, rtol: float, atol, inputs): ...
-
-    def ensemble_ode_inputs(self, cm, t, Y, P, rtol, atol, inputs, *, threads, save, progress): ...
-
-
-@runtime_checkable
-class PreparedOdeRuns(Protocol):
-    """The ODE runs a family prepares once for given tolerances (``simulate()``'s fast path,
-    :meth:`CompiledModel.prepare <lagcodegen.simulation.ode.CompiledModel.prepare>`): None where
-    a run needs more than its driver's call."""
-
-    def prepared_ode(self, cm, rtol: float, atol, fixed: dict): ...
+    threads: Any = None
+    save: str = "final"
+    progress: Any = None
 
 
-@runtime_checkable
-class PreparedOdeEventRuns(Protocol):
-    """The ODE runs with events a family prepares once (Taylor)."""
+@dataclass(frozen=True, slots=True)
+class Request:
+    """What a simulation asks of a family besides the problem: the ``kind`` of run ("run": to
+    output times, "stepper": an integrator object's C state, "prepared": a run made once for
+    many calls), what it records (``events``: the ODE face's :class:`~lagcodegen.model.events.Event`
+    objects; ``roots``: a constrained system's compiled events located; the sensitivities are
+    the family's own ``sensitivities``), what drives it (``inputs``: an input set, one per
+    member for an ensemble), how many members (``members``: None for one run, else
+    :class:`Members`), ``fixed`` (a prepared run: what every result shares) and ``initial``
+    (constrained sensitivity runs: how the initial state was made consistent)."""
 
-    def prepared_ode_events(self, cm, rtol: float, atol, fixed: dict, events: tuple): ...
+    kind: str = "run"
+    events: tuple = ()
+    roots: bool = False
+    inputs: Any = None
+    members: Members | None = None
+    fixed: dict | None = None
+    initial: str = "check"
 
+    def asks(self, family: "Family") -> frozenset[str]:
+        """What this request asks beyond a plain run, in the words of :attr:`Family.runs`:
+        "events", "inputs", "sensitivities"."""
+        asked = set()
+        if self.events or self.roots:
+            asked.add("events")
+        if self.inputs is not None:
+            asked.add("inputs")
+        if getattr(family, "sensitivities", None) is not None:
+            asked.add("sensitivities")
+        return frozenset(asked)
 
-@runtime_checkable
-class Index1Runs(Protocol):
-    """A run of a constrained system in the index-1 form (CVODE)."""
-
-    def run_index1(self, sim, t, y0, p, rtol, atol, roots: bool): ...
-
-
-@runtime_checkable
-class Index1Steppers(Protocol):
-    def stepper_index1(self, sim, mem, rtol: float, atol, roots: bool): ...
-
-
-@runtime_checkable
-class Index1Ensembles(Protocol):
-    def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress): ...
-
-
-@runtime_checkable
-class GGLRuns(Protocol):
-    """A run of a constrained system in the GGL form (IDA)."""
-
-    def run_ggl(self, sim, t, yy0, yp0, p, rtol, atol, roots: bool): ...
+    @property
+    def how(self) -> str:
+        """The kind of run: "ensemble" when there are members, else :attr:`kind`."""
+        return "ensemble" if self.members is not None else self.kind
 
 
 @runtime_checkable
-class GGLSteppers(Protocol):
-    def stepper_ggl(self, sim, mem, yy0, yp0, rtol, atol, roots: bool): ...
+class Runs(Protocol):
+    """The one entry of a solver family: ``run(face, problem, request)`` (:meth:`Family.run`)."""
+
+    def run(self, face: str, problem: Problem, request: Request = ...): ...
 
 
-@runtime_checkable
-class GGLEnsembles(Protocol):
-    def ensemble_ggl(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress): ...
+_PLAIN = Request()
 
 
-#: The interface a family implements for each (face, kind of run): the one table of what can be
-#: asked of a family, checked by :func:`~.registry.resolve` (``runs=``) before anything runs.
-INTERFACES = {
-    ("ode", "run"): OdeRuns, ("ode", "stepper"): OdeSteppers, ("ode", "ensemble"): OdeEnsembles,
-    ("index1", "run"): Index1Runs, ("index1", "stepper"): Index1Steppers, ("index1", "ensemble"): Index1Ensembles,
-    ("ggl", "run"): GGLRuns, ("ggl", "stepper"): GGLSteppers, ("ggl", "ensemble"): GGLEnsembles,
-}
+@dataclass(frozen=True)
+class Sensitivities:
+    """Forward sensitivities asked of a run, as one value: ``directions`` (names of run-time
+    parameters and initial values, ``"<q>(0)"``, ``"<q>_dot(0)"``:
+    :class:`~lagcodegen.solvers.direction.Direction`), ``errcon`` (the sensitivities in the error
+    test or step-size rule) and ``corrector`` (CVODE's "staggered" or "simultaneous").
+    ``simulate(..., sensitivities=Sensitivities(["k"], errcon=False))`` is
+    ``sensitivities=["k"], sensitivity_errcon=False``; the family keeps them in its fields."""
+
+    directions: tuple[str, ...]
+    errcon: bool = True
+    corrector: str = "staggered"
+
+    def __post_init__(self):
+        names = (self.directions,) if isinstance(self.directions, str) else self.directions
+        try:
+            object.__setattr__(self, "directions", tuple(names))
+        except TypeError:
+            raise LagcodegenError(f"Sensitivities: directions must be a list of names, got {names!r:.80}") from None
+        if not isinstance(self.errcon, bool):
+            raise LagcodegenError(f"Sensitivities: errcon must be True or False, got {self.errcon!r:.40}")
+        choice("Sensitivities: corrector", self.corrector, ("staggered", "simultaneous"))
+
+    @classmethod
+    def of(cls, family: "Family") -> "Sensitivities | None":
+        """The sensitivities ``family`` computes (None: none)."""
+        directions = getattr(family, "sensitivities", None)
+        if directions is None:
+            return None
+        return cls(directions, bool(getattr(family, "sensitivity_errcon", True)),
+                   getattr(family, "sensitivity_corrector", "staggered"))
+
+
+def take_sensitivities(obj) -> None:
+    """Normalize the ``sensitivities`` field of the family object ``obj``: a
+    :class:`Sensitivities` value sets the directions and the family's ``sensitivity_errcon``
+    and ``sensitivity_corrector`` (a corrector other than "staggered" on a family without one is
+    refused); a name or a list of names becomes a tuple (:func:`names_field`)."""
+    value = obj.sensitivities
+    if not isinstance(value, Sensitivities):
+        names_field(obj, "sensitivities")
+        return
+    object.__setattr__(obj, "sensitivities", value.directions)
+    object.__setattr__(obj, "sensitivity_errcon", value.errcon)
+    if "sensitivity_corrector" in obj.fields():
+        object.__setattr__(obj, "sensitivity_corrector", value.corrector)
+    elif value.corrector != "staggered":
+        raise LagcodegenError(f"Sensitivities(corrector={value.corrector!r}): {obj.name} has no corrector choice")
+
+
+def combinations(*allowed: str) -> frozenset[frozenset[str]]:
+    """The combinations of what a request asks that a family's run takes, each written as words
+    joined by "+" ("" a plain run): ``combinations("", "events", "events+sensitivities")``."""
+    return frozenset(frozenset(w for w in words.split("+") if w) for words in allowed)
+
+
 #: How each kind of run is named in messages.
-RUN_KINDS = {"run": "run", "stepper": "integrator object (stepper)", "ensemble": "ensemble"}
+RUN_KINDS = {"run": "run", "stepper": "integrator object (stepper)", "ensemble": "ensemble",
+             "prepared": "prepared run"}
 
 
 def _same(a, b) -> bool:

@@ -58,7 +58,7 @@ def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8, *,
     """The family object of a run on ``face`` ("ode", "index1", "ggl"): ``solver`` (a family
     object or None) with ``options`` (the run's other keywords: method, linear_solver, ...)
     applied, checked against the face and against the kind of run asked for (``runs``: "run",
-    "stepper", "ensemble"; :data:`~.family.INTERFACES`). ``n`` and ``rtol`` choose the family
+    "stepper", "ensemble", "prepared"; the family's ``runs`` table). ``n`` and ``rtol`` choose the family
     of ``method="auto"``."""
     try:
         key = (face, runs, solver, tuple(options.items()), tuple(map(_kind, options.values())), n, rtol)

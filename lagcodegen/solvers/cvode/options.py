@@ -13,7 +13,7 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
-from ..family import Family, choice, names_field
+from ..family import Family, choice, combinations, take_sensitivities
 from . import ensemble, native
 from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
@@ -81,7 +81,7 @@ class CVODE(Family):
 
     def __post_init__(self):
         super().__post_init__()
-        names_field(self, "sensitivities")
+        take_sensitivities(self)
         if self.method is not None:
             choice("method", self.method, tuple(METHODS))
         choice("backend", self.backend, BACKENDS)
@@ -323,6 +323,66 @@ class CVODE(Family):
         tolerance and iteration limit."""
         return Index1Form(alpha=alpha, beta=beta, projection=projection, proj_tol=self.proj_tol,
                           proj_maxit=self.proj_maxit)
+
+    # ------------------------------------------------------------------ the one entry (Family.run)
+    def _ode_run(self, pr, rq) -> Result:
+        if rq.inputs is not None:
+            return self.run_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs)
+        return self.run_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.events)
+
+    def _ode_stepper(self, pr, rq):
+        return self.stepper_ode(pr.sim, pr.y, pr.rtol, pr.atol, rq.events)
+
+    def _ode_ensemble(self, pr, rq):
+        m = rq.members
+        if rq.inputs is not None:
+            return self.ensemble_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs,
+                                            threads=m.threads, save=m.save, progress=m.progress)
+        return self.ensemble_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, threads=m.threads, save=m.save,
+                                 progress=m.progress, events=rq.events)
+
+    def _ode_prepared(self, pr, rq):
+        return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
+
+    def _index1_run(self, pr, rq) -> Result:
+        if self.sensitivities is not None:  # the constrained sensitivity driver (.sensitivity_constrained)
+            from .sensitivity_constrained import run_index1
+            return run_index1(self, pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, roots=rq.roots, initial=rq.initial)
+        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots)
+
+    def _index1_stepper(self, pr, rq):
+        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.roots)
+
+    def _index1_ensemble(self, pr, rq):
+        m = rq.members
+        return self.ensemble_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, threads=m.threads,
+                                    save=m.save, progress=m.progress)
+
+    #: What CVODE runs (Family.run), declared once: every other combination is refused by name.
+    runs = {
+        ("ode", "run"): (_ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
+                                                "inputs+sensitivities")),
+        ("ode", "stepper"): (_ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
+        ("ode", "ensemble"): (_ode_ensemble, combinations("", "events", "inputs", "sensitivities",
+                                                          "events+sensitivities", "inputs+sensitivities")),
+        ("ode", "prepared"): (_ode_prepared, combinations("", "sensitivities")),
+        ("index1", "run"): (_index1_run, combinations("", "events", "sensitivities")),
+        ("index1", "stepper"): (_index1_stepper, combinations("", "events")),
+        ("index1", "ensemble"): (_index1_ensemble, combinations("", "events")),
+    }
+    refusals = {
+        ("index1", "ensemble", frozenset({"sensitivities"})):
+            "ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) per member",
+        ("index1", "ensemble", frozenset({"events", "sensitivities"})):
+            "ensembles do not compute sensitivities: run simulate(..., sensitivities=[...]) per member",
+        ("index1", "stepper", frozenset({"sensitivities"})):
+            "the integrator object does not compute sensitivities: use simulate(..., sensitivities=[...])",
+        ("index1", "stepper", frozenset({"events", "sensitivities"})):
+            "the integrator object does not compute sensitivities: use simulate(..., sensitivities=[...])",
+        ("index1", "run", frozenset({"events", "sensitivities"})):
+            "sensitivities with events: not supported (run the sensitivities with events=False, or locate the "
+            "events in a run of their own)",
+    }
 
     def _native_only(self) -> None:
         if self.backend != "native":

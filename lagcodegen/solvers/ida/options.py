@@ -12,7 +12,7 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ...util import check_finite
 from ..base import _DOUBLE, tolerances
-from ..family import Family, choice
+from ..family import Family, choice, combinations
 from . import ensemble, native
 from ..request import GGLForm, Recording, StepControl, remembered
 from .native import ALGEBRAIC_ATOL
@@ -115,6 +115,26 @@ class IDA(Family):
         control = StepControl.of(self, rtol_, atol_arr, method="bdf", jacobian=jacobian)
         recording = self.recording(64, roots=roots, save=save, threads=threads, progress=progress)
         return ensemble.ensemble_ggl(sim, t, Y, P, control, self.ggl_form(), recording)
+
+    # ------------------------------------------------------------------ the one entry (Family.run)
+    def _ggl_run(self, pr, rq) -> Result:
+        return self.run_ggl(pr.sim, pr.t, pr.y, pr.yp, pr.p, pr.rtol, pr.atol, rq.roots)
+
+    def _ggl_stepper(self, pr, rq):
+        mem, (yy0, yp0) = pr.y, pr.yp
+        return self.stepper_ggl(pr.sim, mem, yy0, yp0, pr.rtol, pr.atol, rq.roots)
+
+    def _ggl_ensemble(self, pr, rq):
+        m = rq.members
+        return self.ensemble_ggl(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, threads=m.threads,
+                                 save=m.save, progress=m.progress)
+
+    #: What IDA runs (Family.run), declared once: every other combination is refused by name.
+    runs = {
+        ("ggl", "run"): (_ggl_run, combinations("", "events")),
+        ("ggl", "stepper"): (_ggl_stepper, combinations("", "events")),
+        ("ggl", "ensemble"): (_ggl_ensemble, combinations("", "events")),
+    }
 
     def ggl_form(self) -> GGLForm:
         """The GGL form of this object's runs (``suppress_alg``, ``stop_at_outputs``)."""

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ...errors import LagcodegenError
 from ...result import Result
-from ..family import Family, names_field
+from ..family import Family, combinations, take_sensitivities
 from ..request import Recording, StepControl
 from .ensemble import run_taylor_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
@@ -44,7 +44,7 @@ class Taylor(Family):
 
     def __post_init__(self):
         super().__post_init__()
-        names_field(self, "sensitivities")
+        take_sensitivities(self)
         if self.order is not None and not (isinstance(self.order, int) and 2 <= self.order):
             raise LagcodegenError(f"Taylor order must be an integer >= 2, got {self.order!r}")
 
@@ -158,6 +158,48 @@ class Taylor(Family):
             raise LagcodegenError("Taylor ensembles have no events without sensitivities: events in every member "
                                   "run on CVODE (simulate(method='taylor', events=...) runs one member with them)")
         return run_taylor_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
+
+    # ------------------------------------------------------------------ the one entry (Family.run)
+    def _ode_run(self, pr, rq) -> Result:
+        if rq.inputs is not None:
+            return self.run_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs)
+        return self.run_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.events)
+
+    def _ode_stepper(self, pr, rq):
+        return self.stepper_ode(pr.sim, pr.y, pr.rtol, pr.atol, rq.events)
+
+    def _ode_ensemble(self, pr, rq):
+        m = rq.members
+        if rq.inputs is not None:
+            return self.ensemble_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs,
+                                            threads=m.threads, save=m.save, progress=m.progress)
+        return self.ensemble_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, threads=m.threads, save=m.save,
+                                 progress=m.progress, events=rq.events)
+
+    def _ode_prepared(self, pr, rq):
+        if rq.events:
+            return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
+        return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
+
+    #: What Taylor runs (Family.run), declared once: every other combination is refused by name
+    #: (events with input tables; ensembles with events or input tables need sensitivities: those
+    #: members run on CVODE).
+    runs = {
+        ("ode", "run"): (_ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
+                                                "inputs+sensitivities")),
+        ("ode", "stepper"): (_ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
+        ("ode", "ensemble"): (_ode_ensemble, combinations("", "sensitivities", "events+sensitivities",
+                                                          "inputs+sensitivities")),
+        ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
+    }
+    refusals = {
+        ("ode", "ensemble", frozenset({"events"})):
+            "Taylor ensembles have no events without sensitivities: events in every member run on CVODE "
+            "(simulate(method='taylor', events=...) runs one member with them)",
+        ("ode", "ensemble", frozenset({"inputs"})):
+            "input tables are interpolated by the native CVODE driver; Taylor ensembles do not take them without "
+            "sensitivities (use method='adams' or 'bdf')",
+    }
 
     def control(self, rtol, atol) -> StepControl:
         """The step control of a run with these tolerances (``max_step``, ``max_steps``, ``order``,
