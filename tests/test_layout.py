@@ -26,6 +26,7 @@ STAGES = [
     ("buildstep",),
     ("cache",),
     ("build",),
+    ("libraries",),
     ("fmu",),
     ("solvers",),
     ("simulation",),

@@ -4,14 +4,10 @@ files are not changed by it (:mod:`lagcodegen.codegen.regressor`)."""
 
 from __future__ import annotations
 
-import ctypes
-
 import cffi
 import numpy as np
 
-from ..build import plain_library
-from ..codegen.record import scene_of_code
-from ..codegen.regressor import regressor_files, regressor_functions
+from ..libraries import regressor_library
 from ..errors import LagcodegenError
 from ..util import c_vector
 
@@ -24,18 +20,14 @@ class CompiledRegressor:
         if f"{code.prefix}_dynamics.c" not in code.files:
             raise LagcodegenError(f"model {code.model_name!r} has no inverse-dynamics regressor (only models with a "
                                   "rigid-body tree, Model.link, have one)")
-        scene = scene_of_code(code, "inverse_dynamics_regressor")
-        sources, self.bodies = regressor_files(scene, code.prefix, code.model_name)
-        self.sources = sources
-        self.library, self.path, _ = plain_library(f"the inverse-dynamics regressor of model {code.model_name!r}",
-                                                   f"{code.prefix}_regressor", sources)
-        fY, fpi = regressor_functions(code.prefix)
+        built = regressor_library(code)  # asked of the build stage
+        self.bodies, self.sources = list(built.extra), built.sources
+        self.library, self.path = built.handle, built.path
         # called through cffi: a few microseconds, where ctypes' pointer arguments take tens
         self._ffi = ffi = cffi.FFI()
         self._Y = ffi.cast("int (*)(double, const double *, const double *, const double *, double *)",
-                           ctypes.cast(getattr(self.library, fY), ctypes.c_void_p).value)
-        self._pi = ffi.cast("void (*)(const double *, double *)",
-                            ctypes.cast(getattr(self.library, fpi), ctypes.c_void_p).value)
+                           built.address("regressor"))
+        self._pi = ffi.cast("void (*)(const double *, double *)", built.address("parameters"))
         self.n, self.nv, self.ny, self.ncol = cm.n, cm.nv, cm.ny, 10 * len(self.bodies)
 
     def matrix(self, q, v, a, t: float, p: np.ndarray) -> np.ndarray:

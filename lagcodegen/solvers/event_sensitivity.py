@@ -19,14 +19,12 @@ infinite time sensitivity: NaN there.
 
 from __future__ import annotations
 
-import ctypes
 from typing import Callable
 
 import cffi
 import numpy as np
 
-from ..build import plain_library
-from ..codegen.events import events_gradient_function, events_gradient_source
+from ..libraries import events_gradient_library
 from ..model.events import EventRecord
 
 
@@ -38,13 +36,11 @@ class EventGradients:
     def __init__(self, cm, scene, events: list):
         self.ne = len(events)
         self.ny, self.np = cm.ny, cm.code.np
-        self.library, self.path, _ = plain_library(f"the event derivatives of model {cm.code.model_name!r}",
-                                                   f"{cm.code.prefix}_events_grad",
-                                                   events_gradient_source(scene, list(events)))
-        fn = getattr(self.library, events_gradient_function(cm.code.prefix))
+        built = events_gradient_library(cm.code, scene, list(events))  # asked of the build stage
+        self.library, self.path = built.handle, built.path
         self._ffi = ffi = cffi.FFI()
         self._fn = ffi.cast("int (*)(double, const double *, const double *, double *, double *, double *)",
-                            ctypes.cast(fn, ctypes.c_void_p).value)
+                            built.address("gradient"))
 
     def __call__(self, t: float, y: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(gt (ne,), gy (ne, ny), gp (ne, np)) at (t, y, p); NaN where not finite."""

@@ -10,11 +10,10 @@ import ctypes
 
 import numpy as np
 
-from ...build import plain_library
-from ...codegen.events import events_function, events_source
 from ...codegen.record import scene_of_code
 from ...errors import LagcodegenError
 from ...formulation.events import scene_events
+from ...libraries import events_library
 from ...model.events import EventRecord
 from ..base import ERR_NONFINITE
 
@@ -26,11 +25,11 @@ class CompiledEvents:
     """The event functions of one set of events of a compiled scene: the checked events, the
     ctypes function, and (for the native driver) the ``lcg_ode_roots`` table pointing at it."""
 
-    def __init__(self, cm, events: list, library, path):
+    def __init__(self, cm, events: list, built):
         self.events = list(events)
-        self.path = path
-        self._library = library  # keeps the library open
-        fn = getattr(library, events_function(cm.code.prefix))
+        self.path = built.path
+        self._library = built  # keeps the library open
+        fn = getattr(built.handle, built.functions["events"])
         dp = ctypes.POINTER(ctypes.c_double)
         fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_double, dp, dp, dp]
         self._fn = fn
@@ -99,9 +98,7 @@ def compiled_events(cm, events) -> CompiledEvents | None:
     scene = scene_of(cm)
     checked = scene_events(scene, events)
     def make():
-        sources = events_source(scene, checked)
-        library, path, _ = plain_library(f"the event functions of model {cm.code.model_name!r}",
-                                         f"{cm.code.prefix}_events", sources)
-        return CompiledEvents(cm, checked, library, path)
+        built = events_library(cm.code, scene, checked)  # asked of the build stage
+        return CompiledEvents(cm, checked, built)
     found = cm.artifacts.get(CompiledEvents, ("checked", tuple(checked)), make)
     return found if given is None else cm.artifacts.keep(CompiledEvents, given, found)

@@ -15,18 +15,17 @@ tolerances; the simultaneous one leaves them out of that test too).
 
 from __future__ import annotations
 
-import ctypes
 import functools
 import os
 import time
 
 import numpy as np
 
-from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials, plain_library
+from ...build import DEFAULT_CFLAGS, driver_runtime, find_sundials
 from ...codegen.cffi_decl import MODEL_TABLE_CDEF, POLL_CDEF, driver_cdef, header_cdef
-from ...codegen.record import scene_of_code
-from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS, sensitivity_source
+from ...codegen.sensitivity import SENS_OUTPUTS, SENS_RHS
 from ...errors import LagcodegenError
+from ...libraries import sensitivity_library
 from ...result import Result
 from ...runtime import sources as runtime_files
 from ..base import METHODS, message
@@ -87,17 +86,14 @@ class SensitivityFunctions:
         if cm.table is None:
             raise LagcodegenError("sensitivities need a compiled model of a scene on the native runtime "
                                   "(compile_model(...), native build)")
-        scene = scene_of_code(code, "sensitivities")
         prefix = code.prefix
-        sources = sensitivity_source(scene, prefix)
-        self.library, self.path, _ = plain_library("sensitivity functions", f"{prefix}_sens", sources)
+        built = sensitivity_library(code)  # asked of the build stage
+        self.library, self.path = built.handle, built.path
         self.rt = sens_runtime()
         self.poll = install(self.rt)  # Ctrl-C during a run
         ffi = self.rt.ffi
-        self.rhs = ffi.cast("lcg_sens_rhs_fn", ctypes.cast(getattr(self.library, f"{prefix}_sens_rhs"),
-                                                            ctypes.c_void_p).value)
-        self.out = ffi.cast("lcg_sens_out_fn", ctypes.cast(getattr(self.library, f"{prefix}_sens_outputs"),
-                                                            ctypes.c_void_p).value)
+        self.rhs = ffi.cast("lcg_sens_rhs_fn", built.address("rhs"))
+        self.out = ffi.cast("lcg_sens_out_fn", built.address("outputs"))
         table_address = int(cm.ffi.cast("uintptr_t", cm.table))
         self.table = ffi.cast("const lcg_model *", table_address)
         self.prototypes = (SENS_RHS.format(prefix=prefix), SENS_OUTPUTS.format(prefix=prefix))

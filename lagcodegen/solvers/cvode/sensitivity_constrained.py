@@ -29,12 +29,9 @@ import time
 
 import numpy as np
 
-from ...build import generated_headers, plain_library
-from ...codegen.record import scene_of_code
-from ...codegen.sensitivity_constrained import constrained_sensitivity_source
 from ...errors import LagcodegenError, ModelError
+from ...libraries import constrained_sensitivity_library
 from ...result import Result
-from ...runtime import sources as runtime_files
 from ..base import tolerances
 from ..control import CANCELLED, install, raise_pending
 from ..request import StepControl
@@ -46,27 +43,19 @@ class ConstrainedSensitivityFunctions:
     pointers of the sensitivity driver's module (``rt``); ``library`` keeps the library open."""
 
     def __init__(self, sim):
-        scene = scene_of_code(sim.compiled.code, "sensitivities of a constrained system")
-        prefix = scene.prefix
-        sources = constrained_sensitivity_source(sim.system, scene, sim.output_names, prefix)
-        sources.update(runtime_files(["lcg_model.h"]))
-        sources.update(generated_headers())
-        self.library, self.path, _ = plain_library("constrained sensitivity functions", f"{prefix}_csens", sources)
+        built = constrained_sensitivity_library(sim.system, sim.compiled.code, sim.output_names)  # the build stage's
+        self.library, self.path = built.handle, built.path
         self.rt = sens_runtime()
         self.poll = install(self.rt)  # Ctrl-C during a run
         ffi = self.rt.ffi
         lib = self.library
-
-        def address(name):
-            return ctypes.cast(getattr(lib, f"{prefix}_{name}"), ctypes.c_void_p).value
-
-        self.rhs = ffi.cast("lcg_sens_rhs_fn", address("csens_rhs"))
-        self.out = ffi.cast("lcg_sens_out_fn", address("csens_outputs"))
-        self.project = ffi.cast("lcg_sens_proj_fn", address("csens_project"))
-        getter = getattr(lib, f"{prefix}_csens_model_table")
+        self.rhs = ffi.cast("lcg_sens_rhs_fn", built.address("rhs"))
+        self.out = ffi.cast("lcg_sens_out_fn", built.address("outputs"))
+        self.project = ffi.cast("lcg_sens_proj_fn", built.address("project"))
+        getter = getattr(lib, built.functions["model_table"])
         getter.restype, getter.argtypes = ctypes.c_void_p, []
         self.table = ffi.cast("const lcg_model *", getter())
-        initial = getattr(lib, f"{prefix}_csens_initial")
+        initial = getattr(lib, built.functions["initial"])
         dp, ip = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int)
         initial.restype = ctypes.c_int
         initial.argtypes = [ctypes.c_double, dp, dp, ctypes.c_int, ip, dp]
