@@ -318,8 +318,8 @@ def test_contact_input_errors():
         sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
     with pytest.raises(LagcodegenError, match="projection"):
         sim.simulate((0, 1), q0=[0.5], v0=[0.0], projection=True)
-    with pytest.raises(LagcodegenError, match="ensembles"):
-        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])
+    with pytest.raises(LagcodegenError, match="projection"):
+        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]], projection=True)
     with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
         sim.integrator(q0=[0.5], v0=[0.0])
 

@@ -69,6 +69,7 @@ from ..util import check_finite, output_times
 from .constrained_functions import ConstrainedFunctions
 from .constrained_impacts import ContactOptions, ImpactRunner
 from .ensemble import ensemble_constrained
+from .impact_ensemble import ensemble_contacts
 from .integrator import Integrator
 from .ode import CompiledModel
 
@@ -227,8 +228,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 
-    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts) -> Result:
-        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`)."""
+    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
+        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`);
+        ``cancel``: None, or a numpy int array of one value that stops the run (-80) once set."""
         if contacts is None:
             contacts = ContactOptions()
         elif not isinstance(contacts, ContactOptions):
@@ -253,7 +255,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
             raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
                              "(inequality constraints g >= 0)")
         return runner.run(t, y0, p, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
-                          family.recording(10_000, roots=roots), contacts)
+                          family.recording(10_000, roots=roots), contacts, cancel=cancel)
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""
@@ -288,9 +290,11 @@ class ConstrainedSimulation(ConstrainedFunctions):
         :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble` for the arguments, and
         :meth:`simulate` for ``options`` (``max_wall``: per member). Members whose initial state is
         rejected get status -84."""
-        if self.info.contacts:
-            raise LagcodegenError("ensembles of systems with contacts are not supported: run the members with "
-                                  "simulate (each a call of the impact driver)")
+        if self.info.contacts and not self.system.model.general:
+            return ensemble_contacts(self, t, q0, v0, params=params,
+                                     recording=Recording(save=save, threads=threads, progress=progress),
+                                     executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
+                                     options=options)
         if self.system.model.general:
             raise LagcodegenError(f"ensembles of constrained systems with generalized speeds (model "
                                   f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not supported yet: "

@@ -307,10 +307,12 @@ class ImpactRunner:
         return g, w
 
     def run(self, t, y0, p, control: StepControl, form: Index1Form, recording: Recording,
-            contacts: ContactOptions) -> Result:
+            contacts: ContactOptions, cancel=None) -> Result:
         """A run on the impact driver with the step control ``control`` (a scalar atol), the
         Baumgarte parameters of ``form`` (no projection), ``recording.roots``: locate the compiled
-        events (at most ``recording.max_events``), and the contact settings ``contacts``."""
+        events (at most ``recording.max_events``), and the contact settings ``contacts``;
+        ``cancel``: None, or a numpy int array of one value that stops the run (-80) once set
+        nonzero (an ensemble's members, from another thread)."""
         sim, ffi = self.sim, self.ffi
         method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
@@ -333,6 +335,8 @@ class ImpactRunner:
         opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(c.max_order), form.alpha, form.beta, \
             int(roots), c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
+        if cancel is not None:
+            opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_cvc_stats *")
         events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
             if roots and sim.info.events else None

@@ -1,0 +1,131 @@
+"""Impacts on the consumers of the index-1 impact driver other than simulate: ensembles (every
+event and impact recorded per member, bit-identical to the single runs, in this process and on a
+Dask LocalCluster) and the integrator object (the jumps applied between its calls), checked
+against the closed-form bouncing ball and Newton's cradle as tests/test_impacts.py checks simulate."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import lagcodegen as lcg
+from lagcodegen.api import compile_constrained
+
+G = 9.81
+
+
+def _ball(e: float, name: str = "cball"):
+    m = lcg.Model(name)
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    # apex: the velocity crossing zero downwards (non-terminal), recorded beside the impacts
+    apex = lcg.Event("apex", sp.Symbol("y_dot"), direction=-1, terminal=False)
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=e)]),
+                               "index1", outputs=["energy"], events=[apex])
+
+
+def _cradle():
+    m = lcg.Model("ccradle")
+    xs = m.coordinates("x1 x2 x3")
+    m.parameters(m=1.0, d=0.1)
+    for i, x in enumerate(xs):
+        m.particle(f"b{i}", sp.Symbol("m"), (x, 0))
+    d = sp.Symbol("d")
+    ineqs = [lcg.Inequality(xs[1] - xs[0] - d, restitution=1.0), lcg.Inequality(xs[2] - xs[1] - d, restitution=1.0)]
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), "index1", outputs=["energy"])
+
+
+@pytest.fixture(scope="module")
+def ball():
+    return _ball(0.8)
+
+
+@pytest.fixture(scope="module")
+def cradle():
+    return _cradle()
+
+
+def _same_records(a, b) -> None:
+    """Two runs' events and contact logs equal bit for bit."""
+    assert [(r.name, r.t, r.direction) for r in a.events] == [(r.name, r.t, r.direction) for r in b.events]
+    for ra, rb in zip(a.events, b.events):
+        assert np.array_equal(ra.y, rb.y)
+    assert a.impacts is not None and b.impacts is not None
+    assert a.impacts.records == b.impacts.records
+    assert a.impacts.final_modes == b.impacts.final_modes
+
+
+H0 = np.array([1.0, 0.5, 2.0, 0.3])
+T = np.linspace(0, 3, 301)
+
+
+def test_ensemble_of_a_bouncing_ball_records_every_event_and_impact_per_member(ball):
+    e = 0.8
+    ens = ball.ensemble(T, q0=H0[:, None], v0=np.zeros((4, 1)), save="trajectory", rtol=1e-10, atol=1e-12,
+                        threads=2)
+    assert (ens.status == 0).all()
+    for i, h0 in enumerate(H0):
+        single = ball.simulate(T, q0=[h0], v0=[0.0], rtol=1e-10, atol=1e-12)
+        member = ens.member(i)
+        _same_records(member, single)
+        assert np.array_equal(member.y, single.y)
+        assert np.array_equal(member["lambda_ineq_0"], single["lambda_ineq_0"])
+        assert ens.stats["impacts"][i] == single.stats["impacts"] and ens.stats["events"][i] == len(single.events)
+        # independent facts: impact k at t1 + 2 t1 e (1 - e^k) / (1 - e), apex k at h0 e^(2k)
+        t1 = math.sqrt(2 * h0 / G)
+        bounces = member.impacts.select("bounce")[:3]
+        k = np.arange(len(bounces))
+        exact = t1 + 2 * t1 * e * (1 - e**k) / (1 - e)
+        assert len(bounces) == 3 and np.max(np.abs(np.array([r.t for r in bounces]) / exact - 1)) < 1e-8
+        apexes = [r for r in member.events if r.name == "apex"]
+        assert len(apexes) >= 3
+        heights = np.array([r.y[0] for r in apexes[:3]])
+        assert np.max(np.abs(heights / (h0 * e ** (2 * np.arange(1, 4))) - 1)) < 1e-8
+
+
+def test_ensemble_of_newtons_cradle_keeps_each_members_impacts(cradle):
+    gaps = np.array([1e-3, 2e-3, 5e-4])
+    Q = np.array([[0.0, 0.1 + g, 0.2 + 2 * g] for g in gaps])
+    V = np.tile([1.0, 0.0, 0.0], (3, 1))
+    ens = cradle.ensemble(np.linspace(0, 1, 11), q0=Q, v0=V, rtol=1e-12, atol=1e-14)
+    for i, g in enumerate(gaps):
+        member = ens.member(i)
+        single = cradle.simulate(np.linspace(0, 1, 11), q0=Q[i], v0=V[i], rtol=1e-12, atol=1e-14)
+        assert member.impacts.records == single.impacts.records
+        assert np.array_equal(ens.y[i], single.y[-1])
+        assert [r.contact for r in member.impacts] == [0, 1]
+        assert member.impacts[0].t == pytest.approx(g, rel=1e-10)
+        assert member.impacts[1].t == pytest.approx(2 * g, rel=1e-10)
+        assert np.max(np.abs(ens.y[i, 3:] - [0.0, 0.0, 1.0])) < 1e-12
+
+
+def test_ensemble_with_contacts_rejects_members_and_takes_contact_options(ball):
+    # a member starting below the floor is rejected by name; the others run
+    ens = ball.ensemble((0, 1), q0=[[1.0], [-0.5]], v0=[[0.0], [0.0]])
+    assert ens.status[0] == 0 and ens.status[1] == -84
+    assert "contact" in ens.messages[1] and "violated" in ens.messages[1]
+    assert ens.member(1).impacts is None
+    with pytest.raises(lcg.LagcodegenError, match="ContactOptions"):
+        ball.ensemble((0, 1), q0=[[1.0]], contacts={"contact_speed": 1})
+    opts = lcg.ContactOptions(contact_speed=0.5)
+    ens = ball.ensemble((0, 3), q0=[[1.0]], contacts=opts)
+    single = ball.simulate((0, 3), q0=[1.0], v0=[0.0], contacts=opts)
+    assert ens.member(0).impacts.records == single.impacts.records
+
+
+def test_ensemble_with_contacts_on_a_dask_local_cluster(ball):
+    distributed = pytest.importorskip("distributed")
+    q0 = H0[:, None]
+    ref = ball.ensemble(T, q0=q0, rtol=1e-10, atol=1e-12)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=40) as cluster, distributed.Client(cluster) as client:
+        ens = ball.ensemble(T, q0=q0, rtol=1e-10, atol=1e-12, executor=client, chunk_size=2)
+    assert np.array_equal(ens.y, ref.y) and (ens.status == 0).all()
+    for i in range(len(H0)):
+        single = ball.simulate(T, q0=q0[i], v0=[0.0], rtol=1e-10, atol=1e-12)
+        _same_records(ens.member(i), single)
