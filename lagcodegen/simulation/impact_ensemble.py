@@ -24,7 +24,7 @@ from ..errors import LagcodegenError, ModelError, SolverError
 from ..solvers.control import CANCELLED, NOT_RUN
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import COUNT_NAMES, FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleResult
-from ..solvers.ensemble_run import _columns, default_threads
+from ..solvers.ensemble_run import default_threads, saved_columns
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
 from ..util import output_times
@@ -119,7 +119,7 @@ def _assemble(sim, t: np.ndarray, results: list, P: np.ndarray, save) -> Ensembl
     n_mem, nt, ny = len(results), t.size, sim.ny
     output_names = list(sim.info.output_names) + [f"lambda_ineq_{k}" for k in sim.info.contacts]
     output_names += [name for name in _tangential_outputs(results) if name not in output_names]
-    names, cols = _columns(save, list(sim.state_names), output_names, {})
+    names, cols = saved_columns(save, list(sim.state_names), output_names, {})
     final = np.full((n_mem, ny + len(output_names)), np.nan)
     traj = np.full((n_mem, nt, len(cols)), np.nan) if cols else None
     status = np.full(n_mem, NOT_RUN, dtype=np.intc)
