@@ -129,3 +129,82 @@ def test_ensemble_with_contacts_on_a_dask_local_cluster(ball):
     for i in range(len(H0)):
         single = ball.simulate(T, q0=q0[i], v0=[0.0], rtol=1e-10, atol=1e-12)
         _same_records(ens.member(i), single)
+
+
+# ---------------------------------------------------------------------- the integrator object
+def test_integrator_over_the_whole_grid_is_the_simulate_run(ball):
+    T6 = np.linspace(0, 6, 601)
+    ref = ball.simulate(T6, q0=[1.0], v0=[0.0], rtol=1e-12, atol=1e-14)
+    with ball.integrator(q0=[1.0], v0=[0.0], rtol=1e-12, atol=1e-14) as integ:
+        out = integ.propagate_grid(T6)
+        assert np.array_equal(out, ref.y)
+        assert integ.impacts.records == ref.impacts.records
+        assert [(r.name, r.t) for r in integ.events] == [(r.name, r.t) for r in ref.events]
+        with pytest.raises(lcg.LagcodegenError, match="step .*not available for systems with contacts"):
+            integ.step()
+
+
+def test_integrator_in_short_calls_bounces_rests_as_the_closed_form(ball):
+    # the bouncing ball stepped 0.01 s at a time: impacts located inside the calls, the jumps
+    # applied, then resting on the floor with lambda = m g; to test_impacts.py's bounds (1e-9)
+    e, h0, speed = 0.8, 1.0, 1e-6
+    integ = ball.integrator(q0=[h0], v0=[0.0], rtol=1e-12, atol=1e-14,
+                            contacts=lcg.ContactOptions(contact_speed=speed))
+    records, apexes = [], []
+    for _ in range(600):
+        integ.propagate_for(0.01)
+        records += integ.impacts.records
+        apexes += [r for r in integ.events if r.name == "apex"]
+    t1 = math.sqrt(2 * h0 / G)
+    bounces = [r for r in records if r.kind == "bounce"]
+    assert len(bounces) >= 20
+    k = np.arange(20)
+    t_exact = t1 + 2 * t1 * e * (1 - e**k) / (1 - e)
+    assert np.max(np.abs(np.array([r.t for r in bounces[:20]]) / t_exact - 1)) < 1e-9
+    w_after = np.array([r.w_after for r in bounces[:20]])
+    assert np.max(np.abs(w_after**2 / (2 * G) / (h0 * e ** (2 * (k + 1))) - 1)) < 1e-9
+    heights = np.array([r.y[0] for r in apexes[:5]])
+    assert np.max(np.abs(heights / (h0 * e ** (2 * np.arange(1, 6))) - 1)) < 1e-9
+    t_zeno = t1 * (1 + e) / (1 - e)
+    sticks = [r for r in records if r.kind == "stick"]
+    assert len(sticks) == 1
+    assert t_zeno - 2 * (speed / e) / (G * (1 - e)) - 1e-9 <= sticks[0].t <= t_zeno + 1e-9
+    assert integ.impacts.final_modes == {0: "contact"}
+    assert abs(integ.state[0]) < 1e-9 and abs(integ.state[1]) < 1e-9
+    assert integ.time == pytest.approx(6.0, rel=1e-12)
+
+
+def test_integrator_newtons_cradle_and_release(cradle):
+    gap = 1e-3
+    integ = cradle.integrator(q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    grid = integ.propagate_grid(np.linspace(0.0005, 0.0025, 5))  # both impacts inside this call
+    assert [r.contact for r in integ.impacts] == [0, 1]
+    assert integ.impacts[0].t == pytest.approx(gap, rel=1e-10)
+    assert integ.impacts[1].t == pytest.approx(2 * gap, rel=1e-10)
+    assert np.max(np.abs(grid[:, 3:].sum(axis=1) - 1.0)) < 1e-12
+    integ.propagate_until(1.0)
+    assert len(integ.impacts) == 0
+    v = integ.state[3:]
+    assert abs(v[0]) < 1e-12 and abs(v[1]) < 1e-12 and abs(v[2] - 1.0) < 1e-12
+    # the ball on a floor that accelerates down faster than g: released at t = (g + 1) / 20
+    m = lcg.Model("clift")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    floor = 0.5 * m.t**2 - sp.Rational(10, 3) * m.t**3
+    lift = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - floor, restitution=0.5)]),
+                               "index1")
+    integ = lift.integrator(q0=[0.0], v0=[0.0], rtol=1e-11, atol=1e-13)
+    records = []
+    for _ in range(80):
+        integ.propagate_for(0.01)
+        records += integ.impacts.records
+    releases = [r for r in records if r.kind == "release"]
+    assert releases and releases[0].t == pytest.approx((G + 1) / 20, rel=1e-8)
+    # at most a plastic re-contact at the same instant (a closing speed ~1e-10 after the release,
+    # impulse ~1e-10), released again there: nothing after the release time
+    assert all(abs(r.t - releases[0].t) < 1e-12 and r.impulse < 1e-9 for r in records)
+    assert integ.impacts.final_modes == {0: "free"}
+    tt = integ.time
+    assert integ.state[0] > 0.5 * tt**2 - 10 / 3 * tt**3

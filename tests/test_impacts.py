@@ -320,8 +320,10 @@ def test_contact_input_errors():
         sim.simulate((0, 1), q0=[0.5], v0=[0.0], projection=True)
     with pytest.raises(LagcodegenError, match="projection"):
         sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]], projection=True)
-    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
-        sim.integrator(q0=[0.5], v0=[0.0])
+    with pytest.raises(LagcodegenError, match="projection"):
+        sim.integrator(q0=[0.5], v0=[0.0], projection=True)
+    with pytest.raises(ModelError, match="violated"):
+        sim.integrator(q0=[-0.5], v0=[0.0])
 
 
 def test_plain_inequality_keeps_its_terminal_event():
