@@ -377,8 +377,9 @@ def test_generate_and_bundle_of_a_contact_file(tmp_path):
         proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", name, "-o",
                                "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
-    with pytest.raises(ModelError, match="bundles of systems with contacts"):
-        generate_file(mf, bundle=True)
+    bundle = generate_file(mf, bundle=True)  # the impact law in the bundle's C (tests/codegen/test_bundle_contacts.py)
+    assert {"bouncing_ball_impact.c", "rk4_example.c", "reference.csv"} <= set(bundle)
+    assert "bouncing_ball_imp_model_table()" in bundle["rk4_example.c"]
     with pytest.raises(ModelError, match="in C only"):
         generate_file(mf, lang="fortran")
 
