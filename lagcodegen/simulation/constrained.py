@@ -232,6 +232,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
     def _contact_integrator(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> Integrator:
         """The integrator object of a system with contacts from (t0, y0) (:mod:`.impact_stepper`:
         each call one run of the impact driver)."""
+        if self.system.model.general:
+            raise LagcodegenError(f"the integrator object of systems with contacts and generalized speeds (model "
+                                  f"{self.system.model.name!r}) is not made: use simulate")
         run = self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts)
         mem = np.concatenate([[t0], y0, p])
         stepper = ImpactStepper(self, run, mem)
