@@ -208,3 +208,54 @@ def test_integrator_newtons_cradle_and_release(cradle):
     assert integ.impacts.final_modes == {0: "free"}
     tt = integ.time
     assert integ.state[0] > 0.5 * tt**2 - 10 / 3 * tt**3
+
+
+def test_ctrl_c_stops_an_ensemble_with_impacts(tmp_path):
+    """SIGINT during an ensemble of long runs with impacts (two elastic balls bouncing for 1e7 s
+    on two threads): EnsembleInterrupted within seconds (a bound), its result holding the members
+    stopped with -80 (cancelled)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+    import time
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    script = tmp_path / "long.py"
+    script.write_text(textwrap.dedent("""
+        import sys
+        import numpy as np
+        import sympy as sp
+        import lagcodegen as lcg
+        from lagcodegen.api import compile_constrained
+        from lagcodegen.solvers.ensemble_result import EnsembleInterrupted
+        m = lcg.Model("ctrlc_eball")
+        (y,) = m.coordinates("y")
+        m.parameters(g=9.81, m=1.0)
+        m.particle("b", sp.Symbol("m"), (0, y))
+        m.gravity(sp.Symbol("g"))
+        sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=1.0)]),
+                                  "index1")
+        sim.ensemble(np.array([0.0, 1.0]), q0=[[1.0]])
+        print("ready", flush=True)
+        try:
+            sim.ensemble(np.array([0.0, 1e7]), q0=[[1.0], [0.5]], threads=2, max_steps=10**15,
+                         contacts=lcg.ContactOptions(max_records=10))
+        except EnsembleInterrupted as exc:
+            print("interrupted", exc.result.status.tolist(), file=sys.stderr)
+            sys.exit(130)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(root)))
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=60)[1]
+        took = time.perf_counter() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted [-80, -80]" in err and took < 10
