@@ -184,6 +184,8 @@ def test_integrator_newtons_cradle_and_release(cradle):
     assert np.max(np.abs(grid[:, 3:].sum(axis=1) - 1.0)) < 1e-12
     integ.propagate_until(1.0)
     assert len(integ.impacts) == 0
+    integ.propagate_for(0.0)  # a call that does not advance: no records, the modes as they are
+    assert len(integ.impacts) == 0 and integ.impacts.final_modes == {0: "free", 1: "free"}
     v = integ.state[3:]
     assert abs(v[0]) < 1e-12 and abs(v[1]) < 1e-12 and abs(v[2] - 1.0) < 1e-12
     # the ball on a floor that accelerates down faster than g: released at t = (g + 1) / 20

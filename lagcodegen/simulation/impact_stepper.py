@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..solvers.base import ERR_SINGULAR
+from .constrained_impacts import ContactLog
 
 
 class ImpactStepper:
@@ -102,8 +103,10 @@ class ImpactStepper:
                               "propagate_grid)")
 
     def _none(self) -> None:
+        """A call that does not advance: no events, an empty contact log with the current modes."""
         self._last = None
-        self.impacts = None
+        contacts = self.run.runner.contacts
+        self.impacts = ContactLog([], {k: "contact" if a else "free" for k, a in zip(contacts, self.active)})
 
     def event_arrays(self):
         """(count, terminated, (t, y, which, direction)) of the last call's events."""
