@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..errors import LagcodegenError, ModelError, SolverError
-from ..solvers.control import CANCELLED, NOT_RUN
+from ..solvers.control import CANCELLED, NOT_RUN, Progress
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import COUNT_NAMES, FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleResult
 from ..solvers.ensemble_run import default_threads, saved_columns
@@ -43,7 +43,7 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
     :class:`~.constrained_impacts.ContactOptions` among them); a member whose initial state is
     rejected (not on the constraints, a contact violated) gets flag -84 and the reason; a member
     stopped by Painleve's paradox keeps its run up to there, its flag and message."""
-    threads, save = recording.threads, recording.save
+    threads, save = recording.threads, recording.save  # recording.progress: a progress line as members finish
     options = dict(options)
     contacts = options.pop("contacts", None)
     if contacts is not None and not isinstance(contacts, ContactOptions):
@@ -88,11 +88,13 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
     n_threads = default_threads(n_mem) if threads is None else max(1, int(threads))
     results: list = [None] * n_mem
     interrupted = False
+    bar = Progress(n_mem, show=recording.progress)
     with ThreadPoolExecutor(max_workers=n_threads) as pool:
         futures = [pool.submit(member, i) for i in range(n_mem)]
         try:
             for i, fut in enumerate(futures):
                 results[i] = fut.result()
+                bar.update(i + 1, n_mem)
         except LagcodegenError:
             cancel[0] = 1
             raise
@@ -107,6 +109,7 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
                         results[i] = fut.result()
                     except KeyboardInterrupt:
                         results[i] = None
+    bar.close(sum(r is not None for r in results))
     out = _assemble(sim, t, results, P, save)
     if interrupted:
         raise EnsembleInterrupted(out) from None
