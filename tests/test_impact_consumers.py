@@ -261,3 +261,33 @@ def test_ctrl_c_stops_an_ensemble_with_impacts(tmp_path):
         proc.kill()
     assert proc.returncode == 130, err
     assert "interrupted [-80, -80]" in err and took < 10
+
+
+def test_floating_body_with_contacts_in_an_ensemble_and_the_integrator_object():
+    """A body on a free joint (quaternion, generalized speeds) spinning about its vertical axis,
+    dropped with its contact point h above the ground: the bounce at t1 = sqrt(2 h / g), the apex
+    e^2 h at t1 (1 + e) (as tests/test_constrained_speeds.py checks simulate), through the
+    integrator object in 50 calls and in an ensemble of two drop heights."""
+    from test_constrained_speeds import dropped_box
+    e, r, yaw, wz = 0.6, 0.1, 0.7, 3.0
+    sim = compile_constrained(dropped_box("quaternion", (0, 0, -r), e))
+    heights = [0.4, 0.25]
+    Q = np.array([[0, 0, h + r, 0, 0, math.sin(yaw / 2), math.cos(yaw / 2)] for h in heights])
+    V = np.tile([0, 0, 0, 0, 0, wz], (2, 1))
+    t1 = math.sqrt(2 * heights[0] / G)
+    T = np.linspace(0, t1 * (1 + e), 51)
+    ens = sim.ensemble(T, q0=Q, v0=V, rtol=1e-12, atol=1e-13, save="trajectory")
+    for i, h in enumerate(heights):
+        single = sim.simulate(T, Q[i], V[i], rtol=1e-12, atol=1e-13)
+        assert ens.member(i).impacts.records == single.impacts.records
+        assert np.array_equal(ens.member(i).y, single.y)
+        (bounce,) = single.impacts.select("bounce")
+        assert bounce.t == pytest.approx(math.sqrt(2 * h / G), abs=1e-10)
+    integ = sim.integrator(q0=Q[0], v0=V[0], rtol=1e-12, atol=1e-13)
+    records = []
+    for k in range(50):
+        integ.propagate_until(T[k + 1])
+        records += integ.impacts.records
+    assert [rec.kind for rec in records] == ["bounce"] and records[0].t == pytest.approx(t1, abs=1e-10)
+    y = integ.state
+    assert abs(y[2] - r - e * e * heights[0]) < 1e-8 and abs(y[9]) < 1e-8  # apex: e^2 h, at rest vertically

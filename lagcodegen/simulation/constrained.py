@@ -232,9 +232,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
     def _contact_integrator(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> Integrator:
         """The integrator object of a system with contacts from (t0, y0) (:mod:`.impact_stepper`:
         each call one run of the impact driver)."""
-        if self.system.model.general:
-            raise LagcodegenError(f"the integrator object of systems with contacts and generalized speeds (model "
-                                  f"{self.system.model.name!r}) is not made: use simulate")
         run = self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts)
         mem = np.concatenate([[t0], y0, p])
         stepper = ImpactStepper(self, run, mem)
@@ -312,7 +309,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         rejected get status -84. Systems with contacts: each member one run of the impact driver
         (:mod:`.impact_ensemble`), its events and contact log in ``member(i).events`` and
         ``.impacts``."""
-        if self.info.contacts and not self.system.model.general:
+        if self.info.contacts:
             return ensemble_contacts(self, t, q0, v0, params=params,
                                      recording=Recording(save=save, threads=threads, progress=progress),
                                      executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
