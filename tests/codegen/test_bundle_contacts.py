@@ -115,6 +115,40 @@ def test_newtons_cradle_bundle_with_cmake(tmp_path, tools):
     assert np.max(np.abs(rows[:, 7] - 0.5)) < 1e-12  # energy (e = 1)
 
 
+def test_pendulum_at_a_wall_bundle_with_an_equality_constraint(tmp_path, tools):
+    """A pendulum in Cartesian coordinates (x^2 + y^2 = l^2, a multiplier) released from 1 rad
+    against the wall x >= 0 (e = 0.8): its impacts at T(1)/4, then every half period T(a_k)/2 of
+    the amplitude after impact k (cos a_k = 1 - l w_k^2 / (2 g), w_k = e^k w_0,
+    T(a) = 4 sqrt(l/g) K(sin^2(a/2))), Newton's law at each, and make check against the impact
+    driver (the constraint's multiplier lambda_0 among the values)."""
+    from scipy.special import ellipk
+    m = lcg.Model("pwall")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0, l=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, holonomic=[x**2 + y**2 - sp.Symbol("l") ** 2],
+                                   inequalities=[lcg.Inequality(x, restitution=0.8)])
+    files = render_constrained_bundle(system, y0=[math.sin(1.0), -math.cos(1.0), 0.0, 0.0], t_end=3.0)
+    write_files(tmp_path, files)
+    check = _run(["make", f"CFLAGS={STRICT}", "check"], tmp_path)
+    assert "rk4_example agrees with reference.csv at t = 1: 10 values" in check.stdout
+    assert "lambda_0" in (tmp_path / "reference.csv").read_text()
+    bounces = [ev for ev in _events(_run(["./rk4_example"], tmp_path).stderr) if ev[2] == "bounce"]
+
+    def period(a):
+        return 4 * math.sqrt(1 / G) * float(ellipk(math.sin(a / 2) ** 2))
+    t, w, exact = period(1.0) / 4, math.sqrt(2 * G * (1 - math.cos(1.0))), []
+    for _ in bounces:
+        exact.append(t)
+        w *= 0.8
+        t += period(math.acos(1 - w * w / (2 * G))) / 2
+    assert len(bounces) == 3
+    assert np.max(np.abs(np.array([b[0] for b in bounces]) / exact - 1)) < 1e-9
+    for b in bounces:
+        assert b[5] == pytest.approx(-0.8 * b[4], rel=1e-10)
+
+
 def test_contact_bundles_refuse_what_they_do_not_carry():
     with pytest.raises(ModelError, match="contacts are made in C only"):
         render_constrained_bundle(_ball_system(), "fortran", outputs=["energy"], reference=False)
