@@ -34,7 +34,7 @@ from .codegen.languages import backend, file_backend
 from .codegen.signatures import DRIVERS
 from .codegen.signatures import c_header as types_header
 from .codegen.record import GeneratedCode
-from .codegen.templates import environment
+from .codegen.tables import dae_table, model_table
 from .codes import c_header
 from .cache import (ABANDONED_BUILD_SECONDS, CACHE_FORMAT, DIGEST_NAME, STALE_BUILD_SECONDS, CacheWarning,
                     cache_dir, cache_key, cached_build, clean_stale, import_module, open_library)
@@ -174,24 +174,14 @@ def runtime_sources(sundials: Sundials) -> dict[str, str]:
 
 def table_source(code: GeneratedCode) -> dict[str, str]:
     """``<prefix>_table.c``: the function table of ``code`` (lcg_model.h) and ``lcg_model.h``."""
-    env = environment()
-    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=code.model_name,
-               jacobian=code.jacobian, outputs=bool(code.nout),
-               sparse=bool(getattr(code, "sparse_jacobian", False)), nv=getattr(code, "nv", None))
-    return {**runtime_files(TABLE_FILES), **generated_headers(),
-            f"{code.prefix}_table.c": env.get_template("c/model_table.c.j2").render(**ctx)}
+    return {**runtime_files(TABLE_FILES), **generated_headers(), f"{code.prefix}_table.c": model_table(code)}
 
 
 def dae_table_source(code: GeneratedCode) -> dict[str, str]:
     """``<prefix>_dae_table.c``: the function table of constrained ``code`` (``code.dae``;
     lcg_dae_model.h, which it includes, with lcg_model.h)."""
-    if code.dae is None:
-        raise LagcodegenError(f"{code.prefix!r} is not constrained code (generate_constrained)")
-    env = environment()
-    ctx = dict(prefix=code.prefix, PREFIX=code.prefix.upper(), version=__version__, model_name=code.model_name,
-               roots=code.dae.nroot > 0, ggl=code.dae.ggl, ggl_jac=code.dae.ggl_jac)
-    return {**runtime_files(DAE_TABLE_FILES), **generated_headers(),
-            f"{code.prefix}_dae_table.c": env.get_template("c/dae_table.c.j2").render(**ctx)}
+    table = dae_table(code)
+    return {**runtime_files(DAE_TABLE_FILES), **generated_headers(), f"{code.prefix}_dae_table.c": table}
 
 
 def driver_sources(code: GeneratedCode, sundials: Sundials) -> dict[str, str]:

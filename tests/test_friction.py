@@ -305,8 +305,12 @@ def test_friction_is_refused_by_solvers_that_cannot_take_it_naming_them():
     from lagcodegen.solvers.taylor.options import Taylor
     with pytest.raises(LagcodegenError, match="Taylor"):
         sim.simulate((0, 1), q0=[0.0, 0.0], v0=[0.0, 0.0], solver=Taylor())
-    with pytest.raises(LagcodegenError, match="ensembles"):
-        sim.ensemble((0, 1), q0=[[0.0, 0.0]], v0=[[0.0, 0.0]])
+    # ensembles run each member on the impact driver: friction included, as the single run
+    ens = sim.ensemble((0, 1), q0=[[0.0, 0.0]], v0=[[-1.0, 0.0]])
+    single = sim.simulate((0, 1), q0=[0.0, 0.0], v0=[-1.0, 0.0])
+    assert ens.member(0).impacts.records == single.impacts.records and single.impacts.transitions(0)
+    assert ens.member(0).impacts.friction_modes == single.impacts.friction_modes
+    assert np.array_equal(ens.y[0], single.y[-1])
 
 
 SLIDER_FILE = """

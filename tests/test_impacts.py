@@ -318,10 +318,12 @@ def test_contact_input_errors():
         sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
     with pytest.raises(LagcodegenError, match="projection"):
         sim.simulate((0, 1), q0=[0.5], v0=[0.0], projection=True)
-    with pytest.raises(LagcodegenError, match="ensembles"):
-        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])
-    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
-        sim.integrator(q0=[0.5], v0=[0.0])
+    with pytest.raises(LagcodegenError, match="projection"):
+        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]], projection=True)
+    with pytest.raises(LagcodegenError, match="projection"):
+        sim.integrator(q0=[0.5], v0=[0.0], projection=True)
+    with pytest.raises(ModelError, match="violated"):
+        sim.integrator(q0=[-0.5], v0=[0.0])
 
 
 def test_plain_inequality_keeps_its_terminal_event():
@@ -375,8 +377,24 @@ def test_generate_and_bundle_of_a_contact_file(tmp_path):
         proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", name, "-o",
                                "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
-    with pytest.raises(ModelError, match="bundles of systems with contacts"):
-        generate_file(mf, bundle=True)
+    # they link into a program (the tables point to the unconstrained model's table, shipped too)
+    # that takes one impact: Newton's law w+ = -e w- at the floor
+    (tmp_path / "main.c").write_text(
+        '#include <math.h>\n#include "lcg_imp_model.h"\n'
+        "const lcg_imp_model *bouncing_ball_imp_model_table(void);\n"
+        "int main(void)\n{\n    const lcg_imp_model *im = bouncing_ball_imp_model_table();\n"
+        "    double y[2] = {0.0, -2.0}, ynew[2], P[1], e[1] = {0.8}, p[2] = {1.0, 1.0}; /* g, m: m = 1 */\n"
+        "    int on[1] = {1};\n"
+        "    if (im->impact(0.0, y, p, on, e, ynew, P) != 0)\n        return 2;\n"
+        "    return fabs(ynew[1] - 1.6) < 1e-12 && fabs(P[0] - 3.6) < 1e-12 ? 0 : 1;\n}\n")
+    c_files = sorted(n for n in files if n.endswith(".c"))
+    proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "main.c", *c_files, "-lm",
+                           "-o", "main"], cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert subprocess.run([str(tmp_path / "main")]).returncode == 0
+    bundle = generate_file(mf, bundle=True)  # the impact law in the bundle's C (tests/codegen/test_bundle_contacts.py)
+    assert {"bouncing_ball_impact.c", "rk4_example.c", "reference.csv"} <= set(bundle)
+    assert "bouncing_ball_imp_model_table()" in bundle["rk4_example.c"]
     with pytest.raises(ModelError, match="in C only"):
         generate_file(mf, lang="fortran")
 

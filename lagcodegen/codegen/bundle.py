@@ -47,6 +47,8 @@ from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
 from ..util import BAUMGARTE_AUTO, atomic_write, check_baumgarte, check_finite, folder_problem, read_regular_file
 from ..version import __version__
+from .bundle_contacts import (check_contact_bundle, contact_columns, contact_context, contact_files, contact_table,
+                              library_sources)
 from .constrained import generate_constrained
 from .languages import LANGUAGES, backend, generate_code
 from .record import GeneratedCode
@@ -386,10 +388,9 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     require_lagrange(system.model, "a constrained bundle")
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
-    if getattr(system, "contacts", None):
-        raise ModelError("bundles of systems with contacts (Inequality with a restitution) are not made: their "
-                         "impacts need the impact driver of the runtime (compile_constrained runs them); "
-                         "generate gives the model's C with <prefix>_impact.c")
+    contacts = bool(system.contacts)  # contacts: bundle_contacts adds their functions and example
+    if contacts:
+        check_contact_bundle(system, not backend(lang).c_sources, ggl)
     run = ExampleRun.of(example, example_fields, "render_constrained_bundle")
     y0, params = run.y0, run.params
     stab = check_baumgarte(baumgarte, "bundle baumgarte")
@@ -416,7 +417,8 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     check, ref_text = None, None
     if reference:
         options = dict(outputs=DEFAULT_CONSTRAINED_OUTPUTS if outputs is None else list(outputs),
-                       columns=list(info.output_names), events=list(events), runtime_parameters=runtime_parameters,
+                       columns=contact_columns(system, info.output_names) if contacts else list(info.output_names),
+                       events=list(events), runtime_parameters=runtime_parameters,
                        values=values, prefix=prefix, baumgarte=stab)
         ref_text, check = reference_values("constrained", code.model_name, (system, options), y_values,
                                            _parameters(code, params), t_start, t_end, steps)
@@ -439,9 +441,14 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         nonholonomic=[str(r) for r in _nonholonomic_text(system)])
     env = environment()
     files = {header: code.files[header], source: code.files[source]}
+    if contacts:
+        ctx.update(contact_context(system, info), extra_sources=library_sources(code))
+        contact_table(code, table)
+        files.update(contact_files(code))
     files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
     files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
-    files["rk4_example.c"] = env.get_template("bundle/rk4_constrained.c.j2").render(**ctx)
+    files["rk4_example.c"] = env.get_template("bundle/rk4_impacts.c.j2" if contacts
+                                              else "bundle/rk4_constrained.c.j2").render(**ctx)
     files["README.md"] = env.get_template("bundle/README_constrained.md.j2").render(**ctx)
     if ref_text is not None:
         files["reference.csv"] = ref_text

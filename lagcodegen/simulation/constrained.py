@@ -67,8 +67,10 @@ from ..solvers.request import Index1Form, Recording, StepControl
 from ..theory.constraints import ConstrainedSystem
 from ..util import check_finite, output_times
 from .constrained_functions import ConstrainedFunctions
-from .constrained_impacts import ContactOptions, ImpactRunner
+from .constrained_impacts import ContactOptions, ContactRun, ImpactRunner
 from .ensemble import ensemble_constrained
+from .impact_ensemble import ensemble_contacts
+from .impact_stepper import ImpactStepper
 from .integrator import Integrator
 from .ode import CompiledModel
 
@@ -203,9 +205,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         projects it onto the constraints and computes consistent multipliers before the next
         step (``Integrator.multipliers``: the GGL unknowns lambda, mu).
         """
-        if self.info.contacts:
-            raise LagcodegenError("the integrator object does not run systems with contacts (impacts with "
-                                  "restitution): use simulate(), whose impact driver applies the jumps")
+        contacts = options.pop("contacts", None)  # systems with contacts: the run's contact settings
         family = resolve(self.formulation, solver, options, runs="stepper")
         if q0 is None:
             raise LagcodegenError("q0 is required")
@@ -213,6 +213,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
         roots = self._roots(events)
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(t0, q0, v0, p, initial, ic_tol, self._ggl)
+        if self.info.contacts:
+            return self._contact_integrator(family, t0, y0, p, rtol, atol, roots, contacts)
         mem = np.concatenate([[t0], y0, p])  # (t, y, p): the memory the C stepper works on
         if self._ggl:
             if yy0 is None:
@@ -225,8 +227,25 @@ class ConstrainedSimulation(ConstrainedFunctions):
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 
-    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts) -> Result:
-        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`)."""
+    def _contact_integrator(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> Integrator:
+        """The integrator object of a system with contacts from (t0, y0) (:mod:`.impact_stepper`:
+        each call one run of the impact driver)."""
+        run = self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts)
+        mem = np.concatenate([[t0], y0, p])
+        stepper = ImpactStepper(self, run, mem)
+        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
+                          family=stepper.family)
+
+    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
+        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`);
+        ``cancel``: None, or a numpy int array of one value that stops the run (-80) once set."""
+        run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
+        return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
+
+    def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
+        """What the impact driver takes for runs of this system with contacts from (t0, y0) with
+        the parameters p on ``family`` (checked: CVODE, native backend, no projection, the contacts
+        not violated at y0), as a :class:`~.constrained_impacts.ContactRun`."""
         if contacts is None:
             contacts = ContactOptions()
         elif not isinstance(contacts, ContactOptions):
@@ -238,19 +257,19 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                   f"{backend!r}) cannot take it: solver=CVODE(backend='native')")
         if backend != "native":
             raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
-        method, projection, alpha, beta = family.index1_settings(self, float(t[0]), y0, p)
+        method, projection, alpha, beta = family.index1_settings(self, t0, y0, p)
         if projection:
             raise LagcodegenError("systems with contacts run without projection (projection=False; Baumgarte "
                                   "stabilization holds the constraints and the persistent contacts)")
         runner = self._impact_runner
         if runner is None:
             runner = self._impact_runner = ImpactRunner(self)
-        g, _ = runner.gaps(float(t[0]), y0, p)
+        g, _ = runner.gaps(t0, y0, p)
         bad = [f"g_{k} = {v:.3g}" for k, v in zip(runner.contacts, g) if not v >= -1e-9]
         if bad:
             raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
                              "(inequality constraints g >= 0)")
-        return runner.run(t, y0, p, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
+        return ContactRun(runner, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
                           family.recording(10_000, roots=roots), contacts)
 
     def _roots(self, events) -> bool:
@@ -285,10 +304,14 @@ class ConstrainedSimulation(ConstrainedFunctions):
         bit-identical to :meth:`simulate` member by member; see
         :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble` for the arguments, and
         :meth:`simulate` for ``options`` (``max_wall``: per member). Members whose initial state is
-        rejected get status -84."""
+        rejected get status -84. Systems with contacts: each member one run of the impact driver
+        (:mod:`.impact_ensemble`), its events and contact log in ``member(i).events`` and
+        ``.impacts``."""
         if self.info.contacts:
-            raise LagcodegenError("ensembles of systems with contacts are not supported: run the members with "
-                                  "simulate (each a call of the impact driver)")
+            return ensemble_contacts(self, t, q0, v0, params=params,
+                                     recording=Recording(save=save, threads=threads, progress=progress),
+                                     executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
+                                     options=options)
         if self.system.model.general:
             raise LagcodegenError(f"ensembles of constrained systems with generalized speeds (model "
                                   f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not supported yet: "

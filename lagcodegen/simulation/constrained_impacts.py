@@ -84,8 +84,10 @@ Impacts with friction and Newton's law can gain energy in some configurations (a
 of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
 backend only (other solvers are refused naming them).
 
-Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
-projection, ensembles, Fortran model code.
+Ensembles run each member as one call of this driver, every member's events and contact log kept
+(:mod:`.impact_ensemble`); the integrator object makes one call per propagate call
+(:mod:`.impact_stepper`). Not supported with contacts: GGL (IDA), minimal coordinates, Taylor,
+the scikit-sundae backend, projection, Fortran model code.
 """
 
 from __future__ import annotations
@@ -252,6 +254,19 @@ def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
     return _runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
+@dataclass(frozen=True)
+class ContactRun:
+    """What the impact driver takes for runs of one system (besides the times, state and
+    parameters): the runner, the step control, the Baumgarte form, what is recorded, the contact
+    settings (made by ``ConstrainedSimulation.contact_run``)."""
+
+    runner: "ImpactRunner"
+    control: StepControl
+    form: Index1Form
+    recording: Recording
+    contacts: ContactOptions
+
+
 class ImpactRunner:
     """The impact driver bound to one compiled constrained system with contacts (its contact
     table ``<prefix>_imp_model_table()`` from the model's library)."""
@@ -307,10 +322,15 @@ class ImpactRunner:
         return g, w
 
     def run(self, t, y0, p, control: StepControl, form: Index1Form, recording: Recording,
-            contacts: ContactOptions) -> Result:
+            contacts: ContactOptions, cancel=None, active=None) -> Result:
         """A run on the impact driver with the step control ``control`` (a scalar atol), the
         Baumgarte parameters of ``form`` (no projection), ``recording.roots``: locate the compiled
-        events (at most ``recording.max_events``), and the contact settings ``contacts``."""
+        events (at most ``recording.max_events``), and the contact settings ``contacts``;
+        ``cancel``: None, or a numpy int array of one value that stops the run (-80) once set
+        nonzero (an ensemble's members, from another thread); ``active``: None, or the contacts'
+        modes (a numpy intc array of one value per contact, nonzero: in persistent contact) at the
+        start, overwritten with those at the end (as the driver returns them: with friction
+        1 stick, 2 slip+, 3 slip-)."""
         sim, ffi = self.sim, self.ffi
         method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
@@ -323,7 +343,10 @@ class ImpactRunner:
         nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
         lamout = np.zeros((nt, max(nlam, 1)))
         rec = np.empty((contacts.max_records, 6))
-        active = np.zeros(nk, dtype=np.intc)
+        if active is None:
+            active = np.zeros(nk, dtype=np.intc)
+        elif not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
+            raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
         n_rec = ffi.new("int *")
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
@@ -333,6 +356,8 @@ class ImpactRunner:
         opt.max_order, opt.alpha, opt.beta, opt.roots, opt.max_wall = int(c.max_order), form.alpha, form.beta, \
             int(roots), c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
+        if cancel is not None:
+            opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_cvc_stats *")
         events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
             if roots and sim.info.events else None

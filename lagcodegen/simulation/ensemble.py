@@ -185,7 +185,9 @@ def _qv(sim, q0, v0, params) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     if q0 is None:
         raise LagcodegenError("q0 is required")
     Q = _matrix(q0, n_mem, n, "q0", names)
-    V = np.zeros((n_mem, n)) if v0 is None else _matrix(v0, n_mem, n, "v0", names)
+    nv = getattr(sim, "nv", n)  # generalized speeds: v0 by the speeds' names
+    speeds = names if nv == n and not sim.system.model.general else list(sim.state_names[n:n + nv])
+    V = np.zeros((n_mem, nv)) if v0 is None else _matrix(v0, n_mem, nv, "v0", speeds)
     return n_mem, Q, V, names
 
 

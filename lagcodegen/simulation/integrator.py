@@ -221,6 +221,12 @@ class Integrator:
         return self._t[0]
 
     @property
+    def impacts(self):
+        """Systems with contacts: the contact log of the last call (impacts, switches, releases;
+        :class:`~lagcodegen.simulation.constrained_impacts.ContactLog`), else None."""
+        return getattr(self._stepper, "impacts", None)
+
+    @property
     def multipliers(self) -> np.ndarray:
         """The GGL form's multipliers (lambda, then mu) at :attr:`time` (a copy); IDA only."""
         if self._stepper.handle is None:

@@ -74,6 +74,11 @@ class EnsembleResult:
     sensitivity_trajectories: np.ndarray | None = field(default=None, repr=False)
     sensitivity_names: list = field(default_factory=list)
     sensitivity_values: list = field(default_factory=list)
+    #: runs that keep every member's records (systems with contacts): each member's events
+    #: (a list of EventRecord) and its contact log (ContactLog, or None where it did not run);
+    #: None for ensembles that keep only the counts
+    member_events: list | None = field(default=None, repr=False)
+    member_impacts: list | None = field(default=None, repr=False)
 
     def set_sensitivities(self, names: list, values: list, final: np.ndarray, trajectories=None) -> None:
         """Attach the members' sensitivities: ``final`` (N, ns, nvalues), ``trajectories``
@@ -160,6 +165,10 @@ class EnsembleResult:
             res.parameters = dict(zip(self.param_names, (float(x) for x in p)))
         res.n_coordinates = self.n_coordinates
         res.formulation = self.formulation
+        if self.member_events is not None:
+            res.events = list(self.member_events[i])
+        if self.member_impacts is not None:
+            res.impacts = self.member_impacts[i]
         if self.sensitivities is not None:
             sens = self.sensitivity_trajectories[i, :rows] if full and self.sensitivity_trajectories is not None \
                 else self.sensitivities[i][None]
@@ -222,6 +231,14 @@ class EnsembleResult:
             if out.traj is not None and part.traj is not None:
                 out.traj[idx] = part.traj
             out.messages.update({int(idx[j]): text for j, text in part.messages.items()})
+        if like.member_events is not None or like.member_impacts is not None:
+            out.member_events, out.member_impacts = [[] for _ in range(n)], [None] * n
+            for idx, part in parts:
+                for j, i in enumerate(np.asarray(idx).tolist()):
+                    if part.member_events is not None:
+                        out.member_events[i] = part.member_events[j]
+                    if part.member_impacts is not None:
+                        out.member_impacts[i] = part.member_impacts[j]
         if like.sensitivities is not None:
             final = np.full((n, *like.sensitivities.shape[1:]), np.nan)
             traj = None if like.sensitivity_trajectories is None else \

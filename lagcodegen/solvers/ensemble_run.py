@@ -17,7 +17,7 @@ from .ensemble_result import COUNT_NAMES, FLAG_TEXT, MAX_MESSAGES, EnsembleInter
 
 
 # ---------------------------------------------------------------------- the C call
-def _columns(save, state_cols: list, output_names: list, extra: dict) -> tuple[list, list]:
+def saved_columns(save, state_cols: list, output_names: list, extra: dict) -> tuple[list, list]:
     """(names, indices into the row (state | outputs)) of the trajectory columns ``save`` keeps."""
     nrow = len(state_cols)
     if save is None or save == "final":
@@ -53,7 +53,7 @@ def run_native(ffi, fn, ens_type: str, opt, arrays: RunArrays, layout: Layout, r
     events, roots = recording.events, recording.roots
     n_mem, nt = Y0.shape[0], t.shape[0]
     extra_outputs = extra_outputs or {}
-    names, cols = _columns(save, layout.row_names, layout.output_names, extra_outputs)
+    names, cols = saved_columns(save, layout.row_names, layout.output_names, extra_outputs)
     keep = []
     buf = ffi.from_buffer
     e = ffi.new(f"{ens_type} *")

@@ -18,7 +18,7 @@ import numpy as np
 
 from .control import NOT_RUN, Progress
 from .ensemble_result import COUNT_NAMES, EnsembleInterrupted, EnsembleResult
-from .ensemble_run import _columns, default_threads
+from .ensemble_run import default_threads, saved_columns
 
 
 def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: list, member_run, *,
@@ -35,7 +35,7 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     (``t_reached`` the solver's time)."""
     n_mem, nt, ny, nout = Y.shape[0], t.shape[0], cm.ny, cm.code.nout
     values = list(cm.state_names) + list(cm.output_names)
-    cols_names, cols = _columns(save, list(cm.state_names), list(cm.output_names), {})
+    cols_names, cols = saved_columns(save, list(cm.state_names), list(cm.output_names), {})
     ns, nv = len(names), ny + nout
     final = np.full((n_mem, ny + nout), np.nan)
     traj = np.full((n_mem, nt, len(cols)), np.nan) if cols else None

@@ -1,0 +1,83 @@
+"""The part of a constrained bundle (:func:`lagcodegen.codegen.bundle.render_constrained_bundle`)
+that systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
+restitution, notes sec. 4.3) add: the contact functions ``<prefix>_impact.c`` with their table
+(lcg_imp_model.h: the gaps, the index-1 right-hand side with the persistent contacts held, the
+impact law M dv = R^T P with Newton's law), the tables they point to (``<prefix>_dae_table.c``,
+``<prefix>_table.c`` with the unconstrained model ``<prefix>.c``), all compiled into the bundle's
+library, and ``rk4_example.c`` that drives them: fixed-step RK4 with every impact located by
+bisection within its step and the jump applied there, persistent contact and release (the rules
+of the runtime's impact driver, lcg_imp.c, on fixed steps)."""
+
+from __future__ import annotations
+
+from ..codes import c_header as codes_header
+from ..errors import ModelError
+from ..runtime import sources as runtime_files
+from .record import GeneratedCode
+from .tables import dae_table, model_table
+
+
+def check_contact_bundle(system, fortran: bool, ggl: bool) -> None:
+    """Refusals by name: what the contact bundle does not carry."""
+    if fortran:
+        raise ModelError("bundles of systems with contacts are made in C only (the contact functions "
+                         "<prefix>_impact.c are printed in C): lang='c'")
+    if ggl:
+        raise ModelError("bundles of systems with contacts are made for the index-1 formulation, not GGL")
+    if system.has_friction:
+        raise ModelError("bundles of systems with Coulomb friction on contacts (Inequality(..., friction=mu)) are "
+                         "not made: their stick/slip modes are solved by lagcodegen's impact driver "
+                         "(compile_constrained runs them)")
+    if system.model.general:
+        raise ModelError(f"bundles of systems with contacts and generalized speeds (model {system.model.name!r}) "
+                         "are not made")
+
+
+def contact_columns(system, output_names) -> list[str]:
+    """The columns the contact bundle's example prints after the state: the outputs, then the
+    contacts' multipliers ``lambda_ineq_<k>``."""
+    return [*output_names, *(f"lambda_ineq_{k}" for k in system.contacts)]
+
+
+def contact_context(system, info) -> dict:
+    """What the example's template takes besides the constrained bundle's context."""
+    contacts = list(system.contacts)
+    n_tangent = sum(system.tangents[k] is not None for k in contacts)
+    lambda_columns = [(i, int(name[len("lambda_"):])) for i, name in enumerate(info.output_names)
+                      if name.startswith("lambda_") and name[len("lambda_"):].isdigit()]
+    return dict(nk=len(contacts), nrow=info.J + len(contacts) + n_tangent, contacts=contacts,
+                restitution=[repr(float(system.restitution[k])) for k in contacts],
+                contact_text=[f"g_{k} = {system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
+                              for k in contacts],
+                lambda_columns=lambda_columns)
+
+
+def contact_files(code: GeneratedCode) -> dict[str, str]:
+    """The C files and headers the contact functions need in the bundle (their library sources
+    are :func:`library_sources`)."""
+    pre = code.prefix
+    return {f"{pre}_impact.c": code.files[f"{pre}_impact.c"], "lcg_imp_model.h": code.files["lcg_imp_model.h"],
+            f"{pre}.c": code.files[f"{pre}.c"], f"{pre}.h": code.files[f"{pre}.h"],
+            f"{pre}_table.c": model_table(code), f"{pre}_dae_table.c": dae_table(code),
+            **runtime_files(("lcg_model.h", "lcg_dae_model.h")), "lcg_codes.h": codes_header()}
+
+
+def library_sources(code: GeneratedCode) -> list[str]:
+    """The C files the contact bundle adds to its library."""
+    pre = code.prefix
+    return [f"{pre}_impact.c", f"{pre}.c", f"{pre}_table.c", f"{pre}_dae_table.c"]
+
+
+def contact_table(code: GeneratedCode, table: list) -> None:
+    """The README's file table ``table`` (name, what) with the contact bundle's files."""
+    pre = code.prefix
+    for i, (name, _) in enumerate(table):
+        if name == "rk4_example.c":
+            table[i] = (name, "fixed-step RK4 of the index-1 equations with the contacts' impacts (located by "
+                              "bisection within a step), persistent contact and release; CSV on stdout, the "
+                              "contact events on stderr; needs only a C compiler")
+    table[-1:-1] = [(f"{pre}_impact.c", "the contact functions (gaps, index-1 right-hand side with the persistent "
+                                        "contacts, the impact law) and their table (lcg_imp_model.h)"),
+                    (f"{pre}.c", f"the unconstrained model ({pre}.h), which the tables point to"),
+                    (f"{pre}_table.c", "the unconstrained model's function table (lcg_model.h)"),
+                    (f"{pre}_dae_table.c", "the constrained model's function table (lcg_dae_model.h)")]
