@@ -1,0 +1,144 @@
+"""Contacts with restitution on the solvers besides index-1 CVODE (issue 39): minimal coordinates
+and GGL on IDA. The bouncing ball and Newton's cradle are held to the bounds of
+tests/test_impacts.py (closed-form impact times, apex heights, accumulation, resting multiplier;
+the cradle's velocity transfer, momentum and energy); a pendulum in Cartesian coordinates hitting
+a wall checks the reduced impact against quadrature and Newton's law."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import quad
+
+import lagcodegen as lcg
+from lagcodegen.api import compile_constrained
+from lagcodegen.errors import LagcodegenError, ModelError
+
+G = 9.81
+FORMULATIONS = ["minimal"]
+
+
+def _ball_system(e: float):
+    m = lcg.Model("sball")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    return lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=e)])
+
+
+def _cradle_system():
+    m = lcg.Model("scradle")
+    xs = m.coordinates("x1 x2 x3")
+    m.parameters(m=1.0, d=0.1)
+    for i, x in enumerate(xs):
+        m.particle(f"b{i}", sp.Symbol("m"), (x, 0))
+    d = sp.Symbol("d")
+    return lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(xs[1] - xs[0] - d, restitution=1.0),
+                                                  lcg.Inequality(xs[2] - xs[1] - d, restitution=1.0)])
+
+
+@pytest.mark.parametrize("formulation", FORMULATIONS)
+def test_bouncing_ball_on_every_solver(formulation):
+    """Impact k at t1 + 2 t1 e (1 - e^k) / (1 - e), rebound speeds e^(k+1) sqrt(2 g h0) and apex
+    heights h0 e^(2k+2) to 1e-9, accumulation at t1 (1 + e) / (1 - e), then at rest on the floor
+    held by m g (the bounds of test_impacts.py on index-1 CVODE)."""
+    e, h0, speed = 0.8, 1.0, 1e-6
+    sim = compile_constrained(_ball_system(e), formulation)
+    res = sim.simulate(np.linspace(0, 6, 6001), q0=[h0], v0=[0.0], rtol=1e-12, atol=1e-14,
+                       contacts=lcg.ContactOptions(contact_speed=speed))
+    assert res.formulation == formulation
+    t1 = math.sqrt(2 * h0 / G)
+    bounces = res.impacts.select("bounce")
+    assert len(bounces) >= 20
+    k = np.arange(20)
+    t_found = np.array([r.t for r in bounces[:20]])
+    assert np.max(np.abs(t_found / (t1 + 2 * t1 * e * (1 - e**k) / (1 - e)) - 1)) < 1e-9
+    w_after = np.array([r.w_after for r in bounces[:20]])
+    assert np.max(np.abs(w_after / (e ** (k + 1) * math.sqrt(2 * G * h0)) - 1)) < 1e-9
+    assert np.max(np.abs(w_after**2 / (2 * G) / (h0 * e ** (2 * (k + 1))) - 1)) < 1e-9
+    for r in bounces[:20]:
+        assert r.w_after == pytest.approx(-e * r.w_before, rel=1e-12)
+        assert r.impulse == pytest.approx(-(1 + e) * r.w_before, rel=1e-12)
+    t_zeno = t1 * (1 + e) / (1 - e)
+    sticks = res.impacts.select("stick")
+    assert len(sticks) == 1
+    assert t_zeno - 2 * (speed / e) / (G * (1 - e)) - 1e-9 <= sticks[0].t <= t_zeno + 1e-9
+    assert res.impacts.final_modes == {0: "contact"}
+    after = res.t > t_zeno + 1e-3
+    assert np.max(np.abs(res["lambda_ineq_0"][after] - G)) < 1e-9
+    assert np.max(np.abs(res["y"][after])) < 1e-9
+    assert np.all(res["lambda_ineq_0"][res.t < sticks[0].t] == 0.0)
+
+
+@pytest.mark.parametrize("formulation", FORMULATIONS)
+def test_newtons_cradle_on_every_solver(formulation):
+    sim = compile_constrained(_cradle_system(), formulation)
+    gap = 1e-3
+    res = sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0],
+                       rtol=1e-12, atol=1e-14)
+    v = res.y[-1, 3:6]
+    assert abs(v[0]) < 1e-12 and abs(v[1]) < 1e-12 and abs(v[2] - 1.0) < 1e-12
+    assert [(r.contact, r.kind) for r in res.impacts] == [(0, "bounce"), (1, "bounce")]
+    assert res.impacts[0].t == pytest.approx(gap, rel=1e-10)
+    assert res.impacts[1].t == pytest.approx(2 * gap, rel=1e-10)
+    assert np.max(np.abs(res.y[:, 3:6].sum(axis=1) - 1.0)) < 1e-12
+    assert np.max(np.abs(0.5 * (res.y[:, 3:6] ** 2).sum(axis=1) - 0.5)) < 1e-12
+
+
+def _pendulum_wall(e: float):
+    m = lcg.Model("pwall")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0, l=1.0, d=0.3)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    return lcg.ConstrainedSystem(m, holonomic=[x**2 + y**2 - sp.Symbol("l") ** 2],
+                                 inequalities=[lcg.Inequality(sp.Symbol("d") - x, restitution=e)])
+
+
+def test_minimal_coordinates_pendulum_hits_a_wall():
+    """A pendulum x^2 + y^2 = l^2 (y eliminated: x the minimal coordinate) released at x = -0.6
+    hits the wall x = d = 0.3: the impact at the time of the quadrature of the energy integral,
+    w+ = -e w- (Newton's law), and the swing after it as the index-1 run of the full system. The
+    contacts were ignored in minimal coordinates before (the pendulum swung through the wall)."""
+    e, l, d, x0 = 0.7, 1.0, 0.3, -0.6
+    system = _pendulum_wall(e)
+    sim = compile_constrained(system, "minimal", outputs=["energy"])
+    t = np.linspace(0, 2, 201)
+    res = sim.simulate(t, q0=[x0, -math.sqrt(l**2 - x0**2)], v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
+    assert res.state_names == ["x", "x_dot"]
+    assert res["x"].max() <= d + 1e-12
+    first = res.impacts[0]
+    assert first.kind == "bounce" and first.contact == 0
+    # theta from the vertical, x = l sin(theta): t = int dtheta / sqrt(2 g (cos th - cos th0) / l)
+    th0, th1 = math.asin(x0 / l), math.asin(d / l)
+    t_hit = quad(lambda th: 1 / math.sqrt(2 * G * (math.cos(th) - math.cos(th0)) / l), th0, th1, limit=200)[0]
+    assert first.t == pytest.approx(t_hit, rel=1e-9)
+    # w = -x' at the wall, x' = l cos(th1) th', th'^2 = 2 g (cos th1 - cos th0) / l
+    w_minus = -l * math.cos(th1) * math.sqrt(2 * G * (math.cos(th1) - math.cos(th0)) / l)
+    assert first.w_before == pytest.approx(w_minus, rel=1e-9)
+    assert first.w_after == pytest.approx(-e * first.w_before, rel=1e-12)
+    # the energy after the impact e^2 of the kinetic energy before (one degree of freedom)
+    k = np.searchsorted(res.t, first.t)
+    E = res["energy"]
+    E_wall = G * -math.sqrt(l**2 - d**2)  # the potential energy m g y at the wall (m = 1), y = -sqrt(l^2 - d^2)
+    assert E[k] - E_wall == pytest.approx(e**2 * (E[k - 1] - E_wall), rel=1e-9)
+    full = compile_constrained(system, "index1").simulate(t, q0=[x0, -math.sqrt(l**2 - x0**2)], v0=[0.0, 0.0],
+                                                          rtol=1e-12, atol=1e-14)
+    assert [r.kind for r in full.impacts] == [r.kind for r in res.impacts]
+    assert np.max(np.abs(full["x"] - res["x"])) < 1e-8
+    assert np.max(np.abs(full["y"] - res["y"])) < 1e-8
+
+
+def test_minimal_contacts_refuse_what_the_impact_driver_does_not_run():
+    sim = compile_constrained(_pendulum_wall(0.5), "minimal")
+    q0, v0 = [-0.6, -0.8], [0.0, 0.0]
+    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
+        sim.integrator(q0=q0, v0=v0)
+    with pytest.raises(LagcodegenError, match="ensembles of systems with contacts"):
+        sim.ensemble((0, 1), q0=[q0], v0=[v0])
+    with pytest.raises(ModelError, match="violated"):
+        sim.simulate((0, 1), q0=[0.6, -0.8], v0=v0)
