@@ -18,7 +18,7 @@ from lagcodegen.api import compile_constrained
 from lagcodegen.errors import LagcodegenError, ModelError
 
 G = 9.81
-FORMULATIONS = ["minimal"]
+FORMULATIONS = ["minimal", "ggl"]
 
 
 def _ball_system(e: float):
@@ -99,17 +99,32 @@ def _pendulum_wall(e: float):
                                  inequalities=[lcg.Inequality(sp.Symbol("d") - x, restitution=e)])
 
 
-def test_minimal_coordinates_pendulum_hits_a_wall():
-    """A pendulum x^2 + y^2 = l^2 (y eliminated: x the minimal coordinate) released at x = -0.6
-    hits the wall x = d = 0.3: the impact at the time of the quadrature of the energy integral,
-    w+ = -e w- (Newton's law), and the swing after it as the index-1 run of the full system. The
-    contacts were ignored in minimal coordinates before (the pendulum swung through the wall)."""
+def test_minimal_contacts_refuse_what_the_impact_driver_does_not_run():
+    sim = compile_constrained(_pendulum_wall(0.5), "minimal")
+    q0, v0 = [-0.6, -0.8], [0.0, 0.0]
+    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
+        sim.integrator(q0=q0, v0=v0)
+    with pytest.raises(LagcodegenError, match="ensembles of systems with contacts"):
+        sim.ensemble((0, 1), q0=[q0], v0=[v0])
+    with pytest.raises(ModelError, match="violated"):
+        sim.simulate((0, 1), q0=[0.6, -0.8], v0=v0)
+
+
+@pytest.mark.parametrize("formulation", ["minimal", "ggl"])
+def test_pendulum_hits_a_wall_on_minimal_and_ggl(formulation):
+    """A pendulum x^2 + y^2 = l^2 released at x = -0.6 hits the wall x = d = 0.3: the impact at the
+    time of the quadrature of the energy integral, w+ = -e w- (Newton's law), the kinetic energy
+    after it e^2 of that before (one degree of freedom), and the swing after it as the index-1 run
+    of the full system. Minimal coordinates eliminate y (x remains); GGL holds the circle as a row
+    with the contact's row beside it. The contacts were ignored in minimal coordinates before
+    (the pendulum swung through the wall)."""
     e, l, d, x0 = 0.7, 1.0, 0.3, -0.6
     system = _pendulum_wall(e)
-    sim = compile_constrained(system, "minimal", outputs=["energy"])
+    sim = compile_constrained(system, formulation, outputs=["energy"])
     t = np.linspace(0, 2, 201)
-    res = sim.simulate(t, q0=[x0, -math.sqrt(l**2 - x0**2)], v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
-    assert res.state_names == ["x", "x_dot"]
+    q0 = [x0, -math.sqrt(l**2 - x0**2)]
+    res = sim.simulate(t, q0=q0, v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
+    assert res.state_names == (["x", "x_dot"] if formulation == "minimal" else ["x", "y", "x_dot", "y_dot"])
     assert res["x"].max() <= d + 1e-12
     first = res.impacts[0]
     assert first.kind == "bounce" and first.contact == 0
@@ -121,24 +136,62 @@ def test_minimal_coordinates_pendulum_hits_a_wall():
     w_minus = -l * math.cos(th1) * math.sqrt(2 * G * (math.cos(th1) - math.cos(th0)) / l)
     assert first.w_before == pytest.approx(w_minus, rel=1e-9)
     assert first.w_after == pytest.approx(-e * first.w_before, rel=1e-12)
-    # the energy after the impact e^2 of the kinetic energy before (one degree of freedom)
     k = np.searchsorted(res.t, first.t)
     E = res["energy"]
     E_wall = G * -math.sqrt(l**2 - d**2)  # the potential energy m g y at the wall (m = 1), y = -sqrt(l^2 - d^2)
     assert E[k] - E_wall == pytest.approx(e**2 * (E[k - 1] - E_wall), rel=1e-9)
-    full = compile_constrained(system, "index1").simulate(t, q0=[x0, -math.sqrt(l**2 - x0**2)], v0=[0.0, 0.0],
-                                                          rtol=1e-12, atol=1e-14)
+    full = compile_constrained(system, "index1").simulate(t, q0=q0, v0=[0.0, 0.0], rtol=1e-12, atol=1e-14)
     assert [r.kind for r in full.impacts] == [r.kind for r in res.impacts]
     assert np.max(np.abs(full["x"] - res["x"])) < 1e-8
     assert np.max(np.abs(full["y"] - res["y"])) < 1e-8
+    assert np.max(np.abs(res["x"] ** 2 + res["y"] ** 2 - l**2)) < 1e-10
 
 
-def test_minimal_contacts_refuse_what_the_impact_driver_does_not_run():
-    sim = compile_constrained(_pendulum_wall(0.5), "minimal")
-    q0, v0 = [-0.6, -0.8], [0.0, 0.0]
-    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
-        sim.integrator(q0=q0, v0=v0)
-    with pytest.raises(LagcodegenError, match="ensembles of systems with contacts"):
-        sim.ensemble((0, 1), q0=[q0], v0=[v0])
+def test_ggl_particle_leaves_the_sphere():
+    """The particle on top of the sphere x^2 + y^2 >= R^2 starts in persistent contact (a GGL row
+    with its multiplier), is released where the multiplier, an unknown of the DAE, reaches 0, at
+    cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on as a parabola in the same call."""
+    m = lcg.Model("gsphere")
+    x, y = m.coordinates("x y")
+    m.parameters(R=1.0, g=G, m=1.0)
+    m.particle("p", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    contact = lcg.Inequality(x**2 + y**2 - sp.Symbol("R") ** 2, restitution=0.0)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "ggl", outputs=["energy"])
+    v0 = 1e-3
+    res = sim.simulate(np.linspace(0, 3.2, 321), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert [r.kind for r in res.impacts] == ["release"]
+    t_off = res.impacts[0].t
+    on = res.t < t_off
+    # on the sphere the row holds x^2 + y^2 = R^2 exactly (GGL: positions and velocities)
+    assert np.max(np.abs(res["x"][on] ** 2 + res["y"][on] ** 2 - 1.0)) < 1e-10
+    assert np.all(res["lambda_ineq_0"][on] > 0.0) and np.all(res["lambda_ineq_0"][res.t > t_off] == 0.0)
+    at = sim.simulate(np.array([0.0, t_off]), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
+    assert at["y"][-1] == pytest.approx((2 + v0**2 / G) / 3, rel=1e-8)
+    assert np.max(np.abs(res["energy"] - res["energy"][0])) < 1e-8
+    tau = res.t[res.t > t_off + 0.1] - t_off
+    yq = at["y"][-1] + at["y_dot"][-1] * tau - G / 2 * tau**2
+    assert np.max(np.abs(res["y"][res.t > t_off + 0.1] - yq)) < 1e-7
+    assert res.impacts.final_modes == {0: "free"}
+
+
+def test_ggl_contacts_refuse_what_the_driver_does_not_take():
+    m = lcg.Model("gref")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    rough = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=0.3)])
+    with pytest.raises(ModelError, match="GGL formulation on IDA takes frictionless and no-slip"):
+        compile_constrained(rough, "ggl")
+    sim = compile_constrained(_ball_system(0.5), "ggl")
+    with pytest.raises(LagcodegenError, match="stop_at_outputs"):
+        sim.simulate((0, 1), q0=[1.0], v0=[0.0], stop_at_outputs=True)
+    with pytest.raises(LagcodegenError, match="native IDA driver"):
+        sim.simulate((0, 1), q0=[1.0], v0=[0.0], backend="sksundae")
     with pytest.raises(ModelError, match="violated"):
-        sim.simulate((0, 1), q0=[0.6, -0.8], v0=v0)
+        sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
+    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
+        sim.integrator(q0=[0.5], v0=[0.0])
+    with pytest.raises(LagcodegenError, match="ensembles"):
+        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])

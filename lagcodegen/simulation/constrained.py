@@ -234,6 +234,14 @@ class ConstrainedSimulation(ConstrainedFunctions):
         elif not isinstance(contacts, ContactOptions):
             raise LagcodegenError(f"contacts must be a ContactOptions, got {type(contacts).__name__}")
         backend = getattr(family, "backend", None)
+        if self._ggl:  # the GGL impact driver (IDA)
+            if backend != "native":
+                raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
+                                      f"backend={backend!r}")
+            runner = self._contact_runner(float(t[0]), y0, p)
+            alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
+            return runner.run_ggl(t, y0, p, StepControl.of(family, rtol, atol), family.ggl_form(),
+                                  family.recording(10_000, roots=roots), contacts, alg_atol)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
             raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
                                   f"CVODE impact driver only; the solver {type(family).__name__} (backend "
@@ -244,16 +252,22 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if projection:
             raise LagcodegenError("systems with contacts run without projection (projection=False; Baumgarte "
                                   "stabilization holds the constraints and the persistent contacts)")
+        runner = self._contact_runner(float(t[0]), y0, p)
+        return runner.run(t, y0, p, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
+                          family.recording(10_000, roots=roots), contacts)
+
+    def _contact_runner(self, t0: float, y0, p) -> ImpactRunner:
+        """The impact driver on this model (made on first use), the initial state checked against
+        the contacts (g >= 0)."""
         runner = self._impact_runner
         if runner is None:
             runner = self._impact_runner = ImpactRunner(self)
-        g, _ = runner.gaps(float(t[0]), y0, p)
+        g, _ = runner.gaps(t0, y0, p)
         bad = [f"g_{k} = {v:.3g}" for k, v in zip(runner.contacts, g) if not v >= -1e-9]
         if bad:
             raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
                              "(inequality constraints g >= 0)")
-        return runner.run(t, y0, p, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
-                          family.recording(10_000, roots=roots), contacts)
+        return runner
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""
