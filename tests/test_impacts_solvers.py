@@ -195,3 +195,42 @@ def test_ggl_contacts_refuse_what_the_driver_does_not_take():
         sim.integrator(q0=[0.5], v0=[0.0])
     with pytest.raises(LagcodegenError, match="ensembles"):
         sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])
+
+
+@pytest.mark.parametrize("formulation", ["ggl", "minimal"])
+def test_model_file_contact_on_ggl_and_minimal(formulation):
+    """examples/bouncing_ball.toml compiled in another formulation: the first impacts at the closed-form
+    times and the ball at rest on the floor held by m g."""
+    from pathlib import Path
+
+    from lagcodegen.api import compile_file
+    from lagcodegen.modelfile import load_model
+
+    mf = load_model(Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml")
+    res = mf.simulate(compile_file(mf, formulation=formulation))
+    assert res.formulation == formulation
+    t1 = math.sqrt(2 / G)
+    first = [r.t for r in res.impacts.select("bounce")][:3]
+    exact = [t1 + 2 * t1 * 0.8 * (1 - 0.8**k) / 0.2 for k in range(3)]
+    assert np.max(np.abs(np.array(first) / exact - 1)) < 1e-9
+    assert res["lambda_ineq_0"][-1] == pytest.approx(G, rel=1e-9)
+    assert abs(res["y"][-1]) < 1e-9
+
+
+@pytest.mark.parametrize("formulation", ["ggl", "minimal"])
+@pytest.mark.parametrize("tolerances", [{}, {"rtol": 1e-4, "atol": 1e-6}])
+def test_bouncing_ball_rests_at_ordinary_tolerances(formulation, tolerances):
+    """As test_impacts.py's check that the ball never tunnels: at the default and at loose
+    tolerances it bounces at the closed-form times, accumulates at t1 (1 + e) / (1 - e) and rests
+    on the floor held by m g."""
+    e, h0 = 0.5, 1.0
+    sim = compile_constrained(_ball_system(e), formulation)
+    res = sim.simulate(np.linspace(0, 3, 301), q0=[h0], v0=[0.0], **tolerances)
+    assert res["y"].min() > -1e-6 and abs(res["y"][-1]) < 1e-6
+    assert res["lambda_ineq_0"][-1] == pytest.approx(G, rel=1e-6)
+    t1 = math.sqrt(2 * h0 / G)
+    first = [r.t for r in res.impacts.select("bounce")[:3]]
+    k = np.arange(len(first))
+    rtol = tolerances.get("rtol", 1e-6)
+    assert np.allclose(first, t1 + 2 * t1 * e * (1 - e**k) / (1 - e), rtol=max(100 * rtol, 1e-9))
+    assert res.impacts.select("stick")[0].t == pytest.approx(t1 * (1 + e) / (1 - e), rel=1e-2)

@@ -134,8 +134,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         formulation's family does not have raises LagcodegenError naming it.
 
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
-        restitution) run on the impact driver (:mod:`.constrained_impacts`: impacts, persistent
-        contact and release in one call; CVODE, native backend, no projection); the keyword
+        restitution) run on an impact driver (:mod:`.constrained_impacts`: impacts, persistent
+        contact and release in one call; index-1: CVODE, native backend, no projection; GGL: IDA,
+        native backend, frictionless and no-slip contacts); the keyword
         ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
         before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
         lists what happened.

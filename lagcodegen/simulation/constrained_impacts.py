@@ -84,8 +84,18 @@ Impacts with friction and Newton's law can gain energy in some configurations (a
 of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
 backend only (other solvers are refused naming them).
 
-Not supported with contacts: GGL (IDA), minimal coordinates, Taylor, the scikit-sundae backend,
-projection, ensembles, Fortran model code.
+**GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
+and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
+residual [q' - v - R_h^T mu; M v' - F - R^T lambda; h_r; R_r v + R0_r], the free contacts' rows
+lambda_r = 0, mu_r = 0; an impact, a switch into persistent contact or a release (the multiplier,
+an unknown of the DAE, reaching 0) stops IDA at the located root, the same impact law applies
+(lagcodegen/runtime/lcg_imp_law.c, shared with the index-1 driver) and IDA restarts from
+consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). Coulomb
+friction is refused there. **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
+reduced model with the contacts in the remaining coordinates on the index-1 driver.
+
+Not supported with contacts: Taylor (it takes no constrained system), the scikit-sundae backend,
+projection, ensembles, the integrator object, Fortran model code.
 """
 
 from __future__ import annotations
