@@ -234,3 +234,52 @@ def test_bouncing_ball_rests_at_ordinary_tolerances(formulation, tolerances):
     rtol = tolerances.get("rtol", 1e-6)
     assert np.allclose(first, t1 + 2 * t1 * e * (1 - e**k) / (1 - e), rtol=max(100 * rtol, 1e-9))
     assert res.impacts.select("stick")[0].t == pytest.approx(t1 * (1 + e) / (1 - e), rel=1e-2)
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_taylor_refuses_contacts_by_name(formulation):
+    sim = compile_constrained(_ball_system(0.5), formulation)
+    for options in ({"method": "taylor"}, {"solver": lcg.Taylor()}):
+        with pytest.raises(LagcodegenError, match="contacts .* do not run on the Taylor method: it integrates ODEs"):
+            sim.simulate((0, 1), q0=[1.0], v0=[0.0], **options)
+
+
+def test_ggl_housner_block_on_no_slip_corners():
+    """Housner's block on rough (no-slip) corners on GGL: the corner it leans on stays put (its
+    normal and tangential rows held in the residual), it falls back in the time of the pendulum
+    about the corner (quadrature), the other corner hits plastically while the first is released
+    at the same instant, and w+/w- = 1 - 1.5 sin^2 a (Housner 1963), as test_impacts.py checks on
+    index-1."""
+    b, h, phi0 = 0.2, 0.6, 0.1
+    m = lcg.Model("ghousner")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(m=1.0, b=b, h=h, g=G)
+    mass, B, H = sp.symbols("m b h")
+    m.planar_body("block", mass, mass * (B**2 + H**2) / 3, (x, y), phi)
+    m.gravity(sp.Symbol("g"))
+    corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
+               (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
+                                                    for cx, cy in corners])
+    sim = compile_constrained(system, "ggl")
+    q0 = [-b + b * math.cos(phi0) - h * math.sin(phi0), h * math.cos(phi0) + b * math.sin(phi0), phi0]
+    res = sim.simulate(np.linspace(0, 1.0, 101), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    sticks = res.impacts.select("stick")
+    assert [r.contact for r in sticks[:2]] == [1, 0]
+    t_hit = sticks[0].t
+    assert [(r.contact, r.kind) for r in res.impacts if r.t == t_hit] == [(0, "release"), (1, "stick")]
+    before = res.t < t_hit
+    xl = res["x"] - b * np.cos(res["phi"]) + h * np.sin(res["phi"])
+    yl = res["y"] - b * np.sin(res["phi"]) - h * np.cos(res["phi"])
+    assert np.max(np.abs(xl[before] + b)) < 1e-9 and np.max(np.abs(yl[before])) < 1e-10
+    assert np.all(res["lambda_ineq_0"][before] > 0) and "lambda_t_ineq_0" in res.outputs
+    R, a = math.hypot(b, h), math.atan2(b, h)
+    I0 = 4 / 3 * R**2
+    fall = quad(lambda p: 1 / math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a - p)) / I0), 0, phi0,
+                limit=200)[0]
+    assert t_hit == pytest.approx(fall, rel=1e-7)
+    dt = 1e-9
+    near = sim.simulate(np.array([0.0, t_hit - dt, t_hit + dt]), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
+    w_minus, w_plus = near["phi_dot"][1], near["phi_dot"][2]
+    assert w_minus == pytest.approx(-math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a)) / I0), rel=1e-7)
+    assert w_plus / w_minus == pytest.approx(1 - 1.5 * math.sin(a) ** 2, rel=1e-7)

@@ -158,6 +158,11 @@ class ConstrainedSimulation(ConstrainedFunctions):
             raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         contacts = options.pop("contacts", None)  # the run's contact settings, not a solver option
+        if self.info.contacts and (options.get("method") == "taylor" or type(solver).__name__ == "Taylor"):
+            raise LagcodegenError("contacts (Inequality with a restitution) do not run on the Taylor method: it "
+                                  "integrates ODEs only, and a contact at rest is a constraint held with its "
+                                  "multiplier (eq. 4.5); contacts run on formulation 'index1' (CVODE), 'ggl' (IDA) "
+                                  "or 'minimal' (the reduced model's contacts on CVODE)")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         q0, v0 = file_initial(self, q0, v0)
