@@ -283,3 +283,23 @@ def test_ggl_housner_block_on_no_slip_corners():
     w_minus, w_plus = near["phi_dot"][1], near["phi_dot"][2]
     assert w_minus == pytest.approx(-math.sqrt(2 * G * R * (math.cos(a - phi0) - math.cos(a)) / I0), rel=1e-7)
     assert w_plus / w_minus == pytest.approx(1 - 1.5 * math.sin(a) ** 2, rel=1e-7)
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_apex_events_between_impacts(formulation):
+    """A compiled event y' = 0 (decreasing, not terminal) between the impacts: apex k at
+    t1 + 2 t1 e (1 - e^k) / (1 - e) + e^(k+1) t1 with height h0 e^(2k+2), to 1e-9."""
+    from lagcodegen.model.events import Event
+
+    e, h0 = 0.8, 1.0
+    system = _ball_system(e)
+    (y,) = system.model.coords
+    sim = compile_constrained(system, formulation, events=[Event("apex", system.model.dot(y), -1, False)])
+    res = sim.simulate(np.linspace(0, 3, 301), q0=[h0], v0=[0.0], rtol=1e-12, atol=1e-14)
+    apexes = [ev for ev in res.events if ev.name == "apex"]
+    assert len(apexes) == 6 and len(res.impacts.select("bounce")) == 6
+    t1 = math.sqrt(2 * h0 / G)
+    k = np.arange(6)
+    t_exact = t1 + 2 * t1 * e * (1 - e**k) / (1 - e) + e ** (k + 1) * t1
+    assert np.max(np.abs(np.array([ev.t for ev in apexes]) / t_exact - 1)) < 1e-9
+    assert np.max(np.abs(np.array([ev.y[0] for ev in apexes]) / (h0 * e ** (2 * k + 2)) - 1)) < 1e-9
