@@ -303,3 +303,53 @@ def test_apex_events_between_impacts(formulation):
     t_exact = t1 + 2 * t1 * e * (1 - e**k) / (1 - e) + e ** (k + 1) * t1
     assert np.max(np.abs(np.array([ev.t for ev in apexes]) / t_exact - 1)) < 1e-9
     assert np.max(np.abs(np.array([ev.y[0] for ev in apexes]) / (h0 * e ** (2 * k + 2)) - 1)) < 1e-9
+
+
+def test_ctrl_c_stops_a_long_ggl_run_with_impacts(tmp_path):
+    """The GGL impact driver polls for Ctrl-C (in its residual) as the other drivers do: SIGINT
+    during a run of hours (an elastic ball bouncing for 1e7 s) raises KeyboardInterrupt within
+    seconds (a bound)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+    import time
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    script = tmp_path / "long.py"
+    script.write_text(textwrap.dedent("""
+        import sys
+        import numpy as np
+        import sympy as sp
+        import lagcodegen as lcg
+        from lagcodegen.api import compile_constrained
+        m = lcg.Model("ctrlc_gball")
+        (y,) = m.coordinates("y")
+        m.parameters(g=9.81, m=1.0)
+        m.particle("b", sp.Symbol("m"), (0, y))
+        m.gravity(sp.Symbol("g"))
+        sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=1.0)]),
+                                  "ggl")
+        sim.simulate(np.array([0.0, 1.0]), q0=[1.0], v0=[0.0])
+        print("ready", flush=True)
+        try:
+            sim.simulate(np.array([0.0, 1e7]), q0=[1.0], v0=[0.0], max_steps=10**15,
+                         contacts=lcg.ContactOptions(max_records=10))
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            sys.exit(130)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(root)))
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=60)[1]
+        took = time.perf_counter() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and took < 10
