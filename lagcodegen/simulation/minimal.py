@@ -114,14 +114,19 @@ class MinimalSimulation(_Base):
         names = [s.name for s in self.system.model.params]
         return names if self._runtime_parameters is None else list(self._runtime_parameters)
 
+    def reduced_branch(self, b: int) -> Model:
+        """The model of branch ``b`` in the remaining coordinates (:func:`reduced_model`), made once."""
+        if b not in self._reduced:
+            self._reduced[b] = reduced_model(self.system, self.branches[b], name=f"{self.system.model.name}_min{b}")
+        return self._reduced[b]
+
     def compiled_branch(self, b: int) -> CompiledModel:
         if b not in self._compiled:
-            red = reduced_model(self.system, self.branches[b], name=f"{self.system.model.name}_min{b}")
+            red = self.reduced_branch(b)
             scene = Scene(derive(red), outputs=[*self._model_outputs, *[f"{q.name}" for q in self.eliminated],
                                                  *[f"{q.name}_dot" for q in self.eliminated]],
                           runtime_parameters=self._runtime_parameters, values=self._values,
                           prefix=self._prefix and f"{self._prefix}_b{b}")
-            self._reduced[b] = red
             self._compiled[b] = CompiledModel.from_built(build(generate_code(scene, self.lang), native=True,
                                                                       verbose=self._verbose))
         return self._compiled[b]
@@ -135,8 +140,7 @@ class MinimalSimulation(_Base):
         (:mod:`.constrained_impacts`)."""
         sim = self._contact_sims.get(b)
         if sim is None:
-            self.compiled_branch(b)
-            red = self._reduced[b]
+            red = self.reduced_branch(b)
             system = reduced_contacts(self.system, self.branches[b], red)
             outs = [*self._model_outputs, *[q.name for q in self.eliminated],
                     *[f"{q.name}_dot" for q in self.eliminated]]
@@ -162,10 +166,10 @@ class MinimalSimulation(_Base):
 
     def _branch_for(self, q: np.ndarray, t0: float, vals: dict, tol: float) -> int:
         model = self.system.model
-        subs = {**{s: q[i] for i, s in enumerate(model.coords)}, model.t: t0,
-                **{s: vals[s.name] for s in model.params}}
         if not self.eliminated:
             return 0
+        subs = {**{s: q[i] for i, s in enumerate(model.coords)}, model.t: t0,
+                **{s: vals[s.name] for s in model.params}}
         best, err = None, np.inf
         for b, sol in enumerate(self.branches):
             try:
@@ -205,12 +209,12 @@ class MinimalSimulation(_Base):
         q, v, vals = self._start(q0, v0, params, float(t[0]), initial, ic_tol)
         tol = ic_tol if initial == "check" else np.inf
         b = self._branch_for(q, float(t[0]), vals, tol)
-        cm = self.compiled_branch(b)
+        cm = self.contact_branch(b) if self.system.contacts else self.compiled_branch(b)
         idx = [model.index(qr) for qr in self.remaining]
         run_params = {k: vals[k] for k in cm.param_names}
         start = time.perf_counter()
         if self.system.contacts:  # the contacts on the branch's model, on the impact driver
-            res = self.contact_branch(b).simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver,
+            res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver,
                                                   rtol=rtol, atol=atol, events=roots, raise_on_error=raise_on_error,
                                                   **options)
         else:
