@@ -411,6 +411,14 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
                         ta = tm;
                 }
                 teff = tb;
+                if (IDAGetDky(mem, teff, 0, tmp) < 0)
+                    goto done;
+                rc = im->gaps(teff, N_VGetArrayPointer(tmp), p, d.gk, d.wk);
+                LCG_MODEL_ERROR(LCG_DAE_OK);
+                if (!(d.wk[missed] < 0.0)) { /* not closing there on the interpolant: as a flight within the step */
+                    apex = 1;
+                    teff = tret;
+                }
             }
         }
         /* the output times up to here, from the interpolant */
