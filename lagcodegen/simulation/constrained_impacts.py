@@ -331,16 +331,10 @@ class ImpactRunner:
         method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
         nr = nj + nk
-        ny, nt = sim.ny, t.size
         if not (type(atol) is float or isinstance(atol, (int, float))):
             raise LagcodegenError("runs with contacts take a scalar atol")
-        yout = np.empty((nt, ny))
-        out = np.empty((nt, sim.n_out_columns))
         nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
-        lamout = np.zeros((nt, max(nlam, 1)))
-        rec = np.empty((contacts.max_records, 6))
-        active = np.zeros(nk, dtype=np.intc)
-        n_rec = ffi.new("int *")
+        buf = self._buffers(t, max(nlam, 1), contacts, recording)
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
         c = control
@@ -350,21 +344,11 @@ class ImpactRunner:
             int(roots), c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
         st = ffi.new("lcg_cvc_stats *")
-        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
-            if roots and sim.info.events else None
-        settings = np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol])
-        fb = ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)
-        y0 = np.ascontiguousarray(y0, dtype=float)
         start = time.perf_counter()
-        flag = self.rt.lib.lcg_imp_solve(
-            self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), nt, fb("double[]", t),
-            fb("double[]", yout), fb("double[]", out), fb("double[]", lamout), opt, fb("double[]", self.restitution),
-            fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
-            events.struct if events else ffi.NULL, self.friction, fb("double[]", self.mu))
-        wall = time.perf_counter() - start
-        return self._result(_Raw(flag, st, events, t, yout, out, lamout, rec, int(n_rec[0]), active, p, wall),
-                            contacts, method, "CVODE")
+        flag = self.rt.lib.lcg_imp_solve(self.table, *self._arguments(buf, p, y0, opt, st), self.friction,
+                                         ffi.from_buffer("double[]", self.mu))
+        return self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, method, "CVODE")
 
     def run_ggl(self, t, y0, p, control: StepControl, form: GGLForm, recording: Recording,
                 contacts: ContactOptions, alg_atol: float) -> Result:
@@ -374,20 +358,14 @@ class ImpactRunner:
         (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are interpolated), the
         recording of :meth:`run`, the contact settings ``contacts`` and ``alg_atol``, the
         absolute tolerance of the unknowns lambda, mu."""
-        sim, ffi = self.sim, self.ffi
-        ny, nt = sim.ny, t.size
+        ffi = self.ffi
         atol = control.atol
         if not isinstance(atol, (int, float)) or isinstance(atol, bool):
             raise LagcodegenError("runs with contacts take a scalar atol")
         if form.stop_at_outputs:
             raise LagcodegenError("runs with contacts on IDA interpolate their outputs: stop_at_outputs=True is "
                                   "not taken (the steps stop at the impacts, not at the output times)")
-        yout = np.empty((nt, ny))
-        out = np.empty((nt, sim.n_out_columns))
-        lamout = np.zeros((nt, int(self.table.nrow)))
-        rec = np.empty((contacts.max_records, 6))
-        active = np.zeros(len(self.contacts), dtype=np.intc)
-        n_rec = ffi.new("int *")
+        buf = self._buffers(t, int(self.table.nrow), contacts, recording)
         opt = ffi.new("lcg_ida_options *")
         c = control
         opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = float(c.rtol), float(atol), ffi.NULL, int(c.max_steps)
@@ -398,25 +376,40 @@ class ImpactRunner:
         opt.roots, opt.stop_at_outputs, opt.max_wall = int(recording.roots), 0, c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
         st = ffi.new("lcg_ida_stats *")
-        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
-            if recording.roots and sim.info.events else None
-        settings = np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol])
         extra = np.zeros(2)
-        fb = ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)
-        y0 = np.ascontiguousarray(y0, dtype=float)
         start = time.perf_counter()
-        flag = self.rt.lib.lcg_imp_ida_solve(
-            self.numbers, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), nt, fb("double[]", t),
-            fb("double[]", yout), fb("double[]", out), fb("double[]", lamout), opt, fb("double[]", self.restitution),
-            fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
-            events.struct if events else ffi.NULL, fb("double[]", extra))
-        wall = time.perf_counter() - start
-        res = self._result(_Raw(flag, st, events, t, yout, out, lamout, rec, int(n_rec[0]), active, p, wall),
-                           contacts, "bdf", "IDA")
+        flag = self.rt.lib.lcg_imp_ida_solve(self.numbers, *self._arguments(buf, p, y0, opt, st),
+                                             ffi.from_buffer("double[]", extra))
+        res = self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "bdf", "IDA")
         res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
         res.stats["suppress_alg"] = bool(form.suppress_alg)
         return res
+
+    def _buffers(self, t, nlam: int, contacts: ContactOptions, recording: Recording) -> "_Buffers":
+        """The arrays a driver's call fills for the output times ``t`` (``nlam`` multipliers per
+        time) and its events struct (``recording.roots``: the compiled events, at most
+        ``recording.max_events``)."""
+        sim, nt = self.sim, t.size
+        events = NativeEvents(self.ffi, "lcg_events", sim.info.events, sim.ny, recording.max_events) \
+            if recording.roots and sim.info.events else None
+        return _Buffers(t, np.empty((nt, sim.ny)), np.empty((nt, sim.n_out_columns)), np.zeros((nt, nlam)),
+                        np.empty((contacts.max_records, 6)), np.zeros(len(self.contacts), dtype=np.intc),
+                        self.ffi.new("int *"), events,
+                        np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol]), contacts.max_records)
+
+    def _arguments(self, buf: "_Buffers", p: np.ndarray, y0, opt, st) -> list:
+        """The arguments the impact drivers (lcg_imp_solve, lcg_imp_ida_solve) share after their
+        model table: parameters, initial state, output times and arrays, options, restitution,
+        settings, modes, records, statistics, events."""
+        ffi, fb = self.ffi, self.ffi.from_buffer
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        buf.y0 = y0  # kept alive through the call
+        return [fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), buf.t.size, fb("double[]", buf.t),
+                fb("double[]", buf.yout), fb("double[]", buf.out), fb("double[]", buf.lamout), opt,
+                fb("double[]", self.restitution), fb("double[]", buf.settings), fb("int[]", buf.active),
+                buf.max_records, fb("double[]", buf.rec), buf.n_rec, st,
+                buf.events.struct if buf.events else ffi.NULL]
 
     def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str) -> Result:
         """The Result of a driver's call ``raw``: trajectory, outputs with the multipliers, events,
@@ -471,6 +464,30 @@ class ImpactRunner:
             cls = PainleveError if "Painleve" in text else SolverError
             raise cls(text, t=float(st.t_reached), flag=int(flag), result=res)
         return res
+
+
+@dataclass
+class _Buffers:
+    """What an impact driver's call fills: trajectory, outputs, multipliers, records, final modes,
+    the records' count, the events struct; with the output times, the contact settings and the
+    records kept at most."""
+
+    t: np.ndarray
+    yout: np.ndarray
+    out: np.ndarray
+    lamout: np.ndarray
+    rec: np.ndarray
+    active: np.ndarray
+    n_rec: object
+    events: object
+    settings: np.ndarray
+    max_records: int
+    y0: object = None
+
+    def raw(self, flag: int, st, p: np.ndarray, wall: float) -> "_Raw":
+        """The call's outcome as :class:`_Raw`."""
+        return _Raw(flag, st, self.events, self.t, self.yout, self.out, self.lamout, self.rec, int(self.n_rec[0]),
+                    self.active, p, wall)
 
 
 @dataclass(frozen=True)
