@@ -14,6 +14,9 @@ The event-location error is the largest relative error of the N impact times.
 
 * lagcodegen: ``simulate`` of the compiled system: CVODE (Adams) with root finding, the impulse
   applied in the generated C and CVODE reinitialized, in one call of the impact driver;
+* lcg GGL:    the same system compiled with formulation "ggl": IDA on the GGL residual of the rows
+  held, the same impact law, IDA restarted (lagcodegen/runtime/lcg_imp_ida.c);
+* lcg minimal: formulation "minimal" (no equality to eliminate: the same index-1 impact driver);
 * scipy:      ``solve_ivp`` (DOP853 and LSODA) with a terminal event y = 0 (direction -1),
   restarted after each event with y' -> -e y' by a Python loop; its right-hand side calls the
   same compiled function (the model's augmented-system solve, ``kkt``, through its table).
@@ -81,18 +84,20 @@ def problem(name):
         q0, exact = THETA0, pendulum_times(11)
         n = 10
     m.gravity(sp.Symbol("g"))
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(q, restitution=E)]), "index1")
-    return sim, q0, exact[:n], 0.5 * (exact[n - 1] + exact[n])
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(q, restitution=E)])
+    sims = {f: compile_constrained(system, f) for f in ("index1", "ggl", "minimal")}
+    return sims, q0, exact[:n], 0.5 * (exact[n - 1] + exact[n])
 
 
-def run_lagcodegen(case, rtol):
-    sim, q0, exact, t_end = case
-    res = sim.simulate(np.array([0.0, t_end]), q0=[q0], v0=[0.0], rtol=rtol, atol=rtol / 100)
+def run_lagcodegen(case, rtol, formulation="index1"):
+    sims, q0, exact, t_end = case
+    res = sims[formulation].simulate(np.array([0.0, t_end]), q0=[q0], v0=[0.0], rtol=rtol, atol=rtol / 100)
     return np.array([r.t for r in res.impacts.select("bounce")][: exact.size])
 
 
 def run_scipy(case, rtol, method):
-    sim, q0, exact, t_end = case
+    sims, q0, exact, t_end = case
+    sim = sims["index1"]
     p = sim.parameter_vector()
 
     def rhs(t, y):
@@ -128,7 +133,9 @@ def main(argv=None) -> int:
     load0 = _harness.load_average()
     rtols = [1e-6, 1e-10] if args.quick else [1e-6, 1e-8, 1e-10, 1e-12]
     rounds = 3 if args.quick else max(1, args.repeats)
-    runners = {"lagcodegen": run_lagcodegen, "scipy DOP853": lambda c, r: run_scipy(c, r, "DOP853"),
+    runners = {"lagcodegen": run_lagcodegen, "lcg GGL": lambda c, r: run_lagcodegen(c, r, "ggl"),
+               "lcg minimal": lambda c, r: run_lagcodegen(c, r, "minimal"),
+               "scipy DOP853": lambda c, r: run_scipy(c, r, "DOP853"),
                "scipy LSODA": lambda c, r: run_scipy(c, r, "LSODA")}
     rows = []
     for name in ("ball", "pendulum"):

@@ -19,27 +19,27 @@ from lagcodegen.errors import LagcodegenError, ModelError
 G = 9.81
 
 
-def _ball(e: float):
+def _ball(e: float, formulation: str = "index1"):
     m = lcg.Model("ball")
     (y,) = m.coordinates("y")
     m.parameters(g=G, m=1.0)
     m.particle("b", sp.Symbol("m"), (0, y))
     m.gravity(sp.Symbol("g"))
     return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=e)]),
-                               "index1", outputs=["energy"])
+                               formulation, outputs=["energy"])
 
 
-@pytest.fixture(scope="module")
-def ball():
-    return _ball(0.8)
-
-
-def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(formulation):
+    """The same bounds on every formulation that takes contacts (index-1 and GGL on their impact
+    drivers, minimal coordinates)."""
+    ball = _ball(0.8, formulation)
     e, h0 = 0.8, 1.0
     t1 = math.sqrt(2 * h0 / G)
     speed = 1e-6
     res = ball.simulate(np.linspace(0, 6, 6001), q0=[h0], v0=[0.0], rtol=1e-12, atol=1e-14,
                         contacts=lcg.ContactOptions(contact_speed=speed))
+    assert res.formulation == formulation
     bounces = res.impacts.select("bounce")
     assert len(bounces) >= 20
     # impact k at t1 + 2 t1 e (1 - e^k) / (1 - e); rebound speed e^(k+1) sqrt(2 g h0)
@@ -72,16 +72,17 @@ def test_bouncing_ball_impact_times_apex_heights_zeno_and_resting_contact(ball):
     assert np.all(res["lambda_ineq_0"][res.t < sticks[0].t] == 0.0)
 
 
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
 @pytest.mark.parametrize("e", [0.1, 0.5, 0.8])
 @pytest.mark.parametrize("tolerances", [{}, {"rtol": 1e-8, "atol": 1e-10}, {"rtol": 1e-4, "atol": 1e-6}])
-def test_bouncing_ball_never_tunnels_at_ordinary_tolerances(e, tolerances):
+def test_bouncing_ball_never_tunnels_at_ordinary_tolerances(e, tolerances, formulation):
     """At default or loose tolerances the steps near the accumulation point are longer than the
     last flights: a step skips a whole flight and CVODE's sign test sees no root (the ball fell to
     y = -18 m at rtol 1e-8, -146 m at the defaults). The driver finds the skipped crossing, the
     ball rests on the floor held by m g, the gap never goes further below zero than gap_tol plus
     one step's fall, and that depth is reported (stats['max_penetration'])."""
     h0 = 1.0
-    sim = _ball(e)
+    sim = _ball(e, formulation)
     res = sim.simulate(np.linspace(0, 6, 601), q0=[h0], v0=[0.0], **tolerances)
     y = res["y"]
     assert y.min() > -1e-6, y.min()
@@ -124,7 +125,8 @@ def test_ball_released_when_the_floor_would_pull():
     assert len(res.impacts) == 1
 
 
-def test_particle_leaves_the_sphere_in_the_same_run():
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_particle_leaves_the_sphere_in_the_same_run(formulation):
     # the sphere x^2 + y^2 >= R^2 as a contact: the particle starts on top at rest relative to
     # it (persistent contact, multiplier > 0), is released where the multiplier turns negative,
     # at cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on in the same call
@@ -134,11 +136,14 @@ def test_particle_leaves_the_sphere_in_the_same_run():
     m.particle("p", sp.Symbol("m"), (x, y))
     m.gravity(sp.Symbol("g"))
     contact = lcg.Inequality(x**2 + y**2 - sp.Symbol("R") ** 2, restitution=0.0)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), formulation, outputs=["energy"])
     v0 = 1e-3
     res = sim.simulate(np.linspace(0, 3.2, 321), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
     assert [r.kind for r in res.impacts] == ["release"]
     t_off = res.impacts[0].t
+    if formulation == "ggl":  # the contact a row of the GGL residual: x^2 + y^2 = R^2 held to the Newton tolerance
+        on = res.t < t_off
+        assert np.max(np.abs(res["x"][on] ** 2 + res["y"][on] ** 2 - 1.0)) < 1e-10
     at = sim.simulate(np.array([0.0, t_off]), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
     assert at["y"][-1] == pytest.approx((2 + v0**2 / G) / 3, rel=1e-8)
     assert np.all(res["lambda_ineq_0"][res.t > t_off] == 0.0)
@@ -151,7 +156,8 @@ def test_particle_leaves_the_sphere_in_the_same_run():
     assert res.impacts.final_modes == {0: "free"}
 
 
-def test_newtons_cradle_passes_the_velocity_to_the_last_ball():
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_newtons_cradle_passes_the_velocity_to_the_last_ball(formulation):
     m = lcg.Model("cradle")
     xs = m.coordinates("x1 x2 x3")
     m.parameters(m=1.0, d=0.1)
@@ -159,7 +165,7 @@ def test_newtons_cradle_passes_the_velocity_to_the_last_ball():
         m.particle(f"b{i}", sp.Symbol("m"), (x, 0))
     d = sp.Symbol("d")
     ineqs = [lcg.Inequality(xs[1] - xs[0] - d, restitution=1.0), lcg.Inequality(xs[2] - xs[1] - d, restitution=1.0)]
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), "index1", outputs=["energy"])
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), formulation, outputs=["energy"])
     gap = 1e-3
     res = sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0],
                        rtol=1e-12, atol=1e-14)
@@ -311,8 +317,6 @@ def test_contact_input_errors():
     m.particle("b", sp.Symbol("m"), (0, y))
     m.gravity(sp.Symbol("g"))
     system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.5)])
-    with pytest.raises(ModelError, match="not GGL"):
-        compile_constrained(system, "ggl")
     sim = compile_constrained(system, "index1")
     with pytest.raises(ModelError, match="violated"):
         sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
@@ -399,9 +403,11 @@ def test_generate_and_bundle_of_a_contact_file(tmp_path):
         generate_file(mf, lang="fortran")
 
 
-def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path):
-    """The impact driver polls for Ctrl-C as the other drivers do: SIGINT during a run of hours
-    (an elastic ball bouncing for 1e7 s) raises KeyboardInterrupt within seconds (a bound)."""
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path, formulation):
+    """The impact drivers (index-1 on CVODE, GGL on IDA) poll for Ctrl-C as the other drivers do:
+    SIGINT during a run of hours (an elastic ball bouncing for 1e7 s) raises KeyboardInterrupt
+    within seconds (a bound)."""
     import os
     import signal
     import subprocess
@@ -423,7 +429,7 @@ def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path):
         m.particle("b", sp.Symbol("m"), (0, y))
         m.gravity(sp.Symbol("g"))
         sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=1.0)]),
-                                  "index1")
+                                  FORMULATION)
         sim.simulate(np.array([0.0, 1.0]), q0=[1.0], v0=[0.0])
         print("ready", flush=True)
         try:
@@ -432,7 +438,7 @@ def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path):
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
             sys.exit(130)
-    """))
+    """).replace("FORMULATION", repr(formulation)))
     proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=dict(os.environ, PYTHONPATH=str(root)))
     try:

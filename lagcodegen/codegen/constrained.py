@@ -84,15 +84,13 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if ggl and system.has_friction:
             raise ModelError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the impact "
                              "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
-                             "formulation on IDA cannot take it")
-        if ggl:
-            raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
-                             "formulation (formulation='index1'), not GGL")
+                             "formulation on IDA takes frictionless and no-slip (tangent=) contacts only: its "
+                             "stick/slip modes are not rows of the GGL residual")
         if model.general and system.has_friction:
             raise ModelError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) of model {model.name!r} "
                              "with generalized speeds is not supported yet: the friction driver takes models whose "
                              "speeds are their coordinates' rates (frictionless or no-slip tangent= contacts are)")
-        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx)
+        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, ggl)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
     code.dae = DaeLayout(nq=model.nq, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
@@ -103,9 +101,12 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     return code, info
 
 
-def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
+def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict, ggl: bool = False) -> str:
     """``<prefix>_impact.c`` (templates/c/impact.c.j2): the contact functions and their table
-    ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver."""
+    ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver; with friction or
+    ``ggl`` also the model's numbers at a state (``lcg_imp_friction``), from which the friction
+    driver (lcg_imp.c) solves its modes and the GGL impact driver (lcg_imp_ida.c) builds its
+    residual."""
     blocks = impact_blocks(system, scene)
     contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
                          + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None
@@ -115,7 +116,8 @@ def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict) -> str:
                          for k in system.contacts)
     return environment().get_template("c/impact.c.j2").render(
         **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
-        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction)
+        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction,
+        numbers=ggl)
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

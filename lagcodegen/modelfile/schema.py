@@ -170,7 +170,7 @@ SCHEMA: tuple[Table, ...] = (
             "{coefficients = {q = ...}, A0 = ...} (see [constraints].nonholonomic)", default="none"),
         Key("inequalities", "expressions or tables", "g(q, t) >= 0, monitored by the terminal events ineq_<k>; "
             "a table { expr = \"...\", restitution = e } is a contact with impacts instead (Newton's law, "
-            "0 <= e <= 1; index-1 formulation; tangent = \"...\": no slip along it while touching; "
+            "0 <= e <= 1; formulations index1, ggl and minimal; tangent = \"...\": no slip along it while touching; "
             "friction = mu with a tangent: Coulomb friction along it instead)", default="none"),
         Key("integrable", "string", '"error" refuses an integrable Pfaffian row, "allow" keeps it',
             default='"error"'),

@@ -40,11 +40,8 @@
 int CVodeReInit(void *cvode_mem, sunrealtype t0, N_Vector y0);
 int CVodeGetDky(void *cvode_mem, sunrealtype t, int k, N_Vector dky);
 
-/* Fields of one record of rec[]: t, contact, kind, impulse, w before, w after. */
-
 /* Bisection steps locating a skipped contact on a step's interpolant. */
 #define LCG_IMP_BISECT 60
-#define REC 6
 
 /* The state of Coulomb friction (NULL without a friction table); see "Coulomb friction" below. */
 typedef struct {
@@ -172,16 +169,7 @@ static void add_counts(void *mem, long *c)
 
 static void record(double *rec, int max_rec, int *n_rec, double t, int k, int kind, double P, double wm, double wp)
 {
-    if (*n_rec < max_rec) {
-        double *r = rec + (long)(*n_rec) * REC;
-        r[0] = t;
-        r[1] = k;
-        r[2] = kind;
-        r[3] = P;
-        r[4] = wm;
-        r[5] = wp;
-    }
-    (*n_rec)++;
+    lcg_imp_record(rec, max_rec, n_rec, t, k, kind, P, wm, wp);
 }
 
 /* ---------------------------------------------------------------- Coulomb friction
@@ -813,85 +801,45 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     return 0;
 }
 
+/* The law of lcg_imp_law.c on this run's data (d, e, set, last, the scratch s and rows). */
+static lcg_imp_law law_of(imp_data *d, const double *e, const double *set, double *last, double *s, int *rows,
+                          double *rec, int max_rec, int *n_rec)
+{
+    lcg_imp_law L;
+
+    L.im = d->im;
+    L.p = d->p;
+    L.active = d->active;
+    L.e = e;
+    L.set = set;
+    L.last = last;
+    L.gk = d->gk;
+    L.wk = d->wk;
+    L.scratch = s;
+    L.rows = rows;
+    L.rec = rec;
+    L.max_rec = max_rec;
+    L.n_rec = n_rec;
+    return L;
+}
+
 /* The impact at (t, y) of the free contacts that touch and close (and those that hit[]): the
- * velocities of y replaced. s: scratch (see lcg_imp_solve). Returns LCG_DAE_OK or a model error. */
+ * velocities of y replaced (lcg_imp_jump). s: scratch (see lcg_imp_solve). Returns LCG_DAE_OK or
+ * a model error. */
 static int impact(imp_data *d, double t, double *y, const int *hit, const double *e, const double *set,
                   double *last, double *s, int *rows, double *rec, int max_rec, int *n_rec)
 {
-    const lcg_imp_model *im = d->im;
-    int nk = im->nk, nj = im->nj, ny = im->dae->ny, k, rc, iter, changed = 0;
-    double *eff = s, *wm = eff + nk, *P = wm + nk, *ynew = P + im->nrow, *gk = d->gk, *wk = d->wk;
-    double gap_tol = set[2];
-    int *plastic = rows + nk;
-
-    rc = im->gaps(t, y, d->p, gk, wk);
-    if (rc != LCG_DAE_OK)
-        return rc;
-    for (k = 0; k < nk; ++k) {
-        wm[k] = wk[k];
-        rows[k] = d->active[k] || ((hit[k] || gk[k] <= gap_tol) && wk[k] < 0.0);
-        plastic[k] = d->active[k] || e[k] * fabs(wk[k]) <= set[0] || t - last[k] < set[1];
-        eff[k] = plastic[k] ? 0.0 : e[k];
-        changed |= rows[k] && !d->active[k];
-    }
-    if (!changed)
-        return LCG_DAE_OK;
-    for (iter = 0; iter <= nk; ++iter) {
-        int worst = -1;
-        rc = im->impact(t, y, d->p, rows, eff, ynew, P);
-        if (rc != LCG_DAE_OK)
-            return rc;
-        for (k = 0; k < nk; ++k)
-            if (rows[k] && P[nj + k] < 0.0 && (worst < 0 || P[nj + k] < P[nj + worst]))
-                worst = k;
-        if (worst < 0)
-            break;
-        rows[worst] = 0; /* it would pull: not part of the impact (a persistent contact is released) */
-        if (d->active[worst]) {
-            d->active[worst] = 0;
-            record(rec, max_rec, n_rec, t, worst, LCG_IMP_RELEASE, 0.0, wm[worst], wm[worst]);
-        }
-    }
-    rc = im->gaps(t, ynew, d->p, gk, wk);
-    if (rc != LCG_DAE_OK)
-        return rc;
-    for (k = 0; k < nk; ++k) {
-        if (!rows[k])
-            continue;
-        if (d->active[k]) {
-            if (P[nj + k] != 0.0)
-                record(rec, max_rec, n_rec, t, k, LCG_IMP_CONTACT_IMPULSE, P[nj + k], wm[k], wk[k]);
-            continue;
-        }
-        last[k] = t;
-        d->active[k] = plastic[k];
-        record(rec, max_rec, n_rec, t, k, plastic[k] ? LCG_IMP_STICK : LCG_IMP_BOUNCE, P[nj + k], wm[k], wk[k]);
-    }
-    for (k = 0; k < ny; ++k)
-        y[k] = ynew[k];
-    return LCG_DAE_OK;
+    lcg_imp_law L = law_of(d, e, set, last, s, rows, rec, max_rec, n_rec);
+    return lcg_imp_jump(&L, t, y, hit);
 }
 
-/* Persistent contacts whose multiplier is negative at (t, y) are released (recorded). */
+/* Persistent contacts whose multiplier is negative at (t, y) are released (recorded;
+ * lcg_imp_release_pulling, without friction). */
 static int release_pulling(imp_data *d, double t, const double *y, double *ydot, double *rec, int max_rec,
                            int *n_rec)
 {
-    int k, rc, again = 1, nk = d->im->nk, nj = d->im->nj;
-
-    while (again) {
-        again = 0;
-        rc = crhs(d, t, y, ydot, d->lam);
-        if (rc != LCG_DAE_OK)
-            return rc;
-        for (k = 0; k < nk; ++k)
-            if (d->active[k] && d->lam[nj + k] < 0.0) {
-                d->active[k] = 0;
-                record(rec, max_rec, n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
-                again = 1;
-                break;
-            }
-    }
-    return LCG_DAE_OK;
+    lcg_imp_law L = law_of(d, NULL, NULL, NULL, NULL, NULL, rec, max_rec, n_rec);
+    return lcg_imp_release_pulling(&L, t, y, d->alpha, d->beta, ydot, d->lam);
 }
 
 /* The impact of the contacts hit[] (and those touching and closing) at (t, y of CVODE), the
@@ -931,34 +879,12 @@ static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const
     return LCG_DAE_OK;
 }
 
-/* How far a free contact's gap may go below zero before it counts as skipped by a step: -gap_tol,
- * or gap_tol below where the segment began if that was deeper than -2 gap_tol (a contact
- * released with its gap drifted below zero). */
-static double gap_floor(double g0, double gap_tol)
-{
-    return g0 < -2.0 * gap_tol ? g0 - gap_tol : -gap_tol;
-}
-
-/* The free contact deepest below its floor (gap_floor) and still closing (w < 0): its flight
- * skipped by a step, CVODE's sign test blind to it; or -1. A contact below its floor that opens
- * again (a released contact recovering) is not one. */
-static int below_floor(const double *gk, const double *wk, const double *gprev, const int *active, int nk,
-                       double gap_tol)
-{
-    int k, worst = -1;
-
-    for (k = 0; k < nk; ++k)
-        if (!active[k] && gk[k] < gap_floor(gprev[k], gap_tol) && wk[k] < 0.0 && (worst < 0 || gk[k] < gk[worst]))
-            worst = k;
-    return worst;
-}
-
 /* The first time in [ta, tb] (gap of contact k above its floor at ta, below at tb) where the gap,
  * on CVODE's interpolant of the last step, is below the floor: *tstar, y the state there. */
 static int bisect(imp_data *d, void *mem, N_Vector y, int k, double ta, double tb, const double *gprev,
                   double gap_tol, double *tstar)
 {
-    double *yv = N_VGetArrayPointer(y), floor = gap_floor(gprev[k], gap_tol);
+    double *yv = N_VGetArrayPointer(y), floor = lcg_imp_gap_floor(gprev[k], gap_tol);
     int it, rc;
 
     for (it = 0; it < LCG_IMP_BISECT; ++it) {
@@ -1192,7 +1118,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             if (flag >= 0) { /* a free contact deeper than where the segment began: a flight skipped by a step */
                 rc = im->gaps(tret, yv, p, data.gk, data.wk);
                 LCG_MODEL_ERROR(LCG_DAE_OK);
-                missed = below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
+                missed = lcg_imp_below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
             }
             if (missed >= 0) {
                 /* A step skipped a free contact's flight (or its gap began negative): the segment
@@ -1222,7 +1148,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
                         break; /* failed, or CVODE's root finding saw it this time */
                     rc = im->gaps(tret, yv, p, data.gk, data.wk);
                     LCG_MODEL_ERROR(LCG_DAE_OK);
-                    missed = below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
+                    missed = lcg_imp_below_floor(data.gk, data.wk, gprev, active, nk, set[2]);
                     if (missed >= 0) {
                         apex = wa[missed] > 0.0;
                         if (apex) /* rising at the step's start: the whole flight within one step */

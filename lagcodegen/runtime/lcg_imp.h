@@ -5,17 +5,8 @@
 #define LCG_IMP_H
 
 #include "lcg_imp_model.h"
+#include "lcg_imp_law.h" /* the impact law and the kinds of the contact records (LCG_IMP_BOUNCE, ...) */
 #include "lcg_cvc_types.h" /* lcg_cvc_options, lcg_cvc_stats, lcg_events */
-
-/* The kinds of the contact records. */
-#define LCG_IMP_BOUNCE 0           /* an impact after which the contact stays free */
-#define LCG_IMP_STICK 1            /* an impact that ends in persistent contact (e = 0) */
-#define LCG_IMP_RELEASE 2          /* persistent contact released (its multiplier turned negative) */
-#define LCG_IMP_CONTACT_IMPULSE 3  /* the impulse a persistent contact took in another's impact */
-#define LCG_IMP_SLIP 4             /* friction: a sticking contact begins to slip (impulse: lambda_t) */
-#define LCG_IMP_GRIP 5             /* friction: a slipping contact begins to stick (impulse: lambda_t) */
-#define LCG_IMP_REVERSE 6          /* friction: a slipping contact slips the other way from rest */
-#define LCG_IMP_TANGENTIAL_IMPULSE 7 /* friction: the tangential impulse P_t of a contact in an impact */
 
 /* Integrate model im (y = (q, q'), index-1 with the equality constraints and the contacts in
  * persistent contact; Baumgarte opt->alpha, opt->beta, negative: the natural rate at y0) from

@@ -79,6 +79,15 @@ from .ode import CompiledModel
 _EVENT_POOL, _EVENT_POOL_KEYS = 2, 8
 
 
+def _contact_options(contacts) -> ContactOptions:
+    """A run's contact settings: ``contacts`` checked (None: the defaults)."""
+    if contacts is None:
+        return ContactOptions()
+    if not isinstance(contacts, ContactOptions):
+        raise LagcodegenError(f"contacts must be a ContactOptions, got {type(contacts).__name__}")
+    return contacts
+
+
 class ConstrainedSimulation(ConstrainedFunctions):
     """A compiled constrained system (formulation ``index1`` or ``ggl``); call :meth:`simulate`.
 
@@ -136,8 +145,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         formulation's family does not have raises LagcodegenError naming it.
 
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
-        restitution) run on the impact driver (:mod:`.constrained_impacts`: impacts, persistent
-        contact and release in one call; CVODE, native backend, no projection); the keyword
+        restitution) run on an impact driver (:mod:`.constrained_impacts`: impacts, persistent
+        contact and release in one call; index-1: CVODE, native backend, no projection; GGL: IDA,
+        native backend, frictionless and no-slip contacts); the keyword
         ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
         before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
         lists what happened.
@@ -159,6 +169,11 @@ class ConstrainedSimulation(ConstrainedFunctions):
             raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         contacts = options.pop("contacts", None)  # the run's contact settings, not a solver option
+        if self.info.contacts and (options.get("method") == "taylor" or type(solver).__name__ == "Taylor"):
+            raise LagcodegenError("contacts (Inequality with a restitution) do not run on the Taylor method: it "
+                                  "integrates ODEs only, and a contact at rest is a constraint held with its "
+                                  "multiplier (eq. 4.5); contacts run on formulation 'index1' (CVODE), 'ggl' (IDA) "
+                                  "or 'minimal' (the reduced model's contacts on CVODE)")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         q0, v0 = file_initial(self, q0, v0)
@@ -237,19 +252,30 @@ class ConstrainedSimulation(ConstrainedFunctions):
                           family=stepper.family)
 
     def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
-        """A run of a system with contacts on the impact driver (:mod:`.constrained_impacts`);
-        ``cancel``: None, or a numpy int array of one value that stops the run (-80) once set."""
+        """A run of a system with contacts on its impact driver (:mod:`.constrained_impacts`: the
+        index-1 driver on CVODE, the GGL driver on IDA); ``cancel``: None, or a numpy int array of
+        one value that stops an index-1 run (-80) once set."""
+        if self._ggl:  # the GGL impact driver (IDA)
+            backend = getattr(family, "backend", None)
+            if backend != "native":
+                raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
+                                      f"backend={backend!r}")
+            runner = self._contact_runner(float(t[0]), y0, p)
+            alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
+            return runner.run_ggl(t, y0, p, StepControl.of(family, rtol, atol), family.ggl_form(),
+                                  family.recording(10_000, roots=roots), _contact_options(contacts), alg_atol)
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
-        """What the impact driver takes for runs of this system with contacts from (t0, y0) with
-        the parameters p on ``family`` (checked: CVODE, native backend, no projection, the contacts
-        not violated at y0), as a :class:`~.constrained_impacts.ContactRun`."""
-        if contacts is None:
-            contacts = ContactOptions()
-        elif not isinstance(contacts, ContactOptions):
-            raise LagcodegenError(f"contacts must be a ContactOptions, got {type(contacts).__name__}")
+        """What the index-1 impact driver takes for runs of this system with contacts from (t0, y0)
+        with the parameters p on ``family`` (checked: CVODE, native backend, no projection, the
+        contacts not violated at y0), as a :class:`~.constrained_impacts.ContactRun` (the runs of
+        ensembles and the integrator object; GGL systems refuse those by name)."""
+        if self._ggl:
+            raise LagcodegenError("ensembles and the integrator object of systems with contacts run on the index-1 "
+                                  "formulation (compile_constrained(system, 'index1')); GGL runs them in simulate")
+        contacts = _contact_options(contacts)
         backend = getattr(family, "backend", None)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
             raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
@@ -261,6 +287,13 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if projection:
             raise LagcodegenError("systems with contacts run without projection (projection=False; Baumgarte "
                                   "stabilization holds the constraints and the persistent contacts)")
+        runner = self._contact_runner(t0, y0, p)
+        return ContactRun(runner, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
+                          family.recording(10_000, roots=roots), contacts)
+
+    def _contact_runner(self, t0: float, y0, p) -> ImpactRunner:
+        """The impact driver on this model (made on first use), the initial state checked against
+        the contacts (g >= 0)."""
         runner = self._impact_runner
         if runner is None:
             runner = self._impact_runner = ImpactRunner(self)
@@ -269,8 +302,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if bad:
             raise ModelError(f"inconsistent initial conditions: the contact(s) {', '.join(bad)} are violated "
                              "(inequality constraints g >= 0)")
-        return ContactRun(runner, StepControl.of(family, rtol, atol, method=method), Index1Form(alpha, beta),
-                          family.recording(10_000, roots=roots), contacts)
+        return runner
 
     def _roots(self, events) -> bool:
         """Whether a run locates the compiled events (``events`` of simulate or ensemble)."""

@@ -84,10 +84,21 @@ Impacts with friction and Newton's law can gain energy in some configurations (a
 of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
 backend only (other solvers are refused naming them).
 
-Ensembles run each member as one call of this driver, every member's events and contact log kept
-(:mod:`.impact_ensemble`); the integrator object makes one call per propagate call
-(:mod:`.impact_stepper`). Not supported with contacts: GGL (IDA), minimal coordinates, Taylor,
-the scikit-sundae backend, projection, Fortran model code.
+**GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
+and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
+residual [q' - v - R_h^T mu; M v' - F - R^T lambda; h_r; R_r v + R0_r], the free contacts' rows
+lambda_r = 0, mu_r = 0; an impact, a switch into persistent contact or a release (the multiplier,
+an unknown of the DAE, reaching 0) stops IDA at the located root, the same impact law applies
+(lagcodegen/runtime/lcg_imp_law.c, shared with the index-1 driver) and IDA restarts from
+consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). Coulomb
+friction is refused there. **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
+reduced model with the contacts in the remaining coordinates on the index-1 driver.
+
+Ensembles of index-1 systems run each member as one call of this driver, every member's events
+and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
+propagate call (:mod:`.impact_stepper`). Not supported with contacts: Taylor (it takes no
+constrained system), the scikit-sundae backend, projection, ensembles and the integrator object
+of GGL systems, Fortran model code.
 """
 
 from __future__ import annotations
@@ -109,7 +120,7 @@ from ..result import Result
 from ..runtime import sources as runtime_files
 from ..solvers.control import CANCELLED, POLL_EVERY, install, raise_pending
 from ..solvers.base import METHODS, SINGULAR_AUGMENTED, NativeEvents, message, native_stats
-from ..solvers.request import Index1Form, Recording, StepControl
+from ..solvers.request import GGLForm, Index1Form, Recording, StepControl
 
 #: The kinds of :class:`ImpactRecord` (lcg_imp.h: LCG_IMP_BOUNCE, ...). With Coulomb friction:
 #: "slip" (a sticking contact begins to slip), "grip" (a slipping one begins to stick), "reverse"
@@ -121,11 +132,13 @@ KINDS = ("bounce", "stick", "release", "contact_impulse", "slip", "grip", "rever
 FRICTION_TRANSITIONS = ("slip", "grip", "reverse")
 
 #: The files of lagcodegen/runtime/ the impact driver is compiled from.
-RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h",
-                 "lcg_sundials.h", "sundials_api.h")
+RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_law.c", "lcg_imp_law.h", "lcg_imp_ida.c", "lcg_imp_ida.h",
+                 "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h",
+                 "sundials_api.h")
 
-_CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), cffi_struct(IMP_TABLE),
-                   cffi_struct(IMP_FRICTION_TABLE), header_cdef("lcg_imp.h"), POLL_CDEF])
+_CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), driver_cdef("ida"), cffi_struct(IMP_TABLE),
+                   cffi_struct(IMP_FRICTION_TABLE), header_cdef("lcg_imp.h"), header_cdef("lcg_imp_ida.h"),
+                   POLL_CDEF])
 
 
 class PainleveError(SolverError):
@@ -241,11 +254,11 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
 
     def render() -> dict[str, str]:
         return {**runtime_files(RUNTIME_FILES), "lcg_config.h": config_header(sundials), **generated_headers(),
-                **types_headers(("dae", "cvc"))}
+                **types_headers(("dae", "cvc", "ida"))}
 
     texts = [f"{k}\0{v}" for k, v in sorted(render().items())]
-    return driver_runtime("impacts", texts, render, _CDEF, "lcg_imp.h",
-                          [*sundials.link_args(("cvode", "core")), "-lm"], cc, cflags)
+    return driver_runtime("impacts", texts, render, _CDEF, "lcg_imp_ida.h",
+                          [*sundials.link_args(("cvode", "ida", "core")), "-lm"], cc, cflags)
 
 
 def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
@@ -258,7 +271,8 @@ def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
 class ContactRun:
     """What the impact driver takes for runs of one system (besides the times, state and
     parameters): the runner, the step control, the Baumgarte form, what is recorded, the contact
-    settings (made by ``ConstrainedSimulation.contact_run``)."""
+    settings (made by ``ConstrainedSimulation.contact_run``; index-1 systems: the runs that
+    ensembles and the integrator object make)."""
 
     runner: "ImpactRunner"
     control: StepControl
@@ -294,19 +308,23 @@ class ImpactRunner:
         #: Coulomb coefficients (-1: none), the row of each contact's tangential multiplier
         self.mu = np.array([-1.0 if system.friction[k] is None else system.friction[k] for k in self.contacts])
         self.friction = ffi.NULL
+        #: the model's numbers at a state (lcg_imp_friction): friction's modes, the GGL residual
+        self.numbers = ffi.NULL
         self.tangent_rows = {}
-        if system.has_friction:
+        if system.has_friction or sim._ggl:
             getter = getattr(library, f"{info.prefix}_imp_friction_table", None)
             if getter is None:
                 raise LagcodegenError(f"the code of {info.prefix!r} has no friction table (generated by a "
                                       "lagcodegen without Coulomb friction): generate it again")
             getter.restype = ctypes.c_void_p
             getter.argtypes = []
-            self.friction = ffi.cast("const lcg_imp_friction *", getter())
-            if self.friction.imp != self.table:
+            self.numbers = ffi.cast("const lcg_imp_friction *", getter())
+            if self.numbers.imp != self.table:
                 raise LagcodegenError(f"the friction table of {info.prefix!r} does not match its code")
             with_tangent = [k for k in self.contacts if system.tangents[k] is not None]
             self.tangent_rows = {k: info.J + len(self.contacts) + i for i, k in enumerate(with_tangent)}
+            if system.has_friction:
+                self.friction = self.numbers
 
     def gaps(self, t: float, y, p) -> tuple[np.ndarray, np.ndarray]:
         """(g_k, w_k) of the contacts at (t, y)."""
@@ -335,19 +353,14 @@ class ImpactRunner:
         method, rtol, atol, roots = control.method, control.rtol, control.atol, recording.roots
         nk, nj = len(self.contacts), sim.info.J
         nr = nj + nk
-        ny, nt = sim.ny, t.size
         if not (type(atol) is float or isinstance(atol, (int, float))):
             raise LagcodegenError("runs with contacts take a scalar atol")
-        yout = np.empty((nt, ny))
-        out = np.empty((nt, sim.n_out_columns))
         nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
-        lamout = np.zeros((nt, max(nlam, 1)))
-        rec = np.empty((contacts.max_records, 6))
-        if active is None:
-            active = np.zeros(nk, dtype=np.intc)
-        elif not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
-            raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
-        n_rec = ffi.new("int *")
+        buf = self._buffers(t, max(nlam, 1), contacts, recording)
+        if active is not None:
+            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
+                raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
+            buf.active = active
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
         c = control
@@ -359,24 +372,84 @@ class ImpactRunner:
         if cancel is not None:
             opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_cvc_stats *")
-        events = NativeEvents(ffi, "lcg_events", sim.info.events, ny, recording.max_events) \
-            if roots and sim.info.events else None
-        settings = np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol])
-        fb = ffi.from_buffer
         p = np.ascontiguousarray(p, dtype=float)
-        y0 = np.ascontiguousarray(y0, dtype=float)
         start = time.perf_counter()
-        flag = self.rt.lib.lcg_imp_solve(
-            self.table, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), nt, fb("double[]", t),
-            fb("double[]", yout), fb("double[]", out), fb("double[]", lamout), opt, fb("double[]", self.restitution),
-            fb("double[]", settings), fb("int[]", active), contacts.max_records, fb("double[]", rec), n_rec, st,
-            events.struct if events else ffi.NULL, self.friction, fb("double[]", self.mu))
-        wall = time.perf_counter() - start
+        flag = self.rt.lib.lcg_imp_solve(self.table, *self._arguments(buf, p, y0, opt, st), self.friction,
+                                         ffi.from_buffer("double[]", self.mu))
+        return self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, method, "CVODE")
+
+    def run_ggl(self, t, y0, p, control: StepControl, form: GGLForm, recording: Recording,
+                contacts: ContactOptions, alg_atol: float) -> Result:
+        """A run on the GGL impact driver (lagcodegen/runtime/lcg_imp_ida.c: IDA, the rows held as
+        GGL rows with their multipliers, the impact law of the index-1 driver) with the step
+        control ``control`` (a scalar atol on q, v; ``control.order`` unused), ``form``
+        (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are interpolated), the
+        recording of :meth:`run`, the contact settings ``contacts`` and ``alg_atol``, the
+        absolute tolerance of the unknowns lambda, mu."""
+        ffi = self.ffi
+        atol = control.atol
+        if not isinstance(atol, (int, float)) or isinstance(atol, bool):
+            raise LagcodegenError("runs with contacts take a scalar atol")
+        if form.stop_at_outputs:
+            raise LagcodegenError("runs with contacts on IDA interpolate their outputs: stop_at_outputs=True is "
+                                  "not taken (the steps stop at the impacts, not at the output times)")
+        buf = self._buffers(t, int(self.table.nrow), contacts, recording)
+        opt = ffi.new("lcg_ida_options *")
+        c = control
+        opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = float(c.rtol), float(atol), ffi.NULL, int(c.max_steps)
+        opt.first_step, opt.max_step, opt.min_step, opt.max_order = c.first_step, c.max_step, c.min_step, \
+            int(c.max_order)
+        opt.suppress_alg, opt.jacobian, opt.calc_ic, opt.ic_alg_atol = int(form.suppress_alg), 0, 0, \
+            float(alg_atol)
+        opt.roots, opt.stop_at_outputs, opt.max_wall = int(recording.roots), 0, c.max_wall
+        opt.poll, opt.poll_every = self.poll, POLL_EVERY
+        st = ffi.new("lcg_ida_stats *")
+        extra = np.zeros(2)
+        p = np.ascontiguousarray(p, dtype=float)
+        start = time.perf_counter()
+        flag = self.rt.lib.lcg_imp_ida_solve(self.numbers, *self._arguments(buf, p, y0, opt, st),
+                                             ffi.from_buffer("double[]", extra))
+        res = self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "bdf", "IDA")
+        res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
+        res.stats["suppress_alg"] = bool(form.suppress_alg)
+        return res
+
+    def _buffers(self, t, nlam: int, contacts: ContactOptions, recording: Recording) -> "_Buffers":
+        """The arrays a driver's call fills for the output times ``t`` (``nlam`` multipliers per
+        time) and its events struct (``recording.roots``: the compiled events, at most
+        ``recording.max_events``)."""
+        sim, nt = self.sim, t.size
+        events = NativeEvents(self.ffi, "lcg_events", sim.info.events, sim.ny, recording.max_events) \
+            if recording.roots and sim.info.events else None
+        return _Buffers(t, np.empty((nt, sim.ny)), np.empty((nt, sim.n_out_columns)), np.zeros((nt, nlam)),
+                        np.empty((contacts.max_records, 6)), np.zeros(len(self.contacts), dtype=np.intc),
+                        self.ffi.new("int *"), events,
+                        np.array([contacts.contact_speed, contacts.min_flight, contacts.gap_tol]), contacts.max_records)
+
+    def _arguments(self, buf: "_Buffers", p: np.ndarray, y0, opt, st) -> list:
+        """The arguments the impact drivers (lcg_imp_solve, lcg_imp_ida_solve) share after their
+        model table: parameters, initial state, output times and arrays, options, restitution,
+        settings, modes, records, statistics, events."""
+        ffi, fb = self.ffi, self.ffi.from_buffer
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        buf.y0 = y0  # kept alive through the call
+        return [fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), buf.t.size, fb("double[]", buf.t),
+                fb("double[]", buf.yout), fb("double[]", buf.out), fb("double[]", buf.lamout), opt,
+                fb("double[]", self.restitution), fb("double[]", buf.settings), fb("int[]", buf.active),
+                buf.max_records, fb("double[]", buf.rec), buf.n_rec, st,
+                buf.events.struct if buf.events else ffi.NULL]
+
+    def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str) -> Result:
+        """The Result of a driver's call ``raw``: trajectory, outputs with the multipliers, events,
+        statistics and the contact log."""
+        sim, ffi = self.sim, self.ffi
+        flag, st, events, t, p = raw.flag, raw.st, raw.events, raw.t, raw.p
+        nj, ny = sim.info.J, sim.ny
         if flag == CANCELLED:
             raise_pending()  # Ctrl-C during the run: KeyboardInterrupt
         done = st.nt_done
         recs = events.records(sim.state_names, ny) if events else []
-        tt, yy, oo, ll = t[:done].copy(), yout[:done].copy(), out[:done].copy(), lamout[:done].copy()
+        tt, yy, oo, ll = t[:done].copy(), raw.yout[:done].copy(), raw.out[:done].copy(), raw.lamout[:done].copy()
         if events and events.terminated and recs and (not tt.size or recs[-1].t > tt[-1]):
             ev = recs[-1]
             tt = np.append(tt, ev.t)
@@ -388,9 +461,9 @@ class ImpactRunner:
             oo = np.vstack([oo, np.resize(o, (1, oo.shape[1]))])
             ll = np.vstack([ll, np.full((1, ll.shape[1]), np.nan)])
         stats = native_stats(ffi, st)
-        stats["wall_time"] = wall
+        stats["wall_time"] = raw.wall
         text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(
-            errors="replace"), "CVODE", SINGULAR_AUGMENTED)
+            errors="replace"), solver, SINGULAR_AUGMENTED)
         outputs = dict(zip(sim.info.output_names, oo.T))
         for j in range(nj):  # the equality multipliers with the contact forces (the constrained table's
             if f"lambda_{j}" in outputs:  # outputs solve without the contact rows)
@@ -398,10 +471,11 @@ class ImpactRunner:
         for i, k in enumerate(self.contacts):
             outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
         for k, r in self.tangent_rows.items():
-            outputs[f"lambda_t_ineq_{k}"] = ll[:, r]
-        count = int(n_rec[0])
+            if r < ll.shape[1]:
+                outputs[f"lambda_t_ineq_{k}"] = ll[:, r]
+        count, active = raw.n_rec, raw.active
         log = ContactLog([ImpactRecord(float(r[0]), self.contacts[int(r[1])], KINDS[int(r[2])], float(r[3]),
-                                       float(r[4]), float(r[5])) for r in rec[: min(count, contacts.max_records)]],
+                                       float(r[4]), float(r[5])) for r in raw.rec[: min(count, contacts.max_records)]],
                          {k: "contact" if active[i] else "free" for i, k in enumerate(self.contacts)},
                          count > contacts.max_records)
         stats["impacts"] = len(log.times)
@@ -418,3 +492,46 @@ class ImpactRunner:
             cls = PainleveError if "Painleve" in text else SolverError
             raise cls(text, t=float(st.t_reached), flag=int(flag), result=res)
         return res
+
+
+@dataclass
+class _Buffers:
+    """What an impact driver's call fills: trajectory, outputs, multipliers, records, final modes,
+    the records' count, the events struct; with the output times, the contact settings and the
+    records kept at most."""
+
+    t: np.ndarray
+    yout: np.ndarray
+    out: np.ndarray
+    lamout: np.ndarray
+    rec: np.ndarray
+    active: np.ndarray
+    n_rec: object
+    events: object
+    settings: np.ndarray
+    max_records: int
+    y0: object = None
+
+    def raw(self, flag: int, st, p: np.ndarray, wall: float) -> "_Raw":
+        """The call's outcome as :class:`_Raw`."""
+        return _Raw(flag, st, self.events, self.t, self.yout, self.out, self.lamout, self.rec, int(self.n_rec[0]),
+                    self.active, p, wall)
+
+
+@dataclass(frozen=True)
+class _Raw:
+    """What a driver's call returned: its flag, statistics and events structs, the output times and
+    the arrays it filled, the records' count, the final modes, the parameters and the wall time."""
+
+    flag: int
+    st: object
+    events: object
+    t: np.ndarray
+    yout: np.ndarray
+    out: np.ndarray
+    lamout: np.ndarray
+    rec: np.ndarray
+    n_rec: int
+    active: np.ndarray
+    p: np.ndarray
+    wall: float

@@ -12,20 +12,22 @@ import numpy as np
 import sympy as sp
 
 from ..build import build
+from ..codegen.constrained import generate_constrained
 from ..codegen.languages import generate_code
 from ..derivation import derive
 from ..errors import LagcodegenError, ModelError
 from ..formulation.drawing import keep_run_links
 from ..formulation.scene import Scene
-from ..model.events import event_list
+from ..model.events import Event, event_list
 from ..model.model import Model
 from ..result import Result
 from ..solvers.direction import Direction
 from ..solvers.request import Recording
 from ..theory.constraints import ConstrainedSystem
-from ..theory.minimal import reduced_model, solve_constraints
+from ..theory.minimal import reduced_contacts, reduced_model, solve_constraints
 from ..solvers.base import file_initial
 from ..util import check_finite, output_times, state_vector
+from .constrained import ConstrainedSimulation
 from .constrained_functions import _Base
 from .ensemble import ensemble_minimal
 from .ode import CompiledModel
@@ -39,6 +41,14 @@ class MinimalSimulation(_Base):
     the inequality constraints, as the terminal events ``ineq_<k>``) are located by the CVODE
     driver's root finding on the branch's model, where an eliminated coordinate (or its velocity)
     in an expression is the branch's output of that name.
+
+    Contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a restitution) are the
+    branch's constraints: its model with the inequalities in the remaining coordinates
+    (:meth:`contact_branch`) runs on the impact driver, so impacts jump the remaining velocities
+    by Newton's law with the reduced mass matrix, resting contacts are held with their
+    multipliers (``lambda_ineq_<k>``) and released where these pull, and ``res.impacts`` lists
+    them (:mod:`.constrained_impacts`). A system whose only constraints are contacts runs in all
+    its coordinates (nothing to eliminate).
     """
 
     formulation = "minimal"
@@ -56,7 +66,10 @@ class MinimalSimulation(_Base):
             if used:
                 raise ModelError(f"event {ev.name!r} uses the multiplier(s) {', '.join(used)}: minimal coordinates have "
                                  "no Lagrange multipliers (use formulation 'index1' or 'ggl')")
-        self.eliminated, self.branches = solve_constraints(system, eliminate)
+        if system.contacts and not system.holonomic and not system.nonholonomic and eliminate is None:
+            self.eliminated, self.branches = [], [{}]  # contacts only: every coordinate is a minimal one
+        else:
+            self.eliminated, self.branches = solve_constraints(system, eliminate)
         self.remaining = [q for q in system.model.coords if q not in self.eliminated]
         outputs = ("energy", "residuals") if outputs is None else tuple(outputs)
         self._requested = outputs
@@ -76,6 +89,7 @@ class MinimalSimulation(_Base):
         self._prefix = prefix
         self._verbose = verbose
         self._compiled: dict[int, CompiledModel] = {}
+        self._contact_sims: dict = {}  # branch -> the ConstrainedSimulation of its contacts (systems with contacts)
         self._reduced: dict[int, Model] = {}
         model = system.model
         folded_names = [s.name for s in model.params]
@@ -100,20 +114,60 @@ class MinimalSimulation(_Base):
         names = [s.name for s in self.system.model.params]
         return names if self._runtime_parameters is None else list(self._runtime_parameters)
 
+    def reduced_branch(self, b: int) -> Model:
+        """The model of branch ``b`` in the remaining coordinates (:func:`reduced_model`), made once."""
+        if b not in self._reduced:
+            self._reduced[b] = reduced_model(self.system, self.branches[b], name=f"{self.system.model.name}_min{b}")
+        return self._reduced[b]
+
     def compiled_branch(self, b: int) -> CompiledModel:
         if b not in self._compiled:
-            red = reduced_model(self.system, self.branches[b], name=f"{self.system.model.name}_min{b}")
+            red = self.reduced_branch(b)
             scene = Scene(derive(red), outputs=[*self._model_outputs, *[f"{q.name}" for q in self.eliminated],
                                                  *[f"{q.name}_dot" for q in self.eliminated]],
                           runtime_parameters=self._runtime_parameters, values=self._values,
                           prefix=self._prefix and f"{self._prefix}_b{b}")
-            self._reduced[b] = red
             self._compiled[b] = CompiledModel.from_built(build(generate_code(scene, self.lang), native=True,
                                                                       verbose=self._verbose))
         return self._compiled[b]
 
+    def contact_branch(self, b: int):
+        """The contacts of branch ``b`` (:func:`lagcodegen.theory.minimal.reduced_contacts`: the
+        system's inequalities in the remaining coordinates) compiled as a constrained system of
+        the branch's model without equality constraints, index-1 form: free flight is the
+        branch's ODE, impacts jump its velocities by Newton's law with its mass matrix (sec. 4.3),
+        resting contacts are held with their multipliers and released where these pull
+        (:mod:`.constrained_impacts`)."""
+        sim = self._contact_sims.get(b)
+        if sim is None:
+            red = self.reduced_branch(b)
+            system = reduced_contacts(self.system, self.branches[b], red)
+            outs = [*self._model_outputs, *[q.name for q in self.eliminated],
+                    *[f"{q.name}_dot" for q in self.eliminated]]
+            events = [Event(ev.name, self._on_branch(ev.expr, b), ev.direction, ev.terminal) for ev in self.events
+                      if not (ev.name.startswith("ineq_") and ev.name[5:].isdigit())]
+            code, info = generate_constrained(system, outputs=outs, events=events,
+                                              runtime_parameters=self._runtime_parameters, values=self._values,
+                                              prefix=self._prefix and f"{self._prefix}_c{b}", lang=self.lang)
+            cm = CompiledModel.from_built(build(code, native=True, verbose=self._verbose))
+            sim = self._contact_sims[b] = ConstrainedSimulation(system, "index1", cm, info, "auto", False)
+        return sim
+
+    def _on_branch(self, expr, b: int):
+        """``expr`` (of the full model's coordinates and velocities) on branch ``b``: the eliminated
+        coordinates and their velocities substituted."""
+        model = self.system.model
+        sol = self.branches[b]
+        sub = dict(sol)
+        for qe, e in sol.items():
+            sub[model.dot(qe)] = sp.diff(e, model.t) + sum((sp.diff(e, q) * model.dot(q) for q in self.remaining),
+                                                           sp.Integer(0))
+        return sp.sympify(expr).xreplace(sub)
+
     def _branch_for(self, q: np.ndarray, t0: float, vals: dict, tol: float) -> int:
         model = self.system.model
+        if not self.eliminated:
+            return 0
         subs = {**{s: q[i] for i, s in enumerate(model.coords)}, model.t: t0,
                 **{s: vals[s.name] for s in model.params}}
         best, err = None, np.inf
@@ -155,12 +209,17 @@ class MinimalSimulation(_Base):
         q, v, vals = self._start(q0, v0, params, float(t[0]), initial, ic_tol)
         tol = ic_tol if initial == "check" else np.inf
         b = self._branch_for(q, float(t[0]), vals, tol)
-        cm = self.compiled_branch(b)
+        cm = self.contact_branch(b) if self.system.contacts else self.compiled_branch(b)
         idx = [model.index(qr) for qr in self.remaining]
         run_params = {k: vals[k] for k in cm.param_names}
         start = time.perf_counter()
-        res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver, rtol=rtol, atol=atol,
-                          raise_on_error=raise_on_error, events=self.events if roots else (), **options)
+        if self.system.contacts:  # the contacts on the branch's model, on the impact driver
+            res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver,
+                                                  rtol=rtol, atol=atol, events=roots, raise_on_error=raise_on_error,
+                                                  **options)
+        else:
+            res = cm.simulate(t, q0=q[idx], v0=v[idx], params=run_params, solver=solver, rtol=rtol, atol=atol,
+                              raise_on_error=raise_on_error, events=self.events if roots else (), **options)
         res.stats["wall_time"] = time.perf_counter() - start
         res.stats["branch"] = b
         self._add_residuals(res, vals)
@@ -178,6 +237,10 @@ class MinimalSimulation(_Base):
         for all n coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``); its
         state and parameters are those of the branch's model (the remaining coordinates,
         :attr:`state_names`)."""
+        if self.system.contacts:
+            raise LagcodegenError("the integrator object does not run systems with contacts (impacts with "
+                                  "restitution), in minimal coordinates either: use simulate(), whose impact "
+                                  "driver applies the jumps")
         model = self.system.model
         t0 = check_finite(t0, "t0")
         q, v, vals = self._start(q0, v0, params, t0, initial, ic_tol)
@@ -191,6 +254,9 @@ class MinimalSimulation(_Base):
         """N runs in one call per solution branch into the generated C (see
         :meth:`lagcodegen.simulation.ode.CompiledModel.ensemble`); q0/v0 (N, n) for all n
         coordinates, checked as :meth:`simulate` does (``initial``, ``ic_tol``)."""
+        if self.system.contacts:
+            raise LagcodegenError("ensembles of systems with contacts are not supported in minimal coordinates: "
+                                  "run the members with simulate (each a call of the impact driver)")
         return ensemble_minimal(self, t, q0, v0, params=params,
                                 recording=Recording(save=save, threads=threads, progress=progress),
                                 executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,

@@ -162,3 +162,29 @@ def reduced_model(system: ConstrainedSystem, solution: Mapping, name: str | None
     return new
 
 
+
+
+def reduced_contacts(system: ConstrainedSystem, solution: Mapping, reduced: Model) -> ConstrainedSystem:
+    """The contacts of ``system`` on its model reduced by ``solution`` (:func:`reduced_model`):
+    a :class:`ConstrainedSystem` of ``reduced`` without equality constraints (they are
+    eliminated) whose inequalities are those of ``system`` with the branch substituted, in the
+    same order (so contact k and the event ``ineq_<k>`` keep their index), with their
+    restitution, tangent and friction. The inequality g_k(q_r, q_e(q_r, t), t) >= 0 in the
+    remaining coordinates is the same set; its gradient dg/dq_r = dg/dq (dq/dq_r) is the
+    contact's row in minimal coordinates, so the impact law (sec. 4.3, eq. 4.5 over an impact)
+    and a resting contact's multiplier lambda_k are those of the full system."""
+    from .constraints import Inequality
+
+    old = system.model
+    sub = {old.coords[old.index(q)]: sp.sympify(e) for q, e in solution.items()}
+    to_new = {old.coords[old.index(q)]: reduced.coords[reduced.index(q.name)] for q in old.coords
+              if q not in sub}
+    to_new.update({s: r for s in old.params for r in reduced.params if r.name == s.name})
+    to_new[old.t] = reduced.t
+
+    def S(e):
+        return None if e is None else sp.sympify(e).xreplace(sub).xreplace(to_new)
+
+    items = [Inequality(S(g), restitution=e, tangent=S(tan), friction=mu)
+             for g, e, tan, mu in zip(system.inequalities, system.restitution, system.tangents, system.friction)]
+    return ConstrainedSystem(reduced, inequalities=items)

@@ -1,0 +1,522 @@
+/* lcg_imp_ida.c -- lagcodegen's runtime, compiled as it is.
+ *
+ * The native IDA driver of constrained models with contacts in the GGL form (see lcg_imp_ida.h):
+ * the equality rows and the contacts in persistent contact (with the tangential rows of no-slip
+ * contacts) are rows of the stabilized index-2 DAE of Gear, Gupta and Leimkuhler, unknowns
+ * yy = (q, v, lambda[nrow], mu[njh + nk]); the rows of free contacts are lambda_r = 0, mu_r = 0.
+ * The residual is built here from the model's numbers at a state (nums->eval: M, F, R, s, h), its
+ * Jacobian by IDA's difference quotients. IDA steps one step at a time: a free contact reaching
+ * g = 0 is a root (decreasing), a persistent contact's multiplier reaching 0 (decreasing) its
+ * release; a step that skipped a free contact's flight (its gap below the floor and closing at
+ * the step's end, lcg_imp_below_floor) is located on IDA's interpolant by bisection. There the
+ * impact law shared with the index-1 driver applies (lcg_imp_law.c: Newton's law jointly with
+ * the active set, plastic impacts into persistent contact, the release of pulling contacts) and
+ * IDA restarts from consistent values: lambda and v' from the index-1 system of the active rows
+ * (im->crhs, no stabilization), mu = 0, q' = v. Outputs come from IDA's interpolant. */
+#include "lcg_control.h" /* first: POSIX */
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sundials_api.h"
+#include "lcg_imp_ida.h"
+
+#define LCG_STATS lcg_ida_stats
+#include "lcg_sundials.h"
+
+#ifndef IDA_ONE_STEP
+#define IDA_ONE_STEP 2
+#endif
+/* IDA's interpolation (ida.h; not among the declarations the other drivers share). */
+int IDAGetDky(void *ida_mem, sunrealtype t, int k, N_Vector dky);
+
+/* Bisection steps locating a skipped contact on a step's interpolant. */
+#define LCG_IMP_IDA_BISECT 60
+
+typedef struct {
+    const lcg_imp_friction *nf;
+    const lcg_imp_model *im;
+    const lcg_dae_model *m;
+    const double *p;
+    int n, nj, nk, nrow, nmu, nroot;
+    int *active; /* nk: 1 in persistent contact */
+    int *hrow;   /* nmu: the row of each mu (the holonomic equality rows, then the contacts) */
+    double *M, *F, *R, *s, *h, *gam, *gk, *wk;
+    lcg_ida_stats *st;
+    watch w;
+} imp_ida;
+
+/* Whether row r is held: equality rows always, a contact's rows while it is in persistent contact. */
+static int row_on(const imp_ida *d, int r)
+{
+    if (r < d->nj)
+        return 1;
+    if (r < d->nj + d->nk)
+        return d->active[r - d->nj] != 0;
+    return d->active[d->nf->tangent_of[r - d->nj - d->nk]] != 0;
+}
+
+static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *data)
+{
+    imp_ida *d = (imp_ida *)data;
+    const double *yy = N_VGetArrayPointer(yyv), *yp = N_VGetArrayPointer(ypv);
+    double *rr = N_VGetArrayPointer(rrv);
+    int n = d->n, i, j, r, rc;
+    const double *lam = yy + 2 * n, *mu = lam + d->nrow;
+
+    if (WATCH_TICK(&d->w))
+        return -1;
+    rc = d->nf->eval(t, yy, d->p, d->M, d->F, d->R, d->s, d->h, d->gam);
+    if (rc != LCG_DAE_OK)
+        return 1; /* non-finite: IDA retries with a smaller step */
+    for (i = 0; i < n; ++i) {
+        double acc = -d->F[i];
+        for (j = 0; j < n; ++j)
+            acc += d->M[i * n + j] * yp[n + j];
+        rr[i] = yp[i] - yy[n + i];
+        rr[n + i] = acc;
+    }
+    for (r = 0; r < d->nrow; ++r) {
+        if (row_on(d, r)) {
+            for (i = 0; i < n; ++i)
+                rr[n + i] -= d->R[(long)r * n + i] * lam[r];
+            rr[2 * n + r] = d->s[r];
+        } else {
+            rr[2 * n + r] = lam[r];
+        }
+    }
+    for (j = 0; j < d->nmu; ++j) {
+        r = d->hrow[j];
+        if (row_on(d, r)) {
+            for (i = 0; i < n; ++i)
+                rr[i] -= d->R[(long)r * n + i] * mu[j];
+            rr[2 * n + d->nrow + j] = d->h[r];
+        } else {
+            rr[2 * n + d->nrow + j] = mu[j];
+        }
+    }
+    return 0;
+}
+
+/* Contact roots first (g_k free, lambda_k, an unknown, in persistent contact), then the model's
+ * events (with the equality multipliers, the first nj of lambda). */
+static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, void *data)
+{
+    imp_ida *d = (imp_ida *)data;
+    const double *y = N_VGetArrayPointer(yyv);
+    int k, rc;
+    (void)ypv;
+
+    rc = d->im->gaps(t, y, d->p, d->gk, d->wk);
+    if (rc == LCG_DAE_OK && d->nroot > 0)
+        rc = d->m->roots(t, y, y + 2 * d->n, d->p, gout + d->nk);
+    if (rc != LCG_DAE_OK) {
+        d->st->model_error = rc;
+        d->st->t_reached = t;
+        return -1;
+    }
+    for (k = 0; k < d->nk; ++k)
+        gout[k] = d->active[k] ? y[2 * d->n + d->nj + k] : d->gk[k];
+    return 0;
+}
+
+/* yy, yp consistent with the state y = (q, v) at t and the current modes: lambda and v' from the
+ * index-1 system of the active rows (no stabilization: the hidden constraints of the DAE), q' = v,
+ * mu = 0. */
+static int consistent(const imp_ida *d, double t, const double *y, double *yy, double *yp, int ng)
+{
+    int i, n = d->n, rc;
+
+    rc = d->im->crhs(t, y, d->p, 0.0, 0.0, d->active, yp, yy + 2 * n);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (i = 0; i < 2 * n; ++i)
+        yy[i] = y[i];
+    for (i = 2 * n + d->nrow; i < ng; ++i)
+        yy[i] = 0.0;
+    for (i = 2 * n; i < ng; ++i)
+        yp[i] = 0.0;
+    return LCG_DAE_OK;
+}
+
+/* Add IDA's counters (reset by IDAReInit) to st's. */
+static void add_counts(void *mem, lcg_ida_stats *st, int roots_on)
+{
+    long v;
+
+    IDAGetNumSteps(mem, &v);
+    st->nsteps += v;
+    IDAGetNumResEvals(mem, &v);
+    st->nres += v;
+    IDAGetNumLinResEvals(mem, &v);
+    st->nres_dq += v;
+    IDAGetNumJacEvals(mem, &v);
+    st->njac += v;
+    IDAGetNumLinSolvSetups(mem, &v);
+    st->nlinsetups += v;
+    IDAGetNumErrTestFails(mem, &v);
+    st->netfails += v;
+    IDAGetNumNonlinSolvIters(mem, &v);
+    st->nniters += v;
+    IDAGetNumNonlinSolvConvFails(mem, &v);
+    st->nncfails += v;
+    if (roots_on) {
+        IDAGetNumGEvals(mem, &v);
+        st->ngevals += v;
+    }
+}
+
+/* One output row at t from IDA's interpolant (tmp: ng values): the state, the multipliers, the
+ * outputs. */
+static int output_row(const imp_ida *d, void *mem, double t, N_Vector tmp, double *yrow, double *lrow, double *orow)
+{
+    const double *v = N_VGetArrayPointer(tmp);
+    int i, n = d->n;
+
+    if (IDAGetDky(mem, t, 0, tmp) < 0)
+        return LCG_DAE_ERR_NONFINITE;
+    for (i = 0; i < 2 * n; ++i)
+        yrow[i] = v[i];
+    for (i = 0; i < d->nrow; ++i)
+        lrow[i] = v[2 * n + i];
+    return d->m->coutputs(t, v, v + 2 * n, d->p, orow);
+}
+
+/* Integrate with impacts on IDA; see lcg_imp_ida.h. */
+int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const double *y0, int nt, const double *tout,
+                      double *yout, double *out, double *lamout, const lcg_ida_options *opt, const double *e,
+                      const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_ida_stats *st,
+                      lcg_events *ev, double *extra)
+{
+    SUNContext ctx = NULL;
+    void *mem = NULL;
+    N_Vector yy = NULL, yp = NULL, id = NULL, atolv = NULL, tmp = NULL;
+    SUNMatrix A = NULL;
+    SUNLinearSolver LS = NULL;
+    imp_ida d;
+    lcg_imp_law L, Lq;
+    const lcg_imp_model *im;
+    const lcg_dae_model *m;
+    double *buf = NULL, *ys, *ydot, *lamtmp, *last, *scratch, *gprev, *wa, *yyv, *ypv;
+    double tprev, tret = tout[0];
+    int *ibuf = NULL, *hit, *rows, *info, *dirs;
+    long nst = 0;
+    int n, ny, nj, nk, nrow, nmu, ng, nroot, nall, i, j, k, kout, flag = 0, rc, quiet = 0;
+
+    memset(st, 0, sizeof *st);
+    st->t_reached = tout[0];
+    *n_rec = 0;
+    extra[0] = extra[1] = 0.0;
+    im = nums != NULL ? nums->imp : NULL;
+    if (nums == NULL || nums->abi != LCG_IMP_FRICTION_ABI || im == NULL || im->abi != LCG_IMP_MODEL_ABI
+        || im->dae == NULL || im->dae->abi != LCG_DAE_MODEL_ABI || im->nk < 1 || im->nq != im->dae->nq
+        || im->nj != im->dae->nj || im->dae->ny != 2 * im->nq || im->nrow != im->nj + im->nk + nums->nt) {
+        snprintf(st->message, sizeof st->message, "the contact tables are unusable (lcg_imp_model version %d, "
+                 "this driver reads version %d, with v = q')", im != NULL ? im->abi : -1, LCG_IMP_MODEL_ABI);
+        return st->flag = LCG_FLAG_BAD_INPUT;
+    }
+    m = im->dae;
+    n = im->nq;
+    ny = 2 * n;
+    nj = im->nj;
+    nk = im->nk;
+    nrow = im->nrow;
+    nmu = nums->njh + nk;
+    ng = ny + nrow + nmu;
+    nroot = (opt->roots && ev != NULL) ? m->nroot : 0;
+    nall = nk + nroot;
+    if (ev != NULL) {
+        ev->n_events = 0;
+        ev->terminated = 0;
+    }
+    /* doubles: M[n n], F[n], R[nrow n], s, h, gam[nrow], gk, wk[nk], ys[ny], ydot[ny], lamtmp[nrow],
+     * last[nk], scratch[2 nk + nrow + ny], gprev[nk], wa[nk]; ints: hrow[nmu], hit[nk], rows[2 nk],
+     * info[nall], dirs[nall] */
+    buf = (double *)malloc(sizeof(double) * (size_t)(n * n + n + nrow * n + 3 * nrow + 2 * nk + 2 * ny + nrow + nk
+                                                     + 2 * nk + nrow + ny + 2 * nk));
+    ibuf = (int *)malloc(sizeof(int) * (size_t)(nmu + 3 * nk + 2 * nall));
+    if (buf == NULL || ibuf == NULL) {
+        free(buf);
+        free(ibuf);
+        snprintf(st->message, sizeof st->message, "out of memory");
+        return st->flag = LCG_FLAG_NOMEM_IDA;
+    }
+    d.M = buf;
+    d.F = d.M + n * n;
+    d.R = d.F + n;
+    d.s = d.R + nrow * n;
+    d.h = d.s + nrow;
+    d.gam = d.h + nrow;
+    d.gk = d.gam + nrow;
+    d.wk = d.gk + nk;
+    ys = d.wk + nk;
+    ydot = ys + ny;
+    lamtmp = ydot + ny;
+    last = lamtmp + nrow;
+    scratch = last + nk;
+    gprev = scratch + 2 * nk + nrow + ny;
+    wa = gprev + nk;
+    d.hrow = ibuf;
+    hit = d.hrow + nmu;
+    rows = hit + nk;
+    info = rows + 2 * nk;
+    dirs = info + nall;
+    for (j = 0; j < nums->njh; ++j)
+        d.hrow[j] = j;
+    for (k = 0; k < nk; ++k) {
+        d.hrow[nums->njh + k] = nj + k;
+        last[k] = -HUGE_VAL;
+        hit[k] = 0;
+        active[k] = active[k] != 0;
+    }
+    for (i = 0; i < nall; ++i)
+        dirs[i] = i < nk ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
+    d.nf = nums;
+    d.im = im;
+    d.m = m;
+    d.p = p;
+    d.n = n;
+    d.nj = nj;
+    d.nk = nk;
+    d.nrow = nrow;
+    d.nmu = nmu;
+    d.nroot = nroot;
+    d.active = active;
+    d.st = st;
+    L.im = im;
+    L.p = p;
+    L.active = active;
+    L.e = e;
+    L.set = set;
+    L.last = last;
+    L.gk = d.gk;
+    L.wk = d.wk;
+    L.scratch = scratch;
+    L.rows = rows;
+    L.rec = rec;
+    L.max_rec = max_rec;
+    L.n_rec = n_rec;
+    Lq = L; /* the initial modes, not recorded */
+    Lq.max_rec = 0;
+    Lq.n_rec = &quiet;
+    watch_init(&d.w, opt->cancel, opt->poll, opt->poll_data, opt->poll_every, opt->max_wall, nt, &st->nt_done);
+    if (create_context(&ctx, st) != 0) {
+        free(buf);
+        free(ibuf);
+        return st->flag = LCG_FLAG_NOMEM_IDA;
+    }
+    yy = N_VNew_Serial(ng, ctx);
+    yp = N_VNew_Serial(ng, ctx);
+    id = N_VNew_Serial(ng, ctx);
+    atolv = N_VNew_Serial(ng, ctx);
+    tmp = N_VNew_Serial(ng, ctx);
+    mem = IDACreate(ctx);
+    A = SUNDenseMatrix(ng, ng, ctx);
+    if (yy == NULL || yp == NULL || id == NULL || atolv == NULL || tmp == NULL || mem == NULL || A == NULL) {
+        flag = LCG_FLAG_NOMEM_IDA;
+        goto done;
+    }
+    LS = SUNLinSol_Dense(yy, A, ctx);
+    yyv = N_VGetArrayPointer(yy);
+    ypv = N_VGetArrayPointer(yp);
+    for (i = 0; i < ng; ++i) {
+        N_VGetArrayPointer(id)[i] = i < ny ? 1.0 : 0.0; /* q, v differential; lambda, mu algebraic */
+        N_VGetArrayPointer(atolv)[i] = i < ny ? opt->atol : opt->ic_alg_atol;
+    }
+    for (i = 0; i < ny; ++i)
+        ys[i] = y0[i];
+    /* the contacts the initial state rests on (touching, at rest, pushing) start in persistent contact */
+    rc = im->gaps(tout[0], ys, p, d.gk, d.wk);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    for (k = 0; k < nk; ++k)
+        if (!active[k] && d.gk[k] <= set[2] && fabs(d.wk[k]) <= set[0])
+            active[k] = 1;
+    rc = lcg_imp_release_pulling(&Lq, tout[0], ys, 0.0, 0.0, ydot, lamtmp);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    rc = consistent(&d, tout[0], ys, yyv, ypv, ng);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    rc = m->coutputs(tout[0], yyv, yyv + ny, p, out);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    for (i = 0; i < ny; ++i)
+        yout[i] = yyv[i];
+    for (i = 0; i < nrow; ++i)
+        lamout[i] = yyv[ny + i];
+    st->nt_done = 1;
+
+    if ((flag = IDAInit(mem, res, tout[0], yy, yp)) < 0)
+        goto done;
+    if ((flag = IDASVtolerances(mem, opt->rtol, atolv)) < 0)
+        goto done;
+    IDASetUserData(mem, &d);
+    if ((flag = IDASetId(mem, id)) < 0)
+        goto done;
+    if (opt->suppress_alg && (flag = IDASetSuppressAlg(mem, 1)) < 0)
+        goto done;
+    if ((flag = IDASetLinearSolver(mem, LS, A)) < 0)
+        goto done;
+    if ((flag = IDARootInit(mem, nall, roots)) < 0)
+        goto done;
+    if ((flag = IDASetRootDirection(mem, dirs)) < 0)
+        goto done;
+    IDASetNoInactiveRootWarn(mem);
+    if ((flag = set_step_limits(mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
+        goto done;
+    if (nt > 1 && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)
+        goto done;
+
+    tprev = tout[0];
+    rc = im->gaps(tout[0], ys, p, gprev, wa);
+    LCG_MODEL_ERROR(LCG_DAE_OK);
+    kout = 1;
+    while (kout < nt) {
+        double teff;
+        int missed = -1, apex = 0, any = 0;
+        if (WATCH_TICK(&d.w))
+            goto done;
+        IDAGetNumSteps(mem, &nst);
+        if (st->nsteps + nst >= opt->max_steps) {
+            flag = -1;
+            snprintf(st->message, sizeof st->message, "the step budget max_steps = %ld is used up before t = %.17g",
+                     opt->max_steps, tout[nt - 1]);
+            goto done;
+        }
+        IDASetMaxNumSteps(mem, opt->max_steps - st->nsteps - nst);
+        flag = IDASolve(mem, tout[nt - 1], &tret, yy, yp, IDA_ONE_STEP);
+        st->t_reached = tret;
+        if (flag < 0)
+            goto done;
+        teff = tret;
+        if (flag != IDA_ROOT_RETURN) { /* a free contact deeper than its floor: a flight skipped by the step */
+            rc = im->gaps(tret, yyv, p, d.gk, d.wk);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
+            missed = lcg_imp_below_floor(d.gk, d.wk, gprev, active, nk, set[2]);
+        }
+        if (missed >= 0) {
+            extra[0] += 1.0;
+            apex = wa[missed] > 0.0; /* rising at the step's start: the whole flight within one step */
+            if (!apex) { /* the first time below the floor on the step's interpolant */
+                double ta = tprev, tb = tret, floor = lcg_imp_gap_floor(gprev[missed], set[2]);
+                int it;
+                for (it = 0; it < LCG_IMP_IDA_BISECT; ++it) {
+                    double tm = 0.5 * (ta + tb);
+                    if (!(tm > ta && tm < tb) || IDAGetDky(mem, tm, 0, tmp) < 0)
+                        break;
+                    rc = im->gaps(tm, N_VGetArrayPointer(tmp), p, d.gk, d.wk);
+                    LCG_MODEL_ERROR(LCG_DAE_OK);
+                    if (d.gk[missed] < floor)
+                        tb = tm;
+                    else
+                        ta = tm;
+                }
+                teff = tb;
+                if (IDAGetDky(mem, teff, 0, tmp) < 0)
+                    goto done;
+                rc = im->gaps(teff, N_VGetArrayPointer(tmp), p, d.gk, d.wk);
+                LCG_MODEL_ERROR(LCG_DAE_OK);
+                if (!(d.wk[missed] < 0.0)) { /* not closing there on the interpolant: as a flight within the step */
+                    apex = 1;
+                    teff = tret;
+                }
+            }
+        }
+        /* the output times up to here, from the interpolant */
+        while (kout < nt && tout[kout] <= teff) {
+            rc = output_row(&d, mem, tout[kout], tmp, yout + (long)kout * ny, lamout + (long)kout * nrow,
+                            out + (long)kout * m->nout);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
+            st->nt_done = ++kout;
+        }
+        if (flag == IDA_ROOT_RETURN) {
+            if (IDAGetRootInfo(mem, info) < 0)
+                goto done;
+            for (j = nk; j < nall; ++j) { /* the model's events */
+                if (info[j] == 0)
+                    continue;
+                if (ev->n_events < ev->max_events) {
+                    ev->t[ev->n_events] = tret;
+                    for (i = 0; i < ny; ++i)
+                        ev->y[(long)ev->n_events * ny + i] = yyv[i];
+                    ev->which[ev->n_events] = j - nk;
+                    ev->direction[ev->n_events] = info[j];
+                }
+                ev->n_events++;
+                if (ev->terminal == NULL || ev->terminal[j - nk])
+                    ev->terminated = 1;
+            }
+            if (ev != NULL && ev->terminated) {
+                flag = IDA_ROOT_RETURN;
+                goto done;
+            }
+            for (k = 0; k < nk; ++k) {
+                hit[k] = info[k] != 0 && !active[k];
+                if (info[k] != 0 && active[k]) { /* the multiplier reaches zero: release */
+                    active[k] = 0;
+                    lcg_imp_record(rec, max_rec, n_rec, tret, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                    any = 1;
+                }
+                any |= hit[k];
+            }
+            for (i = 0; i < ny; ++i)
+                ys[i] = yyv[i];
+        } else if (missed >= 0) {
+            if (apex) {
+                for (i = 0; i < ny; ++i)
+                    ys[i] = yyv[i];
+                last[missed] = teff; /* a flight shorter than a step (accumulation): plastic */
+            } else {
+                if (IDAGetDky(mem, teff, 0, tmp) < 0)
+                    goto done;
+                for (i = 0; i < ny; ++i)
+                    ys[i] = N_VGetArrayPointer(tmp)[i];
+            }
+            rc = im->gaps(teff, ys, p, d.gk, d.wk);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
+            if (-d.gk[missed] > extra[1])
+                extra[1] = -d.gk[missed];
+            for (k = 0; k < nk; ++k)
+                hit[k] = k == missed;
+            any = 1;
+        }
+        if (!any) { /* an ordinary step: its end is where the next step's floor and rise are taken */
+            rc = im->gaps(tret, yyv, p, gprev, wa);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
+            tprev = tret;
+            continue;
+        }
+        /* the switch at teff: the impact law, the contacts that pull released, IDA restarted */
+        rc = lcg_imp_jump(&L, teff, ys, hit);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        rc = lcg_imp_release_pulling(&L, teff, ys, 0.0, 0.0, ydot, lamtmp);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        for (k = 0; k < nk; ++k)
+            hit[k] = 0;
+        rc = consistent(&d, teff, ys, yyv, ypv, ng);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        add_counts(mem, st, 1);
+        if ((flag = IDAReInit(mem, teff, yy, yp)) < 0)
+            goto done;
+        if (nt > 1 && teff < tout[nt - 1] && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)
+            goto done;
+        rc = im->gaps(teff, ys, p, gprev, wa);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        tprev = teff;
+    }
+
+done:
+    flag = watch_flag(&d.w, flag, st->message, sizeof st->message);
+    if (mem != NULL) {
+        add_counts(mem, st, 1);
+        IDAGetLastStep(mem, &st->h_last);
+        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
+            IDAGetCurrentTime(mem, &st->t_reached);
+    }
+    st->flag = flag;
+    LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM_IDA, "IDA");
+    IDAFree(&mem);
+    free_solver(LS, NULL, A, (N_Vector[]){tmp, atolv, id, yp, yy}, 5, &ctx);
+    free(buf);
+    free(ibuf);
+    return flag < 0 ? flag : 0;
+}

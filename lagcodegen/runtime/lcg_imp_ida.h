@@ -1,0 +1,33 @@
+/* lcg_imp_ida.h -- lagcodegen's runtime: the native IDA driver of constrained models with
+ * contacts in the GGL (stabilized index-2) form, model-independent: it takes a model's contact
+ * table (lcg_imp_model.h) and the table of its numbers at a state (lcg_imp_friction, whose eval
+ * gives M, F, the rows R, s, h). */
+#ifndef LCG_IMP_IDA_H
+#define LCG_IMP_IDA_H
+
+#include "lcg_imp.h"       /* the index-1 impact driver, the impact law (lcg_imp_law.h) */
+#include "lcg_ida_types.h" /* lcg_ida_options, lcg_ida_stats, lcg_events */
+
+/* Integrate the model of nums (nums->imp its contact table; y = (q, v), ny = 2 nq) from tout[0],
+ * y(tout[0]) = y0, as the GGL residual of the equality rows and of the contacts in persistent
+ * contact with their tangential (no-slip) rows:
+ *   q' - v - R_h^T mu,  M v' - F - R^T lambda,  s_r = R_r v + R0_r (rows held),  h_r (holonomic rows held),
+ * lambda_r = 0 and mu_r = 0 for the rows of free contacts; lambda, mu algebraic. Impacts
+ * (lcg_imp_jump: Newton's law), persistent contact (a plastic impact) and release (the contact's
+ * multiplier, an unknown of the DAE, reaching 0) as the index-1 driver lcg_imp.c applies them; at
+ * each switch IDA restarts from consistent values (lambda and v' from the index-1 system of the
+ * active rows, mu = 0). yout[k*ny + i], out[k*nout + j] (the constrained table's outputs) and
+ * lamout[k*nrow + r] (the multipliers of every row, 0 for free ones) at the times tout. Options:
+ * rtol and atol (q, v), ic_alg_atol the absolute tolerance of lambda, mu, suppress_alg,
+ * max_steps (over all segments), step limits, max_order, roots (the model's events, ev), the run
+ * control; jacobian, calc_ic, stop_at_outputs and atol_vec are not used (difference-quotient
+ * Jacobian; outputs interpolated). e, set, active, max_rec, rec, n_rec as lcg_imp_solve
+ * (lcg_imp.h). extra[2]: the segments whose flight a step skipped (located on IDA's interpolant)
+ * and the deepest gap then. Returns 0, a negative IDA flag, -22 a table of another layout, -80
+ * cancelled, -81 out of time, or -100 - (model error code). */
+int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const double *y0, int nt, const double *tout,
+                      double *yout, double *out, double *lamout, const lcg_ida_options *opt, const double *e,
+                      const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_ida_stats *st,
+                      lcg_events *ev, double *extra);
+
+#endif
