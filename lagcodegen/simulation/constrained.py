@@ -273,8 +273,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         contacts not violated at y0), as a :class:`~.constrained_impacts.ContactRun` (the runs of
         ensembles and the integrator object; GGL systems refuse those by name)."""
         if self._ggl:
-            raise LagcodegenError("ensembles and the integrator object of systems with contacts run on the index-1 "
-                                  "formulation (compile_constrained(system, 'index1')); GGL runs them in simulate")
+            raise LagcodegenError("the integrator object does not run systems with contacts on the GGL formulation, "
+                                  "nor do ensembles: compile_constrained(system, 'index1') runs both (GGL runs "
+                                  "contacts in simulate)")
         contacts = _contact_options(contacts)
         backend = getattr(family, "backend", None)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
