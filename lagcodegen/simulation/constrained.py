@@ -341,6 +341,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         (:mod:`.impact_ensemble`), its events and contact log in ``member(i).events`` and
         ``.impacts``."""
         if self.info.contacts:
+            if self._ggl:
+                raise LagcodegenError("ensembles do not run systems with contacts on the GGL formulation: "
+                                      "compile_constrained(system, 'index1') runs them (GGL runs contacts in simulate)")
             return ensemble_contacts(self, t, q0, v0, params=params,
                                      recording=Recording(save=save, threads=threads, progress=progress),
                                      executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
