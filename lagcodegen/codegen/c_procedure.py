@@ -19,7 +19,7 @@ class CProcedurePrinter(pr.Printer):
         """The function, without a final newline."""
         self.proc = proc
         self.kinds = {**{a.name: a.kind for a in proc.args}, **{v.name: v.kind for v in proc.locals}}
-        self.counts = frozenset(a.name for a in proc.args if not a.shape and a.kind == "int")
+        self.counts = frozenset(a.name for a in proc.args if not a.shape and a.kind == "int") | set(proc.sizes)
         self.flat: dict = {}
         args = ", ".join(self._arg(a) for a in proc.args)
         head = f"static {'int' if proc.returns else 'void'} {proc.name}({args})"
@@ -36,12 +36,19 @@ class CProcedurePrinter(pr.Printer):
     def _arg(self, a: pr.Arg) -> str:
         if not a.shape:
             return f"{_TYPES[a.kind]} {a.name}"
-        return f"{'const ' if a.intent == 'in' else ''}{_TYPES[a.kind]} *{a.name}"
+        const = "const " if a.intent == "in" else ""
+        if self._fixed(a.name):
+            return f"{const}{_TYPES[a.kind]} {a.name}{''.join(f'[{n}]' for n in a.shape)}"
+        return f"{const}{_TYPES[a.kind]} *{a.name}"
+
+    def _fixed(self, array: str) -> bool:
+        """Whether the argument ``array`` has a constant size (an array type, not a pointer)."""
+        return any(a.name == array and a.shape and set(a.shape) <= set(self.proc.sizes) for a in self.proc.args)
 
     # ------------------------------------------------------------------ statements
     def _block(self, head: str, stmts, level: int) -> list[str]:
         inner = self.body(stmts, level + 1)
-        if len(stmts) == 1:
+        if len(stmts) == 1 and not (isinstance(stmts[0], pr.Exchange) and self._fixed(stmts[0].array)):
             return [self.pad(level) + head] + inner
         return [self.pad(level) + head + " {"] + inner + [self.pad(level) + "}"]
 
@@ -75,6 +82,19 @@ class CProcedurePrinter(pr.Printer):
     def _stmt_If(self, st: pr.If, level: int) -> list[str]:
         return self._block(f"if ({self.expr(st.cond)})", st.body, level)
 
+    def _stmt_Exchange(self, st: pr.Exchange, level: int) -> list[str]:
+        at, a = self.expr(st.at), st.array
+        size = next(x.shape[0] for x in self.proc.args if x.name == a) if self._fixed(a) else None
+        other = st.bound if size else self.expr(st.other)
+        swap = (pr.Set(ir.Name(st.temp), ir.Element(a, (st.at,)), declare=True),
+                pr.Set(ir.Element(a, (st.at,)), ir.Element(a, (ir.Name(other),))),
+                pr.Set(ir.Element(a, (ir.Name(other),)), ir.Name(st.temp)))
+        if size is None:
+            return self._block(f"if ({other} != {at})", swap, level)
+        return ([f"{self.pad(level)}const int {other} = {self.expr(st.other)};  /* in [{at}, {size}) by construction; "
+                 "the bound lets compilers see it */"]
+                + self._block(f"if ({other} != {at} && {other} > {at} && {other} < {size})", swap, level))
+
     def _stmt_Return(self, st: pr.Return, level: int) -> list[str]:
         if st.value is None:
             return [self.pad(level) + "return;"]
@@ -98,7 +118,7 @@ class CProcedurePrinter(pr.Printer):
     def element(self, e: ir.Element) -> str:
         if e.array in self.flat:  # inside EachElement: the flat index
             return f"{e.array}[{self.flat[e.array]}]"
-        if len(e.index) == 1:
-            return f"{e.array}[{self.expr(e.index[0])}]"
+        if len(e.index) == 1 or e.array not in self.proc.layouts:
+            return e.array + "".join(f"[{self.expr(i)}]" for i in e.index)
         row, col = e.index
         return f"{e.array}[{self.expr(row)} * {self.proc.layouts[e.array]} + {self.expr(col)}]"

@@ -13,7 +13,7 @@ from . import procedure as pr
 _TYPES = {"int": "integer", "real": "real(c_double)"}
 _FUNCTIONS = {"isfinite": "ieee_is_finite"}
 #: Names of Fortran intrinsic procedures that the tree's locals use (legal to shadow, but unclear).
-INTRINSICS = frozenset(("scale",))
+INTRINSICS = frozenset(("scale", "kind"))
 
 
 class FortranProcedurePrinter(pr.Printer):
@@ -24,19 +24,19 @@ class FortranProcedurePrinter(pr.Printer):
     def text(self, proc: pr.Procedure) -> str:
         """The procedure, without a final newline."""
         self.proc = proc
-        self.counts = frozenset(a.name for a in proc.args if not a.shape and a.kind == "int")
+        self.counts = frozenset(a.name for a in proc.args if not a.shape and a.kind == "int") | set(proc.sizes)
         names = [a.name for a in proc.args] + [v.name for v in proc.locals]
-        self.names = {}
-        for v in proc.locals:
+        self.names = {size: size.lower() for size in proc.sizes}
+        for v in proc.args + proc.locals:
             clash = any(o != v.name and o.lower() == v.name.lower() for o in names)
             self.names[v.name] = v.alt if v.alt and (clash or v.name.lower() in INTRINSICS) else v.name
-        arglist = ", ".join(a.name for a in proc.args)
+        arglist = ", ".join(self.name(a.name) for a in proc.args)
         kind, head = (("function", f"recursive logical function {proc.name}({arglist}) result({proc.result})")
                       if proc.returns else ("subroutine", f"recursive subroutine {proc.name}({arglist})"))
         lines = [self.pad(1) + head]
         for a in proc.args:
-            shape = f"({', '.join(a.shape)})" if a.shape else ""
-            lines.append(f"{self.pad(2)}{_TYPES[a.kind]}, intent({a.intent}) :: {a.name}{shape}")
+            shape = f"({', '.join(map(self.name, a.shape))})" if a.shape else ""
+            lines.append(f"{self.pad(2)}{_TYPES[a.kind]}, intent({a.intent}) :: {self.name(a.name)}{shape}")
         for kind_ in ("real", "int"):
             local = [self.name(v.name) for v in proc.locals if v.kind == kind_]
             if local:
@@ -76,6 +76,11 @@ class FortranProcedurePrinter(pr.Printer):
                 return [f"{self.pad(level)}if ({cond}) {inner[0]}"]
         return ([f"{self.pad(level)}if ({cond}) then"] + self.body(st.body, level + 1)
                 + [self.pad(level) + "end if"])
+
+    def _stmt_Exchange(self, st: pr.Exchange, level: int) -> list[str]:
+        at, other = ir.Element(st.array, (st.at,)), ir.Element(st.array, (st.other,))
+        swap = (pr.Set(ir.Name(st.temp), at), pr.Set(at, other), pr.Set(other, ir.Name(st.temp)))
+        return self._stmt_If(pr.If(ir.Compare("!=", st.other, st.at), swap), level)
 
     def _stmt_Return(self, st: pr.Return, level: int) -> list[str]:
         """False: ``return`` (the result is false from the entry on); true: the result set, and

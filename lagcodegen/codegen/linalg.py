@@ -10,10 +10,10 @@ solution of K x = b from those factors. Used by the augmented system of the cons
 from __future__ import annotations
 
 from .ir import BinOp as Op
-from .ir import Call, Compare, Logic, Not, Number
+from .ir import Call, Compare, Integer, Logic, Not, Number
 from .ir import Element as At
 from .ir import Name as Ref
-from .procedure import Arg, EachElement, For, If, Local, Procedure, Return, Set, ix
+from .procedure import Arg, EachElement, Exchange, For, If, Local, Procedure, Return, Set, ix
 
 
 def Fn(name, arg):  # noqa: N802 - a node's constructor
@@ -37,6 +37,10 @@ def _swap(a, b, temp: str) -> tuple:
     return Set(Ref(temp), a, declare=True), Set(a, b), Set(b, Ref(temp))
 
 
+#: dim * eps: a pivot is below dim * eps * max|K| in a numerically singular matrix.
+_dim_eps = Op("*", Call("real", (Ref("dim"),)), Call("epsilon", ()))
+
+
 def lu_factor() -> Procedure:
     """In-place LU with partial pivoting (piv[k]: the row exchanged with row k)."""
     K = lambda i, j: At("K", (ix(i), ix(j)))  # noqa: E731
@@ -49,8 +53,7 @@ def lu_factor() -> Procedure:
             For("i", ix("k", const=1), ix("dim"), (
                 If(Cmp(">", Fn("abs", K("i", "k")), Fn("abs", K("r", "k"))), (Set(Ref("r"), ix("i")),)),)),
             Set(At("piv", (ix("k"),)), ix("r")),
-            If(Not(Cmp(">", Fn("abs", K("r", "k")), Op("*", Op("*", Call("real", (Ref("dim"),)), Call("epsilon", ())), Ref("scale")))),
-               (Return(False),)),
+            If(Not(Cmp(">", Fn("abs", K("r", "k")), Op("*", _dim_eps, Ref("scale")))), (Return(False),)),
             If(Cmp("!=", ix("r"), ix("k")), (
                 For("j", ix(), ix("dim"), _swap(K("k", "j"), K("r", "j"), "tmp")),)),
             For("i", ix("k", const=1), ix("dim"), (
@@ -74,10 +77,8 @@ def lu_solve() -> Procedure:
     forward substitution of L (unit diagonal), the back substitution of U."""
     K = lambda i, j: At("K", (ix(i), ix(j)))  # noqa: E731
     b = lambda i: At("b", (i if not isinstance(i, str) else ix(i),))  # noqa: E731
-    piv_k = At("piv", (ix("k"),))
     body = (
-        For("k", ix(), ix("dim"), (
-            If(Cmp("!=", piv_k, ix("k")), _swap(b("k"), b(piv_k), "tmp")),)),
+        For("k", ix(), ix("dim"), (Exchange("b", ix("k"), At("piv", (ix("k"),))),)),
         For("i", ix(), ix("dim"), (
             For("k", ix(), ix("i"), (Set(b("i"), Op("-", b("i"), Op("*", K("i", "k"), b("k")))),)),)),
         For("i", ix(), ix("dim"), (
@@ -91,5 +92,41 @@ def lu_solve() -> Procedure:
         body, layouts={"K": "dim"})
 
 
+def mass_solve(*, name: str = "solve", diagonal: bool = False) -> Procedure:
+    """M x = b in place with the factors W, piv of the mass matrix's factorization (``kind``: its
+    result; 1 Cholesky, W's lower triangle L: L L^T x = b; 2 LU with the row exchanges piv;
+    with ``diagonal``, 3: W's diagonal alone), N coordinates (a constant of the source)."""
+    W = lambda i, j: At("W", (ix(i), ix(j)))  # noqa: E731
+    b = lambda i: At("b", (ix(i),))  # noqa: E731
+    s = Ref("s")
+    body: tuple = ()
+    if diagonal:
+        body += (If(Cmp("==", Ref("kind"), Integer(3)), (
+            For("i", ix(), ix("N"), (Set(b("i"), Op("/", b("i"), W("i", "i"))),)), Return())),)
+    body += (
+        If(Cmp("==", Ref("kind"), Integer(1)), (
+            For("i", ix(), ix("N"), (
+                Set(s, b("i"), declare=True),
+                For("k", ix(), ix("i"), (Set(s, Op("-", s, Op("*", W("i", "k"), b("k")))),)),
+                Set(b("i"), Op("/", s, W("i", "i"))))),
+            For("i", ix(), ix("N"), (
+                Set(s, b("i"), declare=True),
+                For("k", ix("i", const=1), ix("N"), (Set(s, Op("-", s, Op("*", W("k", "i"), b("k")))),)),
+                Set(b("i"), Op("/", s, W("i", "i")))), down=True),
+            Return())),
+        For("k", ix(), ix("N"), (Exchange("b", ix("k"), At("piv", (ix("k"),))),)),
+        For("i", ix(), ix("N"), (
+            For("k", ix(), ix("i"), (Set(b("i"), Op("-", b("i"), Op("*", W("i", "k"), b("k")))),)),)),
+        For("i", ix(), ix("N"), (
+            For("k", ix("i", const=1), ix("N"), (Set(b("i"), Op("-", b("i"), Op("*", W("i", "k"), b("k")))),)),
+            Set(b("i"), Op("/", b("i"), W("i", "i")))), down=True),
+    )
+    return Procedure(
+        name, (Arg("kind", "int", alt="ftype"), Arg("W", "real", ("N", "N")), Arg("piv", "int", ("N",)),
+               Arg("b", "real", ("N",), "inout")),
+        (Local("s", "real", scoped=True), Local("tmp", "real", scoped=True), Local("i", "int"), Local("k", "int")),
+        body, sizes=("N",))
+
+
 #: The procedures by name.
-PROCEDURES = {"lu_factor": lu_factor, "lu_solve": lu_solve}
+PROCEDURES = {"lu_factor": lu_factor, "lu_solve": lu_solve, "mass_solve": mass_solve}

@@ -7,12 +7,12 @@ of a loop. A backend with 1-based arrays prints every index value plus one (the 
 its own counting), so a tree means the same operations in every language.
 
 Expressions are those of :mod:`.ir` (``Name``, ``Element`` with a tuple of index expressions,
-``Number``, ``BinOp``, ``Compare``, ``Not``, ``Logic`` "or", ``Call`` of :data:`FUNCTIONS`) and
+``Number``, ``Integer``, ``BinOp``, ``Compare``, ``Not``, ``Logic`` "or", ``Call`` of :data:`FUNCTIONS`) and
 :class:`Index`, an affine sum of index variables and sizes. Statements: :class:`Set` (an
 assignment; ``declare``: the first of a local variable, declared there where the language allows
 it), :class:`For`, :class:`EachElement` (every element of a matrix, in the order the language
-keeps it), :class:`If`, :class:`Return`. A :class:`Procedure` has its arguments (:class:`Arg`),
-its locals (:class:`Local`) and a body.
+keeps it), :class:`If`, :class:`Exchange` (of two elements), :class:`Return`. A :class:`Procedure`
+has its arguments (:class:`Arg`), its locals (:class:`Local`) and a body.
 """
 
 from __future__ import annotations
@@ -87,6 +87,19 @@ class Return:
     value: bool | None = None
 
 
+@dataclass(frozen=True)
+class Exchange:
+    """Exchange the elements ``at`` and ``other`` (an index value, at least ``at``) of ``array``
+    where they differ, through the scoped real local ``temp``. C bounds ``other`` (as the local
+    ``bound``) in an array of a constant size, which lets compilers see the access in range."""
+
+    array: str
+    at: Index
+    other: object
+    temp: str = "tmp"
+    bound: str = "r"
+
+
 # ----------------------------------------------------------------------------- declarations
 @dataclass(frozen=True)
 class Arg:
@@ -97,6 +110,7 @@ class Arg:
     kind: str
     shape: tuple = ()
     intent: str = "in"
+    alt: str | None = None  # as Local.alt
 
 
 @dataclass(frozen=True)
@@ -125,6 +139,9 @@ class Procedure:
     returns: str | None = None
     result: str = "ok"
     layouts: dict = field(default_factory=dict)
+    #: Sizes that are constants of the generated source (C: a macro such as N; Fortran: a module
+    #: parameter, lower case): arrays of these sizes have them in their declarations.
+    sizes: tuple = ()
 
 
 def ix(*terms, const: int = 0) -> Index:
@@ -177,6 +194,8 @@ class Printer:
             return self.element(e)
         if isinstance(e, ir.Number):
             return self.literal(float(e.value))
+        if isinstance(e, ir.Integer):
+            return str(e.value)
         if isinstance(e, ir.BinOp):
             p = _PREC[e.op]
             text = f"{self.expr(e.left, p)} {e.op} {self.expr(e.right, p + 1)}"

@@ -113,6 +113,86 @@ def test_printed_solves_refuse_singular_and_non_finite(solvers, case):
         assert solve(K, np.ones(4))[0] == 0
 
 
+MASS_C = """#include <float.h>
+#include <math.h>
+#define N 5
+
+{factor}
+
+{solve}
+
+int mass_c(int kind, double *W, int *piv, double *b)
+{{
+    if (kind == 2 && !lu_factor(N, W, piv))
+        return 0;
+    ms(kind, (const double (*)[N])W, piv, b);
+    return 1;
+}}
+"""
+
+MASS_F = """module mt
+  use, intrinsic :: iso_c_binding, only: c_double, c_int
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  implicit none
+  integer, parameter :: n = 5
+contains
+
+{factor}
+
+{solve}
+
+  integer(c_int) function mass_f(kind, W, piv, b) bind(C, name="mass_f")
+    integer(c_int), value :: kind
+    real(c_double), intent(inout) :: W(n, n), b(n)
+    integer(c_int), intent(inout) :: piv(n)
+    mass_f = 0
+    if (kind == 2) then
+      if (.not. lu_factor(n, W, piv)) return
+    end if
+    call solve(kind, W, piv, b)
+    mass_f = 1
+  end function mass_f
+end module mt
+"""
+
+
+def test_printed_mass_solves_agree_with_numpy(tmp_path, cc, fc):
+    """The mass-matrix solve from the factors of each kind (1: Cholesky L, 2: LU with row
+    exchanges, 3: the diagonal) in both languages, against numpy, bit for bit between them."""
+    lu = linalg.lu_factor()
+    c = MASS_C.format(factor=CProcedurePrinter().text(lu),
+                               solve=CProcedurePrinter().text(linalg.mass_solve(name="ms", diagonal=True)))
+    f = MASS_F.format(factor=FortranProcedurePrinter().text(lu),
+                      solve=FortranProcedurePrinter().text(linalg.mass_solve(diagonal=True)))
+    (tmp_path / "m.c").write_text(c)
+    (tmp_path / "m.f90").write_text(f)
+    subprocess.run([cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic",
+                    "m.c", "-o", "libm_c.so", "-lm"], cwd=tmp_path, check=True, capture_output=True)
+    subprocess.run([fc, "-shared", "-fPIC", "-O2", "-Wall", "-Werror", "-std=f2008", "m.f90", "-o", "libm_f.so"],
+                   cwd=tmp_path, check=True, capture_output=True)
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(5, 5))
+    spd = A @ A.T + 5 * np.eye(5)
+    general = A.copy()
+    general[0, 0] = 0.0
+    diag = np.diag(rng.uniform(1.0, 2.0, size=5))
+    b = rng.normal(size=5)
+    cases = {1: (spd, np.linalg.cholesky(spd)), 2: (general, general), 3: (diag, diag)}
+    dbl, it = np.ctypeslib.ndpointer(np.float64), np.ctypeslib.ndpointer(np.int32)
+    results = {}
+    for lib, fn, transpose in (("libm_c.so", "mass_c", False), ("libm_f.so", "mass_f", True)):
+        solve = getattr(ctypes.CDLL(str(tmp_path / lib)), fn)
+        solve.argtypes, solve.restype = [ctypes.c_int, dbl, it, dbl], ctypes.c_int
+        for kind, (M, W) in cases.items():
+            W = np.array(W.T if transpose else W, dtype=np.float64).ravel()  # Fortran: W(i, j) by columns
+            x, piv = b.copy(), np.zeros(5, dtype=np.int32)
+            assert solve(kind, W, piv, x) == 1
+            assert np.allclose(x, np.linalg.solve(M, b), rtol=1e-12, atol=1e-12), (fn, kind)
+            results[fn, kind] = x
+    for kind in cases:
+        assert np.array_equal(results["mass_c", kind], results["mass_f", kind])
+
+
 def test_fortran_index_and_name_rules():
     """Every index value prints one more in Fortran (loop bounds, pivots), a local whose name
     equals an argument's but for case takes its other name, and one that does not keeps its own."""
