@@ -12,7 +12,8 @@ from . import procedure as pr
 
 _TYPES = {"int": "integer", "real": "real(c_double)"}
 _FUNCTIONS = {"isfinite": "ieee_is_finite"}
-#: Names of Fortran intrinsic procedures that the tree's locals use (legal to shadow, but unclear).
+#: Names of Fortran intrinsic procedures that the tree's locals and arguments use (legal to shadow,
+#: but unclear): each such one takes its other name.
 INTRINSICS = frozenset(("scale", "kind"))
 
 
@@ -65,7 +66,8 @@ class FortranProcedurePrinter(pr.Printer):
     def _stmt_EachElement(self, st: pr.EachElement, level: int) -> list[str]:
         """Nested loops over rows, then columns."""
         i, j = (self.name(v) for v in st.vars)
-        return ([f"{self.pad(level)}do {i} = 1, {st.size}", f"{self.pad(level + 1)}do {j} = 1, {st.size}"]
+        size = self.name(st.size)
+        return ([f"{self.pad(level)}do {i} = 1, {size}", f"{self.pad(level + 1)}do {j} = 1, {size}"]
                 + self.body(st.body, level + 2) + [self.pad(level + 1) + "end do", self.pad(level) + "end do"])
 
     def _stmt_If(self, st: pr.If, level: int) -> list[str]:
