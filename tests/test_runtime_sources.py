@@ -187,6 +187,42 @@ def test_taylor_event_location_is_one_file_for_both_drivers():
     assert roots not in runtime["lcg_taylor_driver.h"]
 
 
+def test_taylor_step_rules_are_one_text_for_both_drivers():
+    """The standalone integrator's step rules (Horner, step size, tolerance, order, the jet entry
+    point) and its event location are printed from the runtime's lcg_taylor_driver.h: an edit of
+    a rule there shows in <prefix>_taylor.c, and what only the runtime does (the table, relative
+    tolerances by blocks) does not."""
+    import sympy as sp
+
+    import lagcodegen as lcg
+    from lagcodegen.model.events import Event
+    from lagcodegen.solvers.taylor import emit
+
+    scene = lcg.Scene(lcg.derive(lcg.systems.pendulum()), jacobian=False)
+    text = emit.taylor_sources(scene, [Event("down", sp.Symbol("theta"), 0, False)])["pendulum_taylor.c"]
+    header = runtime_package.source("lcg_taylor_driver.h")
+    assert "static double tl_step_size(const double *X, int p, const pendulum_taylor_options *opt, " \
+           "const double sf[2])\n" in text
+    assert "int pendulum_taylor_jet(double t, const double *y, const double *p, int order, double *jet)\n" in text
+    for runtime_only in ("lcg_taylor_model", "LCG_TAYLOR_RUNTIME", "rel_block", "tl_table_ok", "shared with"):
+        assert runtime_only in header and runtime_only not in text, runtime_only
+    for rule in ("h = tl_step_size(", "tl_eval(X, order, tau[j], ev->y", "if (te - last[e] <= 1e-9 * h",
+                 "sf[j] = pow(fmin(exp(-0.7 / (p - 1)), cap), -(double)(p - j));"):
+        assert rule in text
+    # one source: a rule changed in the runtime's file is the standalone integrator's rule
+    edited = header.replace("exp(-0.7 / (p - 1))", "exp(-0.6 / (p - 1))")
+    assert edited != header
+    real = emit.runtime_file
+    try:
+        emit.runtime_file = lambda name: edited if name == "lcg_taylor_driver.h" else real(name)
+        part = emit.driver_section("rules", options_type="pendulum_taylor_options", jet_name="pendulum_taylor_jet")
+    finally:
+        emit.runtime_file = real
+    assert "exp(-0.6 / (p - 1))" in part and part.replace("0.6", "0.7") in text
+    with pytest.raises(lcg.LagcodegenError, match="no part 'steps'"):
+        emit.driver_section("steps", options_type="x")
+
+
 def test_model_headers_declare_the_declared_signatures():
     """The prototypes of a generated model's header (plain and constrained) are those of
     MODEL_FUNCTIONS and DAE_FUNCTIONS, whose pointer types the runtime's tables (and their cffi

@@ -17,7 +17,7 @@ from ..buildstep import (generator_record, input_record, manifest_matches, manif
                          manifest_text, read_manifest, stale_by_manifest, touch_stamp, write_depfile)
 from ..codegen.bundle import stale_files, write_files
 from ..util import fmu_path_problem, folder_problem
-from ..codegen.languages import LANGUAGES, backend
+from ..codegen.languages import BACKENDS, LANGUAGES, backend
 from .common import (EXIT_OK, EXIT_OUTDATED, EXIT_USAGE, MODEL_HELP, UsageError, add_formulation_option,
                      add_scene_options, apply_options, assignments, check_parameter_names, csv, load, say)
 
@@ -55,8 +55,9 @@ def add_parser(sub) -> None:
     g.add_argument("--fmi", type=int, choices=[2, 3], default=2, help="--fmu: the FMI version (default 2)")
     g.add_argument("--prefix", help="C identifier prefix (default: the model name)")
     g.add_argument("--lang", choices=list(LANGUAGES), default="c",
-                   help="language of the model code: C99 (<prefix>.c) or Fortran 2008 (<prefix>.f90); "
-                        "the C header <prefix>.h comes with both")
+                   help="language of the model code: "
+                        + " or ".join(f"{be.title} (<prefix>{be.suffix})" for be in BACKENDS.values())
+                        + "; the C header <prefix>.h comes with each")
     g.add_argument("--bundle", action="store_true",
                    help="also write Makefile, CMakeLists.txt, rk4_example.c, cvode_example.c and README.md")
     g.add_argument("--check", action="store_true",
@@ -102,7 +103,8 @@ def _finish_build_step(args, out: Path, names, manifest: str, source) -> None:
 def _generate_fmu(args) -> int:
     """``generate --fmu FILE [--fmi 3]``: the model file as an FMU (:func:`lagcodegen.fmu.export_fmu`)."""
     if args.bundle or args.check or args.list_outputs or not backend(args.lang).c_sources:
-        raise UsageError("--fmu writes one FMU file: --bundle, --check, --list-outputs and --lang fortran do not apply")
+        raise UsageError(f"--fmu writes one FMU file: --bundle, --check, --list-outputs and --lang {args.lang} "
+                         "do not apply")
     problem = fmu_path_problem(args.fmu)
     if problem:
         raise UsageError(f"--fmu {args.fmu}: {problem}")

@@ -2,7 +2,9 @@
 (:mod:`.c`) or Fortran 2008 (:mod:`.fortran`) through the jinja2 templates, the cffi
 declarations (:mod:`.cffi_decl`) and the bundles for other projects' builds (:mod:`.bundle`).
 
-Both print one operation tree (:mod:`.ir`; the program form laid out by :mod:`.program`). A
+Both print one operation tree (:mod:`.ir`; the program form laid out by :mod:`.program`), and
+the procedures of the dense solves (:mod:`.linalg`, in the loops of :mod:`.procedure`) with
+their procedure printers (:mod:`.c_procedure`, :mod:`.fortran_procedure`). A
 language is a backend class with ``generate(scene)``, ``check_prefix(prefix, suffix)`` and
 ``constrained_source(blocks, ctx)``, registered by name in :mod:`.languages`; callers name a
 language and never test for one.

@@ -143,7 +143,6 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     if method not in CVODE_METHODS:
         raise ModelError(f"bundle: unknown CVODE method {method!r} (choose from {', '.join(CVODE_METHODS)})")
     be = backend(lang)
-    fortran = not be.c_sources
     t_start, t_end, steps = _checked_span(t_start, t_end, steps)
     source = f"{code.prefix}{be.suffix}"
     names = [code.header_name, source]
@@ -159,15 +158,16 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
              ("rk4_example.c", "fixed-step RK4 integration, CSV on stdout; needs only a C compiler")]
     if sundials_example:
         table.append(("cvode_example.c", "the same with SUNDIALS CVODE (built by CMake when SUNDIALS is found)"))
-    inputs = [(name, code.param_names.index(name)) for name in code.input_names] if not fortran else []
+    inputs = [(name, code.param_names.index(name)) for name in code.input_names] if be.c_sources else []
     if inputs:
         table += [("lcg_inputs.h", "input tables: a piecewise cubic per input, setting its slot of p (C99 + libm)"),
                   ("lcg_inputs.c", "their functions"),
                   ("lcg_inputs_types.h", "their structs (with lcg_model.h, lcg_codes.h)"),
                   ("inputs_example.c", "RK4 with the inputs read from tables (`make inputs_example`)")]
     if sensitivities:
-        if fortran:
-            raise ModelError("bundle: the sensitivity functions are C (sensitivities=True needs lang='c')")
+        if not be.c_sources:
+            raise ModelError(f"bundle: the sensitivity functions are C (sensitivities=True needs lang='c', "
+                             f"not {lang!r})")
         table += [(f"{code.prefix}_sens.c", "forward sensitivities: the state's and its sensitivities' right-hand "
                                             "side, the outputs' sensitivities (C99 + libm; in the library)"),
                   ("sens_example.c", "RK4 of the state and its sensitivities to every parameter and initial "
@@ -176,7 +176,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     y_values = _initial_state(code, y0)
     ctx = dict(
         version=__version__, prefix=code.prefix, PREFIX=code.prefix.upper(), model_name=code.model_name,
-        lang=lang, fortran=fortran, lang_name=be.title,
+        lang=lang, backend=be, lang_name=be.title,
         header=code.header_name, source=source, stem=code.prefix, n=code.n, nz=code.nz, ny=code.ny, np=code.np,
         nout=code.nout, state_names=code.state_names, param_names=code.param_names,
         param_values=[_c_double(v) for v in _parameters(code, params)], output_names=code.output_names,
@@ -190,7 +190,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
         ctx.update(input_names=[name for name, _ in inputs], input_slots=[s for _, s in inputs],
                    max_h=_c_double((t_end - t_start) / steps))
     integrators, skipped, extra = [], [], {}
-    for name, sources in (INTEGRATORS.items() if not fortran else ()):
+    for name, sources in (INTEGRATORS.items() if be.c_sources else ()):
         try:
             produced = sources(scene, y_values, _parameters(code, params), t_end)
         except ModelError as exc:
@@ -206,7 +206,7 @@ def render_bundle(scene: Scene, lang: str = "c", sundials_example: bool = True, 
     ctx.update(integrators=integrators, skipped_integrators=skipped)
     ref_text, ctx["check"] = None, None
     if reference:
-        ref_text, ctx["check"] = reference_values("scene", code.model_name, (scene, code if not fortran else None),
+        ref_text, ctx["check"] = reference_values("scene", code.model_name, (scene, code if be.c_sources else None),
                                                   y_values, _parameters(code, params), t_start, t_end, steps)
         if ref_text is not None:
             table.insert(-1, ("reference.csv", "the final row `make check` expects of rk4_example (lagcodegen's "
@@ -401,7 +401,6 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
                                         events=events, runtime_parameters=runtime_parameters, values=values,
                                         prefix=prefix, lang=lang)
     be = backend(lang)
-    fortran = not be.c_sources
     pre = code.prefix
     header = f"{pre}_dae.h"
     source = f"{pre}_dae{be.suffix}"
@@ -428,7 +427,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     ctx = dict(
         integrators=[], skipped_integrators=[], check=check,
         version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
-        fortran=fortran, lang_name=be.title, header=header, source=source,
+        backend=be, lang_name=be.title, header=header, source=source,
         stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
         nout=len(info.output_names), nroot=len(info.events), state_names=code.state_names,
         param_names=code.param_names, param_values=[_c_double(v) for v in _parameters(code, params)],

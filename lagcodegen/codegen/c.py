@@ -384,6 +384,15 @@ class CBackend:
     suffix, title, link_libs, c_sources = ".c", "C99", (), True
     #: As :class:`lagcodegen.codegen.fortran.FortranBackend`'s: C is compiled with the build's cc.
     compiler_label, compiler_env, default_compiler = "C compiler", "CC", "cc"
+    #: A bundle's build files (templates/bundle/, with the fragments of templates/c/bundle/): the
+    #: variables its Makefile lets one override beside CC and CFLAGS, CMake's project languages and
+    #: the library target's properties.
+    make_variables: tuple = ()
+    cmake_languages, cmake_library_properties = ("C",), ("C_STANDARD 99", "C_STANDARD_REQUIRED ON")
+
+    def module_files(self, stem: str) -> list[str]:
+        """Files a bundle's library installs beside its C header (``stem``: the source's stem): none."""
+        return []
 
     def source_description(self, module: str) -> str:
         """What the model source is, for a bundle's README (``module``: the model's prefix)."""

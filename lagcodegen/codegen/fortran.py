@@ -356,6 +356,15 @@ class FortranBackend:
     #: The compiler of its sources (compiled apart into objects the C link takes): its name in
     #: messages, the environment variable that names it, the one used otherwise.
     compiler_label, compiler_env, default_compiler = "Fortran compiler", "FC", "gfortran"
+    #: As :class:`lagcodegen.codegen.c.CBackend`'s, for the fragments of templates/fortran/bundle/:
+    #: the Makefile's compiler variables, CMake's languages (C for the examples), no C properties.
+    make_variables = ("FC", "FFLAGS")
+    cmake_languages, cmake_library_properties = ("C", "Fortran"), ()
+
+    def module_files(self, stem: str) -> list[str]:
+        """The module file ``<stem>_mod.mod`` (lower case, as gfortran writes it) that Fortran
+        programs ``use``, installed beside the C header."""
+        return [f"{stem.lower()}_mod.mod"]
 
     def source_description(self, module: str) -> str:
         """What the model source is, for a bundle's README (``module``: the model's prefix)."""

@@ -3,9 +3,14 @@
 A backend class (:class:`.c.CBackend`, :class:`.fortran.FortranBackend`) has ``generate(scene)``
 -> :class:`~.record.GeneratedCode`, ``check_prefix(prefix, suffix)`` and
 ``constrained_source(blocks, ctx)`` -> {file name: text}, and prints the operation tree of
-:mod:`.ir` (and the program form of :mod:`.program`) with its own printer class. Adding a
-language is one backend module with its printer and backend class, its templates, and one line
-here.
+:mod:`.ir` (and the program form of :mod:`.program`) with its own printer class; the procedures
+of :mod:`.procedure` (the LU solve of :mod:`.linalg`) with its procedure printer. A backend class
+also answers what bundles and builds ask of a language (``suffix``, ``title``, ``link_libs``,
+``c_sources``, the compiler's ``compiler_env``/``default_compiler``, ``make_variables``,
+``cmake_languages``, ``cmake_library_properties``, ``module_files(stem)``), and its templates
+folder holds the language's fragments of a bundle (templates/<lang>/bundle/). Adding a language
+is one backend module with its printer and backend class, a procedure printer (registered in
+:func:`.templates.environment`), its templates, and one line here.
 """
 
 from __future__ import annotations

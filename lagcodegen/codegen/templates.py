@@ -7,6 +7,9 @@ from pathlib import Path
 
 import jinja2
 
+from . import linalg
+from .c_procedure import CProcedurePrinter
+from .fortran_procedure import FortranProcedurePrinter
 from .signatures import c_signature, fortran_signature
 
 
@@ -29,8 +32,10 @@ def _bytecode_cache():
 
 @functools.lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
-    """The environment of every template, with :func:`~.signatures.c_signature` and
-    :func:`~.signatures.fortran_signature` as globals: one per process, so that each template is
+    """The environment of every template, with :func:`~.signatures.c_signature`,
+    :func:`~.signatures.fortran_signature`, ``c_procedure(procedure, **options)`` and
+    ``fortran_procedure(procedure, **options)`` (a procedure of :mod:`.linalg` printed by that
+    language's printer) as globals: one per process, so that each template is
     compiled once (tens of milliseconds each, a large part of a small model's first build), and
     jinja2's own bytecode cache (a folder of the user's own in the temporary directory, which
     jinja2 checks for ownership and mode 0700) keeps the compiled templates for the next process."""
@@ -39,7 +44,11 @@ def environment() -> jinja2.Environment:
         bytecode_cache=_bytecode_cache(),
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
         undefined=jinja2.StrictUndefined)
-    env.globals.update(c_signature=c_signature, fortran_signature=fortran_signature)
+    env.globals.update(c_signature=c_signature, fortran_signature=fortran_signature,
+                       c_procedure=lambda procedure, **options: CProcedurePrinter().text(
+                           linalg.PROCEDURES[procedure](**options)),
+                       fortran_procedure=lambda procedure, **options: FortranProcedurePrinter().text(
+                           linalg.PROCEDURES[procedure](**options)))
     return env
 
 

@@ -26,6 +26,9 @@
 
 #include "lcg_taylor.h"
 
+/* The driver's runtime-only parts (lcg_taylor_driver.h): the table check, tolerances by blocks. */
+#define LCG_TAYLOR_RUNTIME 1
+
 /* The sizes and functions of the model m (the driver's argument) for the driver (lcg_taylor_driver.h). */
 #define NY (m->ny)
 #define NE (m->ne)

@@ -5,11 +5,17 @@
  * Step size, Horner evaluation (dense output), event location and the step itself (tl_run,
  * tl_step_plan, tl_step_take), shared by the run driver lcg_taylor_solve below and the integrator
  * object (lcg_taylor_stepper.c, one translation unit with lcg_taylor.c): both take the same steps
- * with the same arithmetic in the same order. A standalone integrator (<prefix>_taylor.c) prints
- * the same rules from templates/taylor/_driver.j2, its sizes compiled in. */
+ * with the same arithmetic in the same order.
+ *
+ * A standalone integrator (<prefix>_taylor.c, templates/taylor/_driver.j2) prints the parts between
+ * the lines "shared with <prefix>_taylor.c: NAME" and "end of NAME" from this file, its sizes
+ * compiled in (lagcodegen.solvers.taylor.emit.driver_section): without the model argument m and
+ * the lines between "#ifdef LCG_TAYLOR_RUNTIME" and its "#endif" (what only the runtime does:
+ * the table check, relative tolerances by blocks), the options type and the jet's name its own. */
 
 #include "lcg_taylor_roots.h" /* event location */
 
+/* shared with <prefix>_taylor.c: rules */
 /* y_i(tau) = sum_{k<=p} y_i,[k] tau^k for every state component: Horner in tau^2 over the orders
  * of the parity of p (a) and over the others (b), two independent chains of half the length
  * (a step of a small model waits for this evaluation's latency, not for its operations). */
@@ -43,19 +49,21 @@ static double tl_log2_rough(double x)
  * (tl_safety): h = min((sf_0 n_p)^(-1/p), (sf_1 n_(p-1))^(-1/(p-1))), the smaller one told
  * apart by rough logarithms (an error within ~1% of h, where the two limits are that close)
  * and computed by one pow. */
-static double tl_step_size(const lcg_taylor_model *m, const double *X, int p, const lcg_taylor_options *opt,
-                           const double sf[2])
+static double tl_step_size(const lcg_taylor_model *m,
+                           const double *X, int p, const lcg_taylor_options *opt, const double sf[2])
 {
     double np = 0.0, np1 = 0.0, check = 0.0;
     int i;
-
+#ifdef LCG_TAYLOR_RUNTIME
     const int blk = opt->rel_block;
     double scale = 0.0;
+#endif
 
     for (i = 0; i < NY; ++i) {
         const double *x = X + (long)i * PS;
-        double w = opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol;
+        double w = (opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol) + opt->rtol * fabs(x[0]);
         double a, b;
+#ifdef LCG_TAYLOR_RUNTIME
         if (blk > 0 && i >= blk) { /* a block's relative tolerance on its largest |y| */
             if (i % blk == 0) {
                 int j;
@@ -63,9 +71,9 @@ static double tl_step_size(const lcg_taylor_model *m, const double *X, int p, co
                 for (j = i; j < i + blk; ++j)
                     scale = fmax(scale, fabs(X[(long)j * PS]));
             }
-            w += opt->rtol * scale;
-        } else
-            w += opt->rtol * fabs(x[0]);
+            w = (opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol) + opt->rtol * scale;
+        }
+#endif
         if (!(w > DBL_MIN))
             w = DBL_MIN;
         w = 1.0 / w; /* one division per component, not two: the driver's costliest instruction */
@@ -145,7 +153,36 @@ static int tl_order(double tol, int opt_order)
 
 /* Normalized Taylor coefficients at (t, y) up to order (<= P_MAX):
  * jet[i*(order+1) + k] = y_i^(k)(t)/k!. Returns 0, a model error code (1, 2), -20 out of memory
- * or -22 a bad order or table. */
+ * or -22 a bad order. */
+int lcg_taylor_jet(const lcg_taylor_model *m, double t, const double *y, const double *p, int order, double *jet)
+{
+    double *X;
+    void *work;
+    int rc, i, k;
+
+#ifdef LCG_TAYLOR_RUNTIME
+    if (!tl_table_ok(m))
+        return -22; /* a table of another layout */
+#endif
+    if (order < 1 || order > P_MAX)
+        return -22;
+    X = (double *)calloc((size_t)NROW * PS, sizeof(double));
+    work = calloc(1, TL_WORK_SIZE);
+    rc = X == NULL || work == NULL ? -20 : TL_START(work, p);
+    if (rc == 0)
+        rc = TL_JET(work, X, t, y, order);
+    if (rc == 0)
+        for (i = 0; i < NY; ++i)
+            for (k = 0; k <= order; ++k) {
+                jet[i * (order + 1) + k] = X[i * PS + k];
+                if (!isfinite(jet[i * (order + 1) + k]))
+                    rc = 2;
+            }
+    free(X);
+    free(work);
+    return rc;
+}
+/* end of rules */
 
 /* A Taylor integration between its steps: the jet and the model's workspace, the order and the
  * step rule's safety factors of the run's tolerance, the last whole step, the events' scratch. */
@@ -243,6 +280,7 @@ static int tl_step_plan(const lcg_taylor_model *m, tl_run *r, const lcg_taylor_o
         return -3;
     }
 
+    /* shared with <prefix>_taylor.c: events */
     /* Events: roots of each event polynomial in (0, h], in time order. */
     for (e = 0; e < NE; ++e) {
         double *g = X + (long)TL_EVENT_ROW(e) * PS;
@@ -289,6 +327,7 @@ static int tl_step_plan(const lcg_taylor_model *m, tl_run *r, const lcg_taylor_o
             break;
         }
     }
+    /* end of events */
     *h_out = h;
     *end_out = end;
     return 0;
@@ -338,32 +377,6 @@ static int tl_outputs(const lcg_taylor_model *m, lcg_taylor_stats *st, double t,
     if (rc != 0)
         st->model_error = rc;
     return rc != 0 ? -100 - rc : 0;
-}
-int lcg_taylor_jet(const lcg_taylor_model *m, double t, const double *y, const double *p, int order, double *jet)
-{
-    double *X;
-    void *work;
-    int rc, i, k;
-
-    if (!tl_table_ok(m))
-        return -22;
-    if (order < 1 || order > P_MAX)
-        return -22;
-    X = (double *)calloc((size_t)NROW * PS, sizeof(double));
-    work = calloc(1, TL_WORK_SIZE);
-    rc = X == NULL || work == NULL ? -20 : TL_START(work, p);
-    if (rc == 0)
-        rc = TL_JET(work, X, t, y, order);
-    if (rc == 0)
-        for (i = 0; i < NY; ++i)
-            for (k = 0; k <= order; ++k) {
-                jet[i * (order + 1) + k] = X[i * PS + k];
-                if (!isfinite(jet[i * (order + 1) + k]))
-                    rc = 2;
-            }
-    free(X);
-    free(work);
-    return rc;
 }
 
 int lcg_taylor_solve(const lcg_taylor_model *m, const double *p, const double *y0, int nt, const double *tout,

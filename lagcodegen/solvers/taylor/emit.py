@@ -8,7 +8,8 @@ Two sets of files (the jet from the same template, taylor/jet.c.j2):
 
 * :func:`taylor_sources`: ``<prefix>_taylor.h`` and ``<prefix>_taylor.c``, C99 + libm, standalone
   (what C bundles ship): they compute the equations, the outputs (``<prefix>_taylor_outputs``) and
-  the events themselves, the driver (taylor/_driver.j2) compiled with the sizes as constants;
+  the events themselves, the driver (taylor/_driver.j2) compiled with the sizes as constants, its
+  step rules and event location printed from the runtime's driver (:func:`driver_section`);
 * :func:`jet_sources` (a model's part: its jet and the table ``lcg_taylor_model``) and
   :func:`runtime_sources` (the model-independent driver, real C files of lagcodegen/runtime/:
   ``lcg_taylor.c`` with ``lcg_taylor_driver.h``, the step it shares with the integrator object's
@@ -18,6 +19,7 @@ Two sets of files (the jet from the same template, taylor/jet.c.j2):
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import symengine as se
@@ -30,6 +32,7 @@ from ...codegen.signatures import (DRIVERS, TAYLOR_EVENTS, TAYLOR_OPTIONS, TAYLO
                                      standalone)
 from ...codegen.signatures import c_header as types_header
 from ...codes import c_header
+from ...errors import LagcodegenError
 from ...runtime import source as runtime_file
 from ...runtime import sources as runtime_files
 from ...formulation.kernels import Block, substituter
@@ -70,12 +73,38 @@ def _coef(value) -> str:
     return text
 
 
+#: The model argument of the runtime driver's functions (lcg_taylor_driver.h), with what follows it
+#: on its line or the next (a standalone integrator has its sizes compiled in: no model argument).
+_MODEL_ARGUMENT = re.compile(r"const lcg_taylor_model \*m,\s+")
+_MODEL_PASSED = re.compile(r"\b(tl_\w+)\(m, ")
+_RUNTIME_ONLY = re.compile(r"^#ifdef LCG_TAYLOR_RUNTIME\n.*?^#endif\n", re.M | re.S)
+
+
+def driver_section(name: str, *, options_type: str, jet_name: str = "lcg_taylor_jet", indent: int = 0) -> str:
+    """The part ``name`` of the runtime's Taylor driver (lagcodegen/runtime/lcg_taylor_driver.h,
+    between the lines "shared with <prefix>_taylor.c: NAME" and "end of NAME") as a standalone
+    integrator prints it (templates/taylor/_driver.j2): without the model argument ``m`` and the
+    runtime-only lines (``#ifdef LCG_TAYLOR_RUNTIME`` ... ``#endif``), with its own options type and
+    jet function name, each line indented by ``indent`` more spaces. The step rules are written once."""
+    text = runtime_file("lcg_taylor_driver.h")
+    begin = re.search(rf"^[ ]*/\* shared with <prefix>_taylor\.c: {re.escape(name)} \*/\n", text, re.M)
+    end = re.search(rf"^[ ]*/\* end of {re.escape(name)} \*/\n", text, re.M)
+    if begin is None or end is None or end.start() < begin.end():
+        raise LagcodegenError(f"lcg_taylor_driver.h has no part {name!r} shared with the standalone integrator")
+    part = _RUNTIME_ONLY.sub("", text[begin.end():end.start()])
+    part = _MODEL_PASSED.sub(r"\1(", _MODEL_ARGUMENT.sub("", part))
+    part = part.replace("lcg_taylor_options", options_type).replace("lcg_taylor_jet(", f"{jet_name}(")
+    pad = " " * indent
+    return "".join(pad + line if line.strip() else line for line in part.splitlines(keepends=True))
+
+
 def _jinja():
     env = environment()
     env.tests["row"] = lambda e: isinstance(e, int) and not isinstance(e, bool)
     env.tests["zero"] = lambda e: not isinstance(e, (int, Const)) and e == 0
     env.globals["coef"] = _coef
     env.globals["runtime_source"] = runtime_file  # event location (lcg_taylor_roots.h), printed as it is
+    env.globals["driver_section"] = driver_section  # the runtime driver's step rules, for standalone integrators
     return env
 
 
