@@ -390,7 +390,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     contacts = bool(system.contacts)  # contacts: bundle_contacts adds their functions and example
     if contacts:
-        check_contact_bundle(system, not backend(lang).c_sources, ggl)
+        check_contact_bundle(system, backend(lang).c_sources, ggl)
     run = ExampleRun.of(example, example_fields, "render_constrained_bundle")
     y0, params = run.y0, run.params
     stab = check_baumgarte(baumgarte, "bundle baumgarte")

@@ -17,9 +17,10 @@ from .record import GeneratedCode
 from .tables import dae_table, model_table
 
 
-def check_contact_bundle(system, fortran: bool, ggl: bool) -> None:
-    """Refusals by name: what the contact bundle does not carry."""
-    if fortran:
+def check_contact_bundle(system, c_sources: bool, ggl: bool) -> None:
+    """Refusals by name: what the contact bundle does not carry (``c_sources``: whether the
+    bundle's language is printed as C, the backend's answer)."""
+    if not c_sources:
         raise ModelError("bundles of systems with contacts are made in C only (the contact functions "
                          "<prefix>_impact.c are printed in C): lang='c'")
     if ggl:
