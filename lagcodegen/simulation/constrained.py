@@ -186,15 +186,15 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if sensitivities and self.system.model.general:
             raise LagcodegenError(f"sensitivities of constrained systems with generalized speeds (model "
                                   f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not computed yet")
-        if sensitivities and self.info.contacts:
-            raise LagcodegenError("sensitivities of systems with contacts (impacts) are not computed")
-        if self.info.contacts and not sensitivities:
-            res = self._run_contacts(family, t, y0, p, rtol, atol, roots, contacts)
-        else:
-            if self._ggl and yy0 is None:
+        request = Request(roots=roots, initial=initial,
+                          contacts=_contact_options(contacts) if self.info.contacts else None)
+        if self._ggl and not self.info.contacts:  # the GGL unknowns (the GGL impact driver starts from y0)
+            if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t[0], y0, p)
-            problem = Problem(self, rtol, atol, t, yy0 if self._ggl else y0, p, yp0)
-            res = family.run(self.formulation, problem, Request(roots=roots, initial=initial))
+            problem = Problem(self, rtol, atol, t, yy0, p, yp0)
+        else:
+            problem = Problem(self, rtol, atol, t, y0, p)
+        res = family.run(self.formulation, problem, request)
         res.parameters = self._default_parameters.copy() if p is self._default_p else dict(zip(self.param_names, p))
         res.n_coordinates = self._n
         if self.system.model.general:
@@ -228,10 +228,11 @@ class ConstrainedSimulation(ConstrainedFunctions):
         roots = self._roots(events)
         p = self._default_p if params is None else self.parameter_vector(params)
         y0, yy0, yp0 = self._initial_values(t0, q0, v0, p, initial, ic_tol, self._ggl)
-        if self.info.contacts:
-            return self._contact_integrator(family, t0, y0, p, rtol, atol, roots, contacts)
         mem = np.concatenate([[t0], y0, p])  # (t, y, p): the memory the C stepper works on
-        if self._ggl:
+        if self.info.contacts:  # each propagate call one run of the impact driver (.impact_stepper)
+            stepper = family.run(self.formulation, Problem(self, rtol, atol, y=mem),
+                                 Request(kind="stepper", roots=roots, contacts=_contact_options(contacts)))
+        elif self._ggl:
             if yy0 is None:
                 yy0, yp0 = self._ggl_initial(t0, y0, p)
             stepper = family.run("ggl", Problem(self, rtol, atol, y=mem, yp=(yy0, yp0)),
@@ -242,16 +243,14 @@ class ConstrainedSimulation(ConstrainedFunctions):
         return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
                           family=stepper.family)
 
-    def _contact_integrator(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> Integrator:
-        """The integrator object of a system with contacts from (t0, y0) (:mod:`.impact_stepper`:
-        each call one run of the impact driver)."""
-        run = self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts)
-        mem = np.concatenate([[t0], y0, p])
-        stepper = ImpactStepper(self, run, mem)
-        return Integrator(stepper, mem, state_names=self.state_names, param_names=self.param_names,
-                          family=stepper.family)
+    def contact_stepper(self, family, mem, rtol, atol, roots: bool, contacts) -> ImpactStepper:
+        """The stepper of an integrator object of this system with contacts on the memory ``mem``
+        = (t0, y0, p) (:mod:`.impact_stepper`: each call one run of the index-1 impact driver)."""
+        ny = self._ny
+        t0, y0, p = float(mem[0]), mem[1:1 + ny], mem[1 + ny:]
+        return ImpactStepper(self, self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts), mem)
 
-    def _run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
+    def run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
         """A run of a system with contacts on its impact driver (:mod:`.constrained_impacts`: the
         index-1 driver on CVODE, the GGL driver on IDA); ``cancel``: None, or a numpy int array of
         one value that stops an index-1 run (-80) once set."""
@@ -272,10 +271,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
         with the parameters p on ``family`` (checked: CVODE, native backend, no projection, the
         contacts not violated at y0), as a :class:`~.constrained_impacts.ContactRun` (the runs of
         ensembles and the integrator object; GGL systems refuse those by name)."""
-        if self._ggl:
-            raise LagcodegenError("the integrator object does not run systems with contacts on the GGL formulation, "
-                                  "nor do ensembles: compile_constrained(system, 'index1') runs both (GGL runs "
-                                  "contacts in simulate)")
         contacts = _contact_options(contacts)
         backend = getattr(family, "backend", None)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):

@@ -1,6 +1,6 @@
 """Ensembles of constrained systems with contacts (inequalities with a restitution, sec. 4.3):
 each member one call of the impact driver (lagcodegen/runtime/lcg_imp.c, through
-:meth:`ConstrainedSimulation._run_contacts <lagcodegen.simulation.constrained.ConstrainedSimulation>`,
+:meth:`ConstrainedSimulation.run_contacts <lagcodegen.simulation.constrained.ConstrainedSimulation>`,
 as ``simulate`` makes it), the members spread over a pool of threads (the driver releases the
 GIL; every call has its own SUNDIALS context), so each member is bit-identical to its single run.
 
@@ -25,6 +25,7 @@ from ..solvers.control import CANCELLED, NOT_RUN, Progress
 from ..solvers.ensemble import run_chunks
 from ..solvers.ensemble_result import COUNT_NAMES, FLAG_TEXT, REJECTED, EnsembleInterrupted, EnsembleResult
 from ..solvers.ensemble_run import default_threads, saved_columns
+from ..solvers.family import Problem, Request
 from ..solvers.registry import resolve
 from ..solvers.request import Recording
 from ..util import output_times
@@ -51,6 +52,8 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
     solver, rtol, atol, events, options = run_keywords(options)
     family = resolve(sim.formulation, solver, options)
     roots = sim._roots(events)
+    contacts = ContactOptions() if contacts is None else contacts
+    family.check(sim.formulation, Request(roots=roots, contacts=contacts))  # each member's run, refused here
     t = output_times(t)
     n_mem, Q, V, _ = _qv(sim, q0, v0, params)
     P = parameter_matrix(sim.compiled._defaults, list(sim.param_names), params, n_mem)
@@ -72,7 +75,8 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
             return f"{FLAG_TEXT[REJECTED]}: {exc}"
         start = time.perf_counter()
         try:
-            res = sim._run_contacts(family, t, y0, p, rtol, atol, roots, contacts, cancel=cancel)
+            res = family.run(sim.formulation, Problem(sim, rtol, atol, t, y0, p),
+                             Request(roots=roots, contacts=contacts, cancel=cancel))
         except KeyboardInterrupt:
             cancel[0] = 1
             raise

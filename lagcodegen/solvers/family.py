@@ -16,8 +16,9 @@ y' = f(t, y) of a compiled scene), ``"index1"`` (a constrained system at the acc
 state(s), parameters); the :class:`Request` is the kind of run (to output times, an integrator
 object's stepper, a prepared run, an ensemble of :class:`Members`), what it records (events; the
 family's sensitivities, asked as a :class:`Sensitivities` value) and what drives it (input
-tables). Each family declares once, in its ``runs`` table, the (face, kind) pairs it runs and the
-combinations of events, inputs and sensitivities each takes (:func:`combinations`); anything
+tables; a system's contacts, its impacts recorded). Each family declares once, in its ``runs``
+table, the (face, kind) pairs it runs and the combinations of events, inputs, sensitivities and
+impacts each takes (:func:`combinations`); anything
 else is refused by :meth:`Family.check`, by name, before anything runs. No method name is built
 at run time.
 """
@@ -220,8 +221,10 @@ class Request:
     objects; ``roots``: a constrained system's compiled events located; the sensitivities are
     the family's own ``sensitivities``), what drives it (``inputs``: an input set, one per
     member for an ensemble), how many members (``members``: None for one run, else
-    :class:`Members`), ``fixed`` (a prepared run: what every result shares) and ``initial``
-    (constrained sensitivity runs: how the initial state was made consistent)."""
+    :class:`Members`), ``fixed`` (a prepared run: what every result shares), ``initial``
+    (constrained sensitivity runs: how the initial state was made consistent) and ``contacts``
+    (a system with contacts: the run's contact settings, its impacts recorded; ``cancel``: an
+    ensemble's flag that stops a member's run once set)."""
 
     kind: str = "run"
     events: tuple = ()
@@ -230,10 +233,12 @@ class Request:
     members: Members | None = None
     fixed: dict | None = None
     initial: str = "check"
+    contacts: Any = None
+    cancel: Any = None
 
     def asks(self, family: "Family") -> frozenset[str]:
         """What this request asks beyond a plain run, in the words of :attr:`Family.runs`:
-        "events", "inputs", "sensitivities"."""
+        "events", "inputs", "sensitivities", "impacts"."""
         asked = set()
         if self.events or self.roots:
             asked.add("events")
@@ -241,6 +246,8 @@ class Request:
             asked.add("inputs")
         if getattr(family, "sensitivities", None) is not None:
             asked.add("sensitivities")
+        if self.contacts is not None:
+            asked.add("impacts")
         return frozenset(asked)
 
     @property

@@ -22,7 +22,7 @@ def test_every_family_declares_its_runs_once():
         for (face, how), (function, allowed) in cls.runs.items():
             assert face in cls.faces and face in FACES and how in RUN_KINDS, (cls.name, face, how)
             assert callable(function) and frozenset() in allowed, (cls.name, face, how)
-            assert all(a <= {"events", "inputs", "sensitivities"} for a in allowed)
+            assert all(a <= {"events", "inputs", "sensitivities", "impacts"} for a in allowed)
         # every face a family integrates has at least a run to output times
         assert all((face, "run") in cls.runs for face in cls.faces), cls.name
 
@@ -75,3 +75,24 @@ def test_sensitivities_as_one_value(pend):
         lcg.Taylor(sensitivities=Sensitivities(["g"], corrector="simultaneous"))
     with pytest.raises(LagcodegenError, match="corrector must be one of"):
         Sensitivities(["g"], corrector="fast")
+
+
+def test_contacts_are_asked_through_the_entry_and_refused_by_the_table():
+    """A system with contacts: simulate asks the family for a run with impacts; CVODE runs it,
+    the table refuses sensitivities with impacts, and IDA's integrator objects with impacts."""
+    import sympy as sp
+    m = lcg.Model("entry_ball")
+    (y,) = m.coordinates("y")
+    m.parameters(g=9.81, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.5)])
+    sim = lcg.compile_constrained(system, "index1")
+    assert lcg.CVODE().supports("index1", Request(contacts=object()))
+    assert not lcg.CVODE(sensitivities=["g"]).supports("index1", Request(contacts=object()))
+    assert not lcg.IDA().supports("ggl", Request(kind="stepper", contacts=object()))
+    res = sim.simulate(np.linspace(0, 1, 11), q0=[1.0], v0=[0.0], rtol=1e-10, atol=1e-12)
+    t1 = np.sqrt(2 / 9.81)
+    assert abs(res.impacts.times[0] - t1) < 1e-9
+    with pytest.raises(LagcodegenError, match="sensitivities of systems with contacts"):
+        sim.simulate([0, 1], q0=[1.0], v0=[0.0], sensitivities=["g"])

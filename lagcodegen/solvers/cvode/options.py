@@ -345,12 +345,17 @@ class CVODE(Family):
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
     def _index1_run(self, pr, rq) -> Result:
+        if rq.contacts is not None:  # the simulation's index-1 impact driver (.constrained_impacts)
+            return pr.sim.run_contacts(self, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, rq.contacts,
+                                       cancel=rq.cancel)
         if self.sensitivities is not None:  # the constrained sensitivity driver (.sensitivity_constrained)
             from .sensitivity_constrained import run_index1
             return run_index1(self, pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, roots=rq.roots, initial=rq.initial)
         return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots)
 
     def _index1_stepper(self, pr, rq):
+        if rq.contacts is not None:  # each propagate call one run of the impact driver (.impact_stepper)
+            return pr.sim.contact_stepper(self, pr.y, pr.rtol, pr.atol, rq.roots, rq.contacts)
         return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.roots)
 
     def _index1_ensemble(self, pr, rq):
@@ -366,8 +371,9 @@ class CVODE(Family):
         ("ode", "ensemble"): (_ode_ensemble, combinations("", "events", "inputs", "sensitivities",
                                                           "events+sensitivities", "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "sensitivities")),
-        ("index1", "run"): (_index1_run, combinations("", "events", "sensitivities")),
-        ("index1", "stepper"): (_index1_stepper, combinations("", "events")),
+        ("index1", "run"): (_index1_run, combinations("", "events", "sensitivities", "impacts", "events+impacts")),
+        ("index1", "stepper"): (_index1_stepper, combinations("", "events", "impacts", "events+impacts")),
+        # the ensembles of a system with contacts are its members' runs, each through ("index1", "run")
         ("index1", "ensemble"): (_index1_ensemble, combinations("", "events")),
     }
     refusals = {
@@ -379,6 +385,10 @@ class CVODE(Family):
             "the integrator object does not compute sensitivities: use simulate(..., sensitivities=[...])",
         ("index1", "stepper", frozenset({"events", "sensitivities"})):
             "the integrator object does not compute sensitivities: use simulate(..., sensitivities=[...])",
+        ("index1", "run", frozenset({"sensitivities", "impacts"})):
+            "sensitivities of systems with contacts (impacts) are not computed",
+        ("index1", "run", frozenset({"events", "sensitivities", "impacts"})):
+            "sensitivities of systems with contacts (impacts) are not computed",
         ("index1", "run", frozenset({"events", "sensitivities"})):
             "sensitivities with events: not supported (run the sensitivities with events=False, or locate the "
             "events in a run of their own)",
