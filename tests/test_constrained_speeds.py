@@ -137,8 +137,18 @@ def test_integrator_and_ensemble_with_generalized_speeds():
     it.propagate_until(1.5)
     res = sim.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-11, atol=1e-12)
     assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - res.y[-1]).max() < 1e-12
-    with pytest.raises(lcg.LagcodegenError, match="ensembles of constrained systems with generalized speeds"):
-        sim.ensemble(np.array([0.0, 1.0]), q0=[q0, q0], v0=[v0, v0])
+    # an ensemble (one native call over a thread pool) is simulate member by member, bit for bit
+    spins = [w, 2 * w, -0.5 * w]
+    V0 = np.array([np.concatenate([-np.cross(x, rb), x]) for x in spins])
+    t = np.linspace(0.0, 1.5, 4)
+    ens = sim.ensemble(t, q0=q0, v0=V0, save="trajectory", threads=2, rtol=1e-11, atol=1e-12)
+    assert ens.y.shape == (3, 13) and np.all(ens.status >= 0)
+    for i in range(3):
+        one = sim.simulate(t, q0, V0[i], rtol=1e-11, atol=1e-12)
+        assert np.array_equal(ens.member(i).y, one.y) and np.array_equal(ens.y[i], one.y[-1])
+        assert np.array_equal(ens["root_wz"][i], one["root_wz"]) and np.array_equal(ens["energy"][i], one["energy"])
+    with pytest.raises(lcg.LagcodegenError, match="v0 has shape"):
+        sim.ensemble(t, q0=q0, v0=np.zeros((3, 7)))
 
 
 def test_ground_contact_refusals():
