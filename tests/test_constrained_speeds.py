@@ -116,13 +116,10 @@ def test_tilted_body_impact_agrees_with_euler_angles(tangent):
 
 def test_generalized_speeds_refused_where_not_supported():
     system = pinned_body("quaternion", (0.1, 0.2, 0.5))
-    for formulation in ("ggl", "minimal"):
-        with pytest.raises(ModelError, match=f"generalized speeds.*formulation {formulation!r} does not take"):
-            lcg.compile_constrained(system, formulation)
-    from lagcodegen.codegen.constrained import generate_constrained
-    with pytest.raises(ModelError, match="generalized speeds.*GGL formulation"):
-        generate_constrained(system, ggl=True)
-    # Fortran takes them (tests/codegen/test_fortran_constrained.py)
+    with pytest.raises(ModelError, match="generalized speeds.*formulation 'minimal' does not take"):
+        lcg.compile_constrained(system, "minimal")
+    # GGL (test_ggl_with_generalized_speeds_agrees_with_index1) and Fortran
+    # (tests/codegen/test_fortran_constrained.py) take them
     from lagcodegen.codegen.bundle import render_constrained_bundle
     with pytest.raises(ModelError, match="a constrained bundle: model 'pinned_quaternion' has generalized speeds"):
         render_constrained_bundle(system)
@@ -148,6 +145,37 @@ def test_integrator_and_ensemble_with_generalized_speeds():
         assert np.array_equal(ens["root_wz"][i], one["root_wz"]) and np.array_equal(ens["energy"][i], one["energy"])
     with pytest.raises(lcg.LagcodegenError, match="v0 has shape"):
         sim.ensemble(t, q0=q0, v0=np.zeros((3, 7)))
+
+
+def test_ggl_with_generalized_speeds_agrees_with_index1():
+    """The GGL form on IDA (q' - k(q, v) - Aq^T mu, M v' - F - A_v^T lambda, f, A_v v) of the pinned
+    quaternion body: the same motion as the index-1 run, on the constraints, mu ~ 0, |q| = 1; its
+    integrator object and ensemble are its runs; the Fortran functions run as the C ones."""
+    rb, w = np.array([0.1, 0.2, 0.5]), np.array([0.7, -1.1, 2.3])
+    system = pinned_body("quaternion", rb)
+    ggl = lcg.compile_constrained(system, "ggl")
+    ref = lcg.compile_constrained(system)
+    assert (ggl.n, ggl.nv, ggl.ny, ggl.info.ng) == (7, 6, 13, 19)
+    q0, v0 = np.concatenate([-rb, [0, 0, 0, 1]]), np.concatenate([-np.cross(w, rb), w])
+    t = np.linspace(0.0, 3.0, 31)
+    res = ggl.simulate(t, q0, v0, rtol=1e-10, atol=1e-12)
+    exact = ref.simulate(t, q0, v0, rtol=1e-12, atol=1e-13)
+    assert res.y.shape == (31, 13) and np.ptp(res.y[:, :3], axis=0).min() > 0.05
+    assert np.abs(res.y - exact.y).max() < 1e-7
+    assert np.abs(np.linalg.norm(res.y[:, 3:7], axis=1) - 1).max() < 1e-8
+    g, s = ggl.residuals(t[-1], res.y[-1])
+    assert np.abs(g).max() < 1e-12 and np.abs(s).max() < 1e-12  # GGL holds both levels
+    assert max(np.abs(res[f"mu_{k}"]).max() for k in range(3)) < 1e-6
+    assert np.ptp(res["energy"]) < 1e-7
+    it = ggl.integrator(q0=q0, v0=v0, rtol=1e-10, atol=1e-12)
+    it.propagate_until(1.5)
+    half = ggl.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-10, atol=1e-12)
+    assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - half.y[-1]).max() < 1e-9
+    V0 = np.array([v0, np.concatenate([-np.cross(2 * w, rb), 2 * w])])
+    ens = ggl.ensemble(t, q0=q0, v0=V0, rtol=1e-10, atol=1e-12)
+    assert np.array_equal(ens.y[0], res.y[-1])
+    fortran = lcg.compile_constrained(system, "ggl", lang="fortran")
+    assert np.abs(fortran.simulate(t, q0, v0, rtol=1e-10, atol=1e-12).y - res.y).max() < 1e-12
 
 
 def test_ground_contact_refusals():

@@ -46,10 +46,6 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     """
     language = backend(lang)
     model = system.model
-    if model.general and ggl:
-        raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
-                         "constrained code is the index-1 formulation (formulation='index1', C or Fortran); the "
-                         "GGL formulation (IDA) does not take it yet")
     eom = derive(model)
     if eom.quadratures:
         raise ModelError("constrained systems with quadrature states are not supported")
