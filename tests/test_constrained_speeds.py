@@ -178,6 +178,41 @@ def test_ggl_with_generalized_speeds_agrees_with_index1():
     assert np.abs(fortran.simulate(t, q0, v0, rtol=1e-10, atol=1e-12).y - res.y).max() < 1e-12
 
 
+def test_linearize_pinned_quaternion_body_at_rest_and_spinning():
+    """linearize of a constrained system with generalized speeds (tangent coordinates, one per
+    speed): the body on a free joint pinned at a body point above its centre of mass is the
+    pendulum on a ball joint. At rest its frequencies are those of the same pinned body on Z-Y-X
+    angles and of the body on a spherical joint; spinning at 3 rad/s about the vertical (a steady
+    motion whose coefficients in body-frame speeds stay constant) those of the spherical joint's
+    on quaternions and on Z-Y-X angles (unconstrained, their own linearization)."""
+    rb = np.array([0.0, 0.0, 0.5])
+
+    def ball(rotation):
+        m = lcg.Model("ball_" + rotation.lower())
+        m.gravity(G0)
+        m.link("body", joint=lcg.Joint.spherical("ball", rotation=rotation), mass=1.0, com=tuple(-rb),
+               inertia=INERTIA[:3])
+        return lcg.derive(m)
+
+    def same(a, b):
+        return np.allclose(np.sort_complex(np.round(a, 9)), np.sort_complex(np.round(b, 9)), rtol=0, atol=1e-8)
+
+    q0 = np.concatenate([-rb, [0, 0, 0, 1]])
+    rest = lcg.linearize(pinned_body("quaternion", rb), q0=q0)
+    assert rest.coordinates == ["root_wx", "root_wy", "root_wz"] and rest.dependent_speeds == ["root_vx", "root_vy",
+                                                                                              "root_vz"]
+    euler = lcg.linearize(pinned_body("ZYX", rb), q0=np.concatenate([-rb, [0, 0, 0]]))
+    assert same(rest.eigenvalues, euler.eigenvalues)
+    assert same(rest.eigenvalues, lcg.linearize(ball("quaternion"), q0=[0, 0, 0, 1]).eigenvalues)
+    w = 3.0
+    spin = lcg.linearize(pinned_body("quaternion", rb), q0=q0, v0=[0, 0, 0, 0, 0, w])
+    assert np.max(np.abs(spin.multipliers - [0, 0, G0])) < 1e-12  # the pivot holds the weight (m = 1)
+    free_q = lcg.linearize(ball("quaternion"), q0=[0, 0, 0, 1], v0=[0, 0, w])
+    free_e = lcg.linearize(ball("ZYX"), q0=[0, 0, 0], v0=[w, 0, 0])
+    assert same(spin.eigenvalues, free_q.eigenvalues) and same(spin.eigenvalues, free_e.eigenvalues)
+    assert np.ptp(np.abs(spin.eigenvalues.imag)) > 1.0 and spin.stable()
+
+
 def test_ground_contact_refusals():
     m = lcg.Model("contact_refusals")
     m.link("box", joint=lcg.Joint.free("root"), mass=1.0, inertia=INERTIA)
