@@ -182,7 +182,8 @@ def test_linearize_pinned_quaternion_body_at_rest_and_spinning():
     pendulum on a ball joint. At rest its frequencies are those of the same pinned body on Z-Y-X
     angles and of the body on a spherical joint; spinning at 3 rad/s about the vertical (a steady
     motion whose coefficients in body-frame speeds stay constant) those of the spherical joint's
-    on quaternions and on Z-Y-X angles (unconstrained, their own linearization)."""
+    on quaternions and on Z-Y-X angles (unconstrained, their own linearization), and those of the
+    pinned body on Z-Y-X angles."""
     rb = np.array([0.0, 0.0, 0.5])
 
     def ball(rotation):
@@ -208,6 +209,10 @@ def test_linearize_pinned_quaternion_body_at_rest_and_spinning():
     free_q = lcg.linearize(ball("quaternion"), q0=[0, 0, 0, 1], v0=[0, 0, w])
     free_e = lcg.linearize(ball("ZYX"), q0=[0, 0, 0], v0=[w, 0, 0])
     assert same(spin.eigenvalues, free_q.eigenvalues) and same(spin.eigenvalues, free_e.eigenvalues)
+    # on Z-Y-X angles the dependent speeds (the world-frame velocity of the body's origin) turn with the
+    # yaw along this motion: the basis' rates B0', D' enter (frozen, the frequencies were 5.03 and 3.13)
+    spin_e = lcg.linearize(pinned_body("ZYX", rb), q0=np.concatenate([-rb, [0, 0, 0]]), v0=[0, 0, 0, w, 0, 0])
+    assert same(spin_e.eigenvalues, free_e.eigenvalues)
     assert np.ptp(np.abs(spin.eigenvalues.imag)) > 1.0 and spin.stable()
 
 

@@ -142,8 +142,11 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
 
     The result's ``coordinates`` are the independent coordinates, ``speeds`` the
     independent speeds, ``M``, ``C``, ``K`` = M_r, C_r, K_r, and ``A`` = [[H, G], [-M_r^-1 K_r,
-    -M_r^-1 C_r]]. The coefficients are frozen at (q0, v0): exact where they do not depend on
-    the coordinates that move along the steady motion (ignorable ones, eq. 3.8).
+    -M_r^-1 C_r]]. About a moving state B0 and D may turn along the motion (dependent speeds in a
+    frame that turns against the independent ones): their rates B0', D' (central differences
+    along the motion) add M B0' to C_r's bracket and M D' to K_r's. The coefficients are then
+    taken at (q0, v0), and a state along which the reduced first-order matrix changes by more
+    than ``tol`` relative is refused as not steady in these coordinates.
     """
     if isinstance(eom, ConstrainedSystem):
         if symbolic:

@@ -270,16 +270,23 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
 
 def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | None = None,
                           params: Mapping[str, float] | None = None, independent: Sequence[str] | None = None,
-                          a0=None, tol: float = 1e-8, steady_check: bool = True) -> Linearization:
+                          a0=None, tol: float = 1e-8, moving: str = "check") -> Linearization:
     """Linearize a constrained system about a steady motion, reduced to independent coordinates and
     speeds: the "Constrained systems" part of :func:`lagcodegen.theory.linearize.linearize`, which
     is the entry point (it checks the arguments and handles J = 0); see there for the formulas.
 
     With generalized speeds (a model whose speeds are not its coordinates' rates) the coordinates
-    are tangent ones, theta' = H theta + dv (:mod:`.linearize_speeds`), so that
-    K_r = B0^T (M D (H + D) + C D + K) P and the independent coordinates move by ((H + D) P)_I; a
-    moving state along which the reduced first-order matrix changes (by more than ``tol``
-    relative, :func:`_check_steady`) is refused (``steady_check``)."""
+    are tangent ones, theta' = H theta + dv (:mod:`.linearize_speeds`); H = 0 otherwise. About a
+    moving state the basis B0 and D change along the motion (e.g. dependent speeds in a frame the
+    independent ones turn against), and dv' = B0 du' + B0' du + D dq' + D' dq, so
+
+        C_r = B0^T (M (D B0 + B0') + C B0),  K_r = B0^T (M (D (H + D) + D') + C D + K) P,
+
+    B0', D' by central differences along the motion (q0 -+ h k0, v0 -+ h a0, the same independent
+    speeds and coordinates); the independent coordinates move by ((H + D) P)_I. ``moving``:
+    "check" (those terms, and a state along which the reduced first-order matrix changes by more
+    than ``tol`` relative refused, :func:`_check_steady`), "terms" (the terms only), "frozen"
+    (neither: the coefficients at the state)."""
     model = system.model
     names, qv, vv, tv, values = _state_numbers(model, q0, v0, t, params)
     n, J, JH = system.n, system.J, system.n_holonomic
@@ -346,19 +353,51 @@ def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | 
     P[indq, :] = np.eye(len(indq))
     if JH:
         P[dep_h, :] = -np.linalg.solve(A[:JH][:, dep_h], A[:JH][:, indq])
+    k0 = x["k"] if model.general else vv  # q' along the motion
+    dB0, dD = np.zeros_like(B0), np.zeros_like(D)
+    if moving != "frozen" and (np.any(k0 != 0) or np.any(acc != 0)):
+        dB0, dD = _basis_rates(system, (qv, vv, tv, acc, k0), values, [names[i] for i in ind],
+                               _time_step(M, C, K, B0, P, Hk, D))
     Mr = B0.T @ M @ B0
-    Cr = B0.T @ (M @ D @ B0 + C @ B0)
-    Kr = B0.T @ (M @ D @ (Hk + D) + C @ D + K) @ P
+    Cr = B0.T @ (M @ (D @ B0 + dB0) + C @ B0)
+    Kr = B0.T @ (M @ (D @ (Hk + D) + dD) + C @ D + K) @ P
     lin = Linearization(coordinates=[names[i] for i in indq], M=Mr, C=Cr, K=Kr, q0=qv, v0=vv, a0=acc, t=tv,
                          params=values, symbolic=False, speeds=[names[i] for i in ind], G=B0[indq, :],
                          H=((Hk + D) @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
                          dependent_speeds=[names[i] for i in dep], dependent_coordinates=[names[i] for i in dep_h])
-    if model.general and steady_check and np.any(vv != 0):
-        _check_steady(system, lin, x, tol)
+    lin._basis = (B0, D)  # for the basis' rates of a linearization at a neighbouring state (_basis_rates)
+    if moving == "check" and (np.any(k0 != 0) or np.any(acc != 0)):
+        _check_steady(system, lin, k0, tol)
     return lin
 
 
-def _check_steady(system: ConstrainedSystem, lin: Linearization, x: dict, tol: float) -> None:
+def _time_step(M, C, K, B0, P, H, D) -> float:
+    """A time step of the central differences along the motion: STEADY_STEP over the largest rate
+    of the frozen reduced equations."""
+    from .linearize_speeds import STEADY_STEP
+    Mr = B0.T @ M @ B0
+    try:
+        rates = [np.linalg.solve(Mr, B0.T @ (C @ B0)), np.linalg.solve(Mr, B0.T @ (C @ D + K) @ P)]
+    except np.linalg.LinAlgError:
+        raise ModelError("linearize: the reduced mass matrix B0^T M B0 is singular at this state") from None
+    scale = max([float(np.max(np.abs(r), initial=0.0)) for r in rates] + [float(np.max(np.abs(H), initial=0.0)),
+                                                                           float(np.max(np.abs(D), initial=0.0)), 1e-300])
+    return STEADY_STEP / scale
+
+
+def _basis_rates(system: ConstrainedSystem, state: tuple, values: dict, speeds: list, h: float) -> tuple:
+    """(B0', D') along the motion through ``state`` = (q0, v0, t, a0, k0) by central differences
+    over +-h, with the independent speeds ``speeds`` kept."""
+    q, v, t, acc, k0 = state
+    seen = []
+    for step in (h, -h):
+        other = linearize_constrained(system, q0=q + step * k0, v0=v + step * acc, t=t + step, params=values,
+                                      independent=speeds, a0=acc, tol=math.inf, moving="frozen")
+        seen.append(other._basis)
+    return (seen[0][0] - seen[1][0]) / (2 * h), (seen[0][1] - seen[1][1]) / (2 * h)
+
+
+def _check_steady(system: ConstrainedSystem, lin: Linearization, k0: np.ndarray, tol: float) -> None:
     """ModelError unless the reduced first-order matrix of ``lin`` stays the same (to ``tol``
     relative) at the states the motion reaches a short time h = STEADY_STEP / max|A| before and
     after: (q0 -+ h k0, v0 -+ h a0), the same independent speeds and coordinates, the constraints'
@@ -369,12 +408,11 @@ def _check_steady(system: ConstrainedSystem, lin: Linearization, x: dict, tol: f
     if scale == 0.0:
         return
     h = STEADY_STEP / scale
-    k0 = x["k"]
     seen = []
     for step in (h, -h):
         other = linearize_constrained(system, q0=lin.q0 + step * k0, v0=lin.v0 + step * lin.a0, t=lin.t + step,
                                       params=lin.params, independent=lin.speeds, a0=lin.a0, tol=math.inf,
-                                      steady_check=False)
+                                      moving="terms")
         seen.append(other.A)
     change = float(np.max(np.abs(seen[0] - seen[1]))) / scale
     if change > tol:
