@@ -145,8 +145,9 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
     -M_r^-1 C_r]]. About a moving state B0 and D may turn along the motion (dependent speeds in a
     frame that turns against the independent ones): their rates B0', D' (central differences
     along the motion) add M B0' to C_r's bracket and M D' to K_r's. The coefficients are then
-    taken at (q0, v0), and a state along which the reduced first-order matrix changes by more
-    than ``tol`` relative is refused as not steady in these coordinates.
+    taken at (q0, v0); with ``a0`` not given (a steady motion), a state along which the reduced
+    first-order matrix changes by more than ``tol`` relative is refused as not steady in these
+    coordinates (give ``a0`` for an instantaneous linearization).
     """
     if isinstance(eom, ConstrainedSystem):
         if symbolic:

@@ -284,8 +284,9 @@ def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | 
 
     B0', D' by central differences along the motion (q0 -+ h k0, v0 -+ h a0, the same independent
     speeds and coordinates); the independent coordinates move by ((H + D) P)_I. ``moving``:
-    "check" (those terms, and a state along which the reduced first-order matrix changes by more
-    than ``tol`` relative refused, :func:`_check_steady`), "terms" (the terms only), "frozen"
+    "check" (those terms, and, unless ``a0`` is given for an instantaneous linearization, a state
+    along which the reduced first-order matrix changes by more than ``tol`` relative refused as no
+    steady motion in these coordinates, :func:`_check_steady`), "terms" (the terms only), "frozen"
     (neither: the coefficients at the state)."""
     model = system.model
     names, qv, vv, tv, values = _state_numbers(model, q0, v0, t, params)
@@ -366,7 +367,7 @@ def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | 
                          H=((Hk + D) @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
                          dependent_speeds=[names[i] for i in dep], dependent_coordinates=[names[i] for i in dep_h])
     lin._basis = (B0, D)  # for the basis' rates of a linearization at a neighbouring state (_basis_rates)
-    if moving == "check" and (np.any(k0 != 0) or np.any(acc != 0)):
+    if moving == "check" and a0 is None and np.any(k0 != 0):  # a steady motion (a0 = 0) is claimed
         _check_steady(system, lin, k0, tol)
     return lin
 
