@@ -299,10 +299,10 @@ def _compile_constrained(system, formulation, options: dict, outputs, events, ru
     """The simulation of ``system`` in ``formulation`` with its ``options`` (those of
     :data:`FORMULATION_OPTIONS`, each given or defaulted by :func:`formulation_options`)."""
     model = system.model
-    if model.general and formulation != "index1":
+    if model.general and formulation not in ("index1", "ggl"):
         raise ModelError(f"compile_constrained: model {model.name!r} has generalized speeds (nq = {model.nq}, "
-                         f"nv = {model.nv}): its constrained form is formulation='index1' (CVODE); formulation "
-                         f"{formulation!r} does not take generalized speeds yet")
+                         f"nv = {model.nv}): its constrained forms are formulation='index1' (CVODE) and 'ggl' (IDA); "
+                         f"formulation {formulation!r} does not take generalized speeds yet")
     projection, jacobian, eliminate = options["projection"], options["jacobian"], options["eliminate"]
     baumgarte = check_baumgarte(options["baumgarte"], "baumgarte")
     check_language(lang)

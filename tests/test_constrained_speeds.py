@@ -116,17 +116,11 @@ def test_tilted_body_impact_agrees_with_euler_angles(tangent):
 
 def test_generalized_speeds_refused_where_not_supported():
     system = pinned_body("quaternion", (0.1, 0.2, 0.5))
-    for formulation in ("ggl", "minimal"):
-        with pytest.raises(ModelError, match=f"generalized speeds.*formulation {formulation!r} does not take"):
-            lcg.compile_constrained(system, formulation)
-    from lagcodegen.codegen.constrained import generate_constrained
-    with pytest.raises(ModelError, match="generalized speeds.*GGL formulation"):
-        generate_constrained(system, ggl=True)
-    with pytest.raises(ModelError, match="generalized speeds.*lang='fortran'"):
-        generate_constrained(system, lang="fortran")
-    from lagcodegen.codegen.bundle import render_constrained_bundle
-    with pytest.raises(ModelError, match="a constrained bundle: model 'pinned_quaternion' has generalized speeds"):
-        render_constrained_bundle(system)
+    with pytest.raises(ModelError, match="generalized speeds.*formulation 'minimal' does not take"):
+        lcg.compile_constrained(system, "minimal")
+    # GGL (test_ggl_with_generalized_speeds_agrees_with_index1) and Fortran
+    # (tests/codegen/test_fortran_constrained.py) take them
+    # bundles take them (tests/codegen/test_bundle_constrained.py)
 
 
 def test_integrator_and_ensemble_with_generalized_speeds():
@@ -137,8 +131,89 @@ def test_integrator_and_ensemble_with_generalized_speeds():
     it.propagate_until(1.5)
     res = sim.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-11, atol=1e-12)
     assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - res.y[-1]).max() < 1e-12
-    with pytest.raises(lcg.LagcodegenError, match="ensembles of constrained systems with generalized speeds"):
-        sim.ensemble(np.array([0.0, 1.0]), q0=[q0, q0], v0=[v0, v0])
+    # an ensemble (one native call over a thread pool) is simulate member by member, bit for bit
+    spins = [w, 2 * w, -0.5 * w]
+    V0 = np.array([np.concatenate([-np.cross(x, rb), x]) for x in spins])
+    t = np.linspace(0.0, 1.5, 4)
+    ens = sim.ensemble(t, q0=q0, v0=V0, save="trajectory", threads=2, rtol=1e-11, atol=1e-12)
+    assert ens.y.shape == (3, 13) and np.all(ens.status >= 0)
+    for i in range(3):
+        one = sim.simulate(t, q0, V0[i], rtol=1e-11, atol=1e-12)
+        assert np.array_equal(ens.member(i).y, one.y) and np.array_equal(ens.y[i], one.y[-1])
+        assert np.array_equal(ens["root_wz"][i], one["root_wz"]) and np.array_equal(ens["energy"][i], one["energy"])
+    with pytest.raises(lcg.LagcodegenError, match="v0 has shape"):
+        sim.ensemble(t, q0=q0, v0=np.zeros((3, 7)))
+
+
+def test_ggl_with_generalized_speeds_agrees_with_index1():
+    """The GGL form on IDA (q' - k(q, v) - Aq^T mu, M v' - F - A_v^T lambda, f, A_v v) of the pinned
+    quaternion body: the same motion as the index-1 run, on the constraints, mu ~ 0, |q| = 1; its
+    integrator object and ensemble are its runs; the Fortran functions run as the C ones."""
+    rb, w = np.array([0.1, 0.2, 0.5]), np.array([0.7, -1.1, 2.3])
+    system = pinned_body("quaternion", rb)
+    ggl = lcg.compile_constrained(system, "ggl")
+    ref = lcg.compile_constrained(system)
+    assert (ggl.n, ggl.nv, ggl.ny, ggl.info.ng) == (7, 6, 13, 19)
+    q0, v0 = np.concatenate([-rb, [0, 0, 0, 1]]), np.concatenate([-np.cross(w, rb), w])
+    t = np.linspace(0.0, 3.0, 31)
+    res = ggl.simulate(t, q0, v0, rtol=1e-10, atol=1e-12)
+    exact = ref.simulate(t, q0, v0, rtol=1e-12, atol=1e-13)
+    assert res.y.shape == (31, 13) and np.ptp(res.y[:, :3], axis=0).min() > 0.05
+    assert np.abs(res.y - exact.y).max() < 1e-7
+    assert np.abs(np.linalg.norm(res.y[:, 3:7], axis=1) - 1).max() < 1e-8
+    g, s = ggl.residuals(t[-1], res.y[-1])
+    assert np.abs(g).max() < 1e-12 and np.abs(s).max() < 1e-12  # GGL holds both levels
+    assert max(np.abs(res[f"mu_{k}"]).max() for k in range(3)) < 1e-6
+    assert np.ptp(res["energy"]) < 1e-7
+    it = ggl.integrator(q0=q0, v0=v0, rtol=1e-10, atol=1e-12)
+    it.propagate_until(1.5)
+    half = ggl.simulate(np.array([0.0, 1.5]), q0, v0, rtol=1e-10, atol=1e-12)
+    assert np.asarray(it.state).shape == (13,) and np.abs(np.asarray(it.state) - half.y[-1]).max() < 1e-9
+    V0 = np.array([v0, np.concatenate([-np.cross(2 * w, rb), 2 * w])])
+    ens = ggl.ensemble(t, q0=q0, v0=V0, rtol=1e-10, atol=1e-12)
+    assert np.array_equal(ens.y[0], res.y[-1])
+    fortran = lcg.compile_constrained(system, "ggl", lang="fortran")
+    assert np.abs(fortran.simulate(t, q0, v0, rtol=1e-10, atol=1e-12).y - res.y).max() < 1e-12
+
+
+def test_linearize_pinned_quaternion_body_at_rest_and_spinning():
+    """linearize of a constrained system with generalized speeds (tangent coordinates, one per
+    speed): the body on a free joint pinned at a body point above its centre of mass is the
+    pendulum on a ball joint. At rest its frequencies are those of the same pinned body on Z-Y-X
+    angles and of the body on a spherical joint; spinning at 3 rad/s about the vertical (a steady
+    motion whose coefficients in body-frame speeds stay constant) those of the spherical joint's
+    on quaternions and on Z-Y-X angles (unconstrained, their own linearization), and those of the
+    pinned body on Z-Y-X angles."""
+    rb = np.array([0.0, 0.0, 0.5])
+
+    def ball(rotation):
+        m = lcg.Model("ball_" + rotation.lower())
+        m.gravity(G0)
+        m.link("body", joint=lcg.Joint.spherical("ball", rotation=rotation), mass=1.0, com=tuple(-rb),
+               inertia=INERTIA[:3])
+        return lcg.derive(m)
+
+    def same(a, b):
+        return np.allclose(np.sort_complex(np.round(a, 9)), np.sort_complex(np.round(b, 9)), rtol=0, atol=1e-8)
+
+    q0 = np.concatenate([-rb, [0, 0, 0, 1]])
+    rest = lcg.linearize(pinned_body("quaternion", rb), q0=q0)
+    assert rest.coordinates == ["root_wx", "root_wy", "root_wz"] and rest.dependent_speeds == ["root_vx", "root_vy",
+                                                                                              "root_vz"]
+    euler = lcg.linearize(pinned_body("ZYX", rb), q0=np.concatenate([-rb, [0, 0, 0]]))
+    assert same(rest.eigenvalues, euler.eigenvalues)
+    assert same(rest.eigenvalues, lcg.linearize(ball("quaternion"), q0=[0, 0, 0, 1]).eigenvalues)
+    w = 3.0
+    spin = lcg.linearize(pinned_body("quaternion", rb), q0=q0, v0=[0, 0, 0, 0, 0, w])
+    assert np.max(np.abs(spin.multipliers - [0, 0, G0])) < 1e-12  # the pivot holds the weight (m = 1)
+    free_q = lcg.linearize(ball("quaternion"), q0=[0, 0, 0, 1], v0=[0, 0, w])
+    free_e = lcg.linearize(ball("ZYX"), q0=[0, 0, 0], v0=[w, 0, 0])
+    assert same(spin.eigenvalues, free_q.eigenvalues) and same(spin.eigenvalues, free_e.eigenvalues)
+    # on Z-Y-X angles the dependent speeds (the world-frame velocity of the body's origin) turn with the
+    # yaw along this motion: the basis' rates B0', D' enter (frozen, the frequencies were 5.03 and 3.13)
+    spin_e = lcg.linearize(pinned_body("ZYX", rb), q0=np.concatenate([-rb, [0, 0, 0]]), v0=[0, 0, 0, w, 0, 0])
+    assert same(spin_e.eigenvalues, free_e.eigenvalues)
+    assert np.ptp(np.abs(spin.eigenvalues.imag)) > 1.0 and spin.stable()
 
 
 def test_ground_contact_refusals():

@@ -385,7 +385,6 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     """
     if not isinstance(system, ConstrainedSystem):
         raise ModelError(f"render_constrained_bundle needs a ConstrainedSystem, got {type(system).__name__}")
-    require_lagrange(system.model, "a constrained bundle")
     if lang not in LANGUAGES:
         raise ModelError(f"unknown language {lang!r} (choose from {', '.join(LANGUAGES)})")
     contacts = bool(system.contacts)  # contacts: bundle_contacts adds their functions and example
@@ -428,7 +427,7 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         integrators=[], skipped_integrators=[], check=check,
         version=__version__, prefix=pre, PREFIX=pre.upper(), model_name=code.model_name, lang=lang,
         backend=be, lang_name=be.title, header=header, source=source,
-        stem=f"{pre}_dae", n=code.n, ny=2 * code.n, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
+        stem=f"{pre}_dae", n=code.n, ny=code.ny, nv=code.speeds, general=system.model.general, nj=info.J, njh=info.JH, ng=info.ng, np=code.np,
         nout=len(info.output_names), nroot=len(info.events), state_names=code.state_names,
         param_names=code.param_names, param_values=[_c_double(v) for v in _parameters(code, params)],
         output_names=info.output_names, roots=[f"{ev.name}: {ev.expr}" for ev in info.events], ggl=ggl,

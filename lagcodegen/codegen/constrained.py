@@ -46,11 +46,6 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     """
     language = backend(lang)
     model = system.model
-    if model.general and (ggl or lang != "c"):
-        raise ModelError(f"model {model.name!r} has generalized speeds (nq = {model.nq}, nv = {model.nv}): its "
-                         "constrained code is the index-1 formulation in C (formulation='index1', lang='c'); "
-                         + ("the GGL formulation (IDA) does not take it yet" if ggl else
-                            f"lang={lang!r} does not take it yet"))
     eom = derive(model)
     if eom.quadratures:
         raise ModelError("constrained systems with quadrature states are not supported")

@@ -331,6 +331,9 @@ def generate_constrained_fortran_source(cb, ctx: dict) -> str:
         ggl_jac=print_block(b["ggl_jac"], f"{prefix}_ggl_jac", ("t", "cj", "yy", "yp", "p"),
                                    ("t", "cj", "yy", "yp", "p"), renames={"y": ("yy", 0)}, scalars=("t", "cj")),
     )
+    if ctx.get("general"):  # generalized speeds: the holonomic rows in q, and q' = k(q, v, t)
+        blocks.update(conq=print_block(b["conq"], f"{prefix} holonomic rows in q", plain, plain),
+                      kin=print_block(b["kin"], f"{prefix} kinematics", plain, plain))
     libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
     text = environment().get_template("fortran/dae.f90.j2").render(
         **ctx, blk=blocks, libm=[(name, LIBM_ARITY[name]) for name in libm])

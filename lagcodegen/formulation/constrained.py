@@ -231,25 +231,28 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
     # GGL residual and Jacobian
     blocks["ggl_res"] = blocks["ggl_jac"] = Block([], [])
     if ggl:
-        qp = [se.Symbol(f"__qp{i}") for i in range(n)]
+        # with generalized speeds: nq coordinate rows q' - k(q, v, t) - Aq^T mu (Aq = df/dq), nv speed rows
+        nq, rate, Ah = (sym.nq, sym.kin, sym.Aq) if sym.general else (n, sym.v, sym.A)
+        ny = nq + n
+        qp = [se.Symbol(f"__qp{i}") for i in range(nq)]
         vp = [se.Symbol(f"__vp{i}") for i in range(n)]
         mu = [se.Symbol(f"__mu{k}") for k in range(JH)]
         # IDA's coefficient: the C argument cj, a reserved symbol until printed (a coordinate or
         # parameter named "cj" is y[i] or p[k] in the code, never this symbol)
         cj = se.Symbol(f"{RESERVED_PREFIX}cj")
         res = []
-        for i in range(n):
-            res.append(qp[i] - sym.v[i] - sum((sym.A[k][i] * mu[k] for k in range(JH)), se.Integer(0)))
+        for i in range(nq):
+            res.append(qp[i] - rate[i] - sum((Ah[k][i] * mu[k] for k in range(JH)), se.Integer(0)))
         for i in range(n):
             res.append(sum((sym.M[i][j] * vp[j] for j in range(n)), se.Integer(0)) - sym.F[i]
                        - sum((sym.A[r][i] * sym.lam[r] for r in range(J)), se.Integer(0)))
         res += list(sym.f)
         res += list(sym.s)
         gsub = dict(base)
-        gsub.update({lam: se.Symbol(f"y[{2 * n + j}]") for j, lam in enumerate(sym.lam)})
-        gsub.update({m: se.Symbol(f"y[{2 * n + J + k}]") for k, m in enumerate(mu)})
+        gsub.update({lam: se.Symbol(f"y[{ny + j}]") for j, lam in enumerate(sym.lam)})
+        gsub.update({m: se.Symbol(f"y[{ny + J + k}]") for k, m in enumerate(mu)})
         gsub.update({x: se.Symbol(f"yp[{i}]") for i, x in enumerate(qp)})
-        gsub.update({x: se.Symbol(f"yp[{n + i}]") for i, x in enumerate(vp)})
+        gsub.update({x: se.Symbol(f"yp[{nq + i}]") for i, x in enumerate(vp)})
         gsub[cj] = se.Symbol("cj")
         blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], [c(e, gsub) for e in res])
         if ggl_jacobian:
@@ -259,7 +262,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
             for col, var in enumerate(yvars):
                 for row, r in enumerate(res):
                     d = se.diff(r, var)
-                    if col < 2 * n:
+                    if col < ny:
                         d = d + cj * se.diff(r, ypvars[col])
                     if d != 0:
                         targets.append(("jac", row, col))

@@ -51,8 +51,6 @@ int lcg_dae_check(const lcg_dae_model *m, char *message, size_t size)
     else if (m->nq < 1 || m->nj < 0 || m->njh < 0 || m->njh > m->nj || m->ny < m->nq + 1
              || m->ng != m->ny + m->nj + m->njh || m->np < 0 || m->nout < 0 || m->nroot < 0)
         why = "inconsistent sizes";
-    else if (m->ggl_res != NULL && m->ny != 2 * m->nq)
-        why = "a GGL residual of a model with generalized speeds (ny != 2 nq)";
     else if (m->kkt == NULL || m->crhs == NULL || m->natural_rate == NULL || m->residuals == NULL
              || m->project == NULL || m->coutputs == NULL || (m->nroot > 0 && m->roots == NULL) || (m->ggl_jac != NULL && m->ggl_res == NULL))
         why = "missing functions";
@@ -175,11 +173,9 @@ int lcg_dae_initial_state(const lcg_dae_model *m, double t, const double *y, con
     }
     if (m->kkt(t, yy, p, 0.0, 0.0, acc, lam) != LCG_DAE_OK)
         goto done;
-    if (yp != NULL) { /* GGL: ny = 2 nq (lcg_dae_check) */
-        for (i = 0; i < nq; ++i) {
-            yp[i] = yy[nq + i];
-            yp[nq + i] = acc[i];
-        }
+    if (yp != NULL) { /* GGL: yp = (q', v') of the index-1 right-hand side (q' = v, or k(q, v, t)) */
+        if (m->crhs(t, yy, p, 0.0, 0.0, yp) != LCG_DAE_OK)
+            goto done;
         for (r = 0; r < nj; ++r)
             yy[ny + r] = lam[r];
         for (i = ny + nj; i < m->ng; ++i)

@@ -343,10 +343,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                      recording=Recording(save=save, threads=threads, progress=progress),
                                      executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
                                      options=options)
-        if self.system.model.general:
-            raise LagcodegenError(f"ensembles of constrained systems with generalized speeds (model "
-                                  f"{self.system.model.name!r}: nq = {self._n}, nv = {self.nv}) are not supported yet: "
-                                  "run the members with simulate")
         return ensemble_constrained(self, t, q0, v0, params=params,
                                     recording=Recording(save=save, threads=threads, progress=progress),
                                     executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,

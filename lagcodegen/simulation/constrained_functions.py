@@ -314,7 +314,7 @@ class ConstrainedFunctions(_Base):
                 yy, yp = np.empty(self.info.ng), np.empty(self.info.ng)
                 rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), fb(darr, yp))
                 if rc == 0:
-                    return yy[: 2 * self._n], yy, yp
+                    return yy[: self._ny], yy, yp
             else:
                 yy = np.empty(self._ny)
                 rc = fn(t0, y, self.c_params(p), mode, float(ic_tol), self._nineq, fb(darr, yy), self.ffi.NULL)
@@ -329,11 +329,18 @@ class ConstrainedFunctions(_Base):
 
     # ------------------------------------------------------------------ GGL
     def _ggl_initial(self, t0, y0, p):
-        """yy0 = (q, v, lambda, mu = 0), yp0 = (v, q'', 0, 0) from the augmented system."""
+        """yy0 = (q, v, lambda, mu = 0), yp0 = (q', v', 0, 0) from the augmented system (q' = v,
+        or q' = k(q, v, t) with generalized speeds)."""
         acc, lam = self.kkt(t0, y0, p)
         n, J, JH = self.n, self.info.J, self.info.JH
         yy0 = np.concatenate([y0, lam, np.zeros(JH)])
-        yp0 = np.concatenate([y0[n:], acc, np.zeros(J + JH)])
+        qdot = y0[n:]
+        if self.system.model.general:  # q' = k(q, v, t): the index-1 right-hand side's first nq rows
+            ydot = np.empty(self._ny)
+            self._check(self.c_crhs(float(t0), self._ptr(y0), self._ptr(p), 0.0, 0.0, self._ptr(ydot)), t0,
+                        "the coordinates' rates")
+            qdot = ydot[:n]
+        yp0 = np.concatenate([qdot, acc, np.zeros(J + JH)])
         return yy0, yp0
 
     def ggl_residual(self, t, yy, yp, params=None) -> np.ndarray:
@@ -363,7 +370,7 @@ class ConstrainedFunctions(_Base):
     def ggl_multiplier_outputs(self, yy: np.ndarray, copy: bool = True) -> dict:
         """The GGL multipliers mu_k of the velocity-level holonomic rows, as outputs (column
         views of ``yy`` with ``copy=False``)."""
-        first = 2 * self._n + self.info.J
+        first = self._ny + self.info.J
         cols = yy.T[first: first + self.info.JH]
         return dict(zip(self._mu_names, cols.copy() if copy else cols))
 

@@ -172,7 +172,9 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, reco
 
 # ---------------------------------------------------------------------- constrained systems
 def _qv(sim, q0, v0, params) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    names = [q.name for q in sim.system.model.coords]
+    model = sim.system.model
+    names = [q.name for q in model.coords]
+    speeds = [v.name for v in model.v] if model.general else names  # generalized speeds: v0 by their names
     n = len(names)
     arrs = [(None if x is None or isinstance(x, Mapping) else np.asarray(x, dtype=float), 2) for x in (q0, v0)]
     if isinstance(params, Mapping):
@@ -185,9 +187,7 @@ def _qv(sim, q0, v0, params) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     if q0 is None:
         raise LagcodegenError("q0 is required")
     Q = _matrix(q0, n_mem, n, "q0", names)
-    nv = getattr(sim, "nv", n)  # generalized speeds: v0 by the speeds' names
-    speeds = names if nv == n and not sim.system.model.general else list(sim.state_names[n:n + nv])
-    V = np.zeros((n_mem, nv)) if v0 is None else _matrix(v0, n_mem, nv, "v0", speeds)
+    V = np.zeros((n_mem, len(speeds))) if v0 is None else _matrix(v0, n_mem, len(speeds), "v0", speeds)
     return n_mem, Q, V, names
 
 
@@ -223,7 +223,7 @@ def ensemble_constrained(sim, t, q0=None, v0=None, *, params=None, recording: Re
         except LagcodegenError as exc:
             rejected[i] = f"{FLAG_TEXT[REJECTED]}: {exc}"
     valid = np.array([i for i in range(n_mem) if i not in rejected], dtype=np.int64)
-    width = 2 * sim.info.ng if ggl else 2 * sim.n
+    width = 2 * sim.info.ng if ggl else sim.ny
     Y = np.ascontiguousarray(np.array(rows).reshape(len(valid), width))
     Pv = P if P.ndim == 1 else np.ascontiguousarray(P[valid])
     part = family.run(sim.formulation, Problem(sim, rtol, atol, t, Y, Pv),

@@ -231,7 +231,7 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, roots: bool) -> Result:
     max_steps, first_step, max_step = control.max_steps, control.first_step, control.max_step
     min_step, max_order = control.min_step, control.max_order
 
-    ffi, n, ng, J = sim.ffi, sim.n, sim.info.ng, sim.info.J
+    ffi, ny, ng, J = sim.ffi, sim.ny, sim.info.ng, sim.info.J
     pp = sim.c_params(p)
     cres, cjac = sim.c_ggl_res, sim.c_ggl_jac
     state = {"model_error": 0, "t": float(t[0])}
@@ -251,8 +251,8 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, roots: bool) -> Result:
         JJ[:, :] = jbuf
 
     atol = atol.copy()
-    atol[2 * n:] = np.maximum(atol[2 * n:], ALGEBRAIC_ATOL)
-    options = dict(rtol=rtol, atol=atol, algebraic_idx=list(range(2 * n, ng)), calc_initcond="yp0",
+    atol[ny:] = np.maximum(atol[ny:], ALGEBRAIC_ATOL)
+    options = dict(rtol=rtol, atol=atol, algebraic_idx=list(range(ny, ng)), calc_initcond="yp0",
                    calc_init_dt=float(t[1] - t[0]), max_num_steps=max_steps, first_step=first_step,
                    max_step=max_step, min_step=min_step)
     if max_order:
@@ -260,12 +260,12 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, roots: bool) -> Result:
     if jacobian:
         options["jacfn"] = jacfn
     if roots:
-        options.update(_events(sim, lambda tt, y: (np.ascontiguousarray(y[: 2 * n]),
-                                                   np.ascontiguousarray(y[2 * n: 2 * n + J])), p, dae=True))
+        options.update(_events(sim, lambda tt, y: (np.ascontiguousarray(y[: ny]),
+                                                   np.ascontiguousarray(y[ny: ny + J])), p, dae=True))
     start = time.perf_counter()
     soln = _budgeted_solve(IDA(resfn, **options), t, (yy0, yp0), max_steps, options.get("eventsfn"))
     wall = time.perf_counter() - start
-    res = _constrained_result(sim, soln, t, 2 * n, p, state, wall, "bdf", "IDA", lam_slice=slice(2 * n, 2 * n + J))
+    res = _constrained_result(sim, soln, t, ny, p, state, wall, "bdf", "IDA", lam_slice=slice(ny, ny + J))
     yfull = np.asarray(soln.y, dtype=float).reshape(len(soln.t), -1)
     res.outputs.update(sim.ggl_multiplier_outputs(yfull))
     res.stats["algebraic_atol"] = ALGEBRAIC_ATOL

@@ -34,6 +34,7 @@ from ..model.model import Model
 from ..util import check_finite
 from .constraints import ConstrainedSystem
 from .linearize_constrained import linearize_constrained
+from .linearize_speeds import linearize_speeds
 from .linearization import Linearization, exact_number, values_by_name
 
 __all__ = ["Linearization", "exact_number", "linearize"]
@@ -64,62 +65,13 @@ def _jacobians(qs, vs, M, F, acc: list):
     return K, C
 
 
-def _linearize_speeds(eom: EquationsOfMotion, q0, v0, t, params, symbolic: bool) -> Linearization:
-    """Linearize equations with generalized speeds (q' = k(q, v, t) = G v + g, M v' = F) about a
-    state at rest (v0 = 0, g = 0 there) in tangent coordinates theta with dq = G(q0) dtheta: a
-    quaternion's perturbation is a rotation, never a change of its norm. Then dtheta' = dv and
-    M dv' + C dv + K dtheta = 0 with K = -(dF/dq - d(M a0)/dq) G(q0), C = -dF/dv (eq. 3.16 to
-    first order); ``coordinates`` name the tangent directions by their speeds."""
+def _linearize_speeds(eom: EquationsOfMotion, q0, v0, t, params, symbolic: bool, tol: float) -> Linearization:
+    """Equations with generalized speeds, in tangent coordinates (:mod:`.linearize_speeds`)."""
     if symbolic:
         raise ModelError("linearize: symbolic=True takes models whose speeds are their coordinates' rates; this one "
-                         "has generalized speeds (linearized numerically about a state at rest)")
-    model = eom.model
-    qnames, vnames = [s.name for s in model.coords], [s.name for s in model.v]
-    if q0 is None:
-        raise ModelError("linearize: the state q0 is required")
-    qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(qnames, values_by_name(q0, qnames, "q0",
-                                                                                       model.neutral()))])
-    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(vnames, values_by_name(v0, vnames, "v0",
-                                                                                       [0.0] * len(vnames)))])
-    if np.any(vv != 0):
-        raise ModelError("linearize: a model with generalized speeds is linearized about a state at rest (v0 = 0): "
-                         "its tangent coordinates then move with the speeds alone")
-    tv = 0.0 if t is None else check_finite(t, "t")
-    values = _parametervalues_by_name(eom, params, numeric=True)
-    psub = {se.Symbol(k): exact_number(v) for k, v in values.items()}
-    psub[se.Symbol(eom.t.name)] = exact_number(tv)
-    sub = {se.Symbol(name): se.RealDouble(x) for name, x in zip(qnames, qv)}
-    sub.update({se.Symbol(name): se.RealDouble(0.0) for name in vnames})
-
-    def num(e) -> float:
-        try:
-            x = complex(se.sympify(e).xreplace(psub).xreplace(sub).evalf())
-        except (TypeError, ValueError, RuntimeError) as exc:
-            raise ModelError(f"linearize: cannot evaluate an entry at the state ({exc})") from None
-        if not np.isfinite(x.real) or abs(x.imag) > 1e-12 * max(1.0, abs(x.real)):
-            raise ModelError("linearize: an entry is not finite and real at the state")
-        return x.real
-
-    nv = len(vnames)
-    v = [se.Symbol(name) for name in vnames]
-    G = np.array([[num(se.diff(k, v[j])) for j in range(nv)] for k in eom.qdot_se])
-    g = np.array([num(k) for k in eom.qdot_se])
-    if np.any(np.abs(g) > 1e-12):
-        raise ModelError("linearize: the coordinates move at v = 0 (q' = G v + g with g != 0): not a state at rest")
-    Mp = [[se.sympify(e).xreplace(psub) for e in row] for row in eom.M_se]
-    Fp = [se.sympify(e).xreplace(psub) for e in eom.F_se]
-    M = np.array([[num(e) for e in row] for row in Mp])
-    try:
-        a0 = np.linalg.solve(M, np.array([num(f) for f in Fp]))
-    except np.linalg.LinAlgError:
-        raise ModelError("linearize: the mass matrix is singular at this state") from None
-    acc = [se.RealDouble(float(x)) for x in a0]
-    r = [Fp[i] - se.Add(*(Mp[i][k] * acc[k] for k in range(nv))) for i in range(nv)]
-    q = [se.Symbol(name) for name in qnames]
-    Kq = np.array([[-num(se.diff(r[i], qj)) for qj in q] for i in range(nv)])
-    C = np.array([[-num(se.diff(r[i], vj)) for vj in v] for i in range(nv)])
-    return Linearization(coordinates=vnames, M=M, C=C, K=Kq @ G, q0=qv, v0=vv, a0=a0, t=tv, params=values,
-                         symbolic=False)
+                         "has generalized speeds (linearized numerically, in tangent coordinates)")
+    return linearize_speeds(eom, q0=q0, v0=v0, t=t, values=_parametervalues_by_name(eom, params, numeric=True),
+                            tol=tol)
 
 
 def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: float | None = None,
@@ -153,7 +105,20 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
         Constrained systems: the accelerations of the steady motion (default 0).
     tol:
         Constrained systems: relative tolerance of the checks that the state satisfies the
-        constraints and is a steady motion.
+        constraints and is a steady motion. Generalized speeds, about a moving state: the
+        relative change of the linearized equations along the motion above which the state
+        is refused as not steady.
+
+    Generalized speeds
+    ------------------
+    Equations with q' = G(q, t) v + g(q, t) (quaternion joints, Kane's form) are linearized in
+    tangent coordinates theta (dq = G(q0) theta, one per speed, named by the speeds): a
+    quaternion is perturbed by rotations. About a moving state (v0 != 0) the tangent
+    coordinates move with it and theta' = H theta + dv carries the kinematics' variation
+    (H theta = theta x w0 for a body-frame angular velocity w0); the result then has ``H`` and
+    ``G`` = I and ``A`` = [[H, I], [-M^-1 K, -M^-1 C]]. The coefficients are frozen at the
+    state, so a moving state along which they change is refused by name (see
+    :mod:`lagcodegen.theory.linearize_speeds`).
 
     Constrained systems
     -------------------
@@ -177,8 +142,12 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
 
     The result's ``coordinates`` are the independent coordinates, ``speeds`` the
     independent speeds, ``M``, ``C``, ``K`` = M_r, C_r, K_r, and ``A`` = [[H, G], [-M_r^-1 K_r,
-    -M_r^-1 C_r]]. The coefficients are frozen at (q0, v0): exact where they do not depend on
-    the coordinates that move along the steady motion (ignorable ones, eq. 3.8).
+    -M_r^-1 C_r]]. About a moving state B0 and D may turn along the motion (dependent speeds in a
+    frame that turns against the independent ones): their rates B0', D' (central differences
+    along the motion) add M B0' to C_r's bracket and M D' to K_r's. The coefficients are then
+    taken at (q0, v0); with ``a0`` not given (a steady motion), a state along which the reduced
+    first-order matrix changes by more than ``tol`` relative is refused as not steady in these
+    coordinates (give ``a0`` for an instantaneous linearization).
     """
     if isinstance(eom, ConstrainedSystem):
         if symbolic:
@@ -196,7 +165,11 @@ def linearize(eom: EquationsOfMotion | ConstrainedSystem, q0=None, v0=None, t: f
         raise ModelError("linearize needs EquationsOfMotion (lagcodegen.derive), a Model or a ConstrainedSystem, "
                          f"got {type(eom).__name__}")
     if eom.general:
-        return _linearize_speeds(eom, q0, v0, t, params, symbolic)
+        if independent is not None or a0 is not None:
+            raise ModelError("linearize: independent and a0 are for constrained systems (a ConstrainedSystem)")
+        if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+            raise ModelError(f"linearize: tol must be a number in (0, 1), got {tol!r}")
+        return _linearize_speeds(eom, q0, v0, t, params, symbolic, float(tol))
     if independent is not None or a0 is not None:
         raise ModelError("linearize: independent and a0 are for constrained systems (a ConstrainedSystem)")
     names = [s.name for s in eom.q]

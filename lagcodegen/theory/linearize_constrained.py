@@ -33,11 +33,13 @@ __all__ = ["linearize_constrained"]
 def _state_numbers(model, q0, v0, t, params: Mapping[str, float] | None):
     """(names, q, v, t, parameter values by name) of a state, checked."""
     names = [s.name for s in model.coords]
+    speeds = [s.name for s in model.v] if model.general else names
     n = len(names)
     if q0 is None:
         raise ModelError("linearize: the state q0 is required")
     qv = np.array([check_finite(x, f"q0[{k}]") for k, x in zip(names, values_by_name(q0, names, "q0", [0.0] * n))])
-    vv = np.array([check_finite(x, f"v0[{k}]") for k, x in zip(names, values_by_name(v0, names, "v0", [0.0] * n))])
+    vv = np.array([check_finite(x, f"v0[{k}]")
+                   for k, x in zip(speeds, values_by_name(v0, speeds, "v0", [0.0] * len(speeds)))])
     tv = 0.0 if t is None else check_finite(t, "t")
     known = {s.name: float(v) for s, v in model.params.items()}
     for k in params or {}:
@@ -126,6 +128,63 @@ def _constrained_numbers(system: ConstrainedSystem) -> _ConstrainedNumbers:
     return kept
 
 
+class _SpeedsConstrainedNumbers:
+    """The numbers of a constrained system whose model has generalized speeds (q' = k(q, v, t) =
+    G v + g), in tangent coordinates theta (dq = G theta, one per speed): the rows in v,
+    s = A k + A0 = A_v v + A0_v, and every q-derivative multiplied by G, under the keys of
+    :class:`_ConstrainedNumbers` (n = nv), plus ``H``, the kinematics' variation along the motion
+    (:mod:`.linearize_speeds`). Compiled per parameter values (they are substituted exactly)."""
+
+    def __init__(self, system: ConstrainedSystem, values: Mapping[str, float]):
+        from .linearize_speeds import _Numbers
+        model, eom = system.model, system.derived()
+        psub = {se.Symbol(k): exact_number(x) for k, x in values.items()}
+        self.num = _Numbers(eom, psub)
+        q = [se.Symbol(x.name) for x in model.coords]
+        v = [se.Symbol(x.name) for x in model.v]
+        t = se.Symbol(model.t.name)
+        k = [se.sympify(e).xreplace(psub) for e in eom.qdot_se]
+        rows = system.rows()
+        s = [se.Add(*(to_se(a, f"constraint {r.index}").xreplace(psub) * ki for a, ki in zip(r.A, k)),
+                    to_se(r.A0, f"constraint {r.index}").xreplace(psub)) for r in rows]
+        Av = [se.diff(e, w) for e in s for w in v]
+        parts = {"s": s, "Av": Av, "dsdq": [se.diff(e, x) for e in s for x in q],
+                 "dAvdq": [se.diff(e, x) for e in Av for x in q],
+                 "f": [to_se(e, f"holonomic constraint {j}").xreplace(psub) for j, e in enumerate(system.holonomic)],
+                 "gamma": [-se.Add(se.diff(e, t), *(se.diff(e, x) * ki for x, ki in zip(q, k))) for e in s]}
+        J, nq, nv = len(rows), len(q), len(v)
+        self.shapes = {"s": (J,), "Av": (J, nv), "dsdq": (J, nq), "dAvdq": (J, nv, nq), "f": (len(parts["f"]),),
+                       "gamma": (J,)}
+        self.slices, exprs = {}, []
+        for key, items in parts.items():
+            self.slices[key] = slice(len(exprs), len(exprs) + len(items))
+            exprs += items
+        stray = set().union(*(e.free_symbols for e in exprs)) - set(q + v + [t])
+        if stray:
+            raise ModelError(f"linearize: the constraints depend on {', '.join(sorted(map(str, stray)))}, which has "
+                             "no value (not a coordinate, speed, time or parameter)")
+        self.fn = se.Lambdify(q + v + [t], exprs, real=True, cse=True)
+
+    def __call__(self, q: np.ndarray, v: np.ndarray, t: float, where: str) -> dict:
+        from .linearize_speeds import _coefficients
+        with np.errstate(all="ignore"):
+            out = np.asarray(self.fn(np.concatenate([q, v, [t]])), dtype=float).ravel()
+        c = {key: out[sl].reshape(self.shapes[key]) for key, sl in self.slices.items()}
+        x = self.num(q, v, t)
+        bad = [key for key, y in {**c, **x}.items() if not np.all(np.isfinite(y))]
+        if bad:
+            raise ModelError(f"linearize: {', '.join(bad)} not finite and real at the state ({where})")
+        G = x["G"]
+        H, miss = _coefficients(self.num, q, v, t)[3::2]
+        if miss > 1e-9:
+            raise ModelError(f"linearize: the kinematics' variation along the motion is not a combination of the "
+                             f"speeds' directions (misses by {miss:.2g} relative) at this state")
+        A = c["Av"]
+        return {"M": x["M"], "F": x["F"], "A": A, "A0": c["s"] - A @ v, "f": c["f"], "gamma": c["gamma"],
+                "dFdq": x["dFdq"] @ G, "dFdv": x["dFdv"], "dMdq": np.einsum("ijl,lk->ijk", x["dMdq"], G),
+                "dAdq": np.einsum("jil,lk->jik", c["dAvdq"], G), "S": c["dsdq"] @ G, "H": H, "k": x["k"]}
+
+
 def _nonsingular(B: np.ndarray, scale: float) -> bool:
     if B.size == 0:
         return True
@@ -211,15 +270,37 @@ def _dependent(A: np.ndarray, JH: int, names: list[str], independent) -> tuple[l
 
 def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | None = None,
                           params: Mapping[str, float] | None = None, independent: Sequence[str] | None = None,
-                          a0=None, tol: float = 1e-8) -> Linearization:
+                          a0=None, tol: float = 1e-8, moving: str = "check") -> Linearization:
     """Linearize a constrained system about a steady motion, reduced to independent coordinates and
     speeds: the "Constrained systems" part of :func:`lagcodegen.theory.linearize.linearize`, which
-    is the entry point (it checks the arguments and handles J = 0); see there for the formulas."""
+    is the entry point (it checks the arguments and handles J = 0); see there for the formulas.
+
+    With generalized speeds (a model whose speeds are not its coordinates' rates) the coordinates
+    are tangent ones, theta' = H theta + dv (:mod:`.linearize_speeds`); H = 0 otherwise. About a
+    moving state the basis B0 and D change along the motion (e.g. dependent speeds in a frame the
+    independent ones turn against), and dv' = B0 du' + B0' du + D dq' + D' dq, so
+
+        C_r = B0^T (M (D B0 + B0') + C B0),  K_r = B0^T (M (D (H + D) + D') + C D + K) P,
+
+    B0', D' by central differences along the motion (q0 -+ h k0, v0 -+ h a0, the same independent
+    speeds and coordinates); the independent coordinates move by ((H + D) P)_I. ``moving``:
+    "check" (those terms, and, unless ``a0`` is given for an instantaneous linearization, a state
+    along which the reduced first-order matrix changes by more than ``tol`` relative refused as no
+    steady motion in these coordinates, :func:`_check_steady`), "terms" (the terms only), "frozen"
+    (neither: the coefficients at the state)."""
     model = system.model
     names, qv, vv, tv, values = _state_numbers(model, q0, v0, t, params)
     n, J, JH = system.n, system.J, system.n_holonomic
     where = ", ".join(f"{k}={x:g}" for k, x in zip(names, qv))
-    x = _constrained_numbers(system)(qv, vv, tv, values, where)
+    if model.general:  # tangent coordinates, one per speed; theta' = H theta + dv (.linearize_speeds)
+        names, n = [s.name for s in model.v], model.nv
+        key = tuple(sorted(values.items()))
+        kept = system.__dict__.get("_linearize_speeds_compiled")
+        if kept is None or kept[0] != key:  # compiled per parameter values (substituted exactly)
+            kept = system.__dict__["_linearize_speeds_compiled"] = (key, _SpeedsConstrainedNumbers(system, values))
+        x = kept[1](qv, vv, tv, where)
+    else:
+        x = _constrained_numbers(system)(qv, vv, tv, values, where)
     M, F, A = x["M"], x["F"], x["A"]
 
     # the state must satisfy the constraints (eqs. 4.1-4.3)
@@ -257,7 +338,8 @@ def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | 
     # first-order terms: K = -(dF/dq - d(M a0)/dq + d(A^T lambda0)/dq), C = -dF/dq', S = d(A v0 + A0)/dq
     K = -(x["dFdq"] - np.einsum("ikj,k->ij", x["dMdq"], acc) + np.einsum("lij,l->ij", x["dAdq"], lam0))
     C = -x["dFdv"]
-    S = np.einsum("jik,i->jk", x["dAdq"], vv) + x["dA0dq"]
+    S = x["S"] if model.general else np.einsum("jik,i->jk", x["dAdq"], vv) + x["dA0dq"]
+    Hk = x["H"] if model.general else np.zeros((n, n))  # dq' = H dq + dv (0 unless generalized speeds)
 
     # independent speeds u and coordinates; dv = B0 du + D dq, dq = P dq_I
     dep, dep_h = _dependent(A, JH, names, independent)
@@ -272,13 +354,73 @@ def linearize_constrained(system: ConstrainedSystem, *, q0, v0=None, t: float | 
     P[indq, :] = np.eye(len(indq))
     if JH:
         P[dep_h, :] = -np.linalg.solve(A[:JH][:, dep_h], A[:JH][:, indq])
+    k0 = x["k"] if model.general else vv  # q' along the motion
+    dB0, dD = np.zeros_like(B0), np.zeros_like(D)
+    if moving != "frozen" and (np.any(k0 != 0) or np.any(acc != 0)):
+        dB0, dD = _basis_rates(system, (qv, vv, tv, acc, k0), values, [names[i] for i in ind],
+                               _time_step(M, C, K, B0, P, Hk, D))
     Mr = B0.T @ M @ B0
-    Cr = B0.T @ (M @ D @ B0 + C @ B0)
-    Kr = B0.T @ (M @ D @ D + C @ D + K) @ P
-    return Linearization(coordinates=[names[i] for i in indq], M=Mr, C=Cr, K=Kr, q0=qv, v0=vv, a0=acc, t=tv,
+    Cr = B0.T @ (M @ (D @ B0 + dB0) + C @ B0)
+    Kr = B0.T @ (M @ (D @ (Hk + D) + dD) + C @ D + K) @ P
+    lin = Linearization(coordinates=[names[i] for i in indq], M=Mr, C=Cr, K=Kr, q0=qv, v0=vv, a0=acc, t=tv,
                          params=values, symbolic=False, speeds=[names[i] for i in ind], G=B0[indq, :],
-                         H=(D @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
+                         H=((Hk + D) @ P)[indq, :], multipliers=lam0, residual=max(res_dyn, res_acc),
                          dependent_speeds=[names[i] for i in dep], dependent_coordinates=[names[i] for i in dep_h])
+    lin._basis = (B0, D)  # for the basis' rates of a linearization at a neighbouring state (_basis_rates)
+    if moving == "check" and a0 is None and np.any(k0 != 0):  # a steady motion (a0 = 0) is claimed
+        _check_steady(system, lin, k0, tol)
+    return lin
+
+
+def _time_step(M, C, K, B0, P, H, D) -> float:
+    """A time step of the central differences along the motion: STEADY_STEP over the largest rate
+    of the frozen reduced equations."""
+    from .linearize_speeds import STEADY_STEP
+    Mr = B0.T @ M @ B0
+    try:
+        rates = [np.linalg.solve(Mr, B0.T @ (C @ B0)), np.linalg.solve(Mr, B0.T @ (C @ D + K) @ P)]
+    except np.linalg.LinAlgError:
+        raise ModelError("linearize: the reduced mass matrix B0^T M B0 is singular at this state") from None
+    scale = max([float(np.max(np.abs(r), initial=0.0)) for r in rates] + [float(np.max(np.abs(H), initial=0.0)),
+                                                                           float(np.max(np.abs(D), initial=0.0)), 1e-300])
+    return STEADY_STEP / scale
+
+
+def _basis_rates(system: ConstrainedSystem, state: tuple, values: dict, speeds: list, h: float) -> tuple:
+    """(B0', D') along the motion through ``state`` = (q0, v0, t, a0, k0) by central differences
+    over +-h, with the independent speeds ``speeds`` kept."""
+    q, v, t, acc, k0 = state
+    seen = []
+    for step in (h, -h):
+        other = linearize_constrained(system, q0=q + step * k0, v0=v + step * acc, t=t + step, params=values,
+                                      independent=speeds, a0=acc, tol=math.inf, moving="frozen")
+        seen.append(other._basis)
+    return (seen[0][0] - seen[1][0]) / (2 * h), (seen[0][1] - seen[1][1]) / (2 * h)
+
+
+def _check_steady(system: ConstrainedSystem, lin: Linearization, k0: np.ndarray, tol: float) -> None:
+    """ModelError unless the reduced first-order matrix of ``lin`` stays the same (to ``tol``
+    relative) at the states the motion reaches a short time h = STEADY_STEP / max|A| before and
+    after: (q0 -+ h k0, v0 -+ h a0), the same independent speeds and coordinates, the constraints'
+    checks off there (the states leave them at O(h^2), which the central difference cancels)."""
+    from .linearize_speeds import STEADY_STEP
+    A = lin.A
+    scale = float(np.max(np.abs(A), initial=0.0))
+    if scale == 0.0:
+        return
+    h = STEADY_STEP / scale
+    seen = []
+    for step in (h, -h):
+        other = linearize_constrained(system, q0=lin.q0 + step * k0, v0=lin.v0 + step * lin.a0, t=lin.t + step,
+                                      params=lin.params, independent=lin.speeds, a0=lin.a0, tol=math.inf,
+                                      moving="terms")
+        seen.append(other.A)
+    change = float(np.max(np.abs(seen[0] - seen[1]))) / scale
+    if change > tol:
+        raise ModelError(f"linearize: the linearized equations change along this motion (their reduced first-order "
+                         f"matrix by {change:.2g} relative over a time {2 * h:.3g}, tol {tol:g}): the state is not a "
+                         "steady motion in these speeds, and coefficients frozen at one instant would not give its "
+                         "stability")
 
 
 def _constrained_accelerations(M: np.ndarray, F: np.ndarray, A: np.ndarray, gamma: np.ndarray) -> np.ndarray:

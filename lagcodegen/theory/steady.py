@@ -101,6 +101,14 @@ def _resolve(system) -> tuple[EquationsOfMotion, RouthReduction | None]:
     if isinstance(system, RouthReduction):
         return system.eom, system
     eom = derive(system) if isinstance(system, Model) else system
+    if getattr(eom, "general", False):
+        model = eom.model
+        raise ModelError(f"steady_motions: model {model.name!r} has generalized speeds (nq = {model.nq}, nv = "
+                         f"{model.nv}; quaternion joints or Model.generalized_speeds), whose steady motions are not "
+                         "searched: a quaternion's equilibria and spins come in families (every rotation about the "
+                         "vertical, every rate of a spin). Give one to linearize(eom, q0=..., v0=...), which "
+                         "checks that it is steady in these speeds and linearizes it in tangent coordinates, or "
+                         "search on Euler angles (rotation='ZYX'), where Routh's reduction applies")
     require_lagrange(eom, "steady_motions")
     if not isinstance(eom, EquationsOfMotion):
         raise ModelError("steady_motions needs a RouthReduction, EquationsOfMotion or Model, "

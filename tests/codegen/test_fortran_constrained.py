@@ -191,6 +191,72 @@ def test_minimal_coordinates_in_fortran_equal_c():
     assert runs[0].stats["steps"] == runs[1].stats["steps"]
 
 
+def skating_body():
+    """A body on a free joint (quaternion) whose body point (0.3, 0, 0) has its world x velocity
+    held at zero: one row in q' given as nonholonomic and no holonomic one (JH = 0)."""
+    m = lcg.Model("fskate")
+    m.link("b", joint=lcg.Joint.free("root"), mass=1.0, inertia=(0.1, 0.2, 0.3, 0, 0, 0))
+    m.gravity(9.81)
+    x = m.point_on("b", (0.3, 0, 0), "tip").position[0]
+    return ConstrainedSystem(m, nonholonomic=[[sp.diff(x, q) for q in m.coords]], check_integrability=False)
+
+
+def pinned_quaternion_body():
+    """A body on a free joint whose body point (0.1, 0.2, 0.5) is held at the origin (JH = 3)."""
+    m = lcg.Model("fpinned")
+    m.link("body", joint=lcg.Joint.free("root"), mass=1.0, inertia=(0.1, 0.2, 0.3, 0, 0, 0))
+    m.gravity(9.81)
+    return ConstrainedSystem(m, holonomic=list(m.point_on("body", (0.1, 0.2, 0.5), "pivot").position))
+
+
+@pytest.mark.parametrize("make", [pinned_quaternion_body, skating_body])
+def test_generalized_speeds_in_fortran_compile_strictly_and_run_as_c(tmp_path, fc, make):  # noqa: F811
+    """Constrained systems with generalized speeds (q' = k(q, v), the quaternion renormalized in
+    the projection) in Fortran: strict gfortran, the C headers byte for byte, and the same run as
+    the C functions' (index 1 on CVODE, an event on a multiplier, the outputs), and the same
+    projection from a state off the constraints."""
+    cs = make()
+    events = lam_event(cs) if cs.n_holonomic else []
+    code, info = generate_constrained_fortran(cs, events=events, outputs=OUTPUTS)
+    c_code, _ = generate_constrained_c(cs, events=events, outputs=OUTPUTS)
+    pre = info.prefix
+    assert code.files[f"{pre}_dae.h"] == c_code.files[f"{pre}_dae.h"] and code.dae == c_code.dae
+    code.write(tmp_path)
+    for opt in ("-O0", "-O2"):
+        proc = subprocess.run([fc, opt, *STRICT_FFLAGS, "-c", f"{pre}.f90", f"{pre}_dae.f90"], cwd=tmp_path,
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, f"{opt}:\n{proc.stderr}"
+    assert max(map(len, code.files[f"{pre}_dae.f90"].splitlines())) <= 132
+    sims = [compile_constrained(cs, lang=lang, outputs=OUTPUTS, events=events) for lang in ("c", "fortran")]
+    assert sims[1].ny == sims[0].ny == 13
+    w = np.array([0.7, -1.1, 2.3])
+    if cs.n_holonomic:
+        q0, v0 = np.array([-0.1, -0.2, -0.5, 0, 0, 0, 1]), np.concatenate([-np.cross(w, [0.1, 0.2, 0.5]), w])
+    else:
+        q0, v0 = np.array([0, 0, 1.0, 0, 0, 0, 1]), np.concatenate([[0, 0.4, 2.0], w])
+        v0[0] = -np.cross(w, [0.3, 0, 0])[0]  # the tip's x velocity zero (R = I)
+    t = np.linspace(0.0, 2.0, 21)
+    runs = [sim.simulate(t, q0, v0, rtol=1e-10, atol=1e-12) for sim in sims]
+    assert np.ptp(runs[0].y[:, 3:7], axis=0).max() > 0.1  # it turns
+    same(runs[0].y, runs[1].y, "states along the run")
+    for key in runs[0].outputs:
+        same(runs[0].outputs[key], runs[1].outputs[key], f"output {key} along the run")
+    assert runs[0].stats["steps"] == runs[1].stats["steps"]
+    assert [(e.name, e.t) for e in runs[0].events] == [(e.name, e.t) for e in runs[1].events]
+    rng = np.random.default_rng(3)
+    for _ in range(5):  # the functions at states off the constraints
+        y = np.concatenate([q0 + rng.normal(scale=0.1, size=7), rng.normal(size=6)])
+        same(crhs(sims[0], 0.3, y, 1.0, 2.0), crhs(sims[1], 0.3, y, 1.0, 2.0), "crhs")
+        same(sims[0].natural_rate(0.3, y), sims[1].natural_rate(0.3, y), "natural_rate")
+        same(sims[0].outputs(0.3, y), sims[1].outputs(0.3, y), "outputs")
+    g, s = sims[1].residuals(t[-1], runs[1].y[-1])
+    assert np.abs(g).max(initial=0.0) < 1e-9 and np.abs(s).max() < 1e-9
+    y = np.concatenate([q0 + 1e-3, v0 + 0.1])
+    yp = [sim.project(0.0, y) for sim in sims]
+    np.testing.assert_allclose(yp[1], yp[0], rtol=1e-14, atol=1e-15)
+    assert abs(np.linalg.norm(yp[1][3:7]) - 1) < 1e-14
+
+
 def test_language_option_errors():
     cs = cartesian_pendulum("flang")
     with pytest.raises(ModelError, match="cobol"):

@@ -248,3 +248,20 @@ def test_a_zero_parameter_on_a_pole_is_evaluated_exactly():
     assert lin.frequencies == pytest.approx([math.sqrt(9.5 / 0.8)], rel=1e-12)
     with pytest.raises(ModelError, match="not finite and real at the state"):
         linearize(cs, [0.0, -0.8], [0.0, 0.0], params={"k": 1.0})
+
+
+def test_a_motion_along_which_the_reduced_equations_change_is_refused():
+    """A particle gliding at unit speed along x, held at z = 0, in the valley V = (1 + x^2) y^2 / 2:
+    a0 = 0 there, but the stiffness across the valley (1 + x^2) changes as x moves, so frozen
+    coefficients are not the motion's linearization and the state is refused as not steady; given
+    a0, the instantaneous linearization has w^2 = 1 + x0^2 across the valley."""
+    m = lcg.Model("valley")
+    x, y, z = m.coordinates("x y z")
+    m.particle("p", 1.0, (x, y, z))
+    m.potential_energy((1 + x**2) * y**2 / 2)
+    system = ConstrainedSystem(m, holonomic=[z])
+    with pytest.raises(ModelError, match="change along this motion"):
+        linearize(system, [0.5, 0.0, 0.0], [1.0, 0.0, 0.0])
+    lin = linearize(system, [0.5, 0.0, 0.0], [1.0, 0.0, 0.0], a0=[0.0, 0.0, 0.0])
+    assert lin.coordinates == ["x", "y"] and np.allclose(lin.K, np.diag([0.0, 1.25]), atol=1e-12)
+    assert np.allclose(linearize(system, [0.5, 0.0, 0.0], [0.0, 0.0, 0.0]).K, np.diag([0.0, 1.25]), atol=1e-12)

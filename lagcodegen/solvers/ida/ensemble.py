@@ -22,7 +22,7 @@ def ensemble_ggl(sim, t, Y, P, control: StepControl, form: GGLForm, recording: R
     row_names = list(sim.state_names) + [f"_lambda_{j}" for j in range(J)] + [f"mu_{k}" for k in range(JH)]
     layout = Layout(nrow=ng, nout=len(sim.info.output_names), state_names=sim.state_names,
                     output_names=sim.output_names, row_names=row_names, param_names=sim.param_names,
-                    extra_outputs={f"mu_{k}": 2 * n + J + k for k in range(JH)}, method="bdf",
+                    extra_outputs={f"mu_{k}": sim.ny + J + k for k in range(JH)}, method="bdf",
                     formulation=sim.formulation, n_coordinates=n)
     arrays = RunArrays(t, np.ascontiguousarray(Y[:, :ng]), P, np.ascontiguousarray(Y[:, ng:]))
     return run_native(sim.ffi, sim.ida_solve_many, sim.ida_ensemble_type, opt, arrays, layout,

@@ -41,7 +41,7 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, form: GGLForm, recordin
     events (at most ``recording.max_events`` kept)."""
     c, roots, suppress_alg = control, recording.roots, form.suppress_alg
     ffi = sim.ffi
-    ng, nt, n = sim.info.ng, t.size, sim.n
+    ng, nt = sim.info.ng, t.size
     yout = np.empty((nt, ng))  # rows past st.nt_done are cut off below
     out = np.empty((nt, sim.n_out_columns))
     opt = sim.ida_options.get(c.atol, *option_values(IDA_STRUCT, _IDA_VARYING, c, form, recording))
@@ -57,11 +57,11 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, form: GGLForm, recordin
         wall = time.perf_counter() - start
         if flag == CANCELLED:
             raise_pending()
-        recs = events.records(sim.state_names, 2 * n) if events else []
+        recs = events.records(sim.state_names, sim.ny) if events else []
         tt, yy, oo = reached_rows(t, yout, out, st.nt_done)
         if events and events.terminated and recs:
             row = events.y[events.count - 1]
-            tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, row, p, lam=row[2 * n: 2 * n + sim.info.J])
+            tt, yy, oo = append_event_row(sim, tt, yy, oo, recs[-1].t, row, p, lam=row[sim.ny: sim.ny + sim.info.J])
     finally:
         if events:
             sim.release_events(events)
@@ -75,5 +75,5 @@ def solve_ggl(sim, t, yy0, yp0, p, control: StepControl, form: GGLForm, recordin
     pool.append(st)
     outputs = dict(zip(sim.info.output_names, oo.T))  # column views
     outputs.update(sim.ggl_multiplier_outputs(yy, copy=False))
-    return Result(t=tt, y=yy[:, : 2 * n], state_names=sim.state_names, outputs=outputs, stats=stats,
+    return Result(t=tt, y=yy[:, : sim.ny], state_names=sim.state_names, outputs=outputs, stats=stats,
                   status=int(flag), backend="native", method="bdf", message=text, events=recs)

@@ -67,14 +67,14 @@ class IDA(Family):
         """(rtol, atol of every unknown q, v, lambda, mu): lambda, mu get ``alg_atol`` unless
         ``atol`` gives them; the array of a scalar ``atol`` is kept (read-only) on ``sim`` for the
         next call with the same value."""
-        n, ng = sim.n, sim.info.ng
+        ng = sim.info.ng
         cached = sim.ggl_atol_cache
         if (type(atol) is float and self.alg_atol is None and type(rtol) is float and 0 < rtol < math.inf
                 and cached[0] == _DOUBLE(atol)):
             return rtol, cached[1]  # what tolerances() gave for this atol last time
-        rtol, atol_arr = tolerances(rtol, atol, ng, 2 * n)
+        rtol, atol_arr = tolerances(rtol, atol, ng, sim.ny)
         if np.asarray(atol).size != ng:  # lambda, mu: see ALGEBRAIC_ATOL
-            atol_arr[2 * n:] = ALGEBRAIC_ATOL if self.alg_atol is None else check_finite(self.alg_atol, "alg_atol")
+            atol_arr[sim.ny:] = ALGEBRAIC_ATOL if self.alg_atol is None else check_finite(self.alg_atol, "alg_atol")
             if type(atol) is float and self.alg_atol is None:  # kept (read-only) for the next call
                 atol_arr.flags.writeable = False
                 sim.ggl_atol_cache = (_DOUBLE(atol), atol_arr)

@@ -97,7 +97,7 @@ class IDAStepper(NativeStepper):
         del atol_keep  # copied by the stepper
         self._bind(handle, msg, "IDA integrator")
         self._unknowns = np.frombuffer(ffi.buffer(lib.lcg_ida_stepper_unknowns(handle), 8 * ng), dtype=float)
-        self.n_state = 2 * sim.n
+        self.n_state = sim.ny
 
     def _release(self) -> None:
         self._unknowns = None  # a view of the C stepper's memory
