@@ -88,10 +88,6 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if ggl:
             raise ModelError("inequality constraints with a restitution (contacts) run on the index-1 "
                              "formulation (formulation='index1'), not GGL")
-        if model.general and system.has_friction:
-            raise ModelError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) of model {model.name!r} "
-                             "with generalized speeds is not supported yet: the friction driver takes models whose "
-                             "speeds are their coordinates' rates (frictionless or no-slip tangent= contacts are)")
         files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)

@@ -50,10 +50,10 @@ int CVodeGetDky(void *cvode_mem, sunrealtype t, int k, N_Vector dky);
 typedef struct {
     const lcg_imp_friction *tab;
     const double *mu; /* nk: Coulomb coefficient, < 0: none (a tangent without friction sticks) */
-    int n, nrow;
+    int n, nq, nrow; /* n: the speeds v (y = (q, v), q' = qd = k(q, v, t)); nq: the coordinates */
     int *trow;        /* nk: the tangential row of contact k, or -1 */
     int *fmode;       /* nk: 0 stick, +1 / -1 slipping with u > 0 / u < 0 */
-    double *M, *F, *R, *s, *h, *gam, *b, *K, *rhs, *x, *lam, *bestx, *bestlam, *u, *wm, *eff;
+    double *M, *F, *R, *s, *h, *gam, *qd, *b, *K, *rhs, *x, *lam, *bestx, *bestlam, *u, *wm, *eff;
     int *piv, *sel, *opts, *nopt, *tact, *tmode, *bact, *bmode, *part, *plastic, *ending;
     double det, det0; /* the determinant of the current mode's contact problem, and at its start */
 } fric_data;
@@ -231,7 +231,7 @@ static int coulomb(const fric_data *f, int k)
 static int fr_eval(imp_data *d, double t, const double *y)
 {
     fric_data *f = d->fr;
-    return f->tab->eval(t, y, d->p, f->M, f->F, f->R, f->s, f->h, f->gam);
+    return f->tab->eval(t, y, d->p, f->M, f->F, f->R, f->s, f->h, f->gam, f->qd);
 }
 
 /* b: the right-hand sides of the rows. accel: Baumgarte-stabilized accelerations (as the
@@ -410,10 +410,10 @@ static int fr_crhs(imp_data *d, double t, const double *y, double *ydot, double 
     rc = fr_solve(d, d->active, f->fmode, 1);
     if (rc != LCG_DAE_OK)
         return rc;
-    for (i = 0; i < n; ++i) {
-        ydot[i] = y[n + i];
-        ydot[n + i] = f->x[i];
-    }
+    for (i = 0; i < f->nq; ++i)
+        ydot[i] = f->qd[i];
+    for (i = 0; i < n; ++i)
+        ydot[f->nq + i] = f->x[i];
     if (lam != NULL)
         for (i = 0; i < f->nrow; ++i)
             lam[i] = f->lam[i];
@@ -609,7 +609,7 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         if (rc != LCG_DAE_OK)
             return rc;
         for (i = 0; i < n; ++i)
-            y[n + i] += f->x[i];
+            y[f->nq + i] += f->x[i];
     }
     rc = fr_crhs(d, t, y, d->gk + 2 * nk, d->lam);
     if (rc != LCG_DAE_OK)
@@ -704,7 +704,7 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
         return -1;
     }
     for (i = 0; i < n; ++i)
-        y[n + i] += f->bestx[i];
+        y[f->nq + i] += f->bestx[i];
     for (k = 0; k < nk; ++k) {
         double wp, up;
         if (!f->part[k])
@@ -748,14 +748,14 @@ static int crhs(imp_data *d, double t, const double *y, double *ydot, double *la
 static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_model *im, const double *mu, void **mem,
                     lcg_cvc_stats *st)
 {
-    int n = im->nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
-    size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + dim * dim + dim + n + nrow + n + nrow + 3 * nk);
+    int nq = im->nq, n = im->dae->ny - nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
+    size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + nq + dim * dim + dim + n + nrow + n + nrow + 3 * nk);
     size_t ni = (size_t)(2 * nk + dim + nrow + 4 * nk + 10 * nk);
     double *db;
     int *ib;
 
     if (fr->abi != LCG_IMP_FRICTION_ABI || fr->imp != im || fr->nt != nrow - im->nj - nk || fr->njh < 0
-        || im->dae->ny != 2 * n /* the friction driver takes v = q' only */
+        || n < 1 || im->dae->nq != nq
         || fr->njh > im->nj || (fr->nt > 0 && fr->tangent_of == NULL) || fr->eval == NULL) {
         snprintf(st->message, sizeof st->message, "the friction table is unusable (lcg_imp_friction version %d, "
                  "this driver reads version %d)", fr->abi, LCG_IMP_FRICTION_ABI);
@@ -771,6 +771,7 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->tab = fr;
     f->mu = mu;
     f->n = n;
+    f->nq = nq;
     f->nrow = nrow;
     f->M = db;
     f->F = f->M + n * n;
@@ -778,7 +779,8 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->s = f->R + nrow * n;
     f->h = f->s + nrow;
     f->gam = f->h + nrow;
-    f->b = f->gam + nrow;
+    f->qd = f->gam + nrow;
+    f->b = f->qd + nq;
     f->K = f->b + nrow;
     f->rhs = f->K + dim * dim;
     f->x = f->rhs + dim;

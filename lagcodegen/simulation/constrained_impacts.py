@@ -290,8 +290,14 @@ class ImpactRunner:
             self.friction = ffi.cast("const lcg_imp_friction *", getter())
             if self.friction.imp != self.table:
                 raise LagcodegenError(f"the friction table of {info.prefix!r} does not match its code")
-            with_tangent = [k for k in self.contacts if system.tangents[k] is not None]
-            self.tangent_rows = {k: info.J + len(self.contacts) + i for i, k in enumerate(with_tangent)}
+            row = info.J + len(self.contacts)
+            for k in self.contacts:  # one tangential row (planar), two (3-D)
+                tangent = system.tangents[k]
+                if tangent is None:
+                    continue
+                count = len(tangent) if isinstance(tangent, tuple) else 1
+                self.tangent_rows[k] = list(range(row, row + count))
+                row += count
 
     def gaps(self, t: float, y, p) -> tuple[np.ndarray, np.ndarray]:
         """(g_k, w_k) of the contacts at (t, y)."""
@@ -372,8 +378,12 @@ class ImpactRunner:
                 outputs[f"lambda_{j}"] = ll[:, j]
         for i, k in enumerate(self.contacts):
             outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
-        for k, r in self.tangent_rows.items():
-            outputs[f"lambda_t_ineq_{k}"] = ll[:, r]
+        for k, rows in self.tangent_rows.items():
+            if len(rows) == 1:
+                outputs[f"lambda_t_ineq_{k}"] = ll[:, rows[0]]
+            else:  # 3-D: one per tangent
+                for d, r in enumerate(rows):
+                    outputs[f"lambda_t{d}_ineq_{k}"] = ll[:, r]
         count = int(n_rec[0])
         log = ContactLog([ImpactRecord(float(r[0]), self.contacts[int(r[1])], KINDS[int(r[2])], float(r[3]),
                                        float(r[4]), float(r[5])) for r in rec[: min(count, contacts.max_records)]],

@@ -225,8 +225,7 @@ class ConstrainedSystem:
             self.restitution.append(e)
             self.friction.append(mu)
             if tangent is not None:
-                tangent = _expr(tangent, f"{what}, tangent")
-                model.check_symbols(tangent, f"{what}, tangent", allow_speeds=False)
+                tangent = _tangent(model, tangent, what)
             self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
@@ -541,6 +540,30 @@ def dependent_rows(A: np.ndarray) -> str:
     return "; ".join(parts) or "rank deficient"
 
 
+def _tangent(model: Model, tangent, what: str):
+    """The tangent of a rough contact checked: one expression (planar: one tangential direction) or
+    a pair (3-D: two directions, the friction cone over both), each a position expression in
+    (q, t) or the slip velocity itself, linear in the speeds (q' or the generalized speeds v)."""
+    items = tuple(tangent) if isinstance(tangent, (tuple, list)) else (tangent,)
+    if len(items) not in (1, 2):
+        raise ModelError(f"{what}: tangent must be one expression or two (3-D friction: two tangential "
+                         f"directions), got {len(items)}")
+    speeds = set(model.speeds) | set(model.velocities)
+    out = []
+    for d, item in enumerate(items):
+        where = f"{what}, tangent" + ("" if len(items) == 1 else f" {d}")
+        e = _expr(item, where)
+        model.check_symbols(e, where, allow_speeds=True)
+        used = e.free_symbols & speeds
+        if used:  # a slip velocity: linear in the speeds
+            if any(sp.diff(e, a, b) != 0 for a in used for b in used):
+                raise ModelError(f"{where} ({excerpt(e)}) uses speeds ({', '.join(sorted(x.name for x in used))}) "
+                                 "but is not linear in them: a tangent is a position expression or the slip "
+                                 "velocity, linear in the speeds")
+        out.append(e)
+    return out[0] if len(out) == 1 else tuple(out)
+
+
 def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restitution: float, ground: float = 0.0,
                    tangent: str | None = None, friction: float | None = None, name: str | None = None) -> Inequality:
     """A ground contact of the point ``point`` of ``link`` (a link of ``model`` or its name; the
@@ -549,20 +572,19 @@ def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restituti
     ``restitution``, for :class:`ConstrainedSystem`'s ``inequalities``; the point is declared on
     the model as ``name`` (default ``<link>_contact_<k>``). Without ``tangent`` the contact is
     frictionless; ``tangent="x"`` or ``"y"``: a rough contact along that world axis only (no slip,
-    or Coulomb ``friction`` mu), the contact driver taking one tangential direction per contact:
-    3-D friction (two directions) is refused. Works on floating-base models (quaternion free
-    joints: ``urdf.load(path, floating=True)``)."""
+    or Coulomb ``friction`` mu, planar); ``tangent="xy"``: both world axes, 3-D friction with the
+    exact circular cone |lambda_t| <= mu lambda_n (the point's world x and y as the two tangents).
+    Works on floating-base models (quaternion free joints: ``urdf.load(path, floating=True)``)."""
     if not isinstance(model, Model):
         raise ModelError(f"ground_contact needs a lagcodegen Model, got {type(model).__name__}")
     link = getattr(link, "name", link)
     if not isinstance(link, str):
         raise ModelError(f"ground_contact: link must be a link or its name, got {link!r}")
-    if tangent not in (None, "x", "y"):
-        raise ModelError(f"ground_contact: tangent must be None, 'x' or 'y' (one world axis: the contact driver takes "
-                         f"one tangential direction per contact; 3-D friction is not supported), got {tangent!r}")
+    if tangent not in (None, "x", "y", "xy"):
+        raise ModelError(f"ground_contact: tangent must be None, 'x', 'y' (one world axis: planar friction) or 'xy' "
+                         f"(3-D friction), got {tangent!r}")
     if friction is not None and tangent is None:
-        raise ModelError("ground_contact: friction needs a tangent direction ('x' or 'y'); 3-D Coulomb friction (two "
-                         "tangential directions per contact) is not supported")
+        raise ModelError("ground_contact: friction needs a tangent direction ('x', 'y' or 'xy')")
     if name is None:
         k = sum(1 for nme in model.points if nme.startswith(f"{link}_contact_"))
         name = f"{link}_contact_{k}"
@@ -570,5 +592,6 @@ def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restituti
     if pt.dim != 3:
         raise ModelError(f"ground_contact: the point of link {link!r} is not 3-D")
     g = pt.position[2] - _expr(ground, "ground_contact: ground height")
-    tan = None if tangent is None else pt.position["xy".index(tangent)]
+    tan = None if tangent is None else tuple(pt.position["xy".index(a)] for a in tangent)
+    tan = tan[0] if tan is not None and len(tan) == 1 else tan
     return Inequality(g, restitution=restitution, tangent=tan, friction=friction)
