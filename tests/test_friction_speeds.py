@@ -93,3 +93,72 @@ def test_sphere_with_backspin_slips_then_rolls_on_generalized_speeds(rotation):
     before = res.t < t_star
     assert np.max(np.abs(res["lambda_t_ineq_0"][before] + MU * G)) < 1e-9
     assert np.max(np.abs(res["lambda_ineq_0"] / G - 1)) < 1e-9
+
+
+def test_sphere_sliding_diagonally_slips_along_its_slip_direction_on_the_circular_cone():
+    """3-D friction (two tangents, the exact circular cone) on the quaternion sphere launched along
+    e = (3, 4) / 5 with backspin about the horizontal axis across e (and a spin about the vertical,
+    which a sphere's slip does not feel): the slip stays along e and falls at 7/2 mu g, ending at
+    t* = 2 (v0 + R w0) / (7 mu g); then it rolls along e at (5 v0 - 2 R w0) / 7; the friction force
+    during the slip is mu m g against e; all to 1e-9."""
+    v0, w0, wz = 2.5, 3.0, 1.5
+    e = np.array([0.6, 0.8])
+    sim = _sphere("quaternion", "xy")
+    t_star = 2 * (v0 + RADIUS * w0) / (7 * MU * G)
+    v_roll = (5 * v0 - 2 * RADIUS * w0) / 7
+    t = np.linspace(0, 2 * t_star, 41)
+    axis = np.array([-e[1], e[0]])  # z x e
+    spin = (-w0 * axis[0], -w0 * axis[1], wz)  # backspin: w = -w0 (z x e)
+    res = sim.simulate(t, q0=[0, 0, RADIUS, 0, 0, 0, 1], v0=[v0 * e[0], v0 * e[1], 0, *spin], **TIGHT)
+    grips = res.impacts.transitions(0)
+    assert [r.kind for r in grips] == ["grip"], res.impacts.records
+    assert grips[0].t == pytest.approx(t_star, rel=1e-9)
+    assert res.impacts.friction_modes == {0: "stick"}
+    rates = np.array([sim.compiled.rhs(tt, yy)[:2] for tt, yy in zip(res.t, res.y)])  # world x', y'
+    before, after = res.t < t_star, res.t > t_star
+    # along e: v0 - mu g t while slipping, v_roll after; across e: 0
+    along, across = rates @ e, rates @ axis
+    assert np.max(np.abs(along[before] - (v0 - MU * G * res.t[before]))) < 1e-9 * v0
+    assert np.max(np.abs(along[after] / v_roll - 1)) < 1e-9
+    assert np.max(np.abs(across)) < 1e-9 * v0
+    lt = np.stack([res["lambda_t0_ineq_0"], res["lambda_t1_ineq_0"]], axis=1)  # the force along (x, y)
+    assert np.max(np.abs(lt[before] + MU * G * e)) < 1e-9
+    assert np.max(np.abs(lt[after])) < 1e-9
+
+
+def _incline_3d(alpha: float, mu: float, beta: float):
+    """A particle on an incline of angle alpha: x down the slope, y across it, z normal to it; the
+    contact's two tangents the in-slope axes turned by beta (the cone must not care)."""
+    m = lcg.Model("incline_3d")
+    x, y, z = m.coordinates("x y z")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x * math.cos(alpha) + z * math.sin(alpha), y,
+                                     -x * math.sin(alpha) + z * math.cos(alpha)))
+    m.gravity(sp.Symbol("g"))
+    cb, sb = math.cos(beta), math.sin(beta)
+    contact = lcg.Inequality(z, restitution=0.0, tangent=(cb * x - sb * y, sb * x + cb * y), friction=mu)
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+
+
+@pytest.mark.parametrize("alpha, mu, beta", [(0.5, 0.6, 0.0), (0.5, 0.3, 0.0), (0.5, 0.3, 0.7), (0.3, 0.31, 1.1),
+                                             (0.3, 0.1, 2.0)])
+def test_block_on_an_incline_in_3d_sticks_when_tan_alpha_le_mu_else_slides_down_the_slope(alpha, mu, beta):
+    sim = _incline_3d(alpha, mu, beta)
+    t = np.linspace(0, 2, 21)
+    res = sim.simulate(t, q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], **TIGHT)
+    assert np.max(np.abs(res["lambda_ineq_0"] / (G * math.cos(alpha)) - 1)) < 1e-9  # N = m g cos(alpha)
+    # the friction force in (x, y): the tangents' multipliers turned back by -beta
+    cb, sb = math.cos(beta), math.sin(beta)
+    l0, l1 = res["lambda_t0_ineq_0"], res["lambda_t1_ineq_0"]
+    fx, fy = cb * l0 + sb * l1, -sb * l0 + cb * l1
+    if math.tan(alpha) <= mu:
+        assert np.max(np.abs(res.y[:, :3])) < 1e-12 and res.impacts.friction_modes == {0: "stick"}
+        assert np.max(np.abs(fx + G * math.sin(alpha))) < 1e-9 and np.max(np.abs(fy)) < 1e-9
+        assert res.impacts.transitions() == []
+    else:
+        acc = G * (math.sin(alpha) - mu * math.cos(alpha))
+        assert np.max(np.abs(res["x"][1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
+        assert np.max(np.abs(res["y"])) < 1e-9 * np.max(res["x"])  # straight down the slope
+        assert res.impacts.friction_modes == {0: "slip"}
+        assert np.max(np.abs(fx + mu * G * math.cos(alpha))) < 1e-9 and np.max(np.abs(fy)) < 1e-9
+    assert np.max(np.abs(res["z"])) < 1e-12

@@ -390,8 +390,8 @@ class ImpactRunner:
                          {k: "contact" if active[i] else "free" for i, k in enumerate(self.contacts)},
                          count > contacts.max_records)
         stats["impacts"] = len(log.times)
-        if self.friction != ffi.NULL:  # the driver returns the final modes as 1 stick, 2 slip+, 3 slip-
-            log.friction_modes = {k: ("free", "stick", "slip+", "slip-")[int(active[i])]
+        if self.friction != ffi.NULL:  # the driver returns the final modes as 1 stick, 2 slip+, 3 slip-, 4 slip (3-D)
+            log.friction_modes = {k: ("free", "stick", "slip+", "slip-", "slip")[int(active[i])]
                                   for i, k in enumerate(self.contacts) if self.mu[i] >= 0}
             stats["stick_slip"] = len(log.transitions())
         if flag == int(Flag.CONTACT_MODE):
