@@ -162,3 +162,46 @@ def test_block_on_an_incline_in_3d_sticks_when_tan_alpha_le_mu_else_slides_down_
         assert res.impacts.friction_modes == {0: "slip"}
         assert np.max(np.abs(fx + mu * G * math.cos(alpha))) < 1e-9 and np.max(np.abs(fy)) < 1e-9
     assert np.max(np.abs(res["z"])) < 1e-12
+
+
+def test_generated_3d_friction_code_with_generalized_speeds_compiles_strictly(tmp_path):
+    """The contact code of a quaternion body with a 3-D Coulomb contact (two tangential rows, its
+    friction table giving q' = k(q, v, t)) compiles with -Wall -Wextra -Werror -std=c99 -pedantic."""
+    import subprocess
+
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.codes import c_header
+    from lagcodegen.runtime import sources as runtime_files
+
+    m = lcg.Model("strict_fr3")
+    m.link("box", joint=lcg.Joint.free("root"), mass=1.0, inertia=(0.1, 0.2, 0.3, 0, 0, 0))
+    m.gravity(G)
+    system = lcg.ConstrainedSystem(m, inequalities=[
+        lcg.ground_contact(m, "box", (0.1, 0.05, -0.1), restitution=0.3, tangent="xy", friction=0.5)])
+    code, _ = generate_constrained(system)
+    for name, text in code.files.items():
+        (tmp_path / name).write_text(text)
+    for name, text in runtime_files(("lcg_dae_model.h", "lcg_model.h")).items():
+        if not (tmp_path / name).exists():
+            (tmp_path / name).write_text(text)
+    if not (tmp_path / "lcg_codes.h").exists():
+        (tmp_path / "lcg_codes.h").write_text(c_header())
+    source = code.files["strict_fr3_impact.c"]
+    assert "static const int tangent_of[NT] = { 0, 0 };" in source  # the contact's two rows
+    proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-c", "strict_fr3_impact.c",
+                           "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_tangent_input_errors():
+    m = lcg.Model("tangent_errors")
+    x, y, z = m.coordinates("x y z")
+    m.particle("b", 1.0, (x, y, z))
+    with pytest.raises(ModelError, match="tangent must be one expression or two"):
+        lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(z, restitution=0.0, tangent=(x, y, z), friction=0.3)])
+    with pytest.raises(ModelError, match="not linear in them"):
+        lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(z, restitution=0.0, tangent=m.dot(x) ** 2,
+                                                              friction=0.3)])
+    with pytest.raises(ModelError, match="unknown symbol"):
+        lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(z, restitution=0.0, tangent=(x, sp.Symbol("w")),
+                                                              friction=0.3)])
