@@ -227,7 +227,17 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
  * integrated. Frictional impacts (fr_impact) are chosen the same way: each contact that takes
  * part in the impact with Newton's law on its normal and its tangential impulse sticking
  * (T dv = -u, |P_t| <= mu P_n) or sliding (P_t = -sigma mu P_n with sigma u+ >= 0), or left out
- * (P_n = 0, w+ >= 0). */
+ * (P_n = 0, w+ >= 0).
+ *
+ * 3-D friction: a contact with two tangential rows T_1, T_2 (trow, trow2) has the exact circular
+ * cone. It sticks (both rows held) while |lambda_t| <= mu lambda_n (root mu lambda_n - |lambda_t|)
+ * and slips (fmode +1, "slip") with the force direction G - mu (d_1 T_1 + d_2 T_2), d = u / |u|
+ * from the slip velocity at each state (fr_slip_directions); its root u . dref - |u| / 2 fires
+ * where u stops or turns by 60 degrees from dref (d where the mode began; then only dref is
+ * renewed). A slip from rest (|u| <= contact_speed) and a sliding impulse have no u to take d
+ * from: fr_slip_fixed_point finds d = a_t / |a_t| (a_t: the tangential acceleration, or the slip
+ * velocity after the impact), the force then opposing the slip it causes; the mode is consistent
+ * when a_t lies along d (fr_aligned). */
 
 #define FR_STICK 0
 #define FR_SLIP_POS 1

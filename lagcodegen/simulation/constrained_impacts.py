@@ -70,6 +70,11 @@ modes again enumerated jointly (a "tangential_impulse" record each); a contact t
 has its slip velocity projected to 0. ``Result.impacts`` records the transitions ("slip",
 "grip", "reverse"; :meth:`ContactLog.transitions`, ``stats["stick_slip"]``) and the final modes
 (``ContactLog.friction_modes``); ``outputs["lambda_t_ineq_<k>"]`` is the tangential multiplier.
+A contact with two tangents (3-D) has the exact circular cone: it sticks while |lambda_t| <=
+mu lambda_n, slips with the force -mu lambda_n u/|u| against its slip velocity (mode "slip", the
+outputs ``lambda_t0_ineq_<k>``, ``lambda_t1_ineq_<k>``); a slip from rest and a sliding impulse
+take the direction that makes the force oppose the resulting slip (fixed-point iteration). Models
+with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t)).
 
 *Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
 friction"), which builds and solves the contact problem of each mode from the model's numbers (M,

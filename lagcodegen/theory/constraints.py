@@ -80,7 +80,11 @@ class Inequality:
     point, or x - R phi for a disc rolling on a line. Without ``friction`` the contact does not
     slip: while it touches (in an impact and in persistent contact) u is held at zero by a second
     row T with its own impulse and multiplier (unbounded friction; the contact is released by its
-    normal multiplier only). Without a tangent contacts are frictionless.
+    normal multiplier only). Without a tangent contacts are frictionless. The tangent may instead be
+    the slip velocity u itself, an expression linear in the speeds (q', or the generalized speeds v
+    of quaternion joints), for contacts whose slip is no position's rate (a sphere on a free joint:
+    x' - R w_y). A pair ``(t1, t2)`` is a 3-D contact: two tangential rows (meant orthonormal in
+    the contact plane) and Coulomb's exact circular cone |lambda_t| <= mu lambda_n.
 
     ``friction`` mu (keyword, >= 0, with a tangent): Coulomb friction instead of no slip. In
     persistent contact it sticks (u = 0) while |lambda_t| <= mu lambda_n, else slips with
