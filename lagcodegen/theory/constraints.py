@@ -40,6 +40,7 @@ from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
+from .tangents import check_tangent
 from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
@@ -229,7 +230,7 @@ class ConstrainedSystem:
             self.restitution.append(e)
             self.friction.append(mu)
             if tangent is not None:
-                tangent = _tangent(model, tangent, what)
+                tangent = check_tangent(model, tangent, what)
             self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
@@ -542,30 +543,6 @@ def dependent_rows(A: np.ndarray) -> str:
         else:
             kept.append(j)
     return "; ".join(parts) or "rank deficient"
-
-
-def _tangent(model: Model, tangent, what: str):
-    """The tangent of a rough contact checked: one expression (planar: one tangential direction) or
-    a pair (3-D: two directions, the friction cone over both), each a position expression in
-    (q, t) or the slip velocity itself, linear in the speeds (q' or the generalized speeds v)."""
-    items = tuple(tangent) if isinstance(tangent, (tuple, list)) else (tangent,)
-    if len(items) not in (1, 2):
-        raise ModelError(f"{what}: tangent must be one expression or two (3-D friction: two tangential "
-                         f"directions), got {len(items)}")
-    speeds = set(model.speeds) | set(model.velocities)
-    out = []
-    for d, item in enumerate(items):
-        where = f"{what}, tangent" + ("" if len(items) == 1 else f" {d}")
-        e = _expr(item, where)
-        model.check_symbols(e, where, allow_speeds=True)
-        used = e.free_symbols & speeds
-        if used:  # a slip velocity: linear in the speeds
-            if any(sp.diff(e, a, b) != 0 for a in used for b in used):
-                raise ModelError(f"{where} ({excerpt(e)}) uses speeds ({', '.join(sorted(x.name for x in used))}) "
-                                 "but is not linear in them: a tangent is a position expression or the slip "
-                                 "velocity, linear in the speeds")
-        out.append(e)
-    return out[0] if len(out) == 1 else tuple(out)
 
 
 def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restitution: float, ground: float = 0.0,
