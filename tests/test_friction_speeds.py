@@ -32,10 +32,15 @@ def _quat_rotation(qx, qy, qz, qw):
 
 
 def _sphere(rotation: str, tangents: str, mu: float = MU):
+    """The compiled :func:`_sphere_system`."""
+    return compile_constrained(_sphere_system(mu, 0.0, rotation, tangents), "index1", outputs=["energy"])
+
+
+def _sphere_system(mu: float, e: float, rotation: str = "quaternion", tangents: str = "xy"):
     """A uniform sphere (I = 2/5 m R^2) on a free joint above the floor z = 0: the slip velocity of
     its touching point, v_centre + w x (0, 0, -R) = (x' - R w_y, y' + R w_x) with w the world
     angular velocity, given as the tangent(s) ``tangents`` ("y" or "xy")."""
-    m = lcg.Model(f"sphere_{rotation.lower()}_{tangents}")
+    m = lcg.Model(f"sphere_{rotation.lower()}_{tangents}{'_bouncy' if e else ''}")
     inertia = 0.4 * MASS * RADIUS**2
     m.link("ball", joint=lcg.Joint.free("root", rotation=rotation), mass=MASS,
            inertia=(inertia, inertia, inertia, 0, 0, 0))
@@ -53,9 +58,9 @@ def _sphere(rotation: str, tangents: str, mu: float = MU):
                        0])
     slip = {"x": rate["root_x_dot"] - RADIUS * w[1], "y": rate["root_y_dot"] + RADIUS * w[0]}
     tangent = tuple(slip[a] for a in tangents)
-    contact = lcg.Inequality(c["root_z"] - RADIUS, restitution=0.0, tangent=tangent if len(tangent) > 1 else tangent[0],
+    contact = lcg.Inequality(c["root_z"] - RADIUS, restitution=e, tangent=tangent if len(tangent) > 1 else tangent[0],
                              friction=mu)
-    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    return lcg.ConstrainedSystem(m, inequalities=[contact])
 
 
 def _start(rotation: str, vel, spin):
@@ -95,21 +100,24 @@ def test_sphere_with_backspin_slips_then_rolls_on_generalized_speeds(rotation):
     assert np.max(np.abs(res["lambda_ineq_0"] / G - 1)) < 1e-9
 
 
-def test_sphere_sliding_diagonally_slips_along_its_slip_direction_on_the_circular_cone():
-    """3-D friction (two tangents, the exact circular cone) on the quaternion sphere launched along
+@pytest.mark.parametrize("rotation", ["quaternion", "ZYX"])
+def test_sphere_sliding_diagonally_slips_along_its_slip_direction_on_the_circular_cone(rotation):
+    """3-D friction (two tangents, the exact circular cone) on the sphere (quaternion; Z-Y-X angles,
+    Lagrange's form, as a second method) launched along
     e = (3, 4) / 5 with backspin about the horizontal axis across e (and a spin about the vertical,
     which a sphere's slip does not feel): the slip stays along e and falls at 7/2 mu g, ending at
     t* = 2 (v0 + R w0) / (7 mu g); then it rolls along e at (5 v0 - 2 R w0) / 7; the friction force
     during the slip is mu m g against e; all to 1e-9."""
     v0, w0, wz = 2.5, 3.0, 1.5
     e = np.array([0.6, 0.8])
-    sim = _sphere("quaternion", "xy")
+    sim = _sphere(rotation, "xy")
     t_star = 2 * (v0 + RADIUS * w0) / (7 * MU * G)
     v_roll = (5 * v0 - 2 * RADIUS * w0) / 7
     t = np.linspace(0, 2 * t_star, 41)
     axis = np.array([-e[1], e[0]])  # z x e
     spin = (-w0 * axis[0], -w0 * axis[1], wz)  # backspin: w = -w0 (z x e)
-    res = sim.simulate(t, q0=[0, 0, RADIUS, 0, 0, 0, 1], v0=[v0 * e[0], v0 * e[1], 0, *spin], **TIGHT)
+    q0, u0 = _start(rotation, (v0 * e[0], v0 * e[1], 0), spin)
+    res = sim.simulate(t, q0=q0, v0=u0, **TIGHT)
     grips = res.impacts.transitions(0)
     assert [r.kind for r in grips] == ["grip"], res.impacts.records
     assert grips[0].t == pytest.approx(t_star, rel=1e-9)
@@ -205,3 +213,33 @@ def test_tangent_input_errors():
     with pytest.raises(ModelError, match="unknown symbol"):
         lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(z, restitution=0.0, tangent=(x, sp.Symbol("w")),
                                                               friction=0.3)])
+
+
+@pytest.mark.parametrize("mu, sticks", [(0.1, False), (0.8, True)])
+def test_3d_frictional_impact_of_a_spinning_sphere_sticks_within_the_cone_else_slides(mu, sticks):
+    """The quaternion sphere dropped from h with a horizontal velocity and a spin whose slip
+    velocity u- points off both axes, bouncing with e = 0.5 on the 3-D Coulomb floor: P_n =
+    m (1 + e) g t1 and the slip changes by 7/2 P_t / m (sphere: 1 + m R^2 / I); it sticks
+    (u+ = 0, |P_t| = 2/7 m |u-| <= mu P_n) when |u-| <= 7/2 mu (1 + e) g t1, else slides with
+    P_t = -mu P_n u- / |u-|, so the centre's horizontal velocity jumps by P_t / m; to 1e-9."""
+    e, h = 0.5, 0.2
+    vel, spin = np.array([3.0, -2.0, 0.0]), np.array([2.0, 3.0, 5.0])
+    sim = compile_constrained(_sphere_system(mu, e), "index1", outputs=["energy"])
+    t1 = math.sqrt(2 * h / G)
+    u_minus = np.array([vel[0] - RADIUS * spin[1], vel[1] + RADIUS * spin[0]])
+    pn = MASS * (1 + e) * G * t1
+    assert (np.linalg.norm(u_minus) <= 3.5 * mu * pn / MASS) == sticks
+    pt = -MASS * u_minus / 3.5 if sticks else -mu * pn * u_minus / np.linalg.norm(u_minus)
+    res = sim.simulate(np.array([0.0, t1 + 0.01]), q0=[0, 0, RADIUS + h, 0, 0, 0, 1], v0=[*vel, *spin], **TIGHT)
+    bounce = [r for r in res.impacts if r.kind == "bounce"]
+    assert len(bounce) == 1 and bounce[0].t == pytest.approx(t1, rel=1e-9)
+    assert bounce[0].impulse == pytest.approx(pn, rel=1e-9)
+    tangential = [r for r in res.impacts if r.kind == "tangential_impulse"]
+    assert len(tangential) == 1
+    assert tangential[0].impulse == pytest.approx(np.linalg.norm(pt), rel=1e-9)
+    assert tangential[0].w_before == pytest.approx(np.linalg.norm(u_minus), rel=1e-9)
+    u_plus = u_minus + 3.5 * pt / MASS
+    assert abs(tangential[0].w_after - np.linalg.norm(u_plus)) < 1e-9
+    world = sim.compiled.rhs(res.t[-1], res.y[-1])[:3]  # the centre's velocity, in flight after the bounce
+    assert np.max(np.abs(world[:2] - (vel[:2] + pt / MASS))) < 1e-9
+    assert world[2] == pytest.approx(e * G * t1 - G * 0.01, rel=1e-9)
