@@ -243,3 +243,41 @@ def test_3d_frictional_impact_of_a_spinning_sphere_sticks_within_the_cone_else_s
     world = sim.compiled.rhs(res.t[-1], res.y[-1])[:3]  # the centre's velocity, in flight after the bounce
     assert np.max(np.abs(world[:2] - (vel[:2] + pt / MASS))) < 1e-9
     assert world[2] == pytest.approx(e * G * t1 - G * 0.01, rel=1e-9)
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.8])
+def test_particle_launched_across_an_incline_curves_as_an_independent_integration(mu):
+    """The 3-D incline's particle launched across the slope (alpha = 0.5, tan alpha = 0.546): its
+    slip direction turns downhill (the driver renews its reference past 60 degrees), against
+    scipy's DOP853 on the closed form x'' = g sin(alpha) - mu g cos(alpha) u_x / |u|,
+    y'' = -mu g cos(alpha) u_y / |u|, to 1e-8; with mu = 0.8 > tan(alpha) it stops (one grip,
+    at the time the closed form's speed reaches 0) and stays."""
+    from scipy.integrate import solve_ivp
+
+    alpha, vy0 = 0.5, 3.0
+    sim = _incline_3d(alpha, mu, 0.3)
+    n = G * math.cos(alpha)
+
+    def f(t, s):
+        speed = math.hypot(s[2], s[3])
+        return [s[2], s[3], G * math.sin(alpha) - mu * n * s[2] / speed, -mu * n * s[3] / speed]
+
+    def stops(t, s):
+        return math.hypot(s[2], s[3]) - 1e-9
+    stops.terminal = True
+    ref = solve_ivp(f, (0, 3.0), [0, 0, 0, vy0], method="DOP853", rtol=1e-13, atol=1e-14, events=stops,
+                    dense_output=True)
+    t_end = ref.t[-1] if mu > math.tan(alpha) else 3.0
+    t = np.linspace(0, min(t_end, 3.0) * (0.999 if mu > math.tan(alpha) else 1.0), 31)
+    res = sim.simulate(np.append(t, 3.0) if mu > math.tan(alpha) else t, q0=[0.0, 0.0, 0.0], v0=[0.0, vy0, 0.0],
+                       **TIGHT)
+    xy = ref.sol(t)[:2].T
+    assert np.abs(res.y[: t.size, :2] - xy).max() < 1e-8
+    if mu > math.tan(alpha):
+        grips = [r for r in res.impacts.transitions(0) if r.kind == "grip"]
+        assert len(grips) == 1 and grips[0].t == pytest.approx(ref.t_events[0][0], rel=1e-7)
+        assert res.impacts.friction_modes == {0: "stick"} and np.abs(res.y[-1, 3:]).max() < 1e-12
+    else:
+        assert res.impacts.friction_modes == {0: "slip"} and res.impacts.transitions() == []
+        heading = math.atan2(res.y[-1, 4], res.y[-1, 3])
+        assert abs(heading) < math.pi / 6  # turned from across the slope (90 degrees) to near downhill

@@ -451,8 +451,11 @@ static void fr_slip(const fric_data *f, int k, double *u, double *u2)
 }
 
 /* 3-D friction: the force of a slipping contact opposes its slip velocity u, d = u / |u| (the
- * numbers in f at a state), kept where |u| is below 1e-3 contact_speed (a slip that begins from
- * rest: the direction chosen with its mode). */
+ * numbers in f at a state), where the slip's root u . dref - |u| / 2 is positive (u within 60
+ * degrees of dref) and |u| above 1e-3 contact_speed; elsewhere d = dref: a slip that begins from
+ * rest (the direction chosen with its mode), and past the root, so that the motion stays smooth
+ * through u = 0 along dref and CVODE's interpolant locates the root as in the planar case (the
+ * direction u / |u| would flip there). */
 static void fr_slip_directions(fric_data *f, int nk)
 {
     int k;
@@ -463,9 +466,12 @@ static void fr_slip_directions(fric_data *f, int nk)
             continue;
         fr_slip(f, k, &u, &u2);
         norm = hypot(u, u2);
-        if (norm > 1e-3 * f->vtol) {
+        if (norm > 1e-3 * f->vtol && u * f->dref[2 * k] + u2 * f->dref[2 * k + 1] > 0.5 * norm) {
             f->dir[2 * k] = u / norm;
             f->dir[2 * k + 1] = u2 / norm;
+        } else {
+            f->dir[2 * k] = f->dref[2 * k];
+            f->dir[2 * k + 1] = f->dref[2 * k + 1];
         }
     }
 }
