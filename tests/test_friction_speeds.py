@@ -281,3 +281,45 @@ def test_particle_launched_across_an_incline_curves_as_an_independent_integratio
         assert res.impacts.friction_modes == {0: "slip"} and res.impacts.transitions() == []
         heading = math.atan2(res.y[-1, 4], res.y[-1, 3])
         assert abs(heading) < math.pi / 6  # turned from across the slope (90 degrees) to near downhill
+
+
+INCLINE_FILE = """
+[model]
+name = "incline_3d_file"
+coordinates = ["x", "y", "z"]
+
+[parameters]
+g = 9.81
+m = 1.0
+
+[[particles]]
+name = "block"
+mass = "m"
+position = ["x*cos(0.5) + z*sin(0.5)", "y", "-x*sin(0.5) + z*cos(0.5)"]
+
+[gravity]
+g = "g"
+
+[constraints]
+inequalities = [{ expr = "z", restitution = 0.0, tangent = ["x", "y"], friction = 0.3 }]
+
+[simulation]
+formulation = "index1"
+t_end = 1.0
+n_out = 11
+rtol = 1e-12
+atol = 1e-14
+"""
+
+
+def test_model_file_3d_friction_slides_at_g_sin_minus_mu_cos():
+    from lagcodegen.api import compile_file
+    from lagcodegen.modelfile import ModelFileError, loads_model
+
+    mf = loads_model(INCLINE_FILE)
+    res = mf.simulate(compile_file(mf))
+    acc = G * (math.sin(0.5) - 0.3 * math.cos(0.5))
+    assert res["x"][-1] == pytest.approx(0.5 * acc, rel=1e-9)
+    assert res.impacts.friction_modes == {0: "slip"}
+    with pytest.raises(ModelFileError, match="one expression or a list of two"):
+        loads_model(INCLINE_FILE.replace('tangent = ["x", "y"]', 'tangent = ["x", "y", "z"]'))
