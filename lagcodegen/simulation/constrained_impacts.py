@@ -184,7 +184,8 @@ class ContactLog:
     records: list = field(default_factory=list)
     final_modes: dict = field(default_factory=dict)  # contact k -> "free" or "contact" at the end
     truncated: bool = False  # more records than ContactOptions.max_records
-    #: contacts with Coulomb friction: k -> "free", "stick", "slip+" or "slip-" at the end
+    #: contacts with Coulomb friction: k -> "free", "stick", "slip+" or "slip-" at the end ("slip"
+    #: for a 3-D contact, two tangents)
     friction_modes: dict = field(default_factory=dict)
 
     def __len__(self) -> int:

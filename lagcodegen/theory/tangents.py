@@ -1,5 +1,5 @@
 """The tangents of rough contacts (:class:`~lagcodegen.theory.constraints.Inequality`'s
-``tangent``): one expression (planar friction, one tangential direction) or a pair (3-D friction,
+``tangent``; notes, sec. 4.3): one expression (planar friction, one tangential direction) or a pair (3-D friction,
 the circular cone over both), each a position expression in (q, t) whose rate is the slip
 velocity, or the slip velocity itself, linear in the speeds."""
 
