@@ -14,7 +14,8 @@ on its foot point and the floor plane sits at z = -R, so that a sphere touches w
 point reaches z = 0. The PD torques are MuJoCo joint stiffness (springref q_ref) and damping, the
 joint limits (+-10 rad in the URDF) are off, friction mu on the elliptic (circular) cone with
 condim 3, contacts stiff: solref (2 dt, 1) (critically damped, the stiffest MuJoCo accepts at the
-step dt), solimp (0.99, 0.999, 0.001), the implicitfast integrator.
+step dt), solimp (0.99, 0.999, 0.001), the implicitfast integrator. MuJoCo's landing time is
+the time of the first state in which its collision detection finds a contact (a multiple of dt).
 
     PYTHONPATH=. python benchmarks/contact_mujoco.py [--quick] [--out DIR]
 
@@ -112,9 +113,10 @@ def mujoco_run(mujoco, path, feet, pose, friction, dt):
     t0 = time.perf_counter()
     steps = int(round(T_END / dt))
     for _ in range(steps):
-        mujoco.mj_step(model, data)
+        before = data.time
+        mujoco.mj_step(model, data)  # its collision detection runs on the state at the step's start
         if land is None and data.ncon > 0:
-            land = data.time
+            land = before  # the first state MuJoCo finds in contact
     run = time.perf_counter() - t0
     f6, normal = np.zeros(6), 0.0
     for i in range(data.ncon):
