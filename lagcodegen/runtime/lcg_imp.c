@@ -250,6 +250,10 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
 #define FR_REL 1e-9      /* relative tolerance of the consistency conditions */
 #define FR_SAME 1e-7     /* modes whose accelerations (velocity jumps) agree to this are one motion */
 #define FR_DIR_ITER 30   /* fixed-point iterations of a 3-D slip's direction at most */
+#define FR_DIR_REL 1e-6  /* a 3-D slip's tangential acceleration (velocity after an impact) below this,
+                          * relative to the largest, develops no slip: its direction d is kept and it
+                          * is consistent (at the limit of sticking the force is the sticking one, and
+                          * the tangential acceleration is the constraints' stabilization residue) */
 
 static int coulomb(const fric_data *f, int k)
 {
@@ -527,7 +531,10 @@ static void fr_describe(const imp_data *d, const int *was, const int *act, const
 
 /* The trial mode solved (f->tact, f->tmode, f->tdir), the directions of its 3-D slips whose
  * direction is not given by the slip velocity (a slip from rest, |u| <= contact_speed, and every
- * slip in an impact) found by fixed-point iteration: d = a_t / |a_t| with a_t the tangential
+ * slip in an impact) found by fixed-point iteration; but a slip that begins where the sticking
+ * force reached the cone's bound (its root fired: ending FR_END_STICK) keeps that force's
+ * direction, d = -lambda_t / |lambda_t| (the friction force continuous; the tangential
+ * acceleration there is ~0, its direction the root's residue and round-off): d = a_t / |a_t| with a_t the tangential
  * acceleration (impact: the slip velocity after), so that the force -mu lambda_n d opposes the slip
  * that results (maximal dissipation on the circular cone); at most FR_DIR_ITER + 1 solves. */
 static int fr_slip_fixed_point(imp_data *d, int accel)
@@ -536,18 +543,25 @@ static int fr_slip_fixed_point(imp_data *d, int accel)
     int it, k, rc, nk = d->im->nk;
 
     for (it = 0; it < FR_DIR_ITER; ++it) {
-        int moved = 0;
+        int moved = 0, i;
+        double tol = 0.0;
         rc = fr_solve(d, f->tact, f->tmode, f->tdir, accel);
         if (rc != LCG_DAE_OK)
             return rc;
+        for (i = 0; i < f->n; ++i)
+            if (fabs(f->x[i]) > tol)
+                tol = fabs(f->x[i]);
+        tol = FR_DIR_REL * (1.0 + tol);
         for (k = 0; k < nk; ++k) {
             double a, a2, na;
-            if (!f->tact[k] || !cone3(f, k) || f->tmode[k] == 0 || (accel && hypot(f->u[k], f->u2[k]) > f->vtol))
-                continue;
+            if (!f->tact[k] || !cone3(f, k) || f->tmode[k] == 0 || (accel && hypot(f->u[k], f->u2[k]) > f->vtol)
+                || (accel && f->ending[k] == FR_END_STICK))
+                continue; /* (a slip that begins at the cone's bound keeps the sticking force's direction) */
             a = fr_row(f, f->trow[k], f->x, accel);
             a2 = fr_row(f, f->trow2[k], f->x, accel);
             na = hypot(a, a2);
-            if (!(na > 0.0))
+            if (!(na > tol)) /* no slip develops along d (the limit of sticking, where the force is the
+                              * sticking one): d is kept, not turned to the direction of round-off */
                 continue;
             if (hypot(a / na - f->tdir[2 * k], a2 / na - f->tdir[2 * k + 1]) > 1e-13)
                 moved = 1;
@@ -563,12 +577,21 @@ static int fr_slip_fixed_point(imp_data *d, int accel)
 }
 
 /* Whether the 3-D slip of contact k in the trial mode has its tangential acceleration (impact:
- * velocity after) a along its direction d: a . d >= -tol and |a x d| <= tol + 1e-6 |a|. */
+ * velocity after) a along its direction d: a . d >= -tol and |a x d| <= tol + 1e-6 |a|, or a
+ * negligible (FR_DIR_REL). */
 static int fr_aligned(const fric_data *f, int k, int accel, double tol)
 {
     double a = fr_row(f, f->trow[k], f->x, accel), a2 = fr_row(f, f->trow2[k], f->x, accel);
     double along = a * f->tdir[2 * k] + a2 * f->tdir[2 * k + 1];
     double across = a * f->tdir[2 * k + 1] - a2 * f->tdir[2 * k];
+    double small = 0.0;
+    int i;
+
+    for (i = 0; i < f->n; ++i)
+        if (fabs(f->x[i]) > small)
+            small = fabs(f->x[i]);
+    if (hypot(a, a2) <= FR_DIR_REL * (1.0 + small)) /* no slip develops (see FR_DIR_REL) */
+        return 1;
     return along >= -tol && fabs(across) <= tol + 1e-6 * hypot(a, a2);
 }
 
@@ -661,8 +684,8 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         f->u2[k] = u2;
         if (cone3(f, k)) { /* the guess of a 3-D slip's direction: along u, or against the sticking force */
             double nu = hypot(u, u2), lt = f->lam[f->trow[k]], lt2 = f->lam[f->trow2[k]], nl = hypot(lt, lt2);
-            f->gdir[2 * k] = nu > 0.0 ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
-            f->gdir[2 * k + 1] = nu > 0.0 ? u2 / nu : nl > 0.0 ? -lt2 / nl : f->dir[2 * k + 1];
+            f->gdir[2 * k] = nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
+            f->gdir[2 * k + 1] = nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl : f->dir[2 * k + 1];
         }
         if (!d->active[k] || end == FR_END_RELEASE) {
             o[no++] = FR_FREE;
@@ -712,7 +735,7 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
                 ok = ln >= -lscale;
                 if (ok && cone3(f, k) && f->tmode[k] == 0)
                     ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * ln + lscale;
-                else if (ok && cone3(f, k) && hypot(f->u[k], f->u2[k]) <= vtol)
+                else if (ok && cone3(f, k) && hypot(f->u[k], f->u2[k]) <= vtol && f->ending[k] != FR_END_STICK)
                     ok = fr_aligned(f, k, 1, ascale);
                 else if (ok && cone3(f, k))
                     ok = 1;
