@@ -537,6 +537,8 @@ static void fr_describe(const imp_data *d, const int *was, const int *act, const
  * acceleration there is ~0, its direction the root's residue and round-off): d = a_t / |a_t| with a_t the tangential
  * acceleration (impact: the slip velocity after), so that the force -mu lambda_n d opposes the slip
  * that results (maximal dissipation on the circular cone); at most FR_DIR_ITER + 1 solves. */
+static int fr_slip_given(const fric_data *f, int k);
+
 static int fr_slip_fixed_point(imp_data *d, int accel)
 {
     fric_data *f = d->fr;
@@ -554,9 +556,8 @@ static int fr_slip_fixed_point(imp_data *d, int accel)
         tol = FR_DIR_REL * (1.0 + tol);
         for (k = 0; k < nk; ++k) {
             double a, a2, na;
-            if (!f->tact[k] || !cone3(f, k) || f->tmode[k] == 0 || (accel && hypot(f->u[k], f->u2[k]) > f->vtol)
-                || (accel && f->ending[k] == FR_END_STICK))
-                continue; /* (a slip that begins at the cone's bound keeps the sticking force's direction) */
+            if (!f->tact[k] || !cone3(f, k) || f->tmode[k] == 0 || (accel && fr_slip_given(f, k)))
+                continue;
             a = fr_row(f, f->trow[k], f->x, accel);
             a2 = fr_row(f, f->trow2[k], f->x, accel);
             na = hypot(a, a2);
@@ -574,6 +575,16 @@ static int fr_slip_fixed_point(imp_data *d, int accel)
     /* not converged (e.g. a_t against d whatever d: no slip from rest): the last directions solved,
      * for the caller's check of a_t along d */
     return fr_solve(d, f->tact, f->tmode, f->tdir, accel);
+}
+
+/* Whether a 3-D slip of contact k (in fr_modes, at the current state) has its direction given,
+ * not to be found: it slips at more than contact_speed (d = u / |u|), or it slips already and its
+ * slip root has not fired (a slip that has just begun: d its own), or it begins where its
+ * sticking force reached the cone's bound (d against that force, continuous). */
+static int fr_slip_given(const fric_data *f, int k)
+{
+    return hypot(f->u[k], f->u2[k]) > f->vtol || (f->fmode[k] != 0 && f->ending[k] == 0)
+           || f->ending[k] == FR_END_STICK;
 }
 
 /* Whether the 3-D slip of contact k in the trial mode has its tangential acceleration (impact:
@@ -684,10 +695,16 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         f->u2[k] = u2;
         if (cone3(f, k)) { /* the guess of a 3-D slip's direction: along u, or against the sticking force */
             double nu = hypot(u, u2), lt = f->lam[f->trow[k]], lt2 = f->lam[f->trow2[k]], nl = hypot(lt, lt2);
-            f->gdir[2 * k] = nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
-            f->gdir[2 * k + 1] = nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl : f->dir[2 * k + 1];
+            int keep = f->fmode[k] != 0 && end == 0 && nu <= vtol; /* a slip just begun: its own direction */
+            f->gdir[2 * k] = keep ? f->dir[2 * k] : nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
+            f->gdir[2 * k + 1] = keep ? f->dir[2 * k + 1] : nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl
+                                                                                    : f->dir[2 * k + 1];
         }
         if (!d->active[k] || end == FR_END_RELEASE) {
+            o[no++] = FR_FREE;
+        } else if (cone3(f, k) && f->fmode[k] != 0 && end == 0 && hypot(u, u2) <= vtol) { /* 3-D, a slip just
+                                                                                           * begun: on */
+            o[no++] = FR_SLIP_POS;
             o[no++] = FR_FREE;
         } else if (cone3(f, k) && hypot(u, u2) <= vtol) { /* 3-D from rest: stick, slip, release */
             int cur = f->fmode[k] == 0 ? FR_STICK : FR_SLIP_POS;
@@ -735,7 +752,7 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
                 ok = ln >= -lscale;
                 if (ok && cone3(f, k) && f->tmode[k] == 0)
                     ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * ln + lscale;
-                else if (ok && cone3(f, k) && hypot(f->u[k], f->u2[k]) <= vtol && f->ending[k] != FR_END_STICK)
+                else if (ok && cone3(f, k) && !fr_slip_given(f, k))
                     ok = fr_aligned(f, k, 1, ascale);
                 else if (ok && cone3(f, k))
                     ok = 1;
