@@ -144,8 +144,15 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
             gf[2 * k] = gf[2 * k + 1] = 1.0;
             if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
                 continue;
-            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound */
-                gf[2 * k] = f->mu[k] * d->lam[nj + k] - hypot(d->lam[f->trow[k]], d->lam[f->trow2[k]]);
+            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound, less the tolerance with
+                                                          * which sticking was found admissible (fr_modes) */
+                int r;
+                double big = 0.0;
+                for (r = 0; r < f->nrow; ++r)
+                    if (fabs(d->lam[r]) > big)
+                        big = fabs(d->lam[r]);
+                gf[2 * k] = f->mu[k] * d->lam[nj + k] - hypot(d->lam[f->trow[k]], d->lam[f->trow2[k]])
+                            + 1e-9 * (1.0 + big); /* FR_REL */
             } else if (f->trow2[k] >= 0) { /* 3-D: u . dref - |u| / 2: u stops (or turns by 60 degrees) */
                 double u, u2;
                 fr_slip(f, k, &u, &u2);
