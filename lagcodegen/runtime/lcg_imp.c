@@ -144,8 +144,8 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
             gf[2 * k] = gf[2 * k + 1] = 1.0;
             if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
                 continue;
-            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound, less the tolerance with
-                                                          * which sticking was found admissible (fr_modes) */
+            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound widened by the tolerance
+                                                          * with which sticking was found admissible */
                 int r;
                 double big = 0.0;
                 for (r = 0; r < f->nrow; ++r)
