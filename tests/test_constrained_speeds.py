@@ -219,56 +219,105 @@ def test_linearize_pinned_quaternion_body_at_rest_and_spinning():
 def test_ground_contact_refusals():
     m = lcg.Model("contact_refusals")
     m.link("box", joint=lcg.Joint.free("root"), mass=1.0, inertia=INERTIA)
-    with pytest.raises(ModelError, match="3-D Coulomb friction"):
+    with pytest.raises(ModelError, match="friction needs a tangent direction"):
         lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, friction=1.0)
-    with pytest.raises(ModelError, match="tangent must be None, 'x' or 'y'"):
+    with pytest.raises(ModelError, match="tangent must be None, 'x', 'y' .* or 'xy'"):
         lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="z")
-    rough = lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="x", friction=0.5)
-    with pytest.raises(ModelError, match="Coulomb friction .* generalized speeds"):
-        lcg.compile_constrained(ConstrainedSystem(m, inequalities=[rough]))
+    rough = lcg.ground_contact(m, "box", (0, 0, -0.1), restitution=0.0, tangent="xy", friction=0.5)
+    assert isinstance(rough.tangent, tuple) and len(rough.tangent) == 2  # 3-D: both world axes
 
 
-def test_solo12_lands_on_four_feet_and_rests():
-    """Solo12 on Pinocchio's free flyer (example-robot-data's URDF), its 12 joints held by PD
-    torques about a standing posture, frictionless contacts at the four feet (the URDF's foot
-    frames on the lower legs), restitution 0, dropped with its base at 0.3 m: it lands on the four
-    feet at once, comes to rest, and the contact forces carry its weight (total mass by
-    Pinocchio's computeTotalMass) to 1e-6."""
-    pin = pytest.importorskip("pinocchio")
-    import xml.etree.ElementTree as ET
+SOLO12_POSE = {f"{leg}_{j}": v for leg in ("FL", "FR", "HL", "HR")
+               for j, v in zip(("HAA", "HFE", "KFE"), (0.0, 0.8, -1.6) if leg[0] == "F" else (0.0, -0.8, 1.6))}
+
+
+def solo12_path():
+    """example-robot-data's Solo12 URDF (installed with Pinocchio)."""
     from pathlib import Path
 
-    from lagcodegen.modelfile import urdf
-
-    path = (Path(pin.__file__).resolve().parents[4] / "share" / "example-robot-data" / "robots" / "solo_description"
+    pin = pytest.importorskip("pinocchio")
+    return (Path(pin.__file__).resolve().parents[4] / "share" / "example-robot-data" / "robots" / "solo_description"
             / "robots" / "solo12.urdf")
+
+
+def solo12_feet(path):
+    """The foot points: the URDF's fixed foot frames, as (lower-leg link, xyz in its frame)."""
+    import xml.etree.ElementTree as ET
+
     feet = {}
     for joint in ET.parse(path).getroot().findall("joint"):
         if joint.find("child").get("link").endswith("_FOOT"):
             feet[joint.find("parent").get("link")] = [float(x) for x in joint.find("origin").get("xyz").split()]
     assert len(feet) == 4
+    return feet
+
+
+def solo12_on_the_ground(friction=None):
+    """Solo12 on Pinocchio's free flyer, its 12 joints held by PD torques -20 (q - q_ref) - 0.5 q'
+    about a standing posture, restitution-0 contacts at the four feet: frictionless, or with
+    ``friction`` mu on the exact circular cone (ground_contact(tangent="xy")). Returns (model,
+    compiled system, q0 with the base at 0.3 m)."""
+    from lagcodegen.modelfile import urdf
+
+    path = solo12_path()
     m = urdf.load(path, floating=True)
-    pose = {}
-    for leg in ("FL", "FR", "HL", "HR"):
-        front = leg[0] == "F"
-        pose.update({f"{leg}_HAA": 0.0, f"{leg}_HFE": 0.8 if front else -0.8, f"{leg}_KFE": -1.6 if front else 1.6})
-    for name, ref in pose.items():
+    for name, ref in SOLO12_POSE.items():
         q = m.coords[m.index(name)]
         m.generalized_force(q, -20.0 * (q - ref) - 0.5 * m.dot(q))
-    contacts = [lcg.ground_contact(m, link, xyz, restitution=0.0) for link, xyz in feet.items()]
+    rough = {} if friction is None else {"tangent": "xy", "friction": friction}
+    contacts = [lcg.ground_contact(m, link, xyz, restitution=0.0, **rough) for link, xyz in solo12_feet(path).items()]
     sim = lcg.compile_constrained(ConstrainedSystem(m, inequalities=contacts))
     q0 = np.array(m.neutral())
-    for name, ref in pose.items():
+    for name, ref in SOLO12_POSE.items():
         q0[m.index(name)] = ref
     q0[2] = 0.3
+    return m, sim, q0
+
+
+def test_solo12_lands_on_four_feet_and_rests_without_slipping():
+    """Solo12 (PD-held joints) dropped with its base at 0.3 m onto a floor with Coulomb friction
+    mu = 1 at its four feet (3-D, circular cone): it lands on the four feet at once, with
+    tangential impulses within the cone, comes to rest sticking (no slip transition; the feet's
+    slip velocities ~0), the contact forces carry its weight (total mass by Pinocchio's
+    computeTotalMass) to 1e-6 and each foot's friction force is within mu times its normal force.
+    (The frictionless drop, the same system without tangents, is in
+    benchmarks/constrained_speeds.py and benchmarks/contact_mujoco.py.)"""
+    pin = pytest.importorskip("pinocchio")
+    m, sim, q0 = solo12_on_the_ground(friction=1.0)
     res = sim.simulate(np.linspace(0.0, 3.0, 61), q0, np.zeros(m.nv), rtol=1e-8, atol=1e-10, method="bdf")
-    assert sorted(r.kind for r in res.impacts) == ["stick"] * 4
-    assert np.ptp([r.t for r in res.impacts]) < 1e-9  # the four feet at once (a symmetric posture)
+    lands = [r for r in res.impacts if r.kind == "stick"]
+    assert sorted(r.contact for r in lands) == [0, 1, 2, 3]
+    assert np.ptp([r.t for r in lands]) < 1e-9  # the four feet at once (a symmetric posture)
+    tangential = {r.contact: r for r in res.impacts if r.kind == "tangential_impulse"}
+    for r in lands:  # the landing impulses within the cone, the feet's slip stopped by them
+        assert tangential[r.contact].impulse <= 1.0 * r.impulse and abs(tangential[r.contact].w_after) < 1e-9
+    assert res.impacts.transitions() == []  # never slips
     assert res.impacts.final_modes == {k: "contact" for k in range(4)}
+    assert res.impacts.friction_modes == {k: "stick" for k in range(4)}
     assert np.abs(res.y[-1, m.nq:]).max() < 1e-6  # at rest
-    weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())) * 9.81
-    normal = sum(res[f"lambda_ineq_{k}"][-1] for k in range(4))
-    assert normal == pytest.approx(weight, rel=1e-6)
+    weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(solo12_path()), pin.JointModelFreeFlyer())) * 9.81
+    normal = np.array([res[f"lambda_ineq_{k}"][-1] for k in range(4)])
+    assert normal.sum() == pytest.approx(weight, rel=1e-6)
+    friction = np.array([np.hypot(res[f"lambda_t0_ineq_{k}"][-1], res[f"lambda_t1_ineq_{k}"][-1]) for k in range(4)])
+    assert np.all(friction > 0.1 * normal) and np.all(friction <= 1.0 * normal)  # held by friction, within the cone
+    # no foot slips: the feet's world x, y by Pinocchio's kinematics stay where they landed
+    model = pin.buildModelFromUrdf(str(solo12_path()), pin.JointModelFreeFlyer())
+    data = model.createData()
+    frames = [model.getFrameId(f"{leg}_FOOT") for leg in ("FL", "FR", "HL", "HR")]
+
+    def feet_xy(y):
+        q = np.empty(model.nq)
+        q[:7] = y[:7]
+        for name in SOLO12_POSE:
+            q[model.idx_qs[model.getJointId(name)]] = y[m.index(name)]
+        pin.framesForwardKinematics(model, data, q)
+        return np.array([data.oMf[f].translation for f in frames])
+
+    after = res.y[res.t > lands[0].t + 1e-9]
+    landed = feet_xy(after[0])
+    assert np.abs(landed[:, 2]).max() < 1e-8  # on the floor
+    drift = max(np.abs(feet_xy(y)[:, :2] - landed[:, :2]).max() for y in after)
+    assert drift < 1e-8
     assert np.abs(res.y[-1, :2]).max() < 1e-8  # no horizontal drift of the base
 
 

@@ -81,10 +81,6 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
                              "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
                              "formulation on IDA takes frictionless and no-slip (tangent=) contacts only: its "
                              "stick/slip modes are not rows of the GGL residual")
-        if model.general and system.has_friction:
-            raise ModelError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) of model {model.name!r} "
-                             "with generalized speeds is not supported yet: the friction driver takes models whose "
-                             "speeds are their coordinates' rates (frictionless or no-slip tangent= contacts are)")
         files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, ggl)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)

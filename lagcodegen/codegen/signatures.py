@@ -523,5 +523,5 @@ IMP_FRICTION_TABLE = Struct("lcg_imp_friction", (
     *(Field(n, "int") for n in ("abi", "njh", "nt")),
     Field("tangent_of", "const int *"),
     _fn("eval", "double t, const double *y, const double *p, double *M, double *F, double *R, double *s, double *h, "
-                "double *gam"),
+                "double *gam, double *qd"),
     Field("imp", "const lcg_imp_model *")))

@@ -278,8 +278,10 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     (holonomic) and gamma_r (as :func:`constrained_blocks`), then for each contact k (an
     inequality g_k >= 0 with a restitution, eq. 4.3) the row J + k: G_k = dg_k/dq,
     w_k = G_k q' + dg_k/dt, h = g_k and gamma = -d/dt w_k with q'' excluded; then for each rough
-    contact (a ``tangent``) its tangential row, h = 0. Also returns ``tangent_of`` (the contact,
-    0..NC-1, of each tangential row) as ``blocks["tangent_of"]``."""
+    contact (a ``tangent``) its tangential row (two, consecutive, for a 3-D contact), h = 0: from a
+    position tangent as from g, from a tangent given as the slip velocity u (in the speeds) the row
+    du/dv, u and -du/dt with v' excluded. Also returns ``tangent_of`` (the contact, 0..NC-1, of
+    each tangential row) as ``blocks["tangent_of"]``."""
     sym = ConstrainedSymbols(system, scene.eom)
     n, J, JH = sym.n, sym.J, sym.JH
     base = symbol_map(scene)
@@ -290,7 +292,18 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     mf = mass_force_block(sym, c)
     rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
     heights = list(sym.f) + [se.Integer(0)] * (J - JH)
+    speeds = set(sym.v) | set(getattr(sym, "qd", ()))
+
+    def velocity_row(u):
+        """A tangent given as the slip velocity u itself (linear in the speeds; q' of a model with
+        generalized speeds taken as k(q, v, t)): the row du/dv, u, -du/dt with v' excluded."""
+        if sym.general:
+            u = u.xreplace({qd: k for qd, k in zip(sym.qd, sym.kin)})
+        return [se.diff(u, v) for v in sym.v], u, -sym.rate(u)
+
     def row(g):
+        if g.free_symbols & speeds:
+            return velocity_row(g)
         if sym.general:  # w = dg/dq k + dg/dt in (q, v, t); the row in v: dw/dv
             w = sum((se.diff(g, q) * k for q, k in zip(sym.q, sym.kin)), se.Integer(0)) + se.diff(g, sym.t)
             return [se.diff(w, v) for v in sym.v], w, -sym.rate(w)
@@ -313,12 +326,13 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
         tangent = system.tangents[k]
         if tangent is None:
             continue
-        G, w, gam = row(to_se(tangent, f"inequality constraint {k}, tangent"))
-        rows.append(G)
-        vals.append(w)
-        heights.append(se.Integer(0))
-        gammas.append(gam)
-        tangent_of.append(i)
+        for d, tg in enumerate(tangent if isinstance(tangent, tuple) else (tangent,)):
+            G, w, gam = row(to_se(tg, f"inequality constraint {k}, tangent {d}"))
+            rows.append(G)
+            vals.append(w)
+            heights.append(se.Integer(0))
+            gammas.append(gam)
+            tangent_of.append(i)
     targets, exprs = [], []
     for r, row in enumerate(rows):
         for i in range(n):

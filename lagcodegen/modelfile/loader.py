@@ -388,13 +388,21 @@ class _Loader(_Reader):
         """An inequality g(q, t) >= 0: an expression (monitored: the terminal event ineq_<k>) or a
         contact ``{ expr = "...", restitution = e }`` (impacts with Newton's law, 0 <= e <= 1;
         ``tangent = "..."``: no slip along that expression while touching; with ``friction = mu``:
-        Coulomb friction along it instead)."""
+        Coulomb friction along it instead; ``tangent = ["...", "..."]``: two tangents, 3-D friction
+        on the circular cone)."""
         if not isinstance(value, dict):
             return self.expr(path, value)
         self.fields(path, value, required=("expr",), optional=("restitution", "tangent", "friction"))
         expr = self.expr([*path, "expr"], value["expr"])
         e = value.get("restitution")
-        tangent = self.expr([*path, "tangent"], value["tangent"]) if "tangent" in value else None
+        tangent = value.get("tangent")
+        if isinstance(tangent, list):  # 3-D friction: two tangents (the circular cone)
+            if len(tangent) != 2:
+                raise self.error([*path, "tangent"], f"a tangent is one expression or a list of two (3-D friction), "
+                                 f"got {len(tangent)}", token="tangent")
+            tangent = tuple(self.expr([*path, "tangent", i], item) for i, item in enumerate(tangent))
+        elif tangent is not None:
+            tangent = self.expr([*path, "tangent"], tangent)
         if e is None:
             if "friction" in value:
                 raise self.error([*path, "friction"], "friction (a rough contact) needs a restitution and a tangent",

@@ -171,7 +171,8 @@ SCHEMA: tuple[Table, ...] = (
         Key("inequalities", "expressions or tables", "g(q, t) >= 0, monitored by the terminal events ineq_<k>; "
             "a table { expr = \"...\", restitution = e } is a contact with impacts instead (Newton's law, "
             "0 <= e <= 1; formulations index1, ggl and minimal; tangent = \"...\": no slip along it while touching; "
-            "friction = mu with a tangent: Coulomb friction along it instead)", default="none"),
+            "friction = mu with a tangent: Coulomb friction along it instead (index1); "
+            "tangent = [\"...\", \"...\"]: two tangents, 3-D friction on the circular cone)", default="none"),
         Key("integrable", "string", '"error" refuses an integrable Pfaffian row, "allow" keeps it',
             default='"error"'),
     ), maps_to="ConstrainedSystem"),

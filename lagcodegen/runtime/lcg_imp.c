@@ -47,10 +47,17 @@ int CVodeGetDky(void *cvode_mem, sunrealtype t, int k, N_Vector dky);
 typedef struct {
     const lcg_imp_friction *tab;
     const double *mu; /* nk: Coulomb coefficient, < 0: none (a tangent without friction sticks) */
-    int n, nrow;
+    int n, nq, nrow; /* n: the speeds v (y = (q, v), q' = qd = k(q, v, t)); nq: the coordinates */
     int *trow;        /* nk: the tangential row of contact k, or -1 */
-    int *fmode;       /* nk: 0 stick, +1 / -1 slipping with u > 0 / u < 0 */
-    double *M, *F, *R, *s, *h, *gam, *b, *K, *rhs, *x, *lam, *bestx, *bestlam, *u, *wm, *eff;
+    int *trow2;       /* nk: its second tangential row (3-D friction, the row after trow), or -1 */
+    int *fmode;       /* nk: 0 stick, +1 / -1 slipping with u > 0 / u < 0 (3-D: +1 slipping) */
+    double *M, *F, *R, *s, *h, *gam, *qd, *b, *K, *rhs, *x, *lam, *bestx, *bestlam, *u, *wm, *eff;
+    double *u2;       /* nk: the slip velocity along the second tangent (3-D) */
+    /* 3-D friction, 2 per contact: the slip direction d (unit, in the tangents' components) of the
+     * force -mu lambda_n d while slipping (dir: the current modes'; tdir: the trial mode's; bdir:
+     * the chosen one's) and the reference of the slip root (dref: d where the mode began) */
+    double *dir, *tdir, *bdir, *dref, *gdir; /* gdir: the first guess of a trial's d */
+    double vtol;      /* contact_speed: a slip velocity at most this is at rest */
     int *piv, *sel, *opts, *nopt, *tact, *tmode, *bact, *bmode, *part, *plastic, *ending;
     double det, det0; /* the determinant of the current mode's contact problem, and at its start */
 } fric_data;
@@ -71,6 +78,8 @@ typedef struct {
 
 /* The right-hand side of the current modes: the generated crhs, or the friction driver's. */
 static int crhs(imp_data *d, double t, const double *y, double *ydot, double *lam);
+/* The slip velocity of a contact along its tangents (below). */
+static void fr_slip(const fric_data *f, int k, double *u, double *u2);
 
 static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 {
@@ -90,7 +99,8 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
         int k, nk = d->im->nk, nj = d->im->nj;
         for (k = 0; k < nk; ++k) {
             z[2 * k] = d->lam[nj + k];
-            z[2 * k + 1] = d->fr->trow[k] >= 0 ? d->lam[d->fr->trow[k]] : 0.0;
+            z[2 * k + 1] = (d->fr->trow[k] >= 0 ? d->lam[d->fr->trow[k]] : 0.0)
+                           + (d->fr->trow2[k] >= 0 ? d->lam[d->fr->trow2[k]] : 0.0);
         }
     }
     return rc == LCG_DAE_OK ? 0 : 1;
@@ -98,7 +108,8 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 
 /* Contact roots first (g_k free, lambda_k in persistent contact), then the model's events, then
  * (with friction) two per contact (sticking: mu lambda_n - lambda_t, mu lambda_n + lambda_t;
- * slipping: fmode u, 1) and the determinant of the contact problem while a contact slips. */
+ * slipping: fmode u, 1; 3-D: mu lambda_n - |lambda_t|, 1 sticking and u . dref - |u| / 2, 1
+ * slipping) and the determinant of the contact problem while a contact slips. */
 static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
 {
     imp_data *d = (imp_data *)data;
@@ -130,7 +141,21 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
             gf[2 * k] = gf[2 * k + 1] = 1.0;
             if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
                 continue;
-            if (f->fmode[k] == 0) {
+            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound widened by the tolerance
+                                                          * with which sticking was found admissible */
+                int r;
+                double big = 0.0;
+                for (r = 0; r < f->nrow; ++r)
+                    if (fabs(d->lam[r]) > big)
+                        big = fabs(d->lam[r]);
+                gf[2 * k] = f->mu[k] * d->lam[nj + k] - hypot(d->lam[f->trow[k]], d->lam[f->trow2[k]])
+                            + 1e-9 * (1.0 + big); /* FR_REL */
+            } else if (f->trow2[k] >= 0) { /* 3-D: u . dref - |u| / 2: u stops (or turns by 60 degrees) */
+                double u, u2;
+                fr_slip(f, k, &u, &u2);
+                gf[2 * k] = u * f->dref[2 * k] + u2 * f->dref[2 * k + 1] - 0.5 * hypot(u, u2);
+                slipping = 1;
+            } else if (f->fmode[k] == 0) {
                 gf[2 * k] = f->mu[k] * d->lam[nj + k] - d->lam[f->trow[k]];
                 gf[2 * k + 1] = f->mu[k] * d->lam[nj + k] + d->lam[f->trow[k]];
             } else {
@@ -197,7 +222,17 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
  * integrated. Frictional impacts (fr_impact) are chosen the same way: each contact that takes
  * part in the impact with Newton's law on its normal and its tangential impulse sticking
  * (T dv = -u, |P_t| <= mu P_n) or sliding (P_t = -sigma mu P_n with sigma u+ >= 0), or left out
- * (P_n = 0, w+ >= 0). */
+ * (P_n = 0, w+ >= 0).
+ *
+ * 3-D friction: a contact with two tangential rows T_1, T_2 (trow, trow2) has the exact circular
+ * cone. It sticks (both rows held) while |lambda_t| <= mu lambda_n (root mu lambda_n - |lambda_t|)
+ * and slips (fmode +1, "slip") with the force direction G - mu (d_1 T_1 + d_2 T_2), d = u / |u|
+ * from the slip velocity at each state (fr_slip_directions); its root u . dref - |u| / 2 fires
+ * where u stops or turns by 60 degrees from dref (d where the mode began; then only dref is
+ * renewed). A slip from rest (|u| <= contact_speed) and a sliding impulse have no u to take d
+ * from: fr_slip_fixed_point finds d = a_t / |a_t| (a_t: the tangential acceleration, or the slip
+ * velocity after the impact), the force then opposing the slip it causes; the mode is consistent
+ * when a_t lies along d (fr_aligned). */
 
 #define FR_STICK 0
 #define FR_SLIP_POS 1
@@ -209,17 +244,28 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
 #define FR_MAX_ENUM 4096 /* mode combinations enumerated at most */
 #define FR_REL 1e-9      /* relative tolerance of the consistency conditions */
 #define FR_SAME 1e-7     /* modes whose accelerations (velocity jumps) agree to this are one motion */
+#define FR_DIR_ITER 30   /* fixed-point iterations of a 3-D slip's direction at most */
+#define FR_DIR_REL 1e-6  /* a 3-D slip's tangential acceleration (velocity after an impact) below this,
+                          * relative to the largest, develops no slip: its direction d is kept and it
+                          * is consistent (at the limit of sticking the force is the sticking one, and
+                          * the tangential acceleration is the constraints' stabilization residue) */
 
 static int coulomb(const fric_data *f, int k)
 {
     return f->trow[k] >= 0 && f->mu[k] >= 0.0;
 }
 
+/* Whether contact k has 3-D Coulomb friction (two tangential rows, the exact circular cone). */
+static int cone3(const fric_data *f, int k)
+{
+    return coulomb(f, k) && f->trow2[k] >= 0;
+}
+
 /* The model's numbers at (t, y) into f. */
 static int fr_eval(imp_data *d, double t, const double *y)
 {
     fric_data *f = d->fr;
-    return f->tab->eval(t, y, d->p, f->M, f->F, f->R, f->s, f->h, f->gam);
+    return f->tab->eval(t, y, d->p, f->M, f->F, f->R, f->s, f->h, f->gam, f->qd);
 }
 
 /* b: the right-hand sides of the rows. accel: Baumgarte-stabilized accelerations (as the
@@ -302,7 +348,7 @@ static void fr_lu_solve(int dim, const double *A, const int *piv, double *x)
  * multipliers (impulses) lam = -z into f->lam (all rows; 0 off the mode; the tangential one of a
  * slipping contact -mode mu lambda_n), the determinant (0: singular) into f->det. Rows that are
  * dependent are solved with -eps on the multipliers' diagonal as the generated solve_active. */
-static int fr_solve(imp_data *d, const int *act, const int *mode, int accel)
+static int fr_solve(imp_data *d, const int *act, const int *mode, const double *dir, int accel)
 {
     fric_data *f = d->fr;
     int n = f->n, nj = d->im->nj, nk = d->im->nk, m = 0, r, i, j, k, dim, attempt;
@@ -316,6 +362,8 @@ static int fr_solve(imp_data *d, const int *act, const int *mode, int accel)
             f->sel[m++] = nj + k;
             if (f->trow[k] >= 0 && (f->mu[k] < 0.0 || mode[k] == 0))
                 f->sel[m++] = f->trow[k];
+            if (f->trow2[k] >= 0 && (f->mu[k] < 0.0 || mode[k] == 0))
+                f->sel[m++] = f->trow2[k];
         }
     dim = n + m;
     for (i = 0; i < n; ++i)
@@ -329,15 +377,21 @@ static int fr_solve(imp_data *d, const int *act, const int *mode, int accel)
             rhs[i] = accel ? f->F[i] : 0.0;
         }
         for (j = 0; j < m; ++j) {
-            const double *Rr = f->R + (long)f->sel[j] * n, *Tr = NULL;
-            double norm = 0.0, sm = 0.0;
+            const double *Rr = f->R + (long)f->sel[j] * n, *Tr = NULL, *Tr2 = NULL;
+            double norm = 0.0, sm = 0.0, sm2 = 0.0;
             r = f->sel[j];
             if (r >= nj && r < nj + nk && coulomb(f, r - nj) && mode[r - nj] != 0) {
-                Tr = f->R + (long)f->trow[r - nj] * n;
-                sm = mode[r - nj] * f->mu[r - nj];
+                k = r - nj;
+                Tr = f->R + (long)f->trow[k] * n;
+                sm = mode[k] * f->mu[k];
+                if (cone3(f, k)) { /* the force -mu lambda_n (d_1 T_1 + d_2 T_2) */
+                    Tr2 = f->R + (long)f->trow2[k] * n;
+                    sm = f->mu[k] * dir[2 * k];
+                    sm2 = f->mu[k] * dir[2 * k + 1];
+                }
             }
             for (i = 0; i < n; ++i) {
-                K[i * dim + n + j] = Tr != NULL ? Rr[i] - sm * Tr[i] : Rr[i];
+                K[i * dim + n + j] = Tr != NULL ? Rr[i] - sm * Tr[i] - (Tr2 != NULL ? sm2 * Tr2[i] : 0.0) : Rr[i];
                 K[(n + j) * dim + i] = Rr[i];
                 norm += Rr[i] * Rr[i];
             }
@@ -367,8 +421,12 @@ static int fr_solve(imp_data *d, const int *act, const int *mode, int accel)
     for (j = 0; j < m; ++j)
         f->lam[f->sel[j]] = -rhs[n + j];
     for (k = 0; k < nk; ++k)
-        if (act[k] && coulomb(f, k) && mode[k] != 0)
+        if (act[k] && cone3(f, k) && mode[k] != 0) {
+            f->lam[f->trow[k]] = -dir[2 * k] * f->mu[k] * f->lam[nj + k];
+            f->lam[f->trow2[k]] = -dir[2 * k + 1] * f->mu[k] * f->lam[nj + k];
+        } else if (act[k] && coulomb(f, k) && mode[k] != 0) {
             f->lam[f->trow[k]] = -mode[k] * f->mu[k] * f->lam[nj + k];
+        }
     return LCG_DAE_OK;
 }
 
@@ -384,7 +442,40 @@ static double fr_row(const fric_data *f, int r, const double *x, int accel)
     return v;
 }
 
-/* The right-hand side of the current mode at (t, y): ydot = (q', q''), lam[nrow] (NULL: not
+/* The slip velocity of contact k along its tangents (u2: 0 for a planar contact). */
+static void fr_slip(const fric_data *f, int k, double *u, double *u2)
+{
+    *u = f->trow[k] >= 0 ? f->s[f->trow[k]] : 0.0;
+    *u2 = f->trow2[k] >= 0 ? f->s[f->trow2[k]] : 0.0;
+}
+
+/* 3-D friction: the force of a slipping contact opposes its slip velocity u, d = u / |u| (the
+ * numbers in f at a state), where the slip's root u . dref - |u| / 2 is positive (u within 60
+ * degrees of dref) and |u| above 1e-3 contact_speed; elsewhere d = dref: a slip that begins from
+ * rest (the direction chosen with its mode), and past the root, so that the motion stays smooth
+ * through u = 0 along dref and CVODE's interpolant locates the root as in the planar case (the
+ * direction u / |u| would flip there). */
+static void fr_slip_directions(fric_data *f, int nk)
+{
+    int k;
+
+    for (k = 0; k < nk; ++k) {
+        double u, u2, norm;
+        if (!cone3(f, k) || f->fmode[k] == 0)
+            continue;
+        fr_slip(f, k, &u, &u2);
+        norm = hypot(u, u2);
+        if (norm > 1e-3 * f->vtol && u * f->dref[2 * k] + u2 * f->dref[2 * k + 1] > 0.5 * norm) {
+            f->dir[2 * k] = u / norm;
+            f->dir[2 * k + 1] = u2 / norm;
+        } else {
+            f->dir[2 * k] = f->dref[2 * k];
+            f->dir[2 * k + 1] = f->dref[2 * k + 1];
+        }
+    }
+}
+
+/* The right-hand side of the current mode at (t, y): ydot = (q', v'), lam[nrow] (NULL: not
  * wanted). */
 static int fr_crhs(imp_data *d, double t, const double *y, double *ydot, double *lam)
 {
@@ -395,22 +486,23 @@ static int fr_crhs(imp_data *d, double t, const double *y, double *ydot, double 
     if (rc != LCG_DAE_OK)
         return rc;
     fr_rhs(d, 1, NULL);
-    rc = fr_solve(d, d->active, f->fmode, 1);
+    fr_slip_directions(f, d->im->nk);
+    rc = fr_solve(d, d->active, f->fmode, f->dir, 1);
     if (rc != LCG_DAE_OK)
         return rc;
-    for (i = 0; i < n; ++i) {
-        ydot[i] = y[n + i];
-        ydot[n + i] = f->x[i];
-    }
+    for (i = 0; i < f->nq; ++i)
+        ydot[i] = f->qd[i];
+    for (i = 0; i < n; ++i)
+        ydot[f->nq + i] = f->x[i];
     if (lam != NULL)
         for (i = 0; i < f->nrow; ++i)
             lam[i] = f->lam[i];
     return LCG_DAE_OK;
 }
 
-static const char *fr_mode_name(int act, int mode)
+static const char *fr_mode_name(int act, int mode, int three)
 {
-    return !act ? "free" : mode > 0 ? "slip+" : mode < 0 ? "slip-" : "stick";
+    return !act ? "free" : mode != 0 && three ? "slip" : mode > 0 ? "slip+" : mode < 0 ? "slip-" : "stick";
 }
 
 /* "k:mode, ..." of the contacts that are or were in contact (was[k]) into buf. */
@@ -424,11 +516,89 @@ static void fr_describe(const imp_data *d, const int *was, const int *act, const
         int len;
         if (!was[k])
             continue;
-        len = snprintf(buf + used, size - used, "%s%d:%s", used ? " " : "", k, fr_mode_name(act[k], mode[k]));
+        len = snprintf(buf + used, size - used, "%s%d:%s", used ? " " : "", k,
+                       fr_mode_name(act[k], mode[k], cone3(d->fr, k)));
         if (len < 0)
             break;
         used += (size_t)len;
     }
+}
+
+/* The trial mode solved (f->tact, f->tmode, f->tdir), the directions of its 3-D slips whose
+ * direction is not given by the slip velocity (a slip from rest, |u| <= contact_speed, and every
+ * slip in an impact) found by fixed-point iteration; but a slip that begins where the sticking
+ * force reached the cone's bound (its root fired: ending FR_END_STICK) keeps that force's
+ * direction, d = -lambda_t / |lambda_t| (the friction force continuous; the tangential
+ * acceleration there is ~0, its direction the root's residue and round-off): d = a_t / |a_t| with a_t the tangential
+ * acceleration (impact: the slip velocity after), so that the force -mu lambda_n d opposes the slip
+ * that results (maximal dissipation on the circular cone); at most FR_DIR_ITER + 1 solves. */
+static int fr_slip_given(const fric_data *f, int k);
+
+static int fr_slip_fixed_point(imp_data *d, int accel)
+{
+    fric_data *f = d->fr;
+    int it, k, rc, nk = d->im->nk;
+
+    for (it = 0; it < FR_DIR_ITER; ++it) {
+        int moved = 0, i;
+        double tol = 0.0;
+        rc = fr_solve(d, f->tact, f->tmode, f->tdir, accel);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (i = 0; i < f->n; ++i)
+            if (fabs(f->x[i]) > tol)
+                tol = fabs(f->x[i]);
+        tol = FR_DIR_REL * (1.0 + tol);
+        for (k = 0; k < nk; ++k) {
+            double a, a2, na;
+            if (!f->tact[k] || !cone3(f, k) || f->tmode[k] == 0 || (accel && fr_slip_given(f, k)))
+                continue;
+            a = fr_row(f, f->trow[k], f->x, accel);
+            a2 = fr_row(f, f->trow2[k], f->x, accel);
+            na = hypot(a, a2);
+            if (!(na > tol)) /* no slip develops along d (the limit of sticking, where the force is the
+                              * sticking one): d is kept, not turned to the direction of round-off */
+                continue;
+            if (hypot(a / na - f->tdir[2 * k], a2 / na - f->tdir[2 * k + 1]) > 1e-13)
+                moved = 1;
+            f->tdir[2 * k] = a / na;
+            f->tdir[2 * k + 1] = a2 / na;
+        }
+        if (!moved)
+            return LCG_DAE_OK;
+    }
+    /* not converged (e.g. a_t against d whatever d: no slip from rest): the last directions solved,
+     * for the caller's check of a_t along d */
+    return fr_solve(d, f->tact, f->tmode, f->tdir, accel);
+}
+
+/* Whether a 3-D slip of contact k (in fr_modes, at the current state) has its direction given,
+ * not to be found: it slips at more than contact_speed (d = u / |u|), or it slips already and its
+ * slip root has not fired (a slip that has just begun: d its own), or it begins where its
+ * sticking force reached the cone's bound (d against that force, continuous). */
+static int fr_slip_given(const fric_data *f, int k)
+{
+    return hypot(f->u[k], f->u2[k]) > f->vtol || (f->fmode[k] != 0 && f->ending[k] == 0)
+           || f->ending[k] == FR_END_STICK;
+}
+
+/* Whether the 3-D slip of contact k in the trial mode has its tangential acceleration (impact:
+ * velocity after) a along its direction d: a . d >= -tol and |a x d| <= tol + 1e-6 |a|, or a
+ * negligible (FR_DIR_REL). */
+static int fr_aligned(const fric_data *f, int k, int accel, double tol)
+{
+    double a = fr_row(f, f->trow[k], f->x, accel), a2 = fr_row(f, f->trow2[k], f->x, accel);
+    double along = a * f->tdir[2 * k] + a2 * f->tdir[2 * k + 1];
+    double across = a * f->tdir[2 * k + 1] - a2 * f->tdir[2 * k];
+    double small = 0.0;
+    int i;
+
+    for (i = 0; i < f->n; ++i)
+        if (fabs(f->x[i]) > small)
+            small = fabs(f->x[i]);
+    if (hypot(a, a2) <= FR_DIR_REL * (1.0 + small)) /* no slip develops (see FR_DIR_REL) */
+        return 1;
+    return along >= -tol && fabs(across) <= tol + 1e-6 * hypot(a, a2);
 }
 
 /* Choose the modes of the contacts in persistent contact at (t, y) by enumeration (see above);
@@ -451,8 +621,12 @@ static int fr_try_mode(imp_data *d, int c, int accel, double *lscale)
         idx /= f->nopt[k];
         f->tact[k] = ch != FR_FREE;
         f->tmode[k] = ch == FR_SLIP_POS ? 1 : ch == FR_SLIP_NEG ? -1 : 0;
+        if (cone3(f, k)) { /* the first guess of a 3-D slip's direction (fr_modes, fr_impact) */
+            f->tdir[2 * k] = f->gdir[2 * k];
+            f->tdir[2 * k + 1] = f->gdir[2 * k + 1];
+        }
     }
-    rc = fr_solve(d, f->tact, f->tmode, accel);
+    rc = fr_slip_fixed_point(d, accel);
     if (rc != LCG_DAE_OK)
         return rc;
     for (i = 0; i < f->nrow; ++i)
@@ -474,6 +648,8 @@ static int fr_another_motion(fric_data *f, int nk, int n, int *found, double *xs
         for (k = 0; k < nk; ++k) {
             f->bact[k] = f->tact[k];
             f->bmode[k] = f->tmode[k];
+            f->bdir[2 * k] = f->tdir[2 * k];
+            f->bdir[2 * k + 1] = f->tdir[2 * k + 1];
         }
         for (i = 0; i < n; ++i) {
             f->bestx[i] = f->x[i];
@@ -502,11 +678,36 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
     if (rc != LCG_DAE_OK)
         return rc;
     fr_rhs(d, 1, NULL);
+    fr_slip_directions(f, nk);
+    if (fr_solve(d, d->active, f->fmode, f->dir, 1) != LCG_DAE_OK) /* the current modes' forces (guesses below) */
+        for (i = 0; i < f->nrow; ++i)
+            f->lam[i] = 0.0;
     for (k = 0; k < nk; ++k) {
         int *o = f->opts + 4 * k, no = 0, end = ending != NULL ? ending[k] : 0;
-        double u = f->trow[k] >= 0 ? f->s[f->trow[k]] : 0.0;
+        double u, u2;
+        fr_slip(f, k, &u, &u2);
         f->u[k] = u;
+        f->u2[k] = u2;
+        if (cone3(f, k)) { /* the guess of a 3-D slip's direction: along u, or against the sticking force */
+            double nu = hypot(u, u2), lt = f->lam[f->trow[k]], lt2 = f->lam[f->trow2[k]], nl = hypot(lt, lt2);
+            int keep = f->fmode[k] != 0 && end == 0 && nu <= vtol; /* a slip just begun: its own direction */
+            f->gdir[2 * k] = keep ? f->dir[2 * k] : nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
+            f->gdir[2 * k + 1] = keep ? f->dir[2 * k + 1] : nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl
+                                                                                    : f->dir[2 * k + 1];
+        }
         if (!d->active[k] || end == FR_END_RELEASE) {
+            o[no++] = FR_FREE;
+        } else if (cone3(f, k) && f->fmode[k] != 0 && end == 0 && hypot(u, u2) <= vtol) { /* 3-D, a slip just
+                                                                                           * begun: on */
+            o[no++] = FR_SLIP_POS;
+            o[no++] = FR_FREE;
+        } else if (cone3(f, k) && hypot(u, u2) <= vtol) { /* 3-D from rest: stick, slip, release */
+            int cur = f->fmode[k] == 0 ? FR_STICK : FR_SLIP_POS;
+            for (i = 0; i < 4; ++i)
+                if (i != FR_SLIP_NEG && !(end != 0 && i == cur && cur == FR_STICK))
+                    o[no++] = i;
+        } else if (cone3(f, k)) { /* 3-D slipping: on, d = u / |u| */
+            o[no++] = FR_SLIP_POS;
             o[no++] = FR_FREE;
         } else if (!coulomb(f, k)) {
             o[no++] = FR_STICK;
@@ -544,7 +745,13 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
             if (f->tact[k]) {
                 double ln = f->lam[nj + k];
                 ok = ln >= -lscale;
-                if (ok && coulomb(f, k) && f->tmode[k] == 0)
+                if (ok && cone3(f, k) && f->tmode[k] == 0)
+                    ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * ln + lscale;
+                else if (ok && cone3(f, k) && !fr_slip_given(f, k))
+                    ok = fr_aligned(f, k, 1, ascale);
+                else if (ok && cone3(f, k))
+                    ok = 1;
+                else if (ok && coulomb(f, k) && f->tmode[k] == 0)
                     ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * ln + lscale;
                 else if (ok && coulomb(f, k) && fabs(f->u[k]) <= vtol)
                     ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 1) >= -ascale;
@@ -576,6 +783,12 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         double lt = f->trow[k] >= 0 ? f->bestlam[f->trow[k]] : 0.0;
         if (!was)
             continue;
+        if (cone3(f, k)) { /* 3-D: |lambda_t| and |u| recorded; the slip direction and the root's reference */
+            lt = hypot(lt, f->bestlam[f->trow2[k]]);
+            f->u[k] = hypot(f->u[k], f->u2[k]);
+            f->dir[2 * k] = f->dref[2 * k] = f->bdir[2 * k];
+            f->dir[2 * k + 1] = f->dref[2 * k + 1] = f->bdir[2 * k + 1];
+        }
         if (!f->bact[k]) {
             d->active[k] = 0;
             f->fmode[k] = 0;
@@ -593,11 +806,11 @@ static int fr_modes(imp_data *d, double t, double *y, const int *ending, double 
         for (k = 0; k < nk; ++k)
             f->eff[k] = 0.0;
         fr_rhs(d, 0, f->eff);
-        rc = fr_solve(d, d->active, f->fmode, 0);
+        rc = fr_solve(d, d->active, f->fmode, f->dir, 0);
         if (rc != LCG_DAE_OK)
             return rc;
         for (i = 0; i < n; ++i)
-            y[n + i] += f->x[i];
+            y[f->nq + i] += f->x[i];
     }
     rc = fr_crhs(d, t, y, d->gk + 2 * nk, d->lam);
     if (rc != LCG_DAE_OK)
@@ -623,7 +836,12 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
         int *o = f->opts + 4 * k, no = 0;
         double g = f->h[nj + k], w = f->s[nj + k];
         f->wm[k] = w;
-        f->u[k] = f->trow[k] >= 0 ? f->s[f->trow[k]] : 0.0;
+        fr_slip(f, k, &f->u[k], &f->u2[k]);
+        if (cone3(f, k)) { /* the guess of a 3-D sliding impulse's direction: along u before */
+            double nu = hypot(f->u[k], f->u2[k]);
+            f->gdir[2 * k] = nu > 0.0 ? f->u[k] / nu : f->dir[2 * k];
+            f->gdir[2 * k + 1] = nu > 0.0 ? f->u2[k] / nu : f->dir[2 * k + 1];
+        }
         f->part[k] = d->active[k] || ((hit[k] || g <= gap_tol) && w < 0.0);
         f->plastic[k] = d->active[k] || e[k] * fabs(w) <= set[0] || t - last[k] < set[1];
         f->eff[k] = f->plastic[k] ? 0.0 : e[k];
@@ -632,12 +850,13 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
             o[no++] = FR_STICK;
             if (coulomb(f, k)) {
                 o[no++] = FR_SLIP_POS;
-                o[no++] = FR_SLIP_NEG;
+                if (!cone3(f, k))
+                    o[no++] = FR_SLIP_NEG;
             }
             if (fabs(w) > vscale)
                 vscale = fabs(w);
-            if (fabs(f->u[k]) > vscale)
-                vscale = fabs(f->u[k]);
+            if (hypot(f->u[k], f->u2[k]) > vscale)
+                vscale = hypot(f->u[k], f->u2[k]);
         }
         o[no++] = FR_FREE;
         f->nopt[k] = no;
@@ -668,7 +887,11 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
                 continue;
             }
             ok = f->lam[nj + k] >= -pscale;
-            if (ok && coulomb(f, k) && f->tmode[k] == 0)
+            if (ok && cone3(f, k) && f->tmode[k] == 0)
+                ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * f->lam[nj + k] + pscale;
+            else if (ok && cone3(f, k))
+                ok = fr_aligned(f, k, 0, vscale);
+            else if (ok && coulomb(f, k) && f->tmode[k] == 0)
                 ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * f->lam[nj + k] + pscale;
             else if (ok && coulomb(f, k))
                 ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 0) >= -vscale;
@@ -692,7 +915,7 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
         return -1;
     }
     for (i = 0; i < n; ++i)
-        y[n + i] += f->bestx[i];
+        y[f->nq + i] += f->bestx[i];
     for (k = 0; k < nk; ++k) {
         double wp, up;
         if (!f->part[k])
@@ -715,7 +938,14 @@ static int fr_impact(imp_data *d, double t, double *y, const int *hit, const dou
                    f->wm[k], wp);
         }
         f->fmode[k] = f->bmode[k];
-        if (f->trow[k] >= 0 && f->bestlam[f->trow[k]] != 0.0) {
+        if (cone3(f, k)) { /* 3-D: |P_t| and |u| before and after recorded; the direction kept */
+            double pt = hypot(f->bestlam[f->trow[k]], f->bestlam[f->trow2[k]]);
+            f->dir[2 * k] = f->dref[2 * k] = f->bdir[2 * k];
+            f->dir[2 * k + 1] = f->dref[2 * k + 1] = f->bdir[2 * k + 1];
+            up = hypot(fr_row(f, f->trow[k], f->bestx, 0), fr_row(f, f->trow2[k], f->bestx, 0));
+            if (pt != 0.0)
+                record(rec, max_rec, n_rec, t, k, LCG_IMP_TANGENTIAL_IMPULSE, pt, hypot(f->u[k], f->u2[k]), up);
+        } else if (f->trow[k] >= 0 && f->bestlam[f->trow[k]] != 0.0) {
             up = fr_row(f, f->trow[k], f->bestx, 0);
             record(rec, max_rec, n_rec, t, k, LCG_IMP_TANGENTIAL_IMPULSE, f->bestlam[f->trow[k]], f->u[k], up);
         }
@@ -733,17 +963,19 @@ static int crhs(imp_data *d, double t, const double *y, double *ydot, double *la
 /* The friction state of the table fr with the coefficients mu[nk] in one block of memory
  * (*mem, freed by the caller); the table checked against im. Returns 0, or -1 (out of memory, or
  * a table of another layout: message in st). */
-static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_model *im, const double *mu, void **mem,
-                    lcg_cvc_stats *st)
+static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_model *im, const double *mu, double vtol,
+                    void **mem, lcg_cvc_stats *st)
 {
-    int n = im->nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
-    size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + dim * dim + dim + n + nrow + n + nrow + 3 * nk);
-    size_t ni = (size_t)(2 * nk + dim + nrow + 4 * nk + 10 * nk);
+    int tangents_ok = 1;
+    int nq = im->nq, n = im->dae->ny - nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
+    size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + nq + dim * dim + dim + n + nrow + n + nrow + 3 * nk
+                         + nk + 10 * nk);
+    size_t ni = (size_t)(3 * nk + dim + nrow + 4 * nk + 10 * nk);
     double *db;
     int *ib;
 
     if (fr->abi != LCG_IMP_FRICTION_ABI || fr->imp != im || fr->nt != nrow - im->nj - nk || fr->njh < 0
-        || im->dae->ny != 2 * n /* the friction driver takes v = q' only */
+        || n < 1 || im->dae->nq != nq
         || fr->njh > im->nj || (fr->nt > 0 && fr->tangent_of == NULL) || fr->eval == NULL) {
         snprintf(st->message, sizeof st->message, "the friction table is unusable (lcg_imp_friction version %d, "
                  "this driver reads version %d)", fr->abi, LCG_IMP_FRICTION_ABI);
@@ -759,6 +991,7 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->tab = fr;
     f->mu = mu;
     f->n = n;
+    f->nq = nq;
     f->nrow = nrow;
     f->M = db;
     f->F = f->M + n * n;
@@ -766,7 +999,8 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->s = f->R + nrow * n;
     f->h = f->s + nrow;
     f->gam = f->h + nrow;
-    f->b = f->gam + nrow;
+    f->qd = f->gam + nrow;
+    f->b = f->qd + nq;
     f->K = f->b + nrow;
     f->rhs = f->K + dim * dim;
     f->x = f->rhs + dim;
@@ -776,8 +1010,15 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->u = f->bestlam + nrow;
     f->wm = f->u + nk;
     f->eff = f->wm + nk;
+    f->u2 = f->eff + nk;
+    f->dir = f->u2 + nk;
+    f->tdir = f->dir + 2 * nk;
+    f->bdir = f->tdir + 2 * nk;
+    f->dref = f->bdir + 2 * nk;
+    f->gdir = f->dref + 2 * nk;
     f->trow = ib;
-    f->fmode = f->trow + nk;
+    f->trow2 = f->trow + nk;
+    f->fmode = f->trow2 + nk;
     f->piv = f->fmode + nk;
     f->sel = f->piv + dim;
     f->opts = f->sel + nrow;
@@ -790,13 +1031,32 @@ static int fr_setup(fric_data *f, const lcg_imp_friction *fr, const lcg_imp_mode
     f->plastic = f->part + nk;
     f->ending = f->plastic + nk;
     for (k = 0; k < nk; ++k) {
-        f->trow[k] = -1;
+        f->trow[k] = f->trow2[k] = -1;
         f->fmode[k] = 0;
         f->ending[k] = 0;
+        f->u2[k] = 0.0;
+        f->dir[2 * k] = f->tdir[2 * k] = f->bdir[2 * k] = f->dref[2 * k] = f->gdir[2 * k] = 1.0;
+        f->dir[2 * k + 1] = f->tdir[2 * k + 1] = f->bdir[2 * k + 1] = f->dref[2 * k + 1] = f->gdir[2 * k + 1] = 0.0;
     }
-    for (i = 0; i < fr->nt; ++i)
-        if (fr->tangent_of[i] >= 0 && fr->tangent_of[i] < nk)
-            f->trow[fr->tangent_of[i]] = im->nj + nk + i;
+    for (i = 0; i < fr->nt; ++i) { /* a contact's rows: one (planar) or two consecutive (3-D) */
+        k = fr->tangent_of[i];
+        if (k < 0 || k >= nk)
+            continue;
+        if (f->trow[k] < 0)
+            f->trow[k] = im->nj + nk + i;
+        else if (f->trow2[k] < 0 && f->trow[k] == im->nj + nk + i - 1)
+            f->trow2[k] = im->nj + nk + i;
+        else
+            tangents_ok = 0;
+    }
+    if (!tangents_ok) {
+        snprintf(st->message, sizeof st->message, "the friction table is unusable: a contact has more than two "
+                 "tangential rows, or two that are not consecutive");
+        free(*mem);
+        *mem = NULL;
+        return -1;
+    }
+    f->vtol = vtol;
     f->det = f->det0 = 0.0;
     return 0;
 }
@@ -961,7 +1221,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     nlam = fr != NULL ? im->nrow : nr; /* the multipliers reported per output time */
     data.fr = NULL;
     if (fr != NULL) {
-        if (fr_setup(&fdata, fr, im, mu, &fmem, st) != 0)
+        if (fr_setup(&fdata, fr, im, mu, set[0], &fmem, st) != 0)
             return st->flag = LCG_FLAG_BAD_INPUT;
         data.fr = &fdata;
     }
@@ -1059,8 +1319,9 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         LCG_MODEL_ERROR(LCG_DAE_OK);
         for (k = 0; k < nk; ++k)
             if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0) {
-                double u = fdata.s[fdata.trow[k]];
-                fdata.fmode[k] = fabs(u) <= set[0] ? 0 : u > 0.0 ? 1 : -1;
+                double u, u2;
+                fr_slip(&fdata, k, &u, &u2);
+                fdata.fmode[k] = hypot(u, u2) <= set[0] ? 0 : fdata.trow2[k] >= 0 || u > 0.0 ? 1 : -1;
             }
         rc = fr_modes(&data, tout[0], yv, NULL, set[0], rec, 0, &quiet);
         if (rc == -1) {
@@ -1282,10 +1543,11 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
     }
 
 done:
-    if (data.fr != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip- */
+    if (data.fr != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip-, 4 slip (3-D) */
         for (k = 0; k < nk; ++k)
             if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
-                active[k] = fdata.fmode[k] > 0 ? 2 : fdata.fmode[k] < 0 ? 3 : 1;
+                active[k] = fdata.fmode[k] != 0 && fdata.trow2[k] >= 0 ? 4 : fdata.fmode[k] > 0 ? 2
+                            : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&data.w, flag, st->message, sizeof st->message);
     if (flag == LCG_FLAG_CONTACT_MODE) /* kept from CVODE's error handler (the counters below) */
         memcpy(painleve, st->message, sizeof painleve);

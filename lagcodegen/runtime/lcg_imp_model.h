@@ -7,8 +7,8 @@
  * contacts G_k q' + G0_k with G_k = dg_k/dq, G0_k = dg_k/dt, the rows after them (up to nrow)
  * the tangential rows of rough contacts (no slip, or Coulomb friction: lcg_imp_friction below),
  * held with their contact while it sticks. Models with generalized speeds v (q' = k(q, v, t),
- * dae->ny = nq + nv): the rows act on v (nv columns), ydot = (k, v'), the impact jumps v; the
- * friction table takes v = q' only (ny = 2 nq). Pure C99; no other dependency. */
+ * dae->ny = nq + nv): the rows act on v (nv columns), ydot = (k, v'), the impact jumps v; so does
+ * the friction table's. Pure C99; no other dependency. */
 #ifndef LCG_IMP_MODEL_H
 #define LCG_IMP_MODEL_H
 
@@ -46,22 +46,24 @@ typedef struct lcg_imp_model {
 } lcg_imp_model;
 
 /* Layout version of lcg_imp_friction. */
-#define LCG_IMP_FRICTION_ABI 1
+#define LCG_IMP_FRICTION_ABI 2
 
 /* What the impact driver needs besides lcg_imp_model for contacts with Coulomb friction
  * (generated only for systems with a friction coefficient): the numbers of the model at a state,
  * from which the driver (lcg_imp.c) builds and solves the contact problems of each mode itself.
- * eval: M[nq*nq] (full, row-major), F[nq], R[nrow*nq] (the rows as in lcg_imp_model), s[nrow]
- * = R q' + R0, h[nrow] (the holonomic values: f_j, g_k; 0 for the other rows), gam[nrow] =
- * -d/dt (R q' + R0) with q'' excluded. tangent_of[nt]: the contact (0..nk-1) of each tangential
- * row nj + nk + i. */
+ * With nv = dae->ny - nq speeds v (v = q' when ny = 2 nq), eval: M[nv*nv] (full, row-major),
+ * F[nv], R[nrow*nv] (the rows as in lcg_imp_model, acting on v), s[nrow] = R v + R0, h[nrow]
+ * (the holonomic values: f_j, g_k; 0 for the other rows), gam[nrow] = -d/dt (R v + R0) with v'
+ * excluded, qd[nq] = q' = k(q, v, t). tangent_of[nt]: the contact (0..nk-1) of each tangential
+ * row nj + nk + i; a contact has one tangential row (planar friction) or two, consecutive (3-D
+ * friction with the exact circular cone |lambda_t| <= mu lambda_n, lcg_imp.c). */
 typedef struct lcg_imp_friction {
     int abi; /* LCG_IMP_FRICTION_ABI */
     int njh; /* holonomic equality rows (the first njh) */
     int nt;  /* tangential rows */
     const int *tangent_of;
     int (*eval)(double t, const double *y, const double *p, double *M, double *F, double *R, double *s, double *h,
-                double *gam);
+                double *gam, double *qd);
     const lcg_imp_model *imp;
 } lcg_imp_friction;
 

@@ -70,6 +70,11 @@ modes again enumerated jointly (a "tangential_impulse" record each); a contact t
 has its slip velocity projected to 0. ``Result.impacts`` records the transitions ("slip",
 "grip", "reverse"; :meth:`ContactLog.transitions`, ``stats["stick_slip"]``) and the final modes
 (``ContactLog.friction_modes``); ``outputs["lambda_t_ineq_<k>"]`` is the tangential multiplier.
+A contact with two tangents (3-D) has the exact circular cone: it sticks while |lambda_t| <=
+mu lambda_n, slips with the force -mu lambda_n u/|u| against its slip velocity (mode "slip", the
+outputs ``lambda_t0_ineq_<k>``, ``lambda_t1_ineq_<k>``); a slip from rest and a sliding impulse
+take the direction that makes the force oppose the resulting slip (fixed-point iteration). Models
+with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t)).
 
 *Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
 friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
@@ -194,7 +199,8 @@ class ContactLog:
     records: list = field(default_factory=list)
     final_modes: dict = field(default_factory=dict)  # contact k -> "free" or "contact" at the end
     truncated: bool = False  # more records than ContactOptions.max_records
-    #: contacts with Coulomb friction: k -> "free", "stick", "slip+" or "slip-" at the end
+    #: contacts with Coulomb friction: k -> "free", "stick", "slip+" or "slip-" at the end ("slip"
+    #: for a 3-D contact, two tangents)
     friction_modes: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -321,8 +327,14 @@ class ImpactRunner:
             self.numbers = ffi.cast("const lcg_imp_friction *", getter())
             if self.numbers.imp != self.table:
                 raise LagcodegenError(f"the friction table of {info.prefix!r} does not match its code")
-            with_tangent = [k for k in self.contacts if system.tangents[k] is not None]
-            self.tangent_rows = {k: info.J + len(self.contacts) + i for i, k in enumerate(with_tangent)}
+            row = info.J + len(self.contacts)
+            for k in self.contacts:  # one tangential row (planar), two (3-D)
+                tangent = system.tangents[k]
+                if tangent is None:
+                    continue
+                count = len(tangent) if isinstance(tangent, tuple) else 1
+                self.tangent_rows[k] = list(range(row, row + count))
+                row += count
             if system.has_friction:
                 self.friction = self.numbers
 
@@ -470,17 +482,22 @@ class ImpactRunner:
                 outputs[f"lambda_{j}"] = ll[:, j]
         for i, k in enumerate(self.contacts):
             outputs[f"lambda_ineq_{k}"] = ll[:, nj + i]
-        for k, r in self.tangent_rows.items():
-            if r < ll.shape[1]:
-                outputs[f"lambda_t_ineq_{k}"] = ll[:, r]
+        for k, rows in self.tangent_rows.items():
+            if not all(r < ll.shape[1] for r in rows):  # index-1 without friction: no tangential rows kept
+                continue
+            if len(rows) == 1:
+                outputs[f"lambda_t_ineq_{k}"] = ll[:, rows[0]]
+            else:  # 3-D: one per tangent
+                for d, r in enumerate(rows):
+                    outputs[f"lambda_t{d}_ineq_{k}"] = ll[:, r]
         count, active = raw.n_rec, raw.active
         log = ContactLog([ImpactRecord(float(r[0]), self.contacts[int(r[1])], KINDS[int(r[2])], float(r[3]),
                                        float(r[4]), float(r[5])) for r in raw.rec[: min(count, contacts.max_records)]],
                          {k: "contact" if active[i] else "free" for i, k in enumerate(self.contacts)},
                          count > contacts.max_records)
         stats["impacts"] = len(log.times)
-        if self.friction != ffi.NULL:  # the driver returns the final modes as 1 stick, 2 slip+, 3 slip-
-            log.friction_modes = {k: ("free", "stick", "slip+", "slip-")[int(active[i])]
+        if self.friction != ffi.NULL:  # the driver returns the final modes as 1 stick, 2 slip+, 3 slip-, 4 slip (3-D)
+            log.friction_modes = {k: ("free", "stick", "slip+", "slip-", "slip")[int(active[i])]
                                   for i, k in enumerate(self.contacts) if self.mu[i] >= 0}
             stats["stick_slip"] = len(log.transitions())
         if flag == int(Flag.CONTACT_MODE):

@@ -40,6 +40,7 @@ from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
+from .tangents import check_tangent
 from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
@@ -80,7 +81,11 @@ class Inequality:
     point, or x - R phi for a disc rolling on a line. Without ``friction`` the contact does not
     slip: while it touches (in an impact and in persistent contact) u is held at zero by a second
     row T with its own impulse and multiplier (unbounded friction; the contact is released by its
-    normal multiplier only). Without a tangent contacts are frictionless.
+    normal multiplier only). Without a tangent contacts are frictionless. The tangent may instead be
+    the slip velocity u itself, an expression linear in the speeds (q', or the generalized speeds v
+    of quaternion joints), for contacts whose slip is no position's rate (a sphere on a free joint:
+    x' - R w_y). A pair ``(t1, t2)`` is a 3-D contact: two tangential rows (meant orthonormal in
+    the contact plane) and Coulomb's exact circular cone |lambda_t| <= mu lambda_n.
 
     ``friction`` mu (keyword, >= 0, with a tangent): Coulomb friction instead of no slip. In
     persistent contact it sticks (u = 0) while |lambda_t| <= mu lambda_n, else slips with
@@ -225,8 +230,7 @@ class ConstrainedSystem:
             self.restitution.append(e)
             self.friction.append(mu)
             if tangent is not None:
-                tangent = _expr(tangent, f"{what}, tangent")
-                model.check_symbols(tangent, f"{what}, tangent", allow_speeds=False)
+                tangent = check_tangent(model, tangent, what)
             self.tangents.append(tangent)
             g = _expr(g, what)
             model.check_symbols(g, what, allow_speeds=False)
@@ -549,20 +553,19 @@ def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restituti
     ``restitution``, for :class:`ConstrainedSystem`'s ``inequalities``; the point is declared on
     the model as ``name`` (default ``<link>_contact_<k>``). Without ``tangent`` the contact is
     frictionless; ``tangent="x"`` or ``"y"``: a rough contact along that world axis only (no slip,
-    or Coulomb ``friction`` mu), the contact driver taking one tangential direction per contact:
-    3-D friction (two directions) is refused. Works on floating-base models (quaternion free
-    joints: ``urdf.load(path, floating=True)``)."""
+    or Coulomb ``friction`` mu, planar); ``tangent="xy"``: both world axes, 3-D friction with the
+    exact circular cone |lambda_t| <= mu lambda_n (the point's world x and y as the two tangents).
+    Works on floating-base models (quaternion free joints: ``urdf.load(path, floating=True)``)."""
     if not isinstance(model, Model):
         raise ModelError(f"ground_contact needs a lagcodegen Model, got {type(model).__name__}")
     link = getattr(link, "name", link)
     if not isinstance(link, str):
         raise ModelError(f"ground_contact: link must be a link or its name, got {link!r}")
-    if tangent not in (None, "x", "y"):
-        raise ModelError(f"ground_contact: tangent must be None, 'x' or 'y' (one world axis: the contact driver takes "
-                         f"one tangential direction per contact; 3-D friction is not supported), got {tangent!r}")
+    if tangent not in (None, "x", "y", "xy"):
+        raise ModelError(f"ground_contact: tangent must be None, 'x', 'y' (one world axis: planar friction) or 'xy' "
+                         f"(3-D friction), got {tangent!r}")
     if friction is not None and tangent is None:
-        raise ModelError("ground_contact: friction needs a tangent direction ('x' or 'y'); 3-D Coulomb friction (two "
-                         "tangential directions per contact) is not supported")
+        raise ModelError("ground_contact: friction needs a tangent direction ('x', 'y' or 'xy')")
     if name is None:
         k = sum(1 for nme in model.points if nme.startswith(f"{link}_contact_"))
         name = f"{link}_contact_{k}"
@@ -570,5 +573,6 @@ def ground_contact(model: Model, link, point: Sequence = (0, 0, 0), *, restituti
     if pt.dim != 3:
         raise ModelError(f"ground_contact: the point of link {link!r} is not 3-D")
     g = pt.position[2] - _expr(ground, "ground_contact: ground height")
-    tan = None if tangent is None else pt.position["xy".index(tangent)]
+    tan = None if tangent is None else tuple(pt.position["xy".index(a)] for a in tangent)
+    tan = tan[0] if tan is not None and len(tan) == 1 else tan
     return Inequality(g, restitution=restitution, tangent=tan, friction=friction)
