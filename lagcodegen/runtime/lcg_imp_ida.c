@@ -43,7 +43,7 @@ typedef struct {
     int n, nj, nk, nrow, nmu, nroot;
     int *active; /* nk: 1 in persistent contact */
     int *hrow;   /* nmu: the row of each mu (the holonomic equality rows, then the contacts) */
-    double *M, *F, *R, *s, *h, *gam, *gk, *wk;
+    double *M, *F, *R, *s, *h, *gam, *qd, *gk, *wk;
     lcg_ida_stats *st;
     watch w;
 } imp_ida;
@@ -68,7 +68,7 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
 
     if (WATCH_TICK(&d->w))
         return -1;
-    rc = d->nf->eval(t, yy, d->p, d->M, d->F, d->R, d->s, d->h, d->gam);
+    rc = d->nf->eval(t, yy, d->p, d->M, d->F, d->R, d->s, d->h, d->gam, d->qd);
     if (rc != LCG_DAE_OK)
         return 1; /* non-finite: IDA retries with a smaller step */
     for (i = 0; i < n; ++i) {
@@ -231,11 +231,11 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         ev->n_events = 0;
         ev->terminated = 0;
     }
-    /* doubles: M[n n], F[n], R[nrow n], s, h, gam[nrow], gk, wk[nk], ys[ny], ydot[ny], lamtmp[nrow],
+    /* doubles: M[n n], F[n], R[nrow n], s, h, gam[nrow], qd[n], gk, wk[nk], ys[ny], ydot[ny], lamtmp[nrow],
      * last[nk], scratch[2 nk + nrow + ny], gprev[nk], wa[nk]; ints: hrow[nmu], hit[nk], rows[2 nk],
      * info[nall], dirs[nall] */
     buf = (double *)malloc(sizeof(double) * (size_t)(n * n + n + nrow * n + 3 * nrow + 2 * nk + 2 * ny + nrow + nk
-                                                     + 2 * nk + nrow + ny + 2 * nk));
+                                                     + 2 * nk + nrow + ny + 2 * nk + n));
     ibuf = (int *)malloc(sizeof(int) * (size_t)(nmu + 3 * nk + 2 * nall));
     if (buf == NULL || ibuf == NULL) {
         free(buf);
@@ -249,7 +249,8 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     d.s = d.R + nrow * n;
     d.h = d.s + nrow;
     d.gam = d.h + nrow;
-    d.gk = d.gam + nrow;
+    d.qd = d.gam + nrow; /* q' = k(q, v, t) of the numbers' table (v = q' here: unused) */
+    d.gk = d.qd + n;
     d.wk = d.gk + nk;
     ys = d.wk + nk;
     ydot = ys + ny;
