@@ -26,7 +26,7 @@ A measuring instrument: it asserts nothing.
 
 Usage::
 
-    python benchmarks/taylor_trees.py [--quick] [--models chain12,solo12,ur5] [--rounds R] [--warm-runtime]
+    python benchmarks/taylor_trees.py [--quick] [--models chain12,solo12,ur5] [--rounds R] [--warm-runtime] [--out DIR]
     python benchmarks/taylor_trees.py --evaluations
 """
 
@@ -208,6 +208,21 @@ def evaluations() -> None:
                   f"{a.stats['rhs_evals'] / t.stats['steps']:6.2f}", flush=True)
 
 
+class Tee:
+    """Writes to several streams."""
+
+    def __init__(self, *streams):
+        self.streams = streams
+
+    def write(self, text):
+        for s in self.streams:
+            s.write(text)
+
+    def flush(self):
+        for s in self.streams:
+            s.flush()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="the 12-joint chain only, two tolerances, one round (< 60 s)")
@@ -215,11 +230,15 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--warm-runtime", action="store_true")
     ap.add_argument("--evaluations", action="store_true")
+    ap.add_argument("--out", default=None, help="also write the tables to DIR/taylor_trees.txt")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         print(json.dumps(first_run(args.child)))
         return
+    if args.out:  # the tables into DIR/taylor_trees.txt too
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        sys.stdout = Tee(sys.stdout, open(Path(args.out) / "taylor_trees.txt", "w", encoding="utf-8"))
     if args.evaluations:
         evaluations()
         return
