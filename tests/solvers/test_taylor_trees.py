@@ -146,6 +146,16 @@ def test_floating_solo12_taylor_jet_and_run_against_pinocchio_and_adams():
     agrees_with_adams(cm, pm, 0.5, 1e-8)
 
 
+def test_taylor_sensitivities_of_a_tree_agree_with_cvode():
+    """The variational jet is built over the program's operations too."""
+    cm = lcg.compile_model(spatial_chain(4)[0], jacobian=False)
+    t = np.linspace(0.0, 1.0, 5)
+    kw = dict(q0=[0.3] * 4, rtol=1e-12, atol=1e-12, sensitivities=["g"])
+    a = cm.simulate(t, method="taylor", **kw).sensitivities
+    b = cm.simulate(t, method="adams", **kw).sensitivities
+    assert np.abs(b).max() > 0.1 and np.abs(a - b).max() < 1e-9
+
+
 def test_program_form_is_a_trees_only():
     with pytest.raises(ModelError, match="form 'program' is a rigid-body tree's"):
         decompose(Scene(lcg.derive(lcg.systems.n_link_pendulum(2)), jacobian=False), form="program")
