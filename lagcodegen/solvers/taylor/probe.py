@@ -45,15 +45,16 @@ def probe_state(cm) -> np.ndarray:
 
 
 def _best(run, budget: float, most: int) -> float:
-    """The least seconds per unit of ``run(k) -> units done`` over calls of ``k`` = 1, 2, 4, ...
+    """The least CPU seconds (of the calling thread, which runs the integrators: a loaded machine's
+    preemption does not count) per unit of ``run(k) -> units done`` over calls of ``k`` = 1, 2, 4, ...
     (the first call, which may load and warm what the run uses, left out), until a call takes
     ``budget`` / 8 or ``k`` reaches ``most``, and then while ``budget`` seconds are not spent
     (at most 32 calls)."""
     best, k, spent, calls = math.inf, 1, 0.0, 0
     while calls < 32:
-        start = time.perf_counter()
+        start = time.thread_time()
         units = run(k)
-        elapsed = time.perf_counter() - start
+        elapsed = time.thread_time() - start
         spent += elapsed
         calls += 1
         if units > 0 and calls > 1:
