@@ -156,7 +156,8 @@ def ensemble_ode(cm, t, q0=None, v0=None, *, y0=None, z0=None, params=None, reco
     solver, rtol, atol, events, options = run_keywords(options)
     t = output_times(t)
     n_mem, Y, P = ode_states(cm, q0, v0, y0, z0, params)
-    family = resolve("ode", solver, options, cm.method_size, float(rtol), runs="ensemble")
+    family = resolve("ode", solver, options, cm.method_size, float(rtol), runs="ensemble",
+                     costs=cm.method_costs)
     sets = member_sets(cm.code.input_names, cm.param_names, inputs, n_mem, cm.code.model_name,
                        params=params)
     request = Request(events=tuple(events or ()), inputs=sets, members=Members(threads, save, progress))

@@ -218,7 +218,7 @@ def family_run(cm, solver, rtol, atol, options: dict, events=()):
     family does not prepare it (those runs take the full path)."""
     rtol_f, atol_f = tolerances(rtol, atol, cm.ny, scalar=True)
     own = {k: v for k, v in options.items() if k != "inputs"}
-    family = resolve("ode", solver, own, cm.method_size, rtol_f)
+    family = resolve("ode", solver, own, cm.method_size, rtol_f, costs=cm.method_costs)
     fixed = {"n_coordinates": cm.n, "n_speeds": cm.code.nv, "model_name": cm.code.model_name or "",
              "drawing": deferred_drawing(cm)}
     request = Request(kind="prepared", events=tuple(events), fixed=fixed)

@@ -60,6 +60,13 @@ def check_rc(rc: int, t: float, what: str) -> None:
         raise SolverError(f"{what}: a computed value is not finite", t=float(t))
 
 
+@dataclasses.dataclass(frozen=True)
+class _Costs:
+    """The measured costs of a model kept among its artifacts (None where not measurable)."""
+
+    costs: object
+
+
 class CompiledModel(CompiledReprMixin):
     """A compiled scene: the cffi module plus the layout of its arrays.
 
@@ -149,6 +156,13 @@ class CompiledModel(CompiledReprMixin):
         """The size ``method="auto"`` chooses by (:func:`~lagcodegen.solvers.registry.choose_method`):
         the coordinates, or infinity (never the Taylor method) for generalized speeds."""
         return self.n if self.code.nv is None else math.inf
+
+    def method_costs(self, rtol: float):
+        """The measured costs ``method="auto"`` weighs at ``rtol`` (:func:`lagcodegen.solvers.auto.choose_method`):
+        :func:`lagcodegen.solvers.taylor.probe.measure_costs`, once per Taylor order (kept with the
+        model; the Taylor integrator is built for it), or None where they cannot be measured."""
+        from ..solvers.taylor.probe import measure_costs, run_order
+        return self.artifacts.get(_Costs, run_order(rtol), lambda: _Costs(measure_costs(self, rtol))).costs
 
     @property
     def nv(self) -> int:
@@ -395,7 +409,7 @@ class CompiledModel(CompiledReprMixin):
             raise LagcodegenError("the initial state has non-finite values")
         p = self.parameter_vector(params)
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
-        family = resolve("ode", solver, options, self.method_size, rtol)
+        family = resolve("ode", solver, options, self.method_size, rtol, costs=self.method_costs)
         tables = None if inputs is None else input_set(self.code.input_names, self.param_names, inputs,
                                                        self.code.model_name, params=params)
         res = family.run("ode", Problem(self, rtol, atol_arr, t, y, p),
@@ -427,7 +441,7 @@ class CompiledModel(CompiledReprMixin):
         p = self.parameter_vector(params)
         t0 = check_finite(t0, "t0")
         rtol, atol_arr = tolerances(rtol, atol, self.ny, scalar=True)
-        family = resolve("ode", solver, options, self.method_size, rtol, runs="stepper")
+        family = resolve("ode", solver, options, self.method_size, rtol, runs="stepper", costs=self.method_costs)
         mem = np.concatenate([[t0], y, p])  # (t, y, p): the memory the C stepper works on
         stepper = family.run("ode", Problem(self, rtol, atol_arr, y=mem), Request(kind="stepper", events=events))
         if getattr(stepper, "with_sensitivities", False):  # on the stepper's memory (it may hold s)

@@ -39,7 +39,8 @@ class PreparedRun:
         self._options = dict(options)
         # every option checked now: a bad keyword or value raises here, not at the first call
         rtol_f, _ = tolerances(rtol, atol, cm.ny, scalar=True)
-        resolve("ode", solver, {k: v for k, v in options.items() if k != "inputs"}, cm.method_size, rtol_f)
+        resolve("ode", solver, {k: v for k, v in options.items() if k != "inputs"}, cm.method_size, rtol_f,
+                costs=cm.method_costs)
         run = family_run(cm, solver, rtol, atol, options, self._events) if preparable(rtol, atol, options) else None
         self._fast = None if run is None else FastRun(cm, run, rtol, atol, options)
 

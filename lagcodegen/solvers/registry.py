@@ -6,7 +6,8 @@ solver options into a family object, which ``simulate`` and ``ensemble`` of ever
   must not contradict it);
 * else the keyword spellings: ``method`` chooses the family among those that run the face
   (``"adams"``/``"bdf"``: CVODE, ``"taylor"``: Taylor, GGL: IDA, ``"auto"``: Taylor or Adams by
-  :func:`choose_method`) and the other keywords become its fields;
+  :func:`lagcodegen.solvers.auto.choose_method`, the model's size and measured costs) and the
+  other keywords become its fields;
 * a keyword the family does not have raises LagcodegenError naming it, unless it asks for
   nothing (``backend="native"``, ``linear_solver="dense"``, ... :data:`.family.NEUTRAL`).
 """
@@ -14,6 +15,7 @@ solver options into a family object, which ``simulate`` and ``ensemble`` of ever
 from __future__ import annotations
 
 from ..errors import LagcodegenError
+from .auto import AUTO_TAYLOR_MAX_N, AUTO_TAYLOR_TIGHT_MAX_N, choose_method
 from .cvode import CVODE
 from .family import FACES, Family
 from .ida import IDA
@@ -54,12 +56,16 @@ def _kind(value):
     return tuple(map(_kind, value)) if kind is tuple else kind
 
 
-def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8, *, runs: str = "run") -> Family:
+def resolve(face: str, solver, options: dict, n: float = 0, rtol: float = 1e-8, *, runs: str = "run",
+            costs=None) -> Family:
     """The family object of a run on ``face`` ("ode", "index1", "ggl"): ``solver`` (a family
     object or None) with ``options`` (the run's other keywords: method, linear_solver, ...)
     applied, checked against the face and against the kind of run asked for (``runs``: "run",
-    "stepper", "ensemble", "prepared"; the family's ``runs`` table). ``n`` and ``rtol`` choose the family
-    of ``method="auto"``."""
+    "stepper", "ensemble", "prepared"; the family's ``runs`` table). ``n``, ``rtol`` and ``costs`` (rtol ->
+    the model's measured :class:`~lagcodegen.solvers.auto.MethodCosts` or None) choose the
+    family of ``method="auto"`` (:func:`~lagcodegen.solvers.auto.choose_method`)."""
+    if solver is None and face == "ode" and options.get("method") == "auto":
+        options = {**options, "method": choose_method(n, rtol, costs)}
     try:
         key = (face, runs, solver, tuple(options.items()), tuple(map(_kind, options.values())), n, rtol)
         hit = _CACHE.get(key)
@@ -70,8 +76,6 @@ def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8, *,
     if solver is None:
         options = dict(options)
         method = options.pop("method", None)
-        if method == "auto" and face == "ode":
-            method = choose_method(n, rtol)
         cls = family_class(face, method)
         if "method" in cls.fields() and method is not None:
             options["method"] = method
@@ -95,25 +99,6 @@ def resolve(face: str, solver, options: dict, n: int = 0, rtol: float = 1e-8, *,
         _CACHE[key] = family
     return family
 
-
-def choose_method(n: int, rtol: float) -> str:
-    """The method ``method="auto"`` picks: Taylor for up to :data:`AUTO_TAYLOR_MAX_N`
-    coordinates at any tolerance, and up to :data:`AUTO_TAYLOR_TIGHT_MAX_N` at rtol <= 1e-8;
-    Adams otherwise.
-
-    Measured with ``python benchmarks/taylor.py --rounds 3`` (n-link pendulums, q0 = 0.1 and 1.0,
-    t in [0, 10], time of ``simulate()`` at equal achieved error): Adams/Taylor time ratio 1.7-12
-    for n <= 3, 1.0-2.1 at n = 5, 0.7-0.9 at n = 10 for errors >= 1e-6 but 1.0-1.7 below 1e-8,
-    0.4-1.3 at n = 20 (Adams faster in most cells)."""
-    if n <= AUTO_TAYLOR_MAX_N or (n <= AUTO_TAYLOR_TIGHT_MAX_N and rtol <= 1e-8):
-        return "taylor"
-    return "adams"
-
-
-#: ``method="auto"`` integrates models with at most this many coordinates by the Taylor method
-#: (see :func:`choose_method`), and up to AUTO_TAYLOR_TIGHT_MAX_N at tight tolerances.
-AUTO_TAYLOR_MAX_N = 5
-AUTO_TAYLOR_TIGHT_MAX_N = 10
 
 __all__ = ["AUTO_TAYLOR_MAX_N", "AUTO_TAYLOR_TIGHT_MAX_N", "CVODE", "FACES", "FAMILIES", "IDA", "Taylor",
            "choose_method", "family_class", "methods", "resolve"]

@@ -548,10 +548,12 @@ def group_by_atoms(expr, varsyms):
 
 
 # ------------------------------------------------------------------ the scene
-def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
+def scene_expressions(scene: Scene, events=(), dynamics: bool = True) -> tuple[dict, object, dict]:
     """(expressions by location, time symbol, state symbol -> row) of ``scene`` with model
-    symbols renamed to y[i], p[k] and folded parameters as numbers. Locations: ("M", i, j)
-    for the upper triangle, ("F", i), ("rate", k), ("event", e)."""
+    symbols renamed to y[i], p[k] and folded parameters as numbers. Locations: ("kin", i) (the
+    coordinates' rates, generalized speeds only), ("M", i, j) for the upper triangle, ("F", i),
+    ("rate", k), ("event", e); ``dynamics`` False: without M and F (a rigid-body tree's come
+    from its program, :func:`program_form`)."""
     eom = scene.eom
     require_symmetric(eom, "the Taylor method")
     model = eom.model
@@ -567,11 +569,12 @@ def scene_expressions(scene: Scene, events=()) -> tuple[dict, object, dict]:
     if model.general:  # the coordinates' rates (generalized speeds)
         for i, k in enumerate(eom.qdot_se):
             exprs[("kin", i)] = c(k)
-    for i in range(n):
-        for j in range(i, n):
-            exprs[("M", i, j)] = c(eom.M_se[i][j])
-    for i in range(n):
-        exprs[("F", i)] = c(eom.F_se[i])
+    if dynamics:
+        for i in range(n):
+            for j in range(i, n):
+                exprs[("M", i, j)] = c(eom.M_se[i][j])
+        for i in range(n):
+            exprs[("F", i)] = c(eom.F_se[i])
     for k, (_, rate) in enumerate(eom.quadratures):
         exprs[("rate", k)] = c(rate)
     for e, ev in enumerate(events):
@@ -608,6 +611,12 @@ def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: 
                 e = group_by_atoms(linearize_trig(e), varsyms)
             entries[loc] = d.row(e) if loc[0] == "event" else d.node(e)
             stage.advance()
+    return _assemble(d, entries, n, nz, ne, nq, form)
+
+
+def _assemble(d: _Decomposer, entries: dict, n: int, nz: int, ne: int, nq: int | None, form: str) -> Decomposition:
+    """The :class:`Decomposition` of the decomposer ``d``, the rows (or constants) of the
+    equations' entries by location (:func:`scene_expressions`' locations)."""
     M = [[None] * n for _ in range(n)]
     for i in range(n):
         for j in range(i, n):
@@ -620,6 +629,60 @@ def _decompose_form(exprs: dict, time_symbol, state: dict, n: int, nz: int, ne: 
         kin=None if nq is None else [entries[("kin", i)] for i in range(nq)])
     decomposition.cost = cost(decomposition)
     return decomposition
+
+
+def program_form(scene: Scene, events, where, names: dict) -> Decomposition:
+    """The elementary operations of a rigid-body tree's equations taken from its recorded program
+    (:func:`lagcodegen.formulation.kernels.tree_rhs`: composite rigid bodies for M, recursive
+    Newton-Euler for the bias, eq. 3.16's M q'' = F with the model's other terms in closed form),
+    statement by statement: each temporary is decomposed once, over the rows of the earlier ones,
+    so the work and the operations are linear in the program's length (decomposing the tree's DAG
+    expressions instead visits their shared subexpressions through symengine's hashing and
+    comparisons, which on a 12-joint chain did not finish in 100 s). A temporary whose value is a
+    constant (numbers and run-time parameters only) enters the later statements as that constant.
+    The coordinates' rates (generalized speeds), the quadrature rates and the events are closed
+    forms, decomposed as :func:`decompose` does."""
+    from ...formulation.kernels import tree_rhs
+    eom = scene.eom
+    model = eom.model
+    n, nz, ne = model.nv, len(eom.quadratures), len(events)
+    nq = model.nq if eom.general else None
+    exprs, time_symbol, state = scene_expressions(scene, events, dynamics=False)
+    block = tree_rhs(eom, symbol_map(scene))
+    d = _Decomposer(state, time_symbol, n, nz, nq)
+    d.names = names
+    known: dict = {}  # a temporary with a constant value -> that constant (its expression or number)
+
+    def node(e):
+        sub = {u: known[u] for u in e.free_symbols if u in known}
+        return d.node(e.xreplace(sub) if sub else e)
+    entries = {}
+    closed = [(loc, e) for loc, e in exprs.items() if loc[0] == "kin"]
+    closed_after = [(loc, e) for loc, e in exprs.items() if loc[0] != "kin"]
+    total = len(closed) + len(block.defs) + len(block.targets) + len(closed_after)
+    with progress.stage("taylor", total=total, unit="statements, tree program") as stage:
+        for loc, e in closed:
+            d.where = where(loc)
+            entries[loc] = d.node(e)
+            stage.advance()
+        d.where = "the rigid-body tree's recursions"
+        for sym, e in block.defs:
+            entry = node(e)
+            if isinstance(entry, int):
+                d.state[sym] = entry
+                d.varsyms.add(sym)
+            else:
+                known[sym] = d.consts[entry.index] if isinstance(entry, Const) else entry
+            stage.advance()
+        for target, e in zip(block.targets, block.exprs):
+            d.where = where(target)
+            entries[target] = node(e)
+            stage.advance()
+        for loc, e in closed_after:
+            d.where = where(loc)
+            entries[loc] = d.row(e) if loc[0] == "event" else d.node(e)
+            stage.advance()
+    return _assemble(d, entries, n, nz, ne, nq, "program")
 
 
 def fuse_products(d: Decomposition) -> Decomposition:
@@ -664,25 +727,35 @@ def cost(d: Decomposition) -> float:
 
 def decompose(scene: Scene, events=(), form: str | None = None, fuse: bool = True) -> Decomposition:
     """The elementary operations of ``scene`` (M, F, quadrature rates) and of the ``events``
-    (objects with ``name`` and ``expr``), in the cheaper of the two forms (``form``:
-    "derived" or "trig-linearized" to force one); ``fuse``: products used by one linear
-    combination only computed in its loop (:func:`fuse_products`)."""
+    (objects with ``name`` and ``expr``): a rigid-body tree's from its recorded program
+    (:func:`program_form`), other models' in the cheaper of the two forms of their expressions
+    (``form``: "derived" or "trig-linearized" to force one; "program" a tree's default);
+    ``fuse``: products used by one linear combination only computed in its loop
+    (:func:`fuse_products`)."""
     eom = scene.eom
-    n, nz = eom.model.nv, len(eom.quadratures)
-    nq = eom.model.nq if eom.general else None
-    exprs, time_symbol, state = scene_expressions(scene, events)
     names = {v: se.Symbol(str(k)) for k, v in symbol_map(scene).items() if isinstance(v, se.Symbol)}
 
     def where(loc):
         return _where(scene, loc, events)
 
-    # A rigid-body tree's program is products of the joints' sines and cosines already: its
-    # trig-linearized form measured 3-9 times costlier per order (UR5 3139 vs 390, floating Solo12
-    # 9680 vs 3083) and took 7 of the Solo12 jet's 12 s to form, so trees take the derived form.
-    forms = (form,) if form else ("derived",) if eom.tree is not None else ("derived", "trig-linearized")
+    if form not in (None, "program", "derived", "trig-linearized"):
+        raise ModelError(f"decompose: unknown form {form!r} (forms: 'program', 'derived', 'trig-linearized')")
+    if eom.tree is not None and form in (None, "program"):
+        return _fused(program_form(scene, events, where, names), fuse)
+    if form == "program":
+        raise ModelError(f"decompose: form 'program' is a rigid-body tree's; model {eom.model.name!r} has no tree "
+                         "(forms: 'derived', 'trig-linearized')")
+    n, nz = eom.model.nv, len(eom.quadratures)
+    nq = eom.model.nq if eom.general else None
+    exprs, time_symbol, state = scene_expressions(scene, events)
+    forms = (form,) if form else ("derived", "trig-linearized")
     best = None
     for f in forms:
         d = _decompose_form(exprs, time_symbol, state, n, nz, len(events), f, where, names, nq)
         if best is None or d.cost < best.cost:
             best = d
-    return fuse_products(best) if fuse else best
+    return _fused(best, fuse)
+
+
+def _fused(d: Decomposition, fuse: bool) -> Decomposition:
+    return fuse_products(d) if fuse else d
