@@ -28,7 +28,9 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     sensitivities (reentrant: called from several threads; ``i`` the member's index, for runs
     that differ by member beyond y0 and p, such as their input tables), whose stats give the ensemble's
     per-member counts (COUNT_NAMES; those a run does not count: 0). Events
-    located in a member are counted in its stats ``events`` and ``terminated``; a terminal
+    located in a member are its ``member_events`` (the run's records, as many as the run keeps),
+    counted in its stats ``events``, ``events_dropped`` (found beyond those kept) and
+    ``terminated``; a terminal
     event's time, state and sensitivities are the member's ``t_reached``, final row and final
     sensitivities, its trajectory the output times before it. A member that fails keeps its rows
     up to the last output time it reached: its ``final`` row and sensitivities are that time's
@@ -46,6 +48,8 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     t_reached = np.full(n_mem, np.nan)
     count = {k: np.zeros(n_mem, dtype=np.dtype("l")) for k in COUNT_NAMES}
     wall = np.zeros(n_mem)
+    events: list = [[] for _ in range(n_mem)]
+    dropped = np.zeros(n_mem, dtype=np.dtype("l"))
     messages: dict = {}
     bar = Progress(n_mem, show=progress)
 
@@ -64,6 +68,8 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
         t_reached[i] = res.stats["t_reached"] if res.status < 0 else res.t[-1]
         for k in COUNT_NAMES:
             count[k][i] = res.stats.get(k, 0)
+        events[i] = list(res.events)
+        dropped[i] = max(0, int(res.stats.get("events", 0)) - len(res.events))
         if res.status < 0:
             messages[i] = res.message
         if rows:
@@ -78,10 +84,12 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     def result() -> EnsembleResult:
         stats = dict(count)
         stats["wall"] = wall
+        stats["events_dropped"] = dropped
         res = EnsembleResult(t=t, state_names=list(cm.state_names), output_names=list(cm.output_names),
                              status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=ny, stats=stats,
                              messages=messages, columns=cols_names, traj=traj, params=P,
-                             param_names=list(cm.param_names), method=method, n_coordinates=cm.n)
+                             param_names=list(cm.param_names), method=method, n_coordinates=cm.n,
+                             member_events=events)
         res.set_sensitivities(names, values, sens, sens_traj)
         return res
 

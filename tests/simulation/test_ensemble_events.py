@@ -1,0 +1,146 @@
+"""Every event recorded per ensemble member (issue 39): on CVODE's ODE pool driver, index-1 CVODE,
+GGL IDA, the sensitivity ensembles (CVODE and Taylor) and executor chunks, each member's
+``member(i).events`` are the records of the same member's single ``simulate`` run, bit for bit;
+beyond ``max_events`` (64 per member by default) the events dropped are counted per member."""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+import lagcodegen as lcg
+
+from helpers import cartesian_pendulum, pendulum_q0
+
+G, L = 9.81, 1.0
+TIGHT = dict(rtol=1e-10, atol=1e-12)
+
+
+def period(theta0: float, l: float = L, g: float = G) -> float:
+    """4 K(k) sqrt(l/g), k = sin(theta0/2): the pendulum released at rest from theta0."""
+    return 4 * ellipk(math.sin(theta0 / 2) ** 2) * math.sqrt(l / g)
+
+
+def same_records(got: list, want: list) -> None:
+    """The two lists of EventRecords are equal field by field, bit for bit."""
+    assert len(got) == len(want)
+    for a, b in zip(got, want):
+        assert (a.name, a.index, a.t, a.direction, a.terminal) == (b.name, b.index, b.t, b.direction, b.terminal)
+        assert a.y.dtype == b.y.dtype and a.y.shape == b.y.shape and np.array_equal(a.y, b.y)
+        assert a.state_names == b.state_names
+
+
+@pytest.fixture(scope="module")
+def pend():
+    return lcg.compile_model(lcg.systems.pendulum("ens_ev_pend"), outputs=["energy"])
+
+
+#: theta = 0 crossed either way (not terminal), and a stop at the first turning point after
+#: the second crossing: theta_dot increasing through 0 at theta = -theta0 ... (terminal)
+EVENTS = [lcg.Event("cross", "theta", 0, False), lcg.Event("turn", "theta_dot", 1, True)]
+
+
+def test_ode_members_record_their_events_as_single_runs(pend):
+    """Every member (its own theta0 and g, 2 threads) records the crossing at T/4 and the
+    terminal turning point at T/2: its events those of its run alone; the counts agree and
+    nothing is dropped."""
+    theta0 = np.array([0.3, 1.0, 2.0, 2.8, 0.05])
+    g = np.array([9.81, 9.0, 10.2, 9.81, 9.5])
+    ens = pend.ensemble([0, 20], q0=theta0[:, None], params={"g": g}, events=EVENTS, threads=2, **TIGHT)
+    assert (ens.status == 0).all()
+    assert list(ens.stats["events"]) == [2] * 5 and list(ens.stats["events_dropped"]) == [0] * 5
+    for i in range(len(theta0)):
+        alone = pend.simulate([0, 20], q0=[theta0[i]], params={"g": g[i]}, events=EVENTS, **TIGHT)
+        m = ens.member(i)
+        same_records(m.events, alone.events)
+        cross, turn = m.events
+        T = period(theta0[i], g=g[i])
+        assert cross.name == "cross" and not cross.terminal and abs(cross.t - T / 4) < 1e-8 * T
+        assert turn.name == "turn" and turn.terminal and abs(turn.t - T / 2) < 1e-8 * T
+        assert ens.t_reached[i] == turn.t
+
+
+def test_members_beyond_max_events_count_the_dropped(pend):
+    """Over 10 s a member swinging from theta0 crosses theta = 0 floor(10 / (T/2) + 1/2) times; with
+    max_events=3 each member keeps the first 3 of its run alone's and reports the rest dropped;
+    by default (64 per member) a member with more than 64 crossings drops its excess."""
+    crossing = [lcg.Event("cross", "theta", 0, False)]
+    theta0 = np.array([0.5, 2.9])
+    few = pend.ensemble([0, 10], q0=theta0[:, None], events=crossing, max_events=3, threads=2, **TIGHT)
+    for i, a in enumerate(theta0):
+        alone = pend.simulate([0, 10], q0=[a], events=crossing, **TIGHT)
+        n = math.floor(10 / (period(a) / 2) + 0.5)
+        assert len(alone.events) == n > 3
+        same_records(few.member(i).events, alone.events[:3])
+        assert few.stats["events"][i] == n and few.stats["events_dropped"][i] == n - 3
+        assert few.member(i).stats["events_dropped"] == n - 3
+    long = pend.ensemble([0, 80], q0=[[0.5], [2.9]], events=crossing, threads=2, **TIGHT)
+    counts = [math.floor(80 / (period(a) / 2) + 0.5) for a in theta0]
+    assert counts[0] > 64 > counts[1]
+    assert list(long.stats["events"]) == counts
+    assert list(long.stats["events_dropped"]) == [counts[0] - 64, 0]
+    alone = pend.simulate([0, 80], q0=[0.5], events=crossing, **TIGHT)
+    same_records(long.member(0).events, alone.events[:64])
+    assert len(long.member(1).events) == counts[1]
+
+
+def test_ensembles_with_sensitivities_record_events(pend):
+    """CVODE and Taylor ensembles with sensitivities and events: each member's records (and each
+    event's time sensitivity) are its run alone's."""
+    q0 = np.array([[0.5], [1.2], [-0.3]])
+    names = ["l", "theta(0)"]
+    for method in ("bdf", "taylor"):
+        ens = pend.ensemble([0, 20], q0=q0, events=EVENTS, sensitivities=names, method=method, threads=2, **TIGHT)
+        assert list(ens.stats["events_dropped"]) == [0, 0, 0]
+        for i in range(3):
+            alone = pend.simulate([0, 20], q0=q0[i], events=EVENTS, sensitivities=names, method=method, **TIGHT)
+            got = ens.member(i).events
+            same_records(got, alone.events)
+            assert len(got) >= 2 and got[-1].terminal and ens.stats["events"][i] == alone.stats["events"]
+            assert [e.t_sensitivity for e in got] == [e.t_sensitivity for e in alone.events]
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_constrained_members_record_their_compiled_events(formulation):
+    """The Cartesian pendulum with its compiled events (theta = 0.7 crossed either way, not
+    terminal; theta >= 0.4 as an inequality: terminal where it comes down to 0.4): each member's
+    events those of its run alone, on index-1 CVODE and GGL IDA; a member rejected at its initial
+    state has none."""
+    cs = cartesian_pendulum(f"ens_ev_{formulation}")
+    x, y = cs.model.coords
+    bounded = lcg.ConstrainedSystem(cs.model, holonomic=cs.holonomic, inequalities=[y + L * math.cos(0.4)])
+    sim = lcg.compile_constrained(bounded, formulation=formulation,
+                                  events=[lcg.Event("cross", y + L * math.cos(0.7), 0, False)])
+    Q = np.array([pendulum_q0(a) for a in (0.5, 0.8, 1.2, 0.6)])
+    Q[3, 0] += 0.1  # inconsistent: rejected
+    V = np.zeros_like(Q)
+    ens = sim.ensemble([0, 5], q0=Q, v0=V, threads=2, **TIGHT)
+    assert ens.status.tolist() == [0, 0, 0, -84]
+    assert ens.member(3).events == [] and ens.stats["events"][3] == 0
+    for i in range(3):
+        alone = sim.simulate([0, 5], q0=Q[i], v0=V[i], **TIGHT)
+        same_records(ens.member(i).events, alone.events)
+        assert ens.stats["events"][i] == len(alone.events) and ens.stats["events_dropped"][i] == 0
+    assert [e.name for e in ens.member(0).events] == ["ineq_0"]  # 0.5 never reaches 0.7
+    for i in (1, 2):
+        assert [e.name for e in ens.member(i).events] == ["cross", "ineq_0"]
+        cross, stop = ens.member(i).events
+        assert not cross.terminal and stop.terminal and cross.t < stop.t
+        assert abs(cross.q["y"] + L * math.cos(0.7)) < 1e-9 and abs(stop.q["y"] + L * math.cos(0.4)) < 1e-9
+
+
+def test_executor_chunks_carry_every_members_events(pend):
+    """Chunks on a process pool: each member's events, dropped counts and stats are those of the
+    ensemble in one call."""
+    theta0 = np.linspace(0.4, 2.6, 7)
+    ref = pend.ensemble([0, 20], q0=theta0[:, None], events=EVENTS, threads=1, **TIGHT)
+    with ProcessPoolExecutor(2) as ex:
+        ens = pend.ensemble([0, 20], q0=theta0[:, None], events=EVENTS, executor=ex, chunk_size=3, **TIGHT)
+    assert (ens.status == 0).all()
+    assert np.array_equal(ens.stats["events_dropped"], ref.stats["events_dropped"])
+    for i in range(len(theta0)):
+        same_records(ens.member(i).events, ref.member(i).events)
