@@ -104,17 +104,19 @@ def test_ensembles_with_sensitivities_record_events(pend):
             assert [e.t_sensitivity for e in got] == [e.t_sensitivity for e in alone.events]
 
 
-@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
 def test_constrained_members_record_their_compiled_events(formulation):
     """The Cartesian pendulum with its compiled events (theta = 0.7 crossed either way, not
     terminal; theta >= 0.4 as an inequality: terminal where it comes down to 0.4): each member's
-    events those of its run alone, on index-1 CVODE and GGL IDA; a member rejected at its initial
+    events those of its run alone, on index-1 CVODE, GGL IDA and in minimal coordinates (y
+    eliminated: the events on the branch's ODE); a member rejected at its initial
     state has none."""
     cs = cartesian_pendulum(f"ens_ev_{formulation}")
     x, y = cs.model.coords
     bounded = lcg.ConstrainedSystem(cs.model, holonomic=cs.holonomic, inequalities=[y + L * math.cos(0.4)])
+    more = dict(eliminate=["y"]) if formulation == "minimal" else {}
     sim = lcg.compile_constrained(bounded, formulation=formulation,
-                                  events=[lcg.Event("cross", y + L * math.cos(0.7), 0, False)])
+                                  events=[lcg.Event("cross", y + L * math.cos(0.7), 0, False)], **more)
     Q = np.array([pendulum_q0(a) for a in (0.5, 0.8, 1.2, 0.6)])
     Q[3, 0] += 0.1  # inconsistent: rejected
     V = np.zeros_like(Q)
@@ -130,7 +132,7 @@ def test_constrained_members_record_their_compiled_events(formulation):
         assert [e.name for e in ens.member(i).events] == ["cross", "ineq_0"]
         cross, stop = ens.member(i).events
         assert not cross.terminal and stop.terminal and cross.t < stop.t
-        assert abs(cross.q["y"] + L * math.cos(0.7)) < 1e-9 and abs(stop.q["y"] + L * math.cos(0.4)) < 1e-9
+        assert abs(abs(cross.q["x"]) - L * math.sin(0.7)) < 1e-9 and abs(abs(stop.q["x"]) - L * math.sin(0.4)) < 1e-9
 
 
 def test_executor_chunks_carry_every_members_events(pend):
