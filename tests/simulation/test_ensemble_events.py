@@ -146,3 +146,28 @@ def test_executor_chunks_carry_every_members_events(pend):
     assert np.array_equal(ens.stats["events_dropped"], ref.stats["events_dropped"])
     for i in range(len(theta0)):
         same_records(ens.member(i).events, ref.member(i).events)
+
+
+def test_contact_ensembles_count_the_events_beyond_max_events():
+    """A bouncing ball (e = 0.8) with its apex as a compiled event: with max_events=2 a member
+    keeps its run alone's first two apexes (the same run: max_events=2 too) and reports the
+    others found as dropped; its run without the bound finds them all."""
+    import sympy as sp
+    m = lcg.Model("ens_ev_ball")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    apex = lcg.Event("apex", sp.Symbol("y_dot"), direction=-1, terminal=False)
+    ball = lcg.compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.8)]),
+                                   "index1", events=[apex])
+    h0 = np.array([1.0, 0.4])
+    t = np.linspace(0, 3, 31)
+    ens = ball.ensemble(t, q0=h0[:, None], v0=np.zeros((2, 1)), max_events=2, threads=2, **TIGHT)
+    for i in range(2):
+        few = ball.simulate(t, q0=[h0[i]], v0=[0.0], max_events=2, **TIGHT)
+        every = ball.simulate(t, q0=[h0[i]], v0=[0.0], **TIGHT)
+        same_records(ens.member(i).events, few.events)
+        same_records(ens.member(i).events, every.events[:2])
+        assert len(every.events) > 2
+        assert ens.stats["events"][i] == len(every.events) and ens.stats["events_dropped"][i] == len(every.events) - 2
