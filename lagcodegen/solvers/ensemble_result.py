@@ -209,7 +209,9 @@ class EnsembleResult:
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
         """Write NPZ (atomically): t, status, t_reached, nt_done, y (final states), final_<output>,
-        stats_<name>, params, trajectories (traj, columns) and the messages of failed members."""
+        stats_<name>, params, trajectories (traj, columns), the messages of failed members and
+        every member's events (``event_member``, ``event_name``, ``event_index``, ``event_t``,
+        ``event_direction``, ``event_terminal``, ``event_y``: one entry per event)."""
         import tempfile
         path = Path(path)
         if path.suffix != ".npz":
@@ -226,6 +228,8 @@ class EnsembleResult:
         if self.traj is not None:
             data["traj"] = self.traj
             data["columns"] = np.array(self.columns)
+        if self.member_events is not None:
+            data.update(self._event_arrays())
         fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".npz")
         os.close(fd)
         try:
@@ -235,6 +239,20 @@ class EnsembleResult:
             if os.path.exists(tmp):
                 os.unlink(tmp)
         return path
+
+    def _event_arrays(self) -> dict:
+        """Every member's events as flat arrays (one entry per event, members in order): ``event_member``,
+        ``event_name``, ``event_index``, ``event_t``, ``event_direction``, ``event_terminal``, ``event_y``
+        (events x states)."""
+        recs = [(i, r) for i in range(len(self)) for r in self.member_events[i]]
+        width = len(self.state_names)
+        return dict(event_member=np.array([i for i, _ in recs], dtype=np.int64),
+                    event_name=np.array([r.name for _, r in recs], dtype=str),
+                    event_index=np.array([r.index for _, r in recs], dtype=np.int64),
+                    event_t=np.array([r.t for _, r in recs], dtype=float),
+                    event_direction=np.array([r.direction for _, r in recs], dtype=np.int64),
+                    event_terminal=np.array([r.terminal for _, r in recs], dtype=bool),
+                    event_y=np.array([r.y for _, r in recs], dtype=float).reshape(len(recs), width))
 
     # ------------------------------------------------------------------ assembly
     @classmethod

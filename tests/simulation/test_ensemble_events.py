@@ -171,3 +171,20 @@ def test_contact_ensembles_count_the_events_beyond_max_events():
         same_records(ens.member(i).events, every.events[:2])
         assert len(every.events) > 2
         assert ens.stats["events"][i] == len(every.events) and ens.stats["events_dropped"][i] == len(every.events) - 2
+
+
+def test_saved_ensembles_keep_every_members_events(pend, tmp_path):
+    """``save`` writes each member's events as flat arrays: read back, member i's entries are its
+    records."""
+    theta0 = np.array([0.4, 1.5, 2.2])
+    ens = pend.ensemble([0, 20], q0=theta0[:, None], events=EVENTS, **TIGHT)
+    data = np.load(ens.save(tmp_path / "ens.npz"))
+    for i in range(len(theta0)):
+        mine = data["event_member"] == i
+        recs = ens.member(i).events
+        assert data["event_name"][mine].tolist() == [r.name for r in recs]
+        assert data["event_t"][mine].tolist() == [r.t for r in recs]
+        assert data["event_direction"][mine].tolist() == [r.direction for r in recs]
+        assert data["event_terminal"][mine].tolist() == [r.terminal for r in recs]
+        assert np.array_equal(data["event_y"][mine], np.array([r.y for r in recs]))
+    assert data["event_y"].shape == (6, 2) and data["stats_events_dropped"].tolist() == [0, 0, 0]
