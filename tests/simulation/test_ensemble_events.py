@@ -188,3 +188,30 @@ def test_saved_ensembles_keep_every_members_events(pend, tmp_path):
         assert data["event_terminal"][mine].tolist() == [r.terminal for r in recs]
         assert np.array_equal(data["event_y"][mine], np.array([r.y for r in recs]))
     assert data["event_y"].shape == (6, 2) and data["stats_events_dropped"].tolist() == [0, 0, 0]
+
+
+def test_taylor_members_record_their_events_as_single_runs(pend):
+    """Taylor ensembles with events (no sensitivities): each member the run of the jet with its
+    events that ``simulate(method="taylor")`` makes of it alone: its events, trajectory, final
+    state and counts bit for bit; the crossing at T/4 and the terminal turn at T/2; max_events
+    bounds what a member keeps and the rest is counted dropped."""
+    theta0 = np.array([0.3, 1.0, 2.0, 2.8])
+    t = np.linspace(0, 20, 41)
+    ens = pend.ensemble(t, q0=theta0[:, None], events=EVENTS, method="taylor", save="trajectory", threads=2, **TIGHT)
+    assert (ens.status == 0).all() and list(ens.stats["events_dropped"]) == [0] * 4
+    for i, a in enumerate(theta0):
+        alone = pend.simulate(t, q0=[a], events=EVENTS, method="taylor", **TIGHT)
+        m = ens.member(i)
+        same_records(m.events, alone.events)
+        assert ens.t_reached[i] == alone.t[-1] == alone.events[-1].t and np.array_equal(ens.y[i], alone.y[-1])
+        rows = int(ens.nt_done[i])
+        assert np.array_equal(m.y, alone.y[:rows]) and ens.stats["steps"][i] == alone.stats["steps"]
+        T = period(a)
+        assert abs(m.events[0].t - T / 4) < 1e-8 * T and abs(m.events[1].t - T / 2) < 1e-8 * T
+    crossing = [lcg.Event("cross", "theta", 0, False)]
+    few = pend.ensemble([0, 10], q0=theta0[:, None], events=crossing, method="taylor", max_events=3, **TIGHT)
+    for i, a in enumerate(theta0):
+        alone = pend.simulate([0, 10], q0=[a], events=crossing, method="taylor", **TIGHT)
+        assert len(alone.events) > 3
+        same_records(few.member(i).events, alone.events[:3])
+        assert few.stats["events"][i] == len(alone.events) and few.stats["events_dropped"][i] == len(alone.events) - 3
