@@ -215,3 +215,107 @@ def test_taylor_members_record_their_events_as_single_runs(pend):
         assert len(alone.events) > 3
         same_records(few.member(i).events, alone.events[:3])
         assert few.stats["events"][i] == len(alone.events) and few.stats["events_dropped"][i] == len(alone.events) - 3
+
+
+# ---------------------------------------------------------------------- the pool's records in C
+EVENTS_MAIN = r"""
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "PREFIX.h"
+#include "lcg_cvode.h"
+
+extern const lcg_model PREFIX_model;
+
+static int theta1(double t, const double *y, const double *p, double *gout)
+{
+    (void)t;
+    (void)p;
+    gout[0] = y[0];
+    return 0;
+}
+
+int main(void)
+{
+    enum { M = 24, NT = 11, MAXEV = 2 };
+    double y0[M * PREFIXU_NY], p[M * PREFIXU_NP], tout[NT], final[M * (PREFIXU_NY + PREFIXU_NOUT)];
+    double t_reached[M], ev_t[M * MAXEV], ev_y[M * MAXEV * PREFIXU_NY];
+    int flag[M], nt_done[M], ev_which[M * MAXEV], ev_dir[M * MAXEV], rootdir[1] = {0}, terminal[1] = {0};
+    int i, k, bad = 0, dropping = 0;
+    long counts[M * 8];
+    lcg_cvode_options opt = {1, 1, 1e-10, 1e-12, NULL, 100000, 0.0, 0.0, 0.0, 0};
+    lcg_ode_roots roots = {1, theta1};
+    lcg_cvode_ensemble e = {0};
+
+    for (k = 0; k < NT; ++k)
+        tout[k] = 0.5 * k;
+    for (i = 0; i < M; ++i) {
+        for (k = 0; k < PREFIXU_NY; ++k)
+            y0[i * PREFIXU_NY + k] = k == 0 ? 0.05 + 0.02 * i : 0.0;
+        for (k = 0; k < PREFIXU_NP; ++k)
+            p[i * PREFIXU_NP + k] = PARAMS[k];
+        flag[i] = -82;
+    }
+    for (k = 0; k < M * MAXEV; ++k) {
+        ev_t[k] = -1.0;
+        ev_which[k] = ev_dir[k] = 7;
+    }
+    e.model = &PREFIX_model; e.nmem = M; e.nthreads = 3; e.p = p; e.p_stride = PREFIXU_NP; e.y0 = y0;
+    e.y0_stride = PREFIXU_NY; e.nt = NT; e.tout = tout; e.final = final; e.flag = flag; e.nt_done = nt_done;
+    e.t_reached = t_reached; e.counts = counts; e.roots = &roots; e.rootdir = rootdir; e.terminal = terminal;
+    e.max_events = MAXEV; e.ev_t = ev_t; e.ev_y = ev_y; e.ev_which = ev_which; e.ev_direction = ev_dir;
+    if (lcg_cvode_solve_many(&e, &opt) != 0)
+        return 2;
+    for (i = 0; i < M; ++i) {
+        long n = counts[i * 8 + 6], kept = n < MAXEV ? n : MAXEV;
+        bad += flag[i] != 0 || n < 1;
+        dropping += n > MAXEV;
+        for (k = 0; k < MAXEV; ++k) {
+            long j = (long)i * MAXEV + k;
+            if (k < kept)  /* a crossing of theta1 = 0: in the run, theta1 there ~ 0, alternating directions */
+                bad += !(ev_t[j] > 0.0 && ev_t[j] <= 5.0) || fabs(ev_y[j * PREFIXU_NY]) > 1e-8 || ev_which[j] != 0
+                       || ev_dir[j] != (k % 2 == 0 ? -1 : 1) || (k > 0 && !(ev_t[j] > ev_t[j - 1]));
+            else  /* slots past those kept: untouched */
+                bad += ev_t[j] != -1.0 || ev_which[j] != 7 || ev_dir[j] != 7;
+        }
+    }
+    printf("bad=%d dropping=%d\n", bad, dropping);
+    return bad != 0 || dropping == 0;
+}
+"""
+
+
+def test_pool_records_events_strict_and_clean_under_sanitizers(tmp_path, cc):
+    """The CVODE pool driver's per-member event arrays filled from C (24 members on 3 threads,
+    at most 2 kept each): each kept event a crossing of theta1 = 0 in time order with
+    alternating directions, the slots past those kept untouched, members with more events than
+    kept counting them all; under AddressSanitizer and UBSan, and the driver strict C99."""
+    import os
+    import subprocess
+
+    from lagcodegen import systems
+    from lagcodegen.build import driver_sources, find_sundials
+
+    from helpers import STRICT_CFLAGS
+    code = lcg.generate_c(lcg.Scene(lcg.derive(systems.double_pendulum()), outputs=["energy"]))
+    sundials = find_sundials()
+    code.write(tmp_path)
+    for fname, text in driver_sources(code, sundials).items():
+        (tmp_path / fname).write_text(text)
+    pre = code.prefix
+    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", "lcg_cvode.c", "-o", "d.o"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert strict.returncode == 0, strict.stderr
+    params = list(code.param_defaults)
+    main = EVENTS_MAIN.replace("PREFIXU", pre.upper()).replace("PREFIX", pre).replace(
+        "PARAMS", f"((const double[]){{{', '.join(map(repr, params))}}})")
+    (tmp_path / "main.c").write_text(main)
+    cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "main.c",
+           code.source_name, f"{pre}_table.c", "lcg_cvode.c", "lcg_inputs.c", "-o", "main", "-pthread",
+           *sundials.link_args(), "-lm"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
+                         env={**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr
