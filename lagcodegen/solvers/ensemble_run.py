@@ -172,10 +172,11 @@ class MemberEvents:
         if self.max_events > 2**31 - 1:
             raise LagcodegenError(f"max_events: {max_events} does not fit the driver's int")
         m = self.max_events
-        self.t = np.full((n_mem, m), np.nan)
-        self.y = np.full((n_mem, m, nrow), np.nan)
-        self.which = np.zeros((n_mem, m), dtype=np.intc)
-        self.direction = np.zeros((n_mem, m), dtype=np.intc)
+        # filled by the driver up to each member's count (only those slots are read): not cleared
+        self.t = np.empty((n_mem, m))
+        self.y = np.empty((n_mem, m, nrow))
+        self.which = np.empty((n_mem, m), dtype=np.intc)
+        self.direction = np.empty((n_mem, m), dtype=np.intc)
         self.rootdir, self.terminal = event_arrays(self.events)
 
     def attach(self, e, buf, keep: list) -> None:
