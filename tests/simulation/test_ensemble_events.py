@@ -101,6 +101,10 @@ def test_ensembles_with_sensitivities_record_events(pend):
             got = ens.member(i).events
             same_records(got, alone.events)
             assert len(got) >= 2 and got[-1].terminal and ens.stats["events"][i] == alone.stats["events"]
+        one = pend.ensemble([0, 20], q0=q0, events=EVENTS, sensitivities=names, method=method, max_events=1, **TIGHT)
+        for i in range(3):  # the first event kept, the others counted dropped
+            same_records(one.member(i).events, ens.member(i).events[:1])
+            assert one.stats["events_dropped"][i] == ens.stats["events"][i] - 1 > 0
             assert [e.t_sensitivity for e in got] == [e.t_sensitivity for e in alone.events]
 
 
