@@ -14,7 +14,7 @@ from scipy.special import ellipk
 
 import lagcodegen as lcg
 
-from helpers import cartesian_pendulum, pendulum_q0
+from helpers import cartesian_pendulum, pendulum_q0, run_cvode_main_sanitized
 
 G, L = 9.81, 1.0
 TIGHT = dict(rtol=1e-10, atol=1e-12)
@@ -294,32 +294,5 @@ def test_pool_records_events_strict_and_clean_under_sanitizers(tmp_path, cc):
     at most 2 kept each): each kept event a crossing of theta1 = 0 in time order with
     alternating directions, the slots past those kept untouched, members with more events than
     kept counting them all; under AddressSanitizer and UBSan, and the driver strict C99."""
-    import os
-    import subprocess
-
-    from lagcodegen import systems
-    from lagcodegen.build import driver_sources, find_sundials
-
-    from helpers import STRICT_CFLAGS
-    code = lcg.generate_c(lcg.Scene(lcg.derive(systems.double_pendulum()), outputs=["energy"]))
-    sundials = find_sundials()
-    code.write(tmp_path)
-    for fname, text in driver_sources(code, sundials).items():
-        (tmp_path / fname).write_text(text)
-    pre = code.prefix
-    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", "lcg_cvode.c", "-o", "d.o"], cwd=tmp_path,
-                            capture_output=True, text=True)
-    assert strict.returncode == 0, strict.stderr
-    params = list(code.param_defaults)
-    main = EVENTS_MAIN.replace("PREFIXU", pre.upper()).replace("PREFIX", pre).replace(
-        "PARAMS", f"((const double[]){{{', '.join(map(repr, params))}}})")
-    (tmp_path / "main.c").write_text(main)
-    cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "main.c",
-           code.source_name, f"{pre}_table.c", "lcg_cvode.c", "lcg_inputs.c", "-o", "main", "-pthread",
-           *sundials.link_args(), "-lm"]
-    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
-                         env={**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
-    assert run.returncode == 0, run.stdout + run.stderr
-    assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr
+    code = lcg.generate_c(lcg.Scene(lcg.derive(lcg.systems.double_pendulum()), outputs=["energy"]))
+    run_cvode_main_sanitized(tmp_path, cc, code, EVENTS_MAIN)
