@@ -173,10 +173,19 @@ class MemberEvents:
             raise LagcodegenError(f"max_events: {max_events} does not fit the driver's int")
         m = self.max_events
         # filled by the driver up to each member's count (only those slots are read): not cleared
-        self.t = np.empty((n_mem, m))
-        self.y = np.empty((n_mem, m, nrow))
-        self.which = np.empty((n_mem, m), dtype=np.intc)
-        self.direction = np.empty((n_mem, m), dtype=np.intc)
+        size = n_mem * m * (nrow + 2) * 8
+        problem = f"ensemble events: {n_mem} members x max_events={m} x {nrow + 2} values ({size / 2**30:.3g} GiB) " \
+                  "do not fit in memory: give a smaller max_events (the solver's max_events=) or fewer members " \
+                  "per call (executor=, chunk_size=)"
+        if size > physical_memory():
+            raise LagcodegenError(problem)
+        try:
+            self.t = np.empty((n_mem, m))
+            self.y = np.empty((n_mem, m, nrow))
+            self.which = np.empty((n_mem, m), dtype=np.intc)
+            self.direction = np.empty((n_mem, m), dtype=np.intc)
+        except MemoryError as exc:
+            raise LagcodegenError(problem) from exc
         self.rootdir, self.terminal = event_arrays(self.events)
 
     def attach(self, e, buf, keep: list) -> None:
@@ -202,6 +211,14 @@ class MemberEvents:
         the events each member found, from its counts), made when a member's are asked for."""
         return MemberEventList([e.name for e in self.events], self.terminal[:len(self.events)].astype(bool).tolist(),
                                (self.t, self.y, self.which, self.direction), self.kept(found), list(state_names))
+
+
+def physical_memory() -> float:
+    """The machine's memory in bytes (inf where it cannot be asked)."""
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):
+        return float("inf")
 
 
 def event_arrays(events) -> tuple:

@@ -296,3 +296,10 @@ def test_pool_records_events_strict_and_clean_under_sanitizers(tmp_path, cc):
     kept counting them all; under AddressSanitizer and UBSan, and the driver strict C99."""
     code = lcg.generate_c(lcg.Scene(lcg.derive(lcg.systems.double_pendulum()), outputs=["energy"]))
     run_cvode_main_sanitized(tmp_path, cc, code, EVENTS_MAIN)
+
+
+def test_event_arrays_too_large_are_refused_by_name(pend):
+    """Members x max_events that cannot be held: a clear error naming max_events, before any run."""
+    q0 = np.full((100_000, 1), 0.1)  # x 2e9 events x 4 values: 6.4e15 bytes, more than any machine's memory
+    with pytest.raises(lcg.LagcodegenError, match="100000 members x max_events=2000000000 .* do not fit in memory"):
+        pend.ensemble([0, 1], q0=q0, events=EVENTS, max_events=2_000_000_000)
