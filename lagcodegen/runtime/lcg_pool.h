@@ -11,7 +11,9 @@
  *   COUNTS(c, st)       fills c[0..4] (steps, rhs evals, jac evals, error test fails, nonlinear
  *                       convergence fails) from st
  * and optionally
- *   LCG_POOL_EVENTS     the events type of the driver's root finding (lcg_events)
+ *   LCG_POOL_EVENTS     the events type of the driver's root finding (lcg_events): each member's
+ *                       first max_events events go to its slots of e->ev_t, ev_y, ev_which,
+ *                       ev_direction (those not NULL), their count to counts[6]
  *   LCG_POOL_YP0        defined: every member has an initial yp0 too (IDA)
  * The driver defines pool_member (declared here): one member's run, returning its flag. */
 #ifndef LCG_POOL_H
