@@ -169,3 +169,34 @@ def whipple_straight_run(v):
     """(q0, v0) of the upright straight run at speed v (the wheels roll: thR' = -v/rR, thF' = -v/rF)."""
     P = WHIPPLE_PARAMETERS
     return [0.0] * 8, [v, 0, 0, 0, 0, 0, -v / P["rR"], -v / P["rF"]]
+
+
+def run_cvode_main_sanitized(tmp_path, cc, code, main: str) -> None:
+    """The CVODE driver of the generated ``code`` compiled strict C99 (-Werror), then ``main``
+    (its PREFIX, PREFIXU and PARAMS replaced by the model's prefix, upper-cased prefix and
+    default parameters) built with it under AddressSanitizer and UBSan and run: asserts it exits
+    0 with nothing reported."""
+    import os
+    import subprocess
+
+    from lagcodegen.build import driver_sources, find_sundials
+    sundials = find_sundials()
+    code.write(tmp_path)
+    for fname, text in driver_sources(code, sundials).items():
+        (tmp_path / fname).write_text(text)
+    pre = code.prefix
+    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", "lcg_cvode.c", "-o", "d.o"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert strict.returncode == 0, strict.stderr
+    params = list(code.param_defaults)
+    (tmp_path / "main.c").write_text(main.replace("PREFIXU", pre.upper()).replace("PREFIX", pre).replace(
+        "PARAMS", f"((const double[]){{{', '.join(map(repr, params))}}})"))
+    cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "main.c",
+           code.source_name, f"{pre}_table.c", "lcg_cvode.c", "lcg_inputs.c", "-o", "main", "-pthread",
+           *sundials.link_args(), "-lm"]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
+                         env={**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr

@@ -400,7 +400,12 @@ def ensemble(name: str, model: str, yp0: bool = False, events: bool = False, roo
         fields += [
             Field("max_events", "int", "events kept per member run (root finding; 0: 64)"),
             Field("rootdir", "const int *", "NROOT directions of the event functions (0: both), or NULL"),
-            Field("terminal", "const int *", "NROOT flags: the event ends the run, or NULL (all terminal)")]
+            Field("terminal", "const int *", "NROOT flags: the event ends the run, or NULL (all terminal)"),
+            Field("ev_t", "double *", "NULL, or nmem x max_events (0: 64): the times of each member's first events "
+                  "(as many as counts' events, at most max_events)"),
+            Field("ev_y", "double *", "NULL, or nmem x max_events x NROW: the state row at each"),
+            Field("ev_which", "int *", "NULL, or nmem x max_events: the event function of each"),
+            Field("ev_direction", "int *", "NULL, or nmem x max_events: its crossing direction")]
     if roots:
         fields.append(Field("roots", "const lcg_ode_roots *", "NULL, or the event functions every member locates"))
     if inputs:

@@ -11,7 +11,9 @@
  *   COUNTS(c, st)       fills c[0..4] (steps, rhs evals, jac evals, error test fails, nonlinear
  *                       convergence fails) from st
  * and optionally
- *   LCG_POOL_EVENTS     the events type of the driver's root finding (lcg_events)
+ *   LCG_POOL_EVENTS     the events type of the driver's root finding (lcg_events): each member's
+ *                       first max_events events go to its slots of e->ev_t, ev_y, ev_which,
+ *                       ev_direction (those not NULL), their count to counts[6]
  *   LCG_POOL_YP0        defined: every member has an initial yp0 too (IDA)
  * The driver defines pool_member (declared here): one member's run, returning its flag. */
 #ifndef LCG_POOL_H
@@ -50,11 +52,34 @@ typedef struct {
     int failed;  /* a worker could not allocate its scratch */
 } pool_t;
 
+#ifdef LCG_POOL_EVENTS
+/* The first events of member i (at most maxev of the s->ev_n found) copied from the worker's record
+ * to the member's slots of e->ev_t, ev_y (NROW values each), ev_which, ev_direction (those not NULL). */
+static void member_events(LCG_POOL_ENSEMBLE *e, long i, const pool_scratch *s)
+{
+    long k, kept = s->ev_n < (long)s->maxev ? s->ev_n : (long)s->maxev, base = (long)s->maxev * i;
+
+    for (k = 0; k < kept; ++k) {
+        if (e->ev_t != NULL)
+            e->ev_t[base + k] = s->evs.t[k];
+        if (e->ev_which != NULL)
+            e->ev_which[base + k] = s->evs.which[k];
+        if (e->ev_direction != NULL)
+            e->ev_direction[base + k] = s->evs.direction[k];
+        if (e->ev_y != NULL)
+            memcpy(e->ev_y + (base + k) * NROW, s->evs.y + k * NROW, sizeof(double) * NROW);
+    }
+}
+#endif
+
+/* The member i's results into the ensemble's arrays: its run's statistics st and flag rc, its rows
+ * yout, out, and from the worker's scratch s the terminal event's row, the events and their counts. */
 static void member_record(LCG_POOL_ENSEMBLE *e, long i, const LCG_POOL_STATS *st, int rc, const double *yout,
-                          const double *out, const double *ylast, double tlast, const double *olast, double wall,
-                          long ev_n, int ev_term)
+                          const double *out, const pool_scratch *s, double wall)
 {
     int k, j, rows = st->nt_done;
+    const double *ylast = s->ylast, *olast = s->olast;
+    double tlast = s->tlast;
     long *c;
 
     if (e->flag != NULL)
@@ -69,9 +94,12 @@ static void member_record(LCG_POOL_ENSEMBLE *e, long i, const LCG_POOL_STATS *st
         c = e->counts + 8 * i;
         COUNTS(c, st);
         c[5] = st->model_error;
-        c[6] = ev_n;
-        c[7] = ev_term;
+        c[6] = s->ev_n;
+        c[7] = s->ev_term;
     }
+#ifdef LCG_POOL_EVENTS
+    member_events(e, i, s);
+#endif
     if (e->final != NULL) {
         double *f = e->final + (long)(NROW + NOUT) * i;
         const double *ys = ylast != NULL ? ylast : (rows > 0 ? yout + (long)(rows - 1) * NROW : NULL);
@@ -162,7 +190,7 @@ static void *pool_worker(void *arg)
             s.ev_term = 0;
             t0 = now();
             rc = pool_member(e, pi, y0i, yp0i, &o, &st, yout, out, &s);
-            member_record(e, i, &st, rc, yout, out, s.ylast, s.tlast, olast, now() - t0, s.ev_n, s.ev_term);
+            member_record(e, i, &st, rc, yout, out, &s, now() - t0);
             LCG_FETCH_ADD(&e->done, 1);
         }
     }

@@ -474,6 +474,8 @@ class ImpactRunner:
             ll = np.vstack([ll, np.full((1, ll.shape[1]), np.nan)])
         stats = native_stats(ffi, st)
         stats["wall_time"] = raw.wall
+        if events:  # every event found (those beyond max_events not kept)
+            stats["events"] = int(events.struct.n_events)
         text = "success" if flag >= 0 else message(flag, st.model_error, ffi.string(st.message).decode(
             errors="replace"), solver, SINGULAR_AUGMENTED)
         outputs = dict(zip(sim.info.output_names, oo.T))

@@ -4,8 +4,9 @@ each member one call of the impact driver (lagcodegen/runtime/lcg_imp.c, through
 as ``simulate`` makes it), the members spread over a pool of threads (the driver releases the
 GIL; every call has its own SUNDIALS context), so each member is bit-identical to its single run.
 
-Unlike the event counts of the other ensembles, every member keeps its records: its events
-(``EnsembleResult.member(i).events``) and its contact log (``.impacts``: every impact, switch to
+As in the other ensembles, every member keeps its records: its events
+(``EnsembleResult.member(i).events``, at most ``max_events`` as its single run keeps them: 10000
+by default; stats ``events`` counts every event found, ``events_dropped`` those beyond) and its contact log (``.impacts``: every impact, switch to
 persistent contact and release, :class:`~.constrained_impacts.ContactLog`). ``executor=`` splits
 the members into chunks as the other ensembles do (:func:`lagcodegen.solvers.ensemble.run_chunks`;
 a Dask client among them), their records carried back with their results. Ctrl-C stops the
@@ -134,6 +135,7 @@ def _assemble(sim, t: np.ndarray, results: list, P: np.ndarray, save) -> Ensembl
     t_reached = np.full(n_mem, np.nan)
     stats = {name: np.zeros(n_mem, dtype=np.dtype("l")) for name in COUNT_NAMES}
     stats["impacts"] = np.zeros(n_mem, dtype=np.dtype("l"))
+    stats["events_dropped"] = np.zeros(n_mem, dtype=np.dtype("l"))
     stats["wall"] = np.zeros(n_mem)
     messages: dict = {}
     events: list = [[] for _ in range(n_mem)]
@@ -162,7 +164,8 @@ def _assemble(sim, t: np.ndarray, results: list, P: np.ndarray, save) -> Ensembl
                 traj[i, :done] = table[:done][:, cols]
         for name, key in _STAT_OF.items():
             stats[name][i] = int(res.stats.get(key, 0))
-        stats["events"][i] = len(res.events)
+        stats["events"][i] = max(len(res.events), int(res.stats.get("events", 0)))
+        stats["events_dropped"][i] = stats["events"][i] - len(res.events)
         stats["terminated"][i] = int(bool(res.events) and res.events[-1].terminal)
         stats["impacts"][i] = int(res.stats.get("impacts", 0))
         stats["wall"][i] = float(res.stats.get("wall", 0.0))

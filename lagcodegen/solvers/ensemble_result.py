@@ -4,6 +4,7 @@ that did not run to the end."""
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import numpy as np
 from ..codes import FLAG_TEXT as CODE_TEXT
 from ..codes import Flag
 from ..errors import LagcodegenError
+from ..model.events import EventRecord
 from ..result import Result, sensitivity_index
 from .control import FLAG_TEXT as CONTROL_TEXT
 from .control import NOT_RUN
@@ -26,6 +28,34 @@ REJECTED = int(Flag.REJECTED)
 FLAG_TEXT = {**CONTROL_TEXT, REJECTED: CODE_TEXT[REJECTED]}
 
 
+
+
+class MemberEventList(Sequence):
+    """Every member's events as the ensemble drivers record them (arrays by member: times ``t``
+    (N, m), state rows ``y`` (N, m, width), event functions ``which`` and ``direction`` (N, m); the
+    first ``kept[i]`` of member i filled), item i the member's list of
+    :class:`~lagcodegen.model.events.EventRecord`, made when asked for exactly as a single run makes
+    its own (:func:`lagcodegen.model.events.records`); ``names``, ``terminal``: the events'."""
+
+    def __init__(self, names: list, terminal: list, arrays: tuple, kept: np.ndarray, state_names: list):
+        self.names, self.terminal = list(names), list(terminal)
+        self.t, self.y, self.which, self.direction = arrays
+        self.kept = np.asarray(kept)
+        self.state_names = list(state_names)
+
+    def __len__(self) -> int:
+        return int(self.kept.shape[0])
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = range(len(self))[i]
+        k, width = int(self.kept[i]), len(self.state_names)
+        rows = np.asarray(self.y[i, :k], dtype=float)[:, :width]
+        names = list(self.state_names)
+        return [EventRecord(self.names[w], w, tk, rows[j].copy(), dk, self.terminal[w], names)
+                for j, (w, tk, dk) in enumerate(zip(self.which[i, :k].tolist(), self.t[i, :k].tolist(),
+                                                    self.direction[i, :k].tolist()))]
 
 
 class EnsembleInterrupted(KeyboardInterrupt):
@@ -74,9 +104,10 @@ class EnsembleResult:
     sensitivity_trajectories: np.ndarray | None = field(default=None, repr=False)
     sensitivity_names: list = field(default_factory=list)
     sensitivity_values: list = field(default_factory=list)
-    #: runs that keep every member's records (systems with contacts): each member's events
-    #: (a list of EventRecord) and its contact log (ContactLog, or None where it did not run);
-    #: None for ensembles that keep only the counts
+    #: each member's events (a list of EventRecord, the records a single run of the member gives,
+    #: at most the ensemble's max_events: stats "events" counts every event found, "events_dropped"
+    #: those beyond max_events) and, of systems with contacts, its contact log (ContactLog, or None
+    #: where it did not run); None for ensembles that locate no events
     member_events: list | None = field(default=None, repr=False)
     member_impacts: list | None = field(default=None, repr=False)
 
@@ -178,7 +209,9 @@ class EnsembleResult:
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
         """Write NPZ (atomically): t, status, t_reached, nt_done, y (final states), final_<output>,
-        stats_<name>, params, trajectories (traj, columns) and the messages of failed members."""
+        stats_<name>, params, trajectories (traj, columns), the messages of failed members and
+        every member's events (``event_member``, ``event_name``, ``event_index``, ``event_t``,
+        ``event_direction``, ``event_terminal``, ``event_y``: one entry per event)."""
         import tempfile
         path = Path(path)
         if path.suffix != ".npz":
@@ -195,6 +228,8 @@ class EnsembleResult:
         if self.traj is not None:
             data["traj"] = self.traj
             data["columns"] = np.array(self.columns)
+        if self.member_events is not None:
+            data.update(self._event_arrays())
         fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".npz")
         os.close(fd)
         try:
@@ -204,6 +239,20 @@ class EnsembleResult:
             if os.path.exists(tmp):
                 os.unlink(tmp)
         return path
+
+    def _event_arrays(self) -> dict:
+        """Every member's events as flat arrays (one entry per event, members in order): ``event_member``,
+        ``event_name``, ``event_index``, ``event_t``, ``event_direction``, ``event_terminal``, ``event_y``
+        (events x states)."""
+        recs = [(i, r) for i in range(len(self)) for r in self.member_events[i]]
+        width = len(self.state_names)
+        return dict(event_member=np.array([i for i, _ in recs], dtype=np.int64),
+                    event_name=np.array([r.name for _, r in recs], dtype=str),
+                    event_index=np.array([r.index for _, r in recs], dtype=np.int64),
+                    event_t=np.array([r.t for _, r in recs], dtype=float),
+                    event_direction=np.array([r.direction for _, r in recs], dtype=np.int64),
+                    event_terminal=np.array([r.terminal for _, r in recs], dtype=bool),
+                    event_y=np.array([r.y for _, r in recs], dtype=float).reshape(len(recs), width))
 
     # ------------------------------------------------------------------ assembly
     @classmethod

@@ -13,7 +13,7 @@ from ..errors import LagcodegenError
 from .base import message
 from .control import CANCELLED, NOT_RUN, POLL_EVERY, Progress, take_pending
 from .request import Layout, Recording, RunArrays
-from .ensemble_result import COUNT_NAMES, FLAG_TEXT, MAX_MESSAGES, EnsembleInterrupted, EnsembleResult
+from .ensemble_result import COUNT_NAMES, FLAG_TEXT, MAX_MESSAGES, EnsembleInterrupted, EnsembleResult, MemberEventList
 
 
 # ---------------------------------------------------------------------- the C call
@@ -44,7 +44,7 @@ def run_native(ffi, fn, ens_type: str, opt, arrays: RunArrays, layout: Layout, r
     members ``arrays`` (initial states ``y`` (N, *), IDA's ``yp`` or None, parameters ``p``, output
     times ``t``), their rows laid out as ``layout`` says; ``recording``: what each member keeps
     (``save``), the ``threads`` and ``progress`` bar, the events (``events``: their directions and
-    terminal flags as int arrays, or None; ``max_events`` per member) and of an ODE ensemble the
+    terminal flags and each member's first ``max_events`` recorded: :class:`MemberEvents`) and of an ODE ensemble the
     event functions (``roots``: an ``lcg_ode_roots *``, or None); ``poll`` the Ctrl-C callback;
     ``setup(e, keep)``: sets further fields of the ensemble struct ``e`` (arrays kept in ``keep``)."""
     t, Y0, P, YP0 = arrays.t, arrays.y, arrays.p, arrays.yp
@@ -98,12 +98,10 @@ def run_native(ffi, fn, ens_type: str, opt, arrays: RunArrays, layout: Layout, r
     e.messages = buf("char[]", msgs)
     e.max_messages = MAX_MESSAGES
     e.message_member = buf("long[]", msg_member)
+    found = None
     if events is not None:
-        rootdir, terminal = events
-        keep += [rootdir, terminal]
-        e.max_events = recording.max_events
-        e.rootdir = buf("int[]", rootdir)
-        e.terminal = buf("int[]", terminal)
+        found = MemberEvents(events, n_mem, recording.max_events, nrow)
+        found.attach(e, buf, keep)
     if roots is not None and roots is not False:  # the event functions' table of an ODE ensemble
         e.roots = roots
     bar = Progress(n_mem, show=progress)
@@ -138,11 +136,15 @@ def run_native(ffi, fn, ens_type: str, opt, arrays: RunArrays, layout: Layout, r
             messages[i] = text
     stats = {name: counts[:, k] for k, name in enumerate(COUNT_NAMES)}
     stats["wall"] = wall
+    member_events = None
+    if found is not None:
+        member_events = found.records(counts[:, COUNT_NAMES.index("events")], layout.state_names)
+        stats["events_dropped"] = found.dropped(counts[:, COUNT_NAMES.index("events")])
     res = EnsembleResult(t=t, state_names=list(layout.state_names), output_names=list(layout.output_names),
                          status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=nrow, stats=stats,
                          messages=messages, columns=names, traj=traj, params=P, param_names=list(layout.param_names),
                          extra_outputs=dict(extra_outputs), method=layout.method, formulation=layout.formulation,
-                         n_coordinates=layout.n_coordinates)
+                         n_coordinates=layout.n_coordinates, member_events=member_events)
     if err is not None:
         if isinstance(err, KeyboardInterrupt):
             raise EnsembleInterrupted(res) from None
@@ -156,6 +158,67 @@ def default_threads(n_mem: int) -> int:
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
     return max(1, min(cores, n_mem))
+
+
+class MemberEvents:
+    """The arrays an ensemble driver fills with each member's first events (``ev_t``, ``ev_y``,
+    ``ev_which``, ``ev_direction`` of its struct: at most ``max_events`` per member, 0: the pool's
+    64) for the events ``events`` (:class:`~lagcodegen.model.events.Event` s), and the
+    :class:`~lagcodegen.model.events.EventRecord` s made from them, as a single run makes its own."""
+
+    def __init__(self, events: list, n_mem: int, max_events: int, nrow: int):
+        self.events = list(events)
+        self.max_events = int(max_events) if max_events and max_events > 0 else 64
+        if self.max_events > 2**31 - 1:
+            raise LagcodegenError(f"max_events: {max_events} does not fit the driver's int")
+        m = self.max_events
+        # filled by the driver up to each member's count (only those slots are read): not cleared
+        size = n_mem * m * (nrow + 2) * 8
+        problem = f"ensemble events: {n_mem} members x max_events={m} x {nrow + 2} values ({size / 2**30:.3g} GiB) " \
+                  "do not fit in memory: give a smaller max_events (the solver's max_events=) or fewer members " \
+                  "per call (executor=, chunk_size=)"
+        if size > physical_memory():
+            raise LagcodegenError(problem)
+        try:
+            self.t = np.empty((n_mem, m))
+            self.y = np.empty((n_mem, m, nrow))
+            self.which = np.empty((n_mem, m), dtype=np.intc)
+            self.direction = np.empty((n_mem, m), dtype=np.intc)
+        except MemoryError as exc:
+            raise LagcodegenError(problem) from exc
+        self.rootdir, self.terminal = event_arrays(self.events)
+
+    def attach(self, e, buf, keep: list) -> None:
+        """Point the ensemble struct ``e`` at the arrays (kept alive in ``keep``)."""
+        keep += [self.rootdir, self.terminal, self.t, self.y, self.which, self.direction]
+        e.max_events = self.max_events
+        e.rootdir = buf("int[]", self.rootdir)
+        e.terminal = buf("int[]", self.terminal)
+        e.ev_t = buf("double[]", self.t)
+        e.ev_y = buf("double[]", self.y)
+        e.ev_which = buf("int[]", self.which)
+        e.ev_direction = buf("int[]", self.direction)
+
+    def kept(self, found: np.ndarray) -> np.ndarray:
+        return np.minimum(np.asarray(found), self.max_events)
+
+    def dropped(self, found: np.ndarray) -> np.ndarray:
+        """(N,) events found beyond ``max_events`` in each member (found and not kept)."""
+        return np.asarray(found) - self.kept(found)
+
+    def records(self, found: np.ndarray, state_names: list) -> "MemberEventList":
+        """Each member's EventRecords (the first ``len(state_names)`` values of each row; ``found``
+        the events each member found, from its counts), made when a member's are asked for."""
+        return MemberEventList([e.name for e in self.events], self.terminal[:len(self.events)].astype(bool).tolist(),
+                               (self.t, self.y, self.which, self.direction), self.kept(found), list(state_names))
+
+
+def physical_memory() -> float:
+    """The machine's memory in bytes (inf where it cannot be asked)."""
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):
+        return float("inf")
 
 
 def event_arrays(events) -> tuple:

@@ -23,12 +23,15 @@ from .ensemble_run import default_threads, saved_columns
 
 def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: list, member_run, *,
                      threads, save, progress, method: str) -> EnsembleResult:
-    """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (parsed):
+    """The members (rows of Y, P) of the ODE of ``cm`` with the sensitivities ``names`` (parsed;
+    None: runs without sensitivities, such as Taylor's with events):
     ``member_run(i, y0, p)`` member i's run, a :class:`~lagcodegen.result.Result` with its
     sensitivities (reentrant: called from several threads; ``i`` the member's index, for runs
     that differ by member beyond y0 and p, such as their input tables), whose stats give the ensemble's
     per-member counts (COUNT_NAMES; those a run does not count: 0). Events
-    located in a member are counted in its stats ``events`` and ``terminated``; a terminal
+    located in a member are its ``member_events`` (the run's records, as many as the run keeps),
+    counted in its stats ``events``, ``events_dropped`` (found beyond those kept) and
+    ``terminated``; a terminal
     event's time, state and sensitivities are the member's ``t_reached``, final row and final
     sensitivities, its trajectory the output times before it. A member that fails keeps its rows
     up to the last output time it reached: its ``final`` row and sensitivities are that time's
@@ -36,16 +39,19 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
     n_mem, nt, ny, nout = Y.shape[0], t.shape[0], cm.ny, cm.code.nout
     values = list(cm.state_names) + list(cm.output_names)
     cols_names, cols = saved_columns(save, list(cm.state_names), list(cm.output_names), {})
-    ns, nv = len(names), ny + nout
+    sensitive = names is not None
+    ns, nv = len(names or ()), ny + nout
     final = np.full((n_mem, ny + nout), np.nan)
     traj = np.full((n_mem, nt, len(cols)), np.nan) if cols else None
-    sens = np.full((n_mem, ns, nv), np.nan)
-    sens_traj = np.full((n_mem, nt, ns, nv), np.nan) if cols else None
+    sens = np.full((n_mem, ns, nv), np.nan) if sensitive else None
+    sens_traj = np.full((n_mem, nt, ns, nv), np.nan) if cols and sensitive else None
     status = np.full(n_mem, NOT_RUN, dtype=np.intc)
     nt_done = np.zeros(n_mem, dtype=np.intc)
     t_reached = np.full(n_mem, np.nan)
     count = {k: np.zeros(n_mem, dtype=np.dtype("l")) for k in COUNT_NAMES}
     wall = np.zeros(n_mem)
+    events: list = [[] for _ in range(n_mem)]
+    dropped = np.zeros(n_mem, dtype=np.dtype("l"))
     messages: dict = {}
     bar = Progress(n_mem, show=progress)
 
@@ -64,25 +70,32 @@ def ensemble_of_runs(cm, t: np.ndarray, Y: np.ndarray, P: np.ndarray, names: lis
         t_reached[i] = res.stats["t_reached"] if res.status < 0 else res.t[-1]
         for k in COUNT_NAMES:
             count[k][i] = res.stats.get(k, 0)
+        events[i] = list(res.events)
+        dropped[i] = max(0, int(res.stats.get("events", 0)) - len(res.events))
         if res.status < 0:
             messages[i] = res.message
         if rows:
             row = np.concatenate([res.y[-1], [res.outputs[k][-1] for k in cm.output_names]])
             final[i] = row
-            sens[i] = res.sensitivities[-1]
+            if sensitive:
+                sens[i] = res.sensitivities[-1]
             if traj is not None:
                 full = np.column_stack([res.y, *(res.outputs[k] for k in cm.output_names)])
                 traj[i, :grid] = full[:grid, cols]
-                sens_traj[i, :grid] = res.sensitivities[:grid]
+                if sensitive:
+                    sens_traj[i, :grid] = res.sensitivities[:grid]
 
     def result() -> EnsembleResult:
         stats = dict(count)
         stats["wall"] = wall
+        stats["events_dropped"] = dropped
         res = EnsembleResult(t=t, state_names=list(cm.state_names), output_names=list(cm.output_names),
                              status=status, t_reached=t_reached, nt_done=nt_done, final=final, nrow=ny, stats=stats,
                              messages=messages, columns=cols_names, traj=traj, params=P,
-                             param_names=list(cm.param_names), method=method, n_coordinates=cm.n)
-        res.set_sensitivities(names, values, sens, sens_traj)
+                             param_names=list(cm.param_names), method=method, n_coordinates=cm.n,
+                             member_events=events)
+        if sensitive:
+            res.set_sensitivities(names, values, sens, sens_traj)
         return res
 
     n_threads = default_threads(n_mem) if threads is None else max(1, int(threads))

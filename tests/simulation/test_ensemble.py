@@ -2,7 +2,6 @@
 wall-clock limits), pickling and executors (process pool, Dask LocalCluster)."""
 
 import gc
-import os
 import pickle
 import signal
 import subprocess
@@ -20,7 +19,7 @@ from lagcodegen import systems
 from lagcodegen.build import driver_sources, find_sundials
 from lagcodegen.solvers.ensemble import EnsembleResult
 
-from helpers import STRICT_CFLAGS, cartesian_pendulum, pendulum_q0
+from helpers import STRICT_CFLAGS, cartesian_pendulum, pendulum_q0, run_cvode_main_sanitized
 
 T = np.linspace(0.0, 3.0, 31)
 
@@ -279,27 +278,7 @@ int main(void)
 
 def test_ensemble_driver_strict_and_clean_under_sanitizers(tmp_path, cc):
     code = lcg.generate_c(lcg.Scene(lcg.derive(systems.double_pendulum()), outputs=["energy"]))
-    sundials = find_sundials()
-    code.write(tmp_path)
-    for fname, text in driver_sources(code, sundials).items():
-        (tmp_path / fname).write_text(text)
-    pre = code.prefix
-    strict = subprocess.run([cc, *STRICT_CFLAGS, "-c", "lcg_cvode.c", "-o", "d.o"], cwd=tmp_path,
-                            capture_output=True, text=True)
-    assert strict.returncode == 0, strict.stderr
-    params = list(code.param_defaults)
-    main = SANITIZER_MAIN.replace("MASS", str(code.param_names.index("m1"))).replace("PREFIXU", pre.upper()).replace(
-        "PREFIX", pre).replace("PARAMS", f"((const double[]){{{', '.join(map(repr, params))}}})")
-    (tmp_path / "main.c").write_text(main)
-    cmd = [cc, "-g", "-O1", "-std=c99", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "main.c",
-           code.source_name, f"{pre}_table.c", "lcg_cvode.c", "lcg_inputs.c", "-o", "main", "-pthread",
-           *sundials.link_args(), "-lm"]
-    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    run = subprocess.run(["./main"], cwd=tmp_path, capture_output=True, text=True,
-                         env={**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
-    assert run.returncode == 0, run.stdout + run.stderr
-    assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr
+    run_cvode_main_sanitized(tmp_path, cc, code, SANITIZER_MAIN.replace("MASS", str(code.param_names.index("m1"))))
 
 
 def test_constrained_and_taylor_ensemble_sources_compile_strictly(tmp_path, cc):

@@ -161,8 +161,10 @@ def test_ensemble_members_locate_their_events(pend):
     assert list(traj.stats["events"]) == [len(crossings(a, 10.0)) for a in theta0]
     alone = pend.simulate([0, 10], q0=[theta0[2]], events=counting, **TIGHT)
     assert np.array_equal(traj.member(2).y, alone.y)
-    with pytest.raises(LagcodegenError, match="Taylor ensembles have no events"):
-        pend.ensemble([0, 1], q0=theta0[:, None], events=counting, method="taylor")
+    taylor = pend.ensemble([0, 10], q0=theta0[:, None], events=counting, method="taylor", threads=2, **TIGHT)
+    assert list(taylor.stats["events"]) == [len(crossings(a, 10.0)) for a in theta0]
+    for i, a in enumerate(theta0):
+        assert np.abs(np.array([e.t for e in taylor.member(i).events]) - crossings(a, 10.0)).max() < 1e-9
 
 
 def test_routhian_kepler_apsides_as_events():

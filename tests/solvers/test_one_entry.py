@@ -45,8 +45,9 @@ def test_the_entry_runs_what_simulate_runs_bit_for_bit(pend):
 def test_combinations_a_family_does_not_take_are_refused_by_name(pend):
     t = np.linspace(0, 1, 5)
     event = lcg.Event("down", "theta")
-    with pytest.raises(LagcodegenError, match="Taylor ensembles have no events without sensitivities"):
-        pend.ensemble(t, q0=[[0.3], [0.4]], method="taylor", events=[event])
+    with pytest.raises(LagcodegenError, match="Taylor ensembles do not take them without sensitivities"):
+        lcg.Taylor().check("ode", Request(events=(), inputs=object(), members=Members()))
+    assert lcg.Taylor().supports("ode", Request(events=(event,), members=Members()))  # ensembles with events
     with pytest.raises(LagcodegenError, match="events with input tables"):
         lcg.CVODE().check("ode", Request(events=(event,), inputs=object()))
     with pytest.raises(LagcodegenError, match="IDA has no run runner for the ODE"):

@@ -124,8 +124,10 @@ def test_ensemble_members_are_their_runs_alone(pend):
 
 def test_refusals(pend):
     ev = [lcg.Event("bottom", TH, -1, True)]
-    with pytest.raises(LagcodegenError, match="Taylor ensembles have no events without sensitivities"):
-        pend.ensemble(T, q0=np.array([[0.1], [0.2]]), method="taylor", events=ev)
+    # (no longer refused: Taylor ensembles with events and no sensitivities record each member's events)
+    ens = pend.ensemble(T, q0=np.array([[0.1], [0.2]]), method="taylor", events=ev)
+    alone = pend.simulate(T, q0=[0.2], method="taylor", events=ev)
+    assert [(e.t, e.name) for e in ens.member(1).events] == [(e.t, e.name) for e in alone.events]
     with pytest.raises(lcg.ModelError, match="unknown"):
         pend.simulate(T, q0=[0.5], method="taylor", sensitivities=["l"], events=[lcg.Event("odd", "nope")])
 

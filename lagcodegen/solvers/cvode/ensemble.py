@@ -10,7 +10,7 @@ import numpy as np
 from ...codegen.signatures import CVC_OPTIONS, CVODE_OPTIONS
 from ..base import native_options, tolerances
 from ..inputs import fill_inputs
-from ..ensemble_run import event_arrays, run_native
+from ..ensemble_run import run_native
 from ..request import Index1Form, Layout, Recording, RunArrays, StepControl, option_fields
 
 
@@ -32,7 +32,7 @@ def ensemble_ode(cm, t, Y, P, control: StepControl, recording: Recording, inputs
     events = recording.events
     layout = Layout(nrow=cm.ny, nout=cm.code.nout, state_names=cm.state_names, output_names=cm.output_names,
                     row_names=cm.state_names, param_names=cm.param_names, method=c.method, n_coordinates=cm.n)
-    recording = recording.replace(events=None if events is None else (events.directions, events.terminal),
+    recording = recording.replace(events=None if events is None else events.events,
                                   roots=None if events is None else events.table)
     return run_native(cm.ffi, cm.native_solve_many, cm.ensemble_type, opt, RunArrays(t, Y, P), layout, recording,
                       poll=cm.poll, setup=setup)
@@ -50,4 +50,10 @@ def ensemble_index1(sim, t, Y, P, control: StepControl, form: Index1Form, record
                     output_names=sim.output_names, row_names=list(sim.state_names), param_names=sim.param_names,
                     method=c.method, formulation=sim.formulation, n_coordinates=n)
     return run_native(sim.ffi, sim.cvc_solve_many, sim.cvc_ensemble_type, opt, RunArrays(t, Y, P), layout,
-                      recording.replace(events=event_arrays(sim.info.events), roots=None), poll=sim.compiled.poll)
+                      recording.replace(events=member_events(sim, recording), roots=None), poll=sim.compiled.poll)
+
+
+def member_events(sim, recording: Recording):
+    """The events an ensemble of the constrained system ``sim`` records per member: its compiled
+    events when it locates them (``recording.roots``), else None."""
+    return list(sim.info.events) if recording.roots and sim.info.events else None

@@ -7,7 +7,8 @@ import numpy as np
 
 from ...codegen.signatures import IDA_OPTIONS
 from ..base import native_options
-from ..ensemble_run import event_arrays, run_native
+from ..cvode.ensemble import member_events
+from ..ensemble_run import run_native
 from ..request import GGLForm, Layout, Recording, RunArrays, StepControl, option_fields
 from .native import ALGEBRAIC_ATOL
 
@@ -26,4 +27,4 @@ def ensemble_ggl(sim, t, Y, P, control: StepControl, form: GGLForm, recording: R
                     formulation=sim.formulation, n_coordinates=n)
     arrays = RunArrays(t, np.ascontiguousarray(Y[:, :ng]), P, np.ascontiguousarray(Y[:, ng:]))
     return run_native(sim.ffi, sim.ida_solve_many, sim.ida_ensemble_type, opt, arrays, layout,
-                      recording.replace(events=event_arrays(sim.info.events), roots=None), poll=sim.compiled.poll)
+                      recording.replace(events=member_events(sim, recording), roots=None), poll=sim.compiled.poll)

@@ -1,7 +1,8 @@
 """The Taylor family's ensemble runner (``method="taylor"``): the Taylor runtime's
 ``lcg_taylor_solve_many`` (lagcodegen/runtime/lcg_taylor.c) over the jet of the scene, the same
 module :func:`~.run.taylor_module` builds for ``simulate`` (no events). Ctrl-C stops running
-members too; ``max_wall`` limits each member. With sensitivities
+members too; ``max_wall`` limits each member. With events (:func:`run_taylor_events_ensemble`),
+each member is the prepared run of the jet with them, bit-identical to the same run alone. With sensitivities
 (:func:`run_taylor_sensitivity_ensemble`), each member is a run of the variational jet
 (:mod:`.prepared_sensitivity`; with events, :meth:`.sensitivity.VariationalModule.solve`),
 bit-identical to the same run alone."""
@@ -47,6 +48,32 @@ def run_taylor_ensemble(cm, t, Y, P, control: StepControl, recording: Recording)
                     row_names=cm.state_names, param_names=cm.param_names, method="taylor", n_coordinates=cm.n)
     return run_native(ffi, solve, "lcg_taylor_ensemble", opt, RunArrays(t, Y, P), layout,
                       recording.replace(events=None, roots=None), poll=poll_control.install(tm.module))
+
+
+def run_taylor_events_ensemble(cm, t, Y, P, control: StepControl, recording: Recording):
+    """The members (rows of Y, P) with the events ``recording.events`` located in each (at most
+    ``recording.max_events`` kept per member) and no sensitivities: each member one run of the
+    jet with those events, the run ``simulate(method="taylor", events=...)`` makes of it alone
+    (:class:`.prepared.PreparedTaylorRun`: its own statistics, arrays and events struct, the
+    module built once before the threads start), gathered by
+    :func:`lagcodegen.solvers.ensemble_sensitivities.ensemble_of_runs`; every member's events
+    recorded, a terminal event's time and state its ``t_reached`` and final row."""
+    from ..ensemble_sensitivities import ensemble_of_runs
+    from .prepared import PreparedTaylorRun
+    c = control
+    module = taylor_module(cm, tuple(recording.events))
+    rtol, atol_arr = tolerances(c.rtol, c.atol, cm.ny)
+    atol = float(atol_arr[0]) if np.all(atol_arr == atol_arr[0]) else atol_arr
+    run = PreparedTaylorRun(module, rtol=rtol, atol=atol, max_step=float(c.max_step), max_steps=int(c.max_steps),
+                            order=c.order, max_wall=float(c.max_wall), fixed={}, max_events=recording.max_events)
+    t = np.ascontiguousarray(t, dtype=float)
+    t_ptr, buffer = module.ffi.from_buffer("double[]", t), module.ffi.from_buffer
+
+    def member_run(i, y0, p):
+        return run(t, t_ptr, buffer("double[]", y0), p, buffer("double[]", p) if p.size else module.ffi.NULL)
+
+    return ensemble_of_runs(cm, t, Y, P, None, member_run, threads=recording.threads, save=recording.save,
+                            progress=recording.progress, method="taylor")
 
 
 def run_taylor_sensitivity_ensemble(cm, t, Y, P, control: StepControl, recording: Recording):

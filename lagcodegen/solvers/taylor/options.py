@@ -9,7 +9,7 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ..family import Family, combinations, take_sensitivities
 from ..request import Recording, StepControl
-from .ensemble import run_taylor_ensemble, run_taylor_sensitivity_ensemble
+from .ensemble import run_taylor_ensemble, run_taylor_events_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
 from .prepared import PreparedTaylorRun
 from .stepper import TaylorSensitivityStepper, TaylorStepper
@@ -149,14 +149,14 @@ class Taylor(Family):
     def ensemble_ode(self, cm, t, Y, P, rtol, atol, *, threads, save, progress, events=()):
         """Members (rows of Y, P) of the ODE of ``cm`` in one call of ``lcg_taylor_solve_many``; with
         sensitivities, each member a run of the variational jet (:mod:`.ensemble`), ``events``
-        located in each (without sensitivities: refused, those members run on CVODE)."""
+        located in each; with events and no sensitivities, each member a run of the jet with
+        them (:func:`.ensemble.run_taylor_events_ensemble`), its events recorded."""
         recording = Recording(events=events, max_events=self.max_events, sensitivities=self.sensitivities, save=save,
                               threads=threads, progress=progress)
         if self.sensitivities is not None:
             return run_taylor_sensitivity_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
         if events:
-            raise LagcodegenError("Taylor ensembles have no events without sensitivities: events in every member "
-                                  "run on CVODE (simulate(method='taylor', events=...) runs one member with them)")
+            return run_taylor_events_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
         return run_taylor_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
 
     # ------------------------------------------------------------------ the one entry (Family.run)
@@ -182,20 +182,17 @@ class Taylor(Family):
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
     #: What Taylor runs (Family.run), declared once: every other combination is refused by name
-    #: (events with input tables; ensembles with events or input tables need sensitivities: those
-    #: members run on CVODE).
+    #: (events with input tables; ensembles with input tables need sensitivities: those members
+    #: run on CVODE).
     runs = {
         ("ode", "run"): (_ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
                                                 "inputs+sensitivities")),
         ("ode", "stepper"): (_ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
-        ("ode", "ensemble"): (_ode_ensemble, combinations("", "sensitivities", "events+sensitivities",
+        ("ode", "ensemble"): (_ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
     }
     refusals = {
-        ("ode", "ensemble", frozenset({"events"})):
-            "Taylor ensembles have no events without sensitivities: events in every member run on CVODE "
-            "(simulate(method='taylor', events=...) runs one member with them)",
         ("ode", "ensemble", frozenset({"inputs"})):
             "input tables are interpolated by the native CVODE driver; Taylor ensembles do not take them without "
             "sensitivities (use method='adams' or 'bdf')",
