@@ -216,6 +216,11 @@ class CompiledModel(CompiledReprMixin):
         if out is None:
             out = np.empty(shape)
             op = fb("double[]", out)
+        elif type(out) is np.ndarray and out.dtype is _DOUBLE and out.shape == shape:
+            try:
+                op = fb("double[]", out, True)  # require_writable: read-only or strided raise ValueError
+            except ValueError:
+                op = fb("double[]", _out_array(out, shape, "out"))  # raises, naming what out must be
         else:
             op = fb("double[]", _out_array(out, shape, "out"))
         rc = call(table, t, yp, pp, op)
