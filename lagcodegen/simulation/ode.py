@@ -124,8 +124,9 @@ class CompiledModel(CompiledReprMixin):
         self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
         self.c_jac_sparse = getattr(self.lib, f"{p}_jac_sparse", None)
         self.c_outputs_batch = self.c_rhs_batch = None
-        c_rhs = self.c_rhs
-        self._rhs_call = lambda _table, t, y, p, ydot: c_rhs(t, y, p, ydot)
+        c_rhs, cast = self.c_rhs, self.ffi.cast
+        self._rhs_call = lambda _table, t, y, p, ydot: c_rhs(t, cast("double *", y), cast("double *", p),
+                                                             cast("double *", ydot))
         self.native_solve = self.native_solve_many = None
         self.options_type = self.stats_type = self.ensemble_type = None
 
@@ -206,7 +207,7 @@ class CompiledModel(CompiledReprMixin):
         fb, call, table, shape, pp = self._rhs_fast
         if type(y) is np.ndarray and y.dtype is _DOUBLE and y.shape == shape:
             try:
-                yp = fb("double[]", y)
+                yp = fb(y)  # char[]: lcg_rhs_call takes void pointers (the cheapest buffer cffi makes)
             except ValueError:  # not contiguous
                 yp = self._ptr(c_vector(y, self.ny, "y", self.state_names))
         else:
@@ -215,11 +216,11 @@ class CompiledModel(CompiledReprMixin):
             pp = self._ptr(c_vector(p, self.code.np, "p", self.param_names))
         if out is None:
             out = np.empty(shape)
-            op = fb("double[]", out)
-        elif type(out) is np.ndarray and out.dtype is _DOUBLE and out.shape == shape:
-            try:
-                op = fb("double[]", out, True)  # require_writable: read-only or strided raise ValueError
-            except ValueError:
+            op = fb(out)
+        elif type(out) is np.ndarray and out.dtype is _DOUBLE and out.shape == shape and out.flags.writeable:
+            try:  # (checking flags.writeable costs a third of from_buffer's require_writable)
+                op = fb(out)
+            except ValueError:  # strided
                 op = fb("double[]", _out_array(out, shape, "out"))  # raises, naming what out must be
         else:
             op = fb("double[]", _out_array(out, shape, "out"))
