@@ -12,8 +12,8 @@ a C loop (the generated ``<prefix>_rhs`` called from a small C program, benchmar
 the model compiled with lagcodegen's flags). Pinocchio's ABA in a C++ loop is
 benchmarks/multibody_pin_aba.cpp, compiled with g++ -O3 -DNDEBUG against the pin wheel's headers
 (cmeel prefix; the wheel ships no Eigen, so the first Eigen found under site-packages is used);
-its joints are the unaligned revolute/prismatic kinds. If it cannot be compiled, the table says so
-and only the Python timings compare.
+its joints are the kinds Pinocchio built them as (RX, RY, RZ where the axis is one, else
+unaligned). If it cannot be compiled, the table says so and only the Python timings compare.
 
 This is a measuring instrument: it asserts nothing about the numbers it reports.
 
@@ -193,22 +193,27 @@ def _panda_model(path: Path):
     return m
 
 
+#: multibody_pin_aba.cpp's joint kinds: Pinocchio's joint model short names -> its code (kinds 0
+#: and 1, the unaligned revolute and prismatic joints, take the axis from the model).
+PIN_KINDS = {"JointModelRX": 2, "JointModelRY": 3, "JointModelRZ": 4, "JointModelPX": 5, "JointModelPY": 6,
+             "JointModelPZ": 7, "JointModelFreeFlyer": 8}
+
+
 def write_pin_files(pm, states, folder: Path) -> None:
-    """The model (after Pinocchio merged fixed links) and the states for multibody_pin_aba.cpp."""
+    """The model (after Pinocchio merged fixed links) and the states (q, v pairs in Pinocchio's
+    layout) for multibody_pin_aba.cpp, each joint as the kind Pinocchio has it (aligned axes
+    stay aligned)."""
     import numpy as np
     lines = []
     for j in range(1, pm.njoints):
         jm = pm.joints[j]
         short = jm.shortname()
-        kind = 1 if "Prismatic" in short or short.startswith("JointModelP") else 0
-        if short in ("JointModelRX", "JointModelPX"):
-            ax = (1, 0, 0)
-        elif short in ("JointModelRY", "JointModelPY"):
-            ax = (0, 1, 0)
-        elif short in ("JointModelRZ", "JointModelPZ"):
-            ax = (0, 0, 1)
+        if short in PIN_KINDS:
+            kind, ax = PIN_KINDS[short], (0.0, 0.0, 0.0)
+        elif short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+            kind, ax = (0 if "Revolute" in short else 1), tuple(jm.extract().axis)
         else:
-            ax = tuple(jm.extract().axis)
+            raise ValueError(f"multibody_pin_aba.cpp does not read Pinocchio's {short}")
         X, Y = pm.jointPlacements[j], pm.inertias[j]
         I = Y.inertia
         vals = [*ax, *X.rotation.ravel(), *X.translation, Y.mass, *Y.lever,

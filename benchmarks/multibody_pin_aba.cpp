@@ -1,8 +1,10 @@
-// Pinocchio's ABA in a C++ loop, for benchmarks/multibody.py: reads a tree (one joint per line:
-// parent kind ax ay az  R00..R22  tx ty tz  mass cx cy cz  Ixx Ixy Ixz Iyy Iyz Izz; kind 0 revolute,
-// 1 prismatic, unaligned axes) from argv[1], the states (q v pairs, nq values each) from argv[2],
-// and prints the nanoseconds per aba call over argv[3] seconds, then the accelerations of the
-// first state.
+// Pinocchio's ABA in a C++ loop, for benchmarks/multibody.py and benchmarks/generalized_speeds.py:
+// reads a tree (one joint per line: parent kind ax ay az  R00..R22  tx ty tz  mass cx cy cz  Ixx Ixy
+// Ixz Iyy Iyz Izz; kind 0 revolute and 1 prismatic about the unaligned axis a, 2-4 revolute about x,
+// y, z, 5-7 prismatic along x, y, z, 8 free flyer (a ignored); Pinocchio's own joint kinds, so that
+// its aligned joints keep their cheaper code) from argv[1], the states (nq values of q, then nv of
+// v, each) from argv[2], and prints the nanoseconds per aba call over argv[3] seconds, then the
+// accelerations of the first state.
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <chrono>
@@ -32,21 +34,32 @@ int main(int argc, char **argv)
         pinocchio::SE3 X(Rm, Eigen::Vector3d(t[0], t[1], t[2]));
         Eigen::Vector3d axis(a[0], a[1], a[2]);
         pinocchio::JointIndex pid = parent < 0 ? 0 : ids[parent];
-        pinocchio::JointIndex id = kind == 0
-            ? model.addJoint(pid, pinocchio::JointModelRevoluteUnaligned(axis), X, "j" + std::to_string(ids.size()))
-            : model.addJoint(pid, pinocchio::JointModelPrismaticUnaligned(axis), X, "j" + std::to_string(ids.size()));
+        const std::string name = "j" + std::to_string(ids.size());
+        pinocchio::JointIndex id;
+        switch (kind) {
+        case 0: id = model.addJoint(pid, pinocchio::JointModelRevoluteUnaligned(axis), X, name); break;
+        case 1: id = model.addJoint(pid, pinocchio::JointModelPrismaticUnaligned(axis), X, name); break;
+        case 2: id = model.addJoint(pid, pinocchio::JointModelRX(), X, name); break;
+        case 3: id = model.addJoint(pid, pinocchio::JointModelRY(), X, name); break;
+        case 4: id = model.addJoint(pid, pinocchio::JointModelRZ(), X, name); break;
+        case 5: id = model.addJoint(pid, pinocchio::JointModelPX(), X, name); break;
+        case 6: id = model.addJoint(pid, pinocchio::JointModelPY(), X, name); break;
+        case 7: id = model.addJoint(pid, pinocchio::JointModelPZ(), X, name); break;
+        case 8: id = model.addJoint(pid, pinocchio::JointModelFreeFlyer(), X, name); break;
+        default: return 4;
+        }
         Eigen::Matrix3d Im;
         Im << I[0], I[1], I[2], I[1], I[3], I[4], I[2], I[4], I[5];
         model.appendBodyToJoint(id, pinocchio::Inertia(m, Eigen::Vector3d(c[0], c[1], c[2]), Im), pinocchio::SE3::Identity());
         ids.push_back(id);
     }
     pinocchio::Data data(model);
-    const int n = model.nv;
+    const int n = model.nv, nq = model.nq;
     std::ifstream sin(argv[2]);
     std::vector<Eigen::VectorXd> qs, vs;
     while (true) {
-        Eigen::VectorXd q(n), v(n);
-        for (int i = 0; i < n; ++i) if (!(sin >> q[i])) goto done;
+        Eigen::VectorXd q(nq), v(n);
+        for (int i = 0; i < nq; ++i) if (!(sin >> q[i])) goto done;
         for (int i = 0; i < n; ++i) if (!(sin >> v[i])) goto done;
         qs.push_back(q);
         vs.push_back(v);

@@ -664,17 +664,20 @@ def _project(model: Model, eng: _Engine, M: list, F: list, p: list, Q: list, sca
                 raise ModelError(f"kinematic equation of {q.name!r} is not linear in the generalized speeds: "
                                  f"{excerpt(model.kinematics[i])}")
     Mq = [[se.sympify(M[i][j]).xreplace(sub) for j in range(nq)] for i in range(nq)]
+    # The structural nonzeros, each entry compared with 0 once (a tree's closed-form M is mostly
+    # zeros: Talos's 51 x 50 products took 0.4 s of comparisons), the sums over them in the same order.
+    m_rows = [[j for j in range(nq) if Mq[i][j] != 0] for i in range(nq)]
+    g_nz = [[G[i][a] != 0 for a in range(nv)] for i in range(nq)]
     bias = [se.Add(se.diff(k[i], eng.t), *(se.diff(k[i], eng.q[m]) * k[m] for m in range(nq))) for i in range(nq)]
-    Fq = [se.sympify(F[i]).xreplace(sub) - se.Add(*(Mq[i][j] * bias[j] for j in range(nq) if Mq[i][j] != 0))
-          for i in range(nq)]
+    Fq = [se.sympify(F[i]).xreplace(sub) - se.Add(*(Mq[i][j] * bias[j] for j in m_rows[i])) for i in range(nq)]
     pq = [se.sympify(x).xreplace(sub) for x in p]
     Qq = [se.sympify(x).xreplace(sub) for x in Q]
 
     def left(vec):  # G^T vec
-        return [se.Add(*(G[i][a] * vec[i] for i in range(nq) if G[i][a] != 0 and vec[i] != 0)) for a in range(nv)]
-    MG = [[se.Add(*(Mq[i][j] * G[j][b] for j in range(nq) if Mq[i][j] != 0 and G[j][b] != 0)) for b in range(nv)]
-          for i in range(nq)]
-    Mv = [[se.Add(*(G[i][a] * MG[i][b] for i in range(nq) if G[i][a] != 0 and MG[i][b] != 0)) for b in range(nv)]
+        return [se.Add(*(G[i][a] * vec[i] for i in range(nq) if g_nz[i][a] and vec[i] != 0)) for a in range(nv)]
+    MG = [[se.Add(*(Mq[i][j] * G[j][b] for j in m_rows[i] if g_nz[j][b])) for b in range(nv)] for i in range(nq)]
+    mg_nz = [[bool(m_rows[i]) and MG[i][b] != 0 for b in range(nv)] for i in range(nq)]
+    Mv = [[se.Add(*(G[i][a] * MG[i][b] for i in range(nq) if g_nz[i][a] and mg_nz[i][b])) for b in range(nv)]
           for a in range(nv)]
     return Mv, left(Fq), left(pq), left(Qq), tuple(se.sympify(x).xreplace(sub) for x in scalars)
 

@@ -15,6 +15,7 @@ import dataclasses
 from itertools import accumulate
 
 from ..errors import ModelError
+from ..formulation.branching import tree_parents
 from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
@@ -309,14 +310,17 @@ def generate_c(scene: Scene) -> GeneratedCode:
     code = new_code(scene)
     ctx = header_context(scene, code)
     env = environment()
-    extra = dict(program=None)
+    extra = dict(program=None, tree_parents=None)
     if use_program(scene, blocks["rhs"]):
         n = scene.eom.model.n
         # With generalized speeds the tangent's columns are (q, v): nq + nv of them.
         nv = scene.eom.model.nv if tangent and scene.eom.general else None
         built = build_program(blocks["rhs"], n, nv=nv)
         tp = tangent_program(blocks["rhs"], n, len(scene.eom.quadratures), program=built, nv=nv) if tangent else None
-        extra = dict(program=print_program(built[0], built[1], tp))
+        extra = dict(program=print_program(built[0], built[1], tp), tree_parents=None)
+        if built[0].recorded and not (ctx["diagonal"] or ctx["lu_only"]):  # a rigid-body tree's M
+            parents = tree_parents(blocks["rhs"].targets, blocks["rhs"].exprs, scene.eom.model.nv)
+            extra["tree_parents"] = None if parents is None else _int_rows(parents)
     jac = print_block(blocks["jac"]) if "jac" in blocks and not extra["program"] else ""
     if "jac" in blocks and extra["program"]:  # a large expanded Jacobian: in pieces too
         nz = len(scene.eom.quadratures)

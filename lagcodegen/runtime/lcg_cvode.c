@@ -308,6 +308,11 @@ int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double 
     return LCG_OK;
 }
 
+int lcg_rhs_call(const lcg_model *m, double t, const void *y, const void *p, void *ydot)
+{
+    return m->rhs(t, (const double *)y, (const double *)p, (double *)ydot);
+}
+
 int lcg_rhs_batch(const lcg_model *m, int nt, double t, const double *y, const double *p, int pstride, double *ydot,
                   int *failed)
 {

@@ -39,6 +39,11 @@ int lcg_cvode_solve_many(lcg_cvode_ensemble *e, const lcg_cvode_options *opt);
 /* out[k*nout + j] = output j of model m at (t[k], y[k*ny ...]) for k < nt. */
 int lcg_outputs_batch(const lcg_model *m, int nt, const double *t, const double *y, const double *p, double *out);
 
+/* ydot[ny] = f(t, y, p) of model m (y, p, ydot: arrays of double): m->rhs called once, for the
+ * Python binding's rhs. cffi calls a function of the runtime directly, at less cost than through
+ * the table's function pointer, and the untyped pointers take its cheapest buffers (char[]). */
+int lcg_rhs_call(const lcg_model *m, double t, const void *y, const void *p, void *ydot);
+
 /* ydot[k*ny ...] = f(t, y[k*ny ...], p[k*pstride ...]) of model m for k < nt (pstride 0: one p for
  * all; p may be NULL without run-time parameters). Returns LCG_OK, or the code of the first state
  * that fails, its index in *failed. */

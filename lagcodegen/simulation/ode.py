@@ -36,7 +36,6 @@ from .sensitivity_integrator import SensitivityIntegrator
 
 
 _DOUBLE = np.dtype(np.float64)
-_UNIT_STRIDE = (8,)
 
 
 def _out_array(out, shape: tuple, what: str, order: str = "C") -> np.ndarray:
@@ -98,6 +97,8 @@ class CompiledModel(CompiledReprMixin):
         self._defaults = np.array(code.param_defaults, dtype=float)
         self._default_ptr = self._ptr(self._defaults)  # the defaults' buffer for C (never written)
         self._y_shape = (code.ny,)
+        # what rhs() needs at each call, looked up once
+        self._rhs_fast = (self.ffi.from_buffer, self._rhs_call, table, self._y_shape, self._default_ptr)
         self.artifacts = Artifacts()  # what the families build on first use (Taylor modules, event libraries)
         self._fast_runs = FastRuns()  # simulate()'s prepared runs by option values (fastpath)
 
@@ -110,6 +111,7 @@ class CompiledModel(CompiledReprMixin):
         self.c_jac_sparse = table.jac_sparse if table.jac_sparse != null else None
         self.c_outputs_batch = functools.partial(lib.lcg_outputs_batch, table) if self.c_outputs else None
         self.c_rhs_batch = functools.partial(lib.lcg_rhs_batch, table)
+        self._rhs_call = lib.lcg_rhs_call  # rhs(): a direct call of the runtime, not through table.rhs
         self.native_solve = functools.partial(lib.lcg_cvode_solve, table)
         solve_many = lib.lcg_cvode_solve_many
 
@@ -129,6 +131,9 @@ class CompiledModel(CompiledReprMixin):
         self.c_outputs = getattr(self.lib, f"{p}_outputs", None)
         self.c_jac_sparse = getattr(self.lib, f"{p}_jac_sparse", None)
         self.c_outputs_batch = self.c_rhs_batch = None
+        c_rhs, cast = self.c_rhs, self.ffi.cast
+        self._rhs_call = lambda _table, t, y, p, ydot: c_rhs(t, cast("double *", y), cast("double *", p),
+                                                             cast("double *", ydot))
         self.native_solve = self.native_solve_many = None
         self.options_type = self.stats_type = self.ensemble_type = None
 
@@ -207,18 +212,33 @@ class CompiledModel(CompiledReprMixin):
 
     def rhs(self, t: float, y, p=None, *, out: np.ndarray | None = None) -> np.ndarray:
         """f(t, y, p) evaluated by the compiled code (into ``out``, a float64 array of ny, if
-        given). A float64 state of length ny with the default parameters goes straight to C (its
-        checks are the array's type, dtype, shape and strides: the calls a controller or a scipy
-        integrator makes cost little more than the C)."""
-        fb = self.ffi.from_buffer
-        if p is None and type(y) is np.ndarray and y.dtype is _DOUBLE and y.shape == self._y_shape \
-                and y.strides == _UNIT_STRIDE:
-            yp, pp = fb("double[]", y), self._default_ptr
+        given). A float64 array of shape (ny,) goes straight to C, one direct call of the
+        runtime's ``lcg_rhs_call`` (cheaper through cffi than the table's function pointer): its
+        checks are the array's type, dtype and shape, and contiguity (``ffi.from_buffer``
+        refuses a strided view, which then takes the general path). Anything else is converted
+        and checked (:func:`~lagcodegen.util.c_vector`); ``out`` must be a writable, contiguous
+        float64 array of shape (ny,), else a LagcodegenError names what it must be."""
+        fb, call, table, shape, pp = self._rhs_fast
+        if type(y) is np.ndarray and y.dtype is _DOUBLE and y.shape == shape:
+            try:
+                yp = fb(y)  # char[]: lcg_rhs_call takes void pointers (the cheapest buffer cffi makes)
+            except ValueError:  # not contiguous
+                yp = self._ptr(c_vector(y, self.ny, "y", self.state_names))
         else:
-            y, p = self._args(y, p)
-            yp, pp = self._ptr(y), self._ptr(p)
-        out = np.empty(self.ny) if out is None else _out_array(out, (self.ny,), "out")
-        rc = self.c_rhs(float(t), yp, pp, fb("double[]", out))
+            yp = self._ptr(c_vector(y, self.ny, "y", self.state_names))
+        if p is not None:
+            pp = self._ptr(c_vector(p, self.code.np, "p", self.param_names))
+        if out is None:
+            out = np.empty(shape)
+            op = fb(out)
+        elif type(out) is np.ndarray and out.dtype is _DOUBLE and out.shape == shape and out.flags.writeable:
+            try:  # (checking flags.writeable costs a third of from_buffer's require_writable)
+                op = fb(out)
+            except ValueError:  # strided
+                op = fb("double[]", _out_array(out, shape, "out"))  # raises, naming what out must be
+        else:
+            op = fb("double[]", _out_array(out, shape, "out"))
+        rc = call(table, t, yp, pp, op)
         if rc:
             check_rc(rc, t, "right-hand side")
         return out

@@ -324,3 +324,53 @@ def test_with_scene_pickles_the_scene_once_and_the_taylor_method_runs():
                           cm.simulate(t, q0=[0.3, 0.2, 0.1], method="taylor").y)
     with pytest.raises(LagcodegenError, match="no symbolic scene to carry"):
         with_scene(pickle.loads(pickle.dumps(lcg.compile_model(systems.n_link_pendulum(4)))))
+
+
+def double_pendulum_accelerations(y, l1=1.0, l2=1.0, m1=1.0, m2=1.0, g=9.81):
+    """The point-mass double pendulum's angular accelerations, closed form (Lagrange's equations
+    solved by hand)."""
+    t1, t2, w1, w2 = y
+    d = t1 - t2
+    den = 2 * m1 + m2 - m2 * math.cos(2 * d)
+    a1 = (-g * (2 * m1 + m2) * math.sin(t1) - m2 * g * math.sin(t1 - 2 * t2)
+          - 2 * math.sin(d) * m2 * (w2 ** 2 * l2 + w1 ** 2 * l1 * math.cos(d))) / (l1 * den)
+    a2 = 2 * math.sin(d) * (w1 ** 2 * l1 * (m1 + m2) + g * (m1 + m2) * math.cos(t1)
+                            + w2 ** 2 * l2 * m2 * math.cos(d)) / (l2 * den)
+    return np.array([w1, w2, a1, a2])
+
+
+def test_rhs_every_form_of_state_and_out(double_pendulum):
+    """rhs's direct path (a float64 array of shape (ny,)) and its general one (lists, other
+    dtypes, strided views, parameters given) give the closed-form accelerations; a native=False
+    build (its own module, no runtime table) the same; a wrong state or out array is refused by
+    name, never handed to C."""
+    cm = double_pendulum
+    y = np.array([0.7, -1.1, 0.4, 2.3])
+    exact = double_pendulum_accelerations(y)
+    np.testing.assert_allclose(cm.rhs(0.0, y), exact, rtol=1e-14, atol=1e-14)
+    strided = np.empty(8)
+    strided[::2] = y
+    assert np.array_equal(cm.rhs(0.0, strided[::2]), cm.rhs(0.0, y))
+    assert np.array_equal(cm.rhs(0, list(y)), cm.rhs(0.0, y))
+    y32 = y.astype(np.float32)
+    np.testing.assert_allclose(cm.rhs(0.0, y32), double_pendulum_accelerations([float(x) for x in y32]), rtol=1e-14,
+                               atol=1e-14)
+    p = cm.parameter_vector({"g": 3.0, "m2": 2.5})
+    np.testing.assert_allclose(cm.rhs(0.0, y, p), double_pendulum_accelerations(y, m2=2.5, g=3.0), rtol=1e-14,
+                               atol=1e-14)
+    out = np.full(4, np.nan)
+    assert cm.rhs(0.0, y, out=out) is out and np.array_equal(out, cm.rhs(0.0, y))
+    own = lcg.build_code(lcg.generate_c(lcg.Scene(lcg.derive(systems.double_pendulum("dp_own_module")),
+                                                  prefix="dp_own_module")), native=False)
+    assert own.table is None and np.array_equal(own.rhs(0.0, y), cm.rhs(0.0, y))
+    assert np.array_equal(own.rhs(0.0, y, p), cm.rhs(0.0, y, p))
+    readonly = np.empty(4)
+    readonly.flags.writeable = False
+    for bad in (np.empty(3), np.empty(4, dtype=np.float32), np.empty(8)[::2], readonly, [0.0] * 4):
+        with pytest.raises(LagcodegenError, match="out must be a writable, C-contiguous float64 array of shape"):
+            cm.rhs(0.0, y, out=bad)
+    for bad in (np.zeros(3), np.zeros(5), [1.0, 2.0], None, "abcd"):
+        with pytest.raises(LagcodegenError, match=r"y (must be an array of 4 real numbers|has \d+ values, expected 4)"):
+            cm.rhs(0.0, bad)
+    with pytest.raises(LagcodegenError, match="p has 2 values, expected 5"):
+        cm.rhs(0.0, y, [1.0, 2.0])
