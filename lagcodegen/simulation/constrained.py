@@ -335,18 +335,15 @@ class ConstrainedSimulation(ConstrainedFunctions):
         rejected get status -84. Systems with contacts: each member one run of the impact driver
         (:mod:`.impact_ensemble`), its events and contact log in ``member(i).events`` and
         ``.impacts``."""
-        if self.info.contacts:
+        members = ensemble_constrained  # each member's run in the native pool (index-1: CVODE, GGL: IDA)
+        if self.info.contacts:  # each member one run of the index-1 impact driver
             if self._ggl:
                 raise LagcodegenError("ensembles do not run systems with contacts on the GGL formulation: "
                                       "compile_constrained(system, 'index1') runs them (GGL runs contacts in simulate)")
-            return ensemble_contacts(self, t, q0, v0, params=params,
-                                     recording=Recording(save=save, threads=threads, progress=progress),
-                                     executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
-                                     options=options)
-        return ensemble_constrained(self, t, q0, v0, params=params,
-                                    recording=Recording(save=save, threads=threads, progress=progress),
-                                    executor=executor, chunk_size=chunk_size, initial=initial, ic_tol=ic_tol,
-                                    options=options)
+            members = ensemble_contacts
+        recording = Recording(save=save, threads=threads, progress=progress)
+        return members(self, t, q0, v0, params=params, recording=recording, executor=executor, chunk_size=chunk_size,
+                       initial=initial, ic_tol=ic_tol, options=options)
 
     def __reduce__(self):
         """Pickled by the system and the generated code (the compiled module is rebuilt from the

@@ -356,3 +356,27 @@ def names_field(obj, name: str) -> None:
         object.__setattr__(obj, name, tuple(names))
     except TypeError:
         raise LagcodegenError(f"{name} must be a list of names, got {names!r}") from None
+
+
+# ---------------------------------------------------------------------- the ODE face's runs, shared
+def ode_run(family, pr: Problem, rq: Request):
+    """A run of the ODE face to output times on a family with ``run_ode`` and
+    ``run_ode_inputs`` (input tables)."""
+    if rq.inputs is not None:
+        return family.run_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs)
+    return family.run_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.events)
+
+
+def ode_stepper(family, pr: Problem, rq: Request):
+    """An integrator object's stepper of the ODE face on the memory ``pr.y`` = (t, y, p)."""
+    return family.stepper_ode(pr.sim, pr.y, pr.rtol, pr.atol, rq.events)
+
+
+def ode_ensemble(family, pr: Problem, rq: Request):
+    """An ensemble of the ODE face (rows of ``pr.y``, ``pr.p``), with input tables one set per member."""
+    m = rq.members
+    if rq.inputs is not None:
+        return family.ensemble_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs,
+                                          threads=m.threads, save=m.save, progress=m.progress)
+    return family.ensemble_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, threads=m.threads, save=m.save,
+                               progress=m.progress, events=rq.events)

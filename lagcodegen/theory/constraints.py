@@ -40,7 +40,7 @@ from ..derivation import derive
 from ..errors import ModelError
 from ..model.model import Model
 from ..util import check_finite, excerpt, state_vector
-from .tangents import check_tangent
+from .tangents import check_tangent, scalar_expression
 from .integrability import IntegrabilityReport, frobenius_terms, integrability  # noqa: F401 (re-exported)
 
 #: What to do with a "nonholonomic" constraint that the Frobenius test finds integrable.
@@ -55,13 +55,7 @@ FORMULATIONS = ("index1", "ggl", "minimal")
 def _expr(value, what: str) -> sp.Expr:
     if isinstance(value, sp.Equality):
         value = value.lhs - value.rhs
-    try:
-        expr = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError) as exc:
-        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
-    if not isinstance(expr, sp.Expr):
-        raise ModelError(f"{what} is not a scalar expression: {excerpt(value)}")
-    return expr
+    return scalar_expression(value, what)
 
 
 @dataclass(frozen=True)

@@ -403,24 +403,14 @@ def _check_steady(system: ConstrainedSystem, lin: Linearization, k0: np.ndarray,
     relative) at the states the motion reaches a short time h = STEADY_STEP / max|A| before and
     after: (q0 -+ h k0, v0 -+ h a0), the same independent speeds and coordinates, the constraints'
     checks off there (the states leave them at O(h^2), which the central difference cancels)."""
-    from .linearize_speeds import STEADY_STEP
-    A = lin.A
-    scale = float(np.max(np.abs(A), initial=0.0))
-    if scale == 0.0:
-        return
-    h = STEADY_STEP / scale
-    seen = []
-    for step in (h, -h):
-        other = linearize_constrained(system, q0=lin.q0 + step * k0, v0=lin.v0 + step * lin.a0, t=lin.t + step,
-                                      params=lin.params, independent=lin.speeds, a0=lin.a0, tol=math.inf,
-                                      moving="terms")
-        seen.append(other.A)
-    change = float(np.max(np.abs(seen[0] - seen[1]))) / scale
-    if change > tol:
-        raise ModelError(f"linearize: the linearized equations change along this motion (their reduced first-order "
-                         f"matrix by {change:.2g} relative over a time {2 * h:.3g}, tol {tol:g}): the state is not a "
-                         "steady motion in these speeds, and coefficients frozen at one instant would not give its "
-                         "stability")
+    from .linearize_speeds import check_steady
+
+    def first_order_at(step: float) -> np.ndarray:
+        return linearize_constrained(system, q0=lin.q0 + step * k0, v0=lin.v0 + step * lin.a0, t=lin.t + step,
+                                     params=lin.params, independent=lin.speeds, a0=lin.a0, tol=math.inf,
+                                     moving="terms").A
+
+    check_steady(lin.A, first_order_at, tol, "reduced first-order matrix")
 
 
 def _constrained_accelerations(M: np.ndarray, F: np.ndarray, A: np.ndarray, gamma: np.ndarray) -> np.ndarray:

@@ -186,20 +186,30 @@ def linearize_speeds(eom, *, q0, v0, t: float | None, values: Mapping[str, float
 
 def _check_steady(num: _Numbers, state: tuple, A: np.ndarray, tol: float) -> None:
     """ModelError unless the first-order matrix stays A (to ``tol`` relative) along the motion."""
+    def first_order_at(step: float) -> np.ndarray:
+        q, v, t = _rk4(num, *state, step)
+        M, C, K, H, _, _ = _coefficients(num, q, v, t)
+        return _first_order(M, C, K, H)
+
+    check_steady(A, first_order_at, tol, "first-order matrix",
+                 " (its speeds or the forces in their frame turn as it moves, e.g. a top precessing in body-frame "
+                 "speeds)", ". Linearize it on coordinates in which it is steady (e.g. rotation='ZYX' away from "
+                 "pitch = +-pi/2, where the precession and spin angles are ignorable)")
+
+
+def check_steady(A: np.ndarray, first_order_at, tol: float, what: str, why: str = "", advice: str = "") -> None:
+    """ModelError unless ``first_order_at(step)`` (the first-order matrix at the state the motion
+    reaches after a time ``step``) stays ``A`` to ``tol`` relative over -+h, h = STEADY_STEP /
+    max|A| (a central difference); ``what`` names the matrix, ``why`` and ``advice`` complete the
+    message."""
     scale = float(np.max(np.abs(A), initial=0.0))
     if scale == 0.0:
         return
     h = STEADY_STEP / scale
-    seen = []
-    for step in (h, -h):
-        q, v, t = _rk4(num, *state, step)
-        M, C, K, H, _, _ = _coefficients(num, q, v, t)
-        seen.append(_first_order(M, C, K, H))
+    seen = [first_order_at(step) for step in (h, -h)]
     change = float(np.max(np.abs(seen[0] - seen[1]))) / scale
     if change > tol:
-        raise ModelError(f"linearize: the linearized equations change along this motion (their first-order matrix by "
+        raise ModelError(f"linearize: the linearized equations change along this motion (their {what} by "
                          f"{change:.2g} relative over a time {2 * h:.3g}, tol {tol:g}): the state is not a steady "
-                         "motion in these speeds (its speeds or the forces in their frame turn as it moves, e.g. a "
-                         "top precessing in body-frame speeds), and coefficients frozen at one instant would not give "
-                         "its stability. Linearize it on coordinates in which it is steady (e.g. rotation='ZYX' away "
-                         "from pitch = +-pi/2, where the precession and spin angles are ignorable)")
+                         f"motion in these speeds{why}, and coefficients frozen at one instant would not give its "
+                         f"stability{advice}")

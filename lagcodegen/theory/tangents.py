@@ -12,6 +12,18 @@ from ..model.model import Model
 from ..util import excerpt
 
 
+def scalar_expression(value, what: str) -> sp.Expr:
+    """``value`` as a scalar sympy expression; ModelError naming ``what`` (and an excerpt of the
+    value) when it is none."""
+    try:
+        expr = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError) as exc:
+        raise ModelError(f"{what} is not a symbolic expression: {excerpt(value)}") from exc
+    if not isinstance(expr, sp.Expr):
+        raise ModelError(f"{what} is not a scalar expression: {excerpt(value)}")
+    return expr
+
+
 def check_tangent(model: Model, tangent, what: str):
     """The tangent of a rough contact checked (``what`` names the contact in messages): an
     expression, or a tuple of two for 3-D friction."""
@@ -23,12 +35,7 @@ def check_tangent(model: Model, tangent, what: str):
     out = []
     for d, item in enumerate(items):
         where = f"{what}, tangent" + ("" if len(items) == 1 else f" {d}")
-        try:
-            e = sp.sympify(item, strict=True)
-        except (sp.SympifyError, TypeError) as exc:
-            raise ModelError(f"{where} is not a symbolic expression: {excerpt(item)}") from exc
-        if not isinstance(e, sp.Expr):
-            raise ModelError(f"{where} is not a scalar expression: {excerpt(item)}")
+        e = scalar_expression(item, where)
         model.check_symbols(e, where, allow_speeds=True)
         used = e.free_symbols & speeds
         if used and any(sp.diff(e, a, b) != 0 for a in used for b in used):  # a slip velocity: linear in them

@@ -13,7 +13,7 @@ from ...errors import LagcodegenError
 from ...result import Result
 from ...util import check_baumgarte
 from ..base import LINEAR_SOLVERS, METHODS, check_initial_mass_matrix, tolerances
-from ..family import Family, choice, combinations, take_sensitivities
+from ..family import Family, choice, combinations, ode_ensemble, ode_run, ode_stepper, take_sensitivities
 from . import ensemble, native
 from .prepared import PreparedCVODERun
 from .stepper import CVCStepper, CVODEStepper
@@ -325,22 +325,6 @@ class CVODE(Family):
                           proj_maxit=self.proj_maxit)
 
     # ------------------------------------------------------------------ the one entry (Family.run)
-    def _ode_run(self, pr, rq) -> Result:
-        if rq.inputs is not None:
-            return self.run_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs)
-        return self.run_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.events)
-
-    def _ode_stepper(self, pr, rq):
-        return self.stepper_ode(pr.sim, pr.y, pr.rtol, pr.atol, rq.events)
-
-    def _ode_ensemble(self, pr, rq):
-        m = rq.members
-        if rq.inputs is not None:
-            return self.ensemble_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs,
-                                            threads=m.threads, save=m.save, progress=m.progress)
-        return self.ensemble_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, threads=m.threads, save=m.save,
-                                 progress=m.progress, events=rq.events)
-
     def _ode_prepared(self, pr, rq):
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
@@ -365,10 +349,10 @@ class CVODE(Family):
 
     #: What CVODE runs (Family.run), declared once: every other combination is refused by name.
     runs = {
-        ("ode", "run"): (_ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
+        ("ode", "run"): (ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
                                                 "inputs+sensitivities")),
-        ("ode", "stepper"): (_ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
-        ("ode", "ensemble"): (_ode_ensemble, combinations("", "events", "inputs", "sensitivities",
+        ("ode", "stepper"): (ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
+        ("ode", "ensemble"): (ode_ensemble, combinations("", "events", "inputs", "sensitivities",
                                                           "events+sensitivities", "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "sensitivities")),
         ("index1", "run"): (_index1_run, combinations("", "events", "sensitivities", "impacts", "events+impacts")),

@@ -35,7 +35,7 @@ from ...result import Result
 from ..base import tolerances
 from ..control import CANCELLED, install, raise_pending
 from ..request import StepControl
-from .sensitivity import driver_result, parse_directions, sens_options, sens_runtime
+from .sensitivity import check_family, driver_result, parse_directions, sens_options, sens_runtime
 
 
 class ConstrainedSensitivityFunctions:
@@ -96,11 +96,7 @@ def run_index1(family, sim, t: np.ndarray, y0: np.ndarray, p: np.ndarray, rtol: 
                initial: str) -> Result:
     """A sensitivity run of the index-1 form of ``sim`` from the consistent state ``y0`` with the
     options of ``family`` (a :class:`~lagcodegen.solvers.cvode.CVODE`; module docstring)."""
-    if family.backend != "native":
-        raise LagcodegenError("sensitivities need backend='native'")
-    if family.linear_solver != "dense":
-        raise LagcodegenError(f"sensitivities use their own block-structured Newton solver: linear_solver "
-                              f"{family.linear_solver!r} does not apply (leave it 'dense')")
+    check_family(family)
     if roots:
         raise LagcodegenError("sensitivities with events: not supported (run the sensitivities with events=False, "
                               "or locate the events in a run of their own)")

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ...errors import LagcodegenError
 from ...result import Result
-from ..family import Family, combinations, take_sensitivities
+from ..family import Family, combinations, ode_ensemble, ode_run, ode_stepper, take_sensitivities
 from ..request import Recording, StepControl
 from .ensemble import run_taylor_ensemble, run_taylor_events_ensemble, run_taylor_sensitivity_ensemble
 from .run import run_taylor, taylor_module
@@ -160,22 +160,6 @@ class Taylor(Family):
         return run_taylor_ensemble(cm, t, Y, P, self.control(rtol, atol), recording)
 
     # ------------------------------------------------------------------ the one entry (Family.run)
-    def _ode_run(self, pr, rq) -> Result:
-        if rq.inputs is not None:
-            return self.run_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs)
-        return self.run_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.events)
-
-    def _ode_stepper(self, pr, rq):
-        return self.stepper_ode(pr.sim, pr.y, pr.rtol, pr.atol, rq.events)
-
-    def _ode_ensemble(self, pr, rq):
-        m = rq.members
-        if rq.inputs is not None:
-            return self.ensemble_ode_inputs(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.inputs,
-                                            threads=m.threads, save=m.save, progress=m.progress)
-        return self.ensemble_ode(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, threads=m.threads, save=m.save,
-                                 progress=m.progress, events=rq.events)
-
     def _ode_prepared(self, pr, rq):
         if rq.events:
             return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
@@ -185,10 +169,10 @@ class Taylor(Family):
     #: (events with input tables; ensembles with input tables need sensitivities: those members
     #: run on CVODE).
     runs = {
-        ("ode", "run"): (_ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
+        ("ode", "run"): (ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
                                                 "inputs+sensitivities")),
-        ("ode", "stepper"): (_ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
-        ("ode", "ensemble"): (_ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
+        ("ode", "stepper"): (ode_stepper, combinations("", "events", "sensitivities", "events+sensitivities")),
+        ("ode", "ensemble"): (ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
     }
