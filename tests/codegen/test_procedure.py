@@ -1,7 +1,9 @@
-"""The dense LU solve written once as procedures of the language-neutral tree (codegen/linalg.py)
-and printed by each backend (c_procedure.py, fortran_procedure.py): both printed solves compile
-with the project's warnings as errors and give numpy's solution, including systems that need row
-exchanges, and both refuse singular and non-finite matrices."""
+"""The dense linear algebra written once as procedures of the language-neutral tree
+(codegen/linalg.py) and printed by each backend (c_procedure.py, fortran_procedure.py): the LU
+solve, the mass matrix's factorization of every kind with its solve, and the Schur complement
+solve of [M A^T; A 0] compile with the project's warnings as errors and give numpy's solution
+(including systems that need row exchanges, and the same doubles in both languages), refuse
+singular and non-finite matrices, and read in each language's idiom."""
 
 from __future__ import annotations
 
@@ -420,3 +422,26 @@ def test_printed_schur_solve_agrees_with_numpy(tmp_path, cc, fc, J):
                   b if J else np.zeros(1), np.zeros(4), np.zeros(max(J, 1))) == 0
     (ac, xc), (af, xf) = results
     assert np.array_equal(ac, af) and np.array_equal(xc, xf)
+
+
+def test_printers_choose_their_idioms():
+    """One tree, each language's idiom: the fallback from Cholesky to LU is a goto in C and the
+    result as a flag with exit in Fortran; the identity permutation is set in the diagonal loop in
+    C and at entry in Fortran; sizes are named per language (J declared as JD in C, nj in
+    Fortran) and a compile-time zero size leaves the Fortran loops and locals out."""
+    factor = linalg.mass_factor(diagonal=True)
+    c, f = CProcedurePrinter().text(factor), FortranProcedurePrinter().text(factor)
+    assert "            goto lu;\n" in c and "\nlu:\n" in c and "    return 1;\n" in c
+    assert "        ftype = 2\n        exit\n" in f and "    if (ftype == 1) return\n" in f
+    assert "        piv[i] = i;\n    }\n    return 3;" in c
+    assert f.index("piv(i) = i") < f.index("smax = 0.0_c_double") and "piv(i) = i" not in f.split("smax")[-1]
+    schur = linalg.schur_solve()
+    c = CProcedurePrinter(dims={"J": "JD"}).text(schur)
+    assert "double L[N][N], V[JD][N], S[JD][JD], u[N], scale = 0.0;" in c and "for (r = 0; r < J; ++r)" in c
+    full = FortranProcedurePrinter(sizes={"N": "nq", "J": "nj"}).text(schur)
+    empty = FortranProcedurePrinter(sizes={"N": "nq", "J": "nj"}, zero=("J",)).text(schur)
+    assert "V(nj, nq), S(nj, nj)" in full and "do r = 1, nj" in full
+    assert "nj" not in empty.replace("A(nj, nq), b(nj)", "").replace("x(nj)", "") and "integer :: i, k, c\n" in empty
+    assert "real(c_double) :: L(nq, nq), u(nq), smax, d, w\n" in empty  # s is w: S differs only by case
+    with pytest.raises(ValueError, match="Fallback"):
+        CProcedurePrinter().text(pr.Procedure("p", (), (), (pr.Fail(),)))
