@@ -1,7 +1,14 @@
 """C99 text of the procedures of the tree (:mod:`.procedure`): a ``static`` function, the locals
 the tree scopes declared at their first assignment, compound assignments (``-=``, ``/=``), braces
 only around bodies of more than one statement, flat row-major storage of the matrices the tree
-lets a language store so (``K[i * dim + j]``). Needs <float.h> and <math.h>."""
+lets a language store so (``K[i * dim + j]``), a fallback as a ``goto`` to its label. Needs
+<float.h> and <math.h>.
+
+A backend chooses per procedure how its arguments read (the printer's options): ``dims`` names a
+size in declarations (C has no array of size zero: ``{"J": "JD"}``, a size at least 1),
+``vector_pointers`` declares the vectors as pointers, and without ``const_matrices`` the matrices
+read but not written are declared without ``const`` (C99 converts a ``double (*)[N]`` to a
+``const double (*)[N]`` only by a cast, which callers that pass their own arrays do not write)."""
 
 from __future__ import annotations
 
@@ -15,30 +22,49 @@ _FUNCTIONS = {"abs": "fabs"}
 class CProcedurePrinter(pr.Printer):
     """Prints a :class:`~.procedure.Procedure` as a static C99 function."""
 
+    #: Columns of a function's head before its arguments continue on the next line.
+    WIDTH = 110
+
+    def __init__(self, dims: dict | None = None, vector_pointers: bool = False, const_matrices: bool = True):
+        self.dims = dims or {}
+        self.vector_pointers = vector_pointers
+        self.const_matrices = const_matrices
+
     def text(self, proc: pr.Procedure) -> str:
         """The function, without a final newline."""
         self.proc = proc
         self.kinds = {**{a.name: a.kind for a in proc.args}, **{v.name: v.kind for v in proc.locals}}
         self.counts = frozenset(a.name for a in proc.args if not a.shape and a.kind == "int") | set(proc.sizes)
         self.flat: dict = {}
-        args = ", ".join(self._arg(a) for a in proc.args)
-        head = f"static {'int' if proc.returns else 'void'} {proc.name}({args})"
-        lines = [head, "{"]
+        self.label = next((st.label for st in pr.walk(proc.body) if isinstance(st, pr.Fallback)), None)
+        lead = f"static {'int' if proc.returns else 'void'} {proc.name}("
+        lines = [lead]
+        for i, a in enumerate(proc.args):
+            word = self._arg(a) + (")" if i == len(proc.args) - 1 else ",")
+            if i and len(lines[-1]) + 1 + len(word) > self.WIDTH:
+                lines.append(" " * len(lead) + word)
+            else:
+                lines[-1] += (" " if i else "") + word
+        lines.append("{")
         for kind in ("real", "int"):
             top = [v for v in proc.locals if v.kind == kind and not v.scoped]
             if top:
                 lines.append(self.pad(1) + _TYPES[kind] + " " + ", ".join(
-                    v.name + ("" if v.init is None else f" = {self.literal(v.init)}") for v in top) + ";")
+                    v.name + self._dims(v.shape) + ("" if v.init is None else f" = {self.literal(v.init)}")
+                    for v in top) + ";")
         lines.append("")
         lines += self.body(proc.body, 1)
         return "\n".join(lines + ["}"])
 
+    def _dims(self, shape) -> str:
+        return "".join(f"[{self.dims.get(n, n)}]" for n in shape)
+
     def _arg(self, a: pr.Arg) -> str:
         if not a.shape:
             return f"{_TYPES[a.kind]} {a.name}"
-        const = "const " if a.intent == "in" else ""
-        if self._fixed(a.name):
-            return f"{const}{_TYPES[a.kind]} {a.name}{''.join(f'[{n}]' for n in a.shape)}"
+        const = "const " if a.intent == "in" and (len(a.shape) == 1 or self.const_matrices) else ""
+        if self._fixed(a.name) and not (self.vector_pointers and len(a.shape) == 1):
+            return f"{const}{_TYPES[a.kind]} {a.name}{self._dims(a.shape)}"
         return f"{const}{_TYPES[a.kind]} *{a.name}"
 
     def _fixed(self, array: str) -> bool:
@@ -46,18 +72,19 @@ class CProcedurePrinter(pr.Printer):
         return any(a.name == array and a.shape and set(a.shape) <= set(self.proc.sizes) for a in self.proc.args)
 
     # ------------------------------------------------------------------ statements
-    def _block(self, head: str, stmts, level: int) -> list[str]:
+    def _block(self, head: str, stmts, level: int, note: str | None = None) -> list[str]:
         inner = self.body(stmts, level + 1)
+        note = f"  /* {note} */" if note else ""
         if len(stmts) == 1 and not (isinstance(stmts[0], pr.Exchange) and self._fixed(stmts[0].array)):
-            return [self.pad(level) + head] + inner
-        return [self.pad(level) + head + " {"] + inner + [self.pad(level) + "}"]
+            return [self.pad(level) + head + note] + inner
+        return [self.pad(level) + head + " {" + note] + inner + [self.pad(level) + "}"]
 
     def _stmt_Set(self, st: pr.Set, level: int) -> list[str]:
         target = self.expr(st.target)
         if st.declare:
             return [f"{self.pad(level)}{_TYPES[self.kinds[st.target.name]]} {target} = {self.expr(st.value)};"]
         v = st.value
-        if isinstance(v, ir.BinOp) and v.op in "-/" and v.left == st.target:
+        if isinstance(v, ir.BinOp) and v.op in "+-/" and v.left == st.target:
             return [f"{self.pad(level)}{target} {v.op}= {self.expr(v.right)};"]
         return [f"{self.pad(level)}{target} = {self.expr(v)};"]
 
@@ -67,8 +94,11 @@ class CProcedurePrinter(pr.Printer):
             top = pr.Index(st.hi.terms, st.hi.const - 1)
             head = f"for ({v} = {self.expr(top)}; {v} >= {self.expr(st.lo)}; --{v})"
         else:
-            head = f"for ({v} = {self.expr(st.lo)}; {v} < {self.expr(st.hi)}; ++{v})"
-        return self._block(head, st.body, level)
+            below = f"< {self.expr(st.hi)}"
+            if st.hi.terms and st.hi.const == 1:  # up to x + 1 exclusive: up to x inclusive
+                below = f"<= {self.expr(pr.Index(st.hi.terms))}"
+            head = f"for ({v} = {self.expr(st.lo)}; {v} {below}; ++{v})"
+        return self._block(head, st.body, level, st.note)
 
     def _stmt_EachElement(self, st: pr.EachElement, level: int) -> list[str]:
         """One loop over the flat storage (the first variable runs over all size * size elements)."""
@@ -100,13 +130,39 @@ class CProcedurePrinter(pr.Printer):
             return [self.pad(level) + "return;"]
         return [f"{self.pad(level)}return {int(st.value)};"]
 
+    def _stmt_Fallback(self, st: pr.Fallback, level: int) -> list[str]:
+        """The first way, its return, then the second way under its label."""
+        return (self.body(st.first, level) + [f"{self.pad(level)}return {st.kinds[0]};", "", f"{st.label}:"]
+                + self.body(st.second, level))
+
+    def _stmt_Fail(self, st: pr.Fail, level: int) -> list[str]:
+        if self.label is None:
+            raise ValueError("a Fail outside a procedure with a Fallback")
+        return [f"{self.pad(level)}goto {self.label};"]
+
+    def _stmt_Identity(self, st: pr.Identity, level: int) -> list[str]:
+        return self._stmt_Set(pr.Set(ir.Element(st.array, (st.at,)), st.at), level)
+
+    def _stmt_Sized(self, st: pr.Sized, level: int) -> list[str]:
+        """The loops run zero times where the size is zero."""
+        return self.body(st.body, level)
+
+    def _stmt_Comment(self, st: pr.Comment, level: int) -> list[str]:
+        return [f"{self.pad(level)}/* {st.text} */"]
+
+    def _stmt_Blank(self, st: pr.Blank, level: int) -> list[str]:
+        return [""]
+
     # ------------------------------------------------------------------ expressions
     def index_value(self, e: pr.Index) -> str:
         return self.index(e, self.counts)
 
     def literal(self, value: float) -> str:
         text = repr(value)
-        return text if "e" in text or "." in text else text + ".0"
+        if "e" in text:  # 1e-08: 1e-8
+            mantissa, exponent = text.split("e")
+            return f"{mantissa}e{int(exponent)}"
+        return text if "." in text else text + ".0"
 
     def call(self, func: str, args: list) -> str:
         if func == "epsilon":

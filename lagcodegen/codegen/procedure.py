@@ -11,8 +11,16 @@ Expressions are those of :mod:`.ir` (``Name``, ``Element`` with a tuple of index
 :class:`Index`, an affine sum of index variables and sizes. Statements: :class:`Set` (an
 assignment; ``declare``: the first of a local variable, declared there where the language allows
 it), :class:`For`, :class:`EachElement` (every element of a matrix, in the order the language
-keeps it), :class:`If`, :class:`Exchange` (of two elements), :class:`Return`. A :class:`Procedure`
-has its arguments (:class:`Arg`), its locals (:class:`Local`) and a body.
+keeps it), :class:`If`, :class:`Exchange` (of two elements), :class:`Return`, :class:`Fallback` with
+:class:`Fail` (a first way that may give up for a second one), :class:`Identity` (of a permutation),
+:class:`Sized` (work that only a nonzero size asks for), :class:`Comment` and :class:`Blank`. A
+:class:`Procedure` has its arguments (:class:`Arg`), its locals (:class:`Local`) and a body.
+
+What the tree says is what is computed; how it reads is the printer's: a fallback is a ``goto``
+in C and a flag with ``exit`` in Fortran, an identity permutation is set where C's code needs it
+and at entry in Fortran (whose ``intent(out)`` arrays are otherwise undefined), sizes are named
+per language (the printer's table of sizes), and a printer that knows a size to be zero at
+compile time leaves out the work and the locals that need it.
 """
 
 from __future__ import annotations
@@ -57,6 +65,7 @@ class For:
     hi: Index
     body: tuple
     down: bool = False
+    note: str | None = None  # what the loop computes, printed as a comment on its head
 
 
 @dataclass(frozen=True)
@@ -100,6 +109,58 @@ class Exchange:
     bound: str = "r"
 
 
+@dataclass(frozen=True)
+class Fail:
+    """Give up the first way of the procedure's :class:`Fallback` and take its second. Inside the
+    first way's outer loop (Fortran leaves that loop), or before the Fallback (C: a ``goto``)."""
+
+
+@dataclass(frozen=True)
+class Fallback:
+    """``first``, then the procedure returns ``kinds[0]``; where a :class:`Fail` in it gives up,
+    ``second`` (which returns ``kinds[1]`` itself). ``label``: the name of the second way where
+    the language jumps to it; ``note``: its description where the language prints one."""
+
+    first: tuple
+    second: tuple
+    kinds: tuple = (1, 2)
+    label: str = "fallback"
+    note: str | None = None
+
+
+@dataclass(frozen=True)
+class Identity:
+    """Element ``at`` of the permutation ``array`` is ``at`` (on this path the permutation is the
+    identity): printed here, or left out by a printer that sets the whole permutation at entry
+    (``Procedure.identity``)."""
+
+    array: str
+    at: Index
+
+
+@dataclass(frozen=True)
+class Sized:
+    """Statements that only do work where ``size`` is nonzero; a printer that knows ``size`` to be
+    zero at compile time leaves them out (with the locals that need it, :attr:`Local.needs`), and
+    ``none`` describes that case where the language says why arguments go unused."""
+
+    size: str
+    body: tuple
+    none: str | None = None
+
+
+@dataclass(frozen=True)
+class Comment:
+    """A comment line."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Blank:
+    """An empty line."""
+
+
 # ----------------------------------------------------------------------------- declarations
 @dataclass(frozen=True)
 class Arg:
@@ -125,12 +186,21 @@ class Local:
     init: float | None = None
     scoped: bool = False
     alt: str | None = None
+    shape: tuple = ()  # a local array: the sizes of its dimensions
+    needs: str | None = None  # a size whose work (Sized) alone uses the local
+
+    def sizes(self) -> set:
+        """The sizes whose being zero makes the local needless."""
+        return set(self.shape) | ({self.needs} if self.needs else set())
 
 
 @dataclass(frozen=True)
 class Procedure:
     """A procedure: ``returns`` "truth" (a truth value, named ``result`` where the language names
-    it) or None; ``layouts``: {array: size} of the matrices a language may store flat, by rows."""
+    it), "kind" (a small integer, likewise) or None; ``layouts``: {array: size} of the matrices a
+    language may store flat, by rows; ``identity``: ((array, size), ...), permutations that are
+    the identity where the body does not write them (the body says where it needs that with
+    :class:`Identity`)."""
 
     name: str
     args: tuple
@@ -142,6 +212,50 @@ class Procedure:
     #: Sizes that are constants of the generated source (C: a macro such as N; Fortran: a module
     #: parameter, lower case): arrays of these sizes have them in their declarations.
     sizes: tuple = ()
+    identity: tuple = ()
+
+    def guarded(self) -> set:
+        """The sizes of the :class:`Sized` parts of the body."""
+        return {st.size for st in walk(self.body) if isinstance(st, Sized)}
+
+    def last(self):
+        """The statement the procedure ends with (inside a closing :class:`Fallback`)."""
+        st = self.body[-1]
+        while isinstance(st, Fallback):
+            st = st.second[-1]
+        return st
+
+
+def walk(stmts, skip=frozenset()):
+    """Every statement of ``stmts`` and of the bodies inside, outer first; ``skip``: sizes whose
+    :class:`Sized` parts are left out."""
+    for st in stmts:
+        if isinstance(st, Sized) and st.size in skip:
+            continue
+        yield st
+        for inner in ("body", "first", "second"):
+            if isinstance(getattr(st, inner, None), tuple):
+                yield from walk(getattr(st, inner), skip)
+
+
+def names(node) -> set:
+    """The names (variables, arrays, sizes) an expression or a statement's own fields use."""
+    found: set = set()
+    if isinstance(node, (tuple, list)):
+        for x in node:
+            found |= names(x)
+    elif isinstance(node, ir.Name):
+        found.add(node.name)
+    elif isinstance(node, Index):
+        found |= {name for name, _ in node.terms}
+    elif hasattr(node, "__dataclass_fields__"):
+        for f in node.__dataclass_fields__:
+            value = getattr(node, f)
+            if f in ("array", "var", "size") and isinstance(value, str):
+                found.add(value)
+            elif f not in ("body", "first", "second"):
+                found |= names(value)
+    return found
 
 
 def ix(*terms, const: int = 0) -> Index:
@@ -196,6 +310,9 @@ class Printer:
             return self.literal(float(e.value))
         if isinstance(e, ir.Integer):
             return str(e.value)
+        if isinstance(e, ir.Neg):
+            text = "-" + self.expr(e.arg, 3)
+            return f"({text})" if prec > 1 else text
         if isinstance(e, ir.BinOp):
             p = _PREC[e.op]
             text = f"{self.expr(e.left, p)} {e.op} {self.expr(e.right, p + 1)}"

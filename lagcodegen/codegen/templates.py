@@ -33,9 +33,10 @@ def _bytecode_cache():
 @functools.lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
     """The environment of every template, with :func:`~.signatures.c_signature`,
-    :func:`~.signatures.fortran_signature`, ``c_procedure(procedure, **options)`` and
-    ``fortran_procedure(procedure, **options)`` (a procedure of :mod:`.linalg` printed by that
-    language's printer) as globals: one per process, so that each template is
+    :func:`~.signatures.fortran_signature`, ``c_procedure(procedure, printer=None, **options)`` and
+    ``fortran_procedure(procedure, printer=None, **options)`` (a procedure of :mod:`.linalg` made
+    with ``options``, printed by that language's printer made with ``printer``, a dict of its
+    options) as globals: one per process, so that each template is
     compiled once (tens of milliseconds each, a large part of a small model's first build), and
     jinja2's own bytecode cache (a folder of the user's own in the temporary directory, which
     jinja2 checks for ownership and mode 0700) keeps the compiled templates for the next process."""
@@ -45,10 +46,10 @@ def environment() -> jinja2.Environment:
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
         undefined=jinja2.StrictUndefined)
     env.globals.update(c_signature=c_signature, fortran_signature=fortran_signature,
-                       c_procedure=lambda procedure, **options: CProcedurePrinter().text(
-                           linalg.PROCEDURES[procedure](**options)),
-                       fortran_procedure=lambda procedure, **options: FortranProcedurePrinter().text(
-                           linalg.PROCEDURES[procedure](**options)))
+                       c_procedure=lambda procedure, printer=None, **options: CProcedurePrinter(
+                           **(printer or {})).text(linalg.PROCEDURES[procedure](**options)),
+                       fortran_procedure=lambda procedure, printer=None, **options: FortranProcedurePrinter(
+                           **(printer or {})).text(linalg.PROCEDURES[procedure](**options)))
     return env
 
 
