@@ -135,3 +135,26 @@ def test_urdf_options_as_flags(tmp_path):
     assert (tmp_path / "m.csv").read_text().splitlines()[0].split(",")[:3] == ["t", "j1", "j2"]
     bad = run("simulate", urdf, "--mimic", "banana", "-o", tmp_path / "m.csv", "-q")
     assert bad.returncode == 1 and "mimic must be one of driven" in bad.stderr
+
+
+def test_simulate_the_ur5_with_its_limits_prints_the_contact_log(tmp_path):
+    """--limits true on example-robot-data's UR5: the run goes to its end (t = 3) with the elbow
+    never past its stop (-pi), and the contact log lists the elbow's impact on its lower stop and
+    its release, at the times the Python API's run (compile_urdf(limits=True)) finds."""
+    import pinocchio as pin
+
+    import lagcodegen as lcg
+    ur5 = Path(pin.__file__).resolve().parents[4] / "share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+    proc = run("simulate", ur5, "--limits", "true", "-o", tmp_path / "ur5.csv", "--t-end", "3", "--initial",
+               "shoulder_lift_joint=-1.0,elbow_joint=2.8", "--rtol", "1e-10", "--atol", "1e-12")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "ur5.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(tmp_path / "ur5.csv", delimiter=",", skiprows=1)
+    assert data[-1, 0] == pytest.approx(3.0)
+    assert data[:, header.index("elbow_joint")].min() >= -3.14159265359 - 1e-8
+    res = lcg.compile_urdf(ur5, limits=True).simulate([0.0, 3.0], q0=[0.0, -1.0, 2.8, 0.0, 0.0, 0.0], v0=[0.0] * 6,
+                                                       rtol=1e-10, atol=1e-12)
+    log = [line for line in proc.stderr.splitlines() if "contact 4 (g = elbow_joint + 3.14159265359)" in line]
+    assert [line.split()[-7] for line in log] == [r.kind + "," for r in res.impacts] == ["stick,", "release,"]
+    for line, record in zip(log, res.impacts):
+        assert float(line.split("t = ")[1].split(":")[0]) == pytest.approx(record.t, abs=1e-6)

@@ -161,6 +161,8 @@ def run(args) -> int:
             + (f"; {res.stats['stick_slip']} stick/slip transition(s), final friction modes "
                + ", ".join(f"{k}: {v}" for k, v in impacts.friction_modes.items()) if "stick_slip" in res.stats
                else ""), args.quiet)
+        for line in contact_log_lines(impacts, mf.constrained.inequalities):
+            say(line, args.quiet)
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
@@ -168,6 +170,27 @@ def run(args) -> int:
     coords = [q.name for q in mf.model.coords]  # minimal coordinates: the eliminated ones are outputs
     plotted = [c for c in coords if c in res.state_names or c in res.outputs]
     return write_result(res, args, plotted + [k for k in res.outputs if k.startswith("lambda_")], not_conserved(mf))
+
+
+#: The contact records ``simulate`` prints at most (the first ones; a line counts the rest).
+MAX_LOG_LINES = 40
+
+
+def contact_log_lines(impacts, inequalities) -> list[str]:
+    """The run's contact log (``Result.impacts``) as lines, one a record: time, contact k with
+    its inequality g_k >= 0 (a URDF joint's stop: ``q - lower`` or ``upper - q``), kind, impulse
+    and normal velocity before and after; at most :data:`MAX_LOG_LINES`, then how many more."""
+    lines = []
+    for r in impacts.records[:MAX_LOG_LINES]:
+        g = str(inequalities[r.contact]) if 0 <= r.contact < len(inequalities) else "?"
+        g = g if len(g) <= 60 else g[:57] + "..."
+        lines.append(f"  t = {r.t:.9g}: contact {r.contact} (g = {g}) {r.kind}, impulse {r.impulse:.6g}, "
+                     f"w {r.w_before:.6g} -> {r.w_after:.6g}")
+    if len(impacts.records) > MAX_LOG_LINES:
+        lines.append(f"  ... and {len(impacts.records) - MAX_LOG_LINES} more contact record(s)")
+    if getattr(impacts, "truncated", False):
+        lines.append("  (the log is truncated: more records than ContactOptions.max_records)")
+    return lines
 
 
 def initial_values(items: list[str] | None) -> dict[str, float]:
