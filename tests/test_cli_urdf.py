@@ -158,3 +158,21 @@ def test_simulate_the_ur5_with_its_limits_prints_the_contact_log(tmp_path):
     assert [line.split()[-7] for line in log] == [r.kind + "," for r in res.impacts] == ["stick,", "release,"]
     for line, record in zip(log, res.impacts):
         assert float(line.split("t = ")[1].split(":")[0]) == pytest.approx(record.t, abs=1e-6)
+
+
+def test_simulate_a_urdf_again_loads_it_from_the_cache(tmp_path):
+    """A second `simulate` of the same .urdf with the same options (a new process, the same cache)
+    loads the compiled model from compile_urdf's cache (nothing derived; the key's other parts are
+    checked in test_api) and writes the same file to the bit, its contact log the same."""
+    arm = tmp_path / "arm.urdf"  # a robot of its own name: not in the session's cache yet
+    arm.write_text(ARM.read_text().replace('<robot name="two_link_arm"', '<robot name="arm_again"'))
+    argv = ["simulate", arm, "--t-end", "2", "--initial", "shoulder=2.5,shoulder_dot=4", "--limits", "stop:0.5"]
+    first = run(*argv, "-o", tmp_path / "a.csv")
+    assert first.returncode == 0, first.stderr
+    assert "derived, generated and compiled" in first.stderr and "nothing derived" not in first.stderr
+    again = run(*argv, "-o", tmp_path / "b.csv")
+    assert again.returncode == 0, again.stderr
+    assert "from the cache (nothing derived)" in again.stderr
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    log = [line for line in again.stderr.splitlines() if "contact 1 (g = 3.0 - shoulder)" in line]
+    assert log and "bounce" in log[0] and log == [line for line in first.stderr.splitlines() if "contact 1 (" in line]
