@@ -176,3 +176,20 @@ def test_simulate_a_urdf_again_loads_it_from_the_cache(tmp_path):
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
     log = [line for line in again.stderr.splitlines() if "contact 1 (g = 3.0 - shoulder)" in line]
     assert log and "bounce" in log[0] and log == [line for line in first.stderr.splitlines() if "contact 1 (" in line]
+
+
+def test_simulate_the_panda_by_default(tmp_path):
+    """`lagcodegen simulate panda.urdf` with no option (issue 38): the Franka Panda loads with its
+    gripper (the second finger driven by the first: 8 coordinates, as Pinocchio's mimic=True) and
+    runs from its neutral pose, the same trajectory as the Python API's compile_urdf run."""
+    import pinocchio as pin
+
+    import lagcodegen as lcg
+    panda = Path(pin.__file__).resolve().parents[4] / "share/example-robot-data/robots/panda_description/urdf/panda.urdf"
+    proc = run("simulate", panda, "-o", tmp_path / "panda.csv", "--t-end", "0.5", "--n-out", "6", "-q")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "panda.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(tmp_path / "panda.csv", delimiter=",", skiprows=1)
+    assert header[1:10] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1", "panda_joint1_dot"]
+    want = lcg.compile_urdf(panda).simulate(data[:, 0], q0=np.zeros(8), rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(data[:, 1:17], want.y, rtol=0, atol=1e-12)
