@@ -90,8 +90,8 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
                  values=None, prefix: str | None = None, native: bool = True, progress=None):
     """``compile_model(urdf.load(path, **load), ...)`` with its generated code cached by the URDF
     file's content: a new process that compiles the same file with the same options loads the code
-    and the compiled library from the cache without deriving anything (what the command line's
-    manifest does for model files).
+    and the compiled library from the cache without deriving anything (``lagcodegen simulate`` on
+    a .urdf file goes through it too).
 
     ``load``: the keywords of :func:`lagcodegen.modelfile.urdf.load` (``floating``, ``mimic``,
     ``lock``, ``gravity``, ``friction``, ``form``, ``name``, ``limits``, ...); the others as
@@ -161,8 +161,8 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
             code, info = constrained_code(model)
             made["entry"], record = (code, info, model), (pickle_code(code), info, model)
         else:
-            made["entry"] = record = generate_code(scene(model), "c")
-            record = pickle_code(record)
+            code = made["entry"] = generate_code(scene(model), "c")
+            record = pickle_code(code)
         out = folder / "code.pickle"
         out.write_bytes(pickle.dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
         return out
