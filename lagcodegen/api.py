@@ -85,21 +85,32 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
                                   verbose=verbose, lang=lang)
 
 
-def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = None, jacobian: bool | None = None,
-                 outputs=(), runtime_parameters=None, values=None, prefix: str | None = None, native: bool = True,
-                 progress=None) -> CompiledModel:
+def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = None, limits: Any = None,
+                 jacobian: bool | None = None, outputs: Sequence[str] | None = None, runtime_parameters=None,
+                 values=None, prefix: str | None = None, native: bool = True, progress=None):
     """``compile_model(urdf.load(path, **load), ...)`` with its generated code cached by the URDF
     file's content: a new process that compiles the same file with the same options loads the code
-    and the compiled library from the cache without deriving anything (what the command line's
-    manifest does for model files).
+    and the compiled library from the cache without deriving anything (``lagcodegen simulate`` on
+    a .urdf file goes through it too).
 
     ``load``: the keywords of :func:`lagcodegen.modelfile.urdf.load` (``floating``, ``mimic``,
-    ``lock``, ``gravity``, ``friction``, ``form``, ``name``; ``limits=True`` makes a constrained
-    system: compile it with :func:`compile_constrained`); the others as :func:`compile_model`
-    (C only). The cache key is the file's bytes, these options, and the versions of lagcodegen
-    (its sources' digest), sympy and symengine. A model from the cache has no symbolic scene until
-    a run needs one (the Taylor method, events, sensitivities, a drawing): it is then derived again
-    from the file, once.
+    ``lock``, ``gravity``, ``friction``, ``form``, ``name``, ``limits``, ...); the others as
+    :func:`compile_model` (C only). The cache key is the file's bytes, these options, and the
+    versions of lagcodegen (its sources' digest), sympy and symengine. A model from the cache has
+    no symbolic scene until a run needs one (the Taylor method, events, sensitivities, a drawing):
+    it is then derived again from the file, once.
+
+    ``limits`` (the same as ``load={"limits": ...}``): True or ``"stop"`` makes each joint limit
+    a hard stop, a unilateral contact g >= 0 (eq. 4.3) with a plastic impact, ``("stop", e)`` one
+    with restitution e, ``"monitor"`` an inequality located as an event only. The URDF is then a
+    constrained system and the result :func:`compile_constrained`'s (formulation ``index1``, the
+    impact driver of :mod:`lagcodegen.simulation.constrained_impacts`; cached by the file as
+    well): runs go on through impacts, rest at a limit with its multiplier as the output
+    ``lambda_ineq_<k>`` and leave it where that multiplier would pull; ``Result.impacts`` logs each
+    impact, rest and release. Contact k is row k of ``system.inequalities``: the lower limit
+    (q - lower) of each limited joint, then its upper limit (upper - q), in the tree's order.
+    ``outputs`` default: none for a model, :func:`compile_constrained`'s default for a constrained
+    system; ``jacobian`` applies to models only (the index-1 formulation has none).
     """
     import hashlib
     import pickle
@@ -111,41 +122,68 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
     from .simulation.ode import pickle_code
 
     load = dict(load or {})
+    if limits is not None:
+        if "limits" in load and load["limits"] != limits:
+            raise ModelError(f"compile_urdf: limits={excerpt(limits)} and load={{'limits': "
+                             f"{excerpt(load['limits'])}}} disagree: give one")
+        load["limits"] = limits
     data = _urdfxml.read_bytes(path, max_bytes=load.get("max_bytes", _urdfxml.MAX_BYTES))
     digest = hashlib.sha256(data).hexdigest()
-    options = dict(jacobian=jacobian, outputs=list(outputs), runtime_parameters=runtime_parameters,
-                   values=dict(values or {}), prefix=prefix)
+    options = dict(jacobian=jacobian, outputs=None if outputs is None else list(outputs),
+                   runtime_parameters=runtime_parameters, values=dict(values or {}), prefix=prefix)
     key = cache_key(["urdf-code", digest, repr(sorted(load.items())), repr(sorted(options.items())),
                      repr(sorted(generator_record().items()))])
 
-    def scene() -> Scene:
-        model = _urdf.loads(data, filename=str(path), **load)
-        if isinstance(model, ConstrainedSystem):
-            raise ModelError(f"{path}: with limits=True the URDF is a constrained system: compile it with "
-                             "compile_constrained(urdf.load(...)), whose code is not cached by the file")
-        eom = derive(model)
+    def described() -> Model | ConstrainedSystem:
+        return _urdf.loads(data, filename=str(path), **load)
+
+    def scene(model: Model | None = None) -> Scene:
+        eom = derive(described() if model is None else model)
         return Scene(eom, jacobian=auto_jacobian(eom) if jacobian is None else jacobian,
-                     outputs=outputs, runtime_parameters=runtime_parameters, values=dict(values or {}),
+                     outputs=outputs or (), runtime_parameters=runtime_parameters, values=dict(values or {}),
                      prefix=prefix)
+
+    def constrained_code(system: ConstrainedSystem):
+        check_native()
+        return generate_constrained(system, outputs=DEFAULT_OUTPUTS if outputs is None else outputs,
+                                    runtime_parameters=runtime_parameters, values=values, prefix=prefix)
+
+    def check_native() -> None:
+        if not native:
+            raise ModelError(f"{path}: with limits (or mimic='coupled') the URDF is a constrained system, which "
+                             "runs on the native drivers only: native=True")
 
     made: dict = {}
 
     def make(folder: Path) -> Path:
-        code = made["code"] = generate_code(scene(), "c")
+        model = described()
+        if isinstance(model, ConstrainedSystem):
+            code, info = constrained_code(model)
+            made["entry"], record = (code, info, model), (pickle_code(code), info, model)
+        else:
+            code = made["entry"] = generate_code(scene(model), "c")
+            record = pickle_code(code)
         out = folder / "code.pickle"
-        out.write_bytes(pickle.dumps(pickle_code(code), protocol=pickle.HIGHEST_PROTOCOL))
+        out.write_bytes(pickle.dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
         return out
 
-    def opener(_name: str, file: Path) -> GeneratedCode:
+    def opener(_name: str, file: Path):
         return pickle.loads(file.read_bytes())  # an entry of the user's own cache, checked by its digest
 
     with _progress.enabled(progress):
-        code, _, cached = cached_build(key, f"lcg_urdf_{key}", "code.pickle", make, opener)
+        entry, _, cached = cached_build(key, f"lcg_urdf_{key}", "code.pickle", make, opener)
         if not cached:
-            code = made["code"]  # with its scene
-        else:
-            code.rederive = scene
-        return build_code(code, native=native)
+            entry = made["entry"]  # with its scene
+        if isinstance(entry, tuple):  # a constrained system: (code, info, system)
+            code, info, system = entry
+            check_native()
+            if cached:
+                code.rederive = lambda: constrained_code(described())[0].scene
+            return ConstrainedSimulation(system, "index1", build_code(code, native=True), info,
+                                         check_baumgarte("auto", "baumgarte"), False)
+        if cached:
+            entry.rederive = scene
+        return build_code(entry, native=native)
 
 
 def auto_jacobian(eom: EquationsOfMotion) -> bool:

@@ -57,10 +57,39 @@ def test_compile_urdf_loads_the_code_from_the_cache_without_deriving(tmp_path, m
     assert {"upper", "fore"} <= set(drawing.points)
 
 
+def test_compile_urdf_with_limits_is_cached_by_the_file(tmp_path, monkeypatch):
+    """limits=True: the URDF's stops as contacts on the impact driver, the same code as
+    compile_constrained(urdf.load(path, limits=True)) gives (the same run to the bit), read from the
+    cache the second time without deriving or generating; another restitution is another entry."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(ARM.format(name="stopped_arm", mass=1.0))
+    t = np.linspace(0.0, 1.5, 31)
+    start = dict(q0=[2.6, 0.0], v0=[3.0, 0.0])  # swung at its upper stop (shoulder <= 3)
+    first = lcg.compile_urdf(path, limits=True)
+    assert isinstance(first, api.ConstrainedSimulation) and first.formulation == "index1"
+    want = first.simulate(t, **start)
+    reference = api.compile_constrained(urdf.load(path, limits=True)).simulate(t, **start)
+    np.testing.assert_array_equal(want.y, reference.y)
+    assert want.success and len(want.impacts.select(contact=1)) > 0  # the upper stop was hit
+    assert want.y[:, 0].max() <= 3.0 + 1e-8
+    with monkeypatch.context() as m:
+        _refuse_derive(m)
+        m.setattr(api, "generate_constrained", lambda *a, **k: pytest.fail("generated although cached"))
+        again = lcg.compile_urdf(path, load={"limits": True})  # the same entry, from the cache
+        got = again.simulate(t, **start)
+        np.testing.assert_array_equal(got.y, want.y)
+        assert [(r.t, r.kind) for r in got.impacts] == [(r.t, r.kind) for r in want.impacts]
+        with pytest.raises(pytest.fail.Exception, match="generated although cached"):
+            lcg.compile_urdf(path, limits=("stop", 0.5))  # another restitution: another entry
+    assert again.compiled.code.scene is None and again.compiled.code.rederive is not None
+
+
 def test_compile_urdf_refuses_what_it_cannot_cache(tmp_path):
     path = tmp_path / "arm.urdf"
     path.write_text(ARM.format(name="limited_arm", mass=1.0))
-    with pytest.raises(ModelError, match="limits=True.*compile_constrained"):
-        lcg.compile_urdf(path, load={"limits": True})
+    with pytest.raises(ModelError, match="limits=True and load=.*disagree"):
+        lcg.compile_urdf(path, limits=True, load={"limits": False})
+    with pytest.raises(ModelError, match="constrained system.*native=True"):
+        lcg.compile_urdf(path, limits=True, native=False)
     with pytest.raises(ModelError, match="missing.urdf.*cannot read the file"):
         lcg.compile_urdf(tmp_path / "missing.urdf")

@@ -135,3 +135,61 @@ def test_urdf_options_as_flags(tmp_path):
     assert (tmp_path / "m.csv").read_text().splitlines()[0].split(",")[:3] == ["t", "j1", "j2"]
     bad = run("simulate", urdf, "--mimic", "banana", "-o", tmp_path / "m.csv", "-q")
     assert bad.returncode == 1 and "mimic must be one of driven" in bad.stderr
+
+
+def test_simulate_the_ur5_with_its_limits_prints_the_contact_log(tmp_path):
+    """--limits true on example-robot-data's UR5: the run goes to its end (t = 3) with the elbow
+    never past its stop (-pi), and the contact log lists the elbow's impact on its lower stop and
+    its release, at the times the Python API's run (compile_urdf(limits=True)) finds."""
+    import pinocchio as pin
+
+    import lagcodegen as lcg
+    ur5 = Path(pin.__file__).resolve().parents[4] / "share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+    proc = run("simulate", ur5, "--limits", "true", "-o", tmp_path / "ur5.csv", "--t-end", "3", "--initial",
+               "shoulder_lift_joint=-1.0,elbow_joint=2.8", "--rtol", "1e-10", "--atol", "1e-12")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "ur5.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(tmp_path / "ur5.csv", delimiter=",", skiprows=1)
+    assert data[-1, 0] == pytest.approx(3.0)
+    assert data[:, header.index("elbow_joint")].min() >= -3.14159265359 - 1e-8
+    res = lcg.compile_urdf(ur5, limits=True).simulate([0.0, 3.0], q0=[0.0, -1.0, 2.8, 0.0, 0.0, 0.0], v0=[0.0] * 6,
+                                                       rtol=1e-10, atol=1e-12)
+    log = [line for line in proc.stderr.splitlines() if "contact 4 (g = elbow_joint + 3.14159265359)" in line]
+    assert [line.split()[-7] for line in log] == [r.kind + "," for r in res.impacts] == ["stick,", "release,"]
+    for line, record in zip(log, res.impacts):
+        assert float(line.split("t = ")[1].split(":")[0]) == pytest.approx(record.t, abs=1e-6)
+
+
+def test_simulate_a_urdf_again_loads_it_from_the_cache(tmp_path):
+    """A second `simulate` of the same .urdf with the same options (a new process, the same cache)
+    loads the compiled model from compile_urdf's cache (nothing derived; the key's other parts are
+    checked in test_api) and writes the same file to the bit, its contact log the same."""
+    arm = tmp_path / "arm.urdf"  # a robot of its own name: not in the session's cache yet
+    arm.write_text(ARM.read_text().replace('<robot name="two_link_arm"', '<robot name="arm_again"'))
+    argv = ["simulate", arm, "--t-end", "2", "--initial", "shoulder=2.5,shoulder_dot=4", "--limits", "stop:0.5"]
+    first = run(*argv, "-o", tmp_path / "a.csv")
+    assert first.returncode == 0, first.stderr
+    assert "derived, generated and compiled" in first.stderr and "nothing derived" not in first.stderr
+    again = run(*argv, "-o", tmp_path / "b.csv")
+    assert again.returncode == 0, again.stderr
+    assert "from the cache (nothing derived)" in again.stderr
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    log = [line for line in again.stderr.splitlines() if "contact 1 (g = 3.0 - shoulder)" in line]
+    assert log and "bounce" in log[0] and log == [line for line in first.stderr.splitlines() if "contact 1 (" in line]
+
+
+def test_simulate_the_panda_by_default(tmp_path):
+    """`lagcodegen simulate panda.urdf` with no option (issue 38): the Franka Panda loads with its
+    gripper (the second finger driven by the first: 8 coordinates, as Pinocchio's mimic=True) and
+    runs from its neutral pose, the same trajectory as the Python API's compile_urdf run."""
+    import pinocchio as pin
+
+    import lagcodegen as lcg
+    panda = Path(pin.__file__).resolve().parents[4] / "share/example-robot-data/robots/panda_description/urdf/panda.urdf"
+    proc = run("simulate", panda, "-o", tmp_path / "panda.csv", "--t-end", "0.5", "--n-out", "6", "-q")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "panda.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(tmp_path / "panda.csv", delimiter=",", skiprows=1)
+    assert header[1:10] == [f"panda_joint{i}" for i in range(1, 8)] + ["panda_finger_joint1", "panda_joint1_dot"]
+    want = lcg.compile_urdf(panda).simulate(data[:, 0], q0=np.zeros(8), rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(data[:, 1:17], want.y, rtol=0, atol=1e-12)

@@ -17,12 +17,14 @@ import numpy as np
 import sympy as sp
 
 from ..animation import FORMATS, ffmpeg_available
-from ..api import compile_file
+from ..api import compile_file, compile_urdf
+from ..modelfile import constrained_outputs
 from ..modelfile.loader import MAX_STEPS
 from ..theory.energy import is_natural
 from ..util import atomic_binary, excerpt, output_problem, staged_outputs
 from .common import (EXIT_OK, MODEL_HELP, UsageError, add_formulation_option, add_scene_options,
-                     apply_options, assignments, check_parameter_names, csv, input_tables, load, say)
+                     apply_options, assignments, check_parameter_names, csv, input_tables, load, say,
+                     urdf_options)
 
 HELP = "compile a model file and integrate it; write the result as CSV or NPZ (and a PNG plot)"
 
@@ -127,10 +129,14 @@ def run(args) -> int:
     check_parameter_names(mf, args)
     mf = apply_initial(apply_options(mf, args), initial_values(args.initial))
     t0 = time.perf_counter()
-    sim = compile_file(mf, verbose=not args.quiet)
+    sim = compile_urdf_file(mf, args) if urdf_cacheable(mf, args.model) else compile_file(mf, verbose=not args.quiet)
     formulation = f" ({sim.formulation})" if mf.constrained is not None else ""
-    say(f"derived, generated and compiled{formulation} in {time.perf_counter() - t0:.3f} s"
-        f"{' (cached)' if getattr(sim, 'cached', False) else ''}", args.quiet)
+    code = getattr(getattr(sim, "compiled", sim), "code", None)  # a constrained simulation's, a model's
+    if code is not None and getattr(code, "scene", True) is None:  # compile_urdf's entry: nothing derived
+        say(f"loaded{formulation} from the cache (nothing derived) in {time.perf_counter() - t0:.3f} s", args.quiet)
+    else:
+        say(f"derived, generated and compiled{formulation} in {time.perf_counter() - t0:.3f} s"
+            f"{' (cached)' if getattr(sim, 'cached', False) else ''}", args.quiet)
     options: dict = {"backend": args.backend}
     if args.method:
         options["method"] = args.method
@@ -161,6 +167,8 @@ def run(args) -> int:
             + (f"; {res.stats['stick_slip']} stick/slip transition(s), final friction modes "
                + ", ".join(f"{k}: {v}" for k, v in impacts.friction_modes.items()) if "stick_slip" in res.stats
                else ""), args.quiet)
+        for line in contact_log_lines(impacts, mf.constrained.inequalities):
+            say(line, args.quiet)
     residuals = [k for k in res.outputs if k.startswith(("g_", "gdot_"))]
     if residuals:
         worst = max(residuals, key=lambda k: float(np.max(np.abs(res[k]))))
@@ -168,6 +176,52 @@ def run(args) -> int:
     coords = [q.name for q in mf.model.coords]  # minimal coordinates: the eliminated ones are outputs
     plotted = [c for c in coords if c in res.state_names or c in res.outputs]
     return write_result(res, args, plotted + [k for k in res.outputs if k.startswith("lambda_")], not_conserved(mf))
+
+
+def urdf_cacheable(mf, spec: str) -> bool:
+    """Whether the model is a .urdf file whose settings :func:`lagcodegen.api.compile_urdf` takes
+    (no events; a constrained one in the index-1 formulation with its default stabilization), so
+    that its code is cached by the file's content and options."""
+    s = mf.simulation
+    return (Path(str(spec)).suffix.lower() == ".urdf" and not mf.events
+            and (mf.constrained is None or (s.formulation in (None, "index1") and s.baumgarte == "auto"
+                                            and not s.projection)))
+
+
+def compile_urdf_file(mf, args):
+    """The .urdf file's model through :func:`lagcodegen.api.compile_urdf` (the pipeline cache: a
+    new process given the same file and options loads the compiled model without deriving), with
+    the settings :func:`lagcodegen.api.compile_file` would use, the file's initial state its default."""
+    s = mf.simulation
+    if mf.constrained is None:
+        options = dict(jacobian=s.jacobian and not mf.model.general, outputs=list(s.outputs))
+    else:
+        options = dict(jacobian=None, outputs=constrained_outputs(mf.constrained, s.outputs, "index1"))
+    sim = compile_urdf(args.model, load=urdf_options(args.urdf), runtime_parameters=s.runtime_parameters,
+                       values=dict(s.parameters), **options)
+    sim.initial_defaults = mf.initial_state()
+    return sim
+
+
+#: The contact records ``simulate`` prints at most (the first ones; a line counts the rest).
+MAX_LOG_LINES = 40
+
+
+def contact_log_lines(impacts, inequalities) -> list[str]:
+    """The run's contact log (``Result.impacts``) as lines, one a record: time, contact k with
+    its inequality g_k >= 0 (a URDF joint's stop: ``q - lower`` or ``upper - q``), kind, impulse
+    and normal velocity before and after; at most :data:`MAX_LOG_LINES`, then how many more."""
+    lines = []
+    for r in impacts.records[:MAX_LOG_LINES]:
+        g = str(inequalities[r.contact]) if 0 <= r.contact < len(inequalities) else "?"
+        g = g if len(g) <= 60 else g[:57] + "..."
+        lines.append(f"  t = {r.t:.9g}: contact {r.contact} (g = {g}) {r.kind}, impulse {r.impulse:.6g}, "
+                     f"w {r.w_before:.6g} -> {r.w_after:.6g}")
+    if len(impacts.records) > MAX_LOG_LINES:
+        lines.append(f"  ... and {len(impacts.records) - MAX_LOG_LINES} more contact record(s)")
+    if getattr(impacts, "truncated", False):
+        lines.append("  (the log is truncated: more records than ContactOptions.max_records)")
+    return lines
 
 
 def initial_values(items: list[str] | None) -> dict[str, float]:
