@@ -57,7 +57,8 @@ CASES = {
              ["iy", "root_x(0)", "root_wy(0)", "root_vx(0)", "root_rx(0)", "root_rz(0)"], 3),
     "flyer": (free_flyer_with_spring, ["k"], unit([0.5, -0.2, 0.1, 0.1, 0.2, 0.3, 0.9, 0.4], 3),
               [0.3, -0.2, 0.5, 0.4, -0.3, 0.8, 1.0],
-              ["k", "root_x(0)", "elbow(0)", "root_wy(0)", "elbow_dot(0)", "root_rx(0)", "root_ry(0)", "root_rz(0)"], 3),
+              ["k", "root_x(0)", "elbow(0)", "root_wy(0)", "elbow_dot(0)", "root_rx(0)", "root_ry(0)",
+               "root_rz(0)"], 3),
 }
 
 _compiled: dict = {}

@@ -14,8 +14,10 @@ CVODE). A model with generalized speeds (y = (q, v, z), q' = k(q, v, t): quatern
 speeds) takes CVODE's directions too: any state's initial value by its name and the rotations
 ``"<joint>_rx(0)"`` .. of a quaternion joint, whose s0 (the quaternion's rates of the unit speed
 about the axis) is formed at each run's initial state as CVODE forms it; its variational jet
-carries the tangent of the kinematics, s_q' = dk (:mod:`.variational`). Events: the jet of a set of events carries the event functions' rows of the states' jet
-in its table, so the driver locates them on the state part of the augmented run as on a plain
+carries the tangent of the kinematics, s_q' = dk (:mod:`.variational`).
+
+Events: the jet of a set of events carries the event functions' rows of the states' jet in its
+table, so the driver locates them on the state part of the augmented run as on a plain
 run (the same rows, one order more of the operations), stores the augmented state at each
 event, and a terminal one ends the run; each record then gets its time's sensitivities from the
 event functions' derivatives (:mod:`lagcodegen.solvers.event_sensitivity`, as on CVODE), and a

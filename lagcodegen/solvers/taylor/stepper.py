@@ -133,7 +133,8 @@ class TaylorSensitivityStepper(TaylorStepper):
     """The C stepper of a compiled scene's variational jet along the directions ``names``
     (:mod:`.sensitivity`): the same runtime stepper on the augmented system, whose memory ``mem``
     = (t, y, s, p) is its own (s (ns, ny), ``sens``: unit vectors for initial values, zeros for
-    parameters, a rotation of a quaternion joint's at the initial state, as a run starts), made from the integrator's (t, y, p) ``face_mem``; the integrator
+    parameters, a rotation of a quaternion joint's at the initial state, as a run starts), made
+    from the integrator's (t, y, p) ``face_mem``; the integrator
     object's views are made on ``mem`` (``params_at``: where p starts). ``grid`` writes the states
     into the caller's rows and the sensitivities into ``sout`` (nt, ns, ny). ``events``: the
     variational jet's (located on the states' part), each record with its time's sensitivities."""
