@@ -202,3 +202,14 @@ def test_input_tables_with_rotations_against_cvode():
     ens = cm.ensemble(T, q0=np.array([q0, q0]), v0=np.array([v0, v0]), inputs={"F": table}, method="taylor",
                       sensitivities=names, save="trajectory", **TIGHT)
     assert np.array_equal(ens.sensitivity_trajectories[1], ta.sensitivities)
+
+
+def test_quaternion_component_refused_by_name_as_on_cvode():
+    """One quaternion component is not a direction (it leaves the unit sphere): refused on Taylor
+    with CVODE's message, naming the rotations to give instead."""
+    from lagcodegen.errors import LagcodegenError
+    _, cm = compiled("ball")
+    _, _, q0, v0, _, _ = CASES["ball"]
+    with pytest.raises(LagcodegenError, match="'ball_qy\\(0\\)' perturbs one component of the unit quaternion of "
+                                              "joint 'ball'.*'ball_rx\\(0\\)'"):
+        cm.simulate(T, q0=q0, v0=v0, method="taylor", sensitivities=["ball_qy(0)"])
