@@ -97,11 +97,19 @@ def test_quaternion_component_directions_are_refused_by_name():
         cm.simulate(T, q0=q, v0=np.zeros(7), sensitivities=["nope(0)"])
 
 
-def test_sensitivities_off_cvode_are_refused_by_name():
+def test_taylor_sensitivities_of_a_model_of_its_own_speeds():
+    """The Taylor method's sensitivities (the variational jet with the kinematics' tangent) of the
+    polar model (q' = k(q, u) in closed form: r' = u1, theta' = u2 / r) against CVODE's of the same
+    directions; more: tests/solvers/test_taylor_general_sensitivities.py."""
     model = polar()
-    cm = lcg.compile_model(model)
-    with pytest.raises(LagcodegenError, match="generalized speeds .* run on CVODE .* not on Taylor"):
-        cm.simulate(T, q0=[1.2, 0.3], v0=[0.1, 0.9], method="taylor", sensitivities=["k"])
+    cm = lcg.compile_model(model, runtime_parameters=["k", "m"], outputs=["energy"])
+    names = ["k", "m", "r(0)", "theta(0)", "u1(0)", "u2(0)"]
+    tight = dict(rtol=1e-12, atol=1e-12)
+    ta = cm.simulate(T, q0=[1.2, 0.3], v0=[0.1, 0.9], method="taylor", sensitivities=names, **tight)
+    cv = cm.simulate(T, q0=[1.2, 0.3], v0=[0.1, 0.9], sensitivities=names, **tight)
+    assert ta.method == "taylor" and ta.sensitivity_names == names
+    scale = np.abs(cv.sensitivities).max(axis=(0, 2))
+    assert np.all(np.abs(ta.sensitivities - cv.sensitivities).max(axis=(0, 2)) < 1e-8 * scale)
 
 
 def test_repeated_runs_take_each_runs_rotation():

@@ -66,6 +66,8 @@ class PreparedTaylorSensitivityRun:
         nt = t.shape[0]
         y0v = self._s0.copy()
         y0v[:ny] = self.model_ffi.unpack(y_ptr, ny)
+        if module.rotations:  # a rotation of a quaternion joint: its s0 at this run's initial state
+            y0v[ny:] = module.initial_sensitivities(y0v[:ny], t[0], p).ravel()
         yout = np.empty((nt, ny * (1 + ns)))
         out = np.empty((nt, max(nout * (1 + ns), 1)))
         st = ffi.new("lcg_taylor_stats *")

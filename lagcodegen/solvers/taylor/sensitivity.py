@@ -10,8 +10,14 @@ outputs: the outputs, then d out / d theta_j = (d out/dy) s_j + d out/dp), so a 
 call of ``lcg_taylor_solve``.
 
 Directions: a run-time parameter by its name, ``"<q>(0)"``, ``"<q>_dot(0)"`` (parsed as on
-CVODE). Events: the jet of a set of events carries the event functions' rows of the states' jet
-in its table, so the driver locates them on the state part of the augmented run as on a plain
+CVODE). A model with generalized speeds (y = (q, v, z), q' = k(q, v, t): quaternion joints, Kane's
+speeds) takes CVODE's directions too: any state's initial value by its name and the rotations
+``"<joint>_rx(0)"`` .. of a quaternion joint, whose s0 (the quaternion's rates of the unit speed
+about the axis) is formed at each run's initial state as CVODE forms it; its variational jet
+carries the tangent of the kinematics, s_q' = dk (:mod:`.variational`).
+
+Events: the jet of a set of events carries the event functions' rows of the states' jet in its
+table, so the driver locates them on the state part of the augmented run as on a plain
 run (the same rows, one order more of the operations), stores the augmented state at each
 event, and a terminal one ends the run; each record then gets its time's sensitivities from the
 event functions' derivatives (:mod:`lagcodegen.solvers.event_sensitivity`, as on CVODE), and a
@@ -58,6 +64,7 @@ class _Direction:
     sacc: int        # first row of its s''
     R: list
     dz: list
+    dkin: list | None = None  # generalized speeds: the tangents of the coordinates' rates
 
 
 def _outputs_block(scene: Scene, directions: list[tuple[str, int]], ny: int) -> tuple[Block, int]:
@@ -131,8 +138,11 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
     ops = v.ops_a + v.ops_b
     kinds = {op.kind for op in ops}
     ctx = header_context(scene, new_code(scene))
+    # the table's nq counts the speeds and nz the states beyond 2 nv (lcg_taylor_model.h): with
+    # generalized speeds the coordinates beyond the speeds count there (as the plain jet's table)
     ctx.update(
-        n=n, ny0=ny0, ny=ny0 * (1 + ns), ns=ns, nq=n * (1 + ns), nz=d.nz * (1 + ns), nout=nout, nrows=v.nrows,
+        n=n, ny0=ny0, ny=ny0 * (1 + ns), ns=ns, nq=n * (1 + ns), nz=(ny0 - 2 * n) * (1 + ns), nout=nout,
+        nrows=v.nrows, kin=v.kin,
         p_max=P_MAX, acc=v.acc, np=len(scene.runtime_parameters), nbase=len(d.ops),
         outputs_block=print_block(block) if nout else "",
         ops_a=v.ops_a, ops_b=v.ops_b,
@@ -144,7 +154,8 @@ def variational_sources(scene: Scene, directions: list[tuple[str, int]], names: 
         const_lines=[f"c[{k}] = {c_expr(e)};" for k, e in enumerate(v.consts)],
         M=M, F=v.F, rates=v.rates, conv=conv, conv_rows=conv_rows, time_row=v.time_row,
         mass_constant=d.constant_mass, mass_diagonal=d.diagonal_mass, direction_names=names,
-        dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j]) for j in range(ns)],
+        dirs=[_Direction(names[j], ny0 * (1 + j), v.sacc[j][0], v.R[j], v.dz[j], v.dkin[j] if v.kin is not None
+                         else None) for j in range(ns)],
         events=[_EventInfo(ev.name, row, int(ev.direction), int(bool(ev.terminal)))
                 for row, ev in zip(v.events, events)])
     env = _jinja()
@@ -166,6 +177,9 @@ class VariationalModule:
                  cc: str | None = None, verbose: bool = False, events=()):
         code = cm.code
         self.names, self.directions, self.s0 = list(names), list(directions), s0
+        from ..cvode.sensitivity import rotation_directions
+        self.cm = cm  # a rotation's s0 is formed from its rhs at each run's initial state
+        self.rotations = rotation_directions(cm, self.names)
         self.events = list(events)
         self.which = np.array([index if kind == "param" else -1 for kind, index in self.directions], dtype=int)
         self.state_names, self.output_names = list(code.state_names), list(code.output_names)
@@ -187,6 +201,18 @@ class VariationalModule:
         self.opt = rt.ffi.new("lcg_taylor_options *")
         self.opt.poll = install(rt)
         self.opt.poll_every = POLL_EVERY
+
+    def initial_sensitivities(self, y0, t0: float, p) -> np.ndarray:
+        """s(t0), (ns, ny), of a run from ``y0`` at ``t0`` with the parameters ``p``: the
+        directions' s0 (unit vectors for initial values, zeros for parameters), and for a rotation
+        of a quaternion joint (generalized speeds) the quaternion's rates of the unit speed about its
+        axis at ``y0``, formed as CVODE forms them
+        (:func:`lagcodegen.solvers.cvode.sensitivity.general_directions`)."""
+        if not self.rotations:
+            return self.s0
+        from ..cvode.sensitivity import directions
+        return directions(self.cm, self.names, np.asarray(y0, dtype=float), float(t0),
+                          np.asarray(p, dtype=float))[2]
 
     def tolerances(self, atol, errcon: bool) -> np.ndarray:
         """The absolute tolerances of the augmented system: the states' ``atol`` (scalar or ny
@@ -244,7 +270,7 @@ class VariationalModule:
         ffi, lib = self.rt.ffi, self.rt.lib
         ny, ns, nout = self.ny, self.ns, self.nout
         nyv = ny * (1 + ns)
-        s_start = self.s0 if s0 is None else s0
+        s_start = self.initial_sensitivities(y0, t[0], p) if s0 is None else s0
         y0v = np.ascontiguousarray(np.concatenate([np.asarray(y0, dtype=float),
                                                    np.asarray(s_start, dtype=float).ravel()]))
         nt = t.shape[0]
@@ -334,16 +360,16 @@ def sens_stats(st, wall: float) -> dict:
 
 def directions_of(cm, names) -> tuple[list[str], list[tuple[str, int]], np.ndarray]:
     """(names, directions, s0) of the sensitivity directions ``names`` (run-time parameters,
-    ``"<q>(0)"``, ``"<q>_dot(0)"``; parsed as on CVODE, the same errors). Every Taylor
-    sensitivity run passes here: a model with generalized speeds is refused (its variational jet
-    assumes q' = v; CVODE's directions take them)."""
-    code = cm.code
-    if getattr(code, "nv", None) is not None:
-        raise LagcodegenError(f"model {code.model_name!r} has generalized speeds (nq = {code.n}, nv = {code.nv}): "
-                              "its forward sensitivities run on CVODE (method 'adams' or 'bdf'), not on Taylor")
+    ``"<q>(0)"``, ``"<q>_dot(0)"``; parsed as on CVODE, the same names and errors). Every Taylor
+    sensitivity run passes here. A model with generalized speeds takes CVODE's directions
+    (:func:`lagcodegen.solvers.cvode.sensitivity.general_directions`: any state's initial value by
+    its name, and the rotations ``"<joint>_rx(0)"`` .. of a quaternion joint, ("state", -1) here):
+    a rotation's s0 depends on the initial state, so it is left zero here and formed per run
+    (:meth:`VariationalModule.initial_sensitivities`, as CVODE forms it)."""
     from ..cvode.sensitivity import directions
-    names, which, s0 = directions(cm, names)
-    dirs = [("param", int(k)) if k >= 0 else ("state", int(np.argmax(s0[j]))) for j, k in enumerate(which)]
+    names, which, s0 = directions(cm, names, defer=True)
+    dirs = [("param", int(k)) if k >= 0 else ("state", int(np.argmax(s0[j])) if s0[j].any() else -1)
+            for j, k in enumerate(which)]
     return names, dirs, s0
 
 

@@ -46,7 +46,7 @@ def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarra
     c = control
     max_steps = c.max_steps
     from ..cvode.sensitivity import check_inputs, directions
-    check_inputs(*directions(cm, names)[:2], tables)  # before anything is built
+    check_inputs(*directions(cm, names, defer=True)[:2], tables)  # before anything is built
     module = series_variational_module(cm, names, tuple(tables.names))
     opt, keep = module.new_options(rtol=c.rtol, atol=c.atol, errcon=c.errcon, max_step=c.max_step,
                                    max_steps=max_steps, order=c.order, max_wall=c.max_wall)
@@ -60,7 +60,8 @@ def run_taylor_sensitivity_inputs(cm, t: np.ndarray, y: np.ndarray, p: np.ndarra
             return res, start
         return res, (np.ascontiguousarray(res.y[-1]), np.ascontiguousarray(res.sensitivities[-1, :, :ny]))
 
-    start = (np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(module.s0.reshape(ns, ny)))
+    y = np.ascontiguousarray(y, dtype=float)  # a rotation's s0 (generalized speeds): at this initial state
+    start = (y, np.ascontiguousarray(module.initial_sensitivities(y, t[0], p).reshape(ns, ny)))
     res = run_segments(cm, np.ascontiguousarray(t, dtype=float), p, tables, start, segment,
                        max_steps=int(max_steps), output_names=module.output_names)
     del keep  # the tolerances opt pointed into: alive until here
@@ -78,7 +79,7 @@ def run_taylor_sensitivity_inputs_ensemble(cm, t: np.ndarray, Y: np.ndarray, P: 
     from ..cvode.sensitivity import check_inputs, directions
     from ..ensemble_sensitivities import ensemble_of_runs
     names = recording.sensitivities
-    parsed, which, _ = directions(cm, names)
+    parsed, which, _ = directions(cm, names, defer=True)
     for tables in inputs:
         check_inputs(parsed, which, tables)
         series_variational_module(cm, names, tuple(tables.names))

@@ -133,7 +133,8 @@ class TaylorSensitivityStepper(TaylorStepper):
     """The C stepper of a compiled scene's variational jet along the directions ``names``
     (:mod:`.sensitivity`): the same runtime stepper on the augmented system, whose memory ``mem``
     = (t, y, s, p) is its own (s (ns, ny), ``sens``: unit vectors for initial values, zeros for
-    parameters, as a run starts), made from the integrator's (t, y, p) ``face_mem``; the integrator
+    parameters, a rotation of a quaternion joint's at the initial state, as a run starts), made
+    from the integrator's (t, y, p) ``face_mem``; the integrator
     object's views are made on ``mem`` (``params_at``: where p starts). ``grid`` writes the states
     into the caller's rows and the sensitivities into ``sout`` (nt, ns, ny). ``events``: the
     variational jet's (located on the states' part), each record with its time's sensitivities."""
@@ -152,7 +153,9 @@ class TaylorSensitivityStepper(TaylorStepper):
         self.cm = cm
         mem = np.empty(face_mem.size + ns * ny)
         mem[:1 + ny] = face_mem[:1 + ny]
-        mem[1 + ny:1 + ny * (1 + ns)] = module.s0.ravel()
+        # a rotation of a quaternion joint (generalized speeds): its s0 at the integrator's initial state
+        mem[1 + ny:1 + ny * (1 + ns)] = module.initial_sensitivities(face_mem[1:1 + ny], face_mem[0],
+                                                                      face_mem[1 + ny:]).ravel()
         mem[1 + ny * (1 + ns):] = face_mem[1 + ny:]
         self.mem = mem
         self.sens = mem[1 + ny:1 + ny * (1 + ns)].reshape(ns, ny)  # (ns, ny): a view of the C memory

@@ -8,7 +8,10 @@ the quadrature rates z' = g (notes eq. 3.16, as on CVODE):
 
     M s_q'' = dF - (dM) a,    s_z' = dg,    a = q'',
 
-where d is the total derivative along theta (through q, q' by s, through p directly). Each
+where d is the total derivative along theta (through q, q' by s, through p directly). A model
+with generalized speeds, y = (q, v, z) with q' = k(q, v, t) (nq >= nv coordinates: quaternion
+joints, Kane's speeds), has the tangent of its kinematics too, s_q' = dk, and M s_v' = dF - (dM) v'
+for its speeds. Each
 elementary operation u = f(v, w) of the jet (:mod:`.decompose`) gets its tangent
 du = f_v dv + f_w dw, itself a Taylor-series operation on jets (a sum of constant multiples of
 rows and of products of two rows, and for quotients, logarithms, powers and square roots one
@@ -39,12 +42,15 @@ from .decompose import Const, Decomposition, Op, folded_number
 class VariationalDecomposition:
     """The jet program of the states and of their sensitivities along ``ns`` directions.
 
-    Rows: ``0..ny-1`` the state y, ``ny (1 + j) .. ny (2 + j) - 1`` its sensitivity s_j, then
+    Rows: ``0..ny-1`` the state y (q, v, z; q' = v or ``kin``), ``ny (1 + j) .. ny (2 + j) - 1``
+    its sensitivity s_j, then
     the accelerations q'' (``acc``), the rows of the states' operations (those of the plain
     decomposition, shifted by ny ns), the accelerations' tangents s_j'' (``sacc[j]``) and the
     tangent operations. ``ops_a``: the states' operations then the tangents that do not involve
     q''; ``ops_b``: those that do (after the states' solve at each order). ``R[j][i]``: the
     right-hand side dF_i - (dM a)_i of direction j; ``dz[j][m]``: the tangent of rate m;
+    ``kin``: the coordinates' rates k(q, v, t) of a model with generalized speeds (None: q' = v),
+    ``dkin[j][i]`` their tangents along direction j (None without ``kin``);
     ``events[e]``: the row of event function e (a row of the states' operations: no tangent of
     it is needed, the event times' sensitivities come from the event functions' derivatives).
     Entries are rows, :class:`Const` s or symengine numbers (zero: ``se.Integer(0)``).
@@ -65,10 +71,16 @@ class VariationalDecomposition:
     sacc: list
     labels: dict = field(default_factory=dict)
     events: list = field(default_factory=list)
+    kin: list | None = None
+    dkin: list | None = None
 
     @property
     def n(self) -> int:
         return self.base.n
+
+    @property
+    def nq(self) -> int:
+        return self.base.nq
 
     @property
     def ny(self) -> int:
@@ -273,7 +285,8 @@ def _tangents(tg: _Tangent, ops: list, T: dict, dconst) -> None:
 
 def variational(d: Decomposition, directions: list[tuple[str, int]]) -> VariationalDecomposition:
     """The jet program of ``d``'s states and of their tangents along ``directions``: ("param", k)
-    for run-time parameter k, ("state", i) for the initial value of state i."""
+    for run-time parameter k, ("state", i) for the initial value of state i (a rotation of a
+    quaternion joint: ("state", -1); an initial value enters through s0 alone)."""
     ns, ny, n = len(directions), d.ny, d.n
     shift = ny * ns
     tg = _Tangent(d, ns)
@@ -289,6 +302,7 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
     M = [[remap_entry(e) for e in row] for row in d.M]
     F = [remap_entry(e) for e in d.F]
     rates = [remap_entry(e) for e in d.rates]
+    kin = None if d.kin is None else [remap_entry(e) for e in d.kin]
     acc = ny + shift
     time_row = None if d.time_row is None else remap(d.time_row)
     # the accelerations' tangents first (rows of their own: the solves write them)
@@ -297,7 +311,7 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
         sacc.append(list(range(tg.nrows, tg.nrows + n)))
         tg.nrows += n
     psyms = {}
-    ops_a, ops_b, R, dz = [], [], [], []
+    ops_a, ops_b, R, dz, dkin = [], [], [], [], []
     Ts = []
     for j, (kind, index) in enumerate(directions):
         if kind == "param":
@@ -319,6 +333,8 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
             return T.get(e) if _is_row(e) else dconst(e)
 
         dz.append([_zero(entry_tangent(e)) for e in rates])
+        if kin is not None:  # generalized speeds: s_q' = dk, the tangent of the kinematics
+            dkin.append([_zero(entry_tangent(e)) for e in kin])
         Ts.append((T, entry_tangent))
     for j in range(ns):
         T, entry_tangent = Ts[j]
@@ -326,11 +342,12 @@ def variational(d: Decomposition, directions: list[tuple[str, int]]) -> Variatio
         R.append([_zero(tg.combo([(1, entry_tangent(F[i]))]
                                  + [(-1, entry_tangent(M[i][m]), acc + m) for m in range(n)]))
                   for i in range(n)])
-    ops_a, ops_b = _live(ops_a, ops_b, [e for row in R + dz for e in row])
+    ops_a, ops_b = _live(ops_a, ops_b, [e for row in R + dz + dkin for e in row])
     labels = {remap(r): text for r, text in d.labels.items()}
     return VariationalDecomposition(base=d, ns=ns, nrows=tg.nrows, ops_a=base_ops + ops_a, ops_b=ops_b,
                                     consts=tg.consts, M=M, F=F, rates=rates, time_row=time_row, R=R, dz=dz,
-                                    sacc=sacc, labels=labels, events=[remap(r) for r in d.events])
+                                    sacc=sacc, labels=labels, events=[remap(r) for r in d.events], kin=kin,
+                                    dkin=None if kin is None else dkin)
 
 
 def _live(ops_a: list, ops_b: list, entries: list) -> tuple[list, list]:
