@@ -1,8 +1,8 @@
 """C99 text of the procedures of the tree (:mod:`.procedure`): a ``static`` function, the locals
 the tree scopes declared at their first assignment, compound assignments (``-=``, ``/=``), braces
 only around bodies of more than one statement, flat row-major storage of the matrices the tree
-lets a language store so (``K[i * dim + j]``), a fallback as a ``goto`` to its label. Needs
-<float.h> and <math.h>.
+lets a language store so (``K[i * dim + j]``), a fallback as a ``goto`` to its label, a loop up a
+tree as ``for (i = P[k]; i >= 0; i = P[i])``. Needs <float.h> and <math.h>.
 
 A backend chooses per procedure how its arguments read (the printer's options): ``dims`` names a
 size in declarations (C has no array of size zero: ``{"J": "JD"}``, a size at least 1),

@@ -7,12 +7,13 @@ procedure but for case (Fortran ignores case). Needs ``c_double`` and ``ieee_is_
 
 Idioms of its own: a fallback sets the result as a flag, leaves the first way's loop with ``exit``
 and returns after it unless the flag changed; a permutation the tree keeps as the identity is set
-so at entry (an ``intent(out)`` array is undefined until written); consecutive arguments of one
-type and intent share a declaration. The printer's options: ``sizes`` names the tree's sizes (the
-module's parameters, e.g. ``{"N": "nq"}``; by default a size's name in lower case), ``zero`` the
-sizes that are zero at compile time (their :class:`~.procedure.Sized` work and the locals it
-needs are left out, the arguments that leaves unused named in an empty ``associate``), and
-``spaced`` a blank line after the declarations."""
+so at entry (an ``intent(out)`` array is undefined until written); a loop up a tree is a
+``do while`` over the array of parents, whose values are 1-based like every index value (0 at a root);
+consecutive arguments of one type and intent share a declaration. The printer's options: ``sizes``
+names the tree's sizes (the module's parameters, e.g. ``{"N": "nq"}``; by default a size's name in
+lower case), ``zero`` the sizes that are zero at compile time (their :class:`~.procedure.Sized`
+work and the locals it needs are left out, the arguments that leaves unused named in an empty
+``associate``), and ``spaced`` a blank line after the declarations."""
 
 from __future__ import annotations
 

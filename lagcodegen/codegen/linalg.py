@@ -5,9 +5,10 @@ of the dim x dim matrix K (row i, column j), a truth value (false when a pivot i
 dim * eps * max|K|, numerically singular); ``lu_solve(dim, K, piv, b)``, b overwritten by the
 solution of K x = b from those factors, used by the augmented system of the constrained code
 (eq. 4.5 of the notes), the impacts and the constrained sensitivities; the mass matrix's
-factorization (:func:`mass_factor`: Cholesky, LU where M is not positive definite, or its
-diagonal) and solve (:func:`mass_solve`); the augmented system by the Schur complement of M
-(:func:`schur_solve`), tried before the LU of the whole system.
+factorization (:func:`mass_factor`: Cholesky, LU where M is not positive definite, or its diagonal;
+a rigid-body tree's M = L^T L along the tree's parents) and solve (:func:`mass_solve`); the
+augmented system by the Schur complement of M (:func:`schur_solve`), tried before the LU of the
+whole system.
 """
 
 from __future__ import annotations
@@ -170,8 +171,8 @@ def _cholesky(L: str, M: str, size: str, scale: str, j: str, d: str, s: str, bel
 def _tree_factor(parents: str) -> tuple:
     """M = L^T L into W (L lower triangular) from the leaves (the last rows) to the root along the
     tree ``parents``: W's rows from M's entries on each row's ancestors, then for each row k from
-    the last, its pivot's root, its ancestors' entries divided by it, and the update of the
-    entries (i, j) with i an ancestor of k and j i or an ancestor of i; a pivot not above
+    the last, the square root of its pivot, its ancestors' entries divided by it, and the update
+    of the entries (i, j) with i an ancestor of k and j i or an ancestor of i; a pivot not above
     N * eps * scale gives up (:class:`~.procedure.Fail`)."""
     W = lambda i, j: At("W", (ix(i), ix(j)))  # noqa: E731
     M = lambda i, j: At("M", (ix(i), ix(j)))  # noqa: E731
