@@ -1,8 +1,8 @@
 """C99 text of the procedures of the tree (:mod:`.procedure`): a ``static`` function, the locals
 the tree scopes declared at their first assignment, compound assignments (``-=``, ``/=``), braces
 only around bodies of more than one statement, flat row-major storage of the matrices the tree
-lets a language store so (``K[i * dim + j]``), a fallback as a ``goto`` to its label. Needs
-<float.h> and <math.h>.
+lets a language store so (``K[i * dim + j]``), a fallback as a ``goto`` to its label, a loop up a
+tree as ``for (i = P[k]; i >= 0; i = P[i])``. Needs <float.h> and <math.h>.
 
 A backend chooses per procedure how its arguments read (the printer's options): ``dims`` names a
 size in declarations (C has no array of size zero: ``{"J": "JD"}``, a size at least 1),
@@ -72,9 +72,11 @@ class CProcedurePrinter(pr.Printer):
         return any(a.name == array and a.shape and set(a.shape) <= set(self.proc.sizes) for a in self.proc.args)
 
     # ------------------------------------------------------------------ statements
-    def _block(self, head: str, stmts, level: int, note: str | None = None) -> list[str]:
+    def _block(self, head: str, stmts, level: int, note: str | None = None, gap: str = "  ") -> list[str]:
+        """``head`` and its body, braced unless one statement; ``note`` a comment after the head
+        (``gap`` before it; after the brace of a braced body)."""
         inner = self.body(stmts, level + 1)
-        note = f"  /* {note} */" if note else ""
+        note = f"{gap}/* {note} */" if note else ""
         if len(stmts) == 1 and not (isinstance(stmts[0], pr.Exchange) and self._fixed(stmts[0].array)):
             return [self.pad(level) + head + note] + inner
         return [self.pad(level) + head + " {" + note] + inner + [self.pad(level) + "}"]
@@ -100,6 +102,13 @@ class CProcedurePrinter(pr.Printer):
             head = f"for ({v} = {self.expr(st.lo)}; {v} {below}; ++{v})"
         return self._block(head, st.body, level, st.note)
 
+    def _stmt_Ancestors(self, st: pr.Ancestors, level: int) -> list[str]:
+        """``for (i = P[k]; i >= 0; i = P[i])`` (inclusive: from ``i = k``)."""
+        v = st.var
+        start = self.expr(st.of if st.inclusive else ir.Element(st.parents, (st.of,)))
+        step = self.expr(ir.Element(st.parents, (pr.ix(v),)))
+        return self._block(f"for ({v} = {start}; {v} >= 0; {v} = {step})", st.body, level)
+
     def _stmt_EachElement(self, st: pr.EachElement, level: int) -> list[str]:
         """One loop over the flat storage (the first variable runs over all size * size elements)."""
         i = st.vars[0]
@@ -110,7 +119,7 @@ class CProcedurePrinter(pr.Printer):
             del self.flat[st.array]
 
     def _stmt_If(self, st: pr.If, level: int) -> list[str]:
-        return self._block(f"if ({self.expr(st.cond)})", st.body, level)
+        return self._block(f"if ({self.expr(st.cond)})", st.body, level, st.note, gap=" ")
 
     def _stmt_Exchange(self, st: pr.Exchange, level: int) -> list[str]:
         at, a = self.expr(st.at), st.array
@@ -148,7 +157,11 @@ class CProcedurePrinter(pr.Printer):
         return self.body(st.body, level)
 
     def _stmt_Comment(self, st: pr.Comment, level: int) -> list[str]:
-        return [f"{self.pad(level)}/* {st.text} */"]
+        """``/* text */``; text of several lines continued by `` * ``, closed on its last."""
+        first, *more = st.text.split("\n")
+        lines = [f"{self.pad(level)}/* {first}"] + [f"{self.pad(level)} * {line}" for line in more]
+        lines[-1] += " */"
+        return lines
 
     def _stmt_Blank(self, st: pr.Blank, level: int) -> list[str]:
         return [""]

@@ -7,12 +7,13 @@ procedure but for case (Fortran ignores case). Needs ``c_double`` and ``ieee_is_
 
 Idioms of its own: a fallback sets the result as a flag, leaves the first way's loop with ``exit``
 and returns after it unless the flag changed; a permutation the tree keeps as the identity is set
-so at entry (an ``intent(out)`` array is undefined until written); consecutive arguments of one
-type and intent share a declaration. The printer's options: ``sizes`` names the tree's sizes (the
-module's parameters, e.g. ``{"N": "nq"}``; by default a size's name in lower case), ``zero`` the
-sizes that are zero at compile time (their :class:`~.procedure.Sized` work and the locals it
-needs are left out, the arguments that leaves unused named in an empty ``associate``), and
-``spaced`` a blank line after the declarations."""
+so at entry (an ``intent(out)`` array is undefined until written); a loop up a tree is a
+``do while`` over the array of parents, whose values are 1-based like every index value (0 at a root);
+consecutive arguments of one type and intent share a declaration. The printer's options: ``sizes``
+names the tree's sizes (the module's parameters, e.g. ``{"N": "nq"}``; by default a size's name in
+lower case), ``zero`` the sizes that are zero at compile time (their :class:`~.procedure.Sized`
+work and the locals it needs are left out, the arguments that leaves unused named in an empty
+``associate``), and ``spaced`` a blank line after the declarations."""
 
 from __future__ import annotations
 
@@ -105,6 +106,21 @@ class FortranProcedurePrinter(pr.Printer):
             self.loops -= 1
         return [self.pad(level) + head + (f" ! {st.note}" if st.note else "")] + inner + [self.pad(level) + "end do"]
 
+    def _stmt_Ancestors(self, st: pr.Ancestors, level: int) -> list[str]:
+        """``i = P(k)``, then ``do while (i >= 1)`` with ``i = P(i)`` closing the body (the parents
+        in 1-based values, 0 at a root; inclusive: from ``i = k``)."""
+        v = ir.Name(st.var)
+        up = lambda at: pr.Set(v, ir.Element(st.parents, (at,)))  # noqa: E731
+        start = pr.Set(v, st.of) if st.inclusive else up(st.of)
+        self.loops += 1
+        try:
+            inner = self.body(st.body + (up(pr.ix(st.var)),), level + 1)
+        finally:
+            self.loops -= 1
+        cond = self.expr(ir.Compare(">=", pr.ix(st.var), pr.ix()))  # at or after the first index
+        return (self._stmt_Set(start, level) + [f"{self.pad(level)}do while ({cond})"] + inner
+                + [self.pad(level) + "end do"])
+
     def _stmt_EachElement(self, st: pr.EachElement, level: int) -> list[str]:
         """Nested loops over rows, then columns."""
         i, j = (self.name(v) for v in st.vars)
@@ -114,11 +130,12 @@ class FortranProcedurePrinter(pr.Printer):
 
     def _stmt_If(self, st: pr.If, level: int) -> list[str]:
         cond = self.expr(st.cond)
-        if len(st.body) == 1 and isinstance(st.body[0], (pr.Set, pr.Return)):
+        if len(st.body) == 1 and isinstance(st.body[0], (pr.Set, pr.Return)) and not st.note:
             inner = self.body(st.body, 0)
             if len(inner) == 1:
                 return [f"{self.pad(level)}if ({cond}) {inner[0]}"]
-        return ([f"{self.pad(level)}if ({cond}) then"] + self.body(st.body, level + 1)
+        note = f" ! {st.note}" if st.note else ""
+        return ([f"{self.pad(level)}if ({cond}) then{note}"] + self.body(st.body, level + 1)
                 + [self.pad(level) + "end if"])
 
     def _stmt_Exchange(self, st: pr.Exchange, level: int) -> list[str]:
@@ -171,7 +188,7 @@ class FortranProcedurePrinter(pr.Printer):
         return [] if st.size in self.zero else self.body(st.body, level)
 
     def _stmt_Comment(self, st: pr.Comment, level: int) -> list[str]:
-        return [f"{self.pad(level)}! {st.text}"]
+        return [f"{self.pad(level)}! {line}" for line in st.text.split("\n")]
 
     def _stmt_Blank(self, st: pr.Blank, level: int) -> list[str]:
         return [""]

@@ -5,9 +5,10 @@ of the dim x dim matrix K (row i, column j), a truth value (false when a pivot i
 dim * eps * max|K|, numerically singular); ``lu_solve(dim, K, piv, b)``, b overwritten by the
 solution of K x = b from those factors, used by the augmented system of the constrained code
 (eq. 4.5 of the notes), the impacts and the constrained sensitivities; the mass matrix's
-factorization (:func:`mass_factor`: Cholesky, LU where M is not positive definite, or its
-diagonal) and solve (:func:`mass_solve`); the augmented system by the Schur complement of M
-(:func:`schur_solve`), tried before the LU of the whole system.
+factorization (:func:`mass_factor`: Cholesky, LU where M is not positive definite, or its diagonal;
+a rigid-body tree's M = L^T L along the tree's parents) and solve (:func:`mass_solve`); the
+augmented system by the Schur complement of M (:func:`schur_solve`), tried before the LU of the
+whole system.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from .ir import BinOp as Op
 from .ir import Call, Compare, Integer, Logic, Neg, Not, Number
 from .ir import Element as At
 from .ir import Name as Ref
-from .procedure import (Arg, Blank, Comment, EachElement, Exchange, Fail, Fallback, For, Identity, If, Local, Procedure,
-                        Return, Set, Sized, ix)
+from .procedure import (Ancestors, Arg, Blank, Comment, EachElement, Exchange, Fail, Fallback, For, Identity, If, Local,
+                        Procedure, Return, Set, Sized, ix)
 
 
 def Fn(name, arg):  # noqa: N802 - a node's constructor
@@ -96,19 +97,31 @@ def lu_solve() -> Procedure:
         body, layouts={"K": "dim"})
 
 
-def mass_solve(*, name: str = "solve", diagonal: bool = False) -> Procedure:
+def mass_solve(*, name: str = "solve", diagonal: bool = False, parents: str | None = None) -> Procedure:
     """M x = b in place with the factors W, piv of the mass matrix's factorization (``kind``: its
     result; 1 Cholesky, W's lower triangle L: L L^T x = b; 2 LU with the row exchanges piv;
-    with ``diagonal``, 3: W's diagonal alone), N coordinates (a constant of the source)."""
+    with ``diagonal``, 3: W's diagonal alone), N coordinates (a constant of the source). With
+    ``parents`` (the array of a tree's parents, as in :func:`mass_factor`) 4 replaces 1: M = L^T L,
+    L^T z = b from the leaves, then L x = z from the root, along the tree."""
     W = lambda i, j: At("W", (ix(i), ix(j)))  # noqa: E731
     b = lambda i: At("b", (ix(i),))  # noqa: E731
     s = Ref("s")
     body: tuple = ()
+    if parents:
+        body += (If(Cmp("==", Ref("kind"), Integer(4)), (
+            For("k", ix(), ix("N"), (
+                Set(b("k"), Op("/", b("k"), W("k", "k"))),
+                Ancestors("i", ix("k"), parents, (Set(b("i"), Op("-", b("i"), Op("*", W("k", "i"), b("k")))),))),
+                down=True),
+            For("k", ix(), ix("N"), (
+                Ancestors("i", ix("k"), parents, (Set(b("k"), Op("-", b("k"), Op("*", W("k", "i"), b("i")))),)),
+                Set(b("k"), Op("/", b("k"), W("k", "k"))))),
+            Return()), note="M = L^T L: L^T z = b from the leaves, then L x = z from the root"), Blank())
     if diagonal:
         body += (If(Cmp("==", Ref("kind"), Integer(3)), (
             For("i", ix(), ix("N"), (Set(b("i"), Op("/", b("i"), W("i", "i"))),)), Return())),)
-    body += (
-        If(Cmp("==", Ref("kind"), Integer(1)), (
+    if not parents:
+        body += (If(Cmp("==", Ref("kind"), Integer(1)), (
             For("i", ix(), ix("N"), (
                 Set(s, b("i"), declare=True),
                 For("k", ix(), ix("i"), (Set(s, Op("-", s, Op("*", W("i", "k"), b("k")))),)),
@@ -117,7 +130,8 @@ def mass_solve(*, name: str = "solve", diagonal: bool = False) -> Procedure:
                 Set(s, b("i"), declare=True),
                 For("k", ix("i", const=1), ix("N"), (Set(s, Op("-", s, Op("*", W("k", "i"), b("k")))),)),
                 Set(b("i"), Op("/", s, W("i", "i")))), down=True),
-            Return())),
+            Return())),)
+    body += (
         For("k", ix(), ix("N"), (Exchange("b", ix("k"), At("piv", (ix("k"),))),)),
         For("i", ix(), ix("N"), (
             For("k", ix(), ix("i"), (Set(b("i"), Op("-", b("i"), Op("*", W("i", "k"), b("k")))),)),)),
@@ -128,7 +142,8 @@ def mass_solve(*, name: str = "solve", diagonal: bool = False) -> Procedure:
     return Procedure(
         name, (Arg("kind", "int", alt="ftype"), Arg("W", "real", ("N", "N")), Arg("piv", "int", ("N",)),
                Arg("b", "real", ("N",), "inout")),
-        (Local("s", "real", scoped=True), Local("tmp", "real", scoped=True), Local("i", "int"), Local("k", "int")),
+        ((Local("s", "real", scoped=True),) if not parents else ())
+        + (Local("tmp", "real", scoped=True), Local("i", "int"), Local("k", "int")),
         body, sizes=("N",))
 
 
@@ -153,13 +168,38 @@ def _cholesky(L: str, M: str, size: str, scale: str, j: str, d: str, s: str, bel
     ), note=note)
 
 
+def _tree_factor(parents: str) -> tuple:
+    """M = L^T L into W (L lower triangular) from the leaves (the last rows) to the root along the
+    tree ``parents``: W's rows from M's entries on each row's ancestors, then for each row k from
+    the last, the square root of its pivot, its ancestors' entries divided by it, and the update
+    of the entries (i, j) with i an ancestor of k and j i or an ancestor of i; a pivot not above
+    N * eps * scale gives up (:class:`~.procedure.Fail`)."""
+    W = lambda i, j: At("W", (ix(i), ix(j)))  # noqa: E731
+    M = lambda i, j: At("M", (ix(i), ix(j)))  # noqa: E731
+    return (
+        For("k", ix(), ix("N"), (
+            Set(W("k", "k"), M("k", "k")),
+            Ancestors("i", ix("k"), parents, (Set(W("k", "i"), M("k", "i")),))), down=True),
+        For("k", ix(), ix("N"), (
+            If(Not(Cmp(">", W("k", "k"), _times_eps("N", "scale"))), (Fail(),)),
+            Set(W("k", "k"), Fn("sqrt", W("k", "k"))),
+            Ancestors("i", ix("k"), parents, (Set(W("k", "i"), Op("/", W("k", "i"), W("k", "k"))),)),
+            Ancestors("i", ix("k"), parents, (Ancestors("j", ix("i"), parents, (
+                Set(W("i", "j"), Op("-", W("i", "j"), Op("*", W("k", "i"), W("k", "j")))),), inclusive=True),))),
+            down=True),
+    )
+
+
 def mass_factor(*, name: str = "factor", diagonal: bool = False, pivot: str = "p", cholesky_comment: bool = True,
-                lu_only: bool = False) -> Procedure:
+                lu_only: bool = False, parents: str | None = None) -> Procedure:
     """Factor the symmetric N x N mass matrix M into W: Cholesky (result 1, W's lower triangle),
     LU with partial pivoting (2, the row exchanges in piv) where M is not numerically positive
     definite, 0 where it is singular or not finite; with ``diagonal`` (M structurally diagonal),
     3: W holds M's diagonal. ``lu_only`` (M not symmetric): LU alone. ``pivot``: the name of the
-    LU pivot row; ``cholesky_comment``: a comment before the Cholesky factorization."""
+    LU pivot row; ``cholesky_comment``: a comment before the Cholesky factorization. With
+    ``parents`` (the name of an array of a tree's parents, :class:`~.procedure.Ancestors`; M[i][j]
+    nonzero only for j an ancestor of i, or i of j) M = L^T L from the leaves to the root along
+    the tree in place of Cholesky, without fill-in (Featherstone 2008, sec. 6.5): result 4."""
     W = lambda i, j: At("W", (ix(i), ix(j)))  # noqa: E731
     M = lambda i, j: At("M", (ix(i), ix(j)))  # noqa: E731
     scale = Ref("scale")
@@ -174,7 +214,11 @@ def mass_factor(*, name: str = "factor", diagonal: bool = False, pivot: str = "p
             Identity("piv", ix("i")))), Return(3))
     if lu_only:
         body += (Blank(), Comment("M is not symmetric (every entry written): LU with partial pivoting."), Fail())
-    if cholesky_comment:
+    if parents:
+        body += (Blank(), Comment(
+            "M = L^T L (L lower triangular in W) from the leaves to the root, along the tree's parents\n"
+            f"{parents} (M[i][j] != 0 only for j an ancestor of i: no fill-in; Featherstone 2008,\nsec. 6.5)."))
+    elif cholesky_comment:
         body += (Blank(), Comment("Cholesky, lower triangle of W."))
     p = Ref(pivot)
     lu = (
@@ -195,13 +239,15 @@ def mass_factor(*, name: str = "factor", diagonal: bool = False, pivot: str = "p
                     Set(W("i", "j"), Op("-", W("i", "j"), Op("*", W("i", "k"), W("k", "j")))),)))))),
         Return(2),
     )
-    body += (Fallback((_cholesky("W", "M", "N", "scale", "j", "d", "s", Fail()),), lu, kinds=(1, 2), label="lu",
+    first = _tree_factor(parents) if parents else (_cholesky("W", "M", "N", "scale", "j", "d", "s", Fail()),)
+    body += (Fallback(first, lu, kinds=(4 if parents else 1, 2), label="lu",
                       note="LU with partial pivoting (rows of W swapped in place, piv(k) = row swapped with k)."),)
     return Procedure(
         name, (Arg("M", "real", ("N", "N")), Arg("W", "real", ("N", "N"), "out"), Arg("piv", "int", ("N",), "out")),
-        (Local("scale", "real", init=0.0, alt="smax"), Local("d", "real", scoped=True), Local("s", "real", scoped=True),
-         Local("tmp", "real", scoped=True), Local("i", "int"), Local("j", "int"), Local("k", "int"),
-         Local(pivot, "int", scoped=True)),
+        (Local("scale", "real", init=0.0, alt="smax"),)
+        + ((Local("d", "real", scoped=True), Local("s", "real", scoped=True)) if not parents else ())
+        + (Local("tmp", "real", scoped=True), Local("i", "int"), Local("j", "int"), Local("k", "int"),
+           Local(pivot, "int", scoped=True)),
         body, returns="kind", result="ftype", sizes=("N",), identity=(("piv", "N"),))
 
 

@@ -10,9 +10,10 @@ Expressions are those of :mod:`.ir` (``Name``, ``Element`` with a tuple of index
 ``Number``, ``Integer``, ``BinOp``, ``Compare``, ``Not``, ``Logic`` "or", ``Call`` of :data:`FUNCTIONS`) and
 :class:`Index`, an affine sum of index variables and sizes. Statements: :class:`Set` (an
 assignment; ``declare``: the first of a local variable, declared there where the language allows
-it), :class:`For`, :class:`EachElement` (every element of a matrix, in the order the language
-keeps it), :class:`If`, :class:`Exchange` (of two elements), :class:`Return`, :class:`Fallback` with
-:class:`Fail` (a first way that may give up for a second one), :class:`Identity` (of a permutation),
+it), :class:`For`, :class:`Ancestors` (a loop up a tree along an array of parents),
+:class:`EachElement` (every element of a matrix, in the order the language keeps it), :class:`If`,
+:class:`Exchange` (of two elements), :class:`Return`, :class:`Fallback` with :class:`Fail` (a
+first way that may give up for a second one), :class:`Identity` (of a permutation),
 :class:`Sized` (work that only a nonzero size asks for), :class:`Comment` and :class:`Blank`. A
 :class:`Procedure` has its arguments (:class:`Arg`), its locals (:class:`Local`) and a body.
 
@@ -80,12 +81,28 @@ class EachElement:
 
 
 @dataclass(frozen=True)
+class Ancestors:
+    """``body`` for ``var`` over the ancestors of ``of`` (an Index value) in a tree, from its parent
+    to the root (with ``inclusive``: from ``of`` itself). ``parents`` is an array of index values
+    (as ``piv``), each node's parent, the value before the first index (-1) at a root: a
+    language with 1-based arrays holds them plus one (0 at a root), like every index value."""
+
+    var: str
+    of: Index
+    parents: str
+    body: tuple
+    inclusive: bool = False
+
+
+@dataclass(frozen=True)
 class If:
     """``body`` when ``cond`` holds; no other branch (the solves need none). A language with a
-    one-line ``if`` prints a body of one simple statement so."""
+    one-line ``if`` prints a body of one simple statement so. ``note``: what the body does,
+    printed as a comment opening it."""
 
     cond: object
     body: tuple
+    note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -151,7 +168,7 @@ class Sized:
 
 @dataclass(frozen=True)
 class Comment:
-    """A comment line."""
+    """A comment: one line, or several (``text`` with newlines)."""
 
     text: str
 
@@ -251,7 +268,7 @@ def names(node) -> set:
     elif hasattr(node, "__dataclass_fields__"):
         for f in node.__dataclass_fields__:
             value = getattr(node, f)
-            if f in ("array", "var", "size") and isinstance(value, str):
+            if f in ("array", "var", "size", "parents") and isinstance(value, str):
                 found.add(value)
             elif f not in ("body", "first", "second"):
                 found |= names(value)

@@ -1,9 +1,11 @@
 """The branch-induced sparsity of a rigid-body tree's mass matrix (Featherstone, Rigid Body
 Dynamics Algorithms, 2008, sec. 6.5): M[i][j] != 0 only where speed j is an ancestor of speed i
 (or i of j) in the tree, so that the factorization M = L^T L, run from the leaves to the root,
-fills nothing in and costs about the sum of the squared depths instead of N^3 / 6. The generated
-C uses it (templates/c/_linalg.j2, ``parents``) where :func:`tree_parents` finds such a pattern
-and the saving is large."""
+fills nothing in and costs about the sum of the squared depths instead of N^3 / 6. It is written
+once in the procedure tree (:func:`lagcodegen.codegen.linalg.mass_factor` and ``mass_solve`` with
+``parents``, loops up the tree as :class:`lagcodegen.codegen.procedure.Ancestors`); the generated C
+uses it (templates/c/_linalg.j2, ``parents``) where :func:`tree_parents` finds such a pattern and
+the saving is large."""
 
 from __future__ import annotations
 

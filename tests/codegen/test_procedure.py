@@ -445,3 +445,133 @@ def test_printers_choose_their_idioms():
     assert "real(c_double) :: L(nq, nq), u(nq), smax, d, w\n" in empty  # s is w: S differs only by case
     with pytest.raises(ValueError, match="Fallback"):
         CProcedurePrinter().text(pr.Procedure("p", (), (), (pr.Fail(),)))
+
+
+TREE = [-1, 0, 1, 0, 3, 3, -1, 6]  # two roots; the first forks at 0 and at 3
+
+TREE_C = """#include <float.h>
+#include <math.h>
+#define N 8
+
+static const int par[N] = {{{parents}}};
+
+{factor}
+
+{solve}
+
+int tree_c(const double *M, double *W, int *piv, double *b)
+{{
+    int kind = tf((const double (*)[N])M, (double (*)[N])W, piv);
+    if (kind)
+        ts(kind, (const double (*)[N])W, piv, b);
+    return kind;
+}}
+"""
+
+TREE_F = """module tt
+  use, intrinsic :: iso_c_binding, only: c_double, c_int
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  implicit none
+  integer, parameter :: n = 8
+  integer, parameter :: par(n) = [{parents}]
+contains
+
+{factor}
+
+{solve}
+
+  integer(c_int) function tree_f(M, W, piv, b) bind(C, name="tree_f")
+    real(c_double), intent(in) :: M(n, n)
+    real(c_double), intent(out) :: W(n, n)
+    real(c_double), intent(inout) :: b(n)
+    integer(c_int), intent(out) :: piv(n)
+    tree_f = factor(M, W, piv)
+    if (tree_f /= 0) call solve(tree_f, W, piv, b)
+  end function tree_f
+end module tt
+"""
+
+
+def _tree_pattern(parent) -> np.ndarray:
+    """(i, j) where i is j or an ancestor of j, or j of i."""
+    nz = np.eye(len(parent), dtype=bool)
+    for i in range(len(parent)):
+        j = parent[i]
+        while j >= 0:
+            nz[i, j] = nz[j, i] = True
+            j = parent[j]
+    return nz
+
+
+@pytest.fixture(scope="module")
+def tree_solvers(tmp_path_factory, cc, fc):
+    """mass_factor and mass_solve along the tree TREE (``parents``, the tree's Ancestors loops) in
+    C (the parents as the tree keeps them, -1 at a root) and Fortran (plus one, 0 at a root): each
+    M, b -> (kind, x, piv)."""
+    C, F = CProcedurePrinter, FortranProcedurePrinter
+    c = TREE_C.format(parents=", ".join(map(str, TREE)),
+                      factor=C().text(linalg.mass_factor(name="tf", parents="par")),
+                      solve=C().text(linalg.mass_solve(name="ts", parents="par")))
+    f = TREE_F.format(parents=", ".join(str(p + 1) for p in TREE),
+                      factor=F().text(linalg.mass_factor(pivot="r", parents="par")),
+                      solve=F().text(linalg.mass_solve(parents="par")))
+    libs = _compile(tmp_path_factory.mktemp("tree"), "tree", c, f, cc, fc)
+    dbl, it = np.ctypeslib.ndpointer(np.float64), np.ctypeslib.ndpointer(np.int32)
+    fns = libs[0].tree_c, libs[1].tree_f
+    for fn in fns:
+        fn.argtypes, fn.restype = [dbl, dbl, it, dbl], ctypes.c_int
+
+    def run(fn, fortran):
+        def solve(M, b):
+            M = np.array(M.T if fortran else M, dtype=np.float64).ravel()  # Fortran: M(i, j) by columns
+            W, x, piv = np.zeros(64), np.array(b, dtype=np.float64), np.zeros(8, dtype=np.int32)
+            return fn(M, W, piv, x), x, piv
+        return solve
+    return run(fns[0], False), run(fns[1], True)
+
+
+@pytest.mark.parametrize("case", ["positive definite", "indefinite"])
+def test_printed_tree_factor_agrees_with_numpy(tree_solvers, case):
+    """The factorization M = L^T L along a tree (kind 4) of a random symmetric positive definite
+    matrix with the tree's pattern, and the LU it falls back to (kind 2) for an indefinite one
+    with that pattern: numpy's solution in both languages, the same doubles and pivots."""
+    rng = np.random.default_rng(17)
+    nz = _tree_pattern(TREE)
+    L = np.tril(rng.normal(size=(8, 8))) * nz + 3 * np.eye(8)  # row k: k and its ancestors
+    M = L.T @ L
+    assert not M[~nz].any()  # no fill-in: the tree's pattern
+    kind = 4
+    if case == "indefinite":
+        M = M - 20 * np.eye(8) * (np.arange(8) % 2)  # symmetric, some negative pivots
+        assert np.linalg.eigvalsh(M).min() < 0
+        kind = 2
+    b = rng.normal(size=8)
+    (kc, xc, pc), (kf, xf, pf) = (solve(M, b) for solve in tree_solvers)
+    assert kc == kf == kind
+    for x in (xc, xf):
+        assert np.allclose(x, np.linalg.solve(M, b), rtol=1e-12, atol=1e-12)
+    assert np.array_equal(xc, xf)
+    if kind == 2:
+        assert np.array_equal(pc + 1, pf)
+
+
+def test_ancestors_read_in_each_language():
+    """The loop up a tree: C's for along the parents (from the parent, or from the node itself),
+    Fortran's do while over the parents held plus one (a root's parent 0), its step closing the body."""
+    c = CProcedurePrinter().text(linalg.mass_factor(parents="par"))
+    assert "        for (i = par[k]; i >= 0; i = par[i])\n            for (j = i; j >= 0; j = par[j])\n" in c
+    assert "\n     * par (M[i][j] != 0 only for j an ancestor of i: no fill-in; Featherstone 2008,\n" in c
+    f = FortranProcedurePrinter().text(linalg.mass_solve(parents="par"))
+    assert ("        i = par(k)\n        do while (i >= 1)\n          b(i) = b(i) - W(k, i) * b(k)\n"
+            "          i = par(i)\n        end do\n") in f
+    assert "if (ftype == 4) then ! M = L^T L" in f and "real(c_double) :: tmp\n" in f  # no s: the tree has none
+    factor = FortranProcedurePrinter().text(linalg.mass_factor(parents="par"))
+    assert "        j = i\n        do while (j >= 1)\n" in factor and "ftype = 4\n" in factor
+    # Fortran's exit would leave the do while, not the first way's loop: there a Fail up a tree is refused
+    up = pr.Ancestors("i", pr.ix("k"), "par", (pr.Fail(),))
+    proc = pr.Procedure("p", (), (pr.Local("i", "int"), pr.Local("k", "int")), (pr.Fallback(
+        (pr.For("k", pr.ix(), pr.ix("N"), (up,)),), (pr.Return(2),)),), returns="kind", sizes=("N",))
+    c = CProcedurePrinter().text(proc)
+    assert "        for (i = par[k]; i >= 0; i = par[i])\n            goto fallback;\n" in c
+    with pytest.raises(NotImplementedError, match="fallback"):
+        FortranProcedurePrinter().text(proc)
