@@ -55,7 +55,8 @@ Refused with a :class:`~lagcodegen.modelfile.urdfxml.URDFError` naming the file 
 a mimic joint following a locked or later joint, a URDF without any movable joint. ``planar`` joints move in the
 plane normal to their axis: coordinates ``<joint>_x``, ``<joint>_y``, ``<joint>_theta``
 (:meth:`lagcodegen.model.bodies.Joint.planar`). Meshes,
-visuals, collisions, materials, transmissions and Gazebo tags are ignored.
+visuals, materials, transmissions and Gazebo tags are ignored; the ``<collision>`` spheres give
+ground contacts through :func:`ground_contacts` (:mod:`.urdf_contacts`).
 """
 
 from __future__ import annotations
@@ -75,11 +76,12 @@ from ..model.bodies import ROTATIONS, Joint as Joint_, Placement
 from ..model.model import Model
 from ..theory.constraints import ConstrainedSystem, Inequality
 from . import urdf_inertial as _inertial
+from .urdf_contacts import TANGENTS, sphere_contacts, spheres  # noqa: F401
 from .urdfxml import (MAX_BYTES, ONE_DOF, Inertial, Joint, RobotDescription, URDFError, parse, read,  # noqa: F401
                       rpy_matrix)
 
-__all__ = ["load", "loads", "build", "bodies", "DEFAULT_FORM", "FORMS", "FRICTION", "MIMIC", "URDFError",
-           "RobotDescription", "parse", "read"]
+__all__ = ["load", "loads", "build", "bodies", "ground_contacts", "spheres", "link_frames", "TANGENTS", "DEFAULT_FORM",
+           "FORMS", "FRICTION", "MIMIC", "URDFError", "RobotDescription", "parse", "read"]
 
 #: What :func:`build` does with Coulomb friction (``<dynamics friction>``).
 FRICTION = ("ignore", "smooth")
@@ -488,3 +490,70 @@ def loads(text: str | bytes, *, filename: str = "<string>", max_bytes: int | Non
           **options) -> Model | ConstrainedSystem:
     """As :func:`load`, for URDF text (``filename`` names it in error messages)."""
     return build(parse(text, filename=filename, max_bytes=max_bytes), **options)
+
+
+def link_frames(model: Model, robot: RobotDescription, lock=()) -> dict[str, tuple]:
+    """Where each URDF link of ``robot`` sits in ``model`` (loaded from it by :func:`load`, with
+    ``lock``): link name -> (the model link it is welded to, None for the fixed base; the link
+    frame's rotation and origin in that link's frame; the link's name as an identifier). A
+    model not loaded from ``robot`` (a body it lacks) is a :class:`URDFError`."""
+    names = {lk.name for lk in model.links}
+    if not names:
+        raise URDFError(f"the model {model.name!r} has no links: load the robot with form='tree' (the default) to "
+                        "place points on its links", robot.filename, None, "")
+    floating = "root_joint" if _identifier(robot.root) in names else None
+    out: dict = {}
+    for b in bodies(robot, _locked(robot, lock), floating):
+        body = _identifier(b.joint.child)
+        if body not in names:
+            raise URDFError(f"the model {model.name!r} has no link {body!r}: it was not loaded from this URDF with "
+                            "these options (pass the lock= given to load)", robot.filename, b.joint.line,
+                            f"link {b.joint.child!r}")
+        for lname, R, p in b.welded:
+            out[lname] = (body, np.asarray(R, dtype=float), np.asarray(p, dtype=float), _identifier(lname))
+    for lname in robot.links:
+        out.setdefault(lname, (None, np.eye(3), np.zeros(3), _identifier(lname)))  # welded to the fixed base
+    return out
+
+
+def ground_contacts(model: Model, urdf: str | os.PathLike | RobotDescription, *, restitution: float,
+                    ground=0.0, tangent: str | None = None, friction: float | None = None,
+                    links: Sequence[str] | None = None, lock=(), max_bytes: int | None = MAX_BYTES) -> list:
+    """The ground contacts of the ``<collision>`` spheres of the URDF ``urdf`` (a path, or its
+    :func:`read` description) on ``model``, loaded from it by :func:`load` (fixed or floating
+    base, ``form="tree"``): a list of :class:`~lagcodegen.theory.constraints.Inequality`, one per sphere, for a
+    :class:`ConstrainedSystem`'s ``inequalities``. Each is the exact gap of a sphere of radius r
+    centred at c on the plane z = ``ground`` (normal +z),
+
+        g(q) = z(c(q)) - r - ground >= 0,
+
+    whatever the link's orientation (the sphere's lowest point is c - r e_z), with the
+    coefficient of ``restitution``. The centres are declared on the model as points
+    ``<link>_sphere_<k>``; spheres on links welded to a moving body by fixed joints (a foot
+    frame on a shank) are placed in that body's frame.
+
+    ``links``: the URDF links whose spheres to use (default: every link's; a link named without
+    a sphere is an error); spheres on links welded to a fixed base are left out (they cannot
+    move; naming such a link is an error). ``ground``: the plane's height (a number or a model
+    parameter). ``tangent`` (:data:`TANGENTS`): None, frictionless; "x" or "y", a rough contact
+    along that world axis (no slip, or Coulomb ``friction`` mu; planar); "xy", both axes, 3-D
+    friction on the exact circular cone; the slip velocity is that of the link's material point
+    touching the ground, (x(c)' - r omega_y, y(c)' + r omega_x) with omega the link's world
+    angular velocity (zero for a sphere rolling without slipping). ``lock``: the ``lock=``
+    given to :func:`load`. ``max_bytes``: as :func:`load`.
+
+    Errors (:class:`URDFError`, naming the file, the line and the link): a link named that does
+    not exist or has no sphere, a sphere whose radius is not a positive finite number (or whose
+    collision origin does not parse), a model not loaded from this URDF.
+
+    Example::
+
+        m = urdf.load(path, floating=True)
+        system = ConstrainedSystem(m, inequalities=urdf.ground_contacts(m, path, restitution=0.0))
+    """
+    if not isinstance(model, Model):
+        raise URDFError(f"ground_contacts needs the lagcodegen Model loaded from the URDF, got "
+                        f"{type(model).__name__}", str(getattr(urdf, "filename", urdf)), None, "")
+    robot = urdf if isinstance(urdf, RobotDescription) else read(urdf, max_bytes=max_bytes)
+    return sphere_contacts(model, robot, link_frames(model, robot, lock), restitution=restitution, ground=ground,
+                           tangent=tangent, friction=friction, links=links)

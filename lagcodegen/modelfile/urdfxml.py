@@ -9,8 +9,15 @@ What is read: ``<robot name>``; ``<link name>`` with its optional ``<inertial>``
 xyz rpy>``, ``<mass value>``, ``<inertia ixx ixy ixz iyy iyz izz>``); ``<joint name type>``
 with ``<parent link>``, ``<child link>``, ``<origin xyz rpy>``, ``<axis xyz>``, ``<limit lower
 upper effort velocity>``, ``<dynamics damping friction>`` and ``<mimic joint multiplier
-offset>``. Everything else (``<visual>``, ``<collision>``, ``<material>``, ``<gazebo>``,
-``<transmission>``, ...) is ignored.
+offset>``; each link's ``<collision>`` elements as :class:`Collision` (the geometry's kind, the
+collision ``<origin xyz rpy>`` in the link frame, a ``<sphere radius>``'s radius: the spheres
+serve ground contacts, :func:`lagcodegen.modelfile.urdf.ground_contacts`). Everything else
+(``<visual>``, ``<material>``, ``<gazebo>``, ``<transmission>``, ...) is ignored.
+
+A collision's problems (a radius that is not a positive finite number, an origin that does
+not parse, no ``<geometry>``) do not stop the file from being read (the dynamics do not use
+collisions; example-robot-data's quadruped.urdf has a xacro left-over ``${upper_leg_radius}``):
+each is kept, located, in :attr:`Collision.problem` and raised when that collision is used.
 
 Checks, each a :class:`URDFError` naming the file, the line, the element and the attribute:
 numbers that do not parse or are not finite, vectors with the wrong number of entries, missing
@@ -88,11 +95,42 @@ class Inertial:
         return (I + I.T) / 2
 
 
+#: The geometries of a URDF ``<collision>``: each collision is kept with its kind (only spheres
+#: are used, by ground contacts); "" when it has none or another one.
+GEOMETRIES = ("sphere", "box", "cylinder", "capsule", "mesh")
+
+
+@dataclass(frozen=True)
+class Collision:
+    """A link's ``<collision>``: the ``kind`` of its geometry (:data:`GEOMETRIES`, or "" for none
+    or an unknown one), its ``<origin>`` (``xyz``, ``rpy``: the geometry's frame in the link
+    frame), a sphere's ``radius`` (None for the other kinds), the collision's ``name`` attribute
+    (or None), its ``line``, and ``problem``: None, or why it cannot be used (a sphere radius
+    that is not a positive finite number, an origin that does not parse, no ``<geometry>``), a
+    :class:`URDFError` raised when the collision is used (:meth:`check`)."""
+
+    kind: str
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float | None = None
+    name: str | None = None
+    line: int | None = None
+    problem: URDFError | None = field(default=None, compare=False)
+
+    def check(self) -> "Collision":
+        """The collision itself, or its :attr:`problem` raised."""
+        if self.problem is not None:
+            raise self.problem
+        return self
+
+
 @dataclass(frozen=True)
 class Link:
     name: str
     inertial: Inertial | None
     line: int | None = None
+    #: the link's ``<collision>`` elements, in file order
+    collisions: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -269,6 +307,33 @@ def _inertial(r: _Reader, el: ET.Element, link: str) -> Inertial:
     return Inertial(mass, xyz, rpy, I)
 
 
+def _collision(r: _Reader, el: ET.Element, link: str) -> Collision:
+    """A ``<collision>`` of ``link``; a problem with it is kept, not raised (:class:`Collision`).
+    The kind is read first, so that a sphere with a bad origin is still a sphere (its problem
+    raised when the spheres are used)."""
+    what = f"link {link!r} <collision>"
+    name, line = el.get("name"), r.lines.get(el)
+    geometries = el.findall("geometry")
+    shapes = list(geometries[0]) if geometries else []
+    kind = shapes[0].tag if len(geometries) == 1 and len(shapes) == 1 and shapes[0].tag in GEOMETRIES else ""
+    xyz, rpy, radius = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), None
+    try:
+        origin = r.one(el, "origin", what)
+        xyz = r.vector(origin, "xyz", f"{what} <origin>", (0, 0, 0))
+        rpy = r.vector(origin, "rpy", f"{what} <origin>", (0, 0, 0))
+        geometry = r.one(el, "geometry", what, required=True)
+        if len(shapes) != 1:
+            raise r.error(geometry, f"{what} <geometry>", f"<geometry> has {len(shapes)} shapes, a collision has one")
+        if kind == "sphere":
+            shape = shapes[0]
+            radius = r.number(shape, "radius", f"{what} <sphere>")
+            if not radius > 0:
+                raise r.error(shape, f"{what} <sphere>", f"sphere radius={shape.get('radius')!r} is not positive")
+    except URDFError as problem:
+        return Collision(kind, xyz, rpy, None, name, line, problem)
+    return Collision(kind, xyz, rpy, radius, name, line)
+
+
 def _joint(r: _Reader, el: ET.Element) -> Joint:
     name = r.text(el, "name", "<joint>")
     what = f"joint {name!r}"
@@ -352,7 +417,8 @@ def parse(text: str | bytes, *, filename: str = "<string>", max_bytes: int | Non
                                                  f"{links[lname].line})")
         inertial_el = r.one(el, "inertial", f"link {lname!r}")
         inertial = None if inertial_el is None else _inertial(r, inertial_el, lname)
-        links[lname] = Link(lname, inertial, lines.get(el))
+        collisions = tuple(_collision(r, c, lname) for c in el.findall("collision"))
+        links[lname] = Link(lname, inertial, lines.get(el), collisions)
     if not links:
         raise r.error(root, f"robot {name!r}", "no <link> elements")
 
