@@ -48,7 +48,8 @@ import lagcodegen as lcg  # noqa: E402
 from lagcodegen.derivation import derive  # noqa: E402
 from lagcodegen.formulation.scene import Scene  # noqa: E402
 from lagcodegen.build import DEFAULT_CFLAGS, build  # noqa: E402
-from lagcodegen.solvers.taylor import TaylorModule, build_taylor, jet_code, taylor_code  # noqa: E402
+from lagcodegen.codegen.taylor.emit import jet_code, taylor_code  # noqa: E402
+from lagcodegen.solvers.taylor import TaylorModule, build_taylor  # noqa: E402
 from lagcodegen.solvers.taylor import runner  # noqa: E402
 from lagcodegen.solvers.taylor.runner import taylor_runtime  # noqa: E402
 
@@ -64,7 +65,10 @@ import json, sys
 import lagcodegen as lcg
 from lagcodegen.derivation import derive
 from lagcodegen.formulation.scene import Scene
-from lagcodegen.solvers.taylor import taylor_code
+try:
+    from lagcodegen.codegen.taylor.emit import taylor_code
+except ImportError:  # a tree from before the Taylor code generation moved to lagcodegen.codegen.taylor
+    from lagcodegen.solvers.taylor import taylor_code
 code = taylor_code(Scene(derive(lcg.systems.n_link_pendulum(int(sys.argv[1]), name=sys.argv[2])), jacobian=False))[0]
 print(json.dumps(dict(files=code.files, cdef_extra=code.cdef_extra, headers=code.cffi_headers,
                       where=lcg.__file__)))

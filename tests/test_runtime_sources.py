@@ -26,7 +26,7 @@ from lagcodegen.codes import FLAG_TEXT, NONFINITE_CAUSES, SOLVER_FLAG_TEXT, Flag
 from lagcodegen.solvers import base, control, ensemble_result
 from lagcodegen.solvers.cvode import native as cvode
 from lagcodegen.solvers.ida import native as ida
-from lagcodegen.solvers.taylor.emit import runtime_sources as taylor_runtime_sources
+from lagcodegen.codegen.taylor.emit import runtime_sources as taylor_runtime_sources
 
 from helpers import STRICT_CFLAGS
 
@@ -174,7 +174,7 @@ def test_taylor_event_location_is_one_file_for_both_drivers():
 
     import lagcodegen as lcg
     from lagcodegen.model.events import Event
-    from lagcodegen.solvers.taylor.emit import taylor_sources
+    from lagcodegen.codegen.taylor.emit import taylor_sources
 
     roots = runtime_package.source("lcg_taylor_roots.h")
     scene = lcg.Scene(lcg.derive(lcg.systems.pendulum()), jacobian=False)
@@ -196,7 +196,7 @@ def test_taylor_step_rules_are_one_text_for_both_drivers():
 
     import lagcodegen as lcg
     from lagcodegen.model.events import Event
-    from lagcodegen.solvers.taylor import emit
+    from lagcodegen.codegen.taylor import emit
 
     scene = lcg.Scene(lcg.derive(lcg.systems.pendulum()), jacobian=False)
     text = emit.taylor_sources(scene, [Event("down", sp.Symbol("theta"), 0, False)])["pendulum_taylor.c"]

@@ -24,9 +24,9 @@ def main(out: Path) -> int:
     from lagcodegen.theory.constraints import ConstrainedSystem
 
     try:
-        from lagcodegen.solvers.taylor.emit import jet_sources, runtime_sources as taylor_runtime_sources, \
+        from lagcodegen.codegen.taylor.emit import jet_sources, runtime_sources as taylor_runtime_sources, \
             taylor_sources
-    except ImportError:  # moved by a later layout: the texts stay the same
+    except ImportError:  # an earlier layout (lagcodegen.solvers.taylor.emit): the texts are the same
         from lagcodegen.solvers.taylor import emit as _e  # type: ignore
         jet_sources, taylor_runtime_sources, taylor_sources = _e.jet_sources, _e.runtime_sources, _e.taylor_sources
     root = Path(__file__).resolve().parents[1]

@@ -1,6 +1,7 @@
 """Code generation: the language-neutral kernels of :mod:`lagcodegen.formulation` printed as C99
 (:mod:`.c`) or Fortran 2008 (:mod:`.fortran`) through the jinja2 templates, the cffi
-declarations (:mod:`.cffi_decl`) and the bundles for other projects' builds (:mod:`.bundle`).
+declarations (:mod:`.cffi_decl`) and the bundles for other projects' builds (:mod:`.bundle`);
+the C of the Taylor integrator and of its sensitivities (:mod:`.taylor`).
 
 Both print one operation tree (:mod:`.ir`; the program form laid out by :mod:`.program`), and
 the procedures of the dense solves (:mod:`.linalg`, in the loops of :mod:`.procedure`) with

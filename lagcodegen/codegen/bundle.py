@@ -58,8 +58,8 @@ from .templates import environment
 
 #: The CVODE example's methods: name -> (CVODE constant, text).
 CVODE_METHODS = {"bdf": ("CV_BDF", "BDF"), "adams": ("CV_ADAMS", "Adams")}
-#: Standalone integrators a C bundle carries besides the model code, registered by their solver
-#: family (:mod:`lagcodegen.solvers.taylor` registers "taylor"): name -> function(scene, y0,
+#: Standalone integrators a C bundle carries besides the model code, registered by their code
+#: generator (:mod:`lagcodegen.codegen.taylor` registers "taylor"): name -> function(scene, y0,
 #: parameter values, t_end) -> {file name: text} with the sources and ``<name>_example.c`` (a
 #: program that needs only a C compiler), raising ModelError when the scene cannot have one.
 INTEGRATORS: dict = {}

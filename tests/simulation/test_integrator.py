@@ -16,7 +16,7 @@ import lagcodegen.runtime as runtime_package
 from lagcodegen import LagcodegenError, systems
 from lagcodegen.build import find_sundials, runtime_sources
 from lagcodegen.model.events import Event
-from lagcodegen.solvers.taylor.emit import runtime_sources as taylor_runtime_sources
+from lagcodegen.codegen.taylor.emit import runtime_sources as taylor_runtime_sources
 
 from helpers import STRICT_CFLAGS, TH0, cartesian_pendulum, pendulum_q0
 

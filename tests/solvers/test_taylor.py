@@ -18,7 +18,9 @@ from lagcodegen.derivation import derive
 from lagcodegen.errors import ModelError
 from lagcodegen.formulation.scene import Scene
 from lagcodegen.model.events import Event
-from lagcodegen.solvers.taylor import build_taylor, decompose, taylor_code, taylor_sources
+from lagcodegen.codegen.taylor.decompose import decompose
+from lagcodegen.codegen.taylor.emit import taylor_code, taylor_sources
+from lagcodegen.solvers.taylor import build_taylor
 from lagcodegen.theory.routhian import reduce as routh_reduce
 
 
@@ -462,7 +464,7 @@ int main(void)
 
 
 def runtime_sources_of(tmp_path, scene, events=()):
-    from lagcodegen.solvers.taylor.emit import jet_sources, runtime_sources
+    from lagcodegen.codegen.taylor.emit import jet_sources, runtime_sources
     files = {**runtime_sources(), **jet_sources(scene, events)}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
@@ -597,7 +599,7 @@ def test_fused_products_give_the_same_jets_and_runs_bit_for_bit(monkeypatch):
     """Products used by one linear combination only are summed in its loop ("dot"), and the mass
     matrix's convolutions of a row share one loop: the same sums in the same order, so the jet and
     a whole run equal those of the unfused operations to the last bit."""
-    from lagcodegen.solvers.taylor import runner
+    from lagcodegen.codegen.taylor import emit
     cases = [(lcg.systems.n_link_pendulum(3, name="fused3"), [0.4, -0.3, 0.2, 0.1, 0.5, -0.2]),
              (all_operations_model(), [0.3, -0.4])]
     for model, y0 in cases:
@@ -607,7 +609,7 @@ def test_fused_products_give_the_same_jets_and_runs_bit_for_bit(monkeypatch):
         assert sum(op.kind == "mul" for op in fused.ops) < sum(op.kind == "mul" for op in plain.ops)
         assert fused.cost == pytest.approx(plain.cost)
         a = build_taylor(sc)
-        monkeypatch.setattr(runner, "decompose", lambda *args, **kw: decompose(*args, fuse=False, **kw))
+        monkeypatch.setattr(emit, "decompose", lambda *args, **kw: decompose(*args, fuse=False, **kw))
         b = build_taylor(sc)
         monkeypatch.undo()
         assert a.decomposition.ops != b.decomposition.ops
@@ -624,7 +626,7 @@ def test_sine_and_cosine_squares_cancel_in_the_mass_matrix():
     """sin(q)^2 + cos(q)^2 of a Cartesian derivation is linearized to 1: the n-link pendulum's
     mass matrix has a constant diagonal (M_ii = n - i for unit masses and lengths) and
     convolutions only for its off-diagonal entries."""
-    from lagcodegen.solvers.taylor.decompose import Const, linearize_trig
+    from lagcodegen.codegen.taylor.decompose import Const, linearize_trig
     import symengine as se
     x = se.Symbol("x")
     assert se.expand(linearize_trig(3 * se.sin(x) ** 2 + 3 * se.cos(x) ** 2) - 3) == 0
@@ -642,7 +644,7 @@ def test_trig_linearization_leaves_long_products_and_huge_sums_alone():
     returned as given: the closed forms of a six-joint arm's forces (10^4 terms of up to 14
     such factors) otherwise took minutes to linearize."""
     import symengine as se
-    from lagcodegen.solvers.taylor.decompose import MAX_LINEARIZED_TERMS, MAX_TRIG_FACTORS, linearize_trig
+    from lagcodegen.codegen.taylor.decompose import MAX_LINEARIZED_TERMS, MAX_TRIG_FACTORS, linearize_trig
     xs = se.symbols(f"x0:{MAX_TRIG_FACTORS + 1}")
     long_product = se.Mul(*[se.sin(x) for x in xs])
     assert linearize_trig(long_product) == long_product
@@ -670,7 +672,7 @@ def test_labels_of_large_shared_expressions_are_sketched_not_printed():
     import importlib
 
     import symengine as se
-    D = importlib.import_module("lagcodegen.solvers.taylor.decompose")
+    D = importlib.import_module("lagcodegen.codegen.taylor.decompose")
     small = _shared_tower(2)
     assert D._short(small, 1000) == str(small)  # small ones as before: today's generated code unchanged
     large = _shared_tower(12)  # about 10^5 nodes as a tree: not printed
@@ -685,7 +687,7 @@ def test_trig_linearization_does_not_expand_what_would_be_dropped(monkeypatch):
     then dropped); the bound multiplies out sums, products and integer powers and stops at
     the cap."""
     import symengine as se
-    from lagcodegen.solvers.taylor.decompose import MAX_EXPANSION_BOUND, expansion_bound, linearize_trig
+    from lagcodegen.codegen.taylor.decompose import MAX_EXPANSION_BOUND, expansion_bound, linearize_trig
     a, b, c, d, e = se.symbols("a b c d e")
     assert expansion_bound((a + b) * (c + d + e)) == 6
     assert expansion_bound((a + b) ** 3 * se.sin(a + b)) == 8

@@ -1,6 +1,6 @@
 """Forward sensitivities on the Taylor integrator of models with generalized speeds (y = (q, v),
 q' = k(q, v): quaternion joints; the variational jet carries the tangent of the kinematics,
-lagcodegen.solvers.taylor.variational): a free rigid body (Joint.free), a spherical pendulum
+lagcodegen.codegen.taylor.variational): a free rigid body (Joint.free), a spherical pendulum
 (Joint.spherical) and a floating pendulum (a free base with a revolute arm and a spring), along
 run-time parameters, initial values of coordinates and speeds and the rotations "<joint>_rx(0)"
 of a quaternion joint. Checked against CVODE's forward sensitivities of the same model and

@@ -1,8 +1,8 @@
-"""Forward sensitivities on the Taylor integrator (lagcodegen.solvers.taylor.variational and
-.sensitivity: jet transport of the variational equations): against closed forms (the harmonic oscillator), CVODE's
-sensitivities at tight tolerance (an independent derivation: symbolic derivatives of M and F, a
-BDF/Adams Newton solve), central differences of plain Taylor runs, and a model that uses every
-elementary operation of the jet."""
+"""Forward sensitivities on the Taylor integrator (lagcodegen.codegen.taylor.variational and
+lagcodegen.solvers.taylor.sensitivity: jet transport of the variational equations): against closed
+forms (the harmonic oscillator), CVODE's sensitivities at tight tolerance (an independent
+derivation: symbolic derivatives of M and F, a BDF/Adams Newton solve), central differences of plain
+Taylor runs, and a model that uses every elementary operation of the jet."""
 
 import subprocess
 
@@ -12,10 +12,10 @@ import sympy as sp
 
 import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
-from lagcodegen.solvers.taylor.decompose import decompose
-from lagcodegen.solvers.taylor.schedule import GROUP, Fused, schedule
-from lagcodegen.solvers.taylor.sensitivity import variational_sources
-from lagcodegen.solvers.taylor.variational import variational
+from lagcodegen.codegen.taylor.decompose import decompose
+from lagcodegen.codegen.taylor.schedule import GROUP, Fused, schedule
+from lagcodegen.codegen.taylor.variational import variational
+from lagcodegen.codegen.taylor.variational_source import variational_sources
 
 from helpers import STRICT_CFLAGS
 
@@ -169,13 +169,14 @@ def test_schedule_keeps_every_dependency(gadget_cm):
 def test_fused_loops_give_the_same_numbers(dp, monkeypatch):
     """The fused tangent loops against the tangent operations one loop each in program order:
     bit-identical states and sensitivities (each sum added in the same order)."""
+    from lagcodegen.codegen.taylor import variational_source
     from lagcodegen.solvers.taylor import sensitivity
     t = np.linspace(0.0, 3.0, 31)
     names = ["l1", "m2", "theta2(0)"]
     fused = dp.simulate(t, q0=[0.5, 0.5], method="taylor", sensitivities=names)
     names_, dirs, s0 = sensitivity.directions_of(dp, names)
-    monkeypatch.setattr(sensitivity, "schedule", lambda ops, tangent=None: list(ops))
-    monkeypatch.setattr(sensitivity, "GROUP", 1)
+    monkeypatch.setattr(variational_source, "schedule", lambda ops, tangent=None: list(ops))
+    monkeypatch.setattr(variational_source, "GROUP", 1)
     module = sensitivity.VariationalModule(dp, dp.code.scene, names_, dirs, s0)
     assert "a0 +=" not in (module.path.parent / "double_pendulum_taylor_var.c").read_text()
     y0 = np.array([0.5, 0.5, 0.0, 0.0])
@@ -325,7 +326,7 @@ int main(void)
 def test_variational_jet_runs_clean_under_sanitizers(tmp_path, cc, gadget_cm):
     """The gadget's variational jet (directions b and y_dot(0)) driven by lcg_taylor.c under
     ASan/UBSan: the same states, sensitivities and outputs as the run in this process."""
-    from lagcodegen.solvers.taylor.emit import runtime_sources
+    from lagcodegen.codegen.taylor.emit import runtime_sources
     files, _ = variational_sources(gadget_cm.code.scene, [("param", 1), ("state", 3)], ["b", "y_dot(0)"])
     files = {**runtime_sources(), **files}
     for name, text in files.items():

@@ -15,8 +15,8 @@ import sympy as sp
 import lagcodegen as lcg
 from lagcodegen.errors import LagcodegenError
 from lagcodegen.formulation.events import scene_events
-from lagcodegen.solvers.taylor.decompose import decompose
-from lagcodegen.solvers.taylor.sensitivity import variational_sources
+from lagcodegen.codegen.taylor.decompose import decompose
+from lagcodegen.codegen.taylor.variational_source import variational_sources
 
 from helpers import STRICT_CFLAGS
 

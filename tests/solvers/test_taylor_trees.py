@@ -16,7 +16,7 @@ from lagcodegen.solvers.auto import MethodCosts, adams_evaluations_per_taylor_st
 from lagcodegen.solvers.cvode import CVODE
 from lagcodegen.solvers.registry import resolve
 from lagcodegen.solvers.taylor import Taylor
-from lagcodegen.solvers.taylor.decompose import decompose
+from lagcodegen.codegen.taylor.decompose import decompose
 from lagcodegen.solvers.taylor.run import taylor_module
 
 pin = pytest.importorskip("pinocchio")

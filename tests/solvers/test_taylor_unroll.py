@@ -1,4 +1,4 @@
-"""The Taylor jet with its first orders written out (lagcodegen.solvers.taylor.unroll) against the
+"""The Taylor jet with its first orders written out (lagcodegen.codegen.taylor.unroll) against the
 loop over the orders, and against series coefficients computed by sympy."""
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import lagcodegen as lcg
 from lagcodegen.derivation import derive
 from lagcodegen.formulation.scene import Scene
 from lagcodegen.model.events import Event
-from lagcodegen.solvers.taylor import build_taylor, decompose, emit
-from lagcodegen.solvers.taylor.emit import jet_sources
-from lagcodegen.solvers.taylor.unroll import MAX_TERMS, UNROLL_ORDERS, pairwise, terms
-
-from lagcodegen.solvers.taylor import taylor_code
+from lagcodegen.codegen.taylor import emit
+from lagcodegen.codegen.taylor.decompose import decompose
+from lagcodegen.codegen.taylor.emit import jet_sources, taylor_code
+from lagcodegen.codegen.taylor.unroll import MAX_TERMS, UNROLL_ORDERS, pairwise, terms
+from lagcodegen.solvers.taylor import build_taylor
 from lagcodegen.theory.routhian import reduce as routh_reduce
 
 from .test_taylor import all_operations_model

@@ -14,10 +14,10 @@ import time
 import numpy as np
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
+from ...codegen.taylor.emit import P_MAX
 from ...errors import LagcodegenError
 from ..auto import MethodCosts
 # ------------------------------------------------------------------------------------------
-from .emit import P_MAX
 from .run import taylor_module
 
 #: Time spent on each of the two measurements at most (about: the last batch may run over).

@@ -1,4 +1,5 @@
-"""Compile the Taylor integrator of a scene and run it: :func:`build_taylor` ->
+"""Run the Taylor integrator of a scene: :func:`build_taylor` asks the build stage for it
+(:mod:`lagcodegen.libraries`, which generates it through :mod:`lagcodegen.codegen.taylor`) ->
 :class:`TaylorModule`, whose :meth:`~TaylorModule.simulate` calls the C driver once for all
 output times and returns a :class:`Result`.
 
@@ -18,7 +19,6 @@ nothing is validated twice): callers such as
 from __future__ import annotations
 
 import ctypes
-import dataclasses
 import functools
 import operator
 import os
@@ -26,22 +26,21 @@ import os
 import numpy as np
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
-from ...build import DEFAULT_CFLAGS, build, driver_runtime, plain_library
+from ...build import DEFAULT_CFLAGS, driver_runtime
 from ...codegen.cffi_decl import taylor_runtime_cdef
-from ...codegen.record import GeneratedCode, header_context, new_code
-from ...codegen.templates import environment
+from ...codegen.record import GeneratedCode
+from ...codegen.taylor.decompose import Decomposition
+from ...codegen.taylor.emit import P_MAX, runtime_key_texts, runtime_sources
 from ...codes import model_error_flag
 from ...errors import LagcodegenError
 from ...formulation.scene import Scene
+from ...libraries import taylor_integrator, taylor_jet_library
 from ...model.events import records
 from ...result import Result
 from ...util import c_vector
 from ..base import message as base_message
 from ..control import CANCELLED, POLL_EVERY, install, raise_pending
 # ------------------------------------------------------------------------------------------
-from .decompose import Decomposition, decompose
-from .emit import (P_MAX, check_events, jet_sources, runtime_key_texts, runtime_sources, taylor_cdef,
-                   taylor_sources)
 
 #: The statistics struct's fields a run reads, in one call.
 _STATS = operator.attrgetter("nsteps", "njet", "order", "nroot", "t_reached", "h_last", "h_min", "h_max",
@@ -76,27 +75,6 @@ def message(flag: int, model_error: int, detail: str) -> str:
     return base_message(flag, model_error, detail, "Taylor")
 
 
-def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
-    """The Taylor files of ``scene`` as a :class:`GeneratedCode` ready for
-    :func:`lagcodegen.build.build` (``native=False``: no SUNDIALS): ``<prefix>_taylor.h``/``.c``
-    plus the model header ``<prefix>.h`` and a small ``<prefix>_taylor_model.c`` defining its
-    functions through the Taylor code (no model compiled twice: the n = 20 pendulum builds in
-    about the time of its plain model)."""
-    events = check_events(scene, events)
-    d = decompose(scene, events)
-    plain = dataclasses.replace(scene, jacobian=False, sparse_jacobian=False)
-    code = new_code(plain)
-    code.scene = scene
-    ctx = header_context(plain, code)
-    env = environment()
-    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
-    code.files.update(taylor_sources(scene, events, d))
-    code.files[f"{scene.prefix}_taylor_model.c"] = env.get_template("taylor/model_shim.c.j2").render(**ctx)
-    code.cdef_extra += taylor_cdef(scene.prefix)
-    code.cffi_headers.append(f"{scene.prefix}_taylor.h")
-    return code, d, events
-
-
 @functools.lru_cache(maxsize=4)
 def _taylor_runtime(cc: str, cflags: tuple[str, ...]):
     return driver_runtime("taylor", [f"P_MAX {P_MAX}", *runtime_key_texts()], runtime_sources, taylor_runtime_cdef(),
@@ -110,51 +88,30 @@ def taylor_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
     return _taylor_runtime(cc or os.environ.get("CC") or "cc", tuple(cflags))
 
 
-def jet_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
-    """The model part of the Taylor integrator of ``scene`` for the runtime's driver: a
-    :class:`GeneratedCode` (layout and names of the plain scene) whose files are
-    ``<prefix>_taylor_jet.c`` and ``lcg_taylor_model.h``."""
-    events = check_events(scene, events)
-    d = decompose(scene, events)
-    code = new_code(dataclasses.replace(scene, jacobian=False, sparse_jacobian=False))
-    code.scene = scene
-    code.files.update(jet_sources(scene, events, d))
-    return code, d, events
-
-
-#: A jet of at least this many operations compiles with :data:`LARGE_JET_CFLAGS` where the caller
-#: keeps the default flags: gcc -O1 compiled the 12-joint chain's jet (6033 operations) in 3.3 s
-#: against 6.1 s at -O2, and its steps ran in 0.95x the time (the 10-link pendulum's, 165
-#: operations: 0.99x; the 3-link pendulum's: 1.15x, so small jets stay at -O2).
-LARGE_JET_OPS = 2000
-LARGE_JET_CFLAGS = ("-O1", "-fPIC", "-std=c99")
-
-
 def build_taylor(scene: Scene, *, events=(), cc: str | None = None, verbose: bool = False,
                  runtime: bool = True, cflags: tuple[str, ...] = DEFAULT_CFLAGS) -> "TaylorModule":
-    """Generate and compile the Taylor integrator of ``scene`` (cached like every build): with
-    ``runtime``, only its jet, for the Taylor runtime's driver (compiled once with the default
-    flags); else the standalone integrator, driver included. ``cflags``: the C compiler's flags
-    of what is compiled here (e.g. ``-DLCG_TAYLOR_CAP=1.3`` changes a standalone driver's step
+    """The compiled Taylor integrator of ``scene`` (generated and compiled by
+    :mod:`lagcodegen.libraries`, cached like every build): with ``runtime``, only its jet
+    (:func:`~lagcodegen.libraries.taylor_jet_library`, its table's layout checked here), for the
+    Taylor runtime's driver (compiled once with the default flags); else the standalone
+    integrator, driver included (:func:`~lagcodegen.libraries.taylor_integrator`). ``cflags``:
+    the C compiler's flags of what is compiled there (e.g. ``-DLCG_TAYLOR_CAP=1.3`` changes a standalone driver's step
     cap, see templates/taylor/_driver.j2; the runtime's driver, lagcodegen/runtime/lcg_taylor_driver.h,
     has the same rule; a large jet compiled for the runtime with the default flags takes
-    :data:`LARGE_JET_CFLAGS`)."""
+    :data:`lagcodegen.libraries.LARGE_JET_CFLAGS`)."""
     cflags = tuple(cflags)
     if runtime and any(flag.startswith("-DLCG_TAYLOR_CAP") for flag in cflags):
         raise LagcodegenError("LCG_TAYLOR_CAP sets the step cap of a driver, and the Taylor runtime's driver is "
                               "compiled once with the default flags: build the standalone integrator "
                               "(build_taylor(..., runtime=False)) to compile it with another cap")
     if not runtime:
-        code, d, events = taylor_code(scene, events)
-        built = build(code, native=False, cc=cc, cflags=cflags, verbose=verbose)
-        return TaylorModule(code, built.module, d, events, built.path)
-    code, d, events = jet_code(scene, events)
-    if cflags == tuple(DEFAULT_CFLAGS) and len(d.ops) >= LARGE_JET_OPS:
-        cflags = LARGE_JET_CFLAGS
+        built, d, events = taylor_integrator(scene, events, cc=cc, cflags=cflags, verbose=verbose)
+        return TaylorModule(built.code, built.module, d, events, built.path)
+    jet = taylor_jet_library(scene, events, cc=cc, cflags=cflags, verbose=verbose)
+    code, d, events = jet.extra
     rt = taylor_runtime(cc)
-    library, path, _ = plain_library(f"the Taylor jet of model {code.model_name!r}", f"{code.prefix}_taylor",
-                                     code.files, cc, cflags, verbose=verbose)
-    getter = getattr(library, f"{code.prefix}_taylor_table")
+    library, path = jet.handle, jet.path
+    getter = getattr(library, jet.functions["table"])
     getter.restype = ctypes.c_void_p
     table = rt.ffi.cast("const lcg_taylor_model *", getter())
     got = (table.abi, table.nq, table.nz, table.ny, table.np, table.nout, table.ne, table.nrows, table.order_max)

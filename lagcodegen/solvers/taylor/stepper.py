@@ -17,11 +17,11 @@ import numpy as np
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
 from ...build import DEFAULT_CFLAGS, driver_runtime
 from ...codegen.cffi_decl import POLL_CDEF, TAYLOR_TABLE_CDEF, driver_cdef, header_cdef
+from ...codegen.taylor.emit import P_MAX, runtime_key_texts, runtime_sources
 from ...errors import LagcodegenError
 from ...runtime import sources as runtime_files
 from ..control import POLL_EVERY, install
 # ------------------------------------------------------------------------------------------
-from .emit import P_MAX, runtime_key_texts, runtime_sources
 from .run import taylor_module
 from .runner import events_struct, run_stats
 

@@ -15,22 +15,27 @@ Two sets of files (the jet from the same template, taylor/jet.c.j2):
   ``lcg_taylor.c`` with ``lcg_taylor_driver.h``, the step it shares with the integrator object's
   ``lcg_taylor_stepper.c``; compiled once per installation): what ``simulate(method="taylor")``
   builds.
+
+As :class:`~lagcodegen.codegen.record.GeneratedCode` records (:func:`taylor_code`: the standalone
+integrator with the model header, for :func:`lagcodegen.build.build`; :func:`jet_code`: the jet
+for the runtime's driver, compiled by :func:`lagcodegen.libraries.taylor_jet_library`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 
 import symengine as se
 
 # --- the rest of lagcodegen: the one place to repoint when modules move -------------------
-from ...codegen.c import c_expr, print_block
-from ...codegen.record import header_context, new_code
-from ...codegen.templates import environment, templates_dir
-from ...codegen.signatures import (DRIVERS, TAYLOR_EVENTS, TAYLOR_OPTIONS, TAYLOR_STATS, cffi_struct,
-                                     standalone)
-from ...codegen.signatures import c_header as types_header
+from ..c import c_expr, print_block
+from ..record import GeneratedCode, header_context, new_code
+from ..templates import environment, templates_dir
+from ..signatures import (DRIVERS, TAYLOR_EVENTS, TAYLOR_OPTIONS, TAYLOR_STATS, cffi_struct,
+                          standalone)
+from ..signatures import c_header as types_header
 from ...codes import c_header
 from ...errors import LagcodegenError
 from ...runtime import source as runtime_file
@@ -219,3 +224,36 @@ int {p}_taylor_solve(const double *p, const double *y0, int nt, const double *to
 int {p}_taylor_jet(double t, const double *y, const double *p, int order, double *jet);
 int {p}_taylor_outputs(double t, const double *y, const double *p, double *out);
 """
+
+
+def taylor_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
+    """The Taylor files of ``scene`` as a :class:`GeneratedCode` ready for
+    :func:`lagcodegen.build.build` (``native=False``: no SUNDIALS): ``<prefix>_taylor.h``/``.c``
+    plus the model header ``<prefix>.h`` and a small ``<prefix>_taylor_model.c`` defining its
+    functions through the Taylor code (no model compiled twice: the n = 20 pendulum builds in
+    about the time of its plain model)."""
+    events = check_events(scene, events)
+    d = decompose(scene, events)
+    plain = dataclasses.replace(scene, jacobian=False, sparse_jacobian=False)
+    code = new_code(plain)
+    code.scene = scene
+    ctx = header_context(plain, code)
+    env = environment()
+    code.files[code.header_name] = env.get_template("c/model.h.j2").render(**ctx)
+    code.files.update(taylor_sources(scene, events, d))
+    code.files[f"{scene.prefix}_taylor_model.c"] = env.get_template("taylor/model_shim.c.j2").render(**ctx)
+    code.cdef_extra += taylor_cdef(scene.prefix)
+    code.cffi_headers.append(f"{scene.prefix}_taylor.h")
+    return code, d, events
+
+
+def jet_code(scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, list]:
+    """The model part of the Taylor integrator of ``scene`` for the runtime's driver: a
+    :class:`GeneratedCode` (layout and names of the plain scene) whose files are
+    ``<prefix>_taylor_jet.c`` and ``lcg_taylor_model.h``."""
+    events = check_events(scene, events)
+    d = decompose(scene, events)
+    code = new_code(dataclasses.replace(scene, jacobian=False, sparse_jacobian=False))
+    code.scene = scene
+    code.files.update(jet_sources(scene, events, d))
+    return code, d, events

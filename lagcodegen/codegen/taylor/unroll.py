@@ -1,5 +1,5 @@
 """The C text of a small model's Taylor jet with its first orders unrolled: order k of every
-elementary operation (:mod:`~lagcodegen.solvers.taylor.decompose`) written out for each
+elementary operation (:mod:`~lagcodegen.codegen.taylor.decompose`) written out for each
 k = 0..K-1 with constant indices, each Cauchy sum as a balanced (pairwise) tree of its terms.
 
 Why: for a small model the jet's time is the latency of its sums, not their operations. Inside
