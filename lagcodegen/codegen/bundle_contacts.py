@@ -5,8 +5,9 @@ restitution, notes sec. 4.3) add: the contact functions ``<prefix>_impact.c`` wi
 impact law M dv = R^T P with Newton's law), the tables they point to (``<prefix>_dae_table.c``,
 ``<prefix>_table.c`` with the unconstrained model ``<prefix>.c``), all compiled into the bundle's
 library, and ``rk4_example.c`` that drives them: fixed-step RK4 with every impact located by
-bisection within its step and the jump applied there, persistent contact and release (the rules
-of the runtime's impact driver, lcg_imp.c, on fixed steps)."""
+bisection within its step and the jump applied there, persistent contact and release. The impact
+law is the runtime's own file ``lcg_imp_law.c`` (with ``lcg_imp_law.h``), which the impact drivers
+(lcg_imp.c, lcg_imp_ida.c) use: the bundle ships it as it is, in its library."""
 
 from __future__ import annotations
 
@@ -60,13 +61,14 @@ def contact_files(code: GeneratedCode) -> dict[str, str]:
     return {f"{pre}_impact.c": code.files[f"{pre}_impact.c"], "lcg_imp_model.h": code.files["lcg_imp_model.h"],
             f"{pre}.c": code.files[f"{pre}.c"], f"{pre}.h": code.files[f"{pre}.h"],
             f"{pre}_table.c": model_table(code), f"{pre}_dae_table.c": dae_table(code),
-            **runtime_files(("lcg_model.h", "lcg_dae_model.h")), "lcg_codes.h": codes_header()}
+            **runtime_files(("lcg_model.h", "lcg_dae_model.h", "lcg_imp_law.h", "lcg_imp_law.c")),
+            "lcg_codes.h": codes_header()}
 
 
 def library_sources(code: GeneratedCode) -> list[str]:
     """The C files the contact bundle adds to its library."""
     pre = code.prefix
-    return [f"{pre}_impact.c", f"{pre}.c", f"{pre}_table.c", f"{pre}_dae_table.c"]
+    return [f"{pre}_impact.c", f"{pre}.c", f"{pre}_table.c", f"{pre}_dae_table.c", "lcg_imp_law.c"]
 
 
 def contact_table(code: GeneratedCode, table: list) -> None:
@@ -81,4 +83,7 @@ def contact_table(code: GeneratedCode, table: list) -> None:
                                         "contacts, the impact law) and their table (lcg_imp_model.h)"),
                     (f"{pre}.c", f"the unconstrained model ({pre}.h), which the tables point to"),
                     (f"{pre}_table.c", "the unconstrained model's function table (lcg_model.h)"),
-                    (f"{pre}_dae_table.c", "the constrained model's function table (lcg_dae_model.h)")]
+                    (f"{pre}_dae_table.c", "the constrained model's function table (lcg_dae_model.h)"),
+                    ("lcg_imp_law.c", "the impact law (Newton's law on the contacts jointly, persistent contact, "
+                                      "release), lagcodegen's runtime file as its impact drivers use it; "
+                                      "lcg_imp_law.h its declarations")]

@@ -122,49 +122,28 @@ int lcg_ida_solve(const lcg_dae_model *m, const double *p, const double *yy0, co
     }
     LCG_CREATE_CONTEXT(LCG_FLAG_NOMEM_IDA);
 
-    yy = N_VNew_Serial(ng, ctx);
-    yp = N_VNew_Serial(ng, ctx);
-    id = N_VNew_Serial(ng, ctx);
-    mem = IDACreate(ctx);
-    A = SUNDenseMatrix(ng, ng, ctx);
+    if ((flag = ida_create(ctx, ng, ny, &yy, &yp, &id, &mem, &A, &LS, LCG_FLAG_NOMEM_IDA)) != 0)
+        goto done;
     if (roots_on && (data.info = (int *)malloc(sizeof(int) * (size_t)m->nroot)) == NULL) {
         flag = LCG_FLAG_NOMEM_IDA;
         goto done;
     }
-    if (yy == NULL || yp == NULL || id == NULL || mem == NULL || A == NULL) {
-        flag = LCG_FLAG_NOMEM_IDA;
-        goto done;
-    }
-    LS = SUNLinSol_Dense(yy, A, ctx);
     yv = N_VGetArrayPointer(yy);
     ypv = N_VGetArrayPointer(yp);
     for (i = 0; i < ng; ++i) {
         yv[i] = yy0[i];
         ypv[i] = yp0[i];
-        N_VGetArrayPointer(id)[i] = i < ny ? 1.0 : 0.0; /* q, v differential; lambda, mu algebraic */
     }
 
-    if ((flag = IDAInit(mem, res, tout[0], yy, yp)) < 0)
+    if ((flag = ida_init(mem, res, tout[0], yy, yp, id, &data, opt->suppress_alg, LS, A)) < 0)
         goto done;
     flag = set_tolerances(mem, 1, ctx, ng, opt->rtol, opt->atol, opt->atol_vec, -1, &abstol, LCG_FLAG_NOMEM_IDA);
     if (flag < 0)
         goto done;
-    IDASetUserData(mem, &data);
-    if ((flag = IDASetId(mem, id)) < 0)
-        goto done;
-    if (opt->suppress_alg && (flag = IDASetSuppressAlg(mem, 1)) < 0)
-        goto done;
-    if ((flag = IDASetLinearSolver(mem, LS, A)) < 0)
-        goto done;
     if (opt->jacobian && m->ggl_jac != NULL && (flag = IDASetJacFn(mem, jac)) < 0)
         goto done;
-    if (roots_on) {
-        if ((flag = IDARootInit(mem, m->nroot, roots)) < 0)
-            goto done;
-        if (ev->rootdir != NULL && (flag = IDASetRootDirection(mem, (int *)ev->rootdir)) < 0)
-            goto done;
-        IDASetNoInactiveRootWarn(mem);
-    }
+    if ((flag = ida_roots(mem, roots_on ? m->nroot : 0, roots, roots_on ? ev->rootdir : NULL)) < 0)
+        goto done;
     if ((flag = set_step_limits(mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)

@@ -84,46 +84,31 @@ static int is_setup(lcg_ida_stepper *s, const double *yy0, const double *yp0)
     const lcg_ida_options *opt = &s->opt;
     int i, flag, ny = m->ny, ng = m->ng;
 
-    s->yy = N_VNew_Serial(ng, s->ctx);
-    s->yp = N_VNew_Serial(ng, s->ctx);
-    s->id = N_VNew_Serial(ng, s->ctx);
+    flag = ida_create(s->ctx, ng, ny, &s->yy, &s->yp, &s->id, &s->mem, &s->A, &s->LS, LCG_FLAG_NOMEM_IDA);
+    if (flag != 0)
+        return flag;
     s->ictol = N_VNew_Serial(ng, s->ctx);
-    s->mem = IDACreate(s->ctx);
-    s->A = SUNDenseMatrix(ng, ng, s->ctx);
     if (s->roots_on && (s->data.info = (int *)malloc(sizeof(int) * (size_t)m->nroot)) == NULL)
         return LCG_FLAG_NOMEM_IDA;
-    if (s->yy == NULL || s->yp == NULL || s->id == NULL || s->ictol == NULL || s->mem == NULL || s->A == NULL
-        || (s->LS = SUNLinSol_Dense(s->yy, s->A, s->ctx)) == NULL)
+    if (s->ictol == NULL)
         return LCG_FLAG_NOMEM_IDA;
     for (i = 0; i < ng; ++i) {
         N_VGetArrayPointer(s->yy)[i] = yy0[i];
         N_VGetArrayPointer(s->yp)[i] = yp0[i];
-        N_VGetArrayPointer(s->id)[i] = i < ny ? 1.0 : 0.0; /* q, v differential; lambda, mu algebraic */
         N_VGetArrayPointer(s->ictol)[i] = i >= ny ? opt->ic_alg_atol
                                           : (opt->atol_vec != NULL ? opt->atol_vec[i] : opt->atol);
     }
-    if ((flag = IDAInit(s->mem, res, s->b.tv[0], s->yy, s->yp)) < 0)
+    flag = ida_init(s->mem, res, s->b.tv[0], s->yy, s->yp, s->id, &s->data, opt->suppress_alg, s->LS, s->A);
+    if (flag < 0)
         return flag;
     flag = set_tolerances(s->mem, 1, s->ctx, ng, opt->rtol, opt->atol, opt->atol_vec, -1, &s->abstol,
                           LCG_FLAG_NOMEM_IDA);
     if (flag < 0)
         return flag;
-    IDASetUserData(s->mem, &s->data);
-    if ((flag = IDASetId(s->mem, s->id)) < 0)
-        return flag;
-    if (opt->suppress_alg && (flag = IDASetSuppressAlg(s->mem, 1)) < 0)
-        return flag;
-    if ((flag = IDASetLinearSolver(s->mem, s->LS, s->A)) < 0)
-        return flag;
     if (opt->jacobian && m->ggl_jac != NULL && (flag = IDASetJacFn(s->mem, jac)) < 0)
         return flag;
-    if (s->roots_on) {
-        if ((flag = IDARootInit(s->mem, m->nroot, roots)) < 0)
-            return flag;
-        if (s->ev->rootdir != NULL && (flag = IDASetRootDirection(s->mem, (int *)s->ev->rootdir)) < 0)
-            return flag;
-        IDASetNoInactiveRootWarn(s->mem);
-    }
+    if ((flag = ida_roots(s->mem, s->roots_on ? m->nroot : 0, roots, s->roots_on ? s->ev->rootdir : NULL)) < 0)
+        return flag;
     return lcg_stepper_limits(s->mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step,
                               opt->max_steps);
 }

@@ -308,24 +308,18 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         free(ibuf);
         return st->flag = LCG_FLAG_NOMEM_IDA;
     }
-    yy = N_VNew_Serial(ng, ctx);
-    yp = N_VNew_Serial(ng, ctx);
-    id = N_VNew_Serial(ng, ctx);
+    if ((flag = ida_create(ctx, ng, ny, &yy, &yp, &id, &mem, &A, &LS, LCG_FLAG_NOMEM_IDA)) != 0)
+        goto done;
     atolv = N_VNew_Serial(ng, ctx);
     tmp = N_VNew_Serial(ng, ctx);
-    mem = IDACreate(ctx);
-    A = SUNDenseMatrix(ng, ng, ctx);
-    if (yy == NULL || yp == NULL || id == NULL || atolv == NULL || tmp == NULL || mem == NULL || A == NULL) {
+    if (atolv == NULL || tmp == NULL) {
         flag = LCG_FLAG_NOMEM_IDA;
         goto done;
     }
-    LS = SUNLinSol_Dense(yy, A, ctx);
     yyv = N_VGetArrayPointer(yy);
     ypv = N_VGetArrayPointer(yp);
-    for (i = 0; i < ng; ++i) {
-        N_VGetArrayPointer(id)[i] = i < ny ? 1.0 : 0.0; /* q, v differential; lambda, mu algebraic */
+    for (i = 0; i < ng; ++i) /* q, v: atol; lambda, mu: ic_alg_atol */
         N_VGetArrayPointer(atolv)[i] = i < ny ? opt->atol : opt->ic_alg_atol;
-    }
     for (i = 0; i < ny; ++i)
         ys[i] = y0[i];
     /* the contacts the initial state rests on (touching, at rest, pushing) start in persistent contact */
@@ -346,22 +340,12 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         lamout[i] = yyv[ny + i];
     st->nt_done = 1;
 
-    if ((flag = IDAInit(mem, res, tout[0], yy, yp)) < 0)
+    if ((flag = ida_init(mem, res, tout[0], yy, yp, id, &d, opt->suppress_alg, LS, A)) < 0)
         goto done;
     if ((flag = IDASVtolerances(mem, opt->rtol, atolv)) < 0)
         goto done;
-    IDASetUserData(mem, &d);
-    if ((flag = IDASetId(mem, id)) < 0)
+    if ((flag = ida_roots(mem, nall, roots, dirs)) < 0)
         goto done;
-    if (opt->suppress_alg && (flag = IDASetSuppressAlg(mem, 1)) < 0)
-        goto done;
-    if ((flag = IDASetLinearSolver(mem, LS, A)) < 0)
-        goto done;
-    if ((flag = IDARootInit(mem, nall, roots)) < 0)
-        goto done;
-    if ((flag = IDASetRootDirection(mem, dirs)) < 0)
-        goto done;
-    IDASetNoInactiveRootWarn(mem);
     if ((flag = set_step_limits(mem, 1, opt->max_order, opt->first_step, opt->max_step, opt->min_step)) < 0)
         goto done;
     if (nt > 1 && (flag = IDASetStopTime(mem, tout[nt - 1])) < 0)

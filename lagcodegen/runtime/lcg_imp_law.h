@@ -1,5 +1,6 @@
 /* lcg_imp_law.h -- lagcodegen's runtime: the impact law of frictionless and no-slip contacts,
- * shared by the impact drivers (lcg_imp.c: index 1 on CVODE; lcg_imp_ida.c: GGL on IDA). Through
+ * shared by the impact drivers (lcg_imp.c: index 1 on CVODE; lcg_imp_ida.c: GGL on IDA) and the
+ * RK4 example of the bundles of systems with contacts, which ship this file. Through
  * a model's contact table (lcg_imp_model.h): Newton's law on the contacts that touch and close,
  * solved jointly with the equality rows and the persistent contacts (im->impact), the contacts
  * that would pull left out (the active set of the impact's complementarity problem, by

@@ -1,7 +1,9 @@
 /* lcg_sundials.h -- the SUNDIALS plumbing shared by the native drivers (lcg_cvode.c, lcg_cvc.c,
- * lcg_ida.c): how SUNDIALS errors reach the caller's stats (record_error, the context and its
- * error handler) and the drivers' flag conventions (lcg_codes.h: LCG_FLAG_NOMEM out of memory,
- * -1 step budget used up, LCG_MODEL_ERROR_FLAG(rc) a model error).
+ * lcg_ida.c, ...) and steppers: how SUNDIALS errors reach the caller's stats (record_error, the
+ * context and its error handler), the solvers' shared setup (tolerances, step limits, IDA's
+ * objects and options: ida_create, ida_init, ida_roots) and the drivers' flag conventions
+ * (lcg_codes.h: LCG_FLAG_NOMEM out of memory, -1 step budget used up, LCG_MODEL_ERROR_FLAG(rc) a
+ * model error).
  *
  * Included by a driver source after sundials_api.h, with LCG_STATS defined (its statistics type,
  * with a char message[]), and, for root finding, LCG_ROOT_INFO (CVodeGetRootInfo or
@@ -90,6 +92,64 @@ static inline int set_tolerances(void *mem, int ida, SUNContext ctx, int n, doub
     for (i = 0; i < n; ++i)
         N_VGetArrayPointer(*abstol)[band_place(band_nq, i)] = atol_vec[i];
     return ida ? IDASVtolerances(mem, rtol, *abstol) : CVodeSVtolerances(mem, rtol, *abstol);
+}
+
+/* The objects of an IDA run of ng unknowns (lcg_ida.c, lcg_ida_stepper.c, lcg_imp_ida.c), of the
+ * context ctx: the vectors *yy, *yp, the vector *id of the differential components (the first ny:
+ * q, v; the others, lambda and mu, algebraic), IDA's memory *mem, the dense matrix *A and its
+ * linear solver *LS. 0, or nomem when one of them cannot be made (those made are the caller's to
+ * free, free_solver). */
+static inline int ida_create(SUNContext ctx, int ng, int ny, N_Vector *yy, N_Vector *yp, N_Vector *id, void **mem,
+                             SUNMatrix *A, SUNLinearSolver *LS, int nomem)
+{
+    int i;
+
+    *yy = N_VNew_Serial(ng, ctx);
+    *yp = N_VNew_Serial(ng, ctx);
+    *id = N_VNew_Serial(ng, ctx);
+    *mem = IDACreate(ctx);
+    *A = SUNDenseMatrix(ng, ng, ctx);
+    if (*yy == NULL || *yp == NULL || *id == NULL || *mem == NULL || *A == NULL
+        || (*LS = SUNLinSol_Dense(*yy, *A, ctx)) == NULL)
+        return nomem;
+    for (i = 0; i < ng; ++i)
+        N_VGetArrayPointer(*id)[i] = i < ny ? 1.0 : 0.0;
+    return 0;
+}
+
+/* IDA's setup on the objects of ida_create, as every IDA driver makes it: IDAInit (the residual
+ * res from t0, yy, yp), the user data, the differential components id, the algebraic ones
+ * excluded from the error test (suppress_alg), the linear solver LS on A. The tolerances are the
+ * caller's to set next. 0, or the first negative flag. */
+static inline int ida_init(void *mem, IDAResFn res, double t0, N_Vector yy, N_Vector yp, N_Vector id, void *user_data,
+                           int suppress_alg, SUNLinearSolver LS, SUNMatrix A)
+{
+    int flag;
+
+    if ((flag = IDAInit(mem, res, t0, yy, yp)) < 0)
+        return flag;
+    IDASetUserData(mem, user_data);
+    if ((flag = IDASetId(mem, id)) < 0)
+        return flag;
+    if (suppress_alg && (flag = IDASetSuppressAlg(mem, 1)) < 0)
+        return flag;
+    return IDASetLinearSolver(mem, LS, A);
+}
+
+/* IDA's root finding of nroot functions g (nroot 0: none), with the directions dirs (NULL: both),
+ * no warning for roots that are zero at the start. 0, or the first negative flag. */
+static inline int ida_roots(void *mem, int nroot, IDARootFn g, const int *dirs)
+{
+    int flag;
+
+    if (nroot <= 0)
+        return 0;
+    if ((flag = IDARootInit(mem, nroot, g)) < 0)
+        return flag;
+    if (dirs != NULL && (flag = IDASetRootDirection(mem, (int *)dirs)) < 0)
+        return flag;
+    IDASetNoInactiveRootWarn(mem);
+    return 0;
 }
 
 /* After CVodeFree / IDAFree: the solver's objects freed in this order, the linear and nonlinear

@@ -154,3 +154,16 @@ def test_contact_bundles_refuse_what_they_do_not_carry():
         render_constrained_bundle(_ball_system(), "fortran", outputs=["energy"], reference=False)
     with pytest.raises(ModelError, match="Coulomb friction"):
         render_constrained_bundle(_ball_system(friction=0.5), outputs=["energy"], reference=False)
+
+
+def test_contact_bundle_ships_the_runtime_impact_law_as_it_is():
+    """The example's impact law is the runtime's lcg_imp_law.c (the file the impact drivers use),
+    shipped unchanged and compiled into the library, not a copy in the example."""
+    from lagcodegen.runtime import source
+    files = render_constrained_bundle(_ball_system(), outputs=["energy"], reference=False)
+    for name in ("lcg_imp_law.c", "lcg_imp_law.h"):
+        assert files[name] == source(name)
+    example = files["rk4_example.c"]
+    assert "lcg_imp_jump(&law" in example and "lcg_imp_release_pulling(&law" in example
+    assert "im->impact(" not in example
+    assert "lcg_imp_law.o" in files["Makefile"] and "lcg_imp_law.c" in files["CMakeLists.txt"]
