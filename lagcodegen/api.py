@@ -78,7 +78,21 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress``: True draws a line on stderr naming the stage and how far it is (derive,
     formulate, cse, compile) once a stage lasts a second; a callable is called as
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
-    :func:`lagcodegen.progress.enabled` says (off unless set).
+    :func:`lagcodegen.progress.enabled` says (off unless set). A build that really runs is the
+    outer stage ``build model '<name>' (not cached)``; a model from the cache reports nothing.
+
+    The pipeline cache: the generated code is kept in the build cache under a key of the model's
+    canonical form (:func:`lagcodegen.model.canonical.canonical_form`: coordinates, parameters
+    and their defaults, points, bodies, links and joints, energies, forces, outputs, inputs, in
+    declaration order, every expression as ``sympy.srepr``), these options (but ``native`` and
+    ``verbose``) and the generator record (lagcodegen's sources, sympy, symengine): compiling an
+    equal model again, in this process or a new one, loads the code and its library without
+    deriving or generating anything; any change of the model is another key. The returned
+    model's scene is then derived again only when a run needs it (the Taylor method, events,
+    sensitivities, a drawing, reading ``code.scene``). A model with a part that has no canonical
+    form (a sympy function implemented in Python or a ``Function`` subclass of the user's, an
+    object of a class other than the model's own) is not cached: it is derived and generated
+    every time, never a wrong hit.
     """
     converted = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
     if converted is not model and values:  # sympy's objects take values by symbol too: the scene's are by name
@@ -300,6 +314,12 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     progress:
         As :func:`compile_model`'s: True a progress line on stderr, a callable
         ``progress(stage, done, total, elapsed)``, False nothing, None the caller's setting.
+
+    The index-1 and GGL formulations are cached as :func:`compile_model` is: by the canonical
+    form of the system (its model, constraints, inequalities with their restitutions, tangents
+    and friction), the events, outputs, parameters, prefix, language and Jacobian option; the
+    run-time options (``baumgarte``, ``projection``) are not part of the code and not of the key.
+    The minimal formulation is derived every time.
     """
     with _progress.enabled(progress):
         if not isinstance(system, ConstrainedSystem):
@@ -436,6 +456,16 @@ def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
     The file's initial state (``[simulation] initial``) is the compiled system's default:
     ``simulate(t)`` (and ``integrator()``, ``fit``) without ``q0`` (or ``v0``) starts from the
     file's values, as the command line does; ``initial_defaults`` holds them as (q0, v0).
+
+    Cached as :func:`compile_model` and :func:`compile_constrained` are: the key is the loaded
+    model's canonical form (of the file's model, its constraints and events: whatever the file
+    says, and any change made to the loaded ModelFile since), the options the file's settings
+    and ``options`` give the compilation (outputs, run-time parameters, parameter values,
+    Jacobian, formulation) and the generator record. A new process compiling an unchanged file
+    reads the file (parsed, never executed) and loads the code and library from the cache
+    without deriving; an edit that changes the model misses (one that does not, a comment or
+    the integration settings, hits). Derivation errors still name the file and line: the model
+    is derived before a build that really runs. The minimal formulation is not cached.
     """
     mf = _model_file_argument(mf)
     sim = _compile_file(mf, **options)
