@@ -145,6 +145,9 @@ def test_a_model_file_loads_in_a_new_process_without_deriving_and_any_edit_misse
         path.write_text(PENDULUM.format(name=name, l2="1.0").replace('"m2"', '"m1"'))  # an expression
         with pytest.raises(AssertionError, match="derived although"):
             lcg.compile_file(path)
+        path.write_text("# a comment changes no model\n" + PENDULUM.format(name=name, l2="1.0").replace(
+            "[simulation]", "[simulation]\nt_end = 3.0"))  # nor do the integration's settings
+        np.testing.assert_array_equal(lcg.compile_file(path).simulate(T).y, want.y)  # the same model: a hit
         path.write_text(PENDULUM.format(name=name, l2="1.0"))
         with pytest.raises(AssertionError, match="derived although"):
             lcg.compile_file(path, outputs=[])  # other options: another entry
