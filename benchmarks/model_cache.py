@@ -8,9 +8,10 @@ Rows, each a new process (``python -c``), ``import lagcodegen`` timed apart:
 * ``cold model``: the same model under a name never used before (another cache key, other C):
   derive, generate and compile the model's C (the runtime already in the cache).
 
-Models: the bundled ``examples/double_pendulum.toml`` and ``examples/cartesian_pendulum.toml``
-(constrained: index 1) through ``compile_file``, and 5- and 10-link pendulums built in Python
-(:func:`lagcodegen.model.systems.n_link_pendulum`) through ``compile_model`` (``--quick``: 5 only). Each process checks what it got: for
+Models: the bundled ``examples/double_pendulum.toml``, ``examples/cartesian_pendulum.toml``
+(constrained: index 1) and the 6-joint ``examples/ur_like_arm.urdf`` through ``compile_file``,
+and 5- and 10-link pendulums built in Python (:func:`lagcodegen.model.systems.n_link_pendulum`)
+through ``compile_model`` (``--quick``: 5 only). Each process checks what it got: for
 the warm rows that nothing was derived (``stored_scene(code) is None``). Medians over
 ``--rounds`` rounds, contenders round-robin; the load average is printed. A measuring
 instrument: it asserts nothing about the times.
@@ -66,12 +67,15 @@ def run(kind: str, source: str, cache: Path) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def variant(name: str, folder: Path) -> str:
-    """A copy of examples/<name>.toml under another model name: a new cache key and new C to compile."""
-    text = (EXAMPLES / f"{name}.toml").read_text()
+def variant(name: str, folder: Path, suffix: str = ".toml") -> str:
+    """A copy of examples/<name><suffix> under another model name: a new cache key and new C to compile."""
+    text = (EXAMPLES / f"{name}{suffix}").read_text()
     other = f"{name}_{uuid.uuid4().hex[:8]}"
-    path = folder / f"{other}.toml"
-    path.write_text(text.replace(f'name = "{name}"', f'name = "{other}"', 1))
+    path = folder / f"{other}{suffix}"
+    named = (f'<robot name="{name}"', f'<robot name="{other}"') if suffix == ".urdf" else \
+        (f'name = "{name}"', f'name = "{other}"')
+    assert named[0] in text, named[0]
+    path.write_text(text.replace(*named, 1))
     return str(path)
 
 
@@ -90,6 +94,8 @@ def main(argv=None) -> int:
                                        lambda: variant("double_pendulum", folder)),
               "cartesian_pendulum.toml": ("file", lambda: str(EXAMPLES / "cartesian_pendulum.toml"),
                                           lambda: variant("cartesian_pendulum", folder))}
+    models["ur_like_arm.urdf (compile_file)"] = ("file", lambda: str(EXAMPLES / "ur_like_arm.urdf"),
+                                                 lambda: variant("ur_like_arm", folder, ".urdf"))
     for n in (5,) if args.quick else (5, 10):
         models[f"{n}-link pendulum (Model)"] = ("model", lambda n=n: f"{n}:chain{n}",
                                                 lambda n=n: f"{n}:chain{n}_{uuid.uuid4().hex[:8]}")
