@@ -195,6 +195,45 @@ def test_a_model_loads_in_a_new_process_without_deriving(tmp_path, monkeypatch):
         exec(source, rebuilt)  # the same statements again: the same canonical form
         np.testing.assert_array_equal(lcg.compile_model(rebuilt["model"], outputs=["energy"]).simulate(
             T, q0=[0.3, -0.2]).y, want.y)
+        model = rebuilt["model"]
+        model.params[next(iter(model.params))] = 1.5  # a parameter's default changed in place
+        with pytest.raises(AssertionError, match="derived although"):
+            lcg.compile_model(model, outputs=["energy"])
+        model.params[next(iter(model.params))] = 1.25
+        model.links[1].mass = sp.Float(0.75)  # a link's mass changed in place
+        with pytest.raises(AssertionError, match="derived although"):
+            lcg.compile_model(model, outputs=["energy"])
+
+
+CONCURRENT = r"""
+import sys
+import numpy as np
+import lagcodegen as lcg
+sim = lcg.compile_file(sys.argv[1])
+np.save(sys.argv[2], sim.simulate(np.linspace(0.0, 1.0, 11)).y)
+"""
+
+
+def test_processes_building_one_model_at_once_all_succeed(tmp_path, monkeypatch):
+    """Three new processes compile one new model file at the same time: each succeeds (one
+    publishes the entry, the others' builds lose the race harmlessly), with the same results, and
+    the entry is then used without deriving."""
+    path = tmp_path / "pendulum.toml"
+    path.write_text(PENDULUM.format(name=f"concurrent_{uuid.uuid4().hex[:8]}", l2="1.0"))
+    env = {**os.environ, "PYTHONPATH": ROOT}
+    procs = [subprocess.Popen([sys.executable, "-c", CONCURRENT, str(path), str(tmp_path / f"y{i}.npy")],
+                              env=env, stderr=subprocess.PIPE, text=True) for i in range(3)]
+    for p in procs:
+        _, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err[-3000:]
+    ys = [np.load(tmp_path / f"y{i}.npy") for i in range(3)]
+    for y in ys[1:]:
+        np.testing.assert_array_equal(y, ys[0])
+    assert not [p for p in cache_dir().iterdir() if p.name.startswith(".build-")
+                and str(os.getpid()) not in p.name and any(str(q.pid) in p.name for q in procs)]
+    with monkeypatch.context() as m:
+        _refusing(m)
+        np.testing.assert_array_equal(lcg.compile_file(path).simulate(T).y, ys[0])
 
 
 def _arm(mass=1.25, axis=(0, 1, 0), coordinate="a", com="-l", name="canon_arm", origin=(0, 0, -1.0)):
