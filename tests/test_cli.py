@@ -1,6 +1,5 @@
 """The lagcodegen command: each subcommand end to end, and its exit codes."""
 
-import os
 import subprocess
 import time
 import uuid
