@@ -16,7 +16,7 @@ Rows, each a new process (``python -c``), ``import lagcodegen`` timed apart:
   impact driver) from a warm cache.
 
 Each process checks what it got (the model's coordinate count, and for the warm rows that nothing
-was derived: ``code.scene is None``). Medians over ``--rounds`` rounds, contenders round-robin;
+was derived: ``stored_scene(code) is None``). Medians over ``--rounds`` rounds, contenders round-robin;
 the load average is printed. This is a measuring instrument: it asserts nothing about the times.
 
 Usage::
@@ -52,13 +52,14 @@ SCRIPT = r"""
 import json, sys, time
 t0 = time.perf_counter()
 import lagcodegen as lcg
+from lagcodegen.codegen.record import stored_scene
 t1 = time.perf_counter()
 path, prefix, limits = sys.argv[1], sys.argv[2] or None, sys.argv[3] == "1"
 sim = lcg.compile_urdf(path, prefix=prefix, load={"limits": True} if limits else None)
 t2 = time.perf_counter()
 code = sim.compiled.code if hasattr(sim, "compiled") else sim.code  # a constrained system's, a model's
 n = len(sim.state_names) // 2 if hasattr(sim, "state_names") else -1
-print(json.dumps(dict(imports=t1 - t0, build=t2 - t1, n=n, derived=getattr(code, "scene", None) is not None)))
+print(json.dumps(dict(imports=t1 - t0, build=t2 - t1, n=n, derived=stored_scene(code) is not None)))
 """
 
 

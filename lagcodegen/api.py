@@ -3,6 +3,9 @@ to a compiled simulation in one call, the sources of a model file, and a sweep o
 file. Each runs the pipeline model -> derivation -> formulation -> codegen -> build -> solvers -> simulation;
 nothing below this module imports it, and the command line (:mod:`lagcodegen.cli`) calls only
 these functions to run a pipeline.
+
+One job: the entry points, each the whole pipeline in one call, with the pipeline cache's keys of
+what they compile (the cache itself: :func:`lagcodegen.cache.cached_code`).
 """
 
 from __future__ import annotations
@@ -19,23 +22,25 @@ from . import build as _build
 from . import progress as _progress
 from . import sweep as _sweep
 from .buildstep import load_source
+from .cache import cached_code, pipeline_key
 from .codegen.bundle import REFERENCE_ATOL, REFERENCE_RTOL, ExampleRun, register_reference_run, render_bundle, \
     render_constrained_bundle
 from .codegen.languages import backend, check_language, generate_code
 from .codegen.constrained import generate_constrained
 from .codegen.events import events_source
-from .codegen.record import GeneratedCode
+from .codegen.record import CachedCode, GeneratedCode
 from .derivation import EquationsOfMotion, derive
 from .errors import ModelError
 from .formulation.constrained import DEFAULT_OUTPUTS
 from .formulation.events import scene_events
 from .formulation.scene import Scene
 from .model.mechanics import as_model
+from .model.canonical import canonical_form
 from .model.model import Model, require_model
 from .modelfile import ModelFile, constrained_outputs, load_model_path
 from .simulation.constrained import ConstrainedSimulation
 from .simulation.minimal import MinimalSimulation
-from .simulation.ode import CompiledModel
+from .simulation.ode import CompiledModel, pickle_code
 from .theory.constraints import FORMULATIONS, ConstrainedSystem
 from .theory.minimal import closest_branch, reduced_model, solve_constraints
 from .simulation.speeds import IndependentSpeedsSimulation
@@ -73,16 +78,60 @@ def compile_model(model: Model, *, jacobian: bool | None = None, outputs=(), run
     ``progress``: True draws a line on stderr naming the stage and how far it is (derive,
     formulate, cse, compile) once a stage lasts a second; a callable is called as
     ``progress(stage, done, total, elapsed)``; False nothing; None (default) as the caller's
-    :func:`lagcodegen.progress.enabled` says (off unless set).
+    :func:`lagcodegen.progress.enabled` says (off unless set). A build that really runs is the
+    outer stage ``build model '<name>' (not cached)``; a model from the cache reports nothing.
+
+    The pipeline cache: the generated code is kept in the build cache under a key of the model's
+    canonical form (:func:`lagcodegen.model.canonical.canonical_form`: coordinates, parameters
+    and their defaults, points, bodies, links and joints, energies, forces, outputs, inputs, in
+    declaration order, every expression as ``sympy.srepr``), these options (but ``native`` and
+    ``verbose``) and the generator record (lagcodegen's sources, sympy, symengine): compiling an
+    equal model again, in this process or a new one, loads the code and its library without
+    deriving or generating anything; any change of the model is another key. The returned
+    model's scene is then derived again only when a run needs it (the Taylor method, events,
+    sensitivities, a drawing, reading ``code.scene``). A model with a part that has no canonical
+    form (a sympy function implemented in Python or a ``Function`` subclass of the user's, an
+    object of a class other than the model's own) is not cached: it is derived and generated
+    every time, never a wrong hit.
     """
     converted = require_model(as_model(model, parameters=values), "compile_model")  # a System: its values are needed
     if converted is not model and values:  # sympy's objects take values by symbol too: the scene's are by name
         values = {getattr(k, "name", k): v for k, v in values.items()}
     model = converted
     with _progress.enabled(progress):
-        return _compile_equations(derive(model), jacobian=jacobian, outputs=outputs,
-                                  runtime_parameters=runtime_parameters, values=values, prefix=prefix, native=native,
-                                  verbose=verbose, lang=lang)
+        return _compile_cached_model(model, derive, jacobian=jacobian, outputs=outputs,
+                                     runtime_parameters=runtime_parameters, values=values, prefix=prefix,
+                                     native=native, verbose=verbose, lang=lang)
+
+
+def _compile_cached_model(model: Model, derive_model: Callable[[Model], EquationsOfMotion], *, jacobian, outputs,
+                          runtime_parameters, values, prefix, native: bool, verbose: bool, lang: str):
+    """:func:`_compile_equations` of ``derive_model(model)`` through the pipeline cache, keyed by
+    the model's canonical form (:func:`lagcodegen.model.canonical.canonical_form`) and these
+    options; a model without one (a Python-defined sympy function, a foreign object) is derived
+    and generated every time, never cached. A model from the cache re-derives its scene when a
+    run needs it (``code.rederive``)."""
+    options = dict(jacobian=jacobian, outputs=list(outputs or ()), runtime_parameters=runtime_parameters,
+                   values=dict(values or {}), prefix=prefix, lang=lang)
+    described, chosen = canonical_form(model), canonical_form(options)
+
+    def scene() -> Scene:
+        eom = derive_model(model)
+        return Scene(eom, jacobian=auto_jacobian(eom) if jacobian is None else jacobian, outputs=outputs or (),
+                     runtime_parameters=runtime_parameters, values=dict(values or {}), prefix=prefix)
+
+    if described is None or chosen is None:
+        return build_code(generate_code(scene(), lang), native=native, verbose=verbose)
+
+    def make():
+        code = generate_code(scene(), lang)
+        return code, pickle_code(code)
+
+    def build(code: GeneratedCode, cached: bool):
+        return build_code(CachedCode.of(code, scene) if cached else code, native=native, verbose=verbose)
+
+    key = pipeline_key("model-code", described, chosen)
+    return cached_code(key, f"model {model.name!r}", make, build)
 
 
 def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = None, limits: Any = None,
@@ -113,13 +162,9 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
     system; ``jacobian`` applies to models only (the index-1 formulation has none).
     """
     import hashlib
-    import pickle
 
-    from .buildstep import generator_record
-    from .cache import cache_key, cached_build
     from .modelfile import urdf as _urdf
     from .modelfile import urdfxml as _urdfxml
-    from .simulation.ode import pickle_code
 
     load = dict(load or {})
     if limits is not None:
@@ -131,8 +176,7 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
     digest = hashlib.sha256(data).hexdigest()
     options = dict(jacobian=jacobian, outputs=None if outputs is None else list(outputs),
                    runtime_parameters=runtime_parameters, values=dict(values or {}), prefix=prefix)
-    key = cache_key(["urdf-code", digest, repr(sorted(load.items())), repr(sorted(options.items())),
-                     repr(sorted(generator_record().items()))])
+    key = pipeline_key("urdf-code", digest, repr(sorted(load.items())), repr(sorted(options.items())))
 
     def described() -> Model | ConstrainedSystem:
         return _urdf.loads(data, filename=str(path), **load)
@@ -153,37 +197,26 @@ def compile_urdf(path: str | os.PathLike, *, load: Mapping[str, Any] | None = No
             raise ModelError(f"{path}: with limits (or mimic='coupled') the URDF is a constrained system, which "
                              "runs on the native drivers only: native=True")
 
-    made: dict = {}
-
-    def make(folder: Path) -> Path:
+    def make():
         model = described()
         if isinstance(model, ConstrainedSystem):
             code, info = constrained_code(model)
-            made["entry"], record = (code, info, model), (pickle_code(code), info, model)
-        else:
-            code = made["entry"] = generate_code(scene(model), "c")
-            record = pickle_code(code)
-        out = folder / "code.pickle"
-        out.write_bytes(pickle.dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
-        return out
+            return (code, info, model), (pickle_code(code), info, model)
+        code = generate_code(scene(model), "c")
+        return code, pickle_code(code)
 
-    def opener(_name: str, file: Path):
-        return pickle.loads(file.read_bytes())  # an entry of the user's own cache, checked by its digest
-
-    with _progress.enabled(progress):
-        entry, _, cached = cached_build(key, f"lcg_urdf_{key}", "code.pickle", make, opener)
-        if not cached:
-            entry = made["entry"]  # with its scene
+    def build(entry, cached: bool):
         if isinstance(entry, tuple):  # a constrained system: (code, info, system)
             code, info, system = entry
             check_native()
             if cached:
-                code.rederive = lambda: constrained_code(described())[0].scene
+                code = CachedCode.of(code, lambda: constrained_code(described())[0].scene)
             return ConstrainedSimulation(system, "index1", build_code(code, native=True), info,
                                          check_baumgarte("auto", "baumgarte"), False)
-        if cached:
-            entry.rederive = scene
-        return build_code(entry, native=native)
+        return build_code(CachedCode.of(entry, scene) if cached else entry, native=native)
+
+    with _progress.enabled(progress):
+        return cached_code(key, f"URDF {Path(path).name}", make, build)
 
 
 def auto_jacobian(eom: EquationsOfMotion) -> bool:
@@ -281,6 +314,12 @@ def compile_constrained(system: ConstrainedSystem, formulation: str = "index1", 
     progress:
         As :func:`compile_model`'s: True a progress line on stderr, a callable
         ``progress(stage, done, total, elapsed)``, False nothing, None the caller's setting.
+
+    The index-1 and GGL formulations are cached as :func:`compile_model` is: by the canonical
+    form of the system (its model, constraints, inequalities with their restitutions, tangents
+    and friction), the events, outputs, parameters, prefix, language and Jacobian option; the
+    run-time options (``baumgarte``, ``projection``) are not part of the code and not of the key.
+    The minimal formulation is derived every time.
     """
     with _progress.enabled(progress):
         if not isinstance(system, ConstrainedSystem):
@@ -333,7 +372,7 @@ def _independent_speeds(system, eliminate, outputs, events, runtime_parameters, 
 
 
 def _compile_constrained(system, formulation, options: dict, outputs, events, runtime_parameters, values, prefix,
-                         verbose, lang):
+                         verbose, lang, check=None):
     """The simulation of ``system`` in ``formulation`` with its ``options`` (those of
     :data:`FORMULATION_OPTIONS`, each given or defaulted by :func:`formulation_options`)."""
     model = system.model
@@ -352,11 +391,41 @@ def _compile_constrained(system, formulation, options: dict, outputs, events, ru
                                  values=values, prefix=prefix, eliminate=eliminate, verbose=verbose, lang=lang)
     if outputs is None:
         outputs = DEFAULT_OUTPUTS
-    code, info = generate_constrained(system, ggl=formulation == "ggl", ggl_jacobian=jacobian, outputs=outputs,
-                                      events=events, runtime_parameters=runtime_parameters, values=values,
-                                      prefix=prefix, lang=lang)
-    cm = build_code(code, native=True, verbose=verbose)
-    return ConstrainedSimulation(system, formulation, cm, info, baumgarte, bool(projection))
+    events = list(events)
+
+    def generate():
+        if check is not None:
+            check()
+        return generate_constrained(system, ggl=formulation == "ggl", ggl_jacobian=jacobian, outputs=outputs,
+                                    events=events, runtime_parameters=runtime_parameters, values=values,
+                                    prefix=prefix, lang=lang)
+
+    def make():
+        code, info = generate()
+        return (code, info), (pickle_code(code), info)
+
+    def build(entry, cached: bool):
+        code, info = entry
+        if cached:
+            code = CachedCode.of(code, lambda: generate()[0].scene)
+        return ConstrainedSimulation(system, formulation, build_code(code, native=True, verbose=verbose), info,
+                                     baumgarte, bool(projection))
+
+    described = canonical_form(system, {ConstrainedSystem: constrained_fields})
+    chosen = canonical_form(dict(formulation=formulation, jacobian=jacobian, outputs=list(outputs), events=events,
+                                 runtime_parameters=runtime_parameters, values=dict(values or {}), prefix=prefix,
+                                 lang=lang))
+    if described is None or chosen is None:  # not cached: derived and generated every time
+        return build(make()[0], False)
+    return cached_code(pipeline_key("constrained-code", described, chosen), f"model {model.name!r} ({formulation})",
+                        make, build)
+
+
+def constrained_fields(system: ConstrainedSystem) -> list:
+    """What a constrained system states, for its canonical form (its model and constraints)."""
+    return [(name, getattr(system, name)) for name in (
+        "model", "holonomic", "nonholonomic", "inequalities", "restitution", "tangents", "friction", "multipliers",
+        "integrability_checked")]
 
 
 # ---------------------------------------------------------------------- model files
@@ -387,6 +456,16 @@ def compile_file(mf: ModelFile | str | os.PathLike, **options: Any):
     The file's initial state (``[simulation] initial``) is the compiled system's default:
     ``simulate(t)`` (and ``integrator()``, ``fit``) without ``q0`` (or ``v0``) starts from the
     file's values, as the command line does; ``initial_defaults`` holds them as (q0, v0).
+
+    Cached as :func:`compile_model` and :func:`compile_constrained` are: the key is the loaded
+    model's canonical form (of the file's model, its constraints and events: whatever the file
+    says, and any change made to the loaded ModelFile since), the options the file's settings
+    and ``options`` give the compilation (outputs, run-time parameters, parameter values,
+    Jacobian, formulation) and the generator record. A new process compiling an unchanged file
+    reads the file (parsed, never executed) and loads the code and library from the cache
+    without deriving; an edit that changes the model misses (one that does not, a comment or
+    the integration settings, hits). Derivation errors still name the file and line: the model
+    is derived before a build that really runs. The minimal formulation is not cached.
     """
     mf = _model_file_argument(mf)
     sim = _compile_file(mf, **options)
@@ -399,7 +478,6 @@ def _compile_file(mf: ModelFile, **options: Any):
     s = mf.simulation
     with _progress.enabled(options.pop("progress", None)):
         if mf.constrained is not None:
-            mf.derive()  # errors located in the file; compile_constrained derives the system again
             formulation = options.pop("formulation", None) or s.formulation or "index1"
             copts: dict[str, Any] = dict(
                 formulation=formulation, outputs=constrained_outputs(mf.constrained, s.outputs, formulation),
@@ -408,16 +486,33 @@ def _compile_file(mf: ModelFile, **options: Any):
             if formulation == "index1":
                 copts.update(baumgarte=s.baumgarte, projection=s.projection)
             copts.update(options)
-            return compile_constrained(mf.constrained, **copts)
+            # errors located in the file (derived before a build only; the system is derived again)
+            return _compile_file_constrained(mf, copts)
         if options.pop("formulation", None) is not None:
             raise ModelError(f"{mf.path}: a formulation applies to model files with [constraints]")
-        eom = mf.derive()
         # generalized speeds (a floating URDF): no analytic Jacobian yet, CVODE's differences instead
-        kwargs: dict[str, Any] = dict(jacobian=s.jacobian and not eom.general, outputs=list(s.outputs),
+        kwargs: dict[str, Any] = dict(jacobian=s.jacobian and not mf.model.general, outputs=list(s.outputs),
                                       runtime_parameters=s.runtime_parameters, values=dict(s.parameters),
                                       prefix=None, native=True, verbose=False, lang="c")
         kwargs.update(options)
-        return _compile_equations(eom, **kwargs)
+        return _compile_cached_model(mf.model, lambda _model: mf.derive(), **kwargs)
+
+
+def _compile_file_constrained(mf: ModelFile, copts: dict):
+    """:func:`compile_constrained` of the file's system, which derives it first where a build
+    runs, so that its errors name the file and line."""
+    system, formulation = mf.constrained, copts.pop("formulation")
+    if formulation not in FORMULATIONS:
+        raise ModelError(f"formulation must be one of {', '.join(FORMULATIONS)}, got {excerpt(formulation)}")
+    o = formulation_options(formulation, {k: copts.pop(k) for k in list(copts) if k in FORMULATION_OPTIONS})
+    unknown = set(copts) - {"outputs", "events", "runtime_parameters", "values", "prefix", "lang", "verbose"}
+    if unknown:
+        return compile_constrained(system, formulation, **o, **copts)  # its error names the option
+    if formulation == "minimal":
+        mf.derive()
+    return _compile_constrained(system, formulation, o, copts.get("outputs"), copts.get("events", ()),
+                                copts.get("runtime_parameters"), copts.get("values"), copts.get("prefix"),
+                                copts.get("verbose", False), copts.get("lang", "c"), check=mf.derive)
 
 
 def _event_files(scene: Scene, mf: ModelFile, lang: str, report: Callable[[str], None] | None) -> dict[str, str]:

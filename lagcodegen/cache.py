@@ -17,16 +17,23 @@ A cached module is code that gets executed, so the cache trusts only what it can
   folder, so ``#include <math.h>`` finds the system's even for a model named ``math``;
 * ``.build-*`` folders left by a killed build are removed once stale (owned by the user, and
   their process gone or they are older than any compile).
+
+The pipeline cache (:func:`cached_code`, keys by :func:`pipeline_key`) keeps a model's generated
+code under a key of its description (a URDF's bytes, a Model's canonical form, a model file's
+model and settings), the compile options and the generator record, in entries of the same kind:
+a new process loads the code and its compiled library without deriving or generating anything.
 """
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import ctypes
 import errno
 import hashlib
 import importlib.util
 import os
+import pickle
 import re
 import shutil
 import stat
@@ -35,7 +42,9 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
+from typing import Any, Callable
 
+from . import progress as _progress
 from .errors import LagcodegenError
 
 #: Layout of a cache entry (part of the key): 2 = the module plus its sha256 in DIGEST_NAME.
@@ -321,3 +330,36 @@ def cached_build(key: str, modname: str, filename: str, make, opener):
     return loaded, sofile, False
 
 
+def pipeline_key(kind: str, *parts: str) -> str:
+    """The pipeline cache's key of ``parts`` (a model's description and its options, as text)
+    with the generator record (lagcodegen's sources' digest, sympy and symengine)."""
+    from .buildstep import generator_record
+
+    return cache_key([kind, *parts, repr(sorted(generator_record().items()))])
+
+
+def cached_code(key: str, what: str, make: Callable[[], tuple[Any, Any]], build: Callable[[Any, bool], Any]):
+    """``build(entry, cached)`` of the pipeline cache's entry ``key``: the pickled record of a
+    model's generated code (and whatever else ``make`` records), read back in a new process
+    without deriving or generating; on a miss ``make()`` gives (the entry in memory, the record to
+    pickle) and a progress stage ``build <what> (not cached)`` covers the whole build, its
+    generation and compilation (:mod:`lagcodegen.progress`: a line once it has lasted a second,
+    a callback at once; nothing at all on a hit). A damaged entry is rebuilt, never used
+    (:func:`lagcodegen.cache.cached_build` checks its digest; one that does not unpickle is
+    discarded with a warning)."""
+    made: dict = {}
+    with contextlib.ExitStack() as stack:
+        def produce(folder: Path) -> Path:
+            stack.enter_context(_progress.stage("build", unit=f"{what} (not cached)"))
+            made["entry"], record = make()
+            out = folder / "code.pickle"
+            out.write_bytes(pickle.dumps(record, protocol=pickle.HIGHEST_PROTOCOL))
+            return out
+
+        def opener(_name: str, file: Path):
+            if "entry" in made:  # the entry just built, with its scene
+                return made["entry"]
+            return pickle.loads(file.read_bytes())  # an entry of the user's own cache, checked by its digest
+
+        entry, _, cached = cached_build(key, f"lcg_code_{key}", "code.pickle", produce, opener)
+        return build(entry, cached)

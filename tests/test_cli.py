@@ -2,6 +2,7 @@
 
 import subprocess
 import time
+import uuid
 import sys
 from pathlib import Path
 
@@ -367,12 +368,21 @@ def test_progress_lines_name_the_stages(tmp_path, capsys, monkeypatch):
     for flags in (["--no-progress"], []):
         assert main(["generate", str(model), "-o", str(tmp_path / f"gen{len(flags)}"), *flags]) == 0
         assert "lagcodegen: derive " not in capsys.readouterr().err
-    assert main(["simulate", str(model), "-o", str(tmp_path / "r.csv"), "--t-end", "0.1", "--progress"]) == 0
+    # a model of its own (the pipeline cache would load one compiled before without deriving it)
+    fresh = tmp_path / "double_pendulum.toml"
+    fresh.write_text(model.read_text().replace("l2 = 1.0", f"l2 = {1 + int(uuid.uuid4().hex[:8], 16) / 1e12!r}"))
+    assert main(["simulate", str(fresh), "-o", str(tmp_path / "r.csv"), "--t-end", "0.1", "--progress"]) == 0
     err = capsys.readouterr().err
-    assert err.index("lagcodegen: derive 2/2 coordinates") < err.index("integrated")
-    assert main(["sweep", str(EXAMPLES / "pendulum.toml"), "--grid", "g=9.7:9.9:3", "-o", str(tmp_path / "s.csv"),
+    assert err.index("lagcodegen: build model 'double_pendulum' (not cached), ") < err.index("integrated")
+    assert main(["simulate", str(fresh), "-o", str(tmp_path / "r.csv"), "--t-end", "0.1", "--progress"]) == 0
+    err = capsys.readouterr().err  # again: from the cache, no build line
+    assert "lagcodegen: build " not in err and "from the cache (nothing derived)" in err
+    single = tmp_path / "pendulum.toml"
+    mass = 1 + int(uuid.uuid4().hex[:8], 16) / 1e12  # a model of its own, as above
+    single.write_text((EXAMPLES / "pendulum.toml").read_text().replace("m = 1.0", f"m = {mass!r}"))
+    assert main(["sweep", str(single), "--grid", "g=9.7:9.9:3", "-o", str(tmp_path / "s.csv"),
                  "--t-end", "0.1", "--progress", "-q"]) == 0
-    assert "lagcodegen: derive 1/1 coordinates" in capsys.readouterr().err
+    assert "lagcodegen: build model 'pendulum' (not cached)" in capsys.readouterr().err
 
 
 def test_model_paths_are_read_by_the_loader_of_their_suffix(tmp_path, capsys):

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import textwrap
 import threading
+import uuid
 import time
 from pathlib import Path
 
@@ -167,8 +168,13 @@ def test_no_line_before_a_stage_has_lasted(monkeypatch):
 def test_compile_model_takes_a_progress_callback():
     import lagcodegen as lcg
     rec = Recorder()
-    sim = lcg.compile_model(pendulum(), progress=rec)
-    assert {"derive", "formulate"} <= {c[0] for c in rec.calls}
+    prefix = f"progress_{uuid.uuid4().hex[:12]}"  # a model not in the pipeline cache: really built
+    sim = lcg.compile_model(pendulum(), progress=rec, prefix=prefix)
+    assert {"build", "derive", "formulate"} <= {c[0] for c in rec.calls}
+    assert rec.calls[0][0] == "build"  # the stage of a build that really runs, opened first
+    rec.calls.clear()
+    lcg.compile_model(pendulum(), progress=rec, prefix=prefix)  # from the cache: no stage at all
+    assert rec.calls == []
     assert not progress.active()
     res = sim.simulate([0, 1], q0=[0.5])
     assert res.t[-1] == 1.0

@@ -18,6 +18,7 @@ import sympy as sp
 
 from ..animation import FORMATS, ffmpeg_available
 from ..api import compile_file, compile_urdf
+from ..codegen.record import stored_scene
 from ..modelfile import constrained_outputs
 from ..modelfile.loader import MAX_STEPS
 from ..theory.energy import is_natural
@@ -132,7 +133,7 @@ def run(args) -> int:
     sim = compile_urdf_file(mf, args) if urdf_cacheable(mf, args.model) else compile_file(mf, verbose=not args.quiet)
     formulation = f" ({sim.formulation})" if mf.constrained is not None else ""
     code = getattr(getattr(sim, "compiled", sim), "code", None)  # a constrained simulation's, a model's
-    if code is not None and getattr(code, "scene", True) is None:  # compile_urdf's entry: nothing derived
+    if code is not None and stored_scene(code) is None:  # the pipeline cache's entry: nothing derived
         say(f"loaded{formulation} from the cache (nothing derived) in {time.perf_counter() - t0:.3f} s", args.quiet)
     else:
         say(f"derived, generated and compiled{formulation} in {time.perf_counter() - t0:.3f} s"

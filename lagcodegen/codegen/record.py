@@ -3,6 +3,7 @@ every language's header (:func:`header_context`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -115,6 +116,53 @@ class GeneratedCode:
         for name, text in self.files.items():
             written.append(atomic_write(out / name, text))
         return written
+
+
+class CachedCode(GeneratedCode):
+    """Generated code read back from the pipeline cache (:func:`lagcodegen.compile_model`,
+    :func:`lagcodegen.compile_file`, :func:`lagcodegen.compile_urdf`): no scene was derived in
+    this process, and reading ``scene`` derives it again (``rederive()``), once, so that code
+    reading ``cm.code.scene`` works as on freshly generated code. ``stored_scene()`` is the
+    scene if it was derived, without deriving it."""
+
+    @property
+    def scene(self):
+        scene = self.__dict__.get("_scene")
+        if scene is None and self.__dict__.get("rederive") is not None:
+            scene = self.__dict__["_scene"] = self.rederive()
+        return scene
+
+    @scene.setter
+    def scene(self, value) -> None:
+        self.__dict__["_scene"] = value
+
+    def stored_scene(self):
+        return self.__dict__.get("_scene")
+
+    @classmethod
+    def of(cls, code: GeneratedCode, rederive) -> "CachedCode":
+        """``code`` (unpickled, without its scene) whose scene ``rederive()`` derives on demand."""
+        values = {f.name: getattr(code, f.name) for f in dataclasses.fields(code) if f.init}
+        values.update(scene=None, rederive=rederive)
+        return cls(**values)
+
+
+def stored_scene(code):
+    """The scene ``code`` carries now, None if it has none or would derive it on reading (code
+    from the pipeline cache: :class:`CachedCode`); never derives."""
+    if isinstance(code, CachedCode):
+        return code.stored_scene()
+    return getattr(code, "scene", None)
+
+
+def plain_code(code: GeneratedCode) -> GeneratedCode:
+    """``code`` without its scene and ``rederive`` (as it is pickled), never deriving the scene."""
+    stored = code.stored_scene() if isinstance(code, CachedCode) else code.scene
+    if type(code) is GeneratedCode and stored is None and code.rederive is None:
+        return code
+    values = {f.name: getattr(code, f.name) for f in dataclasses.fields(code) if f.init and f.name != "scene"}
+    values.update(scene=None, rederive=None)
+    return GeneratedCode(**values)
 
 
 def scene_of_code(code: GeneratedCode, what: str) -> Scene:

@@ -211,7 +211,7 @@ def deferred_drawing(cm) -> DeferredDrawing | None:
     if cached is not None:  # made from the model's scene on an earlier call
         return cached
     code = _code(cm)
-    scene = getattr(code, "scene", None)
+    scene = code.stored_scene() if hasattr(code, "stored_scene") else getattr(code, "scene", None)
     if not isinstance(scene, Scene):
         if getattr(code, "rederive", None) is None:
             return None

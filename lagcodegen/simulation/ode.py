@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..build import BuiltModule, build
-from ..codegen.record import GeneratedCode
+from ..codegen.record import GeneratedCode, plain_code
 from ..codes import ModelCode
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..formulation.drawing import attaches_drawing
@@ -524,8 +524,7 @@ class CompiledModel(CompiledReprMixin):
 def pickle_code(code: GeneratedCode) -> GeneratedCode:
     """``code`` as it is pickled: its files, names, defaults and layout, without the scene (the
     symbolic scene is many times the size of the C it was generated into)."""
-    return code if code.scene is None and code.rederive is None else dataclasses.replace(code, scene=None,
-                                                                                         rederive=None)
+    return plain_code(code)
 
 
 _REBUILT: dict = {}
