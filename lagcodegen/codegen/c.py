@@ -16,7 +16,7 @@ from itertools import accumulate
 
 from ..errors import ModelError
 from ..formulation.branching import tree_parents
-from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, count_ops, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
@@ -318,8 +318,12 @@ def print_block_program(block: Block, name: str) -> dict:
 
 def mass_force_text(cb) -> dict | None:
     """:func:`print_block_program` of the tree program ``cb.blocks["mf_program"]`` of constrained
-    blocks ``cb``, printed once per ``cb`` (kept in ``cb.printed``); None for a model without a tree."""
-    if not cb.blocks.get("mf_program"):
+    blocks ``cb``, printed once per ``cb`` (kept in ``cb.printed``); None for a model without a
+    tree, or whose M and F have fewer than PROGRAM_MIN_OPS operations as expressions (a small tree:
+    printed from the block ``mf`` as before, so that its C evaluates the same operations as its
+    Fortran, :func:`lagcodegen.codegen.fortran.generate_constrained_fortran_source`; a larger
+    tree's C and Fortran agree to rounding)."""
+    if not cb.blocks.get("mf_program") or count_ops(cb.blocks["mf"].exprs) < PROGRAM_MIN_OPS:
         return None
     if "mf_program" not in cb.printed:
         cb.printed["mf_program"] = print_block_program(cb.blocks["mf_program"], "mass_force")
