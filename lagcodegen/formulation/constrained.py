@@ -283,7 +283,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         gsub.update({x: se.Symbol(f"yp[{i}]") for i, x in enumerate(qp)})
         gsub.update({x: se.Symbol(f"yp[{nq + i}]") for i, x in enumerate(vp)})
         gsub[cj] = se.Symbol("cj")
-        blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], [c(e, gsub) for e in res])
+        blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], block_substituter(sym, gsub)(res))
         if ggl_jacobian:
             yvars = sym.q + sym.v + sym.lam + mu
             ypvars = qp + vp
