@@ -16,7 +16,7 @@ from itertools import accumulate
 
 from ..errors import ModelError
 from ..formulation.branching import tree_parents
-from ..formulation.kernels import Block, cse, model_blocks, sparse_jacobian
+from ..formulation.kernels import Block, count_ops, cse, model_blocks, sparse_jacobian
 from ..formulation.scene import Scene
 from ..formulation.tangent import TangentProgram, build_program, tangent_program
 from ..version import __version__
@@ -297,6 +297,39 @@ def print_block_pieces(block: Block, name: str, before: list, after: list, scrat
     return functions, "\n".join(calls)
 
 
+def print_block_program(block: Block, name: str) -> dict:
+    """M and F of a rigid-body tree's constrained code (templates/c/_mass_force.j2) from the
+    block of its recorded program (:func:`lagcodegen.formulation.kernels.tree_rhs`, targets
+    ("M", i, j), ("F", i)): the program hash-consed and cut into static functions
+    ``name<k>(t, y, p, v, M, F)`` (:func:`lagcodegen.codegen.program.block_pieces`), as the
+    unconstrained model's right-hand side is. Returns the template's ``functions`` (text),
+    ``size`` (of the values array v) and ``calls`` (the caller's statements)."""
+    params = [("double t", "t"), ("const double *y", "y"), ("const double *p", "p")]
+    after = [("double M[][N]", "M"), ("double F[]", "F")]
+    printer = CPrinter(_layout())
+    pieces, array, size = program.block_pieces(block, "x", _measure(), cse, BLOCK_CSE_MAX_OPS)
+    params = [*params, (f"double *{array}", array), *after]
+    functions = [CFunction(f"{name}{k}", params, [c_statement(printer, st) for st in statements])
+                 for k, statements in enumerate(pieces)]
+    args = ", ".join(n for _, n in params)
+    return dict(functions="\n\n".join(f.text() for f in functions), size=size,
+                calls="\n".join(f"{_INDENT}{f.name}({args});" for f in functions))
+
+
+def mass_force_text(cb) -> dict | None:
+    """:func:`print_block_program` of the tree program ``cb.blocks["mf_program"]`` of constrained
+    blocks ``cb``, printed once per ``cb`` (kept in ``cb.printed``); None for a model without a
+    tree, or whose M and F have fewer than PROGRAM_MIN_OPS operations as expressions (a small tree:
+    printed from the block ``mf`` as before, so that its C evaluates the same operations as its
+    Fortran, :func:`lagcodegen.codegen.fortran.generate_constrained_fortran_source`; a larger
+    tree's C and Fortran agree to rounding)."""
+    if not cb.blocks.get("mf_program") or count_ops(cb.blocks["mf"].exprs) < PROGRAM_MIN_OPS:
+        return None
+    if "mf_program" not in cb.printed:
+        cb.printed["mf_program"] = print_block_program(cb.blocks["mf_program"], "mass_force")
+    return cb.printed["mf_program"]
+
+
 def use_program(scene: Scene, rhs: Block) -> bool:
     """True if the right-hand side is printed in program form (:func:`lagcodegen.codegen.program.use_program`
     with PROGRAM_MIN_OPS)."""
@@ -369,8 +402,9 @@ def _add_sparse_jacobian(scene: Scene, code: GeneratedCode, env) -> None:
 def _constrained_source(cb, ctx: dict) -> dict[str, str]:
     """``<prefix>_dae.c``: the constrained kernels (:func:`lagcodegen.formulation.constrained.constrained_blocks`)."""
     b = cb.blocks
+    mfp = mass_force_text(cb)
     text = environment().get_template("c/dae.c.j2").render(
-        **ctx, mf=print_block(b["mf"]), con=print_block(b["con"]), gam=print_block(b["gam"]),
+        **ctx, mf_program=mfp, mf="" if mfp else print_block(b["mf"]), con=print_block(b["con"]), gam=print_block(b["gam"]),
         out=print_block(b["out"]), root_block=print_block(b["roots"]), ggl_res=print_block(b["ggl_res"]),
         ggl_jac_block=print_block(b["ggl_jac"], cb.ng))
     return {f"{ctx['prefix']}_dae.c": text}

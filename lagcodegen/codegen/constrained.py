@@ -17,12 +17,13 @@ from typing import Iterable, Sequence
 
 from ..derivation import derive
 from ..errors import ModelError
-from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, constrained_blocks, impact_blocks
+from ..formulation.constrained import (DEFAULT_OUTPUTS, ConstrainedBlocks, ConstrainedCodeInfo, constrained_blocks,
+                                       impact_blocks)
 from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
 from ..runtime import source as runtime_source
 from ..version import __version__
-from .c import print_block
+from .c import mass_force_text, print_block
 from .ir import deep_recursion
 from .languages import backend, generate_code
 from .record import DaeLayout
@@ -81,7 +82,7 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
                              "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
                              "formulation on IDA takes frictionless and no-slip (tangent=) contacts only: its "
                              "stick/slip modes are not rows of the GGL residual")
-        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, ggl)
+        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, cb, ggl)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
     code.dae = DaeLayout(nq=model.nq, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
@@ -92,13 +93,16 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     return code, info
 
 
-def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict, ggl: bool = False) -> str:
+def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict, cb: ConstrainedBlocks,
+                   ggl: bool = False) -> str:
     """``<prefix>_impact.c`` (templates/c/impact.c.j2): the contact functions and their table
     ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver; with friction or
     ``ggl`` also the model's numbers at a state (``lcg_imp_friction``), from which the friction
     driver (lcg_imp.c) solves its modes and the GGL impact driver (lcg_imp_ida.c) builds its
-    residual."""
-    blocks = impact_blocks(system, scene)
+    residual. M and F are those of ``cb`` (:func:`constrained_blocks` of the same system; a
+    tree's program printed once for both files, :func:`lagcodegen.codegen.c.mass_force_text`)."""
+    blocks = impact_blocks(system, scene, mass_force=False)
+    mfp = mass_force_text(cb)
     contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
                          + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None
                             and system.friction[k] is None else "")
@@ -106,7 +110,8 @@ def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict, ggl: bool
                             else "")
                          for k in system.contacts)
     return environment().get_template("c/impact.c.j2").render(
-        **ctx, nk=len(system.contacts), contacts=contacts, mf=print_block(blocks["mf"]),
+        **ctx, nk=len(system.contacts), contacts=contacts, mf_program=mfp,
+        mf="" if mfp else print_block(cb.blocks["mf"]),
         rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction,
         numbers=ggl)
 

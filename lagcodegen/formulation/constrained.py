@@ -24,7 +24,8 @@ from ..model.model import RESERVED_PREFIX
 from ..model.outputs import CONSTRAINT_OUTPUT_GROUPS
 from ..model.outputs import DEFAULT_CONSTRAINED_OUTPUTS as DEFAULT_OUTPUTS
 from ..theory.constraints import ConstrainedSystem
-from .kernels import Block, symbol_map
+from ..model.treedynamics import substitute_shared
+from .kernels import Block, symbol_map, tree_rhs
 from .scene import Scene
 
 
@@ -85,18 +86,40 @@ class ConstrainedSymbols:
 
 
 
-def mass_force_block(sym, c) -> Block:
-    """The kernel ``mf`` of the constrained forms: the upper triangle of M and F, each through the
-    substitution ``c`` into array symbols."""
+def block_substituter(sym, sub: dict):
+    """f(exprs) -> ``exprs`` with the substitution ``sub`` into array symbols: each expression's
+    xreplace, or for a rigid-body tree (whose M, F, energy, ... are DAGs) one shared substitution
+    over the whole list (:func:`~lagcodegen.model.treedynamics.substitute_shared`): copies of a
+    DAG made by separate xreplace calls share nothing, and the common-subexpression elimination of
+    a block then compares them node by node, in time exponential in the tree's depth (minutes for
+    a 20-joint robot)."""
+    if getattr(sym.eom, "tree", None) is not None:
+        return lambda exprs: substitute_shared(sub, exprs)
+    return lambda exprs: [se.sympify(e).xreplace(sub) for e in exprs]
+
+
+def mass_force_block(sym, sub: dict) -> Block:
+    """The kernel ``mf`` of the constrained forms: the upper triangle of M and F, through the
+    substitution ``sub`` into array symbols (:func:`block_substituter`)."""
     targets, exprs = [], []
     for i in range(sym.n):
         for j in range(i, sym.n):
             targets.append(("M", i, j))
-            exprs.append(c(sym.M[i][j]))
+            exprs.append(sym.M[i][j])
     for i in range(sym.n):
         targets.append(("F", i))
-        exprs.append(c(sym.F[i]))
-    return Block(targets, exprs)
+        exprs.append(sym.F[i])
+    return Block(targets, block_substituter(sym, sub)(exprs))
+
+
+def mass_force_program(sym, sub: dict) -> Block:
+    """For a rigid-body tree, M and F (the targets of :func:`mass_force_block`) as the tree's
+    recorded program (:func:`~lagcodegen.formulation.kernels.tree_rhs`: the block's temporaries),
+    which the C backend prints in pieces as it does the unconstrained right-hand side; an empty
+    block for other models. The expression block ``mf`` stays for the backends that print it."""
+    if getattr(sym.eom, "tree", None) is None:
+        return Block()
+    return tree_rhs(sym.eom, sub)
 
 def kinematics_block(sym, c) -> Block:
     """The coordinates' rates ydot[i] = k_i(q, v, t) of a system with generalized speeds."""
@@ -186,6 +209,9 @@ class ConstrainedBlocks:
     events: list
     outputs_use_lam: bool
     roots_use_lam: bool
+    #: Texts a backend printed from the blocks, by name, for the other files of the same code to
+    #: reuse (the C backend's program of a tree's M and F: ``<prefix>_dae.c`` and ``_impact.c``).
+    printed: dict = field(default_factory=dict)
 
 
 def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = False, ggl_jacobian: bool = True,
@@ -199,21 +225,23 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
     def c(e, sub=base):
         return se.sympify(e).xreplace(sub)
 
+    subst = block_substituter(sym, base)
     blocks = {}
-    blocks["mf"] = mass_force_block(sym, c)
+    blocks["mf"] = mass_force_block(sym, base)
+    blocks["mf_program"] = mass_force_program(sym, base)
     # A, s, g
     targets, exprs = [], []
     for r in range(J):
         for i in range(n):
             targets.append(("A", r, i))
-            exprs.append(c(sym.A[r][i]))
+            exprs.append(sym.A[r][i])
         targets.append(("s", r))
-        exprs.append(c(sym.s[r]))
+        exprs.append(sym.s[r])
     for k in range(JH):
         targets.append(("g", k))
-        exprs.append(c(sym.f[k]))
-    blocks["con"] = Block(targets, exprs)
-    blocks["gam"] = Block([("gam", r) for r in range(J)], [c(e) for e in sym.gamma])
+        exprs.append(sym.f[k])
+    blocks["con"] = Block(targets, subst(exprs))
+    blocks["gam"] = Block([("gam", r) for r in range(J)], subst(sym.gamma))
     if sym.general:  # the holonomic rows in q (positions' projection) and q' = k(q, v, t)
         blocks["conq"] = Block([("Aq", r, i) for r in range(JH) for i in range(sym.nq)],
                                [c(sym.Aq[r][i]) for r in range(JH) for i in range(sym.nq)])
@@ -223,10 +251,11 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
     out_sub = dict(base)
     out_sub.update({lam: se.Symbol(f"lam[{j}]") for j, lam in enumerate(sym.lam)})
     outs = _constrained_outputs(system, sym, scene, list(outputs))
-    blocks["out"] = Block([("out", k) for k in range(len(outs))], [c(e, out_sub) for _, e in outs])
+    out_subst = block_substituter(sym, out_sub)
+    blocks["out"] = Block([("out", k) for k in range(len(outs))], out_subst([e for _, e in outs]))
     evs = event_list(system, events)
     root_exprs = [to_se(ev.expr, f"event {ev.name!r}") for ev in evs]
-    blocks["roots"] = Block([("gout", k) for k in range(len(evs))], [c(e, out_sub) for e in root_exprs])
+    blocks["roots"] = Block([("gout", k) for k in range(len(evs))], out_subst(root_exprs))
 
     # GGL residual and Jacobian
     blocks["ggl_res"] = blocks["ggl_jac"] = Block([], [])
@@ -254,7 +283,7 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
         gsub.update({x: se.Symbol(f"yp[{i}]") for i, x in enumerate(qp)})
         gsub.update({x: se.Symbol(f"yp[{nq + i}]") for i, x in enumerate(vp)})
         gsub[cj] = se.Symbol("cj")
-        blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], [c(e, gsub) for e in res])
+        blocks["ggl_res"] = Block([("rr", i) for i in range(ng)], block_substituter(sym, gsub)(res))
         if ggl_jacobian:
             yvars = sym.q + sym.v + sym.lam + mu
             ypvars = qp + vp
@@ -272,9 +301,10 @@ def constrained_blocks(system: ConstrainedSystem, scene: Scene, *, ggl: bool = F
                              _uses(root_exprs, sym.lam))
 
 
-def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
+def impact_blocks(system: ConstrainedSystem, scene: Scene, mass_force: bool = True) -> dict:
     """The expression blocks of the contact code of ``system`` (templates/c/impact.c.j2): ``mf``
-    (M, F) and ``rows``: for the equality rows r < J the rows A_r, s_r = A_r q' + A0_r, h_r = f_r
+    (M, F; with ``mf_program`` for a rigid-body tree, :func:`mass_force_program`; both empty
+    without ``mass_force``: the caller has those of :func:`constrained_blocks`) and ``rows``: for the equality rows r < J the rows A_r, s_r = A_r q' + A0_r, h_r = f_r
     (holonomic) and gamma_r (as :func:`constrained_blocks`), then for each contact k (an
     inequality g_k >= 0 with a restitution, eq. 4.3) the row J + k: G_k = dg_k/dq,
     w_k = G_k q' + dg_k/dt, h = g_k and gamma = -d/dt w_k with q'' excluded; then for each rough
@@ -286,10 +316,7 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     n, J, JH = sym.n, sym.J, sym.JH
     base = symbol_map(scene)
 
-    def c(e):
-        return se.sympify(e).xreplace(base)
-
-    mf = mass_force_block(sym, c)
+    mf = mass_force_block(sym, base) if mass_force else Block()
     rows, vals, heights, gammas = [list(r) for r in sym.A], list(sym.s), [], list(sym.gamma)
     heights = list(sym.f) + [se.Integer(0)] * (J - JH)
     speeds = set(sym.v) | set(getattr(sym, "qd", ()))
@@ -337,10 +364,10 @@ def impact_blocks(system: ConstrainedSystem, scene: Scene) -> dict:
     for r, row in enumerate(rows):
         for i in range(n):
             targets.append(("R", r, i))
-            exprs.append(c(row[i]))
+            exprs.append(row[i])
         targets += [("s", r), ("h", r), ("gam", r)]
-        exprs += [c(vals[r]), c(heights[r]), c(gammas[r])]
-    return {"mf": mf, "rows": Block(targets, exprs), "tangent_of": tangent_of}
+        exprs += [vals[r], heights[r], gammas[r]]
+    return {"mf": mf, "mf_program": mass_force_program(sym, base) if mass_force else Block(), "rows": Block(targets, block_substituter(sym, base)(exprs)), "tangent_of": tangent_of}
 
 
 #: Languages of the generated constrained code (the native drivers are C in both cases).
