@@ -200,3 +200,31 @@ def run_cvode_main_sanitized(tmp_path, cc, code, main: str) -> None:
                          env={**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"})
     assert run.returncode == 0, run.stdout + run.stderr
     assert "runtime error" not in run.stderr and "AddressSanitizer" not in run.stderr
+
+
+# ---------------------------------------------------------------------- Ctrl-C in a subprocess
+def interrupt_when_ready(script) -> tuple[int, str, float]:
+    """Run the Python file ``script`` (with this checkout on PYTHONPATH), wait for its line
+    "ready", let it run 0.5 s more and send SIGINT: (its exit code, its stderr, the seconds from
+    the signal to its end)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(root)))
+    try:
+        line = proc.stdout.readline().strip()
+        assert line == "ready", proc.communicate(timeout=60)[1]
+        time.sleep(0.5)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=60)[1]
+        took = time.perf_counter() - sent
+    finally:
+        proc.kill()
+    return proc.returncode, err, took

@@ -417,14 +417,9 @@ def test_ctrl_c_stops_a_long_stick_slip_run(tmp_path):
     """The friction modes run inside the impact driver with no Python in the loop, which polls
     for Ctrl-C as before: a block pushed back and forth on a rough floor by A sin(w t) > mu m g
     (a stick -> slip -> stick cycle each half period) for 1e7 s stops on SIGINT within seconds."""
-    import os
-    import signal
-    import subprocess
-    import sys
     import textwrap
-    import time
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
+
+    from helpers import interrupt_when_ready
     script = tmp_path / "long.py"
     script.write_text(textwrap.dedent("""
         import sys
@@ -452,19 +447,8 @@ def test_ctrl_c_stops_a_long_stick_slip_run(tmp_path):
             print("interrupted", file=sys.stderr)
             sys.exit(130)
     """))
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(root)))
-    try:
-        line = proc.stdout.readline().strip()
-        assert line == "ready", proc.communicate(timeout=60)[1]
-        time.sleep(0.5)
-        sent = time.perf_counter()
-        proc.send_signal(signal.SIGINT)
-        err = proc.communicate(timeout=60)[1]
-        took = time.perf_counter() - sent
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+    returncode, err, took = interrupt_when_ready(script)
+    assert returncode == 130, err
     assert "interrupted" in err and took < 10
 
 

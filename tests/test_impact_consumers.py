@@ -216,14 +216,9 @@ def test_ctrl_c_stops_an_ensemble_with_impacts(tmp_path):
     """SIGINT during an ensemble of long runs with impacts (two elastic balls bouncing for 1e7 s
     on two threads): EnsembleInterrupted within seconds (a bound), its result holding the members
     stopped with -80 (cancelled)."""
-    import os
-    import signal
-    import subprocess
-    import sys
     import textwrap
-    import time
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
+
+    from helpers import interrupt_when_ready
     script = tmp_path / "long.py"
     script.write_text(textwrap.dedent("""
         import sys
@@ -248,18 +243,8 @@ def test_ctrl_c_stops_an_ensemble_with_impacts(tmp_path):
             print("interrupted", exc.result.status.tolist(), file=sys.stderr)
             sys.exit(130)
     """))
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(root)))
-    try:
-        assert proc.stdout.readline().strip() == "ready"
-        time.sleep(0.5)
-        sent = time.perf_counter()
-        proc.send_signal(signal.SIGINT)
-        err = proc.communicate(timeout=60)[1]
-        took = time.perf_counter() - sent
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+    returncode, err, took = interrupt_when_ready(script)
+    assert returncode == 130, err
     assert "interrupted [-80, -80]" in err and took < 10
 
 

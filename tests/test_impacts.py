@@ -226,13 +226,10 @@ def test_rocking_block_impact_ratio_on_a_frictionless_floor():
     assert first.impulse == pytest.approx(-b * (w_plus + w_minus), rel=1e-6)
 
 
-def test_housner_rocking_block_on_no_slip_corners():
-    # Rough corners (Inequality(..., tangent=x of the corner): no slip while touching): the block
-    # pivots on one corner; at phi = 0 the other corner hits plastically (the first one's impulse
-    # would pull: released), and the angular momentum about the new corner is kept:
-    # w+/w- = 1 - 2 m R^2 sin^2 a / I_0 = 1 - 1.5 sin^2 a with I_0 = (4/3) m R^2 (Housner 1963)
-    b, h, phi0 = 0.2, 0.6, 0.1
-    m = lcg.Model("housner")
+def housner_block(name: str, b: float, h: float) -> lcg.ConstrainedSystem:
+    """A block of half-width b and half-height h (coordinates x, y, phi of its centre) on two
+    rough corners: plastic contacts that do not slip while touching (tangent = the corner's x)."""
+    m = lcg.Model(name)
     x, y, phi = m.coordinates("x y phi")
     m.parameters(m=1.0, b=b, h=h, g=G)
     mass, B, H = sp.symbols("m b h")
@@ -240,9 +237,17 @@ def test_housner_rocking_block_on_no_slip_corners():
     m.gravity(sp.Symbol("g"))
     corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
                (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
-    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
-                                                    for cx, cy in corners])
-    sim = compile_constrained(system, "index1", outputs=["energy"])
+    return lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
+                                                  for cx, cy in corners])
+
+
+def test_housner_rocking_block_on_no_slip_corners():
+    # Rough corners (Inequality(..., tangent=x of the corner): no slip while touching): the block
+    # pivots on one corner; at phi = 0 the other corner hits plastically (the first one's impulse
+    # would pull: released), and the angular momentum about the new corner is kept:
+    # w+/w- = 1 - 2 m R^2 sin^2 a / I_0 = 1 - 1.5 sin^2 a with I_0 = (4/3) m R^2 (Housner 1963)
+    b, h, phi0 = 0.2, 0.6, 0.1
+    sim = compile_constrained(housner_block("housner", b, h), "index1", outputs=["energy"])
     # leaning on the left corner, which stays at x = -b
     q0 = [-b + b * math.cos(phi0) - h * math.sin(phi0), h * math.cos(phi0) + b * math.sin(phi0), phi0]
     res = sim.simulate(np.linspace(0, 1.0, 101), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
@@ -408,14 +413,9 @@ def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path, formulation):
     """The impact drivers (index-1 on CVODE, GGL on IDA) poll for Ctrl-C as the other drivers do:
     SIGINT during a run of hours (an elastic ball bouncing for 1e7 s) raises KeyboardInterrupt
     within seconds (a bound)."""
-    import os
-    import signal
-    import subprocess
-    import sys
     import textwrap
-    import time
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
+
+    from helpers import interrupt_when_ready
     script = tmp_path / "long.py"
     script.write_text(textwrap.dedent("""
         import sys
@@ -439,18 +439,8 @@ def test_ctrl_c_stops_a_long_run_with_impacts(tmp_path, formulation):
             print("interrupted", file=sys.stderr)
             sys.exit(130)
     """).replace("FORMULATION", repr(formulation)))
-    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=dict(os.environ, PYTHONPATH=str(root)))
-    try:
-        assert proc.stdout.readline().strip() == "ready"
-        time.sleep(0.5)
-        sent = time.perf_counter()
-        proc.send_signal(signal.SIGINT)
-        err = proc.communicate(timeout=60)[1]
-        took = time.perf_counter() - sent
-    finally:
-        proc.kill()
-    assert proc.returncode == 130, err
+    returncode, err, took = interrupt_when_ready(script)
+    assert returncode == 130, err
     assert "interrupted" in err and took < 10
 
 

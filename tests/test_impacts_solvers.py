@@ -143,18 +143,9 @@ def test_ggl_housner_block_on_no_slip_corners():
     about the corner (quadrature), the other corner hits plastically while the first is released
     at the same instant, and w+/w- = 1 - 1.5 sin^2 a (Housner 1963), as test_impacts.py checks on
     index-1."""
+    from test_impacts import housner_block
     b, h, phi0 = 0.2, 0.6, 0.1
-    m = lcg.Model("ghousner")
-    x, y, phi = m.coordinates("x y phi")
-    m.parameters(m=1.0, b=b, h=h, g=G)
-    mass, B, H = sp.symbols("m b h")
-    m.planar_body("block", mass, mass * (B**2 + H**2) / 3, (x, y), phi)
-    m.gravity(sp.Symbol("g"))
-    corners = [(x - B * sp.cos(phi) + H * sp.sin(phi), y - B * sp.sin(phi) - H * sp.cos(phi)),
-               (x + B * sp.cos(phi) + H * sp.sin(phi), y + B * sp.sin(phi) - H * sp.cos(phi))]
-    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(cy, restitution=0.0, tangent=cx)
-                                                    for cx, cy in corners])
-    sim = compile_constrained(system, "ggl")
+    sim = compile_constrained(housner_block("ghousner", b, h), "ggl")
     q0 = [-b + b * math.cos(phi0) - h * math.sin(phi0), h * math.cos(phi0) + b * math.sin(phi0), phi0]
     res = sim.simulate(np.linspace(0, 1.0, 101), q0=q0, v0=[0.0, 0.0, 0.0], rtol=1e-12, atol=1e-14)
     sticks = res.impacts.select("stick")
