@@ -137,9 +137,9 @@ KINDS = ("bounce", "stick", "release", "contact_impulse", "slip", "grip", "rever
 FRICTION_TRANSITIONS = ("slip", "grip", "reverse")
 
 #: The files of lagcodegen/runtime/ the impact driver is compiled from.
-RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_law.c", "lcg_imp_law.h", "lcg_imp_ida.c", "lcg_imp_ida.h",
-                 "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h",
-                 "sundials_api.h")
+RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_law.c", "lcg_imp_law.h", "lcg_imp_fric.c", "lcg_imp_fric.h",
+                 "lcg_imp_ida.c", "lcg_imp_ida.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h",
+                 "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
 
 _CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), driver_cdef("ida"), cffi_struct(IMP_TABLE),
                    cffi_struct(IMP_FRICTION_TABLE), header_cdef("lcg_imp.h"), header_cdef("lcg_imp_ida.h"),
