@@ -219,12 +219,12 @@ static int impact(imp_data *d, double t, double *y, const int *hit, const double
     return lcg_imp_jump(&L, t, y, hit);
 }
 
-/* Persistent contacts whose multiplier is negative at (t, y) are released (recorded;
- * lcg_imp_release_pulling, without friction). */
-static int release_pulling(imp_data *d, double t, const double *y, double *ydot, double *rec, int max_rec,
-                           int *n_rec)
+/* The persistent contacts at (t, y) chosen (recorded; lcg_imp_release_pulling, without friction):
+ * those whose multiplier pulls released, free contacts touching at rest that would sink held. */
+static int release_pulling(imp_data *d, double t, double *y, double *ydot, const double *set, double *s,
+                           int *rows, double *rec, int max_rec, int *n_rec)
 {
-    lcg_imp_law L = law_of(d, NULL, NULL, NULL, NULL, NULL, rec, max_rec, n_rec);
+    lcg_imp_law L = law_of(d, NULL, set, NULL, s, rows, rec, max_rec, n_rec);
     return lcg_imp_release_pulling(&L, t, y, d->alpha, d->beta, ydot, d->lam);
 }
 
@@ -253,7 +253,7 @@ static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const
     } else {
         rc = impact(d, t, yv, hit, e, set, last, s, rows, rec, max_rec, n_rec);
         if (rc == LCG_DAE_OK)
-            rc = release_pulling(d, t, yv, ydot, rec, max_rec, n_rec);
+            rc = release_pulling(d, t, yv, ydot, set, s, rows, rec, max_rec, n_rec);
     }
     if (rc != LCG_DAE_OK)
         return rc;
@@ -465,7 +465,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             goto done;
         }
     } else {
-        rc = release_pulling(&data, tout[0], yv, ydot, rec, 0, &quiet);
+        rc = release_pulling(&data, tout[0], yv, ydot, set, scratch, rows, rec, 0, &quiet);
     }
     LCG_MODEL_ERROR(LCG_DAE_OK);
 
