@@ -146,8 +146,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
 
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
         restitution) run on an impact driver (:mod:`.constrained_impacts`: impacts, persistent
-        contact and release in one call; index-1: CVODE, native backend, no projection; GGL: IDA,
-        native backend, frictionless and no-slip contacts); the keyword
+        contact and release in one call, Coulomb friction included; index-1: CVODE, native backend,
+        no projection; GGL: IDA, native backend, models with v = q'); the keyword
         ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
         before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
         lists what happened.
@@ -259,6 +259,10 @@ class ConstrainedSimulation(ConstrainedFunctions):
             if backend != "native":
                 raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
                                       f"backend={backend!r}")
+            if self.system.model.general:
+                raise LagcodegenError(f"the GGL impact driver (IDA) takes models with v = q' only; model "
+                                      f"{self.system.model.name!r} has generalized speeds (nq = {self._n}, nv = "
+                                      f"{self.nv}): compile_constrained(system, 'index1') runs its contacts")
             runner = self._contact_runner(float(t[0]), y0, p)
             alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
             return runner.run_ggl(t, y0, p, StepControl.of(family, rtol, atol), family.ggl_form(),
@@ -275,8 +279,9 @@ class ConstrainedSimulation(ConstrainedFunctions):
         backend = getattr(family, "backend", None)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
             raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  f"CVODE impact driver only; the solver {type(family).__name__} (backend "
-                                  f"{backend!r}) cannot take it: solver=CVODE(backend='native')")
+                                  f"impact drivers only (index-1: CVODE, GGL: IDA); the solver "
+                                  f"{type(family).__name__} (backend {backend!r}) cannot take it: "
+                                  "solver=CVODE(backend='native')")
         if backend != "native":
             raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
         method, projection, alpha, beta = family.index1_settings(self, t0, y0, p)

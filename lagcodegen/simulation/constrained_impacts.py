@@ -419,8 +419,9 @@ class ImpactRunner:
         extra = np.zeros(2)
         p = np.ascontiguousarray(p, dtype=float)
         start = time.perf_counter()
+        mu = ffi.from_buffer("double[]", self.mu) if self.friction != ffi.NULL else ffi.NULL
         flag = self.rt.lib.lcg_imp_ida_solve(self.numbers, *self._arguments(buf, p, y0, opt, st),
-                                             ffi.from_buffer("double[]", extra))
+                                             ffi.from_buffer("double[]", extra), mu)
         res = self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "bdf", "IDA")
         res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
         res.stats["suppress_alg"] = bool(form.suppress_alg)
