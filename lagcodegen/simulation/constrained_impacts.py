@@ -275,16 +275,28 @@ def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
 
 @dataclass(frozen=True)
 class ContactRun:
-    """What the impact driver takes for runs of one system (besides the times, state and
-    parameters): the runner, the step control, the Baumgarte form, what is recorded, the contact
-    settings (made by ``ConstrainedSimulation.contact_run``; index-1 systems: the runs that
-    ensembles and the integrator object make)."""
+    """What an impact driver takes for runs of one system (besides the times, state and
+    parameters): the runner, the step control, the form (:class:`Index1Form`: Baumgarte on the
+    index-1 driver; :class:`GGLForm`: the GGL driver on IDA, with ``alg_atol`` the absolute
+    tolerance of its multipliers), what is recorded, the contact settings (made by
+    ``ConstrainedSimulation.contact_run``: the runs of simulate, ensembles and the integrator
+    object)."""
 
     runner: "ImpactRunner"
     control: StepControl
-    form: Index1Form
+    form: Index1Form | GGLForm
     recording: Recording
     contacts: ContactOptions
+    alg_atol: float | None = None
+
+    def execute(self, t, y0, p, *, cancel=None, active=None) -> Result:
+        """One run of the driver of this form over the output times ``t`` from y0 (``cancel``,
+        ``active``: as :meth:`ImpactRunner.run`)."""
+        if isinstance(self.form, GGLForm):
+            return self.runner.run_ggl(t, y0, p, self.control, self.form, self.recording, self.contacts,
+                                       self.alg_atol, cancel=cancel, active=active)
+        return self.runner.run(t, y0, p, self.control, self.form, self.recording, self.contacts, cancel=cancel,
+                               active=active)
 
 
 class ImpactRunner:
@@ -369,10 +381,7 @@ class ImpactRunner:
             raise LagcodegenError("runs with contacts take a scalar atol")
         nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
         buf = self._buffers(t, max(nlam, 1), contacts, recording)
-        if active is not None:
-            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
-                raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
-            buf.active = active
+        self._modes(buf, active)
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
         c = control
@@ -391,13 +400,14 @@ class ImpactRunner:
         return self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, method, "CVODE")
 
     def run_ggl(self, t, y0, p, control: StepControl, form: GGLForm, recording: Recording,
-                contacts: ContactOptions, alg_atol: float) -> Result:
+                contacts: ContactOptions, alg_atol: float, cancel=None, active=None) -> Result:
         """A run on the GGL impact driver (lagcodegen/runtime/lcg_imp_ida.c: IDA, the rows held as
-        GGL rows with their multipliers, the impact law of the index-1 driver) with the step
-        control ``control`` (a scalar atol on q, v; ``control.order`` unused), ``form``
-        (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are interpolated), the
-        recording of :meth:`run`, the contact settings ``contacts`` and ``alg_atol``, the
-        absolute tolerance of the unknowns lambda, mu."""
+        GGL rows with their multipliers, the impact law and Coulomb friction of the index-1
+        driver) with the step control ``control`` (a scalar atol on q, v; ``control.order``
+        unused), ``form`` (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are
+        interpolated), the recording of :meth:`run`, the contact settings ``contacts`` and
+        ``alg_atol``, the absolute tolerance of the unknowns lambda, mu; ``cancel``, ``active``:
+        as :meth:`run`."""
         ffi = self.ffi
         atol = control.atol
         if not isinstance(atol, (int, float)) or isinstance(atol, bool):
@@ -406,6 +416,7 @@ class ImpactRunner:
             raise LagcodegenError("runs with contacts on IDA interpolate their outputs: stop_at_outputs=True is "
                                   "not taken (the steps stop at the impacts, not at the output times)")
         buf = self._buffers(t, int(self.table.nrow), contacts, recording)
+        self._modes(buf, active)
         opt = ffi.new("lcg_ida_options *")
         c = control
         opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = float(c.rtol), float(atol), ffi.NULL, int(c.max_steps)
@@ -415,6 +426,8 @@ class ImpactRunner:
             float(alg_atol)
         opt.roots, opt.stop_at_outputs, opt.max_wall = int(recording.roots), 0, c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
+        if cancel is not None:
+            opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_ida_stats *")
         extra = np.zeros(2)
         p = np.ascontiguousarray(p, dtype=float)
@@ -426,6 +439,16 @@ class ImpactRunner:
         res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
         res.stats["suppress_alg"] = bool(form.suppress_alg)
         return res
+
+    def _modes(self, buf: "_Buffers", active) -> None:
+        """The contacts' modes of a run: ``active`` (None: the driver's own start) in place of the
+        buffer's, checked."""
+        if active is None:
+            return
+        nk = len(self.contacts)
+        if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
+            raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
+        buf.active = active
 
     def _buffers(self, t, nlam: int, contacts: ContactOptions, recording: Recording) -> "_Buffers":
         """The arrays a driver's call fills for the output times ``t`` (``nlam`` multipliers per
