@@ -1,7 +1,7 @@
 """Impact runs of constrained systems with contacts: inequality constraints g_k(q, t) >= 0
 (notes, eq. 4.3) given as :class:`~lagcodegen.theory.constraints.Inequality` with a coefficient
-of restitution e_k, integrated by the runtime's impact driver (lagcodegen/runtime/lcg_imp.c) in
-one call.
+of restitution e_k, integrated by the runtime's impact driver in one call (index-1:
+lagcodegen/runtime/lcg_imp.c on CVODE; GGL: lagcodegen/runtime/lcg_imp_ida.c on IDA, below).
 
 **Impact law.** When a free contact reaches g_k = 0 with a closing normal velocity
 w_k = G_k q' + G0_k < 0 (G_k = dg_k/dq, G0_k = dg_k/dt), the run stops at the located root and
@@ -46,7 +46,7 @@ of Housner's rocking block. Active rows that are dependent (a block resting flat
 corners) are solved with a small regularization of the multiplier block (see the generated
 ``solve_active``).
 
-**Coulomb friction.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
+**Coulomb friction** (index-1 and GGL). An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
 and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
 u = T q' + T0) obeys Coulomb's law on its multipliers. It is not an ideal constraint (sec. 4.3
 takes the force along A): while slipping the force G^T lambda_n + T^T lambda_t has
@@ -76,18 +76,22 @@ outputs ``lambda_t0_ineq_<k>``, ``lambda_t1_ineq_<k>``); a slip from rest and a 
 take the direction that makes the force oppose the resulting slip (fixed-point iteration). Models
 with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t)).
 
-*Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
-friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
-F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
-``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
-other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are
-seen where their sign differs at CVODE's step ends; so that a friction limit is not crossed and
-recrossed within one step while a contact sticks under forcing that depends on time alone (the
-state constant, the steps growing), CVODE's state carries the integrals of the contact forces,
+*Where it lives*: in the model-independent C runtime (lagcodegen/runtime/lcg_imp_fric.c, "Coulomb
+friction", called by the drivers lcg_imp.c and lcg_imp_ida.c), which builds and solves the contact
+problem of each mode from the model's numbers (M, F, rows, gamma) that the generated
+``<prefix>_impact.c`` gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated
+only for systems with friction or the GGL formulation, so the code of other systems is
+unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are seen where their
+sign differs at CVODE's step ends; so that a friction limit is not crossed and recrossed within
+one step while a contact sticks under forcing that depends on time alone (the state constant, the
+steps growing), CVODE's state carries the integrals of the contact forces,
 whose error control keeps the steps to the forces' time scale (at the run's tolerances).
 Impacts with friction and Newton's law can gain energy in some configurations (a known property
-of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
-backend only (other solvers are refused naming them).
+of that impact law); the law is applied as stated. Coulomb friction runs on the native backends
+of CVODE (index-1) and IDA (GGL, below); other solvers are refused naming them. The
+solver-independent part (the contact problem of a mode, the enumeration of the modes, frictional
+impacts, slip directions, the roots, the Painleve messages) is the friction core
+lagcodegen/runtime/lcg_imp_fric.c, which both drivers call.
 
 **GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
 and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
@@ -95,15 +99,25 @@ residual [q' - v - R_h^T mu; M v' - F - R^T lambda; h_r; R_r v + R0_r], the free
 lambda_r = 0, mu_r = 0; an impact, a switch into persistent contact or a release (the multiplier,
 an unknown of the DAE, reaching 0) stops IDA at the located root, the same impact law applies
 (lagcodegen/runtime/lcg_imp_law.c, shared with the index-1 driver) and IDA restarts from
-consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). Coulomb
-friction is refused there. **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
+consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). With Coulomb
+friction a sticking contact holds its tangential row(s) as GGL rows (velocity level, as no-slip
+tangents); a slipping contact holds its normal row only and its tangential rows are
+lambda_t + sigma mu lambda_n = 0 (3-D: lambda_t = -mu lambda_n d, d the slip direction at the
+state), so that the residual's force is W^T lambda with W = G - sigma mu T for that contact; the
+roots (stick -> slip, slip -> stick, release, the contact problem turning singular) are the
+friction core's, evaluated with the contact forces of the index-1 problem at IDA's state (the
+unknowns lambda of index-2 rows carry the velocity constraints' error divided by the step); at
+each root and impact the modes of all contacts are chosen by the friction core exactly as on the
+index-1 driver and IDA restarts from consistent values. A contact problem turning singular stops
+a GGL run where its determinant has fallen to 1e-4 of its value where the modes began (IDA cannot
+step up to the zero, where lambda is infinite). The GGL driver takes models with v = q' (not
+generalized speeds). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
 reduced model with the contacts in the remaining coordinates on the index-1 driver.
 
-Ensembles of index-1 systems run each member as one call of this driver, every member's events
-and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
+Ensembles run each member as one call of the system's driver (index-1 or GGL), every member's
+events and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
 propagate call (:mod:`.impact_stepper`). Not supported with contacts: Taylor (it takes no
-constrained system), the scikit-sundae backend, projection, ensembles and the integrator object
-of GGL systems, Fortran model code.
+constrained system), the scikit-sundae backend, projection, Fortran model code.
 """
 
 from __future__ import annotations
