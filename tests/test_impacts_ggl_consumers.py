@@ -153,3 +153,10 @@ def test_ggl_integrator_with_friction_carries_the_modes_across_calls():
     assert modes[0] == "slip+" and modes[-1] == "stick"
     assert integ.state[3] == pytest.approx((2 * v0 - R * w0) / 3, rel=1e-9)
     assert integ.state[3] + R * integ.state[5] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_ggl_integrator_with_contacts_refuses_multipliers_by_name(ball):
+    with ball.integrator(q0=[1.0], v0=[0.0]) as integ:
+        integ.propagate_for(0.1)
+        with pytest.raises(lcg.LagcodegenError, match="multipliers is not available for systems with contacts"):
+            integ.multipliers

@@ -414,7 +414,7 @@ class ImpactRunner:
         return self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, method, "CVODE")
 
     def run_ggl(self, t, y0, p, control: StepControl, form: GGLForm, recording: Recording,
-                contacts: ContactOptions, alg_atol: float, cancel=None, active=None) -> Result:
+                contacts: ContactOptions, alg_atol: float, *, cancel=None, active=None) -> Result:
         """A run on the GGL impact driver (lagcodegen/runtime/lcg_imp_ida.c: IDA, the rows held as
         GGL rows with their multipliers, the impact law and Coulomb friction of the index-1
         driver) with the step control ``control`` (a scalar atol on q, v; ``control.order``

@@ -100,6 +100,13 @@ class ImpactStepper:
             self.stats.nt_done = nt
         return 0
 
+    def multipliers(self) -> np.ndarray:
+        """Refused by name: each call is a run of its own (GGL: IDA restarted at the call and at
+        every switch), whose multipliers are in its outputs, not kept as the integrator's unknowns."""
+        raise LagcodegenError("Integrator.multipliers is not available for systems with contacts: each "
+                              "propagate call is one run of the impact driver; the contact forces are in "
+                              "simulate()'s outputs (res['lambda_ineq_<k>']) and the impulses in integ.impacts")
+
     def step(self, t_limit) -> int:
         raise LagcodegenError("Integrator.step (one internal step) is not available for systems with contacts: "
                               "the impact driver advances to given times (propagate_for, propagate_until, "
