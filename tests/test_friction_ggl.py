@@ -205,3 +205,35 @@ def test_ggl_friction_refuses_what_it_cannot_take_by_name():
     q0, u0 = _start("quaternion", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     with pytest.raises(LagcodegenError, match="generalized speeds"):
         general.simulate((0, 0.1), q0=q0, v0=u0)
+
+
+def test_ggl_friction_code_and_the_impact_runtime_compile_strictly(tmp_path):
+    """The generated <prefix>_impact.c of a GGL system with friction (the lcg_imp_friction table)
+    and the impact runtime (the drivers lcg_imp.c, lcg_imp_ida.c and the friction core
+    lcg_imp_fric.c) compile with -Wall -Wextra -Werror -std=c99 -pedantic."""
+    import subprocess
+
+    import sympy as sp
+    from helpers import STRICT_CFLAGS
+
+    from lagcodegen.build import config_header, find_sundials, generated_headers, types_headers
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.runtime import sources as runtime_files
+    from lagcodegen.simulation.constrained_impacts import RUNTIME_FILES
+    m = lcg.Model("strict_ggl_fr")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, inequalities=[
+        lcg.Inequality(y, restitution=0.2, tangent=x, friction=0.4), lcg.Inequality(2 - x, restitution=0.5)])
+    code, _ = generate_constrained(system, ggl=True)
+    files = {**runtime_files(RUNTIME_FILES), "lcg_config.h": config_header(find_sundials()), **generated_headers(),
+             **types_headers(("dae", "cvc", "ida")), **code.files}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    assert "strict_ggl_fr_imp_friction_table" in files["strict_ggl_fr_impact.c"]
+    for name in ("strict_ggl_fr_impact.c", "lcg_imp_fric.c", "lcg_imp.c", "lcg_imp_ida.c", "lcg_imp_law.c"):
+        proc = subprocess.run(["cc", *STRICT_CFLAGS, "-c", name, "-o", "/dev/null"], cwd=tmp_path, capture_output=True,
+                              text=True)
+        assert proc.returncode == 0, (name, proc.stderr)

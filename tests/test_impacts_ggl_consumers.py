@@ -160,3 +160,17 @@ def test_ggl_integrator_with_contacts_refuses_multipliers_by_name(ball):
         integ.propagate_for(0.1)
         with pytest.raises(lcg.LagcodegenError, match="multipliers is not available for systems with contacts"):
             integ.multipliers
+
+
+def test_ggl_contact_run_stops_on_the_ensembles_cancel_flag(ball):
+    # the flag an ensemble sets on Ctrl-C (tests/test_impact_consumers.py's subprocess test on
+    # index-1) reaches IDA: a member's run stops with -80
+    from lagcodegen.solvers.registry import resolve
+    p = ball._default_p
+    y0 = np.array([1.0, 0.0])
+    run = ball.contact_run(resolve("ggl", None, {}), 0.0, y0, p, 1e-10, 1e-12, True, None)
+    t = np.linspace(0, 3, 31)
+    stopped = run.execute(t, y0, p, cancel=np.ones(1, dtype=np.intc))
+    assert stopped.status == -80 and stopped.t.size == 1
+    full = run.execute(t, y0, p, cancel=np.zeros(1, dtype=np.intc))
+    assert full.status == 0 and full.t.size == t.size
