@@ -9,6 +9,10 @@ to the same C names, evaluating the same operations). The native drivers are not
 model's code: they are model-independent (lagcodegen/runtime/lcg_cvc.c, lcg_ida.c), compiled once
 into the runtime (:func:`lagcodegen.build.runtime`), and call a model through its function table
 ``<prefix>_dae_table.c`` (lcg_dae_model.h), which the build adds (:func:`lagcodegen.build.dae_table_source`).
+Systems with contacts add the contact functions, each backend's (``impact_source``): C
+``<prefix>_impact.c`` with its tables lcg_imp_model/lcg_imp_friction (lcg_imp_model.h), Fortran
+``<prefix>_impact.f90`` with the same tables as the C file ``<prefix>_impact_table.c``; the
+language-neutral part is :func:`contact_context`.
 """
 
 from __future__ import annotations
@@ -40,7 +44,9 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     ``lang``: ``"c"`` (``<prefix>.c``, ``<prefix>_dae.c``, C99) or ``"fortran"`` (``<prefix>.f90``
     and ``<prefix>_dae.f90``, Fortran 2008 modules whose functions are bound to the same C
     names and signatures, see :func:`lagcodegen.codegen.fortran.FortranBackend.constrained_source`);
-    the headers are the same C files in both cases.
+    the headers are the same C files in both cases. With contacts (inequalities with a
+    restitution) also ``<prefix>_impact.c``, or in Fortran ``<prefix>_impact.f90`` with its C
+    tables ``<prefix>_impact_table.c``, and ``lcg_imp_model.h``.
 
     Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
     """

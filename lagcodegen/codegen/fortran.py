@@ -36,7 +36,10 @@ signatures and return codes, from the expression blocks the C path prints
 template written out in the same order. Arguments C callers may pass as NULL (``lam``,
 ``err``) or that may alias (``y`` and ``ynew`` of ``_project``) are ``type(c_ptr)`` values.
 :func:`lagcodegen.compile_constrained` (``lang="fortran"``) builds them behind the same
-native CVODE and IDA drivers.
+native CVODE and IDA drivers. Systems with contacts: :func:`generate_impact_fortran_source`
+renders ``<prefix>_impact.f90`` (module ``<prefix>_impact_mod``, the contact functions of the C
+backend's ``<prefix>_impact.c``) and their tables as the C file ``<prefix>_impact_table.c``, for
+the same native impact drivers.
 """
 
 from __future__ import annotations

@@ -11,7 +11,8 @@ integrated over an impact of zero duration, where the bounded forces F contribut
     M (q'+ - q'-) = R^T P,   w_k+ = -e_k w_k-  (Newton's law, every contact that takes part),
     A q'+ + A0 = 0 (equality rows), w_j+ = 0 (contacts already in persistent contact),
 
-solved together in the generated C (``<prefix>_impact.c``: the augmented matrix
+solved together in the generated code (``<prefix>_impact.c``, or with Fortran model code
+``<prefix>_impact.f90`` and its C tables ``<prefix>_impact_table.c``: the augmented matrix
 [M R^T; R 0] factored numerically by LU; M is never inverted symbolically). With the notes'
 Lambda = -P this is q'+ = q'- - M^-1 A^T Lambda. P_k >= 0 is the impulse of contact k in the sign
 of its multiplier (positive: the contact pushes). Contacts take part when they touch
@@ -78,7 +79,7 @@ with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t))
 
 *Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
 friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
-F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
+F, rows, gamma) that the generated ``<prefix>_impact.c`` (or ``.f90``) gives through the table
 ``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
 other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are
 seen where their sign differs at CVODE's step ends; so that a friction limit is not crossed and
@@ -101,9 +102,11 @@ reduced model with the contacts in the remaining coordinates on the index-1 driv
 
 Ensembles of index-1 systems run each member as one call of this driver, every member's events
 and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
-propagate call (:mod:`.impact_stepper`). Not supported with contacts: Taylor (it takes no
-constrained system), the scikit-sundae backend, projection, ensembles and the integrator object
-of GGL systems, Fortran model code.
+propagate call (:mod:`.impact_stepper`). Fortran model code (``lang="fortran"``) runs on the
+same drivers: its contact functions are bound to the C names, with the same tables, and its runs
+are the C code's (bit for bit where neither compiler fuses multiply-adds). Not supported with
+contacts: Taylor (it takes no constrained system), the scikit-sundae backend, projection,
+ensembles and the integrator object of GGL systems.
 """
 
 from __future__ import annotations
