@@ -177,7 +177,7 @@ def test_fortran_contact_functions_equal_the_c_ones(name):
 
 
 # ---------------------------------------------------------------------- runs against closed forms
-@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
 def test_fortran_bouncing_ball_impact_times_apex_heights_and_resting_force(formulation):
     """The bounds of test_impacts' bouncing ball: impact k at t1 + 2 t1 e (1 - e^k) / (1 - e), the
     rebound speeds and apex heights h0 e^(2k) to 1e-9, the ball held at rest by lambda = m g; the
@@ -204,6 +204,27 @@ def test_fortran_bouncing_ball_impact_times_apex_heights_and_resting_force(formu
     assert np.max(np.abs(res["lambda_ineq_0"][after] - G)) < 1e-9  # m g, m = 1
     assert np.max(np.abs(res["y"][after])) < 1e-9
     same_runs(runs["c"], res)
+
+
+def test_fortran_ball_in_an_ensemble_and_the_integrator_object_runs_as_simulate():
+    """The consumers of the impact driver take Fortran contact code alike: an ensemble's members
+    (two threads) and the integrator object over the whole grid are the Fortran simulate run,
+    which is the C code's."""
+    t = np.linspace(0, 3, 301)
+    h0 = np.array([1.0, 0.5, 2.0])
+    balls = {lang: _ball(0.8, lang=lang) for lang in ("c", "fortran")}
+    ball = balls["fortran"]
+    ens = ball.ensemble(t, q0=h0[:, None], v0=np.zeros((3, 1)), save="trajectory", threads=2, **TIGHT)
+    assert (ens.status == 0).all()
+    for i, h in enumerate(h0):
+        single = ball.simulate(t, q0=[h], v0=[0.0], **TIGHT)
+        assert np.array_equal(ens.member(i).y, single.y)
+        assert ens.member(i).impacts.records == single.impacts.records
+        same_runs(balls["c"].simulate(t, q0=[h], v0=[0.0], **TIGHT), single)
+    with ball.integrator(q0=[1.0], v0=[0.0], **TIGHT) as integ:
+        out = integ.propagate_grid(t)
+        ref = ball.simulate(t, q0=[1.0], v0=[0.0], **TIGHT)
+        assert np.array_equal(out, ref.y) and integ.impacts.records == ref.impacts.records
 
 
 def test_fortran_newtons_cradle_passes_the_velocity_to_the_last_ball():
