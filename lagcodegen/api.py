@@ -591,12 +591,14 @@ def generate_file(mf: ModelFile, *, lang: str = "c", bundle: bool = False, metho
     code, _ = generate_constrained(system, ggl=ggl, ggl_jacobian=s.jacobian, outputs=outputs, events=list(mf.events),
                                    runtime_parameters=runtime, values=folded, prefix=prefix, lang=lang)
     files = {name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_dae.")}
-    if system.contacts:  # the contact functions with their table, and what they include and link to
+    if system.contacts:  # the contact functions with their tables, and what they include and link to
         files.update({name: text for name, text in _build.dae_table_source(code).items()})
         # the constrained table points to the unconstrained model's table: that model and its table
-        files.update({name: code.files[name] for name in (f"{code.prefix}.c", f"{code.prefix}.h")})
+        model_source = f"{code.prefix}{backend(lang).suffix}"
+        files.update({name: code.files[name] for name in (model_source, f"{code.prefix}.h")})
         files.update(_build.table_source(code))
-        files[f"{code.prefix}_impact.c"] = code.files[f"{code.prefix}_impact.c"]
+        # <prefix>_impact.c; in Fortran <prefix>_impact.f90 and its C tables <prefix>_impact_table.c
+        files.update({name: text for name, text in code.files.items() if name.startswith(f"{code.prefix}_impact")})
         files["lcg_imp_model.h"] = code.files["lcg_imp_model.h"]
     return files
 

@@ -21,9 +21,10 @@ G = 9.81
 TIGHT = {"rtol": 1e-12, "atol": 1e-14}
 
 
-def _incline(alpha: float, mu: float, *, formulation: str = "index1"):
+def _incline(alpha: float, mu: float, *, formulation: str = "index1", lang: str = "c"):
     """A particle on an incline of angle alpha: x down the slope, y normal to it (both lengths);
-    compiled with ``formulation`` (the GGL tests, tests/test_friction_ggl.py, use it too)."""
+    compiled with ``formulation`` (the GGL tests, tests/test_friction_ggl.py, use it too), its
+    model code in ``lang``."""
     m = lcg.Model("incline")
     x, y = m.coordinates("x y")
     m.parameters(g=G, m=1.0, alpha=alpha)
@@ -31,7 +32,7 @@ def _incline(alpha: float, mu: float, *, formulation: str = "index1"):
     m.particle("b", sp.Symbol("m"), (x * sp.cos(a) + y * sp.sin(a), -x * sp.sin(a) + y * sp.cos(a)))
     m.gravity(sp.Symbol("g"))
     system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)])
-    return compile_constrained(system, formulation, outputs=["energy"])
+    return compile_constrained(system, formulation, outputs=["energy"], lang=lang)
 
 
 @pytest.mark.parametrize("alpha, mu", [(0.5, 0.6), (0.5, 0.3), (0.3, 0.1), (0.3, 0.31)])

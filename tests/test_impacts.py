@@ -19,14 +19,15 @@ from lagcodegen.errors import LagcodegenError, ModelError
 G = 9.81
 
 
-def _ball(e: float, formulation: str = "index1"):
+def _ball(e: float, formulation: str = "index1", lang: str = "c"):
+    """The ball on the floor y >= 0 (restitution e), compiled with its model code in ``lang``."""
     m = lcg.Model("ball")
     (y,) = m.coordinates("y")
     m.parameters(g=G, m=1.0)
     m.particle("b", sp.Symbol("m"), (0, y))
     m.gravity(sp.Symbol("g"))
     return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=e)]),
-                               formulation, outputs=["energy"])
+                               formulation, outputs=["energy"], lang=lang)
 
 
 @pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
@@ -156,8 +157,9 @@ def test_particle_leaves_the_sphere_in_the_same_run(formulation):
     assert res.impacts.final_modes == {0: "free"}
 
 
-@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
-def test_newtons_cradle_passes_the_velocity_to_the_last_ball(formulation):
+def _cradle(formulation: str = "index1", lang: str = "c"):
+    """Three balls on a line, 0.1 apart at contact (elastic contacts between neighbours),
+    compiled with its model code in ``lang``."""
     m = lcg.Model("cradle")
     xs = m.coordinates("x1 x2 x3")
     m.parameters(m=1.0, d=0.1)
@@ -165,7 +167,13 @@ def test_newtons_cradle_passes_the_velocity_to_the_last_ball(formulation):
         m.particle(f"b{i}", sp.Symbol("m"), (x, 0))
     d = sp.Symbol("d")
     ineqs = [lcg.Inequality(xs[1] - xs[0] - d, restitution=1.0), lcg.Inequality(xs[2] - xs[1] - d, restitution=1.0)]
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), formulation, outputs=["energy"])
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=ineqs), formulation, outputs=["energy"],
+                               lang=lang)
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
+def test_newtons_cradle_passes_the_velocity_to_the_last_ball(formulation):
+    sim = _cradle(formulation)
     gap = 1e-3
     res = sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0],
                        rtol=1e-12, atol=1e-14)
@@ -370,7 +378,7 @@ def test_model_file_contact_runs_like_the_python_system():
         loads_model(path.read_text().replace("restitution = 0.8", "restituion = 0.8"))
 
 
-def test_generate_and_bundle_of_a_contact_file(tmp_path):
+def test_generate_and_bundle_of_a_contact_file(tmp_path, fc):
     from pathlib import Path
 
     from lagcodegen.api import generate_file
@@ -404,8 +412,26 @@ def test_generate_and_bundle_of_a_contact_file(tmp_path):
     bundle = generate_file(mf, bundle=True)  # the impact law in the bundle's C (tests/codegen/test_bundle_contacts.py)
     assert {"bouncing_ball_impact.c", "rk4_example.c", "reference.csv"} <= set(bundle)
     assert "bouncing_ball_imp_model_table()" in bundle["rk4_example.c"]
-    with pytest.raises(ModelError, match="in C only"):
-        generate_file(mf, lang="fortran")
+    # in Fortran: the contact functions <prefix>_impact.f90 (strict gfortran) with their C tables
+    # <prefix>_impact_table.c, and the same program linked with them takes the same impact
+    files = generate_file(mf, lang="fortran")
+    assert {"bouncing_ball_impact.f90", "bouncing_ball_impact_table.c", "bouncing_ball.f90",
+            "bouncing_ball_dae.f90"} <= set(files) and not any(n.endswith("_impact.c") for n in files)
+    folder = tmp_path / "fortran"
+    folder.mkdir()
+    for name, text in files.items():
+        (folder / name).write_text(text)
+    (folder / "main.c").write_text((tmp_path / "main.c").read_text())
+    from helpers import STRICT_FFLAGS
+    sources = ["bouncing_ball.f90", "bouncing_ball_dae.f90", "bouncing_ball_impact.f90"]
+    proc = subprocess.run([fc, *STRICT_FFLAGS, "-c", *sources], cwd=folder, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    c_files = sorted(n for n in files if n.endswith(".c"))
+    proc = subprocess.run(["cc", "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "main.c", *c_files,
+                           *(n[:-4] + ".o" for n in sources), "-lgfortran", "-lm", "-o", "main"], cwd=folder,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert subprocess.run([str(folder / "main")]).returncode == 0
 
 
 @pytest.mark.parametrize("formulation", ["index1", "ggl"])

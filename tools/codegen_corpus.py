@@ -95,9 +95,10 @@ def main(out: Path) -> int:
         if mf.constrained is not None:
             systems[f"file_{toml.stem}"] = mf.constrained
     for name, system in systems.items():
-        if system.contacts:  # contacts: C, index 1 only (impact code), no bundle
-            code, _info = generate_constrained(system, ggl=False, lang="c")
-            put(f"constrained/{name}/c_ggl0", code_files(code))
+        if system.contacts:  # contacts: index 1 only (impact code), no bundle
+            for lang in ("c", "fortran"):
+                code, _info = generate_constrained(system, ggl=False, lang=lang)
+                put(f"constrained/{name}/{lang}_ggl0", code_files(code))
             continue
         for lang in ("c", "fortran"):
             for ggl in (False, True):

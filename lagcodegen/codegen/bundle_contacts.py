@@ -22,8 +22,9 @@ def check_contact_bundle(system, c_sources: bool, ggl: bool) -> None:
     """Refusals by name: what the contact bundle does not carry (``c_sources``: whether the
     bundle's language is printed as C, the backend's answer)."""
     if not c_sources:
-        raise ModelError("bundles of systems with contacts are made in C only (the contact functions "
-                         "<prefix>_impact.c are printed in C): lang='c'")
+        raise ModelError("bundles of systems with contacts are made in C only (their library and RK4 example "
+                         "are written for the C contact functions <prefix>_impact.c; compile_constrained runs "
+                         "Fortran contact code): lang='c'")
     if ggl:
         raise ModelError("bundles of systems with contacts are made for the index-1 formulation, not GGL")
     if system.has_friction:

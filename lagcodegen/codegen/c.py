@@ -410,6 +410,19 @@ def _constrained_source(cb, ctx: dict) -> dict[str, str]:
     return {f"{ctx['prefix']}_dae.c": text}
 
 
+def _impact_source(cb, contact: dict, ctx: dict) -> dict[str, str]:
+    """``<prefix>_impact.c`` (templates/c/impact.c.j2): the contact functions and their tables
+    ``lcg_imp_model`` and (with ``contact["friction"]`` or ``contact["numbers"]``)
+    ``lcg_imp_friction`` (lagcodegen/runtime/lcg_imp_model.h) for the impact drivers;
+    ``contact``: :func:`lagcodegen.codegen.constrained.contact_context`. M and F are those of
+    ``cb`` (a tree's program printed once for both files, :func:`mass_force_text`)."""
+    mfp = mass_force_text(cb)
+    text = environment().get_template("c/impact.c.j2").render(
+        **ctx, **{k: v for k, v in contact.items() if k != "rows"}, mf_program=mfp,
+        mf="" if mfp else print_block(cb.blocks["mf"]), rows=print_block(contact["rows"]))
+    return {f"{ctx['prefix']}_impact.c": text}
+
+
 class CBackend:
     """The C99 backend (registered as "c" in :mod:`lagcodegen.codegen.languages`): prints the
     operation tree with :class:`CPrinter` through templates/c/model.c.j2, dae.c.j2, jac_sparse.c.j2."""
@@ -446,3 +459,7 @@ class CBackend:
     def constrained_source(self, cb, ctx: dict) -> dict[str, str]:
         """``<prefix>_dae.c``: the constrained kernels (:func:`lagcodegen.formulation.constrained.constrained_blocks`)."""
         return _constrained_source(cb, ctx)
+
+    def impact_source(self, cb, contact: dict, ctx: dict) -> dict[str, str]:
+        """``<prefix>_impact.c``: the contact functions with their tables (:func:`_impact_source`)."""
+        return _impact_source(cb, contact, ctx)

@@ -9,6 +9,10 @@ to the same C names, evaluating the same operations). The native drivers are not
 model's code: they are model-independent (lagcodegen/runtime/lcg_cvc.c, lcg_ida.c), compiled once
 into the runtime (:func:`lagcodegen.build.runtime`), and call a model through its function table
 ``<prefix>_dae_table.c`` (lcg_dae_model.h), which the build adds (:func:`lagcodegen.build.dae_table_source`).
+Systems with contacts add the contact functions, each backend's (``impact_source``): C
+``<prefix>_impact.c`` with its tables lcg_imp_model/lcg_imp_friction (lcg_imp_model.h), Fortran
+``<prefix>_impact.f90`` with the same tables as the C file ``<prefix>_impact_table.c``; the
+language-neutral part is :func:`contact_context`.
 """
 
 from __future__ import annotations
@@ -17,13 +21,12 @@ from typing import Iterable, Sequence
 
 from ..derivation import derive
 from ..errors import ModelError
-from ..formulation.constrained import (DEFAULT_OUTPUTS, ConstrainedBlocks, ConstrainedCodeInfo, constrained_blocks,
-                                       impact_blocks)
+from ..formulation.constrained import DEFAULT_OUTPUTS, ConstrainedCodeInfo, constrained_blocks, impact_blocks
 from ..formulation.scene import Scene
 from ..theory.constraints import ConstrainedSystem
 from ..runtime import source as runtime_source
 from ..version import __version__
-from .c import mass_force_text, print_block
+from .c import print_block
 from .ir import deep_recursion
 from .languages import backend, generate_code
 from .record import DaeLayout
@@ -41,7 +44,9 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     ``lang``: ``"c"`` (``<prefix>.c``, ``<prefix>_dae.c``, C99) or ``"fortran"`` (``<prefix>.f90``
     and ``<prefix>_dae.f90``, Fortran 2008 modules whose functions are bound to the same C
     names and signatures, see :func:`lagcodegen.codegen.fortran.FortranBackend.constrained_source`);
-    the headers are the same C files in both cases.
+    the headers are the same C files in both cases. With contacts (inequalities with a
+    restitution) also ``<prefix>_impact.c``, or in Fortran ``<prefix>_impact.f90`` with its C
+    tables ``<prefix>_impact_table.c``, and ``lcg_imp_model.h``.
 
     Returns (GeneratedCode ready for :func:`lagcodegen.build.build`, ConstrainedCodeInfo).
     """
@@ -74,10 +79,7 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     with deep_recursion():
         files.update(language.constrained_source(cb, ctx))
     if system.contacts:
-        if lang != "c":
-            raise ModelError(f"inequality constraints with a restitution (contacts) are generated in C only, "
-                             f"not lang={lang!r}")
-        files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, cb, ggl)
+        files.update(language.impact_source(cb, contact_context(system, scene, ggl), ctx))
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)
     code.dae = DaeLayout(nq=model.nq, nj=J, njh=JH, ng=ng, np=len(scene.runtime_parameters), nout=len(outs),
@@ -88,27 +90,26 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
     return code, info
 
 
-def _impact_source(system: ConstrainedSystem, scene: Scene, ctx: dict, cb: ConstrainedBlocks,
-                   ggl: bool = False) -> str:
-    """``<prefix>_impact.c`` (templates/c/impact.c.j2): the contact functions and their table
-    ``lcg_imp_model`` (lagcodegen/runtime/lcg_imp_model.h) for the impact driver; with friction or
-    ``ggl`` also the model's numbers at a state (``lcg_imp_friction``), from which the friction
-    driver (lcg_imp.c) solves its modes and the GGL impact driver (lcg_imp_ida.c) builds its
-    residual. M and F are those of ``cb`` (:func:`constrained_blocks` of the same system; a
-    tree's program printed once for both files, :func:`lagcodegen.codegen.c.mass_force_text`)."""
+def contact_context(system: ConstrainedSystem, scene: Scene, ggl: bool = False) -> dict:
+    """What a backend's contact functions take besides the constrained context (its
+    ``impact_source(cb, contact, ctx)``: the C backend's ``<prefix>_impact.c``, templates/c/impact.c.j2;
+    the Fortran backend's ``<prefix>_impact.f90`` with the C tables ``<prefix>_impact_table.c``):
+    ``nk`` contacts, their description ``contacts``, the block ``rows``
+    (:func:`~lagcodegen.formulation.constrained.impact_blocks`: the rows R, s, h, gamma of the equality
+    constraints, the contacts and their tangents), ``tangent_of`` (the contact of each tangential row),
+    ``friction`` (a contact has a Coulomb coefficient) and ``numbers`` (``ggl``): with either the
+    model's numbers at a state (table ``lcg_imp_friction``) for the friction driver (lcg_imp.c) and the
+    GGL impact driver (lcg_imp_ida.c). M and F are those of the constrained blocks of the same system
+    (``cb.blocks["mf"]``, and the C backend's program of a tree's, printed once for both files)."""
     blocks = impact_blocks(system, scene, mass_force=False)
-    mfp = mass_force_text(cb)
     contacts = ", ".join(f"{system.inequalities[k]} >= 0, e = {system.restitution[k]:g}"
                          + (f", no slip along {system.tangents[k]}" if system.tangents[k] is not None
                             and system.friction[k] is None else "")
                          + (f", Coulomb friction along {system.tangents[k]}" if system.friction[k] is not None
                             else "")
                          for k in system.contacts)
-    return environment().get_template("c/impact.c.j2").render(
-        **ctx, nk=len(system.contacts), contacts=contacts, mf_program=mfp,
-        mf="" if mfp else print_block(cb.blocks["mf"]),
-        rows=print_block(blocks["rows"]), tangent_of=blocks["tangent_of"], friction=system.has_friction,
-        numbers=ggl)
+    return dict(nk=len(system.contacts), contacts=contacts, rows=blocks["rows"], tangent_of=blocks["tangent_of"],
+                friction=system.has_friction, numbers=ggl)
 
 
 def generate_constrained_c(system: ConstrainedSystem, **options):

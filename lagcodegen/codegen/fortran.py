@@ -36,7 +36,10 @@ signatures and return codes, from the expression blocks the C path prints
 template written out in the same order. Arguments C callers may pass as NULL (``lam``,
 ``err``) or that may alias (``y`` and ``ynew`` of ``_project``) are ``type(c_ptr)`` values.
 :func:`lagcodegen.compile_constrained` (``lang="fortran"``) builds them behind the same
-native CVODE and IDA drivers.
+native CVODE and IDA drivers. Systems with contacts: :func:`generate_impact_fortran_source`
+renders ``<prefix>_impact.f90`` (module ``<prefix>_impact_mod``, the contact functions of the C
+backend's ``<prefix>_impact.c``) and their tables as the C file ``<prefix>_impact_table.c``, for
+the same native impact drivers.
 """
 
 from __future__ import annotations
@@ -337,14 +340,50 @@ def generate_constrained_fortran_source(cb, ctx: dict) -> str:
     libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
     text = environment().get_template("fortran/dae.f90.j2").render(
         **ctx, blk=blocks, libm=[(name, LIBM_ARITY[name]) for name in libm])
+    return _wrap_long(text)
+
+
+def _wrap_long(text: str) -> str:
+    """``text`` with its code lines longer than LINE (long associate lists of unused arguments)
+    wrapped as continuation lines."""
     lines = []
-    for line in text.split("\n"):  # long associate lists of unused arguments
+    for line in text.split("\n"):
         stripped = line.lstrip()
         if len(line) > LINE and "!" not in line:
             lines += wrap(stripped, line[:len(line) - len(stripped)])
         else:
             lines.append(line)
     return "\n".join(lines)
+
+
+def generate_impact_fortran_source(cb, contact: dict, ctx: dict) -> dict[str, str]:
+    """``<prefix>_impact.f90`` (module ``<prefix>_impact_mod``, templates/fortran/impact.f90.j2): the
+    contact functions of the C backend's ``<prefix>_impact.c`` (gaps, the index-1 right-hand side
+    with the active contacts held, the impact, and with friction or GGL the model's numbers at a
+    state, ``<prefix>_imp_eval``), bound to the same C names and signatures and evaluating the
+    same operations (the solve of the active rows with the LU procedures of the language-neutral
+    tree, :mod:`.linalg`); and their tables ``lcg_imp_model`` / ``lcg_imp_friction`` as the C file
+    ``<prefix>_impact_table.c`` (templates/c/impact_table.c.j2, the same table text as the C
+    backend's file holds), for the model-independent impact drivers.
+
+    ``cb``: the constrained blocks of the system (M and F, and q' = k(q, v, t) with generalized
+    speeds, as ``<prefix>_dae.f90`` prints them); ``contact``:
+    :func:`lagcodegen.codegen.constrained.contact_context`; ``ctx``: the constrained template context.
+    """
+    prefix = ctx["prefix"]
+    check_prefix(prefix, DAE_SUFFIX)
+    plain = ("t", "y", "p")
+    blocks = dict(mf=print_block(cb.blocks["mf"], f"{prefix} mass matrix and forces", plain, plain),
+                  rows=print_block(contact["rows"], f"{prefix} contact rows", plain, plain))
+    if ctx.get("general"):
+        blocks["kin"] = print_block(cb.blocks["kin"], f"{prefix} kinematics", plain, plain)
+    libm = sorted(set().union(*(blk.libm for blk in blocks.values())))
+    values = {k: v for k, v in contact.items() if k != "rows"}
+    env = environment()
+    text = env.get_template("fortran/impact.f90.j2").render(
+        **ctx, **values, blk=blocks, libm=[(name, LIBM_ARITY[name]) for name in libm])
+    table = env.get_template("c/impact_table.c.j2").render(**ctx, **values, source=f"{prefix}_impact.f90")
+    return {f"{prefix}_impact.f90": _wrap_long(text), f"{prefix}_impact_table.c": table}
 
 
 class FortranBackend:
@@ -384,3 +423,8 @@ class FortranBackend:
     def constrained_source(self, cb, ctx: dict) -> dict[str, str]:
         """``<prefix>_dae.f90``: :func:`generate_constrained_fortran_source`."""
         return {f"{ctx['prefix']}_dae.f90": generate_constrained_fortran_source(cb, ctx)}
+
+    def impact_source(self, cb, contact: dict, ctx: dict) -> dict[str, str]:
+        """``<prefix>_impact.f90`` with the C tables ``<prefix>_impact_table.c``:
+        :func:`generate_impact_fortran_source`."""
+        return generate_impact_fortran_source(cb, contact, ctx)

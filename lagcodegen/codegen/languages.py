@@ -2,7 +2,8 @@
 
 A backend class (:class:`.c.CBackend`, :class:`.fortran.FortranBackend`) has ``generate(scene)``
 -> :class:`~.record.GeneratedCode`, ``check_prefix(prefix, suffix)`` and
-``constrained_source(blocks, ctx)`` -> {file name: text}, and prints the operation tree of
+``constrained_source(blocks, ctx)`` and ``impact_source(blocks, contact, ctx)`` (the contact
+functions of a system with contacts, with their C tables) -> {file name: text}, and prints the operation tree of
 :mod:`.ir` (and the program form of :mod:`.program`) with its own printer class; the procedures
 of :mod:`.procedure` (the LU solve of :mod:`.linalg`) with its procedure printer. A backend class
 also answers what bundles and builds ask of a language (``suffix``, ``title``, ``link_libs``,

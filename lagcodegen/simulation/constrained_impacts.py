@@ -11,7 +11,8 @@ integrated over an impact of zero duration, where the bounded forces F contribut
     M (q'+ - q'-) = R^T P,   w_k+ = -e_k w_k-  (Newton's law, every contact that takes part),
     A q'+ + A0 = 0 (equality rows), w_j+ = 0 (contacts already in persistent contact),
 
-solved together in the generated C (``<prefix>_impact.c``: the augmented matrix
+solved together in the generated code (``<prefix>_impact.c``, or with Fortran model code
+``<prefix>_impact.f90`` and its C tables ``<prefix>_impact_table.c``: the augmented matrix
 [M R^T; R 0] factored numerically by LU; M is never inverted symbolically). With the notes'
 Lambda = -P this is q'+ = q'- - M^-1 A^T Lambda. P_k >= 0 is the impulse of contact k in the sign
 of its multiplier (positive: the contact pushes). Contacts take part when they touch
@@ -79,7 +80,7 @@ with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t))
 *Where it lives*: in the model-independent C runtime (lagcodegen/runtime/lcg_imp_fric.c, "Coulomb
 friction", called by the drivers lcg_imp.c and lcg_imp_ida.c), which builds and solves the contact
 problem of each mode from the model's numbers (M, F, rows, gamma) that the generated
-``<prefix>_impact.c`` gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated
+``<prefix>_impact.c`` (or ``.f90``) gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated
 only for systems with friction or the GGL formulation, so the code of other systems is
 unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are seen where their
 sign differs at CVODE's step ends; so that a friction limit is not crossed and recrossed within
@@ -112,13 +113,16 @@ index-1 driver and IDA restarts from consistent values. A contact problem turnin
 a GGL run where its determinant has fallen to 1e-4 of its value where the modes began (IDA cannot
 step up to the zero, where lambda is infinite). Models with generalized speeds (q' = k(q, v, t):
 quaternion bases) run there too, the positions corrected along the speeds' images,
-q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
-reduced model with the contacts in the remaining coordinates on the index-1 driver.
+q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal coordinates**:
+:class:`~.minimal.MinimalSimulation` runs the reduced model with the contacts in the remaining
+coordinates on the index-1 driver.
 
 Ensembles run each member as one call of the system's driver (index-1 or GGL), every member's
 events and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
-propagate call (:mod:`.impact_stepper`). Not supported with contacts: Taylor (it takes no
-constrained system), the scikit-sundae backend, projection, Fortran model code.
+propagate call (:mod:`.impact_stepper`). Fortran model code (``lang="fortran"``) runs on the
+same drivers: its contact functions are bound to the C names, with the same tables, and its runs
+are the C code's (bit for bit where neither compiler fuses multiply-adds). Not supported with
+contacts: Taylor (it takes no constrained system), the scikit-sundae backend, projection.
 """
 
 from __future__ import annotations
