@@ -374,6 +374,8 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     ``"auto"`` alpha = beta = ``<prefix>_natural_rate`` at the initial state; others and per-step
     projection on its command line). There is no SUNDIALS example (the native
     drivers of :func:`lagcodegen.build.runtime` are written against lagcodegen's own SUNDIALS declarations).
+    Systems with contacts (in C) add their contact functions and an example with impacts, and with
+    Coulomb friction the runtime's friction core: :mod:`lagcodegen.codegen.bundle_contacts`.
 
     ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
     :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);

@@ -153,6 +153,30 @@ def test_pendulum_at_a_wall_bundle_with_an_equality_constraint(tmp_path, tools):
         assert b[5] == pytest.approx(-0.8 * b[4], rel=1e-10)
 
 
+def test_no_slip_contact_with_two_tangents_bundle(tmp_path, tools):
+    """A no-slip contact with two tangents (a particle dropped from z = 1 moving at (1, 0.5) onto a
+    rough floor, e = 0.5) has two tangential rows in the contact table, which the example counts:
+    the impact at sqrt(2 / g) stops the sliding (x, y held there), make check against the impact
+    driver."""
+    m = lcg.Model("bnoslip3")
+    x, y, z = m.coordinates("x y z")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y, z))
+    m.gravity(sp.Symbol("g"))
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(z, restitution=0.5, tangent=(x, y))])
+    files = render_constrained_bundle(system, outputs=["energy"], y0=[0.0, 0.0, 1.0, 1.0, 0.5, 0.0], t_end=2.0)
+    assert "#define NROW 3" in files["rk4_example.c"]
+    write_files(tmp_path, files)
+    _run(["make", f"CFLAGS={STRICT}", "check"], tmp_path)
+    proc = _run(["./rk4_example", "-e", "2000"], tmp_path)
+    t1 = math.sqrt(2 / G)
+    events = _events(proc.stderr)
+    assert events[0][2] == "bounce" and events[0][0] == pytest.approx(t1, rel=1e-10)
+    final = np.array(proc.stdout.splitlines()[-1].split(","), float)
+    assert final[1] == pytest.approx(t1, rel=1e-10) and final[2] == pytest.approx(0.5 * t1, rel=1e-10)
+    assert abs(final[4]) < 1e-12 and abs(final[5]) < 1e-12
+
+
 def test_contact_bundles_refuse_what_they_do_not_carry():
     with pytest.raises(ModelError, match="contacts are made in C only"):
         render_constrained_bundle(_ball_system(), "fortran", outputs=["energy"], reference=False)
@@ -385,6 +409,24 @@ def test_painleve_rod_bundle_reports_the_paradox_by_name_and_exit_status(tmp_pat
     assert 0 < t_stop < 0.3 and rows[-1, 0] < t_stop <= rows[-1, 0] + 0.3 / 1000
     theta = rows[:, names.index("theta")]
     assert np.all(np.tan(theta) < 3 - math.sqrt(5)) and math.tan(theta[-1]) > 0.99 * (3 - math.sqrt(5))
+
+
+def test_command_line_bundle_of_a_model_file_with_friction(tmp_path, tools):
+    """`lagcodegen generate --bundle` on the model file of tests/test_friction.py (a block sent
+    along a rough floor at 3 m/s, mu = 0.25): make check passes and the example's block stops at
+    v0 / (mu g), x = v0^2 / (2 mu g), and sticks."""
+    import sys
+    from test_friction import SLIDER_FILE
+    (tmp_path / "slider.toml").write_text(SLIDER_FILE)
+    out = tmp_path / "bundle"
+    _run([sys.executable, "-m", "lagcodegen", "generate", "slider.toml", "-o", str(out), "--bundle", "-q"], tmp_path)
+    assert "rk4_example agrees with reference.csv" in _run(["make", f"CFLAGS={STRICT}", "check"], out).stdout
+    proc = _run(["./rk4_example", "-e", "2000"], out)
+    t_stop = 3.0 / (0.25 * G)
+    assert [(ev[2], ev[0]) for ev in _friction_events(proc.stderr)] == [("grip", pytest.approx(t_stop, rel=1e-12))]
+    names, rows = _table(proc.stdout)
+    assert rows[-1, names.index("x")] == pytest.approx(3.0 * t_stop / 2, rel=1e-12)
+    assert _final_modes(proc.stderr) == {0: "stick"}
 
 
 def test_friction_bundle_ships_the_runtime_friction_core_as_it_is():
