@@ -49,8 +49,12 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
  * where u stops or turns by 60 degrees from dref (d where the mode began; then only dref is
  * renewed). A slip from rest (|u| <= contact_speed) and a sliding impulse have no u to take d
  * from: fr_slip_fixed_point finds d = a_t / |a_t| (a_t: the tangential acceleration, or the slip
- * velocity after the impact), the force then opposing the slip it causes; the mode is consistent
- * when a_t lies along d (fr_aligned). */
+ * velocity after the impact), the force then opposing the slip it causes, by fixed-point
+ * iteration and, where that does not converge (contacts coupled, sticking forces that have just
+ * reached the cone: a_t small and turning fast with d), by Newton's method on the directions of
+ * all such slips together (fr_slip_newton); the mode is consistent when a_t lies along d
+ * (fr_aligned). A slip that has just begun (|u| <= contact_speed) is offered slip (its direction
+ * found again from its own), stick and release when another contact's mode changes. */
 
 #define FR_STICK 0
 #define FR_SLIP_POS 1
@@ -59,6 +63,7 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
 #define FR_MAX_ENUM 4096 /* mode combinations enumerated at most */
 #define FR_REL 1e-9      /* relative tolerance of the consistency conditions */
 #define FR_SAME 1e-7     /* modes whose accelerations (velocity jumps) agree to this are one motion */
+#define FR_PI 3.14159265358979323846
 #define FR_DIR_ITER 30   /* fixed-point iterations of a 3-D slip's direction at most */
 #define FR_DIR_REL 1e-6  /* a 3-D slip's tangential acceleration (velocity after an impact) below this,
                           * relative to the largest, develops no slip: its direction d is kept and it
@@ -349,11 +354,17 @@ static void fr_describe(const lcg_fric_ctx *d, const int *was, const int *act, c
  * acceleration (impact: the slip velocity after), so that the force -mu lambda_n d opposes the slip
  * that results (maximal dissipation on the circular cone); at most FR_DIR_ITER + 1 solves. */
 static int fr_slip_given(const lcg_fric *f, int k);
+static int fr_slip_newton(lcg_fric_ctx *d, int accel, const double *start);
 
 static int fr_slip_fixed_point(lcg_fric_ctx *d, int accel)
 {
     lcg_fric *f = d->fr;
     int it, k, rc, nk = d->im->nk;
+    double *start = f->nw + nk * nk + 4 * nk; /* the first guesses, 2 nk */
+    double *last = start + 2 * nk;            /* the fixed point's last directions, 2 nk */
+
+    for (k = 0; k < 2 * nk; ++k)
+        start[k] = f->tdir[k];
 
     for (it = 0; it < FR_DIR_ITER; ++it) {
         int moved = 0, i;
@@ -383,9 +394,133 @@ static int fr_slip_fixed_point(lcg_fric_ctx *d, int accel)
         if (!moved)
             return LCG_DAE_OK;
     }
-    /* not converged (e.g. a_t against d whatever d: no slip from rest): the last directions solved,
-     * for the caller's check of a_t along d */
+    /* not converged: the directions solved together by Newton's method from the first guesses
+     * (fr_slip_newton); failing that (e.g. a_t against d whatever d: no slip from rest), the last
+     * directions solved, for the caller's check of a_t along d */
+    for (k = 0; k < 2 * nk; ++k)
+        last[k] = f->tdir[k];
+    if (!fr_slip_newton(d, accel, start))
+        for (k = 0; k < 2 * nk; ++k)
+            f->tdir[k] = last[k];
     return fr_solve(d, f->tact, f->tmode, f->tdir, accel);
+}
+
+/* The angular residuals of the unknown 3-D slips idx[0..nu-1] at the directions th (angles in the
+ * tangents' plane): r_i = th_i - angle(a_t) wrapped to (-pi, pi] (0 where a_t is negligible: no
+ * slip develops, d kept); the mode solved with those directions; *done: whether every a_t lies
+ * along its d to the accuracy a_t has, |a_t x d| <= 1e-3 FR_REL (1 + max |x|) + 1e-10 |a_t| (a_t
+ * of a slip that has just reached the cone is small: its angle is known to round-off over |a_t|).
+ * Returns LCG_DAE_OK or an error. */
+static int fr_newton_residual(lcg_fric_ctx *d, int accel, const int *idx, int nu, const double *th, double *r,
+                              int *done)
+{
+    lcg_fric *f = d->fr;
+    int i, rc;
+    double tol = 0.0, across;
+
+    for (i = 0; i < nu; ++i) {
+        f->tdir[2 * idx[i]] = cos(th[i]);
+        f->tdir[2 * idx[i] + 1] = sin(th[i]);
+    }
+    rc = fr_solve(d, f->tact, f->tmode, f->tdir, accel);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (i = 0; i < f->n; ++i)
+        if (fabs(f->x[i]) > tol)
+            tol = fabs(f->x[i]);
+    across = 1e-3 * FR_REL * (1.0 + tol);
+    tol = FR_DIR_REL * (1.0 + tol);
+    *done = 1;
+    for (i = 0; i < nu; ++i) {
+        int k = idx[i];
+        double a = fr_row(f, f->trow[k], f->x, accel), a2 = fr_row(f, f->trow2[k], f->x, accel), e;
+        if (!(hypot(a, a2) > tol)) {
+            r[i] = 0.0;
+            continue;
+        }
+        e = th[i] - atan2(a2, a);
+        r[i] = e - 2.0 * FR_PI * floor((e + FR_PI) / (2.0 * FR_PI));
+        if (!(fabs(r[i]) < 0.5 * FR_PI && hypot(a, a2) * fabs(sin(r[i])) <= across + 1e-10 * hypot(a, a2)))
+            *done = 0;
+    }
+    return LCG_DAE_OK;
+}
+
+/* The slip directions d_k of the trial mode's 3-D slips that are to be found (as in
+ * fr_slip_fixed_point), solved together: Newton's method on their angles th_k for
+ * th_k = angle(a_t,k(th)) (each force opposing the slip it causes), the Jacobian by forward
+ * differences (one solve of the contact problem per unknown), steps halved while the largest
+ * residual does not decrease; from the first guesses start[2 nk]. Where contacts are coupled and
+ * the sticking forces have just reached the cone (a_t small, turning fast with d) the fixed point
+ * diverges; Newton converges. Returns 1 with f->tdir set when converged (see fr_newton_residual),
+ * 0 when not (or a trial's contact problem was singular). */
+static int fr_slip_newton(lcg_fric_ctx *d, int accel, const double *start)
+{
+    lcg_fric *f = d->fr;
+    int nk = d->im->nk, nu = 0, i, j, k, it, rc, done = 0, probe;
+    int *idx = f->nidx, *piv = f->nidx + nk;
+    double *J = f->nw, *th = J + nk * nk, *r = th + nk, *r2 = r + nk, *dth = r2 + nk;
+    double best, det;
+
+    for (k = 0; k < nk; ++k)
+        if (f->tact[k] && cone3(f, k) && f->tmode[k] != 0 && !(accel && fr_slip_given(f, k))) {
+            idx[nu] = k;
+            th[nu++] = atan2(start[2 * k + 1], start[2 * k]);
+        }
+    if (nu == 0)
+        return 0;
+    rc = fr_newton_residual(d, accel, idx, nu, th, r, &done);
+    if (rc != LCG_DAE_OK)
+        return 0;
+    for (it = 0; it < FR_DIR_ITER; ++it) {
+        double step = 1.0;
+        best = 0.0;
+        for (i = 0; i < nu; ++i)
+            if (fabs(r[i]) > best)
+                best = fabs(r[i]);
+        if (done)
+            return 1;
+        for (j = 0; j < nu; ++j) { /* J[i][j] = d r_i / d th_j */
+            double h = 1e-7;
+            th[j] += h;
+            rc = fr_newton_residual(d, accel, idx, nu, th, r2, &probe);
+            th[j] -= h;
+            if (rc != LCG_DAE_OK)
+                return 0;
+            for (i = 0; i < nu; ++i) {
+                double e = r2[i] - r[i];
+                e -= 2.0 * FR_PI * floor((e + FR_PI) / (2.0 * FR_PI));
+                J[i * nu + j] = e / h;
+            }
+        }
+        if (!fr_lu(nu, J, piv, &det))
+            break;
+        for (i = 0; i < nu; ++i)
+            dth[i] = -r[i];
+        fr_lu_solve(nu, J, piv, dth);
+        for (; step > 1e-4; step *= 0.5) { /* the step, halved until the largest residual decreases */
+            double now = 0.0;
+            for (i = 0; i < nu; ++i)
+                th[i] += step * dth[i];
+            rc = fr_newton_residual(d, accel, idx, nu, th, r2, &done);
+            if (rc != LCG_DAE_OK)
+                return 0;
+            for (i = 0; i < nu; ++i)
+                if (fabs(r2[i]) > now)
+                    now = fabs(r2[i]);
+            if (now < best || done)
+                break;
+            for (i = 0; i < nu; ++i)
+                th[i] -= step * dth[i];
+        }
+        if (!(step > 1e-4))
+            break;
+        for (i = 0; i < nu; ++i)
+            r[i] = r2[i];
+        if (done)
+            return 1;
+    }
+    return 0;
 }
 
 /* Whether a 3-D slip of contact k (in lcg_fr_modes, at the current state) has its direction given,
@@ -515,7 +650,8 @@ int lcg_fr_modes(lcg_fric_ctx *d, double t, double *y, const int *ending, double
             o[no++] = FR_FREE;
         } else if (cone3(f, k) && f->fmode[k] != 0 && end == 0 && hypot(u, u2) <= vtol) { /* 3-D, a slip just
                                                                                            * begun: on */
-            o[no++] = FR_SLIP_POS;
+            o[no++] = FR_SLIP_POS; /* first: of consistent modes with one motion the first is kept */
+            o[no++] = FR_STICK;    /* when another contact's change turns its acceleration against d */
             o[no++] = FR_FREE;
         } else if (cone3(f, k) && hypot(u, u2) <= vtol) { /* 3-D from rest: stick, slip, release */
             int cur = f->fmode[k] == 0 ? FR_STICK : FR_SLIP_POS;
@@ -779,8 +915,8 @@ int lcg_fr_setup(lcg_fric *f, const lcg_imp_friction *fr, const lcg_imp_model *i
     int tangents_ok = 1;
     int nq = im->nq, n = im->dae->ny - nq, nrow = im->nrow, nk = im->nk, dim = n + nrow, k, i;
     size_t nd = (size_t)(n * n + n + nrow * n + 4 * nrow + nq + dim * dim + dim + n + nrow + n + nrow + 3 * nk
-                         + nk + 10 * nk);
-    size_t ni = (size_t)(3 * nk + dim + nrow + 4 * nk + 10 * nk);
+                         + nk + 10 * nk + nk * nk + 8 * nk);
+    size_t ni = (size_t)(3 * nk + dim + nrow + 4 * nk + 10 * nk + 2 * nk);
     double *db;
     int *ib;
 
@@ -826,6 +962,7 @@ int lcg_fr_setup(lcg_fric *f, const lcg_imp_friction *fr, const lcg_imp_model *i
     f->bdir = f->tdir + 2 * nk;
     f->dref = f->bdir + 2 * nk;
     f->gdir = f->dref + 2 * nk;
+    f->nw = f->gdir + 2 * nk;
     f->trow = ib;
     f->trow2 = f->trow + nk;
     f->fmode = f->trow2 + nk;
@@ -840,6 +977,7 @@ int lcg_fr_setup(lcg_fric *f, const lcg_imp_friction *fr, const lcg_imp_model *i
     f->part = f->bmode + nk;
     f->plastic = f->part + nk;
     f->ending = f->plastic + nk;
+    f->nidx = f->ending + nk;
     for (k = 0; k < nk; ++k) {
         f->trow[k] = f->trow2[k] = -1;
         f->fmode[k] = 0;

@@ -33,6 +33,8 @@ typedef struct lcg_fric {
      * force -mu lambda_n d while slipping (dir: the current modes'; tdir: the trial mode's; bdir:
      * the chosen one's) and the reference of the slip root (dref: d where the mode began) */
     double *dir, *tdir, *bdir, *dref, *gdir; /* gdir: the first guess of a trial's d */
+    double *nw;       /* fr_slip_newton's workspace: nk * nk + 8 nk */
+    int *nidx;        /* nk: fr_slip_newton's unknown contacts, then its pivots (nk) */
     double vtol;      /* contact_speed: a slip velocity at most this is at rest */
     int *piv, *sel, *opts, *nopt, *tact, *tmode, *bact, *bmode, *part, *plastic, *ending;
     double det, det0; /* the determinant of the current mode's contact problem, and at its start */
