@@ -103,7 +103,7 @@ def test_ball_with_backspin_slips_then_rolls(body, k, slip_time, roll_speed):
     assert np.max(np.abs(res["lambda_t_ineq_0"][after])) < 1e-9
 
 
-def _ladder(alpha: float, mu: float, L: float = 2.0):
+def ladder_system(mu: float, L: float = 2.0) -> lcg.ConstrainedSystem:
     """A uniform ladder (length L, angle theta with the floor) against a frictionless wall x >= 0
     on a rough floor y >= 0: the top (x - L/2 cos theta, y + L/2 sin theta) on the wall, the foot
     (x + L/2 cos theta, y - L/2 sin theta) on the floor."""
@@ -115,7 +115,12 @@ def _ladder(alpha: float, mu: float, L: float = 2.0):
     m.gravity(sp.Symbol("g"))
     wall = lcg.Inequality(x - Ls / 2 * sp.cos(th), restitution=0.0)
     floor = lcg.Inequality(y - Ls / 2 * sp.sin(th), restitution=0.0, tangent=x + Ls / 2 * sp.cos(th), friction=mu)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[wall, floor]), "index1")
+    return lcg.ConstrainedSystem(m, inequalities=[wall, floor])
+
+
+def _ladder(alpha: float, mu: float, L: float = 2.0):
+    """The ladder of :func:`ladder_system` compiled, and its coordinates leaning at alpha."""
+    sim = compile_constrained(ladder_system(mu, L), "index1")
     q0 = [L / 2 * math.cos(alpha), L / 2 * math.sin(alpha), alpha]
     return sim, q0
 

@@ -384,6 +384,34 @@ def test_particle_launched_across_a_3d_incline_bundle_curves_as_an_independent_i
         assert grips == [] and _final_modes(proc.stderr) == {0: "slip"}
 
 
+def test_ladder_bundle_stays_when_mu_reaches_one_over_two_tan_alpha_and_slips_below(tmp_path, tools):
+    """Two contacts, one frictionless (the wall), one with Coulomb friction (the floor): the ladder
+    leaning at alpha = 0.9 stays when mu >= 1 / (2 tan(alpha)) (the wall's push and the floor's
+    friction m g / (2 tan(alpha)), N = m g, to 1e-9; the foot and the angle unmoved to 1e-12) and
+    slips below (the foot moves out, the ladder falls); make check against the impact driver. mu is
+    a literal of the example, so each case is its own bundle."""
+    from test_friction import ladder_system
+    alpha, L = 0.9, 2.0
+    mu_c = 1 / (2 * math.tan(alpha))
+    y0 = [L / 2 * math.cos(alpha), L / 2 * math.sin(alpha), alpha, 0.0, 0.0, 0.0]
+    for mu, stays in ((mu_c + 1e-6, True), (mu_c - 1e-6, False)):
+        folder = tmp_path / ("stays" if stays else "slips")
+        _friction_bundle(folder, ladder_system(mu, L), y0, 0.5)
+        proc = _run(["./rk4_example", "-e", "50"], folder)
+        names, rows = _table(proc.stdout)
+        col = {name: i for i, name in enumerate(names)}
+        foot = rows[:, col["x"]] + L / 2 * np.cos(rows[:, col["theta"]])
+        if stays:
+            assert _final_modes(proc.stderr) == {0: "contact", 1: "stick"}
+            assert np.max(np.abs(foot - foot[0])) < 1e-12 and np.max(np.abs(rows[:, col["theta"]] - alpha)) < 1e-12
+            assert rows[-1, col["lambda_ineq_0"]] == pytest.approx(G * mu_c, rel=1e-9)
+            assert rows[-1, col["lambda_t_ineq_1"]] == pytest.approx(-G * mu_c, rel=1e-9)
+            assert rows[-1, col["lambda_ineq_1"]] == pytest.approx(G, rel=1e-9)
+        else:
+            assert _final_modes(proc.stderr)[1] == "slip+"
+            assert foot[-1] > foot[0] + 1e-9 and rows[-1, col["theta"]] < alpha
+
+
 def test_painleve_rod_bundle_reports_the_paradox_by_name_and_exit_status(tmp_path, tools):
     """Painleve's rod (mu = 2, its end on the rough floor): at tan(theta) = 2 sliding to -x no mode
     is consistent (the example stops at its start with exit status 3 and the core's message); from
@@ -448,28 +476,37 @@ def test_friction_bundle_ships_the_runtime_friction_core_as_it_is():
 
 
 def test_friction_bundle_clean_under_sanitizers(tmp_path, tools):
-    """The friction example (the sphere with backspin: slip, grip, rolling; a frictional impact;
-    Painleve's exit) under AddressSanitizer and UBSan, leaks detected."""
+    """The friction example under AddressSanitizer and UBSan, leaks detected: a disc bouncing on
+    the rough floor (frictional impacts, slip, grip, rolling), the particle launched across the
+    3-D incline (the cone: slip, its direction renewed, grip), Painleve's rod (exit status 3, the
+    core's memory freed); bad command lines and a violated start (exit status 2 and 1)."""
     import os
-    from test_friction import roller_system
-    R = 0.3
-    files = render_constrained_bundle(roller_system(0.5, 0.1, 0.5), outputs=["energy"], reference=False,
-                                      y0=[0.0, R + 0.1, 0.0, 4.0, -2.0, 3.0], t_end=2.0)
-    write_files(tmp_path, files)
+    from test_friction import painleve_rod_system, roller_system
+    from test_friction_speeds import incline_3d_system
     flags = "-fsanitize=address,undefined -fno-sanitize-recover=all"
-    _run(["make", f"CFLAGS=-O1 -g -std=c99 {flags}", f"LDFLAGS={flags}", "rk4_example"], tmp_path)
     env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"}
-    proc = subprocess.run(["./rk4_example", "-e", "100"], cwd=tmp_path, capture_output=True, text=True, env=env,
-                          timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    assert "runtime error" not in proc.stderr and "AddressSanitizer" not in proc.stderr
-    kinds = [ev[2] for ev in _friction_events(proc.stderr)]
+
+    def build(name, system, y0, t_end):
+        folder = tmp_path / name
+        write_files(folder, render_constrained_bundle(system, reference=False, y0=y0, t_end=t_end))
+        _run(["make", f"CFLAGS=-O1 -g -std=c99 {flags}", f"LDFLAGS={flags}", "rk4_example"], folder)
+        return folder
+
+    def sanitized(folder, args, status=0):
+        proc = subprocess.run(["./rk4_example", *args], cwd=folder, capture_output=True, text=True, env=env,
+                              timeout=300)
+        assert proc.returncode == status, proc.stderr
+        assert "runtime error" not in proc.stderr and "Sanitizer" not in proc.stderr, proc.stderr
+        return proc
+
+    disc = build("disc", roller_system(0.5, 0.1, 0.5), [0.0, 0.4, 0.0, 4.0, -2.0, 3.0], 2.0)
+    kinds = [ev[2] for ev in _friction_events(sanitized(disc, ["-e", "100"]).stderr)]
     assert "bounce" in kinds and "tangential impulse" in kinds and "grip" in kinds
     for bad in (["-n", "0"], ["-p", "nope=1"], ["1.0"]):
-        proc = subprocess.run(["./rk4_example", *bad], cwd=tmp_path, capture_output=True, text=True, env=env)
-        assert proc.returncode == 2 and "runtime error" not in proc.stderr, (bad, proc.stderr)
-    # a contact violated at the start: exit status 1, named
-    proc = subprocess.run(["./rk4_example", "0", "0.2", "0", "0", "0", "0"], cwd=tmp_path, capture_output=True,
-                          text=True, env=env)
-    assert proc.returncode == 1 and "violated at the start" in proc.stderr and "Sanitizer" not in proc.stderr
-
+        sanitized(disc, bad, 2)
+    assert "violated at the start" in sanitized(disc, ["0", "0.2", "0", "0", "0", "0"], 1).stderr
+    across = build("across", incline_3d_system(0.5, 0.8, 0.3), [0, 0, 0, 0, 3.0, 0], 1.0)
+    assert [ev[2] for ev in _friction_events(sanitized(across, ["-e", "100"]).stderr)] == ["grip"]
+    theta0 = math.radians(30)
+    rod = build("rod", painleve_rod_system(2.0), [math.cos(theta0), math.sin(theta0), theta0, -20.0, 0.0, 0.0], 0.3)
+    assert "Painleve's paradox at t = " in sanitized(rod, ["-e", "100"], 3).stderr
