@@ -21,20 +21,16 @@ G = 9.81
 TIGHT = {"rtol": 1e-12, "atol": 1e-14}
 
 
-def incline_system(alpha: float, mu: float) -> lcg.ConstrainedSystem:
-    """A particle on an incline of angle alpha: x down the slope, y normal to it (both lengths);
-    also the system of the friction bundle's tests (tests/codegen/test_bundle_contacts.py)."""
+def _incline(alpha: float, mu: float):
+    """A particle on an incline of angle alpha: x down the slope, y normal to it (both lengths)."""
     m = lcg.Model("incline")
     x, y = m.coordinates("x y")
     m.parameters(g=G, m=1.0, alpha=alpha)
     a = sp.Symbol("alpha")
     m.particle("b", sp.Symbol("m"), (x * sp.cos(a) + y * sp.sin(a), -x * sp.sin(a) + y * sp.cos(a)))
     m.gravity(sp.Symbol("g"))
-    return lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)])
-
-
-def _incline(alpha: float, mu: float):
-    return compile_constrained(incline_system(alpha, mu), "index1", outputs=["energy"])
+    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)])
+    return compile_constrained(system, "index1", outputs=["energy"])
 
 
 @pytest.mark.parametrize("alpha, mu", [(0.5, 0.6), (0.5, 0.3), (0.3, 0.1), (0.3, 0.31)])
@@ -57,8 +53,8 @@ def test_block_on_an_incline_sticks_when_tan_alpha_le_mu_else_slides_at_g_sin_mi
     assert np.max(np.abs(res["y"])) < 1e-12
 
 
-def roller_system(inertia_factor: float, mu: float, e: float = 0.0) -> lcg.ConstrainedSystem:
-    """A sphere (I = 2/5 m R^2) or a disc (1/2 m R^2) of radius R = 0.3 on the floor y = 0: the slip
+def _roller(inertia_factor: float, mu: float, e: float = 0.0):
+    """A sphere (I = 2/5 m R^2) or a disc (1/2 m R^2) of radius R on the floor y = 0: the slip
     velocity of the touching point is x' + R phi' (phi counterclockwise), the tangent x + R phi."""
     m = lcg.Model("roller")
     x, y, phi = m.coordinates("x y phi")
@@ -67,11 +63,7 @@ def roller_system(inertia_factor: float, mu: float, e: float = 0.0) -> lcg.Const
     m.planar_body("ball", mass, inertia_factor * mass * R**2, (x, y), phi)
     m.gravity(sp.Symbol("g"))
     contact = lcg.Inequality(y - R, restitution=e, tangent=x + R * phi, friction=mu)
-    return lcg.ConstrainedSystem(m, inequalities=[contact])
-
-
-def _roller(inertia_factor: float, mu: float, e: float = 0.0):
-    return compile_constrained(roller_system(inertia_factor, mu, e), "index1", outputs=["energy"])
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
 
 
 @pytest.mark.parametrize("body, k, slip_time, roll_speed", [
@@ -103,7 +95,7 @@ def test_ball_with_backspin_slips_then_rolls(body, k, slip_time, roll_speed):
     assert np.max(np.abs(res["lambda_t_ineq_0"][after])) < 1e-9
 
 
-def ladder_system(mu: float, L: float = 2.0) -> lcg.ConstrainedSystem:
+def _ladder(alpha: float, mu: float, L: float = 2.0):
     """A uniform ladder (length L, angle theta with the floor) against a frictionless wall x >= 0
     on a rough floor y >= 0: the top (x - L/2 cos theta, y + L/2 sin theta) on the wall, the foot
     (x + L/2 cos theta, y - L/2 sin theta) on the floor."""
@@ -115,12 +107,7 @@ def ladder_system(mu: float, L: float = 2.0) -> lcg.ConstrainedSystem:
     m.gravity(sp.Symbol("g"))
     wall = lcg.Inequality(x - Ls / 2 * sp.cos(th), restitution=0.0)
     floor = lcg.Inequality(y - Ls / 2 * sp.sin(th), restitution=0.0, tangent=x + Ls / 2 * sp.cos(th), friction=mu)
-    return lcg.ConstrainedSystem(m, inequalities=[wall, floor])
-
-
-def _ladder(alpha: float, mu: float, L: float = 2.0):
-    """The ladder of :func:`ladder_system` compiled, and its coordinates leaning at alpha."""
-    sim = compile_constrained(ladder_system(mu, L), "index1")
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[wall, floor]), "index1")
     q0 = [L / 2 * math.cos(alpha), L / 2 * math.sin(alpha), alpha]
     return sim, q0
 
@@ -145,9 +132,9 @@ def test_ladder_stays_when_mu_reaches_one_over_two_tan_alpha_and_slips_below(alp
             assert foot[-1] > foot[0] + 1e-9 and res["theta"][-1] < alpha
 
 
-def painleve_rod_system(mu: float) -> lcg.ConstrainedSystem:
-    """Painleve's rod: a uniform rod (half-length l = 1, I = m l^2 / 3) with its lower end A on a
-    rough floor; A = (x - l cos theta, y - l sin theta)."""
+def _painleve_rod(mu: float, theta0: float):
+    """Painleve's rod: a uniform rod (half-length l, I = m l^2 / 3) with its lower end A on a rough
+    floor; A = (x - l cos theta, y - l sin theta)."""
     m = lcg.Model("painleve")
     x, y, th = m.coordinates("x y theta")
     m.parameters(g=G, m=1.0, l=1.0)
@@ -155,11 +142,7 @@ def painleve_rod_system(mu: float) -> lcg.ConstrainedSystem:
     m.planar_body("rod", mass, mass * l**2 / 3, (x, y), th)
     m.gravity(sp.Symbol("g"))
     end = lcg.Inequality(y - l * sp.sin(th), restitution=0.0, tangent=x - l * sp.cos(th), friction=mu)
-    return lcg.ConstrainedSystem(m, inequalities=[end])
-
-
-def _painleve_rod(mu: float, theta0: float):
-    sim = compile_constrained(painleve_rod_system(mu), "index1")
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[end]), "index1")
     return sim, [math.cos(theta0), math.sin(theta0), theta0]
 
 

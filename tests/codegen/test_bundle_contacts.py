@@ -5,8 +5,9 @@ checked against the closed-form bouncing ball and Newton's cradle (the facts tes
 checks the impact driver with). Contacts with Coulomb friction: the example drives the runtime's
 friction core (lcg_imp_fric.c, shipped as it is), checked against the block on an incline, the
 sphere with backspin, the frictional impact of a disc, the particle launched across a 3-D incline
-(scipy's DOP853 on its closed form) and Painleve's rod (the systems of tests/test_friction.py and
-tests/test_friction_speeds.py, imported)."""
+(scipy's DOP853 on its closed form), the ladder and Painleve's rod (the systems of
+tests/test_friction.py and tests/test_friction_speeds.py, imported: their builders compile them,
+``.system`` is the ConstrainedSystem; the bundles' reference runs compile the same code, cached)."""
 
 from __future__ import annotations
 
@@ -246,8 +247,8 @@ def test_block_on_an_incline_bundle_sticks_when_tan_alpha_le_mu_else_slides_at_g
     forever (x = 0, lambda_t = -m g sin(alpha)) when tan(alpha) <= mu, else x = a t^2 / 2 with
     a = g (sin(alpha) - mu cos(alpha)) to 1e-9 relative (RK4 integrates the constant acceleration
     exactly; the figure is round-off's), N = m g cos(alpha) either way."""
-    from test_friction import incline_system
-    files = _friction_bundle(tmp_path, incline_system(alpha, mu), [0.0, 0.0, 0.0, 0.0], 3.0, outputs=["energy"])
+    from test_friction import _incline
+    files = _friction_bundle(tmp_path, _incline(alpha, mu).system, [0.0, 0.0, 0.0, 0.0], 3.0, outputs=["energy"])
     assert "lcg_imp_fric.c" in files and "lambda_t_ineq_0" in files["reference.csv"]
     proc = _run(["./rk4_example", "-t", "3", "-n", "3000", "-e", "100"], tmp_path)
     names, rows = _table(proc.stdout)
@@ -278,10 +279,10 @@ def test_sphere_with_backspin_bundle_slips_then_rolls_with_cmake(tmp_path, tools
     (7 mu g) and rolls on at (5 v0 - 2 R w0) / 7: the example's grip and rolling speed to 1e-9,
     the friction force -mu m g while it slips, 0 after, the energy lost the friction work; built
     with CMake (strict flags), make check against the impact driver's run."""
-    from test_friction import roller_system
+    from test_friction import _roller
     mu, R, v0, w0 = 0.2, 0.3, 3.0, 4.0
     t_star = 2 * (v0 + R * w0) / (7 * mu * G)
-    _friction_bundle(tmp_path, roller_system(0.4, mu), [0.0, R, 0.0, v0, 0.0, w0], 2 * t_star, outputs=["energy"])
+    _friction_bundle(tmp_path, _roller(0.4, mu).system, [0.0, R, 0.0, v0, 0.0, w0], 2 * t_star, outputs=["energy"])
     _run(["cmake", "-S", ".", "-B", "build", f"-DCMAKE_C_FLAGS={STRICT}"], tmp_path)
     _run(["cmake", "--build", "build"], tmp_path)
     proc = _run([str(tmp_path / "build" / "rk4_example"), "-e", "10"], tmp_path)
@@ -308,10 +309,10 @@ def test_frictional_impact_of_a_disc_bundle_sticks_within_the_cone_else_slides_w
     m (1 + e) |w-|; P_t = -m u / 3 (the touching point stops) when that is within mu P_n, else
     -mu P_n (x' = vx - mu P_n / m, phi' = -2 mu P_n / (m R)): the example's impact (lcg_fr_impact)
     against these to 1e-10."""
-    from test_friction import roller_system
+    from test_friction import _roller
     e, R, vy, h = 0.5, 0.3, 2.0, 0.1
     t_hit = (-vy + math.sqrt(vy**2 + 2 * G * h)) / G
-    _friction_bundle(tmp_path, roller_system(0.5, mu, e), [0.0, R + h, 0.0, vx, -vy, 0.0], 1.0, outputs=["energy"])
+    _friction_bundle(tmp_path, _roller(0.5, mu, e).system, [0.0, R + h, 0.0, vx, -vy, 0.0], 1.0, outputs=["energy"])
     t_end = t_hit + 1e-3
     proc = _run(["./rk4_example", "-t", repr(t_end), "-n", "1000", "-e", "1000"], tmp_path)
     events = _friction_events(proc.stderr)
@@ -346,7 +347,7 @@ def test_particle_launched_across_a_3d_incline_bundle_curves_as_an_independent_i
     to 1e-9 at h = 1e-4 (the closed form's stop: DOP853's event at |u| = 1e-9 plus 1e-9 over the
     deceleration g (mu cos(alpha) - sin(alpha)) of the straight final approach)."""
     from scipy.integrate import solve_ivp
-    from test_friction_speeds import incline_3d_system
+    from test_friction_speeds import _incline_3d
     alpha, vy0 = 0.5, 3.0
     n = G * math.cos(alpha)
 
@@ -359,7 +360,7 @@ def test_particle_launched_across_a_3d_incline_bundle_curves_as_an_independent_i
     stops.terminal = True
     ref = solve_ivp(f, (0, 3.0), [0, 0, 0, vy0], method="DOP853", rtol=1e-13, atol=1e-14, events=stops,
                     dense_output=True)
-    files = _friction_bundle(tmp_path, incline_3d_system(alpha, mu, 0.3), [0, 0, 0, 0, vy0, 0], 3.0,
+    files = _friction_bundle(tmp_path, _incline_3d(alpha, mu, 0.3).system, [0, 0, 0, 0, vy0, 0], 3.0,
                              outputs=["energy"])
     assert "lambda_t1_ineq_0" in files["reference.csv"] and "#define NROW 3" in files["rk4_example.c"]
     proc = _run(["./rk4_example", "-e", "10"], tmp_path)
@@ -390,13 +391,13 @@ def test_ladder_bundle_stays_when_mu_reaches_one_over_two_tan_alpha_and_slips_be
     friction m g / (2 tan(alpha)), N = m g, to 1e-9; the foot and the angle unmoved to 1e-12) and
     slips below (the foot moves out, the ladder falls); make check against the impact driver. mu is
     a literal of the example, so each case is its own bundle."""
-    from test_friction import ladder_system
+    from test_friction import _ladder
     alpha, L = 0.9, 2.0
     mu_c = 1 / (2 * math.tan(alpha))
     y0 = [L / 2 * math.cos(alpha), L / 2 * math.sin(alpha), alpha, 0.0, 0.0, 0.0]
     for mu, stays in ((mu_c + 1e-6, True), (mu_c - 1e-6, False)):
         folder = tmp_path / ("stays" if stays else "slips")
-        _friction_bundle(folder, ladder_system(mu, L), y0, 0.5)
+        _friction_bundle(folder, _ladder(alpha, mu, L)[0].system, y0, 0.5)
         proc = _run(["./rk4_example", "-e", "50"], folder)
         names, rows = _table(proc.stdout)
         col = {name: i for i, name in enumerate(names)}
@@ -418,9 +419,9 @@ def test_painleve_rod_bundle_reports_the_paradox_by_name_and_exit_status(tmp_pat
     30 degrees sliding fast to -x it turns up until the contact problem becomes singular, where
     G M^-1 (G + mu T)^T = 1 + 3 cos^2 - 6 sin cos = 0, tan(theta) = 3 - sqrt(5): the example
     stops there (exit status 3, the message with the time), never integrating on."""
-    from test_friction import painleve_rod_system
+    from test_friction import _painleve_rod
     theta0 = math.atan(2.0)
-    _friction_bundle(tmp_path, painleve_rod_system(2.0), [math.cos(theta0), math.sin(theta0), theta0, -1.0, 0.0, 0.0],
+    _friction_bundle(tmp_path, _painleve_rod(2.0, theta0)[0].system, [math.cos(theta0), math.sin(theta0), theta0, -1.0, 0.0, 0.0],
                      0.3, reference=False)
     proc = _run(["./rk4_example"], tmp_path, check=False)
     assert proc.returncode == 3, proc.stderr
@@ -461,8 +462,8 @@ def test_friction_bundle_ships_the_runtime_friction_core_as_it_is():
     """The friction law of the example is the runtime's lcg_imp_fric.c (the file the impact
     drivers use), shipped unchanged and compiled into the library, not a copy in the example."""
     from lagcodegen.runtime import source
-    from test_friction import incline_system
-    files = render_constrained_bundle(incline_system(0.5, 0.3), outputs=["energy"], reference=False)
+    from test_friction import _incline
+    files = render_constrained_bundle(_incline(0.5, 0.3).system, outputs=["energy"], reference=False)
     for name in ("lcg_imp_fric.c", "lcg_imp_fric.h", "lcg_imp_law.c", "lcg_imp_law.h"):
         assert files[name] == source(name)
     example = files["rk4_example.c"]
@@ -481,8 +482,8 @@ def test_friction_bundle_clean_under_sanitizers(tmp_path, tools):
     3-D incline (the cone: slip, its direction renewed, grip), Painleve's rod (exit status 3, the
     core's memory freed); bad command lines and a violated start (exit status 2 and 1)."""
     import os
-    from test_friction import painleve_rod_system, roller_system
-    from test_friction_speeds import incline_3d_system
+    from test_friction import _painleve_rod, _roller
+    from test_friction_speeds import _incline_3d
     flags = "-fsanitize=address,undefined -fno-sanitize-recover=all"
     env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=1", "UBSAN_OPTIONS": "print_stacktrace=1"}
 
@@ -499,14 +500,14 @@ def test_friction_bundle_clean_under_sanitizers(tmp_path, tools):
         assert "runtime error" not in proc.stderr and "Sanitizer" not in proc.stderr, proc.stderr
         return proc
 
-    disc = build("disc", roller_system(0.5, 0.1, 0.5), [0.0, 0.4, 0.0, 4.0, -2.0, 3.0], 2.0)
+    disc = build("disc", _roller(0.5, 0.1, 0.5).system, [0.0, 0.4, 0.0, 4.0, -2.0, 3.0], 2.0)
     kinds = [ev[2] for ev in _friction_events(sanitized(disc, ["-e", "100"]).stderr)]
     assert "bounce" in kinds and "tangential impulse" in kinds and "grip" in kinds
     for bad in (["-n", "0"], ["-p", "nope=1"], ["1.0"]):
         sanitized(disc, bad, 2)
     assert "violated at the start" in sanitized(disc, ["0", "0.2", "0", "0", "0", "0"], 1).stderr
-    across = build("across", incline_3d_system(0.5, 0.8, 0.3), [0, 0, 0, 0, 3.0, 0], 1.0)
+    across = build("across", _incline_3d(0.5, 0.8, 0.3).system, [0, 0, 0, 0, 3.0, 0], 1.0)
     assert [ev[2] for ev in _friction_events(sanitized(across, ["-e", "100"]).stderr)] == ["grip"]
     theta0 = math.radians(30)
-    rod = build("rod", painleve_rod_system(2.0), [math.cos(theta0), math.sin(theta0), theta0, -20.0, 0.0, 0.0], 0.3)
+    rod = build("rod", _painleve_rod(2.0, theta0)[0].system, [math.cos(theta0), math.sin(theta0), theta0, -20.0, 0.0, 0.0], 0.3)
     assert "Painleve's paradox at t = " in sanitized(rod, ["-e", "100"], 3).stderr
