@@ -302,6 +302,28 @@ def test_sphere_with_backspin_bundle_slips_then_rolls_with_cmake(tmp_path, tools
     assert _final_modes(proc.stderr) == {0: "stick"}
 
 
+def test_shaken_block_bundle_stick_slip_times(tmp_path, tools):
+    """A block (m = 1) on a rough floor (mu = 0.3) pushed by A sin(w t) (A = 5, w = 3): it slips
+    where the sticking force reaches mu N and grips where its velocity returns to 0, 19 transitions
+    in 10 s at the closed form's times (tests/test_friction.py's _shaker_times) to 1e-12: each
+    located by bisection within its RK4 step, the forcing's time dependence resolved by the fixed
+    steps (make check against the impact driver)."""
+    from test_friction import _shaker_times
+    A, w, mu = 5.0, 3.0, 0.3
+    m = lcg.Model("bshaker")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    m.generalized_force(x, A * sp.sin(w * m.t))
+    floor = lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)
+    _friction_bundle(tmp_path, lcg.ConstrainedSystem(m, inequalities=[floor]), [0.0, 0.0, 0.0, 0.0], 10.0)
+    events = _friction_events(_run(["./rk4_example", "-e", "10000"], tmp_path).stderr)
+    exact = _shaker_times(A, w, mu, 10.0)
+    assert len(exact) >= 18 and [ev[2] for ev in events] == [kind for kind, _ in exact]
+    assert np.max(np.abs(np.array([ev[0] for ev in events]) / np.array([t for _, t in exact]) - 1)) < 1e-12
+
+
 @pytest.mark.parametrize("vx, mu, sticks", [(1.0, 0.5, True), (4.0, 0.1, False)])
 def test_frictional_impact_of_a_disc_bundle_sticks_within_the_cone_else_slides_with_mu_pn(tmp_path, tools, vx, mu,
                                                                                          sticks):
