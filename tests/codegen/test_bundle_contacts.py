@@ -435,6 +435,30 @@ def test_ladder_bundle_stays_when_mu_reaches_one_over_two_tan_alpha_and_slips_be
             assert foot[-1] > foot[0] + 1e-9 and rows[-1, col["theta"]] < alpha
 
 
+@pytest.mark.parametrize("alpha, mu", [(0.3, 0.4), (0.3, 0.2)])
+def test_box_on_two_rough_corners_bundle_sticks_or_slides_as_one_contact(tmp_path, tools, alpha, mu):
+    """Two Coulomb contacts solved together by the core (sticking on both: four rows holding three
+    motions, dependent): the box stays while tan(alpha) <= mu, else slides at g (sin(alpha) -
+    mu cos(alpha)) without tipping (x to 1e-9 relative, phi below 1e-10), the normal forces adding
+    up to m g cos(alpha) (1e-8)."""
+    from test_friction import _box_on_incline
+    sim, q0 = _box_on_incline(alpha, mu)
+    _friction_bundle(tmp_path, sim.system, [*q0, 0.0, 0.0, 0.0], 1.0)
+    proc = _run(["./rk4_example", "-e", "100"], tmp_path)
+    names, rows = _table(proc.stdout)
+    col = {name: i for i, name in enumerate(names)}
+    t, x = rows[:, 0], rows[:, col["x"]]
+    total = rows[:, col["lambda_ineq_0"]] + rows[:, col["lambda_ineq_1"]]
+    assert np.max(np.abs(total / (G * math.cos(alpha)) - 1)) < 1e-8
+    assert np.max(np.abs(rows[:, col["phi"]])) < 1e-10
+    if math.tan(alpha) <= mu:
+        assert _final_modes(proc.stderr) == {0: "stick", 1: "stick"} and np.max(np.abs(x)) < 1e-12
+    else:
+        assert _final_modes(proc.stderr) == {0: "slip+", 1: "slip+"}
+        acc = G * (math.sin(alpha) - mu * math.cos(alpha))
+        assert np.max(np.abs(x[1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
+
+
 def test_painleve_rod_bundle_reports_the_paradox_by_name_and_exit_status(tmp_path, tools):
     """Painleve's rod (mu = 2, its end on the rough floor): at tan(theta) = 2 sliding to -x no mode
     is consistent (the example stops at its start with exit status 3 and the core's message); from
