@@ -134,7 +134,7 @@ def test_sphere_sliding_diagonally_slips_along_its_slip_direction_on_the_circula
     assert np.max(np.abs(lt[after])) < 1e-9
 
 
-def _incline_3d(alpha: float, mu: float, beta: float):
+def _incline_3d(alpha: float, mu: float, beta: float, *, formulation: str = "index1"):
     """A particle on an incline of angle alpha: x down the slope, y across it, z normal to it; the
     contact's two tangents the in-slope axes turned by beta (the cone must not care)."""
     m = lcg.Model("incline_3d")
@@ -145,7 +145,7 @@ def _incline_3d(alpha: float, mu: float, beta: float):
     m.gravity(sp.Symbol("g"))
     cb, sb = math.cos(beta), math.sin(beta)
     contact = lcg.Inequality(z, restitution=0.0, tangent=(cb * x - sb * y, sb * x + cb * y), friction=mu)
-    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), formulation, outputs=["energy"])
 
 
 @pytest.mark.parametrize("alpha, mu, beta", [(0.5, 0.6, 0.0), (0.5, 0.3, 0.0), (0.5, 0.3, 0.7), (0.3, 0.31, 1.1),

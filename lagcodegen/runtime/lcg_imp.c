@@ -90,9 +90,8 @@ static int rhs(sunrealtype t, N_Vector y, N_Vector ydot, void *data)
 }
 
 /* Contact roots first (g_k free, lambda_k in persistent contact), then the model's events, then
- * (with friction) two per contact (sticking: mu lambda_n - lambda_t, mu lambda_n + lambda_t;
- * slipping: fmode u, 1; 3-D: mu lambda_n - |lambda_t|, 1 sticking and u . dref - |u| / 2, 1
- * slipping) and the determinant of the contact problem while a contact slips. */
+ * (with friction) the friction core's (lcg_fr_roots: two per contact, and the determinant of the
+ * contact problem while a contact slips). */
 static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
 {
     imp_data *d = (imp_data *)data;
@@ -116,38 +115,8 @@ static int roots(sunrealtype t, N_Vector yv, sunrealtype *gout, void *data)
     }
     for (k = 0; k < nk; ++k)
         gout[k] = d->active[k] ? d->lam[nj + k] : d->gk[k];
-    if (d->fr != NULL) {
-        lcg_fric *f = d->fr;
-        double *gf = gout + nk + d->nroot;
-        int slipping = 0;
-        for (k = 0; k < nk; ++k) {
-            gf[2 * k] = gf[2 * k + 1] = 1.0;
-            if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
-                continue;
-            if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound widened by the tolerance
-                                                          * with which sticking was found admissible */
-                int r;
-                double big = 0.0;
-                for (r = 0; r < f->nrow; ++r)
-                    if (fabs(d->lam[r]) > big)
-                        big = fabs(d->lam[r]);
-                gf[2 * k] = f->mu[k] * d->lam[nj + k] - hypot(d->lam[f->trow[k]], d->lam[f->trow2[k]])
-                            + 1e-9 * (1.0 + big); /* FR_REL */
-            } else if (f->trow2[k] >= 0) { /* 3-D: u . dref - |u| / 2: u stops (or turns by 60 degrees) */
-                double u, u2;
-                lcg_fr_slip(f, k, &u, &u2);
-                gf[2 * k] = u * f->dref[2 * k] + u2 * f->dref[2 * k + 1] - 0.5 * hypot(u, u2);
-                slipping = 1;
-            } else if (f->fmode[k] == 0) {
-                gf[2 * k] = f->mu[k] * d->lam[nj + k] - d->lam[f->trow[k]];
-                gf[2 * k + 1] = f->mu[k] * d->lam[nj + k] + d->lam[f->trow[k]];
-            } else {
-                gf[2 * k] = f->fmode[k] * f->s[f->trow[k]];
-                slipping = 1;
-            }
-        }
-        gf[2 * nk] = slipping && f->det0 != 0.0 ? f->det / f->det0 : 1.0;
-    }
+    if (d->fr != NULL)
+        lcg_fr_roots(&d->fc, d->lam, gout + nk + d->nroot);
     return 0;
 }
 
@@ -219,12 +188,12 @@ static int impact(imp_data *d, double t, double *y, const int *hit, const double
     return lcg_imp_jump(&L, t, y, hit);
 }
 
-/* Persistent contacts whose multiplier is negative at (t, y) are released (recorded;
- * lcg_imp_release_pulling, without friction). */
-static int release_pulling(imp_data *d, double t, const double *y, double *ydot, double *rec, int max_rec,
-                           int *n_rec)
+/* The persistent contacts at (t, y) chosen (recorded; lcg_imp_release_pulling, without friction):
+ * those whose multiplier pulls released, free contacts touching at rest that would sink held. */
+static int release_pulling(imp_data *d, double t, double *y, double *ydot, const double *set, double *s,
+                           int *rows, double *rec, int max_rec, int *n_rec)
 {
-    lcg_imp_law L = law_of(d, NULL, NULL, NULL, NULL, NULL, rec, max_rec, n_rec);
+    lcg_imp_law L = law_of(d, NULL, set, NULL, s, rows, rec, max_rec, n_rec);
     return lcg_imp_release_pulling(&L, t, y, d->alpha, d->beta, ydot, d->lam);
 }
 
@@ -253,7 +222,7 @@ static int restart(imp_data *d, void *mem, N_Vector y, double t, int *hit, const
     } else {
         rc = impact(d, t, yv, hit, e, set, last, s, rows, rec, max_rec, n_rec);
         if (rc == LCG_DAE_OK)
-            rc = release_pulling(d, t, yv, ydot, rec, max_rec, n_rec);
+            rc = release_pulling(d, t, yv, ydot, set, s, rows, rec, max_rec, n_rec);
     }
     if (rc != LCG_DAE_OK)
         return rc;
@@ -465,7 +434,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
             goto done;
         }
     } else {
-        rc = release_pulling(&data, tout[0], yv, ydot, rec, 0, &quiet);
+        rc = release_pulling(&data, tout[0], yv, ydot, set, scratch, rows, rec, 0, &quiet);
     }
     LCG_MODEL_ERROR(LCG_DAE_OK);
 

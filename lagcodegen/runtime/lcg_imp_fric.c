@@ -295,6 +295,42 @@ void lcg_fr_slip_directions(lcg_fric *f, int nk)
     }
 }
 
+/* The friction roots of the current modes at a state (gf[2 nk + 1]; see lcg_imp_fric.h) from the
+ * multipliers lam[nrow] there and the numbers in d->fr evaluated there (s; det while a contact slips). */
+void lcg_fr_roots(const lcg_fric_ctx *d, const double *lam, double *gf)
+{
+    const lcg_fric *f = d->fr;
+    int k, nk = d->im->nk, nj = d->im->nj, slipping = 0;
+
+    for (k = 0; k < nk; ++k) {
+        gf[2 * k] = gf[2 * k + 1] = 1.0;
+        if (!d->active[k] || f->trow[k] < 0 || f->mu[k] < 0.0)
+            continue;
+        if (f->trow2[k] >= 0 && f->fmode[k] == 0) { /* 3-D: the cone's bound widened by the tolerance
+                                                      * with which sticking was found admissible */
+            int r;
+            double big = 0.0;
+            for (r = 0; r < f->nrow; ++r)
+                if (fabs(lam[r]) > big)
+                    big = fabs(lam[r]);
+            gf[2 * k] = f->mu[k] * lam[nj + k] - hypot(lam[f->trow[k]], lam[f->trow2[k]])
+                        + FR_REL * (1.0 + big);
+        } else if (f->trow2[k] >= 0) { /* 3-D: u . dref - |u| / 2: u stops (or turns by 60 degrees) */
+            double u, u2;
+            lcg_fr_slip(f, k, &u, &u2);
+            gf[2 * k] = u * f->dref[2 * k] + u2 * f->dref[2 * k + 1] - 0.5 * hypot(u, u2);
+            slipping = 1;
+        } else if (f->fmode[k] == 0) {
+            gf[2 * k] = f->mu[k] * lam[nj + k] - lam[f->trow[k]];
+            gf[2 * k + 1] = f->mu[k] * lam[nj + k] + lam[f->trow[k]];
+        } else {
+            gf[2 * k] = f->fmode[k] * f->s[f->trow[k]];
+            slipping = 1;
+        }
+    }
+    gf[2 * nk] = slipping && f->det0 != 0.0 ? f->det / f->det0 : 1.0;
+}
+
 /* The right-hand side of the current mode at (t, y): ydot = (q', v'), lam[nrow] (NULL: not
  * wanted). */
 int lcg_fr_crhs(lcg_fric_ctx *d, double t, const double *y, double *ydot, double *lam)

@@ -75,6 +75,14 @@ void lcg_fr_slip_directions(lcg_fric *f, int nk);
  * wanted); d->fr->det the determinant of the contact problem. */
 int lcg_fr_crhs(lcg_fric_ctx *d, double t, const double *y, double *ydot, double *lam);
 
+/* The friction roots of the current modes at a state, gf[2 nk + 1]: two per contact (sticking:
+ * mu lambda_n - lambda_t, mu lambda_n + lambda_t; slipping: fmode u, 1; 3-D: mu lambda_n -
+ * |lambda_t| widened by FR_REL, 1 sticking and u . dref - |u| / 2, 1 slipping; 1, 1 for the
+ * others), then det / det0 of the contact problem while a contact slips (else 1); all decreasing
+ * through 0 where a mode ends. lam[nrow]: the multipliers at the state; d->fr's numbers (s, det)
+ * evaluated there (lcg_fr_crhs) when a contact slips. */
+void lcg_fr_roots(const lcg_fric_ctx *d, const double *lam, double *gf);
+
 /* Choose the modes of the contacts in persistent contact at (t, y) by enumeration; ending[k]
  * (NULL: none) excludes the mode whose root fired. Transitions recorded; a contact that begins to
  * stick has its slip velocity projected to 0 (y's velocities changed); d->lam, d->ydot the chosen
