@@ -374,6 +374,8 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
     ``"auto"`` alpha = beta = ``<prefix>_natural_rate`` at the initial state; others and per-step
     projection on its command line). There is no SUNDIALS example (the native
     drivers of :func:`lagcodegen.build.runtime` are written against lagcodegen's own SUNDIALS declarations).
+    Systems with contacts (in C) add their contact functions and an example with impacts, and with
+    Coulomb friction the runtime's friction core: :mod:`lagcodegen.codegen.bundle_contacts`.
 
     ``outputs``, ``events``, ``runtime_parameters``, ``values``, ``prefix``: as for
     :func:`lagcodegen.compile_constrained` (default outputs: energy, lambda, residuals);
@@ -439,14 +441,15 @@ def render_constrained_bundle(system, lang: str = "c", *, outputs: Sequence[str]
         nonholonomic=[str(r) for r in _nonholonomic_text(system)])
     env = environment()
     files = {header: code.files[header], source: code.files[source]}
+    friction = contacts and system.has_friction
     if contacts:
-        ctx.update(contact_context(system, info), extra_sources=library_sources(code))
-        contact_table(code, table)
-        files.update(contact_files(code))
+        ctx.update(contact_context(system, info), extra_sources=library_sources(code, friction))
+        contact_table(code, table, friction)
+        files.update(contact_files(code, friction))
     files["Makefile"] = env.get_template("bundle/Makefile.j2").render(**ctx)
     files["CMakeLists.txt"] = env.get_template("bundle/CMakeLists.txt.j2").render(**ctx)
-    files["rk4_example.c"] = env.get_template("bundle/rk4_impacts.c.j2" if contacts
-                                              else "bundle/rk4_constrained.c.j2").render(**ctx)
+    example = "rk4_friction.c.j2" if friction else "rk4_impacts.c.j2" if contacts else "rk4_constrained.c.j2"
+    files["rk4_example.c"] = env.get_template(f"bundle/{example}").render(**ctx)
     files["README.md"] = env.get_template("bundle/README_constrained.md.j2").render(**ctx)
     if ref_text is not None:
         files["reference.csv"] = ref_text

@@ -92,7 +92,8 @@ of that impact law); the law is applied as stated. Coulomb friction runs on the 
 of CVODE (index-1) and IDA (GGL, below); other solvers are refused naming them. The
 solver-independent part (the contact problem of a mode, the enumeration of the modes, frictional
 impacts, slip directions, the roots, the Painleve messages) is the friction core
-lagcodegen/runtime/lcg_imp_fric.c, which both drivers call.
+lagcodegen/runtime/lcg_imp_fric.c, which both drivers call; C bundles of such systems ship it
+and their RK4 example drives it (:mod:`lagcodegen.codegen.bundle_contacts`).
 
 **GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
 and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
