@@ -420,15 +420,7 @@ int lcg_imp_solve(const lcg_imp_model *im, const double *p, const double *y0, in
         if (!active[k] && data.gk[k] <= set[2] && fabs(data.wk[k]) <= set[0])
             active[k] = 1;
     if (data.fr != NULL) { /* the initial modes: sticking where the slip velocity is at most contact_speed */
-        rc = lcg_fr_eval(&data.fc, tout[0], yv);
-        LCG_MODEL_ERROR(LCG_DAE_OK);
-        for (k = 0; k < nk; ++k)
-            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0) {
-                double u, u2;
-                lcg_fr_slip(&fdata, k, &u, &u2);
-                fdata.fmode[k] = hypot(u, u2) <= set[0] ? 0 : fdata.trow2[k] >= 0 || u > 0.0 ? 1 : -1;
-            }
-        rc = lcg_fr_modes(&data.fc, tout[0], yv, NULL, set[0], rec, 0, &quiet);
+        rc = lcg_fr_start(&data.fc, tout[0], yv, set[0]);
         if (rc == -1) {
             flag = LCG_FLAG_CONTACT_MODE;
             goto done;

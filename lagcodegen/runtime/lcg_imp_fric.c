@@ -655,6 +655,23 @@ static int fr_another_motion(lcg_fric *f, int nk, int n, int *found, double *xsc
     return 0;
 }
 
+int lcg_fr_start(lcg_fric_ctx *d, double t, double *y, double vtol)
+{
+    lcg_fric *f = d->fr;
+    int k, rc, quiet = 0;
+
+    rc = lcg_fr_eval(d, t, y);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < d->im->nk; ++k)
+        if (d->active[k] && coulomb(f, k)) {
+            double u, u2;
+            lcg_fr_slip(f, k, &u, &u2);
+            f->fmode[k] = hypot(u, u2) <= vtol ? 0 : cone3(f, k) || u > 0.0 ? 1 : -1;
+        }
+    return lcg_fr_modes(d, t, y, NULL, vtol, NULL, 0, &quiet);
+}
+
 int lcg_fr_modes(lcg_fric_ctx *d, double t, double *y, const int *ending, double vtol, double *rec, int max_rec,
                  int *n_rec)
 {

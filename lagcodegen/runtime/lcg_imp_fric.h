@@ -83,8 +83,15 @@ int lcg_fr_crhs(lcg_fric_ctx *d, double t, const double *y, double *ydot, double
  * evaluated there (lcg_fr_crhs) when a contact slips. */
 void lcg_fr_roots(const lcg_fric_ctx *d, const double *lam, double *gf);
 
+/* The modes at the start of a run at (t, y): each contact in persistent contact with Coulomb
+ * friction sticks where its slip velocity is at most vtol (contact_speed), slips along it
+ * otherwise; then chosen together by lcg_fr_modes (not recorded). Returns as lcg_fr_modes. */
+int lcg_fr_start(lcg_fric_ctx *d, double t, double *y, double vtol);
+
 /* Choose the modes of the contacts in persistent contact at (t, y) by enumeration; ending[k]
- * (NULL: none) excludes the mode whose root fired. Transitions recorded; a contact that begins to
+ * (NULL: none) excludes the mode whose root fired: it must be d->fr->ending (which the
+ * enumeration also reads, e.g. for a slip whose direction is given) or NULL with d->fr->ending
+ * all 0. Transitions recorded; a contact that begins to
  * stick has its slip velocity projected to 0 (y's velocities changed); d->lam, d->ydot the chosen
  * modes' multipliers and right-hand side. Returns LCG_DAE_OK, a model error, or -1 with the
  * Painleve message in d->message (the caller stops with LCG_FLAG_CONTACT_MODE). */

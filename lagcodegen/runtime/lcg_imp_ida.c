@@ -476,15 +476,7 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         if (!active[k] && d.gk[k] <= set[2] && fabs(d.wk[k]) <= set[0])
             active[k] = 1;
     if (d.fr != NULL) { /* the initial modes: sticking where the slip velocity is at most contact_speed */
-        rc = lcg_fr_eval(&d.fc, tout[0], ys);
-        LCG_MODEL_ERROR(LCG_DAE_OK);
-        for (k = 0; k < nk; ++k)
-            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0) {
-                double u, u2;
-                lcg_fr_slip(&fdata, k, &u, &u2);
-                fdata.fmode[k] = hypot(u, u2) <= set[0] ? 0 : fdata.trow2[k] >= 0 || u > 0.0 ? 1 : -1;
-            }
-        rc = lcg_fr_modes(&d.fc, tout[0], ys, NULL, set[0], rec, 0, &quiet);
+        rc = lcg_fr_start(&d.fc, tout[0], ys, set[0]);
         if (rc == -1) {
             flag = LCG_FLAG_CONTACT_MODE;
             goto done;
