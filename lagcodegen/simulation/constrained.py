@@ -122,6 +122,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         self.ida_stats_pool: list = []
         self._default_parameters = dict(zip(self.param_names, self._default_p))  # Result.parameters
         self._impact_runner = None  # the impact driver on this model (systems with contacts), made on first use
+        self._taylor_impact_runner = None  # the Taylor contact driver on this model, made on first use
 
     # ------------------------------------------------------------------ simulate
     @attaches_run_drawing
@@ -169,11 +170,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
             raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         contacts = options.pop("contacts", None)  # the run's contact settings, not a solver option
-        if self.info.contacts and (options.get("method") == "taylor" or type(solver).__name__ == "Taylor"):
-            raise LagcodegenError("contacts (Inequality with a restitution) do not run on the Taylor method: it "
-                                  "integrates ODEs only, and a contact at rest is a constraint held with its "
-                                  "multiplier (eq. 4.5); contacts run on formulation 'index1' (CVODE), 'ggl' (IDA) "
-                                  "or 'minimal' (the reduced model's contacts on CVODE)")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         q0, v0 = file_initial(self, q0, v0)
@@ -265,6 +261,28 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                   family.recording(10_000, roots=roots), _contact_options(contacts), alg_atol)
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
+
+    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, contacts, cancel=None) -> Result:
+        """A run of this system with contacts on the Taylor contact driver (:mod:`.taylor_impacts`:
+        impacts and releases located on the Taylor polynomials of the gaps and multipliers, the
+        impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets
+        and ``baumgarte``); ``cancel``: None, or a numpy int array of one value that stops the run
+        (-80) once set. The GGL formulation takes its contacts on IDA only."""
+        if self._ggl:
+            raise LagcodegenError("the Taylor method runs contacts in the index-1 formulation: "
+                                  "compile_constrained(system, 'index1')")
+        rtol, atol = tolerances(rtol, atol, self._ny, scalar=True)
+        if not isinstance(atol, float):
+            raise LagcodegenError("runs with contacts take a scalar atol")
+        t0 = float(t[0])
+        impacts = self._contact_runner(t0, y0, p)
+        runner = self._taylor_impact_runner
+        if runner is None:
+            from .taylor_impacts import TaylorImpactRunner
+            runner = self._taylor_impact_runner = TaylorImpactRunner(self, impacts)
+        alpha, beta = self.stabilization(family.baumgarte, False, t0, y0, p, True)
+        return runner.run(t, y0, p, family.control(rtol, atol), (float(alpha), float(beta)),
+                          _contact_options(contacts), cancel=cancel)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the index-1 impact driver takes for runs of this system with contacts from (t0, y0)

@@ -451,9 +451,10 @@ class ImpactRunner:
                 buf.max_records, fb("double[]", buf.rec), buf.n_rec, st,
                 buf.events.struct if buf.events else ffi.NULL]
 
-    def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str) -> Result:
+    def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str, stats_of=None) -> Result:
         """The Result of a driver's call ``raw``: trajectory, outputs with the multipliers, events,
-        statistics and the contact log."""
+        statistics (``stats_of(st)``; None: a SUNDIALS driver's, :func:`native_stats`) and the
+        contact log."""
         sim, ffi = self.sim, self.ffi
         flag, st, events, t, p = raw.flag, raw.st, raw.events, raw.t, raw.p
         nj, ny = sim.info.J, sim.ny
@@ -472,7 +473,7 @@ class ImpactRunner:
                 o = np.full(oo.shape[1], np.nan)
             oo = np.vstack([oo, np.resize(o, (1, oo.shape[1]))])
             ll = np.vstack([ll, np.full((1, ll.shape[1]), np.nan)])
-        stats = native_stats(ffi, st)
+        stats = native_stats(ffi, st) if stats_of is None else stats_of(st)
         stats["wall_time"] = raw.wall
         if events:  # every event found (those beyond max_events not kept)
             stats["events"] = int(events.struct.n_events)
