@@ -121,6 +121,25 @@ static int ti_first_switch(const lcg_taylor_contact *ct, const double *X, int or
     return which;
 }
 
+/* The free contacts that touch (g <= gap_tol) at rest (|w| <= contact_speed) at (t, y) held from
+ * now on (recorded as "stick" without impulse), as a start at rest holds them; those whose
+ * multiplier pulls are released after (lcg_imp_release_pulling). Returns LCG_DAE_OK or a model
+ * error. */
+static int ti_settle(const lcg_imp_model *im, const double *p, double t, const double *y, int *active,
+                     const double *set, double *gk, double *wk, double *rec, int max_rec, int *n_rec)
+{
+    int k, rc = im->gaps(t, y, p, gk, wk);
+
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < im->nk; ++k)
+        if (!active[k] && gk[k] <= set[2] && fabs(wk[k]) <= set[0]) {
+            active[k] = 1;
+            lcg_imp_record(rec, max_rec, n_rec, t, k, LCG_IMP_STICK, 0.0, wk[k], wk[k]);
+        }
+    return LCG_DAE_OK;
+}
+
 #define TI_MODEL_ERROR(rc)                          \
     do {                                            \
         if ((rc) != LCG_DAE_OK) {                   \
@@ -334,15 +353,20 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
                 tsame = t;
                 same = 0;
             }
-            if (active[which]) {
+            if (active[which]) { /* a release: the contact leaves with w = 0 (not an impact) */
                 active[which] = 0;
                 lcg_imp_record(rec, max_rec, n_rec, t, which, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
             } else {
                 hit[which] = 1;
+                rc = lcg_imp_jump(&L, t, y, hit);
+                TI_MODEL_ERROR(rc);
+                hit[which] = 0;
             }
-            rc = lcg_imp_jump(&L, t, y, hit);
-            TI_MODEL_ERROR(rc);
-            hit[which] = 0;
+            if (same > 0) { /* switches without flight between them (impacts accumulating within the
+                              * resolution of t): the contacts that touch at rest are held */
+                rc = ti_settle(im, p, t, y, active, set, gk, wk, rec, max_rec, n_rec);
+                TI_MODEL_ERROR(rc);
+            }
             rc = lcg_imp_release_pulling(&L, t, y, ab[0], ab[1], ydot, lam);
             TI_MODEL_ERROR(rc);
             ct->hold(r.work, active, ab[0], ab[1]);
