@@ -63,8 +63,8 @@ static double ti_first_down(const double *x, int d, double level, double h)
     double c[P_MAX + 2], tau[P_MAX + 1];
     int dir[P_MAX + 1], n, i;
 
-    for (i = 0; i <= d; ++i)
-        c[i] = x[i];
+    for (i = 0; i < P_MAX + 2; ++i)
+        c[i] = i <= d ? x[i] : 0.0;
     c[0] -= level;
     while (d > 0 && c[0] == 0.0) {
         for (i = 0; i < d; ++i)
