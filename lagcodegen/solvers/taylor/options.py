@@ -187,10 +187,23 @@ class Taylor(Family):
             return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
+    def run_index1(self, sim, t, y0, p, rtol, atol, contacts=None, cancel=None) -> Result:
+        """A run of the constrained system ``sim`` with contacts (``contacts``: the run's
+        :class:`~lagcodegen.simulation.constrained_impacts.ContactOptions`) on the Taylor contact
+        driver (:meth:`ConstrainedSimulation.run_contacts_taylor
+        <lagcodegen.simulation.constrained.ConstrainedSimulation>`); ``cancel``: an ensemble's flag
+        that stops the run once set. A system without contacts is refused by name."""
+        if contacts is None:
+            raise LagcodegenError(_NO_CONSTRAINED)
+        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, contacts, cancel=cancel)
+
+    def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
+        """Refused by name: ensembles of constrained systems without contacts (those with contacts
+        run each member through :meth:`run_index1`, :mod:`lagcodegen.simulation.impact_ensemble`)."""
+        raise LagcodegenError(_NO_CONSTRAINED)
+
     def _index1_run(self, pr, rq):
-        """A run of a constrained system with contacts on the Taylor contact driver
-        (:meth:`ConstrainedSimulation.run_contacts_taylor <lagcodegen.simulation.constrained.ConstrainedSimulation>`)."""
-        return pr.sim.run_contacts_taylor(self, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.contacts, cancel=rq.cancel)
+        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.contacts, cancel=rq.cancel)
 
     #: What Taylor runs (Family.run), declared once: every other combination is refused by name
     #: (events with input tables; ensembles with input tables need sensitivities: those members
@@ -203,13 +216,13 @@ class Taylor(Family):
         ("ode", "ensemble"): (ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
-        ("index1", "run"): (_index1_run, combinations("impacts")),
+        # constrained systems with contacts ("" and events without them: refused by run_index1, by name)
+        ("index1", "run"): (_index1_run, combinations("", "impacts")),
     }
     refusals = {
         ("ode", "ensemble", frozenset({"inputs"})):
             "input tables are interpolated by the native CVODE driver; Taylor ensembles do not take them without "
             "sensitivities (use method='adams' or 'bdf')",
-        ("index1", "run", frozenset()): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"events"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"sensitivities"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"events", "sensitivities"})): _NO_CONSTRAINED,
