@@ -99,11 +99,25 @@ consistent values (lambda and v' from the index-1 system of the rows held, mu = 
 friction is refused there. **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
 reduced model with the contacts in the remaining coordinates on the index-1 driver.
 
-Ensembles of index-1 systems run each member as one call of this driver, every member's events
-and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
-propagate call (:mod:`.impact_stepper`). Not supported with contacts: Taylor (it takes no
-constrained system), the scikit-sundae backend, projection, ensembles and the integrator object
-of GGL systems, Fortran model code.
+**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c):
+the index-1 system of the rows held as a Taylor jet for every active set at once (the rows held
+run-time values of the jet's workspace, a row not held reading lambda_k = 0; per order the
+recurrence of the mass matrix's with the augmented matrix [M R^T; R 0] factored once per step,
+:mod:`lagcodegen.codegen.taylor.contacts`); impacts are roots of the free contacts' gap
+polynomials and releases roots of the held contacts' multiplier polynomials, every root of a
+step isolated (no flight is skipped at any tolerance), the same impact law applied
+(lcg_imp_law.c) and the series restarted; the same records and outputs as the index-1 driver.
+Where switches follow one another without flight at one time (impacts accumulating below the
+resolution of t, as the frictionless rocking block's alternating corners), the contacts that
+touch at rest are held from there on ("stick" records without impulse). Frictionless and no-slip
+contacts, equality rows, generalized speeds, minimal coordinates and ensembles; refused by name:
+Coulomb friction, the compiled events, sensitivities, the integrator object.
+
+Ensembles of index-1 systems run each member as one call of this driver (or of the Taylor
+contact driver), every member's events and contact log kept (:mod:`.impact_ensemble`); the
+integrator object makes one call per propagate call (:mod:`.impact_stepper`). Not supported with
+contacts: the scikit-sundae backend, projection, ensembles and the integrator object of GGL
+systems, the integrator object on Taylor, Fortran model code.
 """
 
 from __future__ import annotations
