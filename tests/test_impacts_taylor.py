@@ -172,6 +172,58 @@ def test_agrees_with_the_index1_driver_on_equality_rows_no_slip_rows_and_minimal
            [0.0, 0.0, 0.0], 1e-9, 1e-8)
 
 
+def test_floating_body_with_generalized_speeds_bounces_as_on_the_index1_driver():
+    """A body on a free joint (quaternion, generalized speeds: the rows act on v, q' = k(q, v, t))
+    spinning about its vertical axis, dropped onto the ground: the bounce at sqrt(2 h / g), the
+    apex e^2 h, and the index-1 driver's run."""
+    from test_constrained_speeds import dropped_box
+    e, r, yaw, wz, h = 0.6, 0.1, 0.7, 3.0, 0.4
+    sim = compile_constrained(dropped_box("quaternion", (0, 0, -r), e))
+    q0 = [0, 0, h + r, 0, 0, math.sin(yaw / 2), math.cos(yaw / 2)]
+    v0 = [0, 0, 0, 0, 0, wz]
+    t1 = math.sqrt(2 * h / G)
+    a, b = _agree(sim, np.linspace(0, t1 * (1 + e), 51), q0, v0, 1e-12, 1e-10)
+    (bounce,) = b.impacts.select("bounce")
+    assert bounce.t == pytest.approx(t1, rel=1e-12)
+    assert b.y[-1, 2] - r == pytest.approx(e * e * h, rel=1e-10)
+
+
+def test_budgets_and_ctrl_c_stop_a_run(tmp_path, ball):
+    from lagcodegen.errors import SolverError
+    with pytest.raises(SolverError, match="max_steps = 5"):
+        ball.simulate((0, 6), q0=[1.0], v0=[0.0], method="taylor", max_steps=5)
+    res = ball.simulate((0, 6), q0=[1.0], v0=[0.0], method="taylor", max_steps=5, raise_on_error=False)
+    assert res.status == -1 and len(res.impacts) == 5 and res.stats["steps"] == 5  # a step to each impact
+    import textwrap
+
+    from helpers import interrupt_when_ready
+    script = tmp_path / "long.py"
+    script.write_text(textwrap.dedent("""
+        import sys
+        import numpy as np
+        import sympy as sp
+        import lagcodegen as lcg
+        from lagcodegen.api import compile_constrained
+        m = lcg.Model("ctrlc_tball")
+        (y,) = m.coordinates("y")
+        m.parameters(g=9.81, m=1.0)
+        m.particle("b", sp.Symbol("m"), (0, y))
+        m.gravity(sp.Symbol("g"))
+        sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=1.0)]))
+        sim.simulate(np.array([0.0, 1.0]), q0=[1.0], v0=[0.0], method="taylor")
+        print("ready", flush=True)
+        try:
+            sim.simulate(np.array([0.0, 1e9]), q0=[1.0], v0=[0.0], max_steps=10**15, method="taylor",
+                         contacts=lcg.ContactOptions(max_records=10))
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            sys.exit(130)
+    """))
+    returncode, err, took = interrupt_when_ready(script)
+    assert returncode == 130, err
+    assert "interrupted" in err and took < 10
+
+
 def test_rocking_block_impact_ratio_and_rest_after_the_accumulation():
     """The frictionless block's first impact: the left corner released, the right one plastic,
     w+/w- = (1 - 3 sin^2 a) / (1 + 3 sin^2 a) (tests/test_impacts.py); the rocking accumulates at
