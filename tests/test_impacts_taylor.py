@@ -17,6 +17,7 @@ import sympy as sp
 import lagcodegen as lcg
 from lagcodegen.api import compile_constrained
 from lagcodegen.errors import LagcodegenError, ModelError
+from lagcodegen.solvers.family import Request
 from test_impacts import G, _ball, _rocking_block, housner_block, lifting_floor, newtons_cradle, sphere_contact
 from test_impacts_solvers import _ball_system, _pendulum_wall
 
@@ -261,9 +262,30 @@ def test_ensemble_members_are_their_single_runs(ball):
         assert first.t == pytest.approx(math.sqrt(2 * h0[i, 0] / G), rel=1e-12)
 
 
+def test_integrator_object_is_the_simulate_run_and_bounces_in_short_calls(ball):
+    """propagate_grid over a run's times is that run (one driver call, bit for bit); 600 short
+    calls (the modes carried between them) bounce at the closed form's times and rest on the floor."""
+    t = np.linspace(0, 6, 601)
+    res = ball.simulate(t, q0=[1.0], v0=[0.0], method="taylor", **TIGHT)
+    integ = ball.integrator(q0=[1.0], v0=[0.0], method="taylor", **TIGHT)
+    assert integ.family == "taylor"
+    assert np.array_equal(integ.propagate_grid(t), res.y)
+    assert integ.impacts.records == res.impacts.records
+    integ = ball.integrator(q0=[1.0], v0=[0.0], method="taylor", **TIGHT)
+    records = []
+    for tk in t[1:]:
+        integ.propagate_until(tk)
+        records += integ.impacts.records
+    e, t1 = 0.8, math.sqrt(2 / G)
+    bounces = [r.t for r in records if r.kind == "bounce"][:20]
+    k = np.arange(20)
+    assert np.max(np.abs(np.array(bounces) / (t1 + 2 * t1 * e * (1 - e**k) / (1 - e)) - 1)) < 1e-9
+    assert integ.impacts.final_modes == {0: "contact"} and abs(integ.state[0]) < 1e-12
+    with pytest.raises(LagcodegenError, match="Integrator.step"):
+        integ.step()
+
+
 def test_refusals_and_bad_input_name_the_problem(ball):
-    with pytest.raises(LagcodegenError, match="Taylor has no integrator object"):
-        ball.integrator(q0=[1.0], v0=[0.0], method="taylor")
     with pytest.raises(LagcodegenError, match="scalar atol"):
         ball.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor", atol=[1e-8, 1e-8])
     with pytest.raises(LagcodegenError, match="tolerances must be finite"):
@@ -289,7 +311,12 @@ def test_refusals_and_bad_input_name_the_problem(ball):
                               "index1", events=[apex])
     with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
         sim.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
+    with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
+        sim.integrator(q0=[1.0], v0=[0.0], method="taylor")
+    with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
+        sim.ensemble((0, 1), q0=[[1.0]], v0=[[0.0]], method="taylor")
     assert sim.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor", events=False).impacts.select("bounce")
+    assert lcg.Taylor().supports("index1", Request(kind="stepper", contacts=lcg.ContactOptions()))
     # GGL takes its contacts on IDA; constrained systems without contacts stay on CVODE / IDA
     with pytest.raises(LagcodegenError, match="IDA integrates with BDF only"):
         compile_constrained(_ball_system(0.5), "ggl").simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
@@ -301,6 +328,10 @@ def test_refusals_and_bad_input_name_the_problem(ball):
     plain = compile_constrained(lcg.ConstrainedSystem(m2, holonomic=[x2**2 + y2**2 - 1]), "index1")
     with pytest.raises(LagcodegenError, match="Taylor method integrates constrained systems with contacts"):
         plain.simulate((0, 1), q0=[0.6, -0.8], v0=[0.0, 0.0], method="taylor")
+    with pytest.raises(LagcodegenError, match="Taylor method integrates constrained systems with contacts"):
+        plain.integrator(q0=[0.6, -0.8], v0=[0.0, 0.0], method="taylor")
+    with pytest.raises(LagcodegenError, match="Taylor has no ensemble runner"):
+        plain.ensemble((0, 1), q0=[[0.6, -0.8]], v0=[[0.0, 0.0]], method="taylor")
     # Coulomb friction: its stick/slip modes are the CVODE impact driver's
     m3 = lcg.Model("tincline")
     x3, y3 = m3.coordinates("x y")

@@ -291,10 +291,11 @@ def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
 class ContactRun:
     """What the impact driver takes for runs of one system (besides the times, state and
     parameters): the runner, the step control, the Baumgarte form, what is recorded, the contact
-    settings (made by ``ConstrainedSimulation.contact_run``; index-1 systems: the runs that
-    ensembles and the integrator object make)."""
+    settings (made by ``ConstrainedSimulation.contact_run``, or ``taylor_contact_run`` for the
+    Taylor contact driver, :mod:`.taylor_impacts`; index-1 systems: the runs that ensembles and
+    the integrator object make)."""
 
-    runner: "ImpactRunner"
+    runner: "ImpactRunner"  # or a TaylorImpactRunner (the same run signature)
     control: StepControl
     form: Index1Form
     recording: Recording

@@ -2,7 +2,8 @@
 sec. 4.3): the stepper that :class:`~.integrator.Integrator` drives, each of its calls one run of
 the impact driver (lagcodegen/runtime/lcg_imp.c: impacts located inside the steps and their jumps
 applied, persistent contact and release) from the integrator's memory ``(t, y, p)``, the modes of
-the contacts carried from one call to the next.
+the contacts carried from one call to the next; on the Taylor method each call is one run of the
+Taylor contact driver (:mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c).
 
 A call of ``propagate_grid`` over the times of a ``simulate`` run is that run: the same driver
 call, bit-identical. Between calls CVODE starts afresh from the state reached (its step history is
@@ -30,6 +31,7 @@ class ImpactStepper:
     def __init__(self, sim, run, mem: np.ndarray):
         self.sim = sim
         self.run = run
+        self.family = getattr(run.runner, "family", "cvode")  # the Taylor contact driver's: "taylor"
         self.mem = mem
         self.ffi = run.runner.ffi
         self.events = list(sim.info.events) if run.recording.roots else []

@@ -29,7 +29,7 @@ from ..libraries import taylor_contact_library
 from ..result import Result
 from ..runtime import sources as runtime_files
 from ..solvers.control import POLL_EVERY, install
-from ..solvers.request import Recording, StepControl
+from ..solvers.request import Index1Form, Recording, StepControl
 from ..solvers.taylor.runner import run_stats
 from .constrained_impacts import ContactOptions, ImpactRunner
 
@@ -92,18 +92,37 @@ class TaylorImpactRunner:
         if self.rows.nk != len(impacts.contacts) or self.decomposition.ny != sim.ny:
             raise LagcodegenError(f"the Taylor contact jet of {sim.info.prefix!r} does not match its code")
 
-    def run(self, t, y0, p, control: StepControl, stabilization: tuple[float, float], contacts: ContactOptions,
-            cancel=None) -> Result:
+    #: the family of the runs (the integrator object's name for it)
+    family = "taylor"
+
+    @property
+    def contacts(self) -> list:
+        """The system's contacts (the indices k of its inequalities with a restitution)."""
+        return self.impacts.contacts
+
+    def run(self, t, y0, p, control: StepControl, form: Index1Form, recording: Recording, contacts: ContactOptions,
+            cancel=None, active=None) -> Result:
         """A run from ``y0`` at the output times ``t`` with the step control ``control`` (a scalar
-        atol; ``order``, budgets), the Baumgarte rates ``stabilization`` (alpha, beta; negative:
-        the natural rate at y0) and the contact settings ``contacts``; ``cancel``: None, or a numpy
-        int array of one value that stops the run (-80) once set."""
+        atol; ``order``, budgets), the Baumgarte rates of ``form`` (alpha, beta; negative: the
+        natural rate at y0; no projection), ``recording`` (the compiled events are not located:
+        ``recording.roots`` must be False) and the contact settings ``contacts``; ``cancel``: None,
+        or a numpy int array of one value that stops the run (-80) once set; ``active``: None, or
+        the contacts' modes at the start (a numpy intc array, nonzero: in persistent contact),
+        overwritten with those at the end (the arguments of
+        :meth:`.constrained_impacts.ImpactRunner.run`, so that the integrator object,
+        :mod:`.impact_stepper`, drives either)."""
         ffi, impacts = self.ffi, self.impacts
         atol = control.atol
         if isinstance(atol, bool) or not isinstance(atol, (int, float)):
             raise LagcodegenError("runs with contacts take a scalar atol")
+        if recording.roots or form.projection:
+            raise LagcodegenError("the Taylor contact driver locates no compiled events and projects nothing")
         nr = self.sim.info.J + len(impacts.contacts)
         buf = impacts._buffers(t, nr, contacts, Recording(roots=False))
+        if active is not None:
+            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (len(self.contacts),)):
+                raise LagcodegenError(f"active must be an intc array of {len(self.contacts)} values (one per contact)")
+            buf.active = active
         opt = ffi.new("lcg_taylor_options *")
         opt.rtol, opt.atol, opt.atol_vec = float(control.rtol), float(atol), ffi.NULL
         opt.max_steps, opt.max_step = int(control.max_steps), float(control.max_step)
@@ -112,7 +131,7 @@ class TaylorImpactRunner:
         if cancel is not None:
             opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_taylor_stats *")
-        stab = np.array(stabilization, dtype=float)
+        stab = np.array([form.alpha, form.beta], dtype=float)
         p = np.ascontiguousarray(p, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
         fb = ffi.from_buffer

@@ -45,9 +45,9 @@ class Taylor(Family):
     Constrained systems with contacts (index-1 form; :mod:`lagcodegen.simulation.taylor_impacts`):
     runs and ensembles on the Taylor contact driver, impacts and releases located on the
     polynomials of the gaps and multipliers, ``baumgarte`` the stabilization of the rows held
-    (None: the system's compiled default). Refused by name: constrained systems without contacts,
-    their compiled events, sensitivities, the integrator object and prepared runs of such systems,
-    Coulomb friction."""
+    (None: the system's compiled default); the integrator object of such systems (each propagate
+    call one run of the driver). Refused by name: constrained systems without contacts, the compiled
+    events of systems with contacts, their sensitivities, Coulomb friction."""
 
     name = "Taylor"
     methods = ("taylor",)
@@ -202,6 +202,19 @@ class Taylor(Family):
         run each member through :meth:`run_index1`, :mod:`lagcodegen.simulation.impact_ensemble`)."""
         raise LagcodegenError(_NO_CONSTRAINED)
 
+    def stepper_index1(self, sim, mem, rtol, atol, contacts=None):
+        """The stepper of an integrator object of the constrained system ``sim`` with contacts on
+        the memory ``mem`` = (t, y, p): each propagate call one run of the Taylor contact driver
+        (:meth:`ConstrainedSimulation.contact_stepper_taylor
+        <lagcodegen.simulation.constrained.ConstrainedSimulation>`). A system without contacts is
+        refused by name."""
+        if contacts is None:
+            raise LagcodegenError(_NO_CONSTRAINED)
+        return sim.contact_stepper_taylor(self, mem, rtol, atol, contacts)
+
+    def _index1_stepper(self, pr, rq):
+        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.contacts)
+
     def _index1_run(self, pr, rq):
         return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.contacts, cancel=rq.cancel)
 
@@ -218,6 +231,7 @@ class Taylor(Family):
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
         # constrained systems with contacts ("" and events without them: refused by run_index1, by name)
         ("index1", "run"): (_index1_run, combinations("", "impacts")),
+        ("index1", "stepper"): (_index1_stepper, combinations("", "impacts")),
     }
     refusals = {
         ("ode", "ensemble", frozenset({"inputs"})):
@@ -227,6 +241,10 @@ class Taylor(Family):
         ("index1", "run", frozenset({"sensitivities"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"events", "sensitivities"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"events", "impacts"})): _NO_CONTACT_EVENTS,
+        ("index1", "stepper", frozenset({"events", "impacts"})): _NO_CONTACT_EVENTS,
+        ("index1", "stepper", frozenset({"events"})): _NO_CONSTRAINED,
+        ("index1", "stepper", frozenset({"sensitivities", "impacts"})):
+            "the integrator object does not compute sensitivities",
         ("index1", "run", frozenset({"sensitivities", "impacts"})):
             "sensitivities of systems with contacts (impacts) are not computed",
         ("index1", "run", frozenset({"events", "sensitivities", "impacts"})):
