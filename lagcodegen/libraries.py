@@ -126,14 +126,14 @@ def taylor_jet_library(scene, events=(), *, cc: str | None = None, cflags: tuple
                   {"table": f"{code.prefix}_taylor_table"}, (code, d, events), cc=cc, cflags=cflags, verbose=verbose)
 
 
-def taylor_contact_library(system, scene, *, cc: str | None = None, verbose: bool = False) -> Library:
+def taylor_contact_library(system, scene, events=(), *, cc: str | None = None, verbose: bool = False) -> Library:
     """``<prefix>_taylor_contact_table``: the Taylor jet of the constrained ``system`` with contacts
-    (compiled from ``scene``): its index-1 system of the rows held, for the Taylor contact driver
+    (compiled from ``scene``) and its ``events``: its index-1 system of the rows held, for the Taylor contact driver
     (:mod:`lagcodegen.codegen.taylor.contacts`, lagcodegen/runtime/lcg_taylor_imp.c); ``extra``
     (the :class:`~lagcodegen.codegen.record.GeneratedCode`, its
     :class:`~lagcodegen.codegen.taylor.decompose.Decomposition`, its
     :class:`~lagcodegen.codegen.taylor.contacts.ContactRows`)."""
-    code, d, rows = contact_jet_code(system, scene)
+    code, d, rows = contact_jet_code(system, scene, events)
     cflags = LARGE_JET_CFLAGS if len(d.ops) >= LARGE_JET_OPS else DEFAULT_CFLAGS
     return _built(f"the Taylor contact jet of model {code.model_name!r}", f"{code.prefix}_taylor_contact", code.files,
                   {"table": f"{code.prefix}_taylor_contact_table"}, (code, d, rows), cc=cc, cflags=cflags,

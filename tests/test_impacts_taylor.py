@@ -262,6 +262,41 @@ def test_ensemble_members_are_their_single_runs(ball):
         assert first.t == pytest.approx(math.sqrt(2 * h0[i, 0] / G), rel=1e-12)
 
 
+def test_events_on_the_polynomials_apexes_and_a_terminal_stop():
+    """The compiled events of a system with contacts, located on each step's polynomial: the apex
+    (y' = 0 downwards) after each bounce at the closed form's time and height, as the index-1
+    driver records them; a terminal event ends the run there (the row appended, as on CVODE)."""
+    m = lcg.Model("tball_ev")
+    (y,) = m.coordinates("y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (0, y))
+    m.gravity(sp.Symbol("g"))
+    apex = lcg.Event("apex", sp.Symbol("y_dot"), direction=-1, terminal=False)
+    stop = lcg.Event("stop", m.t - 2.5, direction=1, terminal=True)
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.8)]),
+                              "index1", events=[apex, stop])
+    t = np.linspace(0, 3, 301)
+    res = sim.simulate(t, q0=[1.0], v0=[0.0], method="taylor", **TIGHT)
+    ref = sim.simulate(t, q0=[1.0], v0=[0.0], **TIGHT)
+    assert [(r.name, r.direction) for r in res.events] == [(r.name, r.direction) for r in ref.events]
+    assert res.events[-1].name == "stop" and res.t[-1] == pytest.approx(2.5, abs=1e-14)
+    assert res.stats["t_reached"] == pytest.approx(2.5, abs=1e-14)
+    e, t1 = 0.8, math.sqrt(2 / G)
+    apexes = [r for r in res.events if r.name == "apex"]
+    for k, r in enumerate(apexes):
+        speed = e ** (k + 1) * math.sqrt(2 * G)
+        t_apex = t1 + 2 * t1 * e * (1 - e**k) / (1 - e) + speed / G
+        assert r.t == pytest.approx(t_apex, rel=1e-12)
+        assert r.y[0] == pytest.approx(e ** (2 * (k + 1)), rel=1e-10)
+    assert np.max(np.abs(np.array([r.t for r in apexes]) - [r.t for r in ref.events if r.name == "apex"])) < 1e-8
+    # the integrator object's calls and the ensembles' members record them as well
+    integ = sim.integrator(q0=[1.0], v0=[0.0], method="taylor", **TIGHT)
+    integ.propagate_until(1.0)
+    assert [r.name for r in integ.events] == ["apex"] and integ.events[0].t == pytest.approx(apexes[0].t, rel=1e-12)
+    ens = sim.ensemble(t, q0=[[1.0], [0.5]], v0=[[0.0], [0.0]], method="taylor", **TIGHT)
+    assert [(r.name, r.t) for r in ens.member(0).events] == [(r.name, r.t) for r in res.events]
+
+
 def test_integrator_object_is_the_simulate_run_and_bounces_in_short_calls(ball):
     """propagate_grid over a run's times is that run (one driver call, bit for bit); 600 short
     calls (the modes carried between them) bounce at the closed form's times and rest on the floor."""
@@ -300,23 +335,20 @@ def test_refusals_and_bad_input_name_the_problem(ball):
         ball.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor", baumgarte="fast")
     res = ball.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor", baumgarte=(5.0, 5.0))
     assert res.stats["alpha"] == 5.0 and res.stats["beta"] == 5.0
-    # the compiled events of a system with contacts are not located on Taylor
-    m = lcg.Model("tball_ev")
-    (y,) = m.coordinates("y")
-    m.parameters(g=G, m=1.0)
-    m.particle("b", sp.Symbol("m"), (0, y))
+    # an event whose expression uses a multiplier is not a row of the jet: refused when located
+    m = lcg.Model("tpwall_ev")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0, l=1.0, d=0.3)
+    m.particle("b", sp.Symbol("m"), (x, y))
     m.gravity(sp.Symbol("g"))
-    apex = lcg.Event("apex", sp.Symbol("y_dot"), direction=-1, terminal=False)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.5)]),
-                              "index1", events=[apex])
-    with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
-        sim.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
-    with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
-        sim.integrator(q0=[1.0], v0=[0.0], method="taylor")
-    with pytest.raises(LagcodegenError, match="does not locate the compiled events"):
-        sim.ensemble((0, 1), q0=[[1.0]], v0=[[0.0]], method="taylor")
-    assert sim.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor", events=False).impacts.select("bounce")
-    assert lcg.Taylor().supports("index1", Request(kind="stepper", contacts=lcg.ContactOptions()))
+    system = lcg.ConstrainedSystem(m, holonomic=[x**2 + y**2 - sp.Symbol("l") ** 2],
+                                   inequalities=[lcg.Inequality(sp.Symbol("d") - x, restitution=0.5)])
+    pull = lcg.Event("pull", system.multipliers[0] + 5, direction=0, terminal=False)
+    sim = compile_constrained(system, "index1", events=[pull])
+    with pytest.raises(LagcodegenError, match="does not locate the event.s. pull: their expressions use a multiplier"):
+        sim.simulate((0, 1), q0=[-0.6, -0.8], v0=[0.0, 0.0], method="taylor")
+    assert sim.simulate((0, 3), q0=[-0.6, -0.8], v0=[0.0, 0.0], method="taylor", events=False).impacts.select("bounce")
+    assert lcg.Taylor().supports("index1", Request(kind="stepper", roots=True, contacts=lcg.ContactOptions()))
     # GGL takes its contacts on IDA; constrained systems without contacts stay on CVODE / IDA
     with pytest.raises(LagcodegenError, match="IDA integrates with BDF only"):
         compile_constrained(_ball_system(0.5), "ggl").simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
@@ -355,13 +387,14 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     from lagcodegen.simulation.taylor_impacts import RUNTIME_FILES
     from lagcodegen.codegen.taylor.emit import runtime_sources
     from lagcodegen.runtime import sources as runtime_files
-    from lagcodegen.build import dae_table_source, table_source
+    from lagcodegen.build import dae_table_source, table_source, types_headers
 
     system = _ball_system(0.8)
-    code, info = generate_constrained(system, prefix="tsball")
+    apex = lcg.Event("apex", sp.Symbol("y_dot"), direction=-1, terminal=False)
+    code, info = generate_constrained(system, prefix="tsball", events=[apex])
     code.write(tmp_path)
     files = {**runtime_sources(), **runtime_files(RUNTIME_FILES), **table_source(code), **dae_table_source(code),
-             **contact_jet_sources(system, scene_of_code(code, "test"))}
+             **types_headers(("dae",)), **contact_jet_sources(system, scene_of_code(code, "test"), events=info.events)}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     strict = [cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "-c"]
@@ -377,9 +410,10 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True,
                          env={"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"})
     assert run.returncode == 0, run.stdout + run.stderr
-    flag, n_rec, t_first, y_end, lam_end, active, bad = run.stdout.split()
+    flag, n_rec, t_first, y_end, lam_end, active, bad, n_events, apex_y = run.stdout.split()
     assert int(flag) == 0 and int(n_rec) > 20 and int(active) == 1 and int(bad) == -22
     assert float(t_first) == pytest.approx(math.sqrt(2 / G), rel=1e-12)
+    assert int(n_events) > 20 and float(apex_y) == pytest.approx(0.8**2, rel=1e-12)
     assert abs(float(y_end)) < 1e-12 and float(lam_end) == pytest.approx(G, rel=1e-12)
 
 
@@ -395,7 +429,9 @@ int main(void)
 {
     double p[2] = {9.81, 1.0}, y0[2] = {1.0, 0.0}, t[3] = {0.0, 1.0, 6.0}, yout[6], out[3 * 64], lam[3];
     double e[1] = {0.8}, set[3] = {1e-6, 1e-9, 1e-9}, rec[6 * 200], stab[2] = {-1.0, -1.0};
-    int active[1] = {0}, n_rec = 0, flag, bad, n1, a1;
+    double et[64], ey[128];
+    int active[1] = {0}, n_rec = 0, flag, bad, n1, a1, which[64], dir[64], rootdir[1] = {-1}, terminal[1] = {0};
+    lcg_events ev = {64, 0, et, ey, which, dir, rootdir, terminal, 0};
     lcg_taylor_options opt;
     lcg_taylor_stats st;
     lcg_taylor_contact other = tsball_taylor_contact;
@@ -405,13 +441,14 @@ int main(void)
     opt.atol = 1e-14;
     opt.max_steps = 100000;
     flag = lcg_taylor_imp_solve(&tsball_taylor_contact, tsball_imp_model_table(), p, y0, 3, t, yout, out, lam,
-                                &opt, e, set, active, 200, rec, &n_rec, &st, stab);
+                                &opt, e, set, active, 200, rec, &n_rec, &st, stab, &ev);
     n1 = n_rec;
     a1 = active[0];
     other.abi = LCG_TAYLOR_CONTACT_ABI + 1;
     bad = lcg_taylor_imp_solve(&other, tsball_imp_model_table(), p, y0, 3, t, yout, out, lam, &opt, e, set, active,
-                               200, rec, &n_rec, &st, stab);
-    printf("%d %d %.17g %.17g %.17g %d %d\n", flag, n1, rec[0], yout[4], lam[2], a1, bad);
+                               200, rec, &n_rec, &st, stab, NULL);
+    printf("%d %d %.17g %.17g %.17g %d %d %d %.17g\n", flag, n1, rec[0], yout[4], lam[2], a1, bad, ev.n_events,
+           ey[0]);
     return 0;
 }
 """

@@ -27,6 +27,9 @@ typedef struct lcg_taylor_contact {
     int nr;      /* rows: nj + nk + the tangential rows */
     int lam_row; /* the jet row of lambda_0; lambda_r in row lam_row + r (0 at every order while not held) */
     const int *gap_row; /* nk: the jet row of each contact's gap g_k */
+    int ne;             /* the constrained system's events (its compiled root functions, in order) */
+    const int *event_row; /* ne (NULL when 0): the jet row of each event function, -1 where it is not in
+                           * the jet (it uses a multiplier) */
     /* Into the workspace of a run (after the jet table's start): the rows held (equality rows, the
      * contacts with active[k] != 0 and their tangential rows) and the Baumgarte rates. */
     void (*hold)(void *work, const int *active, double alpha, double beta);

@@ -149,18 +149,68 @@ static int ti_settle(const lcg_imp_model *im, const double *p, double t, const d
         }                                           \
     } while (0)
 
+/* The events on the step (0, *h] of the jet X, in time order (ev->rootdir: the directions taken),
+ * each recorded with the state there; a root within rounding of the event's last one (at the end
+ * of the previous step) is not reported again. A terminal one ends the step there: *h set to it,
+ * returns 1; else 0. last[e]: the time of event e's last root; tau, which, dir: scratch of
+ * ne (P_MAX + 1) entries. */
+static int ti_events(const lcg_taylor_model *m, const lcg_taylor_contact *ct, const double *X, int order, double thi,
+                     double tlo, double *h, lcg_events *ev, double *last, double *tau, int *which, int *dir)
+{
+    int e, j, a, n = 0, ny = m->ny;
+
+    for (e = 0; e < ct->ne; ++e) {
+        int found = tl_roots(X + (long)ct->event_row[e] * PS, order, *h, tau + n, dir + n, P_MAX + 1);
+        for (j = 0; j < found; ++j)
+            which[n + j] = e;
+        n += found;
+    }
+    for (a = 1; a < n; ++a) /* merge the events' lists by time */
+        for (j = a; j > 0 && tau[j - 1] > tau[j]; --j) {
+            double tt = tau[j];
+            int ww = which[j], dd = dir[j];
+            tau[j] = tau[j - 1];
+            which[j] = which[j - 1];
+            dir[j] = dir[j - 1];
+            tau[j - 1] = tt;
+            which[j - 1] = ww;
+            dir[j - 1] = dd;
+        }
+    for (j = 0; j < n; ++j) {
+        double te = thi + (tlo + tau[j]);
+        e = which[j];
+        if (te - last[e] <= 1e-9 * *h + 4.0 * DBL_EPSILON * fabs(te))
+            continue;
+        last[e] = te;
+        if (ev->rootdir != NULL && ev->rootdir[e] != 0 && dir[j] != ev->rootdir[e])
+            continue;
+        if (ev->n_events < ev->max_events) {
+            ev->t[ev->n_events] = te;
+            tl_eval(m, X, order, tau[j], ev->y + (long)ev->n_events * ny);
+            ev->which[ev->n_events] = e;
+            ev->direction[ev->n_events] = dir[j];
+        }
+        ev->n_events++;
+        if (ev->terminal == NULL || ev->terminal[e]) {
+            *h = tau[j];
+            return 1;
+        }
+    }
+    return 0;
+}
+
 int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, const double *p, const double *y0,
                          int nt, const double *tout, double *yout, double *out, double *lamout,
                          const lcg_taylor_options *opt, const double *e, const double *set, int *active,
-                         int max_rec, double *rec, int *n_rec, lcg_taylor_stats *st, double *stab)
+                         int max_rec, double *rec, int *n_rec, lcg_taylor_stats *st, double *stab, lcg_events *ev)
 {
     const lcg_taylor_model *m = ct != NULL ? ct->jet : NULL;
     tl_run r;
     lcg_imp_law L, Lq;
-    double *buf = NULL, *y, *ydot, *lam, *gk, *wk, *last, *scratch;
+    double *buf = NULL, *y, *ydot, *lam, *gk, *wk, *last, *scratch, *elast = NULL, *etau = NULL;
     double thi, tlo, tend, ab[2], tsame = -HUGE_VAL;
-    int *ibuf = NULL, *hit, *rows;
-    int kout = 1, flag = 0, rc, i, k, ny = 0, nk = 0, nlam = 0, nout = 0, same = 0, quiet = 0;
+    int *ibuf = NULL, *hit, *rows, *ewhich = NULL, *edir = NULL;
+    int kout = 1, flag = 0, rc, i, k, ny = 0, nk = 0, nlam = 0, nout = 0, same = 0, quiet = 0, ne = 0;
     watch wt;
 
     memset(&r, 0, sizeof r);
@@ -179,6 +229,18 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
         flag = LCG_FLAG_BAD_INPUT;
         goto done;
     }
+    if (ev != NULL) {
+        ev->n_events = 0;
+        ev->terminated = 0;
+        ne = ct->ne;
+        for (i = 0; i < ne; ++i)
+            if (ct->event_row == NULL || ct->event_row[i] < 0 || ct->event_row[i] >= m->nrows) {
+                snprintf(st->message, sizeof st->message, "event %d is not a row of the Taylor contact jet (it "
+                         "uses a multiplier)", i);
+                flag = LCG_FLAG_BAD_INPUT;
+                goto done;
+            }
+    }
     if (nt < 1 || opt->max_steps < 0 || opt->max_step < 0.0 || opt->order < 0 || opt->order > P_MAX
         || (opt->order > 0 && opt->order < 2)) {
         snprintf(st->message, sizeof st->message, "bad options (order must be 0 or 2..%d)", P_MAX);
@@ -195,7 +257,11 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
      * (eff[nk], wm[nk], P[nrow], ynew[ny]); ints: hit[nk], rows[2 nk] */
     buf = (double *)malloc(sizeof(double) * (size_t)(3 * ny + 2 * im->nrow + 5 * nk));
     ibuf = (int *)malloc(sizeof(int) * (size_t)(3 * nk));
-    if (tl_run_alloc(m, &r) != 0 || buf == NULL || ibuf == NULL) {
+    if (ne > 0) { /* the events' last roots, and the roots of one step */
+        elast = (double *)malloc(sizeof(double) * (size_t)(ne + ne * (P_MAX + 1)));
+        ewhich = (int *)malloc(sizeof(int) * (size_t)(2 * ne * (P_MAX + 1)));
+    }
+    if (tl_run_alloc(m, &r) != 0 || buf == NULL || ibuf == NULL || (ne > 0 && (elast == NULL || ewhich == NULL))) {
         snprintf(st->message, sizeof st->message, "out of memory");
         flag = LCG_FLAG_NOMEM;
         goto done;
@@ -209,6 +275,12 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     scratch = last + nk;
     hit = ibuf;
     rows = hit + nk;
+    if (ne > 0) {
+        etau = elast + ne;
+        edir = ewhich + ne * (P_MAX + 1);
+        for (i = 0; i < ne; ++i)
+            elast[i] = -HUGE_VAL;
+    }
     L.im = im;
     L.p = p;
     L.active = active;
@@ -326,6 +398,10 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             h = tau;
             end = 2;
         }
+        if (ne > 0 && ti_events(m, ct, r.X, r.order, thi, tlo, &h, ev, elast, etau, ewhich, edir)) {
+            which = -1; /* a terminal event at or before the contact's switch ends the run there */
+            end = 3;
+        }
 
         /* Dense output: the step polynomial at the output times in (t_n, t_n + h]. */
         while (kout < nt) {
@@ -340,6 +416,10 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
         }
         if ((flag = tl_step_take(m, &r, st, &thi, &tlo, y, h, end)) != 0)
             break;
+        if (end == 3) {
+            ev->terminated = 1;
+            break;
+        }
         if (which >= 0) { /* the switch: an impact (or a release), the contacts that pull released */
             double t = thi + tlo;
             if (t == tsame) {
@@ -370,7 +450,7 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             rc = lcg_imp_release_pulling(&L, t, y, ab[0], ab[1], ydot, lam);
             TI_MODEL_ERROR(rc);
             ct->hold(r.work, active, ab[0], ab[1]);
-            tl_run_restart(m, &r);
+            r.hprev = 0.0; /* a new series from the jump (the events' last roots kept) */
             continue;
         }
         if (end == 1)
@@ -386,5 +466,7 @@ done:
     tl_run_free(&r);
     free(buf);
     free(ibuf);
+    free(elast);
+    free(ewhich);
     return flag;
 }

@@ -262,19 +262,19 @@ class ConstrainedSimulation(ConstrainedFunctions):
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
 
-    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, contacts, cancel=None) -> Result:
+    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
         """A run of this system with contacts on the Taylor contact driver (:mod:`.taylor_impacts`:
         impacts and releases located on the Taylor polynomials of the gaps and multipliers, the
-        impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets
-        and ``baumgarte``); ``cancel``: None, or a numpy int array of one value that stops the run
+        impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets,
+        ``baumgarte`` and ``max_events``), ``roots``: locate the compiled events; ``cancel``: None, or a numpy int array of one value that stops the run
         (-80) once set. The GGL formulation takes its contacts on IDA only."""
-        run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, contacts)
+        run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
 
-    def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, contacts) -> ContactRun:
+    def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the Taylor contact driver (:mod:`.taylor_impacts`) takes for runs of this system
-        from (t0, y0) with the parameters p on the Taylor family ``family``, as a
-        :class:`~.constrained_impacts.ContactRun` (the contacts checked at y0; no compiled events)."""
+        from (t0, y0) with the parameters p on the Taylor family ``family`` (``roots``: locate the
+        compiled events), as a :class:`~.constrained_impacts.ContactRun` (the contacts checked at y0)."""
         if self._ggl:
             raise LagcodegenError("the Taylor method runs contacts in the index-1 formulation: "
                                   "compile_constrained(system, 'index1')")
@@ -288,15 +288,15 @@ class ConstrainedSimulation(ConstrainedFunctions):
             runner = self._taylor_impact_runner = TaylorImpactRunner(self, impacts)
         alpha, beta = self.stabilization(family.baumgarte, False, t0, y0, p, True)
         return ContactRun(runner, family.control(rtol, atol), Index1Form(float(alpha), float(beta)),
-                          Recording(roots=False), _contact_options(contacts))
+                          Recording(roots=bool(roots), max_events=family.max_events), _contact_options(contacts))
 
-    def contact_stepper_taylor(self, family, mem, rtol, atol, contacts) -> ImpactStepper:
+    def contact_stepper_taylor(self, family, mem, rtol, atol, roots: bool, contacts) -> ImpactStepper:
         """The stepper of an integrator object of this system with contacts on the Taylor method
         (:mod:`.impact_stepper`: each call one run of the Taylor contact driver) on ``mem`` =
         (t0, y0, p)."""
         ny = self._ny
         t0, y0, p = float(mem[0]), mem[1:1 + ny], mem[1 + ny:]
-        return ImpactStepper(self, self.taylor_contact_run(family, t0, y0, p, rtol, atol, contacts), mem)
+        return ImpactStepper(self, self.taylor_contact_run(family, t0, y0, p, rtol, atol, roots, contacts), mem)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the index-1 impact driver takes for runs of this system with contacts from (t0, y0)

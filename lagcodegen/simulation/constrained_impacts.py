@@ -110,14 +110,16 @@ step isolated (no flight is skipped at any tolerance), the same impact law appli
 Where switches follow one another without flight at one time (impacts accumulating below the
 resolution of t, as the frictionless rocking block's alternating corners), the contacts that
 touch at rest are held from there on ("stick" records without impulse). Frictionless and no-slip
-contacts, equality rows, generalized speeds, minimal coordinates and ensembles; refused by name:
-Coulomb friction, the compiled events, sensitivities, the integrator object.
+contacts, equality rows, generalized speeds, minimal coordinates, ensembles, the integrator
+object and the compiled events (rows of the jet, located on the same polynomials; an event whose
+expression uses a multiplier is refused by name); refused by name: Coulomb friction (see
+:mod:`.taylor_impacts`), sensitivities.
 
 Ensembles of index-1 systems run each member as one call of this driver (or of the Taylor
 contact driver), every member's events and contact log kept (:mod:`.impact_ensemble`); the
 integrator object makes one call per propagate call (:mod:`.impact_stepper`). Not supported with
 contacts: the scikit-sundae backend, projection, ensembles and the integrator object of GGL
-systems, the integrator object on Taylor, Fortran model code.
+systems, Fortran model code.
 """
 
 from __future__ import annotations

@@ -7,8 +7,9 @@ impact drivers (lagcodegen/runtime/lcg_imp_law.c, through the model's contact ta
 no Python in the loop. The result is that of the index-1 driver (:mod:`.constrained_impacts`):
 ``res.impacts`` (:class:`~.constrained_impacts.ContactLog`), ``outputs["lambda_ineq_<k>"]``.
 
-Frictionless and no-slip contacts; Coulomb friction, the compiled events and sensitivities are
-refused by name (the Taylor family's ``refusals``).
+Frictionless and no-slip contacts; the system's compiled events located on the steps'
+polynomials (those whose expression uses a multiplier refused by name); Coulomb friction and
+sensitivities are refused by name.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..build import DEFAULT_CFLAGS, driver_runtime
+from ..build import DEFAULT_CFLAGS, driver_runtime, types_headers
 from ..codegen.cffi_decl import POLL_CDEF, TAYLOR_TABLE_CDEF, driver_cdef, header_cdef
 from ..codegen.record import scene_of_code
 from ..codegen.taylor.emit import P_MAX, runtime_key_texts, runtime_sources
@@ -28,6 +29,7 @@ from ..errors import LagcodegenError
 from ..libraries import taylor_contact_library
 from ..result import Result
 from ..runtime import sources as runtime_files
+from ..solvers.base import NativeEvents
 from ..solvers.control import POLL_EVERY, install
 from ..solvers.request import Index1Form, Recording, StepControl
 from ..solvers.taylor.runner import run_stats
@@ -44,13 +46,13 @@ _OPAQUE = "typedef ... lcg_taylor_contact;\ntypedef ... lcg_imp_model;\n"
 
 def _cdef() -> str:
     header = header_cdef("lcg_taylor_imp.h")
-    return "\n".join([TAYLOR_TABLE_CDEF, driver_cdef("taylor"), _OPAQUE, header, POLL_CDEF])
+    return "\n".join([TAYLOR_TABLE_CDEF, driver_cdef("taylor"), driver_cdef("dae"), _OPAQUE, header, POLL_CDEF])
 
 
 @functools.lru_cache(maxsize=4)
 def _runtime(cc: str, cflags: tuple[str, ...]):
     def render() -> dict[str, str]:
-        return {**runtime_sources(), **runtime_files(RUNTIME_FILES)}
+        return {**runtime_sources(), **runtime_files(RUNTIME_FILES), **types_headers(("dae",))}
 
     texts = [f"P_MAX {P_MAX}", *runtime_key_texts(), *(f"{k}\0{v}" for k, v in sorted(runtime_files(RUNTIME_FILES).items()))]
     return driver_runtime("taylor_impacts", texts, render, _cdef(), "lcg_taylor_imp.h", ["-lm", "-pthread"], cc,
@@ -82,7 +84,7 @@ class TaylorImpactRunner:
         self.ffi = ffi = rt.ffi
         self.poll = install(rt)
         scene = scene_of_code(sim.compiled.code, "method='taylor'")
-        self.library = lib = taylor_contact_library(system, scene)
+        self.library = lib = taylor_contact_library(system, scene, list(sim.info.events))
         _, self.decomposition, self.rows = lib.extra
         getter = getattr(lib.handle, lib.functions["table"])
         getter.restype = ctypes.c_void_p
@@ -104,8 +106,9 @@ class TaylorImpactRunner:
             cancel=None, active=None) -> Result:
         """A run from ``y0`` at the output times ``t`` with the step control ``control`` (a scalar
         atol; ``order``, budgets), the Baumgarte rates of ``form`` (alpha, beta; negative: the
-        natural rate at y0; no projection), ``recording`` (the compiled events are not located:
-        ``recording.roots`` must be False) and the contact settings ``contacts``; ``cancel``: None,
+        natural rate at y0; no projection), ``recording`` (``roots``: locate the compiled events,
+        at most ``max_events`` kept; those using a multiplier are refused) and the contact settings
+        ``contacts``; ``cancel``: None,
         or a numpy int array of one value that stops the run (-80) once set; ``active``: None, or
         the contacts' modes at the start (a numpy intc array, nonzero: in persistent contact),
         overwritten with those at the end (the arguments of
@@ -115,10 +118,19 @@ class TaylorImpactRunner:
         atol = control.atol
         if isinstance(atol, bool) or not isinstance(atol, (int, float)):
             raise LagcodegenError("runs with contacts take a scalar atol")
-        if recording.roots or form.projection:
-            raise LagcodegenError("the Taylor contact driver locates no compiled events and projects nothing")
-        nr = self.sim.info.J + len(impacts.contacts)
+        if form.projection:
+            raise LagcodegenError("the Taylor contact driver projects nothing (projection=False)")
+        sim = self.sim
+        nr = sim.info.J + len(impacts.contacts)
         buf = impacts._buffers(t, nr, contacts, Recording(roots=False))
+        if recording.roots and sim.info.events:  # the events located on the steps' polynomials
+            refused = [ev.name for ev, row in zip(sim.info.events, self.rows.events) if row < 0]
+            if refused:
+                raise LagcodegenError(f"the Taylor contact driver does not locate the event(s) {', '.join(refused)}: "
+                                      "their expressions use a multiplier, which the Taylor jet computes after the "
+                                      "events of the same order; run with events=False, or on CVODE "
+                                      "(method='adams' or 'bdf')")
+            buf.events = NativeEvents(ffi, "lcg_events", sim.info.events, sim.ny, recording.max_events)
         if active is not None:
             if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (len(self.contacts),)):
                 raise LagcodegenError(f"active must be an intc array of {len(self.contacts)} values (one per contact)")
@@ -140,7 +152,8 @@ class TaylorImpactRunner:
             self.table, self.imp, fb("double[]", p) if p.size else ffi.NULL, fb("double[]", y0), t.size,
             fb("double[]", buf.t), fb("double[]", buf.yout), fb("double[]", buf.out), fb("double[]", buf.lamout), opt,
             fb("double[]", impacts.restitution), fb("double[]", buf.settings), fb("int[]", buf.active),
-            buf.max_records, fb("double[]", buf.rec), buf.n_rec, st, fb("double[]", stab))
+            buf.max_records, fb("double[]", buf.rec), buf.n_rec, st, fb("double[]", stab),
+            buf.events.struct if buf.events else ffi.NULL)
         res = impacts._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "taylor", "Taylor",
                               stats_of=run_stats)
         res.stats["alpha"], res.stats["beta"] = float(stab[0]), float(stab[1])

@@ -21,9 +21,12 @@ decomposed into elementary operations by :mod:`.decompose`; the contacts' gaps g
 the multipliers are rows of the jet, whose polynomials the runtime's contact driver
 (lagcodegen/runtime/lcg_taylor_imp.c) searches for impacts and releases.
 
-The file ``<prefix>_taylor_contact.c`` defines the jet's table ``lcg_taylor_model`` (no outputs, no
-events: the constrained table's outputs are the driver's) and the contact table
-``lcg_taylor_contact`` (lagcodegen/runtime/lcg_taylor_contact.h). Coulomb friction is not in it
+The system's events (its compiled root functions) are rows of the jet too, their polynomials
+searched by the driver, except those whose expression uses a multiplier (row -1: the driver
+refuses a run that locates them). The file ``<prefix>_taylor_contact.c`` defines the jet's table
+``lcg_taylor_model`` (no outputs, no events of its own: the constrained table's outputs and the
+contact table's events are the driver's) and the contact table ``lcg_taylor_contact``
+(lagcodegen/runtime/lcg_taylor_contact.h). Coulomb friction is not in it
 (its modes are the CVODE impact driver's).
 """
 
@@ -63,6 +66,7 @@ class ContactRows:
     njh: int
     nk: int
     tangent_of: list
+    events: list = dataclasses.field(default_factory=list)  # per event: its row, or -1 (uses a multiplier)
 
     @property
     def nr(self) -> int:
@@ -81,10 +85,12 @@ class ContactRows:
         return self.tangent_of[r - self.nj - self.nk]
 
 
-def contact_decompose(system, scene: Scene, form: str | None = None) -> tuple[Decomposition, ContactRows]:
-    """The elementary operations of M, F and of the rows of ``system`` (compiled from ``scene``):
-    the cheaper of the derived and trig-linearized forms (``form`` to force one), products fused
-    (:func:`~.decompose.fuse_products`)."""
+def contact_decompose(system, scene: Scene, events=(), form: str | None = None) -> tuple[Decomposition, ContactRows]:
+    """The elementary operations of M, F and of the rows of ``system`` (compiled from ``scene``)
+    and of its ``events`` (the constrained system's events, :func:`lagcodegen.model.events.event_list`;
+    an event whose expression uses a multiplier gets no row: its value needs the solve of the same
+    order): the cheaper of the derived and trig-linearized forms (``form`` to force one), products
+    fused (:func:`~.decompose.fuse_products`)."""
     if system.has_friction:
         raise ModelError("method='taylor' does not integrate Coulomb friction (Inequality(..., friction=mu)): its "
                          "stick/slip modes are chosen by the CVODE impact driver (method='adams' or 'bdf')")
@@ -94,7 +100,9 @@ def contact_decompose(system, scene: Scene, form: str | None = None) -> tuple[De
         raise ModelError("constrained systems with quadrature states are not supported")
     n = model.nv
     nq = model.nq if eom.general else None
-    exprs, time_symbol, state = scene_expressions(scene, ())
+    multipliers = {sp_symbol.name for sp_symbol in getattr(system, "multipliers", ())}
+    jet_events = [ev for ev in events if not {str(x) for x in getattr(ev.expr, "free_symbols", ())} & multipliers]
+    exprs, time_symbol, state = scene_expressions(scene, jet_events)
     blocks = impact_blocks(system, scene, mass_force=False)
     rows = blocks["rows"]
     for target, e in zip(rows.targets, rows.exprs):
@@ -110,7 +118,7 @@ def contact_decompose(system, scene: Scene, form: str | None = None) -> tuple[De
             what = (f"equality row {loc[1]}" if loc[1] < nj else f"contact {system.contacts[loc[1] - nj]}"
                     if loc[1] < nj + nk else f"tangential row {loc[1] - nj - nk}")
             return f"the {dict(R='row', s='velocity', h='position', gam='acceleration term')[loc[0]]} of {what}"
-        return _where(scene, loc, ())
+        return _where(scene, loc, jet_events)
 
     best = None
     for f in ((form,) if form else ("derived", "trig-linearized")):
@@ -122,14 +130,17 @@ def contact_decompose(system, scene: Scene, form: str | None = None) -> tuple[De
                 d.where = where(loc)
                 if f == "trig-linearized" and not d.is_const(e):
                     e = group_by_atoms(linearize_trig(e), d.varsyms)
-                gap = loc[0] == "h" and nj <= loc[1] < nj + nk  # the gaps: rows of the jet, searched for roots
-                entries[loc] = d.row(e) if gap else d.node(e)
+                # the gaps and the events: rows of the jet, searched for roots
+                rooted = (loc[0] == "h" and nj <= loc[1] < nj + nk) or loc[0] == "event"
+                entries[loc] = d.row(e) if rooted else d.node(e)
                 stage.advance()
-        dec = _assemble(d, entries, n, 0, 0, nq, f)
+        dec = _assemble(d, entries, n, 0, len(jet_events), nq, f)
+        rows_of = iter(dec.events)
         crow = ContactRows(R=[[entries[("R", r, i)] for i in range(n)] for r in range(nr)],
                            s=[entries[("s", r)] for r in range(nr)], h=[entries[("h", r)] for r in range(nr)],
                            gam=[entries[("gam", r)] for r in range(nr)], nj=nj, njh=njh, nk=nk,
-                           tangent_of=list(blocks["tangent_of"]))
+                           tangent_of=list(blocks["tangent_of"]),
+                           events=[next(rows_of) if ev in jet_events else -1 for ev in events])
         dec.cost += sum(1.0 for row in crow.R for e in row if isinstance(e, int))
         if best is None or dec.cost < best[0].cost:
             best = (dec, crow)
@@ -155,7 +166,7 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
     n = d.n
     mconv = [(i, d.M[i][j], j) for i in range(n) for j in range(n) if isinstance(d.M[i][j], int)]
     rconv = [(r, i, rows.R[r][i]) for r in range(rows.nr) for i in range(n) if isinstance(rows.R[r][i], int)]
-    ctx.update(unrolled=None, table=True, nout=0, ne=0, nr=rows.nr, nj=rows.nj, njh=rows.njh, nk=rows.nk,
+    ctx.update(unrolled=None, table=True, nout=0, ne=0, event_rows=rows.events, nr=rows.nr, nj=rows.nj, njh=rows.njh, nk=rows.nk,
                R=rows.R, s=rows.s, h=rows.h, gam=rows.gam, holonomic=[rows.holonomic(r) for r in range(rows.nr)],
                contact_of=[rows.contact_of(r) for r in range(rows.nr)], mconv=mconv, rconv=rconv,
                gap_rows=[rows.h[rows.nj + k] for k in range(rows.nk)], lam_row=d.nrows, chunk_size=CHUNK,
@@ -163,12 +174,12 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
     return ctx
 
 
-def contact_jet_sources(system, scene: Scene, decomposition=None) -> dict[str, str]:
+def contact_jet_sources(system, scene: Scene, decomposition=None, events=()) -> dict[str, str]:
     """``<prefix>_taylor_contact.c`` (the jet of ``system``'s index-1 system of the rows held and its
     tables, libm only), ``lcg_taylor_model.h`` and ``lcg_taylor_contact.h``; ``decomposition``: the
     (:class:`~.decompose.Decomposition`, :class:`ContactRows`) pair of :func:`contact_decompose`
-    (made here when None)."""
-    d, rows = decomposition or contact_decompose(system, scene)
+    (made here when None, with the system's ``events``)."""
+    d, rows = decomposition or contact_decompose(system, scene, events)
     ctx = contact_context(scene, d, rows)
     env = _jinja()
     return {"lcg_taylor_model.h": env.get_template("taylor/lcg_taylor_model.h.j2").render(version=__version__,
@@ -177,10 +188,11 @@ def contact_jet_sources(system, scene: Scene, decomposition=None) -> dict[str, s
             f"{scene.prefix}_taylor_contact.c": env.get_template("taylor/jet_contact.c.j2").render(**ctx)}
 
 
-def contact_jet_code(system, scene: Scene) -> tuple[GeneratedCode, Decomposition, ContactRows]:
-    """The contact jet of ``system`` (compiled from ``scene``) as a :class:`GeneratedCode` whose
-    files are those of :func:`contact_jet_sources`, with its decomposition and rows."""
-    d, rows = contact_decompose(system, scene)
+def contact_jet_code(system, scene: Scene, events=()) -> tuple[GeneratedCode, Decomposition, ContactRows]:
+    """The contact jet of ``system`` (compiled from ``scene``) with its ``events`` as a
+    :class:`GeneratedCode` whose files are those of :func:`contact_jet_sources`, with its
+    decomposition and rows."""
+    d, rows = contact_decompose(system, scene, events)
     code = new_code(dataclasses.replace(scene, jacobian=False, sparse_jacobian=False))
     code.scene = scene
     code.files.update(contact_jet_sources(system, scene, (d, rows)))

@@ -20,10 +20,6 @@ from .stepper import TaylorSensitivityStepper, TaylorStepper
 _NO_CONSTRAINED = ("the Taylor method integrates constrained systems with contacts (Inequality with a restitution) "
                    "only, on its contact driver; constrained systems without contacts run on CVODE (method='adams' "
                    "or 'bdf') or IDA (formulation 'ggl')")
-#: Why Taylor refuses the compiled events of a system with contacts.
-_NO_CONTACT_EVENTS = ("the Taylor contact driver does not locate the compiled events of a constrained system (its "
-                      "roots are the contacts' impacts and releases): run with events=False, or on CVODE "
-                      "(method='adams' or 'bdf') to locate them")
 
 #: The fields a prepared run honours (max_events: the events kept by a prepared run with events).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events"))
@@ -46,8 +42,9 @@ class Taylor(Family):
     runs and ensembles on the Taylor contact driver, impacts and releases located on the
     polynomials of the gaps and multipliers, ``baumgarte`` the stabilization of the rows held
     (None: the system's compiled default); the integrator object of such systems (each propagate
-    call one run of the driver). Refused by name: constrained systems without contacts, the compiled
-    events of systems with contacts, their sensitivities, Coulomb friction."""
+    call one run of the driver); their compiled events located on the steps' polynomials (those
+    using a multiplier refused). Refused by name: constrained systems without contacts, the
+    sensitivities of systems with contacts, Coulomb friction."""
 
     name = "Taylor"
     methods = ("taylor",)
@@ -187,7 +184,7 @@ class Taylor(Family):
             return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
-    def run_index1(self, sim, t, y0, p, rtol, atol, contacts=None, cancel=None) -> Result:
+    def run_index1(self, sim, t, y0, p, rtol, atol, roots: bool = False, contacts=None, cancel=None) -> Result:
         """A run of the constrained system ``sim`` with contacts (``contacts``: the run's
         :class:`~lagcodegen.simulation.constrained_impacts.ContactOptions`) on the Taylor contact
         driver (:meth:`ConstrainedSimulation.run_contacts_taylor
@@ -195,14 +192,14 @@ class Taylor(Family):
         that stops the run once set. A system without contacts is refused by name."""
         if contacts is None:
             raise LagcodegenError(_NO_CONSTRAINED)
-        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, contacts, cancel=cancel)
+        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, roots, contacts, cancel=cancel)
 
     def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Refused by name: ensembles of constrained systems without contacts (those with contacts
         run each member through :meth:`run_index1`, :mod:`lagcodegen.simulation.impact_ensemble`)."""
         raise LagcodegenError(_NO_CONSTRAINED)
 
-    def stepper_index1(self, sim, mem, rtol, atol, contacts=None):
+    def stepper_index1(self, sim, mem, rtol, atol, roots: bool = False, contacts=None):
         """The stepper of an integrator object of the constrained system ``sim`` with contacts on
         the memory ``mem`` = (t, y, p): each propagate call one run of the Taylor contact driver
         (:meth:`ConstrainedSimulation.contact_stepper_taylor
@@ -210,13 +207,13 @@ class Taylor(Family):
         refused by name."""
         if contacts is None:
             raise LagcodegenError(_NO_CONSTRAINED)
-        return sim.contact_stepper_taylor(self, mem, rtol, atol, contacts)
+        return sim.contact_stepper_taylor(self, mem, rtol, atol, roots, contacts)
 
     def _index1_stepper(self, pr, rq):
-        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.contacts)
+        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.roots, rq.contacts)
 
     def _index1_run(self, pr, rq):
-        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.contacts, cancel=rq.cancel)
+        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, rq.contacts, cancel=rq.cancel)
 
     #: What Taylor runs (Family.run), declared once: every other combination is refused by name
     #: (events with input tables; ensembles with input tables need sensitivities: those members
@@ -230,8 +227,8 @@ class Taylor(Family):
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
         # constrained systems with contacts ("" and events without them: refused by run_index1, by name)
-        ("index1", "run"): (_index1_run, combinations("", "impacts")),
-        ("index1", "stepper"): (_index1_stepper, combinations("", "impacts")),
+        ("index1", "run"): (_index1_run, combinations("", "impacts", "events+impacts")),
+        ("index1", "stepper"): (_index1_stepper, combinations("", "impacts", "events+impacts")),
     }
     refusals = {
         ("ode", "ensemble", frozenset({"inputs"})):
@@ -240,8 +237,6 @@ class Taylor(Family):
         ("index1", "run", frozenset({"events"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"sensitivities"})): _NO_CONSTRAINED,
         ("index1", "run", frozenset({"events", "sensitivities"})): _NO_CONSTRAINED,
-        ("index1", "run", frozenset({"events", "impacts"})): _NO_CONTACT_EVENTS,
-        ("index1", "stepper", frozenset({"events", "impacts"})): _NO_CONTACT_EVENTS,
         ("index1", "stepper", frozenset({"events"})): _NO_CONSTRAINED,
         ("index1", "stepper", frozenset({"sensitivities", "impacts"})):
             "the integrator object does not compute sensitivities",
