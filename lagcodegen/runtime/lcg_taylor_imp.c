@@ -57,11 +57,12 @@ static int tl_table_ok(const lcg_taylor_model *m)
 /* The first root in (0, h] of the polynomial x (degree d) minus level where it decreases: tau, or
  * -1 if none. A polynomial that is exactly 0 at tau = 0 (a gap right after its impact) is divided
  * by tau first: the isolation takes the intervals' end values, and one that is 0 at the start
- * would hide the interval's other root. */
+ * would hide the interval's other root; if it decreases from there (a contact that touches at rest
+ * and is pulled down, a multiplier at 0 that turns negative), the root is at 0: the switch now. */
 static double ti_first_down(const double *x, int d, double level, double h)
 {
     double c[P_MAX + 2], tau[P_MAX + 1];
-    int dir[P_MAX + 1], n, i;
+    int dir[P_MAX + 1], n, i, zero = 0;
 
     for (i = 0; i < P_MAX + 2; ++i)
         c[i] = i <= d ? x[i] : 0.0;
@@ -70,7 +71,10 @@ static double ti_first_down(const double *x, int d, double level, double h)
         for (i = 0; i < d; ++i)
             c[i] = c[i + 1];
         --d;
+        zero = 1;
     }
+    if (zero && c[0] < 0.0)
+        return 0.0;
     if (d == 0)
         return -1.0;
     n = tl_roots(c, d, h, tau, dir, P_MAX + 1);
@@ -398,7 +402,7 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             h = tau;
             end = 2;
         }
-        if (ne > 0 && ti_events(m, ct, r.X, r.order, thi, tlo, &h, ev, elast, etau, ewhich, edir)) {
+        if (ne > 0 && h > 0.0 && ti_events(m, ct, r.X, r.order, thi, tlo, &h, ev, elast, etau, ewhich, edir)) {
             which = -1; /* a terminal event at or before the contact's switch ends the run there */
             end = 3;
         }

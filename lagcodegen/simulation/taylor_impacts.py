@@ -74,8 +74,10 @@ class TaylorImpactRunner:
         system = sim.system
         if system.has_friction:
             raise LagcodegenError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  "CVODE impact driver only (method='adams' or 'bdf'): the Taylor method does not "
-                                  "take its stick/slip modes")
+                                  "CVODE impact driver only (method='adams' or 'bdf'): the Taylor contact driver "
+                                  "holds rows with their multipliers, and a slipping contact's force along "
+                                  "G - sigma mu T is not such a row; its stick/slip/release modes are chosen by "
+                                  "the CVODE driver's friction core")
         if sim.info.lang != "c":
             raise LagcodegenError("contacts are generated in C only")
         self.sim = sim

@@ -92,8 +92,9 @@ def contact_decompose(system, scene: Scene, events=(), form: str | None = None) 
     order): the cheaper of the derived and trig-linearized forms (``form`` to force one), products
     fused (:func:`~.decompose.fuse_products`)."""
     if system.has_friction:
-        raise ModelError("method='taylor' does not integrate Coulomb friction (Inequality(..., friction=mu)): its "
-                         "stick/slip modes are chosen by the CVODE impact driver (method='adams' or 'bdf')")
+        raise ModelError("method='taylor' does not integrate Coulomb friction (Inequality(..., friction=mu)): a "
+                         "slipping contact's force along G - sigma mu T is not a row held with its multiplier, and "
+                         "its stick/slip modes are chosen by the CVODE impact driver (method='adams' or 'bdf')")
     eom = scene.eom
     model = eom.model
     if eom.quadratures:
