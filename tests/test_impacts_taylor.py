@@ -349,6 +349,9 @@ def test_refusals_and_bad_input_name_the_problem(ball):
         sim.simulate((0, 1), q0=[-0.6, -0.8], v0=[0.0, 0.0], method="taylor")
     assert sim.simulate((0, 3), q0=[-0.6, -0.8], v0=[0.0, 0.0], method="taylor", events=False).impacts.select("bounce")
     assert lcg.Taylor().supports("index1", Request(kind="stepper", roots=True, contacts=lcg.ContactOptions()))
+    # constrained systems have no prepared runs (the fast path is the ODE face's): refused by the table
+    with pytest.raises(LagcodegenError, match="Taylor has no prepared run runner for a constrained system"):
+        lcg.Taylor().check("index1", Request(kind="prepared", contacts=lcg.ContactOptions()))
     # GGL takes its contacts on IDA; constrained systems without contacts stay on CVODE / IDA
     with pytest.raises(LagcodegenError, match="IDA integrates with BDF only"):
         compile_constrained(_ball_system(0.5), "ggl").simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
@@ -401,6 +404,19 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     for src in ("tsball_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c"):
         proc = subprocess.run([*strict, src, "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, src + proc.stderr
+    # the jets of an equality row with a contact, no-slip tangential rows, generalized speeds (a
+    # jet of several chunks of operations)
+    from test_constrained_speeds import dropped_box
+    others = {"tspwall": _pendulum_wall(0.5), "tshousner": housner_block("tshousner", 0.2, 0.6),
+              "tsbox": dropped_box("quaternion", (0, 0, -0.1), 0.6)}
+    for prefix, other in others.items():
+        other_code, other_info = generate_constrained(other, prefix=prefix)
+        for name, text in contact_jet_sources(other, scene_of_code(other_code, "test"),
+                                              events=other_info.events).items():
+            (tmp_path / name).write_text(text)
+        proc = subprocess.run([*strict, f"{prefix}_taylor_contact.c", "-o", "/dev/null"], cwd=tmp_path,
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, prefix + proc.stderr
     (tmp_path / "main.c").write_text(CONTACT_MAIN)
     model_c = sorted(n.name for n in tmp_path.glob("tsball*.c") if n.name != "tsball_taylor_contact.c")
     san = [cc, "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
