@@ -226,7 +226,7 @@ class Taylor(Family):
         ("ode", "ensemble"): (ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
-        # constrained systems with contacts ("" and events without them: refused by run_index1, by name)
+        # constrained systems with contacts (plain: a system without contacts, refused by run_index1 by name)
         ("index1", "run"): (_index1_run, combinations("", "impacts", "events+impacts")),
         ("index1", "stepper"): (_index1_stepper, combinations("", "impacts", "events+impacts")),
     }
