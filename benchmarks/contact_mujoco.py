@@ -1,12 +1,14 @@
 """Solo12 dropped on the ground: lagcodegen's event-driven contact (impacts, persistent contact,
 Coulomb friction on the exact circular cone) against MuJoCo's soft contact with stiff settings
 (issue 39), on what both should agree on: landing time, final standing base height, total normal
-contact force at rest.
+contact force at rest, and (mu = 0.2, where the feet slip apart after landing) the feet's final
+spread (their mean horizontal distance from their centroid).
 
 The system is the tests' (tests/test_constrained_speeds.py: ``solo12_on_the_ground``): Solo12
 from example-robot-data on a free flyer, its 12 joints held by PD torques -20 (q - q_ref) - 0.5 q'
 about a standing posture, point contacts at the four feet (the URDF's foot frames on the lower
-legs), restitution 0, dropped with its base at 0.3 m; friction mu = 1 (and frictionless).
+legs), restitution 0, dropped with its base at 0.3 m; friction mu = 1, mu = 0.2 (the four feet slip together
+after landing, then grip) and frictionless.
 
 MuJoCo (``pip install mujoco``, DeepMind's binary package) loads the same URDF with its visual and
 collision meshes stripped; the base gets a free joint, each lower leg a sphere of radius R centred
@@ -19,7 +21,7 @@ the time of the first state in which its collision detection finds a contact (a 
 
     PYTHONPATH=. python benchmarks/contact_mujoco.py [--quick] [--out DIR]
 
---quick: MuJoCo at dt = 2e-4 (otherwise 1e-4 and 5e-5), friction mu = 1 only.
+--quick: MuJoCo at dt = 2e-4 (otherwise 1e-4 and 5e-5), friction mu = 1 and 0.2 only.
 """
 
 from __future__ import annotations
@@ -55,7 +57,14 @@ def lagcodegen_run(friction):
     normal = sum(res[f"lambda_ineq_{k}"][-1] for k in range(4))
     slips = len(res.impacts.transitions()) if friction is not None else None
     return {"land": land, "height": res.y[-1, 2], "normal": normal, "speed": np.abs(res.y[-1, m.nq:]).max(),
-            "slips": slips, "steps": res.stats.get("steps")}, build, run
+            "spread": spread(T.solo12_feet_world(m)(res.y[-1])), "slips": slips,
+            "steps": res.stats.get("steps")}, build, run
+
+
+def spread(feet):
+    """The feet's mean horizontal distance from their centroid (feet: 4 x 3 world positions)."""
+    xy = np.asarray(feet)[:, :2]
+    return float(np.linalg.norm(xy - xy.mean(axis=0), axis=1).mean())
 
 
 def mujoco_model(mujoco, path, feet, friction, dt):
@@ -122,13 +131,14 @@ def mujoco_run(mujoco, path, feet, pose, friction, dt):
     for i in range(data.ncon):
         mujoco.mj_contactForce(model, data, i, f6)
         normal += f6[0]
+    balls = [data.geom_xpos[i] for i in range(model.ngeom) if model.geom_type[i] == mujoco.mjtGeom.mjGEOM_SPHERE]
     return {"land": land, "height": data.qpos[2], "normal": normal, "speed": np.abs(data.qvel).max(),
-            "contacts": data.ncon, "mass": model.body_subtreemass[0]}, run
+            "spread": spread(balls), "contacts": data.ncon, "mass": model.body_subtreemass[0]}, run
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="MuJoCo at dt = 2e-4 only, friction mu = 1 only")
+    ap.add_argument("--quick", action="store_true", help="MuJoCo at dt = 2e-4 only, friction mu = 1 and 0.2 only")
     ap.add_argument("--out", type=Path, help="also write the table to OUT/contact_mujoco.txt")
     args = ap.parse_args(argv)
     load0 = H.load_average()
@@ -154,7 +164,7 @@ def main(argv=None) -> int:
         weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())) * G
         if mujoco is not None:
             lines.append(f"MuJoCo {mujoco.__version__}; Solo12 weight m g = {weight:.9g} N (Pinocchio's mass)")
-        frictions = [1.0] if args.quick else [1.0, None]
+        frictions = [1.0, 0.2] if args.quick else [1.0, 0.2, None]
         steps = [2e-4] if args.quick else [1e-4, 5e-5]
         rows = []
         for friction in frictions:
@@ -166,20 +176,21 @@ def main(argv=None) -> int:
                 H.progress("contact_mujoco", f"MuJoCo, {label}, dt = {dt:g}")
                 theirs, mrun = mujoco_run(mujoco, path, feet, T.SOLO12_POSE, friction, dt)
                 rows.append((label, f"MuJoCo dt = {dt:g}", theirs, f"run {mrun:.2f} s ({int(round(T_END / dt))} steps)"))
-                rel = {key: abs(theirs[key] / ours[key] - 1) for key in ("land", "height", "normal")}
+                rel = {key: abs(theirs[key] / ours[key] - 1) for key in ("land", "height", "normal", "spread")}
                 ok = all(v <= 0.01 for v in rel.values())
                 lines.append(f"{label}, MuJoCo dt = {dt:g} vs lagcodegen: landing time {rel['land']:.2e}, standing "
-                             f"height {rel['height']:.2e}, total normal force {rel['normal']:.2e} relative "
-                             f"({'all within' if ok else 'NOT all within'} the 1% target)")
+                             f"height {rel['height']:.2e}, total normal force {rel['normal']:.2e}, feet's spread "
+                             f"{rel['spread']:.2e} relative ({'all within' if ok else 'NOT all within'} the 1% target)")
         table = [f"{'case':<14} {'run':<22} {'landing s':>12} {'base z m':>12} {'sum N / mg - 1':>15} "
-                 f"{'max |v|':>9}  time"]
+                 f"{'spread m':>10} {'max |v|':>9}  time"]
         for label, who, fig, cost in rows:
             table.append(f"{label:<14} {who:<22} {fig['land']:>12.6f} {fig['height']:>12.7f} "
-                         f"{fig['normal'] / weight - 1:>15.2e} {fig['speed']:>9.1e}  {cost}")
+                         f"{fig['normal'] / weight - 1:>15.2e} {fig['spread']:>10.6f} {fig['speed']:>9.1e}  {cost}")
         lines = table + [""] + lines
-        slips = [r[2]["slips"] for r in rows if r[1].startswith("lagcodegen") and r[2]["slips"] is not None]
-        if slips:
-            lines.append(f"lagcodegen with friction: {slips[0]} stick/slip transitions after landing (no foot slips)")
+        for label, who, fig, _ in rows:
+            if who.startswith("lagcodegen") and fig["slips"] is not None:
+                lines.append(f"lagcodegen with {label}: {fig['slips']} stick/slip transitions after landing"
+                             + (" (no foot slips)" if fig["slips"] == 0 else ""))
     text = "\n".join(H.machine_lines("Solo12 drop: lagcodegen vs MuJoCo", (load0, H.load_average())) + [""] + lines)
     print(text)
     if args.out is not None:

@@ -21,8 +21,9 @@ G = 9.81
 TIGHT = {"rtol": 1e-12, "atol": 1e-14}
 
 
-def _incline(alpha: float, mu: float):
-    """A particle on an incline of angle alpha: x down the slope, y normal to it (both lengths)."""
+def _incline(alpha: float, mu: float, *, formulation: str = "index1"):
+    """A particle on an incline of angle alpha: x down the slope, y normal to it (both lengths);
+    compiled with ``formulation`` (the GGL tests, tests/test_friction_ggl.py, use it too)."""
     m = lcg.Model("incline")
     x, y = m.coordinates("x y")
     m.parameters(g=G, m=1.0, alpha=alpha)
@@ -30,7 +31,7 @@ def _incline(alpha: float, mu: float):
     m.particle("b", sp.Symbol("m"), (x * sp.cos(a) + y * sp.sin(a), -x * sp.sin(a) + y * sp.cos(a)))
     m.gravity(sp.Symbol("g"))
     system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=mu)])
-    return compile_constrained(system, "index1", outputs=["energy"])
+    return compile_constrained(system, formulation, outputs=["energy"])
 
 
 @pytest.mark.parametrize("alpha, mu", [(0.5, 0.6), (0.5, 0.3), (0.3, 0.1), (0.3, 0.31)])
@@ -53,7 +54,7 @@ def test_block_on_an_incline_sticks_when_tan_alpha_le_mu_else_slides_at_g_sin_mi
     assert np.max(np.abs(res["y"])) < 1e-12
 
 
-def _roller(inertia_factor: float, mu: float, e: float = 0.0):
+def _roller(inertia_factor: float, mu: float, e: float = 0.0, *, formulation: str = "index1"):
     """A sphere (I = 2/5 m R^2) or a disc (1/2 m R^2) of radius R on the floor y = 0: the slip
     velocity of the touching point is x' + R phi' (phi counterclockwise), the tangent x + R phi."""
     m = lcg.Model("roller")
@@ -63,7 +64,7 @@ def _roller(inertia_factor: float, mu: float, e: float = 0.0):
     m.planar_body("ball", mass, inertia_factor * mass * R**2, (x, y), phi)
     m.gravity(sp.Symbol("g"))
     contact = lcg.Inequality(y - R, restitution=e, tangent=x + R * phi, friction=mu)
-    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), "index1", outputs=["energy"])
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), formulation, outputs=["energy"])
 
 
 @pytest.mark.parametrize("body, k, slip_time, roll_speed", [
@@ -95,7 +96,7 @@ def test_ball_with_backspin_slips_then_rolls(body, k, slip_time, roll_speed):
     assert np.max(np.abs(res["lambda_t_ineq_0"][after])) < 1e-9
 
 
-def _ladder(alpha: float, mu: float, L: float = 2.0):
+def _ladder(alpha: float, mu: float, L: float = 2.0, *, formulation: str = "index1"):
     """A uniform ladder (length L, angle theta with the floor) against a frictionless wall x >= 0
     on a rough floor y >= 0: the top (x - L/2 cos theta, y + L/2 sin theta) on the wall, the foot
     (x + L/2 cos theta, y - L/2 sin theta) on the floor."""
@@ -107,7 +108,7 @@ def _ladder(alpha: float, mu: float, L: float = 2.0):
     m.gravity(sp.Symbol("g"))
     wall = lcg.Inequality(x - Ls / 2 * sp.cos(th), restitution=0.0)
     floor = lcg.Inequality(y - Ls / 2 * sp.sin(th), restitution=0.0, tangent=x + Ls / 2 * sp.cos(th), friction=mu)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[wall, floor]), "index1")
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[wall, floor]), formulation)
     q0 = [L / 2 * math.cos(alpha), L / 2 * math.sin(alpha), alpha]
     return sim, q0
 
@@ -132,7 +133,7 @@ def test_ladder_stays_when_mu_reaches_one_over_two_tan_alpha_and_slips_below(alp
             assert foot[-1] > foot[0] + 1e-9 and res["theta"][-1] < alpha
 
 
-def _painleve_rod(mu: float, theta0: float):
+def _painleve_rod(mu: float, theta0: float, *, formulation: str = "index1"):
     """Painleve's rod: a uniform rod (half-length l, I = m l^2 / 3) with its lower end A on a rough
     floor; A = (x - l cos theta, y - l sin theta)."""
     m = lcg.Model("painleve")
@@ -142,7 +143,7 @@ def _painleve_rod(mu: float, theta0: float):
     m.planar_body("rod", mass, mass * l**2 / 3, (x, y), th)
     m.gravity(sp.Symbol("g"))
     end = lcg.Inequality(y - l * sp.sin(th), restitution=0.0, tangent=x - l * sp.cos(th), friction=mu)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[end]), "index1")
+    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[end]), formulation)
     return sim, [math.cos(theta0), math.sin(theta0), theta0]
 
 
@@ -218,14 +219,6 @@ def test_friction_input_errors():
         lcg.Inequality(y, restitution=0.0, tangent=x, friction=math.inf)
     with pytest.raises(TypeError):
         lcg.Inequality(y, 0.0, x, 0.5)  # friction is keyword-only
-    m = lcg.Model("fball")
-    (xx, yy) = m.coordinates("x y")
-    m.parameters(g=G, m=1.0)
-    m.particle("b", sp.Symbol("m"), (xx, yy))
-    m.gravity(sp.Symbol("g"))
-    system = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(yy, restitution=0.5, tangent=xx, friction=0.3)])
-    with pytest.raises(ModelError, match="IDA"):
-        compile_constrained(system, "ggl")
 
 
 def test_existing_contacts_generate_no_friction_table():

@@ -88,14 +88,8 @@ def test_pendulum_hits_a_wall_on_minimal_and_ggl(formulation):
 
 
 def test_ggl_contacts_refuse_what_the_driver_does_not_take():
-    m = lcg.Model("gref")
-    x, y = m.coordinates("x y")
-    m.parameters(g=G, m=1.0)
-    m.particle("b", sp.Symbol("m"), (x, y))
-    m.gravity(sp.Symbol("g"))
-    rough = lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y, restitution=0.0, tangent=x, friction=0.3)])
-    with pytest.raises(ModelError, match="GGL formulation on IDA takes frictionless and no-slip"):
-        compile_constrained(rough, "ggl")
+    # (Coulomb friction, ensembles and the integrator object run on GGL: tests/test_friction_ggl.py,
+    # tests/test_impacts_ggl_consumers.py)
     sim = compile_constrained(_ball_system(0.5), "ggl")
     with pytest.raises(LagcodegenError, match="stop_at_outputs"):
         sim.simulate((0, 1), q0=[1.0], v0=[0.0], stop_at_outputs=True)
@@ -103,10 +97,6 @@ def test_ggl_contacts_refuse_what_the_driver_does_not_take():
         sim.simulate((0, 1), q0=[1.0], v0=[0.0], backend="sksundae")
     with pytest.raises(ModelError, match="violated"):
         sim.simulate((0, 1), q0=[-0.5], v0=[0.0])
-    with pytest.raises(LagcodegenError, match="integrator object does not run systems with contacts"):
-        sim.integrator(q0=[0.5], v0=[0.0])
-    with pytest.raises(LagcodegenError, match="ensembles"):
-        sim.ensemble((0, 1), q0=[[0.5]], v0=[[0.0]])
 
 
 @pytest.mark.parametrize("formulation", ["ggl", "minimal"])

@@ -77,11 +77,6 @@ def generate_constrained(system: ConstrainedSystem, *, ggl: bool = False, ggl_ja
         if lang != "c":
             raise ModelError(f"inequality constraints with a restitution (contacts) are generated in C only, "
                              f"not lang={lang!r}")
-        if ggl and system.has_friction:
-            raise ModelError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the impact "
-                             "driver of the index-1 formulation (CVODE, formulation='index1'); the GGL "
-                             "formulation on IDA takes frictionless and no-slip (tangent=) contacts only: its "
-                             "stick/slip modes are not rows of the GGL residual")
         files[f"{pre}_impact.c"] = _impact_source(system, scene, ctx, cb, ggl)
         files["lcg_imp_model.h"] = runtime_source("lcg_imp_model.h")
     code.files.update(files)

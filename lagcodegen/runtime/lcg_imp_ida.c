@@ -22,6 +22,7 @@
 
 #include "sundials_api.h"
 #include "lcg_imp_ida.h"
+#include "lcg_imp_fric.h" /* the friction core */
 
 #define LCG_STATS lcg_ida_stats
 #include "lcg_sundials.h"
@@ -35,6 +36,13 @@ int IDAGetDky(void *ida_mem, sunrealtype t, int k, N_Vector dky);
 /* Bisection steps locating a skipped contact on a step's interpolant. */
 #define LCG_IMP_IDA_BISECT 60
 
+/* Friction: where the determinant of a slipping contact problem has fallen to this fraction of its
+ * value where the modes began, the run stops with Painleve's paradox (the problem turning
+ * singular). The index-1 driver stops at the determinant's zero; IDA cannot step up to it, since
+ * lambda, one of its unknowns, grows without bound there (its steps shrink to nothing within
+ * about 1e-6 of it). */
+#define LCG_IMP_IDA_SINGULAR 1e-4
+
 typedef struct {
     const lcg_imp_friction *nf;
     const lcg_imp_model *im;
@@ -46,16 +54,43 @@ typedef struct {
     double *M, *F, *R, *s, *h, *gam, *qd, *gk, *wk;
     lcg_ida_stats *st;
     watch w;
+    lcg_fric *fr;    /* NULL: no Coulomb friction (mu not given) */
+    lcg_fric_ctx fc; /* the friction core's view of this run (fc.fr = fr; no Baumgarte) */
+    double *ydot;    /* ny scratch */
+    double *lamr;    /* nrow scratch: the index-1 multipliers of the roots while a contact slips */
 } imp_ida;
 
-/* Whether row r is held: equality rows always, a contact's rows while it is in persistent contact. */
+/* Whether row r is held: equality rows always, a contact's rows while it is in persistent contact
+ * (with Coulomb friction: its tangential rows while it sticks). */
 static int row_on(const imp_ida *d, int r)
 {
+    int k;
+
     if (r < d->nj)
         return 1;
     if (r < d->nj + d->nk)
         return d->active[r - d->nj] != 0;
-    return d->active[d->nf->tangent_of[r - d->nj - d->nk]] != 0;
+    k = d->nf->tangent_of[r - d->nj - d->nk];
+    return d->active[k] != 0 && (d->fr == NULL || d->fr->mu[k] < 0.0 || d->fr->fmode[k] == 0);
+}
+
+/* Whether row r is a tangential row of a slipping contact k (*k), its multiplier then set by
+ * Coulomb's law: lambda_r = *c lambda_n with *c = -fmode mu (3-D: -mu d_1, -mu d_2 of the slip
+ * direction d, d->fr->dir at the state). */
+static int row_slips(const imp_ida *d, int r, int *k, double *c)
+{
+    const lcg_fric *f = d->fr;
+
+    if (f == NULL || r < d->nj + d->nk)
+        return 0;
+    *k = d->nf->tangent_of[r - d->nj - d->nk];
+    if (!d->active[*k] || f->mu[*k] < 0.0 || f->fmode[*k] == 0)
+        return 0;
+    if (f->trow2[*k] >= 0)
+        *c = -f->mu[*k] * f->dir[2 * *k + (r == f->trow2[*k])];
+    else
+        *c = -f->fmode[*k] * f->mu[*k];
+    return 1;
 }
 
 static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *data)
@@ -71,6 +106,8 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
     rc = d->nf->eval(t, yy, d->p, d->M, d->F, d->R, d->s, d->h, d->gam, d->qd);
     if (rc != LCG_DAE_OK)
         return 1; /* non-finite: IDA retries with a smaller step */
+    if (d->fr != NULL) /* 3-D slips: the direction of the force from the slip velocity here */
+        lcg_fr_slip_directions(d->fr, d->nk);
     for (i = 0; i < n; ++i) {
         double acc = -d->F[i];
         for (j = 0; j < n; ++j)
@@ -79,10 +116,16 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
         rr[n + i] = acc;
     }
     for (r = 0; r < d->nrow; ++r) {
+        int k;
+        double c;
         if (row_on(d, r)) {
             for (i = 0; i < n; ++i)
                 rr[n + i] -= d->R[(long)r * n + i] * lam[r];
             rr[2 * n + r] = d->s[r];
+        } else if (row_slips(d, r, &k, &c)) { /* the friction force along T_r, by Coulomb's law */
+            for (i = 0; i < n; ++i)
+                rr[n + i] -= d->R[(long)r * n + i] * lam[r];
+            rr[2 * n + r] = lam[r] - c * lam[d->nj + k];
         } else {
             rr[2 * n + r] = lam[r];
         }
@@ -101,15 +144,33 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
 }
 
 /* Contact roots first (g_k free, lambda_k, an unknown, in persistent contact), then the model's
- * events (with the equality multipliers, the first nj of lambda). */
+ * events (with the equality multipliers, the first nj of lambda), then (with friction) the
+ * friction core's (lcg_fr_roots). With friction, while a contact is in persistent contact the
+ * contact problem of the current modes is solved at the state (lcg_fr_crhs: the slip velocities,
+ * the determinant) and its multipliers, not the unknowns lambda, serve the contacts' and the
+ * friction roots, as on the index-1 driver: the unknowns of an index-2 row carry the error of its
+ * velocity constraint divided by the step (a sticking force off by far more than the friction
+ * bound in the first tiny step after a restart), and where the problem turns singular the normal
+ * force passes through infinity, its sign change to be located with the determinant's root. */
 static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, void *data)
 {
     imp_ida *d = (imp_ida *)data;
-    const double *y = N_VGetArrayPointer(yyv);
-    int k, rc;
+    const double *y = N_VGetArrayPointer(yyv), *lam = y + 2 * d->n;
+    int k, rc, slipping = 0;
     (void)ypv;
 
     rc = d->im->gaps(t, y, d->p, d->gk, d->wk);
+    if (rc == LCG_DAE_OK && d->fr != NULL) {
+        int any = 0;
+        for (k = 0; k < d->nk; ++k) {
+            any |= d->active[k];
+            slipping |= d->active[k] && d->fr->trow[k] >= 0 && d->fr->mu[k] >= 0.0 && d->fr->fmode[k] != 0;
+        }
+        if (any) {
+            rc = lcg_fr_crhs(&d->fc, t, y, d->ydot, d->lamr);
+            lam = d->lamr;
+        }
+    }
     if (rc == LCG_DAE_OK && d->nroot > 0)
         rc = d->m->roots(t, y, y + 2 * d->n, d->p, gout + d->nk);
     if (rc != LCG_DAE_OK) {
@@ -118,18 +179,27 @@ static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, v
         return -1;
     }
     for (k = 0; k < d->nk; ++k)
-        gout[k] = d->active[k] ? y[2 * d->n + d->nj + k] : d->gk[k];
+        gout[k] = d->active[k] ? lam[d->nj + k] : d->gk[k];
+    if (d->fr != NULL) {
+        lcg_fr_roots(&d->fc, lam, gout + d->nk + d->nroot);
+        if (slipping) /* det / det0 reaching LCG_IMP_IDA_SINGULAR */
+            gout[d->nk + d->nroot + 2 * d->nk] -= LCG_IMP_IDA_SINGULAR;
+    }
     return 0;
 }
 
 /* yy, yp consistent with the state y = (q, v) at t and the current modes: lambda and v' from the
- * index-1 system of the active rows (no stabilization: the hidden constraints of the DAE), q' = v,
- * mu = 0. */
-static int consistent(const imp_ida *d, double t, const double *y, double *yy, double *yp, int ng)
+ * index-1 system of the active rows (no stabilization: the hidden constraints of the DAE; with
+ * friction the friction core's contact problem of the current modes, the tangential multipliers
+ * of slipping contacts by Coulomb's law), q' = v, mu = 0. */
+static int consistent(imp_ida *d, double t, const double *y, double *yy, double *yp, int ng)
 {
     int i, n = d->n, rc;
 
-    rc = d->im->crhs(t, y, d->p, 0.0, 0.0, d->active, yp, yy + 2 * n);
+    if (d->fr != NULL)
+        rc = lcg_fr_crhs(&d->fc, t, y, yp, yy + 2 * n);
+    else
+        rc = d->im->crhs(t, y, d->p, 0.0, 0.0, d->active, yp, yy + 2 * n);
     if (rc != LCG_DAE_OK)
         return rc;
     for (i = 0; i < 2 * n; ++i)
@@ -188,7 +258,7 @@ static int output_row(const imp_ida *d, void *mem, double t, N_Vector tmp, doubl
 int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const double *y0, int nt, const double *tout,
                       double *yout, double *out, double *lamout, const lcg_ida_options *opt, const double *e,
                       const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_ida_stats *st,
-                      lcg_events *ev, double *extra)
+                      lcg_events *ev, double *extra, const double *mu)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -196,6 +266,9 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     SUNMatrix A = NULL;
     SUNLinearSolver LS = NULL;
     imp_ida d;
+    lcg_fric fdata;
+    void *fmem = NULL;
+    char painleve[sizeof st->message];
     lcg_imp_law L, Lq;
     const lcg_imp_model *im;
     const lcg_dae_model *m;
@@ -226,7 +299,13 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     nmu = nums->njh + nk;
     ng = ny + nrow + nmu;
     nroot = (opt->roots && ev != NULL) ? m->nroot : 0;
-    nall = nk + nroot;
+    nall = nk + nroot + (mu != NULL ? 2 * nk + 1 : 0);
+    d.fr = NULL;
+    if (mu != NULL) { /* Coulomb friction: the friction core's state (its numbers serve the residual) */
+        if (lcg_fr_setup(&fdata, nums, im, mu, set[0], &fmem, st->message, sizeof st->message) != 0)
+            return st->flag = LCG_FLAG_BAD_INPUT;
+        d.fr = &fdata;
+    }
     if (ev != NULL) {
         ev->n_events = 0;
         ev->terminated = 0;
@@ -240,6 +319,7 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     if (buf == NULL || ibuf == NULL) {
         free(buf);
         free(ibuf);
+        free(fmem);
         snprintf(st->message, sizeof st->message, "out of memory");
         return st->flag = LCG_FLAG_NOMEM_IDA;
     }
@@ -272,8 +352,28 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         hit[k] = 0;
         active[k] = active[k] != 0;
     }
-    for (i = 0; i < nall; ++i)
-        dirs[i] = i < nk ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
+    for (i = 0; i < nall; ++i) /* contacts and friction: decreasing; the model's events: as asked */
+        dirs[i] = (i < nk || i >= nk + nroot) ? -1 : (ev->rootdir != NULL ? ev->rootdir[i - nk] : 0);
+    if (d.fr != NULL) { /* the residual on the friction core's numbers */
+        d.M = fdata.M;
+        d.F = fdata.F;
+        d.R = fdata.R;
+        d.s = fdata.s;
+        d.h = fdata.h;
+        d.gam = fdata.gam;
+        d.qd = fdata.qd;
+    }
+    d.ydot = ydot;
+    d.lamr = lamtmp;
+    d.fc.im = im;
+    d.fc.p = p;
+    d.fc.alpha = d.fc.beta = 0.0;
+    d.fc.active = active;
+    d.fc.fr = d.fr;
+    d.fc.lam = lamtmp;
+    d.fc.ydot = ydot;
+    d.fc.message = st->message;
+    d.fc.message_size = sizeof st->message;
     d.nf = nums;
     d.im = im;
     d.m = m;
@@ -306,6 +406,7 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     if (create_context(&ctx, st) != 0) {
         free(buf);
         free(ibuf);
+        free(fmem);
         return st->flag = LCG_FLAG_NOMEM_IDA;
     }
     if ((flag = ida_create(ctx, ng, ny, &yy, &yp, &id, &mem, &A, &LS, LCG_FLAG_NOMEM_IDA)) != 0)
@@ -328,7 +429,23 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     for (k = 0; k < nk; ++k)
         if (!active[k] && d.gk[k] <= set[2] && fabs(d.wk[k]) <= set[0])
             active[k] = 1;
-    rc = lcg_imp_release_pulling(&Lq, tout[0], ys, 0.0, 0.0, ydot, lamtmp);
+    if (d.fr != NULL) { /* the initial modes: sticking where the slip velocity is at most contact_speed */
+        rc = lcg_fr_eval(&d.fc, tout[0], ys);
+        LCG_MODEL_ERROR(LCG_DAE_OK);
+        for (k = 0; k < nk; ++k)
+            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0) {
+                double u, u2;
+                lcg_fr_slip(&fdata, k, &u, &u2);
+                fdata.fmode[k] = hypot(u, u2) <= set[0] ? 0 : fdata.trow2[k] >= 0 || u > 0.0 ? 1 : -1;
+            }
+        rc = lcg_fr_modes(&d.fc, tout[0], ys, NULL, set[0], rec, 0, &quiet);
+        if (rc == -1) {
+            flag = LCG_FLAG_CONTACT_MODE;
+            goto done;
+        }
+    } else {
+        rc = lcg_imp_release_pulling(&Lq, tout[0], ys, 0.0, 0.0, ydot, lamtmp);
+    }
     LCG_MODEL_ERROR(LCG_DAE_OK);
     rc = consistent(&d, tout[0], ys, yyv, ypv, ng);
     LCG_MODEL_ERROR(LCG_DAE_OK);
@@ -416,7 +533,7 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         if (flag == IDA_ROOT_RETURN) {
             if (IDAGetRootInfo(mem, info) < 0)
                 goto done;
-            for (j = nk; j < nall; ++j) { /* the model's events */
+            for (j = nk; j < nk + nroot; ++j) { /* the model's events */
                 if (info[j] == 0)
                     continue;
                 if (ev->n_events < ev->max_events) {
@@ -436,12 +553,32 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
             }
             for (k = 0; k < nk; ++k) {
                 hit[k] = info[k] != 0 && !active[k];
-                if (info[k] != 0 && active[k]) { /* the multiplier reaches zero: release */
+                if (info[k] != 0 && active[k] && d.fr != NULL) { /* released by lcg_fr_modes */
+                    fdata.ending[k] = FR_END_RELEASE;
+                    any = 1;
+                } else if (info[k] != 0 && active[k]) { /* the multiplier reaches zero: release */
                     active[k] = 0;
                     lcg_imp_record(rec, max_rec, n_rec, tret, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
                     any = 1;
                 }
                 any |= hit[k];
+            }
+            if (d.fr != NULL) { /* friction: the modes whose roots fired end; Painleve: a singular problem */
+                const int *fi = info + nk + nroot;
+                for (k = 0; k < nk; ++k)
+                    if ((fi[2 * k] != 0 || fi[2 * k + 1] != 0) && active[k] && fdata.ending[k] == 0) {
+                        fdata.ending[k] = fdata.fmode[k] == 0 ? FR_END_STICK : FR_END_SLIP;
+                        any = 1;
+                    }
+                if (fi[2 * nk] != 0) {
+                    flag = LCG_FLAG_CONTACT_MODE;
+                    snprintf(st->message, sizeof st->message, "Painleve's paradox at t = %.17g: the contact "
+                             "problem of the slipping contact(s) became singular (its determinant fell to %g of "
+                             "its value where the modes began: the normal's effective mass with friction, "
+                             "G M^-1 (G - sigma mu T)^T, tends to 0 and the normal force grows without bound)",
+                             tret, LCG_IMP_IDA_SINGULAR);
+                    goto done;
+                }
             }
             for (i = 0; i < ny; ++i)
                 ys[i] = yyv[i];
@@ -470,10 +607,25 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
             tprev = tret;
             continue;
         }
-        /* the switch at teff: the impact law, the contacts that pull released, IDA restarted */
-        rc = lcg_imp_jump(&L, teff, ys, hit);
-        LCG_MODEL_ERROR(LCG_DAE_OK);
-        rc = lcg_imp_release_pulling(&L, teff, ys, 0.0, 0.0, ydot, lamtmp);
+        /* the switch at teff: the impact law, the contacts that pull released (with friction: the
+         * frictional impact and the modes of all contacts chosen together, the modes whose roots
+         * fired excluded), IDA restarted */
+        if (d.fr != NULL) {
+            rc = lcg_fr_impact(&d.fc, teff, ys, hit, e, set, last, rec, max_rec, n_rec);
+            if (rc == LCG_DAE_OK)
+                rc = lcg_fr_modes(&d.fc, teff, ys, fdata.ending, set[0], rec, max_rec, n_rec);
+            for (k = 0; k < nk; ++k)
+                fdata.ending[k] = 0;
+            if (rc == -1) {
+                flag = LCG_FLAG_CONTACT_MODE;
+                st->t_reached = teff;
+                goto done;
+            }
+        } else {
+            rc = lcg_imp_jump(&L, teff, ys, hit);
+            LCG_MODEL_ERROR(LCG_DAE_OK);
+            rc = lcg_imp_release_pulling(&L, teff, ys, 0.0, 0.0, ydot, lamtmp);
+        }
         LCG_MODEL_ERROR(LCG_DAE_OK);
         for (k = 0; k < nk; ++k)
             hit[k] = 0;
@@ -490,18 +642,28 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     }
 
 done:
+    if (d.fr != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip-, 4 slip (3-D) */
+        for (k = 0; k < nk; ++k)
+            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
+                active[k] = fdata.fmode[k] != 0 && fdata.trow2[k] >= 0 ? 4 : fdata.fmode[k] > 0 ? 2
+                            : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&d.w, flag, st->message, sizeof st->message);
+    if (flag == LCG_FLAG_CONTACT_MODE) /* kept from IDA's error handler (the counters below) */
+        memcpy(painleve, st->message, sizeof painleve);
     if (mem != NULL) {
         add_counts(mem, st, 1);
         IDAGetLastStep(mem, &st->h_last);
-        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0)
+        if (flag < 0 && flag > LCG_FLAG_MODEL_ERROR && st->model_error == 0 && flag != LCG_FLAG_CONTACT_MODE)
             IDAGetCurrentTime(mem, &st->t_reached);
     }
     st->flag = flag;
+    if (flag == LCG_FLAG_CONTACT_MODE)
+        memcpy(st->message, painleve, sizeof painleve);
     LCG_NOMEM_MESSAGE(LCG_FLAG_NOMEM_IDA, "IDA");
     IDAFree(&mem);
     free_solver(LS, NULL, A, (N_Vector[]){tmp, atolv, id, yp, yy}, 5, &ctx);
     free(buf);
     free(ibuf);
+    free(fmem);
     return flag < 0 ? flag : 0;
 }

@@ -1,6 +1,7 @@
 /* lcg_imp_law.c -- lagcodegen's runtime, compiled as it is: the impact law shared by the impact
  * drivers (see lcg_imp_law.h; lcg_imp.c, lcg_imp_ida.c). */
 #include <math.h>
+#include <stddef.h>
 
 #include "lcg_imp_law.h"
 
@@ -41,21 +42,35 @@ int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit)
     }
     if (!changed)
         return LCG_DAE_OK;
-    for (iter = 0; iter <= nk; ++iter) {
-        int worst = -1;
+    for (iter = 0; iter <= 4 * nk + 8; ++iter) {
+        int worst = -1, sinks = -1;
         rc = im->impact(t, y, L->p, rows, eff, ynew, P);
         if (rc != LCG_DAE_OK)
             return rc;
         for (k = 0; k < nk; ++k)
             if (rows[k] && P[nj + k] < 0.0 && (worst < 0 || P[nj + k] < P[nj + worst]))
                 worst = k;
-        if (worst < 0)
-            break;
-        rows[worst] = 0; /* it would pull: not part of the impact (a persistent contact is released) */
-        if (active[worst]) {
-            active[worst] = 0;
-            lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, worst, LCG_IMP_RELEASE, 0.0, wm[worst], wm[worst]);
+        if (worst >= 0) {
+            rows[worst] = 0; /* it would pull: not part of the impact (a persistent contact is released) */
+            if (active[worst]) {
+                active[worst] = 0;
+                lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, worst, LCG_IMP_RELEASE, 0.0, wm[worst], wm[worst]);
+            }
+            continue;
         }
+        /* a free contact that touches and would close after the jump (pushed by the others'
+         * impulses) takes part, plastically: the impact's complementarity problem over the
+         * touching contacts, so that no second impact follows at once */
+        rc = im->gaps(t, ynew, L->p, gk, wk);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (k = 0; k < nk && sinks < 0; ++k)
+            if (!rows[k] && gk[k] <= gap_tol && wk[k] < -set[0])
+                sinks = k;
+        if (sinks < 0)
+            break;
+        rows[sinks] = plastic[sinks] = 1;
+        eff[sinks] = 0.0;
     }
     rc = im->gaps(t, ynew, L->p, gk, wk);
     if (rc != LCG_DAE_OK)
@@ -78,17 +93,84 @@ int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit)
     return LCG_DAE_OK;
 }
 
-int lcg_imp_release_pulling(const lcg_imp_law *L, double t, const double *y, double alpha, double beta,
-                            double *ydot, double *lam)
+/* The normal accelerations a[nk] of the contacts at (t, y) under ydot (the last solve's), by a
+ * forward difference of their normal velocities along the motion: (w(t + h, y + h ydot) - w) / h,
+ * w = wk (at (t, y)); scratch yh[ny], wh[nk]. */
+static int normal_accelerations(const lcg_imp_law *L, double t, const double *y, const double *ydot, double *yh,
+                                double *wh, double *a)
 {
     const lcg_imp_model *im = L->im;
-    int k, rc, again = 1, nk = im->nk, nj = im->nj;
+    int k, rc, ny = im->dae->ny, nk = im->nk;
+    double scale = 0.0, h;
 
+    for (k = 0; k < ny; ++k)
+        if (fabs(ydot[k]) > scale)
+            scale = fabs(ydot[k]);
+    h = 1e-7 / (1.0 + scale);
+    for (k = 0; k < ny; ++k)
+        yh[k] = y[k] + h * ydot[k];
+    rc = im->gaps(t + h, yh, L->p, L->gk, wh);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    for (k = 0; k < nk; ++k)
+        a[k] = (wh[k] - L->wk[k]) / h;
+    return im->gaps(t, y, L->p, L->gk, L->wk);
+}
+
+int lcg_imp_release_pulling(const lcg_imp_law *L, double t, double *y, double alpha, double beta, double *ydot,
+                            double *lam)
+{
+    const lcg_imp_model *im = L->im;
+    int k, rc, again = 1, nk = im->nk, nj = im->nj, ny = im->dae->ny, iter = 0, touching = 0, held = 0;
+    int joint = L->set != NULL && L->scratch != NULL && L->rows != NULL;
+    int *cand = joint ? L->rows : NULL;
+    double *a = joint ? L->scratch : NULL, *wh = joint ? L->scratch + nk : NULL;
+    double *P = joint ? L->scratch + 2 * nk : NULL, *yh = joint ? L->scratch + 2 * nk + im->nrow : NULL;
+
+    if (joint) { /* the free contacts that touch at rest: candidates for persistent contact */
+        rc = im->gaps(t, y, L->p, L->gk, L->wk);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (k = 0; k < nk; ++k) {
+            cand[k] = !L->active[k] && L->gk[k] <= L->set[2] && fabs(L->wk[k]) <= L->set[0];
+            touching |= cand[k];
+        }
+    }
     while (again) {
         again = 0;
         rc = im->crhs(t, y, L->p, alpha, beta, L->active, ydot, lam);
         if (rc != LCG_DAE_OK)
             return rc;
+        if (touching && iter < 4 * nk + 8) { /* the contacts' LCP by Murty's least-index rule */
+            double big = 0.0;
+            ++iter;
+            rc = normal_accelerations(L, t, y, ydot, yh, wh, a);
+            if (rc != LCG_DAE_OK)
+                return rc;
+            for (k = im->nq; k < ny; ++k)
+                if (fabs(ydot[k]) > big)
+                    big = fabs(ydot[k]);
+            for (k = 0; k < nk; ++k) {
+                if (L->active[k] && lam[nj + k] < 0.0) {
+                    L->active[k] = 0;
+                    if (cand[k] == 2) /* held in this call: not recorded as held and released */
+                        --held;
+                    else
+                        lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                    cand[k] = 1;
+                    again = 1;
+                    break;
+                }
+                if (cand[k] && !L->active[k] && a[k] < -1e-6 * (1.0 + big)) { /* it would sink: held */
+                    L->active[k] = 1;
+                    cand[k] = 2;
+                    ++held;
+                    again = 1;
+                    break;
+                }
+            }
+            continue;
+        }
         for (k = 0; k < nk; ++k)
             if (L->active[k] && lam[nj + k] < 0.0) {
                 L->active[k] = 0;
@@ -96,6 +178,26 @@ int lcg_imp_release_pulling(const lcg_imp_law *L, double t, const double *y, dou
                 again = 1;
                 break;
             }
+    }
+    if (held > 0) { /* the contacts held: their normal velocities (|w| <= contact_speed) to 0 by a
+                     * plastic impulse with the persistent contacts, recorded as sticks */
+        double *eff = a, *ynew = yh;
+        for (k = 0; k < nk; ++k)
+            eff[k] = 0.0;
+        rc = im->impact(t, y, L->p, L->active, eff, ynew, P);
+        if (rc != LCG_DAE_OK)
+            return rc;
+        for (k = 0; k < nk; ++k)
+            if (cand[k] == 2 && L->active[k]) {
+                lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, k, LCG_IMP_STICK, P[nj + k], L->wk[k], 0.0);
+                if (L->last != NULL)
+                    L->last[k] = t;
+            }
+        for (k = 0; k < ny; ++k)
+            y[k] = ynew[k];
+        rc = im->crhs(t, y, L->p, alpha, beta, L->active, ydot, lam);
+        if (rc != LCG_DAE_OK)
+            return rc;
     }
     return LCG_DAE_OK;
 }

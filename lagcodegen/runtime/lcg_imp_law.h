@@ -48,11 +48,18 @@ void lcg_imp_record(double *rec, int max_rec, int *n_rec, double t, int k, int k
  * and records updated. Returns LCG_DAE_OK or a model error. */
 int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit);
 
-/* Persistent contacts whose multiplier (im->crhs with Baumgarte alpha, beta) is negative at (t, y)
- * are released (recorded), one at a time, the most recent solve's ydot[ny] and lam[nrow] left in
- * place. Returns LCG_DAE_OK or a model error. */
-int lcg_imp_release_pulling(const lcg_imp_law *L, double t, const double *y, double alpha, double beta,
-                            double *ydot, double *lam);
+/* The persistent contacts at (t, y) chosen together: those whose multiplier (im->crhs with
+ * Baumgarte alpha, beta) is negative are released (recorded), one at a time; with L->set,
+ * L->scratch and L->rows given, also the free contacts that touch at rest (g <= gap_tol,
+ * |w| <= contact_speed) are candidates, held in persistent contact (recorded as a stick with no
+ * impulse) where their normal acceleration would be negative: the contacts' linear
+ * complementarity problem (lambda >= 0 held, a >= 0 free) solved by Murty's least-index rule over
+ * crhs solves (the normal accelerations by a difference of the normal velocities along the
+ * motion), so that a release does not leave a coupled contact to sink and bounce back (chatter);
+ * the velocities of y projected by a plastic impulse onto the rows of the contacts held. The last
+ * solve's ydot[ny] and lam[nrow] left in place. Returns LCG_DAE_OK or a model error. */
+int lcg_imp_release_pulling(const lcg_imp_law *L, double t, double *y, double alpha, double beta, double *ydot,
+                            double *lam);
 
 /* How far a free contact's gap may go below zero before it counts as skipped by a step: -gap_tol,
  * or gap_tol below where the segment began (g0) if that was deeper than -2 gap_tol (a contact

@@ -147,8 +147,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
 
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
         restitution) run on an impact driver (:mod:`.constrained_impacts`: impacts, persistent
-        contact and release in one call; index-1: CVODE, native backend, no projection; GGL: IDA,
-        native backend, frictionless and no-slip contacts); the keyword
+        contact and release in one call, Coulomb friction included; index-1: CVODE, native backend,
+        no projection; GGL: IDA, native backend, models with v = q'); the keyword
         ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
         before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
         lists what happened.
@@ -241,7 +241,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
 
     def contact_stepper(self, family, mem, rtol, atol, roots: bool, contacts) -> ImpactStepper:
         """The stepper of an integrator object of this system with contacts on the memory ``mem``
-        = (t0, y0, p) (:mod:`.impact_stepper`: each call one run of the index-1 impact driver)."""
+        = (t0, y0, p) (:mod:`.impact_stepper`: each call one run of the impact driver, index-1 on
+        CVODE or GGL on IDA)."""
         ny = self._ny
         t0, y0, p = float(mem[0]), mem[1:1 + ny], mem[1 + ny:]
         return ImpactStepper(self, self.contact_run(family, t0, y0, p, rtol, atol, roots, contacts), mem)
@@ -249,27 +250,19 @@ class ConstrainedSimulation(ConstrainedFunctions):
     def run_contacts(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
         """A run of a system with contacts on its impact driver (:mod:`.constrained_impacts`: the
         index-1 driver on CVODE, the GGL driver on IDA); ``cancel``: None, or a numpy int array of
-        one value that stops an index-1 run (-80) once set."""
-        if self._ggl:  # the GGL impact driver (IDA)
-            backend = getattr(family, "backend", None)
-            if backend != "native":
-                raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
-                                      f"backend={backend!r}")
-            runner = self._contact_runner(float(t[0]), y0, p)
-            alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
-            return runner.run_ggl(t, y0, p, StepControl.of(family, rtol, atol), family.ggl_form(),
-                                  family.recording(10_000, roots=roots), _contact_options(contacts), alg_atol)
+        one value that stops the run (-80) once set."""
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
-        return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
+        return run.execute(t, y0, p, cancel=cancel)
 
     def run_contacts_taylor(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
         """A run of this system with contacts on the Taylor contact driver (:mod:`.taylor_impacts`:
         impacts and releases located on the Taylor polynomials of the gaps and multipliers, the
         impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets,
-        ``baumgarte`` and ``max_events``), ``roots``: locate the compiled events; ``cancel``: None, or a numpy int array of one value that stops the run
-        (-80) once set. The GGL formulation takes its contacts on IDA only."""
+        ``baumgarte`` and ``max_events``), ``roots``: locate the compiled events; ``cancel``: None,
+        or a numpy int array of one value that stops the run (-80) once set. The GGL formulation
+        takes its contacts on IDA only."""
         run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
-        return run.runner.run(t, y0, p, run.control, run.form, run.recording, run.contacts, cancel=cancel)
+        return run.execute(t, y0, p, cancel=cancel)
 
     def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the Taylor contact driver (:mod:`.taylor_impacts`) takes for runs of this system
@@ -299,16 +292,30 @@ class ConstrainedSimulation(ConstrainedFunctions):
         return ImpactStepper(self, self.taylor_contact_run(family, t0, y0, p, rtol, atol, roots, contacts), mem)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
-        """What the index-1 impact driver takes for runs of this system with contacts from (t0, y0)
-        with the parameters p on ``family`` (checked: CVODE, native backend, no projection, the
-        contacts not violated at y0), as a :class:`~.constrained_impacts.ContactRun` (the runs of
-        ensembles and the integrator object; GGL systems refuse those by name)."""
+        """What the impact driver takes for runs of this system with contacts from (t0, y0) with
+        the parameters p on ``family`` (checked: index-1: CVODE, native backend, no projection;
+        GGL: IDA, native backend, v = q'; the contacts not violated at y0), as a
+        :class:`~.constrained_impacts.ContactRun` (the runs of simulate, ensembles and the
+        integrator object)."""
         contacts = _contact_options(contacts)
         backend = getattr(family, "backend", None)
+        if self._ggl:  # the GGL impact driver (IDA)
+            if backend != "native":
+                raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
+                                      f"backend={backend!r}")
+            if self.system.model.general:
+                raise LagcodegenError(f"the GGL impact driver (IDA) takes models with v = q' only; model "
+                                      f"{self.system.model.name!r} has generalized speeds (nq = {self._n}, nv = "
+                                      f"{self.nv}): compile_constrained(system, 'index1') runs its contacts")
+            runner = self._contact_runner(t0, y0, p)
+            alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
+            return ContactRun(runner, StepControl.of(family, rtol, atol), family.ggl_form(),
+                              family.recording(10_000, roots=roots), contacts, alg_atol)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
             raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  f"CVODE impact driver only; the solver {type(family).__name__} (backend "
-                                  f"{backend!r}) cannot take it: solver=CVODE(backend='native')")
+                                  f"impact drivers only (index-1: CVODE, GGL: IDA); the solver "
+                                  f"{type(family).__name__} (backend {backend!r}) cannot take it: "
+                                  "solver=CVODE(backend='native')")
         if backend != "native":
             raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
         method, projection, alpha, beta = family.index1_settings(self, t0, y0, p)
@@ -368,10 +375,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         (:mod:`.impact_ensemble`), its events and contact log in ``member(i).events`` and
         ``.impacts``."""
         members = ensemble_constrained  # each member's run in the native pool (index-1: CVODE, GGL: IDA)
-        if self.info.contacts:  # each member one run of the index-1 impact driver
-            if self._ggl:
-                raise LagcodegenError("ensembles do not run systems with contacts on the GGL formulation: "
-                                      "compile_constrained(system, 'index1') runs them (GGL runs contacts in simulate)")
+        if self.info.contacts:  # each member one run of the impact driver (index-1: CVODE, GGL: IDA)
             members = ensemble_contacts
         recording = Recording(save=save, threads=threads, progress=progress)
         return members(self, t, q0, v0, params=params, recording=recording, executor=executor, chunk_size=chunk_size,

@@ -1,7 +1,7 @@
 """Impact runs of constrained systems with contacts: inequality constraints g_k(q, t) >= 0
 (notes, eq. 4.3) given as :class:`~lagcodegen.theory.constraints.Inequality` with a coefficient
-of restitution e_k, integrated by the runtime's impact driver (lagcodegen/runtime/lcg_imp.c) in
-one call.
+of restitution e_k, integrated by the runtime's impact driver in one call (index-1:
+lagcodegen/runtime/lcg_imp.c on CVODE; GGL: lagcodegen/runtime/lcg_imp_ida.c on IDA, below).
 
 **Impact law.** When a free contact reaches g_k = 0 with a closing normal velocity
 w_k = G_k q' + G0_k < 0 (G_k = dg_k/dq, G0_k = dg_k/dt), the run stops at the located root and
@@ -46,7 +46,7 @@ of Housner's rocking block. Active rows that are dependent (a block resting flat
 corners) are solved with a small regularization of the multiplier block (see the generated
 ``solve_active``).
 
-**Coulomb friction.** An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
+**Coulomb friction** (index-1 and GGL). An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
 and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
 u = T q' + T0) obeys Coulomb's law on its multipliers. It is not an ideal constraint (sec. 4.3
 takes the force along A): while slipping the force G^T lambda_n + T^T lambda_t has
@@ -76,18 +76,22 @@ outputs ``lambda_t0_ineq_<k>``, ``lambda_t1_ineq_<k>``); a slip from rest and a 
 take the direction that makes the force oppose the resulting slip (fixed-point iteration). Models
 with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t)).
 
-*Where it lives*: in the model-independent C driver (lagcodegen/runtime/lcg_imp.c, "Coulomb
-friction"), which builds and solves the contact problem of each mode from the model's numbers (M,
-F, rows, gamma) that the generated ``<prefix>_impact.c`` gives through the table
-``lcg_imp_friction`` (lcg_imp_model.h; generated only for systems with friction, so the code of
-other systems is unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are
-seen where their sign differs at CVODE's step ends; so that a friction limit is not crossed and
-recrossed within one step while a contact sticks under forcing that depends on time alone (the
-state constant, the steps growing), CVODE's state carries the integrals of the contact forces,
+*Where it lives*: in the model-independent C runtime (lagcodegen/runtime/lcg_imp_fric.c, "Coulomb
+friction", called by the drivers lcg_imp.c and lcg_imp_ida.c), which builds and solves the contact
+problem of each mode from the model's numbers (M, F, rows, gamma) that the generated
+``<prefix>_impact.c`` gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated
+only for systems with friction or the GGL formulation, so the code of other systems is
+unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are seen where their
+sign differs at CVODE's step ends; so that a friction limit is not crossed and recrossed within
+one step while a contact sticks under forcing that depends on time alone (the state constant, the
+steps growing), CVODE's state carries the integrals of the contact forces,
 whose error control keeps the steps to the forces' time scale (at the run's tolerances).
 Impacts with friction and Newton's law can gain energy in some configurations (a known property
-of that impact law); the law is applied as stated. Coulomb friction runs on CVODE with the native
-backend only (other solvers are refused naming them).
+of that impact law); the law is applied as stated. Coulomb friction runs on the native backends
+of CVODE (index-1) and IDA (GGL, below); other solvers are refused naming them. The
+solver-independent part (the contact problem of a mode, the enumeration of the modes, frictional
+impacts, slip directions, the roots, the Painleve messages) is the friction core
+lagcodegen/runtime/lcg_imp_fric.c, which both drivers call.
 
 **GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
 and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
@@ -95,31 +99,29 @@ residual [q' - v - R_h^T mu; M v' - F - R^T lambda; h_r; R_r v + R0_r], the free
 lambda_r = 0, mu_r = 0; an impact, a switch into persistent contact or a release (the multiplier,
 an unknown of the DAE, reaching 0) stops IDA at the located root, the same impact law applies
 (lagcodegen/runtime/lcg_imp_law.c, shared with the index-1 driver) and IDA restarts from
-consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). Coulomb
-friction is refused there. **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
+consistent values (lambda and v' from the index-1 system of the rows held, mu = 0). With Coulomb
+friction a sticking contact holds its tangential row(s) as GGL rows (velocity level, as no-slip
+tangents); a slipping contact holds its normal row only and its tangential rows are
+lambda_t + sigma mu lambda_n = 0 (3-D: lambda_t = -mu lambda_n d, d the slip direction at the
+state), so that the residual's force is W^T lambda with W = G - sigma mu T for that contact; the
+roots (stick -> slip, slip -> stick, release, the contact problem turning singular) are the
+friction core's, evaluated with the contact forces of the index-1 problem at IDA's state (the
+unknowns lambda of index-2 rows carry the velocity constraints' error divided by the step); at
+each root and impact the modes of all contacts are chosen by the friction core exactly as on the
+index-1 driver and IDA restarts from consistent values. A contact problem turning singular stops
+a GGL run where its determinant has fallen to 1e-4 of its value where the modes began (IDA cannot
+step up to the zero, where lambda is infinite). The GGL driver takes models with v = q' (not
+generalized speeds). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
 reduced model with the contacts in the remaining coordinates on the index-1 driver.
 
-**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c):
-the index-1 system of the rows held as a Taylor jet for every active set at once (the rows held
-run-time values of the jet's workspace, a row not held reading lambda_k = 0; per order the
-recurrence of the mass matrix's with the augmented matrix [M R^T; R 0] factored once per step,
-:mod:`lagcodegen.codegen.taylor.contacts`); impacts are roots of the free contacts' gap
-polynomials and releases roots of the held contacts' multiplier polynomials, every root of a
-step isolated (no flight is skipped at any tolerance), the same impact law applied
-(lcg_imp_law.c) and the series restarted; the same records and outputs as the index-1 driver.
-Where switches follow one another without flight at one time (impacts accumulating below the
-resolution of t, as the frictionless rocking block's alternating corners), the contacts that
-touch at rest are held from there on ("stick" records without impulse). Frictionless and no-slip
-contacts, equality rows, generalized speeds, minimal coordinates, ensembles, the integrator
-object and the compiled events (rows of the jet, located on the same polynomials; an event whose
-expression uses a multiplier is refused by name); refused by name: Coulomb friction (see
-:mod:`.taylor_impacts`), sensitivities.
+**Taylor** (``method="taylor"``): the Taylor contact driver (:mod:`.taylor_impacts`) applies the
+same impact law to frictionless and no-slip contacts, impacts and releases located as roots of the
+Taylor polynomials of the gaps and the multipliers; the same records and outputs.
 
-Ensembles of index-1 systems run each member as one call of this driver (or of the Taylor
-contact driver), every member's events and contact log kept (:mod:`.impact_ensemble`); the
-integrator object makes one call per propagate call (:mod:`.impact_stepper`). Not supported with
-contacts: the scikit-sundae backend, projection, ensembles and the integrator object of GGL
-systems, Fortran model code.
+Ensembles run each member as one call of the system's driver (index-1, GGL, or the Taylor contact
+driver), every member's events and contact log kept (:mod:`.impact_ensemble`); the integrator
+object makes one call per propagate call (:mod:`.impact_stepper`). Not supported with contacts:
+the scikit-sundae backend, projection, Fortran model code.
 """
 
 from __future__ import annotations
@@ -153,9 +155,9 @@ KINDS = ("bounce", "stick", "release", "contact_impulse", "slip", "grip", "rever
 FRICTION_TRANSITIONS = ("slip", "grip", "reverse")
 
 #: The files of lagcodegen/runtime/ the impact driver is compiled from.
-RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_law.c", "lcg_imp_law.h", "lcg_imp_ida.c", "lcg_imp_ida.h",
-                 "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h", "lcg_control.h", "lcg_sundials.h",
-                 "sundials_api.h")
+RUNTIME_FILES = ("lcg_imp.c", "lcg_imp.h", "lcg_imp_law.c", "lcg_imp_law.h", "lcg_imp_fric.c", "lcg_imp_fric.h",
+                 "lcg_imp_ida.c", "lcg_imp_ida.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h",
+                 "lcg_control.h", "lcg_sundials.h", "sundials_api.h")
 
 _CDEF = "\n".join([MODEL_TABLE_CDEF, DAE_TABLE_CDEF, driver_cdef("cvc"), driver_cdef("ida"), cffi_struct(IMP_TABLE),
                    cffi_struct(IMP_FRICTION_TABLE), header_cdef("lcg_imp.h"), header_cdef("lcg_imp_ida.h"),
@@ -291,17 +293,29 @@ def impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLA
 
 @dataclass(frozen=True)
 class ContactRun:
-    """What the impact driver takes for runs of one system (besides the times, state and
-    parameters): the runner, the step control, the Baumgarte form, what is recorded, the contact
-    settings (made by ``ConstrainedSimulation.contact_run``, or ``taylor_contact_run`` for the
-    Taylor contact driver, :mod:`.taylor_impacts`; index-1 systems: the runs that ensembles and
-    the integrator object make)."""
+    """What an impact driver takes for runs of one system (besides the times, state and
+    parameters): the runner, the step control, the form (:class:`Index1Form`: Baumgarte on the
+    index-1 driver; :class:`GGLForm`: the GGL driver on IDA, with ``alg_atol`` the absolute
+    tolerance of its multipliers), what is recorded, the contact settings (made by
+    ``ConstrainedSimulation.contact_run``: the runs of simulate, ensembles and the integrator
+    object; ``taylor_contact_run``: those of the Taylor contact driver, :mod:`.taylor_impacts`,
+    whose runner takes the index-1 driver's arguments)."""
 
-    runner: "ImpactRunner"  # or a TaylorImpactRunner (the same run signature)
+    runner: "ImpactRunner"  # or a TaylorImpactRunner (the index-1 driver's run signature)
     control: StepControl
-    form: Index1Form
+    form: Index1Form | GGLForm
     recording: Recording
     contacts: ContactOptions
+    alg_atol: float | None = None
+
+    def execute(self, t, y0, p, *, cancel=None, active=None) -> Result:
+        """One run of the driver of this form over the output times ``t`` from y0 (``cancel``,
+        ``active``: as :meth:`ImpactRunner.run`)."""
+        if isinstance(self.form, GGLForm):
+            return self.runner.run_ggl(t, y0, p, self.control, self.form, self.recording, self.contacts,
+                                       self.alg_atol, cancel=cancel, active=active)
+        return self.runner.run(t, y0, p, self.control, self.form, self.recording, self.contacts, cancel=cancel,
+                               active=active)
 
 
 class ImpactRunner:
@@ -386,10 +400,7 @@ class ImpactRunner:
             raise LagcodegenError("runs with contacts take a scalar atol")
         nlam = int(self.table.nrow) if self.friction != ffi.NULL else nr
         buf = self._buffers(t, max(nlam, 1), contacts, recording)
-        if active is not None:
-            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
-                raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
-            buf.active = active
+        self._modes(buf, active)
         opt = ffi.new("lcg_cvc_options *")
         opt.method, opt.rtol, opt.atol, opt.atol_vec = METHODS[method], float(rtol), float(atol), ffi.NULL
         c = control
@@ -408,13 +419,14 @@ class ImpactRunner:
         return self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, method, "CVODE")
 
     def run_ggl(self, t, y0, p, control: StepControl, form: GGLForm, recording: Recording,
-                contacts: ContactOptions, alg_atol: float) -> Result:
+                contacts: ContactOptions, alg_atol: float, *, cancel=None, active=None) -> Result:
         """A run on the GGL impact driver (lagcodegen/runtime/lcg_imp_ida.c: IDA, the rows held as
-        GGL rows with their multipliers, the impact law of the index-1 driver) with the step
-        control ``control`` (a scalar atol on q, v; ``control.order`` unused), ``form``
-        (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are interpolated), the
-        recording of :meth:`run`, the contact settings ``contacts`` and ``alg_atol``, the
-        absolute tolerance of the unknowns lambda, mu."""
+        GGL rows with their multipliers, the impact law and Coulomb friction of the index-1
+        driver) with the step control ``control`` (a scalar atol on q, v; ``control.order``
+        unused), ``form`` (``suppress_alg``; ``stop_at_outputs`` is refused: outputs are
+        interpolated), the recording of :meth:`run`, the contact settings ``contacts`` and
+        ``alg_atol``, the absolute tolerance of the unknowns lambda, mu; ``cancel``, ``active``:
+        as :meth:`run`."""
         ffi = self.ffi
         atol = control.atol
         if not isinstance(atol, (int, float)) or isinstance(atol, bool):
@@ -423,6 +435,7 @@ class ImpactRunner:
             raise LagcodegenError("runs with contacts on IDA interpolate their outputs: stop_at_outputs=True is "
                                   "not taken (the steps stop at the impacts, not at the output times)")
         buf = self._buffers(t, int(self.table.nrow), contacts, recording)
+        self._modes(buf, active)
         opt = ffi.new("lcg_ida_options *")
         c = control
         opt.rtol, opt.atol, opt.atol_vec, opt.max_steps = float(c.rtol), float(atol), ffi.NULL, int(c.max_steps)
@@ -432,16 +445,29 @@ class ImpactRunner:
             float(alg_atol)
         opt.roots, opt.stop_at_outputs, opt.max_wall = int(recording.roots), 0, c.max_wall
         opt.poll, opt.poll_every = self.poll, POLL_EVERY
+        if cancel is not None:
+            opt.cancel = ffi.from_buffer("int[]", cancel)
         st = ffi.new("lcg_ida_stats *")
         extra = np.zeros(2)
         p = np.ascontiguousarray(p, dtype=float)
         start = time.perf_counter()
+        mu = ffi.from_buffer("double[]", self.mu) if self.friction != ffi.NULL else ffi.NULL
         flag = self.rt.lib.lcg_imp_ida_solve(self.numbers, *self._arguments(buf, p, y0, opt, st),
-                                             ffi.from_buffer("double[]", extra))
+                                             ffi.from_buffer("double[]", extra), mu)
         res = self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "bdf", "IDA")
         res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
         res.stats["suppress_alg"] = bool(form.suppress_alg)
         return res
+
+    def _modes(self, buf: "_Buffers", active) -> None:
+        """The contacts' modes of a run: ``active`` (None: the driver's own start) in place of the
+        buffer's, checked."""
+        if active is None:
+            return
+        nk = len(self.contacts)
+        if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
+            raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
+        buf.active = active
 
     def _buffers(self, t, nlam: int, contacts: ContactOptions, recording: Recording) -> "_Buffers":
         """The arrays a driver's call fills for the output times ``t`` (``nlam`` multipliers per

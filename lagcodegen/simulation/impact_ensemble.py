@@ -1,7 +1,8 @@
 """Ensembles of constrained systems with contacts (inequalities with a restitution, sec. 4.3):
-each member one call of the impact driver (lagcodegen/runtime/lcg_imp.c, through
+each member one call of the system's impact driver (index-1: lagcodegen/runtime/lcg_imp.c on
+CVODE; GGL: lagcodegen/runtime/lcg_imp_ida.c on IDA; Coulomb friction included), through
 :meth:`ConstrainedSimulation.run_contacts <lagcodegen.simulation.constrained.ConstrainedSimulation>`,
-as ``simulate`` makes it), the members spread over a pool of threads (the driver releases the
+as ``simulate`` makes it, the members spread over a pool of threads (the driver releases the
 GIL; every call has its own SUNDIALS context), so each member is bit-identical to its single run.
 
 As in the other ensembles, every member keeps its records: its events
@@ -71,7 +72,7 @@ def ensemble_contacts(sim, t, q0=None, v0=None, *, params=None, recording: Recor
             return None
         p = np.ascontiguousarray(_param_row(P, i), dtype=float)
         try:
-            y0 = sim._initial_values(t0, Q[i], V[i], p, initial, ic_tol, False)[0]
+            y0 = sim._initial_values(t0, Q[i], V[i], p, initial, ic_tol, sim._ggl)[0]  # as simulate
         except LagcodegenError as exc:
             return f"{FLAG_TEXT[REJECTED]}: {exc}"
         start = time.perf_counter()
@@ -182,10 +183,11 @@ def _assemble(sim, t: np.ndarray, results: list, P: np.ndarray, save) -> Ensembl
 
 
 def _tangential_outputs(results: list) -> list:
-    """The tangential multipliers' outputs (contacts with a tangent) the members report."""
+    """The tangential multipliers' outputs (contacts with a tangent: lambda_t_ineq_<k>, 3-D
+    lambda_t0_ineq_<k> and lambda_t1_ineq_<k>) the members report."""
     for res in results:
         if res is not None and not isinstance(res, str):
-            return [n for n in res.outputs if n.startswith("lambda_t_ineq_")]
+            return [n for n in res.outputs if n.startswith("lambda_t") and "_ineq_" in n]
     return []
 
 

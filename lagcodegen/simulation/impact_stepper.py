@@ -1,13 +1,17 @@
 """The integrator object of a constrained system with contacts (inequalities with a restitution,
 sec. 4.3): the stepper that :class:`~.integrator.Integrator` drives, each of its calls one run of
-the impact driver (lagcodegen/runtime/lcg_imp.c: impacts located inside the steps and their jumps
-applied, persistent contact and release) from the integrator's memory ``(t, y, p)``, the modes of
-the contacts carried from one call to the next; on the Taylor method each call is one run of the
-Taylor contact driver (:mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c).
+the system's impact driver (index-1: lagcodegen/runtime/lcg_imp.c on CVODE; GGL:
+lagcodegen/runtime/lcg_imp_ida.c on IDA; impacts located inside the steps and their jumps applied,
+persistent contact and release, Coulomb friction) from the integrator's memory ``(t, y, p)``, the
+modes of the contacts carried from one call to the next (with friction the driver chooses the
+stick/slip modes of those in contact again at the start of a call, from the slip velocities, as at
+the start of any run); on the Taylor method each call is one run of the Taylor contact driver
+(:mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c).
 
 A call of ``propagate_grid`` over the times of a ``simulate`` run is that run: the same driver
-call, bit-identical. Between calls CVODE starts afresh from the state reached (its step history is
-not kept), as after a written state; the contacts in persistent contact stay so. What a call
+call, bit-identical. Between calls the integrator starts afresh from the state reached (its step
+history is not kept; GGL: the multipliers computed again from the state), as after a written
+state; the contacts in persistent contact stay so. What a call
 recorded is the integrator's ``events`` and ``impacts`` (a
 :class:`~.constrained_impacts.ContactLog`). The impact driver advances to given times only:
 ``Integrator.step`` (one internal step) is refused by name.
@@ -19,6 +23,7 @@ import numpy as np
 
 from ..errors import LagcodegenError, SingularMassMatrixError, SolverError
 from ..solvers.base import ERR_SINGULAR
+from ..solvers.request import GGLForm
 from .constrained_impacts import ContactLog
 
 
@@ -26,12 +31,11 @@ class ImpactStepper:
     """The stepper of an :class:`~.integrator.Integrator` over a system with contacts: ``run`` a
     :class:`~.constrained_impacts.ContactRun`, ``mem`` the integrator's array (t, y, p)."""
 
-    family = "cvode"
-
     def __init__(self, sim, run, mem: np.ndarray):
         self.sim = sim
         self.run = run
-        self.family = getattr(run.runner, "family", "cvode")  # the Taylor contact driver's: "taylor"
+        # the driver's family: the Taylor contact driver's "taylor", else IDA (GGL) or CVODE (index-1)
+        self.family = getattr(run.runner, "family", None) or ("ida" if isinstance(run.form, GGLForm) else "cvode")
         self.mem = mem
         self.ffi = run.runner.ffi
         self.events = list(sim.info.events) if run.recording.roots else []
@@ -55,8 +59,7 @@ class ImpactStepper:
         tout = np.concatenate([[t0], times])
         p = np.ascontiguousarray(mem[1 + ny:])
         y0 = np.array(mem[1:1 + ny])
-        r = self.run
-        res = r.runner.run(tout, y0, p, r.control, r.form, r.recording, r.contacts, active=self.active)
+        res = self.run.execute(tout, y0, p, active=self.active)
         self._last, self.impacts = res, res.impacts
         if res.t.size:
             mem[0] = res.t[-1]
@@ -98,6 +101,13 @@ class ImpactStepper:
             self._none()
             self.stats.nt_done = nt
         return 0
+
+    def multipliers(self) -> np.ndarray:
+        """Refused by name: each call is a run of its own (GGL: IDA restarted at the call and at
+        every switch), whose multipliers are in its outputs, not kept as the integrator's unknowns."""
+        raise LagcodegenError("Integrator.multipliers is not available for systems with contacts: each "
+                              "propagate call is one run of the impact driver; the contact forces are in "
+                              "simulate()'s outputs (res['lambda_ineq_<k>']) and the impulses in integ.impacts")
 
     def step(self, t_limit) -> int:
         raise LagcodegenError("Integrator.step (one internal step) is not available for systems with contacts: "

@@ -7,9 +7,20 @@ impact drivers (lagcodegen/runtime/lcg_imp_law.c, through the model's contact ta
 no Python in the loop. The result is that of the index-1 driver (:mod:`.constrained_impacts`):
 ``res.impacts`` (:class:`~.constrained_impacts.ContactLog`), ``outputs["lambda_ineq_<k>"]``.
 
-Frictionless and no-slip contacts; the system's compiled events located on the steps'
-polynomials (those whose expression uses a multiplier refused by name); Coulomb friction and
-sensitivities are refused by name.
+The jet is the index-1 system of the rows held for every active set at once (the rows held are
+run-time values of the jet's workspace, a row not held reads lambda_k = 0; per order the
+recurrence of the mass matrix's with the augmented matrix [M R^T; R 0], factored once per step).
+Every root of a step's polynomials is isolated, so no flight is skipped at any tolerance. Where
+switches follow one another without flight at one time (impacts accumulating below the resolution
+of t, as the frictionless rocking block's alternating corners), the contacts that touch at rest
+are held from there on ("stick" records without impulse).
+
+Frictionless and no-slip contacts, equality rows, generalized speeds, minimal coordinates,
+ensembles, the integrator object; the system's compiled events located on the steps' polynomials
+(those whose expression uses a multiplier refused by name). Refused by name: Coulomb friction (a
+slipping contact's force along G - sigma mu T is not a row held with its multiplier, and its
+stick/slip modes are the friction core's, lcg_imp_fric.c, driven by the CVODE and IDA drivers),
+sensitivities.
 """
 
 from __future__ import annotations
@@ -74,10 +85,10 @@ class TaylorImpactRunner:
         system = sim.system
         if system.has_friction:
             raise LagcodegenError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  "CVODE impact driver only (method='adams' or 'bdf'): the Taylor contact driver "
-                                  "holds rows with their multipliers, and a slipping contact's force along "
+                                  "impact drivers (index-1: method='adams' or 'bdf'; GGL: IDA): the Taylor contact "
+                                  "driver holds rows with their multipliers, and a slipping contact's force along "
                                   "G - sigma mu T is not such a row; its stick/slip/release modes are chosen by "
-                                  "the CVODE driver's friction core")
+                                  "the friction core of the CVODE and IDA impact drivers")
         if sim.info.lang != "c":
             raise LagcodegenError("contacts are generated in C only")
         self.sim = sim

@@ -119,10 +119,13 @@ class IDA(Family):
     # ------------------------------------------------------------------ the one entry (Family.run)
     def _ggl_run(self, pr, rq) -> Result:
         if rq.contacts is not None:  # the simulation's GGL impact driver (.constrained_impacts)
-            return pr.sim.run_contacts(self, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, rq.contacts)
+            return pr.sim.run_contacts(self, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, rq.contacts,
+                                       cancel=rq.cancel)
         return self.run_ggl(pr.sim, pr.t, pr.y, pr.yp, pr.p, pr.rtol, pr.atol, rq.roots)
 
     def _ggl_stepper(self, pr, rq):
+        if rq.contacts is not None:  # each propagate call one run of the GGL impact driver (.impact_stepper)
+            return pr.sim.contact_stepper(self, pr.y, pr.rtol, pr.atol, rq.roots, rq.contacts)
         mem, (yy0, yp0) = pr.y, pr.yp
         return self.stepper_ggl(pr.sim, mem, yy0, yp0, pr.rtol, pr.atol, rq.roots)
 
@@ -134,13 +137,10 @@ class IDA(Family):
     #: What IDA runs (Family.run), declared once: every other combination is refused by name.
     runs = {
         ("ggl", "run"): (_ggl_run, combinations("", "events", "impacts", "events+impacts")),
-        ("ggl", "stepper"): (_ggl_stepper, combinations("", "events")),
+        ("ggl", "stepper"): (_ggl_stepper, combinations("", "events", "impacts", "events+impacts")),
+        # the ensembles of a system with contacts are its members' runs, each through ("ggl", "run")
         ("ggl", "ensemble"): (_ggl_ensemble, combinations("", "events")),
     }
-    refusals = dict.fromkeys(
-        [("ggl", "stepper", frozenset(asked)) for asked in (("impacts",), ("events", "impacts"))],
-        "the integrator object does not run systems with contacts on the GGL formulation, nor do ensembles: "
-        "compile_constrained(system, 'index1') runs both (GGL runs contacts in simulate)")
 
     def ggl_form(self) -> GGLForm:
         """The GGL form of this object's runs (``suppress_alg``, ``stop_at_outputs``)."""
