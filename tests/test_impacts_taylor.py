@@ -397,7 +397,8 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     code, info = generate_constrained(system, prefix="tsball", events=[apex])
     code.write(tmp_path)
     files = {**runtime_sources(), **runtime_files(RUNTIME_FILES), **table_source(code), **dae_table_source(code),
-             **types_headers(("dae",)), **contact_jet_sources(system, scene_of_code(code, "test"), events=info.events)}
+             **types_headers(("dae",)),
+             **contact_jet_sources(system, scene_of_code(code, "test"), events=info.events)}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     strict = [cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "-c"]
@@ -478,9 +479,10 @@ def test_the_shipped_bouncing_ball_from_the_command_line_with_method_taylor(tmp_
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
     out = tmp_path / "bb.csv"
-    proc = subprocess.run([sys.executable, "-m", "lagcodegen", "simulate", str(root / "examples" / "bouncing_ball.toml"),
-                           "-o", str(out), "--method", "taylor"], capture_output=True, text=True,
-                          env=dict(os.environ, PYTHONPATH=str(root)), timeout=600)
+    model_file = str(root / "examples" / "bouncing_ball.toml")
+    proc = subprocess.run([sys.executable, "-m", "lagcodegen", "simulate", model_file, "-o", str(out), "--method",
+                           "taylor"], capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(root)),
+                          timeout=600)
     assert proc.returncode == 0, proc.stderr
     data = np.loadtxt(out, delimiter=",", skiprows=1)
     header = out.read_text().splitlines()[0].split(",")

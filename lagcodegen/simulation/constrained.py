@@ -254,17 +254,17 @@ class ConstrainedSimulation(ConstrainedFunctions):
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.execute(t, y0, p, cancel=cancel)
 
-    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, roots: bool, contacts, cancel=None) -> Result:
+    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, *, roots: bool, contacts, cancel=None) -> Result:
         """A run of this system with contacts on the Taylor contact driver (:mod:`.taylor_impacts`:
         impacts and releases located on the Taylor polynomials of the gaps and multipliers, the
         impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets,
         ``baumgarte`` and ``max_events``), ``roots``: locate the compiled events; ``cancel``: None,
         or a numpy int array of one value that stops the run (-80) once set. The GGL formulation
         takes its contacts on IDA only."""
-        run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
+        run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, roots=roots, contacts=contacts)
         return run.execute(t, y0, p, cancel=cancel)
 
-    def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
+    def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, *, roots: bool, contacts) -> ContactRun:
         """What the Taylor contact driver (:mod:`.taylor_impacts`) takes for runs of this system
         from (t0, y0) with the parameters p on the Taylor family ``family`` (``roots``: locate the
         compiled events), as a :class:`~.constrained_impacts.ContactRun` (the contacts checked at y0)."""
@@ -283,13 +283,14 @@ class ConstrainedSimulation(ConstrainedFunctions):
         return ContactRun(runner, family.control(rtol, atol), Index1Form(float(alpha), float(beta)),
                           Recording(roots=bool(roots), max_events=family.max_events), _contact_options(contacts))
 
-    def contact_stepper_taylor(self, family, mem, rtol, atol, roots: bool, contacts) -> ImpactStepper:
+    def contact_stepper_taylor(self, family, mem, rtol, atol, *, roots: bool, contacts) -> ImpactStepper:
         """The stepper of an integrator object of this system with contacts on the Taylor method
         (:mod:`.impact_stepper`: each call one run of the Taylor contact driver) on ``mem`` =
         (t0, y0, p)."""
         ny = self._ny
         t0, y0, p = float(mem[0]), mem[1:1 + ny], mem[1 + ny:]
-        return ImpactStepper(self, self.taylor_contact_run(family, t0, y0, p, rtol, atol, roots, contacts), mem)
+        run = self.taylor_contact_run(family, t0, y0, p, rtol, atol, roots=roots, contacts=contacts)
+        return ImpactStepper(self, run, mem)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the impact driver takes for runs of this system with contacts from (t0, y0) with

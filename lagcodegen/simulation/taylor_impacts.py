@@ -65,7 +65,8 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
     def render() -> dict[str, str]:
         return {**runtime_sources(), **runtime_files(RUNTIME_FILES), **types_headers(("dae",))}
 
-    texts = [f"P_MAX {P_MAX}", *runtime_key_texts(), *(f"{k}\0{v}" for k, v in sorted(runtime_files(RUNTIME_FILES).items()))]
+    own = sorted(runtime_files(RUNTIME_FILES).items())
+    texts = [f"P_MAX {P_MAX}", *runtime_key_texts(), *(f"{k}\0{v}" for k, v in own)]
     return driver_runtime("taylor_impacts", texts, render, _cdef(), "lcg_taylor_imp.h", ["-lm", "-pthread"], cc,
                           cflags, units=("lcg_taylor_imp.c", "lcg_imp_law.c"))
 
@@ -116,7 +117,7 @@ class TaylorImpactRunner:
         return self.impacts.contacts
 
     def run(self, t, y0, p, control: StepControl, form: Index1Form, recording: Recording, contacts: ContactOptions,
-            cancel=None, active=None) -> Result:
+            *, cancel=None, active=None) -> Result:
         """A run from ``y0`` at the output times ``t`` with the step control ``control`` (a scalar
         atol; ``order``, budgets), the Baumgarte rates of ``form`` (alpha, beta; negative: the
         natural rate at y0; no projection), ``recording`` (``roots``: locate the compiled events,
@@ -145,8 +146,9 @@ class TaylorImpactRunner:
                                       "(method='adams' or 'bdf')")
             buf.events = NativeEvents(ffi, "lcg_events", sim.info.events, sim.ny, recording.max_events)
         if active is not None:
-            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (len(self.contacts),)):
-                raise LagcodegenError(f"active must be an intc array of {len(self.contacts)} values (one per contact)")
+            nk = len(self.contacts)
+            if not (isinstance(active, np.ndarray) and active.dtype == np.intc and active.shape == (nk,)):
+                raise LagcodegenError(f"active must be an intc array of {nk} values (one per contact)")
             buf.active = active
         opt = ffi.new("lcg_taylor_options *")
         opt.rtol, opt.atol, opt.atol_vec = float(control.rtol), float(atol), ffi.NULL

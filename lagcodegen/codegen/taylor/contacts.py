@@ -85,7 +85,8 @@ class ContactRows:
         return self.tangent_of[r - self.nj - self.nk]
 
 
-def contact_decompose(system, scene: Scene, events=(), form: str | None = None) -> tuple[Decomposition, ContactRows]:
+def contact_decompose(system, scene: Scene, events=(), *,
+                      form: str | None = None) -> tuple[Decomposition, ContactRows]:
     """The elementary operations of M, F and of the rows of ``system`` (compiled from ``scene``)
     and of its ``events`` (the constrained system's events, :func:`lagcodegen.model.events.event_list`;
     an event whose expression uses a multiplier gets no row: its value needs the solve of the same
@@ -167,7 +168,8 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
     n = d.n
     mconv = [(i, d.M[i][j], j) for i in range(n) for j in range(n) if isinstance(d.M[i][j], int)]
     rconv = [(r, i, rows.R[r][i]) for r in range(rows.nr) for i in range(n) if isinstance(rows.R[r][i], int)]
-    ctx.update(unrolled=None, table=True, nout=0, ne=0, event_rows=rows.events, nr=rows.nr, nj=rows.nj, njh=rows.njh, nk=rows.nk,
+    ctx.update(unrolled=None, table=True, nout=0, ne=0, event_rows=rows.events, nr=rows.nr, nj=rows.nj,
+               njh=rows.njh, nk=rows.nk,
                R=rows.R, s=rows.s, h=rows.h, gam=rows.gam, holonomic=[rows.holonomic(r) for r in range(rows.nr)],
                contact_of=[rows.contact_of(r) for r in range(rows.nr)], mconv=mconv, rconv=rconv,
                gap_rows=[rows.h[rows.nj + k] for k in range(rows.nk)], lam_row=d.nrows, chunk_size=CHUNK,
@@ -175,7 +177,8 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
     return ctx
 
 
-def contact_jet_sources(system, scene: Scene, decomposition=None, events=()) -> dict[str, str]:
+def contact_jet_sources(system, scene: Scene, *, decomposition: tuple | None = None,
+                        events=()) -> dict[str, str]:
     """``<prefix>_taylor_contact.c`` (the jet of ``system``'s index-1 system of the rows held and its
     tables, libm only), ``lcg_taylor_model.h`` and ``lcg_taylor_contact.h``; ``decomposition``: the
     (:class:`~.decompose.Decomposition`, :class:`ContactRows`) pair of :func:`contact_decompose`
@@ -196,5 +199,5 @@ def contact_jet_code(system, scene: Scene, events=()) -> tuple[GeneratedCode, De
     d, rows = contact_decompose(system, scene, events)
     code = new_code(dataclasses.replace(scene, jacobian=False, sparse_jacobian=False))
     code.scene = scene
-    code.files.update(contact_jet_sources(system, scene, (d, rows)))
+    code.files.update(contact_jet_sources(system, scene, decomposition=(d, rows)))
     return code, d, rows

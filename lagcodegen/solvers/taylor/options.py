@@ -184,7 +184,7 @@ class Taylor(Family):
             return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
-    def run_index1(self, sim, t, y0, p, rtol, atol, roots: bool = False, contacts=None, cancel=None) -> Result:
+    def run_index1(self, sim, t, y0, p, rtol, atol, *, roots: bool = False, contacts=None, cancel=None) -> Result:
         """A run of the constrained system ``sim`` with contacts (``contacts``: the run's
         :class:`~lagcodegen.simulation.constrained_impacts.ContactOptions`) on the Taylor contact
         driver (:meth:`ConstrainedSimulation.run_contacts_taylor
@@ -192,14 +192,14 @@ class Taylor(Family):
         that stops the run once set. A system without contacts is refused by name."""
         if contacts is None:
             raise LagcodegenError(_NO_CONSTRAINED)
-        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, roots, contacts, cancel=cancel)
+        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, roots=roots, contacts=contacts, cancel=cancel)
 
     def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
         """Refused by name: ensembles of constrained systems without contacts (those with contacts
         run each member through :meth:`run_index1`, :mod:`lagcodegen.simulation.impact_ensemble`)."""
         raise LagcodegenError(_NO_CONSTRAINED)
 
-    def stepper_index1(self, sim, mem, rtol, atol, roots: bool = False, contacts=None):
+    def stepper_index1(self, sim, mem, rtol, atol, *, roots: bool = False, contacts=None):
         """The stepper of an integrator object of the constrained system ``sim`` with contacts on
         the memory ``mem`` = (t, y, p): each propagate call one run of the Taylor contact driver
         (:meth:`ConstrainedSimulation.contact_stepper_taylor
@@ -207,13 +207,14 @@ class Taylor(Family):
         refused by name."""
         if contacts is None:
             raise LagcodegenError(_NO_CONSTRAINED)
-        return sim.contact_stepper_taylor(self, mem, rtol, atol, roots, contacts)
+        return sim.contact_stepper_taylor(self, mem, rtol, atol, roots=roots, contacts=contacts)
 
     def _index1_stepper(self, pr, rq):
-        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, rq.roots, rq.contacts)
+        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, roots=rq.roots, contacts=rq.contacts)
 
     def _index1_run(self, pr, rq):
-        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, rq.roots, rq.contacts, cancel=rq.cancel)
+        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, roots=rq.roots, contacts=rq.contacts,
+                               cancel=rq.cancel)
 
     #: What Taylor runs (Family.run), declared once: every other combination is refused by name
     #: (events with input tables; ensembles with input tables need sensitivities: those members
