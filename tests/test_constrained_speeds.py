@@ -252,7 +252,7 @@ def solo12_feet(path):
     return feet
 
 
-def solo12_on_the_ground(friction=None):
+def solo12_on_the_ground(friction=None, formulation="index1"):
     """Solo12 on Pinocchio's free flyer, its 12 joints held by PD torques -20 (q - q_ref) - 0.5 q'
     about a standing posture, restitution-0 contacts at the four feet: frictionless, or with
     ``friction`` mu on the exact circular cone (ground_contact(tangent="xy")). Returns (model,
@@ -266,7 +266,8 @@ def solo12_on_the_ground(friction=None):
         m.generalized_force(q, -20.0 * (q - ref) - 0.5 * m.dot(q))
     rough = {} if friction is None else {"tangent": "xy", "friction": friction}
     contacts = [lcg.ground_contact(m, link, xyz, restitution=0.0, **rough) for link, xyz in solo12_feet(path).items()]
-    sim = lcg.compile_constrained(ConstrainedSystem(m, inequalities=contacts))
+    options = {"jacobian": False} if formulation == "ggl" else {}  # the contact driver's own residual
+    sim = lcg.compile_constrained(ConstrainedSystem(m, inequalities=contacts), formulation, **options)
     q0 = np.array(m.neutral())
     for name, ref in SOLO12_POSE.items():
         q0[m.index(name)] = ref
@@ -361,6 +362,27 @@ def test_solo12_with_low_friction_lands_and_its_four_feet_slip_together_then_res
     spread = [np.linalg.norm(f[:, :2] - f[:, :2].mean(axis=0), axis=1) for f in (feet(res.y[on][0]), feet(res.y[-1]))]
     assert np.all(spread[1] > spread[0] + 1e-3)  # each foot slid outward by more than a millimetre
     assert np.abs(feet(res.y[-1])[:, 2]).max() < 1e-8
+
+
+def test_solo12_with_low_friction_on_ggl_rests_where_index1_rests():
+    """The mu = 0.2 drop on the GGL driver (IDA; the floating base's quaternion corrected along the
+    speeds' images): it lands at the index-1 run's landing time, its four feet slip and grip
+    again, and it comes to rest at the index-1 run's base pose to 1e-6 with the normal forces
+    carrying its weight to 1e-6."""
+    pin = pytest.importorskip("pinocchio")
+    t = np.linspace(0.0, 1.5, 31)
+    runs = {}
+    for formulation in ("index1", "ggl"):
+        m, sim, q0 = solo12_on_the_ground(friction=0.2, formulation=formulation)
+        runs[formulation] = sim.simulate(t, q0, np.zeros(m.nv), rtol=1e-8, atol=1e-10)
+    ggl, index1 = runs["ggl"], runs["index1"]
+    land = {f: min(r.t for r in res.impacts if r.kind == "stick") for f, res in runs.items()}
+    assert land["ggl"] == pytest.approx(land["index1"], abs=1e-9)
+    assert sorted({r.contact for r in ggl.impacts.transitions() if r.kind == "slip"}) == [0, 1, 2, 3]
+    assert ggl.impacts.friction_modes == {k: "stick" for k in range(4)}
+    assert np.abs(ggl.y[-1, :7] - index1.y[-1, :7]).max() < 1e-6
+    weight = pin.computeTotalMass(pin.buildModelFromUrdf(str(solo12_path()), pin.JointModelFreeFlyer())) * 9.81
+    assert sum(ggl[f"lambda_ineq_{k}"][-1] for k in range(4)) == pytest.approx(weight, rel=1e-6)
 
 
 def quat_mul(a, b):

@@ -201,10 +201,27 @@ def test_ggl_friction_refuses_what_it_cannot_take_by_name():
     sim = _incline(0.5, 0.3, formulation="ggl")
     with pytest.raises(LagcodegenError, match="native IDA driver"):
         sim.simulate((0, 1), q0=[0.0, 0.0], v0=[0.0, 0.0], backend="sksundae")
-    general = compile_constrained(_sphere_system(MU, 0.0, "quaternion", "xy"), "ggl")
-    q0, u0 = _start("quaternion", (1.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    with pytest.raises(LagcodegenError, match="generalized speeds"):
-        general.simulate((0, 0.1), q0=q0, v0=u0)
+
+
+@pytest.mark.parametrize("tangents", ["y", "xy"])
+def test_ggl_quaternion_sphere_with_backspin_slips_then_rolls(tangents):
+    """Generalized speeds on the GGL driver (a free joint in quaternions, the positions corrected
+    along the speeds' images q' - k(q, v + R_h^T mu)): the sphere launched with backspin slips
+    until t* = 2 (v0 + R w0) / (7 mu g), then rolls at (5 v0 - 2 R w0) / 7, both to 1e-9; the
+    quaternion keeps its unit norm and the centre its height."""
+    v0, w0 = 3.0, 4.0
+    sim = compile_constrained(_sphere_system(MU, 0.0, "quaternion", tangents), "ggl")
+    t_star = 2 * (v0 + RADIUS * w0) / (7 * MU * G)
+    t = np.linspace(0, 2 * t_star, 40)
+    q0, u0 = _start("quaternion", (0, v0, 0), (w0, 0, 0))
+    res = sim.simulate(t, q0=q0, v0=u0, **TIGHT)
+    grips = res.impacts.transitions(0)
+    assert [r.kind for r in grips] == ["grip"], res.impacts.records
+    assert grips[0].t == pytest.approx(t_star, rel=1e-9)
+    vy = np.array([sim.compiled.rhs(tt, yy)[1] for tt, yy in zip(res.t, res.y)])  # the centre's world y'
+    assert np.max(np.abs(vy[res.t > t_star] / ((5 * v0 - 2 * RADIUS * w0) / 7) - 1)) < 1e-9
+    assert np.max(np.abs(np.linalg.norm(res.y[:, 3:7], axis=1) - 1)) < 1e-9
+    assert np.max(np.abs(res.y[:, 2] - RADIUS)) < 1e-10
 
 
 def test_ggl_friction_code_and_the_impact_runtime_compile_strictly(tmp_path):

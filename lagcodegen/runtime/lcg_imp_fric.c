@@ -53,8 +53,9 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
  * iteration and, where that does not converge (contacts coupled, sticking forces that have just
  * reached the cone: a_t small and turning fast with d), by Newton's method on the directions of
  * all such slips together (fr_slip_newton); the mode is consistent when a_t lies along d
- * (fr_aligned). A slip that has just begun (|u| <= contact_speed) is offered slip (its direction
- * found again from its own), stick and release when another contact's mode changes. */
+ * (fr_aligned). When another contact's mode changes, a slip that has just begun (|u| <=
+ * contact_speed) is offered slip (its direction found again from its own) and release, and
+ * stick only where no mode is consistent without it. */
 
 #define FR_STICK 0
 #define FR_SLIP_POS 1
@@ -62,7 +63,8 @@ static void record(double *rec, int max_rec, int *n_rec, double t, int k, int ki
 #define FR_FREE 3
 #define FR_MAX_ENUM 4096 /* mode combinations enumerated at most */
 #define FR_REL 1e-9      /* relative tolerance of the consistency conditions */
-#define FR_SAME 1e-7     /* modes whose accelerations (velocity jumps) agree to this are one motion */
+#define FR_SAME 1e-6     /* modes whose accelerations (velocity jumps) agree to this are one motion (as FR_DIR_REL:
+                          * a slip whose tangential acceleration is negligible moves as the stick) */
 #define FR_PI 3.14159265358979323846
 #define FR_DIR_ITER 30   /* fixed-point iterations of a 3-D slip's direction at most */
 #define FR_DIR_REL 1e-6  /* a 3-D slip's tangential acceleration (velocity after an impact) below this,
@@ -657,7 +659,7 @@ int lcg_fr_modes(lcg_fric_ctx *d, double t, double *y, const int *ending, double
                  int *n_rec)
 {
     lcg_fric *f = d->fr;
-    int nk = d->im->nk, nj = d->im->nj, n = f->n, k, i, c, rc, total = 1, found = 0, grip = 0;
+    int nk = d->im->nk, nj = d->im->nj, n = f->n, k, i, c, rc, total = 1, found = 0, grip = 0, pass;
     double xscale = 0.0;
     char a[120], b[120];
 
@@ -669,94 +671,105 @@ int lcg_fr_modes(lcg_fric_ctx *d, double t, double *y, const int *ending, double
     if (fr_solve(d, d->active, f->fmode, f->dir, 1) != LCG_DAE_OK) /* the current modes' forces (guesses below) */
         for (i = 0; i < f->nrow; ++i)
             f->lam[i] = 0.0;
-    for (k = 0; k < nk; ++k) {
-        int *o = f->opts + 4 * k, no = 0, end = ending != NULL ? ending[k] : 0;
-        double u, u2;
-        lcg_fr_slip(f, k, &u, &u2);
-        f->u[k] = u;
-        f->u2[k] = u2;
-        if (cone3(f, k)) { /* the guess of a 3-D slip's direction: along u, or against the sticking force */
-            double nu = hypot(u, u2), lt = f->lam[f->trow[k]], lt2 = f->lam[f->trow2[k]], nl = hypot(lt, lt2);
-            int keep = f->fmode[k] != 0 && end == 0 && nu <= vtol; /* a slip just begun: its own direction */
-            f->gdir[2 * k] = keep ? f->dir[2 * k] : nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
-            f->gdir[2 * k + 1] = keep ? f->dir[2 * k + 1] : nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl
-                                                                                    : f->dir[2 * k + 1];
+    /* pass 0: a slip just begun goes on (or releases); pass 1, only if pass 0 finds no consistent
+     * mode: it may also stick (a slip just begun and a stick are both consistent at the limit of
+     * sticking, with accelerations that differ by the force's excess over the cone) */
+    for (pass = 0; pass < 2 && !found; ++pass) {
+        int begun = 0;
+        total = 1;
+        for (k = 0; k < nk; ++k) {
+            int *o = f->opts + 4 * k, no = 0, end = ending != NULL ? ending[k] : 0;
+            double u, u2;
+            lcg_fr_slip(f, k, &u, &u2);
+            f->u[k] = u;
+            f->u2[k] = u2;
+            if (cone3(f, k)) { /* the guess of a 3-D slip's direction: along u, or against the sticking force */
+                double nu = hypot(u, u2), lt = f->lam[f->trow[k]], lt2 = f->lam[f->trow2[k]], nl = hypot(lt, lt2);
+                int keep = f->fmode[k] != 0 && end == 0 && nu <= vtol; /* a slip just begun: its own direction */
+                f->gdir[2 * k] = keep ? f->dir[2 * k] : nu > vtol ? u / nu : nl > 0.0 ? -lt / nl : f->dir[2 * k];
+                f->gdir[2 * k + 1] = keep ? f->dir[2 * k + 1] : nu > vtol ? u2 / nu : nl > 0.0 ? -lt2 / nl
+                                                                                        : f->dir[2 * k + 1];
+            }
+            if (!d->active[k] || end == FR_END_RELEASE) {
+                o[no++] = FR_FREE;
+            } else if (cone3(f, k) && f->fmode[k] != 0 && end == 0 && hypot(u, u2) <= vtol) { /* 3-D, a slip just
+                                                                                               * begun: on */
+                o[no++] = FR_SLIP_POS;
+                if (pass == 1) /* when another contact's change turns its acceleration against d */
+                    o[no++] = FR_STICK;
+                o[no++] = FR_FREE;
+                begun = 1;
+            } else if (cone3(f, k) && hypot(u, u2) <= vtol) { /* 3-D from rest: stick, slip, release */
+                int cur = f->fmode[k] == 0 ? FR_STICK : FR_SLIP_POS;
+                for (i = 0; i < 4; ++i)
+                    if (i != FR_SLIP_NEG && !(end != 0 && i == cur && cur == FR_STICK))
+                        o[no++] = i;
+            } else if (cone3(f, k)) { /* 3-D slipping: on, d = u / |u| */
+                o[no++] = FR_SLIP_POS;
+                o[no++] = FR_FREE;
+            } else if (!coulomb(f, k)) {
+                o[no++] = FR_STICK;
+                o[no++] = FR_FREE;
+            } else if (fabs(u) <= vtol) {
+                int cur = f->fmode[k] == 0 ? FR_STICK : f->fmode[k] > 0 ? FR_SLIP_POS : FR_SLIP_NEG;
+                for (i = 0; i < 4; ++i)
+                    if (!(end != 0 && i == cur))
+                        o[no++] = i;
+            } else {
+                o[no++] = u > 0.0 ? FR_SLIP_POS : FR_SLIP_NEG;
+                o[no++] = FR_FREE;
+            }
+            f->nopt[k] = no;
+            if (total > FR_MAX_ENUM / no) {
+                snprintf(d->message, d->message_size, "more than %d stick/slip/release modes of the "
+                         "contacts in persistent contact at t = %.17g to enumerate", FR_MAX_ENUM, t);
+                return -1;
+            }
+            total *= no;
         }
-        if (!d->active[k] || end == FR_END_RELEASE) {
-            o[no++] = FR_FREE;
-        } else if (cone3(f, k) && f->fmode[k] != 0 && end == 0 && hypot(u, u2) <= vtol) { /* 3-D, a slip just
-                                                                                           * begun: on */
-            o[no++] = FR_SLIP_POS; /* first: of consistent modes with one motion the first is kept */
-            o[no++] = FR_STICK;    /* when another contact's change turns its acceleration against d */
-            o[no++] = FR_FREE;
-        } else if (cone3(f, k) && hypot(u, u2) <= vtol) { /* 3-D from rest: stick, slip, release */
-            int cur = f->fmode[k] == 0 ? FR_STICK : FR_SLIP_POS;
-            for (i = 0; i < 4; ++i)
-                if (i != FR_SLIP_NEG && !(end != 0 && i == cur && cur == FR_STICK))
-                    o[no++] = i;
-        } else if (cone3(f, k)) { /* 3-D slipping: on, d = u / |u| */
-            o[no++] = FR_SLIP_POS;
-            o[no++] = FR_FREE;
-        } else if (!coulomb(f, k)) {
-            o[no++] = FR_STICK;
-            o[no++] = FR_FREE;
-        } else if (fabs(u) <= vtol) {
-            int cur = f->fmode[k] == 0 ? FR_STICK : f->fmode[k] > 0 ? FR_SLIP_POS : FR_SLIP_NEG;
-            for (i = 0; i < 4; ++i)
-                if (!(end != 0 && i == cur))
-                    o[no++] = i;
-        } else {
-            o[no++] = u > 0.0 ? FR_SLIP_POS : FR_SLIP_NEG;
-            o[no++] = FR_FREE;
-        }
-        f->nopt[k] = no;
-        if (total > FR_MAX_ENUM / no) {
-            snprintf(d->message, d->message_size, "more than %d stick/slip/release modes of the "
-                     "contacts in persistent contact at t = %.17g to enumerate", FR_MAX_ENUM, t);
-            return -1;
-        }
-        total *= no;
-    }
-    for (c = 0; c < total; ++c) {
-        int ok = 1;
-        double lscale, ascale = 0.0;
-        rc = fr_try_mode(d, c, 1, &lscale);
-        if (rc == LCG_DAE_ERR_SINGULAR)
-            continue;
-        if (rc != LCG_DAE_OK)
-            return rc;
-        for (i = 0; i < n; ++i)
-            if (fabs(f->x[i]) > ascale)
-                ascale = fabs(f->x[i]);
-        ascale = FR_REL * (1.0 + ascale);
-        for (k = 0; k < nk && ok; ++k) {
-            if (f->tact[k]) {
-                double ln = f->lam[nj + k];
-                ok = ln >= -lscale;
-                if (ok && cone3(f, k) && f->tmode[k] == 0)
-                    ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * ln + lscale;
-                else if (ok && cone3(f, k) && !fr_slip_given(f, k))
-                    ok = fr_aligned(f, k, 1, ascale);
-                else if (ok && cone3(f, k))
-                    ok = 1;
-                else if (ok && coulomb(f, k) && f->tmode[k] == 0)
-                    ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * ln + lscale;
-                else if (ok && coulomb(f, k) && fabs(f->u[k]) <= vtol)
-                    ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 1) >= -ascale;
-            } else if (d->active[k]) {
-                ok = fr_row(f, nj + k, f->x, 1) >= -ascale;
+        for (c = 0; c < total; ++c) {
+            int ok = 1;
+            double lscale, ascale = 0.0;
+            rc = fr_try_mode(d, c, 1, &lscale);
+            if (rc == LCG_DAE_ERR_SINGULAR)
+                continue;
+            if (rc != LCG_DAE_OK)
+                return rc;
+            for (i = 0; i < n; ++i)
+                if (fabs(f->x[i]) > ascale)
+                    ascale = fabs(f->x[i]);
+            ascale = FR_REL * (1.0 + ascale);
+            for (k = 0; k < nk && ok; ++k) {
+                if (f->tact[k]) {
+                    double ln = f->lam[nj + k];
+                    ok = ln >= -lscale;
+                    if (ok && cone3(f, k) && f->tmode[k] == 0)
+                        ok = hypot(f->lam[f->trow[k]], f->lam[f->trow2[k]]) <= f->mu[k] * ln + lscale;
+                    else if (ok && cone3(f, k) && !fr_slip_given(f, k))
+                        ok = fr_aligned(f, k, 1, ascale);
+                    else if (ok && cone3(f, k))
+                        ok = 1;
+                    else if (ok && coulomb(f, k) && f->tmode[k] == 0)
+                        ok = fabs(f->lam[f->trow[k]]) <= f->mu[k] * ln + lscale;
+                    else if (ok && coulomb(f, k) && fabs(f->u[k]) <= vtol)
+                        ok = f->tmode[k] * fr_row(f, f->trow[k], f->x, 1) >= -ascale;
+                } else if (d->active[k]) {
+                    ok = fr_row(f, nj + k, f->x, 1) >= -ascale;
+                }
+            }
+            if (!ok)
+                continue;
+            if (fr_another_motion(f, nk, n, &found, &xscale)) {
+                fr_describe(d, d->active, f->bact, f->bmode, a, sizeof a);
+                fr_describe(d, d->active, f->tact, f->tmode, b, sizeof b);
+                snprintf(d->message, d->message_size, "Painleve's paradox (indeterminacy) at t = %.17g: the "
+                         "contact modes [%s] and [%s] are both consistent with Coulomb friction and give different "
+                         "accelerations (friction too large for this configuration)", t, a, b);
+                return -1;
             }
         }
-        if (!ok)
-            continue;
-        if (fr_another_motion(f, nk, n, &found, &xscale)) {
-            fr_describe(d, d->active, f->bact, f->bmode, a, sizeof a);
-            fr_describe(d, d->active, f->tact, f->tmode, b, sizeof b);
-            snprintf(d->message, d->message_size, "Painleve's paradox (indeterminacy) at t = %.17g: the "
-                     "contact modes [%s] and [%s] are both consistent with Coulomb friction and give different "
-                     "accelerations (friction too large for this configuration)", t, a, b);
-            return -1;
-        }
+        if (!begun)
+            break;
     }
     if (!found) {
         fr_describe(d, d->active, d->active, f->fmode, a, sizeof a);

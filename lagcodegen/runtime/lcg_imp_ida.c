@@ -12,7 +12,7 @@
  * impact law shared with the index-1 driver applies (lcg_imp_law.c: Newton's law jointly with
  * the active set, plastic impacts into persistent contact, the release of pulling contacts) and
  * IDA restarts from consistent values: lambda and v' from the index-1 system of the active rows
- * (im->crhs, no stabilization), mu = 0, q' = v. Outputs come from IDA's interpolant. */
+ * (im->crhs, no stabilization), mu = 0, q' = k(q, v, t). Outputs come from IDA's interpolant. */
 #include "lcg_control.h" /* first: POSIX */
 
 #include <math.h>
@@ -48,10 +48,13 @@ typedef struct {
     const lcg_imp_model *im;
     const lcg_dae_model *m;
     const double *p;
-    int n, nj, nk, nrow, nmu, nroot;
+    int n, nq, ny, nj, nk, nrow, nmu, nroot; /* n: the speeds v, nq: the coordinates, ny = nq + n */
+    int speeds;  /* 1: generalized speeds (q' = k(q, v, t)); 0: v = q' (nq = n) */
     int *active; /* nk: 1 in persistent contact */
     int *hrow;   /* nmu: the row of each mu (the holonomic equality rows, then the contacts) */
     double *M, *F, *R, *s, *h, *gam, *qd, *gk, *wk;
+    /* generalized speeds: the state (q, v + R_h^T mu) and the numbers there (only its q' used) */
+    double *y2, *M2, *F2, *R2, *s2, *h2, *gam2, *qd2;
     lcg_ida_stats *st;
     watch w;
     lcg_fric *fr;    /* NULL: no Coulomb friction (mu not given) */
@@ -93,13 +96,17 @@ static int row_slips(const imp_ida *d, int r, int *k, double *c)
     return 1;
 }
 
+/* The GGL residual (see lcg_imp_ida.h). With generalized speeds the coordinate rows are
+ * q' - k(q, v + R_h^T mu, t): the correction of the positions moves along the speeds' images
+ * (k is affine in v), so that h' = s + R_h R_h^T mu; mu = 0 on the solution, as in GGL's form
+ * q' - v - R_h^T mu for v = q'. */
 static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *data)
 {
     imp_ida *d = (imp_ida *)data;
     const double *yy = N_VGetArrayPointer(yyv), *yp = N_VGetArrayPointer(ypv);
     double *rr = N_VGetArrayPointer(rrv);
-    int n = d->n, i, j, r, rc;
-    const double *lam = yy + 2 * n, *mu = lam + d->nrow;
+    int n = d->n, nq = d->nq, ny = d->ny, i, j, r, rc, moved = 0;
+    const double *lam = yy + ny, *mu = lam + d->nrow;
 
     if (WATCH_TICK(&d->w))
         return -1;
@@ -108,36 +115,58 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
         return 1; /* non-finite: IDA retries with a smaller step */
     if (d->fr != NULL) /* 3-D slips: the direction of the force from the slip velocity here */
         lcg_fr_slip_directions(d->fr, d->nk);
+    if (d->speeds) { /* q' - k(q, v + R_h^T mu, t) */
+        for (i = 0; i < ny; ++i)
+            d->y2[i] = yy[i];
+        for (j = 0; j < d->nmu; ++j) {
+            r = d->hrow[j];
+            if (!row_on(d, r) || mu[j] == 0.0)
+                continue;
+            moved = 1;
+            for (i = 0; i < n; ++i)
+                d->y2[nq + i] += d->R[(long)r * n + i] * mu[j];
+        }
+        if (moved) {
+            rc = d->nf->eval(t, d->y2, d->p, d->M2, d->F2, d->R2, d->s2, d->h2, d->gam2, d->qd2);
+            if (rc != LCG_DAE_OK)
+                return 1;
+        }
+        for (i = 0; i < nq; ++i)
+            rr[i] = yp[i] - (moved ? d->qd2[i] : d->qd[i]);
+    } else {
+        for (i = 0; i < n; ++i)
+            rr[i] = yp[i] - yy[n + i];
+    }
     for (i = 0; i < n; ++i) {
         double acc = -d->F[i];
         for (j = 0; j < n; ++j)
-            acc += d->M[i * n + j] * yp[n + j];
-        rr[i] = yp[i] - yy[n + i];
-        rr[n + i] = acc;
+            acc += d->M[i * n + j] * yp[nq + j];
+        rr[nq + i] = acc;
     }
     for (r = 0; r < d->nrow; ++r) {
         int k;
         double c;
         if (row_on(d, r)) {
             for (i = 0; i < n; ++i)
-                rr[n + i] -= d->R[(long)r * n + i] * lam[r];
-            rr[2 * n + r] = d->s[r];
+                rr[nq + i] -= d->R[(long)r * n + i] * lam[r];
+            rr[ny + r] = d->s[r];
         } else if (row_slips(d, r, &k, &c)) { /* the friction force along T_r, by Coulomb's law */
             for (i = 0; i < n; ++i)
-                rr[n + i] -= d->R[(long)r * n + i] * lam[r];
-            rr[2 * n + r] = lam[r] - c * lam[d->nj + k];
+                rr[nq + i] -= d->R[(long)r * n + i] * lam[r];
+            rr[ny + r] = lam[r] - c * lam[d->nj + k];
         } else {
-            rr[2 * n + r] = lam[r];
+            rr[ny + r] = lam[r];
         }
     }
     for (j = 0; j < d->nmu; ++j) {
         r = d->hrow[j];
         if (row_on(d, r)) {
-            for (i = 0; i < n; ++i)
-                rr[i] -= d->R[(long)r * n + i] * mu[j];
-            rr[2 * n + d->nrow + j] = d->h[r];
+            if (!d->speeds)
+                for (i = 0; i < n; ++i)
+                    rr[i] -= d->R[(long)r * n + i] * mu[j];
+            rr[ny + d->nrow + j] = d->h[r];
         } else {
-            rr[2 * n + d->nrow + j] = mu[j];
+            rr[ny + d->nrow + j] = mu[j];
         }
     }
     return 0;
@@ -155,7 +184,7 @@ static int res(sunrealtype t, N_Vector yyv, N_Vector ypv, N_Vector rrv, void *da
 static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, void *data)
 {
     imp_ida *d = (imp_ida *)data;
-    const double *y = N_VGetArrayPointer(yyv), *lam = y + 2 * d->n;
+    const double *y = N_VGetArrayPointer(yyv), *lam = y + d->ny;
     int k, rc, slipping = 0;
     (void)ypv;
 
@@ -172,7 +201,7 @@ static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, v
         }
     }
     if (rc == LCG_DAE_OK && d->nroot > 0)
-        rc = d->m->roots(t, y, y + 2 * d->n, d->p, gout + d->nk);
+        rc = d->m->roots(t, y, y + d->ny, d->p, gout + d->nk);
     if (rc != LCG_DAE_OK) {
         d->st->model_error = rc;
         d->st->t_reached = t;
@@ -191,22 +220,22 @@ static int roots(sunrealtype t, N_Vector yyv, N_Vector ypv, sunrealtype *gout, v
 /* yy, yp consistent with the state y = (q, v) at t and the current modes: lambda and v' from the
  * index-1 system of the active rows (no stabilization: the hidden constraints of the DAE; with
  * friction the friction core's contact problem of the current modes, the tangential multipliers
- * of slipping contacts by Coulomb's law), q' = v, mu = 0. */
+ * of slipping contacts by Coulomb's law), q' = k(q, v, t), mu = 0. */
 static int consistent(imp_ida *d, double t, const double *y, double *yy, double *yp, int ng)
 {
-    int i, n = d->n, rc;
+    int i, rc;
 
     if (d->fr != NULL)
-        rc = lcg_fr_crhs(&d->fc, t, y, yp, yy + 2 * n);
+        rc = lcg_fr_crhs(&d->fc, t, y, yp, yy + d->ny);
     else
-        rc = d->im->crhs(t, y, d->p, 0.0, 0.0, d->active, yp, yy + 2 * n);
+        rc = d->im->crhs(t, y, d->p, 0.0, 0.0, d->active, yp, yy + d->ny);
     if (rc != LCG_DAE_OK)
         return rc;
-    for (i = 0; i < 2 * n; ++i)
+    for (i = 0; i < d->ny; ++i)
         yy[i] = y[i];
-    for (i = 2 * n + d->nrow; i < ng; ++i)
+    for (i = d->ny + d->nrow; i < ng; ++i)
         yy[i] = 0.0;
-    for (i = 2 * n; i < ng; ++i)
+    for (i = d->ny; i < ng; ++i)
         yp[i] = 0.0;
     return LCG_DAE_OK;
 }
@@ -243,22 +272,22 @@ static void add_counts(void *mem, lcg_ida_stats *st, int roots_on)
 static int output_row(const imp_ida *d, void *mem, double t, N_Vector tmp, double *yrow, double *lrow, double *orow)
 {
     const double *v = N_VGetArrayPointer(tmp);
-    int i, n = d->n;
+    int i, ny = d->ny;
 
     if (IDAGetDky(mem, t, 0, tmp) < 0)
         return LCG_DAE_ERR_NONFINITE;
-    for (i = 0; i < 2 * n; ++i)
+    for (i = 0; i < ny; ++i)
         yrow[i] = v[i];
     for (i = 0; i < d->nrow; ++i)
-        lrow[i] = v[2 * n + i];
-    return d->m->coutputs(t, v, v + 2 * n, d->p, orow);
+        lrow[i] = v[ny + i];
+    return d->m->coutputs(t, v, v + ny, d->p, orow);
 }
 
 /* Integrate with impacts on IDA; see lcg_imp_ida.h. */
 int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const double *y0, int nt, const double *tout,
                       double *yout, double *out, double *lamout, const lcg_ida_options *opt, const double *e,
                       const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_ida_stats *st,
-                      lcg_events *ev, double *extra, const double *mu)
+                      lcg_events *ev, double *extra, const double *mu, int speeds)
 {
     SUNContext ctx = NULL;
     void *mem = NULL;
@@ -276,7 +305,7 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     double tprev, tret = tout[0];
     int *ibuf = NULL, *hit, *rows, *info, *dirs;
     long nst = 0;
-    int n, ny, nj, nk, nrow, nmu, ng, nroot, nall, i, j, k, kout, flag = 0, rc, quiet = 0;
+    int n, nq, ny, nj, nk, nrow, nmu, ng, nroot, nall, i, j, k, kout, flag = 0, rc, quiet = 0;
 
     memset(st, 0, sizeof *st);
     st->t_reached = tout[0];
@@ -285,14 +314,16 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     im = nums != NULL ? nums->imp : NULL;
     if (nums == NULL || nums->abi != LCG_IMP_FRICTION_ABI || im == NULL || im->abi != LCG_IMP_MODEL_ABI
         || im->dae == NULL || im->dae->abi != LCG_DAE_MODEL_ABI || im->nk < 1 || im->nq != im->dae->nq
-        || im->nj != im->dae->nj || im->dae->ny != 2 * im->nq || im->nrow != im->nj + im->nk + nums->nt) {
+        || im->nj != im->dae->nj || im->dae->ny <= im->nq || (!speeds && im->dae->ny != 2 * im->nq)
+        || im->nrow != im->nj + im->nk + nums->nt) {
         snprintf(st->message, sizeof st->message, "the contact tables are unusable (lcg_imp_model version %d, "
-                 "this driver reads version %d, with v = q')", im != NULL ? im->abi : -1, LCG_IMP_MODEL_ABI);
+                 "this driver reads version %d)", im != NULL ? im->abi : -1, LCG_IMP_MODEL_ABI);
         return st->flag = LCG_FLAG_BAD_INPUT;
     }
     m = im->dae;
-    n = im->nq;
-    ny = 2 * n;
+    nq = im->nq;
+    ny = m->ny;
+    n = ny - nq; /* the speeds */
     nj = im->nj;
     nk = im->nk;
     nrow = im->nrow;
@@ -310,11 +341,12 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
         ev->n_events = 0;
         ev->terminated = 0;
     }
-    /* doubles: M[n n], F[n], R[nrow n], s, h, gam[nrow], qd[n], gk, wk[nk], ys[ny], ydot[ny], lamtmp[nrow],
-     * last[nk], scratch[2 nk + nrow + ny], gprev[nk], wa[nk]; ints: hrow[nmu], hit[nk], rows[2 nk],
-     * info[nall], dirs[nall] */
+    /* doubles: M[n n], F[n], R[nrow n], s, h, gam[nrow], qd[nq], gk, wk[nk], ys[ny], ydot[ny], lamtmp[nrow],
+     * last[nk], scratch[2 nk + nrow + ny], gprev[nk], wa[nk], and with generalized speeds y2[ny] and the
+     * numbers there (M2 ... qd2); ints: hrow[nmu], hit[nk], rows[2 nk], info[nall], dirs[nall] */
     buf = (double *)malloc(sizeof(double) * (size_t)(n * n + n + nrow * n + 3 * nrow + 2 * nk + 2 * ny + nrow + nk
-                                                     + 2 * nk + nrow + ny + 2 * nk + n));
+                                                     + 2 * nk + nrow + ny + 2 * nk + nq
+                                                     + (speeds ? ny + n * n + n + nrow * n + 3 * nrow + nq : 0)));
     ibuf = (int *)malloc(sizeof(int) * (size_t)(nmu + 3 * nk + 2 * nall));
     if (buf == NULL || ibuf == NULL) {
         free(buf);
@@ -329,8 +361,8 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     d.s = d.R + nrow * n;
     d.h = d.s + nrow;
     d.gam = d.h + nrow;
-    d.qd = d.gam + nrow; /* q' = k(q, v, t) of the numbers' table (v = q' here: unused) */
-    d.gk = d.qd + n;
+    d.qd = d.gam + nrow; /* q' = k(q, v, t) of the numbers' table */
+    d.gk = d.qd + nq;
     d.wk = d.gk + nk;
     ys = d.wk + nk;
     ydot = ys + ny;
@@ -339,6 +371,17 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     scratch = last + nk;
     gprev = scratch + 2 * nk + nrow + ny;
     wa = gprev + nk;
+    d.y2 = d.M2 = d.F2 = d.R2 = d.s2 = d.h2 = d.gam2 = d.qd2 = NULL;
+    if (speeds) {
+        d.y2 = wa + nk;
+        d.M2 = d.y2 + ny;
+        d.F2 = d.M2 + n * n;
+        d.R2 = d.F2 + n;
+        d.s2 = d.R2 + nrow * n;
+        d.h2 = d.s2 + nrow;
+        d.gam2 = d.h2 + nrow;
+        d.qd2 = d.gam2 + nrow;
+    }
     d.hrow = ibuf;
     hit = d.hrow + nmu;
     rows = hit + nk;
@@ -379,6 +422,9 @@ int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const doubl
     d.m = m;
     d.p = p;
     d.n = n;
+    d.nq = nq;
+    d.ny = ny;
+    d.speeds = speeds != 0;
     d.nj = nj;
     d.nk = nk;
     d.nrow = nrow;

@@ -8,10 +8,12 @@
 #include "lcg_imp.h"       /* the index-1 impact driver, the impact law (lcg_imp_law.h) */
 #include "lcg_ida_types.h" /* lcg_ida_options, lcg_ida_stats, lcg_events */
 
-/* Integrate the model of nums (nums->imp its contact table; y = (q, v), ny = 2 nq) from tout[0],
+/* Integrate the model of nums (nums->imp its contact table; y = (q, v), ny = nq + nv; speeds: 1
+ * for a model with generalized speeds, q' = k(q, v, t), 0 for v = q', ny = 2 nq) from tout[0],
  * y(tout[0]) = y0, as the GGL residual of the equality rows and of the contacts in persistent
  * contact with their tangential rows (no slip, or sticking):
- *   q' - v - R_h^T mu,  M v' - F - R^T lambda,  s_r = R_r v + R0_r (rows held),  h_r (holonomic rows held),
+ *   q' - v - R_h^T mu (speeds: q' - k(q, v + R_h^T mu, t)),  M v' - F - R^T lambda,
+ *   s_r = R_r v + R0_r (rows held),  h_r (holonomic rows held),
  * lambda_r = 0 and mu_r = 0 for the rows of free contacts; lambda, mu algebraic. Impacts
  * (lcg_imp_jump: Newton's law), persistent contact (a plastic impact) and release (the contact's
  * multiplier, an unknown of the DAE, reaching 0) as the index-1 driver lcg_imp.c applies them; at
@@ -37,6 +39,6 @@
 int lcg_imp_ida_solve(const lcg_imp_friction *nums, const double *p, const double *y0, int nt, const double *tout,
                       double *yout, double *out, double *lamout, const lcg_ida_options *opt, const double *e,
                       const double *set, int *active, int max_rec, double *rec, int *n_rec, lcg_ida_stats *st,
-                      lcg_events *ev, double *extra, const double *mu);
+                      lcg_events *ev, double *extra, const double *mu, int speeds);
 
 #endif

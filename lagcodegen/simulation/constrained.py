@@ -148,7 +148,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         Systems with contacts (:class:`~lagcodegen.theory.constraints.Inequality` with a
         restitution) run on an impact driver (:mod:`.constrained_impacts`: impacts, persistent
         contact and release in one call, Coulomb friction included; index-1: CVODE, native backend,
-        no projection; GGL: IDA, native backend, models with v = q'); the keyword
+        no projection; GGL: IDA, native backend); the keyword
         ``contacts`` (a :class:`~.constrained_impacts.ContactOptions`, taken from ``options``
         before the solver's options are resolved) sets how contacts switch, and ``res.impacts``
         lists what happened.
@@ -295,7 +295,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the impact driver takes for runs of this system with contacts from (t0, y0) with
         the parameters p on ``family`` (checked: index-1: CVODE, native backend, no projection;
-        GGL: IDA, native backend, v = q'; the contacts not violated at y0), as a
+        GGL: IDA, native backend; the contacts not violated at y0), as a
         :class:`~.constrained_impacts.ContactRun` (the runs of simulate, ensembles and the
         integrator object)."""
         contacts = _contact_options(contacts)
@@ -304,10 +304,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
             if backend != "native":
                 raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
                                       f"backend={backend!r}")
-            if self.system.model.general:
-                raise LagcodegenError(f"the GGL impact driver (IDA) takes models with v = q' only; model "
-                                      f"{self.system.model.name!r} has generalized speeds (nq = {self._n}, nv = "
-                                      f"{self.nv}): compile_constrained(system, 'index1') runs its contacts")
             runner = self._contact_runner(t0, y0, p)
             alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
             return ContactRun(runner, StepControl.of(family, rtol, atol), family.ggl_form(),

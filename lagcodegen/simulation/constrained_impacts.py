@@ -110,8 +110,9 @@ unknowns lambda of index-2 rows carry the velocity constraints' error divided by
 each root and impact the modes of all contacts are chosen by the friction core exactly as on the
 index-1 driver and IDA restarts from consistent values. A contact problem turning singular stops
 a GGL run where its determinant has fallen to 1e-4 of its value where the modes began (IDA cannot
-step up to the zero, where lambda is infinite). The GGL driver takes models with v = q' (not
-generalized speeds). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
+step up to the zero, where lambda is infinite). Models with generalized speeds (q' = k(q, v, t):
+quaternion bases) run there too, the positions corrected along the speeds' images,
+q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
 reduced model with the contacts in the remaining coordinates on the index-1 driver.
 
 **Taylor** (``method="taylor"``): the Taylor contact driver (:mod:`.taylor_impacts`) applies the
@@ -453,7 +454,8 @@ class ImpactRunner:
         start = time.perf_counter()
         mu = ffi.from_buffer("double[]", self.mu) if self.friction != ffi.NULL else ffi.NULL
         flag = self.rt.lib.lcg_imp_ida_solve(self.numbers, *self._arguments(buf, p, y0, opt, st),
-                                             ffi.from_buffer("double[]", extra), mu)
+                                             ffi.from_buffer("double[]", extra), mu,
+                                             int(bool(self.sim.system.model.general)))
         res = self._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "bdf", "IDA")
         res.stats["contact_retries"], res.stats["max_penetration"] = int(extra[0]), float(extra[1])
         res.stats["suppress_alg"] = bool(form.suppress_alg)
