@@ -115,13 +115,11 @@ quaternion bases) run there too, the positions corrected along the speeds' image
 q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal coordinates**: :class:`~.minimal.MinimalSimulation` runs the
 reduced model with the contacts in the remaining coordinates on the index-1 driver.
 
-**Taylor** (``method="taylor"``): the Taylor contact driver (:mod:`.taylor_impacts`) applies the
-same impact law to frictionless and no-slip contacts, impacts and releases located as roots of the
-Taylor polynomials of the gaps and the multipliers; the same records and outputs.
-
-Ensembles run each member as one call of the system's driver (index-1, GGL, or the Taylor contact
-driver), every member's events and contact log kept (:mod:`.impact_ensemble`); the integrator
-object makes one call per propagate call (:mod:`.impact_stepper`). Not supported with contacts:
+**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law, frictionless and no-slip
+contacts; impacts and releases are roots of the Taylor polynomials of the gaps and multipliers.
+Ensembles run each member as one call of the system's driver, every member's events and contact
+log kept (:mod:`.impact_ensemble`); the integrator object makes one call per propagate call
+(:mod:`.impact_stepper`). Not supported with contacts:
 the scikit-sundae backend, projection, Fortran model code.
 """
 
