@@ -4,7 +4,8 @@ stage on a solver's request: the forward sensitivity functions of a scene
 (:func:`constrained_sensitivity_library`), the event functions (:func:`events_library`) and
 their gradients (:func:`events_gradient_library`), the inverse-dynamics regressor
 (:func:`regressor_library`); of the Taylor integrator, a model's jet for the Taylor runtime's
-driver (:func:`taylor_jet_library`), its variational jet along a set of sensitivity directions
+driver (:func:`taylor_jet_library`), the jet of a constrained system with contacts
+(:func:`taylor_contact_library`), its variational jet along a set of sensitivity directions
 (:func:`taylor_variational_library`) and the standalone integrator (:func:`taylor_integrator`, a
 cffi module of its own built by :func:`lagcodegen.build.build`).
 
@@ -26,6 +27,7 @@ from .codegen.record import GeneratedCode, scene_of_code
 from .codegen.regressor import regressor_files, regressor_functions
 from .codegen.sensitivity import sensitivity_source
 from .codegen.sensitivity_constrained import constrained_sensitivity_source
+from .codegen.taylor.contacts import contact_jet_code
 from .codegen.taylor.decompose import Decomposition
 from .codegen.taylor.emit import jet_code, taylor_code
 from .codegen.taylor.variational_source import variational_sources
@@ -122,6 +124,20 @@ def taylor_jet_library(scene, events=(), *, cc: str | None = None, cflags: tuple
         cflags = LARGE_JET_CFLAGS
     return _built(f"the Taylor jet of model {code.model_name!r}", f"{code.prefix}_taylor", code.files,
                   {"table": f"{code.prefix}_taylor_table"}, (code, d, events), cc=cc, cflags=cflags, verbose=verbose)
+
+
+def taylor_contact_library(system, scene, events=(), *, cc: str | None = None, verbose: bool = False) -> Library:
+    """``<prefix>_taylor_contact_table``: the Taylor jet of the constrained ``system`` with contacts
+    (compiled from ``scene``) and its ``events``: its index-1 system of the rows held, for the Taylor contact driver
+    (:mod:`lagcodegen.codegen.taylor.contacts`, lagcodegen/runtime/lcg_taylor_imp.c); ``extra``
+    (the :class:`~lagcodegen.codegen.record.GeneratedCode`, its
+    :class:`~lagcodegen.codegen.taylor.decompose.Decomposition`, its
+    :class:`~lagcodegen.codegen.taylor.contacts.ContactRows`)."""
+    code, d, rows = contact_jet_code(system, scene, events)
+    cflags = LARGE_JET_CFLAGS if len(d.ops) >= LARGE_JET_OPS else DEFAULT_CFLAGS
+    return _built(f"the Taylor contact jet of model {code.model_name!r}", f"{code.prefix}_taylor_contact", code.files,
+                  {"table": f"{code.prefix}_taylor_contact_table"}, (code, d, rows), cc=cc, cflags=cflags,
+                  verbose=verbose)
 
 
 def taylor_variational_library(code: GeneratedCode, scene, directions: list[tuple[str, int]], names: list[str],

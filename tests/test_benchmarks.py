@@ -109,6 +109,17 @@ def test_peers_one_link(tmp_path, peer):
     assert all(finite(e) for e in errs) and errs[1] < errs[0]
 
 
+def test_taylor_contacts_tiny():
+    """benchmarks/taylor_contacts.py: both impact drivers run the ball; errors against the closed form."""
+    import taylor_contacts as tc
+    methods = {"CVODE Adams": "adams", "Taylor": "taylor"}
+    rows = tc.measure(tc.ball(), methods, [1e-6], 1)
+    assert [r["method"] for r in rows] == list(methods)
+    assert all(finite(r["error"]) and r["error"] < 1e-2 and r["s"] > 0 for r in rows)
+    eq = tc.equal_error(rows, methods, [1e-2])
+    assert eq[0]["Taylor how"] == "bound"
+
+
 def test_taylor_runtime_one_link():
     """benchmarks/taylor_runtime.py: both Taylor builds run (bit-identical, else it exits) and build."""
     import taylor_runtime as tr

@@ -29,7 +29,7 @@ def _ball(e: float, name: str = "cball"):
                                "index1", outputs=["energy"], events=[apex])
 
 
-def _cradle():
+def newtons_cradle():
     m = lcg.Model("ccradle")
     xs = m.coordinates("x1 x2 x3")
     m.parameters(m=1.0, d=0.1)
@@ -47,7 +47,7 @@ def ball():
 
 @pytest.fixture(scope="module")
 def cradle():
-    return _cradle()
+    return newtons_cradle()
 
 
 def _same_records(a, b) -> None:

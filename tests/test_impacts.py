@@ -99,11 +99,8 @@ def test_bouncing_ball_never_tunnels_at_ordinary_tolerances(e, tolerances, formu
     assert res.stats["max_penetration"] == pytest.approx(max(0.0, -y.min()), abs=1e-12) or y.min() >= 0
 
 
-def test_ball_released_when_the_floor_would_pull():
-    # a moving floor y_f(t) with y_f'' = 1 - 20 t: the ball resting on it is pushed with the
-    # multiplier lambda = m (g + y_f'') = m (g + 1 - 20 t), released where that turns negative,
-    # at t = (g + 1) / 20, then flies freely above the floor (which accelerates downwards
-    # faster than g)
+def lifting_floor():
+    """A ball resting on a moving floor y_f(t) = t^2/2 - 10 t^3/3 (y_f'' = 1 - 20 t), index-1."""
     m = lcg.Model("lift")
     (y,) = m.coordinates("y")
     m.parameters(g=G, m=1.0)
@@ -111,8 +108,16 @@ def test_ball_released_when_the_floor_would_pull():
     m.gravity(sp.Symbol("g"))
     t = m.t
     floor = 0.5 * t**2 - sp.Rational(10, 3) * t**3
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - floor, restitution=0.5)]),
-                              "index1")
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - floor, restitution=0.5)]),
+                               "index1")
+
+
+def test_ball_released_when_the_floor_would_pull():
+    # a moving floor y_f(t) with y_f'' = 1 - 20 t: the ball resting on it is pushed with the
+    # multiplier lambda = m (g + y_f'') = m (g + 1 - 20 t), released where that turns negative,
+    # at t = (g + 1) / 20, then flies freely above the floor (which accelerates downwards
+    # faster than g)
+    sim = lifting_floor()
     res = sim.simulate(np.linspace(0, 0.8, 81), q0=[0.0], v0=[0.0], rtol=1e-11, atol=1e-13)
     releases = res.impacts.select("release")
     assert releases, res.impacts.records
@@ -126,18 +131,23 @@ def test_ball_released_when_the_floor_would_pull():
     assert len(res.impacts) == 1
 
 
-@pytest.mark.parametrize("formulation", ["index1", "ggl"])
-def test_particle_leaves_the_sphere_in_the_same_run(formulation):
-    # the sphere x^2 + y^2 >= R^2 as a contact: the particle starts on top at rest relative to
-    # it (persistent contact, multiplier > 0), is released where the multiplier turns negative,
-    # at cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on in the same call
+def sphere_contact(formulation: str):
+    """A particle outside the sphere x^2 + y^2 >= R^2 (R = 1) as a plastic contact."""
     m = lcg.Model("sphere_contact")
     x, y = m.coordinates("x y")
     m.parameters(R=1.0, g=G, m=1.0)
     m.particle("p", sp.Symbol("m"), (x, y))
     m.gravity(sp.Symbol("g"))
     contact = lcg.Inequality(x**2 + y**2 - sp.Symbol("R") ** 2, restitution=0.0)
-    sim = compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), formulation, outputs=["energy"])
+    return compile_constrained(lcg.ConstrainedSystem(m, inequalities=[contact]), formulation, outputs=["energy"])
+
+
+@pytest.mark.parametrize("formulation", ["index1", "ggl"])
+def test_particle_leaves_the_sphere_in_the_same_run(formulation):
+    # the sphere x^2 + y^2 >= R^2 as a contact: the particle starts on top at rest relative to
+    # it (persistent contact, multiplier > 0), is released where the multiplier turns negative,
+    # at cos(theta) = (2 + v0^2 / (g R)) / 3, and flies on in the same call
+    sim = sphere_contact(formulation)
     v0 = 1e-3
     res = sim.simulate(np.linspace(0, 3.2, 321), q0=[0.0, 1.0], v0=[v0, 0.0], rtol=1e-11, atol=1e-13)
     assert [r.kind for r in res.impacts] == ["release"]
@@ -157,9 +167,9 @@ def test_particle_leaves_the_sphere_in_the_same_run(formulation):
     assert res.impacts.final_modes == {0: "free"}
 
 
-def _cradle(formulation: str = "index1", lang: str = "c"):
-    """Three balls on a line, 0.1 apart at contact (elastic contacts between neighbours),
-    compiled with its model code in ``lang``."""
+def newtons_cradle(formulation: str = "index1", lang: str = "c"):
+    """Three balls of diameter d = 0.1 on a line, elastic contacts between neighbours, compiled
+    with ``formulation`` and its model code in ``lang``."""
     m = lcg.Model("cradle")
     xs = m.coordinates("x1 x2 x3")
     m.parameters(m=1.0, d=0.1)
@@ -173,7 +183,7 @@ def _cradle(formulation: str = "index1", lang: str = "c"):
 
 @pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
 def test_newtons_cradle_passes_the_velocity_to_the_last_ball(formulation):
-    sim = _cradle(formulation)
+    sim = newtons_cradle(formulation)
     gap = 1e-3
     res = sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap], v0=[1.0, 0.0, 0.0],
                        rtol=1e-12, atol=1e-14)

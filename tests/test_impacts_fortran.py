@@ -26,7 +26,7 @@ from lagcodegen.simulation.constrained_impacts import ImpactRunner
 from helpers import STRICT_FFLAGS
 from test_friction import _incline
 from test_friction_speeds import MU, RADIUS, _incline_3d, _sphere_system, _start
-from test_impacts import _ball, _cradle, housner_block
+from test_impacts import _ball, newtons_cradle, housner_block
 
 G = 9.81
 TIGHT = {"rtol": 1e-12, "atol": 1e-14}
@@ -229,7 +229,7 @@ def test_fortran_ball_in_an_ensemble_and_the_integrator_object_runs_as_simulate(
 
 def test_fortran_newtons_cradle_passes_the_velocity_to_the_last_ball():
     gap = 1e-3
-    runs = {lang: _cradle("index1", lang).simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap],
+    runs = {lang: newtons_cradle("index1", lang).simulate(np.linspace(0, 1, 11), q0=[0.0, 0.1 + gap, 0.2 + 2 * gap],
                                                    v0=[1.0, 0.0, 0.0], **TIGHT) for lang in ("c", "fortran")}
     res = runs["fortran"]
     v = res.y[-1, 3:]

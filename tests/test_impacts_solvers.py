@@ -2,7 +2,7 @@
 and GGL on IDA. tests/test_impacts.py holds the bouncing ball, Newton's cradle and the particle
 leaving the sphere to its bounds on every formulation; here: a pendulum in Cartesian coordinates
 hitting a wall (quadrature, Newton's law, the index-1 run), Housner's block on GGL, apex events,
-the shipped model file, loose tolerances, and the refusals (Taylor, friction on GGL, ...)."""
+the shipped model file, loose tolerances, and the refusals (Taylor on GGL, friction on GGL, ...)."""
 
 from __future__ import annotations
 
@@ -119,12 +119,19 @@ def test_model_file_contact_on_ggl_and_minimal(formulation):
     assert abs(res["y"][-1]) < 1e-9
 
 
-@pytest.mark.parametrize("formulation", ["index1", "ggl", "minimal"])
-def test_taylor_refuses_contacts_by_name(formulation):
-    sim = compile_constrained(_ball_system(0.5), formulation)
-    for options in ({"method": "taylor"}, {"solver": lcg.Taylor()}):
-        with pytest.raises(LagcodegenError, match="contacts .* do not run on the Taylor method: it integrates ODEs"):
-            sim.simulate((0, 1), q0=[1.0], v0=[0.0], **options)
+def test_taylor_runs_contacts_on_index1_and_minimal_and_ggl_refuses_it():
+    """Both spellings of the Taylor method run contacts on the index-1 and minimal formulations
+    (tests/test_impacts_taylor.py checks them); GGL takes its contacts on IDA."""
+    for formulation in ("index1", "minimal"):
+        sim = compile_constrained(_ball_system(0.5), formulation)
+        for options in ({"method": "taylor"}, {"solver": lcg.Taylor()}):
+            res = sim.simulate((0, 1), q0=[1.0], v0=[0.0], **options)
+            assert res.method == "taylor" and res.impacts.select("bounce")[0].t == pytest.approx(math.sqrt(2 / G))
+    sim = compile_constrained(_ball_system(0.5), "ggl")
+    with pytest.raises(LagcodegenError, match="IDA integrates with BDF only"):
+        sim.simulate((0, 1), q0=[1.0], v0=[0.0], method="taylor")
+    with pytest.raises(LagcodegenError, match="Taylor integrates .* not a constrained system in the GGL form"):
+        sim.simulate((0, 1), q0=[1.0], v0=[0.0], solver=lcg.Taylor())
 
 
 def test_ggl_housner_block_on_no_slip_corners():

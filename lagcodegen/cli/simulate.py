@@ -70,7 +70,8 @@ def add_parser(sub) -> None:
     s.add_argument("--n-out", type=int, help="number of output times (at least 2)")
     s.add_argument("--method", choices=["adams", "bdf", "taylor", "auto"],
                    help="adams/bdf: CVODE; taylor: the generated Taylor integrator (files without "
-                        "[constraints]); auto: Taylor or Adams by the model's size")
+                        "[constraints], or whose constraints include contacts); auto: Taylor or Adams by "
+                        "the model's size")
     s.add_argument("--max-steps", type=int, help="step budget of the whole run (default 1000000)")
     s.add_argument("--rtol", type=float, help="relative tolerance (default: the file's)")
     s.add_argument("--atol", type=float, help="absolute tolerance (default: the file's)")

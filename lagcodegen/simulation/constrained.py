@@ -122,6 +122,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         self.ida_stats_pool: list = []
         self._default_parameters = dict(zip(self.param_names, self._default_p))  # Result.parameters
         self._impact_runner = None  # the impact driver on this model (systems with contacts), made on first use
+        self._taylor_impact_runner = None  # the Taylor contact driver on this model, made on first use
 
     # ------------------------------------------------------------------ simulate
     @attaches_run_drawing
@@ -169,11 +170,6 @@ class ConstrainedSimulation(ConstrainedFunctions):
             raise LagcodegenError("sensitivities are computed for the index-1 formulation (CVODE) and minimal "
                                   "coordinates, not for GGL on IDA: compile_constrained(system, 'index1')")
         contacts = options.pop("contacts", None)  # the run's contact settings, not a solver option
-        if self.info.contacts and (options.get("method") == "taylor" or type(solver).__name__ == "Taylor"):
-            raise LagcodegenError("contacts (Inequality with a restitution) do not run on the Taylor method: it "
-                                  "integrates ODEs only, and a contact at rest is a constraint held with its "
-                                  "multiplier (eq. 4.5); contacts run on formulation 'index1' (CVODE), 'ggl' (IDA) "
-                                  "or 'minimal' (the reduced model's contacts on CVODE)")
         family = resolve(self.formulation, solver, options)
         t = self._times(t)
         q0, v0 = file_initial(self, q0, v0)
@@ -257,6 +253,44 @@ class ConstrainedSimulation(ConstrainedFunctions):
         one value that stops the run (-80) once set."""
         run = self.contact_run(family, float(t[0]), y0, p, rtol, atol, roots, contacts)
         return run.execute(t, y0, p, cancel=cancel)
+
+    def run_contacts_taylor(self, family, t, y0, p, rtol, atol, *, roots: bool, contacts, cancel=None) -> Result:
+        """A run of this system with contacts on the Taylor contact driver (:mod:`.taylor_impacts`:
+        impacts and releases located on the Taylor polynomials of the gaps and multipliers, the
+        impact law of the index-1 driver) with the Taylor family ``family`` (its ``order``, budgets,
+        ``baumgarte`` and ``max_events``), ``roots``: locate the compiled events; ``cancel``: None,
+        or a numpy int array of one value that stops the run (-80) once set. The GGL formulation
+        takes its contacts on IDA only."""
+        run = self.taylor_contact_run(family, float(t[0]), y0, p, rtol, atol, roots=roots, contacts=contacts)
+        return run.execute(t, y0, p, cancel=cancel)
+
+    def taylor_contact_run(self, family, t0: float, y0, p, rtol, atol, *, roots: bool, contacts) -> ContactRun:
+        """What the Taylor contact driver (:mod:`.taylor_impacts`) takes for runs of this system
+        from (t0, y0) with the parameters p on the Taylor family ``family`` (``roots``: locate the
+        compiled events), as a :class:`~.constrained_impacts.ContactRun` (the contacts checked at y0)."""
+        if self._ggl:
+            raise LagcodegenError("the Taylor method runs contacts in the index-1 formulation: "
+                                  "compile_constrained(system, 'index1')")
+        rtol, atol = tolerances(rtol, atol, self._ny, scalar=True)
+        if not isinstance(atol, float):
+            raise LagcodegenError("runs with contacts take a scalar atol")
+        impacts = self._contact_runner(t0, y0, p)
+        runner = self._taylor_impact_runner
+        if runner is None:
+            from .taylor_impacts import TaylorImpactRunner
+            runner = self._taylor_impact_runner = TaylorImpactRunner(self, impacts)
+        alpha, beta = self.stabilization(family.baumgarte, False, t0, y0, p, True)
+        return ContactRun(runner, family.control(rtol, atol), Index1Form(float(alpha), float(beta)),
+                          Recording(roots=bool(roots), max_events=family.max_events), _contact_options(contacts))
+
+    def contact_stepper_taylor(self, family, mem, rtol, atol, *, roots: bool, contacts) -> ImpactStepper:
+        """The stepper of an integrator object of this system with contacts on the Taylor method
+        (:mod:`.impact_stepper`: each call one run of the Taylor contact driver) on ``mem`` =
+        (t0, y0, p)."""
+        ny = self._ny
+        t0, y0, p = float(mem[0]), mem[1:1 + ny], mem[1 + ny:]
+        run = self.taylor_contact_run(family, t0, y0, p, rtol, atol, roots=roots, contacts=contacts)
+        return ImpactStepper(self, run, mem)
 
     def contact_run(self, family, t0: float, y0, p, rtol, atol, roots: bool, contacts) -> ContactRun:
         """What the impact driver takes for runs of this system with contacts from (t0, y0) with

@@ -47,14 +47,12 @@ of Housner's rocking block. Active rows that are dependent (a block resting flat
 corners) are solved with a small regularization of the multiplier block (see the generated
 ``solve_active``).
 
-**Coulomb friction** (index-1 and GGL). An :class:`~lagcodegen.theory.constraints.Inequality` with a ``tangent``
-and ``friction=mu`` (the tangent a position expression whose time derivative is the slip velocity
-u = T q' + T0) obeys Coulomb's law on its multipliers. It is not an ideal constraint (sec. 4.3
-takes the force along A): while slipping the force G^T lambda_n + T^T lambda_t has
-lambda_t = -mu lambda_n sign(u) set by the law, not a multiplier of its own. In persistent contact it sticks (row T
-held, lambda_t free) while |lambda_t| <= mu lambda_n, and slips otherwise with lambda_t =
--mu lambda_n sign(u) (the normal row's force direction becomes G - sign(u) mu T, so the system
-is no longer symmetric). Transitions are roots located by CVODE: stick -> slip where
+**Coulomb friction** (index-1 and GGL). An :class:`~lagcodegen.theory.constraints.Inequality`
+with a ``tangent`` and ``friction=mu`` (a position expression whose time derivative is the slip
+velocity u = T q' + T0) obeys Coulomb's law, not an ideal constraint's (sec. 4.3): in persistent
+contact it sticks (row T held, lambda_t free) while |lambda_t| <= mu lambda_n, and slips
+otherwise with lambda_t = -mu lambda_n sign(u) set by the law (the normal row's force direction
+G - sign(u) mu T: the system is no longer symmetric). Transitions are roots located by CVODE: stick -> slip where
 mu lambda_n -+ lambda_t reaches 0, slip -> stick or reversal where u reaches 0 (then the
 sticking force decides: admissible, it grips; else it slips the other way), release where
 lambda_n reaches 0. At each switch and impact the modes of all contacts in persistent contact
@@ -74,26 +72,22 @@ has its slip velocity projected to 0. ``Result.impacts`` records the transitions
 A contact with two tangents (3-D) has the exact circular cone: it sticks while |lambda_t| <=
 mu lambda_n, slips with the force -mu lambda_n u/|u| against its slip velocity (mode "slip", the
 outputs ``lambda_t0_ineq_<k>``, ``lambda_t1_ineq_<k>``); a slip from rest and a sliding impulse
-take the direction that makes the force oppose the resulting slip (fixed-point iteration). Models
+take the direction that makes the force oppose the resulting slip (fixed-point iteration, and
+Newton's method on all such directions together where contacts are coupled). Models
 with generalized speeds take friction alike (the rows act on v, q' = k(q, v, t)).
 
-*Where it lives*: in the model-independent C runtime (lagcodegen/runtime/lcg_imp_fric.c, "Coulomb
-friction", called by the drivers lcg_imp.c and lcg_imp_ida.c), which builds and solves the contact
-problem of each mode from the model's numbers (M, F, rows, gamma) that the generated
-``<prefix>_impact.c`` (or ``.f90``) gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated
-only for systems with friction or the GGL formulation, so the code of other systems is
-unchanged): no Python in the loop, Ctrl-C polled as by every run. Roots are seen where their
-sign differs at CVODE's step ends; so that a friction limit is not crossed and recrossed within
-one step while a contact sticks under forcing that depends on time alone (the state constant, the
-steps growing), CVODE's state carries the integrals of the contact forces,
-whose error control keeps the steps to the forces' time scale (at the run's tolerances).
-Impacts with friction and Newton's law can gain energy in some configurations (a known property
-of that impact law); the law is applied as stated. Coulomb friction runs on the native backends
-of CVODE (index-1) and IDA (GGL, below); other solvers are refused naming them. The
-solver-independent part (the contact problem of a mode, the enumeration of the modes, frictional
-impacts, slip directions, the roots, the Painleve messages) is the friction core
-lagcodegen/runtime/lcg_imp_fric.c, which both drivers call; C bundles of such systems ship it
-and their RK4 example drives it (:mod:`lagcodegen.codegen.bundle_contacts`).
+*Where it lives*: the friction core lagcodegen/runtime/lcg_imp_fric.c (the contact problem of a
+mode, the enumeration of the modes, frictional impacts, slip directions, the roots, the Painleve
+messages), called by the drivers lcg_imp.c (index-1) and lcg_imp_ida.c (GGL) and shipped with C
+bundles, whose RK4 example drives it (:mod:`lagcodegen.codegen.bundle_contacts`); it solves the
+modes from the model's numbers (M, F, rows, gamma) that the generated ``<prefix>_impact.c`` (or
+``.f90``) gives through the table ``lcg_imp_friction`` (lcg_imp_model.h; generated only for
+systems with friction or the GGL formulation): no Python in the loop, Ctrl-C polled. So that a
+friction limit is not crossed and recrossed within one CVODE step while a contact sticks under
+forcing that depends on time alone, CVODE's state carries the integrals of the contact forces,
+whose error control keeps the steps to the forces' time scale. Impacts with friction and
+Newton's law can gain energy in some configurations (a known property of that impact law); the
+law is applied as stated. Other solvers than the native CVODE and IDA are refused by name.
 
 **GGL on IDA** (:meth:`ImpactRunner.run_ggl`, lagcodegen/runtime/lcg_imp_ida.c): the equality rows
 and the contacts in persistent contact (with their no-slip tangential rows) are rows of the GGL
@@ -118,12 +112,15 @@ q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal
 :class:`~.minimal.MinimalSimulation` runs the reduced model with the contacts in the remaining
 coordinates on the index-1 driver.
 
-Ensembles run each member as one call of the system's driver (index-1 or GGL), every member's
-events and contact log kept (:mod:`.impact_ensemble`); the integrator object makes one call per
-propagate call (:mod:`.impact_stepper`). Fortran model code (``lang="fortran"``) runs on the
-same drivers: its contact functions are bound to the C names, with the same tables, and its runs
-are the C code's (bit for bit where neither compiler fuses multiply-adds). Not supported with
-contacts: Taylor (it takes no constrained system), the scikit-sundae backend, projection.
+**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law, frictionless and no-slip
+contacts; impacts and releases are roots of the Taylor polynomials of the gaps and multipliers
+(Coulomb friction is refused there by name). Ensembles run each member as one call of the
+system's driver (index-1, GGL or Taylor), every member's events and contact log kept
+(:mod:`.impact_ensemble`); the integrator object makes one call per propagate call
+(:mod:`.impact_stepper`). Fortran model code (``lang="fortran"``) runs on the same drivers: its
+contact functions are bound to the C names, with the same tables, and its runs are the C code's
+(bit for bit where neither compiler fuses multiply-adds). Not supported with contacts: the
+scikit-sundae backend, projection.
 """
 
 from __future__ import annotations
@@ -300,9 +297,10 @@ class ContactRun:
     index-1 driver; :class:`GGLForm`: the GGL driver on IDA, with ``alg_atol`` the absolute
     tolerance of its multipliers), what is recorded, the contact settings (made by
     ``ConstrainedSimulation.contact_run``: the runs of simulate, ensembles and the integrator
-    object)."""
+    object; ``taylor_contact_run``: those of the Taylor contact driver, :mod:`.taylor_impacts`,
+    whose runner takes the index-1 driver's arguments)."""
 
-    runner: "ImpactRunner"
+    runner: "ImpactRunner"  # or a TaylorImpactRunner (the index-1 driver's run signature)
     control: StepControl
     form: Index1Form | GGLForm
     recording: Recording
@@ -496,9 +494,10 @@ class ImpactRunner:
                 buf.max_records, fb("double[]", buf.rec), buf.n_rec, st,
                 buf.events.struct if buf.events else ffi.NULL]
 
-    def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str) -> Result:
+    def _result(self, raw: "_Raw", contacts: ContactOptions, method: str, solver: str, stats_of=None) -> Result:
         """The Result of a driver's call ``raw``: trajectory, outputs with the multipliers, events,
-        statistics and the contact log."""
+        statistics (``stats_of(st)``; None: a SUNDIALS driver's, :func:`native_stats`) and the
+        contact log."""
         sim, ffi = self.sim, self.ffi
         flag, st, events, t, p = raw.flag, raw.st, raw.events, raw.t, raw.p
         nj, ny = sim.info.J, sim.ny
@@ -517,7 +516,7 @@ class ImpactRunner:
                 o = np.full(oo.shape[1], np.nan)
             oo = np.vstack([oo, np.resize(o, (1, oo.shape[1]))])
             ll = np.vstack([ll, np.full((1, ll.shape[1]), np.nan)])
-        stats = native_stats(ffi, st)
+        stats = native_stats(ffi, st) if stats_of is None else stats_of(st)
         stats["wall_time"] = raw.wall
         if events:  # every event found (those beyond max_events not kept)
             stats["events"] = int(events.struct.n_events)

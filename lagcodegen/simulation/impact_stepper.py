@@ -5,7 +5,8 @@ lagcodegen/runtime/lcg_imp_ida.c on IDA; impacts located inside the steps and th
 persistent contact and release, Coulomb friction) from the integrator's memory ``(t, y, p)``, the
 modes of the contacts carried from one call to the next (with friction the driver chooses the
 stick/slip modes of those in contact again at the start of a call, from the slip velocities, as at
-the start of any run).
+the start of any run); on the Taylor method each call is one run of the Taylor contact driver
+(:mod:`.taylor_impacts`, lagcodegen/runtime/lcg_taylor_imp.c).
 
 A call of ``propagate_grid`` over the times of a ``simulate`` run is that run: the same driver
 call, bit-identical. Between calls the integrator starts afresh from the state reached (its step
@@ -33,7 +34,8 @@ class ImpactStepper:
     def __init__(self, sim, run, mem: np.ndarray):
         self.sim = sim
         self.run = run
-        self.family = "ida" if isinstance(run.form, GGLForm) else "cvode"
+        # the driver's family: the Taylor contact driver's "taylor", else IDA (GGL) or CVODE (index-1)
+        self.family = getattr(run.runner, "family", None) or ("ida" if isinstance(run.form, GGLForm) else "cvode")
         self.mem = mem
         self.ffi = run.runner.ffi
         self.events = list(sim.info.events) if run.recording.roots else []

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...errors import LagcodegenError
+from ...util import check_baumgarte
 from ...result import Result
 from ..family import Family, combinations, ode_ensemble, ode_run, ode_stepper, take_sensitivities
 from ..request import Recording, StepControl
@@ -14,6 +15,11 @@ from .run import run_taylor, taylor_module
 from .prepared import PreparedTaylorRun
 from .stepper import TaylorSensitivityStepper, TaylorStepper
 
+
+#: Why Taylor refuses a constrained system without contacts.
+_NO_CONSTRAINED = ("the Taylor method integrates constrained systems with contacts (Inequality with a restitution) "
+                   "only, on its contact driver; constrained systems without contacts run on CVODE (method='adams' "
+                   "or 'bdf') or IDA (formulation 'ggl')")
 
 #: The fields a prepared run honours (max_events: the events kept by a prepared run with events).
 _PREPARED = frozenset(("max_steps", "max_step", "max_wall", "order", "max_events"))
@@ -30,21 +36,34 @@ class Taylor(Family):
     (:mod:`.variational`, :mod:`.sensitivity`: built on first use per set of names and events),
     in runs, ensembles and the integrator object, with events too (their times' sensitivities
     in the records, as on CVODE); ``sensitivity_errcon`` the
-    sensitivities in the step-size rule (default True, as CVODE's)."""
+    sensitivities in the step-size rule (default True, as CVODE's).
+
+    Constrained systems with contacts (index-1 form; :mod:`lagcodegen.simulation.taylor_impacts`):
+    runs and ensembles on the Taylor contact driver, impacts and releases located on the
+    polynomials of the gaps and multipliers, ``baumgarte`` the stabilization of the rows held
+    (None: the system's compiled default); the integrator object of such systems (each propagate
+    call one run of the driver); their compiled events located on the steps' polynomials (those
+    using a multiplier refused). Refused by name: constrained systems without contacts, the
+    sensitivities of systems with contacts, Coulomb friction."""
 
     name = "Taylor"
     methods = ("taylor",)
-    faces = ("ode",)
+    faces = ("ode", "index1")
+    only = {"baumgarte": ("index1",)}
     ignores = ("jacobian",)
 
     order: int | None = None
     max_events: int = 10_000
     sensitivities: tuple[str, ...] | None = None
     sensitivity_errcon: bool = True
+    #: index-1 systems with contacts: Baumgarte's (alpha, beta) or "auto" (None: the compiled default)
+    baumgarte: tuple[float, float] | str | None = None
 
     def __post_init__(self):
         super().__post_init__()
         take_sensitivities(self)
+        if self.baumgarte is not None:
+            object.__setattr__(self, "baumgarte", check_baumgarte(self.baumgarte))
         if self.order is not None and not (isinstance(self.order, int) and 2 <= self.order):
             raise LagcodegenError(f"Taylor order must be an integer >= 2, got {self.order!r}")
 
@@ -165,9 +184,42 @@ class Taylor(Family):
             return self.prepared_ode_events(pr.sim, pr.rtol, pr.atol, rq.fixed, tuple(rq.events))
         return self.prepared_ode(pr.sim, pr.rtol, pr.atol, rq.fixed)
 
+    def run_index1(self, sim, t, y0, p, rtol, atol, *, roots: bool = False, contacts=None, cancel=None) -> Result:
+        """A run of the constrained system ``sim`` with contacts (``contacts``: the run's
+        :class:`~lagcodegen.simulation.constrained_impacts.ContactOptions`) on the Taylor contact
+        driver (:meth:`ConstrainedSimulation.run_contacts_taylor
+        <lagcodegen.simulation.constrained.ConstrainedSimulation>`); ``cancel``: an ensemble's flag
+        that stops the run once set. A system without contacts is refused by name."""
+        if contacts is None:
+            raise LagcodegenError(_NO_CONSTRAINED)
+        return sim.run_contacts_taylor(self, t, y0, p, rtol, atol, roots=roots, contacts=contacts, cancel=cancel)
+
+    def ensemble_index1(self, sim, t, Y, P, rtol, atol, roots: bool, *, threads, save, progress):
+        """Refused by name: ensembles of constrained systems without contacts (those with contacts
+        run each member through :meth:`run_index1`, :mod:`lagcodegen.simulation.impact_ensemble`)."""
+        raise LagcodegenError(_NO_CONSTRAINED)
+
+    def stepper_index1(self, sim, mem, rtol, atol, *, roots: bool = False, contacts=None):
+        """The stepper of an integrator object of the constrained system ``sim`` with contacts on
+        the memory ``mem`` = (t, y, p): each propagate call one run of the Taylor contact driver
+        (:meth:`ConstrainedSimulation.contact_stepper_taylor
+        <lagcodegen.simulation.constrained.ConstrainedSimulation>`). A system without contacts is
+        refused by name."""
+        if contacts is None:
+            raise LagcodegenError(_NO_CONSTRAINED)
+        return sim.contact_stepper_taylor(self, mem, rtol, atol, roots=roots, contacts=contacts)
+
+    def _index1_stepper(self, pr, rq):
+        return self.stepper_index1(pr.sim, pr.y, pr.rtol, pr.atol, roots=rq.roots, contacts=rq.contacts)
+
+    def _index1_run(self, pr, rq):
+        return self.run_index1(pr.sim, pr.t, pr.y, pr.p, pr.rtol, pr.atol, roots=rq.roots, contacts=rq.contacts,
+                               cancel=rq.cancel)
+
     #: What Taylor runs (Family.run), declared once: every other combination is refused by name
     #: (events with input tables; ensembles with input tables need sensitivities: those members
-    #: run on CVODE).
+    #: run on CVODE; of constrained systems, the runs of systems with contacts only, each member of
+    #: their ensembles one such run).
     runs = {
         ("ode", "run"): (ode_run, combinations("", "events", "inputs", "sensitivities", "events+sensitivities",
                                                 "inputs+sensitivities")),
@@ -175,11 +227,24 @@ class Taylor(Family):
         ("ode", "ensemble"): (ode_ensemble, combinations("", "events", "sensitivities", "events+sensitivities",
                                                           "inputs+sensitivities")),
         ("ode", "prepared"): (_ode_prepared, combinations("", "events", "sensitivities")),
+        # constrained systems with contacts (plain: a system without contacts, refused by run_index1 by name)
+        ("index1", "run"): (_index1_run, combinations("", "impacts", "events+impacts")),
+        ("index1", "stepper"): (_index1_stepper, combinations("", "impacts", "events+impacts")),
     }
     refusals = {
         ("ode", "ensemble", frozenset({"inputs"})):
             "input tables are interpolated by the native CVODE driver; Taylor ensembles do not take them without "
             "sensitivities (use method='adams' or 'bdf')",
+        ("index1", "run", frozenset({"events"})): _NO_CONSTRAINED,
+        ("index1", "run", frozenset({"sensitivities"})): _NO_CONSTRAINED,
+        ("index1", "run", frozenset({"events", "sensitivities"})): _NO_CONSTRAINED,
+        ("index1", "stepper", frozenset({"events"})): _NO_CONSTRAINED,
+        ("index1", "stepper", frozenset({"sensitivities", "impacts"})):
+            "the integrator object does not compute sensitivities",
+        ("index1", "run", frozenset({"sensitivities", "impacts"})):
+            "sensitivities of systems with contacts (impacts) are not computed",
+        ("index1", "run", frozenset({"events", "sensitivities", "impacts"})):
+            "sensitivities of systems with contacts (impacts) are not computed",
     }
 
     def control(self, rtol, atol) -> StepControl:
