@@ -169,8 +169,8 @@ def taylor_sources(scene: Scene, events=(), decomposition: Decomposition | None 
 
 #: The model-independent Taylor driver: real C files of lagcodegen/runtime/ (compiled once per
 #: installation into the Taylor runtime, :func:`lagcodegen.solvers.taylor.runner.taylor_runtime`).
-RUNTIME_FILES = ("lcg_taylor.c", "lcg_taylor.h", "lcg_taylor_driver.h", "lcg_taylor_roots.h", "lcg_control.h",
-                 "lcg_pool.h")
+RUNTIME_FILES = ("lcg_taylor.c", "lcg_taylor.h", "lcg_taylor_adapter.h", "lcg_taylor_driver.h", "lcg_taylor_roots.h",
+                 "lcg_control.h", "lcg_pool.h")
 #: The templates of what the runtime renders: the table of a model's jet (shipped with every jet too).
 RUNTIME_TEMPLATES = {"lcg_taylor_model.h": "taylor/lcg_taylor_model.h.j2"}
 #: Every template file the Taylor runtime's rendered sources come from (with those they include).
