@@ -244,6 +244,25 @@ def test_rocking_block_impact_ratio_on_a_frictionless_floor():
     assert first.impulse == pytest.approx(-b * (w_plus + w_minus), rel=1e-6)
 
 
+@pytest.mark.parametrize("rtol", [1e-12, 1e-8])
+def test_rocking_block_rocks_down_to_rest_flat_on_both_corners(rtol):
+    """After the first impact the frictionless block rocks with amplitudes shrinking by the ratio
+    above; the rocks accumulate and it comes to rest flat on both corners, each carrying half its
+    weight (m g / 2 by symmetry), at rest. The contacts touching at rest are chosen together at each
+    switch (the LCP of the impact law): before, the corners alternated ever faster and the step
+    budget was used up at t = 1.96 s at rtol 1e-12."""
+    b, h, phi0 = 0.2, 0.6, 0.1
+    sim = _rocking_block()
+    y0 = h * math.cos(phi0) + b * math.sin(phi0)
+    res = sim.simulate(np.linspace(0, 3.0, 301), q0=[0.0, y0, phi0], v0=[0.0, 0.0, 0.0], rtol=rtol, atol=rtol * 1e-2)
+    assert res.success and len(res.impacts.records) < 200
+    assert res.impacts.final_modes == {0: "contact", 1: "contact"}
+    assert abs(res["phi"][-1]) < 1e-9 and abs(res["y"][-1] - h) < 1e-9
+    assert np.abs(res.y[-1, 3:]).max() < 1e-9
+    assert res["lambda_ineq_0"][-1] == pytest.approx(G / 2, rel=1e-6)
+    assert res["lambda_ineq_1"][-1] == pytest.approx(G / 2, rel=1e-6)
+
+
 def housner_block(name: str, b: float, h: float) -> lcg.ConstrainedSystem:
     """A block of half-width b and half-height h (coordinates x, y, phi of its centre) on two
     rough corners: plastic contacts that do not slip while touching (tangent = the corner's x)."""
