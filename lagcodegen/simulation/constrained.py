@@ -78,6 +78,11 @@ from .ode import CompiledModel
 #: value of max_events, at most; and the values of max_events kept at most.
 _EVENT_POOL, _EVENT_POOL_KEYS = 2, 8
 
+#: Why contacts refuse the scikit-sundae backend: one implementation of the contact law.
+NATIVE_CONTACTS = ("the impact law and the choice of contact modes are the native drivers' C (lagcodegen/runtime/"
+                   "lcg_imp_law.c, lcg_imp_fric.c), driven inside their step loop; the scikit-sundae backend steps the "
+                   "model from Python and has no impact driver")
+
 
 def _contact_options(contacts) -> ContactOptions:
     """A run's contact settings: ``contacts`` checked (None: the defaults)."""
@@ -303,7 +308,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
         if self._ggl:  # the GGL impact driver (IDA)
             if backend != "native":
                 raise LagcodegenError("systems with contacts run on the native IDA driver (backend='native'), not "
-                                      f"backend={backend!r}")
+                                      f"backend={backend!r}: {NATIVE_CONTACTS}")
             runner = self._contact_runner(t0, y0, p)
             alg_atol = ALGEBRAIC_ATOL if family.alg_atol is None else float(family.alg_atol)
             return ContactRun(runner, StepControl.of(family, rtol, atol), family.ggl_form(),
@@ -314,7 +319,8 @@ class ConstrainedSimulation(ConstrainedFunctions):
                                   f"{type(family).__name__} (backend {backend!r}) cannot take it: "
                                   "solver=CVODE(backend='native')")
         if backend != "native":
-            raise LagcodegenError("systems with contacts run on the native CVODE driver (backend='native')")
+            raise LagcodegenError(f"systems with contacts run on the native CVODE driver (backend='native'): "
+                                  f"{NATIVE_CONTACTS}")
         method, projection, alpha, beta = family.index1_settings(self, t0, y0, p)
         if projection:
             raise LagcodegenError("systems with contacts run without projection (projection=False; Baumgarte "
