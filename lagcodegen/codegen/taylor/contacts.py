@@ -66,6 +66,7 @@ class ContactRows:
     njh: int
     nk: int
     tangent_of: list
+    friction: bool = False  # a contact has Coulomb friction (planar): the jet takes its slipping modes (tl_slip)
     events: list = dataclasses.field(default_factory=list)  # per event: its row, or -1 (uses a multiplier)
 
     @property
@@ -92,10 +93,6 @@ def contact_decompose(system, scene: Scene, events=(), *,
     an event whose expression uses a multiplier gets no row: its value needs the solve of the same
     order): the cheaper of the derived and trig-linearized forms (``form`` to force one), products
     fused (:func:`~.decompose.fuse_products`)."""
-    if system.has_friction:
-        raise ModelError("method='taylor' does not integrate Coulomb friction (Inequality(..., friction=mu)): a "
-                         "slipping contact's force along G - sigma mu T is not a row held with its multiplier, and "
-                         "its stick/slip modes are chosen by the CVODE impact driver (method='adams' or 'bdf')")
     eom = scene.eom
     model = eom.model
     if eom.quadratures:
@@ -106,6 +103,14 @@ def contact_decompose(system, scene: Scene, events=(), *,
     jet_events = [ev for ev in events if not {str(x) for x in getattr(ev.expr, "free_symbols", ())} & multipliers]
     exprs, time_symbol, state = scene_expressions(scene, jet_events)
     blocks = impact_blocks(system, scene, mass_force=False)
+    cone = [c for c in set(blocks["tangent_of"]) if blocks["tangent_of"].count(c) > 1
+            and system.friction[system.contacts[c]] is not None]
+    if cone:
+        raise ModelError("method='taylor' does not integrate 3-D Coulomb friction (a contact with two tangents and "
+                         f"friction=mu: contact(s) {', '.join(str(system.contacts[c]) for c in cone)}): the slip "
+                         "direction u/|u| of the circular cone is not in the Taylor contact jet; run it on the native "
+                         "impact drivers (index-1: method='adams' or 'bdf'; GGL: IDA), the friction core of the "
+                         "CVODE and IDA impact drivers. Planar friction (one tangent) runs on method='taylor'")
     rows = blocks["rows"]
     for target, e in zip(rows.targets, rows.exprs):
         exprs[target] = se.sympify(e)
@@ -141,7 +146,7 @@ def contact_decompose(system, scene: Scene, events=(), *,
         crow = ContactRows(R=[[entries[("R", r, i)] for i in range(n)] for r in range(nr)],
                            s=[entries[("s", r)] for r in range(nr)], h=[entries[("h", r)] for r in range(nr)],
                            gam=[entries[("gam", r)] for r in range(nr)], nj=nj, njh=njh, nk=nk,
-                           tangent_of=list(blocks["tangent_of"]),
+                           tangent_of=list(blocks["tangent_of"]), friction=bool(system.has_friction),
                            events=[next(rows_of) if ev in jet_events else -1 for ev in events])
         dec.cost += sum(1.0 for row in crow.R for e in row if isinstance(e, int))
         if best is None or dec.cost < best[0].cost:
@@ -173,7 +178,8 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
                R=rows.R, s=rows.s, h=rows.h, gam=rows.gam, holonomic=[rows.holonomic(r) for r in range(rows.nr)],
                contact_of=[rows.contact_of(r) for r in range(rows.nr)], mconv=mconv, rconv=rconv,
                gap_rows=[rows.h[rows.nj + k] for k in range(rows.nk)], lam_row=d.nrows, chunk_size=CHUNK,
-               p_max=P_MAX)
+               p_max=P_MAX, friction=rows.friction,
+               normal_of=[rows.nj + rows.contact_of(r) if r >= rows.nj + rows.nk else -1 for r in range(rows.nr)])
     return ctx
 
 

@@ -1,0 +1,130 @@
+"""Coulomb friction (planar: one tangent) on the Taylor method (``simulate(method="taylor")``: the
+Taylor contact driver lagcodegen/runtime/lcg_taylor_imp.c with the friction core
+lagcodegen/runtime/lcg_imp_fric.c, the jet's slipping rows from tl_slip), checked against
+closed-form facts (a block on an incline, a sphere and a disc launched with backspin), against the
+index-1 CVODE run of the same system (a disc dropped spinning onto a rough floor: frictional
+impacts, slip, grip), Painleve's rod raising PainleveError, and 3-D friction refused by name."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import lagcodegen as lcg
+from lagcodegen.errors import LagcodegenError
+from test_friction import G, _incline, _painleve_rod, _rod_velocity, _roller
+from test_friction_speeds import _incline_3d, _sphere_system, _start, RADIUS
+
+TIGHT = {"rtol": 1e-12, "atol": 1e-14, "method": "taylor"}
+
+
+def roller_system(inertia_factor: float, mu: float, e: float = 0.0) -> lcg.ConstrainedSystem:
+    """The system of tests/test_friction.py's ``_roller`` (a sphere or disc on the floor y = 0 with
+    Coulomb friction on its touching point), uncompiled (the strict-compile test takes it)."""
+    m = lcg.Model("roller")
+    x, y, phi = m.coordinates("x y phi")
+    m.parameters(g=G, m=1.0, R=0.3)
+    mass, R = sp.symbols("m R")
+    m.planar_body("ball", mass, inertia_factor * mass * R**2, (x, y), phi)
+    m.gravity(sp.Symbol("g"))
+    return lcg.ConstrainedSystem(m, inequalities=[lcg.Inequality(y - R, restitution=e, tangent=x + R * phi,
+                                                                 friction=mu)])
+
+
+@pytest.mark.parametrize("alpha, mu", [(0.5, 0.6), (0.5, 0.3), (0.3, 0.1), (0.3, 0.31)])
+def test_block_on_an_incline_sticks_when_tan_alpha_le_mu_else_slides_at_g_sin_minus_mu_cos(alpha, mu):
+    sim = _incline(alpha, mu)
+    t = np.linspace(0, 3, 31)
+    res = sim.simulate(t, q0=[0.0, 0.0], v0=[0.0, 0.0], **TIGHT)
+    assert res.method == "taylor"
+    assert np.max(np.abs(res["lambda_ineq_0"] / (G * math.cos(alpha)) - 1)) < 1e-9  # N = m g cos(alpha)
+    if math.tan(alpha) <= mu:
+        assert np.max(np.abs(res["x"])) < 1e-12 and res.impacts.friction_modes == {0: "stick"}
+        assert np.max(np.abs(res["lambda_t_ineq_0"] + G * math.sin(alpha))) < 1e-9
+        assert res.impacts.transitions() == []
+    else:
+        a = G * (math.sin(alpha) - mu * math.cos(alpha))
+        assert np.max(np.abs(res["x"][1:] / (0.5 * a * t[1:] ** 2) - 1)) < 1e-9
+        assert np.max(np.abs(res["x_dot"][1:] / (a * t[1:]) - 1)) < 1e-9
+        assert res.impacts.friction_modes == {0: "slip+"}
+        assert np.max(np.abs(res["lambda_t_ineq_0"] + mu * G * math.cos(alpha))) < 1e-9
+
+
+@pytest.mark.parametrize("body, k, slip_time, roll_speed", [
+    ("sphere", 0.4, lambda v0, Rw0, mu: 2 * (v0 + Rw0) / (7 * mu * G), lambda v0, Rw0: (5 * v0 - 2 * Rw0) / 7),
+    ("disc", 0.5, lambda v0, Rw0, mu: (v0 + Rw0) / (3 * mu * G), lambda v0, Rw0: (2 * v0 - Rw0) / 3),
+])
+def test_ball_with_backspin_slips_then_rolls(body, k, slip_time, roll_speed):
+    mu, R, v0, w0 = 0.2, 0.3, 3.0, 4.0
+    sim = _roller(k, mu)
+    t_star = slip_time(v0, R * w0, mu)
+    t = np.linspace(0, 2 * t_star, 40)
+    res = sim.simulate(t, q0=[0.0, R, 0.0], v0=[v0, 0.0, w0], **TIGHT)
+    grips = res.impacts.transitions(0)
+    assert [r.kind for r in grips] == ["grip"], res.impacts.records
+    assert grips[0].t == pytest.approx(t_star, rel=1e-9)
+    after, before = res.t > t_star, res.t < t_star
+    v_roll = roll_speed(v0, R * w0)
+    assert np.max(np.abs(res["x_dot"][after] / v_roll - 1)) < 1e-9
+    assert np.max(np.abs(res["phi_dot"][after] * R + res["x_dot"][after])) < 1e-9 * abs(v_roll)
+    assert res.impacts.friction_modes == {0: "stick"}
+    work = mu * G * (v0 + R * w0) * t_star / 2
+    assert res["energy"][0] - res["energy"][-1] == pytest.approx(work, rel=1e-9)
+    assert np.max(np.abs(res["lambda_t_ineq_0"][before] + mu * G)) < 1e-9
+    assert np.max(np.abs(res["lambda_t_ineq_0"][after])) < 1e-9
+
+
+def test_sphere_on_generalized_speeds_slips_then_rolls():
+    """Planar friction (one tangent, along y) on a free-flying sphere (quaternion, generalized
+    speeds): t* = 2 (v0 + R w0) / (7 mu g), then rolling at (5 v0 - 2 R w0) / 7, to 1e-9."""
+    mu, v0, w0 = 0.2, 3.0, 4.0
+    sim = lcg.api.compile_constrained(_sphere_system(mu, 0.0, "quaternion", "y"), "index1")
+    t_star = 2 * (v0 + RADIUS * w0) / (7 * mu * G)
+    q0, v0s = _start("quaternion", (0.0, v0, 0.0), (-w0, 0.0, 0.0))
+    res = sim.simulate(np.linspace(0, 2 * t_star, 40), q0=q0, v0=v0s, **TIGHT)
+    grips = res.impacts.transitions(0)
+    assert [r.kind for r in grips] == ["grip"], res.impacts.records
+    assert grips[0].t == pytest.approx(t_star, rel=1e-9)
+    after = res.t > t_star
+    vy = res.y[after][:, res.names.index("y_dot")] if "y_dot" in res.names else None
+    if vy is not None:
+        assert np.max(np.abs(vy / ((5 * v0 - 2 * RADIUS * w0) / 7) - 1)) < 1e-9
+
+
+def test_dropped_spinning_disc_agrees_with_the_index1_cvode_run():
+    """A disc dropped spinning onto a rough floor (e = 0.5, mu = 0.3): frictional impacts, the
+    accumulation into contact, slipping, the grip: the Taylor run's records (kinds, contacts,
+    times) and states at the output times agree with the index-1 CVODE run's to 1e-7."""
+    sim = _roller(0.5, 0.3, e=0.5)
+    t = np.linspace(0, 1.5, 151)
+    kw = dict(q0=[0.0, 0.5, 0.0], v0=[1.0, 0.0, 12.0], rtol=1e-12, atol=1e-14)
+    tay = sim.simulate(t, method="taylor", **kw)
+    cv = sim.simulate(t, method="bdf", **kw)
+    kinds = [(r.kind, r.contact) for r in cv.impacts.records]
+    assert [(r.kind, r.contact) for r in tay.impacts.records] == kinds
+    assert "grip" in [k for k, _ in kinds] and "bounce" in [k for k, _ in kinds]
+    for a, b in zip(tay.impacts.records, cv.impacts.records):
+        assert abs(a.t - b.t) < 1e-7
+    assert np.max(np.abs(tay.y - cv.y)) < 1e-7
+    assert tay.impacts.friction_modes == cv.impacts.friction_modes == {0: "stick"}
+
+
+def test_painleve_rod_raises_painleve_error_on_taylor():
+    theta0 = math.atan(2.0)
+    sim, q0 = _painleve_rod(2.0, theta0)
+    with pytest.raises(lcg.PainleveError, match="Painleve's paradox \\(inconsistency\\)"):
+        sim.simulate(np.linspace(0, 1, 11), q0=q0, v0=[-1.0, 0.0, 0.0], **TIGHT)
+    spin = 1.2 * math.sqrt(G / math.sin(theta0))
+    with pytest.raises(lcg.PainleveError, match="Painleve's paradox \\(indeterminacy\\)"):
+        sim.simulate(np.linspace(0, 1, 11), q0=q0, v0=_rod_velocity(theta0, -1.0, spin), **TIGHT)
+    res = sim.simulate(np.linspace(0, 0.05, 6), q0=q0, v0=[1.0, 0.0, 0.0], **TIGHT)
+    assert res.impacts.friction_modes in ({0: "slip+"}, {0: "free"})
+
+
+def test_3d_friction_is_refused_by_name_on_taylor():
+    sim = _incline_3d(0.5, 0.3, 0.2)
+    with pytest.raises(LagcodegenError, match="3-D Coulomb friction"):
+        sim.simulate(np.linspace(0, 1, 11), q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], **TIGHT)
