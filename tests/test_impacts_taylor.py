@@ -367,16 +367,17 @@ def test_refusals_and_bad_input_name_the_problem(ball):
         plain.integrator(q0=[0.6, -0.8], v0=[0.0, 0.0], method="taylor")
     with pytest.raises(LagcodegenError, match="Taylor has no ensemble runner"):
         plain.ensemble((0, 1), q0=[[0.6, -0.8]], v0=[[0.0, 0.0]], method="taylor")
-    # Coulomb friction: its stick/slip modes are the CVODE impact driver's
-    m3 = lcg.Model("tincline")
-    x3, y3 = m3.coordinates("x y")
+    # 3-D Coulomb friction (two tangents, the circular cone): its slip direction u/|u| is not in the
+    # jet (planar friction runs: tests/test_friction_taylor.py)
+    m3 = lcg.Model("tincline3")
+    x3, y3, z3 = m3.coordinates("x y z")
     m3.parameters(g=G, m=1.0)
-    m3.particle("b", sp.Symbol("m"), (x3, y3))
+    m3.particle("b", sp.Symbol("m"), (x3, y3, z3))
     m3.gravity(sp.Symbol("g"))
     rough = compile_constrained(lcg.ConstrainedSystem(m3, inequalities=[
-        lcg.Inequality(y3, restitution=0.0, tangent=x3, friction=0.3)]), "index1")
-    with pytest.raises(LagcodegenError, match="Coulomb friction .* runs on the native impact drivers"):
-        rough.simulate((0, 1), q0=[0.0, 0.0], v0=[1.0, 0.0], method="taylor")
+        lcg.Inequality(z3, restitution=0.0, tangent=(x3, y3), friction=0.3)]), "index1")
+    with pytest.raises(LagcodegenError, match="3-D Coulomb friction .* the native impact drivers"):
+        rough.simulate((0, 1), q0=[0.0, 0.0, 0.0], v0=[1.0, 0.0, 0.0], method="taylor")
 
 
 def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(tmp_path, cc):
