@@ -17,10 +17,19 @@ are held from there on ("stick" records without impulse).
 
 Frictionless and no-slip contacts, equality rows, generalized speeds, minimal coordinates,
 ensembles, the integrator object; the system's compiled events located on the steps' polynomials
-(those whose expression uses a multiplier refused by name). Refused by name: Coulomb friction (a
-slipping contact's force along G - sigma mu T is not a row held with its multiplier, and its
-stick/slip modes are the friction core's, lcg_imp_fric.c, driven by the CVODE and IDA drivers),
-sensitivities.
+(those whose expression uses a multiplier refused by name).
+
+Planar Coulomb friction (one tangent row): the modes are the friction core's
+(lagcodegen/runtime/lcg_imp_fric.c, as on CVODE and IDA: lcg_fr_start at the start, lcg_fr_impact
+and lcg_fr_modes at every switch with the core's ``ending``, Painleve's paradox raising
+:class:`~.constrained_impacts.PainleveError`). While the modes are fixed a sticking contact holds
+its tangential row, a slipping one only its normal row with the force direction G - sigma mu T
+(the jet's tl_slip: lambda_t = -sigma mu lambda_n at every order, K_[0] no longer symmetric). The
+transitions (lcg_fr_roots: mu lambda_n -+ lambda_t, the slip velocity, the determinant) are
+evaluated on the step's polynomial (the state there, its multipliers by lcg_fr_crhs) at 8 points
+of each step, a sign change bisected to the resolution of t (a root pair within one eighth of a
+step is not seen). 3-D friction (two tangents: d = u/|u| is not in the jet) is refused by name, as
+are sensitivities.
 """
 
 from __future__ import annotations

@@ -26,8 +26,11 @@ searched by the driver, except those whose expression uses a multiplier (row -1:
 refuses a run that locates them). The file ``<prefix>_taylor_contact.c`` defines the jet's table
 ``lcg_taylor_model`` (no outputs, no events of its own: the constrained table's outputs and the
 contact table's events are the driver's) and the contact table ``lcg_taylor_contact``
-(lagcodegen/runtime/lcg_taylor_contact.h). Coulomb friction is not in it (its stick/slip modes are
-the friction core's, lcg_imp_fric.c, driven by the CVODE and IDA impact drivers).
+(lagcodegen/runtime/lcg_taylor_contact.h). With planar Coulomb friction it also exports
+``<prefix>_taylor_contact_slip`` (tl_slip: after hold, the tangential rows of slipping contacts not
+held, lambda_t = wc lambda_n with wc = -sigma mu, the normal's force column G + wc T); the
+stick/slip modes are the friction core's (lcg_imp_fric.c), driven by lcg_taylor_imp.c. 3-D
+friction (two tangents, d = u/|u|) is refused by name.
 """
 
 from __future__ import annotations
