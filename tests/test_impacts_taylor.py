@@ -367,17 +367,6 @@ def test_refusals_and_bad_input_name_the_problem(ball):
         plain.integrator(q0=[0.6, -0.8], v0=[0.0, 0.0], method="taylor")
     with pytest.raises(LagcodegenError, match="Taylor has no ensemble runner"):
         plain.ensemble((0, 1), q0=[[0.6, -0.8]], v0=[[0.0, 0.0]], method="taylor")
-    # 3-D Coulomb friction (two tangents, the circular cone): its slip direction u/|u| is not in the
-    # jet (planar friction runs: tests/test_friction_taylor.py)
-    m3 = lcg.Model("tincline3")
-    x3, y3, z3 = m3.coordinates("x y z")
-    m3.parameters(g=G, m=1.0)
-    m3.particle("b", sp.Symbol("m"), (x3, y3, z3))
-    m3.gravity(sp.Symbol("g"))
-    rough = compile_constrained(lcg.ConstrainedSystem(m3, inequalities=[
-        lcg.Inequality(z3, restitution=0.0, tangent=(x3, y3), friction=0.3)]), "index1")
-    with pytest.raises(LagcodegenError, match="3-D Coulomb friction .* the native impact drivers"):
-        rough.simulate((0, 1), q0=[0.0, 0.0, 0.0], v0=[1.0, 0.0, 0.0], method="taylor")
 
 
 def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(tmp_path, cc):
@@ -407,11 +396,13 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
         proc = subprocess.run([*strict, src, "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, src + proc.stderr
     # the jets of an equality row with a contact, no-slip tangential rows, generalized speeds (a
-    # jet of several chunks of operations), Coulomb friction (planar: the jet's tl_slip)
+    # jet of several chunks of operations), Coulomb friction (planar: the jet's tl_slip; 3-D: u/|u|)
     from test_constrained_speeds import dropped_box
+    from test_friction_speeds import _sphere_system
     from test_friction_taylor import roller_system
     others = {"tspwall": _pendulum_wall(0.5), "tshousner": housner_block("tshousner", 0.2, 0.6),
-              "tsbox": dropped_box("quaternion", (0, 0, -0.1), 0.6), "tsroller": roller_system(0.4, 0.2)}
+              "tsbox": dropped_box("quaternion", (0, 0, -0.1), 0.6), "tsroller": roller_system(0.4, 0.2),
+              "tssphere": _sphere_system(0.2, 0.0, "quaternion", "xy")}
     for prefix, other in others.items():
         other_code, other_info = generate_constrained(other, prefix=prefix)
         for name, text in contact_jet_sources(other, scene_of_code(other_code, "test"),

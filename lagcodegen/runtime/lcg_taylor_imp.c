@@ -145,16 +145,25 @@ static int ti_settle(const lcg_imp_model *im, const double *p, double t, const d
     return LCG_DAE_OK;
 }
 
-/* Coulomb friction: the rows held of the current modes (the table's hold, then the jet's tl_slip:
- * a slipping contact's tangential row not held, lambda_t = -sigma mu lambda_n). */
-static void ti_hold(const lcg_taylor_contact *ct, void *work, const int *active, const double ab[2],
-                    const lcg_taylor_friction *fric, const lcg_fric *f, int *slipping, double *wc)
+#define TI_FR_SLOW 100.0 /* a 3-D slip at most this times contact_speed: d fixed within a step */
+#define TI_FR_CAP0 1e-9  /* the first such step at most this, each next one at most twice the last */
+
+/* Coulomb friction: the rows held of the current modes at (t, y) (the table's hold, then the jet's
+ * tl_slip: a slipping contact's tangential row not held, lambda_t = -sigma mu lambda_n; 3-D:
+ * lambda_t = -mu lambda_n d with d = u/|u| in the jet (slipping 2), or, while |u| is at most
+ * TI_FR_SLOW contact_speed (a slip from rest or about to stop: u/|u| has no useful series), the
+ * core's d fixed within the step). Returns 1 when a 3-D slip has its d fixed (the step capped),
+ * 0, or a model error (< 0 ... as lcg_fr_eval). */
+static int ti_hold(const lcg_taylor_contact *ct, void *work, const int *active, const double ab[2],
+                   const lcg_taylor_friction *fric, lcg_fric_ctx *fc, double t, const double *y, int *slipping,
+                   double *wc)
 {
-    int r, k;
+    const lcg_fric *f = fc != NULL ? fc->fr : NULL;
+    int r, k, fixed = 0, evaluated = 0;
 
     ct->hold(work, active, ab[0], ab[1]);
     if (fric == NULL)
-        return;
+        return 0;
     for (r = 0; r < ct->nr; ++r) {
         slipping[r] = 0;
         wc[r] = 0.0;
@@ -162,9 +171,30 @@ static void ti_hold(const lcg_taylor_contact *ct, void *work, const int *active,
     for (k = 0; k < ct->nk; ++k)
         if (active[k] && f->trow[k] >= 0 && f->mu[k] >= 0.0 && f->fmode[k] != 0) {
             slipping[f->trow[k]] = 1;
-            wc[f->trow[k]] = -(double)f->fmode[k] * f->mu[k];
+            if (f->trow2[k] >= 0) { /* 3-D: G - mu (d1 T1 + d2 T2) */
+                double u, u2;
+                if (!evaluated) { /* the core's numbers and slip directions at (t, y) */
+                    int rc = lcg_fr_crhs(fc, t, y, fc->ydot, fc->lam);
+                    if (rc != LCG_DAE_OK)
+                        return rc < 0 ? rc : -rc;
+                    evaluated = 1;
+                }
+                lcg_fr_slip(f, k, &u, &u2);
+                slipping[f->trow2[k]] = 1;
+                if (hypot(u, u2) > TI_FR_SLOW * f->vtol) {
+                    slipping[f->trow[k]] = slipping[f->trow2[k]] = 2;
+                    wc[f->trow[k]] = wc[f->trow2[k]] = -f->mu[k];
+                } else {
+                    wc[f->trow[k]] = -f->mu[k] * f->dir[2 * k];
+                    wc[f->trow2[k]] = -f->mu[k] * f->dir[2 * k + 1];
+                    fixed = 1;
+                }
+            } else {
+                wc[f->trow[k]] = -(double)f->fmode[k] * f->mu[k];
+            }
         }
     fric->slip(work, slipping, wc);
+    return fixed;
 }
 
 /* The friction core's transition functions (lcg_fr_roots, 2 nk + 1) at tau on the step's
@@ -306,7 +336,8 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     lcg_fric_ctx fc, *fcp = NULL;
     void *fmem = NULL;
     double *fbuf = NULL, *wc = NULL, *ys = NULL, *ga = NULL, *gb = NULL, *gm = NULL;
-    int *slipping = NULL, ng = 0;
+    int *slipping = NULL, ng = 0, cone = 0, frozen = 0;
+    double fcap = TI_FR_CAP0;
 
     memset(&r, 0, sizeof r);
     memset(st, 0, sizeof *st);
@@ -357,12 +388,7 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             goto done;
         }
         for (k = 0; k < nk; ++k)
-            if (fdata.trow2[k] >= 0 && fdata.mu[k] >= 0.0) {
-                snprintf(st->message, sizeof st->message, "3-D Coulomb friction (contact %d) is not integrated "
-                         "by the Taylor contact driver", k);
-                flag = LCG_FLAG_BAD_INPUT;
-                goto done;
-            }
+            cone |= fdata.trow2[k] >= 0 && fdata.mu[k] >= 0.0;
         ng = 2 * nk + 1;
         nlam = im->nrow;
         /* doubles: wc[nr], ys[ny], ga, gb, gm[ng]; ints: slipping[nr] */
@@ -487,7 +513,8 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     rc = ti_output(im, p, thi, y, active, ab, ydot, lam, lamout, out, fcp);
     TI_MODEL_ERROR(rc);
     st->nt_done = 1;
-    ti_hold(ct, r.work, active, ab, fric, &fdata, slipping, wc);
+    frozen = ti_hold(ct, r.work, active, ab, fric, fcp, thi, y, slipping, wc);
+    TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
     tl_run_restart(m, &r);
     tend = tout[nt - 1];
     st->h_min = HUGE_VAL;
@@ -515,6 +542,10 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
         }
         if (WATCH_TICK(&wt))
             break;
+        if (cone) { /* 3-D slips: d fixed (slow) or u/|u| in the jet (fast), chosen at each step's start */
+            frozen = ti_hold(ct, r.work, active, ab, fric, fcp, thi + tlo, y, slipping, wc);
+            TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
+        }
         rc = TL_JET(r.work, r.X, thi + tlo, y, r.kmax);
         st->njet++;
         if (rc == 1)
@@ -532,6 +563,13 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             h = opt->max_step;
         if (r.hprev > 0.0 && h > 100.0 * r.hprev)
             h = 100.0 * r.hprev;
+        if (frozen) { /* a 3-D slip's d fixed within the step: short steps, doubling */
+            if (h > fcap)
+                h = fcap;
+            fcap *= 2.0;
+        } else {
+            fcap = TI_FR_CAP0;
+        }
         rem = (tend - thi) - tlo;
         if (h >= rem) {
             h = rem;
@@ -624,7 +662,9 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
                     break;
                 }
                 TI_MODEL_ERROR(rc);
-                ti_hold(ct, r.work, active, ab, fric, &fdata, slipping, wc);
+                frozen = ti_hold(ct, r.work, active, ab, fric, fcp, t, y, slipping, wc);
+                TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
+                fcap = TI_FR_CAP0;
                 r.hprev = 0.0;
                 continue;
             }
@@ -644,7 +684,7 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             }
             rc = lcg_imp_release_pulling(&L, t, y, ab[0], ab[1], ydot, lam);
             TI_MODEL_ERROR(rc);
-            ti_hold(ct, r.work, active, ab, fric, &fdata, slipping, wc);
+            ct->hold(r.work, active, ab[0], ab[1]);
             r.hprev = 0.0; /* a new series from the jump (the events' last roots kept) */
             continue;
         }
@@ -656,7 +696,8 @@ done:
     if (fcp != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip- */
         for (k = 0; k < nk; ++k)
             if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
-                active[k] = fdata.fmode[k] > 0 ? 2 : fdata.fmode[k] < 0 ? 3 : 1;
+                active[k] = fdata.fmode[k] != 0 && fdata.trow2[k] >= 0 ? 4 : fdata.fmode[k] > 0 ? 2
+                            : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&wt, flag, st->message, sizeof st->message);
     st->t_reached = thi + tlo;
     if (st->h_min == HUGE_VAL)

@@ -106,14 +106,6 @@ def contact_decompose(system, scene: Scene, events=(), *,
     jet_events = [ev for ev in events if not {str(x) for x in getattr(ev.expr, "free_symbols", ())} & multipliers]
     exprs, time_symbol, state = scene_expressions(scene, jet_events)
     blocks = impact_blocks(system, scene, mass_force=False)
-    cone = [c for c in set(blocks["tangent_of"]) if blocks["tangent_of"].count(c) > 1
-            and system.friction[system.contacts[c]] is not None]
-    if cone:
-        raise ModelError("method='taylor' does not integrate 3-D Coulomb friction (a contact with two tangents and "
-                         f"friction=mu: contact(s) {', '.join(str(system.contacts[c]) for c in cone)}): the slip "
-                         "direction u/|u| of the circular cone is not in the Taylor contact jet; run it on the native "
-                         "impact drivers (index-1: method='adams' or 'bdf'; GGL: IDA), the friction core of the "
-                         "CVODE and IDA impact drivers. Planar friction (one tangent) runs on method='taylor'")
     rows = blocks["rows"]
     for target, e in zip(rows.targets, rows.exprs):
         exprs[target] = se.sympify(e)
@@ -183,6 +175,12 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
                gap_rows=[rows.h[rows.nj + k] for k in range(rows.nk)], lam_row=d.nrows, chunk_size=CHUNK,
                p_max=P_MAX, friction=rows.friction,
                normal_of=[rows.nj + rows.contact_of(r) if r >= rows.nj + rows.nk else -1 for r in range(rows.nr)])
+    tangents: dict = {}
+    for r in range(rows.nj + rows.nk, rows.nr):
+        tangents.setdefault(rows.contact_of(r), []).append(r)
+    # 3-D Coulomb friction (two tangential rows): d = u/|u| in the jet while the contact slips
+    ctx["cones"] = [dict(t1=t[0], t2=t[1], nn=rows.nj + c, s1=rows.s[t[0]], s2=rows.s[t[1]], R1=rows.R[t[0]],
+                         R2=rows.R[t[1]]) for c, t in sorted(tangents.items()) if rows.friction and len(t) == 2]
     return ctx
 
 
