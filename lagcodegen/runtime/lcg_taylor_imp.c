@@ -15,7 +15,15 @@
  * impact law (lcg_imp_jump), the contacts that pull are released (lcg_imp_release_pulling), the
  * rows held are set for the new modes and the integration restarts from the new state. Output
  * times inside a step are evaluations of its polynomial; the multipliers there are the index-1
- * solve at that state (im->crhs, as the CVODE impact driver reports them). */
+ * solve at that state (im->crhs, as the CVODE impact driver reports them).
+ *
+ * Coulomb friction (fric != NULL): the modes are the friction core's (lcg_imp_fric.c: lcg_fr_start,
+ * then lcg_fr_impact and lcg_fr_modes at every switch with the core's ending[], as lcg_imp.c); the
+ * jet holds a sticking contact's tangential rows and gives a slipping one the force direction
+ * G - sigma mu T (3-D: G - mu d.T, d = u/|u| in the jet; ti_hold). The transitions (lcg_fr_roots
+ * at the states of the step's polynomial, with their multipliers from lcg_fr_crhs) are sampled at
+ * TI_FR_SAMPLES points of each step and bisected; the determinant's root is Painleve's paradox
+ * (LCG_FLAG_CONTACT_MODE), as are the core's inconsistent or indeterminate mode choices. */
 #include "lcg_control.h" /* first: POSIX */
 
 #include <float.h>

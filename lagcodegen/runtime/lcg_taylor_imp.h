@@ -10,9 +10,10 @@
 #include "lcg_taylor_contact.h"
 #include "lcg_imp_law.h"       /* the impact law and the kinds of the contact records */
 
-/* Coulomb friction (planar) on the Taylor contact driver: the jet's slipping modes (slip: the
+/* Coulomb friction on the Taylor contact driver: the jet's slipping modes (slip: the
  * generated <prefix>_taylor_contact_slip's tl_slip, after the table's hold: the tangential rows
- * r with slipping[r] not held, lambda_r = wc[r] lambda_n), the model's friction table fr
+ * r with slipping[r] not held, lambda_r = wc[r] lambda_n; slipping 2: a 3-D slip, wc = -mu and
+ * lambda_r = -mu d_r lambda_n with d = u/|u| in the jet), the model's friction table fr
  * (lcg_imp_model.h) and the coefficients mu[nk] (< 0: none) of the friction core lcg_imp_fric.c. */
 typedef struct lcg_taylor_friction {
     void (*slip)(void *work, const int *slipping, const double *wc);
@@ -30,7 +31,7 @@ typedef struct lcg_taylor_friction {
  * starting in persistent contact; out: the final ones), the records rec. ev: NULL, or the system's
  * events located on the steps' polynomials (ct->event_row of each, all >= 0; ev->rootdir: the
  * directions, ev->terminal: those that end the run), as lcg_imp_solve records them. fric: NULL, or
- * Coulomb friction (planar; the modes of the friction core lcg_imp_fric.c, lamout then nrow
+ * Coulomb friction (planar and 3-D; the modes of the friction core lcg_imp_fric.c, lamout then nrow
  * multipliers per time and active out as lcg_imp_solve's; -85 Painleve). Returns 0, -1
  * max_steps used up, -3 the step size fell below the resolution of t (or the contacts switch
  * without end at one time), -20 out of memory, -22 bad options or tables (or an event without its

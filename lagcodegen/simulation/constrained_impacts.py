@@ -112,8 +112,8 @@ q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal
 :class:`~.minimal.MinimalSimulation` runs the reduced model with the contacts in the remaining
 coordinates on the index-1 driver.
 
-**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law and planar Coulomb friction
-(the core's modes; 3-D refused by name); impacts and releases are roots of the Taylor polynomials
+**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law and Coulomb friction, planar and
+3-D (the core's modes); impacts and releases are roots of the Taylor polynomials
 of the gaps and multipliers. Ensembles run each member as one call of the
 system's driver (index-1, GGL or Taylor), every member's events and contact log kept
 (:mod:`.impact_ensemble`); the integrator object makes one call per propagate call

@@ -19,7 +19,7 @@ Frictionless and no-slip contacts, equality rows, generalized speeds, minimal co
 ensembles, the integrator object; the system's compiled events located on the steps' polynomials
 (those whose expression uses a multiplier refused by name).
 
-Planar Coulomb friction (one tangent row): the modes are the friction core's
+Coulomb friction (planar: one tangent row; 3-D: two, the circular cone): the modes are the friction core's
 (lagcodegen/runtime/lcg_imp_fric.c, as on CVODE and IDA: lcg_fr_start at the start, lcg_fr_impact
 and lcg_fr_modes at every switch with the core's ``ending``, Painleve's paradox raising
 :class:`~.constrained_impacts.PainleveError`). While the modes are fixed a sticking contact holds
@@ -28,8 +28,12 @@ its tangential row, a slipping one only its normal row with the force direction 
 transitions (lcg_fr_roots: mu lambda_n -+ lambda_t, the slip velocity, the determinant) are
 evaluated on the step's polynomial (the state there, its multipliers by lcg_fr_crhs) at 8 points
 of each step, a sign change bisected to the resolution of t (a root pair within one eighth of a
-step is not seen). 3-D friction (two tangents: d = u/|u| is not in the jet) is refused by name, as
-are sensitivities.
+step is not seen). 3-D: the force direction G - mu (d1 T1 + d2 T2) with d = u/|u| in the jet (the
+Taylor series of |u| and of u/|u| order by order, lambda_t = -mu d lambda_n as their product),
+so d turns along the motion within a step; while |u| is at most 100 contact_speed (a slip from
+rest, or one about to stop: u/|u| has no useful series there) d is the core's, fixed within the
+step and renewed at each step's start, the steps then at most 1e-9, doubling. Refused by name:
+sensitivities.
 """
 
 from __future__ import annotations
@@ -110,7 +114,7 @@ class TaylorImpactRunner:
         self.imp = ffi.cast("const lcg_imp_model *", int(impacts.ffi.cast("uintptr_t", impacts.table)))
         if self.rows.nk != len(impacts.contacts) or self.decomposition.ny != sim.ny:
             raise LagcodegenError(f"the Taylor contact jet of {sim.info.prefix!r} does not match its code")
-        self.fric = ffi.NULL  # Coulomb friction (planar): the jet's tl_slip, the friction table, mu
+        self.fric = ffi.NULL  # Coulomb friction: the jet's tl_slip, the friction table, mu
         if system.has_friction:
             slip = getattr(lib.handle, f"{sim.info.prefix}_taylor_contact_slip")
             slip.restype = ctypes.c_void_p

@@ -26,11 +26,12 @@ searched by the driver, except those whose expression uses a multiplier (row -1:
 refuses a run that locates them). The file ``<prefix>_taylor_contact.c`` defines the jet's table
 ``lcg_taylor_model`` (no outputs, no events of its own: the constrained table's outputs and the
 contact table's events are the driver's) and the contact table ``lcg_taylor_contact``
-(lagcodegen/runtime/lcg_taylor_contact.h). With planar Coulomb friction it also exports
+(lagcodegen/runtime/lcg_taylor_contact.h). With Coulomb friction it also exports
 ``<prefix>_taylor_contact_slip`` (tl_slip: after hold, the tangential rows of slipping contacts not
-held, lambda_t = wc lambda_n with wc = -sigma mu, the normal's force column G + wc T); the
-stick/slip modes are the friction core's (lcg_imp_fric.c), driven by lcg_taylor_imp.c. 3-D
-friction (two tangents, d = u/|u|) is refused by name.
+held, lambda_t = wc lambda_n with wc = -sigma mu, the normal's force column G + wc T; 3-D, slip 2:
+lambda_t = -mu d lambda_n with d = u/|u| computed in the jet order by order from the tangential
+rows' velocities); the stick/slip modes are the friction core's (lcg_imp_fric.c), driven by
+lcg_taylor_imp.c.
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ class ContactRows:
     njh: int
     nk: int
     tangent_of: list
-    friction: bool = False  # a contact has Coulomb friction (planar): the jet takes its slipping modes (tl_slip)
+    friction: bool = False  # a contact has Coulomb friction: the jet takes its slipping modes (tl_slip)
     events: list = dataclasses.field(default_factory=list)  # per event: its row, or -1 (uses a multiplier)
 
     @property
