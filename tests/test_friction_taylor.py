@@ -123,6 +123,55 @@ def test_dropped_spinning_disc_agrees_with_the_index1_cvode_run(v0):
     assert tay.impacts.friction_modes == cv.impacts.friction_modes == {0: "stick"}
 
 
+def test_stick_to_slip_located_where_the_sticking_force_reaches_mu_n():
+    """A block on a floor accelerating at c t: it sticks until m c t = mu m g at t_s = mu g / c
+    (the root of mu lambda_n - lambda_t on the step's polynomial), then slips at x'' = mu g."""
+    mu, c = 0.4, 3.0
+    m = lcg.Model("belt")
+    x, y = m.coordinates("x y")
+    m.parameters(g=G, m=1.0)
+    m.particle("b", sp.Symbol("m"), (x, y))
+    m.gravity(sp.Symbol("g"))
+    floor = lcg.Inequality(y, restitution=0.0, tangent=x - c * m.t**3 / 6, friction=mu)
+    sim = lcg.api.compile_constrained(lcg.ConstrainedSystem(m, inequalities=[floor]), "index1")
+    ts = mu * G / c
+    tt = np.linspace(0, 2 * ts, 40)
+    res = sim.simulate(tt, q0=[0.0, 0.0], v0=[0.0, 0.0], **TIGHT)
+    slips = res.impacts.transitions(0)
+    assert [r.kind for r in slips] == ["slip"]
+    assert slips[0].t == pytest.approx(ts, rel=1e-9)
+    before, after = tt < ts, tt > ts
+    assert np.max(np.abs(res["x"][before] - c * tt[before] ** 3 / 6)) < 1e-12
+    tau = tt[after] - ts
+    x_exact = c * ts**3 / 6 + c * ts**2 / 2 * tau + mu * G * tau**2 / 2
+    assert np.max(np.abs(res["x"][after] / x_exact - 1)) < 1e-9
+    assert res.impacts.friction_modes == {0: "slip-"}
+
+
+@pytest.mark.parametrize("alpha, mu", [(0.5, 0.3), (0.5, 0.7)])
+def test_block_sent_up_an_incline_stops_then_sticks_or_slides_back(alpha, mu):
+    """Launched up the slope it stops at t1 = v0 / (g (sin + mu cos)) (the root of the slip
+    velocity), then sticks ("grip") if tan(alpha) <= mu, else slides back ("reverse"), to 1e-9."""
+    v0 = 2.0
+    sim = _incline(alpha, mu)
+    a_up = G * (math.sin(alpha) + mu * math.cos(alpha))
+    t1 = v0 / a_up
+    tt = np.linspace(0, 2 * t1, 40)
+    res = sim.simulate(tt, q0=[0.0, 0.0], v0=[-v0, 0.0], **TIGHT)
+    trans = res.impacts.transitions(0)
+    assert len(trans) == 1 and trans[0].t == pytest.approx(t1, rel=1e-9)
+    x1 = -v0 * t1 + a_up * t1**2 / 2
+    after = tt > t1
+    if math.tan(alpha) <= mu:
+        assert trans[0].kind == "grip" and res.impacts.friction_modes == {0: "stick"}
+        assert np.max(np.abs(res["x"][after] / x1 - 1)) < 1e-9
+    else:
+        assert trans[0].kind == "reverse" and res.impacts.friction_modes == {0: "slip+"}
+        tau = tt[after] - t1
+        a_down = G * (math.sin(alpha) - mu * math.cos(alpha))
+        assert np.max(np.abs(res["x"][after] / (x1 + a_down * tau**2 / 2) - 1)) < 1e-9
+
+
 def test_painleve_rod_raises_painleve_error_on_taylor():
     theta0 = math.atan(2.0)
     sim, q0 = _painleve_rod(2.0, theta0)
