@@ -259,3 +259,20 @@ def test_table_on_four_legs_slides_down_an_incline_or_sticks(alpha, mu, yaw):
     assert res.impacts.friction_modes == {k: "slip" for k in range(4)}
     assert np.max(np.abs(down[1:] / (0.5 * acc * t[1:] ** 2) - 1)) < 1e-9
     assert np.max(np.abs(across)) < 1e-9 * down[-1]
+
+
+def test_ensemble_and_integrator_object_with_friction_on_taylor():
+    """The ensemble's members and the integrator object (propagated across the grip) give the
+    single Taylor run's records and states."""
+    mu, R, v0, w0 = 0.2, 0.3, 3.0, 4.0
+    sim = _roller(0.4, mu)
+    t = np.linspace(0, 4 * (v0 + R * w0) / (7 * mu * G), 9)
+    kw = dict(method="taylor", rtol=1e-12, atol=1e-14)
+    single = sim.simulate(t, q0=[0.0, R, 0.0], v0=[v0, 0.0, w0], **kw)
+    ens = sim.ensemble(t, q0=[[0.0, R, 0.0]] * 2, v0=[[v0, 0.0, w0]] * 2, save="trajectory", **kw)
+    assert ens.member(1).impacts.records == single.impacts.records and len(single.impacts.records) == 1
+    assert np.max(np.abs(ens.member(1).y - single.y)) == 0.0
+    integ = sim.integrator(q0=[0.0, R, 0.0], v0=[v0, 0.0, w0], **kw)
+    for tt in t[1:]:
+        integ.propagate_until(tt)
+    assert np.max(np.abs(np.asarray(integ.state) - single.y[-1])) < 1e-12
