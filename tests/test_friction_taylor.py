@@ -276,3 +276,76 @@ def test_ensemble_and_integrator_object_with_friction_on_taylor():
     for tt in t[1:]:
         integ.propagate_until(tt)
     assert np.max(np.abs(np.asarray(integ.state) - single.y[-1])) < 1e-12
+
+
+FRICTION_MAIN = r"""
+#include <stdio.h>
+#include <string.h>
+#include "lcg_taylor_imp.h"
+
+extern const lcg_taylor_contact tsroll_taylor_contact;
+const lcg_imp_model *tsroll_imp_model_table(void);
+const lcg_imp_friction *tsroll_imp_friction_table(void);
+void (*tsroll_taylor_contact_slip(void))(void *, const int *, const double *);
+
+int main(void)
+{
+    double p[3] = {9.81, 1.0, 0.3}, y0[6] = {0.0, 0.3, 0.0, 3.0, 0.0, 4.0}, t[3] = {0.0, 0.5, 1.2};
+    double yout[18], out[3 * 64], lam[3 * 2], e[1] = {0.0}, set[3] = {1e-6, 1e-9, 1e-9}, rec[6 * 20];
+    double stab[2] = {-1.0, -1.0}, mu[1] = {0.2};
+    int active[1] = {0}, n_rec = 0, flag;
+    lcg_taylor_options opt;
+    lcg_taylor_stats st;
+    lcg_taylor_friction fric;
+
+    memset(&opt, 0, sizeof opt);
+    opt.rtol = 1e-12;
+    opt.atol = 1e-14;
+    opt.max_steps = 100000;
+    fric.slip = tsroll_taylor_contact_slip();
+    fric.fr = tsroll_imp_friction_table();
+    fric.mu = mu;
+    flag = lcg_taylor_imp_solve(&tsroll_taylor_contact, tsroll_imp_model_table(), p, y0, 3, t, yout, out, lam,
+                                &opt, e, set, active, 20, rec, &n_rec, &st, stab, NULL, &fric);
+    printf("%d %d %.17g %.17g %d\n", flag, n_rec, rec[0], yout[15], active[0]);
+    return 0;
+}
+"""
+
+
+def test_friction_driver_runs_clean_under_sanitizers(tmp_path, cc):
+    """The roller's contact jet with friction, the Taylor contact driver, the impact law and the
+    friction core, run from C under ASan/UBSan: the grip at t* = 2 (v0 + R w0) / (7 mu g), then
+    rolling at (5 v0 - 2 R w0) / 7, the contact sticking at the end."""
+    import subprocess
+
+    from lagcodegen.build import dae_table_source, table_source, types_headers
+    from lagcodegen.codegen.constrained import generate_constrained
+    from lagcodegen.codegen.record import scene_of_code
+    from lagcodegen.codegen.taylor.contacts import contact_jet_sources
+    from lagcodegen.codegen.taylor.emit import runtime_sources
+    from lagcodegen.runtime import sources as runtime_files
+    from lagcodegen.simulation.taylor_impacts import RUNTIME_FILES
+
+    system = roller_system(0.4, 0.2)
+    code, info = generate_constrained(system, prefix="tsroll")
+    code.write(tmp_path)
+    files = {**runtime_sources(), **runtime_files(RUNTIME_FILES), **table_source(code), **dae_table_source(code),
+             **types_headers(("dae",)), **contact_jet_sources(system, scene_of_code(code, "test"))}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    (tmp_path / "main.c").write_text(FRICTION_MAIN)
+    model_c = sorted(n.name for n in tmp_path.glob("tsroll*.c") if n.name != "tsroll_taylor_contact.c")
+    san = [cc, "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
+    proc = subprocess.run([*san, "main.c", "tsroll_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c",
+                           "lcg_imp_fric.c", *model_c, "-o", "run", "-lm", "-pthread"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True,
+                         env={"ASAN_OPTIONS": "detect_leaks=1", "PATH": "/usr/bin:/bin"})
+    assert run.returncode == 0, run.stdout + run.stderr
+    flag, n_rec, t_grip, x_dot_end, active = run.stdout.split()
+    v0, Rw0, mu = 3.0, 0.3 * 4.0, 0.2
+    assert int(flag) == 0 and int(n_rec) == 1 and int(active) == 1
+    assert float(t_grip) == pytest.approx(2 * (v0 + Rw0) / (7 * mu * G), rel=1e-9)
+    assert float(x_dot_end) == pytest.approx((5 * v0 - 2 * Rw0) / 7, rel=1e-9)
