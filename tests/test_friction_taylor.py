@@ -16,7 +16,7 @@ import sympy as sp
 
 import lagcodegen as lcg
 from test_friction import G, _incline, _painleve_rod, _rod_velocity, _roller
-from test_friction_speeds import MU, RADIUS, _incline_3d, _sphere, _start, _table_on_incline
+from test_friction_speeds import MU, RADIUS, _incline_3d, _sphere, _sphere_system, _start, _table_on_incline
 
 TIGHT = {"rtol": 1e-12, "atol": 1e-14, "method": "taylor"}
 
@@ -326,10 +326,19 @@ int main(void)
 """
 
 
-def test_friction_driver_runs_clean_under_sanitizers(tmp_path, cc):
-    """The roller's contact jet with friction, the Taylor contact driver, the impact law and the
-    friction core, run from C under ASan/UBSan: the grip at t* = 2 (v0 + R w0) / (7 mu g), then
-    rolling at (5 v0 - 2 R w0) / 7, the contact sticking at the end."""
+FRICTION_MAIN_3D = FRICTION_MAIN.replace(
+    "double p[3] = {9.81, 1.0, 0.3}, y0[6] = {0.0, 0.3, 0.0, 3.0, 0.0, 4.0}, t[3] = {0.0, 0.5, 1.2};",
+    "double p[1] = {0.0}, y0[12] = {0, 0, 0.3, 0, 0, 0, 0, 3.0, 0, 0, 0, 4.0}, t[3] = {0.0, 0.5, 1.2};").replace(
+    "double yout[18], out[3 * 64], lam[3 * 2]", "double yout[36], out[3 * 64], lam[3 * 3]").replace(
+    "yout[15]", "yout[31]")
+
+
+@pytest.mark.parametrize("cone", [False, True])
+def test_friction_driver_runs_clean_under_sanitizers(tmp_path, cc, cone):
+    """The contact jet with friction, the Taylor contact driver, the impact law and the friction
+    core, run from C under ASan/UBSan. Planar: the roller's grip at t* = 2 (v0 + R w0) / (7 mu g),
+    then rolling at (5 v0 - 2 R w0) / 7. 3-D (cone): a sphere on two tangents with the same
+    launch (d = u/|u| in the jet): the same grip."""
     import subprocess
 
     from lagcodegen.build import dae_table_source, table_source, types_headers
@@ -340,14 +349,14 @@ def test_friction_driver_runs_clean_under_sanitizers(tmp_path, cc):
     from lagcodegen.runtime import sources as runtime_files
     from lagcodegen.simulation.taylor_impacts import RUNTIME_FILES
 
-    system = roller_system(0.4, 0.2)
-    code, info = generate_constrained(system, prefix="tsroll")
+    system = roller_system(0.4, 0.2) if not cone else _sphere_system(0.2, 0.0, "ZYX", "xy")
+    code, _ = generate_constrained(system, prefix="tsroll")
     code.write(tmp_path)
     files = {**runtime_sources(), **runtime_files(RUNTIME_FILES), **table_source(code), **dae_table_source(code),
              **types_headers(("dae",)), **contact_jet_sources(system, scene_of_code(code, "test"))}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
-    (tmp_path / "main.c").write_text(FRICTION_MAIN)
+    (tmp_path / "main.c").write_text(FRICTION_MAIN_3D if cone else FRICTION_MAIN)
     model_c = sorted(n.name for n in tmp_path.glob("tsroll*.c") if n.name != "tsroll_taylor_contact.c")
     san = [cc, "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
     proc = subprocess.run([*san, "main.c", "tsroll_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c",
