@@ -367,16 +367,6 @@ def test_refusals_and_bad_input_name_the_problem(ball):
         plain.integrator(q0=[0.6, -0.8], v0=[0.0, 0.0], method="taylor")
     with pytest.raises(LagcodegenError, match="Taylor has no ensemble runner"):
         plain.ensemble((0, 1), q0=[[0.6, -0.8]], v0=[[0.0, 0.0]], method="taylor")
-    # Coulomb friction: its stick/slip modes are the CVODE impact driver's
-    m3 = lcg.Model("tincline")
-    x3, y3 = m3.coordinates("x y")
-    m3.parameters(g=G, m=1.0)
-    m3.particle("b", sp.Symbol("m"), (x3, y3))
-    m3.gravity(sp.Symbol("g"))
-    rough = compile_constrained(lcg.ConstrainedSystem(m3, inequalities=[
-        lcg.Inequality(y3, restitution=0.0, tangent=x3, friction=0.3)]), "index1")
-    with pytest.raises(LagcodegenError, match="Coulomb friction .* runs on the native impact drivers"):
-        rough.simulate((0, 1), q0=[0.0, 0.0], v0=[1.0, 0.0], method="taylor")
 
 
 def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(tmp_path, cc):
@@ -402,14 +392,17 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     strict = [cc, "-Wall", "-Wextra", "-Werror", "-std=c99", "-pedantic", "-O2", "-c"]
-    for src in ("tsball_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c"):
+    for src in ("tsball_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c", "lcg_imp_fric.c"):
         proc = subprocess.run([*strict, src, "-o", "/dev/null"], cwd=tmp_path, capture_output=True, text=True)
         assert proc.returncode == 0, src + proc.stderr
     # the jets of an equality row with a contact, no-slip tangential rows, generalized speeds (a
-    # jet of several chunks of operations)
+    # jet of several chunks of operations), Coulomb friction (planar: the jet's tl_slip; 3-D: u/|u|)
     from test_constrained_speeds import dropped_box
+    from test_friction_speeds import _sphere_system
+    from test_friction_taylor import roller_system
     others = {"tspwall": _pendulum_wall(0.5), "tshousner": housner_block("tshousner", 0.2, 0.6),
-              "tsbox": dropped_box("quaternion", (0, 0, -0.1), 0.6)}
+              "tsbox": dropped_box("quaternion", (0, 0, -0.1), 0.6), "tsroller": roller_system(0.4, 0.2),
+              "tssphere": _sphere_system(0.2, 0.0, "quaternion", "xy")}
     for prefix, other in others.items():
         other_code, other_info = generate_constrained(other, prefix=prefix)
         for name, text in contact_jet_sources(other, scene_of_code(other_code, "test"),
@@ -421,7 +414,8 @@ def test_contact_driver_and_jet_compile_strictly_and_run_clean_under_sanitizers(
     (tmp_path / "main.c").write_text(CONTACT_MAIN)
     model_c = sorted(n.name for n in tmp_path.glob("tsball*.c") if n.name != "tsball_taylor_contact.c")
     san = [cc, "-std=c99", "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
-    proc = subprocess.run([*san, "main.c", "tsball_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c", *model_c,
+    proc = subprocess.run([*san, "main.c", "tsball_taylor_contact.c", "lcg_taylor_imp.c", "lcg_imp_law.c",
+                           "lcg_imp_fric.c", *model_c,
                            "-o", "run", "-lm", "-pthread"], cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     run = subprocess.run(["./run"], cwd=tmp_path, capture_output=True, text=True,
@@ -458,12 +452,12 @@ int main(void)
     opt.atol = 1e-14;
     opt.max_steps = 100000;
     flag = lcg_taylor_imp_solve(&tsball_taylor_contact, tsball_imp_model_table(), p, y0, 3, t, yout, out, lam,
-                                &opt, e, set, active, 200, rec, &n_rec, &st, stab, &ev);
+                                &opt, e, set, active, 200, rec, &n_rec, &st, stab, &ev, NULL);
     n1 = n_rec;
     a1 = active[0];
     other.abi = LCG_TAYLOR_CONTACT_ABI + 1;
     bad = lcg_taylor_imp_solve(&other, tsball_imp_model_table(), p, y0, 3, t, yout, out, lam, &opt, e, set, active,
-                               200, rec, &n_rec, &st, stab, NULL);
+                               200, rec, &n_rec, &st, stab, NULL, NULL);
     printf("%d %d %.17g %.17g %.17g %d %d %d %.17g\n", flag, n1, rec[0], yout[4], lam[2], a1, bad, ev.n_events,
            ey[0]);
     return 0;

@@ -15,7 +15,15 @@
  * impact law (lcg_imp_jump), the contacts that pull are released (lcg_imp_release_pulling), the
  * rows held are set for the new modes and the integration restarts from the new state. Output
  * times inside a step are evaluations of its polynomial; the multipliers there are the index-1
- * solve at that state (im->crhs, as the CVODE impact driver reports them). */
+ * solve at that state (im->crhs, as the CVODE impact driver reports them).
+ *
+ * Coulomb friction (fric != NULL): the modes are the friction core's (lcg_imp_fric.c: lcg_fr_start,
+ * then lcg_fr_impact and lcg_fr_modes at every switch with the core's ending[], as lcg_imp.c); the
+ * jet holds a sticking contact's tangential rows and gives a slipping one the force direction
+ * G - sigma mu T (3-D: G - mu d.T, d = u/|u| in the jet; ti_hold). The transitions (lcg_fr_roots
+ * at the states of the step's polynomial, with their multipliers from lcg_fr_crhs) are sampled at
+ * TI_FR_SAMPLES points of each step and bisected; the determinant's root is Painleve's paradox
+ * (LCG_FLAG_CONTACT_MODE), as are the core's inconsistent or indeterminate mode choices. */
 #include "lcg_control.h" /* first: POSIX */
 
 #include <float.h>
@@ -25,6 +33,7 @@
 #include <string.h>
 
 #include "lcg_taylor_imp.h"
+#include "lcg_imp_fric.h" /* the friction core of the CVODE and IDA impact drivers */
 
 #include "lcg_taylor_adapter.h" /* the driver on the table m, tl_table_ok */
 #include "lcg_taylor_driver.h"
@@ -62,13 +71,13 @@ static double ti_first_down(const double *x, int d, double level, double h)
 /* Output row kout at (t, yk): the constrained table's outputs and the multipliers of the rows
  * held (the first nlam of im->crhs's). Returns LCG_DAE_OK or a model error. */
 static int ti_output(const lcg_imp_model *im, const double *p, double t, const double *yk, const int *active,
-                     const double ab[2], double *ydot, double *lam, double *lamrow, double *outrow)
+                     const double ab[2], double *ydot, double *lam, double *lamrow, double *outrow, lcg_fric_ctx *fc)
 {
-    int rc = im->crhs(t, yk, p, ab[0], ab[1], active, ydot, lam), i;
+    int rc = fc != NULL ? lcg_fr_crhs(fc, t, yk, ydot, lam) : im->crhs(t, yk, p, ab[0], ab[1], active, ydot, lam), i;
 
     if (rc != LCG_DAE_OK)
         return rc;
-    for (i = 0; i < im->nj + im->nk; ++i)
+    for (i = 0; i < (fc != NULL ? im->nrow : im->nj + im->nk); ++i) /* with friction: all rows */
         lamrow[i] = lam[i];
     return im->dae->coutputs(t, yk, NULL, p, outrow);
 }
@@ -117,6 +126,119 @@ static int ti_settle(const lcg_imp_model *im, const double *p, double t, const d
             lcg_imp_record(rec, max_rec, n_rec, t, k, LCG_IMP_STICK, 0.0, wk[k], wk[k]);
         }
     return LCG_DAE_OK;
+}
+
+#define TI_FR_SLOW 100.0 /* a 3-D slip at most this times contact_speed: d fixed within a step */
+#define TI_FR_CAP0 1e-9  /* the first such step at most this, each next one at most twice the last */
+
+/* Coulomb friction: the rows held of the current modes at (t, y) (the table's hold, then the jet's
+ * tl_slip: a slipping contact's tangential row not held, lambda_t = -sigma mu lambda_n; 3-D:
+ * lambda_t = -mu lambda_n d with d = u/|u| in the jet (slipping 2), or, while |u| is at most
+ * TI_FR_SLOW contact_speed (a slip from rest or about to stop: u/|u| has no useful series), the
+ * core's d fixed within the step). Returns 1 when a 3-D slip has its d fixed (the step capped),
+ * 0, or a model error (< 0 ... as lcg_fr_eval). */
+static int ti_hold(const lcg_taylor_contact *ct, void *work, const int *active, const double ab[2],
+                   const lcg_taylor_friction *fric, lcg_fric_ctx *fc, double t, const double *y, int *slipping,
+                   double *wc)
+{
+    const lcg_fric *f = fc != NULL ? fc->fr : NULL;
+    int r, k, fixed = 0, evaluated = 0;
+
+    ct->hold(work, active, ab[0], ab[1]);
+    if (fric == NULL)
+        return 0;
+    for (r = 0; r < ct->nr; ++r) {
+        slipping[r] = 0;
+        wc[r] = 0.0;
+    }
+    for (k = 0; k < ct->nk; ++k)
+        if (active[k] && f->trow[k] >= 0 && f->mu[k] >= 0.0 && f->fmode[k] != 0) {
+            slipping[f->trow[k]] = 1;
+            if (f->trow2[k] >= 0) { /* 3-D: G - mu (d1 T1 + d2 T2) */
+                double u, u2;
+                if (!evaluated) { /* the core's numbers and slip directions at (t, y) */
+                    int rc = lcg_fr_crhs(fc, t, y, fc->ydot, fc->lam);
+                    if (rc != LCG_DAE_OK)
+                        return rc < 0 ? rc : -rc;
+                    evaluated = 1;
+                }
+                lcg_fr_slip(f, k, &u, &u2);
+                slipping[f->trow2[k]] = 1;
+                if (hypot(u, u2) > TI_FR_SLOW * f->vtol) {
+                    slipping[f->trow[k]] = slipping[f->trow2[k]] = 2;
+                    wc[f->trow[k]] = wc[f->trow2[k]] = -f->mu[k];
+                } else {
+                    wc[f->trow[k]] = -f->mu[k] * f->dir[2 * k];
+                    wc[f->trow2[k]] = -f->mu[k] * f->dir[2 * k + 1];
+                    fixed = 1;
+                }
+            } else {
+                wc[f->trow[k]] = -(double)f->fmode[k] * f->mu[k];
+            }
+        }
+    fric->slip(work, slipping, wc);
+    return fixed;
+}
+
+/* The friction core's transition functions (lcg_fr_roots, 2 nk + 1) at tau on the step's
+ * polynomial X of the current modes: the state there (ys), its multipliers (lcg_fr_crhs). */
+static int ti_fr_gf(const lcg_taylor_model *m, const double *X, int order, double t, double tau, lcg_fric_ctx *fc,
+                    double *ys, double *gf)
+{
+    int rc;
+
+    tl_eval(m, X, order, tau, ys);
+    rc = lcg_fr_crhs(fc, t + tau, ys, fc->ydot, fc->lam);
+    if (rc != LCG_DAE_OK)
+        return rc;
+    lcg_fr_roots(fc, fc->lam, gf);
+    return LCG_DAE_OK;
+}
+
+#define TI_FR_SAMPLES 8 /* the friction functions sampled at 8 points of each step, their roots bisected */
+
+/* The first root in (0, h] of the friction functions on the step (decreasing through 0, from > 0
+ * to <= 0 between samples of the step's polynomial, then bisected to the resolution of t): *tau
+ * and the function's index (2 k, 2 k + 1: contact k's mode ends; 2 nk: the determinant, Painleve),
+ * or -1 (*rc a model error, else LCG_DAE_OK). ga, gb, gm: scratch of 2 nk + 1, ys of ny. */
+static int ti_fr_first(const lcg_taylor_model *m, const double *X, int order, double t, double h, lcg_fric_ctx *fc,
+                       int ng, double *ys, double *ga, double *gb, double *gm, double *tau, int *rc)
+{
+    double a = 0.0;
+    int j, i, which = -1;
+
+    if ((*rc = ti_fr_gf(m, X, order, t, 0.0, fc, ys, ga)) != LCG_DAE_OK)
+        return -1;
+    for (j = 1; j <= TI_FR_SAMPLES; ++j) {
+        double b = h * j / TI_FR_SAMPLES;
+        if ((*rc = ti_fr_gf(m, X, order, t, b, fc, ys, gb)) != LCG_DAE_OK)
+            return -1;
+        for (i = 0; i < ng; ++i)
+            if (ga[i] > 0.0 && gb[i] <= 0.0) { /* bisected on (a, b] */
+                double lo = a, hi = b;
+                while (hi - lo > 4.0 * DBL_EPSILON * (fabs(t) + hi)) {
+                    double mid = 0.5 * (lo + hi);
+                    if (!(mid > lo && mid < hi))
+                        break;
+                    if ((*rc = ti_fr_gf(m, X, order, t, mid, fc, ys, gm)) != LCG_DAE_OK)
+                        return -1;
+                    if (gm[i] > 0.0)
+                        lo = mid;
+                    else
+                        hi = mid;
+                }
+                if (which < 0 || hi < *tau) {
+                    *tau = hi;
+                    which = i;
+                }
+            }
+        if (which >= 0)
+            return which;
+        for (i = 0; i < ng; ++i)
+            ga[i] = gb[i];
+        a = b;
+    }
+    return -1;
 }
 
 #define TI_MODEL_ERROR(rc)                          \
@@ -181,7 +303,8 @@ static int ti_events(const lcg_taylor_model *m, const lcg_taylor_contact *ct, co
 int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, const double *p, const double *y0,
                          int nt, const double *tout, double *yout, double *out, double *lamout,
                          const lcg_taylor_options *opt, const double *e, const double *set, int *active,
-                         int max_rec, double *rec, int *n_rec, lcg_taylor_stats *st, double *stab, lcg_events *ev)
+                         int max_rec, double *rec, int *n_rec, lcg_taylor_stats *st, double *stab, lcg_events *ev,
+                         const lcg_taylor_friction *fric)
 {
     const lcg_taylor_model *m = ct != NULL ? ct->jet : NULL;
     tl_run r;
@@ -191,6 +314,13 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     int *ibuf = NULL, *hit, *rows, *ewhich = NULL, *edir = NULL;
     int kout = 1, flag = 0, rc, i, k, ny = 0, nk = 0, nlam = 0, nout = 0, same = 0, quiet = 0, ne = 0;
     watch wt;
+    /* Coulomb friction: the core's state and view of the run, the jet's slipping rows */
+    lcg_fric fdata;
+    lcg_fric_ctx fc, *fcp = NULL;
+    void *fmem = NULL;
+    double *fbuf = NULL, *wc = NULL, *ys = NULL, *ga = NULL, *gb = NULL, *gm = NULL;
+    int *slipping = NULL, ng = 0, cone = 0, frozen = 0;
+    double fcap = TI_FR_CAP0;
 
     memset(&r, 0, sizeof r);
     memset(st, 0, sizeof *st);
@@ -229,6 +359,35 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     ny = m->ny;
     nk = im->nk;
     nlam = im->nj + nk;
+    if (fric != NULL) {
+        if (fric->slip == NULL || fric->fr == NULL || fric->mu == NULL) {
+            snprintf(st->message, sizeof st->message, "Coulomb friction needs the jet's tl_slip, the friction "
+                     "table and the coefficients");
+            flag = LCG_FLAG_BAD_INPUT;
+            goto done;
+        }
+        if (lcg_fr_setup(&fdata, fric->fr, im, fric->mu, set[0], &fmem, st->message, sizeof st->message) != 0) {
+            flag = LCG_FLAG_BAD_INPUT;
+            goto done;
+        }
+        for (k = 0; k < nk; ++k)
+            cone |= fdata.trow2[k] >= 0 && fdata.mu[k] >= 0.0;
+        ng = 2 * nk + 1;
+        nlam = im->nrow;
+        /* doubles: wc[nr], ys[ny], ga, gb, gm[ng]; ints: slipping[nr] */
+        fbuf = (double *)malloc(sizeof(double) * (size_t)(ct->nr + ny + 3 * ng));
+        slipping = (int *)malloc(sizeof(int) * (size_t)(ct->nr > 0 ? ct->nr : 1));
+        if (fbuf == NULL || slipping == NULL) {
+            snprintf(st->message, sizeof st->message, "out of memory");
+            flag = LCG_FLAG_NOMEM;
+            goto done;
+        }
+        wc = fbuf;
+        ys = wc + ct->nr;
+        ga = ys + ny;
+        gb = ga + ng;
+        gm = gb + ng;
+    }
     nout = im->dae->nout;
     tl_run_order(m, &r, opt, st);
     r.kmax = r.order + 1; /* the gaps' and multipliers' polynomials to the step's order */
@@ -290,6 +449,19 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     }
     stab[0] = ab[0];
     stab[1] = ab[1];
+    if (fric != NULL) {
+        fc.im = im;
+        fc.p = p;
+        fc.alpha = ab[0];
+        fc.beta = ab[1];
+        fc.active = active;
+        fc.fr = &fdata;
+        fc.lam = lam;
+        fc.ydot = ydot;
+        fc.message = st->message;
+        fc.message_size = sizeof st->message;
+        fcp = &fc;
+    }
     rc = TL_START(r.work, p);
     TI_MODEL_ERROR(rc);
     for (k = 0; k < nk; ++k) {
@@ -306,30 +478,40 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     for (k = 0; k < nk; ++k)
         if (!active[k] && gk[k] <= set[2] && fabs(wk[k]) <= set[0])
             active[k] = 1;
-    rc = lcg_imp_jump(&L, thi, y, hit);
-    TI_MODEL_ERROR(rc);
-    rc = lcg_imp_release_pulling(&Lq, thi, y, ab[0], ab[1], ydot, lam);
-    TI_MODEL_ERROR(rc);
+    if (fcp != NULL) { /* the initial modes (as the CVODE driver): sticking where the slip velocity is small */
+        rc = lcg_fr_start(fcp, thi, y, set[0]);
+        if (rc == -1) {
+            flag = LCG_FLAG_CONTACT_MODE;
+            goto done;
+        }
+        TI_MODEL_ERROR(rc);
+    } else {
+        rc = lcg_imp_jump(&L, thi, y, hit);
+        TI_MODEL_ERROR(rc);
+        rc = lcg_imp_release_pulling(&Lq, thi, y, ab[0], ab[1], ydot, lam);
+        TI_MODEL_ERROR(rc);
+    }
     for (i = 0; i < ny; ++i)
         yout[i] = y[i];
-    rc = ti_output(im, p, thi, y, active, ab, ydot, lam, lamout, out);
+    rc = ti_output(im, p, thi, y, active, ab, ydot, lam, lamout, out, fcp);
     TI_MODEL_ERROR(rc);
     st->nt_done = 1;
-    ct->hold(r.work, active, ab[0], ab[1]);
+    frozen = ti_hold(ct, r.work, active, ab, fric, fcp, thi, y, slipping, wc);
+    TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
     tl_run_restart(m, &r);
     tend = tout[nt - 1];
     st->h_min = HUGE_VAL;
 
     while (kout < nt) {
-        double h, rem, tau = 0.0;
-        int end = 0, which;
+        double h, rem, tau = 0.0, ftau = 0.0;
+        int end = 0, which, fw = -1;
 
         /* Output times within rounding of the current time (a step ended there): its state. */
         while (kout < nt && (tout[kout] - thi) - tlo <= 4.0 * DBL_EPSILON * fabs(thi)) {
             for (i = 0; i < ny; ++i)
                 yout[(long)kout * ny + i] = y[i];
             rc = ti_output(im, p, tout[kout], y, active, ab, ydot, lam, lamout + (long)kout * nlam,
-                           out + (long)kout * nout);
+                           out + (long)kout * nout, fcp);
             TI_MODEL_ERROR(rc);
             st->nt_done = ++kout;
         }
@@ -343,6 +525,10 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
         }
         if (WATCH_TICK(&wt))
             break;
+        if (cone) { /* 3-D slips: d fixed (slow) or u/|u| in the jet (fast), chosen at each step's start */
+            frozen = ti_hold(ct, r.work, active, ab, fric, fcp, thi + tlo, y, slipping, wc);
+            TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
+        }
         rc = TL_JET(r.work, r.X, thi + tlo, y, r.kmax);
         st->njet++;
         if (rc == 1)
@@ -360,6 +546,13 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             h = opt->max_step;
         if (r.hprev > 0.0 && h > 100.0 * r.hprev)
             h = 100.0 * r.hprev;
+        if (frozen) { /* a 3-D slip's d fixed within the step: short steps, doubling */
+            if (h > fcap)
+                h = fcap;
+            fcap *= 2.0;
+        } else {
+            fcap = TI_FR_CAP0;
+        }
         rem = (tend - thi) - tlo;
         if (h >= rem) {
             h = rem;
@@ -377,8 +570,22 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             h = tau;
             end = 2;
         }
+        if (fcp != NULL) { /* the friction transitions, on the step's polynomial */
+            fw = ti_fr_first(m, r.X, r.order, thi + tlo, h, fcp, ng, ys, ga, gb, gm, &ftau, &rc);
+            TI_MODEL_ERROR(rc);
+            if (fw >= 0 && (which < 0 || ftau < h)) {
+                if (which < 0)
+                    st->nroot++;
+                h = ftau;
+                which = -1;
+                end = 2;
+            } else {
+                fw = -1;
+            }
+        }
         if (ne > 0 && h > 0.0 && ti_events(m, ct, r.X, r.order, thi, tlo, &h, ev, elast, etau, ewhich, edir)) {
             which = -1; /* a terminal event at or before the contact's switch ends the run there */
+            fw = -1;
             end = 3;
         }
 
@@ -389,7 +596,7 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
                 break;
             tl_eval(m, r.X, r.order, dt, yk);
             rc = ti_output(im, p, tout[kout], yk, active, ab, ydot, lam, lamout + (long)kout * nlam,
-                           out + (long)kout * nout);
+                           out + (long)kout * nout, fcp);
             TI_MODEL_ERROR(rc);
             st->nt_done = ++kout;
         }
@@ -399,18 +606,50 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
             ev->terminated = 1;
             break;
         }
-        if (which >= 0) { /* the switch: an impact (or a release), the contacts that pull released */
+        if (which >= 0 || fw >= 0) { /* the switch: an impact (or a release), the contacts that pull released */
             double t = thi + tlo;
             if (t == tsame) {
                 if (++same > 4 * nk + 8) {
                     snprintf(st->message, sizeof st->message, "the contacts switch without end at t = %.17g "
-                             "(contact %d)", t, which);
+                             "(contact %d)", t, which >= 0 ? which : fw / 2);
                     flag = -3;
                     break;
                 }
             } else {
                 tsame = t;
                 same = 0;
+            }
+            if (fcp != NULL) { /* Coulomb friction: the core chooses the modes, as the CVODE driver */
+                if (fw == ng - 1) {
+                    snprintf(st->message, sizeof st->message, "Painleve's paradox at t = %.17g: the contact problem "
+                             "of the slipping contact(s) became singular (the normal's effective mass with friction, "
+                             "G M^-1 (G - sigma mu T)^T, reached 0: the normal force grows without bound)", t);
+                    flag = LCG_FLAG_CONTACT_MODE;
+                    break;
+                }
+                if (fw >= 0)
+                    fdata.ending[fw / 2] = fdata.fmode[fw / 2] == 0 ? FR_END_STICK : FR_END_SLIP;
+                else if (active[which])
+                    fdata.ending[which] = FR_END_RELEASE;
+                else
+                    hit[which] = 1;
+                rc = lcg_fr_impact(fcp, t, y, hit, e, set, last, rec, max_rec, n_rec);
+                if (rc == LCG_DAE_OK)
+                    rc = lcg_fr_modes(fcp, t, y, fdata.ending, set[0], rec, max_rec, n_rec);
+                for (k = 0; k < nk; ++k) {
+                    fdata.ending[k] = 0;
+                    hit[k] = 0;
+                }
+                if (rc == -1) {
+                    flag = LCG_FLAG_CONTACT_MODE;
+                    break;
+                }
+                TI_MODEL_ERROR(rc);
+                frozen = ti_hold(ct, r.work, active, ab, fric, fcp, t, y, slipping, wc);
+                TI_MODEL_ERROR(frozen < 0 ? -frozen : LCG_DAE_OK);
+                fcap = TI_FR_CAP0;
+                r.hprev = 0.0;
+                continue;
             }
             if (active[which]) { /* a release: the contact leaves with w = 0 (not an impact) */
                 active[which] = 0;
@@ -437,6 +676,11 @@ int lcg_taylor_imp_solve(const lcg_taylor_contact *ct, const lcg_imp_model *im, 
     }
 
 done:
+    if (fcp != NULL) /* the final friction modes of the Coulomb contacts: 1 stick, 2 slip+, 3 slip- */
+        for (k = 0; k < nk; ++k)
+            if (active[k] && fdata.trow[k] >= 0 && fdata.mu[k] >= 0.0)
+                active[k] = fdata.fmode[k] != 0 && fdata.trow2[k] >= 0 ? 4 : fdata.fmode[k] > 0 ? 2
+                            : fdata.fmode[k] < 0 ? 3 : 1;
     flag = watch_flag(&wt, flag, st->message, sizeof st->message);
     st->t_reached = thi + tlo;
     if (st->h_min == HUGE_VAL)
@@ -447,5 +691,8 @@ done:
     free(ibuf);
     free(elast);
     free(ewhich);
+    free(fmem);
+    free(fbuf);
+    free(slipping);
     return flag;
 }

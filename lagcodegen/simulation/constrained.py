@@ -315,7 +315,7 @@ class ConstrainedSimulation(ConstrainedFunctions):
                               family.recording(10_000, roots=roots), contacts, alg_atol)
         if self.system.has_friction and (type(family).__name__ != "CVODE" or backend != "native"):
             raise LagcodegenError(f"Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  f"impact drivers only (index-1: CVODE, GGL: IDA); the solver "
+                                  f"impact drivers only (index-1: CVODE, GGL: IDA; and method='taylor'); the solver "
                                   f"{type(family).__name__} (backend {backend!r}) cannot take it: "
                                   "solver=CVODE(backend='native')")
         if backend != "native":

@@ -112,9 +112,9 @@ q' - k(q, v + R_h^T mu, t) (k is affine in v; mu = 0 on the solution). **Minimal
 :class:`~.minimal.MinimalSimulation` runs the reduced model with the contacts in the remaining
 coordinates on the index-1 driver.
 
-**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law, frictionless and no-slip
-contacts; impacts and releases are roots of the Taylor polynomials of the gaps and multipliers
-(Coulomb friction is refused there by name). Ensembles run each member as one call of the
+**Taylor** (``method="taylor"``, :mod:`.taylor_impacts`): the same law and Coulomb friction, planar and
+3-D (the core's modes); impacts and releases are roots of the Taylor polynomials
+of the gaps and multipliers. Ensembles run each member as one call of the
 system's driver (index-1, GGL or Taylor), every member's events and contact log kept
 (:mod:`.impact_ensemble`); the integrator object makes one call per propagate call
 (:mod:`.impact_stepper`). Fortran model code (``lang="fortran"``) runs on the same drivers: its

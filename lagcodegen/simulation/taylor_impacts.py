@@ -17,9 +17,22 @@ are held from there on ("stick" records without impulse).
 
 Frictionless and no-slip contacts, equality rows, generalized speeds, minimal coordinates,
 ensembles, the integrator object; the system's compiled events located on the steps' polynomials
-(those whose expression uses a multiplier refused by name). Refused by name: Coulomb friction (a
-slipping contact's force along G - sigma mu T is not a row held with its multiplier, and its
-stick/slip modes are the friction core's, lcg_imp_fric.c, driven by the CVODE and IDA drivers),
+(those whose expression uses a multiplier refused by name).
+
+Coulomb friction (planar: one tangent row; 3-D: two, the circular cone): the modes are the friction core's
+(lagcodegen/runtime/lcg_imp_fric.c, as on CVODE and IDA: lcg_fr_start at the start, lcg_fr_impact
+and lcg_fr_modes at every switch with the core's ``ending``, Painleve's paradox raising
+:class:`~.constrained_impacts.PainleveError`). While the modes are fixed a sticking contact holds
+its tangential row, a slipping one only its normal row with the force direction G - sigma mu T
+(the jet's tl_slip: lambda_t = -sigma mu lambda_n at every order, K_[0] no longer symmetric). The
+transitions (lcg_fr_roots: mu lambda_n -+ lambda_t, the slip velocity, the determinant) are
+evaluated on the step's polynomial (the state there, its multipliers by lcg_fr_crhs) at 8 points
+of each step, a sign change bisected to the resolution of t (a root pair within one eighth of a
+step is not seen). 3-D: the force direction G - mu (d1 T1 + d2 T2) with d = u/|u| in the jet (the
+Taylor series of |u| and of u/|u| order by order, lambda_t = -mu d lambda_n as their product),
+so d turns along the motion within a step; while |u| is at most 100 contact_speed (a slip from
+rest, or one about to stop: u/|u| has no useful series there) d is the core's, fixed within the
+step and renewed at each step's start, the steps then at most 1e-9, doubling. Refused by name:
 sensitivities.
 """
 
@@ -49,10 +62,10 @@ from .constrained_impacts import ContactOptions, ImpactRunner
 #: The files of lagcodegen/runtime/ the Taylor contact driver is compiled from (besides the Taylor
 #: runtime's sources, whose lcg_taylor_driver.h it includes).
 RUNTIME_FILES = ("lcg_taylor_imp.c", "lcg_taylor_imp.h", "lcg_taylor_contact.h", "lcg_imp_law.c", "lcg_imp_law.h",
-                 "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h")
+                 "lcg_imp_fric.c", "lcg_imp_fric.h", "lcg_imp_model.h", "lcg_dae_model.h", "lcg_model.h")
 
 #: The tables are opaque to Python (their addresses come from the model's libraries).
-_OPAQUE = "typedef ... lcg_taylor_contact;\ntypedef ... lcg_imp_model;\n"
+_OPAQUE = "typedef ... lcg_taylor_contact;\ntypedef ... lcg_imp_model;\ntypedef ... lcg_imp_friction;\n"
 
 
 def _cdef() -> str:
@@ -68,7 +81,7 @@ def _runtime(cc: str, cflags: tuple[str, ...]):
     own = sorted(runtime_files(RUNTIME_FILES).items())
     texts = [f"P_MAX {P_MAX}", *runtime_key_texts(), *(f"{k}\0{v}" for k, v in own)]
     return driver_runtime("taylor_impacts", texts, render, _cdef(), "lcg_taylor_imp.h", ["-lm", "-pthread"], cc,
-                          cflags, units=("lcg_taylor_imp.c", "lcg_imp_law.c"))
+                          cflags, units=("lcg_taylor_imp.c", "lcg_imp_law.c", "lcg_imp_fric.c"))
 
 
 def taylor_impact_runtime(cc: str | None = None, cflags: tuple[str, ...] = DEFAULT_CFLAGS):
@@ -84,12 +97,6 @@ class TaylorImpactRunner:
 
     def __init__(self, sim, impacts: ImpactRunner):
         system = sim.system
-        if system.has_friction:
-            raise LagcodegenError("Coulomb friction on contacts (Inequality(..., friction=mu)) runs on the native "
-                                  "impact drivers (index-1: method='adams' or 'bdf'; GGL: IDA): the Taylor contact "
-                                  "driver holds rows with their multipliers, and a slipping contact's force along "
-                                  "G - sigma mu T is not such a row; its stick/slip/release modes are chosen by "
-                                  "the friction core of the CVODE and IDA impact drivers")
         if sim.info.lang != "c":
             raise LagcodegenError("contacts are generated in C only")
         self.sim = sim
@@ -107,6 +114,15 @@ class TaylorImpactRunner:
         self.imp = ffi.cast("const lcg_imp_model *", int(impacts.ffi.cast("uintptr_t", impacts.table)))
         if self.rows.nk != len(impacts.contacts) or self.decomposition.ny != sim.ny:
             raise LagcodegenError(f"the Taylor contact jet of {sim.info.prefix!r} does not match its code")
+        self.fric = ffi.NULL  # Coulomb friction: the jet's tl_slip, the friction table, mu
+        if system.has_friction:
+            slip = getattr(lib.handle, f"{sim.info.prefix}_taylor_contact_slip")
+            slip.restype = ctypes.c_void_p
+            slip.argtypes = []
+            self.fric = ffi.new("lcg_taylor_friction *")
+            self.fric.slip = ffi.cast("void (*)(void *, const int *, const double *)", slip())
+            self.fric.fr = ffi.cast("const lcg_imp_friction *", int(impacts.ffi.cast("uintptr_t", impacts.friction)))
+            self.fric.mu = self._mu = ffi.from_buffer("double[]", impacts.mu)
 
     #: the family of the runs (the integrator object's name for it)
     family = "taylor"
@@ -136,6 +152,8 @@ class TaylorImpactRunner:
             raise LagcodegenError("the Taylor contact driver projects nothing (projection=False)")
         sim = self.sim
         nr = sim.info.J + len(impacts.contacts)
+        if self.fric != ffi.NULL:  # with friction: every row's multiplier (as the CVODE driver)
+            nr = int(impacts.table.nrow)
         buf = impacts._buffers(t, nr, contacts, Recording(roots=False))
         if recording.roots and sim.info.events:  # the events located on the steps' polynomials
             refused = [ev.name for ev, row in zip(sim.info.events, self.rows.events) if row < 0]
@@ -168,7 +186,7 @@ class TaylorImpactRunner:
             fb("double[]", buf.t), fb("double[]", buf.yout), fb("double[]", buf.out), fb("double[]", buf.lamout), opt,
             fb("double[]", impacts.restitution), fb("double[]", buf.settings), fb("int[]", buf.active),
             buf.max_records, fb("double[]", buf.rec), buf.n_rec, st, fb("double[]", stab),
-            buf.events.struct if buf.events else ffi.NULL)
+            buf.events.struct if buf.events else ffi.NULL, self.fric)
         res = impacts._result(buf.raw(flag, st, p, time.perf_counter() - start), contacts, "taylor", "Taylor",
                               stats_of=run_stats)
         res.stats["alpha"], res.stats["beta"] = float(stab[0]), float(stab[1])

@@ -26,8 +26,12 @@ searched by the driver, except those whose expression uses a multiplier (row -1:
 refuses a run that locates them). The file ``<prefix>_taylor_contact.c`` defines the jet's table
 ``lcg_taylor_model`` (no outputs, no events of its own: the constrained table's outputs and the
 contact table's events are the driver's) and the contact table ``lcg_taylor_contact``
-(lagcodegen/runtime/lcg_taylor_contact.h). Coulomb friction is not in it (its stick/slip modes are
-the friction core's, lcg_imp_fric.c, driven by the CVODE and IDA impact drivers).
+(lagcodegen/runtime/lcg_taylor_contact.h). With Coulomb friction it also exports
+``<prefix>_taylor_contact_slip`` (tl_slip: after hold, the tangential rows of slipping contacts not
+held, lambda_t = wc lambda_n with wc = -sigma mu, the normal's force column G + wc T; 3-D, slip 2:
+lambda_t = -mu d lambda_n with d = u/|u| computed in the jet order by order from the tangential
+rows' velocities); the stick/slip modes are the friction core's (lcg_imp_fric.c), driven by
+lcg_taylor_imp.c.
 """
 
 from __future__ import annotations
@@ -66,6 +70,7 @@ class ContactRows:
     njh: int
     nk: int
     tangent_of: list
+    friction: bool = False  # a contact has Coulomb friction: the jet takes its slipping modes (tl_slip)
     events: list = dataclasses.field(default_factory=list)  # per event: its row, or -1 (uses a multiplier)
 
     @property
@@ -92,10 +97,6 @@ def contact_decompose(system, scene: Scene, events=(), *,
     an event whose expression uses a multiplier gets no row: its value needs the solve of the same
     order): the cheaper of the derived and trig-linearized forms (``form`` to force one), products
     fused (:func:`~.decompose.fuse_products`)."""
-    if system.has_friction:
-        raise ModelError("method='taylor' does not integrate Coulomb friction (Inequality(..., friction=mu)): a "
-                         "slipping contact's force along G - sigma mu T is not a row held with its multiplier, and "
-                         "its stick/slip modes are chosen by the CVODE impact driver (method='adams' or 'bdf')")
     eom = scene.eom
     model = eom.model
     if eom.quadratures:
@@ -141,7 +142,7 @@ def contact_decompose(system, scene: Scene, events=(), *,
         crow = ContactRows(R=[[entries[("R", r, i)] for i in range(n)] for r in range(nr)],
                            s=[entries[("s", r)] for r in range(nr)], h=[entries[("h", r)] for r in range(nr)],
                            gam=[entries[("gam", r)] for r in range(nr)], nj=nj, njh=njh, nk=nk,
-                           tangent_of=list(blocks["tangent_of"]),
+                           tangent_of=list(blocks["tangent_of"]), friction=bool(system.has_friction),
                            events=[next(rows_of) if ev in jet_events else -1 for ev in events])
         dec.cost += sum(1.0 for row in crow.R for e in row if isinstance(e, int))
         if best is None or dec.cost < best[0].cost:
@@ -173,7 +174,14 @@ def contact_context(scene: Scene, d: Decomposition, rows: ContactRows) -> dict:
                R=rows.R, s=rows.s, h=rows.h, gam=rows.gam, holonomic=[rows.holonomic(r) for r in range(rows.nr)],
                contact_of=[rows.contact_of(r) for r in range(rows.nr)], mconv=mconv, rconv=rconv,
                gap_rows=[rows.h[rows.nj + k] for k in range(rows.nk)], lam_row=d.nrows, chunk_size=CHUNK,
-               p_max=P_MAX)
+               p_max=P_MAX, friction=rows.friction,
+               normal_of=[rows.nj + rows.contact_of(r) if r >= rows.nj + rows.nk else -1 for r in range(rows.nr)])
+    tangents: dict = {}
+    for r in range(rows.nj + rows.nk, rows.nr):
+        tangents.setdefault(rows.contact_of(r), []).append(r)
+    # 3-D Coulomb friction (two tangential rows): d = u/|u| in the jet while the contact slips
+    ctx["cones"] = [dict(t1=t[0], t2=t[1], nn=rows.nj + c, s1=rows.s[t[0]], s2=rows.s[t[1]], R1=rows.R[t[0]],
+                         R2=rows.R[t[1]]) for c, t in sorted(tangents.items()) if rows.friction and len(t) == 2]
     return ctx
 
 
