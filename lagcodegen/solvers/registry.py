@@ -41,7 +41,9 @@ def family_class(face: str, method: str | None) -> type[Family]:
         if face in cls.faces and (method is None or method in cls.methods):
             return cls
     if face == "ggl":
-        raise LagcodegenError("IDA integrates with BDF only (method='bdf')")
+        raise LagcodegenError(f"IDA integrates with BDF only (method='bdf'), not method={method!r}: a system "
+                              "compiled with formulation='ggl' runs on IDA; compile_constrained(system, 'index1') "
+                              "runs it on CVODE's methods and on Taylor")
     spellings = methods(face) + (["auto"] if face == "ode" else [])
     raise LagcodegenError(f"method must be one of {', '.join(spellings)}, got {method!r}")
 
