@@ -95,9 +95,9 @@ int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit)
 
 /* The normal accelerations a[nk] of the contacts at (t, y) under ydot (the last solve's), by a
  * forward difference of their normal velocities along the motion: (w(t + h, y + h ydot) - w) / h,
- * w = wk (at (t, y)); scratch yh[ny], wh[nk]. */
+ * w = L->wk (at (t, y), left as it is); scratch yh[ny], gh[nk], wh[nk]. */
 static int normal_accelerations(const lcg_imp_law *L, double t, const double *y, const double *ydot, double *yh,
-                                double *wh, double *a)
+                                double *gh, double *wh, double *a)
 {
     const lcg_imp_model *im = L->im;
     int k, rc, ny = im->dae->ny, nk = im->nk;
@@ -109,12 +109,12 @@ static int normal_accelerations(const lcg_imp_law *L, double t, const double *y,
     h = 1e-7 / (1.0 + scale);
     for (k = 0; k < ny; ++k)
         yh[k] = y[k] + h * ydot[k];
-    rc = im->gaps(t + h, yh, L->p, L->gk, wh);
+    rc = im->gaps(t + h, yh, L->p, gh, wh);
     if (rc != LCG_DAE_OK)
         return rc;
     for (k = 0; k < nk; ++k)
         a[k] = (wh[k] - L->wk[k]) / h;
-    return im->gaps(t, y, L->p, L->gk, L->wk);
+    return LCG_DAE_OK;
 }
 
 int lcg_imp_release_pulling(const lcg_imp_law *L, double t, double *y, double alpha, double beta, double *ydot,
@@ -124,6 +124,7 @@ int lcg_imp_release_pulling(const lcg_imp_law *L, double t, double *y, double al
     int k, rc, again = 1, nk = im->nk, nj = im->nj, ny = im->dae->ny, iter = 0, touching = 0, held = 0;
     int joint = L->set != NULL && L->scratch != NULL && L->rows != NULL;
     int *cand = joint ? L->rows : NULL;
+    /* scratch: a[nk], wh[nk], then P[nrow] (its first nk the gaps along the motion), yh[ny] */
     double *a = joint ? L->scratch : NULL, *wh = joint ? L->scratch + nk : NULL;
     double *P = joint ? L->scratch + 2 * nk : NULL, *yh = joint ? L->scratch + 2 * nk + im->nrow : NULL;
 
@@ -137,47 +138,38 @@ int lcg_imp_release_pulling(const lcg_imp_law *L, double t, double *y, double al
         }
     }
     while (again) {
+        int lcp = touching && iter < 4 * nk + 8; /* the contacts' LCP, by Murty's least-index rule */
+        double big = 0.0;
         again = 0;
         rc = im->crhs(t, y, L->p, alpha, beta, L->active, ydot, lam);
         if (rc != LCG_DAE_OK)
             return rc;
-        if (touching && iter < 4 * nk + 8) { /* the contacts' LCP by Murty's least-index rule */
-            double big = 0.0;
+        if (lcp) {
             ++iter;
-            rc = normal_accelerations(L, t, y, ydot, yh, wh, a);
+            rc = normal_accelerations(L, t, y, ydot, yh, P, wh, a);
             if (rc != LCG_DAE_OK)
                 return rc;
             for (k = im->nq; k < ny; ++k)
                 if (fabs(ydot[k]) > big)
                     big = fabs(ydot[k]);
-            for (k = 0; k < nk; ++k) {
-                if (L->active[k] && lam[nj + k] < 0.0) {
-                    L->active[k] = 0;
-                    if (cand[k] == 2) /* held in this call: not recorded as held and released */
-                        --held;
-                    else
-                        lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
-                    cand[k] = 1;
-                    again = 1;
-                    break;
-                }
-                if (cand[k] && !L->active[k] && a[k] < -1e-6 * (1.0 + big)) { /* it would sink: held */
-                    L->active[k] = 1;
-                    cand[k] = 2;
-                    ++held;
-                    again = 1;
-                    break;
-                }
-            }
-            continue;
         }
-        for (k = 0; k < nk; ++k)
-            if (L->active[k] && lam[nj + k] < 0.0) {
+        for (k = 0; k < nk && !again; ++k) {
+            if (L->active[k] && lam[nj + k] < 0.0) { /* it pulls: released */
                 L->active[k] = 0;
-                lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                if (cand != NULL && cand[k] == 2) /* held in this call: not recorded as held and released */
+                    --held;
+                else
+                    lcg_imp_record(L->rec, L->max_rec, L->n_rec, t, k, LCG_IMP_RELEASE, 0.0, 0.0, 0.0);
+                if (cand != NULL)
+                    cand[k] = 1;
                 again = 1;
-                break;
+            } else if (lcp && cand[k] && !L->active[k] && a[k] < -1e-6 * (1.0 + big)) { /* it would sink: held */
+                L->active[k] = 1;
+                cand[k] = 2;
+                ++held;
+                again = 1;
             }
+        }
     }
     if (held > 0) { /* the contacts held: their normal velocities (|w| <= contact_speed) to 0 by a
                      * plastic impulse with the persistent contacts, recorded as sticks */
