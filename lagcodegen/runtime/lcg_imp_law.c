@@ -24,7 +24,7 @@ void lcg_imp_record(double *rec, int max_rec, int *n_rec, double t, int k, int k
 int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit)
 {
     const lcg_imp_model *im = L->im;
-    int nk = im->nk, nj = im->nj, ny = im->dae->ny, k, rc, iter, changed = 0;
+    int nk = im->nk, nj = im->nj, ny = im->dae->ny, k, rc, iter, changed = 0, settled = 0;
     double *eff = L->scratch, *wm = eff + nk, *P = wm + nk, *ynew = P + im->nrow, *gk = L->gk, *wk = L->wk;
     const double *e = L->e, *set = L->set;
     double gap_tol = set[2];
@@ -67,14 +67,18 @@ int lcg_imp_jump(const lcg_imp_law *L, double t, double *y, const int *hit)
         for (k = 0; k < nk && sinks < 0; ++k)
             if (!rows[k] && gk[k] <= gap_tol && wk[k] < -set[0])
                 sinks = k;
-        if (sinks < 0)
+        if (sinks < 0) {
+            settled = 1; /* gk, wk: the gaps after the jump */
             break;
+        }
         rows[sinks] = plastic[sinks] = 1;
         eff[sinks] = 0.0;
     }
-    rc = im->gaps(t, ynew, L->p, gk, wk);
-    if (rc != LCG_DAE_OK)
-        return rc;
+    if (!settled) {
+        rc = im->gaps(t, ynew, L->p, gk, wk);
+        if (rc != LCG_DAE_OK)
+            return rc;
+    }
     for (k = 0; k < nk; ++k) {
         if (!rows[k])
             continue;
